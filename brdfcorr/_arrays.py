@@ -1,0 +1,84 @@
+"""Let pure numpy kernels take numpy, dask and xarray inputs and return the same kind.
+
+The kernels in :mod:`brdfcorr.geometry` and :mod:`brdfcorr.models` are written with numpy ufuncs
+and a few array functions (``np.clip``, ``np.where``), which dask dispatches lazily through the
+``__array_ufunc__`` / ``__array_function__`` protocols. xarray objects are unwrapped with
+:func:`xarray.apply_ufunc` (``dask="allowed"``), so dimensions are aligned by name, coordinates
+are kept and dask-backed DataArrays stay lazy.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+from collections.abc import Callable
+
+import numpy as np
+import xarray as xr
+
+# Divisors that are positive on the open angle domain [0, 90) deg but reach 0 at its edge are
+# floored with this, so that evaluating exactly at a grazing edge gives a finite number instead of
+# a division warning.
+TINY = 1e-300
+
+
+def sind(angle):
+    """Sine of an angle in degrees."""
+    return np.sin(np.radians(angle))
+
+
+def cosd(angle):
+    """Cosine of an angle in degrees."""
+    return np.cos(np.radians(angle))
+
+
+def is_lazy(value) -> bool:
+    """True for dask arrays and dask-backed xarray objects (values not to be touched)."""
+    data = getattr(value, "data", value)
+    return hasattr(data, "dask") or hasattr(value, "dask")
+
+
+def apply_labelled(kernel: Callable, arguments: dict, name: str, units: str, long_name: str):
+    """Call ``kernel(**arguments)``, unwrapping any xarray.DataArray arguments.
+
+    Without DataArrays this is a plain call. With them, :func:`xarray.apply_ufunc` broadcasts the
+    DataArrays by dimension name, passes their (numpy or dask) data to the kernel and wraps the
+    result with the given ``name`` and ``units``/``long_name`` attrs (inputs' attrs are not
+    copied: the units change). Other arguments are passed through unchanged.
+    """
+    labelled = [key for key, value in arguments.items() if isinstance(value, xr.DataArray)]
+    if not labelled:
+        return kernel(**arguments)
+
+    def call(*values):
+        return kernel(**{**arguments, **dict(zip(labelled, values))})
+
+    result = xr.apply_ufunc(
+        call, *(arguments[key] for key in labelled), dask="allowed", keep_attrs=False
+    )
+    result.name = name
+    result.attrs = {"units": units, "long_name": long_name}
+    return result
+
+
+def array_function(name: str, units: str, long_name: str) -> Callable:
+    """Decorate a numpy/dask kernel so that it also accepts xarray arguments.
+
+    Parameters
+    ----------
+    name, units, long_name :
+        Metadata set on xarray outputs; see :func:`apply_labelled`.
+    """
+
+    def decorate(kernel: Callable) -> Callable:
+        signature = inspect.signature(kernel)
+
+        @functools.wraps(kernel)
+        def wrapper(*args, **kwargs):
+            bound = signature.bind(*args, **kwargs)
+            bound.apply_defaults()
+            return apply_labelled(kernel, dict(bound.arguments), name, units, long_name)
+
+        return wrapper
+
+    return decorate

@@ -1,0 +1,23 @@
+"""The brdfcorr exception hierarchy.
+
+Every error brdfcorr raises on purpose derives from :class:`BrdfcorrError`, so a caller (the CLI,
+a batch chain) can tell "the input is wrong" from "the program is wrong". The narrow classes also
+derive from the builtin they refine (``ValueError``), so plain ``except ValueError`` keeps working.
+"""
+
+from __future__ import annotations
+
+
+class BrdfcorrError(Exception):
+    """Root of all errors raised deliberately by brdfcorr."""
+
+
+class ParameterError(BrdfcorrError, ValueError):
+    """A model parameter is unknown, missing, NaN or outside its physical range."""
+
+
+class UnknownNameError(BrdfcorrError, KeyError):
+    """A model or material name is not in the registry or the material library."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message and add quotes
+        return str(self.args[0]) if self.args else ""

@@ -1,0 +1,54 @@
+"""The model registry: every BRDF model brdfcorr knows, by name.
+
+Fitting, parameter tables, config validation, the CLI (``brdfcorr models``) and the docs all read
+their parameter names, units, defaults and bounds from here.
+"""
+
+from __future__ import annotations
+
+from brdfcorr.errors import UnknownNameError
+from brdfcorr.models._base import Model
+from brdfcorr.models.empirical import EMPIRICAL, LAMBERTIAN, SPECULAR_PEAK
+from brdfcorr.models.torrance_sparrow import TORRANCE_SPARROW, TORRANCE_SPARROW_SIMPLIFIED
+
+REGISTRY: dict[str, Model] = {
+    model.name: model
+    for model in (TORRANCE_SPARROW, TORRANCE_SPARROW_SIMPLIFIED, EMPIRICAL, LAMBERTIAN, SPECULAR_PEAK)
+}
+
+#: Models that describe a whole surface (diffuse + specular) and so may be paired with a class in
+#: a parameter table; ``specular_peak`` is a facet BRDF used by the V-cavity simulation.
+SURFACE_MODELS: tuple[str, ...] = (
+    "torrance_sparrow",
+    "torrance_sparrow_simplified",
+    "empirical",
+    "lambertian",
+)
+
+
+def get_model(name: str | Model) -> Model:
+    """The registered :class:`Model` called ``name`` (a Model is returned unchanged)."""
+    if isinstance(name, Model):
+        return name
+    try:
+        return REGISTRY[name]
+    except (KeyError, TypeError):
+        raise UnknownNameError(
+            f"unknown BRDF model {name!r}; known models: {', '.join(REGISTRY)}"
+        ) from None
+
+
+def parameter_table_rows() -> list[dict[str, str]]:
+    """One row per (model, parameter) for tables and docs: name, units, default, range, meaning."""
+    return [
+        {
+            "model": model.name,
+            "parameter": parameter.name,
+            "units": parameter.units,
+            "default": f"{parameter.default:g}",
+            "range": parameter.range_text,
+            "description": parameter.description,
+        }
+        for model in REGISTRY.values()
+        for parameter in model.parameters
+    ]

@@ -1,0 +1,60 @@
+"""Figures of BRDF models: principal-plane and azimuthal cuts, in the layout of paper 003.
+
+Every function returns a :class:`matplotlib.figure.Figure`; saving is the caller's choice.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from brdfcorr.materials import Material
+
+#: The illumination geometries of paper 003, fig. 3: (theta_i, theta_r) of each azimuthal cut [deg].
+AZIMUTH_CUTS = ((30.0, 30.0), (50.0, 50.0), (65.0, 70.0))
+#: Illumination zeniths of the principal-plane cuts [deg].
+PRINCIPAL_PLANE_ZENITHS = (30.0, 50.0, 65.0)
+
+
+def principal_plane(theta_r_signed):
+    """Split signed view zeniths into (theta_r, phi): positive is forward (phi = 180) [deg]."""
+    theta_r_signed = np.asarray(theta_r_signed, dtype=float)
+    return np.abs(theta_r_signed), np.where(theta_r_signed >= 0, 180.0, 0.0)
+
+
+def plot_materials(materials: Sequence[Material], max_zenith: float = 80.0) -> Figure:
+    """BRDF of materials in the principal plane (top row) and in azimuth (bottom row).
+
+    Top: BRDF [sr^-1] against signed view zenith (positive = forward scattering, phi = 180 deg;
+    negative = backward, phi = 0) for theta_i = 30, 50, 65 deg, as paper 003 fig. 2.
+    Bottom: BRDF against relative azimuth 90-180 deg at the geometries of paper 003 fig. 3.
+    """
+    figure = Figure(figsize=(13, 7.5), layout="constrained")
+    axes = figure.subplots(2, 3)
+    view = np.linspace(-max_zenith, max_zenith, 321)
+    theta_r, phi = principal_plane(view)
+    azimuth = np.linspace(90.0, 180.0, 181)
+    for axis, theta_i in zip(axes[0], PRINCIPAL_PLANE_ZENITHS):
+        for material in materials:
+            axis.semilogy(view, material.brdf(theta_i, theta_r, phi), label=material.label)
+        axis.axvline(theta_i, color="0.6", lw=0.8, ls=":")
+        axis.set(
+            title=f"principal plane, θi = {theta_i:g}°",
+            xlabel="view zenith θr [°] (negative: backward, φ = 0°)",
+            ylabel="BRDF [sr⁻¹]",
+        )
+    for axis, (theta_i, theta_r_cut) in zip(axes[1], AZIMUTH_CUTS):
+        for material in materials:
+            axis.semilogy(azimuth, material.brdf(theta_i, theta_r_cut, azimuth), label=material.label)
+        axis.set(
+            title=f"azimuth, θi = {theta_i:g}°, θr = {theta_r_cut:g}°",
+            xlabel="relative azimuth φ [°] (180 = forward)",
+            ylabel="BRDF [sr⁻¹]",
+        )
+    axes[0, 0].legend(fontsize="small")
+    figure.suptitle(
+        "Torrance–Sparrow model with the fits of Meister et al. (2000), Table 1 (550 nm)"
+    )
+    return figure
