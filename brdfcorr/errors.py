@@ -21,3 +21,11 @@ class UnknownNameError(BrdfcorrError, KeyError):
 
     def __str__(self) -> str:  # KeyError would repr() the message and add quotes
         return str(self.args[0]) if self.args else ""
+
+
+class InputError(BrdfcorrError, ValueError):
+    """An input file or array is missing, unreadable or malformed (the message names it)."""
+
+
+class GridMismatchError(BrdfcorrError, ValueError):
+    """Input rasters are not on the same grid; the message says which and what differs."""
