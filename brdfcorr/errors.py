@@ -29,3 +29,12 @@ class InputError(BrdfcorrError, ValueError):
 
 class GridMismatchError(BrdfcorrError, ValueError):
     """Input rasters are not on the same grid; the message says which and what differs."""
+
+
+class MeasurementError(BrdfcorrError, ValueError):
+    """A measurement table or measurement array is malformed: a missing column, a non-numeric
+    value, an angle outside its domain, a negative or NaN BRDF or uncertainty."""
+
+
+class FitError(BrdfcorrError, RuntimeError):
+    """A model fit could not be carried out (no free parameters, no start converged)."""
