@@ -31,7 +31,7 @@ class GridMismatchError(BrdfcorrError, ValueError):
     """Input rasters are not on the same grid; the message says which and what differs."""
 
 
-class MeasurementError(BrdfcorrError, ValueError):
+class MeasurementError(InputError):
     """A measurement table or measurement array is malformed: a missing column, a non-numeric
     value, an angle outside its domain, a negative or NaN BRDF or uncertainty."""
 
