@@ -1,0 +1,32 @@
+"""The foundation CLI commands: models, materials, demo."""
+
+import matplotlib.image
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+
+
+def test_models_lists_every_parameter_with_units():
+    result = CliRunner().invoke(main, ["models"])
+    assert result.exit_code == 0, result.output
+    assert "torrance_sparrow" in result.output and "deg^-1" in result.output
+    assert "empirical" in result.output and "rad^-4" in result.output
+
+
+def test_materials_table_and_unknown_material():
+    runner = CliRunner()
+    result = runner.invoke(main, ["materials", "roof_tile"])
+    assert result.exit_code == 0
+    assert "0.0362 ± 0.0004" in result.output and "4.1" in result.output
+    result = runner.invoke(main, ["materials", "asphalt"])
+    assert result.exit_code == 2
+    assert "unknown material 'asphalt'" in result.output
+    assert "Traceback" not in result.output
+
+
+def test_demo_writes_a_png(tmp_path):
+    result = CliRunner().invoke(main, ["demo", "--output-dir", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    image = matplotlib.image.imread(tmp_path / "out" / "materials_brdf.png")
+    assert image.shape[0] > 400 and image.shape[1] > 800
+    assert [p.name for p in (tmp_path / "out").iterdir()] == ["materials_brdf.png"]  # no temp left
