@@ -1,0 +1,502 @@
+"""Per-class BRDF parameter tables: the YAML format, validation, interpolation to band centres.
+
+A table pairs each land-cover class id of a class map with a registered surface model
+(:data:`brdfcorr.models.SURFACE_MODELS`) and its parameters. A parameter is a scalar (every band),
+a list with one value per image band, or, with ``wavelengths`` [nm], a list interpolated linearly to
+the image's band centres. The file format is fixed in ``DESIGN.md``::
+
+    reference: {sza: 30.0, vza: 0.0, raa: 0.0}      # optional default reference geometry
+    classes:
+      - id: 1
+        name: roof_tile
+        model: torrance_sparrow
+        params: {t0: 0.0245, t1: 0.20, w: 0.0362, n: 1.77, k: 0.25}
+      - id: 2
+        name: grass
+        model: empirical
+        wavelengths: [450, 550, 650, 850]
+        params: {a: [0.01, 0.02, 0.015, 0.05], b: 1.0, c: 0.02, t0: [0.02, 0.05, 0.03, 0.30]}
+
+Example
+-------
+>>> from brdfcorr.params import ClassEntry, ParameterTable
+>>> table = ParameterTable(classes=[
+...     ClassEntry(id=2, name="grass", model="empirical", wavelengths=[450, 850],
+...                params={"a": [0.01, 0.05], "b": 1.0, "c": 0.02, "t0": 0.03}),
+... ])
+>>> table = table.with_class(ClassEntry(id=1, name="roof_tile", model="torrance_sparrow",
+...     params={"t0": 0.0245, "t1": 0.20, "w": 0.0362, "n": 1.77, "k": 0.25}))
+>>> table.class_ids
+(1, 2)
+>>> bands = table.for_bands(wavelengths=[550, 650])
+>>> [round(float(a), 3) for a in bands[2].params["a"]]
+[0.02, 0.03]
+>>> table.to_xarray(wavelengths=[550, 650])["a"].sel({"class": 2}).values.round(3).tolist()
+[0.02, 0.03]
+
+Errors in a table raise :class:`brdfcorr.errors.ParameterError` naming the class and the parameter
+(and the file, for :meth:`ParameterTable.load`).
+"""
+
+from __future__ import annotations
+
+import contextvars
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import xarray as xr
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from brdfcorr.errors import InputError, ParameterError
+from brdfcorr.io_utils import atomic_path
+from brdfcorr.models import SURFACE_MODELS, Model, get_model
+
+__all__ = [
+    "ReferenceGeometry",
+    "ClassEntry",
+    "ParameterTable",
+    "BandParameters",
+    "merge_tables",
+]
+
+SunZenith = float | Literal["mean", "observed"]
+
+
+class ReferenceGeometry(BaseModel):
+    """The sun/view geometry a scene is normalized to.
+
+    Attributes
+    ----------
+    sza : float or "mean" or "observed"
+        Reference solar zenith [deg] in [0, 90); ``"mean"`` for the scene mean of the observed solar
+        zenith, ``"observed"`` to keep each pixel's own solar zenith (only the view is normalized).
+    vza : float
+        Reference view zenith [deg] in [0, 90); 0 (nadir) by default.
+    raa : float
+        Reference relative azimuth [deg] in [0, 180] (``DESIGN.md`` convention; 180 is forward
+        scattering). Irrelevant at nadir.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    sza: SunZenith = "observed"
+    vza: float = Field(0.0, ge=0.0, lt=90.0)
+    raa: float = Field(0.0, ge=0.0, le=180.0)
+
+    @field_validator("sza")
+    @classmethod
+    def _check_sza(cls, value):
+        if isinstance(value, float) and not 0.0 <= value < 90.0:
+            raise ValueError(f"reference sza = {value:g} deg must be in [0, 90)")
+        return value
+
+    def describe(self) -> str:
+        """One line for provenance tags and summaries, e.g. ``"sza=30 vza=0 raa=0"``."""
+        sza = self.sza if isinstance(self.sza, str) else f"{self.sza:g}"
+        return f"sza={sza} vza={self.vza:g} raa={self.raa:g}"
+
+
+ParameterValue = float | list[float]
+
+
+class ClassEntry(BaseModel):
+    """One class of a parameter table: its id in the class map, its model and parameters.
+
+    Attributes
+    ----------
+    id : int
+        Class id in the class map, >= 1 (0 means "no class").
+    name : str
+        Human-readable class name (``"roof_tile"``).
+    model : str
+        Registered surface model name (:data:`brdfcorr.models.SURFACE_MODELS`).
+    params : dict of str to float or list of float
+        Every parameter of the model, in its registry units. A list has one entry per image band or,
+        with ``wavelengths``, one entry per wavelength.
+    wavelengths : list of float, optional
+        Strictly increasing wavelengths [nm] at which list-valued parameters are given.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    id: int = Field(ge=1)
+    name: str = Field(min_length=1)
+    model: str
+    params: dict[str, ParameterValue]
+    wavelengths: list[float] | None = None
+
+    @property
+    def label(self) -> str:
+        """``"class 2 (grass)"``, the prefix of every message about this class."""
+        return f"class {self.id} ({self.name})"
+
+    @property
+    def brdf_model(self) -> Model:
+        """The registered :class:`~brdfcorr.models.Model`."""
+        return get_model(self.model)
+
+    @model_validator(mode="after")
+    def _check(self) -> ClassEntry:
+        if self.model not in SURFACE_MODELS:
+            raise ValueError(
+                f"{self.label}: unknown surface model {self.model!r}; known: {', '.join(SURFACE_MODELS)}"
+            )
+        model = get_model(self.model)
+        if self.wavelengths is not None:
+            wavelengths = np.asarray(self.wavelengths, dtype=float)
+            if wavelengths.size == 0 or not np.all(np.isfinite(wavelengths)) or np.any(wavelengths <= 0):
+                raise ValueError(f"{self.label}: wavelengths must be finite and > 0 [nm]")
+            if np.any(np.diff(wavelengths) <= 0):
+                raise ValueError(f"{self.label}: wavelengths must be strictly increasing")
+        for name, value in self.params.items():
+            if isinstance(value, list):
+                if not value:
+                    raise ValueError(f"{self.label}: parameter {name} is an empty list")
+                if self.wavelengths is not None and len(value) != len(self.wavelengths):
+                    raise ValueError(
+                        f"{self.label}: parameter {name} has {len(value)} values but "
+                        f"{len(self.wavelengths)} wavelengths"
+                    )
+        lengths = {len(v) for v in self.params.values() if isinstance(v, list)}
+        if self.wavelengths is None and len(lengths) > 1:
+            raise ValueError(
+                f"{self.label}: per-band parameter lists differ in length ({sorted(lengths)}); "
+                "give one value per band for each, or add 'wavelengths'"
+            )
+        try:
+            model.validate({k: np.asarray(v, dtype=float) for k, v in self.params.items()})
+        except ParameterError as error:
+            raise ValueError(f"{self.label}: {error}") from None
+        return self
+
+    def band_values(
+        self,
+        wavelengths: Sequence[float] | None = None,
+        n_bands: int | None = None,
+        extrapolate: bool = False,
+    ) -> dict[str, np.ndarray]:
+        """The parameters at the image's bands, one float64 array of shape (n_bands,) each.
+
+        Parameters
+        ----------
+        wavelengths : sequence of float, optional
+            Band-centre wavelengths of the image [nm]; needed when the entry has ``wavelengths``.
+        n_bands : int, optional
+            Number of image bands; defaults to ``len(wavelengths)``.
+        extrapolate : bool, default False
+            Allow band centres outside the entry's wavelength range; they take the edge value.
+
+        Raises
+        ------
+        ParameterError
+            Naming the class and parameter, when the values cannot be mapped to the bands.
+        """
+        if n_bands is None:
+            if wavelengths is None:
+                raise ParameterError(f"{self.label}: give the image's wavelengths or number of bands")
+            n_bands = len(wavelengths)
+        if wavelengths is not None and len(wavelengths) != n_bands:
+            raise ParameterError(
+                f"{len(wavelengths)} band wavelengths given for an image of {n_bands} bands"
+            )
+        values: dict[str, np.ndarray] = {}
+        for name in self.brdf_model.parameter_names:
+            value = self.params[name]
+            if not isinstance(value, list):
+                values[name] = np.full(n_bands, float(value))
+            elif self.wavelengths is not None:
+                values[name] = self._interpolate(name, np.asarray(value, float), wavelengths, extrapolate)
+            elif len(value) != n_bands:
+                raise ParameterError(
+                    f"{self.label}: parameter {name} has {len(value)} per-band values but the image "
+                    f"has {n_bands} bands"
+                )
+            else:
+                values[name] = np.asarray(value, dtype=float)
+        try:  # linear interpolation stays within the bounds, but check what the kernels will see
+            self.brdf_model.validate(values)
+        except ParameterError as error:
+            raise ParameterError(f"{self.label}: {error}") from None
+        return values
+
+    def _interpolate(self, name, value, wavelengths, extrapolate) -> np.ndarray:
+        if wavelengths is None:
+            raise ParameterError(
+                f"{self.label}: parameter {name} is given per wavelength; the image's band "
+                "wavelengths are needed (band descriptions, a 'wavelength' tag, or --wavelengths)"
+            )
+        table = np.asarray(self.wavelengths, dtype=float)
+        centres = np.asarray(wavelengths, dtype=float)
+        if not np.all(np.isfinite(centres)):
+            raise ParameterError("band wavelengths must be finite numbers [nm]")
+        outside = (centres < table[0]) | (centres > table[-1])
+        if np.any(outside) and not extrapolate:
+            raise ParameterError(
+                f"{self.label}: parameter {name}: band centre {centres[outside][0]:g} nm is outside "
+                f"the table's wavelengths [{table[0]:g}, {table[-1]:g}] nm; allow edge "
+                "extrapolation to use the edge values"
+            )
+        return np.interp(centres, table, value)  # holds the edge values outside the range
+
+
+@dataclass(frozen=True)
+class BandParameters:
+    """A class's model and its parameters resolved to an image's bands.
+
+    Attributes
+    ----------
+    id, name : int, str
+        Class id and name.
+    model : Model
+        The registered model.
+    params : dict of str to ndarray
+        One float64 array of shape (n_bands,) per model parameter, in signature order.
+    """
+
+    id: int
+    name: str
+    model: Model
+    params: dict[str, np.ndarray]
+
+
+def _describe_validation_error(error: ValidationError, data: object) -> str:
+    """One line per pydantic error, locations turned into ``class 2 (grass): params.w``."""
+    classes = data.get("classes") if isinstance(data, Mapping) else None
+    grouped: dict[tuple[str, str], list[dict]] = {}
+    for item in error.errors():
+        location = list(item["loc"])
+        where = ""
+        if len(location) >= 2 and location[0] == "classes" and isinstance(location[1], int):
+            index = location[1]
+            entry = classes[index] if isinstance(classes, list) and index < len(classes) else {}
+            if isinstance(entry, Mapping):
+                where = f"class {entry.get('id', f'#{index + 1}')} ({entry.get('name', '?')})"
+            location = location[2:]
+        # Drop the union-branch tags pydantic adds ("float", "list[float]", "literal[...]").
+        field = ".".join(
+            str(part) for part in location if not (isinstance(part, str) and (part == "float" or "[" in part))
+        )
+        grouped.setdefault((where, field), []).append(item)
+    lines = []
+    for (where, field), items in grouped.items():
+        if len(items) > 1:  # every branch of a union failed
+            message = f"invalid value {items[0]['input']!r}"
+        else:
+            message = items[0]["msg"].removeprefix("Value error, ")
+        # Messages from our own validators already name the class.
+        prefix = ": ".join(part for part in (where, field) if part and not message.startswith("class "))
+        lines.append(f"{prefix}: {message}" if prefix else message)
+    return "; ".join(dict.fromkeys(lines))
+
+
+# Name of the document being validated, for messages (set by ParameterTable.from_dict).
+_SOURCE: contextvars.ContextVar[str] = contextvars.ContextVar("source", default="parameter table")
+
+
+class ParameterTable(BaseModel):
+    """Per-class BRDF models and parameters, with an optional default reference geometry.
+
+    Construct from keywords or :meth:`from_dict`, read with :meth:`load`, write with :meth:`save`.
+    Tables are immutable: :meth:`with_class` returns a new table. Invalid content raises
+    :class:`~brdfcorr.errors.ParameterError` naming the class and the parameter.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    reference: ReferenceGeometry | None = None
+    classes: list[ClassEntry] = Field(default_factory=list)
+
+    def __init__(self, **data):
+        try:
+            super().__init__(**data)
+        except ValidationError as error:
+            raise ParameterError(f"{_SOURCE.get()}: {_describe_validation_error(error, data)}") from None
+
+    @model_validator(mode="after")
+    def _unique_ids(self) -> ParameterTable:
+        ids = [entry.id for entry in self.classes]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        if duplicates:
+            raise ValueError(f"class id(s) {', '.join(map(str, duplicates))} appear more than once")
+        return self
+
+    # ----------------------------------------------------------------------------------- access
+    @property
+    def class_ids(self) -> tuple[int, ...]:
+        """Class ids, sorted."""
+        return tuple(sorted(entry.id for entry in self.classes))
+
+    def __getitem__(self, class_id: int) -> ClassEntry:
+        for entry in self.classes:
+            if entry.id == class_id:
+                return entry
+        raise KeyError(class_id)
+
+    def __contains__(self, class_id: object) -> bool:
+        return any(entry.id == class_id for entry in self.classes)
+
+    def __len__(self) -> int:
+        return len(self.classes)
+
+    def with_class(self, entry: ClassEntry | Mapping, replace: bool = True) -> ParameterTable:
+        """A new table with ``entry`` added, or replacing the class of the same id.
+
+        Parameters
+        ----------
+        entry : ClassEntry or mapping
+            The class (a mapping is validated as a :class:`ClassEntry`).
+        replace : bool, default True
+            If False, an existing class with the same id is an error.
+        """
+        if not isinstance(entry, ClassEntry):
+            entry = ParameterTable(classes=[entry]).classes[0]
+        if not replace and entry.id in self:
+            raise ParameterError(f"class {entry.id} is already in the parameter table")
+        classes = sorted([c for c in self.classes if c.id != entry.id] + [entry], key=lambda c: c.id)
+        return self.model_copy(update={"classes": classes})
+
+    def without_class(self, class_id: int) -> ParameterTable:
+        """A new table without class ``class_id``."""
+        self[class_id]  # KeyError if absent
+        return self.model_copy(update={"classes": [c for c in self.classes if c.id != class_id]})
+
+    def with_reference(self, reference: ReferenceGeometry | Mapping | None) -> ParameterTable:
+        """A new table with another default reference geometry (None removes it)."""
+        if reference is not None and not isinstance(reference, ReferenceGeometry):
+            reference = ParameterTable(reference=reference).reference
+        return self.model_copy(update={"reference": reference})
+
+    # ----------------------------------------------------------------------------- band values
+    def for_bands(
+        self,
+        wavelengths: Sequence[float] | None = None,
+        n_bands: int | None = None,
+        extrapolate: bool = False,
+    ) -> dict[int, BandParameters]:
+        """Every class's parameters at the image's bands, by class id.
+
+        Parameters
+        ----------
+        wavelengths : sequence of float, optional
+            Band-centre wavelengths [nm]; required if any class gives values per wavelength.
+        n_bands : int, optional
+            Number of bands; defaults to ``len(wavelengths)``.
+        extrapolate : bool, default False
+            Let band centres outside a class's wavelength range take the edge value instead of
+            raising :class:`~brdfcorr.errors.ParameterError`.
+        """
+        return {
+            entry.id: BandParameters(
+                entry.id, entry.name, entry.brdf_model,
+                entry.band_values(wavelengths, n_bands, extrapolate),
+            )
+            for entry in sorted(self.classes, key=lambda c: c.id)
+        }
+
+    def to_xarray(
+        self,
+        wavelengths: Sequence[float] | None = None,
+        n_bands: int | None = None,
+        extrapolate: bool = False,
+    ) -> xr.Dataset:
+        """The table at the image's bands as a Dataset of (class, band) parameter arrays.
+
+        One variable per parameter name used by any class (NaN for classes whose model lacks it),
+        with coordinates ``class`` (id), ``name`` and ``model`` along ``class`` and ``band``
+        (1-based) with ``wavelength`` [nm] along ``band`` when given.
+        """
+        resolved = self.for_bands(wavelengths, n_bands, extrapolate)
+        if n_bands is None:
+            n_bands = len(wavelengths) if wavelengths is not None else 0
+        names = list(dict.fromkeys(n for entry in resolved.values() for n in entry.params))
+        variables = {}
+        for name in names:
+            data = np.full((len(resolved), n_bands), np.nan)
+            for row, entry in enumerate(resolved.values()):
+                if name in entry.params:
+                    data[row] = entry.params[name]
+            units = next(
+                e.model.parameter(name).units for e in resolved.values() if name in e.params
+            )
+            variables[name] = (("class", "band"), data, {"units": units})
+        coords = {
+            "class": ("class", np.array(list(resolved), dtype=np.int64)),
+            "name": ("class", [entry.name for entry in resolved.values()]),
+            "model": ("class", [entry.model.name for entry in resolved.values()]),
+            "band": ("band", np.arange(1, n_bands + 1)),
+        }
+        if wavelengths is not None:
+            coords["wavelength"] = ("band", np.asarray(wavelengths, float), {"units": "nm"})
+        return xr.Dataset(variables, coords=coords, attrs={"long_name": "BRDF parameter table"})
+
+    # ------------------------------------------------------------------------------ file format
+    @classmethod
+    def from_dict(cls, data: object, source: str = "parameter table") -> ParameterTable:
+        """Validate a parsed YAML document; errors name ``source``, the class and the parameter."""
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"{source}: expected a mapping with 'classes', got {type(data).__name__}")
+        token = _SOURCE.set(source)
+        try:
+            return cls(**{str(key): value for key, value in data.items()})
+        finally:
+            _SOURCE.reset(token)
+
+    @classmethod
+    def from_yaml_text(cls, text: str, source: str = "parameter table") -> ParameterTable:
+        """Parse YAML text (``yaml.safe_load``) and validate it."""
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as error:
+            mark = getattr(error, "problem_mark", None)
+            where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+            problem = getattr(error, "problem", None) or "parse error"
+            raise ParameterError(f"{source}: not valid YAML{where}: {problem}") from None
+        return cls.from_dict(data if data is not None else {}, source)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> ParameterTable:
+        """Read and validate a YAML parameter table; errors name the file."""
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as error:
+            raise InputError(f"cannot read parameter table {path}: {error.strerror}") from None
+        return cls.from_yaml_text(text, source=str(path))
+
+    def to_dict(self) -> dict:
+        """The table as plain Python data in the file format (unset optional keys left out)."""
+        document: dict = {}
+        if self.reference is not None:
+            document["reference"] = self.reference.model_dump()
+        document["classes"] = [
+            entry.model_dump(exclude_none=True) for entry in sorted(self.classes, key=lambda c: c.id)
+        ]
+        return document
+
+    def to_yaml_text(self) -> str:
+        """The table as YAML text (block style, keys in format order)."""
+        return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=None)
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the table as YAML, atomically (temporary name renamed when complete)."""
+        path = Path(path)
+        with atomic_path(path) as temporary:
+            temporary.write_text(self.to_yaml_text())
+        return path
+
+
+def merge_tables(tables: Iterable[ParameterTable]) -> ParameterTable:
+    """Combine tables; later tables replace classes of the same id, the last reference wins."""
+    merged = ParameterTable()
+    for table in tables:
+        for entry in table.classes:
+            merged = merged.with_class(entry)
+        if table.reference is not None:
+            merged = merged.with_reference(table.reference)
+    return merged
+
