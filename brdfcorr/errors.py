@@ -36,5 +36,10 @@ class MeasurementError(InputError):
     value, an angle outside its domain, a negative or NaN BRDF or uncertainty."""
 
 
+class SensorInputError(InputError):
+    """A sensor product (ENVI obs file, MTD_TL.xml, angle band) lacks an item brdfcorr needs or is
+    malformed; the message names the file and the band or element at fault."""
+
+
 class FitError(BrdfcorrError, RuntimeError):
     """A model fit could not be carried out (no free parameters, no start converged)."""
