@@ -1,0 +1,470 @@
+"""Goniometer measurement tables: read, validate, filter, write and synthesize them.
+
+A measurement table is a CSV file with one BRDF measurement per row and a header naming the
+columns (any order, case-insensitive, a unit suffix such as ``theta_i [deg]`` is ignored, extra
+columns are ignored, ``#`` lines are comments)::
+
+    theta_i,theta_r,phi,brdf,sigma
+    30,0,180,0.0262,0.0010
+    30,5,180,0.0266,0.0011
+
+=========  =====================================================  ==============================
+column     meaning                                                domain
+=========  =====================================================  ==============================
+theta_i    illumination (lamp/sun) zenith angle [deg]             [0, 90)
+theta_r    view (sensor) zenith angle [deg]                       [0, 90)
+phi        relative azimuth [deg], 180 = forward scattering       [0, 180]
+brdf       measured BRDF [sr^-1]                                  finite, >= 0
+sigma      optional 1-sigma error of ``brdf`` [sr^-1]             finite, > 0
+=========  =====================================================  ==============================
+
+The angle conventions are those of ``DESIGN.md`` (:mod:`brdfcorr.geometry`). Every check reports
+all offending rows of a column at once, by their line number in the file, in a single
+:class:`~brdfcorr.errors.MeasurementError`.
+
+References
+----------
+.. [1] G. Meister, A. Rothkirch, H. Spitzer, J. Bienlein (2000): The shape of the specular peak of
+   rough surfaces. Int. Arch. ISPRS XXXIII (``seeds/003``): 122-145 EGO goniometer measurements a
+   sample at theta_i = 30, 50, 65 deg, principal plane and azimuthal cuts, relative azimuth >= 90
+   deg fitted, total errors 4-15 %.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from brdfcorr.errors import MeasurementError
+from brdfcorr.geometry import ScatteringGeometry
+from brdfcorr.io_utils import atomic_path
+
+__all__ = [
+    "REQUIRED_COLUMNS",
+    "Measurements",
+    "check_measurements",
+    "read_measurements",
+    "write_measurements",
+    "filter_measurements",
+    "goniometer_angles",
+    "synthesize_measurements",
+]
+
+REQUIRED_COLUMNS = ("theta_i", "theta_r", "phi", "brdf")
+OPTIONAL_COLUMNS = ("sigma",)
+
+#: How many offending rows an error message lists before it says "and N more".
+_MAX_LISTED = 5
+
+# A header cell "theta_i [deg]" or "brdf (1/sr)" names the column theta_i / brdf.
+_UNIT_SUFFIX = re.compile(r"\s*[\[(].*[\])]\s*$")
+
+
+@dataclass(frozen=True, eq=False)
+class Measurements:
+    """A validated set of BRDF measurements (1-D float arrays of equal length).
+
+    Build it with :func:`read_measurements`, :func:`synthesize_measurements` or directly from
+    arrays; the constructor validates (see :func:`check_measurements`).
+
+    Attributes
+    ----------
+    theta_i, theta_r : numpy.ndarray
+        Illumination and view zenith angles [deg], in [0, 90).
+    phi : numpy.ndarray
+        Relative azimuth [deg], in [0, 180]; 180 is forward scattering.
+    brdf : numpy.ndarray
+        Measured BRDF [sr^-1], >= 0.
+    sigma : numpy.ndarray or None
+        1-sigma measurement errors of ``brdf`` [sr^-1], > 0; None when the table has none.
+    rows : numpy.ndarray of int or None
+        Line numbers of the measurements in their file (the header is line 1), for messages;
+        None for measurements that do not come from a file.
+    source : str
+        The file the measurements come from, or a description.
+    filters : tuple of str
+        The selections applied so far (``"phi >= 90"``), for reports.
+    """
+
+    theta_i: np.ndarray
+    theta_r: np.ndarray
+    phi: np.ndarray
+    brdf: np.ndarray
+    sigma: np.ndarray | None = None
+    rows: np.ndarray | None = None
+    source: str = "measurements"
+    filters: tuple[str, ...] = field(default=())
+
+    def __post_init__(self):
+        labels = None if self.rows is None else [f"line {row}" for row in self.rows]
+        checked = check_measurements(
+            self.theta_i, self.theta_r, self.phi, self.brdf, self.sigma,
+            source=self.source, labels=labels,
+        )
+        for name, values in zip(("theta_i", "theta_r", "phi", "brdf", "sigma"), checked):
+            object.__setattr__(self, name, values)
+        if self.rows is not None:
+            object.__setattr__(self, "rows", np.asarray(self.rows, dtype=int))
+
+    def __len__(self) -> int:
+        return self.brdf.size
+
+    @property
+    def geometry(self) -> ScatteringGeometry:
+        """The :class:`~brdfcorr.geometry.ScatteringGeometry` of all measurements."""
+        return ScatteringGeometry(self.theta_i, self.theta_r, self.phi)
+
+    def select(self, mask, description: str | None = None) -> Measurements:
+        """The measurements where the boolean ``mask`` is True (a new object)."""
+        mask = np.asarray(mask, dtype=bool)
+        return Measurements(
+            theta_i=self.theta_i[mask],
+            theta_r=self.theta_r[mask],
+            phi=self.phi[mask],
+            brdf=self.brdf[mask],
+            sigma=None if self.sigma is None else self.sigma[mask],
+            rows=None if self.rows is None else self.rows[mask],
+            source=self.source,
+            filters=self.filters + ((description,) if description else ()),
+        )
+
+
+def _list_rows(labels: Sequence[str], where: np.ndarray) -> str:
+    listed = [labels[index] for index in np.flatnonzero(where)[:_MAX_LISTED]]
+    more = int(np.count_nonzero(where)) - len(listed)
+    text = ", ".join(listed)
+    return f"{text} and {more} more" if more > 0 else text
+
+
+def check_measurements(
+    theta_i, theta_r, phi, brdf, sigma=None, *, source: str = "measurements", labels=None
+):
+    """Validate measurement arrays; return them as equal-length 1-D float arrays.
+
+    Parameters
+    ----------
+    theta_i, theta_r : array-like
+        Illumination and view zenith angles [deg]; must be finite and in [0, 90).
+    phi : array-like
+        Relative azimuth [deg]; must be finite and in [0, 180] (fold first with
+        :func:`brdfcorr.geometry.relative_azimuth`).
+    brdf : array-like
+        Measured BRDF [sr^-1]; must be finite and >= 0.
+    sigma : array-like or None
+        1-sigma errors of ``brdf`` [sr^-1]; must be finite and > 0.
+    source : str
+        Name of the data set, the first word of any message (a file name).
+    labels : sequence of str, optional
+        How to name each row in messages (``"line 7"``); default ``"index 0"``, ...
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(theta_i, theta_r, phi, brdf, sigma)`` broadcast to one 1-D shape (sigma may be None).
+
+    Raises
+    ------
+    brdfcorr.errors.MeasurementError
+        One message listing, per column, the offending rows and why.
+    """
+    arrays = {"theta_i": theta_i, "theta_r": theta_r, "phi": phi, "brdf": brdf}
+    if sigma is not None:
+        arrays["sigma"] = sigma
+    try:
+        converted = {name: np.asarray(value, dtype=float) for name, value in arrays.items()}
+    except (TypeError, ValueError):
+        bad = next(
+            name for name, value in arrays.items() if not _is_numeric(value)
+        )
+        raise MeasurementError(f"{source}: column {bad} holds non-numeric values") from None
+    try:
+        broadcast = np.broadcast_arrays(*converted.values())
+    except ValueError:
+        shapes = ", ".join(f"{name} {value.shape}" for name, value in converted.items())
+        raise MeasurementError(f"{source}: arrays of different shapes: {shapes}") from None
+    values = {name: np.ravel(array).copy() for name, array in zip(converted, broadcast)}
+    size = values["brdf"].size
+    if size == 0:
+        raise MeasurementError(f"{source}: no measurements")
+    if labels is None:
+        labels = [f"index {index}" for index in range(size)]
+
+    problems = []
+    for name, array in values.items():
+        finite = np.isfinite(array)
+        if not finite.all():
+            problems.append(f"{name} is NaN or infinite at {_list_rows(labels, ~finite)}")
+        with np.errstate(invalid="ignore"):
+            if name in ("theta_i", "theta_r"):
+                invalid, rule = (array < 0) | (array >= 90), "outside [0, 90) deg"
+            elif name == "phi":
+                invalid, rule = (array < 0) | (array > 180), "outside [0, 180] deg"
+            elif name == "brdf":
+                invalid, rule = array < 0, "negative"
+            else:
+                invalid, rule = array <= 0, "not positive"
+        invalid &= finite
+        if invalid.any():
+            problems.append(f"{name} {rule} at {_list_rows(labels, invalid)}")
+    if problems:
+        raise MeasurementError(f"{source}: " + "; ".join(problems))
+    return tuple(values.get(name) for name in ("theta_i", "theta_r", "phi", "brdf", "sigma"))
+
+
+def _is_numeric(value) -> bool:
+    try:
+        np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _column_name(header_cell: str) -> str:
+    return _UNIT_SUFFIX.sub("", header_cell.strip()).strip().lower()
+
+
+def read_measurements(path: str | os.PathLike) -> Measurements:
+    """Read and validate a measurement CSV table (columns ``theta_i, theta_r, phi, brdf[, sigma]``).
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file. Comma-separated, a header line first; blank lines and lines starting with
+        ``#`` are skipped. Angles in degrees, BRDF and sigma in sr^-1. The file is only read.
+
+    Returns
+    -------
+    Measurements
+        With ``rows`` holding each measurement's line number in the file.
+
+    Raises
+    ------
+    brdfcorr.errors.MeasurementError
+        For an unreadable file, a missing or duplicated column, rows with a wrong number of
+        fields, non-numeric or empty cells, angles outside their domain, a negative or NaN BRDF or a
+        non-positive sigma. The message names the file, the column and the lines.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")  # utf-8-sig drops a spreadsheet's BOM
+    except FileNotFoundError:
+        raise MeasurementError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise MeasurementError(f"{path}: is a directory, not a CSV file") from None
+    except UnicodeDecodeError:
+        raise MeasurementError(f"{path}: not a UTF-8 text (CSV) file") from None
+    except OSError as error:
+        raise MeasurementError(f"{path}: cannot read: {error.strerror}") from None
+
+    numbered = [
+        (number, line)
+        for number, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not numbered:
+        raise MeasurementError(f"{path}: empty file; expected a header {','.join(REQUIRED_COLUMNS)}")
+    records = list(csv.reader(line for _, line in numbered))
+    header = [_column_name(cell) for cell in records[0]]
+    duplicated = sorted({name for name in header if name and header.count(name) > 1})
+    if duplicated:
+        raise MeasurementError(f"{path}: duplicated column(s) {', '.join(duplicated)}")
+    missing = [name for name in REQUIRED_COLUMNS if name not in header]
+    if missing:
+        raise MeasurementError(
+            f"{path}: missing column(s) {', '.join(missing)} (line {numbered[0][0]} has "
+            f"{', '.join(header) or 'no names'}; required: {', '.join(REQUIRED_COLUMNS)}"
+            f"[, {', '.join(OPTIONAL_COLUMNS)}])"
+        )
+    body, numbers = records[1:], [number for number, _ in numbered[1:]]
+    if not body:
+        raise MeasurementError(f"{path}: no measurements after the header")
+    labels = [f"line {number}" for number in numbers]
+    ragged = np.array([len(record) != len(header) for record in body])
+    if ragged.any():
+        raise MeasurementError(
+            f"{path}: expected {len(header)} fields, as in the header, at {_list_rows(labels, ragged)}"
+        )
+
+    wanted = [name for name in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if name in header]
+    columns, problems = {}, []
+    for name in wanted:
+        cells = [record[header.index(name)].strip() for record in body]
+        values = np.empty(len(cells))
+        unparsable = np.zeros(len(cells), dtype=bool)
+        for index, cell in enumerate(cells):
+            try:
+                values[index] = float(cell)
+            except ValueError:
+                unparsable[index] = True
+        if unparsable.any():
+            first = cells[int(np.flatnonzero(unparsable)[0])]
+            problems.append(
+                f"column {name} is not a number at {_list_rows(labels, unparsable)} "
+                f"(e.g. {first!r})"
+            )
+        columns[name] = values
+    if problems:
+        raise MeasurementError(f"{path}: " + "; ".join(problems))
+    return Measurements(**columns, rows=np.array(numbers), source=str(path))
+
+
+def write_measurements(path: str | os.PathLike, measurements: Measurements) -> Path:
+    """Write measurements as a CSV table that :func:`read_measurements` reads back.
+
+    Values are written with 10 significant digits. The file appears complete or not at all
+    (written to a temporary name, renamed when complete). Returns the path.
+    """
+    path = Path(path)
+    names = list(REQUIRED_COLUMNS) + (["sigma"] if measurements.sigma is not None else [])
+    columns = [getattr(measurements, name) for name in names]
+    with atomic_path(path) as temporary:
+        with open(temporary, "w", newline="", encoding="utf-8") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(names)
+            writer.writerows([f"{value:.10g}" for value in row] for row in zip(*columns))
+    return path
+
+
+def filter_measurements(
+    measurements: Measurements,
+    *,
+    min_phi: float | None = None,
+    max_phi: float | None = None,
+    max_zenith: float | None = None,
+) -> Measurements:
+    """Select measurements by geometry, e.g. only ``phi >= 90`` as paper 003 fitted [1]_.
+
+    Parameters
+    ----------
+    measurements : Measurements
+    min_phi, max_phi : float, optional
+        Keep only relative azimuths in ``[min_phi, max_phi]`` [deg].
+    max_zenith : float, optional
+        Keep only measurements with both theta_i and theta_r <= ``max_zenith`` [deg] (paper 003,
+        section 5: the simplified model is safe up to 70 deg).
+
+    Returns
+    -------
+    Measurements
+        The selected rows; ``filters`` records the selection.
+
+    Raises
+    ------
+    brdfcorr.errors.MeasurementError
+        If no measurement is left.
+    """
+    keep = np.ones(len(measurements), dtype=bool)
+    applied = []
+    if min_phi is not None:
+        keep &= measurements.phi >= min_phi
+        applied.append(f"phi >= {min_phi:g}")
+    if max_phi is not None:
+        keep &= measurements.phi <= max_phi
+        applied.append(f"phi <= {max_phi:g}")
+    if max_zenith is not None:
+        keep &= (measurements.theta_i <= max_zenith) & (measurements.theta_r <= max_zenith)
+        applied.append(f"theta_i, theta_r <= {max_zenith:g}")
+    if not applied:
+        return measurements
+    description = " and ".join(applied)
+    if not keep.any():
+        raise MeasurementError(
+            f"{measurements.source}: no measurement has {description} "
+            f"(of {len(measurements)} measurements)"
+        )
+    return measurements.select(keep, description)
+
+
+def goniometer_angles(
+    theta_i: Sequence[float] = (30.0, 50.0, 65.0),
+    *,
+    max_view: float = 75.0,
+    view_step: float = 5.0,
+    azimuth_cuts: Sequence[tuple[float, float]] = ((30.0, 30.0), (50.0, 50.0), (65.0, 70.0), (65.0, 50.0)),
+    azimuth_step: float = 5.0,
+):
+    """Goniometer-like measurement angles: principal plane and azimuthal cuts, as at the EGO.
+
+    Parameters
+    ----------
+    theta_i : sequence of float
+        Lamp zenith angles of the principal-plane scans [deg] (paper 003: 30, 50, 65).
+    max_view, view_step : float
+        The principal-plane scans run over view zeniths 0, step, ..., ``max_view`` [deg] on the
+        forward side (phi = 180) and the backward side (phi = 0).
+    azimuth_cuts : sequence of (theta_i, theta_r)
+        Fixed zenith pairs [deg] scanned in azimuth (paper 003, fig. 3: (30, 30), (50, 50), (65, 70)).
+    azimuth_step : float
+        The azimuth scans run over phi = 0, step, ..., 180 - step [deg] (180 is in the principal
+        plane scan already).
+
+    Returns
+    -------
+    theta_i, theta_r, phi : numpy.ndarray
+        1-D arrays [deg]. With the defaults: 237 geometries, 120 of them with phi >= 90 (paper 003
+        fitted 122-145 such measurements a sample).
+    """
+    view = np.arange(0.0, max_view + 0.5 * view_step, view_step)
+    rows = []
+    for zenith in theta_i:
+        rows += [(zenith, view_zenith, 180.0) for view_zenith in view]
+        rows += [(zenith, view_zenith, 0.0) for view_zenith in view if view_zenith > 0]
+    azimuths = np.arange(0.0, 180.0 - 0.5 * azimuth_step, azimuth_step)
+    for zenith, view_zenith in azimuth_cuts:
+        rows += [(zenith, view_zenith, azimuth) for azimuth in azimuths]
+    angles = np.array(rows, dtype=float)
+    return angles[:, 0], angles[:, 1], angles[:, 2]
+
+
+def synthesize_measurements(
+    model,
+    params: dict[str, float],
+    theta_i,
+    theta_r,
+    phi,
+    *,
+    relative_noise: float = 0.04,
+    seed: int | None = 0,
+    source: str = "synthetic",
+) -> Measurements:
+    """Simulated goniometer measurements of a model with Gaussian relative noise.
+
+    Parameters
+    ----------
+    model : str or brdfcorr.models.Model
+        A registered model name or model.
+    params : dict of str to float
+        Its parameters (e.g. ``load_material("roof_tile").params``).
+    theta_i, theta_r, phi : array-like
+        Measurement geometry [deg], e.g. from :func:`goniometer_angles`.
+    relative_noise : float
+        1-sigma relative error of each measurement [-]; paper 003 reports total errors of 4-15 %.
+        0 gives exact model values (with sigma = 0 not allowed, sigma is then None).
+    seed : int or None
+        Seed of :func:`numpy.random.default_rng`; fixed by default so results repeat.
+    source : str
+        Description stored in the result.
+
+    Returns
+    -------
+    Measurements
+        ``brdf = f (1 + relative_noise * N(0, 1))`` with ``f`` the model BRDF [sr^-1], negative draws
+        clipped to 0, and ``sigma = relative_noise * f`` (the true error, so that a weighted fit
+        is unbiased).
+    """
+    from brdfcorr.models import get_model
+
+    model = get_model(model)
+    truth = np.asarray(model(theta_i, theta_r, phi, **params), dtype=float)
+    if relative_noise < 0:
+        raise MeasurementError(f"{source}: relative_noise must be >= 0, got {relative_noise:g}")
+    rng = np.random.default_rng(seed)
+    brdf = np.clip(truth * (1.0 + relative_noise * rng.standard_normal(truth.shape)), 0.0, None)
+    sigma = relative_noise * truth if relative_noise > 0 else None
+    return Measurements(theta_i, theta_r, phi, brdf, sigma, source=source)
