@@ -1,0 +1,265 @@
+"""Imaging-spectrometer lines in ENVI format: AVIRIS-NG, AVIRIS-3 and others laid out like them.
+
+An imaging-spectrometer line comes as an image (radiance or reflectance cube, ENVI BSQ/BIL/BIP with
+band-centre wavelengths and FWHM in the header) and an observation file (``obs`` for the raw line
+geometry, ``obs_ort``/``obs_ortdem`` for the orthorectified line) whose bands hold, per pixel, the
+path length, the to-sensor azimuth and zenith, the to-sun azimuth and zenith, the phase angle, and
+more. Both are read lazily through GDAL (rioxarray); obs bands are found by their header
+``band names``, never by position.
+
+Conventions of the obs file (JPL AVIRIS-NG / AVIRIS-3 processing, also EMIT): "To-sensor azimuth
+(0 to 360 degrees cw from N)" is the azimuth of the direction *from the pixel towards the sensor*
+and "To-sun azimuth" that of the direction from the pixel towards the sun, exactly the brdfcorr
+convention (``DESIGN.md``). The band ``Solar phase`` (the angle between the two directions) confirms
+it on the real lines in ``shared/realdata``: with the azimuths taken as stored, the angle between
+the to-sun and to-sensor unit vectors equals the phase band to 1e-3 deg; flipped by 180 deg it is
+off by up to 19 deg. ``view_azimuth="from_sensor"`` flips explicitly for a product that differs.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import rasterio
+import rioxarray
+import xarray as xr
+
+from brdfcorr.errors import SensorInputError
+from brdfcorr.sensors.grids import wrap_azimuth
+
+__all__ = [
+    "OBS_BAND_NAMES",
+    "acquisition_time",
+    "envi_wavelengths",
+    "read_envi_image",
+    "read_envi_obs",
+]
+
+#: Normalized band-name prefixes of the four angles in an obs file (see :func:`_normalize`).
+OBS_BAND_NAMES = {
+    "sza": "to sun zenith",
+    "saa": "to sun azimuth",
+    "vza": "to sensor zenith",
+    "vaa": "to sensor azimuth",
+}
+
+ANGLE_LONG_NAMES = {
+    "sza": "solar zenith angle",
+    "saa": "solar azimuth angle (pixel to sun, clockwise from north)",
+    "vza": "view zenith angle",
+    "vaa": "view azimuth angle (pixel to sensor, clockwise from north)",
+}
+
+_UNIT_TO_NM = {"nanometers": 1.0, "nanometer": 1.0, "nm": 1.0, "micrometers": 1e3,
+               "micrometer": 1e3, "microns": 1e3, "micron": 1e3, "um": 1e3, "µm": 1e3}
+
+# Line names: AVIRIS-NG "ang20160910t185702...", AVIRIS-3 "AV320231008t160218..." (UTC start time).
+_LINE_TIME = re.compile(r"(?:ang|av3)(\d{8})t(\d{6})", re.IGNORECASE)
+
+
+def _normalize(name: str) -> str:
+    """Lower-case band name before any parenthesis, with '-', '_' and runs of blanks as one blank."""
+    return " ".join(re.split(r"[\s_\-]+", name.split("(")[0].strip().lower())).strip()
+
+
+def _header_list(value: str | None) -> list[str]:
+    """Items of an ENVI header list ``{a, b, c}`` as GDAL returns it (braces optional)."""
+    if value is None:
+        return []
+    return [item.strip() for item in value.strip().strip("{}").split(",") if item.strip()]
+
+
+def _envi_tags(path: Path) -> tuple[dict, tuple]:
+    try:
+        with rasterio.open(path) as source:
+            if source.driver != "ENVI":
+                raise SensorInputError(f"{path}: not an ENVI file (GDAL driver {source.driver})")
+            return source.tags(ns="ENVI"), source.descriptions
+    except rasterio.errors.RasterioIOError as error:
+        raise SensorInputError(f"{path}: cannot open as ENVI image ({error})") from error
+
+
+def acquisition_time(path: str | Path) -> pd.Timestamp:
+    """UTC start time of an AVIRIS-NG (``angYYYYMMDDtHHMMSS``) or AVIRIS-3 (``AV3...``) line.
+
+    The obs files' to-sun angles of both real lines in ``shared/realdata`` are the sun position at
+    this time (checked with pvlib to 0.01 deg), so it is the time to use for solar angles too.
+    """
+    match = _LINE_TIME.search(Path(path).name)
+    if match is None:
+        raise SensorInputError(
+            f"{path}: no AVIRIS-NG/AVIRIS-3 line time (angYYYYMMDDtHHMMSS) in the file name"
+        )
+    return pd.Timestamp(f"{match[1]}T{match[2]}", tz="UTC")
+
+
+def envi_wavelengths(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """Band-centre wavelengths and FWHM [nm] from an ENVI header.
+
+    Wavelengths come from the ``wavelength`` item (in ``wavelength units``), else from band names
+    that hold a number and a unit (``"376.44 Nanometers"``, as in some AVIRIS-NG radiance
+    headers). Without a unit, values below 100 are taken as micrometres (no imaging spectrometer
+    has a band centre below 100 nm) and others as nanometres. FWHM is None when absent.
+
+    Raises
+    ------
+    SensorInputError
+        No wavelengths, or a count that differs from the number of bands.
+    """
+    path = Path(path)
+    tags, descriptions = _envi_tags(path)
+    bands = int(tags.get("bands", len(descriptions)))
+    unit = tags.get("wavelength_units", "").strip().lower()
+    values = _header_list(tags.get("wavelength"))
+    if not values:
+        parsed = [re.fullmatch(r"\s*([0-9.eE+-]+)\s*([A-Za-zµ]*)\s*", name or "") for name in descriptions]
+        if not all(parsed):
+            raise SensorInputError(
+                f"{path}: the header has no 'wavelength' item and the band names hold no wavelengths"
+            )
+        values = [match[1] for match in parsed]
+        unit = unit or parsed[0][2].lower()
+    try:
+        wavelength = np.array(values, dtype="float64")
+        fwhm = np.array(_header_list(tags.get("fwhm")), dtype="float64")
+    except ValueError as error:
+        raise SensorInputError(f"{path}: non-numeric wavelength or fwhm in the header ({error})") from error
+    if wavelength.size != bands:
+        raise SensorInputError(f"{path}: {wavelength.size} wavelengths in the header for {bands} bands")
+    if fwhm.size not in (0, bands):
+        raise SensorInputError(f"{path}: {fwhm.size} fwhm values in the header for {bands} bands")
+    if unit:
+        if unit not in _UNIT_TO_NM:
+            raise SensorInputError(f"{path}: unknown wavelength units {unit!r}")
+        scale = _UNIT_TO_NM[unit]
+    else:
+        scale = 1e3 if np.nanmax(wavelength) < 100.0 else 1.0
+    return wavelength * scale, (fwhm * scale if fwhm.size else None)
+
+
+def read_envi_image(path: str | Path, chunks=None) -> xr.DataArray:
+    """Open an ENVI radiance or reflectance cube lazily with its wavelengths.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ENVI data file (its ``.hdr`` beside it).
+    chunks : dict, int, True or None
+        Dask chunks passed to :func:`rioxarray.open_rasterio`; default: whole spectrum per chunk,
+        512 x 512 pixels.
+
+    Returns
+    -------
+    xarray.DataArray
+        (band, y, x), dask-backed, nodata (``data ignore value``) as NaN, with coords
+        ``wavelength`` [nm] and, when the header has it, ``fwhm`` [nm] along ``band``; CRS and
+        transform when the header has a map info.
+    """
+    path = Path(path)
+    wavelength, fwhm = envi_wavelengths(path)
+    image = rioxarray.open_rasterio(
+        path, chunks=chunks or {"band": -1, "y": 512, "x": 512}, masked=True
+    )
+    image = image.drop_vars([name for name in ("wavelength", "fwhm") if name in image.coords])
+    image = image.assign_coords(
+        wavelength=("band", wavelength, {"units": "nm", "long_name": "band-centre wavelength"})
+    )
+    if fwhm is not None:
+        image = image.assign_coords(
+            fwhm=("band", fwhm, {"units": "nm", "long_name": "full width at half maximum"})
+        )
+    image.attrs = {"long_name": image.attrs.get("description", path.name), "source": str(path)}
+    image.name = path.name
+    return image
+
+
+def _obs_band_index(path: Path, names: tuple, wanted: str, label: str) -> int:
+    matches = [index for index, name in enumerate(names) if _normalize(name or "").startswith(wanted)]
+    if len(matches) == 1:
+        return matches[0]
+    listed = ", ".join(repr(name) for name in names)
+    if not matches:
+        raise SensorInputError(
+            f"{path}: no obs band for {label} (a band name starting with {wanted!r}); "
+            f"band names are: {listed}"
+        )
+    raise SensorInputError(f"{path}: several obs bands match {label} ({wanted!r}): {listed}")
+
+
+def read_envi_obs(path: str | Path, like: xr.DataArray | None = None, *,
+                  view_azimuth: str = "to_sensor", band_names: Mapping[str, str] | None = None,
+                  chunks=None) -> xr.Dataset:
+    """Per-pixel sun and view angles from an ENVI observation (``obs``/``obs_ort``) file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The obs file (ENVI, header ``band names`` required).
+    like : xarray.DataArray, optional
+        The image the angles are for; its (y, x) grid must be the obs grid (same size and, when
+        both are georeferenced, the same transform), else :class:`SensorInputError`. The output
+        then takes its ``y``/``x`` coordinates.
+    view_azimuth : {"to_sensor", "from_sensor"}
+        What the to-sensor azimuth band holds. AVIRIS-NG/AVIRIS-3/EMIT: "to_sensor" (the
+        default, checked against the phase band, see the module notes). "from_sensor" flips by
+        180 deg.
+    band_names : mapping, optional
+        Band-name prefixes overriding :data:`OBS_BAND_NAMES` for ``sza``, ``saa``, ``vza``,
+        ``vaa``, for products that name them differently (matched case-insensitively, '-'/'_'
+        as blanks, text in parentheses ignored).
+    chunks :
+        Dask chunks for :func:`rioxarray.open_rasterio` (default 512 x 512 pixels).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on (y, x), dask-backed, nodata as NaN; azimuths
+        in [0, 360) towards the sun and the sensor (``DESIGN.md``).
+    """
+    path = Path(path)
+    if view_azimuth not in ("to_sensor", "from_sensor"):
+        raise SensorInputError(f"view_azimuth must be 'to_sensor' or 'from_sensor', got {view_azimuth!r}")
+    names = {**OBS_BAND_NAMES, **{key: _normalize(value) for key, value in (band_names or {}).items()}}
+    unknown = set(names) - set(OBS_BAND_NAMES)
+    if unknown:
+        raise SensorInputError(f"band_names: unknown angle(s) {sorted(unknown)}; use sza, saa, vza, vaa")
+    _, descriptions = _envi_tags(path)
+    indices = {key: _obs_band_index(path, descriptions, wanted, key) for key, wanted in names.items()}
+    obs = rioxarray.open_rasterio(path, chunks=chunks or {"band": 1, "y": 512, "x": 512}, masked=True)
+    if like is not None:
+        _check_same_grid(path, obs, like)
+    variables = {}
+    for key, index in indices.items():
+        angle = obs.isel(band=index, drop=True)
+        if key == "vaa" and view_azimuth == "from_sensor":
+            angle = angle + 180.0
+        if key in ("saa", "vaa"):
+            angle = wrap_azimuth(angle)
+        angle.attrs = {"units": "degree", "long_name": ANGLE_LONG_NAMES[key],
+                       "source_band": descriptions[index]}
+        variables[key] = angle.rename(key)
+    angles = xr.Dataset(variables)
+    if like is not None:
+        angles = angles.assign_coords(y=like["y"].values, x=like["x"].values)
+    angles.attrs = {"source": str(path), "source_kind": "envi_obs", "view_azimuth_stored": view_azimuth}
+    return angles
+
+
+def _check_same_grid(path: Path, obs: xr.DataArray, like: xr.DataArray) -> None:
+    obs_shape = (obs.sizes["y"], obs.sizes["x"])
+    like_shape = (like.sizes["y"], like.sizes["x"])
+    if obs_shape != like_shape:
+        raise SensorInputError(
+            f"{path}: obs grid {obs_shape[0]} x {obs_shape[1]} differs from the image grid "
+            f"{like_shape[0]} x {like_shape[1]} (rows x columns)"
+        )
+    if obs.rio.crs is not None and like.rio.crs is not None:
+        if not np.allclose(obs.rio.transform(), like.rio.transform(), rtol=0, atol=1e-6):
+            raise SensorInputError(
+                f"{path}: obs transform {tuple(obs.rio.transform())[:6]} differs from the image "
+                f"transform {tuple(like.rio.transform())[:6]}"
+            )
