@@ -90,10 +90,11 @@ def test_g_paper_003_section_5_principal_plane_statements():
     # (theta_r = 0): both are exactly at the edge where G reaches 1.
     assert geometric_attenuation(60.0, 80.0, 180.0) == pytest.approx(1.0, abs=1e-12)
     assert geometric_attenuation(60.0, 0.0, 180.0) == pytest.approx(1.0, abs=1e-12)
-    # Forward principal plane, both zeniths <= 60 deg: no masking or shadowing at all.
+    # Forward principal plane, both zeniths <= 60 deg: no masking or shadowing at all (60 deg is
+    # the edge, where 2 cos 60 = 1 holds up to rounding).
     theta = np.arange(0, 60.01, 0.5)
     ti, tr = np.meshgrid(theta, theta)
-    assert np.all(geometric_attenuation(ti, tr, 180.0) == 1.0)
+    np.testing.assert_allclose(geometric_attenuation(ti, tr, 180.0), 1.0, rtol=0, atol=1e-12)
 
 
 def _v_groove_unblocked_fraction(alpha, direction, samples=40001):
