@@ -95,3 +95,110 @@ def demo_command(output_dir: Path):
     with atomic_path(target) as temporary:
         figure.savefig(temporary, dpi=110, format="png")
     click.echo(f"wrote {target}")
+
+
+def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> dict:
+    """Parse ``NAME=VALUE`` (or ``NAME=LOW:HIGH`` with ``ranges``) command-line items."""
+    from brdfcorr.errors import ParameterError
+
+    parsed = {}
+    for item in items:
+        name, _, text = item.partition("=")
+        try:
+            value = tuple(float(part) for part in text.split(":")) if ranges else float(text)
+            if ranges and len(value) != 2:
+                raise ValueError
+        except ValueError:
+            form = "NAME=LOW:HIGH" if ranges else "NAME=VALUE"
+            raise ParameterError(f"{option} {item!r}: expected {form} with numbers") from None
+        parsed[name.strip()] = value
+    return parsed
+
+
+@main.command("fit")
+@click.argument("measurements", type=click.Path(path_type=Path))
+@click.option("--model", "model_name", default="torrance_sparrow", show_default=True,
+              help="Registered surface model to fit (see `brdfcorr models`).")
+@click.option("--fix", multiple=True, metavar="NAME=VALUE",
+              help="Hold a parameter fixed (repeatable); paper 003 uses --fix k=0.25.")
+@click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", help="Starting value of a parameter.")
+@click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW:HIGH",
+              help="Narrower bounds for a parameter (within its physical range).")
+@click.option("--min-phi", type=float, help="Fit only relative azimuths >= this [deg] (paper 003: 90).")
+@click.option("--max-phi", type=float, help="Fit only relative azimuths <= this [deg].")
+@click.option("--max-zenith", type=float, help="Fit only theta_i and theta_r <= this [deg].")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Parameter table (YAML) to write, or to add the class to if it exists.")
+@click.option("--class-id", type=int, help="Class id in the table [default: 1 more than the largest].")
+@click.option("--name", "class_name", help="Class name in the table [default: the CSV file's stem].")
+@click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Write the principal-plane and azimuth figures (PNG) here.")
+@click.option("--log", "log_scale", is_flag=True, help="Logarithmic BRDF axes in the figures.")
+@handle_errors
+def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi, max_zenith,
+                output, class_id, class_name, plot_dir, log_scale):
+    """Fit a BRDF model to goniometer MEASUREMENTS (CSV: theta_i, theta_r, phi, brdf[, sigma]).
+
+    Prints the fitted parameters with 1-sigma errors and chi2/dof (as paper 003, Table 1) and the
+    parameter correlations; with -o writes the fit as a class of a parameter table.
+    """
+    import warnings
+
+    from brdfcorr.fit import FitWarning, fit_measurements
+    from brdfcorr.io_utils import atomic_path
+    from brdfcorr.measurements import read_measurements, selection_mask
+    from brdfcorr.params import ParameterTable
+
+    table = ParameterTable.load(output) if output is not None and output.exists() else None
+    everything = read_measurements(measurements)
+    keep, selection = selection_mask(everything, min_phi=min_phi, max_phi=max_phi, max_zenith=max_zenith)
+    data = everything.select(keep, selection) if selection else everything
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", FitWarning)
+        result = fit_measurements(
+            model_name, data, fixed=_assignments("--fix", fix),
+            initial=_assignments("--init", initial), bounds=_assignments("--bound", bounds, ranges=True),
+        )
+    for warning in caught:
+        if issubclass(warning.category, FitWarning):
+            click.echo(f"brdfcorr: warning: {warning.message}", err=True)
+
+    name = class_name or measurements.stem
+    weights = "weighted by sigma" if data.sigma is not None else "unweighted (no sigma column)"
+    click.echo(f"{measurements}: {len(data)} of {len(everything)} measurements"
+               f"{f' ({selection})' if selection else ''}, {weights}")
+    click.echo(f"model {result.model.name}: {len(result.free)} free parameters, dof {result.dof}, "
+               f"{result.n_converged} of {result.n_starts} starts reached the minimum")
+    click.echo()
+    click.echo(_format_table([{"sample": name, **result.summary()}]))
+    chi2_text = f"chi2 = {result.chi2:.4g} for {result.dof} dof"
+    if data.sigma is not None:
+        chi2_text += f", P(chi2 larger) = {result.p_value:.3g}; errors from sigma, not scaled by chi2/dof"
+    else:
+        chi2_text += "; errors scaled by the residual scatter (chi2/dof)"
+    click.echo(chi2_text)
+    if len(result.free) > 1:
+        click.echo("\ncorrelations:")
+        click.echo(_format_table([
+            {"": row, **{column: f"{result.correlation_of(row, column):+.3f}" for column in result.free}}
+            for row in result.free
+        ]))
+
+    if plot_dir is not None:
+        from brdfcorr.fit_plots import plot_azimuth, plot_principal_plane
+
+        excluded = everything.select(~keep, "not fitted") if not keep.all() else None
+        plot_dir.mkdir(parents=True, exist_ok=True)
+        scale = "log" if log_scale else "linear"
+        for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
+            target = plot_dir / f"{name}_{suffix}.png"
+            with atomic_path(target) as temporary:
+                plot(result, data, excluded, yscale=scale).savefig(temporary, dpi=120, format="png")
+            click.echo(f"wrote {target}")
+    if output is not None:
+        table = table if table is not None else ParameterTable()
+        if class_id is None:
+            class_id = max(table.class_ids, default=0) + 1
+        replaced = class_id in table
+        table.with_class(result.table_entry(class_id, name)).save(output)
+        click.echo(f"{'replaced' if replaced else 'wrote'} class {class_id} ({name}) in {output}")

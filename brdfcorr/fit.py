@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
+from scipy.stats import chi2 as chi2_distribution
 
 from brdfcorr.errors import FitError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
@@ -147,6 +148,14 @@ class FitResult:
         return self.residuals.size
 
     @property
+    def p_value(self) -> float:
+        """Probability of a chi^2 at least this large if the model and the errors were right
+        (the chi^2 test of paper 003; NaN for an unweighted fit, whose chi^2 has units)."""
+        if self.sigma is None or self.dof <= 0:
+            return math.nan
+        return float(chi2_distribution.sf(self.chi2, self.dof))
+
+    @property
     def pulls(self) -> np.ndarray:
         """Residuals in units of their errors, ``(measured - model) / sigma`` [-]."""
         return self.residuals if self.sigma is None else self.residuals / self.sigma
@@ -158,6 +167,16 @@ class FitResult:
     def predict(self, theta_i, theta_r, phi):
         """The fitted model's BRDF [sr^-1] at the given angles [deg] (numpy, dask or xarray)."""
         return self.model(theta_i, theta_r, phi, **self.params)
+
+    def table_entry(self, class_id: int, name: str) -> dict:
+        """The fit as one class of a parameter table (``DESIGN.md`` format), for
+        :meth:`brdfcorr.params.ParameterTable.with_class`; values as plain floats."""
+        return {
+            "id": int(class_id),
+            "name": str(name),
+            "model": self.model.name,
+            "params": {key: float(value) for key, value in self.params.items()},
+        }
 
     def summary(self) -> dict[str, str]:
         """One row of a table like paper 003, Table 1: ``"value ± error"`` per parameter (with

@@ -52,6 +52,7 @@ __all__ = [
     "read_measurements",
     "write_measurements",
     "filter_measurements",
+    "selection_mask",
     "goniometer_angles",
     "synthesize_measurements",
 ]
@@ -331,6 +332,31 @@ def write_measurements(path: str | os.PathLike, measurements: Measurements) -> P
     return path
 
 
+def selection_mask(
+    measurements: Measurements,
+    *,
+    min_phi: float | None = None,
+    max_phi: float | None = None,
+    max_zenith: float | None = None,
+) -> tuple[np.ndarray, str]:
+    """The rows kept by a geometric selection, and its description (``"phi >= 90"``).
+
+    See :func:`filter_measurements` for the parameters; an empty description means no selection.
+    """
+    keep = np.ones(len(measurements), dtype=bool)
+    applied = []
+    if min_phi is not None:
+        keep &= measurements.phi >= min_phi
+        applied.append(f"phi >= {min_phi:g}")
+    if max_phi is not None:
+        keep &= measurements.phi <= max_phi
+        applied.append(f"phi <= {max_phi:g}")
+    if max_zenith is not None:
+        keep &= (measurements.theta_i <= max_zenith) & (measurements.theta_r <= max_zenith)
+        applied.append(f"theta_i, theta_r <= {max_zenith:g}")
+    return keep, " and ".join(applied)
+
+
 def filter_measurements(
     measurements: Measurements,
     *,
@@ -359,20 +385,11 @@ def filter_measurements(
     brdfcorr.errors.MeasurementError
         If no measurement is left.
     """
-    keep = np.ones(len(measurements), dtype=bool)
-    applied = []
-    if min_phi is not None:
-        keep &= measurements.phi >= min_phi
-        applied.append(f"phi >= {min_phi:g}")
-    if max_phi is not None:
-        keep &= measurements.phi <= max_phi
-        applied.append(f"phi <= {max_phi:g}")
-    if max_zenith is not None:
-        keep &= (measurements.theta_i <= max_zenith) & (measurements.theta_r <= max_zenith)
-        applied.append(f"theta_i, theta_r <= {max_zenith:g}")
-    if not applied:
+    keep, description = selection_mask(
+        measurements, min_phi=min_phi, max_phi=max_phi, max_zenith=max_zenith
+    )
+    if not description:
         return measurements
-    description = " and ".join(applied)
     if not keep.any():
         raise MeasurementError(
             f"{measurements.source}: no measurement has {description} "
