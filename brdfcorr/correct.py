@@ -1,0 +1,474 @@
+"""BRDF normalization of reflectance cubes to a reference sun/view geometry (lazy, chunked).
+
+For a pixel of class c observed at sun zenith theta_i, view zenith theta_r and relative azimuth phi,
+with the class's model f_c and per-band parameters p_c(lambda) (``DESIGN.md``, "Correction")::
+
+    corrected(lambda) = observed(lambda) * clip(f_c(ref; p_c(lambda)) / f_c(obs; p_c(lambda)), limits)
+
+The geometry of each pixel (relative azimuth, facet inclination, local incidence, cosines) is
+computed once and shared by all bands; each class's model is evaluated only at that class's pixels.
+Bands whose parameters are equal share one factor map, so with band-independent parameters the
+per-band cost is the bare multiplication; with spectral tables only the terms in which the model is
+affine (``t0``, ``t1`` / ``a``) are re-evaluated per band.
+
+With dask-backed inputs the result is lazy (one task per reflectance chunk, no computation until
+asked) and its chunks are those of the reflectance.
+
+QA layer (uint8 bit flags, CF ``flag_masks``/``flag_meanings`` in its attrs):
+
+==== ================ ========================================================================
+bit  name             meaning
+==== ================ ========================================================================
+1    nodata           nodata (NaN) in some band, an angle, or the class map; output is nodata
+2    no_class         class 0 ("no class"): not corrected (factor 1, or NaN on request)
+4    unknown_class    class id absent from the parameter table: not corrected (1, or NaN)
+8    limited          the factor was clipped to the limits in at least one band
+16   invalid_geometry a zenith outside [0, 90) deg: output is nodata
+==== ================ ========================================================================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal, NamedTuple
+
+import dask.array as da
+import numpy as np
+import xarray as xr
+
+from brdfcorr.errors import GridMismatchError, InputError, ParameterError
+from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
+from brdfcorr.models import Model
+from brdfcorr.params import ParameterTable, ReferenceGeometry
+
+__all__ = [
+    "normalize",
+    "Normalized",
+    "ReferenceGeometry",
+    "QA_NODATA",
+    "QA_NO_CLASS",
+    "QA_UNKNOWN_CLASS",
+    "QA_LIMITED",
+    "QA_INVALID_GEOMETRY",
+    "QA_FLAGS",
+    "qa_counts",
+]
+
+QA_NODATA = np.uint8(1)
+QA_NO_CLASS = np.uint8(2)
+QA_UNKNOWN_CLASS = np.uint8(4)
+QA_LIMITED = np.uint8(8)
+QA_INVALID_GEOMETRY = np.uint8(16)
+QA_FLAGS = {
+    "nodata": QA_NODATA,
+    "no_class": QA_NO_CLASS,
+    "unknown_class": QA_UNKNOWN_CLASS,
+    "limited": QA_LIMITED,
+    "invalid_geometry": QA_INVALID_GEOMETRY,
+}
+
+# Parameters in which a surface model is affine, f = offset + scale * g(geometry; other parameters),
+# read off the model equations: paper 003 eq. 1 (t0 + t1 * ...), paper 000 eq. 5 plus the Lambertian
+# t0 (t0 + a * ...), and f = t0. Bands that differ only in these share g, so spectral tables evaluate
+# the angular terms once per pixel. Models not listed are evaluated in full for every distinct
+# parameter set (tests/test_correct.py checks this table against the registry kernels).
+AFFINE_PARAMETERS: dict[str, tuple[str, str | None]] = {
+    "torrance_sparrow": ("t0", "t1"),
+    "torrance_sparrow_simplified": ("t0", "t1"),
+    "empirical": ("t0", "a"),
+    "lambertian": ("t0", None),
+}
+
+
+class Normalized(NamedTuple):
+    """Result of :func:`normalize`: the corrected cube and its QA layer (both DataArrays)."""
+
+    reflectance: xr.DataArray
+    qa: xr.DataArray
+
+
+@dataclass(frozen=True)
+class _ClassPlan:
+    """One class's model and band parameters, arranged for evaluation in blocks.
+
+    ``shapes`` are the distinct sets of non-affine parameters; band ``b`` uses
+    ``shapes[shape_of_band[b]]`` with ``offset[b] + scale[b] * g``. ``row_of_band[b]`` numbers the
+    distinct (shape, offset, scale) triples, so bands with equal rows share one factor.
+    """
+
+    id: int
+    model: Model
+    shapes: tuple[dict[str, float], ...]
+    shape_of_band: np.ndarray
+    offset: np.ndarray
+    scale: np.ndarray
+    row_of_band: np.ndarray
+
+
+def _plan(class_id: int, model: Model, params: dict[str, np.ndarray]) -> _ClassPlan:
+    offset_name, scale_name = AFFINE_PARAMETERS.get(model.name, (None, None))
+    n_bands = len(next(iter(params.values())))
+    offset = params[offset_name] if offset_name else np.zeros(n_bands)
+    if scale_name:
+        scale = params[scale_name]
+    else:  # no scale parameter: g is evaluated with the offset at 0 and taken as is (scale 1),
+        scale = np.ones(n_bands)  # which for f = t0 gives g = 0
+    shape_names = [name for name in params if name not in (offset_name, scale_name)]
+    shape_matrix = np.stack([params[name] for name in shape_names], axis=1) if shape_names else np.zeros((n_bands, 0))
+    unique_shapes, shape_of_band = np.unique(shape_matrix, axis=0, return_inverse=True)
+    shape_of_band = shape_of_band.reshape(-1)
+    shapes = tuple(dict(zip(shape_names, map(float, row))) for row in unique_shapes)
+    rows = np.column_stack([shape_of_band, offset, scale])
+    _, row_of_band = np.unique(rows, axis=0, return_inverse=True)
+    return _ClassPlan(class_id, model, shapes, shape_of_band, offset, scale, row_of_band.reshape(-1))
+
+
+def _g(plan: _ClassPlan, geometry: ScatteringGeometry, shape: dict[str, float]):
+    """The model at offset 0 and scale 1 (the angular part), on a precomputed geometry."""
+    offset_name, scale_name = AFFINE_PARAMETERS.get(plan.model.name, (None, None))
+    params = dict(shape)
+    if offset_name:
+        params[offset_name] = 0.0
+    if scale_name:
+        params[scale_name] = 1.0
+    # Parameters were validated when the table was resolved to the bands: call the kernel directly.
+    return plan.model.kernel(geometry, **params)
+
+
+def _normalize_block(
+    reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, *,
+    plans: dict[int, _ClassPlan], reference: ReferenceGeometry, limits, unknown_nan: bool,
+    class_nodata, flip_view_azimuth: bool, out_dtype,
+):
+    """Normalize one (band, y, x) block; returns (corrected block, QA block of shape (1, y, x))."""
+    n_bands, ny, nx = reflectance.shape
+    n = ny * nx
+    cube = reflectance.reshape(n_bands, n)
+    classes = classes.reshape(n)
+    theta_i, theta_r = (np.asarray(a, dtype=np.float64).reshape(n) for a in (sza, vza))
+    saa, vaa = (np.asarray(a, dtype=np.float64).reshape(n) for a in (saa, vaa))
+
+    angles_finite = np.isfinite(theta_i) & np.isfinite(theta_r) & np.isfinite(saa) & np.isfinite(vaa)
+    class_missing = np.isnan(classes) if classes.dtype.kind == "f" else np.zeros(n, bool)
+    if class_nodata is not None:
+        class_missing |= classes == class_nodata
+    nodata = ~angles_finite | class_missing
+    with np.errstate(invalid="ignore"):
+        in_domain = (theta_i >= 0) & (theta_i < 90) & (theta_r >= 0) & (theta_r < 90)
+    invalid_geometry = angles_finite & ~in_domain
+    usable = ~nodata & ~invalid_geometry
+
+    qa = np.zeros(n, dtype=np.uint8)
+    qa[nodata] |= QA_NODATA
+    qa[invalid_geometry] |= QA_INVALID_GEOMETRY
+    if cube.dtype.kind == "f":  # NaN in any band (np.min propagates NaN: one pass, no mask cube)
+        qa[np.isnan(np.min(cube, axis=0))] |= QA_NODATA
+
+    base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
+    base[~usable] = np.nan
+    present = np.unique(classes[usable]).tolist() if usable.any() else []
+    reference_sza = np.asarray(reference_sza, dtype=np.float64)
+    states = []
+    for class_id in present:
+        members = usable & (classes == class_id)
+        plan = plans.get(int(class_id)) if float(class_id).is_integer() else None
+        if plan is None:
+            qa[members] |= QA_NO_CLASS if class_id == 0 else QA_UNKNOWN_CLASS
+            if unknown_nan:
+                base[members] = np.nan
+            continue
+        index = np.flatnonzero(members)
+        view_azimuth = vaa[index] + 180.0 if flip_view_azimuth else vaa[index]
+        observed = ScatteringGeometry(theta_i[index], theta_r[index], relative_azimuth(saa[index], view_azimuth))
+        if reference.sza == "observed":
+            ref_sza = theta_i[index]
+        else:
+            ref_sza = reference_sza
+        ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
+        g = [(_g(plan, observed, shape), _g(plan, ref, shape)) for shape in plan.shapes]
+        states.append((plan, index, g))
+
+    bands = np.asarray(band_index).reshape(-1)
+    out = np.empty((n_bands, n), dtype=out_dtype)
+    signatures = np.stack([plan.row_of_band[bands] for plan, _, _ in states] + [np.zeros(n_bands, int)], axis=1)
+    unique_signatures, group_of_band = np.unique(signatures, axis=0, return_inverse=True)
+    group_of_band = group_of_band.reshape(-1)
+    limited = np.zeros(n, dtype=bool)
+    for group in range(len(unique_signatures)):
+        members = np.flatnonzero(group_of_band == group)
+        band = bands[members[0]]  # any band of the group: they share every class's parameters
+        factor = base.copy()
+        for plan, index, g in states:
+            g_observed, g_reference = g[plan.shape_of_band[band]]
+            f_observed = plan.offset[band] + plan.scale[band] * g_observed
+            f_reference = plan.offset[band] + plan.scale[band] * g_reference
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.asarray(f_reference / f_observed, dtype=np.float64)
+            # 0/0: the model predicts no signal at either geometry; leave the pixel unchanged.
+            ratio = np.where((f_observed == 0) & (f_reference == 0), 1.0, ratio)
+            ratio = np.broadcast_to(ratio, index.shape)
+            if limits is not None:
+                clipped = (ratio < limits[0]) | (ratio > limits[1])
+                limited[index[clipped]] = True
+                ratio = np.clip(ratio, *limits)
+            factor[index] = ratio
+        for member in members:
+            np.multiply(cube[member], factor, out=out[member], casting="unsafe")
+    qa[limited] |= QA_LIMITED
+    return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
+
+
+def _as_dataarray(value, name: str, dims: Sequence[str]) -> xr.DataArray:
+    if isinstance(value, xr.DataArray):
+        return value
+    array = value if isinstance(value, da.Array) else np.asarray(value)
+    if array.ndim != len(dims):
+        raise InputError(f"{name} must have {len(dims)} dimensions {tuple(dims)}, got shape {array.shape}")
+    return xr.DataArray(array, dims=tuple(dims), name=name)
+
+
+def _check_grid(reflectance: xr.DataArray, name: str, layer: xr.DataArray) -> xr.DataArray:
+    """The layer as (y, x) on the reflectance's grid; GridMismatchError naming what differs."""
+    spatial = reflectance.dims[1:]
+    if layer.ndim == 3 and layer.shape[0] == 1:
+        layer = layer.isel({layer.dims[0]: 0}, drop=True)
+    if layer.ndim != 2:
+        raise InputError(f"{name} must be 2-D (y, x), got dims {layer.dims}")
+    if layer.dims != spatial:
+        layer = layer.rename(dict(zip(layer.dims, spatial)))
+    if layer.shape != reflectance.shape[1:]:
+        raise GridMismatchError(
+            f"{name} has shape {layer.shape} but the reflectance grid is {reflectance.shape[1:]}"
+        )
+    for dim in spatial:
+        if dim in layer.coords and dim in reflectance.coords:
+            if not np.allclose(layer[dim].values, reflectance[dim].values, rtol=0, atol=1e-9 * (
+                    1 + np.abs(reflectance[dim].values).max())):
+                raise GridMismatchError(f"{name} has other {dim} coordinates than the reflectance")
+    return layer
+
+
+def _resolve_reference(reference, params: ParameterTable) -> ReferenceGeometry:
+    if reference is None:
+        return params.reference or ReferenceGeometry()
+    if isinstance(reference, ReferenceGeometry):
+        return reference
+    try:
+        return ParameterTable(reference=reference).reference
+    except ParameterError as error:
+        raise ParameterError(f"reference geometry: {error}") from None
+
+
+def normalize(
+    reflectance,
+    classes,
+    sza,
+    saa,
+    vza,
+    vaa,
+    params: ParameterTable,
+    reference: ReferenceGeometry | dict | None = None,
+    *,
+    limits: tuple[float, float] | None = (0.2, 5.0),
+    wavelengths: Sequence[float] | None = None,
+    extrapolate: bool = False,
+    unknown: Literal["keep", "nan"] = "keep",
+    class_nodata: float | None = None,
+    flip_view_azimuth: bool = False,
+) -> Normalized:
+    """Normalize a reflectance cube to a reference sun/view geometry with per-class BRDF models.
+
+    Parameters
+    ----------
+    reflectance : xarray.DataArray (band, y, x)
+        Reflectance (any units; they are kept). NaN is nodata. numpy or dask backed.
+    classes : xarray.DataArray (y, x)
+        Class map: ids of ``params``; 0 and ``class_nodata`` mean "no class" and nodata.
+    sza, saa, vza, vaa : xarray.DataArray (y, x)
+        Solar zenith, solar azimuth, view zenith, view azimuth per pixel [deg] (``DESIGN.md``
+        conventions: azimuths of the directions from the pixel towards the sun and the sensor).
+    params : ParameterTable
+        Model and parameters per class.
+    reference : ReferenceGeometry or dict, optional
+        Target geometry: ``sza`` [deg] or ``"mean"`` (scene mean of the valid ``sza``) or
+        ``"observed"``, ``vza`` [deg] and ``raa`` [deg]. Defaults to the table's reference, else
+        ``ReferenceGeometry()`` (observed sun, nadir view).
+    limits : (float, float) or None, default (0.2, 5)
+        The factor f(ref)/f(obs) is clipped to this range [-]; clipped pixels are flagged.
+    wavelengths : sequence of float, optional
+        Band centres [nm]; by default the reflectance's ``wavelength`` coordinate, if any.
+    extrapolate : bool, default False
+        Let band centres outside a class's table wavelengths take the edge values.
+    unknown : {"keep", "nan"}, default "keep"
+        What to do with pixels of class 0 or of ids absent from the table: keep them unchanged
+        (factor 1) or set them to NaN. They are flagged in the QA layer either way.
+    class_nodata : number, optional
+        Nodata value of the class map; by default its rioxarray nodata (``classes.rio.nodata``).
+    flip_view_azimuth : bool, default False
+        Add 180 deg to ``vaa``, for products storing the azimuth of the view direction as seen from
+        the sensor.
+
+    Returns
+    -------
+    Normalized
+        ``(reflectance, qa)``: the corrected cube with the input's dims, coords (including the
+        ``spatial_ref`` georeference), attrs and chunks, and the QA layer (y, x) of uint8 flags
+        (module docstring). Lazy if any input is dask-backed.
+
+    Raises
+    ------
+    ParameterError
+        The table cannot be resolved to the bands (names the class and parameter).
+    GridMismatchError, InputError
+        A layer is not on the reflectance's grid, or has the wrong dimensions.
+
+    Notes
+    -----
+    ``corrected = observed * f(ref) / f(obs)`` (``DESIGN.md``, "Correction"), the factor evaluated
+    with the model of the pixel's class (paper 003 eq. 1, paper 000 eq. 5) at the pixel's geometry.
+    """
+    if not isinstance(params, ParameterTable):
+        raise InputError(f"params must be a ParameterTable, got {type(params).__name__}")
+    if unknown not in ("keep", "nan"):
+        raise InputError(f"unknown must be 'keep' or 'nan', got {unknown!r}")
+    if limits is not None:
+        limits = (float(limits[0]), float(limits[1]))
+        if not (0 < limits[0] <= 1 <= limits[1] < np.inf):
+            raise InputError(f"factor limits {limits} must satisfy 0 < lower <= 1 <= upper < inf")
+    reference = _resolve_reference(reference, params)
+
+    reflectance = _as_dataarray(reflectance, "reflectance", ("band", "y", "x"))
+    if reflectance.ndim != 3:
+        raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
+    band_dim = reflectance.dims[0]
+    layers = {}
+    for name, layer in {"classes": classes, "sza": sza, "saa": saa, "vza": vza, "vaa": vaa}.items():
+        layers[name] = _check_grid(reflectance, name, _as_dataarray(layer, name, reflectance.dims[1:]))
+    if layers["classes"].dtype.kind not in "iuf":
+        raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
+    if class_nodata is None:
+        class_nodata = _rio_nodata(layers["classes"])
+
+    if wavelengths is None and "wavelength" in reflectance.coords:
+        wavelengths = reflectance["wavelength"].values.tolist()
+    n_bands = reflectance.shape[0]
+    resolved = params.for_bands(wavelengths, n_bands=n_bands, extrapolate=extrapolate)
+    plans = {cid: _plan(cid, entry.model, entry.params) for cid, entry in resolved.items()}
+    out_dtype = np.result_type(reflectance.dtype, np.float32)
+
+    arrays = [reflectance.data] + [layers[name].data for name in ("classes", "sza", "saa", "vza", "vaa")]
+    lazy = any(isinstance(a, da.Array) for a in arrays)
+    kwargs = dict(
+        plans=plans, reference=reference, limits=limits, unknown_nan=unknown == "nan",
+        class_nodata=class_nodata, flip_view_azimuth=flip_view_azimuth, out_dtype=out_dtype,
+    )
+    if lazy:
+        corrected, qa = _normalize_dask(arrays, reference, kwargs)
+    else:
+        reference_sza = _scene_mean(arrays[2], np) if reference.sza == "mean" else _fixed_sza(reference)
+        corrected, qa = _normalize_block(*arrays[:1], np.arange(n_bands), *arrays[1:], reference_sza, **kwargs)
+        qa = qa[0]
+
+    attrs = dict(reflectance.attrs)
+    attrs.update(brdf_reference=reference.describe(), brdf_limits=_describe_limits(limits))
+    corrected = xr.DataArray(
+        corrected, dims=reflectance.dims, coords=reflectance.coords, attrs=attrs, name=reflectance.name
+    )
+    spatial_coords = {k: v for k, v in reflectance.coords.items() if band_dim not in v.dims}
+    qa = xr.DataArray(
+        qa, dims=reflectance.dims[1:], coords=spatial_coords, name="qa",
+        attrs={
+            "long_name": "BRDF normalization quality flags",
+            "units": "1",
+            "flag_masks": np.array(list(QA_FLAGS.values()), dtype=np.uint8),
+            "flag_meanings": " ".join(QA_FLAGS),
+        },
+    )
+    return Normalized(corrected, qa)
+
+
+def _normalize_dask(arrays, reference: ReferenceGeometry, kwargs):
+    reflectance = arrays[0]
+    if not isinstance(reflectance, da.Array):
+        reflectance = da.from_array(reflectance, chunks="auto")
+    spatial_chunks = reflectance.chunks[1:]
+    layers = [da.asarray(a).rechunk(spatial_chunks) for a in arrays[1:]]
+    band_index = da.arange(reflectance.shape[0], chunks=(reflectance.chunks[0],))
+    if reference.sza == "mean":
+        reference_sza = _scene_mean(layers[1], da)
+    else:
+        reference_sza = da.asarray(_fixed_sza(reference))
+    pairs = da.blockwise(
+        _normalize_block, "byx",
+        reflectance, "byx", band_index, "b",
+        *(item for layer in layers for item in (layer, "yx")),
+        reference_sza, (),
+        meta=np.empty((0, 0, 0), dtype=kwargs["out_dtype"]),
+        **kwargs,
+    )
+    corrected = pairs.map_blocks(_first, dtype=kwargs["out_dtype"], meta=np.empty((0, 0, 0), kwargs["out_dtype"]))
+    per_band_chunk = pairs.map_blocks(
+        _second, dtype=np.uint8, chunks=((1,) * len(reflectance.chunks[0]),) + spatial_chunks,
+        meta=np.empty((0, 0, 0), np.uint8),
+    )
+    # Combine the flags of all band chunks of a pixel (limited / NaN in any band).
+    qa = da.reduction(
+        per_band_chunk, chunk=_bitwise_or, aggregate=_bitwise_or, axis=0, dtype=np.uint8,
+        concatenate=True, meta=np.empty((0, 0), np.uint8),
+    )
+    return corrected, qa
+
+
+def _first(pair):
+    return pair[0]
+
+
+def _second(pair):
+    return pair[1]
+
+
+def _bitwise_or(block, axis, keepdims):
+    return np.bitwise_or.reduce(block, axis=axis, keepdims=keepdims)
+
+
+def _scene_mean(sza, xp):
+    """Mean of the valid solar zeniths (finite, in [0, 90)) [deg]; lazy for dask."""
+    valid = (sza >= 0) & (sza < 90)
+    return xp.nanmean(xp.where(valid, sza.astype(np.float64), np.nan))
+
+
+def _fixed_sza(reference: ReferenceGeometry) -> float:
+    # "observed" takes the per-pixel sza inside the block; the scalar is then unused.
+    return float(reference.sza) if not isinstance(reference.sza, str) else np.nan
+
+
+def _describe_limits(limits) -> str:
+    return "none" if limits is None else f"{limits[0]:g},{limits[1]:g}"
+
+
+def _rio_nodata(layer: xr.DataArray):
+    try:
+        import rioxarray  # noqa: F401  (registers the .rio accessor)
+
+        return layer.rio.nodata
+    except Exception:  # a layer rioxarray cannot describe has no declared nodata
+        return layer.attrs.get("_FillValue")
+
+
+def qa_counts(qa) -> dict[str, object]:
+    """Pixel counts per QA outcome (lazy 0-d arrays for dask input; compute them together).
+
+    ``corrected``: pixels with a class of the table and valid data (limited ones included);
+    ``limited``, ``unknown_class``, ``no_class``, ``nodata`` (nodata or invalid geometry).
+    """
+    data = qa.data if isinstance(qa, xr.DataArray) else qa
+    xp = da if isinstance(data, da.Array) else np
+    skipped = QA_NODATA | QA_NO_CLASS | QA_UNKNOWN_CLASS | QA_INVALID_GEOMETRY
+    return {
+        "corrected": xp.count_nonzero((data & skipped) == 0),
+        "limited": xp.count_nonzero(data & QA_LIMITED),
+        "unknown_class": xp.count_nonzero(data & QA_UNKNOWN_CLASS),
+        "no_class": xp.count_nonzero(data & QA_NO_CLASS),
+        "nodata": xp.count_nonzero(data & (QA_NODATA | QA_INVALID_GEOMETRY)),
+    }
