@@ -1,0 +1,119 @@
+"""Sun and view angles (and imaging-spectrometer cubes) as sensor products deliver them.
+
+Every reader returns the same thing: an :class:`xarray.Dataset` with ``sza``, ``saa``, ``vza``,
+``vaa`` in degrees on the image grid (dims ``y``, ``x``; CRS and transform where the product has
+them), dask-backed, azimuths clockwise from north of the directions from the pixel *towards* the sun
+and *towards* the sensor (``DESIGN.md``). Each product's own convention is stated in its module and
+converted explicitly (``view_azimuth="to_sensor"|"from_sensor"``), never guessed.
+
+=============  ==========================================================  =====================
+kind           product                                                     reader
+=============  ==========================================================  =====================
+``envi_obs``   AVIRIS-NG / AVIRIS-3 (and alike) ``obs``/``obs_ort`` file   :func:`read_envi_obs`
+``sentinel2``  Sentinel-2 L1C/L2A granule ``MTD_TL.xml``                   :func:`read_sentinel2_angles`
+``landsat``    Landsat Collection 2 angle bands (+ ANG.txt)                :func:`read_landsat_angles`
+``solar``      none: solar angles from time and pixel coordinates, plus   :func:`read_solar_angles`
+               an explicitly given constant view geometry
+=============  ==========================================================  =====================
+
+The one call for the correction and chain configs is ``read_angles(kind, path, like=image)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import xarray as xr
+
+from brdfcorr.errors import SensorInputError
+from brdfcorr.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
+from brdfcorr.sensors.grids import grid_template, to_grid
+from brdfcorr.sensors.landsat import parse_ang_txt, read_landsat_angles
+from brdfcorr.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
+from brdfcorr.sensors.solar import solar_angles, solar_position
+
+__all__ = [
+    "ANGLE_KINDS",
+    "acquisition_time",
+    "envi_wavelengths",
+    "grid_template",
+    "parse_ang_txt",
+    "parse_mtd_tl",
+    "read_angles",
+    "read_envi_image",
+    "read_envi_obs",
+    "read_landsat_angles",
+    "read_sentinel2_angles",
+    "read_solar_angles",
+    "solar_angles",
+    "solar_position",
+    "to_grid",
+]
+
+
+def read_solar_angles(time, like: xr.DataArray, *, view_zenith: float, view_azimuth: float,
+                      **options) -> xr.Dataset:
+    """Solar angles from ``time`` and the pixel coordinates of ``like`` (pvlib SPA), with a
+    constant view geometry that the caller states (e.g. ``view_zenith=0`` for a nadir view).
+
+    Parameters
+    ----------
+    time : str, datetime or pandas.Timestamp
+        Acquisition time, timezone-aware.
+    like : xarray.DataArray
+        Georeferenced image.
+    view_zenith, view_azimuth : float
+        View zenith [deg] and azimuth towards the sensor [deg], applied to every pixel.
+    **options :
+        Passed to :func:`brdfcorr.sensors.solar.solar_angles`.
+    """
+    angles = solar_angles(time, like, **options)
+    for key, value, long_name in (
+        ("vza", view_zenith, "view zenith angle"),
+        ("vaa", view_azimuth % 360.0, "view azimuth angle (pixel to sensor, clockwise from north)"),
+    ):
+        angles[key] = xr.full_like(angles["sza"], float(value)).assign_attrs(
+            units="degree", long_name=long_name, source="constant given by the user")
+    return angles
+
+
+#: Source kinds accepted by :func:`read_angles` and their readers.
+ANGLE_KINDS: dict[str, Callable[..., xr.Dataset]] = {
+    "envi_obs": read_envi_obs,
+    "sentinel2": read_sentinel2_angles,
+    "landsat": read_landsat_angles,
+    "solar": read_solar_angles,
+}
+
+
+def read_angles(kind: str, source, like: xr.DataArray | None = None, **options) -> xr.Dataset:
+    """Read or compute ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on the image grid.
+
+    Parameters
+    ----------
+    kind : {"envi_obs", "sentinel2", "landsat", "solar"}
+        The source kind (see the module table).
+    source :
+        The obs file, the ``MTD_TL.xml``, the Landsat product directory or file, or for
+        ``"solar"`` the acquisition time.
+    like : xarray.DataArray, optional
+        The image the angles are for (required for ``"solar"``).
+    **options :
+        Passed to the kind's reader (e.g. ``band="B04"``, ``ang=...``, ``view_azimuth=...``).
+
+    Raises
+    ------
+    SensorInputError
+        Unknown kind, or any problem of the source (the message names file and item).
+    """
+    try:
+        reader = ANGLE_KINDS[kind]
+    except KeyError:
+        raise SensorInputError(
+            f"unknown angle source kind {kind!r}; choose one of {', '.join(ANGLE_KINDS)}"
+        ) from None
+    if kind == "solar":
+        if like is None:
+            raise SensorInputError("angle source kind 'solar' needs the image grid (like=image)")
+        return reader(source, like, **options)
+    return reader(source, like, **options)
