@@ -201,8 +201,9 @@ def format_with_error(value: float, error: float) -> str:
     """
     if not math.isfinite(error) or error <= 0:
         return f"{value:.4g} ± {error:g}"
-    exponent = math.floor(math.log10(error))
-    digits = 2 if error / 10**exponent < 3 else 1
+    mantissa, exponent = f"{error:.3e}".split("e")  # decimal digits, free of binary rounding
+    exponent = int(exponent)
+    digits = 2 if float(mantissa) < 3.0 else 1
     decimals = -(exponent - digits + 1)
     rounded = round(error, decimals)
     if rounded >= 10 ** (exponent + 1) and digits == 1:  # 0.96 -> 1.0: keep one digit

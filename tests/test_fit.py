@@ -1,0 +1,297 @@
+"""fit_brdf: closed forms, an independent optimizer, round trips with paper-003 materials, warnings."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.optimize import curve_fit
+from scipy.stats import chi2 as chi2_distribution
+
+from brdfcorr.errors import BrdfcorrError, FitError, MeasurementError, ParameterError
+from brdfcorr.fit import (
+    FitWarning,
+    NonIdentifiableWarning,
+    fit_brdf,
+    fit_measurements,
+    format_with_error,
+)
+from brdfcorr.geometry import ScatteringGeometry
+from brdfcorr.materials import load_material
+from brdfcorr.measurements import filter_measurements, goniometer_angles, synthesize_measurements
+from brdfcorr.models import get_model
+from brdfcorr.params import ParameterTable
+
+ANGLES = goniometer_angles()
+RELATIVE_NOISE = 0.04  # the lowest total error of the EGO measurements, paper 003 section 3
+PAPER_K = {"k": 0.25}  # paper 003 section 4: k fixed at 0.25 for every sample
+
+
+def synthetic(material: str, seed: int = 0, noise: float = RELATIVE_NOISE):
+    """Goniometer-like measurements of a paper-003 Table-1 material, phi >= 90 as the paper fitted."""
+    truth = load_material(material)
+    data = synthesize_measurements(truth.model, truth.params, *ANGLES, relative_noise=noise, seed=seed)
+    return truth, filter_measurements(data, min_phi=90)
+
+
+@pytest.fixture(scope="module")
+def roof_tile_fit():
+    truth, data = synthetic("roof_tile", seed=1)
+    return truth, data, fit_measurements("torrance_sparrow", data, fixed=PAPER_K)
+
+
+# --- closed forms ------------------------------------------------------------------------------
+
+
+def test_lambertian_fit_is_the_weighted_mean():
+    # Closed form: the weighted least-squares constant is sum(y/s^2)/sum(1/s^2), its error
+    # (sum 1/s^2)^-1/2, and chi2 = sum((y - mean)^2 / s^2).
+    rng = np.random.default_rng(5)
+    brdf = 0.05 + 0.004 * rng.standard_normal(40)
+    sigma = rng.uniform(0.002, 0.006, 40)
+    theta = rng.uniform(0, 80, 40)
+    result = fit_brdf("lambertian", theta, theta[::-1], rng.uniform(0, 180, 40), brdf, sigma)
+    weights = 1 / sigma**2
+    mean = np.sum(weights * brdf) / np.sum(weights)
+    assert result.params["t0"] == pytest.approx(mean, rel=1e-9)
+    assert result.errors["t0"] == pytest.approx(np.sum(weights) ** -0.5, rel=1e-6)
+    assert result.chi2 == pytest.approx(np.sum(weights * (brdf - mean) ** 2), rel=1e-9)
+    assert result.dof == 39
+    assert result.reduced_chi2 == pytest.approx(result.chi2 / 39)
+    assert not result.errors_scaled
+
+
+def test_linear_subproblem_matches_weighted_linear_regression():
+    # With w, n, k fixed the TS model is linear in t0, t1: f = t0 + t1 S. Closed form:
+    # p = (A^T W A)^-1 A^T W y, cov = (A^T W A)^-1 (Press et al., Numerical Recipes 15.4).
+    truth, data = synthetic("red_concrete", seed=3)
+    fixed = {name: truth.params[name] for name in ("w", "n", "k")}
+    result = fit_measurements("torrance_sparrow", data, fixed=fixed)
+    shape = get_model("torrance_sparrow").kernel(data.geometry, t0=0.0, t1=1.0, **fixed)
+    design = np.column_stack([np.ones_like(shape), shape]) / data.sigma[:, None]
+    normal = design.T @ design
+    expected = np.linalg.solve(normal, design.T @ (data.brdf / data.sigma))
+    covariance = np.linalg.inv(normal)
+    assert [result.params["t0"], result.params["t1"]] == pytest.approx(expected, rel=1e-6)
+    np.testing.assert_allclose(result.covariance, covariance, rtol=1e-4)
+    assert result.free == ("t0", "t1")
+    assert result.errors["w"] == 0.0 and result.params["w"] == truth.params["w"]
+
+
+def test_unweighted_errors_are_scaled_by_the_residual_scatter():
+    # Without sigma the weights are 1 and the covariance is s^2 (A^T A)^-1 with
+    # s^2 = SSR / dof (Numerical Recipes 15.4.2), as scipy's curve_fit(absolute_sigma=False).
+    truth, data = synthetic("blue_concrete", seed=4)
+    fixed = {name: truth.params[name] for name in ("w", "n", "k")}
+    result = fit_brdf("torrance_sparrow", data.theta_i, data.theta_r, data.phi, data.brdf, fixed=fixed)
+    shape = get_model("torrance_sparrow").kernel(data.geometry, t0=0.0, t1=1.0, **fixed)
+    design = np.column_stack([np.ones_like(shape), shape])
+    solution, ssr, *_ = np.linalg.lstsq(design, data.brdf, rcond=None)
+    covariance = np.linalg.inv(design.T @ design) * ssr[0] / (data.brdf.size - 2)
+    assert result.errors_scaled
+    assert result.chi2 == pytest.approx(ssr[0], rel=1e-6)
+    np.testing.assert_allclose(result.covariance, covariance, rtol=1e-4)
+    # Scaling can be switched off explicitly.
+    unscaled = fit_brdf(
+        "torrance_sparrow", data.theta_i, data.theta_r, data.phi, data.brdf, fixed=fixed,
+        scale_errors=False,
+    )
+    np.testing.assert_allclose(unscaled.covariance, np.linalg.inv(design.T @ design), rtol=1e-4)
+
+
+def test_nonlinear_fit_agrees_with_curve_fit(roof_tile_fit):
+    # An independent optimizer (Levenberg-Marquardt in scipy's curve_fit, started at the truth)
+    # must find the same minimum and the same covariance (absolute_sigma: not scaled).
+    truth, data, result = roof_tile_fit
+    model = get_model("torrance_sparrow")
+
+    def function(_, t0, t1, w, n):
+        return model.kernel(data.geometry, t0=t0, t1=t1, w=w, n=n, k=0.25)
+
+    start = [truth.params[name] for name in ("t0", "t1", "w", "n")]
+    values, covariance = curve_fit(
+        function, None, data.brdf, p0=start, sigma=data.sigma, absolute_sigma=True
+    )
+    assert [result.params[name] for name in result.free] == pytest.approx(values, rel=1e-4)
+    np.testing.assert_allclose(result.covariance, covariance, rtol=2e-3)
+
+
+# --- round trips with the materials of paper 003, Table 1 --------------------------------------
+
+
+def test_round_trip_pulls_and_chi2_over_seeds():
+    """Measurements synthesized from Table 1 at goniometer angles with 4 % noise, fitted back with
+    k = 0.25: the pulls (fit - truth) / error must look like N(0, 1) and chi2 like chi2(dof)."""
+    pulls, reduced = [], []
+    for material in ("roof_tile", "red_concrete", "blue_concrete", "red_aluminium"):
+        for seed in range(6):
+            truth, data = synthetic(material, seed=100 + seed)
+            result = fit_measurements("torrance_sparrow", data, fixed=PAPER_K)
+            assert result.dof == len(data) - 4 == 116
+            low, high = chi2_distribution.ppf([0.001, 0.999], result.dof)
+            assert low < result.chi2 < high, (material, seed, result.chi2)
+            assert result.params["k"] == 0.25 and result.errors["k"] == 0.0
+            pulls.append([(result.params[p] - truth.params[p]) / result.errors[p] for p in result.free])
+            reduced.append(result.reduced_chi2)
+    pulls = np.array(pulls)
+    # 96 pulls: none beyond 4 sigma (P = 6e-5 each for a normal variable) ...
+    assert np.all(np.abs(pulls) < 4.0)
+    # ... mean and spread of a standard normal within ~3 standard errors.
+    assert abs(pulls.mean()) < 0.3
+    assert 0.7 < pulls.std() < 1.3
+    # Mean of 24 chi2/dof: expectation 1, standard error sqrt(2/116/24) = 0.027.
+    assert np.mean(reduced) == pytest.approx(1.0, abs=0.1)
+
+
+def test_fit_reproduces_truth_without_noise():
+    # Noise-free data must be fitted back to the generating parameters (global minimum found).
+    for material in ("roof_tile", "red_aluminium", "spectralon_50"):
+        truth = load_material(material)
+        geometry = ScatteringGeometry(*ANGLES)
+        brdf = truth.model.evaluate(geometry, **truth.params)
+        result = fit_brdf("torrance_sparrow", *ANGLES, brdf, fixed=PAPER_K)
+        for name in result.free:
+            assert result.params[name] == pytest.approx(truth.params[name], rel=1e-5), (material, name)
+
+
+def test_simplified_and_empirical_models_fit(roof_tile_fit):
+    truth, data, _ = roof_tile_fit
+    simplified = fit_measurements("torrance_sparrow_simplified", data, fixed=PAPER_K)
+    # Paper 003, section 5: G = 1 changes this roof tile BRDF by at most ~10 % up to 70 deg
+    # zenith, so the simplified fit still describes 4 %-noise data acceptably.
+    assert simplified.reduced_chi2 < 2.0
+    assert simplified.params["w"] == pytest.approx(truth.params["w"], rel=0.05)
+    empirical = fit_measurements("empirical", data)
+    assert empirical.free == ("a", "b", "c", "t0")
+    assert np.isfinite(empirical.chi2) and empirical.dof == len(data) - 4
+
+
+def test_result_attributes(roof_tile_fit):
+    _, data, result = roof_tile_fit
+    assert list(result.params) == ["t0", "t1", "w", "n", "k"]
+    assert result.fixed == {"k": 0.25}
+    assert result.covariance.shape == result.correlation.shape == (4, 4)
+    np.testing.assert_allclose(np.diag(result.correlation), 1.0)
+    np.testing.assert_allclose(result.correlation, result.correlation.T)
+    np.testing.assert_allclose(
+        [result.errors[name] for name in result.free], np.sqrt(np.diag(result.covariance))
+    )
+    model = result.predict(data.theta_i, data.theta_r, data.phi)
+    np.testing.assert_allclose(result.residuals, data.brdf - model, rtol=1e-10, atol=1e-15)
+    assert result.chi2 == pytest.approx(np.sum(result.pulls**2))
+    assert 0.0 <= result.p_value <= 1.0
+    assert 1 <= result.n_converged <= result.n_starts
+
+
+def test_table_entry_round_trips_through_parameter_table(roof_tile_fit, tmp_path):
+    _, _, result = roof_tile_fit
+    path = ParameterTable().with_class(result.table_entry(1, "roof_tile")).save(tmp_path / "p.yaml")
+    entry = ParameterTable.load(path)[1]
+    assert entry.model == "torrance_sparrow" and entry.name == "roof_tile"
+    assert entry.params == result.params  # plain floats survive YAML exactly
+
+
+# --- identifiability ---------------------------------------------------------------------------
+
+
+def test_free_k_trades_off_with_n_and_t1(roof_tile_fit):
+    # Paper 003, section 4 and fig. 1: n, k and t1 cannot be retrieved simultaneously.
+    _, data, _ = roof_tile_fit
+    with pytest.warns(NonIdentifiableWarning, match="n-k"):
+        result = fit_measurements("torrance_sparrow", data)
+    assert abs(result.correlation_of("n", "k")) > 0.99
+    assert any("n-k" in message for message in result.warnings)
+
+
+def test_no_identifiability_warning_with_k_fixed(roof_tile_fit):
+    _, data, _ = roof_tile_fit
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FitWarning)
+        result = fit_measurements("torrance_sparrow", data, fixed=PAPER_K)
+    assert result.warnings == ()
+    assert np.all(np.abs(result.correlation[np.triu_indices(4, 1)]) < 0.99)
+
+
+def test_parameter_without_effect_gives_infinite_errors(roof_tile_fit):
+    # With the peak intensity a fixed at 0, b and c do not change the model: singular Jacobian.
+    _, data, _ = roof_tile_fit
+    with pytest.warns(NonIdentifiableWarning, match="singular"):
+        result = fit_measurements("empirical", data, fixed={"a": 0.0})
+    assert np.isinf(result.errors["b"]) and np.isinf(result.errors["c"])
+
+
+def test_parameter_on_a_bound_warns(roof_tile_fit):
+    truth, data, _ = roof_tile_fit
+    with pytest.warns(FitWarning, match="bound"):
+        result = fit_measurements("torrance_sparrow", data, fixed=PAPER_K, bounds={"w": (0.05, 0.2)})
+    assert result.params["w"] == pytest.approx(0.05)
+    assert result.at_bounds == ("w",)
+
+
+# --- starting values ---------------------------------------------------------------------------
+
+
+def test_user_initial_value_is_used_and_a_bad_one_still_converges(roof_tile_fit):
+    truth, data, reference = roof_tile_fit
+    result = fit_measurements("torrance_sparrow", data, fixed=PAPER_K, initial={"w": 0.03, "n": 1.6})
+    assert result.chi2 == pytest.approx(reference.chi2, rel=1e-6)
+
+
+# --- bad input -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"fixed": {"q": 1.0}}, ParameterError, "unknown parameter 'q'"),
+        ({"fixed": {"w": -1.0}}, ParameterError, "w = -1"),
+        ({"fixed": {"k": 0.25}, "initial": {"k": 0.3}}, ParameterError, "fixed and cannot"),
+        ({"bounds": {"w": (0.5, 0.1)}}, ParameterError, "bounds of w"),
+        ({"bounds": {"w": 0.5}}, ParameterError, "must be a pair"),
+        ({"initial": {"n": 0.0}}, ParameterError, "starting value n"),
+        ({"fixed": {"t0": 0.1, "t1": 0.1, "w": 0.1, "n": 1.5, "k": 0.2}}, FitError, "nothing to fit"),
+    ],
+)
+def test_bad_parameters(roof_tile_fit, kwargs, error, match):
+    _, data, _ = roof_tile_fit
+    with pytest.raises(error, match=match):
+        fit_measurements("torrance_sparrow", data, **kwargs)
+
+
+def test_bad_measurement_arrays_name_the_index():
+    with pytest.raises(MeasurementError, match=r"brdf is NaN or infinite at index 1"):
+        fit_brdf("lambertian", [10, 20, 30], [10, 20, 30], [180, 180, 180], [0.1, np.nan, 0.1])
+    with pytest.raises(MeasurementError, match=r"theta_i outside \[0, 90\) deg at index 2"):
+        fit_brdf("lambertian", [10, 20, 90], [10, 20, 30], [180, 180, 180], [0.1, 0.1, 0.1])
+    with pytest.raises(MeasurementError, match="different shapes"):
+        fit_brdf("lambertian", [10, 20], [10, 20, 30], [180, 180, 180], [0.1, 0.1, 0.1])
+
+
+def test_too_few_measurements():
+    with pytest.raises(FitError, match="at least 5 are needed"):
+        fit_brdf("torrance_sparrow", [30] * 4, [10, 20, 30, 40], [180] * 4, [0.1] * 4, fixed=PAPER_K)
+
+
+def test_unknown_model_is_a_brdfcorr_error():
+    with pytest.raises(BrdfcorrError, match="unknown BRDF model"):
+        fit_brdf("phong", [30, 40], [30, 40], [180, 180], [0.1, 0.1])
+
+
+# --- formatting ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("value", "error", "text"),
+    [
+        # paper 003, Table 1 (roof tile, red concrete): one digit unless the error starts with 1-2
+        (0.0245, 0.0003, "0.0245 ± 0.0003"),
+        (0.20, 0.05, "0.20 ± 0.05"),
+        (0.0362, 0.0004, "0.0362 ± 0.0004"),
+        (1.48, 0.11, "1.48 ± 0.11"),
+        (1.77, 0.3, "1.8 ± 0.3"),
+        (1.06, 0.2, "1.06 ± 0.20"),
+        (123.4, 12.0, "123 ± 12"),
+        (1.234, 0.0096, "1.23 ± 0.01"),
+    ],
+)
+def test_format_with_error(value, error, text):
+    assert format_with_error(value, error) == text
