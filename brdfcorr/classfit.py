@@ -1,0 +1,726 @@
+"""Fit per-class, per-band BRDF model parameters from the imagery itself.
+
+Every class (roof tile, concrete, grass, ...) is seen under many sun/view geometries across a wide
+field-of-view line, overlapping lines or revisits. This module pools each class's valid pixels,
+samples them reproducibly, and fits a registered surface model to them, one parameter set per class
+with intensity terms per band.
+
+The models are linear in their intensity terms once the shape parameters are fixed::
+
+    torrance_sparrow(_simplified):  f = t0 + t1 * S(w, n, k)      S = F G exp(-w^2 a^2) / (cos ti cos tr)
+    empirical:                      f = t0 + a  * E(b, c)         E = exp(b (ti tr)^2) exp(-c^2 (psi/2)^2)
+    lambertian:                     f = t0
+
+so for a trial shape the intensities of *all* bands are solved at once by (non-negative) linear
+least squares from a handful of sums, and only the few shape parameters (shared by the bands of a
+class) are searched: a coarse grid, then a bounded Nelder-Mead refinement of the profile objective
+(variable projection). Bands are weighted by the inverse variance of their data so that bright
+near-infrared bands do not dominate the shape.
+
+Imagery holds reflectance factors R (0-1, "BRF"/"HDRF"); brdfcorr's models are BRDFs in sr^-1.
+The fit uses f = R / pi (a Lambertian surface of reflectance R has BRDF R / pi), so the intensity
+parameters in the resulting table are in sr^-1 like the goniometer fits of paper 003.
+
+Errors: shape-parameter covariance from the sandwich estimator of the profile objective with
+per-pixel scores (robust to heteroscedastic noise and to residuals correlated across bands, such as
+within-class albedo variation); intensity errors per band from the heteroscedasticity-consistent
+(HC0) covariance of the linear problem, plus the propagated shape uncertainty.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.optimize
+import xarray as xr
+
+from brdfcorr.errors import ParameterError
+from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
+from brdfcorr.models import Model, get_model
+
+__all__ = [
+    "ClassFitResult",
+    "ClassSamples",
+    "fit_classes",
+    "sample_classes",
+    "fit_one_class",
+    "GuardRails",
+    "ClassFit",
+    "ClassFitWarning",
+    "LINEAR_TERMS",
+    "fit_class_samples",
+]
+
+#: The intensity (linear) terms of each surface model: (constant term, term multiplying the basis).
+LINEAR_TERMS: dict[str, tuple[str, ...]] = {
+    "torrance_sparrow": ("t0", "t1"),
+    "torrance_sparrow_simplified": ("t0", "t1"),
+    "empirical": ("t0", "a"),
+    "lambertian": ("t0",),
+}
+
+#: Shape parameters held fixed unless the caller frees them (paper 003 fixes k = 0.25: n, k and t1
+#: cannot be retrieved together from reflectance alone).
+DEFAULT_FIXED: dict[str, dict[str, float]] = {
+    "torrance_sparrow": {"k": 0.25},
+    "torrance_sparrow_simplified": {"k": 0.25},
+}
+
+#: Search ranges of the shape parameters (a subset of the physical bounds where BRDFs of natural
+#: and man-made surfaces lie; Table 1 of paper 003 spans w = 0.032-0.153 deg^-1, n = 1.48-1.77),
+#: and whether the grid is logarithmic.
+SEARCH_RANGES: dict[str, tuple[float, float, bool]] = {
+    "w": (0.005, 0.5, True),
+    "n": (1.05, 4.0, False),
+    "k": (0.0, 3.0, False),
+    "b": (-3.0, 6.0, False),
+    "c": (0.005, 0.5, True),
+}
+
+
+class ClassFitWarning(UserWarning):
+    """A class failed a guard rail and fell back to a built-in material or to no correction."""
+
+
+@dataclass(frozen=True)
+class GuardRails:
+    """Minimum requirements for a class fit to be used.
+
+    Attributes
+    ----------
+    min_samples : int
+        Minimum number of valid pixels of the class.
+    min_vza_spread : float
+        Minimum spread of the view zenith [deg] between its 5th and 95th percentiles.
+    max_condition : float
+        Maximum condition number of the column-normalized linear design ([1, basis]); above it the
+        constant and the specular term cannot be told apart.
+    min_r2 : float
+        Minimum median (over bands) coefficient of determination.
+    """
+
+    min_samples: int = 500
+    min_vza_spread: float = 10.0
+    max_condition: float = 1e3
+    min_r2: float = 0.0
+
+
+@dataclass
+class ClassFit:
+    """The fit of one class, with its diagnostics.
+
+    Attributes
+    ----------
+    class_id, name : int, str
+        Class id and name.
+    model : str
+        Registered model name.
+    n_samples : int
+        Number of pixels fitted.
+    vza_spread, phi_spread : float
+        5th-95th percentile range of view zenith and relative azimuth among the samples [deg].
+    condition : float
+        Condition number of the column-normalized linear design at the fitted shape.
+    params : dict of str to ndarray
+        Every model parameter, one value per band (shape parameters repeated).
+    errors : dict of str to ndarray
+        1-sigma errors of the free parameters, per band (0 for fixed ones).
+    r2, rmse : ndarray
+        Per band: coefficient of determination, and residual RMS of the BRDF [sr^-1].
+    fixed : dict
+        The shape parameters held fixed.
+    status : str
+        ``"fitted"``, ``"fallback"`` (a built-in material replaces the fit) or ``"uncorrected"``.
+    reasons : list of str
+        Why the class failed its guard rails (empty when fitted).
+    fallback : str or None
+        The built-in material used instead, if any.
+    """
+
+    class_id: int
+    name: str
+    model: str
+    n_samples: int
+    vza_spread: float
+    phi_spread: float
+    condition: float = math.nan
+    params: dict[str, np.ndarray] = field(default_factory=dict)
+    errors: dict[str, np.ndarray] = field(default_factory=dict)
+    r2: np.ndarray = field(default_factory=lambda: np.array([]))
+    rmse: np.ndarray = field(default_factory=lambda: np.array([]))
+    fixed: dict[str, float] = field(default_factory=dict)
+    status: str = "fitted"
+    reasons: list[str] = field(default_factory=list)
+    fallback: str | None = None
+
+    def summary(self) -> dict[str, object]:
+        """JSON-friendly summary (medians over bands for per-band quantities)."""
+        median = lambda values: float(np.median(values)) if np.size(values) else None  # noqa: E731
+        return {
+            "class_id": self.class_id,
+            "name": self.name,
+            "model": self.model,
+            "status": self.status,
+            "reasons": list(self.reasons),
+            "fallback": self.fallback,
+            "n_samples": self.n_samples,
+            "vza_spread_deg": round(self.vza_spread, 3),
+            "phi_spread_deg": round(self.phi_spread, 3),
+            "condition": None if math.isnan(self.condition) else float(self.condition),
+            "median_r2": median(self.r2),
+            "median_rmse": median(self.rmse),
+            "params": {k: _compact(v) for k, v in self.params.items()},
+            "errors": {k: _compact(v) for k, v in self.errors.items()},
+        }
+
+
+def _compact(values: np.ndarray):
+    """A scalar when all bands share the value, else a list."""
+    values = np.asarray(values, dtype=float)
+    if values.size and np.all(values == values.flat[0]):
+        return float(values.flat[0])
+    return values.tolist()
+
+
+class _LinearProfile:
+    """Sums of the data that the per-band linear solve needs, computed once per class."""
+
+    def __init__(self, model: Model, geometry: ScatteringGeometry, data: np.ndarray, fixed: dict):
+        self.model = model
+        self.geometry = geometry
+        self.data = data  # (N, B) BRDF [sr^-1]
+        self.fixed = fixed
+        self.terms = LINEAR_TERMS[model.name]
+        self.n = data.shape[0]
+        self.sum_y = data.sum(axis=0)
+        self.sum_yy = np.einsum("nb,nb->b", data, data)
+        variance = self.sum_yy / self.n - (self.sum_y / self.n) ** 2
+        # Inverse-variance band weights; a constant band carries no shape information.
+        self.weights = np.where(variance > 0, 1.0 / np.where(variance > 0, variance, 1.0), 0.0)
+
+    def basis(self, shape: Mapping[str, float]) -> np.ndarray:
+        """The column multiplying the second linear term, at a trial shape."""
+        unit = {self.terms[0]: 0.0, self.terms[1]: 1.0}
+        return np.asarray(self.model.kernel(self.geometry, **unit, **self.fixed, **shape), dtype=float)
+
+    def solve(self, basis: np.ndarray | None):
+        """Non-negative per-band intensities and per-band sums of squared residuals."""
+        if basis is None:  # Lambertian: t0 = mean
+            t0 = np.maximum(self.sum_y / self.n, 0.0)
+            ssr = self.sum_yy - 2 * t0 * self.sum_y + t0**2 * self.n
+            return (t0,), np.maximum(ssr, 0.0)
+        s1, s2 = basis.sum(), basis @ basis
+        sy = basis @ self.data
+        det = self.n * s2 - s1**2
+        if not det > 1e-12 * self.n * s2:  # basis ~ constant: only t0 is determined
+            c0, c1 = np.maximum(self.sum_y / self.n, 0.0), np.zeros_like(self.sum_y)
+        else:
+            c0 = (s2 * self.sum_y - s1 * sy) / det
+            c1 = (self.n * sy - s1 * self.sum_y) / det
+            # Non-negativity, band by band: where one term is negative, refit with the other alone.
+            only_basis = c0 < 0
+            c0 = np.where(only_basis, 0.0, c0)
+            c1 = np.where(only_basis, sy / s2, c1)
+            only_constant = c1 < 0
+            c1 = np.where(only_constant, 0.0, c1)
+            c0 = np.where(only_constant, self.sum_y / self.n, c0)
+            c0, c1 = np.maximum(c0, 0.0), np.maximum(c1, 0.0)
+        ssr = (
+            self.sum_yy - 2 * (c0 * self.sum_y + c1 * sy)
+            + c0**2 * self.n + 2 * c0 * c1 * s1 + c1**2 * s2
+        )
+        return (c0, c1), np.maximum(ssr, 0.0)
+
+    def objective(self, shape: Mapping[str, float]) -> float:
+        basis = self.basis(shape) if len(self.terms) > 1 else None
+        return float(self.solve(basis)[1] @ self.weights)
+
+
+def _grid(name: str, points: int) -> np.ndarray:
+    low, high, logarithmic = SEARCH_RANGES[name]
+    return np.geomspace(low, high, points) if logarithmic else np.linspace(low, high, points)
+
+
+def _search_shape(profile: _LinearProfile, free: Sequence[str], grid_points: int) -> dict[str, float]:
+    """Coarse grid over the free shape parameters, then bounded Nelder-Mead refinement."""
+    grids = np.meshgrid(*(_grid(name, grid_points) for name in free), indexing="ij")
+    candidates = np.stack([g.ravel() for g in grids], axis=-1)
+    values = [profile.objective(dict(zip(free, point))) for point in candidates]
+    start = candidates[int(np.nanargmin(values))]
+
+    # Optimize log(w), log(c) so that the simplex steps are relative.
+    logarithmic = [SEARCH_RANGES[name][2] for name in free]
+    to_x = lambda p: np.array([math.log(v) if log else v for v, log in zip(p, logarithmic)])  # noqa: E731
+    to_p = lambda x: np.array([math.exp(v) if log else v for v, log in zip(x, logarithmic)])  # noqa: E731
+    low = to_x(np.array([SEARCH_RANGES[name][0] for name in free]))
+    high = to_x(np.array([SEARCH_RANGES[name][1] for name in free]))
+    result = scipy.optimize.minimize(
+        lambda x: profile.objective(dict(zip(free, to_p(x)))),
+        to_x(start),
+        method="Nelder-Mead",
+        bounds=list(zip(low, high)),
+        options={"xatol": 1e-6, "fatol": 1e-10 * max(values[int(np.nanargmin(values))], 1e-300)},
+    )
+    return dict(zip(free, map(float, to_p(result.x))))
+
+
+def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr):
+    """Sandwich covariance of the shape; HC0 + propagated shape errors for the intensities."""
+    free = list(shape)
+    data, n = profile.data, profile.n
+    dof = max(n - len(profile.terms), 1)
+    sigma2 = ssr / dof  # per-band residual variance
+    basis = profile.basis(shape) if len(profile.terms) > 1 else None
+    design = np.ones((n, 1)) if basis is None else np.column_stack([np.ones(n), basis])
+    coefficients = np.stack(intensities)  # (m, B)
+    residuals = data - design @ coefficients  # (N, B)
+
+    # Intensities conditional on the shape: HC0 sandwich per band.
+    bread = np.linalg.pinv(design.T @ design)
+    meat = np.einsum("ni,nj,nb->bij", design, design, residuals**2)
+    intensity_cov = np.einsum("ij,bjk,kl->bil", bread, meat, bread)
+    intensity_var = np.stack([intensity_cov[:, i, i] for i in range(len(profile.terms))])
+    if not free:
+        return {}, np.sqrt(intensity_var)
+
+    # Profile objective Q = sum_b SSR_b / sigma2_b; its Hessian by central differences.
+    weights = np.where(sigma2 > 0, 1.0 / np.where(sigma2 > 0, sigma2, 1.0), 0.0)
+    values = np.array([shape[name] for name in free])
+    steps = 1e-3 * np.maximum(np.abs(values), 1e-2)
+
+    def q(vector):
+        trial = dict(zip(free, vector))
+        return float(profile.solve(profile.basis(trial))[1] @ weights)
+
+    k = len(free)
+    hessian = np.empty((k, k))
+    q0 = q(values)
+    for i in range(k):
+        for j in range(i, k):
+            ei, ej = np.eye(k)[i] * steps[i], np.eye(k)[j] * steps[j]
+            if i == j:
+                value = (q(values + ei) - 2 * q0 + q(values - ei)) / steps[i] ** 2
+            else:
+                value = (
+                    q(values + ei + ej) - q(values + ei - ej) - q(values - ei + ej) + q(values - ei - ej)
+                ) / (4 * steps[i] * steps[j])
+            hessian[i, j] = hessian[j, i] = value
+
+    # Per-pixel efficient scores of Q for the shape: the partial score minus its projection on the
+    # intensity scores, g_theta - H_theta,c H_cc^-1 g_c, band by band (H_cc = 2 w_b A^T A).
+    scores = np.empty((n, k))
+    derivatives = []
+    for i, name in enumerate(free):
+        plus = profile.basis({**shape, name: values[i] + steps[i]})
+        minus = profile.basis({**shape, name: values[i] - steps[i]})
+        d_basis = (plus - minus) / (2 * steps[i])
+        partial = -2 * d_basis * (residuals @ (coefficients[1] * weights))
+        # H_theta,c_b = 2 w_b h_b with h_b = c1_b sum_p S'_p a_p - sum_p r_pb (0, S'_p); the
+        # projection H_theta,c H_cc^-1 g_c,p summed over bands is -2 sum_b w_b r_pb a_p.(A^T A)^-1 h_b.
+        h = coefficients[1] * (design.T @ d_basis)[:, None] - np.stack(
+            [np.zeros_like(weights), d_basis @ residuals]
+        )
+        scores[:, i] = partial + 2 * np.einsum("pm,pb,mb->p", design, residuals * weights, bread @ h)
+        derivatives.append(
+            (np.stack(profile.solve(plus)[0]) - np.stack(profile.solve(minus)[0])) / (2 * steps[i])
+        )
+    inverse = np.linalg.pinv(hessian)
+    shape_cov = inverse @ (scores.T @ scores) @ inverse
+    shape_errors = dict(zip(free, np.sqrt(np.maximum(np.diag(shape_cov), 0.0))))
+
+    # Propagate the shape uncertainty to the intensities: J cov J^T, J = d intensities / d shape.
+    jacobian = np.stack(derivatives, axis=-1)  # (m, B, k)
+    propagated = np.einsum("mbi,ij,mbj->mb", jacobian, shape_cov, jacobian)
+    return shape_errors, np.sqrt(intensity_var + np.maximum(propagated, 0.0))
+
+
+def fit_class_samples(
+    model: str | Model,
+    theta_i,
+    theta_r,
+    phi,
+    brdf,
+    *,
+    fixed: Mapping[str, float] | None = None,
+    grid_points: int = 9,
+) -> dict:
+    """Fit one class: shape parameters shared by all bands, intensity terms per band.
+
+    Parameters
+    ----------
+    model : str or Model
+        A surface model of the registry with linear intensity terms (:data:`LINEAR_TERMS`).
+    theta_i, theta_r, phi : array-like, shape (N,)
+        Solar zenith, view zenith and relative azimuth of each sample [deg].
+    brdf : array-like, shape (N, B)
+        BRDF of each sample in each band [sr^-1] (reflectance factor / pi).
+    fixed : mapping, optional
+        Shape parameters held fixed (default: k = 0.25 for the Torrance-Sparrow models, as paper
+        003 did). Intensity terms cannot be fixed.
+    grid_points : int, default 9
+        Points per free shape parameter in the coarse search grid.
+
+    Returns
+    -------
+    dict
+        ``params`` and ``errors`` (dicts of per-band arrays), ``r2``, ``rmse`` (per band),
+        ``condition`` (of the column-normalized linear design), ``shape`` (the free shape values).
+    """
+    model = get_model(model)
+    if model.name not in LINEAR_TERMS:
+        raise ParameterError(
+            f"model {model.name!r} cannot be fitted to imagery; use one of {', '.join(LINEAR_TERMS)}"
+        )
+    terms = LINEAR_TERMS[model.name]
+    fixed = {**DEFAULT_FIXED.get(model.name, {}), **dict(fixed or {})}
+    for name in fixed:
+        if name in terms:
+            raise ParameterError(f"{model.name}: the intensity term {name} cannot be fixed")
+        model.parameter(name).check(fixed[name], model.name)
+    free = [name for name in model.parameter_names if name not in terms and name not in fixed]
+
+    data = np.asarray(brdf, dtype=float)
+    if data.ndim == 1:
+        data = data[:, None]
+    geometry = ScatteringGeometry(*(np.asarray(a, dtype=float) for a in (theta_i, theta_r, phi)))
+    profile = _LinearProfile(model, geometry, data, fixed)
+    shape = _search_shape(profile, free, grid_points) if free else {}
+    basis = profile.basis(shape) if len(terms) > 1 else None
+    intensities, ssr = profile.solve(basis)
+    shape_errors, intensity_errors = _errors(profile, shape, intensities, ssr)
+
+    n_bands = data.shape[1]
+    params = {name: np.full(n_bands, value) for name, value in {**fixed, **shape}.items()}
+    params.update(dict(zip(terms, intensities)))
+    errors = {name: np.full(n_bands, shape_errors.get(name, 0.0)) for name in (*fixed, *shape)}
+    errors.update(dict(zip(terms, intensity_errors)))
+    total = profile.sum_yy - profile.sum_y**2 / profile.n
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r2 = np.where(total > 0, 1.0 - ssr / np.where(total > 0, total, 1.0), np.nan)
+    if basis is None:
+        condition = 1.0
+    else:
+        design = np.column_stack([np.ones_like(basis), basis])
+        norms = np.linalg.norm(design, axis=0)
+        condition = float(np.linalg.cond(design / np.where(norms > 0, norms, 1.0)))
+    return {
+        "params": {name: params[name] for name in model.parameter_names},
+        "errors": {name: errors[name] for name in model.parameter_names},
+        "r2": r2,
+        "rmse": np.sqrt(ssr / profile.n),
+        "condition": condition,
+        "shape": shape,
+        "fixed": fixed,
+    }
+
+
+def _spread(values: np.ndarray) -> float:
+    """5th-95th percentile range [deg]."""
+    if values.size == 0:
+        return 0.0
+    low, high = np.percentile(values, [5, 95])
+    return float(high - low)
+
+
+def fit_one_class(
+    class_id: int,
+    name: str,
+    model: str | Model,
+    theta_i: np.ndarray,
+    theta_r: np.ndarray,
+    phi: np.ndarray,
+    brdf: np.ndarray,
+    *,
+    fixed: Mapping[str, float] | None = None,
+    guard: GuardRails = GuardRails(),
+    fallback: str | None = None,
+    grid_points: int = 9,
+) -> ClassFit:
+    """Fit one class's samples and apply the guard rails (see :func:`fit_class_samples`)."""
+    model = get_model(model)
+    report = ClassFit(
+        class_id=class_id,
+        name=name,
+        model=model.name,
+        n_samples=int(np.size(theta_i)),
+        vza_spread=_spread(np.asarray(theta_r)),
+        phi_spread=_spread(np.asarray(phi)),
+        fallback=fallback,
+    )
+    if report.n_samples < guard.min_samples:
+        report.reasons.append(f"{report.n_samples} samples < {guard.min_samples}")
+    if report.vza_spread < guard.min_vza_spread:
+        report.reasons.append(
+            f"view zenith spread {report.vza_spread:.1f} deg < {guard.min_vza_spread:g} deg"
+        )
+    if report.n_samples >= max(len(model.parameters) + 1, 3):
+        result = fit_class_samples(
+            model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points
+        )
+        report.params, report.errors = result["params"], result["errors"]
+        report.r2, report.rmse = result["r2"], result["rmse"]
+        report.condition, report.fixed = result["condition"], result["fixed"]
+        if report.condition > guard.max_condition:
+            report.reasons.append(
+                f"ill-conditioned (condition {report.condition:.3g} > {guard.max_condition:g}): "
+                "the geometry does not separate the diffuse and specular terms"
+            )
+        median_r2 = float(np.nanmedian(report.r2)) if np.size(report.r2) else math.nan
+        if not median_r2 >= guard.min_r2:
+            report.reasons.append(f"median R^2 {median_r2:.3f} < {guard.min_r2:g}")
+    if report.reasons:
+        report.status = "fallback" if fallback else "uncorrected"
+        action = f"using built-in material {fallback!r}" if fallback else "left uncorrected"
+        warnings.warn(
+            f"class {class_id} ({name}): {'; '.join(report.reasons)}; {action}",
+            ClassFitWarning,
+            stacklevel=2,
+        )
+    return report
+
+
+
+
+@dataclass
+class ClassSamples:
+    """The pooled, sampled pixels of one class: angles [deg] and BRDF [sr^-1] per band."""
+
+    theta_i: np.ndarray
+    theta_r: np.ndarray
+    phi: np.ndarray
+    brdf: np.ndarray  # (N, B)
+
+
+def _as_list(value) -> list:
+    return list(value) if isinstance(value, (list, tuple)) else [value]
+
+
+def sample_classes(
+    images,
+    classes,
+    angles,
+    *,
+    class_ids: Sequence[int] | None = None,
+    max_samples: int = 50_000,
+    seed: int = 0,
+    reflectance_scale: float = 1.0,
+) -> dict[int, ClassSamples]:
+    """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
+
+    Parameters
+    ----------
+    images : DataArray or list of DataArray, dims (band, y, x)
+        Reflectance factors (numpy- or dask-backed); the band count must agree across scenes.
+    classes : DataArray or list of DataArray, dims (y, x)
+        Integer class maps on the images' grids; 0 and negative values mean "no class".
+    angles : Dataset or list of Dataset
+        ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on the images' grids (DESIGN.md conventions).
+    class_ids : sequence of int, optional
+        Classes to sample (default: every positive id found).
+    max_samples : int, default 50000
+        Cap per class, over all scenes together. Sampling without replacement, seeded.
+    seed : int, default 0
+        Seed of the sampler: the same inputs and seed give the same samples.
+    reflectance_scale : float, default 1
+        Multiplier that turns stored values into reflectance factors (e.g. 1e-4 for 0-10000).
+
+    Returns
+    -------
+    dict of int to ClassSamples
+        BRDF = reflectance / pi [sr^-1]. Samples whose reflectance is not finite in some band are
+        dropped after sampling, so a class may end up with fewer than ``max_samples``.
+
+    Notes
+    -----
+    Only the class maps and the angle layers needed to find valid pixels are computed whole; the
+    reflectance is read at the sampled pixels only (pointwise indexing stays lazy on dask).
+    """
+    images, classes, angles = _as_list(images), _as_list(classes), _as_list(angles)
+    if not len(images) == len(classes) == len(angles):
+        raise ParameterError(
+            f"{len(images)} images, {len(classes)} class maps and {len(angles)} angle sets: "
+            "give one class map and one angle set per image"
+        )
+    maps = [np.asarray(class_map.values) for class_map in classes]
+    valid_angles = [
+        np.all([np.isfinite(np.asarray(a[name].values)) for name in ("sza", "saa", "vza", "vaa")], axis=0)
+        for a in angles
+    ]
+    if class_ids is None:
+        class_ids = sorted({int(c) for m in maps for c in np.unique(m) if c > 0})
+    rng = np.random.default_rng(seed)
+    pooled: dict[int, ClassSamples] = {}
+    for class_id in class_ids:
+        candidates = [np.flatnonzero((m == class_id) & ok) for m, ok in zip(maps, valid_angles)]
+        counts = np.array([c.size for c in candidates])
+        offsets = np.concatenate([[0], np.cumsum(counts)])
+        chosen = np.sort(rng.choice(offsets[-1], size=min(max_samples, offsets[-1]), replace=False))
+        scene_of = np.searchsorted(offsets, chosen, side="right") - 1
+        parts = []
+        for scene, (image, angle_set) in enumerate(zip(images, angles)):
+            flat = candidates[scene][chosen[scene_of == scene] - offsets[scene]]
+            if flat.size == 0:
+                continue
+            iy, ix = np.unravel_index(flat, maps[scene].shape)
+            where = {"y": xr.DataArray(iy, dims="sample"), "x": xr.DataArray(ix, dims="sample")}
+
+            def pick(array):
+                # Pointwise (vectorized) indexing: lazy on dask, reads only the sampled pixels.
+                return np.asarray(array.isel(where).values, dtype=float)
+
+            reflectance = pick(image.transpose("band", "y", "x")).T * reflectance_scale
+            saa, vaa = pick(angle_set["saa"]), pick(angle_set["vaa"])
+            parts.append(
+                (pick(angle_set["sza"]), pick(angle_set["vza"]), relative_azimuth(saa, vaa), reflectance / math.pi)
+            )
+        if not parts:
+            n_bands = images[0].sizes["band"]
+            pooled[class_id] = ClassSamples(*(np.empty(0) for _ in range(3)), np.empty((0, n_bands)))
+            continue
+        theta_i, theta_r, phi, brdf = (np.concatenate(p) for p in zip(*parts))
+        keep = np.all(np.isfinite(brdf), axis=1)
+        pooled[class_id] = ClassSamples(theta_i[keep], theta_r[keep], phi[keep], brdf[keep])
+    return pooled
+
+
+@dataclass
+class ClassFitResult:
+    """Result of :func:`fit_classes`: the parameter table and one report per class.
+
+    Attributes
+    ----------
+    table : ParameterTable
+        Fitted classes (and fallback materials); classes left uncorrected are absent.
+    fits : list of ClassFit
+        Per class: samples, angular spread, conditioning, R^2, RMS, errors, status and reasons.
+    samples : dict of int to ClassSamples
+        A subsample (at most ``keep_samples`` per class) for plots.
+    """
+
+    table: object
+    fits: list[ClassFit]
+    samples: dict[int, ClassSamples]
+
+    def report(self) -> list[dict[str, object]]:
+        """JSON-friendly fit report, one entry per class."""
+        return [fit.summary() for fit in self.fits]
+
+
+def _entry(fit: ClassFit, wavelengths):
+    from brdfcorr.materials import load_material
+    from brdfcorr.params import ClassEntry
+
+    if fit.status == "uncorrected":
+        return None
+    if fit.status == "fallback":
+        material = load_material(fit.fallback)
+        return ClassEntry(id=fit.class_id, name=fit.name, model=material.model.name, params=material.params)
+    params = {name: _compact(values) for name, values in fit.params.items()}
+    per_band = any(isinstance(value, list) for value in params.values())
+    return ClassEntry(
+        id=fit.class_id,
+        name=fit.name,
+        model=fit.model,
+        params=params,
+        wavelengths=[float(w) for w in wavelengths] if per_band and wavelengths is not None else None,
+    )
+
+
+def fit_classes(
+    images,
+    classes,
+    angles,
+    model: str | Model = "torrance_sparrow",
+    *,
+    names: Mapping[int, str] | None = None,
+    class_ids: Sequence[int] | None = None,
+    wavelengths: Sequence[float] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    max_samples: int = 50_000,
+    seed: int = 0,
+    reflectance_scale: float = 1.0,
+    guard: GuardRails = GuardRails(),
+    fallback: str | Mapping[int, str] | None = None,
+    grid_points: int = 9,
+    keep_samples: int = 2000,
+    progress=None,
+) -> ClassFitResult:
+    """Fit a BRDF model per class (shape per class, intensities per band) from imagery.
+
+    Parameters
+    ----------
+    images, classes, angles :
+        One or many scenes; see :func:`sample_classes`.
+    model : str or Model, default "torrance_sparrow"
+        Surface model with linear intensity terms (:data:`LINEAR_TERMS`); may also be a mapping of
+        class id to model name.
+    names : mapping of int to str, optional
+        Class names (default ``class_<id>``).
+    class_ids : sequence of int, optional
+        Classes to fit (default: every positive id in the class maps).
+    wavelengths : sequence of float, optional
+        Band centres [nm]; default: the images' ``wavelength`` coordinate if present. Written to
+        the table so that it can be applied to other sensors by interpolation.
+    fixed : mapping, optional
+        Shape parameters held fixed (default k = 0.25 for the Torrance-Sparrow models).
+    max_samples, seed, reflectance_scale :
+        See :func:`sample_classes`.
+    guard : GuardRails
+        Minimum samples, view-zenith spread, conditioning and R^2 a class must meet.
+    fallback : str or mapping of int to str, optional
+        Built-in material used for a class that fails its guard rails; without one the class is
+        left out of the table (left uncorrected, and flagged by the correction). Either way a
+        :class:`ClassFitWarning` says so.
+    grid_points : int, default 9
+        Coarse-grid points per free shape parameter.
+    keep_samples : int, default 2000
+        Samples per class kept in the result for plots.
+    progress : callable, optional
+        Called as ``progress(class_id)`` after each class (e.g. a progress bar's update).
+
+    Returns
+    -------
+    ClassFitResult
+    """
+    from brdfcorr.params import ParameterTable
+
+    scenes = _as_list(images)
+    if wavelengths is None and "wavelength" in scenes[0].coords:
+        wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
+    pooled = sample_classes(
+        images, classes, angles, class_ids=class_ids, max_samples=max_samples, seed=seed,
+        reflectance_scale=reflectance_scale,
+    )
+    names = dict(names or {})
+    fits, entries, kept = [], [], {}
+    for class_id, samples in pooled.items():
+        class_model = model.get(class_id, "torrance_sparrow") if isinstance(model, Mapping) else model
+        class_fallback = fallback.get(class_id) if isinstance(fallback, Mapping) else fallback
+        fit = fit_one_class(
+            class_id,
+            names.get(class_id, f"class_{class_id}"),
+            class_model,
+            samples.theta_i,
+            samples.theta_r,
+            samples.phi,
+            samples.brdf,
+            fixed=fixed,
+            guard=guard,
+            fallback=class_fallback,
+            grid_points=grid_points,
+        )
+        fits.append(fit)
+        entry = _entry(fit, wavelengths)
+        if entry is not None:
+            entries.append(entry)
+        step = max(1, samples.theta_i.size // keep_samples)
+        kept[class_id] = ClassSamples(
+            samples.theta_i[::step], samples.theta_r[::step], samples.phi[::step], samples.brdf[::step]
+        )
+        if progress is not None:
+            progress(class_id)
+    return ClassFitResult(table=ParameterTable(classes=entries), fits=fits, samples=kept)

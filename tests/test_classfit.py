@@ -1,0 +1,183 @@
+"""Class-pooled fitting from imagery (issue 6): retrieval, error calibration, guard rails."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from brdfcorr.classfit import (
+    ClassFitWarning,
+    GuardRails,
+    fit_class_samples,
+    fit_classes,
+    sample_classes,
+)
+from brdfcorr.correct import normalize
+from brdfcorr.models import empirical, torrance_sparrow
+from brdfcorr.params import ParameterTable
+from brdfcorr.testing import render, synthetic_classes
+
+WAVELENGTHS = [480.0, 560.0, 660.0, 830.0]
+TRUTH = ParameterTable(
+    classes=[
+        # Paper 003, Table 1 roof tile shape; spectral intensities made up for the test.
+        {"id": 1, "name": "roof_tile", "model": "torrance_sparrow", "wavelengths": WAVELENGTHS,
+         "params": {"t0": [0.015, 0.02, 0.03, 0.035], "t1": [0.15, 0.18, 0.22, 0.25],
+                    "w": 0.0362, "n": 1.77, "k": 0.25}},
+        {"id": 2, "name": "grass", "model": "empirical", "wavelengths": WAVELENGTHS,
+         "params": {"a": [0.01, 0.02, 0.012, 0.06], "b": 1.0, "c": 0.03,
+                    "t0": [0.01, 0.03, 0.015, 0.15]}},
+    ]
+)
+
+
+def airborne_line(ny=100, nx=160, seed=0, albedo_spread=0.05, noise=0.005, vza_max=40.0):
+    """A wide field-of-view line with the sun across track (saa 95 deg): backscatter on one side,
+    forward scatter on the other. Reflectance = pi * f * albedo * (1 + noise)."""
+    rng = np.random.default_rng(seed)
+    cols = np.linspace(-1, 1, nx)[None, :]
+    angles = {
+        "sza": np.broadcast_to(np.linspace(35, 45, ny)[:, None], (ny, nx)).copy(),
+        "saa": np.full((ny, nx), 95.0),
+        "vza": np.broadcast_to(vza_max * np.abs(cols), (ny, nx)).copy(),
+        "vaa": np.broadcast_to(np.where(cols < 0, 270.0, 90.0), (ny, nx)).copy(),
+    }
+    classes = synthetic_classes(ny, nx, ids=(1, 2), seed=seed)
+    albedo = rng.normal(1.0, albedo_spread, (ny, nx))
+    cube = render(TRUTH, classes, **angles, wavelengths=WAVELENGTHS, brightness=math.pi * albedo)
+    cube *= 1 + noise * rng.standard_normal(cube.shape)
+    coords = {"y": np.arange(ny), "x": np.arange(nx)}
+    image = xr.DataArray(
+        cube, dims=("band", "y", "x"),
+        coords={**coords, "band": np.arange(1, 5), "wavelength": ("band", WAVELENGTHS)},
+    )
+    angle_set = xr.Dataset({k: (("y", "x"), v) for k, v in angles.items()}, coords=coords)
+    return image, xr.DataArray(classes, dims=("y", "x"), coords=coords), angle_set
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    image, classes, angles = airborne_line()
+    result = fit_classes(
+        image, classes, angles,
+        model={1: "torrance_sparrow", 2: "empirical"}, names={1: "roof_tile", 2: "grass"},
+    )
+    return image, classes, angles, result
+
+
+def test_retrieved_parameters_agree_with_truth_within_errors(fitted):
+    *_, result = fitted
+    for fit in result.fits:
+        assert fit.status == "fitted", fit.reasons
+        truth = TRUTH[fit.class_id].band_values(WAVELENGTHS)
+        for name, values in fit.params.items():
+            errors = fit.errors[name]
+            free = errors > 0
+            # Fixed k equals its truth exactly; every free value within 4 sigma (16 values, seeded).
+            np.testing.assert_allclose(values[~free], truth[name][~free])
+            pulls = (values[free] - truth[name][free]) / errors[free]
+            assert np.all(np.abs(pulls) < 4), (fit.name, name, pulls)
+        assert np.median(fit.r2) > 0.5
+
+
+def test_shape_errors_are_calibrated_over_seeds():
+    # The reported 1-sigma errors must describe the scatter of the estimates: over independent
+    # noise realizations the pulls (estimate - truth) / error have a standard deviation near 1
+    # (0.5-1.6 with 12 realizations, allowing for the sandwich estimator's conservatism).
+    rng = np.random.default_rng(42)
+    pulls = []
+    for _ in range(12):
+        n = 4000
+        sza, vza = rng.uniform(30, 50, n), rng.uniform(0, 40, n)
+        phi = np.where(rng.random(n) < 0.5, rng.uniform(150, 180, n), rng.uniform(0, 30, n))
+        a, t0 = np.array([0.1, 0.2, 0.3]), np.array([0.01, 0.02, 0.05])
+        f = empirical(sza[:, None], vza[:, None], phi[:, None], a=a, b=1.0, c=0.05, t0=t0)
+        y = f * rng.normal(1, 0.1, (n, 1)) * (1 + 0.01 * rng.standard_normal(f.shape))
+        result = fit_class_samples("empirical", sza, vza, phi, y)
+        pulls.append((result["params"]["c"][0] - 0.05) / result["errors"]["c"][0])
+    assert 0.5 < np.std(pulls) < 1.6
+    assert abs(np.mean(pulls)) < 1.0
+
+
+def test_correcting_with_fitted_parameters_removes_the_gradient_like_the_truth(fitted):
+    image, classes, angles, result = fitted
+    kwargs = dict(reference={"sza": 40.0, "vza": 0.0, "raa": 0.0}, limits=None)
+    layers = [angles[k] for k in ("sza", "saa", "vza", "vaa")]
+    observed = image.sel(band=1).where(classes == 1)
+    with_fit = normalize(image, classes, *layers, result.table, **kwargs).reflectance
+    with_truth = normalize(image, classes, *layers, TRUTH, **kwargs).reflectance
+
+    def across_track_spread(cube):
+        # Relative spread of the column means of the roof-tile class in band 1.
+        columns = cube.where(classes == 1).mean("y")
+        return float(columns.std() / columns.mean())
+
+    before = across_track_spread(observed)
+    after_fit = across_track_spread(with_fit.sel(band=1))
+    after_truth = across_track_spread(with_truth.sel(band=1))
+    assert before > 0.15  # there is a strong gradient to remove
+    assert after_fit < 0.25 * before
+    assert after_fit == pytest.approx(after_truth, abs=0.01)
+
+
+def test_table_round_trips_and_carries_wavelengths(fitted, tmp_path):
+    *_, result = fitted
+    path = result.table.save(tmp_path / "fitted.yaml")
+    loaded = ParameterTable.load(path)
+    assert loaded.class_ids == (1, 2)
+    assert loaded[1].wavelengths == WAVELENGTHS
+    assert loaded[1].params["k"] == 0.25
+    report = result.report()
+    assert {entry["name"] for entry in report} == {"roof_tile", "grass"}
+    assert report[0]["n_samples"] > 1000 and report[0]["vza_spread_deg"] > 30
+
+
+def test_guard_rails_fall_back_or_leave_uncorrected_and_say_so():
+    image, classes, angles = airborne_line(ny=40, nx=60, vza_max=40.0)
+    # Class 2 only in a narrow strip near nadir: view zenith spread far below 10 deg.
+    narrow = xr.where(np.abs(angles["vza"]) < 3, classes, 1)
+    with pytest.warns(ClassFitWarning, match=r"class 2 \(class_2\): .*view zenith spread"):
+        result = fit_classes(image, narrow, angles, model="empirical")
+    fits = {fit.class_id: fit for fit in result.fits}
+    assert fits[2].status == "uncorrected" and 2 not in result.table
+    assert fits[1].status == "fitted" and 1 in result.table
+
+    with pytest.warns(ClassFitWarning, match="using built-in material 'roof_tile'"):
+        result = fit_classes(
+            image, narrow, angles, model="empirical", guard=GuardRails(min_samples=10**6),
+            fallback="roof_tile",
+        )
+    assert all(fit.status == "fallback" for fit in result.fits)
+    assert result.table[1].model == "torrance_sparrow" and result.table[1].params["w"] == 0.0362
+
+
+def test_sampling_is_reproducible_capped_and_lazy_safe():
+    image, classes, angles = airborne_line(ny=40, nx=60)
+    first = sample_classes(image, classes, angles, max_samples=300, seed=3)
+    again = sample_classes(image.chunk({"y": 16}), classes, angles, max_samples=300, seed=3)
+    other = sample_classes(image, classes, angles, max_samples=300, seed=4)
+    for class_id in (1, 2):
+        assert first[class_id].brdf.shape == (300, 4)
+        np.testing.assert_array_equal(first[class_id].brdf, again[class_id].brdf)
+        assert not np.array_equal(first[class_id].theta_r, other[class_id].theta_r)
+    # Two scenes pool their pixels: the cap applies to the union.
+    pooled = sample_classes([image, image], [classes, classes], [angles, angles], max_samples=10**6)
+    single = sample_classes(image, classes, angles, max_samples=10**6)
+    assert pooled[1].brdf.shape[0] == 2 * single[1].brdf.shape[0]
+
+
+def test_ts_fit_of_noise_free_data_is_exact():
+    # Closed-form check of the variable-projection solver: noise-free data are reproduced.
+    rng = np.random.default_rng(0)
+    sza, vza, phi = rng.uniform(20, 60, 3000), rng.uniform(0, 60, 3000), rng.uniform(0, 180, 3000)
+    truth = dict(t0=np.array([0.02, 0.05]), t1=np.array([0.2, 0.4]), w=0.08, n=1.5, k=0.25)
+    y = torrance_sparrow(sza[:, None], vza[:, None], phi[:, None], **truth)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = fit_class_samples("torrance_sparrow", sza, vza, phi, y)
+    for name in ("w", "n"):
+        assert result["params"][name][0] == pytest.approx(truth[name], rel=1e-4)
+    np.testing.assert_allclose(result["params"]["t1"], truth["t1"], rtol=1e-3)
+    np.testing.assert_allclose(result["r2"], 1.0, atol=1e-8)
