@@ -9,5 +9,9 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 
 from brdfcorr import geometry, models  # noqa: E402
 from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # noqa: E402
+from brdfcorr.correct import normalize  # noqa: E402
+from brdfcorr import accessor  # noqa: E402,F401  (registers the .brdf xarray accessor)
 
-__all__ = ["__version__", "geometry", "models", "BrdfcorrError", "ParameterError", "UnknownNameError"]
+__all__ = [
+    "__version__", "geometry", "models", "normalize", "BrdfcorrError", "ParameterError", "UnknownNameError",
+]

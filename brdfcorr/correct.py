@@ -254,10 +254,7 @@ def _resolve_reference(reference, params: ParameterTable) -> ReferenceGeometry:
         return params.reference or ReferenceGeometry()
     if isinstance(reference, ReferenceGeometry):
         return reference
-    try:
-        return ParameterTable(reference=reference).reference
-    except ParameterError as error:
-        raise ParameterError(f"reference geometry: {error}") from None
+    return ParameterTable.from_dict({"reference": dict(reference)}, source="reference geometry").reference
 
 
 def normalize(
@@ -472,3 +469,100 @@ def qa_counts(qa) -> dict[str, object]:
         "no_class": xp.count_nonzero(data & QA_NO_CLASS),
         "nodata": xp.count_nonzero(data & (QA_NODATA | QA_INVALID_GEOMETRY)),
     }
+
+
+def correct_files(
+    image, output, *, params, angles=None, sza=None, saa=None, vza=None, vaa=None, classes,
+    reference: ReferenceGeometry | dict | None = None, qa_output=None, wavelengths=None,
+    extrapolate: bool = False, limits=(0.2, 5.0), unknown: Literal["keep", "nan"] = "keep",
+    flip_view_azimuth: bool = False, chunks: int | None = None, compress: str = "deflate",
+    cog: bool = False, callbacks=(), table_source: str | None = None,
+) -> dict[str, object]:
+    """Normalize GeoTIFF files: read image, angles and class map, write the corrected image.
+
+    The file-level entry point (the CLI and pipelines call it). Inputs are opened lazily in chunks
+    (:mod:`brdfcorr.io`), checked to lie on the image's grid, normalized with :func:`normalize`
+    and written tiled and compressed, chunk by chunk, to a temporary name renamed when complete,
+    with band descriptions and provenance tags (reference geometry, limits, parameter table,
+    brdfcorr version). The optional QA layer is written in the same pass.
+
+    Parameters
+    ----------
+    image, output : path-like
+        Input reflectance raster and output GeoTIFF.
+    params : ParameterTable or path-like
+        The parameter table (a path is loaded with :meth:`ParameterTable.load`).
+    angles : path-like, optional
+        4-band raster sza, saa, vza, vaa [deg]; or give ``sza``, ``saa``, ``vza``, ``vaa`` files.
+    classes : path-like
+        Class map raster.
+    reference, wavelengths, extrapolate, limits, unknown, flip_view_azimuth :
+        As for :func:`normalize`. A ``"mean"`` reference sun zenith is computed first (one pass
+        over the sza layer) and recorded as a number in the tags.
+    qa_output : path-like, optional
+        Where to write the QA layer (uint8 flags).
+    chunks : int, optional
+        Spatial chunk and tile size [pixels] (default :data:`brdfcorr.io.DEFAULT_CHUNK`).
+    compress : str, default "deflate"
+    cog : bool, default False
+        Write Cloud-Optimized GeoTIFFs.
+    callbacks : sequence
+        Dask callbacks active while computing (a progress bar).
+    table_source : str, optional
+        Where an in-memory ``params`` came from, for the provenance tag.
+
+    Returns
+    -------
+    dict
+        Pixel counts (:func:`qa_counts`) plus ``reference`` (the geometry used).
+    """
+    import json
+
+    from brdfcorr import __version__
+    from brdfcorr import io as rio_io
+
+    table_path = table_source
+    if not isinstance(params, ParameterTable):
+        table_path = str(params)
+        params = ParameterTable.load(params)
+    chunks = rio_io.DEFAULT_CHUNK if chunks is None else int(chunks)
+    reflectance = rio_io.open_image(image, chunks=chunks, wavelengths=wavelengths)
+    class_map = rio_io.open_classes(classes, chunks=chunks)
+    layers = rio_io.open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
+    rio_io.check_same_grid({"image": reflectance, "classes": class_map, **layers})
+
+    reference = _resolve_reference(reference, params)
+    source = "fixed" if not isinstance(reference.sza, str) else reference.sza
+    if reference.sza == "mean":
+        mean = float(_scene_mean(layers["sza"].data, da).compute())
+        if not np.isfinite(mean):
+            raise InputError(f"{layers['sza'].encoding.get('source', 'sza')}: no valid solar zenith for the scene mean")
+        reference = reference.model_copy(update={"sza": mean})
+
+    corrected, qa = normalize(
+        reflectance, class_map, layers["sza"], layers["saa"], layers["vza"], layers["vaa"], params,
+        reference, limits=limits, extrapolate=extrapolate, unknown=unknown,
+        flip_view_azimuth=flip_view_azimuth,
+    )
+    corrected = corrected.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
+    for name in ("scale_factor", "add_offset"):  # the output holds physical values
+        corrected.attrs.pop(name, None)
+    tags = {
+        "brdf_reference": reference.describe(),
+        "brdf_reference_sza_source": source,
+        "brdf_limits": _describe_limits(limits),
+        "brdf_parameter_table": table_path or "(in memory)",
+        "brdf_parameter_table_content": json.dumps(params.to_dict(), separators=(",", ":")),
+        "brdfcorr_version": __version__,
+    }
+    if "wavelength" in reflectance.coords:
+        tags["wavelength"] = ",".join(f"{w:g}" for w in reflectance["wavelength"].values)
+        tags["wavelength_units"] = "nm"
+    rasters = {output: corrected}
+    if qa_output is not None:
+        rasters[qa_output] = qa
+    counts = rio_io.write_rasters(
+        rasters, compress=compress, blocksize=chunks, cog=cog, tags=tags,
+        compute_with=qa_counts(qa), callbacks=callbacks,
+    )
+    return {**{key: int(value) for key, value in counts.items()}, "reference": reference}

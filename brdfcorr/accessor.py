@@ -1,0 +1,27 @@
+"""The ``.brdf`` xarray accessor: notebook shortcuts that delegate to library functions.
+
+>>> import brdfcorr  # registers the accessor
+>>> corrected, qa = cube.brdf.normalize(classes, sza, saa, vza, vaa, table)  # doctest: +SKIP
+
+The accessor holds no state and no science: metadata lives in coords/attrs of the arrays.
+"""
+
+from __future__ import annotations
+
+import xarray as xr
+
+from brdfcorr import correct
+
+__all__ = ["BrdfAccessor"]
+
+
+@xr.register_dataarray_accessor("brdf")
+class BrdfAccessor:
+    """``DataArray.brdf``: BRDF operations on a reflectance cube (band, y, x)."""
+
+    def __init__(self, reflectance: xr.DataArray):
+        self._reflectance = reflectance
+
+    def normalize(self, classes, sza, saa, vza, vaa, params, reference=None, **options) -> correct.Normalized:
+        """:func:`brdfcorr.normalize` with this array as the reflectance (same options)."""
+        return correct.normalize(self._reflectance, classes, sza, saa, vza, vaa, params, reference, **options)

@@ -1,0 +1,346 @@
+"""GeoTIFF input and output for the normalization, through rioxarray and rasterio.
+
+Readers open lazily (dask chunks), with nodata as NaN for reflectance and angles and the class map
+kept as integers with its nodata value. :func:`check_same_grid` says which layer differs from the
+image and how (shape, transform or CRS). :func:`band_wavelengths` finds band centres in the
+order fixed by ``DESIGN.md``. :func:`write_rasters` writes tiled, compressed GeoTIFFs (optionally
+COGs) chunk by chunk under a lock, to temporary names renamed when complete, computing any extra
+lazy results (QA counts) in the same pass.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import threading
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import dask
+import numpy as np
+import rasterio
+import rasterio.shutil
+import rioxarray
+import xarray as xr
+
+from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError
+from brdfcorr.io_utils import atomic_path
+
+__all__ = [
+    "open_image",
+    "open_angles",
+    "open_classes",
+    "check_same_grid",
+    "band_wavelengths",
+    "parse_wavelength",
+    "write_rasters",
+    "DEFAULT_CHUNK",
+    "ANGLE_NAMES",
+]
+
+#: Spatial chunk (and output tile) size [pixels].
+DEFAULT_CHUNK = 512
+ANGLE_NAMES = ("sza", "saa", "vza", "vaa")
+
+_UNITS_TO_NM = {
+    "": 1.0, "nm": 1.0, "nanometer": 1.0, "nanometers": 1.0, "nanometre": 1.0, "nanometres": 1.0,
+    "um": 1e3, "µm": 1e3, "μm": 1e3, "micron": 1e3, "microns": 1e3, "micrometer": 1e3,
+    "micrometers": 1e3, "micrometre": 1e3, "micrometres": 1e3,
+}
+_NUMBER = r"[0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?"
+
+
+def _open(path, role: str, chunks, masked: bool) -> xr.DataArray:
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{role} file {path} does not exist")
+    try:
+        # lock=False: every dask thread reads through its own handle, so reads run in parallel.
+        array = rioxarray.open_rasterio(path, chunks=chunks, masked=masked, lock=False)
+    except rasterio.errors.RasterioError as error:
+        raise InputError(f"cannot read {role} file {path}: {error}") from None
+    if isinstance(array, list):  # subdatasets: not a plain raster
+        raise InputError(f"{role} file {path} holds several subdatasets; give one raster")
+    array.encoding["source"] = str(path)
+    return array
+
+
+def _chunks(chunks, n_bands: int | None = None):
+    if chunks is None:
+        chunks = DEFAULT_CHUNK
+    if isinstance(chunks, int):
+        return {"band": -1, "y": chunks, "x": chunks}
+    return chunks
+
+
+def parse_wavelength(text: str) -> float | None:
+    """A band-centre wavelength [nm] from a band description, or None.
+
+    Accepts a number with an optional unit (``"560"``, ``"560 nm"``, ``"0.56 um"``), or a
+    description containing a number followed by a unit (``"B3 (560 nm)"``). ``"Band 3"`` is not a
+    wavelength.
+    """
+    if not text:
+        return None
+    text = text.strip()
+    match = re.fullmatch(rf"({_NUMBER})\s*([A-Za-zµμ]*)", text)
+    if match is None:
+        match = re.search(rf"({_NUMBER})\s*(nm|um|µm|μm|nanometers?|micrometers?|microns?)\b", text, re.I)
+    if match is None or match[2].lower() not in _UNITS_TO_NM:
+        return None
+    return float(match[1]) * _UNITS_TO_NM[match[2].lower()]
+
+
+def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
+                     explicit: Sequence[float] | None = None) -> np.ndarray | None:
+    """Band-centre wavelengths [nm] of an image, or None when nothing gives them.
+
+    Sources, in the order of ``DESIGN.md``: ``explicit``; a dataset tag ``wavelength`` with
+    comma-separated values (``wavelength_units`` tag honoured, nm by default); band descriptions
+    holding a number with an optional unit; the ENVI header of an ENVI image.
+
+    Raises
+    ------
+    InputError
+        A source is present but malformed, or gives a count other than the number of bands.
+    """
+    n_bands = image.sizes[image.dims[0]]
+    source = path or image.encoding.get("source", "image")
+    values = None
+    origin = ""
+    if explicit is not None:
+        values, origin = [float(v) for v in explicit], "the given wavelengths"
+    elif "wavelength" in image.attrs:
+        text = str(image.attrs["wavelength"])
+        try:
+            values = [float(v) for v in re.split(r"[,\s]+", text.strip(" {}[]()")) if v]
+        except ValueError:
+            raise InputError(f"{source}: tag wavelength={text!r} is not a comma-separated list of numbers") from None
+        unit = str(image.attrs.get("wavelength_units", "nm")).strip().lower()
+        if unit not in _UNITS_TO_NM:
+            raise InputError(f"{source}: unknown wavelength_units {unit!r}")
+        values = [v * _UNITS_TO_NM[unit] for v in values]
+        origin = "tag 'wavelength'"
+    else:
+        descriptions = image.attrs.get("long_name")
+        if isinstance(descriptions, str):
+            descriptions = (descriptions,) if n_bands == 1 else None
+        parsed = [parse_wavelength(d) for d in descriptions] if descriptions else []
+        if parsed and all(p is not None for p in parsed):
+            values, origin = parsed, "band descriptions"
+        elif path is not None and _driver(path) == "ENVI":
+            from brdfcorr.sensors.envi import envi_wavelengths
+
+            try:
+                values, origin = envi_wavelengths(path)[0].tolist(), "ENVI header"
+            except BrdfcorrError as error:
+                raise InputError(str(error)) from None
+    if values is None:
+        return None
+    if len(values) != n_bands:
+        raise InputError(f"{source}: {len(values)} wavelengths from {origin} for {n_bands} bands")
+    values = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(values) & (values > 0)):
+        raise InputError(f"{source}: wavelengths from {origin} must be finite and > 0 nm")
+    return values
+
+
+def _driver(path) -> str | None:
+    try:
+        with rasterio.open(path) as dataset:
+            return dataset.driver
+    except rasterio.errors.RasterioError:
+        return None
+
+
+def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None) -> xr.DataArray:
+    """Open a reflectance image (band, y, x) lazily, nodata as NaN, with a ``wavelength`` coord.
+
+    Parameters
+    ----------
+    path : path-like
+        Any raster GDAL reads (GeoTIFF, ENVI, ...).
+    chunks : int or dict, optional
+        Dask chunks; an int is the spatial chunk size with all bands in one chunk (default 512).
+    wavelengths : sequence of float, optional
+        Band centres [nm], overriding what the file says (:func:`band_wavelengths`).
+    """
+    image = _open(path, "image", _chunks(chunks), masked=True)
+    found = band_wavelengths(image, path, wavelengths)
+    if found is not None:
+        image = image.assign_coords(wavelength=(image.dims[0], found, {"units": "nm"}))
+    image.name = image.name or "reflectance"
+    return image
+
+
+def open_classes(path, chunks=None) -> xr.DataArray:
+    """Open a class map (y, x) lazily, keeping its integer values and its nodata (``.rio.nodata``)."""
+    classes = _open(path, "class map", _chunks(chunks), masked=False)
+    if classes.sizes[classes.dims[0]] != 1:
+        raise InputError(f"class map {path} has {classes.sizes[classes.dims[0]]} bands; it needs 1")
+    nodata = classes.rio.nodata
+    classes = classes.isel({classes.dims[0]: 0}, drop=True)
+    classes.name = "classes"
+    return classes.rio.write_nodata(nodata) if nodata is not None else classes
+
+
+def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=None) -> dict[str, xr.DataArray]:
+    """Open the sun/view angles [deg] as four (y, x) arrays, nodata as NaN.
+
+    Either ``path``, a 4-band raster in the order sza, saa, vza, vaa, or four single-band files.
+    """
+    separate = {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
+    given = [name for name, value in separate.items() if value is not None]
+    if path is not None and given:
+        raise InputError("give either one 4-band angle file or the separate sza/saa/vza/vaa files, not both")
+    if path is not None:
+        stack = _open(path, "angle", _chunks(chunks), masked=True)
+        if stack.sizes[stack.dims[0]] != 4:
+            raise InputError(
+                f"angle file {path} has {stack.sizes[stack.dims[0]]} bands; it needs 4 (sza, saa, vza, vaa)"
+            )
+        return {
+            name: stack.isel({stack.dims[0]: index}, drop=True).rename(name)
+            for index, name in enumerate(ANGLE_NAMES)
+        }
+    missing = [name for name in ANGLE_NAMES if separate[name] is None]
+    if missing:
+        raise InputError(f"missing angle file(s): {', '.join(missing)} (or give one 4-band angle file)")
+    angles = {}
+    for name in ANGLE_NAMES:
+        layer = _open(separate[name], f"{name} angle", _chunks(chunks), masked=True)
+        if layer.sizes[layer.dims[0]] != 1:
+            raise InputError(f"{name} angle file {separate[name]} has {layer.sizes[layer.dims[0]]} bands; it needs 1")
+        angles[name] = layer.isel({layer.dims[0]: 0}, drop=True).rename(name)
+    return angles
+
+
+def _describe(name: str, layer: xr.DataArray) -> str:
+    source = layer.encoding.get("source")
+    return f"{name} ({source})" if source else name
+
+
+def check_same_grid(layers: Mapping[str, xr.DataArray], reference: str | None = None) -> None:
+    """Raise :class:`GridMismatchError` unless all layers share shape, transform and CRS.
+
+    Parameters
+    ----------
+    layers : mapping of str to DataArray
+        Named layers (``{"image": ..., "classes": ...}``), compared on their last two dims.
+    reference : str, optional
+        The layer the others are compared with (default: the first).
+    """
+    names = list(layers)
+    reference = reference or names[0]
+    base = layers[reference]
+    base_shape = base.shape[-2:]
+    base_transform = base.rio.transform()
+    base_crs = base.rio.crs
+    for name in names:
+        if name == reference:
+            continue
+        layer = layers[name]
+        what = f"{_describe(name, layer)} is not on the grid of {_describe(reference, base)}"
+        if layer.shape[-2:] != base_shape:
+            raise GridMismatchError(
+                f"{what}: shape (rows, columns) {layer.shape[-2:]} differs from {base_shape}"
+            )
+        crs = layer.rio.crs
+        if (crs is None) != (base_crs is None) or (crs is not None and crs != base_crs):
+            raise GridMismatchError(f"{what}: CRS {crs} differs from {base_crs}")
+        transform = layer.rio.transform()
+        if not transform.almost_equals(base_transform, precision=1e-6 * max(abs(base_transform.a), 1e-12)):
+            raise GridMismatchError(
+                f"{what}: transform {tuple(transform)[:6]} differs from {tuple(base_transform)[:6]}"
+            )
+
+
+def _write_options(compress: str, blocksize: int, array: xr.DataArray) -> dict:
+    options = {"driver": "GTiff", "tiled": True, "blockxsize": blocksize, "blockysize": blocksize,
+               "compress": compress, "BIGTIFF": "IF_SAFER"}
+    if compress.lower() in ("deflate", "lzw", "zstd"):
+        options["predictor"] = 3 if array.dtype.kind == "f" else 2
+    return options
+
+
+def write_rasters(
+    rasters: Mapping[str | os.PathLike, xr.DataArray],
+    *,
+    compress: str = "deflate",
+    blocksize: int = DEFAULT_CHUNK,
+    cog: bool = False,
+    tags: Mapping[str, str] | None = None,
+    compute_with: object = None,
+    callbacks: Sequence = (),
+):
+    """Write DataArrays to tiled, compressed GeoTIFFs, chunk by chunk, atomically.
+
+    All rasters (and ``compute_with``, any dask collection such as lazy QA counts) are computed in
+    one dask pass, so shared inputs are read once. Each file is written under its own lock to a
+    temporary name beside the target and renamed only when complete (with ``cog``, the finished
+    GeoTIFF is then copied to a Cloud-Optimized GeoTIFF with overviews, streaming by blocks).
+    Nothing appears at a target when anything fails.
+
+    Parameters
+    ----------
+    rasters : mapping of path to DataArray
+        Targets and their (band, y, x) or (y, x) arrays with georeference (``spatial_ref``);
+        the array's ``rio.nodata`` (or ``_FillValue``) is written as nodata, ``long_name``
+        tuples as band descriptions and attrs as dataset tags.
+    compress : str, default "deflate"
+        GDAL compression (``deflate``, ``lzw``, ``zstd``, ``none``).
+    blocksize : int, default 512
+        Tile size [pixels]; a multiple of 16. Chunks should be multiples of it.
+    cog : bool, default False
+        Write Cloud-Optimized GeoTIFFs.
+    tags : mapping, optional
+        Extra dataset tags for every file (provenance).
+    compute_with : optional
+        Lazy results to compute in the same pass; returned computed.
+    callbacks : sequence of dask callbacks
+        E.g. a progress bar, active during the computation.
+
+    Returns
+    -------
+    The computed ``compute_with`` (None if not given).
+    """
+    if blocksize % 16:
+        raise InputError(f"tile size {blocksize} must be a multiple of 16")
+    compress = "none" if compress is None else str(compress)
+    with contextlib.ExitStack() as stack:
+        writes, copies = [], []
+        for target, array in rasters.items():
+            temporary = stack.enter_context(atomic_path(target))
+            if cog:  # GDAL's COG driver only copies: write a tiled GeoTIFF first, beside the target
+                gtiff = stack.enter_context(_scratch_path(temporary))
+                copies.append((gtiff, temporary))
+            else:
+                gtiff = temporary
+            writes.append(
+                array.rio.to_raster(
+                    gtiff, tags=dict(tags or {}), lock=threading.Lock(), compute=False,
+                    **_write_options(compress, blocksize, array),
+                )
+            )
+        with contextlib.ExitStack() as active:
+            for callback in callbacks:
+                active.enter_context(callback)
+            *_, extra = dask.compute(*writes, compute_with)
+        for gtiff, temporary in copies:
+            rasterio.shutil.copy(
+                gtiff, temporary, driver="COG", compress=compress.upper(), blocksize=blocksize,
+                overview_resampling="average", BIGTIFF="IF_SAFER",
+            )
+    return extra
+
+
+@contextlib.contextmanager
+def _scratch_path(beside: Path):
+    """A temporary file name beside ``beside``, removed on exit whatever happens."""
+    path = Path(f"{beside}.gtiff")
+    try:
+        yield path
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(path)
