@@ -1,0 +1,160 @@
+"""Measurement tables: reading, validation messages, filters, goniometer grid, synthesis."""
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from brdfcorr.errors import InputError, MeasurementError
+from brdfcorr.materials import load_material
+from brdfcorr.measurements import (
+    Measurements,
+    filter_measurements,
+    goniometer_angles,
+    read_measurements,
+    selection_mask,
+    synthesize_measurements,
+    write_measurements,
+)
+
+HEADER = "theta_i,theta_r,phi,brdf,sigma\n"
+
+
+def write(tmp_path, text, name="m.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_read_values_and_line_numbers(tmp_path):
+    path = write(
+        tmp_path,
+        "# EGO, roof tile, 550 nm\n" + HEADER + "30,0,180,0.0262,0.001\n\n30, 5 ,180,0.0266,0.0011\n",
+    )
+    data = read_measurements(path)
+    np.testing.assert_array_equal(data.theta_r, [0.0, 5.0])
+    np.testing.assert_array_equal(data.brdf, [0.0262, 0.0266])
+    np.testing.assert_array_equal(data.sigma, [0.001, 0.0011])
+    assert data.rows.tolist() == [3, 5]  # comment (1), header (2), blank line (4) skipped
+    assert data.source == str(path) and len(data) == 2
+
+
+def test_header_is_flexible_and_sigma_optional(tmp_path):
+    path = write(tmp_path, "\ufeffBRDF (1/sr),Phi [deg],wavelength,Theta_R [deg],theta_i\n0.1,180,550,10,20\n")
+    data = read_measurements(path)
+    assert data.sigma is None
+    assert (data.theta_i[0], data.theta_r[0], data.phi[0], data.brdf[0]) == (20, 10, 180, 0.1)
+
+
+def test_write_read_round_trip_and_input_untouched(tmp_path):
+    truth = load_material("red_concrete")
+    original = synthesize_measurements(truth.model, truth.params, *goniometer_angles(), seed=2)
+    path = write_measurements(tmp_path / "gonio.csv", original)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    again = read_measurements(path)
+    for name in ("theta_i", "theta_r", "phi", "brdf", "sigma"):
+        np.testing.assert_allclose(getattr(again, name), getattr(original, name), rtol=1e-9)
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == digest
+    assert [p.name for p in tmp_path.iterdir()] == ["gonio.csv"]  # no temporary left behind
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("theta_i,theta_r,brdf\n30,0,0.1\n", r"missing column\(s\) phi"),
+        ("theta_i,theta_r,phi,brdf,phi\n30,0,180,0.1,1\n", r"duplicated column\(s\) phi"),
+        (HEADER + "30,0,180,abc,0.1\n", r"column brdf is not a number at line 2 \(e.g. 'abc'\)"),
+        (HEADER + "30,0,180,,0.1\n", r"column brdf is not a number at line 2 \(e.g. ''\)"),
+        (HEADER + "30,0,180,0.1\n", r"expected 5 fields, as in the header, at line 2"),
+        (HEADER + "30,95,180,0.1,0.01\n30,90,180,0.1,0.01\n", r"theta_r outside \[0, 90\) deg at line 2, line 3"),
+        (HEADER + "-1,5,180,0.1,0.01\n", r"theta_i outside \[0, 90\) deg at line 2"),
+        (HEADER + "30,5,181,0.1,0.01\n", r"phi outside \[0, 180\] deg at line 2"),
+        (HEADER + "30,5,180,-0.1,0.01\n", "brdf negative at line 2"),
+        (HEADER + "30,5,180,nan,0.01\n", "brdf is NaN or infinite at line 2"),
+        (HEADER + "30,5,180,0.1,0\n", "sigma not positive at line 2"),
+        ("", "empty file"),
+        ("# only a comment\n", "empty file"),
+        (HEADER, "no measurements after the header"),
+    ],
+)
+def test_bad_tables_name_file_column_and_lines(tmp_path, text, match):
+    path = write(tmp_path, text)
+    with pytest.raises(MeasurementError, match=match) as caught:
+        read_measurements(path)
+    message = str(caught.value)
+    assert message.startswith(str(path)) and "\n" not in message
+    assert isinstance(caught.value, InputError) and isinstance(caught.value, ValueError)
+
+
+def test_all_problems_reported_at_once_and_long_lists_shortened(tmp_path):
+    rows = "".join(f"30,{95 + i},180,-0.1,0.01\n" for i in range(8))
+    with pytest.raises(MeasurementError) as caught:
+        read_measurements(write(tmp_path, HEADER + rows))
+    message = str(caught.value)
+    assert "theta_r outside [0, 90) deg at line 2, line 3, line 4, line 5, line 6 and 3 more" in message
+    assert "brdf negative at line 2" in message
+
+
+def test_missing_file_and_directory(tmp_path):
+    with pytest.raises(MeasurementError, match="no such file"):
+        read_measurements(tmp_path / "absent.csv")
+    with pytest.raises(MeasurementError, match="is a directory"):
+        read_measurements(tmp_path)
+
+
+def test_binary_file(tmp_path):
+    path = tmp_path / "image.csv"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe\x00")
+    with pytest.raises(MeasurementError, match="not a UTF-8 text"):
+        read_measurements(path)
+
+
+def test_filters():
+    data = synthesize_measurements("lambertian", {"t0": 0.1}, *goniometer_angles(), seed=0)
+    forward = filter_measurements(data, min_phi=90)
+    assert np.all(forward.phi >= 90) and len(forward) == np.count_nonzero(data.phi >= 90)
+    assert forward.filters == ("phi >= 90",)
+    narrow = filter_measurements(data, min_phi=90, max_phi=170, max_zenith=60)
+    assert np.all((narrow.phi <= 170) & (narrow.theta_i <= 60) & (narrow.theta_r <= 60))
+    assert narrow.filters == ("phi >= 90 and phi <= 170 and theta_i, theta_r <= 60",)
+    assert filter_measurements(data) is data
+    mask, description = selection_mask(data, min_phi=90)
+    assert description == "phi >= 90" and mask.sum() == len(forward)
+    with pytest.raises(MeasurementError, match="no measurement has phi >= 181"):
+        filter_measurements(data, min_phi=181)
+
+
+def test_goniometer_grid_counts():
+    theta_i, theta_r, phi = goniometer_angles()
+    # Principal plane: 3 zeniths x (16 forward at 0..75 + 15 backward at 5..75) = 93;
+    # azimuth scans: 4 cuts x 36 azimuths 0..175 = 144. With phi >= 90: 3 x 16 + 4 x 18 = 120,
+    # within the 122-145 measurements a sample of paper 003 (section 4).
+    assert theta_i.size == 93 + 144
+    assert np.count_nonzero(phi >= 90) == 120
+    assert set(theta_i) == {30.0, 50.0, 65.0}
+    assert np.all((theta_r >= 0) & (theta_r < 90) & (phi >= 0) & (phi <= 180))
+
+
+def test_synthesis_noise_is_relative_and_reported_as_sigma():
+    truth = load_material("roof_tile")
+    angles = goniometer_angles()
+    exact = synthesize_measurements(truth.model, truth.params, *angles, relative_noise=0.0)
+    np.testing.assert_allclose(exact.brdf, truth.brdf(*angles), rtol=1e-12)
+    assert exact.sigma is None
+    noisy = synthesize_measurements(truth.model, truth.params, *angles, relative_noise=0.04, seed=7)
+    np.testing.assert_allclose(noisy.sigma, 0.04 * exact.brdf)
+    pulls = (noisy.brdf - exact.brdf) / noisy.sigma
+    # 237 standard-normal draws: mean within 4 standard errors, sample std within ~5 %.
+    assert abs(pulls.mean()) < 4 / np.sqrt(pulls.size)
+    assert 0.8 < pulls.std() < 1.2
+    again = synthesize_measurements(truth.model, truth.params, *angles, relative_noise=0.04, seed=7)
+    np.testing.assert_array_equal(again.brdf, noisy.brdf)
+
+
+def test_measurements_from_arrays_validate_and_select():
+    data = Measurements([30, 40, 50], [10, 20, 30], [180, 170, 90], [0.1, 0.2, 0.3], source="lab")
+    picked = data.select(data.phi > 100, "phi > 100")
+    assert len(picked) == 2 and picked.filters == ("phi > 100",) and picked.rows is None
+    assert picked.geometry.theta_i.tolist() == [30.0, 40.0]
+    with pytest.raises(MeasurementError, match="lab: sigma not positive at index 1"):
+        Measurements([30, 40], [10, 20], [180, 170], [0.1, 0.2], sigma=[0.01, -0.01], source="lab")
