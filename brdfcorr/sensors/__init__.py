@@ -112,8 +112,6 @@ def read_angles(kind: str, source, like: xr.DataArray | None = None, **options) 
         raise SensorInputError(
             f"unknown angle source kind {kind!r}; choose one of {', '.join(ANGLE_KINDS)}"
         ) from None
-    if kind == "solar":
-        if like is None:
-            raise SensorInputError("angle source kind 'solar' needs the image grid (like=image)")
-        return reader(source, like, **options)
+    if kind == "solar" and like is None:
+        raise SensorInputError("angle source kind 'solar' needs the image grid (like=image)")
     return reader(source, like, **options)

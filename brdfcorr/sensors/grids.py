@@ -48,8 +48,8 @@ def grid_template(transform: Affine, shape: tuple[int, int], crs, chunks=DEFAULT
         Dask chunks of the template; arrays interpolated onto it inherit them.
     """
     rows, cols = shape
-    x = (transform * (np.arange(cols) + 0.5, np.full(cols, 0.5)))[0]
-    y = (transform * (np.full(rows, 0.5), np.arange(rows) + 0.5))[1]
+    x = (transform @ (np.arange(cols) + 0.5, np.full(cols, 0.5)))[0]
+    y = (transform @ (np.full(rows, 0.5), np.arange(rows) + 0.5))[1]
     template = xr.DataArray(
         da.zeros(shape, dtype="float32", chunks=chunks), dims=("y", "x"), coords={"y": y, "x": x}
     )
@@ -66,7 +66,7 @@ def pixel_centres(transform: Affine, row_offset: int, col_offset: int, shape: tu
         np.arange(col_offset, col_offset + shape[1]) + 0.5,
         indexing="ij",
     )
-    return transform * (cols, rows)
+    return transform @ (cols, rows)
 
 
 def _grid_of(array: xr.DataArray, role: str):
@@ -88,7 +88,7 @@ def _interpolate_block(block_info, *, values, source_transform, target_transform
     x, y = pixel_centres(target_transform, row0, col0, (row1 - row0, col1 - col0))
     if transformer is not None:
         x, y = transformer.transform(x, y)
-    col, row = ~source_transform * (x, y)
+    col, row = ~source_transform @ (x, y)
     # map_coordinates indexes pixel centres at integer positions; (col, row) count from corners.
     coordinates = np.stack([row - 0.5, col - 0.5])
     if not angle:

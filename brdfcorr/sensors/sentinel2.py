@@ -180,8 +180,8 @@ def combine_detectors(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarr
 
 def _node_array(tile: TileAngles, values: np.ndarray, name: str) -> xr.DataArray:
     rows, cols = values.shape
-    x = (tile.node_transform * (np.arange(cols) + 0.5, np.full(cols, 0.5)))[0]
-    y = (tile.node_transform * (np.full(rows, 0.5), np.arange(rows) + 0.5))[1]
+    x = (tile.node_transform @ (np.arange(cols) + 0.5, np.full(cols, 0.5)))[0]
+    y = (tile.node_transform @ (np.full(rows, 0.5), np.arange(rows) + 0.5))[1]
     array = xr.DataArray(values, dims=("y", "x"), coords={"y": y, "x": x}, name=name)
     return array.rio.write_crs(tile.crs).rio.write_transform(tile.node_transform)
 
