@@ -51,8 +51,8 @@ __all__ = [
 ]
 
 
-def read_solar_angles(time, like: xr.DataArray, *, view_zenith: float, view_azimuth: float,
-                      **options) -> xr.Dataset:
+def read_solar_angles(time, like: xr.DataArray, *, view_zenith: float | None = None,
+                      view_azimuth: float | None = None, **options) -> xr.Dataset:
     """Solar angles from ``time`` and the pixel coordinates of ``like`` (pvlib SPA), with a
     constant view geometry that the caller states (e.g. ``view_zenith=0`` for a nadir view).
 
@@ -66,7 +66,17 @@ def read_solar_angles(time, like: xr.DataArray, *, view_zenith: float, view_azim
         View zenith [deg] and azimuth towards the sensor [deg], applied to every pixel.
     **options :
         Passed to :func:`brdfcorr.sensors.solar.solar_angles`.
+
+    Raises
+    ------
+    SensorInputError
+        ``view_zenith`` or ``view_azimuth`` not given: the view geometry is never assumed.
     """
+    if view_zenith is None or view_azimuth is None:
+        raise SensorInputError(
+            "angle source kind 'solar' gives only sun angles: set view_zenith and view_azimuth "
+            "(degrees; e.g. view_zenith=0 for a nadir view) explicitly"
+        )
     angles = solar_angles(time, like, **options)
     for key, value, long_name in (
         ("vza", view_zenith, "view zenith angle"),
