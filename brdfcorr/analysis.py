@@ -39,6 +39,7 @@ __all__ = [
     "shadowing_impact",
     "WORST_CASE_PARAMS",
     "PAPER_SHADOWING",
+    "PAPER_SHADOWING_TEXT",
     "WIDTH_GEOMETRIES",
     "azimuthal_width",
     "width_reduction",
@@ -71,6 +72,8 @@ PAPER_SHADOWING = {
     "blue_concrete": 0.003,
     "red_aluminium": 0.001,  # "< 0.1 %"
 }
+#: The same as printed in paper 003.
+PAPER_SHADOWING_TEXT = {"roof_tile": "10.3 %", "red_concrete": "1.0 %", "blue_concrete": "0.3 %", "red_aluminium": "< 0.1 %"}
 
 
 @dataclass(frozen=True)
