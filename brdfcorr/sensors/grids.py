@@ -30,8 +30,10 @@ DEFAULT_CHUNK = 2048
 
 
 def wrap_azimuth(azimuth):
-    """Azimuth [deg] wrapped into [0, 360)."""
-    return np.mod(azimuth, 360.0)
+    """Azimuth [deg] wrapped into [0, 360); numpy, dask and xarray input, lazily."""
+    wrapped = azimuth % 360.0
+    # A tiny negative azimuth wraps to 360 - 1e-15, which rounds to 360.0: map it back to 0.
+    return wrapped - 360.0 * (wrapped >= 360.0)
 
 
 def grid_template(transform: Affine, shape: tuple[int, int], crs, chunks=DEFAULT_CHUNK) -> xr.DataArray:
