@@ -160,23 +160,22 @@ def shadowing_impact(
     zeniths = _grid(0.0, max_zenith, step)
     phis = _grid(phi_min, phi_max, step)
     theta_r, phi = np.meshgrid(zeniths, phis, indexing="ij")
-    best_rel, best_abs = (-1.0, None), (-1.0, None)
+    # Per slab of theta_i: the largest relative and absolute difference and their geometry.
+    best = {"relative": (-1.0, None), "absolute": (-1.0, None)}
     for theta_i in zeniths:  # one slab at a time keeps memory at len(zeniths) * len(phis)
         geometry = ScatteringGeometry(theta_i, theta_r, phi)
         specular = (
             t1 * _fresnel(geometry.cos_local, n, k) * np.exp(-((w * geometry.alpha) ** 2))
             / (geometry.cos_i * geometry.cos_r)
         )
-        gain = specular * (1.0 - _attenuation(geometry))
-        relative = gain / (t0 + specular * _attenuation(geometry))
-        for best, values, slot in ((best_rel, relative, 0), (best_abs, gain, 1)):
+        attenuation = _attenuation(geometry)
+        gain = specular * (1.0 - attenuation)  # f(G = 1) - f
+        for key, values in (("relative", gain / (t0 + specular * attenuation)), ("absolute", gain)):
             index = np.unravel_index(np.argmax(values), values.shape)
-            if values[index] > best[0]:
-                found = (float(values[index]), (float(theta_i), float(theta_r[index]), float(phi[index])))
-                if slot == 0:
-                    best_rel = found
-                else:
-                    best_abs = found
+            if values[index] > best[key][0]:
+                where = (float(theta_i), float(theta_r[index]), float(phi[index]))
+                best[key] = (float(values[index]), where)
+    best_rel, best_abs = best["relative"], best["absolute"]
     return ShadowingImpact(
         max_relative=best_rel[0],
         where_relative=best_rel[1],
