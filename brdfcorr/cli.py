@@ -146,13 +146,14 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
 
     from brdfcorr.fit import FitWarning, fit_measurements
     from brdfcorr.io_utils import atomic_path
-    from brdfcorr.measurements import read_measurements, selection_mask
+    from brdfcorr.measurements import filter_measurements, read_measurements, selection_mask
     from brdfcorr.params import ParameterTable
 
     table = ParameterTable.load(output) if output is not None and output.exists() else None
     everything = read_measurements(measurements)
-    keep, selection = selection_mask(everything, min_phi=min_phi, max_phi=max_phi, max_zenith=max_zenith)
-    data = everything.select(keep, selection) if selection else everything
+    selection = {"min_phi": min_phi, "max_phi": max_phi, "max_zenith": max_zenith}
+    data = filter_measurements(everything, **selection)
+    keep, selection = selection_mask(everything, **selection)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", FitWarning)
         result = fit_measurements(

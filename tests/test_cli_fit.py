@@ -1,0 +1,169 @@
+"""`brdfcorr fit`: the printed table, the parameter table it writes/appends, figures, bad input."""
+
+import hashlib
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.fit import fit_measurements
+from brdfcorr.materials import load_material
+from brdfcorr.measurements import (
+    filter_measurements,
+    goniometer_angles,
+    read_measurements,
+    synthesize_measurements,
+    write_measurements,
+)
+from brdfcorr.params import ParameterTable
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def csv_path(tmp_path_factory):
+    truth = load_material("roof_tile")
+    data = synthesize_measurements(truth.model, truth.params, *goniometer_angles(), seed=11)
+    return write_measurements(tmp_path_factory.mktemp("gonio") / "roof_tile.csv", data)
+
+
+def run(*args):
+    result = CliRunner().invoke(main, [str(arg) for arg in args])
+    return result
+
+
+def test_fit_prints_table_writes_parameter_table_and_figures(csv_path, tmp_path):
+    before = hashlib.sha256(csv_path.read_bytes()).hexdigest()
+    table_path = tmp_path / "params.yaml"
+    result = run(
+        "fit", csv_path, "--fix", "k=0.25", "--min-phi", "90", "-o", table_path,
+        "--class-id", 3, "--name", "roof_tile", "--plot-dir", tmp_path / "plots",
+    )
+    assert result.exit_code == 0, result.output
+    assert "120 of 237 measurements (phi >= 90)" in result.output
+    assert "t0 [sr^-1]" in result.output and "chi2/dof" in result.output
+    assert "0.25 (fixed)" in result.output and "±" in result.output
+    assert "correlations:" in result.output
+    assert result.stderr == ""
+
+    # The same fit through the library gives exactly the numbers written to the table.
+    expected = fit_measurements(
+        "torrance_sparrow", filter_measurements(read_measurements(csv_path), min_phi=90),
+        fixed={"k": 0.25},
+    )
+    table = ParameterTable.load(table_path)
+    assert table.class_ids == (3,)
+    assert table[3].name == "roof_tile" and table[3].model == "torrance_sparrow"
+    assert table[3].params == expected.params
+    assert table[3].params["k"] == 0.25
+    # ... and the correction code reads them unchanged, for any band.
+    bands = table.for_bands(n_bands=2)[3].params
+    for name, value in expected.params.items():
+        np.testing.assert_array_equal(bands[name], [value, value])
+
+    for suffix in ("principal_plane", "azimuth"):
+        figure = tmp_path / "plots" / f"roof_tile_{suffix}.png"
+        assert figure.read_bytes()[:8] == PNG_SIGNATURE
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == [
+        "roof_tile_azimuth.png", "roof_tile_principal_plane.png"
+    ]
+    assert hashlib.sha256(csv_path.read_bytes()).hexdigest() == before  # input untouched
+
+
+def test_fit_appends_and_replaces_classes(csv_path, tmp_path):
+    table_path = tmp_path / "params.yaml"
+    first = run("fit", csv_path, "--fix", "k=0.25", "--min-phi", "90", "-o", table_path)
+    assert first.exit_code == 0, first.output
+    assert "wrote class 1 (roof_tile)" in first.output  # default id 1, default name the CSV stem
+    original = ParameterTable.load(table_path)[1]
+
+    second = run("fit", csv_path, "--model", "torrance_sparrow_simplified", "--fix", "k=0.25",
+                 "--max-zenith", "60", "-o", table_path, "--name", "tile_simplified")
+    assert second.exit_code == 0, second.output
+    table = ParameterTable.load(table_path)
+    assert table.class_ids == (1, 2)  # appended with the next free id
+    assert table[1] == original  # the existing class is not touched
+    assert table[2].model == "torrance_sparrow_simplified"
+
+    third = run("fit", csv_path, "--fix", "k=0.25", "-o", table_path, "--class-id", 2, "--name", "again")
+    assert third.exit_code == 0, third.output
+    assert "replaced class 2 (again)" in third.output
+    table = ParameterTable.load(table_path)
+    assert table.class_ids == (1, 2) and table[2].name == "again"
+
+
+def test_free_k_prints_a_warning_line(csv_path):
+    result = run("fit", csv_path, "--min-phi", "90")
+    assert result.exit_code == 0
+    warnings = [line for line in result.stderr.splitlines() if line]
+    assert len(warnings) == 1
+    assert warnings[0].startswith("brdfcorr: warning: torrance_sparrow: parameters not identifiable")
+
+
+def test_unweighted_fit_says_how_errors_were_scaled(tmp_path):
+    path = tmp_path / "lab.csv"
+    path.write_text("theta_i,theta_r,phi,brdf\n" + "".join(
+        f"30,{view},180,{0.05 + 0.001 * (view % 3)}\n" for view in range(0, 80, 5)
+    ))
+    result = run("fit", path, "--model", "lambertian")
+    assert result.exit_code == 0, result.output
+    assert "unweighted (no sigma column)" in result.output
+    assert "errors scaled by the residual scatter" in result.output
+
+
+BAD_TABLES = [
+    ("theta_i,theta_r,brdf\n30,0,0.1\n", "missing column(s) phi"),
+    ("theta_i,theta_r,phi,brdf\n30,0,180,x\n", "column brdf is not a number at line 2"),
+    ("theta_i,theta_r,phi,brdf\n30,0,180,0.1\n95,0,180,0.1\n", "theta_i outside [0, 90) deg at line 3"),
+    ("theta_i,theta_r,phi,brdf\n30,0,180,-0.1\n", "brdf negative at line 2"),
+    ("theta_i,theta_r,phi,brdf\n30,0,180,NaN\n", "brdf is NaN or infinite at line 2"),
+    ("theta_i,theta_r,phi,brdf,sigma\n30,0,180,0.1,0\n", "sigma not positive at line 2"),
+    ("", "empty file"),
+]
+
+
+@pytest.mark.parametrize(("text", "message"), BAD_TABLES)
+def test_bad_measurement_files_give_one_error_line(tmp_path, text, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    output = tmp_path / "params.yaml"
+    result = run("fit", path, "-o", output)
+    assert result.exit_code == 2
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.output
+    assert lines[0].startswith(f"brdfcorr: error: {path}: ")
+    assert message in lines[0]
+    assert not output.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--fix", "k"], "--fix 'k': expected NAME=VALUE"),
+        (["--fix", "q=1"], "unknown parameter 'q'"),
+        (["--bound", "w=0.1"], "--bound 'w=0.1': expected NAME=LOW:HIGH"),
+        (["--model", "phong"], "unknown BRDF model 'phong'"),
+        (["--min-phi", "181"], "no measurement has phi >= 181"),
+    ],
+)
+def test_bad_options_give_one_error_line(csv_path, args, message):
+    result = run("fit", csv_path, *args)
+    assert result.exit_code == 2
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and message in lines[0]
+
+
+def test_missing_measurement_file(tmp_path):
+    result = run("fit", tmp_path / "absent.csv")
+    assert result.exit_code == 2
+    assert result.stderr.strip() == f"brdfcorr: error: {tmp_path / 'absent.csv'}: no such file"
+
+
+def test_bad_existing_parameter_table_is_reported_before_fitting(csv_path, tmp_path):
+    table_path = tmp_path / "params.yaml"
+    table_path.write_text("classes: [{id: 1, name: x, model: torrance_sparrow, params: {w: 1}}]\n")
+    result = run("fit", csv_path, "-o", table_path)
+    assert result.exit_code == 2
+    assert str(table_path) in result.stderr and len(result.stderr.splitlines()) == 1
+    assert "missing parameter" in result.stderr
