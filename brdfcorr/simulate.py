@@ -40,7 +40,13 @@ cells whose normal lies within ``cutoff`` standard deviations of the facet peak 
 contribute more than ``exp(-cutoff^2 / 2)`` of the peak value; the others are skipped (an
 omission bounded by that factor, not an approximation of the physics). Paper 000 notes that the
 accuracy depends on this grid; ``benchmarks/bench_simulate.py`` prints the error against the
-analytic model and the time per geometry for several settings.
+analytic model and the time per geometry for several settings. Measured at the geometries of
+paper 000, fig. 2 (normalized TS value > 0.1): step = sigma / 2 (default) 0.16 %, step = sigma
+3 % (aliasing of the sampled Gaussian), step = 1.5 sigma 60 %; a grid with its pole at the zenith
+3 % at the specular point even at step = sigma / 2. The remaining 0.16 % is not a grid error: the
+facet peak of finite width sigma blurs the kink of the masking/shadowing factor, a bias
+proportional to sigma (0.6 %, 0.23 %, 0.09 % for sigma = 0.14, 0.07, 0.035 deg). The time is
+about 1-2 ms per geometry, mostly fixed overhead; it grows as 1 / step_fraction^2.
 
 References
 ----------
