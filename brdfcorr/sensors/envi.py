@@ -245,6 +245,8 @@ def read_envi_obs(path: str | Path, like: xr.DataArray | None = None, *,
     angles = xr.Dataset(variables)
     if like is not None:
         angles = angles.assign_coords(y=like["y"].values, x=like["x"].values)
+        if like.chunks and chunks is None:  # align blocks with the image's for blockwise work
+            angles = angles.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
     angles.attrs = {"source": str(path), "source_kind": "envi_obs", "view_azimuth_stored": view_azimuth}
     return angles
 

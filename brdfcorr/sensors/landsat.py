@@ -181,6 +181,8 @@ def _read_angle_band(path: Path, key: str, like, chunks, flip: bool) -> xr.DataA
         # A coarser or reprojected angle raster: interpolate lazily onto the image grid.
         return to_grid(band, like, angle=azimuth, name=key, attrs=attrs)
     band.attrs = attrs
+    if like is not None and like.chunks and chunks is None:  # align blocks with the image's
+        band = band.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
     return band.rename(key)
 
 
