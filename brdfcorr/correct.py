@@ -167,7 +167,7 @@ def _normalize_block(
 
     base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
     base[~usable] = np.nan
-    present = np.unique(classes[usable]).tolist() if usable.any() else []
+    present = _present_classes(classes[usable])
     reference_sza = np.asarray(reference_sza, dtype=np.float64)
     states = []
     for class_id in present:
@@ -189,34 +189,48 @@ def _normalize_block(
         g = [(_g(plan, observed, shape), _g(plan, ref, shape)) for shape in plan.shapes]
         states.append((plan, index, g))
 
-    bands = np.asarray(band_index).reshape(-1)
+    # One factor map for the block, updated band by band only where a class's parameters change:
+    # with band-independent parameters every band costs one multiplication.
+    factor = base
+    current_row = {plan.id: -1 for plan, _, _ in states}
+    limited = {plan.id: np.zeros(index.size, dtype=bool) for plan, index, _ in states}
     out = np.empty((n_bands, n), dtype=out_dtype)
-    signatures = np.stack([plan.row_of_band[bands] for plan, _, _ in states] + [np.zeros(n_bands, int)], axis=1)
-    unique_signatures, group_of_band = np.unique(signatures, axis=0, return_inverse=True)
-    group_of_band = group_of_band.reshape(-1)
-    limited = np.zeros(n, dtype=bool)
-    for group in range(len(unique_signatures)):
-        members = np.flatnonzero(group_of_band == group)
-        band = bands[members[0]]  # any band of the group: they share every class's parameters
-        factor = base.copy()
+    for position, band in enumerate(np.asarray(band_index).reshape(-1)):
         for plan, index, g in states:
-            g_observed, g_reference = g[plan.shape_of_band[band]]
-            f_observed = plan.offset[band] + plan.scale[band] * g_observed
-            f_reference = plan.offset[band] + plan.scale[band] * g_reference
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.asarray(f_reference / f_observed, dtype=np.float64)
-            # 0/0: the model predicts no signal at either geometry; leave the pixel unchanged.
-            ratio = np.where((f_observed == 0) & (f_reference == 0), 1.0, ratio)
-            ratio = np.broadcast_to(ratio, index.shape)
+            if plan.row_of_band[band] == current_row[plan.id]:
+                continue
+            current_row[plan.id] = plan.row_of_band[band]
+            ratio = _ratio(plan, band, *g[plan.shape_of_band[band]])
             if limits is not None:
-                clipped = (ratio < limits[0]) | (ratio > limits[1])
-                limited[index[clipped]] = True
-                ratio = np.clip(ratio, *limits)
+                limited[plan.id] |= (ratio < limits[0]) | (ratio > limits[1])
+                np.clip(ratio, *limits, out=ratio)
             factor[index] = ratio
-        for member in members:
-            np.multiply(cube[member], factor, out=out[member], casting="unsafe")
-    qa[limited] |= QA_LIMITED
+        np.multiply(cube[position], factor, out=out[position], casting="unsafe")
+    for plan, index, _ in states:
+        qa[index[limited[plan.id]]] |= QA_LIMITED
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
+
+
+def _present_classes(values: np.ndarray) -> list:
+    """Distinct class ids in a block (a histogram for small integers, faster than sorting)."""
+    if values.size == 0:
+        return []
+    if values.dtype.kind in "iu" and values.dtype.itemsize <= 2:
+        lowest = int(values.min())
+        return (np.flatnonzero(np.bincount(values.astype(np.intp) - lowest)) + lowest).tolist()
+    return np.unique(values).tolist()
+
+
+def _ratio(plan: _ClassPlan, band: int, g_observed, g_reference) -> np.ndarray:
+    """f(ref) / f(obs) at a class's pixels for one band (a new float64 array)."""
+    f_observed = plan.offset[band] + plan.scale[band] * g_observed
+    f_reference = plan.offset[band] + plan.scale[band] * g_reference
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.array(np.broadcast_to(f_reference / f_observed, np.shape(g_observed)), dtype=np.float64)
+    if not np.all(f_observed):
+        # 0/0: the model predicts no signal at either geometry; leave the pixel unchanged.
+        ratio[np.broadcast_to((f_observed == 0) & (f_reference == 0), ratio.shape)] = 1.0
+    return ratio
 
 
 def _as_dataarray(value, name: str, dims: Sequence[str]) -> xr.DataArray:

@@ -326,7 +326,9 @@ def write_rasters(
         with contextlib.ExitStack() as active:
             for callback in callbacks:
                 active.enter_context(callback)
-            *_, extra = dask.compute(*writes, compute_with)
+            # One graph for everything: optimizing the writes and the extra results separately would
+            # rename shared keys (blockwise fusion) and compute the normalization twice.
+            *_, extra = dask.compute(*writes, compute_with, optimize_graph=False)
         for gtiff, temporary in copies:
             rasterio.shutil.copy(
                 gtiff, temporary, driver="COG", compress=compress.upper(), blocksize=blocksize,
