@@ -473,9 +473,10 @@ def fit_brdf(
     fixed : mapping, optional
         Parameters held at a given value, e.g. ``{"k": 0.25}`` as in paper 003.
     initial : mapping, optional
-        Starting values of free parameters. Parameters without one start from the registry
-        default, the scale parameters (w, n, ...) from a grid of values around it, and the
-        amplitudes (t0, t1, a) from a linear least-squares solution.
+        Starting values of free parameters, tried first. In any case the fit also starts from a
+        grid: the scale parameters (w, n, ...) at multiples of their registry default, the
+        amplitudes (t0, t1, a) from a linear least-squares solution at each grid point, the other
+        parameters at their defaults. The lowest chi^2 of all starts wins.
     bounds : mapping of (lower, upper), optional
         Narrower bounds for free parameters, intersected with the registry's physical range
         (the default; open lower bounds such as w > 0 become ``OPEN_BOUND_FLOOR`` of the default).
@@ -540,6 +541,8 @@ def fit_brdf(
         return np.where(np.isfinite(residuals), residuals, _NON_FINITE_RESIDUAL)
 
     starts = _starting_points(model, geometry, data, weights, fixed, free, lower, upper, initial)
+    if initial:  # the user's start first, then the default grid: a poor guess cannot spoil the fit
+        starts += _starting_points(model, geometry, data, weights, fixed, free, lower, upper, {})
     solutions = []
     for start in starts:
         try:

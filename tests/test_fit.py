@@ -4,7 +4,7 @@ import warnings
 
 import numpy as np
 import pytest
-from scipy.optimize import curve_fit
+from scipy.optimize import curve_fit, least_squares
 from scipy.stats import chi2 as chi2_distribution
 
 from brdfcorr.errors import BrdfcorrError, FitError, MeasurementError, ParameterError
@@ -237,10 +237,29 @@ def test_parameter_on_a_bound_warns(roof_tile_fit):
 # --- starting values ---------------------------------------------------------------------------
 
 
-def test_user_initial_value_is_used_and_a_bad_one_still_converges(roof_tile_fit):
-    truth, data, reference = roof_tile_fit
-    result = fit_measurements("torrance_sparrow", data, fixed=PAPER_K, initial={"w": 0.03, "n": 1.6})
-    assert result.chi2 == pytest.approx(reference.chi2, rel=1e-6)
+def test_a_failing_start_is_rescued_by_the_start_grid():
+    # From w = 0.003 deg^-1 (a peak 50 times too wide) with the peak switched off (t1 = 0, where
+    # the gradient with respect to w and n vanishes) a single least-squares run on the aluminium
+    # sample does not find the peak (checked directly with scipy); fit_brdf tries that start
+    # first and then its grid, and must end at the same minimum as without the bad guess.
+    truth, data = synthetic("red_aluminium", seed=1)
+    model = get_model("torrance_sparrow")
+
+    def residuals(x):
+        return (model.kernel(data.geometry, *x, k=0.25) - data.brdf) / data.sigma
+
+    bad_start = [0.0109, 0.0, 0.003, 1.5]
+    single = least_squares(
+        residuals, bad_start, bounds=([0, 0, 1e-6, 1e-6], np.inf), x_scale="jac", method="trf"
+    )
+    reference = fit_measurements("torrance_sparrow", data, fixed=PAPER_K)
+    assert 2 * single.cost > 10 * reference.chi2
+    rescued = fit_measurements(
+        "torrance_sparrow", data, fixed=PAPER_K, initial=dict(zip(("t0", "t1", "w", "n"), bad_start))
+    )
+    assert rescued.chi2 == pytest.approx(reference.chi2, rel=1e-6)
+    assert rescued.n_starts == reference.n_starts + 1
+    assert rescued.n_converged < rescued.n_starts
 
 
 # --- bad input -----------------------------------------------------------------------------------
@@ -302,3 +321,46 @@ def test_unknown_model_is_a_brdfcorr_error():
 )
 def test_format_with_error(value, error, text):
     assert format_with_error(value, error) == text
+
+
+# --- array kinds -------------------------------------------------------------------------------
+
+
+def test_xarray_and_list_inputs_give_the_numpy_result(roof_tile_fit):
+    import xarray as xr
+
+    _, data, reference = roof_tile_fit
+    arrays = [
+        xr.DataArray(values, dims="measurement")
+        for values in (data.theta_i, data.theta_r, data.phi, data.brdf, data.sigma)
+    ]
+    result = fit_brdf("torrance_sparrow", *arrays, fixed=PAPER_K)
+    assert result.params == pytest.approx(reference.params, rel=1e-9)
+    listed = fit_brdf("torrance_sparrow", *(list(a.values) for a in arrays), fixed=PAPER_K)
+    assert listed.chi2 == pytest.approx(reference.chi2, rel=1e-12)
+
+
+# --- figures -----------------------------------------------------------------------------------
+
+
+def test_figures_have_one_panel_per_scan(roof_tile_fit):
+    from brdfcorr.fit_plots import azimuth_cuts, plot_azimuth, plot_principal_plane, principal_plane_cuts
+
+    truth, data, result = roof_tile_fit
+    everything = synthesize_measurements(truth.model, truth.params, *ANGLES, seed=1)
+    excluded = everything.select(everything.phi < 90, "phi < 90")
+    # The goniometer grid: principal-plane scans at 30, 50, 65 deg; azimuth scans at 4 zenith pairs.
+    assert principal_plane_cuts(data) == [30.0, 50.0, 65.0]
+    assert azimuth_cuts(data) == [(30.0, 30.0), (50.0, 50.0), (65.0, 50.0), (65.0, 70.0)]
+    figure = plot_principal_plane(result, data, excluded)
+    panels = [axis for axis in figure.axes if axis.get_visible()]
+    assert len(panels) == 3
+    # Every fitted in-plane measurement is drawn with an error bar: 16 forward points at 30 deg.
+    containers = panels[0].containers
+    assert len(containers[0].lines[0].get_xdata()) == 16
+    # Not fitted: the 15 backward points (5..75 deg, phi = 0) and phi = 0 of the (30, 30) scan.
+    assert len(containers[1].lines[0].get_xdata()) == 16
+    figure = plot_azimuth(result, data, excluded, yscale="log")
+    panels = [axis for axis in figure.axes if axis.get_visible()]
+    assert len(panels) == 5  # 4 cuts + the normalized specular part, as paper 003 fig. 3
+    assert panels[0].get_yscale() == "log"
