@@ -224,6 +224,16 @@ def format_with_error(value: float, error: float) -> str:
     return f"{round(value, decimals):.0f} ± {round(error, decimals):.0f}"
 
 
+def _scalar(value, what: str) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what} must be a single number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise ParameterError(f"{what} must be finite, got {number!r}")
+    return number
+
+
 def _free_parameters(model: Model, fixed, initial, bounds):
     """Split the model's parameters into fixed values and bounded free ones.
 
@@ -237,7 +247,7 @@ def _free_parameters(model: Model, fixed, initial, bounds):
         model.parameter(name)  # unknown name -> ParameterError naming the model's parameters
     for name, value in fixed.items():
         model.parameter(name).check(value, f"{model.name} (fixed)")
-        fixed[name] = float(value)
+        fixed[name] = _scalar(value, f"{model.name}: fixed value of {name}")
     both = sorted(set(fixed) & (set(initial) | set(bounds)))
     if both:
         raise ParameterError(
@@ -271,7 +281,7 @@ def _free_parameters(model: Model, fixed, initial, bounds):
         upper.append(high)
     for name, value in initial.items():
         index = free.index(name)
-        value = float(value)
+        value = _scalar(value, f"{model.name}: starting value of {name}")
         if not lower[index] <= value <= upper[index]:
             raise ParameterError(
                 f"{model.name}: starting value {name} = {value:g} is outside its bounds "
@@ -319,7 +329,7 @@ def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, 
     """
     centre = {name: initial.get(name, model.parameter(name).default) for name in free}
     for index, name in enumerate(free):  # keep defaults strictly inside user-narrowed bounds
-        if not lower[index] < centre[name] < upper[index]:
+        if name not in initial and not lower[index] < centre[name] < upper[index]:
             finite_upper = upper[index] if math.isfinite(upper[index]) else lower[index] + 1.0
             centre[name] = 0.5 * (lower[index] + finite_upper)
     candidates = [name for name in free if name not in initial]

@@ -274,6 +274,9 @@ def test_a_failing_start_is_rescued_by_the_start_grid():
         ({"bounds": {"w": (0.5, 0.1)}}, ParameterError, "bounds of w"),
         ({"bounds": {"w": 0.5}}, ParameterError, "must be a pair"),
         ({"initial": {"n": 0.0}}, ParameterError, "starting value n"),
+        ({"initial": {"n": "high"}}, ParameterError, "starting value of n must be a single number"),
+        ({"initial": {"n": float("nan")}}, ParameterError, "starting value of n must be finite"),
+        ({"fixed": {"k": [0.1, 0.2]}}, ParameterError, "fixed value of k must be a single number"),
         ({"fixed": {"t0": 0.1, "t1": 0.1, "w": 0.1, "n": 1.5, "k": 0.2}}, FitError, "nothing to fit"),
     ],
 )
