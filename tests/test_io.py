@@ -1,0 +1,200 @@
+"""Tests of brdfcorr.io: readers, wavelengths, grid checks, atomic chunked GeoTIFF writes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import dask.array as da
+import numpy as np
+import pytest
+import rasterio
+import xarray as xr
+
+from brdfcorr import io
+from brdfcorr.errors import GridMismatchError, InputError
+from brdfcorr.testing import georeference, synthetic_scene, write_scene
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return synthetic_scene(ny=40, nx=48)
+
+
+@pytest.fixture(scope="module")
+def files(scene, tmp_path_factory):
+    return write_scene(tmp_path_factory.mktemp("scene"), scene)
+
+
+def _write(path: Path, data: np.ndarray, **profile) -> Path:
+    base = {"driver": "GTiff", "height": data.shape[1], "width": data.shape[2], "count": data.shape[0],
+            "dtype": data.dtype.name, "crs": "EPSG:32632",
+            "transform": rasterio.transform.from_origin(500000, 5400000, 10, 10)}
+    base.update(profile)
+    with rasterio.open(path, "w", **base) as dataset:
+        dataset.write(data)
+    return path
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("560", 560.0), ("560 nm", 560.0), ("560.5nm", 560.5), ("0.56 um", 560.0), ("0.865 µm", 865.0),
+    ("B3 (560 nm)", 560.0), ("1.6 micrometers", 1600.0),
+    ("Band 3", None), ("", None), ("red", None), ("560 furlongs", None),
+])
+def test_parse_wavelength(text, expected):
+    result = io.parse_wavelength(text)
+    assert result == pytest.approx(expected) if expected is not None else result is None
+
+
+def test_image_wavelengths_from_band_descriptions(files, scene):
+    image = io.open_image(files["image"])
+    np.testing.assert_array_equal(image["wavelength"], scene["reflectance"]["wavelength"])
+    assert image["wavelength"].attrs["units"] == "nm"
+    assert isinstance(image.data, da.Array)
+    np.testing.assert_array_equal(image.values, scene["reflectance"].values)  # float32 round trip
+
+
+def test_wavelength_tag_takes_precedence_over_descriptions(tmp_path):
+    path = _write(tmp_path / "tagged.tif", np.zeros((3, 4, 4), "float32"))
+    with rasterio.open(path, "r+") as dataset:
+        dataset.update_tags(wavelength="0.45, 0.55,0.65", wavelength_units="um")
+        dataset.descriptions = ("1 nm", "2 nm", "3 nm")
+    image = io.open_image(path)
+    np.testing.assert_allclose(image["wavelength"], [450, 550, 650])
+    explicit = io.open_image(path, wavelengths=[400, 500, 600])
+    np.testing.assert_allclose(explicit["wavelength"], [400, 500, 600])
+    with pytest.raises(InputError, match="2 wavelengths from the given wavelengths for 3 bands"):
+        io.open_image(path, wavelengths=[400, 500])
+
+
+def test_no_wavelengths_means_no_coordinate(tmp_path):
+    path = _write(tmp_path / "plain.tif", np.zeros((2, 4, 4), "float32"))
+    with rasterio.open(path, "r+") as dataset:
+        dataset.descriptions = ("Band 1", "Band 2")
+    assert "wavelength" not in io.open_image(path).coords
+
+
+def test_bad_wavelength_tag(tmp_path):
+    path = _write(tmp_path / "bad.tif", np.zeros((2, 4, 4), "float32"))
+    with rasterio.open(path, "r+") as dataset:
+        dataset.update_tags(wavelength="blue,green")
+    with pytest.raises(InputError, match="bad.tif: tag wavelength='blue,green'"):
+        io.open_image(path)
+
+
+def test_angles_from_one_file_or_four(files, scene, tmp_path):
+    stacked = io.open_angles(files["angles"])
+    separate = {}
+    for name in io.ANGLE_NAMES:
+        separate[name] = tmp_path / f"{name}.tif"
+        scene[name].rio.to_raster(separate[name])
+    four = io.open_angles(**separate)
+    for name in io.ANGLE_NAMES:
+        np.testing.assert_array_equal(stacked[name].values, scene[name].values)
+        np.testing.assert_array_equal(four[name].values, scene[name].values)
+        assert stacked[name].dims == ("y", "x")
+    with pytest.raises(InputError, match="missing angle file.*vaa"):
+        io.open_angles(sza=separate["sza"], saa=separate["saa"], vza=separate["vza"])
+    with pytest.raises(InputError, match="not both"):
+        io.open_angles(files["angles"], sza=separate["sza"])
+    with pytest.raises(InputError, match="has 4 bands; it needs 1"):
+        io.open_angles(sza=files["angles"], saa=separate["saa"], vza=separate["vza"], vaa=separate["vaa"])
+    with pytest.raises(InputError, match=r"angle file .*classes.tif has 1 bands; it needs 4"):
+        io.open_angles(files["classes"])
+
+
+def test_classes_keep_integers_and_nodata(files, scene):
+    classes = io.open_classes(files["classes"])
+    assert classes.dtype == np.uint8 and classes.rio.nodata == 255
+    np.testing.assert_array_equal(classes.values, scene["classes"].values)
+    with pytest.raises(InputError, match="class map .*image.tif has 4 bands"):
+        io.open_classes(files["image"])
+
+
+def test_missing_file_is_named(tmp_path):
+    with pytest.raises(InputError, match=r"image file .*nothing.tif does not exist"):
+        io.open_image(tmp_path / "nothing.tif")
+    (tmp_path / "junk.tif").write_text("not a raster")
+    with pytest.raises(InputError, match="cannot read image file .*junk.tif"):
+        io.open_image(tmp_path / "junk.tif")
+
+
+def test_same_grid_passes(files):
+    io.check_same_grid({"image": io.open_image(files["image"]), "classes": io.open_classes(files["classes"]),
+                        **io.open_angles(files["angles"])})
+
+
+@pytest.mark.parametrize("change, pattern", [
+    ({"height": 39}, r"shape \(rows, columns\) \(39, 48\) differs from \(40, 48\)"),
+    ({"crs": "EPSG:32633"}, r"CRS EPSG:32633 differs from EPSG:32632"),
+    ({"transform": rasterio.transform.from_origin(500010, 5400000, 10, 10)}, r"transform .* differs from"),
+    ({"transform": rasterio.transform.from_origin(500000, 5400000, 20, 20)}, r"transform .* differs from"),
+])
+def test_grid_mismatch_says_which_layer_and_what(files, tmp_path, change, pattern):
+    height = change.get("height", 40)
+    path = _write(tmp_path / "classes_other.tif", np.ones((1, height, 48), "uint8"), **change)
+    layers = {"image": io.open_image(files["image"]), "classes": io.open_classes(path)}
+    with pytest.raises(GridMismatchError, match=rf"classes \(.*classes_other.tif\) is not on the grid of "
+                                                 rf"image \(.*image.tif\): {pattern}"):
+        io.check_same_grid(layers)
+
+
+def test_write_round_trip_georeference_tags_descriptions(files, tmp_path):
+    image = io.open_image(files["image"], chunks=16)
+    out = image.drop_vars("wavelength").rio.write_nodata(np.nan, encoded=True)
+    target = tmp_path / "out.tif"
+    io.write_rasters({target: out}, tags={"brdf_reference": "sza=30 vza=0 raa=0"}, blocksize=16)
+    with rasterio.open(target) as written, rasterio.open(files["image"]) as source:
+        assert written.crs == source.crs
+        assert written.transform == source.transform
+        assert np.isnan(written.nodata)
+        assert written.descriptions == ("480 nm", "560 nm", "660 nm", "830 nm")
+        assert written.tags()["brdf_reference"] == "sza=30 vza=0 raa=0"
+        assert written.profile["tiled"] and written.block_shapes[0] == (16, 16)
+        assert written.compression.value == "DEFLATE"
+        np.testing.assert_array_equal(written.read(), source.read())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.tif"]
+
+
+def test_write_cog(files, tmp_path):
+    image = io.open_image(files["image"], chunks=16)
+    target = tmp_path / "out_cog.tif"
+    io.write_rasters({target: image.drop_vars("wavelength")}, cog=True, blocksize=16)
+    with rasterio.open(target) as written:
+        assert written.tags(ns="IMAGE_STRUCTURE").get("LAYOUT") == "COG"
+        assert written.descriptions == ("480 nm", "560 nm", "660 nm", "830 nm")
+        np.testing.assert_array_equal(written.read(), image.values)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out_cog.tif"]
+
+
+def _failing_array(scene) -> xr.DataArray:
+    def explode(block, block_info=None):
+        if block_info[0]["chunk-location"] == (0, 1, 1):
+            raise RuntimeError("disk on fire")
+        return block
+
+    data = da.from_array(scene["reflectance"].values, chunks=(4, 16, 16)).map_blocks(explode, dtype="float32")
+    return scene["reflectance"].drop_vars("wavelength").copy(data=data)
+
+
+@pytest.mark.parametrize("cog", [False, True])
+def test_failed_write_leaves_nothing_at_the_target(scene, tmp_path, cog):
+    target = tmp_path / "out.tif"
+    qa_target = tmp_path / "qa.tif"
+    qa = georeference(xr.DataArray(np.zeros((40, 48), "uint8"), dims=("y", "x")))
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        io.write_rasters({target: _failing_array(scene), qa_target: qa}, blocksize=16, cog=cog)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_existing_target_survives_a_failed_write(scene, tmp_path):
+    target = tmp_path / "out.tif"
+    target.write_bytes(b"previous result")
+    with pytest.raises(RuntimeError):
+        io.write_rasters({target: _failing_array(scene)}, blocksize=16)
+    assert target.read_bytes() == b"previous result"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.tif"]
+
+
+def test_blocksize_must_be_a_multiple_of_16(scene, tmp_path):
+    with pytest.raises(InputError, match="multiple of 16"):
+        io.write_rasters({tmp_path / "x.tif": scene["reflectance"]}, blocksize=20)
