@@ -16,7 +16,9 @@ from rasterio.crs import CRS
 from brdfcorr.errors import SensorInputError
 from brdfcorr.geometry import relative_azimuth
 from brdfcorr.sensors import read_angles
+from brdfcorr.sensors.grids import grid_template
 from brdfcorr.sensors.landsat import (
+    ang_angles,
     ang_mean_angles,
     ang_scene_time,
     find_angle_bands,
@@ -78,7 +80,7 @@ def test_vector_angles_closed_form():
 
 @needs_realdata
 def test_sza_band_scaling_and_solar_fill(ang):
-    angles = read_landsat_angles(SZA, ang=ANG, mean_view_from_ang=True, chunks=256)
+    angles = read_landsat_angles(SZA, ang=ANG, view_from_ang="mean", chunks=256)
     with rasterio.open(SZA) as source:
         raw = source.read(1)
     assert isinstance(angles.sza.data, da.Array)
@@ -102,7 +104,7 @@ def test_coarse_sza_onto_the_band_grid_in_another_crs(ang):
     """The SZA raster (UTM 21 at 300 m) is interpolated lazily onto the B1 grid (EPSG:8858 at
     120 m); at chosen pixels it equals a bilinear interpolation done here by hand."""
     band = rioxarray.open_rasterio(B1, masked=True).isel(band=0)
-    angles = read_angles("landsat", B1, like=band, ang=ANG, mean_view_from_ang=True)
+    angles = read_angles("landsat", B1, like=band, ang=ANG, view_from_ang="mean")
     assert angles.sza.shape == band.shape and isinstance(angles.sza.data, da.Array)
     assert angles.rio.crs == band.rio.crs
     with rasterio.open(SZA) as source:
@@ -158,6 +160,62 @@ def test_angles_fit_the_correction_input_contract():
     from brdfcorr import io as rio_io
 
     band = rio_io.open_image(B1, chunks=64, wavelengths=[478.0])
-    angles = read_angles("landsat", SZA, like=band, ang=ANG, mean_view_from_ang=True)
+    angles = read_angles("landsat", SZA, like=band, ang=ANG, view_from_ang="mean")
     rio_io.check_same_grid({"image": band, **angles.data_vars})
     assert angles.sza.chunks == band.chunks[1:]
+
+
+@needs_realdata
+def test_ephemeris_model_sun_part_reproduces_the_sza_band(ang):
+    """ang_angles on the SZA band's own grid: its sun zenith (ANG.txt ECEF solar vectors at each
+    pixel's imaging time, in the pixel's east-north-up frame) matches the product band."""
+    band = rioxarray.open_rasterio(SZA).isel(band=0)
+    model = ang_angles(ang, band, chunks=256)
+    assert isinstance(model.vza.data, da.Array) and model.vza.data.npartitions == 12  # 3 x 4 blocks
+    sza = model.sza.values
+    covered = np.isfinite(sza)
+    assert covered.mean() > 0.85  # only corners of the UTM box, outside the imaged path, are NaN
+    assert np.abs(sza[covered] - band.values[covered] * 0.01).max() < 0.12
+
+
+@needs_realdata
+def test_ephemeris_model_view_matches_the_ang_mean_satellite_vector(ang):
+    """At the RPC reference pixel of band 4 (BAND04_MEAN_L1T_LINE_SAMP, 30 m pixels from the
+    UL_CORNER centre) the modelled view direction lies within 0.2 deg of the ANG.txt mean
+    satellite vector (near nadir: a 0.2 deg error is 2.5 km at 705 km). Off nadir the view zenith
+    reaches the ETM+ half field of view plus Earth curvature (about 8 deg)."""
+    line, sample = ang["RPC_BAND04"]["BAND04_MEAN_L1T_LINE_SAMP"]
+    ulx, uly = ang["PROJECTION"]["UL_CORNER"]
+    like = grid_template(Affine(30.0, 0, ulx - 15.0 + 30.0 * sample, 0, -30.0, uly + 15.0 - 30.0 * line), (1, 1), "EPSG:32621")
+    model = ang_angles(ang, like).compute()
+    vza, vaa = np.radians(float(model.vza[0, 0])), np.radians(float(model.vaa[0, 0]))
+    modelled = np.array([np.sin(vza) * np.sin(vaa), np.sin(vza) * np.cos(vaa), np.cos(vza)])
+    mean = np.array(ang["RPC_BAND04"]["BAND04_MEAN_SAT_VECTOR"])
+    angle = np.degrees(np.arccos(np.clip(modelled @ mean / np.linalg.norm(mean), -1, 1)))
+    assert angle < 0.2
+    # Across the scene-centre row (3 km cells), 60 km east and west of the minimum, the view zenith
+    # must match a spherical Earth (R = 6371 km, altitude h = 705 km) for an across-track
+    # distance between 60 km * cos(15 deg) and 60 km (the track is tilted 9-13 deg from north-south
+    # at 26 deg S for a 98.2 deg inclination orbit).
+    def spherical_vza(distance_km, radius=6371.0, height=705.0):
+        gamma = distance_km / radius
+        to_satellite = np.array([-radius * np.sin(gamma), radius + height - radius * np.cos(gamma)])
+        up = np.array([np.sin(gamma), np.cos(gamma)])
+        return np.degrees(np.arccos(to_satellite @ up / np.linalg.norm(to_satellite)))
+
+    row = ang_angles(ang, grid_template(Affine(3000.0, 0, 430500.0, 0, -3000.0, -2874000.0), (1, 81), "EPSG:32621")).vza.values[0]
+    nadir = int(np.nanargmin(row))
+    low, high = spherical_vza(60.0 * np.cos(np.radians(15.0))), spherical_vza(60.0)
+    assert (low, high) == pytest.approx((5.219, 5.402), abs=1e-3)  # flat Earth: atan(60/705) = 4.86
+    for side in (nadir - 20, nadir + 20):
+        assert low - 0.05 < row[side] < high + 0.05
+
+
+@needs_realdata
+def test_view_from_ephemeris_through_the_reader(ang):
+    band = rioxarray.open_rasterio(B1, masked=True).isel(band=0)
+    angles = read_angles("landsat", B1, like=band, ang=ANG, view_from_ang="ephemeris").compute()
+    assert "ephemeris model" in angles.vza.attrs["source"]
+    assert np.isfinite(angles.vza.values).all() and 0.0 <= angles.vza.min() and angles.vza.max() < 9.0
+    with pytest.raises(SensorInputError, match="view_from_ang='ephemeris' computes view angles"):
+        read_angles("landsat", B1, like=band, ang=ANG)

@@ -13,6 +13,11 @@ vector gives the sun azimuth of pvlib's SPA at the scene centre to 0.01 deg with
 north)``, confirming the (east, north, up) frame. ``view_azimuth="from_sensor"`` flips explicitly for
 a product that differs.
 
+Level-2 deliveries often carry only some angle bands (the scene in ``shared/realdata`` has only
+SZA). With the ANG.txt, missing solar angles are computed with pvlib at the scene time, and missing
+view angles, on request, from the ANG.txt ephemeris with a geometric scan-plane model
+(:func:`ang_angles`) or as the scene mean.
+
 References
 ----------
 .. [1] USGS: Landsat Collection 2 Level-1 Data Format Control Book (LSDS-1656), angle bands.
@@ -24,18 +29,22 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import dask.array as da
 import numpy as np
 import pandas as pd
 import rioxarray
 import xarray as xr
+from pyproj import CRS, Transformer
+from scipy.interpolate import CubicSpline
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.sensors.grids import to_grid, wrap_azimuth
+from brdfcorr.sensors.grids import DEFAULT_CHUNK, _grid_of, pixel_centres, to_grid, wrap_azimuth
 from brdfcorr.sensors.solar import solar_angles
 
 __all__ = [
     "ANGLE_SCALE",
     "ANGLE_SUFFIXES",
+    "ang_angles",
     "ang_mean_angles",
     "ang_scene_time",
     "find_angle_bands",
@@ -143,6 +152,132 @@ def ang_mean_angles(ang: dict, band: int = 4) -> dict[str, float]:
     return {"sza": float(sza), "saa": float(saa), "vza": float(vza), "vaa": float(vaa)}
 
 
+#: Earth rotation rate [rad/s] (WGS 84).
+EARTH_ROTATION = 7.292115e-5
+
+
+def _enu_basis(longitude_deg, latitude_deg):
+    """East, north and up unit vectors (ECEF components, last axis) at geodetic positions."""
+    lam, phi = np.radians(longitude_deg), np.radians(latitude_deg)
+    east = np.stack([-np.sin(lam), np.cos(lam), np.zeros_like(lam)], axis=-1)
+    north = np.stack([-np.sin(phi) * np.cos(lam), -np.sin(phi) * np.sin(lam), np.cos(phi)], axis=-1)
+    up = np.stack([np.cos(phi) * np.cos(lam), np.cos(phi) * np.sin(lam), np.sin(phi)], axis=-1)
+    return east, north, up
+
+
+def _local_angles(vector, basis):
+    """Zenith and azimuth [deg] of ECEF direction vectors (last axis) in the local ENU frame."""
+    east, north, up = (np.sum(vector * axis, axis=-1) for axis in basis)
+    return vector_angles(east, north, up)
+
+
+def _imaging_time(pixels, position, inertial_velocity, times):
+    """Per pixel, the time at which the scan plane (perpendicular to the inertial velocity)
+    contains it: the root of f(t) = (P - S(t)) . V(t), bracketed on the ephemeris samples and
+    refined by two Newton steps with f'(t) = -|V|^2 + (P - S) . V' (spline derivatives)."""
+    samples = np.einsum("nk,tk->nt", pixels, inertial_velocity(times)) - np.sum(
+        position(times) * inertial_velocity(times), axis=-1)
+    crossing = np.argmax(np.diff(np.sign(samples), axis=1) != 0, axis=1)
+    f0 = np.take_along_axis(samples, crossing[:, None], axis=1)[:, 0]
+    f1 = np.take_along_axis(samples, crossing[:, None] + 1, axis=1)[:, 0]
+    inside = np.sign(f0) != np.sign(f1)
+    step = times[1] - times[0]
+    time = times[crossing] + step * f0 / np.where(f0 != f1, f0 - f1, 1.0)
+    for _ in range(2):
+        offset = pixels - position(time)
+        velocity = inertial_velocity(time)
+        slope = -np.sum(velocity * velocity, axis=-1) + np.sum(offset * inertial_velocity(time, 1), axis=-1)
+        time = time - np.sum(offset * velocity, axis=-1) / slope
+    return np.where(inside, time, np.nan)
+
+
+def _ang_block(block_info, *, transform, to_lonlat, to_ecef, model, altitude):
+    (row0, row1), (col0, col1) = block_info[None]["array-location"][1:]  # skip the (4,) axis
+    shape = (row1 - row0, col1 - col0)
+    x, y = pixel_centres(transform, row0, col0, shape)
+    longitude, latitude = to_lonlat.transform(x, y)
+    pixels = np.stack(to_ecef.transform(longitude, latitude, np.full(shape, altitude)), axis=-1).reshape(-1, 3)
+    time = _imaging_time(pixels, model["position"], model["inertial_velocity"], model["times"])
+    valid = np.isfinite(time)
+    time = np.where(valid, time, model["times"][0])
+    basis = [axis.reshape(-1, 3) for axis in _enu_basis(longitude, latitude)]
+    vza, vaa = _local_angles(model["position"](time) - pixels, basis)
+    sun = model["sun"](time)
+    sza, saa = _local_angles(sun, basis)
+    stacked = np.stack([sza, saa, vza, vaa]).reshape(4, *shape)
+    return np.where(valid.reshape(shape), stacked, np.nan)
+
+
+def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=None) -> xr.Dataset:
+    """Per-pixel sun and view angles from the ANG.txt ephemeris and solar vectors, lazily.
+
+    Parameters
+    ----------
+    ang : dict
+        A parsed ANG.txt (:func:`parse_ang_txt`).
+    like : xarray.DataArray
+        Georeferenced image grid (y, x).
+    altitude : float
+        Terrain height above the ellipsoid [m] used for every pixel.
+    chunks :
+        Output chunks; default ``like``'s, else 2048.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``sza``, ``saa``, ``vza``, ``vaa`` [deg]; NaN for pixels the ephemeris does not cover.
+
+    Notes
+    -----
+    A geometric model, not the USGS angle tool (which evaluates the per-band RPC polynomials of the
+    ANG.txt): the spacecraft position S(t) is a cubic spline through the ECEF ephemeris; a pixel
+    P (ECEF of its longitude, latitude and ``altitude``) is imaged when it lies in the scan plane
+    perpendicular to the inertial velocity S'(t) + w x S(t) (whisk-broom ETM+/TM and push-broom
+    OLI both image across track; no yaw steering). The view vector is S(t) - P and the sun vector
+    the ANG.txt ECEF solar unit vector at t, both expressed in the pixel's (east, north, up)
+    frame. Checked on the real scene: the sun part reproduces the product's SZA band to 0.1 deg
+    and the mean sun vector of the ANG.txt; the view part reproduces the ANG.txt scene-mean
+    satellite vector (see the tests). Band-to-band focal-plane offsets (below 0.1 deg) are ignored.
+    """
+    ephemeris, solar = ang.get("EPHEMERIS", {}), ang.get("SOLAR_VECTOR", {})
+    try:
+        times = np.asarray(ephemeris["EPHEMERIS_TIME"], dtype="float64")
+        position = CubicSpline(times, np.stack([ephemeris[f"EPHEMERIS_ECEF_{c}"] for c in "XYZ"], axis=-1))
+        sun_times = np.asarray(solar["SAMPLE_TIME"], dtype="float64")
+        sun = CubicSpline(sun_times, np.stack([solar[f"SOLAR_ECEF_{c}"] for c in "XYZ"], axis=-1))
+    except KeyError as error:
+        raise SensorInputError(f"ANG.txt: no {error.args[0]} (EPHEMERIS/SOLAR_VECTOR group)") from None
+    if float(ephemeris.get("EPHEMERIS_EPOCH_DAY", -1)) != float(solar.get("SOLAR_EPOCH_DAY", -2)):
+        raise SensorInputError("ANG.txt: ephemeris and solar vectors have different epoch days")
+    omega = np.array([0.0, 0.0, EARTH_ROTATION])
+
+    def inertial_velocity(t, derivative=0):
+        # Velocity relative to the inertial frame, expressed in ECEF axes: S' + w x S.
+        return position(t, 1 + derivative) + np.cross(omega, position(t, derivative))
+
+    plane = like.isel({dim: 0 for dim in like.dims if dim not in ("y", "x")}).transpose("y", "x")
+    transform, crs, shape = _grid_of(plane, "the image grid (like)")
+    if crs is None:
+        raise SensorInputError("angles from the ANG.txt need pixel coordinates: the image grid has no CRS")
+    if chunks is None:
+        chunks = plane.data.chunks if isinstance(plane.data, da.Array) else DEFAULT_CHUNK
+    template = da.empty(shape, chunks=chunks)
+    model = {"times": times, "position": position, "inertial_velocity": inertial_velocity, "sun": sun}
+    stacked = da.map_blocks(
+        _ang_block, dtype="float64", chunks=((4,),) + template.chunks, meta=np.empty((0, 0, 0)),
+        transform=transform, to_lonlat=Transformer.from_crs(crs, CRS.from_epsg(4326), always_xy=True),
+        to_ecef=Transformer.from_crs(CRS.from_epsg(4326), CRS.from_epsg(4978), always_xy=True),
+        model=model, altitude=altitude,
+    )
+    coords = {"y": plane["y"], "x": plane["x"]}
+    angles = xr.Dataset({
+        key: xr.DataArray(stacked[index], dims=("y", "x"), coords=coords, attrs={
+            "units": "degree", "long_name": LONG_NAMES[key], "source": "ANG.txt ephemeris model"})
+        for index, key in enumerate(("sza", "saa", "vza", "vaa"))
+    })
+    return angles.rio.write_crs(crs).rio.write_transform(transform)
+
+
 # --- angle bands ----------------------------------------------------------------------------------
 
 def find_angle_bands(path: str | Path) -> dict[str, Path]:
@@ -195,7 +330,7 @@ def _same_grid(band: xr.DataArray, like: xr.DataArray) -> bool:
 
 
 def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
-                        ang: str | Path | None = None, mean_view_from_ang: bool = False,
+                        ang: str | Path | None = None, view_from_ang: str | None = None,
                         view_azimuth: str = "to_sensor", chunks=None) -> xr.Dataset:
     """Sun and view angles of a Landsat Collection 2 product on the image grid, lazily.
 
@@ -209,9 +344,12 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
     ang : str or Path, optional
         The product's ANG.txt. With it, missing solar bands are computed with pvlib at the scene
         time of the ANG.txt and the pixel coordinates of ``like``.
-    mean_view_from_ang : bool
-        With ``ang``: missing view bands are set to the scene-mean view angles of band 4 from the
-        ANG.txt (constant over the scene; a coarse approximation, so it must be asked for).
+    view_from_ang : {None, "ephemeris", "mean"}
+        With ``ang``, how to obtain missing view bands (Level-2 deliveries often lack them); a
+        model rather than product data, so it must be asked for. "ephemeris": per pixel from the
+        ANG.txt ephemeris (:func:`ang_angles`, about 0.15 deg); "mean": the scene-mean view
+        angles of band 4 (constant; only for near-nadir work). None: missing view bands are an
+        error.
     view_azimuth : {"to_sensor", "from_sensor"}
         What the VAA band holds; Landsat C2: "to_sensor".
     chunks :
@@ -230,6 +368,8 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
     """
     if view_azimuth not in ("to_sensor", "from_sensor"):
         raise SensorInputError(f"view_azimuth must be 'to_sensor' or 'from_sensor', got {view_azimuth!r}")
+    if view_from_ang not in (None, "ephemeris", "mean"):
+        raise SensorInputError(f"view_from_ang must be None, 'ephemeris' or 'mean', got {view_from_ang!r}")
     files = find_angle_bands(path)
     variables = {key: _read_angle_band(file, key, like, chunks, view_azimuth == "from_sensor")
                  for key, file in files.items()}
@@ -244,7 +384,11 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
             sun = solar_angles(time, grid, chunks=chunks)
             for key in {"sza", "saa"} & set(missing):
                 variables[key] = sun[key].assign_attrs(source=f"pvlib SPA at {time} ({ang})")
-        if mean_view_from_ang and {"vza", "vaa"} & set(missing):
+        if view_from_ang == "ephemeris" and {"vza", "vaa"} & set(missing):
+            view = ang_angles(coefficients, grid, chunks=chunks)
+            for key in {"vza", "vaa"} & set(missing):
+                variables[key] = view[key].assign_attrs(source=f"ephemeris model ({ang})")
+        if view_from_ang == "mean" and {"vza", "vaa"} & set(missing):
             mean = ang_mean_angles(coefficients, band=4)
             template = next(iter(variables.values()))
             for key in {"vza", "vaa"} & set(missing):
@@ -256,7 +400,7 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
         if ang is None:
             hint = "; give the ANG.txt (ang=...) to compute solar angles"
         elif {"vza", "vaa"} & set(missing):
-            hint = "; mean_view_from_ang=True takes the ANG.txt scene-mean view angles"
+            hint = "; view_from_ang='ephemeris' computes view angles from the ANG.txt"
         else:
             hint = ""
         raise SensorInputError(f"{path}: missing Landsat angle band(s) {wanted}{hint}")
