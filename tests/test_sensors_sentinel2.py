@@ -98,6 +98,10 @@ def test_angles_on_the_60m_grid_match_independent_interpolation(tile):
     np.testing.assert_allclose(picked.vza.values, vza, atol=1e-9)
     # Ranges: the sun grid's range bounds the interpolated field.
     assert tile.sun_zenith.min() <= float(angles.sza.min()) and float(angles.sza.max()) <= tile.sun_zenith.max()
+    # Tile means against the XML's own Mean_Sun_Angle and band-3 (B04) Mean_Viewing_Incidence_Angle.
+    assert float(angles.sza.mean()) == pytest.approx(35.736120160094, abs=1e-3)
+    assert float(angles.saa.mean()) == pytest.approx(43.3890691221155, abs=1e-2)
+    assert float(angles.vza.mean()) == pytest.approx(3.68075161027702, abs=0.05)
 
 
 @needs_realdata
@@ -107,10 +111,11 @@ def test_10m_grid_is_lazy_and_a_window_computes_alone():
     angles = read_sentinel2_angles(MTD, chunks=256)
     window = angles.isel(y=slice(6000, 6004), x=slice(100, 103)).compute()
     assert window.vza.shape == (4, 3)
-    # Mean view angles of the tile (XML Mean_Viewing_Incidence_Angle, 3.5-4.1 deg zenith) vs the
-    # mean of the combined grids at 60 m.
-    coarse = read_sentinel2_angles(MTD, resolution=60, band="B04").vza.mean().compute()
-    assert float(coarse) == pytest.approx(3.68075161027702, abs=0.3)
+    # Bilinear interpolation stays within the node values of the bands' detector grids.
+    tile = parse_mtd_tl(MTD)
+    nodes = np.concatenate([grid.ravel() for band in tile.view_zenith.values() for grid in band.values()])
+    assert np.nanmin(nodes) <= float(window.vza.min()) and float(window.vza.max()) <= np.nanmax(nodes)
+    assert float(window.vza.mean()) > 6.0  # x = 301 km: the west edge, far from the track (east)
 
 
 @needs_realdata
