@@ -127,6 +127,9 @@ def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> d
 @click.option("--min-phi", type=float, help="Fit only relative azimuths >= this [deg] (paper 003: 90).")
 @click.option("--max-phi", type=float, help="Fit only relative azimuths <= this [deg].")
 @click.option("--max-zenith", type=float, help="Fit only theta_i and theta_r <= this [deg].")
+@click.option("--wavelength", type=float,
+              help="Fit only this wavelength [nm] of a table with a wavelength column "
+                   "[default: every wavelength, written as a spectral class].")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter table (YAML) to write, or to add the class to if it exists.")
 @click.option("--class-id", type=int, help="Class id in the table [default: 1 more than the largest].")
@@ -136,72 +139,98 @@ def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> d
 @click.option("--log", "log_scale", is_flag=True, help="Logarithmic BRDF axes in the figures.")
 @handle_errors
 def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi, max_zenith,
-                output, class_id, class_name, plot_dir, log_scale):
-    """Fit a BRDF model to goniometer MEASUREMENTS (CSV: theta_i, theta_r, phi, brdf[, sigma]).
+                wavelength, output, class_id, class_name, plot_dir, log_scale):
+    """Fit a BRDF model to goniometer MEASUREMENTS (CSV: theta_i, theta_r, phi, brdf[, sigma,
+    wavelength]).
 
     Prints the fitted parameters with 1-sigma errors and chi2/dof (as paper 003, Table 1) and the
     parameter correlations; with -o writes the fit as a class of a parameter table.
     """
     import warnings
 
-    from brdfcorr.fit import FitWarning, fit_measurements
+    from brdfcorr.fit import FitWarning, fit_measurements, spectral_table_entry
     from brdfcorr.io_utils import atomic_path
     from brdfcorr.measurements import filter_measurements, read_measurements, selection_mask
     from brdfcorr.params import ParameterTable
 
     table = ParameterTable.load(output) if output is not None and output.exists() else None
     everything = read_measurements(measurements)
+    if wavelength is not None:
+        everything = everything.at_wavelength(wavelength)
     selection = {"min_phi": min_phi, "max_phi": max_phi, "max_zenith": max_zenith}
     data = filter_measurements(everything, **selection)
     keep, selection = selection_mask(everything, **selection)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", FitWarning)
-        result = fit_measurements(
-            model_name, data, fixed=_assignments("--fix", fix),
-            initial=_assignments("--init", initial), bounds=_assignments("--bound", bounds, ranges=True),
-        )
-    for warning in caught:
-        if issubclass(warning.category, FitWarning):
-            click.echo(f"brdfcorr: warning: {warning.message}", err=True)
+    options = {
+        "fixed": _assignments("--fix", fix),
+        "initial": _assignments("--init", initial),
+        "bounds": _assignments("--bound", bounds, ranges=True),
+    }
 
     name = class_name or measurements.stem
+    bands = data.wavelengths or (None,)
+    results, rows = {}, []
+    for band in bands:
+        subset = data if band is None else data.at_wavelength(band)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", FitWarning)
+            results[band] = fit_measurements(model_name, subset, **options)
+        for warning in caught:
+            if issubclass(warning.category, FitWarning):
+                where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
+                click.echo(f"brdfcorr: warning: {where}{warning.message}", err=True)
+        label = {"sample": name} if band is None else {"sample": name, "λ [nm]": f"{band:g}"}
+        rows.append({**label, "N": str(len(subset)), **results[band].summary()})
+
     weights = "weighted by sigma" if data.sigma is not None else "unweighted (no sigma column)"
     click.echo(f"{measurements}: {len(data)} of {len(everything)} measurements"
                f"{f' ({selection})' if selection else ''}, {weights}")
-    click.echo(f"model {result.model.name}: {len(result.free)} free parameters, dof {result.dof}, "
-               f"{result.n_converged} of {result.n_starts} starts reached the minimum")
+    first = results[bands[0]]
+    fitted_text = f"model {first.model.name}: {len(first.free)} free parameters"
+    if len(bands) > 1:
+        fitted_text += f", {len(bands)} wavelengths fitted separately"
+    click.echo(fitted_text)
     click.echo()
-    click.echo(_format_table([{"sample": name, **result.summary()}]))
-    chi2_text = f"chi2 = {result.chi2:.4g} for {result.dof} dof"
+    click.echo(_format_table(rows))
     if data.sigma is not None:
-        chi2_text += f", P(chi2 larger) = {result.p_value:.3g}; errors from sigma, not scaled by chi2/dof"
+        click.echo("errors: 1 sigma from the measurement errors, not scaled by chi2/dof")
     else:
-        chi2_text += "; errors scaled by the residual scatter (chi2/dof)"
-    click.echo(chi2_text)
-    if len(result.free) > 1:
+        click.echo("errors: 1 sigma scaled by the residual scatter (chi2/dof)")
+    if len(bands) == 1 and len(first.free) > 1:
+        click.echo(f"chi2 = {first.chi2:.4g} for {first.dof} dof"
+                   + (f", P(chi2 larger) = {first.p_value:.3g}" if data.sigma is not None else "")
+                   + f"; {first.n_converged} of {first.n_starts} starts reached the minimum")
         click.echo("\ncorrelations:")
         click.echo(_format_table([
-            {"": row, **{column: f"{result.correlation_of(row, column):+.3f}" for column in result.free}}
-            for row in result.free
+            {"": row, **{column: f"{first.correlation_of(row, column):+.3f}" for column in first.free}}
+            for row in first.free
         ]))
 
     if plot_dir is not None:
         from brdfcorr.fit_plots import plot_azimuth, plot_principal_plane
 
-        excluded = everything.select(~keep, "not fitted") if not keep.all() else None
         plot_dir.mkdir(parents=True, exist_ok=True)
         scale = "log" if log_scale else "linear"
-        for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
-            target = plot_dir / f"{name}_{suffix}.png"
-            with atomic_path(target) as temporary:
-                plot(result, data, excluded, yscale=scale).savefig(temporary, dpi=120, format="png")
-            click.echo(f"wrote {target}")
+        for band, result in results.items():
+            fitted, others = data, (everything.select(~keep, "not fitted") if not keep.all() else None)
+            stem = name
+            if band is not None:
+                fitted = data.at_wavelength(band)
+                if others is not None and band in others.wavelengths:
+                    others = others.at_wavelength(band)
+                elif others is not None:
+                    others = None
+                stem = f"{name}_{band:g}nm"
+            for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
+                target = plot_dir / f"{stem}_{suffix}.png"
+                with atomic_path(target) as temporary:
+                    plot(result, fitted, others, yscale=scale).savefig(temporary, dpi=120, format="png")
+                click.echo(f"wrote {target}")
     if output is not None:
         table = table if table is not None else ParameterTable()
         if class_id is None:
             class_id = max(table.class_ids, default=0) + 1
         replaced = class_id in table
-        table.with_class(result.table_entry(class_id, name)).save(output)
+        table.with_class(spectral_table_entry(results, class_id, name)).save(output)
         click.echo(f"{'replaced' if replaced else 'wrote'} class {class_id} ({name}) in {output}")
 
 

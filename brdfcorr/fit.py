@@ -46,6 +46,8 @@ __all__ = [
     "NonIdentifiableWarning",
     "fit_brdf",
     "fit_measurements",
+    "fit_wavelengths",
+    "spectral_table_entry",
     "format_with_error",
 ]
 
@@ -440,9 +442,10 @@ def _identifiability_messages(model, free, values, covariance, condition_number,
         problems.append(f"{', '.join(undetermined)} not determined (error larger than the value)")
     messages = []
     if problems:
+        hint = " (paper 003 fixes k = 0.25)" if "k" in free else ""
         messages.append(
             f"{model.name}: parameters not identifiable from these measurements: "
-            + "; ".join(problems) + "; fix one of them (paper 003 fixes k = 0.25)"
+            + "; ".join(problems) + f"; fix one of them{hint}"
         )
     elif condition_number > CONDITION_LIMIT:
         messages.append(
@@ -636,3 +639,62 @@ def fit_measurements(model, measurements: Measurements, **kwargs) -> FitResult:
         measurements.sigma,
         **kwargs,
     )
+
+
+def fit_wavelengths(model, measurements: Measurements, **kwargs) -> dict[float, FitResult]:
+    """Fit every wavelength of a multi-wavelength measurement table separately.
+
+    Parameters
+    ----------
+    model : str or Model
+        Registry model name or model.
+    measurements : Measurements
+        With a ``wavelength`` column [nm].
+    **kwargs
+        Passed to :func:`fit_brdf` for every wavelength (``fixed``, ``initial``, ``bounds``, ...).
+
+    Returns
+    -------
+    dict of float to FitResult
+        By wavelength [nm], increasing. Warnings of each fit name the wavelength.
+    """
+    if measurements.wavelength is None:
+        raise FitError(f"{measurements.source}: the measurements have no wavelength column")
+    results = {}
+    for wavelength in measurements.wavelengths:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", FitWarning)
+            results[wavelength] = fit_measurements(model, measurements.at_wavelength(wavelength), **kwargs)
+        for warning in caught:
+            warnings.warn(f"{wavelength:g} nm: {warning.message}", warning.category, stacklevel=2)
+    return results
+
+
+def spectral_table_entry(results: Mapping[float, FitResult], class_id: int, name: str) -> dict:
+    """Fits at several wavelengths as one class of a parameter table (``DESIGN.md`` format).
+
+    Parameters with the same value at every wavelength (the fixed ones) are written as a scalar,
+    the others as a list with ``wavelengths`` [nm], which :class:`brdfcorr.params.ParameterTable`
+    interpolates linearly to an image's band centres. A single wavelength gives scalars (no
+    ``wavelengths``): the paper-003 practice of one fit (550 nm) for every band.
+    """
+    wavelengths = sorted(results)
+    if not wavelengths:
+        raise FitError("no fits to put into a parameter table")
+    models = {results[wavelength].model.name for wavelength in wavelengths}
+    if len(models) > 1:
+        raise FitError(f"fits of different models ({', '.join(sorted(models))}) cannot form one class")
+    if len(wavelengths) == 1:
+        return results[wavelengths[0]].table_entry(class_id, name)
+    first = results[wavelengths[0]]
+    params = {}
+    for parameter in first.model.parameter_names:
+        values = [float(results[wavelength].params[parameter]) for wavelength in wavelengths]
+        params[parameter] = values[0] if len(set(values)) == 1 else values
+    return {
+        "id": int(class_id),
+        "name": str(name),
+        "model": first.model.name,
+        "wavelengths": [float(wavelength) for wavelength in wavelengths],
+        "params": params,
+    }

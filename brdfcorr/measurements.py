@@ -16,7 +16,11 @@ theta_r    view (sensor) zenith angle [deg]                       [0, 90)
 phi        relative azimuth [deg], 180 = forward scattering       [0, 180]
 brdf       measured BRDF [sr^-1]                                  finite, >= 0
 sigma      optional 1-sigma error of ``brdf`` [sr^-1]             finite, > 0
+wavelength optional wavelength of the measurement [nm]            finite, > 0
 =========  =====================================================  ==============================
+
+A table with a ``wavelength`` column holds several spectral bands of the same geometries (the EGO
+spectroradiometer measured 425-975 nm); :meth:`Measurements.at_wavelength` selects one.
 
 The angle conventions are those of ``DESIGN.md`` (:mod:`brdfcorr.geometry`). Every check reports
 all offending rows of a column at once, by their line number in the file, in a single
@@ -58,7 +62,7 @@ __all__ = [
 ]
 
 REQUIRED_COLUMNS = ("theta_i", "theta_r", "phi", "brdf")
-OPTIONAL_COLUMNS = ("sigma",)
+OPTIONAL_COLUMNS = ("sigma", "wavelength")
 
 #: How many offending rows an error message lists before it says "and N more".
 _MAX_LISTED = 5
@@ -91,6 +95,8 @@ class Measurements:
         The file the measurements come from, or a description.
     filters : tuple of str
         The selections applied so far (``"phi >= 90"``), for reports.
+    wavelength : numpy.ndarray or None
+        Wavelength of each measurement [nm], > 0; None when the table has no such column.
     """
 
     theta_i: np.ndarray
@@ -101,6 +107,7 @@ class Measurements:
     rows: np.ndarray | None = None
     source: str = "measurements"
     filters: tuple[str, ...] = field(default=())
+    wavelength: np.ndarray | None = None
 
     def __post_init__(self):
         labels = None if self.rows is None else [f"line {row}" for row in self.rows]
@@ -112,6 +119,32 @@ class Measurements:
             object.__setattr__(self, name, values)
         if self.rows is not None:
             object.__setattr__(self, "rows", np.asarray(self.rows, dtype=int))
+        if self.wavelength is not None:
+            wavelength = np.broadcast_to(np.asarray(self.wavelength, dtype=float), self.brdf.shape)
+            invalid = ~(np.isfinite(wavelength) & (wavelength > 0))
+            if invalid.any():
+                labels = labels or [f"index {index}" for index in range(wavelength.size)]
+                raise MeasurementError(
+                    f"{self.source}: wavelength not finite and positive at {_list_rows(labels, invalid)}"
+                )
+            object.__setattr__(self, "wavelength", wavelength.copy())
+
+    @property
+    def wavelengths(self) -> tuple[float, ...]:
+        """The distinct wavelengths [nm], increasing; empty without a wavelength column."""
+        return () if self.wavelength is None else tuple(map(float, np.unique(self.wavelength)))
+
+    def at_wavelength(self, wavelength: float) -> Measurements:
+        """The measurements at one wavelength [nm] (an error naming the available ones if absent)."""
+        if self.wavelength is None:
+            raise MeasurementError(f"{self.source}: no wavelength column to select {wavelength:g} nm from")
+        keep = self.wavelength == wavelength
+        if not keep.any():
+            available = ", ".join(f"{value:g}" for value in self.wavelengths)
+            raise MeasurementError(
+                f"{self.source}: no measurements at {wavelength:g} nm; wavelengths: {available}"
+            )
+        return self.select(keep, f"wavelength = {wavelength:g} nm")
 
     def __len__(self) -> int:
         return self.brdf.size
@@ -133,6 +166,7 @@ class Measurements:
             rows=None if self.rows is None else self.rows[mask],
             source=self.source,
             filters=self.filters + ((description,) if description else ()),
+            wavelength=None if self.wavelength is None else self.wavelength[mask],
         )
 
 
@@ -237,7 +271,8 @@ def read_measurements(path: str | os.PathLike) -> Measurements:
     ----------
     path : path-like
         The CSV file. Comma-separated, a header line first; blank lines and lines starting with
-        ``#`` are skipped. Angles in degrees, BRDF and sigma in sr^-1. The file is only read.
+        ``#`` are skipped. Angles in degrees, BRDF and sigma in sr^-1, an optional wavelength
+        column in nm. The file is only read.
 
     Returns
     -------
@@ -322,7 +357,9 @@ def write_measurements(path: str | os.PathLike, measurements: Measurements) -> P
     (written to a temporary name, renamed when complete). Returns the path.
     """
     path = Path(path)
-    names = list(REQUIRED_COLUMNS) + (["sigma"] if measurements.sigma is not None else [])
+    names = list(REQUIRED_COLUMNS) + [
+        name for name in OPTIONAL_COLUMNS if getattr(measurements, name) is not None
+    ]
     columns = [getattr(measurements, name) for name in names]
     with atomic_path(path) as temporary:
         with open(temporary, "w", newline="", encoding="utf-8") as stream:
@@ -449,6 +486,7 @@ def synthesize_measurements(
     relative_noise: float = 0.04,
     seed: int | None = 0,
     source: str = "synthetic",
+    wavelength: float | None = None,
 ) -> Measurements:
     """Simulated goniometer measurements of a model with Gaussian relative noise.
 
@@ -467,6 +505,8 @@ def synthesize_measurements(
         Seed of :func:`numpy.random.default_rng`; fixed by default so results repeat.
     source : str
         Description stored in the result.
+    wavelength : float, optional
+        Wavelength [nm] recorded with every measurement.
 
     Returns
     -------
@@ -484,4 +524,4 @@ def synthesize_measurements(
     rng = np.random.default_rng(seed)
     brdf = np.clip(truth * (1.0 + relative_noise * rng.standard_normal(truth.shape)), 0.0, None)
     sigma = relative_noise * truth if relative_noise > 0 else None
-    return Measurements(theta_i, theta_r, phi, brdf, sigma, source=source)
+    return Measurements(theta_i, theta_r, phi, brdf, sigma, source=source, wavelength=wavelength)

@@ -109,7 +109,7 @@ def test_unweighted_fit_says_how_errors_were_scaled(tmp_path):
     result = run("fit", path, "--model", "lambertian")
     assert result.exit_code == 0, result.output
     assert "unweighted (no sigma column)" in result.output
-    assert "errors scaled by the residual scatter" in result.output
+    assert "scaled by the residual scatter (chi2/dof)" in result.output
 
 
 BAD_TABLES = [
@@ -167,3 +167,42 @@ def test_bad_existing_parameter_table_is_reported_before_fitting(csv_path, tmp_p
     assert result.exit_code == 2
     assert str(table_path) in result.stderr and len(result.stderr.splitlines()) == 1
     assert "missing parameter" in result.stderr
+
+
+def test_spectral_table_fits_each_wavelength(tmp_path):
+    truth = load_material("blue_concrete")
+    angles = goniometer_angles()
+    parts = [
+        synthesize_measurements(truth.model, truth.params, *angles, seed=seed, wavelength=wavelength)
+        for seed, wavelength in enumerate((450.0, 850.0))
+    ]
+    lines = ["theta_i,theta_r,phi,brdf,sigma,wavelength"]
+    for part in parts:
+        lines += [
+            ",".join(f"{value:.10g}" for value in row)
+            for row in zip(part.theta_i, part.theta_r, part.phi, part.brdf, part.sigma, part.wavelength)
+        ]
+    path = tmp_path / "blue.csv"
+    path.write_text("\n".join(lines) + "\n")
+    table_path = tmp_path / "params.yaml"
+    result = run("fit", path, "--fix", "k=0.25", "--min-phi", "90", "-o", table_path)
+    assert result.exit_code == 0, result.output
+    assert "2 wavelengths fitted separately" in result.output
+    entry = ParameterTable.load(table_path)[1]
+    assert entry.wavelengths == [450.0, 850.0]
+    assert len(entry.params["w"]) == 2 and entry.params["k"] == 0.25
+
+    single = run("fit", path, "--fix", "k=0.25", "--min-phi", "90", "--wavelength", "850",
+                 "-o", table_path, "--class-id", 2)
+    assert single.exit_code == 0, single.output
+    expected = fit_measurements(
+        "torrance_sparrow",
+        filter_measurements(read_measurements(path).at_wavelength(850.0), min_phi=90),
+        fixed={"k": 0.25},
+    )
+    assert ParameterTable.load(table_path)[2].params == expected.params
+    assert ParameterTable.load(table_path)[1].params["w"][1] == expected.params["w"]
+
+    missing = run("fit", path, "--wavelength", "550")
+    assert missing.exit_code == 2
+    assert "no measurements at 550 nm; wavelengths: 450, 850" in missing.stderr

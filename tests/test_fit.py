@@ -367,3 +367,60 @@ def test_figures_have_one_panel_per_scan(roof_tile_fit):
     panels = [axis for axis in figure.axes if axis.get_visible()]
     assert len(panels) == 5  # 4 cuts + the normalized specular part, as paper 003 fig. 3
     assert panels[0].get_yscale() == "log"
+
+
+# --- several wavelengths -----------------------------------------------------------------------
+
+
+def spectral_measurements():
+    """Roof tile at three wavelengths: t0 varies with wavelength (a red tile), the peak does not."""
+    truth = load_material("roof_tile")
+    t0 = {450.0: 0.015, 550.0: truth.params["t0"], 650.0: 0.045}
+    parts = [
+        synthesize_measurements(
+            truth.model, {**truth.params, "t0": value}, *ANGLES, seed=index, wavelength=wavelength
+        )
+        for index, (wavelength, value) in enumerate(t0.items())
+    ]
+    columns = {
+        name: np.concatenate([getattr(part, name) for part in parts])
+        for name in ("theta_i", "theta_r", "phi", "brdf", "sigma", "wavelength")
+    }
+    from brdfcorr.measurements import Measurements
+
+    return t0, filter_measurements(Measurements(**columns), min_phi=90)
+
+
+def test_fit_wavelengths_and_spectral_table_entry(tmp_path):
+    from brdfcorr.fit import fit_wavelengths, spectral_table_entry
+
+    t0, data = spectral_measurements()
+    results = fit_wavelengths("torrance_sparrow", data, fixed=PAPER_K)
+    assert list(results) == [450.0, 550.0, 650.0]
+    for wavelength, result in results.items():
+        assert result.n_measurements == 120
+        assert abs(result.params["t0"] - t0[wavelength]) < 4 * result.errors["t0"]
+    entry = spectral_table_entry(results, 4, "red_tile")
+    assert entry["wavelengths"] == [450.0, 550.0, 650.0]
+    assert entry["params"]["k"] == 0.25  # fixed: one scalar for every wavelength
+    path = ParameterTable().with_class(entry).save(tmp_path / "spectral.yaml")
+    table = ParameterTable.load(path)
+    # The correction code gets each fit back at its own wavelength and the linear interpolation
+    # between them elsewhere.
+    at_nodes = table.for_bands(wavelengths=[450.0, 550.0, 650.0])[4].params
+    for index, result in enumerate(results.values()):
+        for name in ("t0", "t1", "w", "n"):
+            assert at_nodes[name][index] == result.params[name]
+    between = table.for_bands(wavelengths=[500.0])[4].params["t0"][0]
+    assert between == pytest.approx(0.5 * (results[450.0].params["t0"] + results[550.0].params["t0"]))
+    # One wavelength: the paper-003 practice, scalars for every band.
+    single = spectral_table_entry({550.0: results[550.0]}, 1, "tile")
+    assert "wavelengths" not in single and single["params"] == results[550.0].params
+
+
+def test_fit_wavelengths_needs_a_wavelength_column(roof_tile_fit):
+    from brdfcorr.fit import fit_wavelengths
+
+    _, data, _ = roof_tile_fit
+    with pytest.raises(FitError, match="no wavelength column"):
+        fit_wavelengths("torrance_sparrow", data)

@@ -158,3 +158,21 @@ def test_measurements_from_arrays_validate_and_select():
     assert picked.geometry.theta_i.tolist() == [30.0, 40.0]
     with pytest.raises(MeasurementError, match="lab: sigma not positive at index 1"):
         Measurements([30, 40], [10, 20], [180, 170], [0.1, 0.2], sigma=[0.01, -0.01], source="lab")
+
+
+def test_wavelength_column(tmp_path):
+    path = write(tmp_path, HEADER.strip() + ",wavelength\n30,0,180,0.02,0.001,450\n30,0,180,0.03,0.001,550\n"
+                 "30,5,180,0.031,0.001,550\n")
+    data = read_measurements(path)
+    assert data.wavelengths == (450.0, 550.0)
+    green = data.at_wavelength(550)
+    assert len(green) == 2 and green.rows.tolist() == [3, 4]
+    assert green.filters == ("wavelength = 550 nm",)
+    again = read_measurements(write_measurements(tmp_path / "copy.csv", data))
+    np.testing.assert_array_equal(again.wavelength, data.wavelength)
+    with pytest.raises(MeasurementError, match="no measurements at 650 nm; wavelengths: 450, 550"):
+        data.at_wavelength(650)
+    with pytest.raises(MeasurementError, match="wavelength not finite and positive at line 2"):
+        read_measurements(write(tmp_path, HEADER.strip() + ",wavelength\n30,0,180,0.02,0.001,-450\n"))
+    with pytest.raises(MeasurementError, match="no wavelength column"):
+        read_measurements(write(tmp_path, HEADER + "30,0,180,0.02,0.001\n")).at_wavelength(550)
