@@ -195,7 +195,7 @@ def test_table_entry_round_trips_through_parameter_table(roof_tile_fit, tmp_path
 # --- identifiability ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("seed", [1, 11, 12, 13])
+@pytest.mark.parametrize("seed", [1, 11])  # seed 1: k, n, t1 entangled; seed 11: k runs to 0
 def test_free_k_trades_off_with_n_and_t1(seed):
     # Paper 003, section 4 and fig. 1: n, k and t1 cannot be retrieved simultaneously. Either the
     # three are almost linear combinations of each other, or the fit runs to k ~ 0 where the
