@@ -101,10 +101,12 @@ def test_obs_value_ranges_of_the_topoflux_line():
     assert 0 <= float(angles.vaa.min()) and float(angles.vaa.max()) < 360
 
 
-def _rewrite_obs(tmp_path: Path, order: list[int]) -> Path:
-    """Copy of the topoflux obs file with its bands (and band names) in another order/subset."""
+def _rewrite_obs(tmp_path: Path, order: list[int], rename: dict[int, str] | None = None) -> Path:
+    """Copy of the topoflux obs file with its bands (and band names) in another order/subset,
+    optionally with some band names replaced (by original band index)."""
     with rasterio.open(TOPO_OBS) as source:
-        data, names, profile = source.read(), source.descriptions, source.profile
+        data, names, profile = source.read(), list(source.descriptions), source.profile
+    names = [(rename or {}).get(index, name) for index, name in enumerate(names)]
     profile.update(count=len(order), driver="ENVI")
     target = tmp_path / "line_obs"
     with rasterio.open(target, "w", **profile) as sink:
@@ -120,6 +122,21 @@ def test_obs_bands_are_found_by_name_not_position(tmp_path):
     permuted = read_envi_obs(shuffled).compute()
     for key in OBS_INDEX:
         np.testing.assert_array_equal(permuted[key].values, original[key].values)
+
+
+def test_other_band_names_by_explicit_mapping(tmp_path):
+    # A product naming its angle bands differently (as NEON-derived ENVI files do).
+    renamed = _rewrite_obs(tmp_path, [1, 2, 3, 4], rename={
+        1: "Sensor_Azimuth_Angle", 2: "Sensor_Zenith_Angle", 3: "Solar_Azimuth_Angle", 4: "Solar_Zenith_Angle"})
+    with pytest.raises(SensorInputError, match="no obs band for"):
+        read_envi_obs(renamed)
+    angles = read_envi_obs(renamed, band_names={
+        "vaa": "sensor azimuth", "vza": "Sensor-Zenith", "saa": "solar azimuth", "sza": "SOLAR ZENITH"}).compute()
+    original = read_envi_obs(TOPO_OBS).compute()
+    for key in OBS_INDEX:
+        np.testing.assert_array_equal(angles[key].values, original[key].values)
+    with pytest.raises(SensorInputError, match="unknown angle"):
+        read_envi_obs(renamed, band_names={"phase": "Solar phase"})
 
 
 def test_missing_obs_band_is_named(tmp_path):
