@@ -128,7 +128,7 @@ def plot_principal_plane(
         axis.set_yscale(yscale)
         axis.set(
             title=f"θi = {zenith:g}°, principal plane",
-            xlabel="view zenith θr [°] (negative: φ = 0°, positive: φ = 180°)",
+            xlabel="view zenith θr [°] (< 0: backward, φ = 0°)",
             ylabel="BRDF [sr⁻¹]",
         )
     axes[0].legend(fontsize="small")
