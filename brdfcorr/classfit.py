@@ -245,35 +245,86 @@ def _grid(name: str, points: int) -> np.ndarray:
     return np.geomspace(low, high, points) if logarithmic else np.linspace(low, high, points)
 
 
-def _search_shape(profile: _LinearProfile, free: Sequence[str], grid_points: int) -> dict[str, float]:
-    """Coarse grid over the free shape parameters, then bounded Nelder-Mead refinement."""
+def _grid_start(profile: _LinearProfile, free: Sequence[str], grid_points: int) -> dict[str, float]:
+    """The best point of a coarse grid over the free shape parameters."""
     grids = np.meshgrid(*(_grid(name, grid_points) for name in free), indexing="ij")
     candidates = np.stack([g.ravel() for g in grids], axis=-1)
     values = [profile.objective(dict(zip(free, point))) for point in candidates]
-    start = candidates[int(np.nanargmin(values))]
+    return dict(zip(free, candidates[int(np.nanargmin(values))]))
 
-    # Optimize log(w), log(c) so that the simplex steps are relative.
+
+def _refine(profile: _LinearProfile, start: Mapping[str, float], step: float) -> dict[str, float]:
+    """Bounded Nelder-Mead on the profile objective from ``start``; ``step`` sizes the simplex
+    (relative for the logarithmic parameters w and c, in units of the search range otherwise)."""
+    free = list(start)
     logarithmic = [SEARCH_RANGES[name][2] for name in free]
+    # Optimize log(w), log(c) so that the simplex steps are relative.
     to_x = lambda p: np.array([math.log(v) if log else v for v, log in zip(p, logarithmic)])  # noqa: E731
     to_p = lambda x: np.array([math.exp(v) if log else v for v, log in zip(x, logarithmic)])  # noqa: E731
-    low = to_x(np.array([SEARCH_RANGES[name][0] for name in free]))
-    high = to_x(np.array([SEARCH_RANGES[name][1] for name in free]))
+    low = to_x([SEARCH_RANGES[name][0] for name in free])
+    high = to_x([SEARCH_RANGES[name][1] for name in free])
+    x0 = np.clip(to_x([start[name] for name in free]), low, high)
+    sizes = np.where(logarithmic, step, step * (high - low))
+    simplex = np.vstack([x0, x0 + np.diag(np.where(x0 + sizes <= high, sizes, -sizes))])
     result = scipy.optimize.minimize(
         lambda x: profile.objective(dict(zip(free, to_p(x)))),
-        to_x(start),
+        x0,
         method="Nelder-Mead",
         bounds=list(zip(low, high)),
-        options={"xatol": 1e-6, "fatol": 1e-10 * max(values[int(np.nanargmin(values))], 1e-300)},
+        # Stop when the simplex changes chi^2 by < 0.01 (the objective is ~ N B in chi^2 units).
+        options={"xatol": 1e-4, "fatol": 0.01 * profile.objective(start) / profile.data.size,
+                 "initial_simplex": simplex},
     )
     return dict(zip(free, map(float, to_p(result.x))))
 
 
-def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr):
+def _derivatives(profile: _LinearProfile, shape: Mapping[str, float]):
+    """Gradient and Hessian of the profile objective by central differences (steps 1e-3 relative)."""
+    free = list(shape)
+    values = np.array([shape[name] for name in free])
+    steps = 1e-3 * np.maximum(np.abs(values), 1e-2)
+    q = lambda vector: profile.objective(dict(zip(free, vector)))  # noqa: E731
+    k = len(free)
+    unit = np.eye(k) * steps
+    q0 = q(values)
+    plus = np.array([q(values + unit[i]) for i in range(k)])
+    minus = np.array([q(values - unit[i]) for i in range(k)])
+    gradient = (plus - minus) / (2 * steps)
+    hessian = np.diag((plus - 2 * q0 + minus) / steps**2)
+    for i in range(k):
+        for j in range(i + 1, k):
+            hessian[i, j] = hessian[j, i] = (
+                q(values + unit[i] + unit[j]) - q(values + unit[i] - unit[j])
+                - q(values - unit[i] + unit[j]) + q(values - unit[i] - unit[j])
+            ) / (4 * steps[i] * steps[j])
+    return values, steps, gradient, hessian
+
+
+def _newton_polish(profile: _LinearProfile, shape: dict[str, float], iterations: int = 4):
+    """Newton steps on the profile objective from a nearby start (few full-size evaluations).
+
+    Returns the optimum and the Hessian there. Falls back to Nelder-Mead if the curvature is not
+    positive definite (the start was not near a minimum).
+    """
+    free = list(shape)
+    low = np.array([SEARCH_RANGES[name][0] for name in free])
+    high = np.array([SEARCH_RANGES[name][1] for name in free])
+    for _ in range(iterations):
+        values, steps, gradient, hessian = _derivatives(profile, shape)
+        if np.any(np.linalg.eigvalsh(hessian) <= 0):
+            shape = _refine(profile, shape, 0.01)
+            return shape, _derivatives(profile, shape)[3]
+        change = -np.linalg.solve(hessian, gradient)
+        shape = dict(zip(free, map(float, np.clip(values + change, low, high))))
+        if np.all(np.abs(change) <= steps):  # moved less than the difference step: converged
+            return shape, hessian
+    return shape, _derivatives(profile, shape)[3]
+
+
+def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, hessian):
     """Sandwich covariance of the shape; HC0 + propagated shape errors for the intensities."""
     free = list(shape)
     data, n = profile.data, profile.n
-    dof = max(n - len(profile.terms), 1)
-    sigma2 = ssr / dof  # per-band residual variance
     basis = profile.basis(shape) if len(profile.terms) > 1 else None
     design = np.ones((n, 1)) if basis is None else np.column_stack([np.ones(n), basis])
     coefficients = np.stack(intensities)  # (m, B)
@@ -281,34 +332,23 @@ def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr):
 
     # Intensities conditional on the shape: HC0 sandwich per band.
     bread = np.linalg.pinv(design.T @ design)
-    meat = np.einsum("ni,nj,nb->bij", design, design, residuals**2)
+    squared = residuals**2
+    m = design.shape[1]
+    meat = np.empty((squared.shape[1], m, m))
+    for i in range(m):
+        for j in range(i, m):
+            meat[:, i, j] = meat[:, j, i] = (design[:, i] * design[:, j]) @ squared
     intensity_cov = np.einsum("ij,bjk,kl->bil", bread, meat, bread)
     intensity_var = np.stack([intensity_cov[:, i, i] for i in range(len(profile.terms))])
     if not free:
         return {}, np.sqrt(intensity_var)
 
-    # Profile objective Q = sum_b SSR_b / sigma2_b; its Hessian by central differences.
-    weights = np.where(sigma2 > 0, 1.0 / np.where(sigma2 > 0, sigma2, 1.0), 0.0)
+    # The sandwich uses the estimator's own objective Q = sum_b w_b SSR_b (search weights w_b,
+    # the inverse data variance) and its Hessian at the optimum.
+    weights = profile.weights
     values = np.array([shape[name] for name in free])
     steps = 1e-3 * np.maximum(np.abs(values), 1e-2)
-
-    def q(vector):
-        trial = dict(zip(free, vector))
-        return float(profile.solve(profile.basis(trial))[1] @ weights)
-
     k = len(free)
-    hessian = np.empty((k, k))
-    q0 = q(values)
-    for i in range(k):
-        for j in range(i, k):
-            ei, ej = np.eye(k)[i] * steps[i], np.eye(k)[j] * steps[j]
-            if i == j:
-                value = (q(values + ei) - 2 * q0 + q(values - ei)) / steps[i] ** 2
-            else:
-                value = (
-                    q(values + ei + ej) - q(values + ei - ej) - q(values - ei + ej) + q(values - ei - ej)
-                ) / (4 * steps[i] * steps[j])
-            hessian[i, j] = hessian[j, i] = value
 
     # Per-pixel efficient scores of Q for the shape: the partial score minus its projection on the
     # intensity scores, g_theta - H_theta,c H_cc^-1 g_c, band by band (H_cc = 2 w_b A^T A).
@@ -347,6 +387,7 @@ def fit_class_samples(
     *,
     fixed: Mapping[str, float] | None = None,
     grid_points: int = 9,
+    search_samples: int = 20_000,
 ) -> dict:
     """Fit one class: shape parameters shared by all bands, intensity terms per band.
 
@@ -363,6 +404,9 @@ def fit_class_samples(
         003 did). Intensity terms cannot be fixed.
     grid_points : int, default 9
         Points per free shape parameter in the coarse search grid.
+    search_samples : int, default 20000
+        Samples used for the coarse search (a seeded subsample); the optimum is then polished and
+        the errors computed on all samples.
 
     Returns
     -------
@@ -388,10 +432,25 @@ def fit_class_samples(
         data = data[:, None]
     geometry = ScatteringGeometry(*(np.asarray(a, dtype=float) for a in (theta_i, theta_r, phi)))
     profile = _LinearProfile(model, geometry, data, fixed)
-    shape = _search_shape(profile, free, grid_points) if free else {}
+    shape, hessian = {}, None
+    if free:
+        # Search on a subsample (the shape needs far fewer samples than the errors), then polish
+        # on all samples from there: a large class costs a few full-size evaluations only.
+        if data.shape[0] > search_samples:
+            subset = np.random.default_rng(0).choice(data.shape[0], search_samples, replace=False)
+            small = _LinearProfile(
+                model,
+                ScatteringGeometry(*(np.asarray(a, dtype=float)[subset] for a in (theta_i, theta_r, phi))),
+                data[subset],
+                fixed,
+            )
+            shape = _refine(small, _grid_start(small, free, grid_points), 0.1)
+        else:
+            shape = _refine(profile, _grid_start(profile, free, grid_points), 0.1)
+        shape, hessian = _newton_polish(profile, shape)
     basis = profile.basis(shape) if len(terms) > 1 else None
     intensities, ssr = profile.solve(basis)
-    shape_errors, intensity_errors = _errors(profile, shape, intensities, ssr)
+    shape_errors, intensity_errors = _errors(profile, shape, intensities, ssr, hessian)
 
     n_bands = data.shape[1]
     params = {name: np.full(n_bands, value) for name, value in {**fixed, **shape}.items()}
@@ -724,3 +783,4 @@ def fit_classes(
         if progress is not None:
             progress(class_id)
     return ClassFitResult(table=ParameterTable(classes=entries), fits=fits, samples=kept)
+

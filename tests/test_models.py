@@ -384,3 +384,10 @@ def test_invalid_parameters_of_other_functions():
         fresnel(1.0, n=np.nan)
     with pytest.raises(ValueError, match="parameter a must be a number"):
         empirical(30, 30, 180, a="big", b=1.0, c=0.1)
+
+
+def test_lambertian_broadcasts_over_all_angles():
+    from brdfcorr.models import lambertian
+
+    result = lambertian(30.0, np.zeros((2, 1)), np.zeros(3), t0=0.1)
+    assert result.shape == (2, 3) and np.all(result == 0.1)

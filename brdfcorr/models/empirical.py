@@ -129,8 +129,8 @@ def specular_peak(theta_i, theta_r, phi, sigma):
 
 
 def _lambertian_kernel(geometry: ScatteringGeometry, t0):
-    # Broadcast the constant to the shape (and array kind) of the geometry.
-    return t0 + 0.0 * geometry.cos_i
+    # Broadcast the constant to the shape (and array kind) of all three angles: alpha uses each.
+    return t0 + 0.0 * geometry.alpha
 
 
 LAMBERTIAN = Model(
