@@ -695,6 +695,7 @@ def fit_classes(
     angles,
     model: str | Model = "torrance_sparrow",
     *,
+    class_models: Mapping[int, str] | None = None,
     names: Mapping[int, str] | None = None,
     class_ids: Sequence[int] | None = None,
     wavelengths: Sequence[float] | None = None,
@@ -715,8 +716,9 @@ def fit_classes(
     images, classes, angles :
         One or many scenes; see :func:`sample_classes`.
     model : str or Model, default "torrance_sparrow"
-        Surface model with linear intensity terms (:data:`LINEAR_TERMS`); may also be a mapping of
-        class id to model name.
+        Surface model with linear intensity terms (:data:`LINEAR_TERMS`) for every class ...
+    class_models : mapping of int to str, optional
+        ... except these classes, which get their own model.
     names : mapping of int to str, optional
         Class names (default ``class_<id>``).
     class_ids : sequence of int, optional
@@ -757,7 +759,7 @@ def fit_classes(
     names = dict(names or {})
     fits, entries, kept = [], [], {}
     for class_id, samples in pooled.items():
-        class_model = model.get(class_id, "torrance_sparrow") if isinstance(model, Mapping) else model
+        class_model = (class_models or {}).get(class_id, model)
         class_fallback = fallback.get(class_id) if isinstance(fallback, Mapping) else fallback
         fit = fit_one_class(
             class_id,

@@ -115,6 +115,120 @@ def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> d
     return parsed
 
 
+def _pairs(option: str, items: tuple[str, ...]) -> dict[int, str]:
+    """Parse ``ID=TEXT`` command-line items into {id: text}."""
+    from brdfcorr.errors import ParameterError
+
+    parsed = {}
+    for item in items:
+        key, _, text = item.partition("=")
+        if not key.strip().isdigit() or not text.strip():
+            raise ParameterError(f"{option} {item!r}: expected CLASS_ID=VALUE, e.g. 2=grass")
+        parsed[int(key)] = text.strip()
+    return parsed
+
+
+@main.command("fit-classes")
+@click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--angles", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="4-band angle raster (sza, saa, vza, vaa [deg]) per image, in the images' order.")
+@click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Class map per image, in the images' order.")
+@click.option("--model", "model_name", default="torrance_sparrow", show_default=True,
+              help="Model for every class (see `brdfcorr models`).")
+@click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
+@click.option("--name", "names", multiple=True, metavar="ID=NAME", help="Name of a class (repeatable).")
+@click.option("--fix", multiple=True, metavar="NAME=VALUE", help="Hold a shape parameter fixed [default: k=0.25 for TS].")
+@click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
+@click.option("--scale", "reflectance_scale", type=float, default=1.0, show_default=True,
+              help="Multiplier from stored values to reflectance factors (e.g. 0.0001).")
+@click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
+@click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
+              help="Guard rail: minimum 5-95 %% view zenith spread [deg].")
+@click.option("--fallback", help="Built-in material for classes that fail the guard rails [default: leave uncorrected].")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Parameter table to write (YAML).")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Fit report to write (JSON).")
+@click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Directory for one PNG per class (observed vs modelled against view zenith).")
+@handle_errors
+def fit_classes_command(images, angles, classes, model_name, class_model, names, fix, max_samples, seed,
+                        reflectance_scale, min_samples, min_vza_spread, fallback, output, report_path, plot_dir):
+    """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes)."""
+    import json
+    import warnings
+
+    import xarray as xr
+
+    from brdfcorr import io as rio_io
+    from brdfcorr.classfit import ClassFitWarning, GuardRails, fit_classes
+    from brdfcorr.errors import InputError
+    from brdfcorr.io_utils import atomic_path
+    from brdfcorr.materials import load_material
+
+    if not len(images) == len(angles) == len(classes):
+        raise InputError(
+            f"{len(images)} image(s), {len(angles)} --angles and {len(classes)} --classes: give one "
+            "angle raster and one class map per image, in the same order"
+        )
+    if fallback:
+        load_material(fallback)  # fail before the work if the name is wrong
+    scenes = []
+    for image_path, angle_path, class_path in zip(images, angles, classes):
+        image = rio_io.open_image(image_path)
+        layers = rio_io.open_angles(angle_path)
+        class_map = rio_io.open_classes(class_path)
+        rio_io.check_same_grid({"image": image, "classes": class_map, **layers})
+        scenes.append((image, class_map, xr.Dataset(layers)))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ClassFitWarning)
+        result = fit_classes(
+            [s[0] for s in scenes], [s[1] for s in scenes], [s[2] for s in scenes], model_name,
+            class_models=_pairs("--class-model", class_model), names=_pairs("--name", names), fixed=_assignments("--fix", fix) or None,
+            max_samples=max_samples, seed=seed, reflectance_scale=reflectance_scale,
+            guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread), fallback=fallback,
+        )
+    for warning in caught:
+        click.echo(f"brdfcorr: warning: {warning.message}", err=True)
+    rows = []
+    for fit in result.fits:
+        summary = fit.summary()
+        rows.append({
+            "class": f"{fit.class_id} {fit.name}", "model": fit.model, "status": fit.status,
+            "N": str(fit.n_samples), "vza spread": f"{fit.vza_spread:.1f}",
+            "median R2": "-" if summary["median_r2"] is None else f"{summary['median_r2']:.3f}",
+            "shape": ", ".join(
+                f"{k}={v[0]:.4g}±{fit.errors[k][0]:.2g}" for k, v in fit.params.items()
+                if k not in ("t0", "t1", "a") and fit.errors[k][0] > 0
+            ) or "-",
+        })
+    click.echo(_format_table(rows))
+    for target in (output, report_path):
+        if target is not None:
+            target.parent.mkdir(parents=True, exist_ok=True)
+    path = result.table.save(output)
+    click.echo(f"wrote {path}")
+    if report_path:
+        with atomic_path(report_path) as temporary:
+            temporary.write_text(json.dumps({"classes": result.report()}, indent=2))
+        click.echo(f"wrote {report_path}")
+    if plot_dir:
+        from brdfcorr.plotting import plot_class_fit
+
+        plot_dir.mkdir(parents=True, exist_ok=True)
+        wavelengths = scenes[0][0].coords["wavelength"].values if "wavelength" in scenes[0][0].coords else None
+        for fit in result.fits:
+            if fit.params:
+                target = plot_dir / f"class_{fit.class_id}_{fit.name}.png"
+                with atomic_path(target) as temporary:
+                    plot_class_fit(fit, result.samples[fit.class_id], wavelengths).savefig(
+                        temporary, dpi=100, format="png"
+                    )
+        click.echo(f"wrote plots to {plot_dir}")
+
+
 @main.command("fit")
 @click.argument("measurements", type=click.Path(path_type=Path))
 @click.option("--model", "model_name", default="torrance_sparrow", show_default=True,

@@ -58,3 +58,50 @@ def plot_materials(materials: Sequence[Material], max_zenith: float = 80.0) -> F
         "Torrance–Sparrow model with the fits of Meister et al. (2000), Table 1 (550 nm)"
     )
     return figure
+
+
+def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figure:
+    """Observed and modelled reflectance of one class against signed view zenith.
+
+    Parameters
+    ----------
+    fit : brdfcorr.classfit.ClassFit
+        The class's fit (per-band parameters).
+    samples : brdfcorr.classfit.ClassSamples
+        The class's samples (BRDF = reflectance / pi).
+    wavelengths : sequence of float, optional
+        Band centres [nm] for the panel titles.
+    max_panels : int, default 4
+        Number of bands shown, evenly spread over the spectrum.
+
+    Notes
+    -----
+    The view zenith is signed by the side of the sun: positive for forward scattering
+    (relative azimuth > 90 deg), negative for backward scattering, so that the across-track
+    brightness gradient of a wide field-of-view line reads left to right.
+    """
+    from brdfcorr.models import get_model
+
+    model = get_model(fit.model)
+    n_bands = samples.brdf.shape[1]
+    bands = np.unique(np.linspace(0, n_bands - 1, min(max_panels, n_bands)).round().astype(int))
+    signed = np.where(samples.phi > 90.0, samples.theta_r, -samples.theta_r)
+    figure = Figure(figsize=(4.2 * len(bands), 3.8), layout="constrained")
+    axes = np.atleast_1d(figure.subplots(1, len(bands), sharey=False))
+    for axis, band in zip(axes, bands):
+        params = {name: values[band] for name, values in fit.params.items()}
+        modelled = np.pi * model(samples.theta_i, samples.theta_r, samples.phi, **params)
+        axis.plot(signed, np.pi * samples.brdf[:, band], ".", ms=2, color="0.6", label="observed")
+        axis.plot(signed, modelled, ".", ms=2, color="C3", label=f"{fit.model} fit")
+        label = f"{wavelengths[band]:g} nm" if wavelengths is not None else f"band {band + 1}"
+        axis.set(
+            title=f"{label}: R² = {fit.r2[band]:.2f}",
+            xlabel="view zenith θr [°] (+ forward, − backward)",
+            ylabel="reflectance factor [-]",
+        )
+    axes[0].legend(fontsize="small", markerscale=4)
+    figure.suptitle(
+        f"class {fit.class_id} ({fit.name}): {fit.status}, N = {fit.n_samples}, "
+        f"view zenith spread {fit.vza_spread:.0f}°"
+    )
+    return figure

@@ -62,7 +62,7 @@ def fitted():
     image, classes, angles = airborne_line()
     result = fit_classes(
         image, classes, angles,
-        model={1: "torrance_sparrow", 2: "empirical"}, names={1: "roof_tile", 2: "grass"},
+        model="torrance_sparrow", class_models={2: "empirical"}, names={1: "roof_tile", 2: "grass"},
     )
     return image, classes, angles, result
 
@@ -181,3 +181,49 @@ def test_ts_fit_of_noise_free_data_is_exact():
         assert result["params"][name][0] == pytest.approx(truth[name], rel=1e-4)
     np.testing.assert_allclose(result["params"]["t1"], truth["t1"], rtol=1e-3)
     np.testing.assert_allclose(result["r2"], 1.0, atol=1e-8)
+
+
+def test_cli_fit_classes_writes_table_report_and_plots(tmp_path):
+    import json
+
+    import matplotlib.image
+    from click.testing import CliRunner
+
+    from brdfcorr.cli import main
+    from brdfcorr.testing import georeference, write_scene
+
+    image, classes, angles = airborne_line(ny=64, nx=96)
+    # Band descriptions "480 nm", ... carry the wavelengths in the GeoTIFF (DESIGN.md).
+    image.attrs["long_name"] = tuple(f"{w:g} nm" for w in WAVELENGTHS)
+    scene = {
+        "reflectance": georeference(image.drop_vars(["x", "y"])),
+        "classes": georeference(classes.drop_vars(["x", "y"]).astype(np.uint8)),
+        **{k: georeference(angles[k].drop_vars(["x", "y"])) for k in ("sza", "saa", "vza", "vaa")},
+    }
+    paths = write_scene(tmp_path / "scene", scene)
+    inputs = {p: p.read_bytes() for p in paths.values()}
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, [
+        "fit-classes", str(paths["image"]), "--angles", str(paths["angles"]),
+        "--classes", str(paths["classes"]), "--class-model", "2=empirical", "--name", "1=roof_tile",
+        "--name", "2=grass", "-o", str(out / "params.yaml"), "--report", str(out / "report.json"),
+        "--plot-dir", str(out / "plots"),
+    ])
+    assert result.exit_code == 0, result.output
+    table = ParameterTable.load(out / "params.yaml")
+    assert table[1].name == "roof_tile" and table[2].model == "empirical"
+    # Wavelengths from the image's band descriptions travel into the table.
+    assert table[1].wavelengths == WAVELENGTHS
+    report = json.loads((out / "report.json").read_text())["classes"]
+    assert [entry["status"] for entry in report] == ["fitted", "fitted"]
+    assert abs(report[0]["params"]["w"] - 0.0362) < 4 * report[0]["errors"]["w"]
+    assert matplotlib.image.imread(out / "plots" / "class_1_roof_tile.png").shape[1] > 800
+    assert all(p.read_bytes() == data for p, data in inputs.items())  # inputs untouched
+
+    mismatch = CliRunner().invoke(main, [
+        "fit-classes", str(paths["image"]), str(paths["image"]), "--angles", str(paths["angles"]),
+        "--classes", str(paths["classes"]), "-o", str(out / "other.yaml"),
+    ])
+    assert mismatch.exit_code == 2
+    assert "2 image(s), 1 --angles and 1 --classes" in mismatch.output
+    assert not (out / "other.yaml").exists()
