@@ -1,0 +1,685 @@
+"""Chain configs: a whole processing run (inputs, parameters, steps, outputs, engine) as YAML.
+
+A chain config makes a run repeatable and reviewable. It is validated with pydantic v2 models
+(``extra="forbid"``: a misspelt key is an error, not ignored); errors name the key path and, for
+enumerations and unknown keys, the allowed values::
+
+    chain.yaml: engine.scheduler: 'thread' is not allowed; allowed: 'threads', 'processes', ...
+    chain.yaml: outputs.compres: unknown key; allowed keys: directory, naming, ...
+
+Relative paths and patterns in a config are relative to the directory of the config file. Per-scene
+sources (angles, class map) are *name patterns* formatted for every input image with
+
+``{dir}``    the image's directory
+``{stem}``   the image's file name without its suffix (``line01_image``)
+``{scene}``  the scene name: the ``scene`` group of ``inputs.scene_regex`` matched on the file
+             name, else the stem (with ``scene_regex: '(?P<scene>.+)_image'``, ``line01``)
+
+Output names are patterns with ``{scene}`` and ``{stem}``. A commented example of every key is in
+``configs/`` (``configs/demo.yaml`` is the chain ``brdfcorr demo`` runs).
+
+Example
+-------
+>>> config = ChainConfig.from_dict({
+...     "inputs": {"images": ["scenes/*_image.tif"], "scene_regex": "(?P<scene>.+)_image",
+...                "angles": {"kind": "geotiff", "path": "{dir}/{scene}_angles.tif"},
+...                "classes": "{dir}/{scene}_classes.tif"},
+...     "parameters": {"materials": {1: "roof_tile"}},
+...     "outputs": {"directory": "out"},
+... })
+>>> config.engine.scheduler, config.outputs.naming
+('threads', '{scene}_brdf.tif')
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from brdfcorr.errors import BrdfcorrError
+from brdfcorr.params import ReferenceGeometry
+
+__all__ = [
+    "ChainConfig",
+    "ConfigError",
+    "InputsConfig",
+    "AngleSource",
+    "ParametersConfig",
+    "ImageryFit",
+    "GoniometerFit",
+    "MeasurementSet",
+    "CorrectStep",
+    "QuicklookStep",
+    "StepsConfig",
+    "OutputsConfig",
+    "EngineConfig",
+    "load_config",
+    "apply_overrides",
+    "format_pattern",
+    "PATTERN_FIELDS",
+]
+
+#: Placeholders of per-scene name patterns.
+PATTERN_FIELDS = ("dir", "stem", "scene")
+
+
+class ConfigError(BrdfcorrError, ValueError):
+    """A chain config is malformed; the message names the file, the key path and what is allowed."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _check_pattern(value: str, allowed=PATTERN_FIELDS) -> str:
+    """A str.format pattern using only the allowed placeholders."""
+    names = re.findall(r"(?<!\{)\{([^{}]*)\}", value)
+    bad = [name for name in names if name not in allowed]
+    if bad:
+        raise ValueError(
+            f"pattern {value!r} uses {{{bad[0]}}}; allowed placeholders: "
+            + ", ".join(f"{{{name}}}" for name in allowed)
+        )
+    return value
+
+
+def format_pattern(pattern: str, image: Path, scene: str) -> str:
+    """Fill a name pattern for one image (``{dir}``, ``{stem}``, ``{scene}``)."""
+    return pattern.format(dir=str(image.parent), stem=image.stem, scene=scene)
+
+
+AngleKind = Literal["geotiff", "envi_obs", "sentinel2", "landsat", "solar"]
+
+
+class AngleSource(_Strict):
+    """Where a scene's sun/view angles come from.
+
+    Attributes
+    ----------
+    kind : {"geotiff", "envi_obs", "sentinel2", "landsat", "solar"}
+        ``geotiff``: a 4-band raster sza, saa, vza, vaa [deg] on the image grid; the others are
+        sensor products read by :func:`brdfcorr.sensors.read_angles`.
+    path : str
+        Name pattern of the source: the angle raster, the obs file, the ``MTD_TL.xml``, the Landsat
+        product; for ``solar`` the acquisition time (ISO 8601 with time zone).
+    options : dict
+        Keyword options of the kind's reader (e.g. ``{view_azimuth: from_sensor}``,
+        ``{view_zenith: 0, view_azimuth: 0}`` for ``solar``).
+    """
+
+    kind: AngleKind = "geotiff"
+    path: str = Field(min_length=1)
+    options: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("path")
+    @classmethod
+    def _pattern(cls, value: str) -> str:
+        return _check_pattern(value)
+
+    @model_validator(mode="after")
+    def _options_for_kind(self) -> AngleSource:
+        if self.kind == "geotiff" and self.options:
+            raise ValueError(f"kind 'geotiff' takes no options, got {', '.join(self.options)}")
+        return self
+
+
+class InputsConfig(_Strict):
+    """The scenes of a run.
+
+    Attributes
+    ----------
+    images : list of str
+        Image paths or globs (``scenes/*_image.tif``); every match is one scene, sorted by path.
+    scene_regex : str, optional
+        Regular expression with a named group ``scene``, matched on the image file name, giving the
+        scene name used in patterns (default: the file stem).
+    angles : AngleSource
+        Per-scene angle source.
+    classes : str
+        Name pattern of the per-scene class map raster.
+    wavelengths : list of float, optional
+        Band centres [nm] for every image, overriding what the files say.
+    """
+
+    images: list[str] = Field(min_length=1)
+    scene_regex: str | None = None
+    angles: AngleSource
+    classes: str = Field(min_length=1)
+    wavelengths: list[Annotated[float, Field(gt=0)]] | None = None
+
+    @field_validator("images")
+    @classmethod
+    def _no_empty(cls, value: list[str]) -> list[str]:
+        if any(not item.strip() for item in value):
+            raise ValueError("image paths must not be empty")
+        return value
+
+    @field_validator("scene_regex")
+    @classmethod
+    def _regex(cls, value: str | None) -> str | None:
+        if value is None:
+            return value
+        try:
+            compiled = re.compile(value)
+        except re.error as error:
+            raise ValueError(f"not a regular expression: {error}") from None
+        if "scene" not in compiled.groupindex:
+            raise ValueError(f"{value!r} has no named group (?P<scene>...)")
+        return value
+
+    @field_validator("classes")
+    @classmethod
+    def _pattern(cls, value: str) -> str:
+        return _check_pattern(value)
+
+
+class MeasurementSet(_Strict):
+    """One goniometer measurement table fitted as one class (``brdfcorr fit`` in a chain).
+
+    Attributes
+    ----------
+    file : str
+        Measurements CSV (``theta_i, theta_r, phi, brdf[, sigma, wavelength]``).
+    class_id : int
+        Class id in the parameter table (>= 1).
+    name : str
+        Class name.
+    model : str
+        Registered surface model (``brdfcorr models``).
+    fixed, initial : dict of str to float
+        Parameters held fixed / starting values (paper 003 fixes k = 0.25).
+    min_phi, max_phi, max_zenith : float, optional
+        Measurement selection [deg] (paper 003 fits phi >= 90).
+    """
+
+    file: str = Field(min_length=1)
+    class_id: int = Field(ge=1)
+    name: str = Field(min_length=1)
+    model: str = "torrance_sparrow"
+    fixed: dict[str, float] = Field(default_factory=dict)
+    initial: dict[str, float] = Field(default_factory=dict)
+    min_phi: float | None = Field(None, ge=0, le=180)
+    max_phi: float | None = Field(None, ge=0, le=180)
+    max_zenith: float | None = Field(None, gt=0, lt=90)
+
+    @field_validator("model")
+    @classmethod
+    def _model(cls, value: str) -> str:
+        return _check_surface_model(value)
+
+
+def _check_surface_model(value: str) -> str:
+    from brdfcorr.models import SURFACE_MODELS
+
+    if value not in SURFACE_MODELS:
+        raise ValueError(f"{value!r} is not allowed; allowed: {', '.join(map(repr, SURFACE_MODELS))}")
+    return value
+
+
+class GoniometerFit(_Strict):
+    """Fit step from goniometer measurements: one class per measurement table."""
+
+    source: Literal["goniometer"]
+    measurements: list[MeasurementSet] = Field(min_length=1)
+    output: str = "fitted_params.yaml"
+
+    @model_validator(mode="after")
+    def _unique(self) -> GoniometerFit:
+        ids = [m.class_id for m in self.measurements]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"class ids {ids} of measurements must be distinct")
+        return self
+
+
+class ImageryFit(_Strict):
+    """Fit step from the imagery itself: per-class fits pooled over the run's scenes
+    (:func:`brdfcorr.classfit.fit_classes`)."""
+
+    source: Literal["imagery"]
+    model: str = "torrance_sparrow"
+    class_models: dict[Annotated[int, Field(ge=1)], str] = Field(default_factory=dict)
+    names: dict[Annotated[int, Field(ge=1)], str] = Field(default_factory=dict)
+    fixed: dict[str, float] | None = None
+    max_samples: int = Field(50_000, ge=10)
+    seed: int = 0
+    reflectance_scale: float = Field(1.0, gt=0)
+    min_samples: int = Field(500, ge=1)
+    min_vza_spread: float = Field(10.0, ge=0)
+    fallback: str | None = None
+    output: str = "fitted_params.yaml"
+
+    @field_validator("model")
+    @classmethod
+    def _model(cls, value: str) -> str:
+        return _check_surface_model(value)
+
+    @field_validator("class_models")
+    @classmethod
+    def _models(cls, value: dict[int, str]) -> dict[int, str]:
+        for name in value.values():
+            _check_surface_model(name)
+        return value
+
+    @field_validator("fallback")
+    @classmethod
+    def _fallback(cls, value: str | None) -> str | None:
+        if value is not None:
+            _check_material(value)
+        return value
+
+
+def _check_material(name: str) -> str:
+    from brdfcorr.materials import material_names
+
+    key = str(name).strip().lower().replace(" ", "_").replace("-", "_").replace("aluminum", "aluminium")
+    if key not in material_names():
+        raise ValueError(f"{name!r} is not a built-in material; allowed: {', '.join(map(repr, material_names()))}")
+    return name
+
+
+class ParametersConfig(_Strict):
+    """The parameter table of the run, merged from (later wins for a class id): built-in
+    ``materials``, the ``table`` file, and the output of the ``fit`` step.
+
+    Attributes
+    ----------
+    table : str, optional
+        Parameter table YAML (``DESIGN.md`` format).
+    materials : dict of int to str
+        Class id -> built-in material name (paper 003, Table 1; ``brdfcorr materials``).
+    """
+
+    table: str | None = None
+    materials: dict[Annotated[int, Field(ge=1)], str] = Field(default_factory=dict)
+
+    @field_validator("materials")
+    @classmethod
+    def _materials(cls, value: dict[int, str]) -> dict[int, str]:
+        for name in value.values():
+            _check_material(name)
+        return value
+
+
+class CorrectStep(_Strict):
+    """The normalization step (:func:`brdfcorr.correct.correct_files` options).
+
+    Attributes
+    ----------
+    limits : (float, float) or None
+        Limits of the correction factor [-] (default 0.2 to 5); null for none.
+    unknown : {"keep", "nan"}
+        Pixels of class 0 or of classes absent from the table: unchanged, or NaN.
+    extrapolate : bool
+        Let band centres outside a class's table wavelengths take the edge values.
+    flip_view_azimuth : bool
+        View azimuths are stored as seen from the sensor: add 180 deg.
+    qa : bool
+        Also write the QA flag raster.
+    """
+
+    limits: tuple[Annotated[float, Field(gt=0)], Annotated[float, Field(gt=0)]] | None = (0.2, 5.0)
+    unknown: Literal["keep", "nan"] = "keep"
+    extrapolate: bool = False
+    flip_view_azimuth: bool = False
+    qa: bool = True
+
+    @field_validator("limits")
+    @classmethod
+    def _limits(cls, value):
+        if value is not None and not value[0] <= 1.0 <= value[1]:
+            raise ValueError(f"limits {list(value)} must satisfy lower <= 1 <= upper")
+        return value
+
+
+class QuicklookStep(_Strict):
+    """Before/after quicklook PNG of every scene.
+
+    Attributes
+    ----------
+    bands : list of int
+        1-based bands shown as red, green, blue (three), or one band in grey.
+    percentiles : (float, float)
+        Contrast stretch of the *input* image, applied to both panels so they compare [%].
+    max_size : int
+        Longest side of the quicklook [pixels]; larger images are block-averaged.
+    """
+
+    bands: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [3, 2, 1])
+    percentiles: tuple[Annotated[float, Field(ge=0, le=100)], Annotated[float, Field(ge=0, le=100)]] = (2.0, 98.0)
+    max_size: int = Field(800, ge=16)
+
+    @field_validator("bands")
+    @classmethod
+    def _count(cls, value: list[int]) -> list[int]:
+        if len(value) not in (1, 3):
+            raise ValueError(f"give 1 or 3 bands, got {len(value)}")
+        return value
+
+    @field_validator("percentiles")
+    @classmethod
+    def _order(cls, value):
+        if not value[0] < value[1]:
+            raise ValueError(f"percentiles {list(value)} must be increasing")
+        return value
+
+
+class StepsConfig(_Strict):
+    """The steps, always run in the order fit -> correct -> quicklook; leave one out (or null)
+    to skip it. ``correct`` is on by default."""
+
+    fit: Annotated[Union[ImageryFit, GoniometerFit], Field(discriminator="source")] | None = None
+    correct: CorrectStep | None = Field(default_factory=CorrectStep)
+    quicklook: QuicklookStep | None = None
+
+    @model_validator(mode="after")
+    def _something(self) -> StepsConfig:
+        if self.correct is None and self.quicklook is not None:
+            raise ValueError("quicklook compares input and corrected images: it needs the correct step")
+        return self
+
+
+class OutputsConfig(_Strict):
+    """Where and how results are written.
+
+    Attributes
+    ----------
+    directory : str
+        Output directory (created).
+    naming, qa_naming, quicklook_naming : str
+        Patterns with ``{scene}`` and ``{stem}`` for the corrected GeoTIFF, the QA raster and the
+        quicklook PNG.
+    format : {"GTiff"}
+        Raster format of the outputs.
+    compress : {"deflate", "lzw", "zstd", "none"}
+    cog : bool
+        Write Cloud-Optimized GeoTIFFs.
+    existing : {"error", "skip", "overwrite"}
+        A scene whose outputs all exist: fail it, skip it (resume), or redo it.
+    report : str
+        Run report (JSON) file name in the output directory.
+    """
+
+    directory: str = Field(min_length=1)
+    naming: str = "{scene}_brdf.tif"
+    qa_naming: str = "{scene}_qa.tif"
+    quicklook_naming: str = "{scene}_quicklook.png"
+    format: Literal["GTiff"] = "GTiff"
+    compress: Literal["deflate", "lzw", "zstd", "none"] = "deflate"
+    cog: bool = False
+    existing: Literal["error", "skip", "overwrite"] = "skip"
+    report: str = "run_report.json"
+
+    @field_validator("naming", "qa_naming", "quicklook_naming")
+    @classmethod
+    def _names(cls, value: str) -> str:
+        _check_pattern(value, ("stem", "scene"))
+        if "/" in value or "\\" in value:
+            raise ValueError(f"{value!r} must be a file name (no directory part)")
+        if "{" not in value:
+            raise ValueError(f"{value!r} must contain {{scene}} or {{stem}}: scenes need distinct names")
+        return value
+
+
+class EngineConfig(_Strict):
+    """How the work is executed.
+
+    Attributes
+    ----------
+    scheduler : {"threads", "processes", "synchronous", "distributed"}
+        ``threads``: scenes one after another, each scene's chunks on ``workers`` threads.
+        ``processes``: ``workers`` scenes at a time in separate processes.
+        ``synchronous``: everything in the calling thread (debugging).
+        ``distributed``: scenes as tasks on a ``dask.distributed`` cluster at ``address`` (or a
+        local cluster of ``workers`` processes when no address is given).
+    workers : int
+        Threads (``threads``) or processes (``processes``, local ``distributed``).
+    threads_per_worker : int
+        Threads for the chunks of a scene inside a process or cluster worker.
+    chunk : int
+        Spatial chunk and output tile size [pixels], a multiple of 16.
+    address : str, optional
+        Scheduler address of a running cluster (``tcp://host:8786``); only with ``distributed``.
+    """
+
+    scheduler: Literal["threads", "processes", "synchronous", "distributed"] = "threads"
+    workers: int = Field(default_factory=lambda: max(1, os.cpu_count() or 1), ge=1)
+    threads_per_worker: int = Field(1, ge=1)
+    chunk: int = Field(512, ge=16, le=8192)
+    address: str | None = None
+
+    @field_validator("chunk")
+    @classmethod
+    def _tile(cls, value: int) -> int:
+        if value % 16:
+            raise ValueError(f"chunk {value} must be a multiple of 16 (GeoTIFF tile size)")
+        return value
+
+    @model_validator(mode="after")
+    def _address(self) -> EngineConfig:
+        if self.address is not None and self.scheduler != "distributed":
+            raise ValueError(f"address is only used with scheduler 'distributed', not {self.scheduler!r}")
+        return self
+
+
+class ChainConfig(_Strict):
+    """A whole processing chain. Load with :func:`load_config` (paths relative to the file).
+
+    Attributes
+    ----------
+    inputs, parameters, reference, steps, outputs, engine :
+        See :class:`InputsConfig`, :class:`ParametersConfig`,
+        :class:`brdfcorr.params.ReferenceGeometry` (optional: default the table's, else observed
+        sun and nadir view), :class:`StepsConfig`, :class:`OutputsConfig`, :class:`EngineConfig`.
+    name : str
+        A label for the run report.
+    base_dir : Path
+        Directory relative paths are resolved against (set by :func:`load_config`; not a key).
+    """
+
+    name: str = "brdfcorr chain"
+    inputs: InputsConfig
+    parameters: ParametersConfig = Field(default_factory=ParametersConfig)
+    reference: ReferenceGeometry | None = None
+    steps: StepsConfig = Field(default_factory=StepsConfig)
+    outputs: OutputsConfig
+    engine: EngineConfig = Field(default_factory=EngineConfig)
+
+    _base_dir: Path = Path(".")
+    _source: str = "chain config"
+
+    @model_validator(mode="after")
+    def _has_parameters(self) -> ChainConfig:
+        if (self.steps.correct is not None and self.parameters.table is None
+                and not self.parameters.materials and self.steps.fit is None):
+            raise ValueError(
+                "the correct step needs a parameter table: set parameters.table, parameters.materials "
+                "or a steps.fit step"
+            )
+        return self
+
+    @property
+    def base_dir(self) -> Path:
+        return self._base_dir
+
+    @property
+    def source(self) -> str:
+        return self._source
+
+    def resolve(self, path: str | os.PathLike) -> Path:
+        """A config path made absolute against :attr:`base_dir` (``~`` expanded)."""
+        path = Path(os.path.expanduser(str(path)))
+        return path if path.is_absolute() else self._base_dir / path
+
+    @classmethod
+    def from_dict(cls, data: object, source: str = "chain config", base_dir: str | os.PathLike = ".") -> ChainConfig:
+        """Validate a parsed document; :class:`ConfigError` names ``source`` and the key path."""
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{source}: expected a mapping of sections (inputs, outputs, ...), "
+                              f"got {type(data).__name__}")
+        try:
+            config = cls.model_validate(dict(data))
+        except ValidationError as error:
+            raise ConfigError(f"{source}: {describe_errors(error)}") from None
+        config._base_dir = Path(base_dir).resolve()
+        config._source = source
+        return config
+
+    def to_dict(self) -> dict:
+        """The config as plain data (JSON/YAML-friendly), defaults filled in."""
+        return self.model_dump(mode="json")
+
+
+def load_config(path: str | os.PathLike, overrides: Mapping[str, object] | None = None) -> ChainConfig:
+    """Read and validate a chain config (YAML, ``yaml.safe_load``).
+
+    Parameters
+    ----------
+    path : path-like
+        The config file; its directory is the base of relative paths.
+    overrides : mapping of str to object, optional
+        Dotted keys replaced before validation (``{"engine.workers": 2}``), see
+        :func:`apply_overrides`.
+
+    Raises
+    ------
+    ConfigError
+        Unreadable file, invalid YAML (with line and column) or invalid content (key path and
+        allowed values).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise ConfigError(f"cannot read chain config {path}: {error.strerror}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        raise ConfigError(f"{path}: not valid YAML{where}: {getattr(error, 'problem', None) or error}") from None
+    if data is None:
+        data = {}
+    if overrides:
+        data = apply_overrides(data, overrides, source=str(path))
+    return ChainConfig.from_dict(data, source=str(path), base_dir=path.parent)
+
+
+def apply_overrides(data: object, overrides: Mapping[str, object], source: str = "chain config") -> dict:
+    """A copy of ``data`` with dotted keys set (``"engine.workers"``), creating sections as needed."""
+    import copy
+
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: expected a mapping of sections, got {type(data).__name__}")
+    result = copy.deepcopy(dict(data))
+    for key, value in overrides.items():
+        parts = [part for part in str(key).split(".") if part]
+        if not parts:
+            raise ConfigError(f"override {key!r}: empty key")
+        node = result
+        for depth, part in enumerate(parts[:-1]):
+            child = node.get(part)
+            if child is None:
+                child = node[part] = {}
+            if not isinstance(child, dict):
+                raise ConfigError(f"override {key!r}: {'.'.join(parts[:depth + 1])} is not a section")
+            node = child
+        node[parts[-1]] = value
+    return result
+
+
+# -------------------------------------------------------------------------------- error messages
+def _location(loc: tuple) -> str:
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        else:
+            text += f".{part}" if text else str(part)
+    return text
+
+
+def _model_classes(annotation) -> list[type[BaseModel]]:
+    """The pydantic model classes inside an annotation (Optional, Union, Annotated, list, dict)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    found = []
+    for argument in typing.get_args(annotation):
+        found += _model_classes(argument)
+    return found
+
+
+def _fields_at(loc: tuple) -> list[str] | None:
+    """The allowed keys of the config section at ``loc`` (None if it is not a section)."""
+    candidates: list[type[BaseModel]] = [ChainConfig]
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        nested = []
+        for model in candidates:
+            if part in model.model_fields:
+                nested += _model_classes(model.model_fields[part].annotation)
+            else:  # a discriminated-union tag ("imagery") selects the member with that source
+                for member in candidates:
+                    source = member.model_fields.get("source")
+                    if source is not None and part in typing.get_args(source.annotation):
+                        nested.append(member)
+        if not nested:
+            return None
+        candidates = list(dict.fromkeys(nested))
+    return sorted({name for model in candidates for name in model.model_fields})
+
+
+def describe_errors(error: ValidationError) -> str:
+    """One line per problem: the key path, what is wrong and what is allowed."""
+    grouped: dict[str, list] = {}
+    for item in error.errors():
+        loc = tuple(item["loc"])
+        # Drop the union-member tags pydantic inserts into paths.
+        clean = []
+        for part in loc:
+            if isinstance(part, str) and (part in ("imagery", "goniometer") and clean and clean[-1] == "fit"):
+                continue
+            if isinstance(part, str) and ("[" in part or part in ("float", "int", "str", "bool")):
+                continue
+            clean.append(part)
+        where = _location(tuple(clean)) or "(top level)"
+        kind = item["type"]
+        if kind == "extra_forbidden":
+            allowed = _fields_at(loc[:-1]) or []
+            message = f"unknown key; allowed keys: {', '.join(allowed)}"
+        elif kind == "missing":
+            message = "required key is missing"
+        elif kind == "literal_error":
+            expected = item.get("ctx", {}).get("expected", "")
+            message = f"{item['input']!r} is not allowed; allowed: {expected}"
+        elif kind == "union_tag_invalid":
+            expected = item.get("ctx", {}).get("expected_tags", "")
+            message = f"source {item['input'].get('source')!r} is not allowed; allowed: {expected}" \
+                if isinstance(item["input"], Mapping) else item["msg"]
+        elif kind == "union_tag_not_found":
+            message = "a fit step needs 'source': 'imagery' or 'goniometer'"
+        else:
+            message = item["msg"].removeprefix("Value error, ")
+            if "input" in item and kind not in ("value_error", "assertion_error") and not isinstance(
+                    item["input"], (Mapping, list)):
+                message += f" (got {item['input']!r})"
+        grouped.setdefault(where, []).append((kind, message, item))
+    lines = []
+    for where, problems in grouped.items():
+        kinds = [kind for kind, _, _ in problems]
+        if len(problems) > 1 and "literal_error" in kinds:  # a number or one of some words
+            item = problems[kinds.index("literal_error")][2]
+            number = " a number," if any(k in ("float_parsing", "float_type") for k in kinds) else ""
+            lines.append(f"{where}: {item['input']!r} is not allowed; allowed:{number} "
+                         f"{item.get('ctx', {}).get('expected', '')}")
+        else:
+            lines += [f"{where}: {message}" for _, message, _ in problems]
+    return "; ".join(dict.fromkeys(lines))
+
