@@ -11,11 +11,12 @@ Relative paths and patterns in a config are relative to the directory of the con
 sources (angles, class map) are *name patterns* formatted for every input image with
 
 ``{dir}``    the image's directory
+``{parent}`` the name of the image's directory (``scenes/line01/image.tif`` -> ``line01``)
 ``{stem}``   the image's file name without its suffix (``line01_image``)
 ``{scene}``  the scene name: the ``scene`` group of ``inputs.scene_regex`` matched on the file
              name, else the stem (with ``scene_regex: '(?P<scene>.+)_image'``, ``line01``)
 
-Output names are patterns with ``{scene}`` and ``{stem}``. A commented example of every key is in
+Output names are patterns with ``{scene}``, ``{stem}`` and ``{parent}``. A commented example of every key is in
 ``configs/`` (``configs/demo.yaml`` is the chain ``brdfcorr demo`` runs).
 
 Example
@@ -67,7 +68,7 @@ __all__ = [
 ]
 
 #: Placeholders of per-scene name patterns.
-PATTERN_FIELDS = ("dir", "stem", "scene")
+PATTERN_FIELDS = ("dir", "parent", "stem", "scene")
 
 
 class ConfigError(BrdfcorrError, ValueError):
@@ -91,8 +92,8 @@ def _check_pattern(value: str, allowed=PATTERN_FIELDS) -> str:
 
 
 def format_pattern(pattern: str, image: Path, scene: str) -> str:
-    """Fill a name pattern for one image (``{dir}``, ``{stem}``, ``{scene}``)."""
-    return pattern.format(dir=str(image.parent), stem=image.stem, scene=scene)
+    """Fill a name pattern for one image (``{dir}``, ``{parent}``, ``{stem}``, ``{scene}``)."""
+    return pattern.format(dir=str(image.parent), parent=image.parent.name, stem=image.stem, scene=scene)
 
 
 AngleKind = Literal["geotiff", "envi_obs", "sentinel2", "landsat", "solar"]
@@ -393,7 +394,7 @@ class OutputsConfig(_Strict):
     directory : str
         Output directory (created).
     naming, qa_naming, quicklook_naming : str
-        Patterns with ``{scene}`` and ``{stem}`` for the corrected GeoTIFF, the QA raster and the
+        Patterns with ``{scene}``, ``{stem}``, ``{parent}`` for the corrected GeoTIFF, the QA raster and the
         quicklook PNG.
     format : {"GTiff"}
         Raster format of the outputs.
@@ -419,11 +420,11 @@ class OutputsConfig(_Strict):
     @field_validator("naming", "qa_naming", "quicklook_naming")
     @classmethod
     def _names(cls, value: str) -> str:
-        _check_pattern(value, ("stem", "scene"))
+        _check_pattern(value, ("parent", "stem", "scene"))
         if "/" in value or "\\" in value:
             raise ValueError(f"{value!r} must be a file name (no directory part)")
         if "{" not in value:
-            raise ValueError(f"{value!r} must contain {{scene}} or {{stem}}: scenes need distinct names")
+            raise ValueError(f"{value!r} must contain {{scene}}, {{stem}} or {{parent}}: scenes need distinct names")
         return value
 
 
