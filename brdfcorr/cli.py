@@ -388,7 +388,7 @@ def _reference_sza(value: str | None):
               help="Also write the QA flags (uint8) to this GeoTIFF.")
 @click.option("--compress", default="deflate", show_default=True, help="GDAL compression.")
 @click.option("--cog", is_flag=True, help="Write Cloud-Optimized GeoTIFFs.")
-@click.option("--chunk", type=int, default=512, show_default=True, help="Chunk and tile size [pixels].")
+@click.option("--chunk", type=int, help="Chunk and tile size [pixels] [default: 512, less for many bands].")
 @click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
 @handle_errors
 def correct_command(image, angles, sza, saa, vza, vaa, classes, params_path, output, ref_sza, ref_vza,

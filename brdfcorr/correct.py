@@ -516,7 +516,8 @@ def correct_files(
     qa_output : path-like, optional
         Where to write the QA layer (uint8 flags).
     chunks : int, optional
-        Spatial chunk and tile size [pixels] (default :data:`brdfcorr.io.DEFAULT_CHUNK`).
+        Spatial chunk and tile size [pixels]; by default :func:`brdfcorr.io.auto_chunk` (512 for
+        up to 16 bands, smaller for more, so that memory does not grow with the band count).
     compress : str, default "deflate"
     cog : bool, default False
         Write Cloud-Optimized GeoTIFFs.
@@ -539,7 +540,7 @@ def correct_files(
     if not isinstance(params, ParameterTable):
         table_path = str(params)
         params = ParameterTable.load(params)
-    chunks = rio_io.DEFAULT_CHUNK if chunks is None else int(chunks)
+    chunks = rio_io.auto_chunk(image) if chunks is None else int(chunks)
     reflectance = rio_io.open_image(image, chunks=chunks, wavelengths=wavelengths)
     class_map = rio_io.open_classes(classes, chunks=chunks)
     layers = rio_io.open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
@@ -577,6 +578,6 @@ def correct_files(
         rasters[qa_output] = qa
     counts = rio_io.write_rasters(
         rasters, compress=compress, blocksize=chunks, cog=cog, tags=tags,
-        compute_with=qa_counts(qa), callbacks=callbacks,
+        compute_with=qa_counts(qa), callbacks=callbacks, gdal_cache=rio_io.gdal_cache_bytes(image, chunks),
     )
     return {**{key: int(value) for key, value in counts.items()}, "reference": reference}

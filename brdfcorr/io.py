@@ -35,6 +35,8 @@ __all__ = [
     "band_wavelengths",
     "parse_wavelength",
     "write_rasters",
+    "auto_chunk",
+    "gdal_cache_bytes",
     "DEFAULT_CHUNK",
     "ANGLE_NAMES",
 ]
@@ -66,7 +68,40 @@ def _open(path, role: str, chunks, masked: bool) -> xr.DataArray:
     return array
 
 
-def _chunks(chunks, n_bands: int | None = None):
+def auto_chunk(path, target_bytes: int = 16 * 2**20) -> int:
+    """Spatial chunk (and tile) size [pixels] for an image: the largest of 512, 256, 128, 64 whose
+    chunk of all bands (as float32) holds at most ``target_bytes``, so memory stays flat for
+    hyperspectral cubes."""
+    with _opened(path, "image") as dataset:
+        count = dataset.count
+    for size in (512, 256, 128, 64):
+        if count * size * size * 4 <= target_bytes:
+            return size
+    return 64
+
+
+def gdal_cache_bytes(path, chunk: int) -> int:
+    """A GDAL block cache [bytes] for reading ``path`` in chunks of ``chunk`` pixels: room for two
+    decompressed input tiles (all bands) and four chunks, between 64 and 512 MiB. GDAL's default
+    (5 % of RAM) would let the cache, and so the peak memory, grow with the image."""
+    with _opened(path, "image") as dataset:
+        count, itemsize = dataset.count, np.dtype(dataset.dtypes[0]).itemsize
+        tile_rows, tile_columns = dataset.block_shapes[0]
+    tile = count * min(tile_rows, 1024) * min(tile_columns, 4096) * itemsize
+    chunk_bytes = count * chunk * chunk * 4
+    return int(np.clip(max(2 * tile, 4 * chunk_bytes), 64 * 2**20, 512 * 2**20))
+
+
+@contextlib.contextmanager
+def _opened(path, role: str):
+    try:
+        with rasterio.open(path) as dataset:
+            yield dataset
+    except rasterio.errors.RasterioError as error:
+        raise InputError(f"cannot read {role} file {path}: {error}") from None
+
+
+def _chunks(chunks):
     if chunks is None:
         chunks = DEFAULT_CHUNK
     if isinstance(chunks, int):
@@ -273,6 +308,7 @@ def write_rasters(
     tags: Mapping[str, str] | None = None,
     compute_with: object = None,
     callbacks: Sequence = (),
+    gdal_cache: int | None = None,
 ):
     """Write DataArrays to tiled, compressed GeoTIFFs, chunk by chunk, atomically.
 
@@ -300,6 +336,9 @@ def write_rasters(
         Lazy results to compute in the same pass; returned computed.
     callbacks : sequence of dask callbacks
         E.g. a progress bar, active during the computation.
+    gdal_cache : int, optional
+        GDAL block cache [bytes] while reading and writing (:func:`gdal_cache_bytes`); GDAL's
+        default otherwise.
 
     Returns
     -------
@@ -323,17 +362,18 @@ def write_rasters(
                     **_write_options(compress, blocksize, array),
                 )
             )
-        with contextlib.ExitStack() as active:
-            for callback in callbacks:
-                active.enter_context(callback)
-            # One graph for everything: optimizing the writes and the extra results separately would
-            # rename shared keys (blockwise fusion) and compute the normalization twice.
-            *_, extra = dask.compute(*writes, compute_with, optimize_graph=False)
-        for gtiff, temporary in copies:
-            rasterio.shutil.copy(
-                gtiff, temporary, driver="COG", compress=compress.upper(), blocksize=blocksize,
-                overview_resampling="average", BIGTIFF="IF_SAFER",
-            )
+        environment = rasterio.Env(GDAL_CACHEMAX=int(gdal_cache)) if gdal_cache else contextlib.nullcontext()
+        with environment:
+            with contextlib.ExitStack() as active:
+                for callback in callbacks:
+                    active.enter_context(callback)
+                # One pass for everything: shared inputs are read and normalized once.
+                *_, extra = dask.compute(*writes, compute_with)
+            for gtiff, temporary in copies:
+                rasterio.shutil.copy(
+                    gtiff, temporary, driver="COG", compress=compress.upper(), blocksize=blocksize,
+                    overview_resampling="average", BIGTIFF="IF_SAFER",
+                )
     return extra
 
 
