@@ -45,7 +45,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from brdfcorr.errors import BrdfcorrError
-from brdfcorr.params import ReferenceGeometry
+from brdfcorr.params import ClassEntry, ReferenceGeometry
 
 __all__ = [
     "ChainConfig",
@@ -287,7 +287,7 @@ def _check_material(name: str) -> str:
 
 class ParametersConfig(_Strict):
     """The parameter table of the run, merged from (later wins for a class id): built-in
-    ``materials``, the ``table`` file, and the output of the ``fit`` step.
+    ``materials``, inline ``classes``, the ``table`` file, and the output of the ``fit`` step.
 
     Attributes
     ----------
@@ -295,16 +295,28 @@ class ParametersConfig(_Strict):
         Parameter table YAML (``DESIGN.md`` format).
     materials : dict of int to str
         Class id -> built-in material name (paper 003, Table 1; ``brdfcorr materials``).
+    classes : list
+        Classes written inline, as under ``classes:`` of a parameter table file.
     """
 
     table: str | None = None
     materials: dict[Annotated[int, Field(ge=1)], str] = Field(default_factory=dict)
+    classes: list[ClassEntry] = Field(default_factory=list)
 
     @field_validator("materials")
     @classmethod
     def _materials(cls, value: dict[int, str]) -> dict[int, str]:
         for name in value.values():
             _check_material(name)
+        return value
+
+    @field_validator("classes")
+    @classmethod
+    def _unique(cls, value: list[ClassEntry]) -> list[ClassEntry]:
+        ids = [entry.id for entry in value]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        if duplicates:
+            raise ValueError(f"class id(s) {', '.join(map(str, duplicates))} appear more than once")
         return value
 
 
@@ -498,10 +510,11 @@ class ChainConfig(_Strict):
     @model_validator(mode="after")
     def _has_parameters(self) -> ChainConfig:
         if (self.steps.correct is not None and self.parameters.table is None
-                and not self.parameters.materials and self.steps.fit is None):
+                and not self.parameters.materials and not self.parameters.classes
+                and self.steps.fit is None):
             raise ValueError(
-                "the correct step needs a parameter table: set parameters.table, parameters.materials "
-                "or a steps.fit step"
+                "the correct step needs a parameter table: set parameters.table, parameters.materials, "
+                "parameters.classes or a steps.fit step"
             )
         return self
 

@@ -259,18 +259,30 @@ def _scene_name(config: ChainConfig, image: Path) -> str:
     return match.group("scene")
 
 
-def plan_run(config: ChainConfig) -> RunPlan:
+def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     """Expand a config into scenes and decide what happens to each; checks the parameter sources.
+
+    Parameters
+    ----------
+    config : ChainConfig
+    require_inputs : bool, default True
+        Missing input images, parameter table or measurement files are errors; with False (to
+        check a config before its data exist) they are listed in ``RunPlan.warnings``.
 
     Raises
     ------
     InputError
         No input image; two scenes with the same output name; an output that would overwrite an
-        input; a missing or invalid parameter table or measurement file (:class:`ParameterError`).
+        input; a missing parameter table or measurement file.
+    ParameterError
+        An invalid parameter table file.
     """
     images, notes = _expand_images(config)
     if not images:
-        raise InputError(f"{config.source}: inputs.images matches no file ({', '.join(config.inputs.images)})")
+        message = f"inputs.images matches no file ({', '.join(config.inputs.images)})"
+        if require_inputs:
+            raise InputError(f"{config.source}: {message}")
+        notes = [message]
     outputs_config, steps = config.outputs, config.steps
     output_dir = config.resolve(outputs_config.directory).resolve()
     angles = config.inputs.angles
@@ -318,9 +330,14 @@ def plan_run(config: ChainConfig) -> RunPlan:
     sources = []
     for class_id, material in config.parameters.materials.items():
         sources.append(f"material {material} as class {class_id}")
+    for entry in config.parameters.classes:
+        sources.append(f"inline {entry.label}")
     if config.parameters.table is not None:
         table_path = config.resolve(config.parameters.table)
-        ParameterTable.load(table_path)  # fail now on a missing or invalid table
+        if table_path.exists() or require_inputs:
+            ParameterTable.load(table_path)  # fail now on a missing or invalid table
+        else:
+            notes.append(f"parameters.table: {table_path} does not exist")
         sources.append(f"table {table_path}")
     fit_output = None
     if steps.fit is not None:
@@ -329,7 +346,9 @@ def plan_run(config: ChainConfig) -> RunPlan:
             for item in steps.fit.measurements:
                 path = config.resolve(item.file)
                 if not path.exists():
-                    raise InputError(f"steps.fit.measurements: file {path} does not exist")
+                    if require_inputs:
+                        raise InputError(f"steps.fit.measurements: file {path} does not exist")
+                    notes.append(f"steps.fit.measurements: {path} does not exist")
             sources.append(f"fit from goniometer measurements -> {fit_output}")
         else:
             sources.append(f"fit from the imagery of the run's scenes -> {fit_output}")
@@ -339,6 +358,7 @@ def plan_run(config: ChainConfig) -> RunPlan:
 
 # ----------------------------------------------------------------------------------- parameters
 def _materials_table(config: ChainConfig) -> ParameterTable:
+    """Built-in materials, then the inline classes (which win for a shared id)."""
     from brdfcorr.materials import load_material
 
     entries = []
@@ -346,7 +366,7 @@ def _materials_table(config: ChainConfig) -> ParameterTable:
         material = load_material(name)
         entries.append(ClassEntry(id=class_id, name=material.name, model=material.model.name,
                                   params=dict(material.params)))
-    return ParameterTable(classes=entries)
+    return merge_tables([ParameterTable(classes=entries), ParameterTable(classes=list(config.parameters.classes))])
 
 
 def _open_scene(scene: Scene, config: ChainConfig):
@@ -739,10 +759,15 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
     report = RunReport(plan, table, fit=fit_report, started=started)
     plan.output_dir.mkdir(parents=True, exist_ok=True)
 
+    previous = _previous_results(plan.report)
     for scene in plan.scenes:
         if scene.action == "skip":
             result = {"scene": scene.name, "image": str(scene.image), "status": "skipped",
                       "reason": scene.reason, "outputs": {k: str(v) for k, v in scene.outputs.items()}}
+            earlier = previous.get(str(scene.image), {})
+            for key in ("reference", "qa"):  # what the run that wrote the outputs found
+                if key in earlier:
+                    result[key] = earlier[key]
             report.scenes.append(result)
             notify("scene", result)
     tick = time.perf_counter()
@@ -774,6 +799,15 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
         temporary.write_text(json.dumps(report.to_dict(), indent=2, default=_json_default))
     report.path = plan.report
     return report
+
+
+def _previous_results(path: Path) -> dict[str, dict]:
+    """Scene results of an earlier report at ``path``, by image (empty if none or unreadable)."""
+    try:
+        scenes = json.loads(path.read_text())["scenes"]
+        return {result["image"]: result for result in scenes if result.get("status") in ("ok", "skipped")}
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
 
 
 def _json_default(value):
