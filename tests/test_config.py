@@ -1,0 +1,140 @@
+"""Chain configs: validation messages (key path, allowed values), overrides, example configs."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.config import ChainConfig, ConfigError, apply_overrides, format_pattern, load_config
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLES = sorted((REPO / "configs").glob("*.yaml"))
+CHAINS = [path for path in EXAMPLES if "inputs" in (yaml.safe_load(path.read_text()) or {})]
+
+
+def minimal(**sections) -> dict:
+    document = {
+        "inputs": {"images": ["scenes/*_image.tif"], "scene_regex": r"(?P<scene>.+)_image",
+                   "angles": {"kind": "geotiff", "path": "{dir}/{scene}_angles.tif"},
+                   "classes": "{dir}/{scene}_classes.tif"},
+        "parameters": {"materials": {1: "roof_tile"}},
+        "outputs": {"directory": "out"},
+    }
+    for key, value in sections.items():
+        document[key] = value
+    return document
+
+
+def error_of(document) -> str:
+    with pytest.raises(ConfigError) as caught:
+        ChainConfig.from_dict(document, "chain.yaml")
+    return str(caught.value)
+
+
+def test_defaults_and_base_dir(tmp_path):
+    path = tmp_path / "chain.yaml"
+    path.write_text(yaml.safe_dump(minimal()))
+    config = load_config(path)
+    assert config.engine.scheduler == "threads"
+    assert config.outputs.existing == "skip"
+    assert config.steps.correct.limits == (0.2, 5.0)  # DESIGN.md default factor range
+    assert config.steps.fit is None and config.steps.quicklook is None
+    assert config.resolve("out") == tmp_path.resolve() / "out"  # relative to the config file
+    assert config.resolve("/abs/x.tif") == Path("/abs/x.tif")
+
+
+@pytest.mark.parametrize("section, value, expected", [
+    ("engine", {"scheduler": "thread"},
+     "chain.yaml: engine.scheduler: 'thread' is not allowed; allowed: 'threads', 'processes', "
+     "'synchronous' or 'distributed'"),
+    ("outputs", {"directory": "out", "compres": "lzw"},
+     "chain.yaml: outputs.compres: unknown key; allowed keys: cog, compress, directory, existing, "
+     "format, naming, qa_naming, quicklook_naming, report"),
+    ("reference", {"sza": "meen"},
+     "chain.yaml: reference.sza: 'meen' is not allowed; allowed: a number, 'mean' or 'observed'"),
+    ("steps", {"fit": {"source": "imag"}},
+     "chain.yaml: steps.fit: source 'imag' is not allowed; allowed: 'imagery', 'goniometer'"),
+    ("engine", {"chunk": 100}, "chain.yaml: engine.chunk: chunk 100 must be a multiple of 16"),
+])
+def test_error_names_key_path_and_allowed_values(section, value, expected):
+    assert error_of(minimal(**{section: value})).startswith(expected)
+
+
+def test_errors_inside_lists_and_unions():
+    document = minimal(steps={"fit": {"source": "goniometer", "measurements": [
+        {"file": "a.csv", "class_id": 1, "name": "tile", "fixd": {"k": 0.25}}]}})
+    message = error_of(document)
+    assert message.startswith("chain.yaml: steps.fit.measurements[0].fixd: unknown key; allowed keys: class_id, file, fixed")
+    message = error_of(minimal(parameters={"materials": {1: "roof"}}))
+    assert "parameters.materials: 'roof' is not a built-in material; allowed: 'spectralon_50', 'roof_tile'" in message
+    message = error_of(minimal(parameters={"classes": [{"id": 3, "name": "g", "model": "lambertian", "params": {"t0": -1}}]}))
+    assert message.startswith("chain.yaml: parameters.classes[0]: class 3 (g):")
+    assert "t0" in message
+
+
+def test_unknown_top_level_key_and_missing_section():
+    assert error_of({**minimal(), "enigne": {}}).startswith(
+        "chain.yaml: enigne: unknown key; allowed keys: engine, inputs, name, outputs, parameters, reference, steps")
+    document = minimal()
+    del document["inputs"]["angles"]
+    assert error_of(document) == "chain.yaml: inputs.angles: required key is missing"
+
+
+def test_patterns_and_semantic_checks():
+    document = minimal()
+    document["inputs"]["classes"] = "{scen}_classes.tif"
+    assert "pattern '{scen}_classes.tif' uses {scen}; allowed placeholders: {dir}, {parent}, {stem}, {scene}" in error_of(document)
+    assert "must contain {scene}" in error_of(minimal(outputs={"directory": "o", "naming": "fixed.tif"}))
+    assert "needs a parameter table" in error_of(minimal(parameters={}))
+    assert "only used with scheduler 'distributed'" in error_of(minimal(engine={"address": "tcp://x:1"}))
+    assert "lower <= 1 <= upper" in error_of(minimal(steps={"correct": {"limits": [1.5, 5]}}))
+    document = minimal()
+    document["inputs"]["scene_regex"] = "(?P<name>.+)"
+    assert "no named group (?P<scene>...)" in error_of(document)
+
+
+def test_format_pattern():
+    image = Path("/data/line07/x_image.tif")
+    assert format_pattern("{dir}/{scene}_angles.tif", image, "x") == "/data/line07/x_angles.tif"
+    assert format_pattern("{parent}_{stem}.tif", image, "x") == "line07_x_image.tif"
+
+
+def test_overrides(tmp_path):
+    data = minimal()
+    changed = apply_overrides(data, {"engine.workers": 3, "outputs.existing": "overwrite"})
+    assert changed["engine"] == {"workers": 3} and changed["outputs"]["existing"] == "overwrite"
+    assert "engine" not in data  # the input is not modified
+    with pytest.raises(ConfigError, match="inputs.images is not a section"):
+        apply_overrides(data, {"inputs.images.x": 1})
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(data))
+    assert load_config(path, {"engine.workers": 5}).engine.workers == 5
+
+
+def test_yaml_errors_name_line(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("inputs: [\n  outputs: {")
+    with pytest.raises(ConfigError, match=r"bad.yaml: not valid YAML \(line \d+, column \d+\)"):
+        load_config(path)
+    with pytest.raises(ConfigError, match="cannot read chain config"):
+        load_config(tmp_path / "missing.yaml")
+
+
+def test_every_example_chain_validates():
+    assert len(CHAINS) >= 3, "configs/ should hold several example chains"
+    assert REPO / "configs" / "demo.yaml" in CHAINS
+    result = CliRunner().invoke(main, ["validate", *map(str, CHAINS)])
+    assert result.exit_code == 0, result.output
+    assert result.output.count(": valid;") == len(CHAINS)
+
+
+def test_validate_cli_rejects_bad_config(tmp_path):
+    path = tmp_path / "chain.yaml"
+    path.write_text(yaml.safe_dump(minimal(engine={"scheduler": "mpi"})))
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2
+    assert "engine.scheduler: 'mpi' is not allowed" in result.output
+    result = CliRunner().invoke(main, ["validate", str(path), "--set", "engine.scheduler=threads"])
+    assert result.exit_code == 0, result.output
