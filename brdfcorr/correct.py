@@ -186,7 +186,11 @@ def _normalize_block(
         else:
             ref_sza = reference_sza
         ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
-        g = [(_g(plan, observed, shape), _g(plan, ref, shape)) for shape in plan.shapes]
+        # The angular terms in float64; the per-band affine arithmetic in the output precision.
+        g = [
+            (np.asarray(_g(plan, observed, shape), dtype=out_dtype), np.asarray(_g(plan, ref, shape), dtype=out_dtype))
+            for shape in plan.shapes
+        ]
         states.append((plan, index, g))
 
     # One factor map for the block, updated band by band only where a class's parameters change:
@@ -202,8 +206,9 @@ def _normalize_block(
             current_row[plan.id] = plan.row_of_band[band]
             ratio = _ratio(plan, band, *g[plan.shape_of_band[band]])
             if limits is not None:
-                limited[plan.id] |= (ratio < limits[0]) | (ratio > limits[1])
-                np.clip(ratio, *limits, out=ratio)
+                clipped = np.clip(ratio, *limits)
+                limited[plan.id] |= clipped != ratio
+                ratio = clipped
             factor[index] = ratio
         np.multiply(cube[position], factor, out=out[position], casting="unsafe")
     for plan, index, _ in states:
@@ -221,15 +226,18 @@ def _present_classes(values: np.ndarray) -> list:
     return np.unique(values).tolist()
 
 
-def _ratio(plan: _ClassPlan, band: int, g_observed, g_reference) -> np.ndarray:
-    """f(ref) / f(obs) at a class's pixels for one band (a new float64 array)."""
-    f_observed = plan.offset[band] + plan.scale[band] * g_observed
-    f_reference = plan.offset[band] + plan.scale[band] * g_reference
+def _ratio(plan: _ClassPlan, band: int, g_observed: np.ndarray, g_reference) -> np.ndarray:
+    """f(ref) / f(obs) at a class's pixels for one band (a new array, the dtype of g_observed)."""
+    offset, scale = plan.offset[band], plan.scale[band]
+    f_observed = g_observed * scale
+    f_observed += offset
+    f_reference = g_reference * scale + offset
+    if offset > 0:  # g >= 0 and scale >= 0 for every surface model: f(obs) > 0
+        return np.divide(f_reference, f_observed, dtype=g_observed.dtype)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.array(np.broadcast_to(f_reference / f_observed, np.shape(g_observed)), dtype=np.float64)
-    if not np.all(f_observed):
-        # 0/0: the model predicts no signal at either geometry; leave the pixel unchanged.
-        ratio[np.broadcast_to((f_observed == 0) & (f_reference == 0), ratio.shape)] = 1.0
+        ratio = np.divide(f_reference, f_observed, dtype=g_observed.dtype)
+    # 0/0: the model predicts no signal at either geometry; leave the pixel unchanged.
+    ratio[np.broadcast_to((f_observed == 0) & (f_reference == 0), ratio.shape)] = 1.0
     return ratio
 
 
