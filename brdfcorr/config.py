@@ -14,7 +14,8 @@ sources (angles, class map) are *name patterns* formatted for every input image 
 ``{parent}`` the name of the image's directory (``scenes/line01/image.tif`` -> ``line01``)
 ``{stem}``   the image's file name without its suffix (``line01_image``)
 ``{scene}``  the scene name: the ``scene`` group of ``inputs.scene_regex`` matched on the file
-             name, else the stem (with ``scene_regex: '(?P<scene>.+)_image'``, ``line01``)
+             name (with ``scene_regex: '(?P<scene>.+)_image'``, ``line01``); without a regex the
+             stem, or ``{parent}_{stem}`` when several images share the stem
 
 Output names are patterns with ``{scene}``, ``{stem}`` and ``{parent}``. A commented example of every key is in
 ``configs/`` (``configs/demo.yaml`` is the chain ``brdfcorr demo`` runs).

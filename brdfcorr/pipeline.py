@@ -249,10 +249,10 @@ def _expand_images(config: ChainConfig) -> tuple[list[Path], list[str]]:
     return list(dict.fromkeys(path.resolve() for path in images)), notes
 
 
-def _scene_name(config: ChainConfig, image: Path) -> str:
+def _scene_name(config: ChainConfig, image: Path, shared_stems=frozenset()) -> str:
     regex = config.inputs.scene_regex
-    if regex is None:
-        return image.stem
+    if regex is None:  # the stem, qualified by the directory when several images share it
+        return f"{image.parent.name}_{image.stem}" if image.stem in shared_stems else image.stem
     match = re.search(regex, image.name)
     if match is None or not match.group("scene"):
         raise InputError(f"inputs.scene_regex {regex!r} does not match image file name {image.name!r}")
@@ -287,9 +287,11 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     output_dir = config.resolve(outputs_config.directory).resolve()
     angles = config.inputs.angles
     scenes, seen = [], {}
+    stems = [image.stem for image in images]
+    shared = frozenset(stem for stem in stems if stems.count(stem) > 1)
     for image in images:
         try:
-            name = _scene_name(config, image)
+            name = _scene_name(config, image, shared)
         except InputError as error:
             scenes.append(Scene(image.stem, image, Path(), angles.kind, "", {}, {}, "fail", str(error)))
             continue
