@@ -31,7 +31,7 @@ import numpy as np
 import rasterio
 from rasterio.windows import Window
 
-from brdfcorr.testing import example_table, georeference  # noqa: F401  (georeference: same grid)
+from brdfcorr.testing import example_table
 
 CRS = "EPSG:32632"
 

@@ -31,13 +31,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal, NamedTuple
 
 import dask.array as da
 import numpy as np
 import xarray as xr
 
-from brdfcorr.errors import GridMismatchError, InputError, ParameterError
+from brdfcorr.errors import GridMismatchError, InputError
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model
 from brdfcorr.params import ParameterTable, ReferenceGeometry
@@ -544,6 +545,10 @@ def correct_files(
     from brdfcorr import __version__
     from brdfcorr import io as rio_io
 
+    inputs = [image, angles, sza, saa, vza, vaa, classes]
+    for target in (output, qa_output):
+        if target is not None and any(p is not None and Path(p).resolve() == Path(target).resolve() for p in inputs):
+            raise InputError(f"output {target} is also an input; inputs are never overwritten")
     table_path = table_source
     if not isinstance(params, ParameterTable):
         table_path = str(params)

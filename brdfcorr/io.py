@@ -346,6 +346,9 @@ def write_rasters(
     """
     if blocksize % 16:
         raise InputError(f"tile size {blocksize} must be a multiple of 16")
+    for target in rasters:
+        if not Path(target).parent.is_dir():
+            raise InputError(f"output directory {Path(target).parent} does not exist")
     compress = "none" if compress is None else str(compress)
     with contextlib.ExitStack() as stack:
         writes, copies = [], []

@@ -65,6 +65,7 @@ def test_cli_matches_library_numbers_and_writes_provenance(files, scene, tmp_pat
         assert np.isnan(written.nodata)
     with rasterio.open(qa_path) as written:
         qa = written.read(1)
+        assert written.crs == scene["reflectance"].rio.crs and written.dtypes[0] == "uint8"
     np.testing.assert_array_equal(qa, expected_qa.values)
     # One summary line, with the counts of the QA layer.
     line = result.output.strip().splitlines()[-1]
@@ -119,6 +120,15 @@ def test_bad_options_exit_2_without_output(files, tmp_path, extra, message):
     assert result.exit_code == 2, result.output
     assert message in result.output
     assert not output.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_output_must_not_overwrite_an_input_or_go_to_a_missing_directory(files, tmp_path):
+    before = files["image"].read_bytes()
+    result = CliRunner().invoke(main, [str(a) for a in _base(files, files["image"])])
+    assert result.exit_code == 2 and "is also an input" in result.output
+    assert files["image"].read_bytes() == before
+    result = CliRunner().invoke(main, [str(a) for a in _base(files, tmp_path / "nowhere" / "out.tif")])
+    assert result.exit_code == 2 and "output directory" in result.output and "does not exist" in result.output
 
 
 def test_no_limits_and_unknown_nan(files, tmp_path):
