@@ -45,7 +45,7 @@ def _profile(size: int, count: int, dtype: str, chunk: int, nodata=None) -> dict
     }
 
 
-def make_scene(directory: Path, size: int, bands: int, chunk: int) -> dict[str, Path]:
+def make_scene(directory: Path, size: int, bands: int, chunk: int = 512) -> dict[str, Path]:
     """Write a synthetic scene tile by tile (never the whole cube in memory)."""
     directory.mkdir(parents=True, exist_ok=True)
     paths = {name: directory / f"{name}.tif" for name in ("image", "angles", "classes")}
@@ -80,15 +80,18 @@ def spectral_table_path(directory: Path) -> Path:
 
 
 def plain_copy(source: Path, target: Path, chunk: int) -> None:
-    """The baseline: a chunked rasterio read + write with the same output options."""
+    """The baseline: a chunked rasterio read + write with the same output options (tiles of
+    ``chunk`` pixels, deflate with the floating-point predictor)."""
     with rasterio.open(source) as src:
         profile = _profile(src.width, src.count, src.dtypes[0], chunk, nodata=src.nodata)
         with rasterio.open(target, "w", **profile) as dst:
-            for _, window in src.block_windows(1):
-                dst.write(src.read(window=window), window=window)
+            for row in range(0, src.height, chunk):
+                for col in range(0, src.width, chunk):
+                    window = Window(col, row, min(chunk, src.width - col), min(chunk, src.height - row))
+                    dst.write(src.read(window=window), window=window)
 
 
-def run_correct(paths: dict, output: Path, chunk: int) -> dict:
+def run_correct(paths: dict, output: Path, chunk: int | None) -> dict:
     from brdfcorr.correct import correct_files
 
     return correct_files(
@@ -107,8 +110,11 @@ def timed(function, *args, repeat: int = 1) -> float:
 
 
 def end_to_end(directory: Path, size: int, bands: int, chunk: int, repeat: int) -> None:
-    paths = make_scene(directory, size, bands, chunk)
+    from brdfcorr.io import auto_chunk
+
+    paths = make_scene(directory, size, bands)
     paths["params"] = spectral_table_path(directory)
+    chunk = chunk or auto_chunk(paths["image"])  # brdfcorr's default; the baseline writes the same tiles
     gib = size * size * bands * 4 / 2**30
     plain = corrected = np.inf
     for _ in range(repeat):  # interleaved, best of each: the machine is shared
@@ -177,10 +183,10 @@ def memory(directory: Path, size: int, bands: int, chunk: int) -> None:
     results = {}
     for factor, side in ((1, size), (4, 2 * size)):
         scene_dir = directory / f"rss_{side}"
-        make_scene(scene_dir, side, bands, chunk)
+        make_scene(scene_dir, side, bands)
         spectral_table_path(scene_dir)
         output = subprocess.run(
-            [sys.executable, __file__, "--child-rss", "--dir", str(scene_dir), "--chunk", str(chunk)],
+            [sys.executable, __file__, "--child-rss", "--dir", str(scene_dir)] + (["--chunk", str(chunk)] if chunk else []),
             check=True, capture_output=True, text=True,
         ).stdout
         results[factor] = json.loads(output.strip().splitlines()[-1])
@@ -197,7 +203,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--size", type=int, default=512, help="scene side [pixels] (2048 for the 1 GiB scene)")
     parser.add_argument("--bands", type=int, default=16)
-    parser.add_argument("--chunk", type=int, default=512)
+    parser.add_argument("--chunk", type=int, help="chunk and output tile size (default: brdfcorr's auto_chunk)")
     parser.add_argument("--memory-size", type=int, default=1024, help="side of the in-memory cube")
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--skip", nargs="*", default=(), choices=("end-to-end", "in-memory", "memory"))
