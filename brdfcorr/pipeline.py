@@ -720,7 +720,8 @@ def _executor(config: ChainConfig):
             else:
                 address = engine.address
             try:
-                client = stack.enter_context(Client(address, set_as_default=False, timeout="20s"))
+                # connect timeout: dask config distributed.comm.timeouts.connect (30 s by default)
+                client = stack.enter_context(Client(address, set_as_default=False))
             except OSError as error:
                 raise InputError(f"engine.address: cannot reach the dask scheduler at {address}: {error}") from None
             yield client.get_executor(pure=False), engine.threads_per_worker
