@@ -246,20 +246,34 @@ def validate_command(chains, settings):
     """Check chain configs without running them: keys, values, names, patterns, parameter table.
 
     Files that do not exist yet (inputs, tables) are warnings; a malformed config is an error
-    naming the key path and the allowed values (exit code 2).
+    naming the key path and the allowed values (exit code 2). A parameter table file (a document
+    with `classes` but no `inputs`) is checked as a table.
     """
+    import yaml
+
     from brdfcorr.config import load_config
+    from brdfcorr.params import ParameterTable
     from brdfcorr.pipeline import plan_run
 
     overrides = _overrides(settings)
     for chain in chains:
+        try:
+            document = yaml.safe_load(chain.read_text())
+        except (OSError, yaml.YAMLError):
+            document = None  # load_config reports it
+        if isinstance(document, dict) and "classes" in document and "inputs" not in document:
+            table = ParameterTable.load(chain)
+            click.echo(f"{chain}: valid parameter table; classes {', '.join(map(str, table.class_ids))}")
+            continue
         plan = plan_run(load_config(chain, overrides), require_inputs=False)
         for warning in plan.warnings:
             click.echo(f"brdfcorr: warning: {chain}: {warning}", err=True)
         missing = [scene for scene in plan.scenes if scene.action == "fail"]
         for scene in missing:
             click.echo(f"brdfcorr: warning: {chain}: scene {scene.name}: {scene.reason}", err=True)
-        click.echo(f"{chain}: valid; {len(plan.scenes)} scenes found, steps {', '.join(plan.steps) or '(none)'}")
+        incomplete = f" ({len(missing)} with missing inputs)" if missing else ""
+        click.echo(f"{chain}: valid; {len(plan.scenes)} scenes found{incomplete}, "
+                   f"steps {', '.join(plan.steps) or '(none)'}")
 
 
 def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> dict:

@@ -122,12 +122,13 @@ def test_yaml_errors_name_line(tmp_path):
         load_config(tmp_path / "missing.yaml")
 
 
-def test_every_example_chain_validates():
+def test_every_example_config_validates():
     assert len(CHAINS) >= 3, "configs/ should hold several example chains"
     assert REPO / "configs" / "demo.yaml" in CHAINS
-    result = CliRunner().invoke(main, ["validate", *map(str, CHAINS)])
+    result = CliRunner().invoke(main, ["validate", *map(str, EXAMPLES)])
     assert result.exit_code == 0, result.output
     assert result.output.count(": valid;") == len(CHAINS)
+    assert result.output.count(": valid parameter table;") == len(EXAMPLES) - len(CHAINS)
 
 
 def test_validate_cli_rejects_bad_config(tmp_path):
