@@ -15,7 +15,8 @@ outputs exist under ``existing: error``). :func:`run_chain` then
 
 A failing scene is recorded (message and error type) and the others go on. Outputs appear complete
 or not at all (temporary names renamed when complete), so a scene whose outputs all exist is
-complete: ``existing: skip`` resumes an interrupted run.
+complete: ``existing: skip`` resumes an interrupted run. A complete scene whose corrected image was
+made with another parameter table (its provenance tag) is redone, not skipped.
 
 Execution engines (``engine.scheduler``):
 
@@ -39,6 +40,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import dataclasses
 import glob
 import json
 import math
@@ -753,12 +755,16 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
     clock = time.perf_counter()
     plan = plan if plan is not None else plan_run(config)
     notify = progress or (lambda event, info: None)
-    to_run = [scene for scene in plan.scenes if scene.action != "skip"]
-    notify("plan", {"scenes": len(plan.scenes), "to_run": len(to_run)})
+    notify("plan", {"scenes": len(plan.scenes),
+                    "to_run": sum(scene.action != "skip" for scene in plan.scenes)})
 
     tick = time.perf_counter()
     table, fit_report = build_table(plan, progress)
     timings = {"parameters": round(time.perf_counter() - tick, 3)}
+    # Outputs made with another parameter table are not this run's results: redo them.
+    scenes = tuple(_unless_stale(scene, table) for scene in plan.scenes)
+    plan = dataclasses.replace(plan, scenes=scenes)
+    to_run = [scene for scene in plan.scenes if scene.action != "skip"]
     report = RunReport(plan, table, fit=fit_report, started=started)
     plan.output_dir.mkdir(parents=True, exist_ok=True)
 
@@ -802,6 +808,24 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
         temporary.write_text(json.dumps(report.to_dict(), indent=2, default=_json_default))
     report.path = plan.report
     return report
+
+
+def _unless_stale(scene: Scene, table: ParameterTable) -> Scene:
+    """The scene, turned from ``skip`` to ``run`` if its corrected output was written with another
+    parameter table (provenance tag ``brdf_parameter_table_content`` of
+    :func:`brdfcorr.correct.correct_files`)."""
+    if scene.action != "skip" or "corrected" not in scene.outputs:
+        return scene
+    import rasterio
+
+    try:
+        with rasterio.open(scene.outputs["corrected"]) as dataset:
+            written = json.loads(dataset.tags().get("brdf_parameter_table_content", "null"))
+    except (rasterio.errors.RasterioError, ValueError):
+        written = None
+    if written == json.loads(json.dumps(table.to_dict())):
+        return scene
+    return dataclasses.replace(scene, action="run", reason="outputs were made with another parameter table")
 
 
 def _previous_results(path: Path) -> dict[str, dict]:

@@ -232,3 +232,59 @@ def test_processes_engine_matches_threads(tmp_path):
         a, b = (read(tmp_path / folder / f"{name}_brdf.tif")[0] for folder in ("threads", "processes"))
         np.testing.assert_array_equal(a, b)
     assert [r["qa"] for r in threads.scenes] == [r["qa"] for r in processes.scenes]
+
+
+def test_resume_redoes_outputs_of_another_parameter_table(tmp_path):
+    make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path)
+    assert run_chain(load_config(chain)).ok
+    first = tmp_path / "out" / "line0_brdf.tif"
+    stamp = first.stat().st_mtime_ns
+    assert run_chain(load_config(chain)).n_skipped == 2  # same table: resume skips
+    table = example_table()
+    changed = table.with_class({**table[1].model_dump(exclude_none=True), "params": {
+        **table[1].params, "w": 0.05}})
+    changed.save(tmp_path / "params.yaml")
+    report = run_chain(load_config(chain))
+    assert report.n_ok == 2 and report.n_skipped == 0
+    assert first.stat().st_mtime_ns != stamp
+
+
+def test_sensor_angle_sources_are_passed_through(tmp_path, monkeypatch):
+    import brdfcorr.correct
+
+    make_scenes(tmp_path, count=1)
+    calls = []
+
+    def fake_correct_files(image, output, *, angles=None, angles_kind=None, angle_options=None, **options):
+        calls.append({"angles": angles, "angles_kind": angles_kind, "angle_options": angle_options})
+        return {"corrected": 0, "reference": brdfcorr.correct.ReferenceGeometry()}
+
+    monkeypatch.setattr(brdfcorr.correct, "correct_files", fake_correct_files)
+    chain = write_chain(tmp_path, inputs={
+        "images": ["scenes/*/image.tif"], "classes": "{dir}/classes.tif",
+        "angles": {"kind": "solar", "path": "2026-06-15T08:00:00+00:00",
+                   "options": {"view_zenith": 0.0, "view_azimuth": 0.0}}})
+    plan = plan_run(load_config(chain))
+    assert plan.scenes[0].action == "run"  # a time is not a file: nothing to find
+    report = run_chain(load_config(chain), plan=plan)
+    assert report.ok
+    assert calls == [{"angles": "2026-06-15T08:00:00+00:00", "angles_kind": "solar",
+                      "angle_options": {"view_zenith": 0.0, "view_azimuth": 0.0}}]
+    chain = write_chain(tmp_path, inputs={
+        "images": ["scenes/*/image.tif"], "classes": "{dir}/classes.tif",
+        "angles": {"kind": "envi_obs", "path": "{dir}/obs", "options": {"view_azimuth": "to_sensor"}}})
+    plan = plan_run(load_config(chain))
+    assert plan.scenes[0].action == "fail" and "missing input: angles" in plan.scenes[0].reason
+    assert plan.scenes[0].angles == str(tmp_path / "scenes" / "line0" / "obs")
+
+
+def test_progress_bar_and_events(tmp_path):
+    make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path)
+    events = []
+    run_chain(load_config(chain), progress=lambda event, info: events.append((event, info.get("status"))))
+    assert events == [("plan", None), ("scene", "ok"), ("scene", "ok")]
+    result = CliRunner().invoke(main, ["run", str(chain), "--overwrite", "--progress"])
+    assert result.exit_code == 0
+    assert "2/2" in result.stderr  # the overall bar counts scenes
