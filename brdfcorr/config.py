@@ -460,6 +460,13 @@ class EngineConfig(_Strict):
         Spatial chunk and output tile size [pixels], a multiple of 16.
     address : str, optional
         Scheduler address of a running cluster (``tcp://host:8786``); only with ``distributed``.
+
+    Notes
+    -----
+    On one machine ``threads`` is usually fastest (GDAL, numpy and the model kernels release the
+    GIL; measured: 6 scenes of 400 x 581 x 6 on 2 cores, threads 3.6 s, processes 8.4 s,
+    local distributed 8.7 s, mostly worker start-up). ``processes`` and ``distributed`` pay off for
+    long batches of large scenes and for several machines.
     """
 
     scheduler: Literal["threads", "processes", "synchronous", "distributed"] = "threads"
