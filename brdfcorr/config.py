@@ -278,11 +278,13 @@ class ImageryFit(_Strict):
 
 
 def _check_material(name: str) -> str:
-    from brdfcorr.materials import material_names
+    from brdfcorr.errors import UnknownNameError
+    from brdfcorr.materials import load_material, material_names
 
-    key = str(name).strip().lower().replace(" ", "_").replace("-", "_").replace("aluminum", "aluminium")
-    if key not in material_names():
-        raise ValueError(f"{name!r} is not a built-in material; allowed: {', '.join(map(repr, material_names()))}")
+    try:
+        load_material(name)
+    except UnknownNameError:
+        raise ValueError(f"{name!r} is not a built-in material; allowed: {', '.join(map(repr, material_names()))}") from None
     return name
 
 
