@@ -269,7 +269,19 @@ def _check_grid(reflectance: xr.DataArray, name: str, layer: xr.DataArray) -> xr
             if not np.allclose(layer[dim].values, reflectance[dim].values, rtol=0, atol=1e-9 * (
                     1 + np.abs(reflectance[dim].values).max())):
                 raise GridMismatchError(f"{name} has other {dim} coordinates than the reflectance")
+    layer_crs, grid_crs = _rio_crs(layer), _rio_crs(reflectance)
+    if layer_crs is not None and grid_crs is not None and layer_crs != grid_crs:
+        raise GridMismatchError(f"{name} has CRS {layer_crs} but the reflectance has {grid_crs}")
     return layer
+
+
+def _rio_crs(array: xr.DataArray):
+    try:
+        import rioxarray  # noqa: F401  (registers the .rio accessor)
+
+        return array.rio.crs
+    except Exception:  # no readable georeference: nothing to compare
+        return None
 
 
 def _resolve_reference(reference, params: ParameterTable) -> ReferenceGeometry:

@@ -316,6 +316,9 @@ def test_bad_inputs_have_clear_messages(scene):
         normalize(scene["reflectance"], *layers, example_table(), reference={"vza": 90.0})
     with pytest.raises(InputError, match="3-D"):
         normalize(scene["reflectance"][0], *layers, example_table())
+    other_crs = scene["classes"].rio.write_crs("EPSG:32633")
+    with pytest.raises(GridMismatchError, match="classes has CRS EPSG:32633 but the reflectance has EPSG:32632"):
+        normalize(scene["reflectance"], other_crs, *(scene[a] for a in ANGLES), example_table())
     shifted = scene["sza"].assign_coords(x=scene["sza"]["x"] + 5.0)
     with pytest.raises(GridMismatchError, match="sza has other x coordinates"):
         normalize(scene["reflectance"], scene["classes"], shifted, *(scene[a] for a in ANGLES[1:]),
