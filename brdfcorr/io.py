@@ -142,29 +142,38 @@ def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
     """
     n_bands = image.sizes[image.dims[0]]
     source = path or image.encoding.get("source", "image")
+    envi_header = {}
+    if path is not None:
+        # The file's own dataset-level tags: rioxarray's attrs mix in the tags of band 1.
+        with _opened(path, "image") as dataset:
+            tags, descriptions = dataset.tags(), dataset.descriptions
+            if dataset.driver == "ENVI":
+                envi_header = dataset.tags(ns="ENVI")
+    else:
+        tags = image.attrs
+        descriptions = image.attrs.get("long_name")
+        if isinstance(descriptions, str):
+            descriptions = (descriptions,) if n_bands == 1 else None
     values = None
     origin = ""
     if explicit is not None:
         values, origin = [float(v) for v in explicit], "the given wavelengths"
-    elif "wavelength" in image.attrs:
-        text = str(image.attrs["wavelength"])
+    elif "wavelength" in tags:
+        text = str(tags["wavelength"])
         try:
             values = [float(v) for v in re.split(r"[,\s]+", text.strip(" {}[]()")) if v]
         except ValueError:
             raise InputError(f"{source}: tag wavelength={text!r} is not a comma-separated list of numbers") from None
-        unit = str(image.attrs.get("wavelength_units", "nm")).strip().lower()
+        unit = str(tags.get("wavelength_units", "nm")).strip().lower()
         if unit not in _UNITS_TO_NM:
             raise InputError(f"{source}: unknown wavelength_units {unit!r}")
         values = [v * _UNITS_TO_NM[unit] for v in values]
         origin = "tag 'wavelength'"
     else:
-        descriptions = image.attrs.get("long_name")
-        if isinstance(descriptions, str):
-            descriptions = (descriptions,) if n_bands == 1 else None
-        parsed = [parse_wavelength(d) for d in descriptions] if descriptions else []
+        parsed = [parse_wavelength(d or "") for d in descriptions] if descriptions else []
         if parsed and all(p is not None for p in parsed):
             values, origin = parsed, "band descriptions"
-        elif path is not None and _driver(path) == "ENVI":
+        elif "wavelength" in envi_header:
             from brdfcorr.sensors.envi import envi_wavelengths
 
             try:
@@ -179,14 +188,6 @@ def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
     if not np.all(np.isfinite(values) & (values > 0)):
         raise InputError(f"{source}: wavelengths from {origin} must be finite and > 0 nm")
     return values
-
-
-def _driver(path) -> str | None:
-    try:
-        with rasterio.open(path) as dataset:
-            return dataset.driver
-    except rasterio.errors.RasterioError:
-        return None
 
 
 def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None) -> xr.DataArray:

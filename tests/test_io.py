@@ -198,3 +198,22 @@ def test_existing_target_survives_a_failed_write(scene, tmp_path):
 def test_blocksize_must_be_a_multiple_of_16(scene, tmp_path):
     with pytest.raises(InputError, match="multiple of 16"):
         io.write_rasters({tmp_path / "x.tif": scene["reflectance"]}, blocksize=20)
+
+
+def test_envi_header_wavelengths(tmp_path):
+    # GDAL's ENVI driver: "wavelength" and "wavelength units" header items (micrometres here).
+    profile = {"driver": "ENVI", "height": 4, "width": 5, "count": 3, "dtype": "float32", "crs": "EPSG:32632",
+               "transform": rasterio.transform.from_origin(500000, 5400000, 10, 10)}
+    with rasterio.open(tmp_path / "cube.img", "w", **profile) as dataset:
+        dataset.write(np.ones((3, 4, 5), "float32"))
+    with open(tmp_path / "cube.hdr", "a") as header:
+        header.write("wavelength units = Micrometers\nwavelength = { 0.45, 0.55, 0.65 }\n")
+    np.testing.assert_allclose(io.open_image(tmp_path / "cube.img")["wavelength"], [450, 550, 650])
+
+
+def test_a_band_tag_is_not_a_dataset_tag(tmp_path):
+    path = _write(tmp_path / "bandtag.tif", np.zeros((3, 4, 4), "float32"))
+    with rasterio.open(path, "r+") as dataset:
+        dataset.update_tags(1, wavelength="999")  # band 1 only: not the dataset's wavelength list
+        dataset.descriptions = ("450 nm", "550 nm", "650 nm")
+    np.testing.assert_allclose(io.open_image(path)["wavelength"], [450, 550, 650])
