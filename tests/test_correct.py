@@ -7,6 +7,8 @@ import dask.array as da
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import brdfcorr
 from brdfcorr.correct import (
@@ -323,3 +325,21 @@ def test_bad_inputs_have_clear_messages(scene):
     with pytest.raises(GridMismatchError, match="sza has other x coordinates"):
         normalize(scene["reflectance"], scene["classes"], shifted, *(scene[a] for a in ANGLES[1:]),
                   example_table())
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    sza=st.floats(0, 85), vza=st.floats(0, 85), saa=st.floats(0, 360), vaa=st.floats(0, 360),
+    class_id=st.sampled_from([1, 2, 3, 4]),
+)
+def test_reference_equal_to_the_observed_geometry_changes_nothing(sza, vza, saa, vaa, class_id):
+    # Property: f(ref) / f(obs) = 1 when the reference is the observed geometry, for every model.
+    one = lambda v: xr.DataArray(np.full((1, 1), v), dims=("y", "x"))  # noqa: E731
+    phi = abs(saa - vaa) % 360.0
+    phi = min(phi, 360.0 - phi)
+    reflectance = xr.DataArray(np.full((2, 1, 1), 0.3), dims=("band", "y", "x"),
+                               coords={"wavelength": ("band", [500.0, 800.0])})
+    corrected, qa = normalize(reflectance, one(class_id), one(sza), one(saa), one(vza), one(vaa),
+                              example_table(), reference={"sza": "observed", "vza": vza, "raa": phi})
+    np.testing.assert_allclose(corrected.values, 0.3, rtol=1e-9)
+    assert qa.values[0, 0] == 0
