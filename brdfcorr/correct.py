@@ -512,6 +512,7 @@ def correct_files(
     extrapolate: bool = False, limits=(0.2, 5.0), unknown: Literal["keep", "nan"] = "keep",
     flip_view_azimuth: bool = False, chunks: int | None = None, compress: str = "deflate",
     cog: bool = False, callbacks=(), table_source: str | None = None,
+    angles_kind: str = "geotiff", angle_options: dict | None = None,
 ) -> dict[str, object]:
     """Normalize GeoTIFF files: read image, angles and class map, write the corrected image.
 
@@ -546,6 +547,10 @@ def correct_files(
         Dask callbacks active while computing (a progress bar).
     table_source : str, optional
         Where an in-memory ``params`` came from, for the provenance tag.
+    angles_kind : str, default "geotiff"
+        ``"geotiff"`` for angle rasters on the image grid; otherwise a sensor source kind of
+        :func:`brdfcorr.sensors.read_angles` (``"envi_obs"``, ``"sentinel2"``, ``"landsat"``,
+        ``"solar"``) read from ``angles`` onto the image grid with ``angle_options``.
 
     Returns
     -------
@@ -557,7 +562,7 @@ def correct_files(
     from brdfcorr import __version__
     from brdfcorr import io as rio_io
 
-    inputs = [image, angles, sza, saa, vza, vaa, classes]
+    inputs = [image, sza, saa, vza, vaa, classes] + ([angles] if angles_kind == "geotiff" else [])
     for target in (output, qa_output):
         if target is not None and any(p is not None and Path(p).resolve() == Path(target).resolve() for p in inputs):
             raise InputError(f"output {target} is also an input; inputs are never overwritten")
@@ -568,7 +573,16 @@ def correct_files(
     chunks = rio_io.auto_chunk(image) if chunks is None else int(chunks)
     reflectance = rio_io.open_image(image, chunks=chunks, wavelengths=wavelengths)
     class_map = rio_io.open_classes(classes, chunks=chunks)
-    layers = rio_io.open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
+    if angles_kind == "geotiff":
+        layers = rio_io.open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
+    else:
+        from brdfcorr.sensors import read_angles
+
+        dataset = read_angles(angles_kind, angles, like=reflectance, **(angle_options or {}))
+        missing = [name for name in rio_io.ANGLE_NAMES if name not in dataset]
+        if missing:
+            raise InputError(f"angle source {angles} ({angles_kind}) gives no {', '.join(missing)}")
+        layers = {name: dataset[name] for name in rio_io.ANGLE_NAMES}
     rio_io.check_same_grid({"image": reflectance, "classes": class_map, **layers})
 
     reference = _resolve_reference(reference, params)
