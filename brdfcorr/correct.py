@@ -19,8 +19,9 @@ QA layer (uint8 bit flags, CF ``flag_masks``/``flag_meanings`` in its attrs):
 ==== ================ ========================================================================
 bit  name             meaning
 ==== ================ ========================================================================
-1    nodata           nodata (NaN) in some band, an angle, or the class map; output is nodata
-2    no_class         class 0 ("no class"): not corrected (factor 1, or NaN on request)
+1    nodata           nodata (NaN) in some band or an angle; output is nodata (in those bands)
+2    no_class         class 0 or the class map's nodata ("no class"): not corrected (factor 1,
+                      or NaN on request)
 4    unknown_class    class id absent from the parameter table: not corrected (1, or NaN)
 8    limited          the factor was clipped to the limits in at least one band
 16   invalid_geometry a zenith outside [0, 90) deg: output is nodata
@@ -151,10 +152,13 @@ def _normalize_block(
     saa, vaa = (np.asarray(a, dtype=np.float64).reshape(n) for a in (saa, vaa))
 
     angles_finite = np.isfinite(theta_i) & np.isfinite(theta_r) & np.isfinite(saa) & np.isfinite(vaa)
-    class_missing = np.isnan(classes) if classes.dtype.kind == "f" else np.zeros(n, bool)
+    # The class map's nodata (and NaN) means "no class", like class 0 (DESIGN.md).
+    no_class = classes == 0
+    if classes.dtype.kind == "f":
+        no_class |= np.isnan(classes)
     if class_nodata is not None:
-        class_missing |= classes == class_nodata
-    nodata = ~angles_finite | class_missing
+        no_class |= classes == class_nodata
+    nodata = ~angles_finite
     with np.errstate(invalid="ignore"):
         in_domain = (theta_i >= 0) & (theta_i < 90) & (theta_r >= 0) & (theta_r < 90)
     invalid_geometry = angles_finite & ~in_domain
@@ -168,14 +172,18 @@ def _normalize_block(
 
     base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
     base[~usable] = np.nan
-    present = _present_classes(classes[usable])
+    unclassified = usable & no_class
+    qa[unclassified] |= QA_NO_CLASS
+    if unknown_nan:
+        base[unclassified] = np.nan
+    present = _present_classes(classes[usable & ~no_class])
     reference_sza = np.asarray(reference_sza, dtype=np.float64)
     states = []
     for class_id in present:
         members = usable & (classes == class_id)
         plan = plans.get(int(class_id)) if float(class_id).is_integer() else None
         if plan is None:
-            qa[members] |= QA_NO_CLASS if class_id == 0 else QA_UNKNOWN_CLASS
+            qa[members] |= QA_UNKNOWN_CLASS
             if unknown_nan:
                 base[members] = np.nan
             continue
@@ -316,7 +324,7 @@ def normalize(
     reflectance : xarray.DataArray (band, y, x)
         Reflectance (any units; they are kept). NaN is nodata. numpy or dask backed.
     classes : xarray.DataArray (y, x)
-        Class map: ids of ``params``; 0 and ``class_nodata`` mean "no class" and nodata.
+        Class map: ids of ``params``; 0, NaN and ``class_nodata`` mean "no class".
     sza, saa, vza, vaa : xarray.DataArray (y, x)
         Solar zenith, solar azimuth, view zenith, view azimuth per pixel [deg] (``DESIGN.md``
         conventions: azimuths of the directions from the pixel towards the sun and the sensor).
@@ -333,7 +341,7 @@ def normalize(
     extrapolate : bool, default False
         Let band centres outside a class's table wavelengths take the edge values.
     unknown : {"keep", "nan"}, default "keep"
-        What to do with pixels of class 0 or of ids absent from the table: keep them unchanged
+        What to do with pixels of no class or of ids absent from the table: keep them unchanged
         (factor 1) or set them to NaN. They are flagged in the QA layer either way.
     class_nodata : number, optional
         Nodata value of the class map; by default its rioxarray nodata (``classes.rio.nodata``).

@@ -242,11 +242,13 @@ def test_nodata_propagation(scene):
                               reference={"sza": 35.0}, class_nodata=255)
     values = corrected.values
     assert np.isnan(values[1, 0, 0]) and np.isfinite(values[[0, 2, 3], 0, 0]).all()
-    assert np.isnan(values[:, 0, 1:4]).all()
-    assert np.isfinite(values[:, 1:]).all() and np.isfinite(values[:, 0, 4:]).all()
-    assert qa.values[0, 0] == QA_NODATA and qa.values[0, 1] == QA_NODATA and qa.values[0, 3] == QA_NODATA
+    assert np.isnan(values[:, 0, 1:3]).all()
+    # The class map's nodata means "no class" (DESIGN.md): unchanged and flagged.
+    np.testing.assert_array_equal(values[:, 0, 3], reflectance.values[:, 0, 3])
+    assert np.isfinite(values[:, 1:]).all() and np.isfinite(values[:, 0, 3:]).all()
+    assert qa.values[0, 0] == QA_NODATA and qa.values[0, 1] == QA_NODATA and qa.values[0, 3] == QA_NO_CLASS
     assert qa.values[0, 2] == QA_INVALID_GEOMETRY
-    assert int(qa_counts(qa)["nodata"]) == 4
+    assert int(qa_counts(qa)["nodata"]) == 3 and int(qa_counts(qa)["no_class"]) == 1
 
 
 def test_class_nodata_from_rio(scene):
@@ -254,7 +256,7 @@ def test_class_nodata_from_rio(scene):
     classes[2, 2] = 200
     classes = classes.rio.write_nodata(200)
     _, qa = normalize(scene["reflectance"], classes, *(scene[a] for a in ANGLES), example_table())
-    assert qa.values[2, 2] == QA_NODATA
+    assert qa.values[2, 2] == QA_NO_CLASS
 
 
 def test_flip_view_azimuth(scene):
