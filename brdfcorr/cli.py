@@ -294,6 +294,24 @@ def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> d
     return parsed
 
 
+def _options(option: str, items: tuple[str, ...]) -> dict[str, object]:
+    """Parse ``KEY=VALUE`` items; values are read as YAML scalars (``20`` -> 20, ``B04`` -> "B04")."""
+    import yaml
+
+    from brdfcorr.errors import ParameterError
+
+    parsed = {}
+    for item in items:
+        key, separator, text = item.partition("=")
+        if not separator or not key.strip():
+            raise ParameterError(f"{option} {item!r}: expected KEY=VALUE")
+        try:
+            parsed[key.strip()] = yaml.safe_load(text) if text.strip() else ""
+        except yaml.YAMLError:
+            parsed[key.strip()] = text
+    return parsed
+
+
 def _pairs(option: str, items: tuple[str, ...]) -> dict[int, str]:
     """Parse ``ID=TEXT`` command-line items into {id: text}."""
     from brdfcorr.errors import ParameterError
@@ -541,6 +559,13 @@ def _reference_sza(value: str | None):
 @click.argument("image", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--angles", type=click.Path(dir_okay=False, path_type=Path),
               help="4-band raster of sza, saa, vza, vaa [deg] on the image grid.")
+@click.option("--angles-kind", type=click.Choice(["geotiff", "envi_obs", "sentinel2", "landsat", "solar"]),
+              default="geotiff", show_default=True,
+              help="What --angles is: a 4-band GeoTIFF, an ENVI obs file (AVIRIS-NG/-3), a Sentinel-2 "
+                   "MTD_TL.xml, a Landsat C2 angle band (…_SZA.TIF) or, for 'solar', a UTC time.")
+@click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE",
+              help="Option of the angle reader (repeatable), e.g. band=B04, resolution=20, "
+                   "ang=LC08_..._ANG.txt.")
 @click.option("--sza", type=click.Path(dir_okay=False, path_type=Path), help="Solar zenith raster [deg].")
 @click.option("--saa", type=click.Path(dir_okay=False, path_type=Path), help="Solar azimuth raster [deg].")
 @click.option("--vza", type=click.Path(dir_okay=False, path_type=Path), help="View zenith raster [deg].")
@@ -570,7 +595,7 @@ def _reference_sza(value: str | None):
 @click.option("--chunk", type=int, help="Chunk and tile size [pixels] [default: 512, less for many bands].")
 @click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
 @handle_errors
-def correct_command(image, angles, sza, saa, vza, vaa, classes, params_path, output, ref_sza, ref_vza,
+def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, params_path, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, extrapolate, flip_view_azimuth,
                     qa_path, compress, cog, chunk, progress):
     """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models."""
@@ -603,7 +628,8 @@ def correct_command(image, angles, sza, saa, vza, vaa, classes, params_path, out
         classes=classes, reference=reference, qa_output=qa_path, wavelengths=wavelengths,
         extrapolate=extrapolate, limits=None if no_limits else limits, unknown=unknown,
         flip_view_azimuth=flip_view_azimuth, chunks=chunk, compress=compress, cog=cog,
-        callbacks=callbacks, table_source=str(params_path),
+        callbacks=callbacks, table_source=str(params_path), angles_kind=angles_kind,
+        angle_options=_options("--angle-option", angle_option),
     )
     click.echo(
         f"wrote {output}: {summary['corrected']} pixels corrected, {summary['limited']} limited, "
