@@ -40,7 +40,7 @@ import xarray as xr
 
 from brdfcorr.errors import ParameterError
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
-from brdfcorr.models import Model, get_model
+from brdfcorr.models import SURFACE_MODELS, Model, get_model
 
 __all__ = [
     "ClassFitResult",
@@ -51,17 +51,15 @@ __all__ = [
     "GuardRails",
     "ClassFit",
     "ClassFitWarning",
-    "LINEAR_TERMS",
+    "intensity_terms",
     "fit_class_samples",
 ]
 
-#: The intensity (linear) terms of each surface model: (constant term, term multiplying the basis).
-LINEAR_TERMS: dict[str, tuple[str, ...]] = {
-    "torrance_sparrow": ("t0", "t1"),
-    "torrance_sparrow_simplified": ("t0", "t1"),
-    "empirical": ("t0", "a"),
-    "lambertian": ("t0",),
-}
+def intensity_terms(model: Model) -> tuple[str, ...]:
+    """The intensity terms of a model (its affine parameters, :attr:`Model.affine`): ``("t0", "t1")``
+    for Torrance-Sparrow, ``("t0", "a")`` for the empirical model, ``("t0",)`` for Lambertian."""
+    return tuple(name for name in model.affine if name is not None)
+
 
 #: Shape parameters held fixed unless the caller frees them (paper 003 fixes k = 0.25: n, k and t1
 #: cannot be retrieved together from reflectance alone).
@@ -194,7 +192,7 @@ class _LinearProfile:
         self.geometry = geometry
         self.data = data  # (N, B) BRDF [sr^-1]
         self.fixed = fixed
-        self.terms = LINEAR_TERMS[model.name]
+        self.terms = intensity_terms(model)
         self.n = data.shape[0]
         self.sum_y = data.sum(axis=0)
         self.sum_yy = np.einsum("nb,nb->b", data, data)
@@ -394,7 +392,7 @@ def fit_class_samples(
     Parameters
     ----------
     model : str or Model
-        A surface model of the registry with linear intensity terms (:data:`LINEAR_TERMS`).
+        A surface model of the registry with intensity terms (:func:`intensity_terms`).
     theta_i, theta_r, phi : array-like, shape (N,)
         Solar zenith, view zenith and relative azimuth of each sample [deg].
     brdf : array-like, shape (N, B)
@@ -415,11 +413,12 @@ def fit_class_samples(
         ``condition`` (of the column-normalized linear design), ``shape`` (the free shape values).
     """
     model = get_model(model)
-    if model.name not in LINEAR_TERMS:
+    terms = intensity_terms(model)
+    if model.affine[0] is None:
+        fittable = [name for name in SURFACE_MODELS if get_model(name).affine[0] is not None]
         raise ParameterError(
-            f"model {model.name!r} cannot be fitted to imagery; use one of {', '.join(LINEAR_TERMS)}"
+            f"model {model.name!r} cannot be fitted to imagery; use one of {', '.join(fittable)}"
         )
-    terms = LINEAR_TERMS[model.name]
     fixed = {**DEFAULT_FIXED.get(model.name, {}), **dict(fixed or {})}
     for name in fixed:
         if name in terms:
@@ -716,7 +715,7 @@ def fit_classes(
     images, classes, angles :
         One or many scenes; see :func:`sample_classes`.
     model : str or Model, default "torrance_sparrow"
-        Surface model with linear intensity terms (:data:`LINEAR_TERMS`) for every class ...
+        Surface model with intensity terms (:func:`intensity_terms`) for every class ...
     class_models : mapping of int to str, optional
         ... except these classes, which get their own model.
     names : mapping of int to str, optional

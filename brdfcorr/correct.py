@@ -70,19 +70,6 @@ QA_FLAGS = {
     "invalid_geometry": QA_INVALID_GEOMETRY,
 }
 
-# Parameters in which a surface model is affine, f = offset + scale * g(geometry; other parameters),
-# read off the model equations: paper 003 eq. 1 (t0 + t1 * ...), paper 000 eq. 5 plus the Lambertian
-# t0 (t0 + a * ...), and f = t0. Bands that differ only in these share g, so spectral tables evaluate
-# the angular terms once per pixel. Models not listed are evaluated in full for every distinct
-# parameter set (tests/test_correct.py checks this table against the registry kernels).
-AFFINE_PARAMETERS: dict[str, tuple[str, str | None]] = {
-    "torrance_sparrow": ("t0", "t1"),
-    "torrance_sparrow_simplified": ("t0", "t1"),
-    "empirical": ("t0", "a"),
-    "lambertian": ("t0", None),
-}
-
-
 class Normalized(NamedTuple):
     """Result of :func:`normalize`: the corrected cube and its QA layer (both DataArrays)."""
 
@@ -109,7 +96,7 @@ class _ClassPlan:
 
 
 def _plan(class_id: int, model: Model, params: dict[str, np.ndarray]) -> _ClassPlan:
-    offset_name, scale_name = AFFINE_PARAMETERS.get(model.name, (None, None))
+    offset_name, scale_name = model.affine
     n_bands = len(next(iter(params.values())))
     offset = params[offset_name] if offset_name else np.zeros(n_bands)
     if scale_name:
@@ -128,7 +115,7 @@ def _plan(class_id: int, model: Model, params: dict[str, np.ndarray]) -> _ClassP
 
 def _g(plan: _ClassPlan, geometry: ScatteringGeometry, shape: dict[str, float]):
     """The model at offset 0 and scale 1 (the angular part), on a precomputed geometry."""
-    offset_name, scale_name = AFFINE_PARAMETERS.get(plan.model.name, (None, None))
+    offset_name, scale_name = plan.model.affine
     params = dict(shape)
     if offset_name:
         params[offset_name] = 0.0

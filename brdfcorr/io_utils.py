@@ -20,6 +20,10 @@ def atomic_path(target: str | os.PathLike):
         prefix=f".{target.name}.", suffix=".partial", dir=target.parent or "."
     )
     os.close(handle)
+    # mkstemp creates the file private (0600); give the output the mode a plain open() would.
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(temporary, 0o666 & ~umask)
     try:
         yield Path(temporary)
         os.replace(temporary, target)

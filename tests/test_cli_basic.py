@@ -30,3 +30,24 @@ def test_demo_writes_a_png(tmp_path):
     image = matplotlib.image.imread(tmp_path / "out" / "materials_brdf.png")
     assert image.shape[0] > 400 and image.shape[1] > 800
     assert not [p for p in (tmp_path / "out").rglob("*") if p.name.endswith(".partial")]  # no temp left
+
+
+def test_atomic_path_leaves_nothing_on_failure_and_uses_the_default_mode(tmp_path):
+    import os
+
+    import pytest
+
+    from brdfcorr.io_utils import atomic_path
+
+    target = tmp_path / "out.txt"
+    with pytest.raises(RuntimeError):
+        with atomic_path(target) as temporary:
+            temporary.write_text("partial")
+            raise RuntimeError("killed mid-write")
+    assert list(tmp_path.iterdir()) == []
+    with atomic_path(target) as temporary:
+        temporary.write_text("complete")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert target.read_text() == "complete"
+    assert target.stat().st_mode & 0o777 == 0o666 & ~umask

@@ -94,6 +94,11 @@ class Model:
         In the order of the model function's signature.
     kernel : callable
         ``kernel(geometry, **params)`` on numpy or dask arrays, without validation.
+    affine : (str or None, str or None)
+        Names of the parameters in which the model is affine, ``f = offset + scale * g(geometry;
+        other parameters)``, read off the model equation (None where there is none). The
+        correction shares ``g`` between bands that differ only in them; the fit from imagery
+        solves them by linear least squares.
     """
 
     name: str
@@ -101,6 +106,7 @@ class Model:
     reference: str
     parameters: tuple[Parameter, ...]
     kernel: Callable
+    affine: tuple[str | None, str | None] = (None, None)
 
     @property
     def parameter_names(self) -> tuple[str, ...]:

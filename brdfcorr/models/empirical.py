@@ -41,6 +41,7 @@ EMPIRICAL = Model(
     reference="Meister et al. (1998), eq. 5",
     parameters=(A, B, C, T0),
     kernel=_empirical_kernel,
+    affine=("t0", "a"),
 )
 
 
@@ -139,6 +140,7 @@ LAMBERTIAN = Model(
     reference="Meister et al. (2000), eq. 1 with t1 = 0",
     parameters=(T0,),
     kernel=_lambertian_kernel,
+    affine=("t0", None),
 )
 
 

@@ -158,6 +158,7 @@ TORRANCE_SPARROW = Model(
     reference="Meister et al. (2000), eq. 1; Torrance & Sparrow (1967)",
     parameters=TS_PARAMETERS,
     kernel=_ts_kernel,
+    affine=("t0", "t1"),
 )
 
 TORRANCE_SPARROW_SIMPLIFIED = Model(
@@ -166,6 +167,7 @@ TORRANCE_SPARROW_SIMPLIFIED = Model(
     reference="Meister et al. (2000), section 5",
     parameters=TS_PARAMETERS,
     kernel=_ts_simplified_kernel,
+    affine=("t0", "t1"),
 )
 
 
