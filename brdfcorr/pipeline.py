@@ -582,22 +582,13 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig) -> dict:
     from brdfcorr.correct import correct_files
 
     step, outputs = config.steps.correct, config.outputs
-    angles = {}
-    if scene.angles_kind == "geotiff":
-        angles["angles"] = scene.angles
-    else:
-        import inspect
-
-        if "angles_kind" not in inspect.signature(correct_files).parameters:
-            raise InputError(f"angle source kind {scene.angles_kind!r} is not supported by this "
-                             "brdfcorr's correct_files yet; use kind 'geotiff'")
-        angles.update(angles=scene.angles, angles_kind=scene.angles_kind, angle_options=dict(scene.angle_options))
     return correct_files(
         scene.image, scene.outputs["corrected"], params=table, classes=scene.classes,
         reference=config.reference, qa_output=scene.outputs.get("qa"), wavelengths=config.inputs.wavelengths,
         extrapolate=step.extrapolate, limits=step.limits, unknown=step.unknown,
         flip_view_azimuth=step.flip_view_azimuth, chunks=config.engine.chunk, compress=outputs.compress,
-        cog=outputs.cog, table_source=config.source, **angles,
+        cog=outputs.cog, table_source=config.source, angles=scene.angles, angles_kind=scene.angles_kind,
+        angle_options=dict(scene.angle_options),
     )
 
 

@@ -249,31 +249,37 @@ def test_resume_redoes_outputs_of_another_parameter_table(tmp_path):
     assert first.stat().st_mtime_ns != stamp
 
 
-def test_sensor_angle_sources_are_passed_through(tmp_path, monkeypatch):
-    import brdfcorr.correct
+def test_sensor_angle_source_solar(tmp_path):
+    """The ``solar`` kind (sun from time and coordinates, constant view) gives the same output as
+    a geotiff of the same angles computed beforehand with brdfcorr.sensors.read_angles."""
+    import xarray as xr
 
-    make_scenes(tmp_path, count=1)
-    calls = []
+    from brdfcorr import io as rio_io
+    from brdfcorr.sensors import read_angles
 
-    def fake_correct_files(image, output, *, angles=None, angles_kind=None, angle_options=None, **options):
-        calls.append({"angles": angles, "angles_kind": angles_kind, "angle_options": angle_options})
-        return {"corrected": 0, "reference": brdfcorr.correct.ReferenceGeometry()}
-
-    monkeypatch.setattr(brdfcorr.correct, "correct_files", fake_correct_files)
-    chain = write_chain(tmp_path, inputs={
-        "images": ["scenes/*/image.tif"], "classes": "{dir}/classes.tif",
-        "angles": {"kind": "solar", "path": "2026-06-15T08:00:00+00:00",
-                   "options": {"view_zenith": 0.0, "view_azimuth": 0.0}}})
+    scenes = make_scenes(tmp_path, count=1)
+    time, view = "2026-06-15T08:00:00+00:00", {"view_zenith": 20.0, "view_azimuth": 270.0}
+    inputs = {"images": ["scenes/*/image.tif"], "classes": "{dir}/classes.tif",
+              "angles": {"kind": "solar", "path": time, "options": view}}
+    chain = write_chain(tmp_path, inputs=inputs, outputs={"directory": "solar", "naming": "{parent}.tif"})
     plan = plan_run(load_config(chain))
-    assert plan.scenes[0].action == "run"  # a time is not a file: nothing to find
+    assert plan.scenes[0].action == "run" and plan.scenes[0].angles == time  # a time, not a file
     report = run_chain(load_config(chain), plan=plan)
-    assert report.ok
-    assert calls == [{"angles": "2026-06-15T08:00:00+00:00", "angles_kind": "solar",
-                      "angle_options": {"view_zenith": 0.0, "view_azimuth": 0.0}}]
-    chain = write_chain(tmp_path, inputs={
-        "images": ["scenes/*/image.tif"], "classes": "{dir}/classes.tif",
-        "angles": {"kind": "envi_obs", "path": "{dir}/obs", "options": {"view_azimuth": "to_sensor"}}})
-    plan = plan_run(load_config(chain))
+    assert report.ok, report.scenes
+
+    paths = scenes["line0"][1]
+    angles = read_angles("solar", time, like=rio_io.open_image(paths["image"]), **view)
+    stack = xr.concat([angles[name] for name in ("sza", "saa", "vza", "vaa")], dim="band")
+    stack.assign_coords(band=[1, 2, 3, 4]).rio.to_raster(tmp_path / "solar_angles.tif")
+    inputs["angles"] = {"kind": "geotiff", "path": str(tmp_path / "solar_angles.tif")}
+    chain = write_chain(tmp_path, inputs=inputs, outputs={"directory": "geotiff", "naming": "{parent}.tif"})
+    assert run_chain(load_config(chain)).ok
+    solar = read(tmp_path / "solar" / "line0.tif")[0]
+    np.testing.assert_array_equal(solar, read(tmp_path / "geotiff" / "line0.tif")[0])
+    assert np.isfinite(solar).all() and not np.allclose(solar, read(paths["image"])[0])  # corrected
+
+    inputs["angles"] = {"kind": "envi_obs", "path": "{dir}/obs", "options": {"view_azimuth": "to_sensor"}}
+    plan = plan_run(load_config(write_chain(tmp_path, inputs=inputs)))
     assert plan.scenes[0].action == "fail" and "missing input: angles" in plan.scenes[0].reason
     assert plan.scenes[0].angles == str(tmp_path / "scenes" / "line0" / "obs")
 
