@@ -528,7 +528,8 @@ def fit_one_class(
                 "the geometry does not separate the diffuse and specular terms"
             )
         median_r2 = float(np.nanmedian(report.r2)) if np.size(report.r2) else math.nan
-        if not median_r2 >= guard.min_r2:
+        # A Lambertian model explains no angular variation by construction (R^2 ~ 0): no guard.
+        if model.affine[1] is not None and not median_r2 >= guard.min_r2:
             report.reasons.append(f"median R^2 {median_r2:.3f} < {guard.min_r2:g}")
     if report.reasons:
         report.status = "fallback" if fallback else "uncorrected"
