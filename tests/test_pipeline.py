@@ -185,16 +185,16 @@ def test_imagery_fit_step(tmp_path):
     assert report.ok, report.scenes
     fitted = yaml.safe_load((tmp_path / "out" / "fitted_params.yaml").read_text())
     status = {fit["class_id"]: fit["status"] for fit in report.fit["classes"]}
-    # Class 4 is Lambertian with a random brightness: no angular signal, R^2 ~ 0 fails the guard
-    # rail of brdfcorr.classfit and the class is left out (uncorrected), with a warning.
-    assert status == {1: "fitted", 2: "fitted", 3: "fitted", 4: "uncorrected"}
-    assert any("class 4" in warning for warning in report.fit["warnings"])
-    assert [entry["id"] for entry in fitted["classes"]] == [1, 2, 3]
+    # Class 4 is Lambertian: no angular signal to explain (R^2 ~ 0 by construction), so the R^2
+    # guard rail does not apply; it is fitted (t0 = mean BRDF) and corrected with factor 1.
+    assert status == {1: "fitted", 2: "fitted", 3: "fitted", 4: "fitted"}
+    assert not any("class 4" in warning for warning in report.fit["warnings"])
+    assert [entry["id"] for entry in fitted["classes"]] == [1, 2, 3, 4]
     assert fitted["classes"][0]["name"] == "roof_tile" and fitted["classes"][1]["name"] == "grass"
     # The run's table is the fitted one (plus nothing else: the material of class 1 is replaced).
     table = report.to_dict()["parameters"]["table"]["classes"]
     assert [entry["params"] for entry in table] == [entry["params"] for entry in fitted["classes"]]
-    assert all(entry["qa"]["unknown_class"] > 0 for entry in report.scenes)  # class 4 pixels flagged
+    assert all(entry["qa"]["unknown_class"] == 0 for entry in report.scenes)
     # Resume reuses the fitted table instead of refitting.
     again = run_chain(load_config(chain))
     assert again.fit == {"source": "imagery", "reused": str(tmp_path / "out" / "fitted_params.yaml")}
