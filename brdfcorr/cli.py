@@ -1,13 +1,17 @@
 """The ``brdfcorr`` command line: a thin layer over the library.
 
-Commands parse arguments, call library functions, print tables and map errors to exit codes:
-2 for bad input (any :class:`brdfcorr.errors.BrdfcorrError`), 1 for internal failures.
+Commands parse arguments, call library functions, print tables and map errors to exit codes
+(:data:`EXIT_CODES`): 2 for bad input or an output that cannot be written (any
+:class:`brdfcorr.errors.BrdfcorrError`, and click's usage errors), 1 for internal failures (any
+other exception), 3 when ``run`` finished but some scenes failed. An error is one line on stderr;
+the global ``--debug`` option adds the traceback.
 """
 
 from __future__ import annotations
 
 import functools
 import sys
+import traceback
 from pathlib import Path
 
 import click
@@ -26,23 +30,66 @@ def _format_table(rows: list[dict[str, str]]) -> str:
     return "\n".join(lines)
 
 
+#: Exit code of a bad input, config, parameter or option, or of an output that cannot be written.
+EXIT_BAD_INPUT = 2
+#: Exit code of an internal failure (a bug: any exception that is not a BrdfcorrError).
+EXIT_INTERNAL = 1
+#: Exit code of `brdfcorr run` when the run finished but some scenes failed (see the report).
+EXIT_SCENES_FAILED = 3
+EXIT_CODES = {0: "success", EXIT_INTERNAL: "internal error (a bug; --debug shows the traceback)",
+              EXIT_BAD_INPUT: "bad input, config, parameter or option, or an output that cannot be written",
+              EXIT_SCENES_FAILED: "run: the run finished but some scenes failed (see the report)"}
+
+
+def _debug_enabled() -> bool:
+    context = click.get_current_context(silent=True)
+    return bool(context is not None and context.find_root().params.get("debug"))
+
+
+def _fail(error: Exception):
+    """One line on stderr (the traceback before it with --debug), then the exit code of the error."""
+    if _debug_enabled():
+        traceback.print_exception(error, file=sys.stderr)
+    # One line: an unattended batch greps its logs line by line.
+    text = " ".join(str(error).split("\n")).strip()
+    if isinstance(error, BrdfcorrError):
+        click.echo(f"brdfcorr: error: {text}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    hint = "" if _debug_enabled() else " (rerun with --debug for the traceback)"
+    click.echo(f"brdfcorr: internal error: {type(error).__name__}: {text}{hint}", err=True)
+    sys.exit(EXIT_INTERNAL)
+
+
 def handle_errors(command):
-    """Turn library errors into one line on stderr and exit code 2."""
+    """Map exceptions to exit codes: :class:`BrdfcorrError` -> one line and 2, any other exception
+    -> one "internal error" line and 1; click's own exceptions (usage errors, exit, abort) pass."""
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
         try:
             return command(*args, **kwargs)
-        except BrdfcorrError as error:
-            click.echo(f"brdfcorr: error: {error}", err=True)
-            sys.exit(2)
+        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except Exception as error:  # noqa: BLE001 (the one place every failure is turned into an exit code)
+            _fail(error)
 
     return wrapper
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Group(click.Group):
+    """The command group: every command and subgroup runs under :func:`handle_errors`."""
+
+    def invoke(self, ctx):
+        return handle_errors(super().invoke)(ctx)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]},
+             epilog="Exit codes: 0 success; 2 bad input, config, parameter or option, or an output "
+                    "that cannot be written (one line on stderr naming the file, key, band or class); "
+                    "1 internal error (a bug; --debug shows the traceback); 3 run: some scenes failed.")
+@click.option("--debug", is_flag=True, help="Show the traceback of an error.")
 @click.version_option(__version__, prog_name="brdfcorr")
-def main():
+def main(debug):
     """Specular BRDF models and BRDF normalization of reflectance imagery."""
 
 
@@ -107,10 +154,6 @@ def demo_command(output_dir: Path, config_path, progress):
 # ------------------------------------------------------------------------------------------------
 # brdfcorr run / validate: chain configs (library: brdfcorr.config, brdfcorr.pipeline)
 # ------------------------------------------------------------------------------------------------
-
-#: Exit code of `brdfcorr run` when the run finished but some scenes failed (see the report).
-EXIT_SCENES_FAILED = 3
-
 
 def _overrides(items: tuple[str, ...]) -> dict:
     """``--set KEY=VALUE`` items: dotted config keys, values read as YAML (``engine.workers=2``)."""
@@ -594,11 +637,16 @@ def _reference_sza(value: str | None):
 @click.option("--cog", is_flag=True, help="Write Cloud-Optimized GeoTIFFs.")
 @click.option("--chunk", type=int, help="Chunk and tile size [pixels] [default: 512, less for many bands].")
 @click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
+@click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
 @handle_errors
 def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, params_path, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, extrapolate, flip_view_azimuth,
-                    qa_path, compress, cog, chunk, progress):
-    """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models."""
+                    qa_path, compress, cog, chunk, progress, overwrite):
+    """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.
+
+    Outputs are written to temporary names beside them and renamed when complete; an existing
+    output is replaced only with --overwrite, and an input never.
+    """
     import time
 
     from brdfcorr.correct import correct_files
@@ -629,7 +677,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
         extrapolate=extrapolate, limits=None if no_limits else limits, unknown=unknown,
         flip_view_azimuth=flip_view_azimuth, chunks=chunk, compress=compress, cog=cog,
         callbacks=callbacks, table_source=str(params_path), angles_kind=angles_kind,
-        angle_options=_options("--angle-option", angle_option),
+        angle_options=_options("--angle-option", angle_option), overwrite=overwrite,
     )
     click.echo(
         f"wrote {output}: {summary['corrected']} pixels corrected, {summary['limited']} limited, "

@@ -19,7 +19,8 @@ QA layer (uint8 bit flags, CF ``flag_masks``/``flag_meanings`` in its attrs):
 ==== ================ ========================================================================
 bit  name             meaning
 ==== ================ ========================================================================
-1    nodata           nodata (NaN) in some band or an angle; output is nodata (in those bands)
+1    nodata           nodata (NaN or +-inf) in some band or an angle; output is nodata (in those
+                      bands)
 2    no_class         class 0 or the class map's nodata ("no class"): not corrected (factor 1,
                       or NaN on request)
 4    unknown_class    class id absent from the parameter table: not corrected (1, or NaN)
@@ -39,7 +40,7 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
-from brdfcorr.errors import GridMismatchError, InputError
+from brdfcorr.errors import GridMismatchError, InputError, OutputError
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model
 from brdfcorr.params import ParameterTable, ReferenceGeometry
@@ -154,8 +155,11 @@ def _normalize_block(
     qa = np.zeros(n, dtype=np.uint8)
     qa[nodata] |= QA_NODATA
     qa[invalid_geometry] |= QA_INVALID_GEOMETRY
-    if cube.dtype.kind == "f":  # NaN in any band (np.min propagates NaN: one pass, no mask cube)
-        qa[np.isnan(np.min(cube, axis=0))] |= QA_NODATA
+    bad_pixels = None
+    if cube.dtype.kind == "f":  # NaN or +-inf in any band (min/max propagate them: no mask cube)
+        bad = ~(np.isfinite(np.min(cube, axis=0)) & np.isfinite(np.max(cube, axis=0)))
+        qa[bad] |= QA_NODATA
+        bad_pixels = np.flatnonzero(bad)
 
     base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
     base[~usable] = np.nan
@@ -207,6 +211,12 @@ def _normalize_block(
                 ratio = clipped
             factor[index] = ratio
         np.multiply(cube[position], factor, out=out[position], casting="unsafe")
+    if bad_pixels is not None and bad_pixels.size:  # +-inf is nodata too: NaN in the output
+        values = out[:, bad_pixels]
+        infinite = np.isinf(cube[:, bad_pixels])
+        if infinite.any():
+            values[infinite] = np.nan
+            out[:, bad_pixels] = values
     for plan, index, _ in states:
         qa[index[limited[plan.id]]] |= QA_LIMITED
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
@@ -309,7 +319,8 @@ def normalize(
     Parameters
     ----------
     reflectance : xarray.DataArray (band, y, x)
-        Reflectance (any units; they are kept). NaN is nodata. numpy or dask backed.
+        Reflectance (any units; they are kept). NaN and +-inf are nodata (NaN in the output).
+        numpy or dask backed.
     classes : xarray.DataArray (y, x)
         Class map: ids of ``params``; 0, NaN and ``class_nodata`` mean "no class".
     sza, saa, vza, vaa : xarray.DataArray (y, x)
@@ -507,7 +518,7 @@ def correct_files(
     extrapolate: bool = False, limits=(0.2, 5.0), unknown: Literal["keep", "nan"] = "keep",
     flip_view_azimuth: bool = False, chunks: int | None = None, compress: str = "deflate",
     cog: bool = False, callbacks=(), table_source: str | None = None,
-    angles_kind: str = "geotiff", angle_options: dict | None = None,
+    angles_kind: str = "geotiff", angle_options: dict | None = None, overwrite: bool = True,
 ) -> dict[str, object]:
     """Normalize GeoTIFF files: read image, angles and class map, write the corrected image.
 
@@ -546,6 +557,9 @@ def correct_files(
         ``"geotiff"`` for angle rasters on the image grid; otherwise a sensor source kind of
         :func:`brdfcorr.sensors.read_angles` (``"envi_obs"``, ``"sentinel2"``, ``"landsat"``,
         ``"solar"``) read from ``angles`` onto the image grid with ``angle_options``.
+    overwrite : bool, default True
+        Replace existing outputs; with False an existing output is an :class:`OutputError`
+        (the CLI's default). An input is never overwritten.
 
     Returns
     -------
@@ -561,6 +575,8 @@ def correct_files(
     for target in (output, qa_output):
         if target is not None and any(p is not None and Path(p).resolve() == Path(target).resolve() for p in inputs):
             raise InputError(f"output {target} is also an input; inputs are never overwritten")
+        if target is not None and not overwrite and Path(target).exists():
+            raise OutputError(f"output {target} exists; give --overwrite to replace it")
     table_path = table_source
     if not isinstance(params, ParameterTable):
         table_path = str(params)
@@ -579,6 +595,7 @@ def correct_files(
             raise InputError(f"angle source {angles} ({angles_kind}) gives no {', '.join(missing)}")
         layers = {name: dataset[name] for name in rio_io.ANGLE_NAMES}
     rio_io.check_same_grid({"image": reflectance, "classes": class_map, **layers})
+    rio_io.check_angles(layers, source=None if angles_kind == "geotiff" else f"{angles} ({angles_kind})")
 
     reference = _resolve_reference(reference, params)
     source = "fixed" if not isinstance(reference.sza, str) else reference.sza

@@ -1,7 +1,8 @@
 """The brdfcorr exception hierarchy.
 
 Every error brdfcorr raises on purpose derives from :class:`BrdfcorrError`, so a caller (the CLI,
-a batch chain) can tell "the input is wrong" from "the program is wrong". The narrow classes also
+a batch chain) can tell "the input is wrong" from "the program is wrong" (the CLI exits with 2
+for a BrdfcorrError and 1 for anything else). The narrow classes also
 derive from the builtin they refine (``ValueError``), so plain ``except ValueError`` keeps working.
 """
 
@@ -29,6 +30,11 @@ class InputError(BrdfcorrError, ValueError):
 
 class GridMismatchError(BrdfcorrError, ValueError):
     """Input rasters are not on the same grid; the message says which and what differs."""
+
+
+class OutputError(BrdfcorrError, OSError):
+    """An output cannot be written (disk full, file size limit, no permission, or it exists and
+    overwriting was not asked for); the message names the file. Nothing partial is left at it."""
 
 
 class MeasurementError(InputError):

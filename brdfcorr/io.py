@@ -11,20 +11,24 @@ lazy results (QA counts) in the same pass.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import re
 import threading
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import dask
+import dask.array
 import numpy as np
 import rasterio
 import rasterio.shutil
+from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 import rioxarray
 import xarray as xr
 
-from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError
+from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError, OutputError
 from brdfcorr.io_utils import atomic_path
 
 __all__ = [
@@ -32,6 +36,7 @@ __all__ = [
     "open_angles",
     "open_classes",
     "check_same_grid",
+    "check_angles",
     "band_wavelengths",
     "parse_wavelength",
     "write_rasters",
@@ -215,6 +220,11 @@ def open_classes(path, chunks=None) -> xr.DataArray:
     classes = _open(path, "class map", _chunks(chunks), masked=False)
     if classes.sizes[classes.dims[0]] != 1:
         raise InputError(f"class map {path} has {classes.sizes[classes.dims[0]]} bands; it needs 1")
+    if classes.dtype.kind not in "iu":  # a float map is usually a reflectance or a resampled map
+        raise InputError(
+            f"class map {path} has data type {classes.dtype}; it needs integer class ids "
+            "(uint8, uint16, int16, ...): convert it, e.g. gdal_translate -ot UInt16"
+        )
     nodata = classes.rio.nodata
     classes = classes.isel({classes.dims[0]: 0}, drop=True)
     classes.name = "classes"
@@ -250,6 +260,65 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=Non
             raise InputError(f"{name} angle file {separate[name]} has {layer.sizes[layer.dims[0]]} bands; it needs 1")
         angles[name] = layer.isel({layer.dims[0]: 0}, drop=True).rename(name)
     return angles
+
+
+def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) -> dict[str, tuple[float, float]]:
+    """Check that sun/view angle layers hold degrees; return each layer's (min, max) [deg].
+
+    One pass over the (lazy) layers. Pixels with a zenith outside [0, 90) are not an error here:
+    :func:`brdfcorr.correct.normalize` flags them (QA ``invalid_geometry``) and writes nodata. A
+    layer set that cannot be degrees is an error: every zenith below 1.6 with every azimuth below
+    6.3 (radians: pi/2 and 2 pi), or no zenith of a layer in [0, 90) at all (scaled or other units).
+
+    Parameters
+    ----------
+    layers : mapping of str to DataArray
+        ``sza``, ``saa``, ``vza``, ``vaa`` [deg] (as from :func:`open_angles`).
+    source : str, optional
+        Name of the angle source for messages (default: the layers' files).
+
+    Raises
+    ------
+    InputError
+        Naming the angle file (or layer) and the range found.
+    """
+    names = [name for name in ANGLE_NAMES if name in layers]
+    statistics = []
+    for name in names:
+        data = layers[name].data
+        xp = dask.array if isinstance(data, dask.array.Array) else np
+        # All-NaN layers give NaN (and a numpy warning we do not want in a batch log).
+        finite = xp.where(xp.isfinite(data), data, np.nan)
+        zenith_ok = xp.isfinite(data) & (data >= 0) & (data < 90)
+        statistics += [xp.nanmin(finite), xp.nanmax(finite), xp.count_nonzero(xp.isfinite(data)),
+                       xp.count_nonzero(zenith_ok)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN slices
+        computed = dask.compute(*statistics)
+    ranges, counts = {}, {}
+    for index, name in enumerate(names):
+        low, high, finite, in_domain = computed[4 * index:4 * index + 4]
+        ranges[name] = (float(low), float(high))
+        counts[name] = (int(finite), int(in_domain))
+
+    def where(name):
+        return source or _describe(name, layers[name])
+
+    zeniths = [name for name in ("sza", "vza") if name in ranges and counts[name][0]]
+    azimuths = [name for name in ("saa", "vaa") if name in ranges and counts[name][0]]
+    if zeniths and azimuths and all(ranges[n][1] < 1.6 for n in zeniths) and all(
+            ranges[n][1] < 6.3 for n in azimuths):
+        found = ", ".join(f"{n} {ranges[n][0]:.3g}..{ranges[n][1]:.3g}" for n in zeniths + azimuths)
+        raise InputError(f"{where(zeniths[0])}: the angles look like radians ({found}); brdfcorr needs degrees")
+    for name in zeniths:
+        finite, in_domain = counts[name]
+        if in_domain == 0:
+            low, high = ranges[name]
+            raise InputError(
+                f"{where(name)}: no {name} value in [0, 90) deg (found {low:.6g}..{high:.6g}); "
+                "are the angles scaled or in other units?"
+            )
+    return ranges
 
 
 def _describe(name: str, layer: xr.DataArray) -> str:
@@ -317,7 +386,8 @@ def write_rasters(
     one dask pass, so shared inputs are read once. Each file is written under its own lock to a
     temporary name beside the target and renamed only when complete (with ``cog``, the finished
     GeoTIFF is then copied to a Cloud-Optimized GeoTIFF with overviews, streaming by blocks).
-    Nothing appears at a target when anything fails.
+    Nothing appears at a target when anything fails; a failed write (disk full, file size limit,
+    permissions) raises :class:`~brdfcorr.errors.OutputError` naming the targets and the reason.
 
     Parameters
     ----------
@@ -351,6 +421,58 @@ def write_rasters(
         if not Path(target).parent.is_dir():
             raise InputError(f"output directory {Path(target).parent} does not exist")
     compress = "none" if compress is None else str(compress)
+    gdal_messages = _GdalMessages()
+    try:
+        with gdal_messages:
+            return _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache)
+    except BrdfcorrError:
+        raise
+    except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
+        raise _io_failure(error, list(rasters), gdal_messages.messages) from error
+
+
+class _GdalMessages(logging.Handler):
+    """Collects GDAL's error messages (logged by rasterio) while writing, for one clear error
+    instead of one log line per failed block on stderr."""
+
+    def __init__(self):
+        super().__init__(logging.ERROR)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage().strip())
+
+    def __enter__(self):
+        logging.getLogger("rasterio").addHandler(self)
+        return self
+
+    def __exit__(self, *exc):
+        logging.getLogger("rasterio").removeHandler(self)
+        return False
+
+
+def _io_failure(error: Exception, targets: list, messages: list[str]) -> BrdfcorrError:
+    """A failed read or write as one message: what failed, and why (the OS or GDAL reason)."""
+    reasons = []
+    cause = error
+    while cause is not None:  # rasterio's "Write failed. See previous exception" names GDAL's cause
+        if isinstance(cause, OSError) and cause.strerror:
+            reasons.append(f"{cause.strerror}" + (f": {cause.filename}" if cause.filename else ""))
+        elif str(cause):
+            reasons.append(str(cause))
+        cause = cause.__cause__ or cause.__context__
+    reasons = [r for r in dict.fromkeys(messages[-1:] + reasons) if "See previous exception" not in r]
+    reason = "; ".join(reasons[:2]) or type(error).__name__
+    if "Read failed" in str(error) or "IReadBlock" in reason:
+        return InputError(f"reading an input failed while writing {', '.join(map(str, targets))}: {reason}")
+    folders = ", ".join(dict.fromkeys(str(Path(target).parent) for target in targets))
+    return OutputError(
+        f"cannot write {', '.join(map(str, targets))}: {reason}; nothing was written (check the free "
+        f"space, file size limit and permissions of {folders})"
+    )
+
+
+def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache):
     with contextlib.ExitStack() as stack:
         writes, copies = [], []
         for target, array in rasters.items():
