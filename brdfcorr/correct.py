@@ -40,7 +40,7 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
-from brdfcorr.errors import GridMismatchError, InputError, OutputError
+from brdfcorr.errors import GridMismatchError, InputError, OutputError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model
 from brdfcorr.params import ParameterTable, ReferenceGeometry
@@ -605,11 +605,14 @@ def correct_files(
             raise InputError(f"{layers['sza'].encoding.get('source', 'sza')}: no valid solar zenith for the scene mean")
         reference = reference.model_copy(update={"sza": mean})
 
-    corrected, qa = normalize(
-        reflectance, class_map, layers["sza"], layers["saa"], layers["vza"], layers["vaa"], params,
-        reference, limits=limits, extrapolate=extrapolate, unknown=unknown,
-        flip_view_azimuth=flip_view_azimuth,
-    )
+    try:
+        corrected, qa = normalize(
+            reflectance, class_map, layers["sza"], layers["saa"], layers["vza"], layers["vaa"], params,
+            reference, limits=limits, extrapolate=extrapolate, unknown=unknown,
+            flip_view_azimuth=flip_view_azimuth,
+        )
+    except ParameterError as error:  # the table does not fit the image's bands: name both files
+        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {image})") from None
     corrected = corrected.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
     for name in ("scale_factor", "add_offset"):  # the output holds physical values
         corrected.attrs.pop(name, None)

@@ -274,8 +274,9 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     Raises
     ------
     InputError
-        No input image; two scenes with the same output name; an output that would overwrite an
-        input; a missing parameter table or measurement file.
+        No input image, or (with ``require_inputs``) an ``inputs.images`` glob matching no file;
+        two scenes with the same output name; an output that would overwrite an input; a missing
+        parameter table or measurement file.
     ParameterError
         An invalid parameter table file.
     """
@@ -285,6 +286,8 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
         if require_inputs:
             raise InputError(f"{config.source}: {message}")
         notes = [message]
+    elif notes and require_inputs:  # a pattern that matches nothing is a typo, not an empty batch
+        raise InputError(f"{config.source}: {'; '.join(notes)} (fix or remove the pattern)")
     outputs_config, steps = config.outputs, config.steps
     output_dir = config.resolve(outputs_config.directory).resolve()
     angles = config.inputs.angles

@@ -1,0 +1,466 @@
+"""Every way a real input can be wrong ends in one clear message, exit code 2 and no damage.
+
+Each case of the tables below builds one bad input beside a good synthetic scene
+(:mod:`brdfcorr.testing`), runs the command line and checks
+
+1. the exit code (2: bad input, config, parameter or an output that cannot be written);
+2. stderr is exactly one line, ``brdfcorr: error: ...``, matching the expected message, which names
+   the file, key, band or class at fault (and no traceback);
+3. no file at the output path and no file at all (not even a temporary one) in the output
+   directory, or no output directory at all for chain runs;
+4. every input file is byte-identical afterwards (SHA-256 of every file of the scene directory).
+
+Pixel-level problems that are not input errors by design (``DESIGN.md``; QA table of
+:mod:`brdfcorr.correct`) are checked at the end: NaN/inf reflectance and zeniths outside [0, 90)
+become nodata and are counted.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+import yaml
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.testing import example_table, synthetic_scene, write_scene
+
+NY, NX = 32, 40
+
+
+@pytest.fixture(scope="module")
+def template(tmp_path_factory) -> Path:
+    """A good scene written once; every test copies it (tests never share files they might damage)."""
+    directory = tmp_path_factory.mktemp("template")
+    write_scene(directory / "scene", synthetic_scene(ny=NY, nx=NX))
+    example_table().save(directory / "scene" / "params.yaml")
+    return directory / "scene"
+
+
+@pytest.fixture
+def scene(template, tmp_path) -> dict[str, Path]:
+    directory = tmp_path / "scene"
+    shutil.copytree(template, directory)
+    (tmp_path / "out").mkdir()
+    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
+            "classes": directory / "classes.tif", "params": directory / "params.yaml",
+            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}
+
+
+# ------------------------------------------------------------------------------------- helpers
+def _read(path: Path) -> tuple[np.ndarray, dict]:
+    with rasterio.open(path) as dataset:
+        return dataset.read(), {**dataset.profile, "descriptions": dataset.descriptions}
+
+
+def _write(path: Path, data: np.ndarray, profile: dict, **changes) -> Path:
+    """A GeoTIFF with ``data`` and the profile of another raster, with ``changes`` applied."""
+    profile = {**profile, "count": data.shape[0], "dtype": data.dtype.name, **changes}
+    descriptions = profile.pop("descriptions", None)
+    if data.dtype.kind == "f" and profile.get("nodata") is not None and not np.isnan(profile["nodata"]):
+        profile["nodata"] = None
+    with rasterio.open(path, "w", **profile) as dataset:
+        dataset.write(data)
+        if descriptions is not None and len(descriptions) == data.shape[0]:
+            dataset.descriptions = descriptions  # band centres ("480 nm") go with the bands
+    return path
+
+
+def _derived(scene, role: str, name: str, transform=None, **changes) -> Path:
+    """A copy of the scene's ``role`` raster named ``name``, values changed by ``transform``."""
+    data, profile = _read(scene[role])
+    if transform is not None:
+        data = transform(data)
+    return _write(scene["dir"] / name, np.ascontiguousarray(data), profile, **changes)
+
+
+def _table(scene, text: str, name: str = "bad.yaml") -> Path:
+    path = scene["dir"] / name
+    path.write_text(text)
+    return path
+
+
+def _correct_args(scene, **replace) -> list[str]:
+    """``brdfcorr correct`` on the scene; ``replace`` swaps an option's value (None drops it)."""
+    options = {"--angles": scene["angles"], "--classes": scene["classes"], "--params": scene["params"],
+               "-o": scene["output"], "--chunk": 16}
+    image = replace.pop("image", scene["image"])
+    options.update(replace)
+    args = ["correct", str(image)]
+    for key, value in options.items():
+        if value is not None:
+            args += [key, str(value)]
+    return args
+
+
+def _digests(directory: Path) -> dict[str, str]:
+    return {str(path.relative_to(directory)): hashlib.sha256(path.read_bytes()).hexdigest()
+            for path in sorted(directory.rglob("*")) if path.is_file()}
+
+
+def _one_error_line(result) -> str:
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("brdfcorr: error: "), lines[0]
+    assert "Traceback" not in result.output
+    return lines[0]
+
+
+# ---------------------------------------------------------------------------- brdfcorr correct
+def _angle_table(factor: float = 1.0, offset: float = 0.0):
+    return lambda data: (data * factor + offset).astype(data.dtype)
+
+
+TABLE_TS = ("classes: [{id: 1, name: tile, model: torrance_sparrow, "
+            "params: {t0: 0.02, t1: 0.2, w: 0.036, n: 1.77, k: 0.25%s}}]")
+
+CORRECT_CASES = {
+    # --- files
+    "image missing": (lambda s: _correct_args(s, image=s["dir"] / "nope.tif"),
+                      r"image file \S*nope\.tif does not exist"),
+    "image not a raster": (
+        lambda s: _correct_args(s, image=_table(s, "not a GeoTIFF\n", "notes.tif")),
+        r"cannot read image file \S*notes\.tif"),
+    "image truncated": (
+        lambda s: _correct_args(s, image=_truncated(s["image"], s["dir"] / "cut.tif")),
+        r"cut\.tif"),
+    "angles missing": (lambda s: _correct_args(s, **{"--angles": s["dir"] / "nope_angles.tif"}),
+                       r"angle file \S*nope_angles\.tif does not exist"),
+    "angles not a raster": (lambda s: _correct_args(s, **{"--angles": s["params"]}),
+                            r"cannot read angle file \S*params\.yaml"),
+    "classes missing": (lambda s: _correct_args(s, **{"--classes": s["dir"] / "nope_classes.tif"}),
+                        r"class map file \S*nope_classes\.tif does not exist"),
+    # --- angle rasters
+    "angles with 3 bands": (
+        lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles3.tif", lambda d: d[:3])}),
+        r"angle file \S*angles3\.tif has 3 bands; it needs 4 \(sza, saa, vza, vaa\)"),
+    "angles in radians": (
+        lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles_rad.tif", np.deg2rad)}),
+        r"angles_rad\.tif.*: the angles look like radians \(sza 0\.5.*\); brdfcorr needs degrees"),
+    "angles scaled by 100": (
+        lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles_x100.tif", _angle_table(100))}),
+        r"angles_x100\.tif.*: no sza value in \[0, 90\) deg \(found 3000\.\.4000\); are the angles scaled"),
+    "one separate angle file missing": (
+        lambda s: _correct_args(s, **{"--angles": None, "--sza": s["angles"], "--saa": s["angles"],
+                                      "--vza": s["angles"]}),
+        r"missing angle file\(s\): vaa"),
+    "angles on a smaller grid": (
+        lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles_small.tif",
+                                                           lambda d: d[:, :-2], height=NY - 2)}),
+        r"angles_small\.tif\) is not on the grid of image \(\S*image\.tif\): shape"),
+    "angles in another CRS": (
+        lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles_crs.tif", crs="EPSG:32633")}),
+        r"angles_crs\.tif\) is not on the grid of image .*: CRS EPSG:32633 differs from EPSG:32632"),
+    "image in another CRS": (
+        lambda s: _correct_args(s, image=_derived(s, "image", "image_crs.tif", crs="EPSG:4326")),
+        r"classes \(\S*classes\.tif\) is not on the grid of image \(\S*image_crs\.tif\): CRS"),
+    # --- class maps
+    "class map shifted": (
+        lambda s: _correct_args(s, **{"--classes": _shifted(s)}),
+        r"classes \(\S*classes_shift\.tif\) is not on the grid of image .*: transform"),
+    "class map float": (
+        lambda s: _correct_args(s, **{"--classes": _derived(s, "classes", "classes_float.tif",
+                                                            lambda d: d.astype(np.float32))}),
+        r"class map \S*classes_float\.tif has data type float32; it needs integer class ids"),
+    "class map with 2 bands": (
+        lambda s: _correct_args(s, **{"--classes": _derived(s, "classes", "classes2.tif",
+                                                            lambda d: np.concatenate([d, d]))}),
+        r"class map \S*classes2\.tif has 2 bands; it needs 1"),
+    # --- parameter tables
+    "table missing": (lambda s: _correct_args(s, **{"--params": s["dir"] / "nope.yaml"}),
+                      r"cannot read parameter table \S*nope\.yaml"),
+    "table not YAML": (lambda s: _correct_args(s, **{"--params": _table(s, "classes: [\n")}),
+                       r"bad\.yaml: not valid YAML \(line 2, column 1\)"),
+    "table not a mapping": (lambda s: _correct_args(s, **{"--params": _table(s, "- 1\n- 2\n")}),
+                            r"bad\.yaml: expected a mapping with 'classes', got list"),
+    "table unknown model": (
+        lambda s: _correct_args(s, **{"--params": _table(
+            s, "classes: [{id: 1, name: tile, model: torrance, params: {t0: 0.1}}]")}),
+        r"bad\.yaml: class 1 \(tile\): unknown surface model 'torrance'; known: torrance_sparrow"),
+    "table unknown parameter": (
+        lambda s: _correct_args(s, **{"--params": _table(s, TABLE_TS % ", sigma: 3")}),
+        r"bad\.yaml: class 1 \(tile\): torrance_sparrow: unknown parameter 'sigma'"),
+    "table missing parameter": (
+        lambda s: _correct_args(s, **{"--params": _table(
+            s, "classes: [{id: 1, name: tile, model: torrance_sparrow, params: {t0: 0.02, t1: 0.2, n: 1.7, k: 0.2}}]")}),
+        r"bad\.yaml: class 1 \(tile\): torrance_sparrow: missing parameter\(s\) w"),
+    "table out of bounds": (
+        lambda s: _correct_args(s, **{"--params": _table(s, (TABLE_TS % "").replace("n: 1.77", "n: -1.77"))}),
+        r"bad\.yaml: class 1 \(tile\): torrance_sparrow: parameter n = -1\.77 is invalid"),
+    "table NaN": (
+        lambda s: _correct_args(s, **{"--params": _table(s, (TABLE_TS % "").replace("w: 0.036", "w: .nan"))}),
+        r"bad\.yaml: class 1 \(tile\): torrance_sparrow: parameter w = nan is invalid"),
+    "table per-band list of the wrong length": (
+        lambda s: _correct_args(s, **{"--params": _table(
+            s, "classes: [{id: 4, name: flat, model: lambertian, params: {t0: [0.1, 0.2, 0.3]}}]")}),
+        r"bad\.yaml: class 4 \(flat\): parameter t0 has 3 per-band values but the image has 4 bands "
+        r"\(image \S*image\.tif\)"),
+    "table wavelengths do not cover the image": (
+        lambda s: _correct_args(s, **{"--params": _table(
+            s, "classes: [{id: 4, name: flat, model: lambertian, wavelengths: [500, 700], "
+               "params: {t0: [0.1, 0.2]}}]")}),
+        r"bad\.yaml: class 4 \(flat\): parameter t0: band centre 480 nm is outside the table's "
+        r"wavelengths \[500, 700\] nm.*\(image \S*image\.tif\)"),
+    "table with a python tag (YAML loaded safely)": (
+        lambda s: _correct_args(s, **{"--params": _table(
+            s, "classes: !!python/object/apply:os.system ['touch pwned']\n")}),
+        r"bad\.yaml: not valid YAML.*could not determine a constructor"),
+    # --- outputs
+    "output is the image": (lambda s: _correct_args(s, **{"-o": s["image"]}),
+                            r"output \S*image\.tif is also an input; inputs are never overwritten"),
+    "QA output is the angle file": (lambda s: _correct_args(s, **{"--qa": s["angles"]}),
+                                    r"output \S*angles\.tif is also an input"),
+    "output directory missing": (lambda s: _correct_args(s, **{"-o": s["out"] / "sub" / "c.tif"}),
+                                 r"output directory \S*sub does not exist"),
+}
+
+
+def _truncated(source: Path, target: Path) -> Path:
+    """The first half of a GeoTIFF (a copy interrupted half-way): the header reads, tiles do not."""
+    data = source.read_bytes()
+    target.write_bytes(data[: len(data) // 2])
+    return target
+
+
+def _shifted(scene) -> Path:
+    """The class map moved by one pixel to the east."""
+    data, profile = _read(scene["classes"])
+    profile["transform"] = profile["transform"] * rasterio.Affine.translation(1, 0)
+    return _write(scene["dir"] / "classes_shift.tif", data, profile)
+
+
+@pytest.mark.parametrize("case", list(CORRECT_CASES))
+def test_correct_bad_input(scene, case, monkeypatch):
+    build, pattern = CORRECT_CASES[case]
+    monkeypatch.chdir(scene["dir"])  # a YAML tag that ran code would leave ./pwned here
+    args = build(scene)
+    before = _digests(scene["dir"])
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    line = _one_error_line(result)
+    assert re.search(pattern, line), line
+    assert not scene["output"].exists()
+    assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
+    assert _digests(scene["dir"]) == before, "inputs must be byte-identical"
+    assert not (scene["dir"] / "pwned").exists()
+
+
+def test_existing_output_needs_overwrite(scene):
+    """An existing output is refused without --overwrite (and left as it was), replaced with it."""
+    scene["output"].write_bytes(b"an earlier result")
+    before = _digests(scene["dir"])
+    result = CliRunner().invoke(main, _correct_args(scene))
+    assert result.exit_code == 2
+    assert re.search(r"output \S*corrected\.tif exists; give --overwrite to replace it", _one_error_line(result))
+    assert scene["output"].read_bytes() == b"an earlier result"
+    assert _digests(scene["dir"]) == before
+
+    result = CliRunner().invoke(main, _correct_args(scene) + ["--overwrite"])
+    assert result.exit_code == 0, result.output
+    with rasterio.open(scene["output"]) as dataset:
+        assert dataset.count == 4 and dataset.shape == (NY, NX)
+    assert sorted(p.name for p in scene["out"].iterdir()) == ["corrected.tif"]
+    assert _digests(scene["dir"]) == before
+
+
+# ------------------------------------------------------------------------------- brdfcorr run
+def _chain(scene, **sections) -> Path:
+    """A chain config over the scene directory (one scene), sections replaced by ``sections``."""
+    document = {
+        "inputs": {"images": ["scene/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
+                   "classes": "{dir}/classes.tif"},
+        "parameters": {"table": "scene/params.yaml"},
+        "outputs": {"directory": "chain_out"},
+        "engine": {"scheduler": "synchronous", "workers": 1, "chunk": 16},
+    }
+    document.update(sections)
+    path = scene["dir"].parent / "chain.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return path
+
+
+def _chain_text(scene, text: str) -> Path:
+    path = scene["dir"].parent / "chain.yaml"
+    path.write_text(text)
+    return path
+
+
+RUN_CASES = {
+    "unknown key": (
+        lambda s: _chain(s, outputs={"directory": "chain_out", "compres": "zstd"}),
+        r"chain\.yaml: outputs\.compres: unknown key; allowed keys: cog, compress, directory"),
+    "unknown section": (
+        lambda s: _chain(s, output={"directory": "x"}),
+        r"chain\.yaml: output: unknown key; allowed keys: engine, inputs, name, outputs"),
+    "glob matching nothing": (
+        lambda s: _chain(s, inputs={"images": ["scene/image.tif", "scnee/*.tif"],
+                                    "angles": {"path": "{dir}/angles.tif"}, "classes": "{dir}/classes.tif"}),
+        r"chain\.yaml: inputs\.images: 'scnee/\*\.tif' matches no file \(fix or remove the pattern\)"),
+    "no image at all": (
+        lambda s: _chain(s, inputs={"images": ["scene/*.jp2"], "angles": {"path": "{dir}/angles.tif"},
+                                    "classes": "{dir}/classes.tif"}),
+        r"chain\.yaml: inputs\.images matches no file \(scene/\*\.jp2\)"),
+    "output equal to an input": (
+        lambda s: _chain(s, outputs={"directory": "scene", "naming": "{stem}.tif", "qa_naming": "{stem}_qa.tif"}),
+        r"outputs: corrected output \S*scene/image\.tif of scene image would overwrite an input"),
+    "bad scene regex": (
+        lambda s: _chain(s, inputs={"images": ["scene/image.tif"], "scene_regex": "(?P<scene>.+",
+                                    "angles": {"path": "{dir}/angles.tif"}, "classes": "{dir}/classes.tif"}),
+        r"inputs\.scene_regex: not a regular expression"),
+    "unknown placeholder": (
+        lambda s: _chain(s, inputs={"images": ["scene/image.tif"], "angles": {"path": "{folder}/angles.tif"},
+                                    "classes": "{dir}/classes.tif"}),
+        r"inputs\.angles\.path: pattern '\{folder\}/angles\.tif' uses \{folder\}; allowed placeholders"),
+    "not YAML": (lambda s: _chain_text(s, "inputs: {images: [a\n"), r"chain\.yaml: not valid YAML \(line 2"),
+    "python tag (YAML loaded safely)": (
+        lambda s: _chain_text(s, "inputs: !!python/object/apply:os.system ['touch pwned']\n"),
+        r"chain\.yaml: not valid YAML.*could not determine a constructor"),
+    "not a mapping": (lambda s: _chain_text(s, "just text\n"),
+                      r"chain\.yaml: expected a mapping of sections \(inputs, outputs, \.\.\.\), got str"),
+    "bad parameter table": (
+        lambda s: _chain(s, parameters={"table": str(_table(s, TABLE_TS % ", sigma: 3"))}),
+        r"bad\.yaml: class 1 \(tile\): torrance_sparrow: unknown parameter 'sigma'"),
+}
+
+
+@pytest.mark.parametrize("case", list(RUN_CASES))
+def test_run_bad_config(scene, case, monkeypatch):
+    build, pattern = RUN_CASES[case]
+    monkeypatch.chdir(scene["dir"].parent)
+    chain = build(scene)
+    before = _digests(scene["dir"])
+    result = CliRunner().invoke(main, ["run", str(chain)])
+    assert result.exit_code == 2, result.output
+    line = _one_error_line(result)
+    assert re.search(pattern, line), line
+    assert not (scene["dir"].parent / "chain_out").exists()
+    assert _digests(scene["dir"]) == before
+    assert not (scene["dir"].parent / "pwned").exists()
+
+
+def test_bad_override_value(scene):
+    chain = _chain(scene)
+    result = CliRunner().invoke(main, ["run", str(chain), "--set", "engine.workers=many"])
+    assert result.exit_code == 2
+    assert re.search(r"engine\.workers: Input should be a valid integer.*\(got 'many'\)", _one_error_line(result))
+
+
+# ---------------------------------------------------------------------- internal errors, --debug
+def test_internal_error_is_one_line_exit_1_and_traceback_only_with_debug(scene, monkeypatch):
+    """A bug (any exception that is not a BrdfcorrError) is exit 1, not 2: the input may be fine."""
+    import brdfcorr.correct
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("simulated bug")
+
+    monkeypatch.setattr(brdfcorr.correct, "normalize", broken)
+    result = CliRunner().invoke(main, _correct_args(scene))
+    assert result.exit_code == 1
+    assert result.stderr.splitlines() == [
+        "brdfcorr: internal error: ZeroDivisionError: simulated bug (rerun with --debug for the traceback)"]
+    result = CliRunner().invoke(main, ["--debug"] + _correct_args(scene))
+    assert result.exit_code == 1
+    assert "Traceback (most recent call last)" in result.stderr and "in broken" in result.stderr
+    assert result.stderr.splitlines()[-1] == "brdfcorr: internal error: ZeroDivisionError: simulated bug"
+    assert list(scene["out"].iterdir()) == []
+
+
+def test_debug_shows_the_traceback_of_a_bad_input_too(scene):
+    result = CliRunner().invoke(main, ["--debug"] + _correct_args(scene, image=scene["dir"] / "nope.tif"))
+    assert result.exit_code == 2
+    assert "Traceback (most recent call last)" in result.stderr and "InputError" in result.stderr
+    assert result.stderr.splitlines()[-1].startswith("brdfcorr: error: image file ")
+
+
+def test_every_command_shares_the_handler(monkeypatch):
+    """Commands without their own decorator (``models``) still map a bug to exit 1."""
+    import brdfcorr.models
+
+    def broken():
+        raise RuntimeError("simulated registry bug")
+
+    monkeypatch.setattr(brdfcorr.models, "parameter_table_rows", broken)
+    result = CliRunner().invoke(main, ["models"])
+    assert result.exit_code == 1
+    assert result.stderr.splitlines()[-1].startswith("brdfcorr: internal error: RuntimeError: simulated registry bug")
+
+
+def test_help_documents_the_exit_codes():
+    result = CliRunner().invoke(main, ["--help"])
+    text = " ".join(result.output.split())
+    assert "Exit codes: 0 success; 2 bad input" in text and "1 internal error" in text and "3 run: some scenes failed" in text
+
+
+# ----------------------------------------------------- pixel-level problems: nodata, counted, QA
+def test_nan_and_inf_reflectance_become_nodata_and_are_counted(scene):
+    data, profile = _read(scene["image"])
+    data[0, 3, 5] = np.nan
+    data[2, 7, 9] = np.inf
+    data[3, 11, 13] = -np.inf
+    data[1, 11, 13] = np.nan  # NaN and inf in one pixel
+    image = _write(scene["dir"] / "image_bad.tif", data, profile)
+    qa_path = scene["out"] / "qa.tif"
+    result = CliRunner().invoke(main, _correct_args(scene, image=image, **{"--qa": qa_path}))
+    assert result.exit_code == 0, result.output
+    corrected, _ = _read(scene["output"])
+    qa, _ = _read(qa_path)
+    bad = np.zeros((NY, NX), bool)
+    bad[3, 5] = bad[7, 9] = bad[11, 13] = True
+    assert (qa[0][bad] & 1).all() and not (qa[0][~bad] & 1).any()  # QA bit 1: nodata
+    # The band with NaN/inf is nodata (NaN) in the output, never inf; the other bands are corrected.
+    assert np.isnan(corrected[0, 3, 5]) and np.isnan(corrected[2, 7, 9]) and np.isnan(corrected[3, 11, 13])
+    assert np.isfinite(corrected[1, 3, 5]) and np.isfinite(corrected[0, 7, 9])
+    assert np.isfinite(corrected[:, ~bad]).all()
+    assert "3 nodata" in result.output.splitlines()[-1]
+
+
+def test_zeniths_outside_the_domain_are_flagged_not_fatal(scene):
+    """A few pixels with sza >= 90 (sun below the horizon) or a negative vza: QA invalid_geometry
+    (16) and nodata output, counted; the rest of the scene is corrected (``DESIGN.md``)."""
+    data, profile = _read(scene["angles"])
+    data[0, 0, :4] = 90.0
+    data[0, 1, :4] = 120.0
+    data[2, 2, :4] = -5.0
+    angles = _write(scene["dir"] / "angles_edge.tif", data, profile)
+    qa_path = scene["out"] / "qa.tif"
+    result = CliRunner().invoke(main, _correct_args(scene, **{"--angles": angles, "--qa": qa_path}))
+    assert result.exit_code == 0, result.output
+    corrected, _ = _read(scene["output"])
+    qa, _ = _read(qa_path)
+    invalid = np.zeros((NY, NX), bool)
+    invalid[:3, :4] = True
+    assert ((qa[0] & 16) > 0).tolist() == invalid.tolist()
+    assert np.isnan(corrected[:, invalid]).all() and np.isfinite(corrected[:, ~invalid]).all()
+    assert "12 nodata" in result.output.splitlines()[-1]
+
+
+def test_run_isolates_a_scene_with_bad_angles(scene, monkeypatch):
+    """In a batch, a scene whose angles are in radians fails with the message in the report (exit
+    3, the documented contract of ``run``) and writes nothing; the good scene is corrected."""
+    import json
+
+    bad = scene["dir"].parent / "bad_scene"
+    shutil.copytree(scene["dir"], bad)
+    data, profile = _read(bad / "angles.tif")
+    _write(bad / "angles.tif", np.deg2rad(data).astype(data.dtype), profile)
+    monkeypatch.chdir(scene["dir"].parent)
+    chain = _chain(scene, inputs={"images": ["*/image.tif"], "angles": {"path": "{dir}/angles.tif"},
+                                  "classes": "{dir}/classes.tif", "scene_regex": None})
+    before = {**_digests(scene["dir"]), **{f"bad/{k}": v for k, v in _digests(bad).items()}}
+    result = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
+    assert result.exit_code == 3, result.output
+    output_dir = scene["dir"].parent / "chain_out"
+    report = json.loads((output_dir / "run_report.json").read_text())
+    status = {item["scene"]: item for item in report["scenes"]}
+    assert status["scene_image"]["status"] == "ok"
+    assert status["bad_scene_image"]["status"] == "failed"
+    assert "the angles look like radians" in status["bad_scene_image"]["error"]
+    assert sorted(p.name for p in output_dir.iterdir()) == ["run_report.json", "scene_image_brdf.tif",
+                                                            "scene_image_qa.tif"]
+    assert {**_digests(scene["dir"]), **{f"bad/{k}": v for k, v in _digests(bad).items()}} == before
