@@ -421,6 +421,7 @@ def fit_classes_command(images, angles, classes, model_name, class_model, names,
         layers = rio_io.open_angles(angle_path)
         class_map = rio_io.open_classes(class_path)
         rio_io.check_same_grid({"image": image, "classes": class_map, **layers})
+        rio_io.check_angles(layers)
         scenes.append((image, class_map, xr.Dataset(layers)))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ClassFitWarning)

@@ -283,23 +283,23 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) 
         Naming the angle file (or layer) and the range found.
     """
     names = [name for name in ANGLE_NAMES if name in layers]
-    statistics = []
-    for name in names:
-        data = layers[name].data
-        xp = dask.array if isinstance(data, dask.array.Array) else np
-        # All-NaN layers give NaN (and a numpy warning we do not want in a batch log).
-        finite = xp.where(xp.isfinite(data), data, np.nan)
-        zenith_ok = xp.isfinite(data) & (data >= 0) & (data < 90)
-        statistics += [xp.nanmin(finite), xp.nanmax(finite), xp.count_nonzero(xp.isfinite(data)),
-                       xp.count_nonzero(zenith_ok)]
+    arrays = [layers[name].data for name in names]
+    if any(isinstance(a, dask.array.Array) for a in arrays):
+        # One small task per chunk for all layers (not one graph per statistic and layer).
+        first = next(a for a in arrays if isinstance(a, dask.array.Array))
+        arrays = [dask.array.asarray(a).rechunk(first.chunks) for a in arrays]
+        per_block = dask.array.map_blocks(
+            _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 4), dtype=np.float64,
+        ).compute()
+    else:
+        per_block = _angle_statistics(*(np.asarray(a) for a in arrays))
+    per_block = per_block.reshape(-1, len(names), 4)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN slices
-        computed = dask.compute(*statistics)
-    ranges, counts = {}, {}
-    for index, name in enumerate(names):
-        low, high, finite, in_domain = computed[4 * index:4 * index + 4]
-        ranges[name] = (float(low), float(high))
-        counts[name] = (int(finite), int(in_domain))
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN layers: NaN range
+        low, high = np.nanmin(per_block[..., 0], axis=0), np.nanmax(per_block[..., 1], axis=0)
+    totals = per_block[..., 2:].sum(axis=0)
+    ranges = {name: (float(low[i]), float(high[i])) for i, name in enumerate(names)}
+    counts = {name: (int(totals[i, 0]), int(totals[i, 1])) for i, name in enumerate(names)}
 
     def where(name):
         return source or _describe(name, layers[name])
@@ -313,12 +313,23 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) 
     for name in zeniths:
         finite, in_domain = counts[name]
         if in_domain == 0:
-            low, high = ranges[name]
+            lowest, highest = ranges[name]
             raise InputError(
-                f"{where(name)}: no {name} value in [0, 90) deg (found {low:.6g}..{high:.6g}); "
+                f"{where(name)}: no {name} value in [0, 90) deg (found {lowest:.6g}..{highest:.6g}); "
                 "are the angles scaled or in other units?"
             )
     return ranges
+
+
+def _angle_statistics(*blocks: np.ndarray) -> np.ndarray:
+    """(1, 1, n_layers, 4): min, max, finite count and count in [0, 90) of each (y, x) block."""
+    result = np.empty((1, 1, len(blocks), 4))
+    for index, block in enumerate(blocks):
+        values = block[np.isfinite(block)]
+        result[0, 0, index, :2] = (values.min(), values.max()) if values.size else (np.nan, np.nan)
+        result[0, 0, index, 2] = values.size
+        result[0, 0, index, 3] = np.count_nonzero((values >= 0) & (values < 90))
+    return result
 
 
 def _describe(name: str, layer: xr.DataArray) -> str:

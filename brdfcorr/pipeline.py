@@ -392,6 +392,7 @@ def _open_scene(scene: Scene, config: ChainConfig):
 
         angles = read_angles(scene.angles_kind, scene.angles, like=image, **scene.angle_options)
     rio_io.check_same_grid({"image": image, "classes": classes, **{k: angles[k] for k in angles.data_vars}})
+    rio_io.check_angles({k: angles[k] for k in angles.data_vars})
     nodata = classes.rio.nodata
     if nodata is not None:
         classes = classes.where(classes != nodata, 0)

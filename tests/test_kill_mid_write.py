@@ -1,0 +1,142 @@
+"""A process killed mid-write, or a disk that fills, never leaves an output that looks complete.
+
+Outputs are written to a temporary name beside the target (``.NAME.XXXX.partial``) and renamed
+when complete (:func:`brdfcorr.io_utils.atomic_path`). A SIGKILL cannot run any clean-up, so the
+temporary file may stay; nothing may appear under the output's own name, and a rerun succeeds. A
+failed write (disk full, file size limit) is an exit code 2 with one message naming the file, and
+nothing is left at all.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import re
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+from click.testing import CliRunner
+
+from brdfcorr import normalize
+from brdfcorr.cli import main
+from brdfcorr.testing import example_table, synthetic_scene, write_scene
+
+NY = NX = 512  # 512 x 512 x 4 bands: a few seconds to correct in chunks of 32 pixels
+CHUNK = 32
+PARTIAL = re.compile(r"^\.corrected\.tif\.[^/]+\.partial$")
+
+
+@pytest.fixture(scope="module")
+def big(tmp_path_factory) -> dict:
+    directory = tmp_path_factory.mktemp("big")
+    scene = synthetic_scene(ny=NY, nx=NX)
+    paths = write_scene(directory / "scene", scene, blocksize=64)
+    paths["params"] = example_table().save(directory / "scene" / "params.yaml")
+    return {"scene": scene, **paths}
+
+
+def _command(big, output: Path, *extra, chunk: int = CHUNK) -> list[str]:
+    return [sys.executable, "-c", "from brdfcorr.cli import main; main()", "correct", str(big["image"]),
+            "--angles", str(big["angles"]), "--classes", str(big["classes"]), "--params", str(big["params"]),
+            "-o", str(output), "--chunk", str(chunk), "--no-progress", *map(str, extra)]
+
+
+def test_sigkill_mid_write_leaves_only_a_partial_file_and_a_rerun_succeeds(big, tmp_path):
+    output_dir = tmp_path / "out"
+    output_dir.mkdir()
+    output = output_dir / "corrected.tif"
+    process = subprocess.Popen(_command(big, output), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while not any(PARTIAL.match(p.name) for p in output_dir.iterdir()):
+            assert process.poll() is None, f"finished before writing began: {process.communicate()}"
+            assert time.monotonic() < deadline, "no temporary output appeared"
+            time.sleep(0.01)
+        time.sleep(1.0)  # well into the chunked write (which takes several seconds)
+        assert process.poll() is None, "the write finished before the kill: make the scene larger"
+        process.send_signal(signal.SIGKILL)
+        assert process.wait(timeout=30) == -signal.SIGKILL
+    finally:
+        if process.poll() is None:
+            process.kill()
+        process.communicate()
+
+    left = sorted(p.name for p in output_dir.iterdir())
+    assert not output.exists()
+    assert left and all(PARTIAL.match(name) for name in left), left  # only the temporary file
+
+    rerun = subprocess.run(_command(big, output), capture_output=True, text=True, timeout=120)
+    assert rerun.returncode == 0, rerun.stderr
+    assert output.exists()
+    # The rerun's output is complete: the same numbers as the in-memory (numpy) normalization.
+    scene = big["scene"]
+    expected, _ = normalize(scene["reflectance"], scene["classes"].rio.write_nodata(255),
+                            *(scene[name] for name in ("sza", "saa", "vza", "vaa")), example_table())
+    with rasterio.open(output) as dataset:
+        np.testing.assert_array_equal(dataset.read(), expected.values)
+
+
+def _limit_file_size(limit: int):
+    def preexec():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails (EFBIG)
+    return preexec
+
+
+def test_file_size_limit_mid_write_exits_2_and_leaves_nothing(big, tmp_path):
+    """RLIMIT_FSIZE stands in for a full disk: the kernel refuses writes past the limit."""
+    output_dir = tmp_path / "out"
+    output_dir.mkdir()
+    output = output_dir / "corrected.tif"
+    result = subprocess.run(
+        _command(big, output, "--compress", "none", "--qa", output_dir / "qa.tif", chunk=128),
+        capture_output=True, text=True, timeout=120, preexec_fn=_limit_file_size(256 * 1024),
+    )
+    assert result.returncode == 2, result.stderr
+    # GDAL's TIFF writer may print its own lines first; brdfcorr's message is the last line.
+    last = result.stderr.strip().splitlines()[-1]
+    assert re.match(rf"brdfcorr: error: cannot write {re.escape(str(output))}, \S*qa\.tif: .*nothing was "
+                    r"written \(check the free space, file size limit and permissions of ", last), last
+    assert "Traceback" not in result.stderr
+    assert list(output_dir.iterdir()) == []
+
+
+@pytest.fixture
+def small(tmp_path) -> dict:
+    paths = write_scene(tmp_path / "scene", synthetic_scene(ny=64, nx=64))
+    paths["params"] = example_table().save(tmp_path / "scene" / "params.yaml")
+    (tmp_path / "out").mkdir()
+    return paths
+
+
+@pytest.mark.parametrize("cog", [False, True])
+def test_disk_full_mid_write_exits_2_and_leaves_nothing(small, tmp_path, monkeypatch, cog):
+    """The block writer raises ENOSPC after two blocks, as a full disk would."""
+    from rioxarray.raster_writer import RasterioWriter
+
+    original, calls = RasterioWriter.__setitem__, []
+
+    def fills_up(self, key, item):
+        calls.append(key)
+        if len(calls) > 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return original(self, key, item)
+
+    monkeypatch.setattr(RasterioWriter, "__setitem__", fills_up)
+    output = tmp_path / "out" / "corrected.tif"
+    args = ["correct", small["image"], "--angles", small["angles"], "--classes", small["classes"],
+            "--params", small["params"], "-o", output, "--chunk", 16, "--qa", tmp_path / "out" / "qa.tif"]
+    result = CliRunner().invoke(main, [str(a) for a in args] + (["--cog"] if cog else []))
+    assert len(calls) > 2, "the simulated disk never filled"
+    assert result.exit_code == 2
+    assert result.stderr.splitlines() == [result.stderr.strip()]
+    assert re.match(r"brdfcorr: error: cannot write \S*corrected\.tif, \S*qa\.tif: No space left on device",
+                    result.stderr), result.stderr
+    assert list((tmp_path / "out").iterdir()) == []
