@@ -157,19 +157,15 @@ def demo_command(output_dir: Path, config_path, progress):
 
 def _overrides(items: tuple[str, ...]) -> dict:
     """``--set KEY=VALUE`` items: dotted config keys, values read as YAML (``engine.workers=2``)."""
-    import yaml
-
     from brdfcorr.config import ConfigError
+    from brdfcorr.io_utils import parse_yaml
 
     parsed = {}
     for item in items:
         key, sign, text = item.partition("=")
         if not sign or not key.strip():
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. engine.workers=2")
-        try:
-            parsed[key.strip()] = yaml.safe_load(text)
-        except yaml.YAMLError:
-            raise ConfigError(f"--set {item!r}: the value is not valid YAML") from None
+        parsed[key.strip()] = parse_yaml(text, f"--set {item!r}", ConfigError)
     return parsed
 
 
@@ -292,17 +288,16 @@ def validate_command(chains, settings):
     naming the key path and the allowed values (exit code 2). A parameter table file (a document
     with `classes` but no `inputs`) is checked as a table.
     """
-    import yaml
-
-    from brdfcorr.config import load_config
+    from brdfcorr.config import ConfigError, load_config
+    from brdfcorr.io_utils import parse_yaml
     from brdfcorr.params import ParameterTable
     from brdfcorr.pipeline import plan_run
 
     overrides = _overrides(settings)
     for chain in chains:
         try:
-            document = yaml.safe_load(chain.read_text())
-        except (OSError, yaml.YAMLError):
+            document = parse_yaml(chain.read_text(), str(chain), ConfigError)
+        except (OSError, ConfigError):
             document = None  # load_config reports it
         if isinstance(document, dict) and "classes" in document and "inputs" not in document:
             table = ParameterTable.load(chain)
@@ -339,9 +334,8 @@ def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> d
 
 def _options(option: str, items: tuple[str, ...]) -> dict[str, object]:
     """Parse ``KEY=VALUE`` items; values are read as YAML scalars (``20`` -> 20, ``B04`` -> "B04")."""
-    import yaml
-
     from brdfcorr.errors import ParameterError
+    from brdfcorr.io_utils import parse_yaml
 
     parsed = {}
     for item in items:
@@ -349,8 +343,8 @@ def _options(option: str, items: tuple[str, ...]) -> dict[str, object]:
         if not separator or not key.strip():
             raise ParameterError(f"{option} {item!r}: expected KEY=VALUE")
         try:
-            parsed[key.strip()] = yaml.safe_load(text) if text.strip() else ""
-        except yaml.YAMLError:
+            parsed[key.strip()] = parse_yaml(text, option, ParameterError) if text.strip() else ""
+        except ParameterError:  # not a YAML scalar: the text itself
             parsed[key.strip()] = text
     return parsed
 

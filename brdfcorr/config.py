@@ -42,11 +42,11 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from brdfcorr.errors import BrdfcorrError
-from brdfcorr.params import ClassEntry, ReferenceGeometry
+from brdfcorr.io_utils import parse_yaml
+from brdfcorr.params import ClassEntry, ReferenceGeometry, key_text
 
 __all__ = [
     "ChainConfig",
@@ -582,12 +582,7 @@ def load_config(path: str | os.PathLike, overrides: Mapping[str, object] | None 
         text = path.read_text()
     except OSError as error:
         raise ConfigError(f"cannot read chain config {path}: {error.strerror}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
-        raise ConfigError(f"{path}: not valid YAML{where}: {getattr(error, 'problem', None) or error}") from None
+    data = parse_yaml(text, str(path), ConfigError)
     if data is None:
         data = {}
     if overrides:
@@ -625,7 +620,7 @@ def _location(loc: tuple) -> str:
         if isinstance(part, int):
             text += f"[{part}]"
         else:
-            text += f".{part}" if text else str(part)
+            text += f".{key_text(part)}" if text else key_text(part)
     return text
 
 

@@ -53,7 +53,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from brdfcorr.errors import InputError, ParameterError
-from brdfcorr.io_utils import atomic_path
+from brdfcorr.io_utils import atomic_path, parse_yaml
 from brdfcorr.models import SURFACE_MODELS, Model, get_model
 
 __all__ = [
@@ -264,6 +264,13 @@ class BandParameters:
     params: dict[str, np.ndarray]
 
 
+def key_text(key: object) -> str:
+    """A document key as shown in messages: as is when plain, else quoted (``'\\n'``, ``''``), so a
+    message stays one readable line whatever the keys of the document."""
+    text = str(key)
+    return text if text and text.isprintable() and text.strip() == text else repr(key)
+
+
 def _describe_validation_error(error: ValidationError, data: object) -> str:
     """One line per pydantic error, locations turned into ``class 2 (grass): params.w``."""
     classes = data.get("classes") if isinstance(data, Mapping) else None
@@ -279,7 +286,7 @@ def _describe_validation_error(error: ValidationError, data: object) -> str:
             location = location[2:]
         # Drop the union-branch tags pydantic adds ("float", "list[float]", "literal[...]").
         field = ".".join(
-            str(part) for part in location if not (isinstance(part, str) and (part == "float" or "[" in part))
+            key_text(part) for part in location if not (isinstance(part, str) and (part == "float" or "[" in part))
         )
         grouped.setdefault((where, field), []).append(item)
     lines = []
@@ -449,13 +456,7 @@ class ParameterTable(BaseModel):
     @classmethod
     def from_yaml_text(cls, text: str, source: str = "parameter table") -> ParameterTable:
         """Parse YAML text (``yaml.safe_load``) and validate it."""
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as error:
-            mark = getattr(error, "problem_mark", None)
-            where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
-            problem = getattr(error, "problem", None) or "parse error"
-            raise ParameterError(f"{source}: not valid YAML{where}: {problem}") from None
+        data = parse_yaml(text, source, ParameterError)
         return cls.from_dict(data if data is not None else {}, source)
 
     @classmethod
