@@ -155,11 +155,16 @@ def _normalize_block(
     qa = np.zeros(n, dtype=np.uint8)
     qa[nodata] |= QA_NODATA
     qa[invalid_geometry] |= QA_INVALID_GEOMETRY
-    bad_pixels = None
-    if cube.dtype.kind == "f":  # NaN or +-inf in any band (min/max propagate them: no mask cube)
-        bad = ~(np.isfinite(np.min(cube, axis=0)) & np.isfinite(np.max(cube, axis=0)))
-        qa[bad] |= QA_NODATA
-        bad_pixels = np.flatnonzero(bad)
+    candidates = infinite = None
+    if cube.dtype.kind == "f":
+        # NaN or +-inf in some band makes the band sum non-finite (one pass, no mask cube); those
+        # few pixels are then checked band by band (a sum of finite values may overflow).
+        with np.errstate(over="ignore", invalid="ignore"):
+            candidates = np.flatnonzero(~np.isfinite(np.add.reduce(cube, axis=0)))
+        if candidates.size:
+            values = cube[:, candidates]
+            qa[candidates[~np.isfinite(values).all(axis=0)]] |= QA_NODATA
+            infinite = np.isinf(values)
 
     base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
     base[~usable] = np.nan
@@ -211,12 +216,10 @@ def _normalize_block(
                 ratio = clipped
             factor[index] = ratio
         np.multiply(cube[position], factor, out=out[position], casting="unsafe")
-    if bad_pixels is not None and bad_pixels.size:  # +-inf is nodata too: NaN in the output
-        values = out[:, bad_pixels]
-        infinite = np.isinf(cube[:, bad_pixels])
-        if infinite.any():
-            values[infinite] = np.nan
-            out[:, bad_pixels] = values
+    if infinite is not None and infinite.any():  # +-inf is nodata like NaN: NaN in the output
+        corrected = out[:, candidates]
+        corrected[infinite] = np.nan
+        out[:, candidates] = corrected
     for plan, index, _ in states:
         qa[index[limited[plan.id]]] |= QA_LIMITED
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)

@@ -29,6 +29,7 @@ import yaml
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
+from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
 
 NY, NX = 32, 40
@@ -464,3 +465,19 @@ def test_run_isolates_a_scene_with_bad_angles(scene, monkeypatch):
     assert sorted(p.name for p in output_dir.iterdir()) == ["run_report.json", "scene_image_brdf.tif",
                                                             "scene_image_qa.tif"]
     assert {**_digests(scene["dir"]), **{f"bad/{k}": v for k, v in _digests(bad).items()}} == before
+
+
+def test_only_non_finite_values_are_nodata_even_when_the_band_sum_overflows():
+    """Finite float32 values whose band sum overflows (3e38 + 3e38) are data, not nodata; a pixel
+    with +inf is nodata. Class 0 (no class, kept: factor 1) so the values pass unchanged."""
+    from brdfcorr.correct import QA_NODATA, normalize
+
+    cube = np.full((2, 1, 3), 0.5, dtype=np.float32)
+    cube[:, 0, 0] = 3e38
+    cube[1, 0, 1] = np.inf
+    zeros = np.zeros((1, 3))
+    table = ParameterTable(classes=[{"id": 1, "name": "flat", "model": "lambertian", "params": {"t0": 0.1}}])
+    corrected, qa = normalize(cube, np.zeros((1, 3), np.uint8), zeros + 30, zeros, zeros + 10, zeros, table)
+    assert qa.values.tolist() == [[0 | 2, QA_NODATA | 2, 2]]  # 2: no class
+    np.testing.assert_array_equal(corrected.values[:, 0, 0], cube[:, 0, 0])
+    assert corrected.values[0, 0, 1] == 0.5 and np.isnan(corrected.values[1, 0, 1])
