@@ -212,6 +212,9 @@ CORRECT_CASES = {
         lambda s: _correct_args(s, **{"--params": _table(
             s, "classes: !!python/object/apply:os.system ['touch pwned']\n")}),
         r"bad\.yaml: not valid YAML.*could not determine a constructor"),
+    "wavelengths for another band count": (
+        lambda s: _correct_args(s, **{"--wavelengths": "480,560,660"}),
+        r"image\.tif: 3 wavelengths from the given wavelengths for 4 bands"),
     # --- outputs
     "output is the image": (lambda s: _correct_args(s, **{"-o": s["image"]}),
                             r"output \S*image\.tif is also an input; inputs are never overwritten"),
@@ -267,6 +270,37 @@ def test_existing_output_needs_overwrite(scene):
     with rasterio.open(scene["output"]) as dataset:
         assert dataset.count == 4 and dataset.shape == (NY, NX)
     assert sorted(p.name for p in scene["out"].iterdir()) == ["corrected.tif"]
+    assert _digests(scene["dir"]) == before
+
+
+# ----------------------------------------------------------------------- brdfcorr fit-classes
+FIT_CASES = {
+    "angles in radians": (
+        lambda s: {"--angles": _derived(s, "angles", "angles_rad.tif", np.deg2rad)},
+        r"angles_rad\.tif.*: the angles look like radians"),
+    "class map float": (
+        lambda s: {"--classes": _derived(s, "classes", "classes_float.tif", lambda d: d.astype(np.float32))},
+        r"class map \S*classes_float\.tif has data type float32"),
+    "two images, one angle file": (
+        lambda s: {"image2": s["image"]},
+        r"2 image\(s\), 1 --angles and 1 --classes: give one angle raster and one class map per image"),
+}
+
+
+@pytest.mark.parametrize("case", list(FIT_CASES))
+def test_fit_classes_bad_input(scene, case):
+    build, pattern = FIT_CASES[case]
+    options = {"--angles": scene["angles"], "--classes": scene["classes"], "-o": scene["out"] / "fitted.yaml",
+               **build(scene)}
+    args = ["fit-classes", str(scene["image"])] + ([str(options.pop("image2"))] if "image2" in options else [])
+    for key, value in options.items():
+        args += [key, str(value)]
+    before = _digests(scene["dir"])
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    line = _one_error_line(result)
+    assert re.search(pattern, line), line
+    assert list(scene["out"].iterdir()) == []
     assert _digests(scene["dir"]) == before
 
 
