@@ -230,7 +230,7 @@ def run_command(chain, dry_run, resume, overwrite, settings, progress):
 
     Exit codes: 0 every scene corrected or skipped; 3 the run finished but some scenes failed
     (listed, with the reason, in the table and the report); 2 a bad config or input before any
-    scene ran (nothing is written).
+    scene ran (nothing is written); 1 an internal error.
     """
     from brdfcorr.config import load_config
     from brdfcorr.errors import InputError
