@@ -61,13 +61,19 @@ def _fail(error: Exception):
 
 
 def handle_errors(command):
-    """Map exceptions to exit codes: :class:`BrdfcorrError` -> one line and 2, any other exception
-    -> one "internal error" line and 1; click's own exceptions (usage errors, exit, abort) pass."""
+    """Map exceptions to exit codes: :class:`BrdfcorrError` and click's usage errors -> one line
+    and 2, any other exception -> one "internal error" line and 1; click's exit and abort pass."""
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
         try:
             return command(*args, **kwargs)
+        except click.UsageError as error:  # one line like every other error; the usage is in --help
+            context = error.ctx or click.get_current_context(silent=True)  # raised in a command
+            where = " ".join(context.command_path.split()[1:]) if context is not None else ""
+            hint = f" (see --help of {where})" if where else ""
+            click.echo(f"brdfcorr: error: {where + ': ' if where else ''}{error.format_message()}{hint}", err=True)
+            sys.exit(error.exit_code)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
         except Exception as error:  # noqa: BLE001 (the one place every failure is turned into an exit code)

@@ -215,6 +215,13 @@ CORRECT_CASES = {
     "wavelengths for another band count": (
         lambda s: _correct_args(s, **{"--wavelengths": "480,560,660"}),
         r"image\.tif: 3 wavelengths from the given wavelengths for 4 bands"),
+    # --- options
+    "required option missing": (lambda s: _correct_args(s, **{"--classes": None}),
+                                r"^brdfcorr: error: correct: Missing option '--classes'\. \(see --help of correct\)$"),
+    "option with a bad value": (lambda s: _correct_args(s, **{"--ref-sza": "noon"}),
+                                r"correct: Invalid value: 'noon' is not a number, 'mean' or 'observed'"),
+    "option of the wrong type": (lambda s: _correct_args(s, **{"--ref-vza": "ten"}),
+                                 r"correct: Invalid value for '--ref-vza': 'ten' is not a valid float"),
     # --- outputs
     "output is the image": (lambda s: _correct_args(s, **{"-o": s["image"]}),
                             r"output \S*image\.tif is also an input; inputs are never overwritten"),
