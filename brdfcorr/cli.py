@@ -320,6 +320,16 @@ def validate_command(chains, settings):
                    f"steps {', '.join(plan.steps) or '(none)'}")
 
 
+def _refuse_overwriting_inputs(outputs: dict[str, Path | None], inputs) -> None:
+    """InputError if an output option names one of the command's input files."""
+    from brdfcorr.errors import InputError
+
+    given = {Path(path).resolve() for path in inputs if path is not None}
+    for option, path in outputs.items():
+        if path is not None and Path(path).resolve() in given:
+            raise InputError(f"{option} {path} is also an input; inputs are never overwritten")
+
+
 def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> dict:
     """Parse ``NAME=VALUE`` (or ``NAME=LOW:HIGH`` with ``ranges``) command-line items."""
     from brdfcorr.errors import ParameterError
@@ -413,6 +423,7 @@ def fit_classes_command(images, angles, classes, model_name, class_model, names,
             f"{len(images)} image(s), {len(angles)} --angles and {len(classes)} --classes: give one "
             "angle raster and one class map per image, in the same order"
         )
+    _refuse_overwriting_inputs({"-o": output, "--report": report_path}, (*images, *angles, *classes))
     if fallback:
         load_material(fallback)  # fail before the work if the name is wrong
     scenes = []
@@ -508,6 +519,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     from brdfcorr.measurements import filter_measurements, read_measurements, selection_mask
     from brdfcorr.params import ParameterTable
 
+    _refuse_overwriting_inputs({"-o": output}, (measurements,))
     table = ParameterTable.load(output) if output is not None and output.exists() else None
     everything = read_measurements(measurements)
     if wavelength is not None:

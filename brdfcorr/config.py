@@ -44,7 +44,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from brdfcorr.errors import BrdfcorrError
+from brdfcorr.errors import ConfigError
 from brdfcorr.io_utils import parse_yaml
 from brdfcorr.params import ClassEntry, ReferenceGeometry, key_text
 
@@ -70,10 +70,6 @@ __all__ = [
 
 #: Placeholders of per-scene name patterns.
 PATTERN_FIELDS = ("dir", "parent", "stem", "scene")
-
-
-class ConfigError(BrdfcorrError, ValueError):
-    """A chain config is malformed; the message names the file, the key path and what is allowed."""
 
 
 class _Strict(BaseModel):

@@ -28,6 +28,11 @@ class InputError(BrdfcorrError, ValueError):
     """An input file or array is missing, unreadable or malformed (the message names it)."""
 
 
+class ConfigError(BrdfcorrError, ValueError):
+    """A chain config is malformed; the message names the file, the key path and what is allowed.
+    (Also importable as ``brdfcorr.config.ConfigError``.)"""
+
+
 class GridMismatchError(BrdfcorrError, ValueError):
     """Input rasters are not on the same grid; the message says which and what differs."""
 

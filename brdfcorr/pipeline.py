@@ -360,6 +360,12 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
         else:
             sources.append(f"fit from the imagery of the run's scenes -> {fit_output}")
     report = output_dir / outputs_config.report
+    inputs = {scene.image for scene in scenes} | {scene.classes for scene in scenes}
+    if config.parameters.table is not None:
+        inputs.add(config.resolve(config.parameters.table).resolve())
+    for key, path in (("outputs.report", report), ("steps.fit.output", fit_output)):
+        if path is not None and path.resolve() in inputs:
+            raise InputError(f"{config.source}: {key} {path} would overwrite an input")
     return RunPlan(config, tuple(scenes), output_dir, report, fit_output, tuple(sources), tuple(notes))
 
 

@@ -288,6 +288,9 @@ FIT_CASES = {
     "class map float": (
         lambda s: {"--classes": _derived(s, "classes", "classes_float.tif", lambda d: d.astype(np.float32))},
         r"class map \S*classes_float\.tif has data type float32"),
+    "output is the image": (lambda s: {"-o": s["image"]},
+                            r"-o \S*image\.tif is also an input; inputs are never overwritten"),
+    "report is the class map": (lambda s: {"--report": s["classes"]}, r"--report \S*classes\.tif is also an input"),
     "two images, one angle file": (
         lambda s: {"image2": s["image"]},
         r"2 image\(s\), 1 --angles and 1 --classes: give one angle raster and one class map per image"),
@@ -308,6 +311,16 @@ def test_fit_classes_bad_input(scene, case):
     line = _one_error_line(result)
     assert re.search(pattern, line), line
     assert list(scene["out"].iterdir()) == []
+    assert _digests(scene["dir"]) == before
+
+
+def test_fit_output_is_the_measurements(scene):
+    measurements = scene["dir"] / "tile.csv"
+    measurements.write_text("theta_i,theta_r,phi,brdf\n30,30,180,0.5\n30,10,180,0.1\n30,50,90,0.05\n")
+    before = _digests(scene["dir"])
+    result = CliRunner().invoke(main, ["fit", str(measurements), "-o", str(measurements)])
+    assert result.exit_code == 2
+    assert re.search(r"-o \S*tile\.csv is also an input; inputs are never overwritten", _one_error_line(result))
     assert _digests(scene["dir"]) == before
 
 
@@ -365,6 +378,10 @@ RUN_CASES = {
         r"chain\.yaml: not valid YAML.*could not determine a constructor"),
     "not a mapping": (lambda s: _chain_text(s, "just text\n"),
                       r"chain\.yaml: expected a mapping of sections \(inputs, outputs, \.\.\.\), got str"),
+    "fit output is the parameter table": (
+        lambda s: _chain(s, outputs={"directory": "scene"},
+                         steps={"fit": {"source": "imagery", "output": "params.yaml"}, "correct": {}}),
+        r"chain\.yaml: steps\.fit\.output \S*scene/params\.yaml would overwrite an input"),
     "bad parameter table": (
         lambda s: _chain(s, parameters={"table": str(_table(s, TABLE_TS % ", sigma: 3"))}),
         r"bad\.yaml: class 1 \(tile\): torrance_sparrow: unknown parameter 'sigma'"),
