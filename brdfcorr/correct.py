@@ -568,6 +568,20 @@ def correct_files(
     -------
     dict
         Pixel counts (:func:`qa_counts`) plus ``reference`` (the geometry used).
+
+    Raises
+    ------
+    InputError
+        A missing, unreadable or malformed input (named): wrong band counts, a float class map,
+        angles that look like radians or hold no zenith in [0, 90) (:func:`brdfcorr.io.check_angles`;
+        single pixels outside the domain are flagged, not an error), an output that is an input.
+    GridMismatchError
+        A layer not on the image's grid (shape, transform or CRS).
+    ParameterError
+        The table does not fit the image's bands (names the table, the class and the parameter).
+    OutputError
+        An existing output without ``overwrite``, or a failed write (disk full); nothing is left
+        at the output paths.
     """
     import json
 
