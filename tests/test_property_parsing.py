@@ -163,7 +163,8 @@ def test_table_from_dumped_and_damaged_yaml(document, data):
 
 
 # ----------------------------------------------------------------------------------- chain configs
-BASE = Path(tempfile.mkdtemp(prefix="brdfcorr_property_"))
+_SCRATCH = tempfile.TemporaryDirectory(prefix="brdfcorr_property_")  # removed at exit
+BASE = Path(_SCRATCH.name)
 
 
 @PROPERTY
