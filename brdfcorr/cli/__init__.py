@@ -1,0 +1,21 @@
+"""The ``brdfcorr`` command line: a thin layer over the library.
+
+Commands parse arguments, call library functions, print tables and map errors to exit codes
+(:data:`EXIT_CODES`): 2 for bad input or an output that cannot be written (any
+:class:`brdfcorr.errors.BrdfcorrError`, and click's usage errors), 1 for internal failures (any
+other exception), 3 when ``run`` finished but some scenes failed. An error is one line on stderr;
+the global ``--debug`` option adds the traceback. One module per group of commands; importing them
+registers the commands on :data:`main`.
+"""
+
+from brdfcorr.cli import analyze, chain, correct, fitting, info  # noqa: F401  (register commands)
+from brdfcorr.cli._base import (
+    EXIT_BAD_INPUT,
+    EXIT_CODES,
+    EXIT_INTERNAL,
+    EXIT_SCENES_FAILED,
+    handle_errors,
+    main,
+)
+
+__all__ = ["main", "handle_errors", "EXIT_CODES", "EXIT_BAD_INPUT", "EXIT_INTERNAL", "EXIT_SCENES_FAILED"]

@@ -1,0 +1,167 @@
+"""The ``brdfcorr`` command group, its error handling and the option parsers the commands share.
+
+Commands parse arguments, call library functions, print tables and map errors to exit codes
+(:data:`EXIT_CODES`): 2 for bad input or an output that cannot be written (any
+:class:`brdfcorr.errors.BrdfcorrError`, and click's usage errors), 1 for internal failures (any
+other exception), 3 when ``run`` finished but some scenes failed. An error is one line on stderr;
+the global ``--debug`` option adds the traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+import traceback
+from pathlib import Path
+
+import click
+
+from brdfcorr import __version__
+from brdfcorr.errors import BrdfcorrError
+
+
+def _format_table(rows: list[dict[str, str]]) -> str:
+    """Rows of equal keys as a plain aligned text table."""
+    columns = list(rows[0])
+    widths = {column: max(len(column), *(len(str(row[column])) for row in rows)) for column in columns}
+    lines = ["  ".join(column.ljust(widths[column]) for column in columns)]
+    lines.append("  ".join("-" * widths[column] for column in columns))
+    lines += ["  ".join(str(row[column]).ljust(widths[column]) for column in columns) for row in rows]
+    return "\n".join(lines)
+
+
+#: Exit code of a bad input, config, parameter or option, or of an output that cannot be written.
+EXIT_BAD_INPUT = 2
+#: Exit code of an internal failure (a bug: any exception that is not a BrdfcorrError).
+EXIT_INTERNAL = 1
+#: Exit code of `brdfcorr run` when the run finished but some scenes failed (see the report).
+EXIT_SCENES_FAILED = 3
+EXIT_CODES = {0: "success", EXIT_INTERNAL: "internal error (a bug; --debug shows the traceback)",
+              EXIT_BAD_INPUT: "bad input, config, parameter or option, or an output that cannot be written",
+              EXIT_SCENES_FAILED: "run: the run finished but some scenes failed (see the report)"}
+
+
+def _debug_enabled() -> bool:
+    context = click.get_current_context(silent=True)
+    return bool(context is not None and context.find_root().params.get("debug"))
+
+
+def _fail(error: Exception):
+    """One line on stderr (the traceback before it with --debug), then the exit code of the error."""
+    if _debug_enabled():
+        traceback.print_exception(error, file=sys.stderr)
+    # One line: an unattended batch greps its logs line by line.
+    text = " ".join(str(error).split("\n")).strip()
+    if isinstance(error, BrdfcorrError):
+        click.echo(f"brdfcorr: error: {text}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    hint = "" if _debug_enabled() else " (rerun with --debug for the traceback)"
+    click.echo(f"brdfcorr: internal error: {type(error).__name__}: {text}{hint}", err=True)
+    sys.exit(EXIT_INTERNAL)
+
+
+def handle_errors(command):
+    """Map exceptions to exit codes: :class:`BrdfcorrError` and click's usage errors -> one line
+    and 2, any other exception -> one "internal error" line and 1; click's exit and abort pass."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except click.UsageError as error:  # one line like every other error; the usage is in --help
+            context = error.ctx or click.get_current_context(silent=True)  # raised in a command
+            where = " ".join(context.command_path.split()[1:]) if context is not None else ""
+            hint = f" (see --help of {where})" if where else ""
+            click.echo(f"brdfcorr: error: {where + ': ' if where else ''}{error.format_message()}{hint}", err=True)
+            sys.exit(error.exit_code)
+        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except Exception as error:  # noqa: BLE001 (the one place every failure is turned into an exit code)
+            _fail(error)
+
+    return wrapper
+
+
+class _Group(click.Group):
+    """The command group: every command and subgroup runs under :func:`handle_errors`."""
+
+    def invoke(self, ctx):
+        return handle_errors(super().invoke)(ctx)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]},
+             epilog="Exit codes: 0 success; 2 bad input, config, parameter or option, or an output "
+                    "that cannot be written (one line on stderr naming the file, key, band or class); "
+                    "1 internal error (a bug; --debug shows the traceback); 3 run: some scenes failed.")
+@click.option("--debug", is_flag=True, help="Show the traceback of an error.")
+@click.version_option(__version__, prog_name="brdfcorr")
+def main(debug):
+    """Specular BRDF models and BRDF normalization of reflectance imagery."""
+
+
+def _refuse_overwriting_inputs(outputs: dict[str, Path | None], inputs) -> None:
+    """InputError if an output option names one of the command's input files."""
+    from brdfcorr.errors import InputError
+
+    given = {Path(path).resolve() for path in inputs if path is not None}
+    for option, path in outputs.items():
+        if path is not None and Path(path).resolve() in given:
+            raise InputError(f"{option} {path} is also an input; inputs are never overwritten")
+
+
+def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> dict:
+    """Parse ``NAME=VALUE`` (or ``NAME=LOW:HIGH`` with ``ranges``) command-line items."""
+    from brdfcorr.errors import ParameterError
+
+    parsed = {}
+    for item in items:
+        name, _, text = item.partition("=")
+        try:
+            value = tuple(float(part) for part in text.split(":")) if ranges else float(text)
+            if ranges and len(value) != 2:
+                raise ValueError
+        except ValueError:
+            form = "NAME=LOW:HIGH" if ranges else "NAME=VALUE"
+            raise ParameterError(f"{option} {item!r}: expected {form} with numbers") from None
+        parsed[name.strip()] = value
+    return parsed
+
+
+def _options(option: str, items: tuple[str, ...]) -> dict[str, object]:
+    """Parse ``KEY=VALUE`` items; values are read as YAML scalars (``20`` -> 20, ``B04`` -> "B04")."""
+    from brdfcorr.errors import ParameterError
+    from brdfcorr.io_utils import parse_yaml
+
+    parsed = {}
+    for item in items:
+        key, separator, text = item.partition("=")
+        if not separator or not key.strip():
+            raise ParameterError(f"{option} {item!r}: expected KEY=VALUE")
+        try:
+            parsed[key.strip()] = parse_yaml(text, option, ParameterError) if text.strip() else ""
+        except ParameterError:  # not a YAML scalar: the text itself
+            parsed[key.strip()] = text
+    return parsed
+
+
+def _pairs(option: str, items: tuple[str, ...]) -> dict[int, str]:
+    """Parse ``ID=TEXT`` command-line items into {id: text}."""
+    from brdfcorr.errors import ParameterError
+
+    parsed = {}
+    for item in items:
+        key, _, text = item.partition("=")
+        if not key.strip().isdigit() or not text.strip():
+            raise ParameterError(f"{option} {item!r}: expected CLASS_ID=VALUE, e.g. 2=grass")
+        parsed[int(key)] = text.strip()
+    return parsed
+
+
+def _save_figure(figure, target: Path) -> None:
+    from brdfcorr.io_utils import atomic_path
+
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(target) as temporary:
+        figure.savefig(temporary, dpi=110, format=target.suffix.lstrip(".") or "png")
+    click.echo(f"wrote {target}")
+

@@ -1,0 +1,207 @@
+"""``brdfcorr demo``, ``run`` and ``validate``: processing chains (library: brdfcorr.pipeline)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from brdfcorr.cli._base import (
+    EXIT_SCENES_FAILED,
+    _format_table,
+    handle_errors,
+    main,
+)
+
+
+@main.command("demo")
+@click.option(
+    "-o", "--output-dir", type=click.Path(file_okay=False, path_type=Path), default="demo_output",
+    show_default=True, help="Directory for the demo outputs.",
+)
+@click.option("--config", "config_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Chain config to run on the demo scene [default: configs/demo.yaml].")
+@click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
+@handle_errors
+def demo_command(output_dir: Path, config_path, progress):
+    """Build a demo airborne line, correct it with the demo chain and write a before/after picture.
+
+    Writes OUTPUT_DIR/scene/ (image, angles, classes), OUTPUT_DIR/corrected/ (corrected GeoTIFF,
+    QA, before/after quicklook, run report), OUTPUT_DIR/demo.yaml (the chain, rerun with
+    `brdfcorr run`) and OUTPUT_DIR/materials_brdf.png.
+    """
+    from brdfcorr.demo import run_demo
+
+    with _chain_progress(progress, "demo") as callback:
+        result = run_demo(output_dir, config_path, progress=callback)
+    _echo_run(result.report)
+    for figure in result.figures:
+        click.echo(f"wrote {figure}")
+    if not result.report.ok:
+        sys.exit(EXIT_SCENES_FAILED)
+
+
+# ------------------------------------------------------------------------------------------------
+# brdfcorr run / validate: chain configs (library: brdfcorr.config, brdfcorr.pipeline)
+# ------------------------------------------------------------------------------------------------
+
+def _overrides(items: tuple[str, ...]) -> dict:
+    """``--set KEY=VALUE`` items: dotted config keys, values read as YAML (``engine.workers=2``)."""
+    from brdfcorr.config import ConfigError
+    from brdfcorr.io_utils import parse_yaml
+
+    parsed = {}
+    for item in items:
+        key, sign, text = item.partition("=")
+        if not sign or not key.strip():
+            raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. engine.workers=2")
+        parsed[key.strip()] = parse_yaml(text, f"--set {item!r}", ConfigError)
+    return parsed
+
+
+class _chain_progress:
+    """Context manager giving a ``progress(event, info)`` callback that drives an overall tqdm bar
+    over the scenes (on a terminal, or when asked)."""
+
+    def __init__(self, enabled, description: str):
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.description = description
+        self.bar = None
+
+    def __enter__(self):
+        return self.callback
+
+    def callback(self, event: str, info: dict) -> None:
+        if not self.enabled:
+            return
+        from tqdm import tqdm
+
+        if event == "plan":
+            self.bar = tqdm(total=info["scenes"], desc=self.description, unit="scene", file=sys.stderr)
+        elif event == "fit" and self.bar is not None:
+            self.bar.write(f"fit: {len(info.get('classes', []))} classes")
+        elif event == "scene" and self.bar is not None:
+            self.bar.set_postfix_str(f"{info['scene']}: {info['status']}")
+            self.bar.update(1)
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.close()
+        return False
+
+
+def _echo_run(report) -> None:
+    rows = []
+    for result in report.scenes:
+        qa = result.get("qa", {})
+        rows.append({
+            "scene": result["scene"], "status": result["status"],
+            "corrected": str(qa.get("corrected", "-")), "limited": str(qa.get("limited", "-")),
+            "seconds": f"{result.get('seconds', {}).get('total', 0):.1f}",
+            "note": result.get("error") or result.get("reason", ""),
+        })
+    if rows:
+        click.echo(_format_table(rows))
+    click.echo(f"{report.n_ok} ok, {report.n_skipped} skipped, {report.n_failed} failed in "
+               f"{report.timings.get('total', 0):.1f} s; report: {report.path}")
+
+
+@main.command("run")
+@click.argument("chain", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--dry-run", is_flag=True, help="List the scenes and what would happen to each; write nothing.")
+@click.option("--resume", is_flag=True, help="Skip scenes whose complete outputs exist (outputs.existing=skip).")
+@click.option("--overwrite", is_flag=True, help="Redo scenes whose outputs exist (outputs.existing=overwrite).")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
+              help="Override a config key (dotted, value as YAML), e.g. --set engine.workers=4 (repeatable).")
+@click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
+@handle_errors
+def run_command(chain, dry_run, resume, overwrite, settings, progress):
+    """Run the processing chain CHAIN (YAML) over all its scenes and write a run report (JSON).
+
+    Exit codes: 0 every scene corrected or skipped; 3 the run finished but some scenes failed
+    (listed, with the reason, in the table and the report); 2 a bad config or input before any
+    scene ran (nothing is written); 1 an internal error.
+    """
+    from brdfcorr.config import load_config
+    from brdfcorr.errors import InputError
+    from brdfcorr.pipeline import plan_run, run_chain
+
+    if resume and overwrite:
+        raise InputError("--resume and --overwrite exclude each other")
+    overrides = _overrides(settings)
+    if resume or overwrite:
+        overrides["outputs.existing"] = "skip" if resume else "overwrite"
+    config = load_config(chain, overrides)
+    plan = plan_run(config, require_inputs=not dry_run)
+    if dry_run:
+        _echo_plan(plan)
+        return
+    with _chain_progress(progress, chain.name) as callback:
+        report = run_chain(config, progress=callback, plan=plan)
+    _echo_run(report)
+    if not report.ok:
+        sys.exit(EXIT_SCENES_FAILED)
+
+
+def _echo_plan(plan) -> None:
+    description = plan.describe()
+    engine = description["engine"]
+    click.echo(f"chain {description['config']}: steps {', '.join(description['steps']) or '(none)'}")
+    for source in description["parameters"]:
+        click.echo(f"  parameters: {source}")
+    if description["reference"]:
+        click.echo("  reference: " + " ".join(f"{k}={v}" for k, v in description["reference"].items()))
+    click.echo(f"  engine: {engine['scheduler']}, {engine['workers']} workers, chunk {engine['chunk']}"
+               + (f", scheduler at {engine['address']}" if engine.get("address") else ""))
+    click.echo(f"  outputs: {description['output_directory']} (report {Path(description['report']).name})")
+    rows = [{
+        "scene": scene["scene"], "action": scene["action"], "image": scene["image"],
+        "outputs": ", ".join(Path(p).name for p in scene["outputs"].values()) or "-",
+        "reason": scene.get("reason", ""),
+    } for scene in description["scenes"]]
+    if rows:
+        click.echo(_format_table(rows))
+    for warning in description["warnings"]:
+        click.echo(f"brdfcorr: warning: {warning}", err=True)
+    counts = {action: sum(s["action"] == action for s in description["scenes"]) for action in ("run", "skip", "fail")}
+    click.echo(f"{len(rows)} scenes: {counts['run']} to run, {counts['skip']} to skip, {counts['fail']} would fail")
+
+
+@main.command("validate")
+@click.argument("chains", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE", help="Override a config key (as for run).")
+@handle_errors
+def validate_command(chains, settings):
+    """Check chain configs without running them: keys, values, names, patterns, parameter table.
+
+    Files that do not exist yet (inputs, tables) are warnings; a malformed config is an error
+    naming the key path and the allowed values (exit code 2). A parameter table file (a document
+    with `classes` but no `inputs`) is checked as a table.
+    """
+    from brdfcorr.config import ConfigError, load_config
+    from brdfcorr.io_utils import parse_yaml
+    from brdfcorr.params import ParameterTable
+    from brdfcorr.pipeline import plan_run
+
+    overrides = _overrides(settings)
+    for chain in chains:
+        try:
+            document = parse_yaml(chain.read_text(), str(chain), ConfigError)
+        except (OSError, ConfigError):
+            document = None  # load_config reports it
+        if isinstance(document, dict) and "classes" in document and "inputs" not in document:
+            table = ParameterTable.load(chain)
+            click.echo(f"{chain}: valid parameter table; classes {', '.join(map(str, table.class_ids))}")
+            continue
+        plan = plan_run(load_config(chain, overrides), require_inputs=False)
+        for warning in plan.warnings:
+            click.echo(f"brdfcorr: warning: {chain}: {warning}", err=True)
+        missing = [scene for scene in plan.scenes if scene.action == "fail"]
+        for scene in missing:
+            click.echo(f"brdfcorr: warning: {chain}: scene {scene.name}: {scene.reason}", err=True)
+        incomplete = f" ({len(missing)} with missing inputs)" if missing else ""
+        click.echo(f"{chain}: valid; {len(plan.scenes)} scenes found{incomplete}, "
+                   f"steps {', '.join(plan.steps) or '(none)'}")
+
+

@@ -1,0 +1,44 @@
+"""``brdfcorr models`` and ``brdfcorr materials``: the registry and the material library."""
+
+from __future__ import annotations
+
+import click
+
+from brdfcorr.cli._base import (
+    _format_table,
+    handle_errors,
+    main,
+)
+
+
+@main.command("models")
+def models_command():
+    """List the BRDF models and their parameters (units, defaults, physical range)."""
+    from brdfcorr.models import REGISTRY, parameter_table_rows
+
+    for model in REGISTRY.values():
+        click.echo(f"{model.name}: {model.description} [{model.reference}]")
+    click.echo()
+    click.echo(_format_table(parameter_table_rows()))
+
+
+@main.command("materials")
+@click.argument("name", required=False)
+@handle_errors
+def materials_command(name):
+    """List the built-in materials, or show one material's parameters with errors."""
+    from brdfcorr.materials import load_material, material_names
+
+    names = [name] if name else material_names()
+    rows = []
+    for material in map(load_material, names):
+        row = {"material": material.name}
+        row.update(
+            {key: f"{value:g} ± {material.errors[key]:g}" for key, value in material.params.items()}
+        )
+        row["chi2/dof"] = f"{material.reduced_chi2:g}"
+        rows.append(row)
+    click.echo(_format_table(rows))
+    click.echo(f"\nmodel {material.model.name}, {material.wavelength:g} nm. Source: {material.source}")
+
+
