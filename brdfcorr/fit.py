@@ -293,34 +293,6 @@ def _free_parameters(model: Model, fixed, initial, bounds):
     return fixed, free, np.array(lower), np.array(upper), initial
 
 
-def _linear_parameters(kernel, geometry, values: dict, candidates) -> list[str]:
-    """The candidates on which the model depends linearly and jointly (probed numerically).
-
-    A parameter p enters linearly if f(p = 2) - 2 f(p = 1) + f(p = 0) = 0 at every measurement;
-    the subset is kept only if f is additive in them as well (f = f0 + sum p_j g_j). For the
-    registry models these are the amplitudes t0, t1 and a.
-    """
-
-    def evaluate(**changes):
-        with np.errstate(all="ignore"):
-            return np.asarray(kernel(geometry, **{**values, **changes}), dtype=float)
-
-    def close(a, b):
-        return np.all(np.isfinite(a)) and np.allclose(a, b, rtol=1e-9, atol=1e-12 * np.max(np.abs(b)))
-
-    linear = [
-        name for name in candidates
-        if close(evaluate(**{name: 2.0}) + evaluate(**{name: 0.0}), 2.0 * evaluate(**{name: 1.0}))
-    ]
-    if len(linear) > 1:
-        zero = {name: 0.0 for name in linear}
-        base = evaluate(**zero)
-        columns = [evaluate(**{**zero, name: 1.0}) - base for name in linear]
-        if not close(evaluate(**{name: 2.0 for name in linear}), base + 2.0 * sum(columns)):
-            return []
-    return linear
-
-
 def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, initial):
     """Deterministic starting vectors for the non-linear fit.
 
@@ -335,7 +307,7 @@ def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, 
             finite_upper = upper[index] if math.isfinite(upper[index]) else lower[index] + 1.0
             centre[name] = 0.5 * (lower[index] + finite_upper)
     candidates = [name for name in free if name not in initial]
-    linear = _linear_parameters(model.kernel, geometry, {**fixed, **centre}, candidates)
+    linear = [name for name in model.affine if name is not None and name in candidates]
     gridded = [
         name for name in candidates
         if name not in linear
