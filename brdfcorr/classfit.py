@@ -554,6 +554,13 @@ class ClassSamples:
     brdf: np.ndarray  # (N, B)
 
 
+def _class_values(class_map: xr.DataArray) -> np.ndarray:
+    """The class ids of a class map in memory, its nodata (rioxarray's) read as 0, "no class"."""
+    values = np.asarray(class_map.values)
+    nodata = class_map.rio.nodata if hasattr(class_map, "rio") else None
+    return np.where(values == nodata, 0, values) if nodata is not None else values
+
+
 def _as_list(value) -> list:
     return list(value) if isinstance(value, (list, tuple)) else [value]
 
@@ -575,7 +582,8 @@ def sample_classes(
     images : DataArray or list of DataArray, dims (band, y, x)
         Reflectance factors (numpy- or dask-backed); the band count must agree across scenes.
     classes : DataArray or list of DataArray, dims (y, x)
-        Integer class maps on the images' grids; 0 and negative values mean "no class".
+        Integer class maps on the images' grids; 0, negative values and the map's nodata
+        (``.rio.nodata``) mean "no class".
     angles : Dataset or list of Dataset
         ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on the images' grids (DESIGN.md conventions).
     class_ids : sequence of int, optional
@@ -604,7 +612,7 @@ def sample_classes(
             f"{len(images)} images, {len(classes)} class maps and {len(angles)} angle sets: "
             "give one class map and one angle set per image"
         )
-    maps = [np.asarray(class_map.values) for class_map in classes]
+    maps = [_class_values(class_map) for class_map in classes]
     valid_angles = [
         np.all([np.isfinite(np.asarray(a[name].values)) for name in ("sza", "saa", "vza", "vaa")], axis=0)
         for a in angles

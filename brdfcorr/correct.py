@@ -599,20 +599,10 @@ def correct_files(
         table_path = str(params)
         params = ParameterTable.load(params)
     chunks = rio_io.auto_chunk(image) if chunks is None else int(chunks)
-    reflectance = rio_io.open_image(image, chunks=chunks, wavelengths=wavelengths)
-    class_map = rio_io.open_classes(classes, chunks=chunks)
-    if angles_kind == "geotiff":
-        layers = rio_io.open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
-    else:
-        from brdfcorr.sensors import read_angles
-
-        dataset = read_angles(angles_kind, angles, like=reflectance, **(angle_options or {}))
-        missing = [name for name in rio_io.ANGLE_NAMES if name not in dataset]
-        if missing:
-            raise InputError(f"angle source {angles} ({angles_kind}) gives no {', '.join(missing)}")
-        layers = {name: dataset[name] for name in rio_io.ANGLE_NAMES}
-    rio_io.check_same_grid({"image": reflectance, "classes": class_map, **layers})
-    rio_io.check_angles(layers, source=None if angles_kind == "geotiff" else f"{angles} ({angles_kind})")
+    reflectance, class_map, layers = rio_io.open_scene(
+        image, classes, angles, angles_kind=angles_kind, angle_options=angle_options,
+        sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks, wavelengths=wavelengths,
+    )
 
     reference = _resolve_reference(reference, params)
     source = "fixed" if not isinstance(reference.sza, str) else reference.sza

@@ -32,6 +32,7 @@ from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError, Output
 from brdfcorr.io_utils import atomic_path
 
 __all__ = [
+    "open_scene",
     "open_image",
     "open_angles",
     "open_classes",
@@ -260,6 +261,47 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=Non
             raise InputError(f"{name} angle file {separate[name]} has {layer.sizes[layer.dims[0]]} bands; it needs 1")
         angles[name] = layer.isel({layer.dims[0]: 0}, drop=True).rename(name)
     return angles
+
+
+def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", angle_options=None,
+               sza=None, saa=None, vza=None, vaa=None, chunks=None, wavelengths=None):
+    """Open one scene lazily and check it: reflectance, class map and the four angle layers.
+
+    Parameters
+    ----------
+    image, classes : path-like
+        Reflectance raster and class map.
+    angles : path-like or str, optional
+        The angle source: a 4-band raster (sza, saa, vza, vaa [deg]) for ``angles_kind="geotiff"``
+        (or give the four separate files ``sza`` ... ``vaa``), else what
+        :func:`brdfcorr.sensors.read_angles` reads for that kind (``envi_obs``, ``sentinel2``,
+        ``landsat``, ``solar``) with ``angle_options``, brought onto the image grid.
+    chunks, wavelengths :
+        As for :func:`open_image`.
+
+    Returns
+    -------
+    (DataArray, DataArray, dict of str to DataArray)
+        Reflectance (band, y, x), class map (y, x) and the angle layers by name, all on one grid
+        (:func:`check_same_grid`) and with angles in degrees (:func:`check_angles`).
+    """
+    reflectance = open_image(image, chunks=chunks, wavelengths=wavelengths)
+    class_map = open_classes(classes, chunks=chunks)
+    if angles_kind == "geotiff":
+        layers = open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
+        source = None
+    else:
+        from brdfcorr.sensors import read_angles
+
+        dataset = read_angles(angles_kind, angles, like=reflectance, **(angle_options or {}))
+        missing = [name for name in ANGLE_NAMES if name not in dataset]
+        if missing:
+            raise InputError(f"angle source {angles} ({angles_kind}) gives no {', '.join(missing)}")
+        layers = {name: dataset[name] for name in ANGLE_NAMES}
+        source = f"{angles} ({angles_kind})"
+    check_same_grid({"image": reflectance, "classes": class_map, **layers})
+    check_angles(layers, source=source)
+    return reflectance, class_map, layers
 
 
 def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) -> dict[str, tuple[float, float]]:

@@ -383,26 +383,16 @@ def _materials_table(config: ChainConfig) -> ParameterTable:
 
 
 def _open_scene(scene: Scene, config: ChainConfig):
-    """Image, class map (nodata as 0, "no class") and angle Dataset of a scene, lazily."""
+    """Image, class map and angle Dataset of a scene, lazily (:func:`brdfcorr.io.open_scene`)."""
     import xarray as xr
 
     from brdfcorr import io as rio_io
 
-    chunks = config.engine.chunk
-    image = rio_io.open_image(scene.image, chunks=chunks, wavelengths=config.inputs.wavelengths)
-    classes = rio_io.open_classes(scene.classes, chunks=chunks)
-    if scene.angles_kind == "geotiff":
-        angles = xr.Dataset(rio_io.open_angles(scene.angles, chunks=chunks))
-    else:
-        from brdfcorr.sensors import read_angles
-
-        angles = read_angles(scene.angles_kind, scene.angles, like=image, **scene.angle_options)
-    rio_io.check_same_grid({"image": image, "classes": classes, **{k: angles[k] for k in angles.data_vars}})
-    rio_io.check_angles({k: angles[k] for k in angles.data_vars})
-    nodata = classes.rio.nodata
-    if nodata is not None:
-        classes = classes.where(classes != nodata, 0)
-    return image, classes, angles
+    image, classes, layers = rio_io.open_scene(
+        scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
+        angle_options=scene.angle_options, chunks=config.engine.chunk, wavelengths=config.inputs.wavelengths,
+    )
+    return image, classes, xr.Dataset(layers)
 
 
 def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:

@@ -193,6 +193,7 @@ def test_cli_fit_classes_writes_table_report_and_plots(tmp_path):
     from brdfcorr.testing import georeference, write_scene
 
     image, classes, angles = airborne_line(ny=64, nx=96)
+    classes[:4] = 255  # the class map's nodata (write_scene): "no class", never a class 255
     # Band descriptions "480 nm", ... carry the wavelengths in the GeoTIFF (DESIGN.md).
     image.attrs["long_name"] = tuple(f"{w:g} nm" for w in WAVELENGTHS)
     scene = {
@@ -211,6 +212,7 @@ def test_cli_fit_classes_writes_table_report_and_plots(tmp_path):
     ])
     assert result.exit_code == 0, result.output
     table = ParameterTable.load(out / "params.yaml")
+    assert table.class_ids == (1, 2)
     assert table[1].name == "roof_tile" and table[2].model == "empirical"
     # Wavelengths from the image's band descriptions travel into the table.
     assert table[1].wavelengths == WAVELENGTHS

@@ -66,11 +66,7 @@ def fit_classes_command(images, angles, classes, model_name, class_model, names,
         load_material(fallback)  # fail before the work if the name is wrong
     scenes = []
     for image_path, angle_path, class_path in zip(images, angles, classes):
-        image = rio_io.open_image(image_path)
-        layers = rio_io.open_angles(angle_path)
-        class_map = rio_io.open_classes(class_path)
-        rio_io.check_same_grid({"image": image, "classes": class_map, **layers})
-        rio_io.check_angles(layers)
+        image, class_map, layers = rio_io.open_scene(image_path, class_path, angle_path)
         scenes.append((image, class_map, xr.Dataset(layers)))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ClassFitWarning)
