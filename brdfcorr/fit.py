@@ -35,6 +35,7 @@ import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 from scipy.stats import chi2 as chi2_distribution
 
+from brdfcorr.classfit import fit_classes  # the class-pooled fit from imagery (DESIGN.md: fit.py)
 from brdfcorr.errors import FitError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.measurements import Measurements, check_measurements
@@ -45,6 +46,7 @@ __all__ = [
     "FitWarning",
     "NonIdentifiableWarning",
     "fit_brdf",
+    "fit_classes",
     "fit_measurements",
     "fit_wavelengths",
     "spectral_table_entry",
