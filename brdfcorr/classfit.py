@@ -22,9 +22,13 @@ The fit uses f = R / pi (a Lambertian surface of reflectance R has BRDF R / pi),
 parameters in the resulting table are in sr^-1 like the goniometer fits of paper 003.
 
 Errors: shape-parameter covariance from the sandwich estimator of the profile objective with
-per-pixel scores (robust to heteroscedastic noise and to residuals correlated across bands, such as
-within-class albedo variation); intensity errors per band from the heteroscedasticity-consistent
-(HC0) covariance of the linear problem, plus the propagated shape uncertainty.
+efficient per-sample scores summed over spatial blocks (cluster-robust: it allows for
+heteroscedastic noise, for residuals correlated across bands such as within-class albedo
+variation, and for albedo or texture correlated between neighbouring pixels within a block);
+intensity errors per band from the cluster-robust covariance of the linear problem, plus the
+propagated shape uncertainty. With strongly textured synthetic scenes the errors are still
+optimistic by a factor of ~2-3 (measured over seeds with a 10 % albedo smoothed over ~4 pixels); a spatial block
+bootstrap would be the next step.
 """
 
 from __future__ import annotations
@@ -319,8 +323,20 @@ def _newton_polish(profile: _LinearProfile, shape: dict[str, float], iterations:
     return shape, _derivatives(profile, shape)[3]
 
 
-def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, hessian):
-    """Sandwich covariance of the shape; HC0 + propagated shape errors for the intensities."""
+def _cluster_sums(values: np.ndarray, clusters: np.ndarray | None) -> np.ndarray:
+    """Per-cluster sums of per-sample rows (the identity without clusters)."""
+    if clusters is None:
+        return values
+    _, index = np.unique(clusters, return_inverse=True)
+    sums = np.zeros((index.max() + 1, *values.shape[1:]))
+    np.add.at(sums, index.reshape(-1), values)
+    return sums
+
+
+def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, hessian, clusters=None):
+    """Sandwich covariance of the shape; robust sandwich + propagated shape errors for the
+    intensities. With ``clusters`` the scores are summed per cluster first (cluster-robust
+    covariance): samples of one cluster may share errors (e.g. spatially correlated albedo)."""
     free = list(shape)
     data, n = profile.data, profile.n
     basis = profile.basis(shape) if len(profile.terms) > 1 else None
@@ -328,14 +344,20 @@ def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, 
     coefficients = np.stack(intensities)  # (m, B)
     residuals = data - design @ coefficients  # (N, B)
 
-    # Intensities conditional on the shape: HC0 sandwich per band.
+    # Intensities conditional on the shape: HC0 (or cluster-robust) sandwich per band.
     bread = np.linalg.pinv(design.T @ design)
-    squared = residuals**2
     m = design.shape[1]
-    meat = np.empty((squared.shape[1], m, m))
-    for i in range(m):
-        for j in range(i, m):
-            meat[:, i, j] = meat[:, j, i] = (design[:, i] * design[:, j]) @ squared
+    meat = np.empty((residuals.shape[1], m, m))
+    if clusters is None:
+        squared = residuals**2
+        for i in range(m):
+            for j in range(i, m):
+                meat[:, i, j] = meat[:, j, i] = (design[:, i] * design[:, j]) @ squared
+    else:
+        summed = [_cluster_sums(design[:, [i]] * residuals, clusters) for i in range(m)]  # (C, B)
+        for i in range(m):
+            for j in range(i, m):
+                meat[:, i, j] = meat[:, j, i] = np.einsum("cb,cb->b", summed[i], summed[j])
     intensity_cov = np.einsum("ij,bjk,kl->bil", bread, meat, bread)
     intensity_var = np.stack([intensity_cov[:, i, i] for i in range(len(profile.terms))])
     if not free:
@@ -367,6 +389,7 @@ def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, 
             (np.stack(profile.solve(plus)[0]) - np.stack(profile.solve(minus)[0])) / (2 * steps[i])
         )
     inverse = np.linalg.pinv(hessian)
+    scores = _cluster_sums(scores, clusters)
     shape_cov = inverse @ (scores.T @ scores) @ inverse
     shape_errors = dict(zip(free, np.sqrt(np.maximum(np.diag(shape_cov), 0.0))))
 
@@ -386,6 +409,7 @@ def fit_class_samples(
     fixed: Mapping[str, float] | None = None,
     grid_points: int = 9,
     search_samples: int = 20_000,
+    clusters=None,
 ) -> dict:
     """Fit one class: shape parameters shared by all bands, intensity terms per band.
 
@@ -405,6 +429,10 @@ def fit_class_samples(
     search_samples : int, default 20000
         Samples used for the coarse search (a seeded subsample); the optimum is then polished and
         the errors computed on all samples.
+    clusters : array-like of int, shape (N,), optional
+        A cluster id per sample (e.g. its spatial block). Errors are then cluster-robust: samples
+        of one cluster may share their errors (spatially correlated albedo, texture). Without
+        clusters the samples are taken as independent.
 
     Returns
     -------
@@ -449,7 +477,8 @@ def fit_class_samples(
         shape, hessian = _newton_polish(profile, shape)
     basis = profile.basis(shape) if len(terms) > 1 else None
     intensities, ssr = profile.solve(basis)
-    shape_errors, intensity_errors = _errors(profile, shape, intensities, ssr, hessian)
+    clusters = None if clusters is None else np.asarray(clusters).reshape(-1)
+    shape_errors, intensity_errors = _errors(profile, shape, intensities, ssr, hessian, clusters)
 
     n_bands = data.shape[1]
     params = {name: np.full(n_bands, value) for name, value in {**fixed, **shape}.items()}
@@ -497,6 +526,7 @@ def fit_one_class(
     guard: GuardRails = GuardRails(),
     fallback: str | None = None,
     grid_points: int = 9,
+    clusters=None,
 ) -> ClassFit:
     """Fit one class's samples and apply the guard rails (see :func:`fit_class_samples`)."""
     model = get_model(model)
@@ -517,7 +547,7 @@ def fit_one_class(
         )
     if report.n_samples >= max(len(model.parameters) + 1, 3):
         result = fit_class_samples(
-            model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points
+            model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points, clusters=clusters
         )
         report.params, report.errors = result["params"], result["errors"]
         report.r2, report.rmse = result["r2"], result["rmse"]
@@ -552,6 +582,7 @@ class ClassSamples:
     theta_r: np.ndarray
     phi: np.ndarray
     brdf: np.ndarray  # (N, B)
+    block: np.ndarray | None = None  # spatial block id of each sample (cluster for the errors)
 
 
 def _class_values(class_map: xr.DataArray) -> np.ndarray:
@@ -574,6 +605,7 @@ def sample_classes(
     max_samples: int = 50_000,
     seed: int = 0,
     reflectance_scale: float = 1.0,
+    block_size: int = 32,
 ) -> dict[int, ClassSamples]:
     """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
 
@@ -594,6 +626,10 @@ def sample_classes(
         Seed of the sampler: the same inputs and seed give the same samples.
     reflectance_scale : float, default 1
         Multiplier that turns stored values into reflectance factors (e.g. 1e-4 for 0-10000).
+    block_size : int, default 32
+        Side [pixels] of the square spatial blocks whose ids label the samples
+        (``ClassSamples.block``), so that the fit's errors allow for albedo and texture that are
+        correlated between neighbouring pixels.
 
     Returns
     -------
@@ -641,16 +677,21 @@ def sample_classes(
 
             reflectance = pick(image.transpose("band", "y", "x")).T * reflectance_scale
             saa, vaa = pick(angle_set["saa"]), pick(angle_set["vaa"])
+            blocks_x = -(-maps[scene].shape[1] // block_size)
+            block = (scene, iy // block_size, ix // block_size)
             parts.append(
-                (pick(angle_set["sza"]), pick(angle_set["vza"]), relative_azimuth(saa, vaa), reflectance / math.pi)
+                (pick(angle_set["sza"]), pick(angle_set["vza"]), relative_azimuth(saa, vaa), reflectance / math.pi,
+                 (block[0] * 10**9 + block[1] * blocks_x + block[2]).astype(np.int64))
             )
         if not parts:
             n_bands = images[0].sizes["band"]
-            pooled[class_id] = ClassSamples(*(np.empty(0) for _ in range(3)), np.empty((0, n_bands)))
+            pooled[class_id] = ClassSamples(
+                *(np.empty(0) for _ in range(3)), np.empty((0, n_bands)), np.empty(0, np.int64)
+            )
             continue
-        theta_i, theta_r, phi, brdf = (np.concatenate(p) for p in zip(*parts))
+        theta_i, theta_r, phi, brdf, block = (np.concatenate(p) for p in zip(*parts))
         keep = np.all(np.isfinite(brdf), axis=1)
-        pooled[class_id] = ClassSamples(theta_i[keep], theta_r[keep], phi[keep], brdf[keep])
+        pooled[class_id] = ClassSamples(theta_i[keep], theta_r[keep], phi[keep], brdf[keep], block[keep])
     return pooled
 
 
@@ -711,6 +752,7 @@ def fit_classes(
     max_samples: int = 50_000,
     seed: int = 0,
     reflectance_scale: float = 1.0,
+    block_size: int = 32,
     guard: GuardRails = GuardRails(),
     fallback: str | Mapping[int, str] | None = None,
     grid_points: int = 9,
@@ -736,8 +778,8 @@ def fit_classes(
         the table so that it can be applied to other sensors by interpolation.
     fixed : mapping, optional
         Shape parameters held fixed (default k = 0.25 for the Torrance-Sparrow models).
-    max_samples, seed, reflectance_scale :
-        See :func:`sample_classes`.
+    max_samples, seed, reflectance_scale, block_size :
+        See :func:`sample_classes`. The errors are cluster-robust over the spatial blocks.
     guard : GuardRails
         Minimum samples, view-zenith spread, conditioning and R^2 a class must meet.
     fallback : str or mapping of int to str, optional
@@ -762,7 +804,7 @@ def fit_classes(
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
     pooled = sample_classes(
         images, classes, angles, class_ids=class_ids, max_samples=max_samples, seed=seed,
-        reflectance_scale=reflectance_scale,
+        reflectance_scale=reflectance_scale, block_size=block_size,
     )
     names = dict(names or {})
     fits, entries, kept = [], [], {}
@@ -781,6 +823,7 @@ def fit_classes(
             guard=guard,
             fallback=class_fallback,
             grid_points=grid_points,
+            clusters=samples.block,
         )
         fits.append(fit)
         entry = _entry(fit, wavelengths)

@@ -229,3 +229,38 @@ def test_cli_fit_classes_writes_table_report_and_plots(tmp_path):
     assert mismatch.exit_code == 2
     assert "2 image(s), 1 --angles and 1 --classes" in mismatch.output
     assert not (out / "other.yaml").exists()
+
+
+def _single_class_line(seed, texture_sigma, ny=90, nx=140):
+    """One roof-tile class across a 40-deg swing of view zenith; albedo 10 % (std), either
+    independent per pixel (texture_sigma 0) or smooth over a few pixels (a Gaussian filter)."""
+    from scipy.ndimage import gaussian_filter
+
+    rng = np.random.default_rng(seed)
+    cols = np.linspace(-1, 1, nx)[None, :]
+    angles = {"sza": np.full((ny, nx), 40.0), "saa": np.full((ny, nx), 95.0),
+              "vza": np.broadcast_to(40 * np.abs(cols), (ny, nx)).copy(),
+              "vaa": np.broadcast_to(np.where(cols < 0, 270.0, 90.0), (ny, nx)).copy()}
+    noise = rng.standard_normal((ny, nx))
+    if texture_sigma:
+        noise = gaussian_filter(noise, texture_sigma)
+    albedo = 1 + 0.1 * noise / noise.std()
+    classes = np.ones((ny, nx), int)
+    cube = render(TRUTH, classes, **angles, wavelengths=WAVELENGTHS, brightness=math.pi * albedo)
+    coords = {"y": np.arange(ny), "x": np.arange(nx)}
+    return (xr.DataArray(cube, dims=("band", "y", "x"), coords={**coords, "band": np.arange(1, 5)}),
+            xr.DataArray(classes, dims=("y", "x"), coords=coords),
+            xr.Dataset({k: (("y", "x"), v) for k, v in angles.items()}, coords=coords))
+
+
+def test_block_robust_errors_grow_with_spatially_correlated_albedo():
+    # Cluster-robust errors (spatial blocks) equal the independent-sample ones when the albedo is
+    # independent from pixel to pixel, and are several times larger when it is smooth in space
+    # (neighbouring pixels share their error, so there are fewer independent samples).
+    def w_error(scene, block_size):
+        return fit_classes(*scene, block_size=block_size).fits[0].errors["w"][0]
+
+    independent = _single_class_line(1, texture_sigma=0)
+    assert w_error(independent, 8) == pytest.approx(w_error(independent, 1), rel=0.3)
+    smooth = _single_class_line(1, texture_sigma=2.0)
+    assert w_error(smooth, 8) > 3 * w_error(smooth, 1)
