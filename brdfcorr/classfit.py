@@ -327,10 +327,9 @@ def _cluster_sums(values: np.ndarray, clusters: np.ndarray | None) -> np.ndarray
     """Per-cluster sums of per-sample rows (the identity without clusters)."""
     if clusters is None:
         return values
-    _, index = np.unique(clusters, return_inverse=True)
-    sums = np.zeros((index.max() + 1, *values.shape[1:]))
-    np.add.at(sums, index.reshape(-1), values)
-    return sums
+    order = np.argsort(clusters, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(clusters[order]) != 0])
+    return np.add.reduceat(values[order], starts, axis=0)
 
 
 def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, hessian, clusters=None):
