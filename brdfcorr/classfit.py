@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.optimize
+import scipy.sparse
 import xarray as xr
 
 from brdfcorr.errors import ParameterError
@@ -327,9 +328,12 @@ def _cluster_sums(values: np.ndarray, clusters: np.ndarray | None) -> np.ndarray
     """Per-cluster sums of per-sample rows (the identity without clusters)."""
     if clusters is None:
         return values
-    order = np.argsort(clusters, kind="stable")
-    starts = np.flatnonzero(np.r_[True, np.diff(clusters[order]) != 0])
-    return np.add.reduceat(values[order], starts, axis=0)
+    _, index = np.unique(clusters, return_inverse=True)
+    # A (clusters x samples) indicator matrix: one sparse product sums every column at once.
+    indicator = scipy.sparse.csr_matrix(
+        (np.ones(index.size), (index.reshape(-1), np.arange(index.size))), shape=(index.max() + 1, index.size)
+    )
+    return indicator @ values
 
 
 def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, hessian, clusters=None):
