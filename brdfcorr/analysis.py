@@ -30,7 +30,7 @@ from scipy import integrate, optimize
 from brdfcorr.errors import ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model, get_model
-from brdfcorr.models.torrance_sparrow import _attenuation, _fresnel
+from brdfcorr.models.torrance_sparrow import _fresnel
 
 __all__ = [
     "SimplifiedModelWarning",
@@ -168,7 +168,7 @@ def shadowing_impact(
             t1 * _fresnel(geometry.cos_local, n, k) * np.exp(-((w * geometry.alpha) ** 2))
             / (geometry.cos_i * geometry.cos_r)
         )
-        attenuation = _attenuation(geometry)
+        attenuation = geometry.attenuation
         gain = specular * (1.0 - attenuation)  # f(G = 1) - f
         for key, values in (("relative", gain / (t0 + specular * attenuation)), ("absolute", gain)):
             index = np.unravel_index(np.argmax(values), values.shape)

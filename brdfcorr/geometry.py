@@ -33,7 +33,7 @@ from functools import cached_property
 
 import numpy as np
 
-from brdfcorr._arrays import array_function, cosd, sind
+from brdfcorr._arrays import TINY, array_function, cosd, sind
 
 __all__ = [
     "ScatteringGeometry",
@@ -117,6 +117,15 @@ class ScatteringGeometry:
     def cos_local(self):
         """cos(beta), the cosine of the local incidence angle on the facet [-]."""
         return cosd(self.local_incidence)
+
+    @cached_property
+    def attenuation(self):
+        """Torrance-Sparrow V-cavity masking/shadowing factor G [-] (purely geometric, so computed
+        once per geometry; see :func:`brdfcorr.models.geometric_attenuation`)."""
+        # Closed form (Blinn 1977): G = min(1, 2 cos a cos tr / cos b, 2 cos a cos ti / cos b).
+        # cos b > 0 on the open domain; the floor keeps grazing geometries finite.
+        steepest = np.minimum(self.cos_i, self.cos_r)
+        return np.minimum(1.0, 2.0 * self.cos_alpha * steepest / np.maximum(self.cos_local, TINY))
 
 
 @array_function("phi", "degree", "relative azimuth")

@@ -100,13 +100,6 @@ def fresnel(cos_local, n, k=0.0):
     return _fresnel(cos_local, n, k)
 
 
-def _attenuation(geometry: ScatteringGeometry):
-    # Closed form of the V-cavity factor [3]_: G = min(1, 2 cos a cos tr / cos b,
-    # 2 cos a cos ti / cos b). cos b > 0 on the open domain; the floor keeps grazing finite.
-    steepest = np.minimum(geometry.cos_i, geometry.cos_r)
-    return np.minimum(1.0, 2.0 * geometry.cos_alpha * steepest / np.maximum(geometry.cos_local, TINY))
-
-
 @array_function("G", "1", "geometric attenuation factor (V-cavity masking/shadowing)")
 def geometric_attenuation(theta_i, theta_r, phi):
     """Torrance-Sparrow geometric attenuation factor G of symmetric V-cavities, in 3-D.
@@ -137,14 +130,14 @@ def geometric_attenuation(theta_i, theta_r, phi):
     with alpha the facet inclination and beta the local incidence angle (V.H = L.H = cos beta).
     This is the factor of paper 003 [2]_, eq. 1 (their figs. 4 and 5 show it in the principal plane).
     """
-    return _attenuation(ScatteringGeometry(theta_i, theta_r, phi))
+    return ScatteringGeometry(theta_i, theta_r, phi).attenuation
 
 
 def _ts_kernel(geometry: ScatteringGeometry, t0, t1, w, n, k, *, shadowing: bool = True):
     # Paper 003, eq. 1; the facet distribution exp(-w^2 alpha^2) takes alpha in degrees (eq. 2).
     specular = _fresnel(geometry.cos_local, n, k) * np.exp(-((w * geometry.alpha) ** 2))
     if shadowing:
-        specular = specular * _attenuation(geometry)
+        specular = specular * geometry.attenuation
     return t0 + t1 * specular / (geometry.cos_i * geometry.cos_r)
 
 
