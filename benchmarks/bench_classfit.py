@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from brdfcorr.classfit import fit_one_class
+from brdfcorr.fit.classes import fit_one_class
 from brdfcorr.models import torrance_sparrow
 
 

@@ -110,7 +110,7 @@ def timed(function, *args, repeat: int = 1) -> float:
 
 
 def end_to_end(directory: Path, size: int, bands: int, chunk: int, repeat: int) -> None:
-    from brdfcorr.io import auto_chunk
+    from brdfcorr.io.rasters import auto_chunk
 
     paths = make_scene(directory, size, bands)
     paths["params"] = spectral_table_path(directory)

@@ -1,4 +1,4 @@
-"""Accuracy/time trade-off of the V-cavity simulation (brdfcorr.simulate.simulate_vcavity).
+"""Accuracy/time trade-off of the V-cavity simulation (brdfcorr.analysis.simulate.simulate_vcavity).
 
 For each grid setting, the simulation (normalized at 45/45/180, as paper 000 fig. 2) is compared
 with the analytic Torrance-Sparrow model normalized the same way, at the geometries of paper 000
@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from brdfcorr.models import torrance_sparrow
-from brdfcorr.simulate import NORMALIZATION_GEOMETRY, simulate_vcavity
+from brdfcorr.analysis.simulate import NORMALIZATION_GEOMETRY, simulate_vcavity
 
 ROUGHNESSES = (0.01, 0.05, 0.15)
 CUTS = ((10.0, 180.0), (45.0, 180.0), (75.0, 180.0), (45.0, 150.0))

@@ -7,10 +7,12 @@ try:
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0+unknown"
 
-from brdfcorr import geometry, models  # noqa: E402
+from brdfcorr import _compat, geometry, models  # noqa: E402
 from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # noqa: E402
 from brdfcorr.correct import normalize  # noqa: E402
 from brdfcorr import accessor  # noqa: E402,F401  (registers the .brdf xarray accessor)
+
+_compat.install()
 
 __all__ = [
     "__version__", "geometry", "models", "normalize", "BrdfcorrError", "ParameterError", "UnknownNameError",

@@ -8,8 +8,9 @@ with the class's model f_c and per-band parameters p_c(lambda) (``DESIGN.md``, "
 The geometry of each pixel (relative azimuth, facet inclination, local incidence, cosines) is
 computed once and shared by all bands; each class's model is evaluated only at that class's pixels.
 Bands whose parameters are equal share one factor map, so with band-independent parameters the
-per-band cost is the bare multiplication; with spectral tables only the terms in which the model is
-affine (``t0``, ``t1`` / ``a``) are re-evaluated per band.
+per-band cost is the bare multiplication; with spectral tables the basis functions are evaluated once
+per shape and only their linear combination (``t0 + t1 g``; ``f_iso + f_vol K_vol + f_geo K_geo``)
+is re-evaluated per band.
 
 With dask-backed inputs the result is lazy (one task per reflectance chunk, no computation until
 asked) and its chunks are those of the reflectance.
@@ -82,48 +83,31 @@ class Normalized(NamedTuple):
 class _ClassPlan:
     """One class's model and band parameters, arranged for evaluation in blocks.
 
-    ``shapes`` are the distinct sets of non-affine parameters; band ``b`` uses
-    ``shapes[shape_of_band[b]]`` with ``offset[b] + scale[b] * g``. ``row_of_band[b]`` numbers the
-    distinct (shape, offset, scale) triples, so bands with equal rows share one factor.
+    The model is ``f = sum_j c_j B_j(geometry; shape)`` over its linear parameters
+    (:attr:`Model.linear`). ``shapes`` are the distinct sets of shape parameters; band ``b`` uses the
+    basis of ``shapes[shape_of_band[b]]`` with the coefficients ``coefficients[b]``.
+    ``row_of_band[b]`` numbers the distinct (shape, coefficients) rows, so bands with equal rows
+    share one factor.
     """
 
     id: int
     model: Model
     shapes: tuple[dict[str, float], ...]
     shape_of_band: np.ndarray
-    offset: np.ndarray
-    scale: np.ndarray
+    coefficients: np.ndarray
     row_of_band: np.ndarray
 
 
 def _plan(class_id: int, model: Model, params: dict[str, np.ndarray]) -> _ClassPlan:
-    offset_name, scale_name = model.affine
     n_bands = len(next(iter(params.values())))
-    offset = params[offset_name] if offset_name else np.zeros(n_bands)
-    if scale_name:
-        scale = params[scale_name]
-    else:  # no scale parameter: g is evaluated with the offset at 0 and taken as is (scale 1),
-        scale = np.ones(n_bands)  # which for f = t0 gives g = 0
-    shape_names = [name for name in params if name not in (offset_name, scale_name)]
+    coefficients = np.stack([params[name] for name in model.linear], axis=1)
+    shape_names = model.shape_names
     shape_matrix = np.stack([params[name] for name in shape_names], axis=1) if shape_names else np.zeros((n_bands, 0))
     unique_shapes, shape_of_band = np.unique(shape_matrix, axis=0, return_inverse=True)
     shape_of_band = shape_of_band.reshape(-1)
     shapes = tuple(dict(zip(shape_names, map(float, row))) for row in unique_shapes)
-    rows = np.column_stack([shape_of_band, offset, scale])
-    _, row_of_band = np.unique(rows, axis=0, return_inverse=True)
-    return _ClassPlan(class_id, model, shapes, shape_of_band, offset, scale, row_of_band.reshape(-1))
-
-
-def _g(plan: _ClassPlan, geometry: ScatteringGeometry, shape: dict[str, float]):
-    """The model at offset 0 and scale 1 (the angular part), on a precomputed geometry."""
-    offset_name, scale_name = plan.model.affine
-    params = dict(shape)
-    if offset_name:
-        params[offset_name] = 0.0
-    if scale_name:
-        params[scale_name] = 1.0
-    # Parameters were validated when the table was resolved to the bands: call the kernel directly.
-    return plan.model.kernel(geometry, **params)
+    _, row_of_band = np.unique(np.column_stack([shape_of_band, coefficients]), axis=0, return_inverse=True)
+    return _ClassPlan(class_id, model, shapes, shape_of_band, coefficients, row_of_band.reshape(-1))
 
 
 def _normalize_block(
@@ -191,9 +175,16 @@ def _normalize_block(
         else:
             ref_sza = reference_sza
         ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
-        # The angular terms in float64; the per-band affine arithmetic in the output precision.
+        # The basis functions in float64; the per-band linear combination in the output precision.
+        # Parameters were validated when the table was resolved to the bands.
         g = [
-            (np.asarray(_g(plan, observed, shape), dtype=out_dtype), np.asarray(_g(plan, ref, shape), dtype=out_dtype))
+            tuple(
+                tuple(
+                    np.broadcast_to(np.asarray(term, dtype=out_dtype), index.shape)
+                    for term in plan.model.terms(where, shape)
+                )
+                for where in (observed, ref)
+            )
             for shape in plan.shapes
         ]
         states.append((plan, index, g))
@@ -235,18 +226,22 @@ def _present_classes(values: np.ndarray) -> list:
     return np.unique(values).tolist()
 
 
-def _ratio(plan: _ClassPlan, band: int, g_observed: np.ndarray, g_reference) -> np.ndarray:
-    """f(ref) / f(obs) at a class's pixels for one band (a new array, the dtype of g_observed)."""
-    offset, scale = plan.offset[band], plan.scale[band]
-    f_observed = g_observed * scale
-    f_observed += offset
-    f_reference = g_reference * scale + offset
-    if offset > 0:  # g >= 0 and scale >= 0 for every surface model: f(obs) > 0
-        return np.divide(f_reference, f_observed, dtype=g_observed.dtype)
+def _ratio(plan: _ClassPlan, band: int, terms_observed: tuple, terms_reference: tuple) -> np.ndarray:
+    """f(ref) / f(obs) at a class's pixels for one band (a new array in the terms' precision).
+
+    Where the model predicts no signal at either geometry (0 / 0) the pixel is left unchanged
+    (ratio 1); where it predicts none or a negative one at the observed geometry only, the ratio is
+    NaN (a kernel-driven model with negative coefficients can do that): the pixel is flagged
+    ``limited`` and is nodata in that band, never a silently wrong number.
+    """
+    coefficients = [float(c) for c in plan.coefficients[band]]  # Python floats keep the terms' dtype
+    f_observed = sum(c * term for c, term in zip(coefficients, terms_observed))
+    f_reference = sum(c * term for c, term in zip(coefficients, terms_reference))
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.divide(f_reference, f_observed, dtype=g_observed.dtype)
-    # 0/0: the model predicts no signal at either geometry; leave the pixel unchanged.
-    ratio[np.broadcast_to((f_observed == 0) & (f_reference == 0), ratio.shape)] = 1.0
+        ratio = f_reference / f_observed
+    bad = ~(f_observed > 0)
+    if bad.any():
+        ratio[bad] = np.where((f_observed[bad] == 0) & (f_reference[bad] == 0), 1.0, np.nan)
     return ratio
 
 
@@ -526,7 +521,7 @@ def correct_files(
     """Normalize GeoTIFF files: read image, angles and class map, write the corrected image.
 
     The file-level entry point (the CLI and pipelines call it). Inputs are opened lazily in chunks
-    (:mod:`brdfcorr.io`), checked to lie on the image's grid, normalized with :func:`normalize`
+    (:mod:`brdfcorr.io.rasters`), checked to lie on the image's grid, normalized with :func:`normalize`
     and written tiled and compressed, chunk by chunk, to a temporary name renamed when complete,
     with band descriptions and provenance tags (reference geometry, limits, parameter table,
     brdfcorr version). The optional QA layer is written in the same pass.
@@ -547,7 +542,7 @@ def correct_files(
     qa_output : path-like, optional
         Where to write the QA layer (uint8 flags).
     chunks : int, optional
-        Spatial chunk and tile size [pixels]; by default :func:`brdfcorr.io.auto_chunk` (512 for
+        Spatial chunk and tile size [pixels]; by default :func:`brdfcorr.io.rasters.auto_chunk` (512 for
         up to 16 bands, smaller for more, so that memory does not grow with the band count).
     compress : str, default "deflate"
     cog : bool, default False
@@ -558,7 +553,7 @@ def correct_files(
         Where an in-memory ``params`` came from, for the provenance tag.
     angles_kind : str, default "geotiff"
         ``"geotiff"`` for angle rasters on the image grid; otherwise a sensor source kind of
-        :func:`brdfcorr.sensors.read_angles` (``"envi_obs"``, ``"sentinel2"``, ``"landsat"``,
+        :func:`brdfcorr.io.sensors.read_angles` (``"envi_obs"``, ``"sentinel2"``, ``"landsat"``,
         ``"solar"``) read from ``angles`` onto the image grid with ``angle_options``.
     overwrite : bool, default True
         Replace existing outputs; with False an existing output is an :class:`OutputError`
@@ -573,7 +568,7 @@ def correct_files(
     ------
     InputError
         A missing, unreadable or malformed input (named): wrong band counts, a float class map,
-        angles that look like radians or hold no zenith in [0, 90) (:func:`brdfcorr.io.check_angles`;
+        angles that look like radians or hold no zenith in [0, 90) (:func:`brdfcorr.io.rasters.check_angles`;
         single pixels outside the domain are flagged, not an error), an output that is an input.
     GridMismatchError
         A layer not on the image's grid (shape, transform or CRS).
@@ -586,7 +581,7 @@ def correct_files(
     import json
 
     from brdfcorr import __version__
-    from brdfcorr import io as rio_io
+    from brdfcorr.io import rasters as rio_io
 
     inputs = [image, sza, saa, vza, vaa, classes] + ([angles] if angles_kind == "geotiff" else [])
     for target in (output, qa_output):

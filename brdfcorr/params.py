@@ -53,7 +53,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from brdfcorr.errors import InputError, ParameterError
-from brdfcorr.io_utils import atomic_path, parse_yaml
+from brdfcorr.io.files import atomic_path, parse_yaml
 from brdfcorr.models import SURFACE_MODELS, Model, get_model
 
 __all__ = [

@@ -30,7 +30,7 @@ import warnings
 import numpy as np
 import pytest
 
-from brdfcorr.analysis import (
+from brdfcorr.analysis.papers import (
     PAPER_SHADOWING,
     WORST_CASE_PARAMS,
     IntegrationAccuracyWarning,
@@ -42,7 +42,7 @@ from brdfcorr.analysis import (
     width_reduction,
 )
 from brdfcorr.errors import ParameterError
-from brdfcorr.materials import load_material
+from brdfcorr.models.materials import load_material
 from brdfcorr.models import fresnel, geometric_attenuation, torrance_sparrow
 
 TABLE1 = ("roof_tile", "red_concrete", "blue_concrete", "red_aluminium")

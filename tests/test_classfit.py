@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from brdfcorr.classfit import (
+from brdfcorr.fit.classes import (
     ClassFitWarning,
     GuardRails,
     fit_class_samples,

@@ -37,7 +37,7 @@ def test_atomic_path_leaves_nothing_on_failure_and_uses_the_default_mode(tmp_pat
 
     import pytest
 
-    from brdfcorr.io_utils import atomic_path
+    from brdfcorr.io.files import atomic_path
 
     target = tmp_path / "out.txt"
     with pytest.raises(RuntimeError):

@@ -157,25 +157,25 @@ def test_help_lists_the_contract_options():
 
 
 def test_correct_files_reads_sensor_angle_sources(files, scene, tmp_path, monkeypatch):
-    # The plumbing to brdfcorr.sensors.read_angles: a stand-in source kind that returns the scene's
+    # The plumbing to brdfcorr.io.sensors.read_angles: a stand-in source kind that returns the scene's
     # angles on the image grid must give the same output as the 4-band angle file.
     import xarray as xr
 
-    import brdfcorr.sensors
+    import brdfcorr.io.sensors
     from brdfcorr.correct import correct_files
 
     def stand_in(source, like, scale=1.0):
         assert source == "obs.bin" and like.sizes["x"] == 48
         return xr.Dataset({name: scene[name] * scale for name in ANGLES})
 
-    monkeypatch.setitem(brdfcorr.sensors.ANGLE_KINDS, "stand_in", stand_in)
+    monkeypatch.setitem(brdfcorr.io.sensors.ANGLE_KINDS, "stand_in", stand_in)
     common = dict(params=example_table(), classes=files["classes"], reference={"sza": 35.0}, chunks=16)
     correct_files(files["image"], tmp_path / "a.tif", angles=files["angles"], **common)
     correct_files(files["image"], tmp_path / "b.tif", angles="obs.bin", angles_kind="stand_in",
                   angle_options={"scale": 1.0}, **common)
     with rasterio.open(tmp_path / "a.tif") as a, rasterio.open(tmp_path / "b.tif") as b:
         np.testing.assert_array_equal(a.read(), b.read())
-    monkeypatch.setitem(brdfcorr.sensors.ANGLE_KINDS, "sun_only",
+    monkeypatch.setitem(brdfcorr.io.sensors.ANGLE_KINDS, "sun_only",
                         lambda source, like: xr.Dataset({n: scene[n] for n in ("sza", "saa")}))
     with pytest.raises(InputError, match=r"angle source t0 \(sun_only\) gives no vza, vaa"):
         correct_files(files["image"], tmp_path / "c.tif", angles="t0", angles_kind="sun_only", **common)

@@ -7,9 +7,9 @@ import pytest
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.fit import fit_measurements
-from brdfcorr.materials import load_material
-from brdfcorr.measurements import (
+from brdfcorr.fit.goniometer import fit_measurements
+from brdfcorr.models.materials import load_material
+from brdfcorr.fit.measurements import (
     filter_measurements,
     goniometer_angles,
     read_measurements,

@@ -7,7 +7,7 @@ import yaml
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.config import ChainConfig, ConfigError, apply_overrides, format_pattern, load_config
+from brdfcorr.workflow.config import ChainConfig, ConfigError, apply_overrides, format_pattern, load_config
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((REPO / "configs").glob("*.yaml"))

@@ -266,19 +266,19 @@ def test_flip_view_azimuth(scene):
     np.testing.assert_allclose(a.values, b.values, rtol=1e-12)
 
 
-def test_affine_parameter_table_matches_the_registry():
-    # The optimization f = offset + scale * g(rest) must hold for the registry's kernels.
+def test_linear_split_matches_the_registry():
+    # The optimization f = sum_j p_j B_j(shape) (Model.linear, Model.terms) must hold for every
+    # registry kernel with linear parameters.
     rng = np.random.default_rng(3)
     geometry = ScatteringGeometry(rng.uniform(0, 80, 50), rng.uniform(0, 80, 50), rng.uniform(0, 180, 50))
     for model in REGISTRY.values():
-        offset, scale = model.affine
-        if offset is None:
+        if not model.linear:
             continue
         params = {p.name: p.default * rng.uniform(0.5, 1.5) for p in model.parameters}
-        base = dict(params, **{offset: 0.0}, **({scale: 1.0} if scale else {}))
-        g = model.kernel(geometry, **base)
-        expected = model.kernel(geometry, **params)
-        np.testing.assert_allclose(params[offset] + (params[scale] if scale else 1.0) * g, expected, rtol=1e-12)
+        terms = model.terms(geometry, params)
+        assert len(terms) == len(model.linear)
+        combined = sum(params[name] * term for name, term in zip(model.linear, terms))
+        np.testing.assert_allclose(combined, model.kernel(geometry, **params), rtol=1e-12)
 
 
 def test_band_independent_table_gives_the_same_factor_for_every_band(scene):

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.geometry import relative_azimuth
-from brdfcorr.materials import load_material
+from brdfcorr.models.materials import load_material
 from brdfcorr.models import torrance_sparrow
 from brdfcorr.params import ParameterTable
 

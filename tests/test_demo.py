@@ -10,9 +10,9 @@ import rasterio
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.config import load_config
-from brdfcorr.demo import DEMO_TIME, demo_angles, demo_scene, demo_table, run_demo
-from brdfcorr.pipeline import build_table, plan_run
+from brdfcorr.workflow.config import load_config
+from brdfcorr.workflow.demo import DEMO_TIME, demo_angles, demo_scene, demo_table, run_demo
+from brdfcorr.workflow.chain import build_table, plan_run
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import rasterio
 
-from brdfcorr.config import load_config
-from brdfcorr.pipeline import run_chain
+from brdfcorr.workflow.config import load_config
+from brdfcorr.workflow.chain import run_chain
 
 distributed = pytest.importorskip("distributed")
 

@@ -8,7 +8,7 @@ from scipy.optimize import curve_fit, least_squares
 from scipy.stats import chi2 as chi2_distribution
 
 from brdfcorr.errors import BrdfcorrError, FitError, MeasurementError, ParameterError
-from brdfcorr.fit import (
+from brdfcorr.fit.goniometer import (
     FitWarning,
     NonIdentifiableWarning,
     fit_brdf,
@@ -16,8 +16,8 @@ from brdfcorr.fit import (
     format_with_error,
 )
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.materials import load_material
-from brdfcorr.measurements import filter_measurements, goniometer_angles, synthesize_measurements
+from brdfcorr.models.materials import load_material
+from brdfcorr.fit.measurements import filter_measurements, goniometer_angles, synthesize_measurements
 from brdfcorr.models import get_model
 from brdfcorr.params import ParameterTable
 
@@ -347,7 +347,7 @@ def test_xarray_and_list_inputs_give_the_numpy_result(roof_tile_fit):
 
 
 def test_figures_have_one_panel_per_scan(roof_tile_fit):
-    from brdfcorr.fit_plots import azimuth_cuts, plot_azimuth, plot_principal_plane, principal_plane_cuts
+    from brdfcorr.plot.fits import azimuth_cuts, plot_azimuth, plot_principal_plane, principal_plane_cuts
 
     truth, data, result = roof_tile_fit
     everything = synthesize_measurements(truth.model, truth.params, *ANGLES, seed=1)
@@ -386,13 +386,13 @@ def spectral_measurements():
         name: np.concatenate([getattr(part, name) for part in parts])
         for name in ("theta_i", "theta_r", "phi", "brdf", "sigma", "wavelength")
     }
-    from brdfcorr.measurements import Measurements
+    from brdfcorr.fit.measurements import Measurements
 
     return t0, filter_measurements(Measurements(**columns), min_phi=90)
 
 
 def test_fit_wavelengths_and_spectral_table_entry(tmp_path):
-    from brdfcorr.fit import fit_wavelengths, spectral_table_entry
+    from brdfcorr.fit.goniometer import fit_wavelengths, spectral_table_entry
 
     t0, data = spectral_measurements()
     results = fit_wavelengths("torrance_sparrow", data, fixed=PAPER_K)
@@ -419,7 +419,7 @@ def test_fit_wavelengths_and_spectral_table_entry(tmp_path):
 
 
 def test_fit_wavelengths_needs_a_wavelength_column(roof_tile_fit):
-    from brdfcorr.fit import fit_wavelengths
+    from brdfcorr.fit.goniometer import fit_wavelengths
 
     _, data, _ = roof_tile_fit
     with pytest.raises(FitError, match="no wavelength column"):

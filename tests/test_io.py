@@ -1,4 +1,4 @@
-"""Tests of brdfcorr.io: readers, wavelengths, grid checks, atomic chunked GeoTIFF writes."""
+"""Tests of brdfcorr.io.rasters: readers, wavelengths, grid checks, atomic chunked GeoTIFF writes."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 import rasterio
 import xarray as xr
 
-from brdfcorr import io
+from brdfcorr.io import rasters as io
 from brdfcorr.errors import GridMismatchError, InputError
 from brdfcorr.testing import georeference, synthetic_scene, write_scene
 

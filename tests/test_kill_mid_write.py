@@ -1,7 +1,7 @@
 """A process killed mid-write, or a disk that fills, never leaves an output that looks complete.
 
 Outputs are written to a temporary name beside the target (``.NAME.XXXX.partial``) and renamed
-when complete (:func:`brdfcorr.io_utils.atomic_path`). A SIGKILL cannot run any clean-up, so the
+when complete (:func:`brdfcorr.io.files.atomic_path`). A SIGKILL cannot run any clean-up, so the
 temporary file may stay; nothing may appear under the output's own name, and a rerun succeeds. A
 failed write (disk full, file size limit) is an exit code 2 with one message naming the file, and
 nothing is left at all.

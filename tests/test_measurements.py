@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from brdfcorr.errors import InputError, MeasurementError
-from brdfcorr.materials import load_material
-from brdfcorr.measurements import (
+from brdfcorr.models.materials import load_material
+from brdfcorr.fit.measurements import (
     Measurements,
     filter_measurements,
     goniometer_angles,

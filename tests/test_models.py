@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from brdfcorr.errors import ParameterError
 from brdfcorr.geometry import ScatteringGeometry, facet_inclination, local_incidence
-from brdfcorr.materials import load_material
+from brdfcorr.models.materials import load_material
 from brdfcorr.models import (
     empirical,
     fresnel,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from brdfcorr.errors import BrdfcorrError, InputError, ParameterError
-from brdfcorr.materials import load_material
+from brdfcorr.models.materials import load_material
 from brdfcorr.params import ClassEntry, ParameterTable, ReferenceGeometry, merge_tables
 
 # The example table of DESIGN.md, verbatim.

@@ -10,8 +10,8 @@ import yaml
 from click.testing import CliRunner
 
 from brdfcorr.cli import EXIT_SCENES_FAILED, main
-from brdfcorr.config import load_config
-from brdfcorr.pipeline import plan_run, run_chain
+from brdfcorr.workflow.config import load_config
+from brdfcorr.workflow.chain import plan_run, run_chain
 from brdfcorr.testing import example_table, render, synthetic_scene, write_scene
 
 REFERENCE = {"sza": 35.0, "vza": 0.0, "raa": 0.0}
@@ -201,8 +201,8 @@ def test_imagery_fit_step(tmp_path):
 
 
 def test_goniometer_fit_step(tmp_path):
-    from brdfcorr.materials import load_material
-    from brdfcorr.measurements import goniometer_angles, synthesize_measurements, write_measurements
+    from brdfcorr.models.materials import load_material
+    from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
 
     make_scenes(tmp_path, count=1)
     tile = load_material("roof_tile")
@@ -251,11 +251,11 @@ def test_resume_redoes_outputs_of_another_parameter_table(tmp_path):
 
 def test_sensor_angle_source_solar(tmp_path):
     """The ``solar`` kind (sun from time and coordinates, constant view) gives the same output as
-    a geotiff of the same angles computed beforehand with brdfcorr.sensors.read_angles."""
+    a geotiff of the same angles computed beforehand with brdfcorr.io.sensors.read_angles."""
     import xarray as xr
 
-    from brdfcorr import io as rio_io
-    from brdfcorr.sensors import read_angles
+    from brdfcorr.io import rasters as rio_io
+    from brdfcorr.io.sensors import read_angles
 
     scenes = make_scenes(tmp_path, count=1)
     time, view = "2026-06-15T08:00:00+00:00", {"view_zenith": 20.0, "view_azimuth": 270.0}

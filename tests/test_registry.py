@@ -6,7 +6,7 @@ import math
 import pytest
 
 from brdfcorr.errors import ParameterError, UnknownNameError
-from brdfcorr.materials import load_material, material_names
+from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.models import (
     REGISTRY,
     SURFACE_MODELS,

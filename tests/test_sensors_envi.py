@@ -14,8 +14,8 @@ import rasterio
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.geometry import facet_inclination, local_incidence, relative_azimuth, specular_deviation
-from brdfcorr.sensors import read_angles
-from brdfcorr.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
+from brdfcorr.io.sensors import read_angles
+from brdfcorr.io.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 pytestmark = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")
@@ -213,9 +213,9 @@ def test_not_an_envi_file(tmp_path):
 
 
 def test_angles_fit_the_correction_input_contract():
-    """What brdfcorr.correct needs: the image opened by brdfcorr.io and the four angle layers on
-    its grid (brdfcorr.io.check_same_grid), in blocks aligned with the image's."""
-    from brdfcorr import io as rio_io
+    """What brdfcorr.correct needs: the image opened by brdfcorr.io.rasters and the four angle layers on
+    its grid (brdfcorr.io.rasters.check_same_grid), in blocks aligned with the image's."""
+    from brdfcorr.io import rasters as rio_io
 
     image = rio_io.open_image(TOPO_IMAGE, chunks=16)
     angles = read_angles("envi_obs", TOPO_OBS, like=image)

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.interpolate import RegularGridInterpolator
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.sensors.grids import grid_template, to_grid
+from brdfcorr.io.sensors.grids import grid_template, to_grid
 
 COARSE = Affine(100.0, 0.0, 1000.0, 0.0, -100.0, 5000.0)
 

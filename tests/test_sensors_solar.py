@@ -13,10 +13,10 @@ import xarray as xr
 from affine import Affine
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.sensors import grid_template, read_angles
-from brdfcorr.sensors.envi import acquisition_time, read_envi_image, read_envi_obs
-from brdfcorr.sensors.sentinel2 import parse_mtd_tl
-from brdfcorr.sensors.solar import solar_angles, solar_position
+from brdfcorr.io.sensors import grid_template, read_angles
+from brdfcorr.io.sensors.envi import acquisition_time, read_envi_image, read_envi_obs
+from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl
+from brdfcorr.io.sensors.solar import solar_angles, solar_position
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")

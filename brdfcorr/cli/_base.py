@@ -130,7 +130,7 @@ def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> d
 def _options(option: str, items: tuple[str, ...]) -> dict[str, object]:
     """Parse ``KEY=VALUE`` items; values are read as YAML scalars (``20`` -> 20, ``B04`` -> "B04")."""
     from brdfcorr.errors import ParameterError
-    from brdfcorr.io_utils import parse_yaml
+    from brdfcorr.io.files import parse_yaml
 
     parsed = {}
     for item in items:
@@ -158,7 +158,7 @@ def _pairs(option: str, items: tuple[str, ...]) -> dict[int, str]:
 
 
 def _save_figure(figure, target: Path) -> None:
-    from brdfcorr.io_utils import atomic_path
+    from brdfcorr.io.files import atomic_path
 
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as temporary:

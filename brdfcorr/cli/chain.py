@@ -1,4 +1,4 @@
-"""``brdfcorr demo``, ``run`` and ``validate``: processing chains (library: brdfcorr.pipeline)."""
+"""``brdfcorr demo``, ``run`` and ``validate``: processing chains (library: brdfcorr.workflow.chain)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def demo_command(output_dir: Path, config_path, progress):
     QA, before/after quicklook, run report), OUTPUT_DIR/demo.yaml (the chain, rerun with
     `brdfcorr run`) and OUTPUT_DIR/materials_brdf.png.
     """
-    from brdfcorr.demo import run_demo
+    from brdfcorr.workflow.demo import run_demo
 
     with _chain_progress(progress, "demo") as callback:
         result = run_demo(output_dir, config_path, progress=callback)
@@ -43,13 +43,13 @@ def demo_command(output_dir: Path, config_path, progress):
 
 
 # ------------------------------------------------------------------------------------------------
-# brdfcorr run / validate: chain configs (library: brdfcorr.config, brdfcorr.pipeline)
+# brdfcorr run / validate: chain configs (library: brdfcorr.workflow.config, brdfcorr.workflow.chain)
 # ------------------------------------------------------------------------------------------------
 
 def _overrides(items: tuple[str, ...]) -> dict:
     """``--set KEY=VALUE`` items: dotted config keys, values read as YAML (``engine.workers=2``)."""
-    from brdfcorr.config import ConfigError
-    from brdfcorr.io_utils import parse_yaml
+    from brdfcorr.workflow.config import ConfigError
+    from brdfcorr.io.files import parse_yaml
 
     parsed = {}
     for item in items:
@@ -123,9 +123,9 @@ def run_command(chain, dry_run, resume, overwrite, settings, progress):
     (listed, with the reason, in the table and the report); 2 a bad config or input before any
     scene ran (nothing is written); 1 an internal error.
     """
-    from brdfcorr.config import load_config
+    from brdfcorr.workflow.config import load_config
     from brdfcorr.errors import InputError
-    from brdfcorr.pipeline import plan_run, run_chain
+    from brdfcorr.workflow.chain import plan_run, run_chain
 
     if resume and overwrite:
         raise InputError("--resume and --overwrite exclude each other")
@@ -179,10 +179,10 @@ def validate_command(chains, settings):
     naming the key path and the allowed values (exit code 2). A parameter table file (a document
     with `classes` but no `inputs`) is checked as a table.
     """
-    from brdfcorr.config import ConfigError, load_config
-    from brdfcorr.io_utils import parse_yaml
+    from brdfcorr.workflow.config import ConfigError, load_config
+    from brdfcorr.io.files import parse_yaml
     from brdfcorr.params import ParameterTable
-    from brdfcorr.pipeline import plan_run
+    from brdfcorr.workflow.chain import plan_run
 
     overrides = _overrides(settings)
     for chain in chains:

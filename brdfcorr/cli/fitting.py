@@ -50,11 +50,11 @@ def fit_classes_command(images, angles, classes, model_name, class_model, names,
 
     import xarray as xr
 
-    from brdfcorr import io as rio_io
-    from brdfcorr.classfit import ClassFitWarning, GuardRails, fit_classes
+    from brdfcorr.io import rasters as rio_io
+    from brdfcorr.fit.classes import ClassFitWarning, GuardRails, fit_classes
     from brdfcorr.errors import InputError
-    from brdfcorr.io_utils import atomic_path
-    from brdfcorr.materials import load_material
+    from brdfcorr.io.files import atomic_path
+    from brdfcorr.models.materials import load_material
 
     if not len(images) == len(angles) == len(classes):
         raise InputError(
@@ -101,7 +101,7 @@ def fit_classes_command(images, angles, classes, model_name, class_model, names,
             temporary.write_text(json.dumps({"classes": result.report()}, indent=2))
         click.echo(f"wrote {report_path}")
     if plot_dir:
-        from brdfcorr.plotting import plot_class_fit
+        from brdfcorr.plot.materials import plot_class_fit
 
         plot_dir.mkdir(parents=True, exist_ok=True)
         wavelengths = scenes[0][0].coords["wavelength"].values if "wavelength" in scenes[0][0].coords else None
@@ -148,9 +148,9 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     """
     import warnings
 
-    from brdfcorr.fit import FitWarning, fit_measurements, spectral_table_entry
-    from brdfcorr.io_utils import atomic_path
-    from brdfcorr.measurements import filter_measurements, read_measurements, selection_mask
+    from brdfcorr.fit.goniometer import FitWarning, fit_measurements, spectral_table_entry
+    from brdfcorr.io.files import atomic_path
+    from brdfcorr.fit.measurements import filter_measurements, read_measurements, selection_mask
     from brdfcorr.params import ParameterTable
 
     _refuse_overwriting_inputs({"-o": output}, (measurements,))
@@ -207,7 +207,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
         ]))
 
     if plot_dir is not None:
-        from brdfcorr.fit_plots import plot_azimuth, plot_principal_plane
+        from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
 
         plot_dir.mkdir(parents=True, exist_ok=True)
         scale = "log" if log_scale else "linear"

@@ -27,7 +27,7 @@ def models_command():
 @handle_errors
 def materials_command(name):
     """List the built-in materials, or show one material's parameters with errors."""
-    from brdfcorr.materials import load_material, material_names
+    from brdfcorr.models.materials import load_material, material_names
 
     names = [name] if name else material_names()
     rows = []

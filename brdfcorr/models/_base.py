@@ -94,11 +94,15 @@ class Model:
         In the order of the model function's signature.
     kernel : callable
         ``kernel(geometry, **params)`` on numpy or dask arrays, without validation.
-    affine : (str or None, str or None)
-        Names of the parameters in which the model is affine, ``f = offset + scale * g(geometry;
-        other parameters)``, read off the model equation (None where there is none). The
-        correction shares ``g`` between bands that differ only in them; the fit from imagery
-        solves them by linear least squares.
+    linear : tuple of str
+        Names of the parameters in which the model is linear, ``f = sum_j p_j B_j(geometry;
+        shape)`` with the other (shape) parameters fixed: ``("t0", "t1")`` for Torrance-Sparrow
+        (B = 1 and the specular term), ``("f_iso", "f_vol", "f_geo")`` for a kernel-driven model
+        (B = 1, K_vol, K_geo). Read off the model equation. The correction shares the basis between
+        bands that differ only in them; the fits solve them by linear least squares.
+    basis : callable or None
+        ``basis(geometry, **shape) -> tuple`` of the basis functions B_j, one per name in
+        ``linear`` (a Python scalar where a basis is constant, e.g. ``1.0``).
     """
 
     name: str
@@ -106,7 +110,30 @@ class Model:
     reference: str
     parameters: tuple[Parameter, ...]
     kernel: Callable
-    affine: tuple[str | None, str | None] = (None, None)
+    linear: tuple[str, ...] = ()
+    basis: Callable | None = None
+
+    def __post_init__(self):
+        if bool(self.linear) != (self.basis is not None):
+            raise ValueError(f"model {self.name}: 'linear' and 'basis' go together")
+        unknown = set(self.linear) - set(self.parameter_names)
+        if unknown:
+            raise ValueError(f"model {self.name}: linear parameters {sorted(unknown)} are not parameters")
+
+    @property
+    def shape_names(self) -> tuple[str, ...]:
+        """The parameters that are not linear (the basis functions depend on them)."""
+        return tuple(name for name in self.parameter_names if name not in self.linear)
+
+    def terms(self, geometry: ScatteringGeometry, shape: Mapping[str, object]) -> tuple:
+        """The basis functions B_j at a geometry and shape parameters (no validation).
+
+        ``f = sum_j p_j B_j`` over the parameters in :attr:`linear`; models without linear
+        parameters have no terms.
+        """
+        if self.basis is None:
+            return ()
+        return tuple(self.basis(geometry, **{name: shape[name] for name in self.shape_names}))
 
     @property
     def parameter_names(self) -> tuple[str, ...]:

@@ -29,10 +29,18 @@ SIGMA = Parameter(
 )
 
 
-def _empirical_kernel(geometry: ScatteringGeometry, a, b, c, t0):
+def _peak(geometry: ScatteringGeometry, b, c):
     # Paper 000, eq. 5: the b term takes the zeniths in radians, the c term psi in degrees.
     zenith_product = np.radians(geometry.theta_i) * np.radians(geometry.theta_r)
-    return t0 + a * np.exp(b * zenith_product**2) * np.exp(-((c * geometry.psi / 2.0) ** 2))
+    return np.exp(b * zenith_product**2) * np.exp(-((c * geometry.psi / 2.0) ** 2))
+
+
+def _empirical_kernel(geometry: ScatteringGeometry, a, b, c, t0):
+    return t0 + a * _peak(geometry, b, c)
+
+
+def _empirical_basis(geometry: ScatteringGeometry, b, c):
+    return _peak(geometry, b, c), 1.0
 
 
 EMPIRICAL = Model(
@@ -41,7 +49,8 @@ EMPIRICAL = Model(
     reference="Meister et al. (1998), eq. 5",
     parameters=(A, B, C, T0),
     kernel=_empirical_kernel,
-    affine=("t0", "a"),
+    linear=("a", "t0"),
+    basis=_empirical_basis,
 )
 
 
@@ -140,7 +149,8 @@ LAMBERTIAN = Model(
     reference="Meister et al. (2000), eq. 1 with t1 = 0",
     parameters=(T0,),
     kernel=_lambertian_kernel,
-    affine=("t0", None),
+    linear=("t0",),
+    basis=lambda geometry: (1.0,),
 )
 
 

@@ -133,16 +133,28 @@ def geometric_attenuation(theta_i, theta_r, phi):
     return ScatteringGeometry(theta_i, theta_r, phi).attenuation
 
 
-def _ts_kernel(geometry: ScatteringGeometry, t0, t1, w, n, k, *, shadowing: bool = True):
+def _specular_term(geometry: ScatteringGeometry, w, n, k, *, shadowing: bool = True):
     # Paper 003, eq. 1; the facet distribution exp(-w^2 alpha^2) takes alpha in degrees (eq. 2).
     specular = _fresnel(geometry.cos_local, n, k) * np.exp(-((w * geometry.alpha) ** 2))
     if shadowing:
         specular = specular * geometry.attenuation
-    return t0 + t1 * specular / (geometry.cos_i * geometry.cos_r)
+    return specular / (geometry.cos_i * geometry.cos_r)
+
+
+def _ts_kernel(geometry: ScatteringGeometry, t0, t1, w, n, k, *, shadowing: bool = True):
+    return t0 + t1 * _specular_term(geometry, w, n, k, shadowing=shadowing)
+
+
+def _ts_basis(geometry: ScatteringGeometry, w, n, k):
+    return 1.0, _specular_term(geometry, w, n, k)
 
 
 def _ts_simplified_kernel(geometry: ScatteringGeometry, t0, t1, w, n, k):
     return _ts_kernel(geometry, t0, t1, w, n, k, shadowing=False)
+
+
+def _ts_simplified_basis(geometry: ScatteringGeometry, w, n, k):
+    return 1.0, _specular_term(geometry, w, n, k, shadowing=False)
 
 
 TORRANCE_SPARROW = Model(
@@ -151,7 +163,8 @@ TORRANCE_SPARROW = Model(
     reference="Meister et al. (2000), eq. 1; Torrance & Sparrow (1967)",
     parameters=TS_PARAMETERS,
     kernel=_ts_kernel,
-    affine=("t0", "t1"),
+    linear=("t0", "t1"),
+    basis=_ts_basis,
 )
 
 TORRANCE_SPARROW_SIMPLIFIED = Model(
@@ -160,7 +173,8 @@ TORRANCE_SPARROW_SIMPLIFIED = Model(
     reference="Meister et al. (2000), section 5",
     parameters=TS_PARAMETERS,
     kernel=_ts_simplified_kernel,
-    affine=("t0", "t1"),
+    linear=("t0", "t1"),
+    basis=_ts_simplified_basis,
 )
 
 

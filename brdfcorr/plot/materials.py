@@ -10,7 +10,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from brdfcorr.materials import Material
+from brdfcorr.models.materials import Material
 
 #: The illumination geometries of paper 003, fig. 3: (theta_i, theta_r) of each azimuthal cut [deg].
 AZIMUTH_CUTS = ((30.0, 30.0), (50.0, 50.0), (65.0, 70.0))
@@ -65,9 +65,9 @@ def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figur
 
     Parameters
     ----------
-    fit : brdfcorr.classfit.ClassFit
+    fit : brdfcorr.fit.classes.ClassFit
         The class's fit (per-band parameters).
-    samples : brdfcorr.classfit.ClassSamples
+    samples : brdfcorr.fit.classes.ClassSamples
         The class's samples (BRDF = reflectance / pi).
     wavelengths : sequence of float, optional
         Band centres [nm] for the panel titles.

@@ -6,7 +6,7 @@ detector does not see the node. This module parses them (``xml.etree``), combine
 band (mean where detectors overlap, through sine and cosine for azimuths; remaining gaps, nodes
 outside every detector, filled from the nearest node that has a value), and interpolates the grids
 lazily onto the 10, 20 or 60 m image grid, or any georeferenced grid, with
-:func:`brdfcorr.sensors.grids.to_grid` (azimuths through sine and cosine).
+:func:`brdfcorr.io.sensors.grids.to_grid` (azimuths through sine and cosine).
 
 Node ``(i, j)`` of an angle grid lies at ``(ULX + j * COL_STEP, ULY - i * ROW_STEP)``, the tile's
 upper-left corner being node (0, 0) (ESA S2 MSI product specification, Tile_Angles); as a raster
@@ -33,7 +33,7 @@ from affine import Affine
 from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.sensors.grids import grid_template, to_grid, wrap_azimuth
+from brdfcorr.io.sensors.grids import grid_template, to_grid, wrap_azimuth
 
 __all__ = [
     "BAND_NAMES",

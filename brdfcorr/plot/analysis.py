@@ -11,10 +11,10 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from brdfcorr.analysis import WIDTH_GEOMETRIES
-from brdfcorr.materials import Material
+from brdfcorr.analysis.papers import WIDTH_GEOMETRIES
+from brdfcorr.models.materials import Material
 from brdfcorr.models import empirical, torrance_sparrow
-from brdfcorr.simulate import NORMALIZATION_GEOMETRY, simulate_vcavity
+from brdfcorr.analysis.simulate import NORMALIZATION_GEOMETRY, simulate_vcavity
 
 __all__ = ["FIGURE2_ROUGHNESSES", "FIGURE2_CUTS", "plot_figure2", "plot_polar", "plot_azimuthal_widths"]
 
@@ -42,7 +42,7 @@ def plot_figure2(
     roughnesses : sequence of float
         c = w [deg^-1] of the columns (paper: 0.01, 0.05, 0.15).
     **simulation
-        Settings passed to :func:`brdfcorr.simulate.simulate_vcavity` (``step_fraction``, ...).
+        Settings passed to :func:`brdfcorr.analysis.simulate.simulate_vcavity` (``step_fraction``, ...).
 
     Notes
     -----

@@ -47,7 +47,7 @@ import numpy as np
 
 from brdfcorr.errors import MeasurementError
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.io_utils import atomic_path
+from brdfcorr.io.files import atomic_path
 
 __all__ = [
     "REQUIRED_COLUMNS",

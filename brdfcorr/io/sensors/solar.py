@@ -21,7 +21,7 @@ from pvlib import spa
 from pyproj import CRS, Transformer
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.sensors.grids import DEFAULT_CHUNK, _grid_of, pixel_centres
+from brdfcorr.io.sensors.grids import DEFAULT_CHUNK, _grid_of, pixel_centres
 
 __all__ = ["solar_angles", "solar_position"]
 

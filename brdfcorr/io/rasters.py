@@ -29,7 +29,7 @@ import rioxarray
 import xarray as xr
 
 from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError, OutputError
-from brdfcorr.io_utils import atomic_path
+from brdfcorr.io.files import atomic_path
 
 __all__ = [
     "open_scene",
@@ -180,7 +180,7 @@ def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
         if parsed and all(p is not None for p in parsed):
             values, origin = parsed, "band descriptions"
         elif "wavelength" in envi_header:
-            from brdfcorr.sensors.envi import envi_wavelengths
+            from brdfcorr.io.sensors.envi import envi_wavelengths
 
             try:
                 values, origin = envi_wavelengths(path)[0].tolist(), "ENVI header"
@@ -274,7 +274,7 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
     angles : path-like or str, optional
         The angle source: a 4-band raster (sza, saa, vza, vaa [deg]) for ``angles_kind="geotiff"``
         (or give the four separate files ``sza`` ... ``vaa``), else what
-        :func:`brdfcorr.sensors.read_angles` reads for that kind (``envi_obs``, ``sentinel2``,
+        :func:`brdfcorr.io.sensors.read_angles` reads for that kind (``envi_obs``, ``sentinel2``,
         ``landsat``, ``solar``) with ``angle_options``, brought onto the image grid.
     chunks, wavelengths :
         As for :func:`open_image`.
@@ -291,7 +291,7 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
         layers = open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
         source = None
     else:
-        from brdfcorr.sensors import read_angles
+        from brdfcorr.io.sensors import read_angles
 
         dataset = read_angles(angles_kind, angles, like=reflectance, **(angle_options or {}))
         missing = [name for name in ANGLE_NAMES if name not in dataset]

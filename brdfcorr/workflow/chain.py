@@ -1,13 +1,13 @@
 """One chain run: sources -> fit? -> normalize -> sinks, for many scenes, with a run report.
 
-:func:`plan_run` expands a :class:`~brdfcorr.config.ChainConfig` into scenes (image, angle
+:func:`plan_run` expands a :class:`~brdfcorr.workflow.config.ChainConfig` into scenes (image, angle
 source, class map and output names for every input image) and says what would happen to each
 (``run``, ``skip`` because its complete outputs exist, ``fail`` because an input is missing or the
 outputs exist under ``existing: error``). :func:`run_chain` then
 
 1. builds the parameter table: built-in materials, the table file, the ``fit`` step (from
-   goniometer CSVs with :func:`brdfcorr.fit.fit_measurements` or from the imagery with
-   :func:`brdfcorr.classfit.fit_classes`), merged in that order (later wins for a class id);
+   goniometer CSVs with :func:`brdfcorr.fit.goniometer.fit_measurements` or from the imagery with
+   :func:`brdfcorr.fit.classes.fit_classes`), merged in that order (later wins for a class id);
 2. normalizes every scene with :func:`brdfcorr.correct.correct_files` (lazy, chunked, atomic
    writes, QA counts) and writes a before/after quicklook;
 3. writes the run report (JSON): inputs, parameter table and its sources, versions, timings,
@@ -57,9 +57,9 @@ from pathlib import Path
 import dask
 import numpy as np
 
-from brdfcorr.config import ChainConfig, format_pattern
+from brdfcorr.workflow.config import ChainConfig, format_pattern
 from brdfcorr.errors import BrdfcorrError, InputError
-from brdfcorr.io_utils import atomic_path
+from brdfcorr.io.files import atomic_path
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 
 __all__ = [
@@ -372,7 +372,7 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
 # ----------------------------------------------------------------------------------- parameters
 def _materials_table(config: ChainConfig) -> ParameterTable:
     """Built-in materials, then the inline classes (which win for a shared id)."""
-    from brdfcorr.materials import load_material
+    from brdfcorr.models.materials import load_material
 
     entries = []
     for class_id, name in sorted(config.parameters.materials.items()):
@@ -383,10 +383,10 @@ def _materials_table(config: ChainConfig) -> ParameterTable:
 
 
 def _open_scene(scene: Scene, config: ChainConfig):
-    """Image, class map and angle Dataset of a scene, lazily (:func:`brdfcorr.io.open_scene`)."""
+    """Image, class map and angle Dataset of a scene, lazily (:func:`brdfcorr.io.rasters.open_scene`)."""
     import xarray as xr
 
-    from brdfcorr import io as rio_io
+    from brdfcorr.io import rasters as rio_io
 
     image, classes, layers = rio_io.open_scene(
         scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
@@ -396,7 +396,7 @@ def _open_scene(scene: Scene, config: ChainConfig):
 
 
 def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
-    from brdfcorr.classfit import ClassFitWarning, GuardRails, fit_classes
+    from brdfcorr.fit.classes import ClassFitWarning, GuardRails, fit_classes
 
     config = plan.config
     step = config.steps.fit
@@ -431,8 +431,8 @@ def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
 
 
 def _fit_goniometer(plan: RunPlan) -> tuple[ParameterTable, dict]:
-    from brdfcorr.fit import FitWarning, fit_measurements, fit_wavelengths, spectral_table_entry
-    from brdfcorr.measurements import filter_measurements, read_measurements
+    from brdfcorr.fit.goniometer import FitWarning, fit_measurements, fit_wavelengths, spectral_table_entry
+    from brdfcorr.fit.measurements import filter_measurements, read_measurements
 
     config = plan.config
     table, classes, notes = ParameterTable(), [], []

@@ -29,7 +29,7 @@ import rioxarray
 import xarray as xr
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.sensors.grids import wrap_azimuth
+from brdfcorr.io.sensors.grids import wrap_azimuth
 
 __all__ = [
     "OBS_BAND_NAMES",

@@ -6,7 +6,7 @@ The scene is a push-broom line flown north over a small town near Hamburg on a J
   +-36 deg) field of view; every column has its own view zenith ``atan(|d| / H)`` (d: across-track
   distance from the nadir track) and view azimuth (towards the sensor: 270 deg east of the track,
   90 deg west of it); the sun's zenith and azimuth per pixel come from the solar position (pvlib,
-  :func:`brdfcorr.sensors.solar.solar_angles`) at :data:`DEMO_TIME`. With the sun in the east-south-
+  :func:`brdfcorr.io.sensors.solar.solar_angles`) at :data:`DEMO_TIME`. With the sun in the east-south-
   east, pixels east of the track look into forward scattering (relative azimuth near 155 deg) and
   appear brighter: the across-track brightness gradient a BRDF normalization removes.
 * **classes**: 1 roof tile and 2 concrete, with the Torrance-Sparrow fits of paper 003, Table 1
@@ -35,7 +35,7 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr.errors import InputError
-from brdfcorr.io_utils import atomic_path
+from brdfcorr.io.files import atomic_path
 from brdfcorr.params import ClassEntry, ParameterTable
 
 __all__ = [
@@ -93,7 +93,7 @@ SPECTRA = {
 def demo_table() -> ParameterTable:
     """The demo's parameter table: roof tile and concrete from paper 003 Table 1 (built-in
     ``roof_tile`` and ``blue_concrete``), grass from :data:`GRASS_ILLUSTRATIVE`."""
-    from brdfcorr.materials import load_material
+    from brdfcorr.models.materials import load_material
 
     entries = []
     for class_id, name in ((ROOF_TILE, "roof_tile"), (CONCRETE, "blue_concrete")):
@@ -136,7 +136,7 @@ def demo_angles(rows: int = 300, pixel: float = 3.0, altitude: float = 1000.0, f
     xarray.Dataset
         ``sza``, ``saa``, ``vza``, ``vaa`` (y, x) float32 [deg], numpy-backed.
     """
-    from brdfcorr.sensors.solar import solar_angles
+    from brdfcorr.io.sensors.solar import solar_angles
 
     if not 0 < fov < 180:
         raise InputError(f"fov = {fov:g} deg must be in (0, 180)")
@@ -250,7 +250,7 @@ def write_demo_scene(directory: str | os.PathLike, scene: xr.Dataset, name: str 
 
 def default_config() -> Path:
     """``configs/demo.yaml`` of the source tree brdfcorr runs from."""
-    path = Path(__file__).resolve().parents[1] / "configs" / "demo.yaml"
+    path = Path(__file__).resolve().parents[2] / "configs" / "demo.yaml"
     if not path.exists():
         raise InputError(f"the demo chain {path} is not there (brdfcorr is not run from its source tree); "
                          "give the chain config explicitly (brdfcorr demo --config CHAIN.yaml)")
@@ -263,7 +263,7 @@ class DemoResult:
 
     inputs: dict[str, Path]
     config: Path
-    report: object  # brdfcorr.pipeline.RunReport
+    report: object  # brdfcorr.workflow.chain.RunReport
     figures: list[Path]
 
 
@@ -287,12 +287,12 @@ def run_demo(output_dir: str | os.PathLike = "demo_output", config: str | os.Pat
     materials_figure : bool
         Also write ``materials_brdf.png``, the BRDFs of the material library.
     progress : callable, optional
-        Passed to :func:`brdfcorr.pipeline.run_chain`.
+        Passed to :func:`brdfcorr.workflow.chain.run_chain`.
     overrides : dict, optional
-        Dotted config keys to override (:func:`brdfcorr.config.apply_overrides`).
+        Dotted config keys to override (:func:`brdfcorr.workflow.config.apply_overrides`).
     """
-    from brdfcorr.config import load_config
-    from brdfcorr.pipeline import run_chain
+    from brdfcorr.workflow.config import load_config
+    from brdfcorr.workflow.chain import run_chain
 
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
@@ -307,8 +307,8 @@ def run_demo(output_dir: str | os.PathLike = "demo_output", config: str | os.Pat
     figures = [Path(path) for result in report.scenes for key, path in result.get("outputs", {}).items()
                if key == "quicklook"]
     if materials_figure:
-        from brdfcorr.materials import load_material, material_names
-        from brdfcorr.plotting import plot_materials
+        from brdfcorr.models.materials import load_material, material_names
+        from brdfcorr.plot.materials import plot_materials
 
         target = output_dir / "materials_brdf.png"
         with atomic_path(target) as temporary:

@@ -45,7 +45,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from brdfcorr.errors import ConfigError
-from brdfcorr.io_utils import parse_yaml
+from brdfcorr.io.files import parse_yaml
 from brdfcorr.params import ClassEntry, ReferenceGeometry, key_text
 
 __all__ = [
@@ -103,7 +103,7 @@ class AngleSource(_Strict):
     ----------
     kind : {"geotiff", "envi_obs", "sentinel2", "landsat", "solar"}
         ``geotiff``: a 4-band raster sza, saa, vza, vaa [deg] on the image grid; the others are
-        sensor products read by :func:`brdfcorr.sensors.read_angles`.
+        sensor products read by :func:`brdfcorr.io.sensors.read_angles`.
     path : str
         Name pattern of the source: the angle raster, the obs file, the ``MTD_TL.xml``, the Landsat
         product; for ``solar`` the acquisition time (ISO 8601 with time zone).
@@ -238,7 +238,7 @@ class GoniometerFit(_Strict):
 
 class ImageryFit(_Strict):
     """Fit step from the imagery itself: per-class fits pooled over the run's scenes
-    (:func:`brdfcorr.classfit.fit_classes`)."""
+    (:func:`brdfcorr.fit.classes.fit_classes`)."""
 
     source: Literal["imagery"]
     model: str = "torrance_sparrow"
@@ -275,7 +275,7 @@ class ImageryFit(_Strict):
 
 def _check_material(name: str) -> str:
     from brdfcorr.errors import UnknownNameError
-    from brdfcorr.materials import load_material, material_names
+    from brdfcorr.models.materials import load_material, material_names
 
     try:
         load_material(name)

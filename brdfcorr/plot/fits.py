@@ -17,8 +17,8 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 
-from brdfcorr.fit import FitResult
-from brdfcorr.measurements import Measurements
+from brdfcorr.fit.goniometer import FitResult
+from brdfcorr.fit.measurements import Measurements
 
 __all__ = ["principal_plane_cuts", "azimuth_cuts", "plot_principal_plane", "plot_azimuth"]
 
@@ -87,7 +87,7 @@ def plot_principal_plane(
     Parameters
     ----------
     result : FitResult
-        The fit (:func:`brdfcorr.fit.fit_brdf`).
+        The fit (:func:`brdfcorr.fit.goniometer.fit_brdf`).
     measurements : Measurements
         The fitted measurements, drawn as stars with 1-sigma error bars.
     excluded : Measurements, optional

@@ -38,8 +38,8 @@ from pyproj import CRS, Transformer
 from scipy.interpolate import CubicSpline
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.sensors.grids import DEFAULT_CHUNK, _grid_of, pixel_centres, to_grid, wrap_azimuth
-from brdfcorr.sensors.solar import solar_angles
+from brdfcorr.io.sensors.grids import DEFAULT_CHUNK, _grid_of, pixel_centres, to_grid, wrap_azimuth
+from brdfcorr.io.sensors.solar import solar_angles
 
 __all__ = [
     "ANGLE_SCALE",

@@ -33,6 +33,7 @@ bootstrap would be the next step.
 
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 from collections.abc import Mapping, Sequence
@@ -61,9 +62,10 @@ __all__ = [
 ]
 
 def intensity_terms(model: Model) -> tuple[str, ...]:
-    """The intensity terms of a model (its affine parameters, :attr:`Model.affine`): ``("t0", "t1")``
-    for Torrance-Sparrow, ``("t0", "a")`` for the empirical model, ``("t0",)`` for Lambertian."""
-    return tuple(name for name in model.affine if name is not None)
+    """The intensity terms of a model (its linear parameters, :attr:`Model.linear`): ``("t0", "t1")``
+    for Torrance-Sparrow, ``("a", "t0")`` for the empirical model, ``("t0",)`` for Lambertian,
+    ``("f_iso", "f_vol", "f_geo")`` for the kernel-driven models."""
+    return model.linear
 
 
 #: Shape parameters held fixed unless the caller frees them (paper 003 fixes k = 0.25: n, k and t1
@@ -198,6 +200,10 @@ class _LinearProfile:
         self.data = data  # (N, B) BRDF [sr^-1]
         self.fixed = fixed
         self.terms = intensity_terms(model)
+        lower = [model.parameter(name).lower for name in self.terms]
+        if any(bound not in (0.0, -math.inf) for bound in lower):
+            raise ParameterError(f"{model.name}: linear parameters need a lower bound of 0 or none")
+        self.nonnegative = np.array([bound == 0.0 for bound in lower])
         self.n = data.shape[0]
         self.sum_y = data.sum(axis=0)
         self.sum_yy = np.einsum("nb,nb->b", data, data)
@@ -205,42 +211,44 @@ class _LinearProfile:
         # Inverse-variance band weights; a constant band carries no shape information.
         self.weights = np.where(variance > 0, 1.0 / np.where(variance > 0, variance, 1.0), 0.0)
 
-    def basis(self, shape: Mapping[str, float]) -> np.ndarray:
-        """The column multiplying the second linear term, at a trial shape."""
-        unit = {self.terms[0]: 0.0, self.terms[1]: 1.0}
-        return np.asarray(self.model.kernel(self.geometry, **unit, **self.fixed, **shape), dtype=float)
+    def design(self, shape: Mapping[str, float]) -> np.ndarray:
+        """The (N, m) design matrix: one column per linear term, at a trial shape."""
+        terms = self.model.terms(self.geometry, {**self.fixed, **shape})
+        return np.column_stack([np.broadcast_to(np.asarray(t, dtype=float), (self.n,)) for t in terms])
 
-    def solve(self, basis: np.ndarray | None):
-        """Non-negative per-band intensities and per-band sums of squared residuals."""
-        if basis is None:  # Lambertian: t0 = mean
-            t0 = np.maximum(self.sum_y / self.n, 0.0)
-            ssr = self.sum_yy - 2 * t0 * self.sum_y + t0**2 * self.n
-            return (t0,), np.maximum(ssr, 0.0)
-        s1, s2 = basis.sum(), basis @ basis
-        sy = basis @ self.data
-        det = self.n * s2 - s1**2
-        if not det > 1e-12 * self.n * s2:  # basis ~ constant: only t0 is determined
-            c0, c1 = np.maximum(self.sum_y / self.n, 0.0), np.zeros_like(self.sum_y)
-        else:
-            c0 = (s2 * self.sum_y - s1 * sy) / det
-            c1 = (self.n * sy - s1 * self.sum_y) / det
-            # Non-negativity, band by band: where one term is negative, refit with the other alone.
-            only_basis = c0 < 0
-            c0 = np.where(only_basis, 0.0, c0)
-            c1 = np.where(only_basis, sy / s2, c1)
-            only_constant = c1 < 0
-            c1 = np.where(only_constant, 0.0, c1)
-            c0 = np.where(only_constant, self.sum_y / self.n, c0)
-            c0, c1 = np.maximum(c0, 0.0), np.maximum(c1, 0.0)
-        ssr = (
-            self.sum_yy - 2 * (c0 * self.sum_y + c1 * sy)
-            + c0**2 * self.n + 2 * c0 * c1 * s1 + c1**2 * s2
-        )
-        return (c0, c1), np.maximum(ssr, 0.0)
+    def solve(self, design: np.ndarray):
+        """Per-band linear coefficients (m, B) and sums of squared residuals (B,).
+
+        Least squares with the terms whose lower bound is 0 kept >= 0, exactly: every face of the
+        constraint box (which terms are free) is solved from the normal equations and the best
+        feasible one kept per band (at most 2^m small solves for m <= 3 terms, all bands at once).
+        Terms the geometry cannot tell apart (a near-singular face) are left at 0.
+        """
+        gram = design.T @ design  # (m, m)
+        cross = design.T @ self.data  # (m, B)
+        m, n_bands = cross.shape
+        best = np.zeros((m, n_bands))
+        best_ssr = self.sum_yy.copy()  # every coefficient 0
+        for free in itertools.product((False, True), repeat=m):
+            if not any(free):
+                continue
+            index = np.flatnonzero(free)
+            sub = gram[np.ix_(index, index)]
+            scale = np.sqrt(np.diag(sub))
+            if not np.all(scale > 0) or np.linalg.cond(sub / np.outer(scale, scale)) > 1e12:
+                continue
+            values = np.linalg.solve(sub, cross[index])  # (k, B)
+            feasible = np.all((values >= 0) | ~self.nonnegative[index, None], axis=0)
+            ssr = self.sum_yy - np.einsum("kb,kb->b", values, cross[index])  # at the face optimum
+            better = feasible & (ssr < best_ssr - 1e-12 * np.abs(best_ssr))
+            if better.any():
+                best[:, better] = 0.0
+                best[np.ix_(index, better)] = values[:, better]
+                best_ssr = np.where(better, ssr, best_ssr)
+        return best, np.maximum(best_ssr, 0.0)
 
     def objective(self, shape: Mapping[str, float]) -> float:
-        basis = self.basis(shape) if len(self.terms) > 1 else None
-        return float(self.solve(basis)[1] @ self.weights)
+        return float(self.solve(self.design(shape))[1] @ self.weights)
 
 
 def _grid(name: str, points: int) -> np.ndarray:
@@ -342,9 +350,8 @@ def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, 
     covariance): samples of one cluster may share errors (e.g. spatially correlated albedo)."""
     free = list(shape)
     data, n = profile.data, profile.n
-    basis = profile.basis(shape) if len(profile.terms) > 1 else None
-    design = np.ones((n, 1)) if basis is None else np.column_stack([np.ones(n), basis])
-    coefficients = np.stack(intensities)  # (m, B)
+    design = profile.design(shape)
+    coefficients = np.asarray(intensities)  # (m, B)
     residuals = data - design @ coefficients  # (N, B)
 
     # Intensities conditional on the shape: HC0 (or cluster-robust) sandwich per band.
@@ -362,7 +369,7 @@ def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, 
             for j in range(i, m):
                 meat[:, i, j] = meat[:, j, i] = np.einsum("cb,cb->b", summed[i], summed[j])
     intensity_cov = np.einsum("ij,bjk,kl->bil", bread, meat, bread)
-    intensity_var = np.stack([intensity_cov[:, i, i] for i in range(len(profile.terms))])
+    intensity_var = np.stack([intensity_cov[:, i, i] for i in range(m)])
     if not free:
         return {}, np.sqrt(intensity_var)
 
@@ -378,19 +385,15 @@ def _errors(profile: _LinearProfile, shape: dict[str, float], intensities, ssr, 
     scores = np.empty((n, k))
     derivatives = []
     for i, name in enumerate(free):
-        plus = profile.basis({**shape, name: values[i] + steps[i]})
-        minus = profile.basis({**shape, name: values[i] - steps[i]})
-        d_basis = (plus - minus) / (2 * steps[i])
-        partial = -2 * d_basis * (residuals @ (coefficients[1] * weights))
-        # H_theta,c_b = 2 w_b h_b with h_b = c1_b sum_p S'_p a_p - sum_p r_pb (0, S'_p); the
-        # projection H_theta,c H_cc^-1 g_c,p summed over bands is -2 sum_b w_b r_pb a_p.(A^T A)^-1 h_b.
-        h = coefficients[1] * (design.T @ d_basis)[:, None] - np.stack(
-            [np.zeros_like(weights), d_basis @ residuals]
-        )
+        plus = profile.design({**shape, name: values[i] + steps[i]})
+        minus = profile.design({**shape, name: values[i] - steps[i]})
+        d_design = (plus - minus) / (2 * steps[i])  # (N, m); 0 in the constant columns
+        partial = -2 * np.einsum("pm,mb,pb->p", d_design, coefficients, residuals * weights)
+        # H_theta,c_b = 2 w_b h_b with h_b = A^T A' c_b - A'^T r_b; the projection
+        # H_theta,c H_cc^-1 g_c,p summed over bands is -2 sum_b w_b r_pb a_p.(A^T A)^-1 h_b.
+        h = design.T @ d_design @ coefficients - d_design.T @ residuals
         scores[:, i] = partial + 2 * np.einsum("pm,pb,mb->p", design, residuals * weights, bread @ h)
-        derivatives.append(
-            (np.stack(profile.solve(plus)[0]) - np.stack(profile.solve(minus)[0])) / (2 * steps[i])
-        )
+        derivatives.append((profile.solve(plus)[0] - profile.solve(minus)[0]) / (2 * steps[i]))
     inverse = np.linalg.pinv(hessian)
     scores = _cluster_sums(scores, clusters)
     shape_cov = inverse @ (scores.T @ scores) @ inverse
@@ -445,8 +448,8 @@ def fit_class_samples(
     """
     model = get_model(model)
     terms = intensity_terms(model)
-    if model.affine[0] is None:
-        fittable = [name for name in SURFACE_MODELS if get_model(name).affine[0] is not None]
+    if not terms:
+        fittable = [name for name in SURFACE_MODELS if get_model(name).linear]
         raise ParameterError(
             f"model {model.name!r} cannot be fitted to imagery; use one of {', '.join(fittable)}"
         )
@@ -478,8 +481,8 @@ def fit_class_samples(
         else:
             shape = _refine(profile, _grid_start(profile, free, grid_points), 0.1)
         shape, hessian = _newton_polish(profile, shape)
-    basis = profile.basis(shape) if len(terms) > 1 else None
-    intensities, ssr = profile.solve(basis)
+    design = profile.design(shape)
+    intensities, ssr = profile.solve(design)
     clusters = None if clusters is None else np.asarray(clusters).reshape(-1)
     shape_errors, intensity_errors = _errors(profile, shape, intensities, ssr, hessian, clusters)
 
@@ -491,12 +494,8 @@ def fit_class_samples(
     total = profile.sum_yy - profile.sum_y**2 / profile.n
     with np.errstate(divide="ignore", invalid="ignore"):
         r2 = np.where(total > 0, 1.0 - ssr / np.where(total > 0, total, 1.0), np.nan)
-    if basis is None:
-        condition = 1.0
-    else:
-        design = np.column_stack([np.ones_like(basis), basis])
-        norms = np.linalg.norm(design, axis=0)
-        condition = float(np.linalg.cond(design / np.where(norms > 0, norms, 1.0)))
+    norms = np.linalg.norm(design, axis=0)
+    condition = float(np.linalg.cond(design / np.where(norms > 0, norms, 1.0)))
     return {
         "params": {name: params[name] for name in model.parameter_names},
         "errors": {name: errors[name] for name in model.parameter_names},
@@ -562,7 +561,7 @@ def fit_one_class(
             )
         median_r2 = float(np.nanmedian(report.r2)) if np.size(report.r2) else math.nan
         # A Lambertian model explains no angular variation by construction (R^2 ~ 0): no guard.
-        if model.affine[1] is not None and not median_r2 >= guard.min_r2:
+        if len(model.linear) > 1 and not median_r2 >= guard.min_r2:
             report.reasons.append(f"median R^2 {median_r2:.3f} < {guard.min_r2:g}")
     if report.reasons:
         report.status = "fallback" if fallback else "uncorrected"
@@ -722,7 +721,7 @@ class ClassFitResult:
 
 
 def _entry(fit: ClassFit, wavelengths):
-    from brdfcorr.materials import load_material
+    from brdfcorr.models.materials import load_material
     from brdfcorr.params import ClassEntry
 
     if fit.status == "uncorrected":

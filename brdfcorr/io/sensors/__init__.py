@@ -26,11 +26,11 @@ from collections.abc import Callable
 import xarray as xr
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
-from brdfcorr.sensors.grids import grid_template, to_grid
-from brdfcorr.sensors.landsat import parse_ang_txt, read_landsat_angles
-from brdfcorr.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
-from brdfcorr.sensors.solar import solar_angles, solar_position
+from brdfcorr.io.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
+from brdfcorr.io.sensors.grids import grid_template, to_grid
+from brdfcorr.io.sensors.landsat import parse_ang_txt, read_landsat_angles
+from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
+from brdfcorr.io.sensors.solar import solar_angles, solar_position
 
 __all__ = [
     "ANGLE_KINDS",
@@ -65,7 +65,7 @@ def read_solar_angles(time, like: xr.DataArray, *, view_zenith: float | None = N
     view_zenith, view_azimuth : float
         View zenith [deg] and azimuth towards the sensor [deg], applied to every pixel.
     **options :
-        Passed to :func:`brdfcorr.sensors.solar.solar_angles`.
+        Passed to :func:`brdfcorr.io.sensors.solar.solar_angles`.
 
     Raises
     ------

@@ -35,10 +35,10 @@ import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 from scipy.stats import chi2 as chi2_distribution
 
-from brdfcorr.classfit import fit_classes  # the class-pooled fit from imagery (DESIGN.md: fit.py)
+
 from brdfcorr.errors import FitError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.measurements import Measurements, check_measurements
+from brdfcorr.fit.measurements import Measurements, check_measurements
 from brdfcorr.models import Model, get_model
 
 __all__ = [
@@ -46,7 +46,6 @@ __all__ = [
     "FitWarning",
     "NonIdentifiableWarning",
     "fit_brdf",
-    "fit_classes",
     "fit_measurements",
     "fit_wavelengths",
     "spectral_table_entry",
@@ -309,7 +308,7 @@ def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, 
             finite_upper = upper[index] if math.isfinite(upper[index]) else lower[index] + 1.0
             centre[name] = 0.5 * (lower[index] + finite_upper)
     candidates = [name for name in free if name not in initial]
-    linear = [name for name in model.affine if name is not None and name in candidates]
+    linear = [name for name in model.linear if name in candidates]
     gridded = [
         name for name in candidates
         if name not in linear
@@ -325,18 +324,21 @@ def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, 
             index = free.index(name)
             values[name] = float(np.clip(factor * centre[name], lower[index], upper[index]))
         if linear:
-            zero = {name: 0.0 for name in linear}
+            # f = sum_j p_j B_j: the linear parameters enter through the model's basis functions;
+            # those held fixed (or given a start) contribute a known part.
+            shape = {**fixed, **values}
             with np.errstate(all="ignore"):
-                base = np.asarray(model.kernel(geometry, **{**fixed, **values, **zero}), dtype=float)
-                design = np.column_stack([
-                    np.asarray(model.kernel(geometry, **{**fixed, **values, **zero, name: 1.0}), dtype=float)
-                    - base
-                    for name in linear
-                ])
-            if np.all(np.isfinite(design)) and np.all(np.isfinite(base)):
+                terms = dict(zip(model.linear, model.terms(geometry, shape)))
+                known = sum(
+                    (shape[name] * np.asarray(term, dtype=float) for name, term in terms.items() if name not in linear),
+                    np.zeros_like(data),
+                )
+                design = np.column_stack([np.broadcast_to(np.asarray(terms[name], dtype=float), data.shape)
+                                          for name in linear])
+            if np.all(np.isfinite(design)) and np.all(np.isfinite(known)):
                 indices = [free.index(name) for name in linear]
                 solution = lsq_linear(
-                    design * weights[:, None], (data - base) * weights,
+                    design * weights[:, None], (data - known) * weights,
                     bounds=(lower[indices], upper[indices]),
                 )
                 values.update(zip(linear, solution.x))
@@ -485,7 +487,7 @@ def fit_brdf(
     Raises
     ------
     brdfcorr.errors.MeasurementError
-        Invalid measurements (see :func:`brdfcorr.measurements.check_measurements`).
+        Invalid measurements (see :func:`brdfcorr.fit.measurements.check_measurements`).
     brdfcorr.errors.ParameterError
         Unknown parameter names, invalid fixed values, empty bounds.
     brdfcorr.errors.FitError
@@ -602,7 +604,7 @@ def fit_brdf(
 
 
 def fit_measurements(model, measurements: Measurements, **kwargs) -> FitResult:
-    """:func:`fit_brdf` on a :class:`~brdfcorr.measurements.Measurements` table (its sigma, if any,
+    """:func:`fit_brdf` on a :class:`~brdfcorr.fit.measurements.Measurements` table (its sigma, if any,
     as weights). Keyword arguments are passed on (``fixed``, ``initial``, ``bounds``, ...)."""
     return fit_brdf(
         model,

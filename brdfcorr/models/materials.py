@@ -3,7 +3,7 @@
 The library holds the Torrance-Sparrow fits of paper 003, Table 1 (550 nm, k fixed at 0.25), with
 the 1-sigma errors and chi^2/dof the authors printed. Use a material directly as model parameters::
 
-    >>> from brdfcorr.materials import load_material
+    >>> from brdfcorr.models.materials import load_material
     >>> tile = load_material("roof_tile")
     >>> tile.params["w"]
     0.0362
