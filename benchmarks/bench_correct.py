@@ -2,7 +2,7 @@
 
 Prints ratios against baselines measured in the same run, never absolute targets:
 
-1. end to end, GeoTIFF in -> GeoTIFF out (``brdfcorr.correct.correct_files``, as the CLI runs it)
+1. end to end, GeoTIFF in -> GeoTIFF out (``brdfcorr.workflow.tasks.correct_files``, as the CLI runs it)
    versus a plain chunked rasterio read + write of the same image with the same output options
    (tiles, deflate + predictor); target <= 1.5;
 2. in memory, per band: ``normalize`` on a numpy cube versus the bare ``cube * factor``, for a
@@ -92,7 +92,7 @@ def plain_copy(source: Path, target: Path, chunk: int) -> None:
 
 
 def run_correct(paths: dict, output: Path, chunk: int | None) -> dict:
-    from brdfcorr.correct import correct_files
+    from brdfcorr.workflow.tasks import correct_files
 
     return correct_files(
         paths["image"], output, params=paths["params"], angles=paths["angles"],

@@ -34,14 +34,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Literal, NamedTuple
 
 import dask.array as da
 import numpy as np
 import xarray as xr
 
-from brdfcorr.errors import GridMismatchError, InputError, OutputError, ParameterError
+from brdfcorr.errors import GridMismatchError, InputError
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model
 from brdfcorr.params import ParameterTable, ReferenceGeometry
@@ -287,7 +286,9 @@ def _rio_crs(array: xr.DataArray):
         return None
 
 
-def _resolve_reference(reference, params: ParameterTable) -> ReferenceGeometry:
+def resolve_reference(reference, params: ParameterTable) -> ReferenceGeometry:
+    """The reference geometry to use: the given one (a dict is validated), else the table's, else
+    the default (observed sun zenith, nadir view)."""
     if reference is None:
         return params.reference or ReferenceGeometry()
     if isinstance(reference, ReferenceGeometry):
@@ -372,7 +373,7 @@ def normalize(
         limits = (float(limits[0]), float(limits[1]))
         if not (0 < limits[0] <= 1 <= limits[1] < np.inf):
             raise InputError(f"factor limits {limits} must satisfy 0 < lower <= 1 <= upper < inf")
-    reference = _resolve_reference(reference, params)
+    reference = resolve_reference(reference, params)
 
     reflectance = _as_dataarray(reflectance, "reflectance", ("band", "y", "x"))
     if reflectance.ndim != 3:
@@ -407,7 +408,7 @@ def normalize(
         qa = qa[0]
 
     attrs = dict(reflectance.attrs)
-    attrs.update(brdf_reference=reference.describe(), brdf_limits=_describe_limits(limits))
+    attrs.update(brdf_reference=reference.describe(), brdf_limits=describe_limits(limits))
     corrected = xr.DataArray(
         corrected, dims=reflectance.dims, coords=reflectance.coords, attrs=attrs, name=reflectance.name
     )
@@ -479,7 +480,7 @@ def _fixed_sza(reference: ReferenceGeometry) -> float:
     return float(reference.sza) if not isinstance(reference.sza, str) else np.nan
 
 
-def _describe_limits(limits) -> str:
+def describe_limits(limits) -> str:
     return "none" if limits is None else f"{limits[0]:g},{limits[1]:g}"
 
 
@@ -510,130 +511,14 @@ def qa_counts(qa) -> dict[str, object]:
     }
 
 
-def correct_files(
-    image, output, *, params, angles=None, sza=None, saa=None, vza=None, vaa=None, classes,
-    reference: ReferenceGeometry | dict | None = None, qa_output=None, wavelengths=None,
-    extrapolate: bool = False, limits=(0.2, 5.0), unknown: Literal["keep", "nan"] = "keep",
-    flip_view_azimuth: bool = False, chunks: int | None = None, compress: str = "deflate",
-    cog: bool = False, callbacks=(), table_source: str | None = None,
-    angles_kind: str = "geotiff", angle_options: dict | None = None, overwrite: bool = True,
-) -> dict[str, object]:
-    """Normalize GeoTIFF files: read image, angles and class map, write the corrected image.
+def __getattr__(name: str):
+    # brdfcorr 0.1 had the file-level correction here; it moved to the workflow layer in 0.2.
+    if name == "correct_files":
+        import warnings
 
-    The file-level entry point (the CLI and pipelines call it). Inputs are opened lazily in chunks
-    (:mod:`brdfcorr.io.rasters`), checked to lie on the image's grid, normalized with :func:`normalize`
-    and written tiled and compressed, chunk by chunk, to a temporary name renamed when complete,
-    with band descriptions and provenance tags (reference geometry, limits, parameter table,
-    brdfcorr version). The optional QA layer is written in the same pass.
+        from brdfcorr.workflow import tasks
 
-    Parameters
-    ----------
-    image, output : path-like
-        Input reflectance raster and output GeoTIFF.
-    params : ParameterTable or path-like
-        The parameter table (a path is loaded with :meth:`ParameterTable.load`).
-    angles : path-like, optional
-        4-band raster sza, saa, vza, vaa [deg]; or give ``sza``, ``saa``, ``vza``, ``vaa`` files.
-    classes : path-like
-        Class map raster.
-    reference, wavelengths, extrapolate, limits, unknown, flip_view_azimuth :
-        As for :func:`normalize`. A ``"mean"`` reference sun zenith is computed first (one pass
-        over the sza layer) and recorded as a number in the tags.
-    qa_output : path-like, optional
-        Where to write the QA layer (uint8 flags).
-    chunks : int, optional
-        Spatial chunk and tile size [pixels]; by default :func:`brdfcorr.io.rasters.auto_chunk` (512 for
-        up to 16 bands, smaller for more, so that memory does not grow with the band count).
-    compress : str, default "deflate"
-    cog : bool, default False
-        Write Cloud-Optimized GeoTIFFs.
-    callbacks : sequence
-        Dask callbacks active while computing (a progress bar).
-    table_source : str, optional
-        Where an in-memory ``params`` came from, for the provenance tag.
-    angles_kind : str, default "geotiff"
-        ``"geotiff"`` for angle rasters on the image grid; otherwise a sensor source kind of
-        :func:`brdfcorr.io.sensors.read_angles` (``"envi_obs"``, ``"sentinel2"``, ``"landsat"``,
-        ``"solar"``) read from ``angles`` onto the image grid with ``angle_options``.
-    overwrite : bool, default True
-        Replace existing outputs; with False an existing output is an :class:`OutputError`
-        (the CLI's default). An input is never overwritten.
-
-    Returns
-    -------
-    dict
-        Pixel counts (:func:`qa_counts`) plus ``reference`` (the geometry used).
-
-    Raises
-    ------
-    InputError
-        A missing, unreadable or malformed input (named): wrong band counts, a float class map,
-        angles that look like radians or hold no zenith in [0, 90) (:func:`brdfcorr.io.rasters.check_angles`;
-        single pixels outside the domain are flagged, not an error), an output that is an input.
-    GridMismatchError
-        A layer not on the image's grid (shape, transform or CRS).
-    ParameterError
-        The table does not fit the image's bands (names the table, the class and the parameter).
-    OutputError
-        An existing output without ``overwrite``, or a failed write (disk full); nothing is left
-        at the output paths.
-    """
-    import json
-
-    from brdfcorr import __version__
-    from brdfcorr.io import rasters as rio_io
-
-    inputs = [image, sza, saa, vza, vaa, classes] + ([angles] if angles_kind == "geotiff" else [])
-    for target in (output, qa_output):
-        if target is not None and any(p is not None and Path(p).resolve() == Path(target).resolve() for p in inputs):
-            raise InputError(f"output {target} is also an input; inputs are never overwritten")
-        if target is not None and not overwrite and Path(target).exists():
-            raise OutputError(f"output {target} exists; give --overwrite to replace it")
-    table_path = table_source
-    if not isinstance(params, ParameterTable):
-        table_path = str(params)
-        params = ParameterTable.load(params)
-    chunks = rio_io.auto_chunk(image) if chunks is None else int(chunks)
-    reflectance, class_map, layers = rio_io.open_scene(
-        image, classes, angles, angles_kind=angles_kind, angle_options=angle_options,
-        sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks, wavelengths=wavelengths,
-    )
-
-    reference = _resolve_reference(reference, params)
-    source = "fixed" if not isinstance(reference.sza, str) else reference.sza
-    if reference.sza == "mean":
-        mean = float(_scene_mean(layers["sza"].data, da).compute())
-        if not np.isfinite(mean):
-            raise InputError(f"{layers['sza'].encoding.get('source', 'sza')}: no valid solar zenith for the scene mean")
-        reference = reference.model_copy(update={"sza": mean})
-
-    try:
-        corrected, qa = normalize(
-            reflectance, class_map, layers["sza"], layers["saa"], layers["vza"], layers["vaa"], params,
-            reference, limits=limits, extrapolate=extrapolate, unknown=unknown,
-            flip_view_azimuth=flip_view_azimuth,
-        )
-    except ParameterError as error:  # the table does not fit the image's bands: name both files
-        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {image})") from None
-    corrected = corrected.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
-    for name in ("scale_factor", "add_offset"):  # the output holds physical values
-        corrected.attrs.pop(name, None)
-    tags = {
-        "brdf_reference": reference.describe(),
-        "brdf_reference_sza_source": source,
-        "brdf_limits": _describe_limits(limits),
-        "brdf_parameter_table": table_path or "(in memory)",
-        "brdf_parameter_table_content": json.dumps(params.to_dict(), separators=(",", ":")),
-        "brdfcorr_version": __version__,
-    }
-    if "wavelength" in reflectance.coords:
-        tags["wavelength"] = ",".join(f"{w:g}" for w in reflectance["wavelength"].values)
-        tags["wavelength_units"] = "nm"
-    rasters = {output: corrected}
-    if qa_output is not None:
-        rasters[qa_output] = qa
-    counts = rio_io.write_rasters(
-        rasters, compress=compress, blocksize=chunks, cog=cog, tags=tags,
-        compute_with=qa_counts(qa), callbacks=callbacks, gdal_cache=rio_io.gdal_cache_bytes(image, chunks),
-    )
-    return {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+        warnings.warn("brdfcorr.correct.correct_files moved to brdfcorr.workflow.tasks.correct_files in 0.2",
+                      DeprecationWarning, stacklevel=2)
+        return tasks.correct_files
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

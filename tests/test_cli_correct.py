@@ -162,7 +162,7 @@ def test_correct_files_reads_sensor_angle_sources(files, scene, tmp_path, monkey
     import xarray as xr
 
     import brdfcorr.io.sensors
-    from brdfcorr.correct import correct_files
+    from brdfcorr.workflow.tasks import correct_files
 
     def stand_in(source, like, scale=1.0):
         assert source == "obs.bin" and like.sizes["x"] == 48

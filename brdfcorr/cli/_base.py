@@ -15,9 +15,40 @@ import traceback
 from pathlib import Path
 
 import click
+import click.shell_completion
 
 from brdfcorr import __version__
-from brdfcorr.errors import BrdfcorrError
+from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError
+from brdfcorr.io.files import atomic_path, parse_yaml
+from brdfcorr.io.sensors import ANGLE_KINDS as SENSOR_ANGLE_KINDS
+from brdfcorr.models import SURFACE_MODELS, get_model
+
+#: ``--angles-kind`` choices: angle rasters on the image grid, or a sensor product.
+ANGLE_KINDS = ("geotiff", *SENSOR_ANGLE_KINDS)
+
+
+class _ModelName(click.ParamType):
+    """``--model``: a surface model of the registry (the registry's own message for another name)."""
+
+    name = "model"
+
+    def get_metavar(self, param, ctx=None) -> str:
+        return "[" + "|".join(SURFACE_MODELS) + "]"
+
+    def shell_complete(self, ctx, param, incomplete):
+        return [click.shell_completion.CompletionItem(n) for n in SURFACE_MODELS if n.startswith(incomplete)]
+
+    def convert(self, value, param, ctx):
+        if value in SURFACE_MODELS:
+            return value
+        try:
+            get_model(value)
+        except UnknownNameError as error:
+            self.fail(str(error), param, ctx)
+        self.fail(f"{value!r} is not a surface model; surface models: {', '.join(SURFACE_MODELS)}", param, ctx)
+
+
+MODEL_CHOICE = _ModelName()
 
 
 def _format_table(rows: list[dict[str, str]]) -> str:
@@ -99,20 +130,8 @@ def main(debug):
     """Specular BRDF models and BRDF normalization of reflectance imagery."""
 
 
-def _refuse_overwriting_inputs(outputs: dict[str, Path | None], inputs) -> None:
-    """InputError if an output option names one of the command's input files."""
-    from brdfcorr.errors import InputError
-
-    given = {Path(path).resolve() for path in inputs if path is not None}
-    for option, path in outputs.items():
-        if path is not None and Path(path).resolve() in given:
-            raise InputError(f"{option} {path} is also an input; inputs are never overwritten")
-
-
 def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> dict:
     """Parse ``NAME=VALUE`` (or ``NAME=LOW:HIGH`` with ``ranges``) command-line items."""
-    from brdfcorr.errors import ParameterError
-
     parsed = {}
     for item in items:
         name, _, text = item.partition("=")
@@ -129,9 +148,6 @@ def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> d
 
 def _options(option: str, items: tuple[str, ...]) -> dict[str, object]:
     """Parse ``KEY=VALUE`` items; values are read as YAML scalars (``20`` -> 20, ``B04`` -> "B04")."""
-    from brdfcorr.errors import ParameterError
-    from brdfcorr.io.files import parse_yaml
-
     parsed = {}
     for item in items:
         key, separator, text = item.partition("=")
@@ -146,8 +162,6 @@ def _options(option: str, items: tuple[str, ...]) -> dict[str, object]:
 
 def _pairs(option: str, items: tuple[str, ...]) -> dict[int, str]:
     """Parse ``ID=TEXT`` command-line items into {id: text}."""
-    from brdfcorr.errors import ParameterError
-
     parsed = {}
     for item in items:
         key, _, text = item.partition("=")
@@ -157,11 +171,10 @@ def _pairs(option: str, items: tuple[str, ...]) -> dict[int, str]:
     return parsed
 
 
-def _save_figure(figure, target: Path) -> None:
-    from brdfcorr.io.files import atomic_path
-
+def _save_figure(figure, target: Path, *, dpi: int = 110, echo: bool = True) -> None:
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as temporary:
-        figure.savefig(temporary, dpi=110, format=target.suffix.lstrip(".") or "png")
-    click.echo(f"wrote {target}")
+        figure.savefig(temporary, dpi=dpi, format=target.suffix.lstrip(".") or "png")
+    if echo:
+        click.echo(f"wrote {target}")
 

@@ -1,17 +1,17 @@
-"""``brdfcorr correct``: normalize one image (library: brdfcorr.correct)."""
+"""``brdfcorr correct``: normalize one image (library: :func:`brdfcorr.workflow.tasks.correct_files`)."""
 
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 import click
+from tqdm.dask import TqdmCallback
 
-from brdfcorr.cli._base import (
-    _options,
-    handle_errors,
-    main,
-)
+from brdfcorr.cli._base import ANGLE_KINDS, _options, handle_errors, main
+from brdfcorr.params import ParameterTable
+from brdfcorr.workflow.tasks import correct_files
 
 
 def _reference_sza(value: str | None):
@@ -26,9 +26,9 @@ def _reference_sza(value: str | None):
 
 @main.command("correct")
 @click.argument("image", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--angles", type=click.Path(dir_okay=False, path_type=Path),
-              help="4-band raster of sza, saa, vza, vaa [deg] on the image grid.")
-@click.option("--angles-kind", type=click.Choice(["geotiff", "envi_obs", "sentinel2", "landsat", "solar"]),
+@click.option("--angles", help="Angle source: a 4-band raster of sza, saa, vza, vaa [deg] on the image grid, or "
+                                "what --angles-kind names (a sensor file, or a UTC time for 'solar').")
+@click.option("--angles-kind", type=click.Choice(ANGLE_KINDS),
               default="geotiff", show_default=True,
               help="What --angles is: a 4-band GeoTIFF, an ENVI obs file (AVIRIS-NG/-3), a Sentinel-2 "
                    "MTD_TL.xml, a Landsat C2 angle band (…_SZA.TIF) or, for 'solar', a UTC time.")
@@ -73,11 +73,6 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     Outputs are written to temporary names beside them and renamed when complete; an existing
     output is replaced only with --overwrite, and an input never.
     """
-    import time
-
-    from brdfcorr.correct import correct_files
-    from brdfcorr.params import ParameterTable
-
     table = ParameterTable.load(params_path)
     reference = table.reference.model_dump() if table.reference else {}
     for key, value in (("sza", _reference_sza(ref_sza)), ("vza", ref_vza), ("raa", ref_raa)):
@@ -91,11 +86,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                                      param_hint="--wavelengths") from None
     if progress is None:
         progress = sys.stderr.isatty()
-    callbacks = []
-    if progress:
-        from tqdm.dask import TqdmCallback
-
-        callbacks.append(TqdmCallback(desc="correct", leave=False))
+    callbacks = [TqdmCallback(desc="correct", leave=False)] if progress else []
     start = time.perf_counter()
     summary = correct_files(
         image, output, params=table, angles=angles, sza=sza, saa=saa, vza=vza, vaa=vaa,

@@ -2,27 +2,45 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import click
 
 from brdfcorr.cli._base import (
+    ANGLE_KINDS,
+    MODEL_CHOICE,
     _assignments,
     _format_table,
+    _options,
     _pairs,
-    _refuse_overwriting_inputs,
+    _save_figure,
     handle_errors,
     main,
 )
+from brdfcorr.errors import InputError
+from brdfcorr.fit.classes import GuardRails
+from brdfcorr.io.files import atomic_path
+from brdfcorr.models import get_model
+from brdfcorr.models.materials import load_material
+from brdfcorr.params import ParameterTable
+from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
+from brdfcorr.plot.materials import plot_class_fit
+from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file, refuse_overwriting_inputs
 
 
 @main.command("fit-classes")
 @click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--angles", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="4-band angle raster (sza, saa, vza, vaa [deg]) per image, in the images' order.")
+@click.option("--angles", multiple=True, required=True,
+              help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa "
+                   "[deg]) or what --angles-kind names.")
+@click.option("--angles-kind", type=click.Choice(ANGLE_KINDS), default="geotiff", show_default=True,
+              help="What --angles are (as for `brdfcorr correct`).")
+@click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE",
+              help="Option of the angle reader (repeatable), as for `brdfcorr correct`.")
 @click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map per image, in the images' order.")
-@click.option("--model", "model_name", default="torrance_sparrow", show_default=True,
+@click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
               help="Model for every class (see `brdfcorr models`).")
 @click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
 @click.option("--name", "names", multiple=True, metavar="ID=NAME", help="Name of a class (repeatable).")
@@ -42,82 +60,66 @@ from brdfcorr.cli._base import (
 @click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Directory for one PNG per class (observed vs modelled against view zenith).")
 @handle_errors
-def fit_classes_command(images, angles, classes, model_name, class_model, names, fix, max_samples, seed,
+def fit_classes_command(images, angles, angles_kind, angle_option, classes, model_name, class_model, names, fix,
+                        max_samples, seed,
                         reflectance_scale, min_samples, min_vza_spread, fallback, output, report_path, plot_dir):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes)."""
-    import json
-    import warnings
-
-    import xarray as xr
-
-    from brdfcorr.io import rasters as rio_io
-    from brdfcorr.fit.classes import ClassFitWarning, GuardRails, fit_classes
-    from brdfcorr.errors import InputError
-    from brdfcorr.io.files import atomic_path
-    from brdfcorr.models.materials import load_material
-
     if not len(images) == len(angles) == len(classes):
         raise InputError(
             f"{len(images)} image(s), {len(angles)} --angles and {len(classes)} --classes: give one "
             "angle raster and one class map per image, in the same order"
         )
-    _refuse_overwriting_inputs({"-o": output, "--report": report_path}, (*images, *angles, *classes))
+    refuse_overwriting_inputs({"-o": output, "--report": report_path}, (*images, *angles, *classes))
     if fallback:
         load_material(fallback)  # fail before the work if the name is wrong
-    scenes = []
-    for image_path, angle_path, class_path in zip(images, angles, classes):
-        image, class_map, layers = rio_io.open_scene(image_path, class_path, angle_path)
-        scenes.append((image, class_map, xr.Dataset(layers)))
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ClassFitWarning)
-        result = fit_classes(
-            [s[0] for s in scenes], [s[1] for s in scenes], [s[2] for s in scenes], model_name,
-            class_models=_pairs("--class-model", class_model), names=_pairs("--name", names), fixed=_assignments("--fix", fix) or None,
-            max_samples=max_samples, seed=seed, reflectance_scale=reflectance_scale,
-            guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread), fallback=fallback,
-        )
-    for warning in caught:
-        click.echo(f"brdfcorr: warning: {warning.message}", err=True)
-    rows = []
-    for fit in result.fits:
-        summary = fit.summary()
-        rows.append({
-            "class": f"{fit.class_id} {fit.name}", "model": fit.model, "status": fit.status,
-            "N": str(fit.n_samples), "vza spread": f"{fit.vza_spread:.1f}",
-            "median R2": "-" if summary["median_r2"] is None else f"{summary['median_r2']:.3f}",
-            "shape": ", ".join(
-                f"{k}={v[0]:.4g}±{fit.errors[k][0]:.2g}" for k, v in fit.params.items()
-                if k not in ("t0", "t1", "a") and fit.errors[k][0] > 0
-            ) or "-",
-        })
-    click.echo(_format_table(rows))
-    for target in (output, report_path):
-        if target is not None:
-            target.parent.mkdir(parents=True, exist_ok=True)
-    path = result.table.save(output)
+    fit = fit_class_files(
+        [SceneFiles(image, class_map, angle_source, angles_kind, _options("--angle-option", angle_option))
+         for image, angle_source, class_map in zip(images, angles, classes)],
+        model_name, class_models=_pairs("--class-model", class_model), names=_pairs("--name", names),
+        fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed,
+        reflectance_scale=reflectance_scale, fallback=fallback,
+        guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread),
+    )
+    for message in fit.warnings:
+        click.echo(f"brdfcorr: warning: {message}", err=True)
+    click.echo(_format_table([_class_row(class_fit) for class_fit in fit.result.fits]))
+    output.parent.mkdir(parents=True, exist_ok=True)
+    path = fit.table.save(output)
     click.echo(f"wrote {path}")
     if report_path:
-        with atomic_path(report_path) as temporary:
-            temporary.write_text(json.dumps({"classes": result.report()}, indent=2))
-        click.echo(f"wrote {report_path}")
+        _write_json(report_path, {"classes": fit.result.report()})
     if plot_dir:
-        from brdfcorr.plot.materials import plot_class_fit
-
-        plot_dir.mkdir(parents=True, exist_ok=True)
-        wavelengths = scenes[0][0].coords["wavelength"].values if "wavelength" in scenes[0][0].coords else None
-        for fit in result.fits:
-            if fit.params:
-                target = plot_dir / f"class_{fit.class_id}_{fit.name}.png"
-                with atomic_path(target) as temporary:
-                    plot_class_fit(fit, result.samples[fit.class_id], wavelengths).savefig(
-                        temporary, dpi=100, format="png"
-                    )
+        for class_fit in fit.result.fits:
+            if class_fit.params:
+                figure = plot_class_fit(class_fit, fit.result.samples[class_fit.class_id], fit.wavelengths)
+                _save_figure(figure, plot_dir / f"class_{class_fit.class_id}_{class_fit.name}.png", echo=False)
         click.echo(f"wrote plots to {plot_dir}")
+
+
+def _class_row(fit) -> dict[str, str]:
+    summary = fit.summary()
+    linear = get_model(fit.model).linear
+    return {
+        "class": f"{fit.class_id} {fit.name}", "model": fit.model, "status": fit.status,
+        "N": str(fit.n_samples), "vza spread": f"{fit.vza_spread:.1f}",
+        "median R2": "-" if summary["median_r2"] is None else f"{summary['median_r2']:.3f}",
+        "shape": ", ".join(
+            f"{k}={v[0]:.4g}±{fit.errors[k][0]:.2g}" for k, v in fit.params.items()
+            if k not in linear and fit.errors[k][0] > 0
+        ) or "-",
+    }
+
+
+def _write_json(target: Path, content: dict) -> None:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(target) as temporary:
+        temporary.write_text(json.dumps(content, indent=2))
+    click.echo(f"wrote {target}")
 
 
 @main.command("fit")
 @click.argument("measurements", type=click.Path(path_type=Path))
-@click.option("--model", "model_name", default="torrance_sparrow", show_default=True,
+@click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
               help="Registered surface model to fit (see `brdfcorr models`).")
 @click.option("--fix", multiple=True, metavar="NAME=VALUE",
               help="Hold a parameter fixed (repeatable); paper 003 uses --fix k=0.25.")
@@ -146,46 +148,41 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     Prints the fitted parameters with 1-sigma errors and chi2/dof (as paper 003, Table 1) and the
     parameter correlations; with -o writes the fit as a class of a parameter table.
     """
-    import warnings
-
-    from brdfcorr.fit.goniometer import FitWarning, fit_measurements, spectral_table_entry
-    from brdfcorr.io.files import atomic_path
-    from brdfcorr.fit.measurements import filter_measurements, read_measurements, selection_mask
-    from brdfcorr.params import ParameterTable
-
-    _refuse_overwriting_inputs({"-o": output}, (measurements,))
+    refuse_overwriting_inputs({"-o": output}, (measurements,))
     table = ParameterTable.load(output) if output is not None and output.exists() else None
-    everything = read_measurements(measurements)
-    if wavelength is not None:
-        everything = everything.at_wavelength(wavelength)
-    selection = {"min_phi": min_phi, "max_phi": max_phi, "max_zenith": max_zenith}
-    data = filter_measurements(everything, **selection)
-    keep, selection = selection_mask(everything, **selection)
-    options = {
-        "fixed": _assignments("--fix", fix),
-        "initial": _assignments("--init", initial),
-        "bounds": _assignments("--bound", bounds, ranges=True),
-    }
-
+    fit = fit_measurement_file(
+        measurements, model_name, fixed=_assignments("--fix", fix), initial=_assignments("--init", initial),
+        bounds=_assignments("--bound", bounds, ranges=True), min_phi=min_phi, max_phi=max_phi,
+        max_zenith=max_zenith, wavelength=wavelength,
+    )
+    for message in fit.warnings:
+        click.echo(f"brdfcorr: warning: {message}", err=True)
     name = class_name or measurements.stem
-    bands = data.wavelengths or (None,)
-    results, rows = {}, []
-    for band in bands:
-        subset = data if band is None else data.at_wavelength(band)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", FitWarning)
-            results[band] = fit_measurements(model_name, subset, **options)
-        for warning in caught:
-            if issubclass(warning.category, FitWarning):
-                where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
-                click.echo(f"brdfcorr: warning: {where}{warning.message}", err=True)
-        label = {"sample": name} if band is None else {"sample": name, "λ [nm]": f"{band:g}"}
-        rows.append({**label, "N": str(len(subset)), **results[band].summary()})
+    _echo_measurement_fit(fit, name)
+    if plot_dir is not None:
+        _plot_measurement_fit(fit, name, plot_dir, "log" if log_scale else "linear")
+    if output is not None:
+        table = table if table is not None else ParameterTable()
+        if class_id is None:
+            class_id = max(table.class_ids, default=0) + 1
+        replaced = class_id in table
+        table.with_class(fit.table_entry(class_id, name)).save(output)
+        click.echo(f"{'replaced' if replaced else 'wrote'} class {class_id} ({name}) in {output}")
 
+
+def _echo_measurement_fit(fit, name: str) -> None:
+    """Paper 003, Table 1 style: parameters with 1-sigma errors, chi2/dof, correlations."""
+    bands = list(fit.results)
+    rows = []
+    for band, result in fit.results.items():
+        subset = fit.fitted if band is None else fit.fitted.at_wavelength(band)
+        label = {"sample": name} if band is None else {"sample": name, "λ [nm]": f"{band:g}"}
+        rows.append({**label, "N": str(len(subset)), **result.summary()})
+    data = fit.fitted
     weights = "weighted by sigma" if data.sigma is not None else "unweighted (no sigma column)"
-    click.echo(f"{measurements}: {len(data)} of {len(everything)} measurements"
-               f"{f' ({selection})' if selection else ''}, {weights}")
-    first = results[bands[0]]
+    click.echo(f"{fit.path}: {len(data)} of {len(fit.everything)} measurements"
+               f"{f' ({fit.selection})' if fit.selection else ''}, {weights}")
+    first = fit.results[bands[0]]
     fitted_text = f"model {first.model.name}: {len(first.free)} free parameters"
     if len(bands) > 1:
         fitted_text += f", {len(bands)} wavelengths fitted separately"
@@ -206,32 +203,15 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
             for row in first.free
         ]))
 
-    if plot_dir is not None:
-        from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
 
-        plot_dir.mkdir(parents=True, exist_ok=True)
-        scale = "log" if log_scale else "linear"
-        for band, result in results.items():
-            fitted, others = data, (everything.select(~keep, "not fitted") if not keep.all() else None)
-            stem = name
-            if band is not None:
-                fitted = data.at_wavelength(band)
-                if others is not None and band in others.wavelengths:
-                    others = others.at_wavelength(band)
-                elif others is not None:
-                    others = None
-                stem = f"{name}_{band:g}nm"
-            for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
-                target = plot_dir / f"{stem}_{suffix}.png"
-                with atomic_path(target) as temporary:
-                    plot(result, fitted, others, yscale=scale).savefig(temporary, dpi=120, format="png")
-                click.echo(f"wrote {target}")
-    if output is not None:
-        table = table if table is not None else ParameterTable()
-        if class_id is None:
-            class_id = max(table.class_ids, default=0) + 1
-        replaced = class_id in table
-        table.with_class(spectral_table_entry(results, class_id, name)).save(output)
-        click.echo(f"{'replaced' if replaced else 'wrote'} class {class_id} ({name}) in {output}")
-
-
+def _plot_measurement_fit(fit, name: str, plot_dir: Path, scale: str) -> None:
+    """Principal-plane and azimuth figures (paper 003, figs. 2 and 3) per wavelength."""
+    others_all = fit.everything.select(~fit.keep, "not fitted") if not fit.keep.all() else None
+    for band, result in fit.results.items():
+        fitted, others, stem = fit.fitted, others_all, name
+        if band is not None:
+            fitted = fit.fitted.at_wavelength(band)
+            others = others.at_wavelength(band) if others is not None and band in others.wavelengths else None
+            stem = f"{name}_{band:g}nm"
+        for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
+            _save_figure(plot(result, fitted, others, yscale=scale), plot_dir / f"{stem}_{suffix}.png", dpi=120)

@@ -11,6 +11,7 @@ lazy results (QA counts) in the same pass.
 from __future__ import annotations
 
 import contextlib
+import math
 import logging
 import os
 import re
@@ -18,6 +19,7 @@ import threading
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import dask
 import dask.array
@@ -33,6 +35,8 @@ from brdfcorr.io.files import atomic_path
 
 __all__ = [
     "open_scene",
+    "SceneData",
+    "AngleStatistics",
     "open_image",
     "open_angles",
     "open_classes",
@@ -263,8 +267,21 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=Non
     return angles
 
 
+class SceneData(NamedTuple):
+    """One scene opened lazily and checked (:func:`open_scene`)."""
+
+    reflectance: xr.DataArray
+    """(band, y, x), nodata as NaN, with a ``wavelength`` coordinate [nm] where known."""
+    classes: xr.DataArray
+    """(y, x) integer class ids, with the file's nodata."""
+    angles: dict[str, xr.DataArray]
+    """``sza``, ``saa``, ``vza``, ``vaa`` (y, x) [deg] on the image grid."""
+    statistics: AngleStatistics
+    """Ranges and means of the angle layers (the scene-mean sun zenith among them)."""
+
+
 def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", angle_options=None,
-               sza=None, saa=None, vza=None, vaa=None, chunks=None, wavelengths=None):
+               sza=None, saa=None, vza=None, vaa=None, chunks=None, wavelengths=None) -> SceneData:
     """Open one scene lazily and check it: reflectance, class map and the four angle layers.
 
     Parameters
@@ -281,9 +298,11 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
 
     Returns
     -------
-    (DataArray, DataArray, dict of str to DataArray)
+    SceneData
         Reflectance (band, y, x), class map (y, x) and the angle layers by name, all on one grid
-        (:func:`check_same_grid`) and with angles in degrees (:func:`check_angles`).
+        (:func:`check_same_grid`, the one grid check) and with angles in degrees
+        (:func:`check_angles`, the one pass over the angle data before the correction), with the
+        angle statistics of that pass.
     """
     reflectance = open_image(image, chunks=chunks, wavelengths=wavelengths)
     class_map = open_classes(classes, chunks=chunks)
@@ -300,14 +319,24 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
         layers = {name: dataset[name] for name in ANGLE_NAMES}
         source = f"{angles} ({angles_kind})"
     check_same_grid({"image": reflectance, "classes": class_map, **layers})
-    check_angles(layers, source=source)
-    return reflectance, class_map, layers
+    statistics = check_angles(layers, source=source)
+    return SceneData(reflectance, class_map, layers, statistics)
 
 
-def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) -> dict[str, tuple[float, float]]:
-    """Check that sun/view angle layers hold degrees; return each layer's (min, max) [deg].
+class AngleStatistics(NamedTuple):
+    """What one pass over the angle layers found (:func:`check_angles`)."""
 
-    One pass over the (lazy) layers. Pixels with a zenith outside [0, 90) are not an error here:
+    ranges: dict[str, tuple[float, float]]
+    """(min, max) of the finite values of each layer [deg]."""
+    means: dict[str, float]
+    """Mean of each layer's values in [0, 90) [deg] (NaN where there is none); ``means["sza"]`` is
+    the scene-mean sun zenith of a ``"mean"`` reference geometry."""
+
+
+def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) -> AngleStatistics:
+    """Check that sun/view angle layers hold degrees; return their ranges and means [deg].
+
+    One pass over the (lazy) layers, which also gives the scene-mean sun zenith. Pixels with a zenith outside [0, 90) are not an error here:
     :func:`brdfcorr.correct.normalize` flags them (QA ``invalid_geometry``) and writes nodata. A
     layer set that cannot be degrees is an error: every zenith below 1.6 with every azimuth below
     6.3 (radians: pi/2 and 2 pi), or no zenith of a layer in [0, 90) at all (scaled or other units).
@@ -331,17 +360,18 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) 
         first = next(a for a in arrays if isinstance(a, dask.array.Array))
         arrays = [dask.array.asarray(a).rechunk(first.chunks) for a in arrays]
         per_block = dask.array.map_blocks(
-            _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 4), dtype=np.float64,
+            _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 5), dtype=np.float64,
         ).compute()
     else:
         per_block = _angle_statistics(*(np.asarray(a) for a in arrays))
-    per_block = per_block.reshape(-1, len(names), 4)
+    per_block = per_block.reshape(-1, len(names), 5)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN layers: NaN range
         low, high = np.nanmin(per_block[..., 0], axis=0), np.nanmax(per_block[..., 1], axis=0)
     totals = per_block[..., 2:].sum(axis=0)
     ranges = {name: (float(low[i]), float(high[i])) for i, name in enumerate(names)}
     counts = {name: (int(totals[i, 0]), int(totals[i, 1])) for i, name in enumerate(names)}
+    means = {name: totals[i, 2] / totals[i, 1] if totals[i, 1] else math.nan for i, name in enumerate(names)}
 
     def where(name):
         return source or _describe(name, layers[name])
@@ -360,17 +390,18 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) 
                 f"{where(name)}: no {name} value in [0, 90) deg (found {lowest:.6g}..{highest:.6g}); "
                 "are the angles scaled or in other units?"
             )
-    return ranges
+    return AngleStatistics(ranges, means)
 
 
 def _angle_statistics(*blocks: np.ndarray) -> np.ndarray:
-    """(1, 1, n_layers, 4): min, max, finite count and count in [0, 90) of each (y, x) block."""
-    result = np.empty((1, 1, len(blocks), 4))
+    """(1, 1, n_layers, 5): min, max, finite count, count in [0, 90) and the sum of the values in
+    [0, 90) of each (y, x) block."""
+    result = np.empty((1, 1, len(blocks), 5))
     for index, block in enumerate(blocks):
         values = block[np.isfinite(block)]
+        in_domain = values[(values >= 0) & (values < 90)]
         result[0, 0, index, :2] = (values.min(), values.max()) if values.size else (np.nan, np.nan)
-        result[0, 0, index, 2] = values.size
-        result[0, 0, index, 3] = np.count_nonzero((values >= 0) & (values < 90))
+        result[0, 0, index, 2:] = values.size, in_domain.size, in_domain.sum(dtype=np.float64)
     return result
 
 

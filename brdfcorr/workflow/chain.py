@@ -43,7 +43,6 @@ import contextlib
 import dataclasses
 import glob
 import json
-import math
 import platform
 import re
 import threading
@@ -60,7 +59,9 @@ import numpy as np
 from brdfcorr.workflow.config import ChainConfig, format_pattern
 from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.io.files import atomic_path
+from brdfcorr.fit.classes import GuardRails
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
+from brdfcorr.workflow.tasks import SceneFiles, correct_files, fit_class_files, fit_measurement_file
 
 __all__ = [
     "Scene",
@@ -382,84 +383,49 @@ def _materials_table(config: ChainConfig) -> ParameterTable:
     return merge_tables([ParameterTable(classes=entries), ParameterTable(classes=list(config.parameters.classes))])
 
 
-def _open_scene(scene: Scene, config: ChainConfig):
-    """Image, class map and angle Dataset of a scene, lazily (:func:`brdfcorr.io.rasters.open_scene`)."""
-    import xarray as xr
-
-    from brdfcorr.io import rasters as rio_io
-
-    image, classes, layers = rio_io.open_scene(
-        scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
-        angle_options=scene.angle_options, chunks=config.engine.chunk, wavelengths=config.inputs.wavelengths,
-    )
-    return image, classes, xr.Dataset(layers)
+def _scene_files(scene: Scene) -> SceneFiles:
+    return SceneFiles(scene.image, scene.classes, scene.angles, scene.angles_kind, dict(scene.angle_options),
+                      scene.name)
 
 
 def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
-    from brdfcorr.fit.classes import ClassFitWarning, GuardRails, fit_classes
-
     config = plan.config
     step = config.steps.fit
-    opened, skipped = [], []
-    for scene in plan.scenes:
-        if scene.action == "fail":
-            skipped.append({"scene": scene.name, "reason": scene.reason})
-            continue
-        try:
-            opened.append(_open_scene(scene, config))
-        except BrdfcorrError as error:
-            skipped.append({"scene": scene.name, "reason": str(error)})
-    if not opened:
-        raise InputError("steps.fit: no scene could be opened for the imagery fit: "
-                         + "; ".join(f"{s['scene']}: {s['reason']}" for s in skipped))
+    failed = [{"scene": s.name, "reason": s.reason} for s in plan.scenes if s.action == "fail"]
+    candidates = [_scene_files(s) for s in plan.scenes if s.action != "fail"]
+    reasons = "".join(f"; {s['scene']}: {s['reason']}" for s in failed)
+    if not candidates:
+        raise InputError(f"steps.fit: no scene could be opened for the imagery fit{reasons}")
     names = {class_id: name for class_id, name in config.parameters.materials.items()}
     names.update(step.names)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ClassFitWarning)
-        result = fit_classes(
-            [o[0] for o in opened], [o[1] for o in opened], [o[2] for o in opened], step.model,
-            class_models=step.class_models, names=names, fixed=step.fixed, max_samples=step.max_samples,
-            seed=step.seed, reflectance_scale=step.reflectance_scale,
+    try:
+        fit = fit_class_files(
+            candidates, step.model, class_models=step.class_models, names=names, fixed=step.fixed,
+            max_samples=step.max_samples, seed=step.seed, reflectance_scale=step.reflectance_scale,
             guard=GuardRails(min_samples=step.min_samples, min_vza_spread=step.min_vza_spread),
-            fallback=step.fallback,
+            fallback=step.fallback, chunks=config.engine.chunk, wavelengths=config.inputs.wavelengths,
+            skip_unreadable=True,
         )
-    report = {
-        "source": "imagery", "scenes": len(opened), "scenes_left_out": skipped,
-        "classes": result.report(), "warnings": [str(w.message) for w in caught],
-    }
-    return result.table, report
+    except InputError as error:
+        raise InputError(f"steps.fit: {error}{reasons}") from None
+    report = fit.report()
+    report["scenes_left_out"] = failed + report["scenes_left_out"]
+    return fit.table, report
 
 
 def _fit_goniometer(plan: RunPlan) -> tuple[ParameterTable, dict]:
-    from brdfcorr.fit.goniometer import FitWarning, fit_measurements, fit_wavelengths, spectral_table_entry
-    from brdfcorr.fit.measurements import filter_measurements, read_measurements
-
     config = plan.config
     table, classes, notes = ParameterTable(), [], []
     for item in config.steps.fit.measurements:
-        data = filter_measurements(
-            read_measurements(config.resolve(item.file)),
+        fit = fit_measurement_file(
+            config.resolve(item.file), item.model, fixed=item.fixed, initial=item.initial,
             min_phi=item.min_phi, max_phi=item.max_phi, max_zenith=item.max_zenith,
         )
-        options = {"fixed": item.fixed or None, "initial": item.initial or None}
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", FitWarning)
-            if len(data.wavelengths) > 1:
-                results = fit_wavelengths(item.model, data, **options)
-            else:
-                results = {data.wavelengths[0] if data.wavelengths else math.nan: fit_measurements(item.model, data, **options)}
-        notes += [f"class {item.class_id} ({item.name}): {w.message}" for w in caught]
-        entry = spectral_table_entry(results, item.class_id, item.name) if len(results) > 1 else \
-            next(iter(results.values())).table_entry(item.class_id, item.name)
-        table = table.with_class(entry)
+        notes += [f"class {item.class_id} ({item.name}): {note}" for note in fit.warnings]
+        table = table.with_class(fit.table_entry(item.class_id, item.name))
         classes.append({
-            "class_id": item.class_id, "name": item.name, "model": item.model, "file": str(config.resolve(item.file)),
-            "n_measurements": len(data),
-            "fits": [
-                {"wavelength": None if math.isnan(w) else w, "params": dict(r.params),
-                 "errors": {k: float(v) for k, v in r.errors.items()}, "reduced_chi2": float(r.reduced_chi2)}
-                for w, r in results.items()
-            ],
+            "class_id": item.class_id, "name": item.name, "model": item.model, "file": str(fit.path),
+            "n_measurements": len(fit.fitted), "fits": fit.report(),
         })
     return table, {"source": "goniometer", "classes": classes, "warnings": notes}
 
@@ -579,8 +545,6 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, t
 
 
 def _correct(scene: Scene, table: ParameterTable, config: ChainConfig) -> dict:
-    from brdfcorr.correct import correct_files
-
     step, outputs = config.steps.correct, config.outputs
     return correct_files(
         scene.image, scene.outputs["corrected"], params=table, classes=scene.classes,

@@ -1,0 +1,357 @@
+"""The tasks on files that the CLI and chains share: one library function each.
+
+- :func:`correct_files`: normalize one image (``brdfcorr correct``, a chain's correct step);
+- :func:`fit_measurement_file`: fit a goniometer table (``brdfcorr fit``, a chain's goniometer fit);
+- :func:`fit_class_files`: fit per-class parameters from scenes (``brdfcorr fit-classes``, a chain's
+  imagery fit).
+
+They read and write files but print nothing: the CLI shows their results, chains report them.
+Warnings of the fits are collected into the results (``warnings``), one line each.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import xarray as xr
+
+from brdfcorr import __version__
+from brdfcorr.correct import describe_limits, normalize, qa_counts, resolve_reference
+from brdfcorr.errors import BrdfcorrError, InputError, OutputError, ParameterError
+from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, GuardRails, fit_classes
+from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
+from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
+from brdfcorr.io import rasters
+from brdfcorr.params import ParameterTable, ReferenceGeometry
+
+__all__ = [
+    "correct_files",
+    "fit_measurement_file",
+    "MeasurementFit",
+    "fit_class_files",
+    "SceneFiles",
+    "ImageryFit",
+    "refuse_overwriting_inputs",
+]
+
+
+def refuse_overwriting_inputs(outputs: Mapping[str, str | os.PathLike | None], inputs: Sequence) -> None:
+    """Raise :class:`InputError` if an output path (by option or key name) is one of the inputs.
+
+    Paths are compared after resolving links, so a link to an input is that input.
+    """
+    resolved = {Path(p).resolve() for p in inputs if p is not None}
+    for name, target in outputs.items():
+        if target is not None and Path(target).resolve() in resolved:
+            raise InputError(f"{name} {target} is also an input; inputs are never overwritten")
+
+
+# ------------------------------------------------------------------------------------ correct
+def correct_files(
+    image, output, *, params, angles=None, sza=None, saa=None, vza=None, vaa=None, classes,
+    reference: ReferenceGeometry | dict | None = None, qa_output=None, wavelengths=None,
+    extrapolate: bool = False, limits=(0.2, 5.0), unknown: Literal["keep", "nan"] = "keep",
+    flip_view_azimuth: bool = False, chunks: int | None = None, compress: str = "deflate",
+    cog: bool = False, callbacks=(), table_source: str | None = None,
+    angles_kind: str = "geotiff", angle_options: dict | None = None, overwrite: bool = True,
+) -> dict[str, object]:
+    """Normalize an image file: read image, angles and class map, write the corrected image.
+
+    Inputs are opened lazily in chunks and checked once (:func:`brdfcorr.io.rasters.open_scene`:
+    one grid check, one pass over the angle data that also gives the scene-mean sun zenith),
+    normalized with :func:`brdfcorr.normalize` and written tiled and compressed, chunk by chunk, to
+    a temporary name renamed when complete, with band descriptions and provenance tags (reference
+    geometry, limits, parameter table, brdfcorr version). The optional QA layer is written in the
+    same pass.
+
+    Parameters
+    ----------
+    image, output : path-like
+        Input reflectance raster and output GeoTIFF.
+    params : ParameterTable or path-like
+        The parameter table (a path is loaded with :meth:`ParameterTable.load`).
+    angles : path-like, optional
+        4-band raster sza, saa, vza, vaa [deg]; or give ``sza``, ``saa``, ``vza``, ``vaa`` files.
+    classes : path-like
+        Class map raster.
+    reference, wavelengths, extrapolate, limits, unknown, flip_view_azimuth :
+        As for :func:`brdfcorr.normalize`. A ``"mean"`` reference sun zenith is recorded as a
+        number in the tags.
+    qa_output : path-like, optional
+        Where to write the QA layer (uint8 flags).
+    chunks : int, optional
+        Spatial chunk and tile size [pixels]; by default :func:`brdfcorr.io.rasters.auto_chunk`
+        (512 for up to 16 bands, smaller for more, so that memory does not grow with the band count).
+    compress : str, default "deflate"
+    cog : bool, default False
+        Write Cloud-Optimized GeoTIFFs.
+    callbacks : sequence
+        Dask callbacks active while computing (a progress bar).
+    table_source : str, optional
+        Where an in-memory ``params`` came from, for the provenance tag.
+    angles_kind : str, default "geotiff"
+        ``"geotiff"`` for angle rasters on the image grid; otherwise a sensor source kind of
+        :func:`brdfcorr.io.sensors.read_angles` (``"envi_obs"``, ``"sentinel2"``, ``"landsat"``,
+        ``"solar"``) read from ``angles`` onto the image grid with ``angle_options``.
+    overwrite : bool, default True
+        Replace existing outputs; with False an existing output is an :class:`OutputError`
+        (the CLI's default). An input is never overwritten.
+
+    Returns
+    -------
+    dict
+        Pixel counts (:func:`brdfcorr.correct.qa_counts`) plus ``reference`` (the geometry used).
+
+    Raises
+    ------
+    InputError
+        A missing, unreadable or malformed input (named): wrong band counts, a float class map,
+        angles that look like radians or hold no zenith in [0, 90)
+        (:func:`brdfcorr.io.rasters.check_angles`; single pixels outside the domain are flagged,
+        not an error), an output that is an input.
+    GridMismatchError
+        A layer not on the image's grid (shape, transform or CRS).
+    ParameterError
+        The table does not fit the image's bands (names the table, the class and the parameter).
+    OutputError
+        An existing output without ``overwrite``, or a failed write (disk full); nothing is left
+        at the output paths.
+    """
+    inputs = [image, sza, saa, vza, vaa, classes] + ([angles] if angles_kind == "geotiff" else [])
+    outputs = {"output": output, "QA output": qa_output}
+    refuse_overwriting_inputs(outputs, inputs)
+    for target in (output, qa_output):
+        if target is not None and not overwrite and Path(target).exists():
+            raise OutputError(f"output {target} exists; give --overwrite to replace it")
+    table_path = table_source
+    if not isinstance(params, ParameterTable):
+        table_path = str(params)
+        params = ParameterTable.load(params)
+    chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
+    scene = rasters.open_scene(
+        image, classes, angles, angles_kind=angles_kind, angle_options=angle_options,
+        sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks, wavelengths=wavelengths,
+    )
+    reference = resolve_reference(reference, params)
+    source = "fixed" if not isinstance(reference.sza, str) else reference.sza
+    if reference.sza == "mean":
+        mean = scene.statistics.means["sza"]
+        if not np.isfinite(mean):
+            where = scene.angles["sza"].encoding.get("source", "sza")
+            raise InputError(f"{where}: no valid solar zenith for the scene mean")
+        reference = reference.model_copy(update={"sza": float(mean)})
+
+    layers = scene.angles
+    try:
+        corrected, qa = normalize(
+            scene.reflectance, scene.classes, layers["sza"], layers["saa"], layers["vza"], layers["vaa"],
+            params, reference, limits=limits, extrapolate=extrapolate, unknown=unknown,
+            flip_view_azimuth=flip_view_azimuth,
+        )
+    except ParameterError as error:  # the table does not fit the image's bands: name both files
+        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {image})") from None
+    corrected = corrected.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
+    for name in ("scale_factor", "add_offset"):  # the output holds physical values
+        corrected.attrs.pop(name, None)
+    tags = {
+        "brdf_reference": reference.describe(),
+        "brdf_reference_sza_source": source,
+        "brdf_limits": describe_limits(limits),
+        "brdf_parameter_table": table_path or "(in memory)",
+        "brdf_parameter_table_content": json.dumps(params.to_dict(), separators=(",", ":")),
+        "brdfcorr_version": __version__,
+    }
+    if "wavelength" in scene.reflectance.coords:
+        tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
+        tags["wavelength_units"] = "nm"
+    targets = {output: corrected}
+    if qa_output is not None:
+        targets[qa_output] = qa
+    counts = rasters.write_rasters(
+        targets, compress=compress, blocksize=chunks, cog=cog, tags=tags,
+        compute_with=qa_counts(qa), callbacks=callbacks, gdal_cache=rasters.gdal_cache_bytes(image, chunks),
+    )
+    return {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+
+
+# ---------------------------------------------------------------------------- goniometer fit
+@dataclass
+class MeasurementFit:
+    """The fit of one goniometer table (:func:`fit_measurement_file`).
+
+    Attributes
+    ----------
+    path : Path
+        The measurement file.
+    everything, fitted : Measurements
+        All measurements (of the chosen wavelength) and those selected for the fit.
+    keep : ndarray of bool
+        Which of ``everything`` were fitted.
+    selection : str
+        The selection in words ("phi >= 90 deg"), empty when every measurement is fitted.
+    results : dict of float or None to FitResult
+        One fit per wavelength (key None for a table without wavelengths).
+    warnings : list of str
+        Identifiability and convergence warnings, prefixed with the wavelength where there are
+        several.
+    """
+
+    path: Path
+    everything: Measurements
+    fitted: Measurements
+    keep: np.ndarray
+    selection: str
+    results: dict[float | None, FitResult]
+    warnings: list[str] = field(default_factory=list)
+
+    def table_entry(self, class_id: int, name: str) -> dict:
+        """The fit as a class of a parameter table (spectral where there are several wavelengths)."""
+        if len(self.results) > 1:
+            return spectral_table_entry(self.results, class_id, name)
+        return next(iter(self.results.values())).table_entry(class_id, name)
+
+    def report(self) -> list[dict]:
+        """JSON-friendly fits per wavelength: params, errors, reduced chi^2."""
+        return [
+            {"wavelength": wavelength, "params": dict(result.params),
+             "errors": {k: float(v) for k, v in result.errors.items()}, "reduced_chi2": float(result.reduced_chi2)}
+            for wavelength, result in self.results.items()
+        ]
+
+
+def fit_measurement_file(
+    path: str | os.PathLike, model: str, *, fixed: Mapping[str, float] | None = None,
+    initial: Mapping[str, float] | None = None, bounds: Mapping[str, tuple[float, float]] | None = None,
+    min_phi: float | None = None, max_phi: float | None = None, max_zenith: float | None = None,
+    wavelength: float | None = None,
+) -> MeasurementFit:
+    """Fit a registry model to a goniometer measurement table, one fit per wavelength.
+
+    Parameters
+    ----------
+    path : path-like
+        CSV with columns ``theta_i, theta_r, phi, brdf[, sigma, wavelength]`` [deg, sr^-1]
+        (:func:`brdfcorr.fit.measurements.read_measurements`).
+    model : str
+        Registered surface model.
+    fixed, initial, bounds :
+        As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25).
+    min_phi, max_phi, max_zenith : float, optional
+        Fit only these measurements [deg] (paper 003: ``min_phi=90``).
+    wavelength : float, optional
+        Fit only this wavelength [nm] of a table with a wavelength column.
+    """
+    everything = read_measurements(path)
+    if wavelength is not None:
+        everything = everything.at_wavelength(wavelength)
+    limits = {"min_phi": min_phi, "max_phi": max_phi, "max_zenith": max_zenith}
+    fitted = filter_measurements(everything, **limits)
+    keep, selection = selection_mask(everything, **limits)
+    options = {"fixed": fixed or None, "initial": initial or None, "bounds": bounds or None}
+    bands = fitted.wavelengths or [None]
+    results, notes = {}, []
+    for band in bands:
+        subset = fitted if band is None else fitted.at_wavelength(band)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", FitWarning)
+            results[band] = fit_measurements(model, subset, **options)
+        where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
+        notes += [f"{where}{w.message}" for w in caught if issubclass(w.category, FitWarning)]
+    return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes)
+
+
+# ------------------------------------------------------------------------------ imagery fit
+@dataclass(frozen=True)
+class SceneFiles:
+    """The files of one scene: image, class map and angle source (as for :func:`correct_files`)."""
+
+    image: Path
+    classes: Path
+    angles: Path | str
+    angles_kind: str = "geotiff"
+    angle_options: Mapping[str, object] = field(default_factory=dict)
+    name: str = ""
+
+
+@dataclass
+class ImageryFit:
+    """The result of :func:`fit_class_files`: the fit, the scenes used and those left out."""
+
+    result: ClassFitResult
+    scenes: list[SceneFiles]
+    wavelengths: np.ndarray | None
+    left_out: list[dict[str, str]] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def table(self) -> ParameterTable:
+        return self.result.table
+
+    def report(self) -> dict:
+        """JSON-friendly: the classes' fits, scenes left out and warnings."""
+        return {
+            "source": "imagery", "scenes": len(self.scenes), "scenes_left_out": self.left_out,
+            "classes": self.result.report(), "warnings": list(self.warnings),
+        }
+
+
+def fit_class_files(
+    scenes: Sequence[SceneFiles], model: str, *, class_models: Mapping[int, str] | None = None,
+    names: Mapping[int, str] | None = None, fixed: Mapping[str, float] | None = None,
+    max_samples: int = 50_000, seed: int = 0, reflectance_scale: float = 1.0,
+    guard: GuardRails = GuardRails(), fallback: str | None = None, chunks: int | None = None,
+    wavelengths: Sequence[float] | None = None, skip_unreadable: bool = False,
+) -> ImageryFit:
+    """Fit per-class, per-band parameters from the pixels of one or many scenes.
+
+    Each scene is opened lazily and checked (:func:`brdfcorr.io.rasters.open_scene`), then the
+    classes' pixels are pooled over the scenes, sampled and fitted
+    (:func:`brdfcorr.fit.fit_classes`, with its guard rails).
+
+    Parameters
+    ----------
+    scenes : sequence of SceneFiles
+    model, class_models, names, fixed, max_samples, seed, reflectance_scale, guard, fallback :
+        As for :func:`brdfcorr.fit.fit_classes`.
+    chunks, wavelengths :
+        As for :func:`brdfcorr.io.rasters.open_image`.
+    skip_unreadable : bool, default False
+        Leave out a scene that cannot be opened (listed in ``left_out``) instead of raising; at
+        least one scene must open (a chain's fit step uses this).
+    """
+    opened, used, left_out = [], [], []
+    for scene in scenes:
+        try:
+            data = rasters.open_scene(
+                scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
+                angle_options=dict(scene.angle_options), chunks=chunks, wavelengths=wavelengths,
+            )
+        except BrdfcorrError as error:
+            if not skip_unreadable:
+                raise
+            left_out.append({"scene": scene.name or str(scene.image), "reason": str(error)})
+            continue
+        opened.append(data)
+        used.append(scene)
+    if not opened:
+        raise InputError("no scene could be opened for the imagery fit: "
+                         + "; ".join(f"{s['scene']}: {s['reason']}" for s in left_out))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ClassFitWarning)
+        result = fit_classes(
+            [s.reflectance for s in opened], [s.classes for s in opened],
+            [xr.Dataset(s.angles) for s in opened], model, class_models=class_models, names=names,
+            fixed=fixed, max_samples=max_samples, seed=seed, reflectance_scale=reflectance_scale,
+            guard=guard, fallback=fallback,
+        )
+    first = opened[0].reflectance
+    found = first.coords["wavelength"].values if "wavelength" in first.coords else None
+    notes = [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
+    return ImageryFit(result, used, found, left_out, notes)
