@@ -40,7 +40,6 @@ Errors in a table raise :class:`brdfcorr.errors.ParameterError` naming the class
 
 from __future__ import annotations
 
-import contextvars
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -50,8 +49,16 @@ from typing import Literal
 import numpy as np
 import xarray as xr
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
+from brdfcorr._validation import describe_errors
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.io.files import atomic_path, parse_yaml
 from brdfcorr.models import SURFACE_MODELS, Model, get_model
@@ -264,47 +271,6 @@ class BandParameters:
     params: dict[str, np.ndarray]
 
 
-def key_text(key: object) -> str:
-    """A document key as shown in messages: as is when plain, else quoted (``'\\n'``, ``''``), so a
-    message stays one readable line whatever the keys of the document."""
-    text = str(key)
-    return text if text and text.isprintable() and text.strip() == text else repr(key)
-
-
-def _describe_validation_error(error: ValidationError, data: object) -> str:
-    """One line per pydantic error, locations turned into ``class 2 (grass): params.w``."""
-    classes = data.get("classes") if isinstance(data, Mapping) else None
-    grouped: dict[tuple[str, str], list[dict]] = {}
-    for item in error.errors():
-        location = list(item["loc"])
-        where = ""
-        if len(location) >= 2 and location[0] == "classes" and isinstance(location[1], int):
-            index = location[1]
-            entry = classes[index] if isinstance(classes, list) and index < len(classes) else {}
-            if isinstance(entry, Mapping):
-                where = f"class {entry.get('id', f'#{index + 1}')} ({entry.get('name', '?')})"
-            location = location[2:]
-        # Drop the union-branch tags pydantic adds ("float", "list[float]", "literal[...]").
-        field = ".".join(
-            key_text(part) for part in location if not (isinstance(part, str) and (part == "float" or "[" in part))
-        )
-        grouped.setdefault((where, field), []).append(item)
-    lines = []
-    for (where, field), items in grouped.items():
-        if len(items) > 1:  # every branch of a union failed
-            message = f"invalid value {items[0]['input']!r}"
-        else:
-            message = items[0]["msg"].removeprefix("Value error, ")
-        # Messages from our own validators already name the class.
-        prefix = ": ".join(part for part in (where, field) if part and not message.startswith("class "))
-        lines.append(f"{prefix}: {message}" if prefix else message)
-    return "; ".join(dict.fromkeys(lines))
-
-
-# Name of the document being validated, for messages (set by ParameterTable.from_dict).
-_SOURCE: contextvars.ContextVar[str] = contextvars.ContextVar("source", default="parameter table")
-
-
 class ParameterTable(BaseModel):
     """Per-class BRDF models and parameters, with an optional default reference geometry.
 
@@ -318,11 +284,13 @@ class ParameterTable(BaseModel):
     reference: ReferenceGeometry | None = None
     classes: list[ClassEntry] = Field(default_factory=list)
 
-    def __init__(self, **data):
+    def __init__(self, source: str = "parameter table", /, **data):
+        # ``source`` (positional only, so no key of a document can set it) names the document in
+        # messages (:meth:`from_dict`).
         try:
             super().__init__(**data)
         except ValidationError as error:
-            raise ParameterError(f"{_SOURCE.get()}: {_describe_validation_error(error, data)}") from None
+            raise ParameterError(f"{source}: {describe_errors(error, ParameterTable, data)}") from None
 
     @model_validator(mode="after")
     def _unique_ids(self) -> ParameterTable:
@@ -447,11 +415,7 @@ class ParameterTable(BaseModel):
         """Validate a parsed YAML document; errors name ``source``, the class and the parameter."""
         if not isinstance(data, Mapping):
             raise ParameterError(f"{source}: expected a mapping with 'classes', got {type(data).__name__}")
-        token = _SOURCE.set(source)
-        try:
-            return cls(**{str(key): value for key, value in data.items()})
-        finally:
-            _SOURCE.reset(token)
+        return cls(source, **{str(key): value for key, value in data.items()})
 
     @classmethod
     def from_yaml_text(cls, text: str, source: str = "parameter table") -> ParameterTable:

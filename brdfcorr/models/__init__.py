@@ -6,7 +6,17 @@ kind (dask stays lazy; xarray keeps dims and coords).
 
 from brdfcorr.models._base import Model, Parameter
 from brdfcorr.models.empirical import empirical, lambertian, specular_peak
+from brdfcorr.models.kernels import (
+    GEOMETRIC_KERNELS,
+    VOLUME_KERNELS,
+    kernel_driven,
+    li_dense,
+    li_sparse,
+    ross_thick,
+    ross_thin,
+)
 from brdfcorr.models.registry import REGISTRY, SURFACE_MODELS, get_model, parameter_table_rows
+from brdfcorr.models.rpv import rpv
 from brdfcorr.models.torrance_sparrow import (
     fresnel,
     geometric_attenuation,
@@ -28,4 +38,12 @@ __all__ = [
     "specular_peak",
     "lambertian",
     "mean_facet_inclination",
+    "kernel_driven",
+    "ross_thick",
+    "ross_thin",
+    "li_sparse",
+    "li_dense",
+    "VOLUME_KERNELS",
+    "GEOMETRIC_KERNELS",
+    "rpv",
 ]

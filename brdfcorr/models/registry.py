@@ -9,11 +9,29 @@ from __future__ import annotations
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.models._base import Model
 from brdfcorr.models.empirical import EMPIRICAL, LAMBERTIAN, SPECULAR_PEAK
+from brdfcorr.models.kernels import (
+    ROSS_THICK_LI_DENSE,
+    ROSS_THICK_LI_SPARSE,
+    ROSS_THIN_LI_DENSE,
+    ROSS_THIN_LI_SPARSE,
+)
+from brdfcorr.models.rpv import RPV
 from brdfcorr.models.torrance_sparrow import TORRANCE_SPARROW, TORRANCE_SPARROW_SIMPLIFIED
 
 REGISTRY: dict[str, Model] = {
     model.name: model
-    for model in (TORRANCE_SPARROW, TORRANCE_SPARROW_SIMPLIFIED, EMPIRICAL, LAMBERTIAN, SPECULAR_PEAK)
+    for model in (
+        TORRANCE_SPARROW,
+        TORRANCE_SPARROW_SIMPLIFIED,
+        EMPIRICAL,
+        LAMBERTIAN,
+        SPECULAR_PEAK,
+        ROSS_THICK_LI_SPARSE,
+        ROSS_THIN_LI_SPARSE,
+        ROSS_THICK_LI_DENSE,
+        ROSS_THIN_LI_DENSE,
+        RPV,
+    )
 }
 
 #: Models that describe a whole surface (diffuse + specular) and so may be paired with a class in
@@ -23,6 +41,11 @@ SURFACE_MODELS: tuple[str, ...] = (
     "torrance_sparrow_simplified",
     "empirical",
     "lambertian",
+    "ross_thick_li_sparse",
+    "ross_thin_li_sparse",
+    "ross_thick_li_dense",
+    "ross_thin_li_dense",
+    "rpv",
 )
 
 

@@ -37,16 +37,25 @@ from __future__ import annotations
 
 import os
 import re
-import typing
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
-from brdfcorr.errors import ConfigError
+from brdfcorr._validation import describe_errors
+from brdfcorr.errors import ConfigError, UnknownNameError
 from brdfcorr.io.files import parse_yaml
-from brdfcorr.params import ClassEntry, ReferenceGeometry, key_text
+from brdfcorr.models import SURFACE_MODELS
+from brdfcorr.models.materials import load_material, material_names
+from brdfcorr.params import ClassEntry, ReferenceGeometry
 
 __all__ = [
     "ChainConfig",
@@ -70,6 +79,9 @@ __all__ = [
 
 #: Placeholders of per-scene name patterns.
 PATTERN_FIELDS = ("dir", "parent", "stem", "scene")
+
+#: A surface model of the registry (its names are the allowed values).
+SurfaceModel = Literal[SURFACE_MODELS]  # type: ignore[valid-type]
 
 
 class _Strict(BaseModel):
@@ -200,25 +212,13 @@ class MeasurementSet(_Strict):
     file: str = Field(min_length=1)
     class_id: int = Field(ge=1)
     name: str = Field(min_length=1)
-    model: str = "torrance_sparrow"
+    model: SurfaceModel = "torrance_sparrow"
     fixed: dict[str, float] = Field(default_factory=dict)
     initial: dict[str, float] = Field(default_factory=dict)
     min_phi: float | None = Field(None, ge=0, le=180)
     max_phi: float | None = Field(None, ge=0, le=180)
     max_zenith: float | None = Field(None, gt=0, lt=90)
 
-    @field_validator("model")
-    @classmethod
-    def _model(cls, value: str) -> str:
-        return _check_surface_model(value)
-
-
-def _check_surface_model(value: str) -> str:
-    from brdfcorr.models import SURFACE_MODELS
-
-    if value not in SURFACE_MODELS:
-        raise ValueError(f"{value!r} is not allowed; allowed: {', '.join(map(repr, SURFACE_MODELS))}")
-    return value
 
 
 class GoniometerFit(_Strict):
@@ -241,8 +241,8 @@ class ImageryFit(_Strict):
     (:func:`brdfcorr.fit.classes.fit_classes`)."""
 
     source: Literal["imagery"]
-    model: str = "torrance_sparrow"
-    class_models: dict[Annotated[int, Field(ge=1)], str] = Field(default_factory=dict)
+    model: SurfaceModel = "torrance_sparrow"
+    class_models: dict[Annotated[int, Field(ge=1)], SurfaceModel] = Field(default_factory=dict)
     names: dict[Annotated[int, Field(ge=1)], str] = Field(default_factory=dict)
     fixed: dict[str, float] | None = None
     max_samples: int = Field(50_000, ge=10)
@@ -253,18 +253,6 @@ class ImageryFit(_Strict):
     fallback: str | None = None
     output: str = "fitted_params.yaml"
 
-    @field_validator("model")
-    @classmethod
-    def _model(cls, value: str) -> str:
-        return _check_surface_model(value)
-
-    @field_validator("class_models")
-    @classmethod
-    def _models(cls, value: dict[int, str]) -> dict[int, str]:
-        for name in value.values():
-            _check_surface_model(name)
-        return value
-
     @field_validator("fallback")
     @classmethod
     def _fallback(cls, value: str | None) -> str | None:
@@ -274,9 +262,6 @@ class ImageryFit(_Strict):
 
 
 def _check_material(name: str) -> str:
-    from brdfcorr.errors import UnknownNameError
-    from brdfcorr.models.materials import load_material, material_names
-
     try:
         load_material(name)
     except UnknownNameError:
@@ -546,7 +531,7 @@ class ChainConfig(_Strict):
         try:
             config = cls.model_validate(dict(data))
         except ValidationError as error:
-            raise ConfigError(f"{source}: {describe_errors(error)}") from None
+            raise ConfigError(f"{source}: {describe_errors(error, ChainConfig)}") from None
         config._base_dir = Path(base_dir).resolve()
         config._source = source
         return config
@@ -607,94 +592,3 @@ def apply_overrides(data: object, overrides: Mapping[str, object], source: str =
             node = child
         node[parts[-1]] = value
     return result
-
-
-# -------------------------------------------------------------------------------- error messages
-def _location(loc: tuple) -> str:
-    text = ""
-    for part in loc:
-        if isinstance(part, int):
-            text += f"[{part}]"
-        else:
-            text += f".{key_text(part)}" if text else key_text(part)
-    return text
-
-
-def _model_classes(annotation) -> list[type[BaseModel]]:
-    """The pydantic model classes inside an annotation (Optional, Union, Annotated, list, dict)."""
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return [annotation]
-    found = []
-    for argument in typing.get_args(annotation):
-        found += _model_classes(argument)
-    return found
-
-
-def _fields_at(loc: tuple) -> list[str] | None:
-    """The allowed keys of the config section at ``loc`` (None if it is not a section)."""
-    candidates: list[type[BaseModel]] = [ChainConfig]
-    for part in loc:
-        if isinstance(part, int):
-            continue
-        nested = []
-        for model in candidates:
-            if part in model.model_fields:
-                nested += _model_classes(model.model_fields[part].annotation)
-            else:  # a discriminated-union tag ("imagery") selects the member with that source
-                for member in candidates:
-                    source = member.model_fields.get("source")
-                    if source is not None and part in typing.get_args(source.annotation):
-                        nested.append(member)
-        if not nested:
-            return None
-        candidates = list(dict.fromkeys(nested))
-    return sorted({name for model in candidates for name in model.model_fields})
-
-
-def describe_errors(error: ValidationError) -> str:
-    """One line per problem: the key path, what is wrong and what is allowed."""
-    grouped: dict[str, list] = {}
-    for item in error.errors():
-        loc = tuple(item["loc"])
-        # Drop the union-member tags pydantic inserts into paths.
-        clean = []
-        for part in loc:
-            if isinstance(part, str) and (part in ("imagery", "goniometer") and clean and clean[-1] == "fit"):
-                continue
-            if isinstance(part, str) and ("[" in part or part in ("float", "int", "str", "bool")):
-                continue
-            clean.append(part)
-        where = _location(tuple(clean)) or "(top level)"
-        kind = item["type"]
-        if kind == "extra_forbidden":
-            allowed = _fields_at(loc[:-1]) or []
-            message = f"unknown key; allowed keys: {', '.join(allowed)}"
-        elif kind == "missing":
-            message = "required key is missing"
-        elif kind == "literal_error":
-            expected = item.get("ctx", {}).get("expected", "")
-            message = f"{item['input']!r} is not allowed; allowed: {expected}"
-        elif kind == "union_tag_invalid":
-            expected = item.get("ctx", {}).get("expected_tags", "")
-            message = f"source {item['input'].get('source')!r} is not allowed; allowed: {expected}" \
-                if isinstance(item["input"], Mapping) else item["msg"]
-        elif kind == "union_tag_not_found":
-            message = "a fit step needs 'source': 'imagery' or 'goniometer'"
-        else:
-            message = item["msg"].removeprefix("Value error, ")
-            if "input" in item and kind not in ("value_error", "assertion_error") and not isinstance(
-                    item["input"], (Mapping, list)):
-                message += f" (got {item['input']!r})"
-        grouped.setdefault(where, []).append((kind, message, item))
-    lines = []
-    for where, problems in grouped.items():
-        kinds = [kind for kind, _, _ in problems]
-        if len(problems) > 1 and "literal_error" in kinds:  # a number or one of some words
-            item = problems[kinds.index("literal_error")][2]
-            number = " a number," if any(k in ("float_parsing", "float_type") for k in kinds) else ""
-            lines.append(f"{where}: {item['input']!r} is not allowed; allowed:{number} "
-                         f"{item.get('ctx', {}).get('expected', '')}")
-        else:
-            lines += [f"{where}: {message}" for _, message, _ in problems]
-    return "; ".join(dict.fromkeys(lines))
-

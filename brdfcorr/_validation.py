@@ -1,0 +1,155 @@
+"""One translator from pydantic validation errors to brdfcorr's one-line messages.
+
+Parameter tables and chain configs are pydantic models; their errors become one line naming the
+key path (``steps.fit.model``; for a parameter table's class ``class 2 (grass): params.w``), what
+is wrong and, where the schema knows it, what is allowed: the keys of a section for an unknown
+key, the values of a ``Literal`` (the registry's model names, built-in materials, ...).
+"""
+
+from __future__ import annotations
+
+import typing
+from collections.abc import Mapping
+
+from pydantic import BaseModel, ValidationError
+
+#: Tags pydantic inserts into error locations for the members of a union (``float``,
+#: ``list[float]``, ``literal['mean','observed']``): not keys of the document.
+_TYPE_TAGS = frozenset({"float", "int", "str", "bool"})
+
+
+def key_text(key: object) -> str:
+    """A document key as shown in messages: as is when plain, else quoted (``'\\n'``, ``''``), so a
+    message stays one readable line whatever the keys of the document."""
+    text = str(key)
+    return text if text and text.isprintable() and text.strip() == text else repr(key)
+
+
+def _location(loc: tuple) -> str:
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        else:
+            text += f".{key_text(part)}" if text else key_text(part)
+    return text
+
+
+def _model_classes(annotation) -> list[type[BaseModel]]:
+    """The pydantic model classes inside an annotation (Optional, Union, Annotated, list, dict)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    found = []
+    for argument in typing.get_args(annotation):
+        found += _model_classes(argument)
+    return found
+
+
+def _union_tags(root: type[BaseModel]) -> set[str]:
+    """The ``source`` tags of discriminated unions anywhere below ``root`` ("imagery", ...)."""
+    tags, seen, queue = set(), set(), [root]
+    while queue:
+        model = queue.pop()
+        if model in seen:
+            continue
+        seen.add(model)
+        source = model.model_fields.get("source")
+        if source is not None:
+            tags.update(a for a in typing.get_args(source.annotation) if isinstance(a, str))
+        for field in model.model_fields.values():
+            queue += _model_classes(field.annotation)
+    return tags
+
+
+def fields_at(root: type[BaseModel], loc: tuple) -> list[str] | None:
+    """The allowed keys of the section of ``root`` at ``loc`` (None if it is not a section)."""
+    candidates: list[type[BaseModel]] = [root]
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        nested = []
+        for model in candidates:
+            if part in model.model_fields:
+                nested += _model_classes(model.model_fields[part].annotation)
+            else:  # a discriminated-union tag ("imagery") selects the member with that source
+                for member in candidates:
+                    source = member.model_fields.get("source")
+                    if source is not None and part in typing.get_args(source.annotation):
+                        nested.append(member)
+        if not nested:
+            return None
+        candidates = list(dict.fromkeys(nested))
+    return sorted({name for model in candidates for name in model.model_fields})
+
+
+def _where(loc: tuple, data: object, tags: set[str]) -> tuple[str, bool]:
+    """The location as text, and whether it names a parameter-table class (``class 2 (grass)``)."""
+    clean = []
+    for part in loc:
+        if isinstance(part, str) and (part in _TYPE_TAGS or "[" in part or (part in tags and clean)):
+            continue
+        clean.append(part)
+    classes = data.get("classes") if isinstance(data, Mapping) else None
+    if len(clean) >= 2 and clean[0] == "classes" and isinstance(clean[1], int) and isinstance(classes, list):
+        entry = classes[clean[1]] if clean[1] < len(classes) else {}
+        if isinstance(entry, Mapping):
+            label = f"class {entry.get('id', f'#{clean[1] + 1}')} ({entry.get('name', '?')})"
+            rest = _location(tuple(clean[2:]))
+            return (f"{label}: {rest}" if rest else label), True
+    return _location(tuple(clean)), False
+
+
+def _message(item: dict, root: type[BaseModel]) -> str:
+    kind = item["type"]
+    if kind == "extra_forbidden":
+        return f"unknown key; allowed keys: {', '.join(fields_at(root, tuple(item['loc'])[:-1]) or [])}"
+    if kind == "missing":
+        return "required key is missing"
+    if kind == "literal_error":
+        return f"{item['input']!r} is not allowed; allowed: {item.get('ctx', {}).get('expected', '')}"
+    if kind == "union_tag_invalid":
+        expected = item.get("ctx", {}).get("expected_tags", "")
+        source = item["input"].get("source") if isinstance(item["input"], Mapping) else item["input"]
+        return f"source {source!r} is not allowed; allowed: {expected}"
+    if kind == "union_tag_not_found":
+        tag = item.get("ctx", {}).get("discriminator", "'source'")
+        return f"needs the key {tag}"
+    message = item["msg"].removeprefix("Value error, ")
+    if "input" in item and kind not in ("value_error", "assertion_error") and not isinstance(
+            item["input"], (Mapping, list)):
+        message += f" (got {item['input']!r})"
+    return message
+
+
+def describe_errors(error: ValidationError, root: type[BaseModel], data: object = None) -> str:
+    """One line for all problems: ``where: what is wrong; allowed ...``, ``; ``-separated.
+
+    Parameters
+    ----------
+    error : pydantic.ValidationError
+    root : pydantic model class
+        The document's schema (to list the allowed keys of a section).
+    data : object, optional
+        The document as parsed; its ``classes`` name a parameter table's classes by id and name.
+    """
+    tags = _union_tags(root)
+    grouped: dict[tuple[str, bool], list[dict]] = {}
+    for item in error.errors():
+        grouped.setdefault(_where(tuple(item["loc"]), data, tags), []).append(item)
+    lines = []
+    for (where, is_class), items in grouped.items():
+        kinds = [item["type"] for item in items]
+        if len(items) > 1 and "literal_error" in kinds:  # every branch of "a number or a word" failed
+            literal = items[kinds.index("literal_error")]
+            number = " a number," if any(k in ("float_parsing", "float_type") for k in kinds) else ""
+            messages = [f"{literal['input']!r} is not allowed; allowed:{number} "
+                        f"{literal.get('ctx', {}).get('expected', '')}"]
+        elif len(items) > 1 and all(k.endswith(("_type", "_parsing")) for k in kinds):  # every union branch
+            messages = [f"invalid value {items[0]['input']!r}"]
+        else:
+            messages = [_message(item, root) for item in items]
+        for message in messages:
+            # Messages of a class's own validators already name the class.
+            named = not where or (is_class and message.startswith("class "))
+            lines.append(message if named else f"{where}: {message}")
+    return "; ".join(dict.fromkeys(lines))
