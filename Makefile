@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test clean
+.PHONY: demo test lint clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -21,7 +21,13 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 demo: $(VENV)/.installed
 	$(BIN)/brdfcorr demo --output-dir demo_output
 
-test: $(VENV)/.installed-test
+# Lint (ruff: pyflakes, pycodestyle, import order, complexity <= 15) and type-check the core
+# packages (mypy; the file list is in pyproject.toml) before the tests.
+lint: $(VENV)/.installed-test
+	$(BIN)/ruff check brdfcorr tests benchmarks examples
+	$(BIN)/mypy
+
+test: lint
 	$(BIN)/python -m pytest
 
 clean:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import typing
 from collections.abc import Mapping
+from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
@@ -47,7 +48,9 @@ def _model_classes(annotation) -> list[type[BaseModel]]:
 
 def _union_tags(root: type[BaseModel]) -> set[str]:
     """The ``source`` tags of discriminated unions anywhere below ``root`` ("imagery", ...)."""
-    tags, seen, queue = set(), set(), [root]
+    tags: set[str] = set()
+    seen: set[type[BaseModel]] = set()
+    queue: list[type[BaseModel]] = [root]
     while queue:
         model = queue.pop()
         if model in seen:
@@ -84,7 +87,7 @@ def fields_at(root: type[BaseModel], loc: tuple) -> list[str] | None:
 
 def _where(loc: tuple, data: object, tags: set[str]) -> tuple[str, bool]:
     """The location as text, and whether it names a parameter-table class (``class 2 (grass)``)."""
-    clean = []
+    clean: list[object] = []
     for part in loc:
         if isinstance(part, str) and (part in _TYPE_TAGS or "[" in part or (part in tags and clean)):
             continue
@@ -99,7 +102,7 @@ def _where(loc: tuple, data: object, tags: set[str]) -> tuple[str, bool]:
     return _location(tuple(clean)), False
 
 
-def _message(item: dict, root: type[BaseModel]) -> str:
+def _message(item: Any, root: type[BaseModel]) -> str:
     kind = item["type"]
     if kind == "extra_forbidden":
         return f"unknown key; allowed keys: {', '.join(fields_at(root, tuple(item['loc'])[:-1]) or [])}"
@@ -133,7 +136,7 @@ def describe_errors(error: ValidationError, root: type[BaseModel], data: object 
         The document as parsed; its ``classes`` name a parameter table's classes by id and name.
     """
     tags = _union_tags(root)
-    grouped: dict[tuple[str, bool], list[dict]] = {}
+    grouped: dict[tuple[str, bool], list[Any]] = {}
     for item in error.errors():
         grouped.setdefault(_where(tuple(item["loc"]), data, tags), []).append(item)
     lines = []

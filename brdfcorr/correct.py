@@ -34,7 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import dask.array as da
 import numpy as np
@@ -119,9 +119,54 @@ def _normalize_block(
     n = ny * nx
     cube = reflectance.reshape(n_bands, n)
     classes = classes.reshape(n)
-    theta_i, theta_r = (np.asarray(a, dtype=np.float64).reshape(n) for a in (sza, vza))
-    saa, vaa = (np.asarray(a, dtype=np.float64).reshape(n) for a in (saa, vaa))
+    theta_i, theta_r, saa, vaa = (np.asarray(a, dtype=np.float64).reshape(n) for a in (sza, vza, saa, vaa))
+    if flip_view_azimuth:
+        vaa = vaa + 180.0
 
+    qa, usable, no_class, candidates, infinite = _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata)
+    base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
+    base[~usable] = np.nan
+    unclassified = usable & no_class
+    qa[unclassified] |= QA_NO_CLASS
+    if unknown_nan:
+        base[unclassified] = np.nan
+    states = []
+    for class_id in _present_classes(classes[usable & ~no_class]):
+        members = usable & (classes == class_id)
+        plan = plans.get(int(class_id)) if float(class_id).is_integer() else None
+        if plan is None:
+            qa[members] |= QA_UNKNOWN_CLASS
+            if unknown_nan:
+                base[members] = np.nan
+            continue
+        index = np.flatnonzero(members)
+        observed = ScatteringGeometry(theta_i[index], theta_r[index], relative_azimuth(saa[index], vaa[index]))
+        ref_sza = theta_i[index] if reference.sza == "observed" else np.asarray(reference_sza, dtype=np.float64)
+        ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
+        # The basis functions in float64; the per-band linear combination in the output precision.
+        # Parameters were validated when the table was resolved to the bands.
+        terms = [
+            tuple(
+                tuple(np.broadcast_to(np.asarray(t, dtype=out_dtype), index.shape) for t in plan.model.terms(where, shape))
+                for where in (observed, ref)
+            )
+            for shape in plan.shapes
+        ]
+        states.append((plan, index, terms))
+
+    out, limited = _apply_factors(cube, band_index, base, states, limits, out_dtype)
+    if infinite is not None and infinite.any():  # +-inf is nodata like NaN: NaN in the output
+        corrected = out[:, candidates]
+        corrected[infinite] = np.nan
+        out[:, candidates] = corrected
+    for index, flags in limited:
+        qa[index[flags]] |= QA_LIMITED
+    return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
+
+
+def _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata):
+    """QA flags for nodata and invalid geometry, the usable pixels, the unclassified ones, and the
+    few pixels with non-finite reflectance (their indices and where in them it is +-inf)."""
     angles_finite = np.isfinite(theta_i) & np.isfinite(theta_r) & np.isfinite(saa) & np.isfinite(vaa)
     # The class map's nodata (and NaN) means "no class", like class 0 (DESIGN.md).
     no_class = classes == 0
@@ -129,14 +174,11 @@ def _normalize_block(
         no_class |= np.isnan(classes)
     if class_nodata is not None:
         no_class |= classes == class_nodata
-    nodata = ~angles_finite
     with np.errstate(invalid="ignore"):
         in_domain = (theta_i >= 0) & (theta_i < 90) & (theta_r >= 0) & (theta_r < 90)
     invalid_geometry = angles_finite & ~in_domain
-    usable = ~nodata & ~invalid_geometry
-
-    qa = np.zeros(n, dtype=np.uint8)
-    qa[nodata] |= QA_NODATA
+    qa = np.zeros(classes.size, dtype=np.uint8)
+    qa[~angles_finite] |= QA_NODATA
     qa[invalid_geometry] |= QA_INVALID_GEOMETRY
     candidates = infinite = None
     if cube.dtype.kind == "f":
@@ -148,71 +190,33 @@ def _normalize_block(
             values = cube[:, candidates]
             qa[candidates[~np.isfinite(values).all(axis=0)]] |= QA_NODATA
             infinite = np.isinf(values)
+    return qa, angles_finite & ~invalid_geometry, no_class, candidates, infinite
 
-    base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
-    base[~usable] = np.nan
-    unclassified = usable & no_class
-    qa[unclassified] |= QA_NO_CLASS
-    if unknown_nan:
-        base[unclassified] = np.nan
-    present = _present_classes(classes[usable & ~no_class])
-    reference_sza = np.asarray(reference_sza, dtype=np.float64)
-    states = []
-    for class_id in present:
-        members = usable & (classes == class_id)
-        plan = plans.get(int(class_id)) if float(class_id).is_integer() else None
-        if plan is None:
-            qa[members] |= QA_UNKNOWN_CLASS
-            if unknown_nan:
-                base[members] = np.nan
-            continue
-        index = np.flatnonzero(members)
-        view_azimuth = vaa[index] + 180.0 if flip_view_azimuth else vaa[index]
-        observed = ScatteringGeometry(theta_i[index], theta_r[index], relative_azimuth(saa[index], view_azimuth))
-        if reference.sza == "observed":
-            ref_sza = theta_i[index]
-        else:
-            ref_sza = reference_sza
-        ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
-        # The basis functions in float64; the per-band linear combination in the output precision.
-        # Parameters were validated when the table was resolved to the bands.
-        g = [
-            tuple(
-                tuple(
-                    np.broadcast_to(np.asarray(term, dtype=out_dtype), index.shape)
-                    for term in plan.model.terms(where, shape)
-                )
-                for where in (observed, ref)
-            )
-            for shape in plan.shapes
-        ]
-        states.append((plan, index, g))
 
-    # One factor map for the block, updated band by band only where a class's parameters change:
-    # with band-independent parameters every band costs one multiplication.
+def _apply_factors(cube, band_index, base, states, limits, out_dtype):
+    """Multiply each band by its factor map; returns the output and, per class, which of its
+    pixels were limited in some band.
+
+    One factor map serves the block, updated band by band only where a class's parameters change:
+    with band-independent parameters every band costs one multiplication.
+    """
     factor = base
     current_row = {plan.id: -1 for plan, _, _ in states}
     limited = {plan.id: np.zeros(index.size, dtype=bool) for plan, index, _ in states}
-    out = np.empty((n_bands, n), dtype=out_dtype)
+    out = np.empty(cube.shape, dtype=out_dtype)
     for position, band in enumerate(np.asarray(band_index).reshape(-1)):
-        for plan, index, g in states:
+        for plan, index, terms in states:
             if plan.row_of_band[band] == current_row[plan.id]:
                 continue
             current_row[plan.id] = plan.row_of_band[band]
-            ratio = _ratio(plan, band, *g[plan.shape_of_band[band]])
+            ratio = _ratio(plan, band, *terms[plan.shape_of_band[band]])
             if limits is not None:
                 clipped = np.clip(ratio, *limits)
                 limited[plan.id] |= clipped != ratio
                 ratio = clipped
             factor[index] = ratio
         np.multiply(cube[position], factor, out=out[position], casting="unsafe")
-    if infinite is not None and infinite.any():  # +-inf is nodata like NaN: NaN in the output
-        corrected = out[:, candidates]
-        corrected[infinite] = np.nan
-        out[:, candidates] = corrected
-    for plan, index, _ in states:
-        qa[index[limited[plan.id]]] |= QA_LIMITED
-    return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
+    return out, [(index, limited[plan.id]) for plan, index, _ in states]
 
 
 def _present_classes(values: np.ndarray) -> list:
@@ -293,7 +297,8 @@ def resolve_reference(reference, params: ParameterTable) -> ReferenceGeometry:
         return params.reference or ReferenceGeometry()
     if isinstance(reference, ReferenceGeometry):
         return reference
-    return ParameterTable.from_dict({"reference": dict(reference)}, source="reference geometry").reference
+    validated = ParameterTable.from_dict({"reference": dict(reference)}, source="reference geometry").reference
+    return validated if validated is not None else ReferenceGeometry()
 
 
 def normalize(
@@ -396,7 +401,7 @@ def normalize(
 
     arrays = [reflectance.data] + [layers[name].data for name in ("classes", "sza", "saa", "vza", "vaa")]
     lazy = any(isinstance(a, da.Array) for a in arrays)
-    kwargs = dict(
+    kwargs: dict[str, Any] = dict(
         plans=plans, reference=reference, limits=limits, unknown_nan=unknown == "nan",
         class_nodata=class_nodata, flip_view_azimuth=flip_view_azimuth, out_dtype=out_dtype,
     )
@@ -404,7 +409,10 @@ def normalize(
         corrected, qa = _normalize_dask(arrays, reference, kwargs)
     else:
         reference_sza = _scene_mean(arrays[2], np) if reference.sza == "mean" else _fixed_sza(reference)
-        corrected, qa = _normalize_block(*arrays[:1], np.arange(n_bands), *arrays[1:], reference_sza, **kwargs)
+        cube, classes_block, sza, saa, vza, vaa = arrays
+        corrected, qa = _normalize_block(
+            cube, np.arange(n_bands), classes_block, sza, saa, vza, vaa, reference_sza, **kwargs
+        )
         qa = qa[0]
 
     attrs = dict(reflectance.attrs)

@@ -29,6 +29,7 @@ References
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 from functools import cached_property
 
 import numpy as np
@@ -63,9 +64,9 @@ class ScatteringGeometry:
         Relative azimuth [deg], in [0, 180]; 180 is forward scattering.
     """
 
-    theta_i: object
-    theta_r: object
-    phi: object
+    theta_i: Any
+    theta_r: Any
+    phi: Any
 
     @cached_property
     def cos_i(self):

@@ -44,7 +44,7 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import xarray as xr
@@ -399,7 +399,7 @@ class ParameterTable(BaseModel):
                 e.model.parameter(name).units for e in resolved.values() if name in e.params
             )
             variables[name] = (("class", "band"), data, {"units": units})
-        coords = {
+        coords: dict[str, Any] = {
             "class": ("class", np.array(list(resolved), dtype=np.int64)),
             "name": ("class", [entry.name for entry in resolved.values()]),
             "model": ("class", [entry.model.name for entry in resolved.values()]),

@@ -214,9 +214,9 @@ def ndvi_strata(image: xr.DataArray, *, edges: Sequence[float] | None = None,
     index = _normalized_difference(red_mean, nir_mean, red, nir)
     band_dim = image.coords["wavelength"].dims[0]
     valid = np.isfinite(image).all(band_dim) & np.isfinite(index)
-    water = np.reshape(np.asarray(water, dtype=float), (-1, 2))  # one pair or a sequence of pairs
+    water_pairs = np.reshape(np.asarray(water, dtype=float), (-1, 2))  # one pair or a sequence of pairs
     water_test = xr.zeros_like(valid)
-    for ndvi_below, nir_below in water:
+    for ndvi_below, nir_below in water_pairs:
         water_test = water_test | ((index < ndvi_below) & (nir_mean < nir_below))
     is_water = valid & water_test
     dark = -np.inf if shadow_reflectance is None else shadow_reflectance  # -inf: no shadow test

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
@@ -157,7 +158,7 @@ class Model:
             f"its parameters are {', '.join(self.parameter_names)}"
         )
 
-    def validate(self, params: Mapping[str, object]) -> dict[str, object]:
+    def validate(self, params: Mapping[str, Any]) -> dict[str, Any]:
         """Check a complete set of parameters; return them in signature order.
 
         Raises :class:`ParameterError` naming the model and the parameter for unknown, missing,

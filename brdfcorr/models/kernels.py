@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 import weakref
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -97,7 +98,7 @@ class _Angles:
         self.cos_phi = cosd(geometry.phi)
         self.sin_phi = sind(geometry.phi)
         self._li: dict[tuple[float, float], tuple] = {}
-        self.cache: dict[str, object] = {}  # kernels and other geometry-only terms, by name
+        self.cache: dict[str, Any] = {}  # kernels and other geometry-only terms, by name
 
     @cached_property
     def one_minus_cos_xi(self):
