@@ -8,7 +8,7 @@ the global ``--debug`` option adds the traceback. One module per group of comman
 registers the commands on :data:`main`.
 """
 
-from brdfcorr.cli import analyze, chain, correct, fitting, info  # noqa: F401  (register commands)
+from brdfcorr.cli import analyze, chain, classes, correct, fitting, info  # noqa: F401  (register commands)
 from brdfcorr.cli._base import (
     EXIT_BAD_INPUT,
     EXIT_CODES,

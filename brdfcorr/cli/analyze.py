@@ -2,16 +2,29 @@
 
 from __future__ import annotations
 
+import math
+import warnings
 from pathlib import Path
 
 import click
+import numpy as np
 
+from brdfcorr.analysis.papers import (
+    PAPER_SHADOWING_TEXT,
+    WORST_CASE_PARAMS,
+    albedo,
+    shadowing_impact,
+    specular_albedo_bound,
+    width_reduction,
+)
 from brdfcorr.cli._base import (
     _format_table,
     _save_figure,
     handle_errors,
     main,
 )
+from brdfcorr.models.materials import load_material, material_names
+from brdfcorr.plot.analysis import plot_azimuthal_widths, plot_figure2, plot_polar
 
 
 def _zenith_list(value: str) -> list[float]:
@@ -34,8 +47,6 @@ def analyze_group():
 @handle_errors
 def analyze_shadowing_command(max_zenith, phi_range, step):
     """Simplified (G = 1) vs full TS model for the material library (paper 003, section 5)."""
-    from brdfcorr.analysis.papers import PAPER_SHADOWING_TEXT, WORST_CASE_PARAMS, shadowing_impact
-    from brdfcorr.models.materials import load_material, material_names
 
     cases = [("worst case (roof-tile peak, albedo 0.01)", WORST_CASE_PARAMS, None)]
     cases += [(name, load_material(name).params, PAPER_SHADOWING_TEXT.get(name)) for name in material_names()]
@@ -62,8 +73,6 @@ def analyze_shadowing_command(max_zenith, phi_range, step):
 @handle_errors
 def analyze_width_command(names, output):
     """Azimuthal FWHM of the specular peak at the geometries of paper 003, fig. 3."""
-    from brdfcorr.analysis.papers import width_reduction
-    from brdfcorr.models.materials import load_material, material_names
 
     materials = [load_material(name) for name in (names or material_names())]
     rows = []
@@ -77,8 +86,6 @@ def analyze_width_command(names, output):
     click.echo(_format_table(rows))
     click.echo("\npaper 003: about 50 % from 30 to 50 deg, about 75 % from 30 to 65 deg.")
     if output:
-        from brdfcorr.plot.analysis import plot_azimuthal_widths
-
         _save_figure(plot_azimuthal_widths(materials), output)
 
 
@@ -91,11 +98,6 @@ def analyze_width_command(names, output):
 @handle_errors
 def analyze_albedo_command(name, zeniths, simplified, resolution):
     """Directional-hemispherical reflectance of a material at several sun zeniths."""
-    import math
-    import warnings
-
-    from brdfcorr.analysis.papers import albedo, specular_albedo_bound
-    from brdfcorr.models.materials import load_material
 
     material = load_material(name)
     model = "torrance_sparrow_simplified" if simplified else material.model.name
@@ -123,9 +125,6 @@ def analyze_albedo_command(name, zeniths, simplified, resolution):
 @handle_errors
 def analyze_figure2_command(output, view_step, step_fraction):
     """Figure 2 of paper 000: TS model, V-cavity simulation and empirical model, normalized."""
-    import numpy as np
-
-    from brdfcorr.plot.analysis import plot_figure2
 
     if not view_step > 0:
         raise click.BadParameter("must be > 0", param_hint="--view-step")
@@ -141,8 +140,6 @@ def analyze_figure2_command(output, view_step, step_fraction):
 @handle_errors
 def analyze_polar_command(name, zeniths, output):
     """Polar plots of a material's BRDF over the view hemisphere."""
-    from brdfcorr.plot.analysis import plot_polar
-    from brdfcorr.models.materials import load_material
 
     material = load_material(name)
     _save_figure(plot_polar(material, _zenith_list(zeniths)), output or Path(f"polar_{material.name}.png"))

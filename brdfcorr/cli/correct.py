@@ -11,6 +11,7 @@ from tqdm.dask import TqdmCallback
 
 from brdfcorr.cli._base import ANGLE_KINDS, _options, handle_errors, main
 from brdfcorr.params import ParameterTable
+from brdfcorr.workflow.classmaps import read_lookup
 from brdfcorr.workflow.tasks import correct_files
 
 
@@ -41,6 +42,10 @@ def _reference_sza(value: str | None):
 @click.option("--vaa", type=click.Path(dir_okay=False, path_type=Path), help="View azimuth raster [deg].")
 @click.option("--classes", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map raster (ids of the parameter table; 0 = no class).")
+@click.option("--align-classes", is_flag=True,
+              help="The class map may lie on another grid or CRS: resample it by nearest neighbour.")
+@click.option("--class-lookup", type=click.Path(dir_okay=False, path_type=Path),
+              help="YAML mapping of class-map codes to table class ids (e.g. land-cover codes).")
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter table (YAML).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
@@ -65,7 +70,8 @@ def _reference_sza(value: str | None):
 @click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
 @handle_errors
-def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, params_path, output, ref_sza, ref_vza,
+def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, align_classes,
+                    class_lookup, params_path, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, extrapolate, flip_view_azimuth,
                     qa_path, compress, cog, chunk, progress, overwrite):
     """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.
@@ -95,6 +101,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
         flip_view_azimuth=flip_view_azimuth, chunks=chunk, compress=compress, cog=cog,
         callbacks=callbacks, table_source=str(params_path), angles_kind=angles_kind,
         angle_options=_options("--angle-option", angle_option), overwrite=overwrite,
+        align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
     )
     click.echo(
         f"wrote {output}: {summary['corrected']} pixels corrected, {summary['limited']} limited, "

@@ -26,6 +26,7 @@ from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
 from brdfcorr.plot.materials import plot_class_fit
+from brdfcorr.workflow.classmaps import read_lookup
 from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file, refuse_overwriting_inputs
 
 
@@ -40,11 +41,16 @@ from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement
               help="Option of the angle reader (repeatable), as for `brdfcorr correct`.")
 @click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map per image, in the images' order.")
+@click.option("--align-classes", is_flag=True,
+              help="Class maps may lie on another grid or CRS: resample them by nearest neighbour.")
+@click.option("--class-lookup", type=click.Path(dir_okay=False, path_type=Path),
+              help="YAML mapping of class-map codes to table class ids (e.g. land-cover codes).")
 @click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
               help="Model for every class (see `brdfcorr models`).")
 @click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
 @click.option("--name", "names", multiple=True, metavar="ID=NAME", help="Name of a class (repeatable).")
-@click.option("--fix", multiple=True, metavar="NAME=VALUE", help="Hold a shape parameter fixed [default: k=0.25 for TS].")
+@click.option("--fix", multiple=True, metavar="NAME=VALUE",
+              help="Hold a shape parameter fixed [default: k=0.25 for TS].")
 @click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
 @click.option("--scale", "reflectance_scale", type=float, default=1.0, show_default=True,
@@ -52,7 +58,8 @@ from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement
 @click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
 @click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
               help="Guard rail: minimum 5-95 %% view zenith spread [deg].")
-@click.option("--fallback", help="Built-in material for classes that fail the guard rails [default: leave uncorrected].")
+@click.option("--fallback",
+              help="Built-in material for classes that fail the guard rails [default: leave uncorrected].")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter table to write (YAML).")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
@@ -60,8 +67,8 @@ from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement
 @click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Directory for one PNG per class (observed vs modelled against view zenith).")
 @handle_errors
-def fit_classes_command(images, angles, angles_kind, angle_option, classes, model_name, class_model, names, fix,
-                        max_samples, seed,
+def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
+                        model_name, class_model, names, fix, max_samples, seed,
                         reflectance_scale, min_samples, min_vza_spread, fallback, output, report_path, plot_dir):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes)."""
     if not len(images) == len(angles) == len(classes):
@@ -72,8 +79,11 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, mode
     refuse_overwriting_inputs({"-o": output, "--report": report_path}, (*images, *angles, *classes))
     if fallback:
         load_material(fallback)  # fail before the work if the name is wrong
+    lookup = read_lookup(class_lookup) if class_lookup else None
+    options = _options("--angle-option", angle_option)
     fit = fit_class_files(
-        [SceneFiles(image, class_map, angle_source, angles_kind, _options("--angle-option", angle_option))
+        [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
+                    class_lookup=lookup)
          for image, angle_source, class_map in zip(images, angles, classes)],
         model_name, class_models=_pairs("--class-model", class_model), names=_pairs("--name", names),
         fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed,

@@ -9,12 +9,13 @@ from brdfcorr.cli._base import (
     handle_errors,
     main,
 )
+from brdfcorr.models import REGISTRY, parameter_table_rows
+from brdfcorr.models.materials import load_material, material_names
 
 
 @main.command("models")
 def models_command():
     """List the BRDF models and their parameters (units, defaults, physical range)."""
-    from brdfcorr.models import REGISTRY, parameter_table_rows
 
     for model in REGISTRY.values():
         click.echo(f"{model.name}: {model.description} [{model.reference}]")
@@ -27,7 +28,6 @@ def models_command():
 @handle_errors
 def materials_command(name):
     """List the built-in materials, or show one material's parameters with errors."""
-    from brdfcorr.models.materials import load_material, material_names
 
     names = [name] if name else material_names()
     rows = []

@@ -11,13 +11,13 @@ lazy results (QA counts) in the same pass.
 from __future__ import annotations
 
 import contextlib
-import math
 import logging
+import math
 import os
 import re
 import threading
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -26,9 +26,9 @@ import dask.array
 import numpy as np
 import rasterio
 import rasterio.shutil
-from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 import rioxarray
 import xarray as xr
+from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
 from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError, OutputError
 from brdfcorr.io.files import atomic_path
@@ -281,7 +281,8 @@ class SceneData(NamedTuple):
 
 
 def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", angle_options=None,
-               sza=None, saa=None, vza=None, vaa=None, chunks=None, wavelengths=None) -> SceneData:
+               sza=None, saa=None, vza=None, vaa=None, chunks=None, wavelengths=None,
+               prepare_classes: Callable[[xr.DataArray, xr.DataArray], xr.DataArray] | None = None) -> SceneData:
     """Open one scene lazily and check it: reflectance, class map and the four angle layers.
 
     Parameters
@@ -295,6 +296,10 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
         ``landsat``, ``solar``) with ``angle_options``, brought onto the image grid.
     chunks, wavelengths :
         As for :func:`open_image`.
+    prepare_classes : callable, optional
+        ``prepare_classes(class_map, reflectance)`` -> class map, applied before the grid check:
+        e.g. :func:`brdfcorr.strata.align_class_map` to bring a land-cover map on another grid onto
+        the image's (an opt-in: by default a class map on another grid is an error).
 
     Returns
     -------
@@ -306,6 +311,8 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
     """
     reflectance = open_image(image, chunks=chunks, wavelengths=wavelengths)
     class_map = open_classes(classes, chunks=chunks)
+    if prepare_classes is not None:
+        class_map = prepare_classes(class_map, reflectance)
     if angles_kind == "geotiff":
         layers = open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
         source = None
@@ -336,10 +343,11 @@ class AngleStatistics(NamedTuple):
 def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) -> AngleStatistics:
     """Check that sun/view angle layers hold degrees; return their ranges and means [deg].
 
-    One pass over the (lazy) layers, which also gives the scene-mean sun zenith. Pixels with a zenith outside [0, 90) are not an error here:
-    :func:`brdfcorr.correct.normalize` flags them (QA ``invalid_geometry``) and writes nodata. A
-    layer set that cannot be degrees is an error: every zenith below 1.6 with every azimuth below
-    6.3 (radians: pi/2 and 2 pi), or no zenith of a layer in [0, 90) at all (scaled or other units).
+    One pass over the (lazy) layers, which also gives the scene-mean sun zenith. Pixels with a
+    zenith outside [0, 90) are not an error here: :func:`brdfcorr.correct.normalize` flags them
+    (QA ``invalid_geometry``) and writes nodata. A layer set that cannot be degrees is an error:
+    every zenith below 1.6 with every azimuth below 6.3 (radians: pi/2 and 2 pi), or no zenith of a
+    layer in [0, 90) at all (scaled or other units).
 
     Parameters
     ----------

@@ -53,6 +53,7 @@ from pydantic import (
 from brdfcorr._validation import describe_errors
 from brdfcorr.errors import ConfigError, UnknownNameError
 from brdfcorr.io.files import parse_yaml
+from brdfcorr.io.sensors import ANGLE_KINDS
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ReferenceGeometry
@@ -105,7 +106,8 @@ def format_pattern(pattern: str, image: Path, scene: str) -> str:
     return pattern.format(dir=str(image.parent), parent=image.parent.name, stem=image.stem, scene=scene)
 
 
-AngleKind = Literal["geotiff", "envi_obs", "sentinel2", "landsat", "solar"]
+#: ``geotiff`` or a sensor product kind of :data:`brdfcorr.io.sensors.ANGLE_KINDS`.
+AngleKind = Literal[("geotiff", *ANGLE_KINDS)]  # type: ignore[valid-type]
 
 
 class AngleSource(_Strict):
@@ -154,6 +156,12 @@ class InputsConfig(_Strict):
         Per-scene angle source.
     classes : str
         Name pattern of the per-scene class map raster.
+    align_classes : bool
+        The class maps may lie on another grid or CRS (a land-cover product): resample them onto
+        each image's grid by nearest neighbour (recorded in the outputs' tags). Default False: a
+        class map on another grid is an error.
+    class_lookup : dict of int to int
+        Class-map code -> table class id (e.g. ESA WorldCover 10 -> 3); codes not listed: no class.
     wavelengths : list of float, optional
         Band centres [nm] for every image, overriding what the files say.
     """
@@ -162,6 +170,8 @@ class InputsConfig(_Strict):
     scene_regex: str | None = None
     angles: AngleSource
     classes: str = Field(min_length=1)
+    align_classes: bool = False
+    class_lookup: dict[int, Annotated[int, Field(ge=0, le=65535)]] = Field(default_factory=dict)
     wavelengths: list[Annotated[float, Field(gt=0)]] | None = None
 
     @field_validator("images")
@@ -265,7 +275,8 @@ def _check_material(name: str) -> str:
     try:
         load_material(name)
     except UnknownNameError:
-        raise ValueError(f"{name!r} is not a built-in material; allowed: {', '.join(map(repr, material_names()))}") from None
+        allowed = ", ".join(map(repr, material_names()))
+        raise ValueError(f"{name!r} is not a built-in material; allowed: {allowed}") from None
     return name
 
 

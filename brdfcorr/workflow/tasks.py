@@ -30,6 +30,7 @@ from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spe
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
 from brdfcorr.io import rasters
 from brdfcorr.params import ParameterTable, ReferenceGeometry
+from brdfcorr.strata import align_class_map, remap_classes
 
 __all__ = [
     "correct_files",
@@ -39,6 +40,7 @@ __all__ = [
     "SceneFiles",
     "ImageryFit",
     "refuse_overwriting_inputs",
+    "class_preparation",
 ]
 
 
@@ -53,6 +55,31 @@ def refuse_overwriting_inputs(outputs: Mapping[str, str | os.PathLike | None], i
             raise InputError(f"{name} {target} is also an input; inputs are never overwritten")
 
 
+def class_preparation(align: bool = False, lookup: Mapping[int, int] | None = None):
+    """The class-map step before the grid check (:func:`brdfcorr.io.rasters.open_scene`), or None.
+
+    ``align``: bring a class map on another grid or CRS onto the image grid by nearest neighbour
+    (:func:`brdfcorr.strata.align_class_map`); ``lookup``: remap its codes to table ids (e.g. ESA
+    WorldCover codes, :func:`brdfcorr.strata.remap_classes`).
+    """
+    if align:
+        return lambda classes, image: align_class_map(classes, image, lookup)
+    if lookup:
+        return lambda classes, image: remap_classes(classes, lookup)
+    return None
+
+
+def describe_class_map(classes: xr.DataArray, lookup: Mapping[int, int] | None) -> str:
+    """Provenance of a prepared class map, for output tags ("" when used as it is)."""
+    parts = []
+    if "resampled_from_crs" in classes.attrs:
+        parts.append(f"resampled from {classes.attrs['resampled_from_crs']} "
+                     f"({classes.attrs['resampled_from_resolution']}, {classes.attrs['resampling']})")
+    if lookup:
+        parts.append("codes remapped " + ",".join(f"{code}:{ident}" for code, ident in sorted(lookup.items())))
+    return "; ".join(parts)
+
+
 # ------------------------------------------------------------------------------------ correct
 def correct_files(
     image, output, *, params, angles=None, sza=None, saa=None, vza=None, vaa=None, classes,
@@ -61,6 +88,7 @@ def correct_files(
     flip_view_azimuth: bool = False, chunks: int | None = None, compress: str = "deflate",
     cog: bool = False, callbacks=(), table_source: str | None = None,
     angles_kind: str = "geotiff", angle_options: dict | None = None, overwrite: bool = True,
+    align_classes: bool = False, class_lookup: Mapping[int, int] | None = None,
 ) -> dict[str, object]:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
@@ -103,6 +131,12 @@ def correct_files(
     overwrite : bool, default True
         Replace existing outputs; with False an existing output is an :class:`OutputError`
         (the CLI's default). An input is never overwritten.
+    align_classes : bool, default False
+        Accept a class map on another grid or CRS: resample it onto the image grid by nearest
+        neighbour (recorded in the tag ``brdf_class_map``). Off by default: a class map on another
+        grid is an error.
+    class_lookup : mapping of int to int, optional
+        Remap the class map's codes to table ids (codes not in it: no class).
 
     Returns
     -------
@@ -138,6 +172,7 @@ def correct_files(
     scene = rasters.open_scene(
         image, classes, angles, angles_kind=angles_kind, angle_options=angle_options,
         sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks, wavelengths=wavelengths,
+        prepare_classes=class_preparation(align_classes, class_lookup),
     )
     reference = resolve_reference(reference, params)
     source = "fixed" if not isinstance(reference.sza, str) else reference.sza
@@ -168,6 +203,9 @@ def correct_files(
         "brdf_parameter_table_content": json.dumps(params.to_dict(), separators=(",", ":")),
         "brdfcorr_version": __version__,
     }
+    class_map_note = describe_class_map(scene.classes, class_lookup)
+    if class_map_note:
+        tags["brdf_class_map"] = class_map_note
     if "wavelength" in scene.reflectance.coords:
         tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
         tags["wavelength_units"] = "nm"
@@ -278,6 +316,8 @@ class SceneFiles:
     angles_kind: str = "geotiff"
     angle_options: Mapping[str, object] = field(default_factory=dict)
     name: str = ""
+    align_classes: bool = False
+    class_lookup: Mapping[int, int] | None = None
 
 
 @dataclass
@@ -332,6 +372,7 @@ def fit_class_files(
             data = rasters.open_scene(
                 scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
                 angle_options=dict(scene.angle_options), chunks=chunks, wavelengths=wavelengths,
+                prepare_classes=class_preparation(scene.align_classes, scene.class_lookup),
             )
         except BrdfcorrError as error:
             if not skip_unreadable:

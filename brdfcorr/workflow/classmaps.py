@@ -1,0 +1,103 @@
+"""Class maps as files: NDVI strata from an image, a land-cover map brought onto an image grid.
+
+The file-level side of :mod:`brdfcorr.strata` for ``brdfcorr classes ndvi`` and
+``brdfcorr classes align``: read lazily, write a tiled GeoTIFF (uint8/uint16, nodata 0 = "no class")
+atomically, with the provenance of the map in its tags.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import xarray as xr
+
+from brdfcorr.errors import InputError, OutputError
+from brdfcorr.io import rasters
+from brdfcorr.io.files import parse_yaml
+from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata
+from brdfcorr.workflow.tasks import describe_class_map, refuse_overwriting_inputs
+
+__all__ = ["ndvi_class_file", "align_class_file", "read_lookup"]
+
+
+def read_lookup(path: str | os.PathLike) -> dict[int, int]:
+    """A code -> class id lookup table from YAML (``{10: 3, 30: 3, 50: 1}``; ids 0..65535)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise InputError(f"lookup table {path}: {error.strerror or error}") from None
+    data = parse_yaml(text, f"lookup table {path}", InputError)
+    if not isinstance(data, Mapping) or not data:
+        raise InputError(f"lookup table {path}: expected a mapping of codes to class ids, e.g. '10: 3'")
+    lookup = {}
+    for code, ident in data.items():
+        if not (isinstance(code, int) and isinstance(ident, int)) or isinstance(code, bool) or isinstance(
+                ident, bool) or not 0 <= ident <= 65535:
+            raise InputError(f"lookup table {path}: {code!r}: {ident!r} is not an integer code and a class id "
+                             "in 0..65535")
+        lookup[code] = ident
+    return lookup
+
+
+def _write_class_map(classes: xr.DataArray, output, *, inputs: Sequence, overwrite: bool, chunks: int,
+                     tags: Mapping[str, str]) -> None:
+    refuse_overwriting_inputs({"output": output}, inputs)
+    if not overwrite and Path(output).exists():
+        raise OutputError(f"output {output} exists; give --overwrite to replace it")
+    Path(output).parent.mkdir(parents=True, exist_ok=True)
+    rasters.write_rasters({output: classes}, blocksize=chunks, tags=dict(tags))
+
+
+def ndvi_class_file(
+    image: str | os.PathLike, output: str | os.PathLike, *, edges: Sequence[float] | None = None,
+    percentiles: Sequence[float] | None = None, water_id: int = 0, shadow_id: int = 0,
+    wavelengths: Sequence[float] | None = None, chunks: int | None = None, overwrite: bool = False,
+) -> NdviStrata:
+    """Write a class map of NDVI strata of ``image`` (:func:`brdfcorr.strata.ndvi_strata`).
+
+    Parameters
+    ----------
+    image, output : path-like
+        Reflectance image (with band wavelengths, or give ``wavelengths`` [nm]) and the class map
+        GeoTIFF to write (uint8, nodata 0).
+    edges, percentiles, water_id, shadow_id :
+        As for :func:`brdfcorr.strata.ndvi_strata` (default: fixed edges 0.1, 0.3, 0.5, 0.7).
+    chunks : int, optional
+        Chunk and tile size [pixels] (default :func:`brdfcorr.io.rasters.auto_chunk`).
+    overwrite : bool, default False
+        Replace an existing output.
+
+    Returns
+    -------
+    NdviStrata
+        The strata: ``edges`` and ``names`` (id -> label) to pair with a parameter table.
+    """
+    chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
+    reflectance = rasters.open_image(image, chunks=chunks, wavelengths=wavelengths)
+    strata = ndvi_strata(reflectance, edges=edges, percentiles=percentiles, water_id=water_id,
+                         shadow_id=shadow_id)
+    names = ",".join(f"{ident}:{name}" for ident, name in sorted(strata.names.items()))
+    tags = {"brdf_class_map": f"NDVI strata of {Path(image).name}; edges "
+                              + ",".join(f"{edge:g}" for edge in strata.edges), "class_names": names}
+    _write_class_map(strata.classes, output, inputs=[image], overwrite=overwrite, chunks=chunks, tags=tags)
+    return strata
+
+
+def align_class_file(
+    classes: str | os.PathLike, image: str | os.PathLike, output: str | os.PathLike, *,
+    lookup: Mapping[int, int] | None = None, chunks: int | None = None, overwrite: bool = False,
+) -> xr.DataArray:
+    """Write a land-cover map brought onto the grid of ``image`` (nearest neighbour), its codes
+    optionally remapped to table ids (:func:`brdfcorr.strata.align_class_map`).
+
+    Returns the aligned (lazy) class map as written.
+    """
+    chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
+    reflectance = rasters.open_image(image, chunks=chunks)
+    aligned = align_class_map(rasters.open_classes(classes, chunks=chunks), reflectance, lookup)
+    tags = {"brdf_class_map": f"{Path(classes).name}: {describe_class_map(aligned, lookup)}"}
+    _write_class_map(aligned, output, inputs=[classes, image], overwrite=overwrite, chunks=chunks, tags=tags)
+    return aligned
