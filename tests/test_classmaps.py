@@ -94,7 +94,8 @@ def test_classes_align_writes_the_map_on_the_image_grid(files, tmp_path):
     native = rioxarray.open_rasterio(files["classes"]).squeeze("band", drop=True)
     coarse = native.rio.reproject(native.rio.crs, resolution=20.0, resampling=rasterio.enums.Resampling.nearest)
     coarse.rio.to_raster(tmp_path / "coarse.tif")
-    result = _invoke("classes", "align", tmp_path / "coarse.tif", "--like", files["image"], "-o", tmp_path / "on_grid.tif")
+    result = _invoke("classes", "align", tmp_path / "coarse.tif", "--like", files["image"],
+                     "-o", tmp_path / "on_grid.tif")
     assert result.exit_code == 0, result.output
     on_grid = rioxarray.open_rasterio(tmp_path / "on_grid.tif").squeeze("band", drop=True)
     image = rioxarray.open_rasterio(files["image"])
