@@ -10,6 +10,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
+from brdfcorr.models import get_model
 from brdfcorr.models.materials import Material
 
 #: The illumination geometries of paper 003, fig. 3: (theta_i, theta_r) of each azimuthal cut [deg].
@@ -80,8 +81,6 @@ def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figur
     (relative azimuth > 90 deg), negative for backward scattering, so that the across-track
     brightness gradient of a wide field-of-view line reads left to right.
     """
-    from brdfcorr.models import get_model
-
     model = get_model(fit.model)
     n_bands = samples.brdf.shape[1]
     bands = np.unique(np.linspace(0, n_bands - 1, min(max_panels, n_bands)).round().astype(int))

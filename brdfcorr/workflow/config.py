@@ -35,6 +35,7 @@ Example
 
 from __future__ import annotations
 
+import copy
 import os
 import re
 from collections.abc import Mapping
@@ -584,8 +585,6 @@ def load_config(path: str | os.PathLike, overrides: Mapping[str, object] | None 
 
 def apply_overrides(data: object, overrides: Mapping[str, object], source: str = "chain config") -> dict:
     """A copy of ``data`` with dotted keys set (``"engine.workers"``), creating sections as needed."""
-    import copy
-
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: expected a mapping of sections, got {type(data).__name__}")
     result = copy.deepcopy(dict(data))
