@@ -1,8 +1,9 @@
-"""Every command in the README's shell examples runs (the README must stay true).
+"""Every command in the shell examples of the README and of docs/ runs (the docs must stay true).
 
-The commands are taken from the ```bash blocks in order (``make`` targets excepted: they build the
-environment this test runs in) and run with the package's ``brdfcorr`` on the PATH, in a scratch
-directory that links the repository's ``configs/`` and ``examples/``.
+The commands are taken from the ```bash blocks in order, the README's first and then the pages of
+``docs/`` by name (``make`` targets excepted: they build the environment this test runs in), and
+run with the package's ``brdfcorr`` on the PATH, in one scratch directory that links the
+repository's ``configs/`` and ``examples/``.
 """
 
 import os
@@ -15,7 +16,8 @@ ROOT = Path(__file__).parents[1]
 
 
 def readme_commands() -> list[str]:
-    blocks = re.findall(r"```bash\n(.*?)```", (ROOT / "README.md").read_text(), flags=re.S)
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    blocks = [block for page in pages for block in re.findall(r"```bash\n(.*?)```", page.read_text(), flags=re.S)]
     commands = []
     for block in blocks:
         for command in block.replace("\\\n", " ").splitlines():

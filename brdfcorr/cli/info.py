@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import click
 
+from brdfcorr import models
 from brdfcorr.cli._base import (
     _format_table,
     handle_errors,
     main,
 )
-from brdfcorr.models import REGISTRY, parameter_table_rows
 from brdfcorr.models.materials import load_material, material_names
 
 
@@ -17,10 +17,10 @@ from brdfcorr.models.materials import load_material, material_names
 def models_command():
     """List the BRDF models and their parameters (units, defaults, physical range)."""
 
-    for model in REGISTRY.values():
+    for model in models.REGISTRY.values():
         click.echo(f"{model.name}: {model.description} [{model.reference}]")
     click.echo()
-    click.echo(_format_table(parameter_table_rows()))
+    click.echo(_format_table(models.parameter_table_rows()))
 
 
 @main.command("materials")

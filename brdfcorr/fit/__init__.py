@@ -2,7 +2,12 @@
 
 - :mod:`brdfcorr.fit.measurements`: goniometer measurement tables (CSV), selection, synthesis.
 - :mod:`brdfcorr.fit.goniometer`: weighted non-linear least squares as in paper 003 (``fit_brdf``).
-- :mod:`brdfcorr.fit.classes`: class-pooled fits from imagery (``fit_classes``).
+- :mod:`brdfcorr.fit.identifiability`: covariance, correlations and identifiability messages of
+  those fits.
+- :mod:`brdfcorr.fit.sampling`: pooling and sampling each class's pixels from scenes.
+- :mod:`brdfcorr.fit.solver`: the variable-projection solver of a class fit (shape shared by the
+  bands, intensities per band; one linear pass for models without shape parameters).
+- :mod:`brdfcorr.fit.classes`: class-pooled fits from imagery with guard rails (``fit_classes``).
 """
 
 from brdfcorr.fit.classes import ClassFitResult, fit_classes

@@ -9,9 +9,9 @@ of freedom, the residuals and the parameter correlations, and warns with
 section 4: n, k and t1 trade off).
 
 The helpers that turn a model and a user's ``fixed``/``initial``/``bounds`` into a bounded problem
-(:func:`_free_parameters`), that find starting values (:func:`_starting_points`) and that turn a
-Jacobian into a covariance (:func:`_covariance`) do not depend on where the measurements come
-from, so that a class-pooled fit from imagery can be added beside :func:`fit_brdf`.
+(:func:`_free_parameters`) and that find starting values (:func:`_starting_points`) do not depend
+on where the measurements come from. The covariance, correlations and identifiability messages
+live in :mod:`brdfcorr.fit.identifiability`.
 
 References
 ----------
@@ -35,10 +35,17 @@ import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 from scipy.stats import chi2 as chi2_distribution
 
-
 from brdfcorr.errors import FitError, ParameterError
-from brdfcorr.geometry import ScatteringGeometry
+from brdfcorr.fit.identifiability import (
+    CONDITION_LIMIT,  # noqa: F401  (importable from here as before the split)
+    CORRELATION_LIMIT,
+    correlation_matrix,
+    global_correlation,
+    identifiability_messages,
+    jacobian_covariance,
+)
 from brdfcorr.fit.measurements import Measurements, check_measurements
+from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model, get_model
 
 __all__ = [
@@ -52,13 +59,6 @@ __all__ = [
     "format_with_error",
 ]
 
-#: Global correlation coefficient (of one parameter with all others) above which the parameters
-#: are reported as not separately identifiable. With k fixed at 0.25, the fits of synthetic
-#: paper-003 materials reach 0.98 (t1, n); with k free 0.995-0.9999.
-CORRELATION_LIMIT = 0.99
-#: Condition number of the column-normalized Jacobian above which the fit is reported as
-#: ill-conditioned (some combination of parameters is barely constrained).
-CONDITION_LIMIT = 1e6
 #: Open lower bounds (w > 0, n > 0) become ``lower + OPEN_BOUND_FLOOR * default`` for the optimizer,
 #: which needs closed bounds; 1e-6 of a typical value is far below any meaningful fit.
 OPEN_BOUND_FLOOR = 1e-6
@@ -172,7 +172,7 @@ class FitResult:
         ``sqrt(1 - 1 / (V_jj (V^-1)_jj))``)."""
         if not np.all(np.isfinite(self.covariance)):
             return {name: math.nan for name in self.free}
-        return dict(zip(self.free, map(float, _global_correlation(self.covariance))))
+        return dict(zip(self.free, map(float, global_correlation(self.covariance))))
 
     def correlation_of(self, first: str, second: str) -> float:
         """Correlation coefficient of two free parameters."""
@@ -346,91 +346,6 @@ def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, 
     return starts
 
 
-def _covariance(jacobian: np.ndarray):
-    """Covariance of the parameters from the Jacobian of the weighted residuals, ``(J^T J)^-1``.
-
-    Computed by SVD of the Jacobian with unit-norm columns (so the parameters' units do not affect
-    the conditioning). Returns ``(covariance, condition_number)``; a singular Jacobian (a
-    parameter, or a combination, without any effect on the model) gives an infinite covariance.
-    """
-    norms = np.linalg.norm(jacobian, axis=0)
-    size = jacobian.shape[1]
-    if np.any(norms == 0) or not np.all(np.isfinite(jacobian)):
-        return np.full((size, size), np.inf), math.inf
-    _, singular, vt = np.linalg.svd(jacobian / norms, full_matrices=False)
-    # Singular values below rounding level of the largest carry no information about the parameters.
-    if singular[-1] <= singular[0] * np.finfo(float).eps * max(jacobian.shape):
-        return np.full((size, size), np.inf), math.inf
-    scaled = (vt.T / singular**2) @ vt
-    return scaled / np.outer(norms, norms), float(singular[0] / singular[-1])
-
-
-def _correlation(covariance: np.ndarray) -> np.ndarray:
-    with np.errstate(invalid="ignore", divide="ignore"):
-        deviation = np.sqrt(np.diag(covariance))
-        correlation = covariance / np.outer(deviation, deviation)
-    return np.clip(correlation, -1.0, 1.0)  # rounding can reach 1 + eps
-
-
-def _global_correlation(covariance: np.ndarray) -> np.ndarray:
-    """Global correlation coefficient of each parameter with all the others (as in MINUIT):
-    ``sqrt(1 - 1 / (V_jj (V^-1)_jj))``; 1 means the parameter is a combination of the others."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        inverse = np.linalg.pinv(covariance)
-        return np.sqrt(np.clip(1.0 - 1.0 / (np.diag(covariance) * np.diag(inverse)), 0.0, 1.0))
-
-
-def _identifiability_messages(model, free, values, covariance, condition_number, correlation_limit):
-    """Messages about parameters the measurements do not determine (empty if all are fine).
-
-    Three symptoms: a singular Jacobian; a parameter almost entirely predicted by the others
-    (global correlation above ``correlation_limit``: paper 003's n, k and t1 with k free); a
-    parameter whose 1-sigma error exceeds both its value and its typical (default) value (with k
-    free the fit often runs to k ~ 0, where the Fresnel term no longer depends on k).
-    """
-    if math.isinf(condition_number) or not np.all(np.isfinite(covariance)):
-        return [
-            f"{model.name}: the free parameters {', '.join(free)} cannot all be determined from "
-            "these measurements (singular Jacobian: some parameter or combination has no effect); "
-            "fix some of them"
-        ]
-    problems = []
-    if len(free) > 1:
-        correlation = _correlation(covariance)
-        global_correlation = _global_correlation(covariance)
-        entangled = [
-            f"{name} {rho:.4f}" for rho, name in sorted(zip(global_correlation, free), reverse=True)
-            if rho > correlation_limit
-        ]
-        if entangled:
-            a, b = np.unravel_index(np.argmax(np.abs(np.triu(correlation, 1))), correlation.shape)
-            problems.append(
-                f"global correlations {', '.join(entangled)} > {correlation_limit:g} (strongest "
-                f"pair {free[a]}-{free[b]} {correlation[a, b]:+.4f}): these parameters trade off"
-            )
-    errors = np.sqrt(np.diag(covariance))
-    undetermined = [
-        f"{name} = {values[name]:.3g} ± {error:.3g}"
-        for name, error in zip(free, errors)
-        if error > abs(values[name]) and error > abs(model.parameter(name).default)
-    ]
-    if undetermined:
-        problems.append(f"{', '.join(undetermined)} not determined (error larger than the value)")
-    messages = []
-    if problems:
-        hint = " (paper 003 fixes k = 0.25)" if "k" in free else ""
-        messages.append(
-            f"{model.name}: parameters not identifiable from these measurements: "
-            + "; ".join(problems) + f"; fix one of them{hint}"
-        )
-    elif condition_number > CONDITION_LIMIT:
-        messages.append(
-            f"{model.name}: ill-conditioned fit (condition number {condition_number:.3g} > "
-            f"{CONDITION_LIMIT:g}); some combination of {', '.join(free)} is barely constrained"
-        )
-    return messages
-
-
 def fit_brdf(
     model,
     theta_i,
@@ -554,15 +469,15 @@ def fit_brdf(
     residuals = data - model_values
     chi2 = float(np.sum((residuals * weights) ** 2))
     dof = data.size - len(free)
-    covariance, condition_number = _covariance(best.jac)
+    covariance, condition_number = jacobian_covariance(best.jac)
     if scale_errors is None:
         scale_errors = sigma is None
     if scale_errors:
         covariance = covariance * (chi2 / dof)
-    correlation = _correlation(covariance)
+    correlation = correlation_matrix(covariance)
     deviations = np.sqrt(np.diag(covariance))
 
-    messages = _identifiability_messages(
+    messages = identifiability_messages(
         model, free, values, covariance, condition_number, correlation_limit
     )
     for message in messages:

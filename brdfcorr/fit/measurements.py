@@ -48,6 +48,7 @@ import numpy as np
 from brdfcorr.errors import MeasurementError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.io.files import atomic_path
+from brdfcorr.models import get_model
 
 __all__ = [
     "REQUIRED_COLUMNS",
@@ -515,8 +516,6 @@ def synthesize_measurements(
         clipped to 0, and ``sigma = relative_noise * f`` (the true error, so that a weighted fit
         is unbiased).
     """
-    from brdfcorr.models import get_model
-
     model = get_model(model)
     truth = np.asarray(model(theta_i, theta_r, phi, **params), dtype=float)
     if relative_noise < 0:

@@ -1,0 +1,161 @@
+"""Class fits of models without free shape parameters (kernel-driven): one linear least-squares
+pass, calibrated errors, non-negativity, and the fit-quality guard rail with its model suggestion."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from brdfcorr.fit import solver
+from brdfcorr.fit.classes import ClassFitWarning, GuardRails, fit_one_class
+from brdfcorr.fit.solver import fit_class_samples
+from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
+from brdfcorr.models import Model, Parameter, get_model, torrance_sparrow
+from brdfcorr.models.kernels import KERNEL_DRIVEN_MODELS
+
+RTLSR = get_model("ross_thick_li_sparse")
+#: Per band (4 bands) kernel weights [sr^-1] of a vegetated class: backscatter brighter than forward.
+TRUTH = {
+    "f_iso": np.array([0.012, 0.025, 0.018, 0.11]),
+    "f_vol": np.array([0.006, 0.012, 0.007, 0.06]),
+    "f_geo": np.array([0.002, 0.004, 0.003, 0.015]),
+}
+
+
+def airborne_lines(n, seed, headings=(5.0, 50.0, 95.0)):
+    """Sun and view angles [deg] of ``n`` pixels from flight lines at the given headings relative
+    to the sun azimuth: sun zenith 30-50 deg, view zenith up to 40 deg on either side."""
+    rng = np.random.default_rng(seed)
+    heading = rng.choice(headings, n)
+    across = rng.uniform(-1, 1, n)
+    vaa = np.where(across < 0, heading - 90.0, heading + 90.0) % 360
+    return rng.uniform(30, 50, n), 40.0 * np.abs(across), relative_azimuth(np.zeros(n), vaa)
+
+
+def render(angles, truth=TRUTH, model=RTLSR):
+    return model(*(a[:, None] for a in angles), **truth)
+
+
+@pytest.fixture
+def one_pass_only(monkeypatch):
+    """Count the design evaluations and linear solves; fail on any search or Newton step."""
+    calls = {"design": 0, "solve": 0}
+    for name in ("design", "solve"):
+        original = getattr(solver._LinearProfile, name)
+
+        def counted(self, *args, _original=original, _name=name):
+            calls[_name] += 1
+            return _original(self, *args)
+
+        monkeypatch.setattr(solver._LinearProfile, name, counted)
+    for name in ("_search", "_refine", "_newton_polish", "_grid_start"):
+        monkeypatch.setattr(solver, name, lambda *args, _name=name, **kwargs: pytest.fail(f"{_name} called"))
+    return calls
+
+
+def test_kernel_model_is_solved_in_one_pass_and_recovered_within_errors(one_pass_only):
+    rng = np.random.default_rng(1)
+    angles = airborne_lines(6000, seed=1)
+    brdf = render(angles) + 0.0005 * rng.standard_normal((6000, 4))
+    result = fit_class_samples(RTLSR, *angles, brdf)
+    assert one_pass_only == {"design": 1, "solve": 1}
+    assert result["shape"] == {} and result["at_edge"] == []
+    for name, truth in TRUTH.items():
+        errors = result["errors"][name]
+        assert np.all(errors > 0)
+        assert np.all(np.abs(result["params"][name] - truth) < 3 * errors), name
+
+
+def test_exact_kernel_data_give_the_exact_coefficients():
+    # Noise-free data: linear least squares reproduces the coefficients (closed form).
+    angles = airborne_lines(3000, seed=2)
+    result = fit_class_samples(RTLSR, *angles, render(angles))
+    for name, truth in TRUTH.items():
+        np.testing.assert_allclose(result["params"][name], truth, rtol=1e-10, atol=0)
+    np.testing.assert_allclose(result["r2"], 1.0, atol=1e-10)
+
+
+def test_kernel_errors_are_calibrated_over_seeds():
+    # Additive homoscedastic noise: the pulls (fit - truth) / error over 30 noise realizations
+    # (3 weights x 4 bands each) have a standard deviation near 1.
+    angles = airborne_lines(2000, seed=3)
+    clean = render(angles)
+    pulls = []
+    for seed in range(30):
+        noisy = clean + 0.001 * np.random.default_rng(seed).standard_normal(clean.shape)
+        result = fit_class_samples(RTLSR, *angles, noisy)
+        pulls += [(result["params"][name] - truth) / result["errors"][name] for name, truth in TRUTH.items()]
+    assert 0.7 <= np.std(pulls) <= 1.4
+    assert abs(np.mean(pulls)) < 0.2
+
+
+def test_kernel_class_fitted_with_empirical_fails_and_a_kernel_model_is_suggested():
+    # Sun across track: backscatter side brighter than the forward side, which a specular-peak
+    # model (a >= 0) cannot describe at all.
+    rng = np.random.default_rng(4)
+    n = 4000
+    sza, across = rng.uniform(35, 45, n), rng.uniform(-1, 1, n)
+    angles = (sza, 40 * np.abs(across), relative_azimuth(np.full(n, 95.0), np.where(across < 0, 270.0, 90.0)))
+    brdf = render(angles) * (1 + 0.01 * rng.standard_normal((n, 4)))
+    with pytest.warns(ClassFitWarning, match=r"empirical explains almost none.*ross_.* explains more"):
+        fit = fit_one_class(7, "meadow", "empirical", *angles, brdf)
+    assert fit.status == "uncorrected"
+    assert any("median R^2" in reason for reason in fit.reasons)
+    assert any("at the edge of its search range" in reason for reason in fit.reasons), fit.reasons
+    assert fit.median_r2 < 0.05
+    kernel_models = {model.name for model in KERNEL_DRIVEN_MODELS.values()}
+    assert fit.better_model in kernel_models and fit.better_r2 > 0.9
+    summary = fit.summary()
+    assert summary["better_model"] == fit.better_model
+    assert summary["better_model_median_r2"] == pytest.approx(fit.better_r2)
+
+    # The right model passes, with no suggestion.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ClassFitWarning)
+        good = fit_one_class(7, "meadow", RTLSR, *angles, brdf)
+    assert good.status == "fitted" and good.better_model is None and good.median_r2 > 0.9
+
+
+def test_specular_intensity_stays_non_negative_without_a_specular_peak():
+    # Torrance-Sparrow data with t1 = 0 and noise: the least-squares t1 is often < 0; the fit keeps
+    # it >= 0 (exactly 0 or the best non-negative value) and flags the class.
+    ts_angles = airborne_lines(1500, seed=5, headings=(0.0, 90.0))
+    truth = {"t0": np.array([0.02, 0.05]), "t1": 0.0, "w": 0.08, "n": 1.5, "k": 0.25}
+    clean = torrance_sparrow(*(a[:, None] for a in ts_angles), **truth)
+    for seed in range(5):
+        noisy = clean + 0.002 * np.random.default_rng(seed).standard_normal(clean.shape)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ClassFitWarning)
+            fit = fit_one_class(1, "flat", "torrance_sparrow", *ts_angles, noisy, guard=GuardRails(min_samples=100))
+        assert np.all(fit.params["t1"] >= 0), fit.params["t1"]
+        assert np.all(fit.params["t0"] > 0)
+        assert fit.status == "uncorrected" and fit.median_r2 < 0.05
+
+
+def test_terms_without_a_lower_bound_may_be_negative():
+    # A linear term with lower bound -inf is free: a negative truth is recovered exactly, while a
+    # term with lower bound 0 is held at 0.
+    def basis(geometry, **_):
+        return 1.0, np.cos(np.radians(geometry.phi))
+
+    free = Model(
+        name="test_free_slope", description="", reference="",
+        parameters=(Parameter("c0", "sr^-1", 0.1, 0.0), Parameter("c1", "sr^-1", 0.0, -math.inf)),
+        kernel=lambda geometry, c0, c1: c0 + c1 * np.cos(np.radians(geometry.phi)),
+        linear=("c0", "c1"), basis=basis,
+    )
+    angles = airborne_lines(500, seed=6)
+    profile = solver._LinearProfile(free, ScatteringGeometry(*angles), free.kernel(
+        ScatteringGeometry(*angles), c0=0.05, c1=-0.02)[:, None], {})
+    coefficients, ssr = profile.solve(profile.design({}))
+    np.testing.assert_allclose(coefficients[:, 0], [0.05, -0.02], rtol=1e-10)
+    assert ssr[0] == pytest.approx(0.0, abs=1e-20)
+    bounded = Model(
+        name="test_bounded_slope", description="", reference="",
+        parameters=(Parameter("c0", "sr^-1", 0.1, 0.0), Parameter("c1", "sr^-1", 0.0, 0.0)),
+        kernel=free.kernel, linear=("c0", "c1"), basis=basis,
+    )
+    profile = solver._LinearProfile(bounded, profile.geometry, profile.data, {})
+    coefficients, _ = profile.solve(profile.design({}))
+    assert coefficients[1, 0] == 0.0 and coefficients[0, 0] == pytest.approx(profile.data.mean())
