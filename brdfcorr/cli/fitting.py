@@ -117,6 +117,7 @@ def _class_row(fit) -> dict[str, str]:
             f"{k}={v[0]:.4g}±{fit.errors[k][0]:.2g}" for k, v in fit.params.items()
             if k not in linear and fit.errors[k][0] > 0
         ) or "-",
+        "better model": f"{fit.better_model} (R2 {fit.better_r2:.3f})" if fit.better_model else "-",
     }
 
 
