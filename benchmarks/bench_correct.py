@@ -187,7 +187,8 @@ def memory(directory: Path, size: int, bands: int, chunk: int) -> None:
         make_scene(scene_dir, side, bands)
         spectral_table_path(scene_dir)
         output = subprocess.run(
-            [sys.executable, __file__, "--child-rss", "--dir", str(scene_dir)] + (["--chunk", str(chunk)] if chunk else []),
+            [sys.executable, __file__, "--child-rss", "--dir", str(scene_dir)]
+            + (["--chunk", str(chunk)] if chunk else []),
             check=True, capture_output=True, text=True,
         ).stdout
         results[factor] = json.loads(output.strip().splitlines()[-1])

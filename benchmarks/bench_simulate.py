@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 
-from brdfcorr.models import torrance_sparrow
 from brdfcorr.analysis.simulate import NORMALIZATION_GEOMETRY, simulate_vcavity
+from brdfcorr.models import torrance_sparrow
 
 ROUGHNESSES = (0.01, 0.05, 0.15)
 CUTS = ((10.0, 180.0), (45.0, 180.0), (75.0, 180.0), (45.0, 150.0))

@@ -7,10 +7,14 @@ try:
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0+unknown"
 
-from brdfcorr import _compat, geometry, models  # noqa: E402
-from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # noqa: E402
+from brdfcorr import (  # noqa: E402
+    _compat,
+    accessor,  # noqa: E402,F401  (registers the .brdf xarray accessor)
+    geometry,
+    models,
+)
 from brdfcorr.correct import normalize  # noqa: E402
-from brdfcorr import accessor  # noqa: E402,F401  (registers the .brdf xarray accessor)
+from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # noqa: E402
 
 _compat.install()
 

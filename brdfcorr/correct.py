@@ -147,7 +147,8 @@ def _normalize_block(
         # Parameters were validated when the table was resolved to the bands.
         terms = [
             tuple(
-                tuple(np.broadcast_to(np.asarray(t, dtype=out_dtype), index.shape) for t in plan.model.terms(where, shape))
+                tuple(np.broadcast_to(np.asarray(t, dtype=out_dtype), index.shape)
+                      for t in plan.model.terms(where, shape))
                 for where in (observed, ref)
             )
             for shape in plan.shapes

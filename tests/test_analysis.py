@@ -42,8 +42,8 @@ from brdfcorr.analysis.papers import (
     width_reduction,
 )
 from brdfcorr.errors import ParameterError
-from brdfcorr.models.materials import load_material
 from brdfcorr.models import fresnel, geometric_attenuation, torrance_sparrow
+from brdfcorr.models.materials import load_material
 
 TABLE1 = ("roof_tile", "red_concrete", "blue_concrete", "red_aluminium")
 

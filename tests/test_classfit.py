@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from brdfcorr.correct import normalize
 from brdfcorr.fit.classes import (
     ClassFitWarning,
     GuardRails,
@@ -14,7 +15,6 @@ from brdfcorr.fit.classes import (
     fit_classes,
     sample_classes,
 )
-from brdfcorr.correct import normalize
 from brdfcorr.models import empirical, torrance_sparrow
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import render, synthetic_classes

@@ -8,7 +8,6 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.fit.goniometer import fit_measurements
-from brdfcorr.models.materials import load_material
 from brdfcorr.fit.measurements import (
     filter_measurements,
     goniometer_angles,
@@ -16,6 +15,7 @@ from brdfcorr.fit.measurements import (
     synthesize_measurements,
     write_measurements,
 )
+from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -22,7 +22,7 @@ from brdfcorr.correct import (
 )
 from brdfcorr.errors import GridMismatchError, InputError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.models import REGISTRY, empirical, get_model, torrance_sparrow
+from brdfcorr.models import REGISTRY, empirical, torrance_sparrow
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, render, synthetic_scene
 

@@ -14,8 +14,8 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.geometry import relative_azimuth
-from brdfcorr.models.materials import load_material
 from brdfcorr.models import torrance_sparrow
+from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"

@@ -10,9 +10,9 @@ import rasterio
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
+from brdfcorr.workflow.chain import build_table, plan_run
 from brdfcorr.workflow.config import load_config
 from brdfcorr.workflow.demo import DEMO_TIME, demo_angles, demo_scene, demo_table, run_demo
-from brdfcorr.workflow.chain import build_table, plan_run
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -48,7 +48,11 @@ def test_demo_config_holds_the_demo_parameters():
     table, _ = build_table(plan_run(config, require_inputs=False))
     assert table.to_dict() == demo_table().to_dict()
     labels = {entry.id: entry.name for entry in table.classes}
-    assert labels == {1: "roof_tile", 2: "blue_concrete", 3: "grass_illustrative"}
+    assert labels == {1: "roof_tile", 2: "blue_concrete", 3: "grass_illustrative", 4: "trees_illustrative",
+                      5: "bare_soil_illustrative"}
+    models = {entry.id: entry.model for entry in table.classes}
+    assert models == {1: "torrance_sparrow", 2: "torrance_sparrow", 3: "ross_thick_li_sparse",
+                      4: "ross_thick_li_sparse", 5: "ross_thick_li_sparse"}
 
 
 def east_west(cube, classes, class_id, band=2):
@@ -62,14 +66,20 @@ def east_west(cube, classes, class_id, band=2):
 def test_demo_run_removes_the_gradient(tmp_path):
     result = run_demo(tmp_path, rows=80, pixel=8.0, materials_figure=False)
     assert result.report.ok
-    with rasterio.open(result.inputs["image"]) as before, rasterio.open(tmp_path / "corrected" / "line01_brdf.tif") as after:
+    corrected_path = tmp_path / "corrected" / "line01_brdf.tif"
+    with rasterio.open(result.inputs["image"]) as before, rasterio.open(corrected_path) as after:
         raw, corrected = before.read(), after.read()
         assert after.descriptions == before.descriptions == ("450 nm", "500 nm", "560 nm", "660 nm", "740 nm", "860 nm")
     with rasterio.open(result.inputs["classes"]) as source:
         classes = source.read(1)
-    for class_id in (1, 2, 3):
-        # Forward scattering east of the track: brighter before; the same after, to the noise level.
-        assert east_west(raw, classes, class_id) > 1.05
+    assert set(np.unique(classes)) == {0, 1, 2, 3, 4, 5}
+    for class_id in (1, 2, 3, 4, 5):
+        # East of the track the sensor looks into forward scattering: the specular roofs and concrete
+        # (Torrance-Sparrow) are brighter there before, the vegetation and soil (RTLSR: volume
+        # scattering and shadow hiding peak towards backscatter) darker. After the correction both
+        # sides agree to the texture and noise level, for every class.
+        before = east_west(raw, classes, class_id)
+        assert before > 1.05 if class_id in (1, 2) else before < 0.95
         assert east_west(corrected, classes, class_id) == pytest.approx(1.0, abs=0.02)
     water = classes == 0
     np.testing.assert_array_equal(corrected[:, water], raw[:, water])  # no class: unchanged
@@ -84,7 +94,7 @@ def test_demo_run_removes_the_gradient(tmp_path):
 def test_demo_scene_is_reproducible():
     a, b = demo_scene(rows=20, pixel=30.0), demo_scene(rows=20, pixel=30.0)
     np.testing.assert_array_equal(a.reflectance.values, b.reflectance.values)
-    assert set(np.unique(a.classes.values)) <= {0, 1, 2, 3}
+    assert set(np.unique(a.classes.values)) <= {0, 1, 2, 3, 4, 5}
 
 
 def test_demo_cli(tmp_path):

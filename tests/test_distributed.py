@@ -3,13 +3,12 @@
 import json
 
 import dask
-
 import numpy as np
 import pytest
 import rasterio
 
-from brdfcorr.workflow.config import load_config
 from brdfcorr.workflow.chain import run_chain
+from brdfcorr.workflow.config import load_config
 
 distributed = pytest.importorskip("distributed")
 
@@ -20,14 +19,17 @@ def test_distributed_matches_local(tmp_path):
     make_scenes(tmp_path, count=3)
     chain = write_chain(tmp_path, steps={"correct": {"limits": [0.95, 1.05]}, "quicklook": {}})
     local = run_chain(load_config(chain, {"outputs.directory": "local"}))
+    schedulers = []  # this process's dask setting while scene tasks run in it (a worker thread each)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
                                   dashboard_address=None) as cluster:
         remote = run_chain(load_config(chain, {
             "outputs.directory": "cluster",
             "engine": {"scheduler": "distributed", "address": cluster.scheduler_address,
                        "threads_per_worker": 2, "chunk": 16},
-        }))
+        }), progress=lambda event, info: schedulers.append(dask.config.get("scheduler", None)))
     assert local.ok and remote.ok, remote.scenes
+    # Scene tasks name their scheduler in each computation: nothing process-wide to set or undo.
+    assert schedulers == [None] * 4 and dask.config.get("scheduler", None) is None
     for name in ("line0", "line1", "line2"):
         for suffix in ("brdf", "qa"):
             with rasterio.open(tmp_path / "local" / f"{name}_{suffix}.tif") as a, \

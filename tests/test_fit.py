@@ -15,10 +15,10 @@ from brdfcorr.fit.goniometer import (
     fit_measurements,
     format_with_error,
 )
-from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.models.materials import load_material
 from brdfcorr.fit.measurements import filter_measurements, goniometer_angles, synthesize_measurements
+from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import get_model
+from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 
 ANGLES = goniometer_angles()

@@ -101,7 +101,8 @@ def test_kernel_class_fitted_with_empirical_fails_and_a_kernel_model_is_suggeste
     with pytest.warns(ClassFitWarning, match=r"empirical explains almost none.*ross_.* explains more"):
         fit = fit_one_class(7, "meadow", "empirical", *angles, brdf)
     assert fit.status == "uncorrected"
-    assert any("median R^2" in reason for reason in fit.reasons)
+    assert any("median angular R^2" in reason for reason in fit.reasons)
+    assert fit.median_angular_r2 < 0.05
     assert any("at the edge of its search range" in reason for reason in fit.reasons), fit.reasons
     assert fit.median_r2 < 0.05
     kernel_models = {model.name for model in KERNEL_DRIVEN_MODELS.values()}

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from brdfcorr.errors import InputError, MeasurementError
-from brdfcorr.models.materials import load_material
 from brdfcorr.fit.measurements import (
     Measurements,
     filter_measurements,
@@ -16,6 +15,7 @@ from brdfcorr.fit.measurements import (
     synthesize_measurements,
     write_measurements,
 )
+from brdfcorr.models.materials import load_material
 
 HEADER = "theta_i,theta_r,phi,brdf,sigma\n"
 

@@ -10,9 +10,9 @@ import yaml
 from click.testing import CliRunner
 
 from brdfcorr.cli import EXIT_SCENES_FAILED, main
-from brdfcorr.workflow.config import load_config
-from brdfcorr.workflow.chain import plan_run, run_chain
 from brdfcorr.testing import example_table, render, synthetic_scene, write_scene
+from brdfcorr.workflow.chain import build_table, plan_run, run_chain
+from brdfcorr.workflow.config import load_config
 
 REFERENCE = {"sza": 35.0, "vza": 0.0, "raa": 0.0}
 
@@ -201,8 +201,8 @@ def test_imagery_fit_step(tmp_path):
 
 
 def test_goniometer_fit_step(tmp_path):
-    from brdfcorr.models.materials import load_material
     from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+    from brdfcorr.models.materials import load_material
 
     make_scenes(tmp_path, count=1)
     tile = load_material("roof_tile")
@@ -247,6 +247,66 @@ def test_resume_redoes_outputs_of_another_parameter_table(tmp_path):
     report = run_chain(load_config(chain))
     assert report.n_ok == 2 and report.n_skipped == 0
     assert first.stat().st_mtime_ns != stamp
+
+
+def _dry_run_actions(chain):
+    """The output of ``brdfcorr run --dry-run`` and the plan it shows: {image: action}."""
+    result = CliRunner().invoke(main, ["run", str(chain), "--dry-run"])
+    assert result.exit_code == 0, result.output
+    plan = plan_run(load_config(chain), require_inputs=False)
+    return {str(scene.image): scene.action for scene in plan.scenes}, result.output
+
+
+def test_dry_run_and_run_agree_on_stale_scenes(tmp_path):
+    """The parameter table changed after a run with ``outputs.existing: skip``: the dry run says
+    what the run then does with every scene (redo outputs of another table, skip the others)."""
+    make_scenes(tmp_path, count=3)
+    chain = write_chain(tmp_path, outputs={"directory": "out", "naming": "{parent}_brdf.tif",
+                                           "qa_naming": "{parent}_qa.tif", "existing": "skip"})
+    assert run_chain(load_config(chain)).ok
+    table = example_table()
+    table.with_class({**table[1].model_dump(exclude_none=True), "params": {**table[1].params, "w": 0.05}}).save(
+        tmp_path / "params.yaml")
+    # line0's outputs as if made with the new table: complete and current, to be skipped
+    new_table, _ = build_table(plan_run(load_config(chain)))
+    with rasterio.open(tmp_path / "out" / "line0_brdf.tif", "r+") as dataset:
+        dataset.update_tags(brdf_parameter_table_content=json.dumps(new_table.to_dict(), separators=(",", ":")))
+
+    planned, output = _dry_run_actions(chain)
+    assert "3 scenes: 2 to run, 1 to skip, 0 would fail" in output
+    assert "outputs were made with another parameter table" in output
+    report = run_chain(load_config(chain))
+    done = {result["image"]: result["status"] for result in report.scenes}
+    assert {image: {"run": "ok", "skip": "skipped"}[action] for image, action in planned.items()} == done
+    assert sorted(done.values()) == ["ok", "ok", "skipped"]
+    assert done[str(tmp_path / "scenes" / "line0" / "image.tif")] == "skipped"
+    # Now every output is current: both skip everything.
+    planned, output = _dry_run_actions(chain)
+    assert set(planned.values()) == {"skip"} and "3 scenes: 0 to run, 3 to skip" in output
+    assert run_chain(load_config(chain)).n_skipped == 3
+
+
+def test_dry_run_and_run_agree_when_the_fit_makes_a_new_table(tmp_path):
+    """Complete outputs, but the fitted table of the earlier run is gone: the fit runs again and
+    its table is not known before the run, so the dry run and the run both redo the scenes."""
+    from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+    from brdfcorr.models.materials import load_material
+
+    make_scenes(tmp_path, count=2)
+    tile = load_material("roof_tile")
+    write_measurements(tmp_path / "tile.csv", synthesize_measurements(
+        tile.model, tile.params, *goniometer_angles(), relative_noise=0.01, seed=1))
+    chain = write_chain(tmp_path, steps={"fit": {"source": "goniometer", "measurements": [
+        {"file": "tile.csv", "class_id": 1, "name": "tile_fit", "fixed": {"k": 0.25}, "min_phi": 90}]}})
+    assert run_chain(load_config(chain)).ok
+    planned, output = _dry_run_actions(chain)
+    assert set(planned.values()) == {"skip"}  # the fitted table is reused: outputs are current
+    assert run_chain(load_config(chain)).n_skipped == 2
+    os.unlink(tmp_path / "out" / "fitted_params.yaml")
+    planned, output = _dry_run_actions(chain)
+    assert set(planned.values()) == {"run"} and "the fit step makes a new parameter table" in output
+    report = run_chain(load_config(chain))
+    assert report.n_ok == 2 and report.n_skipped == 0 and "reused" not in report.fit
 
 
 def test_sensor_angle_source_solar(tmp_path):

@@ -6,7 +6,6 @@ import math
 import pytest
 
 from brdfcorr.errors import ParameterError, UnknownNameError
-from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.models import (
     REGISTRY,
     SURFACE_MODELS,
@@ -15,6 +14,7 @@ from brdfcorr.models import (
     specular_peak,
     torrance_sparrow,
 )
+from brdfcorr.models.materials import load_material, material_names
 
 PUBLIC_FUNCTIONS = {
     "torrance_sparrow": torrance_sparrow,

@@ -14,9 +14,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from brdfcorr.analysis.simulate import facet_visible_fraction, paper_sigma, simulate_vcavity
 from brdfcorr.errors import ParameterError
 from brdfcorr.models import geometric_attenuation, torrance_sparrow
-from brdfcorr.analysis.simulate import facet_visible_fraction, paper_sigma, simulate_vcavity
 
 ROUGHNESSES = (0.01, 0.05, 0.15)
 # Paper 000 fig. 2: principal plane at theta_i = 10, 45, 75 deg and phi = 150 deg at 45 deg.

@@ -73,7 +73,9 @@ PAPER_SHADOWING = {
     "red_aluminium": 0.001,  # "< 0.1 %"
 }
 #: The same as printed in paper 003.
-PAPER_SHADOWING_TEXT = {"roof_tile": "10.3 %", "red_concrete": "1.0 %", "blue_concrete": "0.3 %", "red_aluminium": "< 0.1 %"}
+PAPER_SHADOWING_TEXT = {
+    "roof_tile": "10.3 %", "red_concrete": "1.0 %", "blue_concrete": "0.3 %", "red_aluminium": "< 0.1 %",
+}
 
 
 @dataclass(frozen=True)
@@ -238,7 +240,9 @@ def azimuthal_width(model, params: Mapping[str, float], theta_i: float, theta_r:
     top = int(np.argmax(values))
     peak = values[top]
     if not peak > 0.0:
-        raise ParameterError(f"azimuthal_width: the specular part of {get_model(model).name} is 0 at ({theta_i}, {theta_r})")
+        raise ParameterError(
+            f"azimuthal_width: the specular part of {get_model(model).name} is 0 at ({theta_i}, {theta_r})"
+        )
     below = np.nonzero(values[: top + 1] < 0.5 * peak)[0]
     if below.size == 0:
         return math.inf

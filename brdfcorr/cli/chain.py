@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import click
+from tqdm import tqdm
 
 from brdfcorr.cli._base import (
     EXIT_SCENES_FAILED,
@@ -13,6 +14,12 @@ from brdfcorr.cli._base import (
     handle_errors,
     main,
 )
+from brdfcorr.errors import ConfigError, InputError
+from brdfcorr.io.files import parse_yaml
+from brdfcorr.params import ParameterTable
+from brdfcorr.workflow.chain import plan_run, run_chain
+from brdfcorr.workflow.config import load_config
+from brdfcorr.workflow.demo import run_demo
 
 
 @main.command("demo")
@@ -31,8 +38,6 @@ def demo_command(output_dir: Path, config_path, progress):
     QA, before/after quicklook, run report), OUTPUT_DIR/demo.yaml (the chain, rerun with
     `brdfcorr run`) and OUTPUT_DIR/materials_brdf.png.
     """
-    from brdfcorr.workflow.demo import run_demo
-
     with _chain_progress(progress, "demo") as callback:
         result = run_demo(output_dir, config_path, progress=callback)
     _echo_run(result.report)
@@ -48,9 +53,6 @@ def demo_command(output_dir: Path, config_path, progress):
 
 def _overrides(items: tuple[str, ...]) -> dict:
     """``--set KEY=VALUE`` items: dotted config keys, values read as YAML (``engine.workers=2``)."""
-    from brdfcorr.workflow.config import ConfigError
-    from brdfcorr.io.files import parse_yaml
-
     parsed = {}
     for item in items:
         key, sign, text = item.partition("=")
@@ -75,8 +77,6 @@ class _chain_progress:
     def callback(self, event: str, info: dict) -> None:
         if not self.enabled:
             return
-        from tqdm import tqdm
-
         if event == "plan":
             self.bar = tqdm(total=info["scenes"], desc=self.description, unit="scene", file=sys.stderr)
         elif event == "fit" and self.bar is not None:
@@ -123,10 +123,6 @@ def run_command(chain, dry_run, resume, overwrite, settings, progress):
     (listed, with the reason, in the table and the report); 2 a bad config or input before any
     scene ran (nothing is written); 1 an internal error.
     """
-    from brdfcorr.workflow.config import load_config
-    from brdfcorr.errors import InputError
-    from brdfcorr.workflow.chain import plan_run, run_chain
-
     if resume and overwrite:
         raise InputError("--resume and --overwrite exclude each other")
     overrides = _overrides(settings)
@@ -179,11 +175,6 @@ def validate_command(chains, settings):
     naming the key path and the allowed values (exit code 2). A parameter table file (a document
     with `classes` but no `inputs`) is checked as a table.
     """
-    from brdfcorr.workflow.config import ConfigError, load_config
-    from brdfcorr.io.files import parse_yaml
-    from brdfcorr.params import ParameterTable
-    from brdfcorr.workflow.chain import plan_run
-
     overrides = _overrides(settings)
     for chain in chains:
         try:

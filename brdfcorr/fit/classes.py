@@ -85,15 +85,18 @@ class GuardRails:
         Maximum condition number of the column-normalized linear design (one column per intensity
         term); above it the terms (e.g. the constant and the specular term) cannot be told apart.
     min_r2 : float
-        Minimum median (over bands) coefficient of determination: below it the model explains
-        (almost) none of the angular signal. Not applied to a model without angular variation
-        (Lambertian).
+        Minimum median (over bands) *angular* R^2 (:meth:`~brdfcorr.fit.solver._LinearProfile.angular_r2`:
+        the fit against the data's means in bins of geometry, so that albedo texture does not count
+        against it): below it the model explains (almost) none of the angular signal. Not applied
+        to a model without angular variation (Lambertian).
 
     Notes
     -----
     A fit with a free shape parameter at an end of its search range
     (:func:`~brdfcorr.fit.solver.search_range`, unless that end is a closed physical bound) fails
-    as well: the data do not constrain it, or its optimum lies outside the range.
+    as well when its angular R^2 is below :data:`POOR_R2`: the data do not constrain the parameter
+    and the model does not follow the angular signal. With a good angular fit the parameter is
+    only poorly determined (n of the Torrance-Sparrow model often is): that is noted, not failed.
     """
 
     min_samples: int = 500
@@ -124,12 +127,17 @@ class ClassFit:
         1-sigma errors of the free parameters, per band (0 for fixed ones).
     r2, rmse : ndarray
         Per band: coefficient of determination, and residual RMS of the BRDF [sr^-1].
+    angular_r2 : ndarray
+        Per band: R^2 of the fit against the data's means in bins of geometry (texture averaged
+        out): how much of the angular signal the model explains.
     fixed : dict
         The shape parameters held fixed.
     status : str
         ``"fitted"``, ``"fallback"`` (a built-in material replaces the fit) or ``"uncorrected"``.
     reasons : list of str
         Why the class failed its guard rails (empty when fitted).
+    notes : list of str
+        What is worth knowing about a fit that passed (a poorly determined shape parameter).
     fallback : str or None
         The built-in material used instead, if any.
     better_model : str or None
@@ -150,9 +158,11 @@ class ClassFit:
     errors: dict[str, np.ndarray] = field(default_factory=dict)
     r2: np.ndarray = field(default_factory=lambda: np.array([]))
     rmse: np.ndarray = field(default_factory=lambda: np.array([]))
+    angular_r2: np.ndarray = field(default_factory=lambda: np.array([]))
     fixed: dict[str, float] = field(default_factory=dict)
     status: str = "fitted"
     reasons: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
     fallback: str | None = None
     better_model: str | None = None
     better_r2: float | None = None
@@ -160,8 +170,12 @@ class ClassFit:
     @property
     def median_r2(self) -> float:
         """Median over bands of R^2 (NaN before a fit)."""
-        finite = np.asarray(self.r2)[np.isfinite(self.r2)]
-        return float(np.median(finite)) if finite.size else math.nan
+        return _finite_median(self.r2)
+
+    @property
+    def median_angular_r2(self) -> float:
+        """Median over bands of the angular R^2 (NaN before a fit)."""
+        return _finite_median(self.angular_r2)
 
     def summary(self) -> dict[str, object]:
         """JSON-friendly summary (medians over bands for per-band quantities)."""
@@ -178,12 +192,19 @@ class ClassFit:
             "phi_spread_deg": round(self.phi_spread, 3),
             "condition": None if math.isnan(self.condition) else float(self.condition),
             "median_r2": median(self.r2),
+            "median_angular_r2": None if math.isnan(self.median_angular_r2) else self.median_angular_r2,
+            "notes": list(self.notes),
             "median_rmse": median(self.rmse),
             "better_model": self.better_model,
             "better_model_median_r2": self.better_r2,
             "params": {k: _compact(v) for k, v in self.params.items()},
             "errors": {k: _compact(v) for k, v in self.errors.items()},
         }
+
+
+def _finite_median(values) -> float:
+    finite = np.asarray(values, dtype=float)[np.isfinite(values)]
+    return float(np.median(finite)) if finite.size else math.nan
 
 
 def _compact(values: np.ndarray):
@@ -217,23 +238,26 @@ def _sample_reasons(report: ClassFit, guard: GuardRails) -> list[str]:
 
 
 def _fit_reasons(report: ClassFit, model: Model, at_edge: Sequence[str], guard: GuardRails) -> list[str]:
+    """Why a fit fails its guard rails; poorly determined parameters of a good fit go to notes."""
     reasons = []
     if report.condition > guard.max_condition:
         reasons.append(
             f"ill-conditioned (condition {report.condition:.3g} > {guard.max_condition:g}): "
             f"the geometry does not separate the terms {', '.join(model.linear)}"
         )
-    if _angular(model) and not report.median_r2 >= guard.min_r2:
+    angular = report.median_angular_r2
+    if _angular(model) and not angular >= guard.min_r2:
         reasons.append(
-            f"median R^2 {report.median_r2:.3f} < {guard.min_r2:g}: "
+            f"median angular R^2 {angular:.3f} < {guard.min_r2:g}: "
             f"{model.name} explains almost none of the angular signal"
         )
     for name in at_edge:
         low, high, _ = search_range(model, name)
-        reasons.append(
-            f"{name} = {report.params[name][0]:.4g} at the edge of its search range ({low:g} to {high:g}): "
-            "the data do not constrain it, or its optimum lies outside"
-        )
+        where = f"{name} = {report.params[name][0]:.4g} at the edge of its search range ({low:g} to {high:g})"
+        if angular >= POOR_R2:
+            report.notes.append(f"{where}: poorly determined (the angular fit is good: R^2 {angular:.3f})")
+        else:
+            reasons.append(f"{where}: the data do not constrain it, or its optimum lies outside")
     return reasons
 
 
@@ -310,10 +334,10 @@ def fit_one_class(
             model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points, clusters=clusters
         )
         report.params, report.errors = result["params"], result["errors"]
-        report.r2, report.rmse = result["r2"], result["rmse"]
+        report.r2, report.rmse, report.angular_r2 = result["r2"], result["rmse"], result["angular_r2"]
         report.condition, report.fixed = result["condition"], result["fixed"]
         report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
-        if report.reasons or not report.median_r2 >= POOR_R2:
+        if report.reasons or not report.median_angular_r2 >= POOR_R2:
             _suggest_model(report, model, (theta_i, theta_r, phi, brdf))
     if report.reasons:
         report.status = "fallback" if fallback else "uncorrected"

@@ -179,11 +179,58 @@ class _LinearProfile:
     def objective(self, shape: Mapping[str, float]) -> float:
         return float(self.solve(self.design(shape))[1] @ self.weights)
 
+    def angular_r2(self, design: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
+        """How much of the *angular* signal the fit explains, per band (NaN where there is none).
+
+        The samples are binned by geometry (:func:`geometry_bins`); the bin means average out
+        albedo texture and noise, which are independent of the geometry, and leave the angular
+        signal. This is R^2 of the bin means of the fit against those of the data, weighted by the
+        bin counts: ~1 for a model that follows the angular signal however textured the class is,
+        ~0 for one that explains none of it (plain R^2 is small for both on textured surfaces).
+        The scatter the bin means keep (within-bin variance / count) is subtracted from both sums
+        of squares, as in an adjusted R^2, so that few samples per bin do not read as misfit; NaN
+        where no angular signal stands out of that scatter. The fit's bin means are those of the
+        design columns times the coefficients (linear), so no (N, B) prediction is formed.
+        """
+        index = geometry_bins(self.geometry.theta_i, self.geometry.theta_r, self.geometry.phi)
+        count = np.bincount(index).astype(float)
+        keep = count >= MIN_BIN_COUNT
+        indicator = scipy.sparse.csr_matrix(
+            (np.ones(index.size), (index, np.arange(index.size))), shape=(count.size, index.size)
+        )[keep]
+        count = count[keep]
+        observed = (indicator @ self.data) / count[:, None]  # (K, B)
+        fitted = ((indicator @ design) / count[:, None]) @ coefficients  # (K, B)
+        kept = keep[index]
+        sum_yy = self.sum_yy if kept.all() else np.einsum("nb,nb->b", self.data[kept], self.data[kept])
+        n_bins, n_kept = count.size, count.sum()
+        scatter = np.maximum(sum_yy - count @ observed**2, 0.0) / max(n_kept - n_bins, 1.0)  # within-bin variance
+        mean = count @ observed / n_kept
+        total = count @ (observed - mean) ** 2 - (n_bins - 1) * scatter
+        residual = np.maximum(count @ (observed - fitted) ** 2 - (n_bins - design.shape[1]) * scatter, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(total > 0, 1.0 - residual / np.where(total > 0, total, 1.0), np.nan)
+
     def r2(self, ssr: np.ndarray) -> np.ndarray:
         """Coefficient of determination per band (NaN for a constant band)."""
         total = self.sum_yy - self.sum_y**2 / self.n
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(total > 0, 1.0 - ssr / np.where(total > 0, total, 1.0), np.nan)
+
+
+#: Geometry bins of :func:`geometry_bins` [deg] and the fewest samples a bin needs to count.
+SUN_ZENITH_STEP, VIEW_ZENITH_STEP, MIN_BIN_COUNT = 5.0, 2.0, 10
+
+
+def geometry_bins(theta_i, theta_r, phi) -> np.ndarray:
+    """A bin number per sample: sun zenith in 5 deg steps, view zenith in 2 deg steps, and the
+    half of the azimuth circle (backward phi < 90 deg or forward), the across-track geometry of a
+    flight line."""
+    sun = np.floor(np.asarray(theta_i) / SUN_ZENITH_STEP).astype(np.int64)
+    view = np.floor(np.asarray(theta_r) / VIEW_ZENITH_STEP).astype(np.int64)
+    forward = (np.asarray(phi) >= 90.0).astype(np.int64)
+    _, index = np.unique(np.stack([sun, view, forward]), axis=1, return_inverse=True)
+    return index.reshape(-1)
 
 
 def _grid(search: tuple[float, float, bool], points: int) -> np.ndarray:
@@ -516,6 +563,7 @@ def fit_class_samples(
         "params": {name: params[name] for name in model.parameter_names},
         "errors": {name: errors[name] for name in model.parameter_names},
         "r2": profile.r2(ssr),
+        "angular_r2": profile.angular_r2(design, intensities),
         "rmse": np.sqrt(ssr / profile.n),
         "condition": _condition(design),
         "shape": shape,

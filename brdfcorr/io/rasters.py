@@ -282,7 +282,8 @@ class SceneData(NamedTuple):
 
 def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", angle_options=None,
                sza=None, saa=None, vza=None, vaa=None, chunks=None, wavelengths=None,
-               prepare_classes: Callable[[xr.DataArray, xr.DataArray], xr.DataArray] | None = None) -> SceneData:
+               prepare_classes: Callable[[xr.DataArray, xr.DataArray], xr.DataArray] | None = None,
+               scheduler: str | None = None, num_workers: int | None = None) -> SceneData:
     """Open one scene lazily and check it: reflectance, class map and the four angle layers.
 
     Parameters
@@ -300,6 +301,8 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
         ``prepare_classes(class_map, reflectance)`` -> class map, applied before the grid check:
         e.g. :func:`brdfcorr.strata.align_class_map` to bring a land-cover map on another grid onto
         the image's (an opt-in: by default a class map on another grid is an error).
+    scheduler, num_workers : optional
+        As for :func:`check_angles`.
 
     Returns
     -------
@@ -326,7 +329,7 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
         layers = {name: dataset[name] for name in ANGLE_NAMES}
         source = f"{angles} ({angles_kind})"
     check_same_grid({"image": reflectance, "classes": class_map, **layers})
-    statistics = check_angles(layers, source=source)
+    statistics = check_angles(layers, source=source, scheduler=scheduler, num_workers=num_workers)
     return SceneData(reflectance, class_map, layers, statistics)
 
 
@@ -340,7 +343,8 @@ class AngleStatistics(NamedTuple):
     the scene-mean sun zenith of a ``"mean"`` reference geometry."""
 
 
-def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) -> AngleStatistics:
+def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, *, scheduler: str | None = None,
+                 num_workers: int | None = None) -> AngleStatistics:
     """Check that sun/view angle layers hold degrees; return their ranges and means [deg].
 
     One pass over the (lazy) layers, which also gives the scene-mean sun zenith. Pixels with a
@@ -355,6 +359,9 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) 
         ``sza``, ``saa``, ``vza``, ``vaa`` [deg] (as from :func:`open_angles`).
     source : str, optional
         Name of the angle source for messages (default: the layers' files).
+    scheduler, num_workers : optional
+        dask scheduler of the pass and its number of workers (as for :func:`dask.compute`;
+        default: dask's).
 
     Raises
     ------
@@ -369,7 +376,7 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None) 
         arrays = [dask.array.asarray(a).rechunk(first.chunks) for a in arrays]
         per_block = dask.array.map_blocks(
             _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 5), dtype=np.float64,
-        ).compute()
+        ).compute(scheduler=scheduler, num_workers=num_workers)
     else:
         per_block = _angle_statistics(*(np.asarray(a) for a in arrays))
     per_block = per_block.reshape(-1, len(names), 5)
@@ -471,6 +478,8 @@ def write_rasters(
     compute_with: object = None,
     callbacks: Sequence = (),
     gdal_cache: int | None = None,
+    scheduler: str | None = None,
+    num_workers: int | None = None,
 ):
     """Write DataArrays to tiled, compressed GeoTIFFs, chunk by chunk, atomically.
 
@@ -502,6 +511,9 @@ def write_rasters(
     gdal_cache : int, optional
         GDAL block cache [bytes] while reading and writing (:func:`gdal_cache_bytes`); GDAL's
         default otherwise.
+    scheduler, num_workers : optional
+        dask scheduler of the pass and its number of workers (as for :func:`dask.compute`;
+        default: dask's).
 
     Returns
     -------
@@ -516,7 +528,8 @@ def write_rasters(
     gdal_messages = _GdalMessages()
     try:
         with gdal_messages:
-            return _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache)
+            return _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache,
+                          scheduler, num_workers)
     except BrdfcorrError:
         raise
     except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
@@ -564,7 +577,7 @@ def _io_failure(error: Exception, targets: list, messages: list[str]) -> Brdfcor
     )
 
 
-def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache):
+def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers):
     with contextlib.ExitStack() as stack:
         writes, copies = [], []
         for target, array in rasters.items():
@@ -586,7 +599,7 @@ def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gda
                 for callback in callbacks:
                     active.enter_context(callback)
                 # One pass for everything: shared inputs are read and normalized once.
-                *_, extra = dask.compute(*writes, compute_with)
+                *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler, num_workers=num_workers)
             for gtiff, temporary in copies:
                 rasterio.shutil.copy(
                     gtiff, temporary, driver="COG", compress=compress.upper(), blocksize=blocksize,

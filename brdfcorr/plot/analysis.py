@@ -12,9 +12,9 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
 from brdfcorr.analysis.papers import WIDTH_GEOMETRIES
-from brdfcorr.models.materials import Material
-from brdfcorr.models import empirical, torrance_sparrow
 from brdfcorr.analysis.simulate import NORMALIZATION_GEOMETRY, simulate_vcavity
+from brdfcorr.models import empirical, torrance_sparrow
+from brdfcorr.models.materials import Material
 
 __all__ = ["FIGURE2_ROUGHNESSES", "FIGURE2_CUTS", "plot_figure2", "plot_polar", "plot_azimuthal_widths"]
 

@@ -7,12 +7,16 @@ The scene is a push-broom line flown north over a small town near Hamburg on a J
   distance from the nadir track) and view azimuth (towards the sensor: 270 deg east of the track,
   90 deg west of it); the sun's zenith and azimuth per pixel come from the solar position (pvlib,
   :func:`brdfcorr.io.sensors.solar.solar_angles`) at :data:`DEMO_TIME`. With the sun in the east-south-
-  east, pixels east of the track look into forward scattering (relative azimuth near 155 deg) and
-  appear brighter: the across-track brightness gradient a BRDF normalization removes.
+  east, pixels east of the track look into forward scattering (relative azimuth near 160 deg),
+  those west of it into backscattering (near 20 deg). The specular roofs and concrete appear
+  brighter in the east, the vegetation and soil (volume scattering and shadow hiding, brightest
+  towards the hot spot) in the west: the across-track brightness gradients a BRDF normalization
+  removes.
 * **classes**: 1 roof tile and 2 concrete, with the Torrance-Sparrow fits of paper 003, Table 1
-  (``roof_tile`` and ``blue_concrete``, 550 nm); 3 grass, an **illustrative** empirical-model
-  parameter set (:data:`GRASS_ILLUSTRATIVE`, not from the papers: a plausible vegetation spectrum
-  with a weak specular term); 0 for water (no class, left unchanged).
+  (``roof_tile`` and ``blue_concrete``, 550 nm); 3 grass, 4 trees and 5 bare soil with the
+  kernel-driven MODIS RTLSR model (``ross_thick_li_sparse``) and **illustrative** weights per
+  wavelength (:data:`GRASS_ILLUSTRATIVE`, :data:`TREES_ILLUSTRATIVE`, :data:`SOIL_ILLUSTRATIVE`;
+  not a published fit); 0 for water (no class, left unchanged).
 * **bands**: six bands 450-860 nm; each class has a reflectance spectrum (:data:`SPECTRA`), a
   smooth texture and 0.3 % sensor noise.
 
@@ -42,6 +46,9 @@ __all__ = [
     "DEMO_TIME",
     "WAVELENGTHS",
     "GRASS_ILLUSTRATIVE",
+    "TREES_ILLUSTRATIVE",
+    "SOIL_ILLUSTRATIVE",
+    "KERNEL_CLASSES",
     "SPECTRA",
     "demo_table",
     "demo_angles",
@@ -62,37 +69,70 @@ DEMO_CRS = "EPSG:32632"
 WAVELENGTHS = (450.0, 500.0, 560.0, 660.0, 740.0, 860.0)
 
 #: Class ids of the demo class map.
-ROOF_TILE, CONCRETE, GRASS = 1, 2, 3
+ROOF_TILE, CONCRETE, GRASS, TREES, SOIL = 1, 2, 3, 4, 5
 
-#: Illustrative grass parameters for the empirical model (paper 000, eq. 5, plus a Lambertian t0):
-#: NOT a published fit. t0 follows a typical green-vegetation reflectance spectrum (R = pi t0:
-#: 3 % blue, 8 % green, 4 % red, 45 % near infrared); a and c give a weak, broad specular peak.
+# Illustrative kernel weights of the MODIS RTLSR model (Ross-Thick Li-Sparse-Reciprocal,
+# ``ross_thick_li_sparse``): NOT published fits. f_iso [sr^-1] is the nadir-sun nadir-view
+# reflectance factor of a typical spectrum divided by pi; f_vol and f_geo are fixed fractions of it
+# in the range of MODIS MCD43A1 weights of such covers (per wavelength, interpolated to the bands).
+_KERNEL_WAVELENGTHS = [450.0, 550.0, 650.0, 700.0, 750.0, 900.0]
+
+#: Grass (lawn): R = pi f_iso of 3 % blue, 8 % green, 4 % red, 40-45 % near infrared; volume
+#: scattering f_vol / f_iso 0.6 (visible) to 0.8 (NIR), shadowing f_geo / f_iso 0.2 to 0.12.
 GRASS_ILLUSTRATIVE = {
     "id": GRASS,
     "name": "grass_illustrative",
-    "model": "empirical",
-    "wavelengths": [450.0, 550.0, 650.0, 700.0, 750.0, 900.0],
+    "model": "ross_thick_li_sparse",
+    "wavelengths": _KERNEL_WAVELENGTHS,
     "params": {
-        "a": [0.003, 0.005, 0.003, 0.005, 0.010, 0.011],
-        "b": 1.0,
-        "c": 0.03,
-        "t0": [0.0095, 0.0255, 0.0127, 0.0320, 0.1270, 0.1430],
+        "f_iso": [0.0095, 0.0255, 0.0127, 0.0320, 0.1270, 0.1430],
+        "f_vol": [0.0057, 0.0153, 0.0076, 0.0208, 0.1016, 0.1144],
+        "f_geo": [0.0019, 0.0051, 0.0025, 0.0054, 0.0152, 0.0172],
     },
 }
+#: Trees (deciduous crowns): darker than grass (2.5 % blue, 5.5 % green, 3 % red, 30-33 % NIR),
+#: less volume scattering (f_vol / f_iso 0.5 to 0.6) and more crown shadowing (f_geo / f_iso 0.25
+#: to 0.18).
+TREES_ILLUSTRATIVE = {
+    "id": TREES,
+    "name": "trees_illustrative",
+    "model": "ross_thick_li_sparse",
+    "wavelengths": _KERNEL_WAVELENGTHS,
+    "params": {
+        "f_iso": [0.0080, 0.0175, 0.0095, 0.0223, 0.0955, 0.1050],
+        "f_vol": [0.0040, 0.0088, 0.0048, 0.0123, 0.0573, 0.0630],
+        "f_geo": [0.0020, 0.0044, 0.0024, 0.0047, 0.0172, 0.0189],
+    },
+}
+#: Bare soil (dry loam): reflectance rising from 10 % (450 nm) to 26 % (900 nm), little volume
+#: scattering (f_vol / f_iso 0.1) and rough-surface shadowing (f_geo / f_iso 0.3).
+SOIL_ILLUSTRATIVE = {
+    "id": SOIL,
+    "name": "bare_soil_illustrative",
+    "model": "ross_thick_li_sparse",
+    "wavelengths": _KERNEL_WAVELENGTHS,
+    "params": {
+        "f_iso": [0.0318, 0.0446, 0.0573, 0.0637, 0.0700, 0.0828],
+        "f_vol": [0.0032, 0.0045, 0.0057, 0.0064, 0.0070, 0.0083],
+        "f_geo": [0.0095, 0.0134, 0.0172, 0.0191, 0.0210, 0.0248],
+    },
+}
+#: The kernel-driven classes, in class-id order.
+KERNEL_CLASSES = (GRASS_ILLUSTRATIVE, TREES_ILLUSTRATIVE, SOIL_ILLUSTRATIVE)
 
 #: Relative reflectance spectra of the Table-1 classes at :data:`WAVELENGTHS` (1 at 560 nm, the
-#: band nearest the 550 nm of the fits); illustrative shapes (red clay tile, grey concrete). Grass
-#: takes its spectrum from its spectral parameters, so its factor is 1.
+#: band nearest the 550 nm of the fits); illustrative shapes (red clay tile, grey concrete). The
+#: kernel classes take their spectra from their spectral parameters, so their factor is 1.
 SPECTRA = {
     ROOF_TILE: (0.55, 0.65, 1.0, 1.9, 2.2, 2.3),
     CONCRETE: (0.90, 0.95, 1.0, 1.03, 1.05, 1.07),
-    GRASS: (1.0,) * 6,
+    **{entry["id"]: (1.0,) * 6 for entry in KERNEL_CLASSES},
 }
 
 
 def demo_table() -> ParameterTable:
     """The demo's parameter table: roof tile and concrete from paper 003 Table 1 (built-in
-    ``roof_tile`` and ``blue_concrete``), grass from :data:`GRASS_ILLUSTRATIVE`."""
+    ``roof_tile`` and ``blue_concrete``), grass, trees and bare soil from :data:`KERNEL_CLASSES`."""
     from brdfcorr.models.materials import load_material
 
     entries = []
@@ -100,7 +140,7 @@ def demo_table() -> ParameterTable:
         material = load_material(name)
         entries.append(ClassEntry(id=class_id, name=material.name, model=material.model.name,
                                   params=dict(material.params)))
-    entries.append(ClassEntry(**GRASS_ILLUSTRATIVE))
+    entries.extend(ClassEntry(**entry) for entry in KERNEL_CLASSES)
     return ParameterTable(classes=entries)
 
 
@@ -157,7 +197,10 @@ def demo_angles(rows: int = 300, pixel: float = 3.0, altitude: float = 1000.0, f
 
 def demo_classes(rows: int, columns: int, pixel: float, seed: int = 0) -> np.ndarray:
     """A town-like class map: grass with a concrete street grid, tiled-roof houses in the blocks,
-    concrete yards and a pond (class 0, no class). Sizes in metres scaled by ``pixel`` [m]."""
+    concrete yards, groups of trees and patches of bare soil in the open ground, and a pond
+    (class 0, no class). Sizes in metres scaled by ``pixel`` [m]."""
+    from scipy.ndimage import gaussian_filter
+
     rng = np.random.default_rng(seed)
     classes = np.full((rows, columns), GRASS, dtype=np.uint8)
     cell = lambda metres: max(1, int(round(metres / pixel)))  # noqa: E731
@@ -176,6 +219,12 @@ def demo_classes(rows: int, columns: int, pixel: float, seed: int = 0) -> np.nda
                     classes[y0:y0 + height, x0:x0 + width] = ROOF_TILE
                 else:
                     classes[y0:y0 + height, x0:x0 + width] = CONCRETE
+    # Trees and bare soil replace grass where a smooth random field (~25 m patches) is high or low.
+    field = gaussian_filter(np.random.default_rng(seed + 2).standard_normal((rows, columns)), sigma=cell(12.0))
+    field = (field - field.mean()) / field.std()
+    open_ground = classes == GRASS
+    classes[open_ground & (field > 0.8)] = TREES
+    classes[open_ground & (field < -1.1)] = SOIL
     yy, xx = np.mgrid[:rows, :columns]
     centre = (rows * 0.7, columns * 0.2)
     radius = cell(40.0)
@@ -218,8 +267,9 @@ def demo_scene(rows: int = 300, pixel: float = 3.0, altitude: float = 1000.0, fo
     scene = angles.copy()
     scene["reflectance"] = reflectance
     scene["classes"] = (("y", "x"), classes, {"long_name": "land cover class",
-                                              "flag_values": [0, 1, 2, 3],
-                                              "flag_meanings": "water roof_tile concrete grass_illustrative"})
+                                              "flag_values": [0, 1, 2, 3, 4, 5],
+                                              "flag_meanings": "water roof_tile concrete grass_illustrative "
+                                                               "trees_illustrative bare_soil_illustrative"})
     scene.attrs = {"title": "brdfcorr demo: wide field of view airborne line", "time": time,
                    "altitude_m": altitude, "fov_deg": fov, "pixel_m": pixel}
     return scene
@@ -291,8 +341,8 @@ def run_demo(output_dir: str | os.PathLike = "demo_output", config: str | os.Pat
     overrides : dict, optional
         Dotted config keys to override (:func:`brdfcorr.workflow.config.apply_overrides`).
     """
-    from brdfcorr.workflow.config import load_config
     from brdfcorr.workflow.chain import run_chain
+    from brdfcorr.workflow.config import load_config
 
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)

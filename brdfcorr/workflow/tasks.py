@@ -89,6 +89,7 @@ def correct_files(
     cog: bool = False, callbacks=(), table_source: str | None = None,
     angles_kind: str = "geotiff", angle_options: dict | None = None, overwrite: bool = True,
     align_classes: bool = False, class_lookup: Mapping[int, int] | None = None,
+    scheduler: str | None = None, num_workers: int | None = None,
 ) -> dict[str, object]:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
@@ -137,6 +138,10 @@ def correct_files(
         grid is an error.
     class_lookup : mapping of int to int, optional
         Remap the class map's codes to table ids (codes not in it: no class).
+    scheduler, num_workers : optional
+        dask scheduler of the computations and its number of workers (as for
+        :func:`dask.compute`; default: dask's), e.g. ``"threads"`` and 2 inside a process or
+        cluster worker, where several scenes may run side by side.
 
     Returns
     -------
@@ -173,6 +178,7 @@ def correct_files(
         image, classes, angles, angles_kind=angles_kind, angle_options=angle_options,
         sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks, wavelengths=wavelengths,
         prepare_classes=class_preparation(align_classes, class_lookup),
+        scheduler=scheduler, num_workers=num_workers,
     )
     reference = resolve_reference(reference, params)
     source = "fixed" if not isinstance(reference.sza, str) else reference.sza
@@ -215,6 +221,7 @@ def correct_files(
     counts = rasters.write_rasters(
         targets, compress=compress, blocksize=chunks, cog=cog, tags=tags,
         compute_with=qa_counts(qa), callbacks=callbacks, gdal_cache=rasters.gdal_cache_bytes(image, chunks),
+        scheduler=scheduler, num_workers=num_workers,
     )
     return {**{key: int(value) for key, value in counts.items()}, "reference": reference}
 

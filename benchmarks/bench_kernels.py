@@ -1,0 +1,479 @@
+"""Benchmark: kernel-driven (RTLSR) and mixed Torrance-Sparrow / RTLSR normalization of synthetic
+airborne lines, fitted from the imagery itself (run by hand; not part of the test suite).
+
+The scenes are rendered with brdfcorr's registered models (``ross_thick_li_sparse``,
+``torrance_sparrow``) at the geometry of a push-broom line flown north: view zenith -20..+20 deg
+across track, view azimuths perpendicular to the track (90 deg west of it, 270 deg east of it,
+towards the sensor), sun zenith ~35 deg from the east (saa 100 deg), so the western half of the
+swath looks into backscatter (phi ~10 deg) and the eastern half into forward scatter (phi ~170 deg).
+Every pixel is ``pi * f(sun, view; p(band)) * texture * (1 + noise)``: texture a smoothed random
+albedo field (10 %), noise multiplicative and white (``--noise``, 1 % by default). The truth is
+the same pixel without noise at the reference geometry (scene-mean sun, nadir view).
+
+* **A, vegetation/soil**: a linear mixture ``v f_veg + (1 - v) f_soil`` with a smoothly varying
+  vegetation fraction ``v``, both RTLSR with MODIS-like kernel weights per band (60 bands
+  400-1000 nm, red edge). brdfcorr workflow: NDVI percentile strata (``ndvi_strata``, as
+  FlexBRDF) -> ``fit_classes`` with ``ross_thick_li_sparse`` per stratum -> ``normalize``.
+  Goals: median error <= 0.7 %, worst stratum east/west difference <= 0.2 %.
+* **B, urban**: a true class map of roof tile and red concrete (Torrance-Sparrow, paper 003
+  Table 1 materials, t0 and t1 scaled by an illustrative spectrum) and grass and bare soil
+  (RTLSR); fitted with per-class models in one ``fit_classes`` call (``class_models``), and again
+  with the TS refractive index held at a generic n = 1.6 (not the materials' own). Goals: median
+  error <= 1 %, every class's east/west difference <= 1 %.
+
+Metrics. *Error*: ``|corrected - truth| / truth`` per pixel and band, median over all. The sensor
+noise is in the corrected image but not in the truth, so against the noise-free truth the median
+cannot fall below 0.674 sigma (0.67 % at 1 % noise) whatever the correction; the error held
+against the goals compares with the truth carrying the same noise realization, i.e. it is the
+error of the correction factor itself (both are printed). *East/west*: mean of the eastern third
+of the swath over the western third, minus 1, per class (or stratum) and band; the worst band of
+the worst class after the correction is held against the goals (what a user can measure). The
+truth has an east/west difference of its own (texture and patches, few per third; for NDVI strata
+also a composition that depends on the view, as the strata are cut from the observed NDVI), and
+an image-based fit takes part of it for BRDF, so the residual ``after - truth`` is printed too.
+``--diagnose`` separates the sources for scene A (NDVI strata vs true-fraction strata, noise,
+one RTLSR per stratum without a fit, scene structure, number of strata, a second stratification
+pass).
+
+Timing: fit + correct (and for A the strata) of the default 400 x 600 x 60 float32 line; goal
+< 6 s on the 2-core reference machine. As a machine-independent figure the time is also given
+relative to a baseline measured in the same run: one ``cube * factor`` over the whole cube (read
+the cube once, write it once), the memory traffic any per-pixel correction cannot avoid.
+
+Usage::
+
+    python benchmarks/bench_kernels.py            # 400 x 600 x 60 (well under a minute)
+    python benchmarks/bench_kernels.py --small    # 120 x 180 x 20, a quick check
+    python benchmarks/bench_kernels.py --diagnose # also: where the residual error comes from
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+import warnings
+
+import numpy as np
+import xarray as xr
+from scipy.ndimage import gaussian_filter
+
+from brdfcorr import normalize
+from brdfcorr.fit import fit_classes
+from brdfcorr.geometry import relative_azimuth
+from brdfcorr.models import get_model
+from brdfcorr.models.materials import load_material
+from brdfcorr.params import ParameterTable
+from brdfcorr.strata import ndvi_strata
+
+RTLSR = get_model("ross_thick_li_sparse")
+TS = get_model("torrance_sparrow")
+PERCENTILES = (20, 40, 60, 80)  # five NDVI strata of near-equal size (FlexBRDF bins by percentiles)
+ROOF, CONCRETE, GRASS, SOIL = 1, 2, 3, 4
+URBAN_NAMES = {ROOF: "roof_tile", CONCRETE: "red_concrete", GRASS: "grass", SOIL: "soil"}
+#: A generic refractive index for the TS classes when n is held fixed (the middle of paper 003's
+#: Table 1, 1.48-1.77; deliberately not the materials' own n, 1.77 and 1.48).
+N_GENERIC = 1.6
+
+
+# ----------------------------------------------------------------------------------- the scenes
+def line_geometry(rows: int, columns: int, vza_max: float = 20.0, sza=(34.0, 36.0), saa: float = 100.0):
+    """Angles [deg] of a line flown north: sza ramps along track, vza = atan(|d| / H) across."""
+    across = np.linspace(-1.0, 1.0, columns) * math.tan(math.radians(vza_max))  # d / H, east positive
+    shape = (rows, columns)
+    return {
+        "sza": np.broadcast_to(np.linspace(*sza, rows)[:, None], shape).astype(np.float32),
+        "saa": np.full(shape, saa, np.float32),
+        "vza": np.broadcast_to(np.degrees(np.arctan(np.abs(across))), shape).astype(np.float32),
+        "vaa": np.broadcast_to(np.where(across > 0, 270.0, 90.0), shape).astype(np.float32),
+    }
+
+
+def smooth_field(rng: np.random.Generator, shape, sigma: float) -> np.ndarray:
+    """A Gaussian random field smoothed over ``sigma`` pixels, scaled to zero mean, unit variance."""
+    field = gaussian_filter(rng.standard_normal(shape), sigma)
+    return (field - field.mean()) / field.std()
+
+
+def endmember_spectra(wavelengths: np.ndarray) -> dict[str, np.ndarray]:
+    """Nadir-sun nadir-view reflectance factors of vegetation and soil (illustrative shapes)."""
+    w = np.asarray(wavelengths, float)
+    edge = 1.0 / (1.0 + np.exp(-(w - 715.0) / 12.0))  # the red edge
+    visible = 0.035 + 0.045 * np.exp(-(((w - 555.0) / 40.0) ** 2)) - 0.012 * np.exp(-(((w - 675.0) / 20.0) ** 2))
+    vegetation = (1 - edge) * visible + edge * (0.42 + 0.03 * (w - 750.0) / 250.0)
+    soil = 0.07 + 0.25 * np.clip((w - 400.0) / 600.0, 0, None) ** 0.8
+    return {"vegetation": vegetation, "soil": soil, "edge": edge}
+
+
+def rtlsr_weights(wavelengths) -> dict[str, dict[str, np.ndarray]]:
+    """MODIS-like RTLSR weights [sr^-1] per band: vegetation f_vol/f_iso 0.6 (visible) to 0.8 (NIR),
+    f_geo/f_iso 0.2 to 0.12; soil f_vol/f_iso 0.1, f_geo/f_iso 0.3 (rougher, little volume)."""
+    spectra = endmember_spectra(wavelengths)
+    edge = spectra["edge"]
+    ratios = {"vegetation": (0.6 + 0.2 * edge, 0.2 - 0.08 * edge),
+              "soil": (np.full_like(edge, 0.1), np.full_like(edge, 0.3))}
+    weights = {}
+    for kind, (vol, geo) in ratios.items():
+        f_iso = spectra[kind] / math.pi
+        weights[kind] = {"f_iso": f_iso, "f_vol": vol * f_iso, "f_geo": geo * f_iso}
+    return weights
+
+
+def ts_params(name: str, wavelengths) -> dict[str, np.ndarray]:
+    """A paper-003 material (550 nm) with its intensities t0, t1 scaled by an illustrative spectrum
+    (relative to 550 nm): red clay roof tile, red concrete."""
+    w = np.asarray(wavelengths, float)
+    material = load_material(name)
+    if name == "roof_tile":
+        spectrum = 0.55 + 0.45 * np.clip((w - 400) / 150, 0, 1) + 1.3 / (1 + np.exp(-(w - 600) / 20))
+    else:
+        spectrum = 0.7 + 0.3 * np.clip((w - 400) / 150, 0, 1) + 0.5 / (1 + np.exp(-(w - 590) / 25))
+    spectrum = spectrum / np.interp(550.0, w, spectrum)
+    params = {key: np.full(w.shape, float(value)) for key, value in material.params.items()}
+    params["t0"], params["t1"] = params["t0"] * spectrum, params["t1"] * spectrum
+    return params
+
+
+def evaluate(model, params: dict[str, np.ndarray], sza, vza, phi) -> np.ndarray:
+    """(band, n) BRDF of one registered model: parameters per band, angles per pixel (1-D)."""
+    if model is TS:  # one evaluation per band: the shape parameters of the paper are scalars
+        return np.stack([model(sza, vza, phi, **{k: v[b] for k, v in params.items()})
+                         for b in range(len(params["t0"]))])
+    return model(sza[None], vza[None], phi[None], **{k: v[:, None] for k, v in params.items()})
+
+
+def _reference_angles(angles, reference_sza: float):
+    n = angles["sza"].size
+    return np.full(n, reference_sza), np.zeros(n), np.zeros(n)
+
+
+def scene_vegetation_soil(rows: int, columns: int, bands: int, noise: float, seed: int = 0,
+                          fraction_sigma: float = 12.0, texture_sigma: float = 2.0) -> dict:
+    """Scene A: a vegetation/soil mixture; the vegetation fraction v is a random field smoothed over
+    ``fraction_sigma`` pixels squashed into (0, 1), the albedo texture (10 %) one smoothed over
+    ``texture_sigma`` pixels (0: white)."""
+    rng = np.random.default_rng(seed)
+    wavelengths = np.linspace(400.0, 1000.0, bands)
+    angles = line_geometry(rows, columns)
+    fraction = 1.0 / (1.0 + np.exp(-2.5 * smooth_field(rng, (rows, columns), fraction_sigma)))
+    texture = 1.0 + 0.1 * smooth_field(rng, (rows, columns), texture_sigma)
+    weights = rtlsr_weights(wavelengths)
+    sza, vza = angles["sza"].ravel().astype(float), angles["vza"].ravel().astype(float)
+    phi = relative_azimuth(angles["saa"].ravel().astype(float), angles["vaa"].ravel().astype(float))
+    reference_sza = float(angles["sza"].mean())
+    v, scale = fraction.ravel(), math.pi * texture.ravel()
+    observed = (v * evaluate(RTLSR, weights["vegetation"], sza, vza, phi)
+                + (1 - v) * evaluate(RTLSR, weights["soil"], sza, vza, phi)) * scale
+    at_ref = _reference_angles(angles, reference_sza)
+    truth = (v * evaluate(RTLSR, weights["vegetation"], *at_ref)
+             + (1 - v) * evaluate(RTLSR, weights["soil"], *at_ref)) * scale
+    return _package(observed, truth, angles, wavelengths, rng, noise, reference_sza,
+                    fraction=fraction, weights=weights)
+
+
+def urban_classes(rows: int, columns: int, rng: np.random.Generator) -> np.ndarray:
+    """Grass with bare-soil patches, a concrete street grid and tiled roofs in the blocks."""
+    classes = np.where(smooth_field(rng, (rows, columns), 6.0) > 0.8, SOIL, GRASS).astype(np.uint8)
+    block, street = max(12, rows // 8), max(2, rows // 60)
+    for start in range(block // 2, rows, block):
+        classes[start:start + street] = CONCRETE
+    for start in range(block // 3, columns, block):
+        classes[:, start:start + street] = CONCRETE
+    for top in range(0, rows, block):
+        for left in range(0, columns, block):
+            for _ in range(rng.integers(2, 5)):
+                height, width = rng.integers(block // 6, block // 3, size=2)
+                y0, x0 = top + street + rng.integers(0, block - height), left + street + rng.integers(0, block - width)
+                classes[y0:y0 + height, x0:x0 + width] = ROOF if rng.uniform() < 0.7 else CONCRETE
+    return classes
+
+
+def scene_urban(rows: int, columns: int, bands: int, noise: float, seed: int = 1) -> dict:
+    """Scene B: roof tile and red concrete (TS), grass and soil (RTLSR) on a true class map."""
+    rng = np.random.default_rng(seed)
+    wavelengths = np.linspace(400.0, 1000.0, bands)
+    angles = line_geometry(rows, columns)
+    classes = urban_classes(rows, columns, rng)
+    texture = 1.0 + 0.1 * smooth_field(rng, (rows, columns), 2.0)
+    weights = rtlsr_weights(wavelengths)
+    models = {ROOF: (TS, ts_params("roof_tile", wavelengths)), CONCRETE: (TS, ts_params("red_concrete", wavelengths)),
+              GRASS: (RTLSR, weights["vegetation"]), SOIL: (RTLSR, weights["soil"])}
+    reference_sza = float(angles["sza"].mean())
+    flat = {name: value.ravel().astype(float) for name, value in angles.items()}
+    phi = relative_azimuth(flat["saa"], flat["vaa"])
+    at_ref = _reference_angles(angles, reference_sza)
+    observed, truth = np.empty((bands, rows * columns)), np.empty((bands, rows * columns))
+    for class_id, (model, params) in models.items():
+        mask = classes.ravel() == class_id
+        scale = math.pi * texture.ravel()[mask]
+        observed[:, mask] = evaluate(model, params, flat["sza"][mask], flat["vza"][mask], phi[mask]) * scale
+        truth[:, mask] = evaluate(model, params, *(a[mask] for a in at_ref)) * scale
+    return _package(observed, truth, angles, wavelengths, rng, noise, reference_sza, classes=classes)
+
+
+def _package(observed, truth, angles, wavelengths, rng, noise, reference_sza, **extra) -> dict:
+    rows, columns = angles["sza"].shape
+    shape = (len(wavelengths), rows, columns)
+    noise_factor = 1.0 + noise * rng.standard_normal(shape)
+    observed = observed.reshape(shape)
+    coords = {"y": np.arange(rows), "x": np.arange(columns)}
+    image = xr.DataArray((observed * noise_factor).astype(np.float32), dims=("band", "y", "x"), name="reflectance",
+                         coords={**coords, "band": np.arange(1, len(wavelengths) + 1),
+                                 "wavelength": ("band", wavelengths)})
+    angle_set = xr.Dataset({k: (("y", "x"), v) for k, v in angles.items()}, coords=coords)
+    return {"image": image, "angles": angle_set, "truth": truth.reshape(shape), "noise_factor": noise_factor,
+            "reference_sza": reference_sza, "clean": observed, **extra}
+
+
+# ------------------------------------------------------------------------------------ workflow
+_SHOWN: set[str] = set()
+
+
+def class_map(scene: dict, values: np.ndarray) -> xr.DataArray:
+    image = scene["image"]
+    return xr.DataArray(values, dims=("y", "x"), coords={"y": image["y"].values, "x": image["x"].values})
+
+
+def fit(scene: dict, classes: xr.DataArray, **fit_options):
+    """fit_classes on ``classes``; its warnings are printed (not raised)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = fit_classes(scene["image"], classes, scene["angles"], **fit_options)
+    for message in dict.fromkeys(str(warning.message) for warning in caught):
+        if message not in _SHOWN:  # once per run, not once per timed repeat
+            _SHOWN.add(message)
+            print(f"  warning: {message[:160]}")
+    return result
+
+
+def correct(scene: dict, classes: xr.DataArray, table) -> np.ndarray:
+    """normalize to the scene's reference geometry (scene-mean sun, nadir view)."""
+    angles = scene["angles"]
+    reference = {"sza": scene["reference_sza"], "vza": 0.0, "raa": 0.0}
+    corrected, _ = normalize(scene["image"], classes, *(angles[k] for k in ("sza", "saa", "vza", "vaa")), table,
+                             reference)
+    return np.asarray(corrected.values)
+
+
+def east_west(cube: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Per band: mean over the class's pixels in the eastern third / western third - 1 (NaN if
+    the class is missing from a third)."""
+    third = mask.shape[1] // 3
+    east, west = mask[:, -third:], mask[:, :third]
+    if not (east.any() and west.any()):
+        return np.full(cube.shape[0], np.nan)
+    return cube[:, :, -third:][:, east].mean(axis=1) / cube[:, :, :third][:, west].mean(axis=1) - 1.0
+
+
+def scores(scene: dict, corrected: np.ndarray, classes: np.ndarray, ids) -> dict[str, float]:
+    """Median relative errors over the classed pixels and all bands (module docstring), and the
+    worst |east/west| over classes and bands: after the correction, of the truth, and of after -
+    truth (the residual)."""
+    mask = classes > 0
+    truth, raw = scene["truth"][:, mask], np.asarray(scene["image"].values)[:, mask]
+    noisy_truth = truth * scene["noise_factor"][:, mask]
+    result = {
+        "raw": float(np.median(np.abs(raw / noisy_truth - 1))),
+        "noise_free": float(np.median(np.abs(corrected[:, mask] / truth - 1))),
+        "brdf": float(np.median(np.abs(corrected[:, mask] / noisy_truth - 1))),
+        "after": 0.0, "truth": 0.0, "residual": 0.0,
+    }
+    for class_id in ids:
+        after, truth = east_west(corrected, classes == class_id), east_west(scene["truth"], classes == class_id)
+        if np.all(np.isnan(after)):
+            continue  # a class missing from one third has no east/west difference
+        for key, values in (("after", after), ("truth", truth), ("residual", after - truth)):
+            result[key] = max(result[key], float(np.max(np.abs(values))))
+    return result
+
+
+def gradient_table(scene: dict, corrected: np.ndarray, classes: np.ndarray, names: dict[int, str]) -> None:
+    """Per class: pixels; east/west before, after and of the truth at 860 nm; the worst band's
+    |after| and |after - truth|."""
+    raw = np.asarray(scene["image"].values)
+    nir = int(np.argmin(np.abs(scene["image"]["wavelength"].values - 860.0)))
+    print(f"  {'class':28s} {'pixels':>7s} | E/W at 860 nm: {'before':>8s} {'after':>7s} {'truth':>7s} "
+          f"| worst band: {'|after|':>7s} {'|after-truth|':>13s}")
+    for class_id, name in names.items():
+        mask = classes == class_id
+        before, after, truth = (east_west(cube, mask) for cube in (raw, corrected, scene["truth"]))
+        print(f"  {name:28s} {int(mask.sum()):7d} | {'':14s} {before[nir]:+8.2%} {after[nir]:+7.2%} "
+              f"{truth[nir]:+7.2%} | {'':11s} {np.max(np.abs(after)):7.2%} {np.max(np.abs(after - truth)):13.2%}")
+
+
+def report(values: dict[str, float], error_goal: float, gradient_goal: float, noise: float, what: str) -> None:
+    verdict = lambda ok: "met" if ok else "MISSED"  # noqa: E731
+    print(f"  median |error|: uncorrected {values['raw']:.2%}; corrected {values['brdf']:.3%} "
+          f"(goal <= {error_goal:.1%}: {verdict(values['brdf'] <= error_goal)}); against the noise-free truth "
+          f"{values['noise_free']:.2%} (noise floor {0.6745 * noise:.2%})")
+    print(f"  worst {what} east/west after {values['after']:.2%} (goal <= {gradient_goal:.1%}: "
+          f"{verdict(values['after'] <= gradient_goal)}); the truth's own {values['truth']:.2%}; "
+          f"residual after - truth {values['residual']:.2%}")
+
+
+def best_of(repeat: int, function, *args, **kwargs):
+    """(value of the fastest call, its wall time) over ``repeat`` calls: the machine is shared."""
+    best, value = math.inf, None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = function(*args, **kwargs)
+        elapsed = time.perf_counter() - start
+        if elapsed < best:
+            best, value = elapsed, result
+    return value, best
+
+
+# ------------------------------------------------------------------------------------ the runs
+def workflow_a(scene: dict):
+    """NDVI strata -> fit -> correct; (strata, fit result, corrected, seconds per phase)."""
+    phases, start = {}, time.perf_counter()
+    strata = ndvi_strata(scene["image"], percentiles=PERCENTILES).classes
+    phases["strata"], start = time.perf_counter() - start, time.perf_counter()
+    result = fit(scene, strata, model="ross_thick_li_sparse")
+    phases["fit"], start = time.perf_counter() - start, time.perf_counter()
+    corrected = correct(scene, strata, result.table)
+    phases["correct"] = time.perf_counter() - start
+    return strata, result, corrected, phases
+
+
+def phase_line(elapsed: float, phases: dict[str, float], baseline: float) -> str:
+    parts = ", ".join(f"{name} {seconds:.2f} s ({seconds / baseline:.0f}x)" for name, seconds in phases.items())
+    return (f"  {' + '.join(phases)}: {elapsed:.2f} s (goal < 6 s at 400 x 600 x 60), {elapsed / baseline:.0f}x "
+            f"one cube * factor pass; {parts}")
+
+
+def run_vegetation_soil(args, baseline: float) -> None:
+    scene = scene_vegetation_soil(args.rows, args.columns, args.bands, args.noise)
+    print(f"\nA. vegetation/soil mixture, {args.bands} bands x {args.rows} x {args.columns}, "
+          f"noise {args.noise:.1%}: NDVI percentile strata {PERCENTILES} + ross_thick_li_sparse")
+    (strata, result, corrected, phases), elapsed = best_of(args.repeat, workflow_a, scene)
+    classes = np.asarray(strata.values)
+    names = {}
+    for entry in result.fits:
+        low, high = np.percentile(scene["fraction"][classes == entry.class_id], [5, 95])
+        names[entry.class_id] = f"stratum {entry.class_id} (v {low:.2f}-{high:.2f})"
+    gradient_table(scene, corrected, classes, names)
+    report(scores(scene, corrected, classes, names), 0.007, 0.002, args.noise, "stratum")
+    print(phase_line(elapsed, phases, baseline))
+    if args.diagnose:
+        diagnose(args, scene, classes)
+
+
+def mean_mixture_table(scene: dict, classes: np.ndarray) -> ParameterTable:
+    """One RTLSR per class with the class's mean true weights ``mean(v) w_veg + mean(1 - v) w_soil``:
+    the best a single model per stratum can do, without a fit."""
+    wavelengths = scene["image"]["wavelength"].values.tolist()
+    entries = []
+    for class_id in np.unique(classes[classes > 0]):
+        v = float(scene["fraction"][classes == class_id].mean())
+        params = {k: (v * scene["weights"]["vegetation"][k] + (1 - v) * scene["weights"]["soil"][k]).tolist()
+                  for k in ("f_iso", "f_vol", "f_geo")}
+        entries.append({"id": int(class_id), "name": f"stratum_{class_id}", "model": "ross_thick_li_sparse",
+                        "wavelengths": wavelengths, "params": params})
+    return ParameterTable(classes=entries)
+
+
+def diagnose(args, scene: dict, strata: np.ndarray) -> None:
+    """Scene A: which part of the residual is the NDVI strata, the noise, the scene's structure,
+    the fit and the number of strata."""
+    print("  diagnosis: median error, worst |E/W| after, of the truth, residual after - truth")
+    fraction = scene["fraction"]
+    oracle = np.digitize(fraction, np.percentile(fraction, PERCENTILES)).astype(np.uint8) + 1
+    clean = dict(scene, image=scene["image"].copy(data=scene["clean"].astype(np.float32)),
+                 noise_factor=np.ones_like(scene["noise_factor"]))
+    white = scene_vegetation_soil(args.rows, args.columns, args.bands, args.noise, fraction_sigma=0.0,
+                                  texture_sigma=0.0)
+    white_strata = np.asarray(ndvi_strata(white["image"], percentiles=PERCENTILES).classes.values)
+    finer = ndvi_strata(scene["image"], percentiles=tuple(np.linspace(5, 95, 19))).classes.values
+    layer = class_map(scene, strata)
+    first_pass = scene["image"].copy(data=correct(scene, layer, fit(scene, layer, model="ross_thick_li_sparse").table))
+    second = np.asarray(ndvi_strata(first_pass, percentiles=PERCENTILES).classes.values)
+    cases = [
+        ("as run: NDVI strata, fitted", scene, strata, None),
+        ("strata by the true fraction v instead of NDVI", scene, oracle, None),
+        ("no sensor noise", clean, strata, None),
+        ("no fit: each stratum's mean true weights", scene, strata, mean_mixture_table(scene, strata)),
+        ("spatially white v and texture (no large patches)", white, white_strata, None),
+        ("20 NDVI strata instead of 5", scene, np.asarray(finer), None),
+        ("strata from the NDVI of the first-pass corrected image", scene, second, None),
+    ]
+    for label, case, classes, table in cases:
+        layer = class_map(case, classes)
+        if table is None:
+            table = fit(case, layer, model="ross_thick_li_sparse").table
+        values = scores(case, correct(case, layer, table), classes, np.unique(classes[classes > 0]))
+        print(f"    {label:56s} {values['brdf']:7.3%} {values['after']:7.2%} {values['truth']:7.2%} "
+              f"{values['residual']:7.2%}")
+
+
+def fit_urban(scene: dict, classes: xr.DataArray, n_fixed: float | None):
+    """Per-class models in one fit_classes call, or (``n_fixed``) Torrance-Sparrow with n held
+    fixed, which needs a call of its own (``fixed`` applies to every class of a call)."""
+    if n_fixed is None:
+        return fit(scene, classes, model="ross_thick_li_sparse", names=URBAN_NAMES,
+                   class_models={ROOF: "torrance_sparrow", CONCRETE: "torrance_sparrow"})
+    specular = fit(scene, classes, model="torrance_sparrow", class_ids=[ROOF, CONCRETE], names=URBAN_NAMES,
+                   fixed={"n": n_fixed})
+    kernels = fit(scene, classes, model="ross_thick_li_sparse", class_ids=[GRASS, SOIL], names=URBAN_NAMES)
+    return specular.fits + kernels.fits, ParameterTable(classes=[*specular.table.classes, *kernels.table.classes])
+
+
+def workflow_b(scene: dict, classes: xr.DataArray, n_fixed: float | None = None):
+    """Fit -> correct; (fits, corrected, seconds per phase)."""
+    start = time.perf_counter()
+    fitted = fit_urban(scene, classes, n_fixed)
+    fits, table = (fitted.fits, fitted.table) if n_fixed is None else fitted
+    middle = time.perf_counter()
+    corrected = correct(scene, classes, table)
+    return fits, corrected, {"fit": middle - start, "correct": time.perf_counter() - middle}
+
+
+def run_urban(args, baseline: float) -> None:
+    scene = scene_urban(args.rows, args.columns, args.bands, args.noise)
+    classes = class_map(scene, scene["classes"])
+    truths = {ROOF: load_material("roof_tile").params, CONCRETE: load_material("red_concrete").params}
+    for n_fixed in (None, N_GENERIC):
+        how = "default guard rails" if n_fixed is None else f"TS refractive index n fixed at {n_fixed:g}"
+        print(f"\nB. urban, {args.bands} bands x {args.rows} x {args.columns}, noise {args.noise:.1%}: "
+              f"torrance_sparrow (roof tile, red concrete) + ross_thick_li_sparse (grass, soil); {how}")
+        repeat = args.repeat if n_fixed is None else 1  # timed: the one-call workflow of the issue
+        (fits, corrected, phases), elapsed = best_of(repeat, workflow_b, scene, classes, n_fixed)
+        for entry in fits:
+            shape = ", ".join(f"{k} {entry.params[k][0]:.3g} (truth {truths[entry.class_id][k]:g})"
+                              for k in ("w", "n") if k in entry.params)
+            shape = f"; {shape}" if shape else ""
+            print(f"  fit {entry.name}: {entry.status}, median R^2 {entry.median_r2:.2f}{shape}")
+        gradient_table(scene, corrected, scene["classes"], URBAN_NAMES)
+        report(scores(scene, corrected, scene["classes"], URBAN_NAMES), 0.01, 0.01, args.noise, "class")
+        if n_fixed is None:
+            print(phase_line(elapsed, phases, baseline))
+
+
+def cube_pass(rows: int, columns: int, bands: int) -> float:
+    """Best of 3: ``cube * factor`` (float32), one read and one write of the whole cube."""
+    rng = np.random.default_rng(0)
+    cube = rng.uniform(0.01, 0.5, (bands, rows, columns)).astype(np.float32)
+    factor = rng.uniform(0.8, 1.2, (rows, columns)).astype(np.float32)
+    return best_of(3, np.multiply, cube, factor)[1]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rows", type=int, default=400)
+    parser.add_argument("--columns", type=int, default=600)
+    parser.add_argument("--bands", type=int, default=60)
+    parser.add_argument("--noise", type=float, default=0.01, help="relative sensor noise (1 sigma)")
+    parser.add_argument("--small", action="store_true", help="120 x 180 x 20: a quick check")
+    parser.add_argument("--diagnose", action="store_true", help="scene A: error sources")
+    parser.add_argument("--repeat", type=int, default=2, help="timed runs, best kept (the machine is shared)")
+    args = parser.parse_args()
+    if args.small:
+        args.rows, args.columns, args.bands = 120, 180, 20
+    baseline = cube_pass(args.rows, args.columns, args.bands)
+    print(f"baseline: cube * factor over {args.bands} x {args.rows} x {args.columns} float32: {baseline * 1e3:.1f} ms")
+    run_vegetation_soil(args, baseline)
+    run_urban(args, baseline)
+
+
+if __name__ == "__main__":
+    main()

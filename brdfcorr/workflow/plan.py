@@ -1,0 +1,346 @@
+"""What a chain run will do: its scenes, their files, and what happens to each (:func:`plan_run`).
+
+A plan expands a :class:`~brdfcorr.workflow.config.ChainConfig` into scenes (image, angle source,
+class map and output names for every input image) and decides each scene's action:
+
+``run``   the scene is corrected;
+``skip``  its complete outputs exist (``outputs.existing: skip``) and were made with the parameter
+          table of this run;
+``fail``  an input is missing, or its outputs exist under ``outputs.existing: error``.
+
+The plan is the one place that decides: ``brdfcorr run --dry-run`` shows it and
+:func:`brdfcorr.workflow.chain.run_chain` follows it, so both say the same about every scene.
+Outputs appear complete or not at all, so a scene whose outputs all exist is complete; it is still
+redone when its corrected image records (provenance tag ``brdf_parameter_table_content``) another
+parameter table than the one this run will use (:func:`planned_table`). When the fit step makes a
+new table, that table is not known before the run, and such scenes are redone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import rasterio
+import rasterio.errors
+
+from brdfcorr.errors import InputError
+from brdfcorr.models.materials import load_material
+from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
+from brdfcorr.workflow.config import ChainConfig, format_pattern
+
+__all__ = ["Scene", "RunPlan", "plan_run", "configured_table", "reuses_fit", "planned_table"]
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One input image and everything the chain reads and writes for it.
+
+    Attributes
+    ----------
+    name : str
+        Scene name (``{scene}`` in patterns).
+    image, classes : Path
+        Reflectance image and class map.
+    angles_kind : str
+        Angle source kind (``geotiff``, ``envi_obs``, ...).
+    angles : str
+        The angle source: a path, or for ``solar`` the acquisition time.
+    angle_options : dict
+        Options of the angle reader.
+    outputs : dict of str to Path
+        ``corrected`` and, when enabled, ``qa`` and ``quicklook``.
+    action : {"run", "skip", "fail"}
+        What the run will do; ``reason`` says why for ``skip`` and ``fail`` (and for ``run`` when
+        existing outputs are redone).
+    """
+
+    name: str
+    image: Path
+    classes: Path
+    angles_kind: str
+    angles: str
+    angle_options: dict
+    outputs: dict
+    action: str = "run"
+    reason: str = ""
+
+    def describe(self) -> dict:
+        """JSON-friendly description (for the report and ``--dry-run``)."""
+        return {
+            "scene": self.name,
+            "image": str(self.image),
+            "angles": {"kind": self.angles_kind, "source": self.angles, **(
+                {"options": self.angle_options} if self.angle_options else {})},
+            "classes": str(self.classes),
+            "outputs": {key: str(value) for key, value in self.outputs.items()},
+            "action": self.action,
+            **({"reason": self.reason} if self.reason else {}),
+        }
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What a chain run will do: its scenes, files and steps (:func:`plan_run`)."""
+
+    config: ChainConfig
+    scenes: tuple[Scene, ...]
+    output_dir: Path
+    report: Path
+    fit_output: Path | None
+    table_sources: tuple[str, ...]
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def steps(self) -> list[str]:
+        steps = self.config.steps
+        return [name for name in ("fit", "correct", "quicklook") if getattr(steps, name) is not None]
+
+    def describe(self) -> dict:
+        """JSON-friendly summary: steps, parameter sources, engine, scenes and their actions."""
+        engine = self.config.engine
+        return {
+            "config": self.config.source,
+            "steps": self.steps,
+            "parameters": list(self.table_sources),
+            "reference": None if self.config.reference is None else self.config.reference.model_dump(),
+            "engine": engine.model_dump(),
+            "output_directory": str(self.output_dir),
+            "report": str(self.report),
+            "scenes": [scene.describe() for scene in self.scenes],
+            "warnings": list(self.warnings),
+        }
+
+
+def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
+    """Expand a config into scenes and decide what happens to each; checks the parameter sources.
+
+    Parameters
+    ----------
+    config : ChainConfig
+    require_inputs : bool, default True
+        Missing input images, parameter table or measurement files are errors; with False (to
+        check a config before its data exist) they are listed in ``RunPlan.warnings``.
+
+    Raises
+    ------
+    InputError
+        No input image, or (with ``require_inputs``) an ``inputs.images`` glob matching no file;
+        two scenes with the same output name; an output that would overwrite an input; a missing
+        parameter table or measurement file.
+    ParameterError
+        An invalid parameter table file (or fitted table reused by ``outputs.existing: skip``).
+    """
+    images, notes = _images(config, require_inputs)
+    output_dir = config.resolve(config.outputs.directory).resolve()
+    scenes = _plan_scenes(config, images, output_dir)
+    sources, fit_output, parameter_notes = _parameter_sources(config, output_dir, require_inputs)
+    report = output_dir / config.outputs.report
+    _refuse_overwriting_inputs(config, scenes, {"outputs.report": report, "steps.fit.output": fit_output})
+    scenes = _redo_stale(config, scenes, fit_output)
+    return RunPlan(config, tuple(scenes), output_dir, report, fit_output, tuple(sources),
+                   tuple(notes + parameter_notes))
+
+
+# ---------------------------------------------------------------------------------------- scenes
+def _images(config: ChainConfig, require_inputs: bool) -> tuple[list[Path], list[str]]:
+    """The input images (globs expanded, duplicates dropped) and notes on patterns matching nothing."""
+    images, notes = [], []
+    for item in config.inputs.images:
+        pattern = str(config.resolve(item))
+        if glob.has_magic(pattern):
+            matches = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file())
+            if not matches:
+                notes.append(f"inputs.images: {item!r} matches no file")
+            images += matches
+        else:
+            images.append(Path(pattern))
+    images = list(dict.fromkeys(path.resolve() for path in images))
+    if not images:
+        message = f"inputs.images matches no file ({', '.join(config.inputs.images)})"
+        if require_inputs:
+            raise InputError(f"{config.source}: {message}")
+        notes = [message]
+    elif notes and require_inputs:  # a pattern that matches nothing is a typo, not an empty batch
+        raise InputError(f"{config.source}: {'; '.join(notes)} (fix or remove the pattern)")
+    return images, notes
+
+
+def _scene_name(config: ChainConfig, image: Path, shared_stems=frozenset()) -> str:
+    regex = config.inputs.scene_regex
+    if regex is None:  # the stem, qualified by the directory when several images share it
+        return f"{image.parent.name}_{image.stem}" if image.stem in shared_stems else image.stem
+    match = re.search(regex, image.name)
+    if match is None or not match.group("scene"):
+        raise InputError(f"inputs.scene_regex {regex!r} does not match image file name {image.name!r}")
+    return match.group("scene")
+
+
+def _plan_scenes(config: ChainConfig, images: list[Path], output_dir: Path) -> list[Scene]:
+    """One scene per image; no two scenes may write the same file, no output may be an input."""
+    stems = [image.stem for image in images]
+    shared = frozenset(stem for stem in stems if stems.count(stem) > 1)
+    scenes, writers = [], {}
+    for image in images:
+        scene = _plan_scene(config, image, shared, output_dir)
+        for key, path in scene.outputs.items():
+            if path in writers:
+                raise InputError(
+                    f"outputs: scenes {writers[path]} and {scene.name} would both write {path}; use {{scene}} or "
+                    "{stem} in the output naming patterns, or a scene_regex giving distinct names"
+                )
+            if path in (scene.image, scene.classes) or (scene.angles_kind != "solar" and str(path) == scene.angles):
+                raise InputError(f"outputs: {key} output {path} of scene {scene.name} would overwrite an input")
+            writers[path] = scene.name
+        scenes.append(scene)
+    return scenes
+
+
+def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, output_dir: Path) -> Scene:
+    angles = config.inputs.angles
+    try:
+        name = _scene_name(config, image, shared_stems)
+    except InputError as error:
+        return Scene(image.stem, image, Path(), angles.kind, "", {}, {}, "fail", str(error))
+
+    def fill(pattern: str) -> str:
+        return format_pattern(pattern, image, name)
+
+    classes = config.resolve(fill(config.inputs.classes)).resolve()
+    angle_source = fill(angles.path)
+    if angles.kind != "solar":  # the solar source is a time, not a file
+        angle_source = str(config.resolve(angle_source).resolve())
+    outputs = _output_paths(config, output_dir, fill)
+    action, reason = _action(config, image, classes, angle_source, outputs)
+    return Scene(name, image, classes, angles.kind, angle_source, dict(angles.options), outputs, action, reason)
+
+
+def _output_paths(config: ChainConfig, output_dir: Path, fill) -> dict[str, Path]:
+    naming, steps, outputs = config.outputs, config.steps, {}
+    if steps.correct is not None:
+        outputs["corrected"] = output_dir / fill(naming.naming)
+        if steps.correct.qa:
+            outputs["qa"] = output_dir / fill(naming.qa_naming)
+    if steps.quicklook is not None:
+        outputs["quicklook"] = output_dir / fill(naming.quicklook_naming)
+    return outputs
+
+
+def _action(config: ChainConfig, image: Path, classes: Path, angle_source: str,
+            outputs: dict[str, Path]) -> tuple[str, str]:
+    """(action, reason) from the files alone; :func:`_redo_stale` then checks the skipped scenes."""
+    missing = [f"{role} {path}" for role, path in (("image", image), ("class map", classes)) if not path.exists()]
+    if config.inputs.angles.kind != "solar" and not Path(angle_source).exists():
+        missing.append(f"angles {angle_source}")
+    if missing:
+        return "fail", "missing input: " + ", ".join(missing)
+    existing = config.outputs.existing
+    if outputs and all(path.exists() for path in outputs.values()):
+        if existing == "skip":
+            return "skip", "complete outputs exist"
+        if existing == "error":
+            return "fail", "outputs exist (outputs.existing: error)"
+    return "run", ""
+
+
+# ------------------------------------------------------------------------------------ parameters
+def _parameter_sources(config: ChainConfig, output_dir: Path,
+                       require_inputs: bool) -> tuple[list[str], Path | None, list[str]]:
+    """(the parameter sources in words, the fit step's output, notes on missing files)."""
+    sources = [f"material {material} as class {class_id}" for class_id, material in config.parameters.materials.items()]
+    sources += [f"inline {entry.label}" for entry in config.parameters.classes]
+    notes = []
+    if config.parameters.table is not None:
+        table_path = config.resolve(config.parameters.table)
+        if table_path.exists() or require_inputs:
+            ParameterTable.load(table_path)  # fail now on a missing or invalid table
+        else:
+            notes.append(f"parameters.table: {table_path} does not exist")
+        sources.append(f"table {table_path}")
+    step = config.steps.fit
+    if step is None:
+        return sources, None, notes
+    fit_output = output_dir / step.output
+    if step.source == "goniometer":
+        for item in step.measurements:
+            path = config.resolve(item.file)
+            if not path.exists():
+                if require_inputs:
+                    raise InputError(f"steps.fit.measurements: file {path} does not exist")
+                notes.append(f"steps.fit.measurements: {path} does not exist")
+        sources.append(f"fit from goniometer measurements -> {fit_output}")
+    else:
+        sources.append(f"fit from the imagery of the run's scenes -> {fit_output}")
+    return sources, fit_output, notes
+
+
+def _refuse_overwriting_inputs(config: ChainConfig, scenes: list[Scene], outputs: dict[str, Path | None]) -> None:
+    inputs = {scene.image for scene in scenes} | {scene.classes for scene in scenes}
+    if config.parameters.table is not None:
+        inputs.add(config.resolve(config.parameters.table).resolve())
+    for key, path in outputs.items():
+        if path is not None and path.resolve() in inputs:
+            raise InputError(f"{config.source}: {key} {path} would overwrite an input")
+
+
+def configured_table(config: ChainConfig) -> ParameterTable:
+    """The parameters given in the config: built-in materials, inline classes, the table file
+    (later wins for a class id)."""
+    entries = []
+    for class_id, name in sorted(config.parameters.materials.items()):
+        material = load_material(name)
+        entries.append(ClassEntry(id=class_id, name=material.name, model=material.model.name,
+                                  params=dict(material.params)))
+    tables = [ParameterTable(classes=entries), ParameterTable(classes=list(config.parameters.classes))]
+    if config.parameters.table is not None:
+        tables.append(ParameterTable.load(config.resolve(config.parameters.table)))
+    return merge_tables(tables)
+
+
+def reuses_fit(config: ChainConfig, fit_output: Path | None) -> bool:
+    """Whether the run reuses the fitted table of an earlier run (resume) instead of fitting."""
+    return fit_output is not None and config.outputs.existing == "skip" and fit_output.exists()
+
+
+def planned_table(config: ChainConfig, fit_output: Path | None) -> ParameterTable | None:
+    """The parameter table the run will use, as known before it runs: the configured table and a
+    reused fitted table; None when the fit step makes a new table."""
+    if config.steps.fit is None:
+        return configured_table(config)
+    if not reuses_fit(config, fit_output):
+        return None
+    return merge_tables([configured_table(config), ParameterTable.load(fit_output)])
+
+
+def _redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | None) -> list[Scene]:
+    """The scenes, with skipped ones turned to ``run`` when their outputs were not made with the
+    run's parameter table."""
+    if not any(scene.action == "skip" and "corrected" in scene.outputs for scene in scenes):
+        return scenes
+    table_file = config.parameters.table
+    if table_file is not None and not config.resolve(table_file).exists():
+        return scenes  # without require_inputs only: the run stops before any scene (a plan warning)
+    table = planned_table(config, fit_output)
+    return [_unless_stale(scene, table) for scene in scenes]
+
+
+def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
+    """The scene, turned from ``skip`` to ``run`` if its corrected output was written with another
+    parameter table than ``table`` (provenance tag ``brdf_parameter_table_content`` of
+    :func:`brdfcorr.workflow.tasks.correct_files`), or ``table`` is not known before the run."""
+    if scene.action != "skip" or "corrected" not in scene.outputs:
+        return scene
+    if table is None:
+        return dataclasses.replace(scene, action="run", reason="the fit step makes a new parameter table")
+    try:
+        with rasterio.open(scene.outputs["corrected"]) as dataset:
+            written = json.loads(dataset.tags().get("brdf_parameter_table_content", "null"))
+    except (rasterio.errors.RasterioError, ValueError):
+        written = None
+    if written == json.loads(json.dumps(table.to_dict())):
+        return scene
+    return dataclasses.replace(scene, action="run", reason="outputs were made with another parameter table")

@@ -1,0 +1,177 @@
+"""The run report of a chain run: one result record per scene, the report document, its JSON file.
+
+Every scene's result is made by :func:`scene_result` (corrected, failed, skipped, or lost with its
+worker): a dict, as it goes to the progress callback and into the report's ``scenes``.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import dask
+import numpy as np
+import rasterio
+import rioxarray
+import xarray
+
+from brdfcorr import __version__
+from brdfcorr.errors import BrdfcorrError
+from brdfcorr.io.files import atomic_path
+from brdfcorr.params import ParameterTable
+from brdfcorr.workflow.plan import RunPlan, Scene
+
+__all__ = ["RunReport", "scene_result", "earlier_findings", "versions"]
+
+
+def scene_result(scene: Scene, status: str, *, reason: str = "", found: Mapping | None = None,
+                 error: BaseException | None = None, worker_failed: bool = False,
+                 seconds: dict | None = None) -> dict:
+    """The result record of one scene.
+
+    Parameters
+    ----------
+    scene : Scene
+    status : {"ok", "failed", "skipped"}
+    reason : str, optional
+        Why a scene was skipped.
+    found : mapping, optional
+        What the correction found: ``reference`` (the geometry used) and ``qa`` (pixel counts of
+        :func:`brdfcorr.correct.qa_counts`).
+    error : exception, optional
+        Why the scene failed: ``error`` (the message, after the error type unless it is a
+        :class:`~brdfcorr.errors.BrdfcorrError` of the scene) and ``error_type``.
+    worker_failed : bool, default False
+        The error is the worker's (a crash, memory, a lost connection), not the scene's.
+    seconds : dict, optional
+        Time per step [s] and ``total``.
+
+    Returns
+    -------
+    dict
+        ``scene``, ``image``, ``status``, ``reason`` (if given), ``outputs``, the ``found`` items,
+        ``error`` and ``error_type`` (on failure), ``seconds`` (if given).
+    """
+    result = {"scene": scene.name, "image": str(scene.image), "status": status}
+    if reason:
+        result["reason"] = reason
+    result["outputs"] = {key: str(path) for key, path in scene.outputs.items()}
+    result.update(found or {})
+    if error is not None:
+        message = f"{type(error).__name__}: {error}"
+        if worker_failed:
+            message = f"worker failed: {message}"
+        elif isinstance(error, BrdfcorrError):  # its message names the file and the key
+            message = str(error)
+        result["error"] = message
+        result["error_type"] = type(error).__name__
+    if seconds is not None:
+        result["seconds"] = seconds
+    return result
+
+
+def earlier_findings(report: Path) -> dict[str, dict]:
+    """What an earlier run found for its completed scenes (``reference``, ``qa``), by image, from
+    its report at ``report`` (empty if there is none or it is unreadable)."""
+    try:
+        scenes = json.loads(report.read_text())["scenes"]
+        return {
+            result["image"]: {key: result[key] for key in ("reference", "qa") if key in result}
+            for result in scenes if result.get("status") in ("ok", "skipped")
+        }
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+
+
+@dataclass
+class RunReport:
+    """The outcome of :func:`~brdfcorr.workflow.chain.run_chain`; :meth:`to_dict` is what the
+    report file holds."""
+
+    plan: RunPlan
+    table: ParameterTable | None
+    scenes: list[dict] = field(default_factory=list)
+    fit: dict | None = None
+    timings: dict = field(default_factory=dict)
+    started: str = ""
+    path: Path | None = None
+
+    @property
+    def n_failed(self) -> int:
+        return sum(result["status"] == "failed" for result in self.scenes)
+
+    @property
+    def n_ok(self) -> int:
+        return sum(result["status"] == "ok" for result in self.scenes)
+
+    @property
+    def n_skipped(self) -> int:
+        return sum(result["status"] == "skipped" for result in self.scenes)
+
+    @property
+    def ok(self) -> bool:
+        """True when no scene failed."""
+        return self.n_failed == 0
+
+    def to_dict(self) -> dict:
+        config = self.plan.config
+        return {
+            "brdfcorr_run": {
+                "name": config.name,
+                "config": config.source,
+                "config_content": config.to_dict(),
+                "started": self.started,
+                "steps": self.plan.steps,
+            },
+            "versions": versions(config.engine.scheduler == "distributed"),
+            "engine": config.engine.model_dump(),
+            "inputs": [
+                {key: value for key, value in scene.describe().items() if key not in ("action", "reason")}
+                for scene in self.plan.scenes
+            ],
+            "parameters": {
+                "sources": list(self.plan.table_sources),
+                "table": None if self.table is None else self.table.to_dict(),
+            },
+            "reference": None if config.reference is None else config.reference.model_dump(),
+            "fit": self.fit,
+            "scenes": self.scenes,
+            "summary": {
+                "scenes": len(self.scenes), "ok": self.n_ok, "skipped": self.n_skipped,
+                "failed": self.n_failed,
+            },
+            "timings": self.timings,
+        }
+
+    def write(self, path: Path) -> None:
+        """Write the report (JSON) to ``path``, atomically; sets :attr:`path`."""
+        with atomic_path(path) as temporary:
+            temporary.write_text(json.dumps(self.to_dict(), indent=2, default=_json_default))
+        self.path = path
+
+
+def versions(distributed: bool = False) -> dict[str, str]:
+    """Versions of brdfcorr and the libraries a run depends on."""
+    found = {
+        "brdfcorr": __version__, "python": platform.python_version(), "numpy": np.__version__,
+        "xarray": xarray.__version__, "dask": dask.__version__, "rasterio": rasterio.__version__,
+        "gdal": rasterio.__gdal_version__, "rioxarray": rioxarray.__version__,
+    }
+    if distributed:
+        import distributed as dist  # an optional dependency (the distributed engine only)
+
+        found["distributed"] = dist.__version__
+    return found
+
+
+def _json_default(value):
+    if isinstance(value, (np.integer, np.floating)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serializable")
