@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import argparse
 
-from brdfcorr.models.materials import load_material
 from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+from brdfcorr.models.materials import load_material
 
 
 def main(argv=None) -> None:
