@@ -8,17 +8,9 @@ enumerations and unknown keys, the allowed values::
     chain.yaml: outputs.compres: unknown key; allowed keys: directory, naming, ...
 
 Relative paths and patterns in a config are relative to the directory of the config file. Per-scene
-sources (angles, class map) are *name patterns* formatted for every input image with
-
-``{dir}``    the image's directory
-``{parent}`` the name of the image's directory (``scenes/line01/image.tif`` -> ``line01``)
-``{stem}``   the image's file name without its suffix (``line01_image``)
-``{scene}``  the scene name: the ``scene`` group of ``inputs.scene_regex`` matched on the file
-             name (with ``scene_regex: '(?P<scene>.+)_image'``, ``line01``); without a regex the
-             stem, or ``{parent}_{stem}`` when several images share the stem
-
-Output names are patterns with ``{scene}``, ``{stem}`` and ``{parent}``. A commented example of every key is in
-``configs/`` (``configs/demo.yaml`` is the chain ``brdfcorr demo`` runs).
+sources (angles, class map) and outputs are *name patterns* (:mod:`brdfcorr.workflow.patterns`).
+A commented example of every key is in ``configs/`` (``configs/demo.yaml`` is the chain
+``brdfcorr demo`` runs).
 
 Example
 -------
@@ -58,6 +50,7 @@ from brdfcorr.io.sensors import ANGLE_KINDS
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ReferenceGeometry
+from brdfcorr.workflow.patterns import PATTERN_FIELDS, check_pattern, format_pattern
 
 __all__ = [
     "ChainConfig",
@@ -79,32 +72,12 @@ __all__ = [
     "PATTERN_FIELDS",
 ]
 
-#: Placeholders of per-scene name patterns.
-PATTERN_FIELDS = ("dir", "parent", "stem", "scene")
-
 #: A surface model of the registry (its names are the allowed values).
 SurfaceModel = Literal[SURFACE_MODELS]  # type: ignore[valid-type]
 
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-def _check_pattern(value: str, allowed=PATTERN_FIELDS) -> str:
-    """A str.format pattern using only the allowed placeholders."""
-    names = re.findall(r"(?<!\{)\{([^{}]*)\}", value)
-    bad = [name for name in names if name not in allowed]
-    if bad:
-        raise ValueError(
-            f"pattern {value!r} uses {{{bad[0]}}}; allowed placeholders: "
-            + ", ".join(f"{{{name}}}" for name in allowed)
-        )
-    return value
-
-
-def format_pattern(pattern: str, image: Path, scene: str) -> str:
-    """Fill a name pattern for one image (``{dir}``, ``{parent}``, ``{stem}``, ``{scene}``)."""
-    return pattern.format(dir=str(image.parent), parent=image.parent.name, stem=image.stem, scene=scene)
 
 
 #: ``geotiff`` or a sensor product kind of :data:`brdfcorr.io.sensors.ANGLE_KINDS`.
@@ -134,7 +107,7 @@ class AngleSource(_Strict):
     @field_validator("path")
     @classmethod
     def _pattern(cls, value: str) -> str:
-        return _check_pattern(value)
+        return check_pattern(value)
 
     @model_validator(mode="after")
     def _options_for_kind(self) -> AngleSource:
@@ -198,7 +171,7 @@ class InputsConfig(_Strict):
     @field_validator("classes")
     @classmethod
     def _pattern(cls, value: str) -> str:
-        return _check_pattern(value)
+        return check_pattern(value)
 
 
 class MeasurementSet(_Strict):
@@ -428,7 +401,7 @@ class OutputsConfig(_Strict):
     @field_validator("naming", "qa_naming", "quicklook_naming")
     @classmethod
     def _names(cls, value: str) -> str:
-        _check_pattern(value, ("parent", "stem", "scene"))
+        check_pattern(value, ("parent", "stem", "scene"))
         if "/" in value or "\\" in value:
             raise ValueError(f"{value!r} must be a file name (no directory part)")
         if "{" not in value:
