@@ -44,3 +44,11 @@ def test_every_readme_command_runs(tmp_path):
             timeout=300,
         )
         assert result.returncode == 0, f"{command}\n{result.stdout}\n{result.stderr}"
+
+
+def test_every_python_example_runs():
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    blocks = [block for page in pages for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S)]
+    assert blocks
+    for block in blocks:
+        exec(compile(block, "<docs>", "exec"), {})

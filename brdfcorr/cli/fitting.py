@@ -113,6 +113,7 @@ def _class_row(fit) -> dict[str, str]:
         "class": f"{fit.class_id} {fit.name}", "model": fit.model, "status": fit.status,
         "N": str(fit.n_samples), "vza spread": f"{fit.vza_spread:.1f}",
         "median R2": "-" if summary["median_r2"] is None else f"{summary['median_r2']:.3f}",
+        "angular R2": "-" if summary["median_angular_r2"] is None else f"{summary['median_angular_r2']:.3f}",
         "shape": ", ".join(
             f"{k}={v[0]:.4g}±{fit.errors[k][0]:.2g}" for k, v in fit.params.items()
             if k not in linear and fit.errors[k][0] > 0

@@ -15,6 +15,7 @@ from brdfcorr.models.kernels import (
     ross_thick,
     ross_thin,
 )
+from brdfcorr.models.materials import Material, load_material, material_names
 from brdfcorr.models.registry import REGISTRY, SURFACE_MODELS, get_model, parameter_table_rows
 from brdfcorr.models.rpv import rpv
 from brdfcorr.models.torrance_sparrow import (
@@ -46,4 +47,7 @@ __all__ = [
     "VOLUME_KERNELS",
     "GEOMETRIC_KERNELS",
     "rpv",
+    "Material",
+    "load_material",
+    "material_names",
 ]

@@ -18,7 +18,8 @@ from importlib.resources import files
 import yaml
 
 from brdfcorr.errors import UnknownNameError
-from brdfcorr.models import Model, get_model
+from brdfcorr.models._base import Model
+from brdfcorr.models.registry import get_model
 
 __all__ = ["Material", "load_material", "material_names"]
 
