@@ -1,3 +1,11 @@
-"""Whole tasks on files: chain configs (:mod:`~brdfcorr.workflow.config`), chain runs
-(:mod:`~brdfcorr.workflow.chain`), the file-level correction and fits that the CLI and chains share
-(:mod:`~brdfcorr.workflow.tasks`), and the demo (:mod:`~brdfcorr.workflow.demo`)."""
+"""Whole tasks on files, shared by the CLI and chains.
+
+- :mod:`~brdfcorr.workflow.tasks`: correct an image file, fit a goniometer table, fit classes from
+  scenes (one library function per task);
+- :mod:`~brdfcorr.workflow.classmaps`: NDVI strata and land-cover maps as class-map files;
+- :mod:`~brdfcorr.workflow.config`, :mod:`~brdfcorr.workflow.patterns`: chain configs and their
+  per-scene name patterns;
+- :mod:`~brdfcorr.workflow.plan`, :mod:`~brdfcorr.workflow.chain`,
+  :mod:`~brdfcorr.workflow.report`: plan, run and report a chain;
+- :mod:`~brdfcorr.workflow.demo`: the demo scene and its run.
+"""
