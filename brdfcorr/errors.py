@@ -54,3 +54,8 @@ class SensorInputError(InputError):
 
 class FitError(BrdfcorrError, RuntimeError):
     """A model fit could not be carried out (no free parameters, no start converged)."""
+
+
+class BrdfcorrWarning(UserWarning):
+    """Root of the warnings brdfcorr issues on purpose (fit diagnostics, guard rails, the papers'
+    caveats). The CLI shows these and hides third-party warnings unless ``--debug``."""

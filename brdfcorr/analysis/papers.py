@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate, optimize
 
-from brdfcorr.errors import ParameterError
+from brdfcorr.errors import BrdfcorrWarning, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model, get_model
 from brdfcorr.models.torrance_sparrow import _fresnel
@@ -48,11 +48,11 @@ __all__ = [
 ]
 
 
-class SimplifiedModelWarning(UserWarning):
+class SimplifiedModelWarning(BrdfcorrWarning):
     """The simplified TS model (G = 1) was used where paper 003 says it must not be (albedo)."""
 
 
-class IntegrationAccuracyWarning(UserWarning):
+class IntegrationAccuracyWarning(BrdfcorrWarning):
     """A numerical integral did not converge to the requested tolerance."""
 
 

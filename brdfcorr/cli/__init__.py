@@ -13,9 +13,10 @@ from brdfcorr.cli._base import (
     EXIT_BAD_INPUT,
     EXIT_CODES,
     EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
     EXIT_SCENES_FAILED,
     handle_errors,
     main,
 )
 
-__all__ = ["main", "handle_errors", "EXIT_CODES", "EXIT_BAD_INPUT", "EXIT_INTERNAL", "EXIT_SCENES_FAILED"]
+__all__ = ["main", "handle_errors", "EXIT_CODES", "EXIT_BAD_INPUT", "EXIT_INTERNAL", "EXIT_SCENES_FAILED", "EXIT_INTERRUPTED"]

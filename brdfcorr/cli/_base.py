@@ -12,13 +12,14 @@ from __future__ import annotations
 import functools
 import sys
 import traceback
+import warnings
 from pathlib import Path
 
 import click
 import click.shell_completion
 
 from brdfcorr import __version__
-from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError
+from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, ParameterError, UnknownNameError
 from brdfcorr.io.files import atomic_path, parse_yaml
 from brdfcorr.io.sensors import ANGLE_KINDS as SENSOR_ANGLE_KINDS
 from brdfcorr.models import SURFACE_MODELS, get_model
@@ -67,9 +68,12 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 1
 #: Exit code of `brdfcorr run` when the run finished but some scenes failed (see the report).
 EXIT_SCENES_FAILED = 3
+#: Exit code after Ctrl-C (128 + SIGINT, as shells report it).
+EXIT_INTERRUPTED = 130
 EXIT_CODES = {0: "success", EXIT_INTERNAL: "internal error (a bug; --debug shows the traceback)",
               EXIT_BAD_INPUT: "bad input, config, parameter or option, or an output that cannot be written",
-              EXIT_SCENES_FAILED: "run: the run finished but some scenes failed (see the report)"}
+              EXIT_SCENES_FAILED: "run: the run finished but some scenes failed (see the report)",
+              EXIT_INTERRUPTED: "interrupted (Ctrl-C); partial outputs are removed"}
 
 
 def _debug_enabled() -> bool:
@@ -105,7 +109,11 @@ def handle_errors(command):
             hint = f" (see --help of {where})" if where else ""
             click.echo(f"brdfcorr: error: {where + ': ' if where else ''}{error.format_message()}{hint}", err=True)
             sys.exit(error.exit_code)
-        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+        except (KeyboardInterrupt, click.exceptions.Abort):
+            # Ctrl-C: partial outputs are removed on the way out (atomic_path); 128 + SIGINT.
+            click.echo("brdfcorr: interrupted", err=True)
+            sys.exit(EXIT_INTERRUPTED)
+        except (click.exceptions.ClickException, click.exceptions.Exit):
             raise
         except Exception as error:  # noqa: BLE001 (the one place every failure is turned into an exit code)
             _fail(error)
@@ -117,14 +125,22 @@ class _Group(click.Group):
     """The command group: every command and subgroup runs under :func:`handle_errors`."""
 
     def invoke(self, ctx):
-        return handle_errors(super().invoke)(ctx)
+        # Only brdfcorr's own warnings reach stderr (as "brdfcorr: warning:" lines where a command
+        # shows them); third-party warnings (GDAL's NotGeoreferencedWarning, numpy's overflow
+        # RuntimeWarnings, matplotlib) only with --debug.
+        with warnings.catch_warnings():
+            if not ctx.params.get("debug"):
+                warnings.simplefilter("ignore")
+                warnings.simplefilter("default", BrdfcorrWarning)
+            return handle_errors(super().invoke)(ctx)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]},
              epilog="Exit codes: 0 success; 2 bad input, config, parameter or option, or an output "
                     "that cannot be written (one line on stderr naming the file, key, band or class); "
-                    "1 internal error (a bug; --debug shows the traceback); 3 run: some scenes failed.")
-@click.option("--debug", is_flag=True, help="Show the traceback of an error.")
+                    "1 internal error (a bug; --debug shows the traceback); 3 run: some scenes failed; "
+                    "130 interrupted.")
+@click.option("--debug", is_flag=True, help="Show the traceback of an error, and third-party warnings.")
 @click.version_option(__version__, prog_name="brdfcorr")
 def main(debug):
     """Specular BRDF models and BRDF normalization of reflectance imagery."""

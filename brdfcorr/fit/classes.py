@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from brdfcorr.errors import ParameterError
+from brdfcorr.errors import BrdfcorrWarning, ParameterError
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
 from brdfcorr.fit.solver import (
     DEFAULT_FIXED,
@@ -67,7 +67,7 @@ SUGGEST_BANDS = 16
 SUGGEST_GRID = 5
 
 
-class ClassFitWarning(UserWarning):
+class ClassFitWarning(BrdfcorrWarning):
     """A class failed a guard rail and fell back to a built-in material or to no correction."""
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 from scipy.stats import chi2 as chi2_distribution
 
-from brdfcorr.errors import FitError, ParameterError
+from brdfcorr.errors import BrdfcorrWarning, FitError, ParameterError
 from brdfcorr.fit.identifiability import (
     CONDITION_LIMIT,  # noqa: F401  (importable from here as before the split)
     CORRELATION_LIMIT,
@@ -71,7 +71,7 @@ _OTHER_GRID = (1.0 / 3.0, 1.0, 3.0)
 _NON_FINITE_RESIDUAL = 1e100
 
 
-class FitWarning(UserWarning):
+class FitWarning(BrdfcorrWarning):
     """A fit finished, but one of its results needs care (a parameter at a bound, ...)."""
 
 
