@@ -24,10 +24,12 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io.files import atomic_path
 
-__all__ = ["write_rasters", "DEFAULT_CHUNK"]
+__all__ = ["write_rasters", "DEFAULT_CHUNK", "COMPRESSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
+#: Lossless GeoTIFF compressions for reflectance (GDAL names, lower case; the CLI's choices).
+COMPRESSIONS = ("deflate", "lzw", "zstd", "none")
 
 
 def _write_options(compress: str, blocksize: int, array: xr.DataArray) -> dict:
@@ -89,12 +91,14 @@ def write_rasters(
     -------
     The computed ``compute_with`` (None if not given).
     """
-    if blocksize % 16:
-        raise InputError(f"tile size {blocksize} must be a multiple of 16")
+    if not (blocksize >= 16 and blocksize % 16 == 0):
+        raise InputError(f"tile size {blocksize} must be a positive multiple of 16")
     for target in rasters:
         if not Path(target).parent.is_dir():
             raise InputError(f"output directory {Path(target).parent} does not exist")
-    compress = "none" if compress is None else str(compress)
+    compress = "none" if compress is None else str(compress).lower()
+    if compress not in COMPRESSIONS:  # GDAL would write uncompressed, silently
+        raise InputError(f"unknown compression {compress!r}; choose one of {', '.join(COMPRESSIONS)}")
     gdal_messages = _GdalMessages()
     try:
         with gdal_messages:
