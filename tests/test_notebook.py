@@ -21,3 +21,7 @@ def test_notebook_runs(tmp_path):
     assert "east/west brightness" in text
     assert not any(output.output_type == "error" for cell in notebook.cells if cell.cell_type == "code"
                    for output in cell.outputs)
+    # The figure shows as a picture, not as "<Figure size ...>".
+    data = [output.get("data", {}) for cell in notebook.cells if cell.cell_type == "code" for output in cell.outputs]
+    assert any("image/png" in item for item in data)
+    assert not any("<Figure size" in item.get("text/plain", "") for item in data)

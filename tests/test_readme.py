@@ -52,3 +52,15 @@ def test_every_python_example_runs():
     assert blocks
     for block in blocks:
         exec(compile(block, "<docs>", "exec"), {})
+
+
+def test_every_relative_link_resolves_and_nothing_points_outside_the_repository():
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    for page in pages:
+        text = page.read_text()
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text):
+            if "://" in target:
+                continue
+            assert (page.parent / target).resolve().exists(), f"{page.name}: link {target} does not resolve"
+    for path in [*pages, *(ROOT / "configs").glob("*.yaml"), ROOT / "examples" / "xarray_api.ipynb"]:
+        assert "../shared" not in path.read_text() and "DESIGN.md" not in path.read_text(), path
