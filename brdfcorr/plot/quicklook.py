@@ -8,7 +8,7 @@ draws them and writes the PNG atomically.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +52,8 @@ def read_small(path, bands: Sequence[int], max_size: int, average: bool = True) 
 
 
 def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.ndarray | None = None,
-                     bands: Sequence[int] = (3, 2, 1), percentiles=(2.0, 98.0), title: str = "") -> Figure:
+                     bands: Sequence[int] = (3, 2, 1), percentiles=(2.0, 98.0), title: str = "",
+                     class_names: Mapping[int, str] | None = None, max_classes: int = 6) -> Figure:
     """Input and corrected image with the *same* contrast stretch, and the across-track profile
     (column means relative to the class mean) per class before and after.
 
@@ -61,14 +62,18 @@ def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.nda
     before, after : ndarray, (band, y, x)
         Input and corrected reflectance (one or three bands, nodata NaN) on the same grid.
     class_map : ndarray, (y, x), optional
-        Class ids (0 or NaN: no class) for per-class profiles (the three most frequent classes);
-        without it, or on another grid, one profile of all valid pixels.
+        Class ids (0 or NaN: no class) for per-class profiles (the ``max_classes`` most frequent
+        classes); without it, or on another grid, one profile of all valid pixels.
     bands : sequence of int
         The band numbers shown (labels only).
     percentiles : (float, float)
         Stretch [%] of the input image, per band, applied to both panels.
     title : str
         Prefix of the panel titles (the scene name).
+    class_names : mapping of int to str, optional
+        Names for the legend (the parameter table's), else "class ID".
+    max_classes : int, default 6
+        Most profiles drawn.
     """
     figure = Figure(figsize=(12, 7.5), layout="constrained")
     grid = figure.add_gridspec(2, 2, height_ratios=(3, 2))
@@ -82,7 +87,8 @@ def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.nda
     brightness_before, brightness_after = np.nanmean(before, axis=0), np.nanmean(after, axis=0)
     axis = figure.add_subplot(grid[1, :])
     columns = np.arange(brightness_before.shape[1])
-    for index, (name, mask) in enumerate(_profile_groups(brightness_before, class_map)):
+    groups = _profile_groups(brightness_before, class_map, class_names or {}, max_classes)
+    for index, (name, mask) in enumerate(groups):
         for cube, style, when in ((brightness_before, "--", "before"), (brightness_after, "-", "after")):
             axis.plot(columns, _relative_profile(cube, mask), style, color=f"C{index}", label=f"{name} {when}")
     axis.axhline(1.0, color="0.6", linewidth=0.8)
@@ -95,7 +101,7 @@ def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.nda
 
 
 def write_quicklook(image, corrected, target, *, classes=None, bands=(3, 2, 1), percentiles=(2.0, 98.0),
-                    max_size: int = 800, title: str = "") -> Path:
+                    max_size: int = 800, title: str = "", class_names: Mapping[int, str] | None = None) -> Path:
     """Write the before/after PNG of :func:`quicklook_figure` for an input and corrected raster.
 
     Parameters
@@ -105,8 +111,8 @@ def write_quicklook(image, corrected, target, *, classes=None, bands=(3, 2, 1), 
     target : path-like
         PNG to write (atomically).
     classes : path-like, optional
-        Class map for per-class profiles (the three most frequent classes); without it one profile
-        of all valid pixels.
+        Class map for per-class profiles (the most frequent classes, named by ``class_names``);
+        without it one profile of all valid pixels.
     bands : sequence of int
         1-based bands for red, green, blue, or one band (grey).
     percentiles : (float, float)
@@ -120,7 +126,8 @@ def write_quicklook(image, corrected, target, *, classes=None, bands=(3, 2, 1), 
     before = read_small(Path(image), bands, max_size)
     after = read_small(Path(corrected), bands, max_size)
     class_map = None if classes is None else read_small(Path(classes), [1], max_size, average=False)[0]
-    figure = quicklook_figure(before, after, class_map=class_map, bands=bands, percentiles=percentiles, title=title)
+    figure = quicklook_figure(before, after, class_map=class_map, bands=bands, percentiles=percentiles, title=title,
+                              class_names=class_names)
     target = Path(target)
     with atomic_path(target) as temporary:
         figure.savefig(temporary, dpi=90, format="png")
@@ -141,14 +148,15 @@ def _stretch(reference: np.ndarray, percentiles):
     return display
 
 
-def _profile_groups(brightness: np.ndarray, class_map: np.ndarray | None) -> list[tuple[str, np.ndarray]]:
-    """(label, pixel mask) of the profiles: the three most frequent classes, else all pixels."""
+def _profile_groups(brightness: np.ndarray, class_map: np.ndarray | None, names: Mapping[int, str],
+                    most: int) -> list[tuple[str, np.ndarray]]:
+    """(label, pixel mask) of the profiles: the ``most`` most frequent classes, else all pixels."""
     groups = [("all pixels", np.isfinite(brightness))]
     if class_map is None or class_map.shape != brightness.shape:
         return groups
     ids, counts = np.unique(class_map[np.isfinite(class_map) & (class_map > 0)], return_counts=True)
-    top = ids[np.argsort(counts)[::-1][:3]]
-    return [(f"class {int(i)}", class_map == i) for i in sorted(top)] or groups
+    top = ids[np.argsort(counts)[::-1][:most]]
+    return [(names.get(int(i), f"class {int(i)}"), class_map == i) for i in sorted(top)] or groups
 
 
 def _relative_profile(cube: np.ndarray, mask: np.ndarray) -> np.ndarray:
