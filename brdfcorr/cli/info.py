@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
 from brdfcorr import models
@@ -11,6 +13,7 @@ from brdfcorr.cli._base import (
     main,
 )
 from brdfcorr.models.materials import load_material, material_names
+from brdfcorr.params import ParameterTable
 
 
 @main.command("models")
@@ -25,9 +28,25 @@ def models_command():
 
 @main.command("materials")
 @click.argument("name", required=False)
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Add the material NAME as a class to this parameter table (created if absent).")
+@click.option("--class-id", type=int, help="Its class id [default: 1 more than the largest].")
 @handle_errors
-def materials_command(name):
-    """List the built-in materials, or show one material's parameters with errors."""
+def materials_command(name, output, class_id):
+    """List the built-in materials, or show one material's parameters with errors.
+
+    With -o, the material becomes a class of a parameter table. The library's fits are at one
+    wavelength (paper 003: 550 nm) and apply to every band of an image.
+    """
+    if output is not None:
+        if name is None:
+            raise click.UsageError("-o needs a material NAME")
+        table = ParameterTable.load(output) if output.exists() else ParameterTable()
+        class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
+        material = load_material(name)
+        table.with_class(material.table_entry(class_id)).save(output)
+        click.echo(f"wrote class {class_id} ({name}, {material.wavelength:g} nm fit) to {output}")
+        return
 
     names = [name] if name else material_names()
     rows = []

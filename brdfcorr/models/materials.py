@@ -58,6 +58,10 @@ class Material:
     n_measurements: int | None
     source: str
 
+    def table_entry(self, class_id: int) -> dict:
+        """The material as one class of a parameter table (band-independent parameters)."""
+        return {"id": class_id, "name": self.name, "model": self.model.name, "params": dict(self.params)}
+
     def brdf(self, theta_i, theta_r, phi):
         """The material's BRDF [sr^-1] at the given angles [deg] (numpy, dask or xarray)."""
         return self.model(theta_i, theta_r, phi, **self.params)
