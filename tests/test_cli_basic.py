@@ -51,3 +51,32 @@ def test_atomic_path_leaves_nothing_on_failure_and_uses_the_default_mode(tmp_pat
     os.umask(umask)
     assert target.read_text() == "complete"
     assert target.stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+def test_lazy_command_table_matches_the_commands():
+    # `brdfcorr --help` lists commands from LAZY_COMMANDS without importing them: the table must
+    # name the module that defines each command and its own one-line help.
+    import importlib
+
+    import click
+
+    from brdfcorr.cli._base import LAZY_COMMANDS
+
+    context = click.Context(main)
+    for name, (module, short_help) in LAZY_COMMANDS.items():
+        importlib.import_module(module)
+        command = main.commands[name]
+        assert command.callback.__module__ == module, name
+        assert short_help == command.get_short_help_str(limit=300), name
+    assert sorted(main.list_commands(context)) == sorted(LAZY_COMMANDS)
+
+
+def test_help_does_not_import_the_commands():
+    import subprocess
+    import sys
+
+    code = ("import sys; from brdfcorr.cli import main\n"
+            "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+            "print(sorted(m for m in sys.modules if m.startswith(('matplotlib', 'rasterio', 'scipy.optimize', 'pvlib'))))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.stdout.strip().splitlines()[-1] == "[]", result.stdout

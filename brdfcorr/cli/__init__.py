@@ -4,11 +4,11 @@ Commands parse arguments, call library functions, print tables and map errors to
 (:data:`EXIT_CODES`): 2 for bad input or an output that cannot be written (any
 :class:`brdfcorr.errors.BrdfcorrError`, and click's usage errors), 1 for internal failures (any
 other exception), 3 when ``run`` finished but some scenes failed. An error is one line on stderr;
-the global ``--debug`` option adds the traceback. One module per group of commands; importing them
-registers the commands on :data:`main`.
+the global ``--debug`` option adds the traceback. One module per group of commands; a command's
+module is imported when the command is first used (:data:`~brdfcorr.cli._base.LAZY_COMMANDS`),
+which registers it on :data:`main`.
 """
 
-from brdfcorr.cli import analyze, chain, classes, correct, fitting, info  # noqa: F401  (register commands)
 from brdfcorr.cli._base import (
     EXIT_BAD_INPUT,
     EXIT_CODES,
@@ -19,4 +19,6 @@ from brdfcorr.cli._base import (
     main,
 )
 
-__all__ = ["main", "handle_errors", "EXIT_CODES", "EXIT_BAD_INPUT", "EXIT_INTERNAL", "EXIT_SCENES_FAILED", "EXIT_INTERRUPTED"]
+__all__ = [
+    "main", "handle_errors", "EXIT_CODES", "EXIT_BAD_INPUT", "EXIT_INTERNAL", "EXIT_SCENES_FAILED", "EXIT_INTERRUPTED",
+]

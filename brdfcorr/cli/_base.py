@@ -10,6 +10,7 @@ the global ``--debug`` option adds the traceback.
 from __future__ import annotations
 
 import functools
+import importlib
 import sys
 import traceback
 import warnings
@@ -21,11 +22,7 @@ import click.shell_completion
 from brdfcorr import __version__
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, ParameterError, UnknownNameError
 from brdfcorr.io.files import atomic_path, parse_yaml
-from brdfcorr.io.sensors import ANGLE_KINDS as SENSOR_ANGLE_KINDS
 from brdfcorr.models import SURFACE_MODELS, get_model
-
-#: ``--angles-kind`` choices: angle rasters on the image grid, or a sensor product.
-ANGLE_KINDS = ("geotiff", *SENSOR_ANGLE_KINDS)
 
 
 class _ModelName(click.ParamType):
@@ -121,8 +118,76 @@ def handle_errors(command):
     return wrapper
 
 
+#: Command -> (module defining it, its one-line help). A command's module is imported only when the
+#: command runs, so `brdfcorr --help` and each command pay only for what they use (matplotlib,
+#: scipy.optimize and rasterio load in seconds). tests/test_cli_basic.py checks this table against
+#: the commands themselves.
+LAZY_COMMANDS: dict[str, tuple[str, str]] = {
+    "analyze": (
+        "brdfcorr.cli.analyze",
+        "The papers' analyses: shadowing impact, azimuthal width, albedo, paper figures.",
+    ),
+    "classes": (
+        "brdfcorr.cli.classes",
+        'Make class maps: NDVI strata of an image, or a land-cover map brought onto its grid.',
+    ),
+    "correct": (
+        "brdfcorr.cli.correct",
+        'Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.',
+    ),
+    "demo": (
+        "brdfcorr.cli.chain",
+        'Build a demo airborne line, correct it with the demo chain and write a before/after picture.',
+    ),
+    "fit": (
+        "brdfcorr.cli.fitting",
+        'Fit a BRDF model to goniometer MEASUREMENTS (CSV: theta_i, theta_r, phi, brdf[, sigma, wavelength]).',
+    ),
+    "fit-classes": (
+        "brdfcorr.cli.fitting",
+        'Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).',
+    ),
+    "materials": (
+        "brdfcorr.cli.info",
+        "List the built-in materials, or show one material's parameters with errors.",
+    ),
+    "models": (
+        "brdfcorr.cli.info",
+        'List the BRDF models and their parameters (units, defaults, physical range).',
+    ),
+    "run": (
+        "brdfcorr.cli.chain",
+        'Run the processing chain CHAIN (YAML) over all its scenes and write a run report (JSON).',
+    ),
+    "validate": (
+        "brdfcorr.cli.chain",
+        'Check chain configs without running them: keys, values, names, patterns, parameter table.',
+    ),
+}
+
+
 class _Group(click.Group):
-    """The command group: every command and subgroup runs under :func:`handle_errors`."""
+    """The command group: every command and subgroup runs under :func:`handle_errors`; commands are
+    loaded from :data:`LAZY_COMMANDS` when first used."""
+
+    def list_commands(self, ctx):
+        return sorted({*super().list_commands(ctx), *LAZY_COMMANDS})
+
+    def get_command(self, ctx, name):
+        if name not in self.commands and name in LAZY_COMMANDS:
+            importlib.import_module(LAZY_COMMANDS[name][0])  # registers its commands on `main`
+        return super().get_command(ctx, name)
+
+    def _short_help(self, ctx, name: str) -> str:
+        command = self.get_command(ctx, name)
+        return command.get_short_help_str() if command is not None else ""
+
+    def format_commands(self, ctx, formatter):
+        # The listing from the table, without importing every command's module.
+        rows = [(name, LAZY_COMMANDS[name][1] if name in LAZY_COMMANDS else self._short_help(ctx, name))
+                for name in self.list_commands(ctx)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def invoke(self, ctx):
         # Only brdfcorr's own warnings reach stderr (as "brdfcorr: warning:" lines where a command

@@ -1,7 +1,18 @@
-"""Reading and writing: rasters through rioxarray/rasterio (:mod:`brdfcorr.io.rasters`), atomic
-output files and safe YAML (:mod:`brdfcorr.io.files`), and sun/view angles as sensor products
-deliver them (:mod:`brdfcorr.io.sensors`)."""
+"""Reading and writing: rasters through rioxarray/rasterio (:mod:`brdfcorr.io.rasters`), GeoTIFF
+output (:mod:`brdfcorr.io.writer`), atomic output files and safe YAML (:mod:`brdfcorr.io.files`),
+and sun/view angles as sensor products deliver them (:mod:`brdfcorr.io.sensors`).
 
-from brdfcorr.io.rasters import open_angles, open_classes, open_image, open_scene, write_rasters
+The raster functions are imported on first use (``brdfcorr.io.open_image``): rasterio and
+rioxarray take a while to load, and parameter tables and configs need only :mod:`.files`.
+"""
+
+import importlib
 
 __all__ = ["open_angles", "open_classes", "open_image", "open_scene", "write_rasters"]
+
+
+def __getattr__(name: str):
+    if name in __all__:
+        module = "brdfcorr.io.writer" if name == "write_rasters" else "brdfcorr.io.rasters"
+        return getattr(importlib.import_module(module), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
