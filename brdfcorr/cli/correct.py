@@ -9,7 +9,8 @@ from pathlib import Path
 import click
 from tqdm.dask import TqdmCallback
 
-from brdfcorr.cli._base import ANGLE_KINDS, _options, handle_errors, main
+from brdfcorr.cli._base import _options, handle_errors, main
+from brdfcorr.io.sensors import ANGLE_KINDS
 from brdfcorr.params import ParameterTable
 from brdfcorr.workflow.classmaps import read_lookup
 from brdfcorr.workflow.tasks import correct_files
@@ -29,7 +30,7 @@ def _reference_sza(value: str | None):
 @click.argument("image", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--angles", help="Angle source: a 4-band raster of sza, saa, vza, vaa [deg] on the image grid, or "
                                 "what --angles-kind names (a sensor file, or a UTC time for 'solar').")
-@click.option("--angles-kind", type=click.Choice(ANGLE_KINDS),
+@click.option("--angles-kind", type=click.Choice(["geotiff", *ANGLE_KINDS]),
               default="geotiff", show_default=True,
               help="What --angles is: a 4-band GeoTIFF, an ENVI obs file (AVIRIS-NG/-3), a Sentinel-2 "
                    "MTD_TL.xml, a Landsat C2 angle band (…_SZA.TIF) or, for 'solar', a UTC time.")

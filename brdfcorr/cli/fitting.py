@@ -8,7 +8,6 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import (
-    ANGLE_KINDS,
     MODEL_CHOICE,
     _assignments,
     _format_table,
@@ -21,6 +20,7 @@ from brdfcorr.cli._base import (
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import GuardRails
 from brdfcorr.io.files import atomic_path
+from brdfcorr.io.sensors import ANGLE_KINDS
 from brdfcorr.models import get_model
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
@@ -35,7 +35,7 @@ from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement
 @click.option("--angles", multiple=True, required=True,
               help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa "
                    "[deg]) or what --angles-kind names.")
-@click.option("--angles-kind", type=click.Choice(ANGLE_KINDS), default="geotiff", show_default=True,
+@click.option("--angles-kind", type=click.Choice(["geotiff", *ANGLE_KINDS]), default="geotiff", show_default=True,
               help="What --angles are (as for `brdfcorr correct`).")
 @click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE",
               help="Option of the angle reader (repeatable), as for `brdfcorr correct`.")
