@@ -8,22 +8,63 @@ key, the values of a ``Literal`` (the registry's model names, built-in materials
 
 from __future__ import annotations
 
+import reprlib
 import typing
 from collections.abc import Mapping
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ValidationError
+import numpy as np
+from pydantic import BaseModel, BeforeValidator, ValidationError
 
 #: Tags pydantic inserts into error locations for the members of a union (``float``,
 #: ``list[float]``, ``literal['mean','observed']``): not keys of the document.
 _TYPE_TAGS = frozenset({"float", "int", "str", "bool"})
+#: At most this many problems are listed in one message (a table of 20 000 bad classes is one line).
+MAX_PROBLEMS = 10
+
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = _REPR.maxlong = 60
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
+_REPR.maxlevel = 3
+
+
+def short_repr(value: object, limit: int = 80) -> str:
+    """``repr(value)`` for a message, at most ``limit`` characters, in time bounded whatever the size
+    of ``value`` (a document's input may be a 10 MB string or a list of a million values)."""
+    try:
+        text = _REPR.repr(value)
+    except ValueError:  # an int of more than 4300 digits has no repr
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def key_text(key: object) -> str:
     """A document key as shown in messages: as is when plain, else quoted (``'\\n'``, ``''``), so a
-    message stays one readable line whatever the keys of the document."""
-    text = str(key)
-    return text if text and text.isprintable() and text.strip() == text else repr(key)
+    message stays one readable line whatever the keys of the document (a long key is shortened)."""
+    text = key if isinstance(key, str) else short_repr(key)
+    plain = text and len(text) <= 80 and text.isprintable() and text.strip() == text
+    return text if plain else short_repr(key)
+
+
+def refuse_boolean(value: object) -> object:
+    """A pydantic before-validator: a boolean where a number is expected is an error.
+
+    YAML 1.1 reads yes, no, on, off, true and false as booleans, and pydantic's float and int
+    would take a boolean as 1 or 0: a wrong number delivered silently. Put it on a union
+    (``Annotated[float | list[Number], BeforeValidator(refuse_boolean)]``) to get one problem,
+    not one per member of the union.
+    """
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"expected a number, got the boolean {str(bool(value)).lower()} (YAML reads "
+                         "unquoted yes, no, on, off, true and false as booleans)")
+    return value
+
+
+#: A float field that refuses booleans. Unlike pydantic's ``StrictFloat`` it still takes ints and
+#: numeric strings (PyYAML reads ``1e-3``, without a dot, as a string).
+Number = Annotated[float, BeforeValidator(refuse_boolean)]
+#: An int field that refuses booleans (``class_lookup: {10: yes}`` is no class id 1).
+Integer = Annotated[int, BeforeValidator(refuse_boolean)]
 
 
 def _location(loc: tuple) -> str:
@@ -96,7 +137,7 @@ def _where(loc: tuple, data: object, tags: set[str]) -> tuple[str, bool]:
     if len(clean) >= 2 and clean[0] == "classes" and isinstance(clean[1], int) and isinstance(classes, list):
         entry = classes[clean[1]] if clean[1] < len(classes) else {}
         if isinstance(entry, Mapping):
-            label = f"class {entry.get('id', f'#{clean[1] + 1}')} ({entry.get('name', '?')})"
+            label = f"class {key_text(entry.get('id', f'#{clean[1] + 1}'))} ({key_text(entry.get('name', '?'))})"
             rest = _location(tuple(clean[2:]))
             return (f"{label}: {rest}" if rest else label), True
     return _location(tuple(clean)), False
@@ -109,18 +150,18 @@ def _message(item: Any, root: type[BaseModel]) -> str:
     if kind == "missing":
         return "required key is missing"
     if kind == "literal_error":
-        return f"{item['input']!r} is not allowed; allowed: {item.get('ctx', {}).get('expected', '')}"
+        return f"{short_repr(item['input'])} is not allowed; allowed: {item.get('ctx', {}).get('expected', '')}"
     if kind == "union_tag_invalid":
         expected = item.get("ctx", {}).get("expected_tags", "")
         source = item["input"].get("source") if isinstance(item["input"], Mapping) else item["input"]
-        return f"source {source!r} is not allowed; allowed: {expected}"
+        return f"source {short_repr(source)} is not allowed; allowed: {expected}"
     if kind == "union_tag_not_found":
         tag = item.get("ctx", {}).get("discriminator", "'source'")
         return f"needs the key {tag}"
     message = item["msg"].removeprefix("Value error, ")
     if "input" in item and kind not in ("value_error", "assertion_error") and not isinstance(
             item["input"], (Mapping, list)):
-        message += f" (got {item['input']!r})"
+        message += f" (got {short_repr(item['input'])})"
     return message
 
 
@@ -145,14 +186,17 @@ def describe_errors(error: ValidationError, root: type[BaseModel], data: object 
         if len(items) > 1 and "literal_error" in kinds:  # every branch of "a number or a word" failed
             literal = items[kinds.index("literal_error")]
             number = " a number," if any(k in ("float_parsing", "float_type") for k in kinds) else ""
-            messages = [f"{literal['input']!r} is not allowed; allowed:{number} "
+            messages = [f"{short_repr(literal['input'])} is not allowed; allowed:{number} "
                         f"{literal.get('ctx', {}).get('expected', '')}"]
         elif len(items) > 1 and all(k.endswith(("_type", "_parsing")) for k in kinds):  # every union branch
-            messages = [f"invalid value {items[0]['input']!r}"]
+            messages = [f"invalid value {short_repr(items[0]['input'])}"]
         else:
             messages = [_message(item, root) for item in items]
         for message in messages:
             # Messages of a class's own validators already name the class.
             named = not where or (is_class and message.startswith("class "))
             lines.append(message if named else f"{where}: {message}")
-    return "; ".join(dict.fromkeys(lines))
+    unique = list(dict.fromkeys(lines))
+    if len(unique) > MAX_PROBLEMS:
+        unique = unique[:MAX_PROBLEMS] + [f"and {len(unique) - MAX_PROBLEMS} more problems"]
+    return "; ".join(unique)

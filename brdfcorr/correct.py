@@ -20,19 +20,29 @@ QA layer (uint8 bit flags, CF ``flag_masks``/``flag_meanings`` in its attrs):
 ==== ================ ========================================================================
 bit  name             meaning
 ==== ================ ========================================================================
-1    nodata           nodata (NaN or +-inf) in some band or an angle; output is nodata (in those
-                      bands)
+1    nodata           nodata (NaN or +-inf) in some band or an angle, or no valid factor in some
+                      band (below); output is nodata (in those bands)
 2    no_class         class 0 or the class map's nodata ("no class"): not corrected (factor 1,
                       or NaN on request)
 4    unknown_class    class id absent from the parameter table: not corrected (1, or NaN)
 8    limited          the factor was clipped to the limits in at least one band
 16   invalid_geometry a zenith outside [0, 90) deg: output is nodata
 ==== ================ ========================================================================
+
+A factor is valid when it is a finite positive number: the model predicts a positive finite signal
+at both geometries and their ratio neither overflows nor underflows. Otherwise (a kernel-driven
+model with negative coefficients predicting none or a negative one, a peak underflowing to 0 at
+the reference, extreme parameters overflowing the output precision) the pixel is nodata (NaN) in
+that band and flagged ``nodata``, never ``limited`` and never counted as corrected: a wrong number
+delivered silently is worse than none. The one exception is a model predicting no signal at either
+geometry (0 / 0): the pixel is left unchanged (factor 1). The registry's parameter bounds
+(:data:`brdfcorr.models._base.MAX_INTENSITY`) keep every model itself finite.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import hashlib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
@@ -109,9 +119,30 @@ def _plan(class_id: int, model: Model, params: dict[str, np.ndarray]) -> _ClassP
     return _ClassPlan(class_id, model, shapes, shape_of_band, coefficients, row_of_band.reshape(-1))
 
 
+class _Plans:
+    """The class plans of a table as one opaque block argument: dask would otherwise walk and hash
+    every plan to build the graph (20 000 classes: 20 s). Its token is a digest of the plans."""
+
+    def __init__(self, plans: Mapping[int, _ClassPlan]):
+        self._plans = dict(plans)
+        digest = hashlib.sha256()
+        for plan in self._plans.values():
+            digest.update(f"{plan.id}|{plan.model.name}|{plan.shapes!r}|".encode())
+            for array in (plan.shape_of_band, plan.coefficients, plan.row_of_band):
+                digest.update(f"{array.dtype}{array.shape}".encode())
+                digest.update(np.ascontiguousarray(array).tobytes())
+        self._token = digest.hexdigest()
+
+    def get(self, class_id: int) -> _ClassPlan | None:
+        return self._plans.get(class_id)
+
+    def __dask_tokenize__(self) -> str:
+        return self._token
+
+
 def _normalize_block(
     reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, *,
-    plans: dict[int, _ClassPlan], reference: ReferenceGeometry, limits, unknown_nan: bool,
+    plans: _Plans, reference: ReferenceGeometry, limits, unknown_nan: bool,
     class_nodata, flip_view_azimuth: bool, out_dtype,
 ):
     """Normalize one (band, y, x) block; returns (corrected block, QA block of shape (1, y, x))."""
@@ -144,24 +175,27 @@ def _normalize_block(
         ref_sza = theta_i[index] if reference.sza == "observed" else np.asarray(reference_sza, dtype=np.float64)
         ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
         # The basis functions in float64; the per-band linear combination in the output precision.
-        # Parameters were validated when the table was resolved to the bands.
-        terms = [
-            tuple(
-                tuple(np.broadcast_to(np.asarray(t, dtype=out_dtype), index.shape)
-                      for t in plan.model.terms(where, shape))
-                for where in (observed, ref)
-            )
-            for shape in plan.shapes
-        ]
+        # Parameters were validated when the table was resolved to the bands. A term beyond the
+        # output precision becomes inf, and its pixels nodata (_ratio).
+        with np.errstate(over="ignore"):
+            terms = [
+                tuple(
+                    tuple(np.broadcast_to(np.asarray(t, dtype=out_dtype), index.shape)
+                          for t in plan.model.terms(where, shape))
+                    for where in (observed, ref)
+                )
+                for shape in plan.shapes
+            ]
         states.append((plan, index, terms))
 
-    out, limited = _apply_factors(cube, band_index, base, states, limits, out_dtype)
+    out, flags = _apply_factors(cube, band_index, base, states, limits, out_dtype)
     if infinite is not None and infinite.any():  # +-inf is nodata like NaN: NaN in the output
         corrected = out[:, candidates]
         corrected[infinite] = np.nan
         out[:, candidates] = corrected
-    for index, flags in limited:
-        qa[index[flags]] |= QA_LIMITED
+    for index, limited, invalid in flags:
+        qa[index[limited]] |= QA_LIMITED
+        qa[index[invalid]] |= QA_NODATA
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
 
 
@@ -195,8 +229,8 @@ def _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata):
 
 
 def _apply_factors(cube, band_index, base, states, limits, out_dtype):
-    """Multiply each band by its factor map; returns the output and, per class, which of its
-    pixels were limited in some band.
+    """Multiply each band by its factor map; returns the output and, per class, its pixel indices,
+    which of them were limited in some band and which had no valid factor (NaN) in some band.
 
     One factor map serves the block, updated band by band only where a class's parameters change:
     with band-independent parameters every band costs one multiplication.
@@ -204,6 +238,7 @@ def _apply_factors(cube, band_index, base, states, limits, out_dtype):
     factor = base
     current_row = {plan.id: -1 for plan, _, _ in states}
     limited = {plan.id: np.zeros(index.size, dtype=bool) for plan, index, _ in states}
+    invalid = {plan.id: np.zeros(index.size, dtype=bool) for plan, index, _ in states}
     out = np.empty(cube.shape, dtype=out_dtype)
     for position, band in enumerate(np.asarray(band_index).reshape(-1)):
         for plan, index, terms in states:
@@ -211,13 +246,14 @@ def _apply_factors(cube, band_index, base, states, limits, out_dtype):
                 continue
             current_row[plan.id] = plan.row_of_band[band]
             ratio = _ratio(plan, band, *terms[plan.shape_of_band[band]])
+            invalid[plan.id] |= np.isnan(ratio)
             if limits is not None:
-                clipped = np.clip(ratio, *limits)
-                limited[plan.id] |= clipped != ratio
-                ratio = clipped
+                # NaN compares False: a pixel without a valid factor is nodata, not limited.
+                limited[plan.id] |= (ratio < limits[0]) | (ratio > limits[1])
+                ratio = np.clip(ratio, *limits)
             factor[index] = ratio
         np.multiply(cube[position], factor, out=out[position], casting="unsafe")
-    return out, [(index, limited[plan.id]) for plan, index, _ in states]
+    return out, [(index, limited[plan.id], invalid[plan.id]) for plan, index, _ in states]
 
 
 def _present_classes(values: np.ndarray) -> list:
@@ -233,19 +269,21 @@ def _present_classes(values: np.ndarray) -> list:
 def _ratio(plan: _ClassPlan, band: int, terms_observed: tuple, terms_reference: tuple) -> np.ndarray:
     """f(ref) / f(obs) at a class's pixels for one band (a new array in the terms' precision).
 
-    Where the model predicts no signal at either geometry (0 / 0) the pixel is left unchanged
-    (ratio 1); where it predicts none or a negative one at the observed geometry only, the ratio is
-    NaN (a kernel-driven model with negative coefficients can do that): the pixel is flagged
-    ``limited`` and is nodata in that band, never a silently wrong number.
+    Only a finite positive ratio with f(obs) > 0 is a factor; anything else is NaN (the pixel is
+    nodata in that band and flagged ``nodata``, module docstring): no signal or a negative one
+    at a geometry (a kernel-driven model with negative coefficients can predict that), a peak
+    underflowing to 0, a value or ratio beyond the terms' precision. Where the model predicts no
+    signal at either geometry (0 / 0) the pixel is left unchanged (ratio 1).
     """
     coefficients = [float(c) for c in plan.coefficients[band]]  # Python floats keep the terms' dtype
-    f_observed = sum(c * term for c, term in zip(coefficients, terms_observed))
-    f_reference = sum(c * term for c, term in zip(coefficients, terms_reference))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        f_observed = sum(c * term for c, term in zip(coefficients, terms_observed))
+        f_reference = sum(c * term for c, term in zip(coefficients, terms_reference))
         ratio = f_reference / f_observed
-    bad = ~(f_observed > 0)
-    if bad.any():
-        ratio[bad] = np.where((f_observed[bad] == 0) & (f_reference[bad] == 0), 1.0, np.nan)
+    # NaN compares False, so NaN, +-inf, 0 and negative ratios and f(obs) <= 0 are all invalid.
+    invalid = ~((f_observed > 0) & (ratio > 0) & (ratio < np.inf))
+    if invalid.any():
+        ratio[invalid] = np.where((f_observed[invalid] == 0) & (f_reference[invalid] == 0), 1.0, np.nan)
     return ratio
 
 
@@ -397,7 +435,7 @@ def normalize(
         wavelengths = reflectance["wavelength"].values.tolist()
     n_bands = reflectance.shape[0]
     resolved = params.for_bands(wavelengths, n_bands=n_bands, extrapolate=extrapolate)
-    plans = {cid: _plan(cid, entry.model, entry.params) for cid, entry in resolved.items()}
+    plans = _Plans({cid: _plan(cid, entry.model, entry.params) for cid, entry in resolved.items()})
     out_dtype = np.result_type(reflectance.dtype, np.float32)
 
     arrays = [reflectance.data] + [layers[name].data for name in ("classes", "sza", "saa", "vza", "vaa")]
@@ -505,8 +543,9 @@ def _rio_nodata(layer: xr.DataArray):
 def qa_counts(qa) -> dict[str, object]:
     """Pixel counts per QA outcome (lazy 0-d arrays for dask input; compute them together).
 
-    ``corrected``: pixels with a class of the table and valid data (limited ones included);
-    ``limited``, ``unknown_class``, ``no_class``, ``nodata`` (nodata or invalid geometry).
+    ``corrected``: pixels with a class of the table, valid data and a valid factor in every band
+    (limited ones included); ``limited``, ``unknown_class``, ``no_class``, ``nodata`` (nodata, no
+    valid factor, or invalid geometry).
     """
     data = qa.data if isinstance(qa, xr.DataArray) else qa
     xp = da if isinstance(data, da.Array) else np

@@ -41,16 +41,18 @@ Errors in a table raise :class:`brdfcorr.errors.ParameterError` naming the class
 from __future__ import annotations
 
 import os
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import xarray as xr
 import yaml
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     ValidationError,
@@ -58,9 +60,9 @@ from pydantic import (
     model_validator,
 )
 
-from brdfcorr._validation import describe_errors
+from brdfcorr._validation import Integer, Number, describe_errors, refuse_boolean, short_repr
 from brdfcorr.errors import InputError, ParameterError
-from brdfcorr.io.files import atomic_path, parse_yaml
+from brdfcorr.io.files import atomic_path, parse_yaml, read_document
 from brdfcorr.models import SURFACE_MODELS, Model, get_model
 
 __all__ = [
@@ -71,7 +73,7 @@ __all__ = [
     "merge_tables",
 ]
 
-SunZenith = float | Literal["mean", "observed"]
+SunZenith = Annotated[float | Literal["mean", "observed"], BeforeValidator(refuse_boolean)]
 
 
 class ReferenceGeometry(BaseModel):
@@ -92,8 +94,8 @@ class ReferenceGeometry(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     sza: SunZenith = "observed"
-    vza: float = Field(0.0, ge=0.0, lt=90.0)
-    raa: float = Field(0.0, ge=0.0, le=180.0)
+    vza: Number = Field(0.0, ge=0.0, lt=90.0)
+    raa: Number = Field(0.0, ge=0.0, le=180.0)
 
     @field_validator("sza")
     @classmethod
@@ -108,7 +110,8 @@ class ReferenceGeometry(BaseModel):
         return f"sza={sza} vza={self.vza:g} raa={self.raa:g}"
 
 
-ParameterValue = float | list[float]
+#: A parameter's value: a number or a list of numbers; a boolean (YAML's ``yes``, ``on``) is refused.
+ParameterValue = Annotated[float | list[Number], BeforeValidator(refuse_boolean)]
 
 
 class ClassEntry(BaseModel):
@@ -131,16 +134,17 @@ class ClassEntry(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    id: int = Field(ge=1)
+    id: Integer = Field(ge=1)
     name: str = Field(min_length=1)
     model: str
     params: dict[str, ParameterValue]
-    wavelengths: list[float] | None = None
+    wavelengths: list[Number] | None = None
 
     @property
     def label(self) -> str:
         """``"class 2 (grass)"``, the prefix of every message about this class."""
-        return f"class {self.id} ({self.name})"
+        name = self.name if len(self.name) <= 60 and self.name.isprintable() else short_repr(self.name, 60)
+        return f"class {self.id} ({name})"
 
     @property
     def brdf_model(self) -> Model:
@@ -151,7 +155,7 @@ class ClassEntry(BaseModel):
     def _check(self) -> ClassEntry:
         if self.model not in SURFACE_MODELS:
             raise ValueError(
-                f"{self.label}: unknown surface model {self.model!r}; known: {', '.join(SURFACE_MODELS)}"
+                f"{self.label}: unknown surface model {short_repr(self.model)}; known: {', '.join(SURFACE_MODELS)}"
             )
         model = get_model(self.model)
         if self.wavelengths is not None:
@@ -294,8 +298,7 @@ class ParameterTable(BaseModel):
 
     @model_validator(mode="after")
     def _unique_ids(self) -> ParameterTable:
-        ids = [entry.id for entry in self.classes]
-        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        duplicates = sorted(i for i, count in Counter(entry.id for entry in self.classes).items() if count > 1)
         if duplicates:
             raise ValueError(f"class id(s) {', '.join(map(str, duplicates))} appear more than once")
         return self
@@ -425,12 +428,13 @@ class ParameterTable(BaseModel):
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ParameterTable:
-        """Read and validate a YAML parameter table; errors name the file."""
+        """Read and validate a YAML parameter table; errors name the file.
+
+        Only a regular UTF-8 file of at most :data:`brdfcorr.io.files.MAX_DOCUMENT_BYTES` is read
+        (:func:`brdfcorr.io.files.read_document`): a FIFO or a device is refused, not waited on.
+        """
         path = Path(path)
-        try:
-            text = path.read_text()
-        except OSError as error:
-            raise InputError(f"cannot read parameter table {path}: {error.strerror}") from None
+        text = read_document(path, "parameter table", InputError)
         return cls.from_yaml_text(text, source=str(path))
 
     def to_dict(self) -> dict:
@@ -457,11 +461,11 @@ class ParameterTable(BaseModel):
 
 def merge_tables(tables: Iterable[ParameterTable]) -> ParameterTable:
     """Combine tables; later tables replace classes of the same id, the last reference wins."""
-    merged = ParameterTable()
+    classes: dict[int, ClassEntry] = {}
+    reference = None
     for table in tables:
-        for entry in table.classes:
-            merged = merged.with_class(entry)
+        classes.update((entry.id, entry) for entry in table.classes)
         if table.reference is not None:
-            merged = merged.with_reference(table.reference)
-    return merged
+            reference = table.reference
+    return ParameterTable(reference=reference, classes=sorted(classes.values(), key=lambda c: c.id))
 

@@ -26,6 +26,7 @@ from brdfcorr.models import (
     ross_thin,
     rpv,
 )
+from brdfcorr.models._base import MAX_INTENSITY
 
 KERNELS = {"ross_thick": ross_thick, "ross_thin": ross_thin, "li_sparse": li_sparse, "li_dense": li_dense}
 MODEL_NAMES = ["ross_thick_li_sparse", "ross_thin_li_sparse", "ross_thick_li_dense", "ross_thin_li_dense"]
@@ -253,7 +254,9 @@ def test_kernel_driven_model_is_the_weighted_sum_of_its_kernels(name):
     assert model.linear == ("f_iso", "f_vol", "f_geo") and model.shape_names == ()
     assert name in REGISTRY and name in SURFACE_MODELS
     for parameter in model.parameters:
-        assert parameter.units == "sr^-1" and parameter.lower == 0.0 and math.isinf(parameter.upper)
+        # Bounded above (MAX_INTENSITY = 1e3 sr^-1; a white Lambertian surface is 0.32) so that every
+        # factor stays finite over the angle domain.
+        assert parameter.units == "sr^-1" and parameter.lower == 0.0 and parameter.upper == MAX_INTENSITY
 
 
 def test_default_is_modis_rtlsr_and_modis_weights_are_divided_by_pi():
@@ -428,7 +431,7 @@ def test_rpv_model_is_linear_in_rho0_only():
     (basis,) = model.terms(geometry, shape)
     np.testing.assert_allclose(0.04 * basis, model.evaluate(geometry, rho0=0.04, **shape), rtol=1e-14)
     bounds = model.bounds
-    assert bounds == {"rho0": (0.0, math.inf), "k": (0.0, 2.0), "theta": (-1.0, 1.0), "rho_c": (0.0, 1.0)}
+    assert bounds == {"rho0": (0.0, MAX_INTENSITY), "k": (0.0, 2.0), "theta": (-1.0, 1.0), "rho_c": (0.0, 1.0)}
     assert model.parameter("k").lower_open
 
 

@@ -15,7 +15,7 @@ from brdfcorr.cli._base import (
     main,
 )
 from brdfcorr.errors import ConfigError, InputError
-from brdfcorr.io.files import parse_yaml
+from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.params import ParameterTable
 from brdfcorr.workflow.chain import plan_run, run_chain
 from brdfcorr.workflow.config import load_config
@@ -178,7 +178,7 @@ def validate_command(chains, settings):
     overrides = _overrides(settings)
     for chain in chains:
         try:
-            document = parse_yaml(chain.read_text(), str(chain), ConfigError)
+            document = parse_yaml(read_document(chain, "chain config", ConfigError), str(chain), ConfigError)
         except (OSError, ConfigError):
             document = None  # load_config reports it
         if isinstance(document, dict) and "classes" in document and "inputs" not in document:

@@ -59,5 +59,5 @@ def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id,
 def classes_align_command(landcover, image, lookup, output, overwrite):
     """Bring LANDCOVER (any grid and CRS) onto the grid of an image by nearest neighbour."""
     aligned = align_class_file(landcover, image, output, lookup=read_lookup(lookup) if lookup else None,
-                               overwrite=overwrite)
+                               overwrite=overwrite, reads={"--lookup": lookup})
     click.echo(f"wrote {output} ({aligned.attrs.get('resampled_from_crs', '')} -> {aligned.rio.crs})")

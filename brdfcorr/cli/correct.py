@@ -60,6 +60,12 @@ def _reference_sza(value: str | None):
 @click.option("--unknown", type=click.Choice(["keep", "nan"]), default="keep", show_default=True,
               help="Pixels of class 0 or of classes not in the table: keep unchanged, or set to NaN.")
 @click.option("--wavelengths", help="Band centres [nm], comma-separated (overrides the image's).")
+@click.option("--scale", type=click.FloatRange(min=0, min_open=True),
+              help="Reflectance factor per stored unit, e.g. 0.0001 for 0-10000 [default: the image's "
+                   "GDAL scale, else 1]; replaces a tagged scale.")
+@click.option("--offset", type=float,
+              help="Reflectance factor of a stored 0, e.g. -0.2 for Landsat C2 L2 [default: the image's "
+                   "GDAL offset, else 0].")
 @click.option("--extrapolate", is_flag=True, help="Allow band centres outside a class's table wavelengths.")
 @click.option("--flip-view-azimuth", is_flag=True,
               help="View azimuths are stored as seen from the sensor: add 180 deg.")
@@ -73,10 +79,12 @@ def _reference_sza(value: str | None):
 @handle_errors
 def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, align_classes,
                     class_lookup, params_path, output, ref_sza, ref_vza,
-                    ref_raa, limits, no_limits, unknown, wavelengths, extrapolate, flip_view_azimuth,
-                    qa_path, compress, cog, chunk, progress, overwrite):
+                    ref_raa, limits, no_limits, unknown, wavelengths, scale, offset, extrapolate,
+                    flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite):
     """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.
 
+    IMAGE's stored values are read as reflectance factors with its GDAL scale/offset, or --scale
+    and --offset; an image that still looks like raw counts is refused unless --scale is given.
     Outputs are written to temporary names beside them and renamed when complete; an existing
     output is replaced only with --overwrite, and an input never.
     """
@@ -103,6 +111,8 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
         callbacks=callbacks, table_source=str(params_path), angles_kind=angles_kind,
         angle_options=_options("--angle-option", angle_option), overwrite=overwrite,
         align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
+        scale=scale, offset=offset,
+        reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
     )
     click.echo(
         f"wrote {output}: {summary['corrected']} pixels corrected, {summary['limited']} limited, "

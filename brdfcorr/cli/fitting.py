@@ -53,8 +53,12 @@ from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement
               help="Hold a shape parameter fixed [default: k=0.25 for TS].")
 @click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
-@click.option("--scale", "reflectance_scale", type=float, default=1.0, show_default=True,
-              help="Multiplier from stored values to reflectance factors (e.g. 0.0001).")
+@click.option("--scale", type=click.FloatRange(min=0, min_open=True),
+              help="Reflectance factor per stored unit of every image, e.g. 0.0001 for 0-10000, applied "
+                   "on read [default: each image's GDAL scale, else 1]; replaces a tagged scale.")
+@click.option("--offset", type=float,
+              help="Reflectance factor of a stored 0, e.g. -0.2 for Landsat C2 L2 [default: each image's "
+                   "GDAL offset, else 0].")
 @click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
 @click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
               help="Guard rail: minimum 5-95 %% view zenith spread [deg].")
@@ -69,27 +73,37 @@ from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, fix, max_samples, seed,
-                        reflectance_scale, min_samples, min_vza_spread, fallback, output, report_path, plot_dir):
-    """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes)."""
+                        scale, offset, min_samples, min_vza_spread, fallback, output, report_path, plot_dir):
+    """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
+
+    The images' stored values are read as reflectance factors with their GDAL scale/offset, or
+    --scale and --offset; an image that still looks like raw counts is refused unless --scale is
+    given.
+    """
     if not len(images) == len(angles) == len(classes):
         raise InputError(
             f"{len(images)} image(s), {len(angles)} --angles and {len(classes)} --classes: give one "
             "angle raster and one class map per image, in the same order"
         )
-    refuse_overwriting_inputs({"-o": output, "--report": report_path}, (*images, *angles, *classes))
+    written = {"-o": output, "--report": report_path}
+    read = [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
+            *(("--angles", path) for path in angles if angles_kind != "solar"), ("--class-lookup", class_lookup)]
+    refuse_overwriting_inputs(written, read)
     if fallback:
         load_material(fallback)  # fail before the work if the name is wrong
     lookup = read_lookup(class_lookup) if class_lookup else None
     options = _options("--angle-option", angle_option)
     fit = fit_class_files(
         [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
-                    class_lookup=lookup)
+                    class_lookup=lookup, scale=scale, offset=offset)
          for image, angle_source, class_map in zip(images, angles, classes)],
         model_name, class_models=_pairs("--class-model", class_model), names=_pairs("--name", names),
-        fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed,
-        reflectance_scale=reflectance_scale, fallback=fallback,
+        fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed, fallback=fallback,
         guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread),
     )
+    plots = {class_fit.class_id: plot_dir / f"class_{class_fit.class_id}_{class_fit.name}.png"
+             for class_fit in fit.result.fits if class_fit.params} if plot_dir else {}
+    refuse_overwriting_inputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
     click.echo(_format_table([_class_row(class_fit) for class_fit in fit.result.fits]))
@@ -102,7 +116,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         for class_fit in fit.result.fits:
             if class_fit.params:
                 figure = plot_class_fit(class_fit, fit.result.samples[class_fit.class_id], fit.wavelengths)
-                _save_figure(figure, plot_dir / f"class_{class_fit.class_id}_{class_fit.name}.png", echo=False)
+                _save_figure(figure, plots[class_fit.class_id], echo=False)
         click.echo(f"wrote plots to {plot_dir}")
 
 
@@ -160,7 +174,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     Prints the fitted parameters with 1-sigma errors and chi2/dof (as paper 003, Table 1) and the
     parameter correlations; with -o writes the fit as a class of a parameter table.
     """
-    refuse_overwriting_inputs({"-o": output}, (measurements,))
+    refuse_overwriting_inputs({"-o": output}, {"MEASUREMENTS": measurements})
     table = ParameterTable.load(output) if output is not None and output.exists() else None
     fit = fit_measurement_file(
         measurements, model_name, fixed=_assignments("--fix", fix), initial=_assignments("--init", initial),
@@ -170,6 +184,9 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
     name = class_name or measurements.stem
+    if plot_dir is not None:  # the figures' names are known now: check them before writing anything
+        plots = {f"--plot-dir file {path}": path for path in _measurement_plot_files(fit, name, plot_dir).values()}
+        refuse_overwriting_inputs({"-o": output, **plots}, {"MEASUREMENTS": measurements})
     _echo_measurement_fit(fit, name)
     if plot_dir is not None:
         _plot_measurement_fit(fit, name, plot_dir, "log" if log_scale else "linear")
@@ -216,14 +233,20 @@ def _echo_measurement_fit(fit, name: str) -> None:
         ]))
 
 
+def _measurement_plot_files(fit, name: str, plot_dir: Path) -> dict[tuple, Path]:
+    """The figure files of :func:`_plot_measurement_fit`: {(wavelength, kind): path}."""
+    return {(band, kind): plot_dir / f"{name if band is None else f'{name}_{band:g}nm'}_{kind}.png"
+            for band in fit.results for kind in ("principal_plane", "azimuth")}
+
+
 def _plot_measurement_fit(fit, name: str, plot_dir: Path, scale: str) -> None:
     """Principal-plane and azimuth figures (paper 003, figs. 2 and 3) per wavelength."""
     others_all = fit.everything.select(~fit.keep, "not fitted") if not fit.keep.all() else None
+    files = _measurement_plot_files(fit, name, plot_dir)
     for band, result in fit.results.items():
-        fitted, others, stem = fit.fitted, others_all, name
+        fitted, others = fit.fitted, others_all
         if band is not None:
             fitted = fit.fitted.at_wavelength(band)
             others = others.at_wavelength(band) if others is not None and band in others.wavelengths else None
-            stem = f"{name}_{band:g}nm"
         for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
-            _save_figure(plot(result, fitted, others, yscale=scale), plot_dir / f"{stem}_{suffix}.png", dpi=120)
+            _save_figure(plot(result, fitted, others, yscale=scale), files[(band, suffix)], dpi=120)

@@ -297,7 +297,7 @@ def _free_parameters(model: Model, fixed, initial, bounds):
 def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, initial):
     """Deterministic starting vectors for the non-linear fit.
 
-    Scale parameters (registry range (0, inf): w, n, c, sigma) without a user starting value are
+    Scale parameters (registry range open at 0: w, n, c, sigma) without a user starting value are
     stepped over a multiplicative grid around their default (5 values for the first, 3 for the
     others); for each grid point the parameters that enter linearly (t0, t1, a) are solved by
     bounded linear least squares, so every start already matches the data's level and peak height.
@@ -314,7 +314,6 @@ def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, 
         if name not in linear
         and model.parameter(name).lower == 0.0
         and model.parameter(name).lower_open
-        and math.isinf(model.parameter(name).upper)
     ]
     grids = [_FIRST_GRID if position == 0 else _OTHER_GRID for position in range(len(gridded))]
     starts = []

@@ -265,6 +265,23 @@ def _column_name(header_cell: str) -> str:
     return _UNIT_SUFFIX.sub("", header_cell.strip()).strip().lower()
 
 
+def _read_text(path: Path) -> str:
+    """The CSV's text; MeasurementError for a missing, non-regular, binary or unreadable file."""
+    if path.exists() and not (path.is_file() or path.is_dir()):  # a FIFO or device would block or never end
+        raise MeasurementError(f"{path}: not a regular file")
+    try:
+        text = path.read_text(encoding="utf-8-sig")  # utf-8-sig drops a spreadsheet's BOM
+    except FileNotFoundError:
+        raise MeasurementError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise MeasurementError(f"{path}: is a directory, not a CSV file") from None
+    except UnicodeDecodeError:
+        raise MeasurementError(f"{path}: not a UTF-8 text (CSV) file") from None
+    except OSError as error:
+        raise MeasurementError(f"{path}: cannot read: {error.strerror}") from None
+    return text
+
+
 def read_measurements(path: str | os.PathLike) -> Measurements:
     """Read and validate a measurement CSV table (columns ``theta_i, theta_r, phi, brdf[, sigma]``).
 
@@ -288,16 +305,7 @@ def read_measurements(path: str | os.PathLike) -> Measurements:
         non-positive sigma. The message names the file, the column and the lines.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")  # utf-8-sig drops a spreadsheet's BOM
-    except FileNotFoundError:
-        raise MeasurementError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise MeasurementError(f"{path}: is a directory, not a CSV file") from None
-    except UnicodeDecodeError:
-        raise MeasurementError(f"{path}: not a UTF-8 text (CSV) file") from None
-    except OSError as error:
-        raise MeasurementError(f"{path}: cannot read: {error.strerror}") from None
+    text = _read_text(path)
 
     numbered = [
         (number, line)

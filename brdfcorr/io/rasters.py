@@ -1,7 +1,9 @@
 """GeoTIFF input and output for the normalization, through rioxarray and rasterio.
 
 Readers open lazily (dask chunks), with nodata as NaN for reflectance and angles and the class map
-kept as integers with its nodata value. :func:`check_same_grid` says which layer differs from the
+kept as integers with its nodata value; the image's stored values are scaled to reflectance
+factors (the file's GDAL scale/offset, or given ones; :func:`check_reflectance_scale` catches raw
+counts). :func:`check_same_grid` says which layer differs from the
 image and how (shape, transform or CRS). :func:`band_wavelengths` finds band centres in the
 order fixed by ``DESIGN.md``. :func:`write_rasters` (from :mod:`brdfcorr.io.writer`) writes tiled,
 compressed GeoTIFFs chunk by chunk, atomically.
@@ -25,9 +27,10 @@ import rasterio
 import rasterio.shutil
 import rioxarray
 import xarray as xr
+from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
 from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError
-from brdfcorr.io.writer import DEFAULT_CHUNK, write_rasters
+from brdfcorr.io.writer import DEFAULT_CHUNK, _GdalMessages, write_rasters
 
 __all__ = [
     "open_scene",
@@ -38,6 +41,7 @@ __all__ = [
     "open_classes",
     "check_same_grid",
     "check_angles",
+    "check_reflectance_scale",
     "band_wavelengths",
     "parse_wavelength",
     "write_rasters",
@@ -57,13 +61,17 @@ _UNITS_TO_NM = {
 _NUMBER = r"[0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?"
 
 
-def _open(path, role: str, chunks, masked: bool) -> xr.DataArray:
+def _open(path, role: str, chunks, masked: bool, mask_and_scale: bool = False) -> xr.DataArray:
     path = Path(path)
     if not path.exists():
         raise InputError(f"{role} file {path} does not exist")
     try:
-        # lock=False: every dask thread reads through its own handle, so reads run in parallel.
-        array = rioxarray.open_rasterio(path, chunks=chunks, masked=masked, lock=False)
+        with warnings.catch_warnings():
+            # Per-band scales/offsets: rioxarray applies each band's, and says so in a warning.
+            warnings.filterwarnings("ignore", r"(Scales|Offsets) differ across bands", UserWarning)
+            # lock=False: every dask thread reads through its own handle, so reads run in parallel.
+            array = rioxarray.open_rasterio(path, chunks=chunks, masked=masked, mask_and_scale=mask_and_scale,
+                                            lock=False)
     except rasterio.errors.RasterioError as error:
         raise InputError(f"cannot read {role} file {path}: {error}") from None
     if isinstance(array, list):  # subdatasets: not a plain raster
@@ -194,8 +202,16 @@ def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
     return values
 
 
-def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None) -> xr.DataArray:
-    """Open a reflectance image (band, y, x) lazily, nodata as NaN, with a ``wavelength`` coord.
+def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *, scale: float | None = None,
+               offset: float | None = None) -> xr.DataArray:
+    """Open a reflectance image (band, y, x) lazily as reflectance factors [1], nodata as NaN, with a
+    ``wavelength`` coord.
+
+    Stored values are turned into reflectance factors with the file's per-band GDAL scale and
+    offset (``reflectance = stored * scale + offset``, as rioxarray's ``mask_and_scale`` does; 1 and
+    0 where the file tags none), after masking nodata. ``scale`` and ``offset`` are for products that
+    do not tag them: a given value replaces the file's for every band (an explicit scale wins over a
+    different tagged one), one not given stays the file's.
 
     Parameters
     ----------
@@ -205,13 +221,57 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None) ->
         Dask chunks; an int is the spatial chunk size with all bands in one chunk (default 512).
     wavelengths : sequence of float, optional
         Band centres [nm], overriding what the file says (:func:`band_wavelengths`).
+    scale : float, optional
+        Reflectance factor per stored unit [1] (> 0), e.g. 0.0001 for reflectance stored as
+        0-10000 (default: the file's).
+    offset : float, optional
+        Reflectance factor of a stored 0 [1], e.g. -0.2 for Landsat Collection 2 level 2
+        (default: the file's).
+
+    Returns
+    -------
+    DataArray
+        float32 (float64 for a float64 file), with attrs ``brdf_input_scale`` and
+        ``brdf_input_offset``: the scale and offset applied (a float, or a tuple of one per band
+        where the bands differ).
     """
-    image = _open(path, "image", _chunks(chunks), masked=True)
+    for name, value in (("scale", scale), ("offset", offset)):
+        if value is not None and not math.isfinite(value):
+            raise InputError(f"image {path}: the given {name} {value} is not a finite number")
+    if scale is not None and scale <= 0:
+        raise InputError(f"image {path}: the given scale {scale} must be > 0")
+    given = scale is not None or offset is not None
+    image = _open(path, "image", _chunks(chunks), masked=True, mask_and_scale=not given)
+    metadata = {**image.attrs, **image.encoding}  # scaled by rioxarray: in encoding, else in attrs
+    n_bands = image.sizes[image.dims[0]]
+    scales = np.broadcast_to(np.asarray(metadata.get("scales", metadata.get("scale_factor", 1.0)), float), n_bands)
+    offsets = np.broadcast_to(np.asarray(metadata.get("offsets", metadata.get("add_offset", 0.0)), float), n_bands)
+    data = image.data
+    if given:  # rioxarray has no override: apply the given (and the file's other) values to the masked values
+        scales = np.full(n_bands, float(scale)) if scale is not None else scales
+        offsets = np.full(n_bands, float(offset)) if offset is not None else offsets
+        data = data * scales.astype(data.dtype)[:, None, None] + offsets.astype(data.dtype)[:, None, None]
+    if data.dtype != np.float32 and image.encoding.get("rasterio_dtype") != "float64":
+        data = data.astype(np.float32)  # (u)int32 counts are promoted to float64 on read
+    # copy(data=): keeps coords, attrs and encoding (``source``, ``_FillValue``), which arithmetic drops.
+    image = image.copy(data=data)
+    for name in ("scale_factor", "add_offset", "scales", "offsets"):  # the values are physical now
+        image.attrs.pop(name, None)
+    applied = {"scale": _one_or_per_band(scales), "offset": _one_or_per_band(offsets)}
+    if given:  # the storage in encoding, as rioxarray keeps it for a scaled read
+        image.encoding.update({"scale_factor" if isinstance(applied["scale"], float) else "scales": applied["scale"],
+                               "add_offset" if isinstance(applied["offset"], float) else "offsets": applied["offset"]})
+    image.attrs["brdf_input_scale"] = applied["scale"]
+    image.attrs["brdf_input_offset"] = applied["offset"]
     found = band_wavelengths(image, path, wavelengths)
     if found is not None:
         image = image.assign_coords(wavelength=(image.dims[0], found, {"units": "nm"}))
     image.name = image.name or "reflectance"
     return image
+
+
+def _one_or_per_band(values: np.ndarray) -> float | tuple[float, ...]:
+    return float(values[0]) if np.all(values == values[0]) else tuple(float(v) for v in values)
 
 
 def open_classes(path, chunks=None) -> xr.DataArray:
@@ -276,6 +336,7 @@ class SceneData(NamedTuple):
 
 def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", angle_options=None,
                sza=None, saa=None, vza=None, vaa=None, chunks=None, wavelengths=None,
+               scale: float | None = None, offset: float | None = None,
                prepare_classes: Callable[[xr.DataArray, xr.DataArray], xr.DataArray] | None = None,
                scheduler: str | None = None, num_workers: int | None = None) -> SceneData:
     """Open one scene lazily and check it: reflectance, class map and the four angle layers.
@@ -289,7 +350,7 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
         (or give the four separate files ``sza`` ... ``vaa``), else what
         :func:`brdfcorr.io.sensors.read_angles` reads for that kind (``envi_obs``, ``sentinel2``,
         ``landsat``, ``solar``) with ``angle_options``, brought onto the image grid.
-    chunks, wavelengths :
+    chunks, wavelengths, scale, offset :
         As for :func:`open_image`.
     prepare_classes : callable, optional
         ``prepare_classes(class_map, reflectance)`` -> class map, applied before the grid check:
@@ -306,7 +367,7 @@ def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", ang
         (:func:`check_angles`, the one pass over the angle data before the correction), with the
         angle statistics of that pass.
     """
-    reflectance = open_image(image, chunks=chunks, wavelengths=wavelengths)
+    reflectance = open_image(image, chunks=chunks, wavelengths=wavelengths, scale=scale, offset=offset)
     class_map = open_classes(classes, chunks=chunks)
     if prepare_classes is not None:
         class_map = prepare_classes(class_map, reflectance)
@@ -412,6 +473,79 @@ def _angle_statistics(*blocks: np.ndarray) -> np.ndarray:
         result[0, 0, index, :2] = (values.min(), values.max()) if values.size else (np.nan, np.nan)
         result[0, 0, index, 2:] = values.size, in_domain.size, in_domain.sum(dtype=np.float64)
     return result
+
+
+def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, limit: float = 2.0,
+                            blocks: int = 3, scheduler: str | None = None,
+                            num_workers: int | None = None) -> float | None:
+    """Raise :class:`InputError` if an image stored as integers does not hold reflectance factors
+    [1] after scaling (raw counts read without their scale).
+
+    A cheap check, not a pass over the image: it reads at most ``blocks`` x ``blocks`` chunks spread
+    evenly over the image (corners, edges and centre) and takes the 99th percentile of their valid
+    values. Reflectance factors are mostly 0-1; counts read without their scale (0-10000,
+    7273-43636 for Landsat Collection 2) are far above ``limit``. An image stored as floats holds
+    physical values (reflectance, or radiance, which corrects as well) and is not checked.
+
+    Parameters
+    ----------
+    image : DataArray
+        (band, y, x) as from :func:`open_image` (attrs ``brdf_input_scale``/``brdf_input_offset``
+        name the scaling applied in the message).
+    source : str, optional
+        Name of the image for the message (default: its file).
+    limit : float, default 2.0
+        Largest plausible 99th percentile [1].
+    blocks : int, default 3
+        Chunks sampled along each of y and x.
+    scheduler, num_workers : optional
+        As for :func:`check_angles`.
+
+    Returns
+    -------
+    float or None
+        The 99th percentile of the sample; None for a float image or a sample without a valid
+        value (nothing to judge: no error).
+    """
+    if np.dtype(image.encoding.get("rasterio_dtype", image.dtype)).kind not in "iu":
+        return None
+    data = image.data
+    where = source or image.encoding.get("source", "image")
+    if isinstance(data, dask.array.Array):
+        rows, columns = (sorted({int(i) for i in np.linspace(0, n - 1, min(blocks, n)).round()})
+                         for n in data.numblocks[-2:])
+        messages = _GdalMessages()  # GDAL's log lines of a failed read: into the one error
+        try:
+            with messages:
+                parts = dask.compute(
+                    *(dask.delayed(_valid_sample)(data.blocks[..., i, j]) for i in rows for j in columns),
+                    scheduler=scheduler, num_workers=num_workers,
+                )
+        except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
+            reason = "; ".join(messages.messages[:2]) or str(error) or type(error).__name__
+            raise InputError(f"cannot read image {where}: {reason}") from None
+    else:
+        array = np.asarray(data)
+        parts = [_valid_sample(array[..., ::max(1, array.shape[-2] // 256), ::max(1, array.shape[-1] // 256)])]
+    values = np.concatenate([np.ravel(part) for part in parts])
+    if not values.size:
+        return None
+    percentile = float(np.percentile(values, 99))
+    if percentile > limit:
+        scale, offset = image.attrs.get("brdf_input_scale", 1.0), image.attrs.get("brdf_input_offset", 0.0)
+        raise InputError(
+            f"{where}: the values do not look like reflectance factors: 99th percentile {percentile:.5g} "
+            f"of a sample of valid pixels (scale {scale}, offset {offset} applied); raw counts? Give the "
+            "scale (and offset) of the stored values: --scale/--offset (inputs.scale/inputs.offset in a "
+            "chain), e.g. --scale 0.0001 for reflectance stored as 0-10000 (--scale 1: use them as they are)"
+        )
+    return percentile
+
+
+def _valid_sample(block: np.ndarray, size: int = 20_000) -> np.ndarray:
+    """At most about ``size`` finite values of a block, evenly strided."""
+    values = block[np.isfinite(block)]
+    return values[::max(1, values.size // size)]
 
 
 def _describe(name: str, layer: xr.DataArray) -> str:

@@ -13,6 +13,15 @@ from brdfcorr._arrays import apply_labelled, is_lazy
 from brdfcorr.errors import ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 
+#: Upper bound of every BRDF intensity parameter [sr^-1] (t0, t1, a, f_iso, f_vol, f_geo, rho0):
+#: a white Lambertian surface is 1/pi = 0.32 sr^-1, so 1e3 is far above any surface the models
+#: describe. It keeps every registered model finite on the whole angle domain [0, 90) deg: their
+#: geometric terms are at most of the order of 1 / (cos ti cos tr) <= 1.6e31 (the cosine of the
+#: largest float below 90 deg is 2.5e-16), so an intensity of 1e3 gives at most ~1e35, within
+#: float32 (3.4e38) where the correction combines the terms. An unbounded one (1e308) overflows:
+#: every pixel of the class NaN, or an internal error.
+MAX_INTENSITY = 1e3
+
 
 @dataclass(frozen=True)
 class Parameter:

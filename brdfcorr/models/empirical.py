@@ -13,17 +13,21 @@ import math
 import numpy as np
 
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.models._base import Model, Parameter
+from brdfcorr.models._base import MAX_INTENSITY, Model, Parameter
 
 __all__ = ["empirical", "specular_peak", "lambertian", "EMPIRICAL", "SPECULAR_PEAK", "LAMBERTIAN"]
 
-A = Parameter("a", "sr^-1", 0.05, 0.0, description="intensity of the specular peak")
+# Bounds keep the model finite on [0, 90) deg: a, t0 <= MAX_INTENSITY (see there). The b term
+# exp(b (ti tr)^2) takes ti tr < (pi/2)^2, so b <= 10 rad^-4 gives at most exp(60.9) = 2.8e26 (times
+# a: 2.8e29, within float32); the paper's b is ~1 (b = 1e308 overflows). A very negative b or a
+# large c only makes the peak underflow to 0.
+A = Parameter("a", "sr^-1", 0.05, 0.0, MAX_INTENSITY, description="intensity of the specular peak")
 B = Parameter(
-    "b", "rad^-4", 1.0, -math.inf,
+    "b", "rad^-4", 1.0, -math.inf, 10.0,
     description="shift of the peak towards large zeniths; ~1.0 for a constant Fresnel reflectance",
 )
 C = Parameter("c", "deg^-1", 0.05, 0.0, lower_open=True, description="inverse width of the specular peak")
-T0 = Parameter("t0", "sr^-1", 0.0, 0.0, description="Lambertian (diffuse) component")
+T0 = Parameter("t0", "sr^-1", 0.0, 0.0, MAX_INTENSITY, description="Lambertian (diffuse) component")
 SIGMA = Parameter(
     "sigma", "deg", 0.07, 0.0, lower_open=True, description="standard deviation of the Gaussian peak"
 )

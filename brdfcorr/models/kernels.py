@@ -53,7 +53,7 @@ import numpy as np
 from brdfcorr._arrays import TINY, array_function, cosd, sind
 from brdfcorr.errors import ParameterError, UnknownNameError
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.models._base import Model, Parameter
+from brdfcorr.models._base import MAX_INTENSITY, Model, Parameter
 
 __all__ = [
     "ross_thick",
@@ -79,8 +79,10 @@ LI_SPARSE_SHAPE = {"b_r": 1.0, "h_b": 2.0}
 #: (also the "MODIS dense" parameters of the UCL/AMBRALS kernel code).
 LI_DENSE_SHAPE = {"b_r": 2.5, "h_b": 2.0}
 
-B_R = Parameter("b_r", "1", 1.0, 0.0, lower_open=True, description="crown shape b/r of the Li kernels")
-H_B = Parameter("h_b", "1", 2.0, 0.0, lower_open=True, description="crown height h/b of the Li kernels")
+# Upper bounds keep the Li kernels finite on [0, 90) deg: (b/r) tan t <= 1e3 x 4e15 and its square
+# stay far from overflow (b/r = 1e308 gives NaN); MODIS uses b/r = 1 or 2.5 and h/b = 2.
+B_R = Parameter("b_r", "1", 1.0, 0.0, 1e3, lower_open=True, description="crown shape b/r of the Li kernels")
+H_B = Parameter("h_b", "1", 2.0, 0.0, 1e3, lower_open=True, description="crown height h/b of the Li kernels")
 
 
 class _Angles:
@@ -366,17 +368,19 @@ def li_dense(theta_i, theta_r, phi, *, b_r=LI_DENSE_SHAPE["b_r"], h_b=LI_DENSE_S
 
 # --- Models ----------------------------------------------------------------------------------
 
+# f_iso, f_vol, f_geo <= MAX_INTENSITY keep the model finite: the kernels are at most of the order
+# of 1 / (cos ti cos tr) <= 1.6e31 on [0, 90) deg (see MAX_INTENSITY). MCD43A1 stores at most 32.766.
 F_ISO = Parameter(
-    "f_iso", "sr^-1", 0.03, 0.0,
+    "f_iso", "sr^-1", 0.03, 0.0, MAX_INTENSITY,
     description="isotropic weight: the BRDF at nadir sun and view (MODIS MCD43A1 f_iso / pi)",
 )
 F_VOL = Parameter(
-    "f_vol", "sr^-1", 0.015, 0.0,
+    "f_vol", "sr^-1", 0.015, 0.0, MAX_INTENSITY,
     description="volume-scattering weight (MCD43A1 f_vol / pi); >= 0: a negative weight has no "
     "physical meaning and MCD43A1 stores none (valid range 0-32.766)",
 )
 F_GEO = Parameter(
-    "f_geo", "sr^-1", 0.005, 0.0,
+    "f_geo", "sr^-1", 0.005, 0.0, MAX_INTENSITY,
     description="geometric-optical (shadowing) weight (MCD43A1 f_geo / pi); >= 0 as f_vol",
 )
 KERNEL_PARAMETERS = (F_ISO, F_VOL, F_GEO)

@@ -32,13 +32,18 @@ import numpy as np
 
 from brdfcorr._arrays import TINY
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.models._base import Model, Parameter
+from brdfcorr.models._base import MAX_INTENSITY, Model, Parameter
 from brdfcorr.models.kernels import _angles
 
 __all__ = ["rpv", "RPV"]
 
+# Bounds keep the model finite on [0, 90) deg: with k in (0, 2] the Minnaert term is at most
+# 1 / (cos ti cos tv (cos ti + cos tv)) < 1e47, the Henyey-Greenstein term at most
+# 2 / (1 - |theta|)^2 < 2e32 for |theta| < 1 (0 at |theta| = 1), the hot-spot term 2; with
+# rho0 <= MAX_INTENSITY the model stays below 1e83 in float64 (a float32 correction flags the
+# overflow of such extreme parameters as nodata, brdfcorr.correct).
 RHO0 = Parameter(
-    "rho0", "sr^-1", 0.03, 0.0,
+    "rho0", "sr^-1", 0.03, 0.0, MAX_INTENSITY,
     description="amplitude; the RPV reflectance-factor amplitude rho_0 divided by pi",
 )
 K = Parameter(

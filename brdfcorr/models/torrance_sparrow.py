@@ -19,7 +19,7 @@ import numpy as np
 
 from brdfcorr._arrays import TINY, array_function
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.models._base import Model, Parameter
+from brdfcorr.models._base import MAX_INTENSITY, Model, Parameter
 
 __all__ = [
     "fresnel",
@@ -30,17 +30,25 @@ __all__ = [
     "TORRANCE_SPARROW_SIMPLIFIED",
 ]
 
-T0 = Parameter("t0", "sr^-1", 0.02, 0.0, description="Lambertian (diffuse) component")
-T1 = Parameter("t1", "sr^-1", 0.5, 0.0, description="intensity of the specular component")
+# Bounds keep the model finite on [0, 90) deg: the specular term F G exp(-w^2 alpha^2) /
+# (cos ti cos tr) is at most 1.6e31, so t0, t1 <= MAX_INTENSITY (see there). w needs no upper bound
+# (exp(-(w alpha)^2) only underflows to 0). The Fresnel formula takes (n^2 - k^2 - sin^2)^2 and
+# 4 n^2 k^2, which overflow for n or k above ~1e77 (n = 1e308 is an internal error): n, k <= 1e10
+# keep them below 1e41, far above any material (n < 10, k < 100 even for metals in the infrared)
+# yet above n = 1e8, the "very large n" that makes F a constant 1 (paper 000's facets).
+MAX_INDEX = 1e10
+T0 = Parameter("t0", "sr^-1", 0.02, 0.0, MAX_INTENSITY, description="Lambertian (diffuse) component")
+T1 = Parameter("t1", "sr^-1", 0.5, 0.0, MAX_INTENSITY, description="intensity of the specular component")
 W = Parameter(
     "w", "deg^-1", 0.05, 0.0, lower_open=True,
     description="inverse width of the Gaussian facet-inclination distribution exp(-w^2 alpha^2)",
 )
 N = Parameter(
-    "n", "1", 1.5, 0.0, lower_open=True, description="real part of the refractive index of the facets"
+    "n", "1", 1.5, 0.0, MAX_INDEX, lower_open=True,
+    description="real part of the refractive index of the facets",
 )
 K = Parameter(
-    "k", "1", 0.25, 0.0,
+    "k", "1", 0.25, 0.0, MAX_INDEX,
     description="imaginary part (absorption) of the refractive index; paper 003 fixes it at 0.25",
 )
 TS_PARAMETERS = (T0, T1, W, N, K)

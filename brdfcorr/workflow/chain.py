@@ -14,7 +14,11 @@ into scenes and decides what happens to each (``run``, ``skip``, ``fail``; :mod:
 3. writes the run report (JSON; :mod:`.report`): inputs, parameter table and its sources,
    versions, timings, per-scene QA counts and errors.
 
-A failing scene is recorded (message and error type) and the others go on.
+A failing scene is recorded (message and error type) and the others go on. Before step 1 the
+temporary files an interrupted earlier run left beside the run's outputs are removed
+(:func:`brdfcorr.io.paths.remove_partials`); the plan has already checked that no output is an
+input or another output, and each corrected output records the plan's fingerprint of its inputs
+and settings (:func:`brdfcorr.workflow.plan.scene_fingerprint`) for the next resume.
 
 Execution engines (``engine.scheduler``):
 
@@ -48,6 +52,7 @@ from datetime import datetime, timezone
 
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import GuardRails
+from brdfcorr.io.paths import remove_partials
 from brdfcorr.params import ParameterTable, merge_tables
 from brdfcorr.plot.quicklook import write_quicklook
 from brdfcorr.workflow.config import ChainConfig, EngineConfig
@@ -74,7 +79,8 @@ Progress = Callable[[str, dict], None]
 def _scene_files(scene: Scene, config: ChainConfig) -> SceneFiles:
     inputs = config.inputs
     return SceneFiles(scene.image, scene.classes, scene.angles, scene.angles_kind, dict(scene.angle_options),
-                      scene.name, align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup))
+                      scene.name, align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup),
+                      scale=inputs.scale, offset=inputs.offset)
 
 
 def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
@@ -188,7 +194,7 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
             found["qa"] = summary
         if config.steps.quicklook is not None:
             tick = time.perf_counter()
-            _quicklook(scene, config)
+            _quicklook(scene, config, table)
             seconds["quicklook"] = round(time.perf_counter() - tick, 3)
     except Exception as error:  # noqa: BLE001 (isolation: a scene's failure must not stop the run)
         failure = error
@@ -207,14 +213,17 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
         cog=outputs.cog, table_source=config.source, angles=scene.angles, angles_kind=scene.angles_kind,
         angle_options=dict(scene.angle_options), align_classes=config.inputs.align_classes,
         class_lookup=dict(config.inputs.class_lookup), scheduler=scheduler, num_workers=num_workers,
+        scale=config.inputs.scale, offset=config.inputs.offset,
+        fingerprint=scene.fingerprint or None,  # what a resumed run compares (brdfcorr.workflow.plan)
     )
 
 
-def _quicklook(scene: Scene, config: ChainConfig) -> None:
+def _quicklook(scene: Scene, config: ChainConfig, table: ParameterTable) -> None:
     step = config.steps.quicklook
     write_quicklook(
         scene.image, scene.outputs["corrected"], scene.outputs["quicklook"], classes=scene.classes,
         bands=step.bands, percentiles=step.percentiles, max_size=step.max_size, title=scene.name,
+        class_names={entry.id: entry.name for entry in table.classes},
     )
 
 
@@ -303,6 +312,8 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
     plan = plan if plan is not None else plan_run(config)
     notify = progress or (lambda event, info: None)
     notify("plan", {"scenes": len(plan.scenes), "to_run": sum(scene.action != "skip" for scene in plan.scenes)})
+    for target in plan.files_written():  # temporary files an interrupted earlier run left beside them
+        remove_partials(target)
 
     tick = time.perf_counter()
     table, fit_report = build_table(plan, progress)

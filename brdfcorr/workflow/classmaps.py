@@ -15,9 +15,10 @@ import xarray as xr
 
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io import rasters
-from brdfcorr.io.files import parse_yaml
+from brdfcorr.io.files import parse_yaml, read_document
+from brdfcorr.io.paths import check_outputs
 from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata
-from brdfcorr.workflow.tasks import describe_class_map, refuse_overwriting_inputs
+from brdfcorr.workflow.tasks import describe_class_map
 
 __all__ = ["ndvi_class_file", "align_class_file", "read_lookup"]
 
@@ -25,10 +26,7 @@ __all__ = ["ndvi_class_file", "align_class_file", "read_lookup"]
 def read_lookup(path: str | os.PathLike) -> dict[int, int]:
     """A code -> class id lookup table from YAML (``{10: 3, 30: 3, 50: 1}``; ids 0..65535)."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as error:
-        raise InputError(f"lookup table {path}: {error.strerror or error}") from None
+    text = read_document(path, "lookup table", InputError)
     data = parse_yaml(text, f"lookup table {path}", InputError)
     if not isinstance(data, Mapping) or not data:
         raise InputError(f"lookup table {path}: expected a mapping of codes to class ids, e.g. '10: 3'")
@@ -42,9 +40,9 @@ def read_lookup(path: str | os.PathLike) -> dict[int, int]:
     return lookup
 
 
-def _write_class_map(classes: xr.DataArray, output, *, inputs: Sequence, overwrite: bool, chunks: int,
+def _write_class_map(classes: xr.DataArray, output, *, inputs: Sequence[tuple], overwrite: bool, chunks: int,
                      tags: Mapping[str, str]) -> None:
-    refuse_overwriting_inputs({"output": output}, inputs)
+    check_outputs({"output": output}, inputs)
     if not overwrite and Path(output).exists():
         raise OutputError(f"output {output} exists; give --overwrite to replace it")
     Path(output).parent.mkdir(parents=True, exist_ok=True)
@@ -82,22 +80,26 @@ def ndvi_class_file(
     names = ",".join(f"{ident}:{name}" for ident, name in sorted(strata.names.items()))
     tags = {"brdf_class_map": f"NDVI strata of {Path(image).name}; edges "
                               + ",".join(f"{edge:g}" for edge in strata.edges), "class_names": names}
-    _write_class_map(strata.classes, output, inputs=[image], overwrite=overwrite, chunks=chunks, tags=tags)
+    _write_class_map(strata.classes, output, inputs=[("image", image)], overwrite=overwrite, chunks=chunks,
+                     tags=tags)
     return strata
 
 
 def align_class_file(
     classes: str | os.PathLike, image: str | os.PathLike, output: str | os.PathLike, *,
     lookup: Mapping[int, int] | None = None, chunks: int | None = None, overwrite: bool = False,
+    reads: Mapping[str, str | os.PathLike | None] | None = None,
 ) -> xr.DataArray:
     """Write a land-cover map brought onto the grid of ``image`` (nearest neighbour), its codes
     optionally remapped to table ids (:func:`brdfcorr.strata.align_class_map`).
 
-    Returns the aligned (lazy) class map as written.
+    ``reads`` names further files the caller read (the lookup table file), never overwritten
+    (:func:`brdfcorr.io.paths.check_outputs`). Returns the aligned (lazy) class map as written.
     """
     chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
     reflectance = rasters.open_image(image, chunks=chunks)
     aligned = align_class_map(rasters.open_classes(classes, chunks=chunks), reflectance, lookup)
     tags = {"brdf_class_map": f"{Path(classes).name}: {describe_class_map(aligned, lookup)}"}
-    _write_class_map(aligned, output, inputs=[classes, image], overwrite=overwrite, chunks=chunks, tags=tags)
+    inputs = [("class map", classes), ("image", image), *(reads or {}).items()]
+    _write_class_map(aligned, output, inputs=inputs, overwrite=overwrite, chunks=chunks, tags=tags)
     return aligned

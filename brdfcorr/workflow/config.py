@@ -30,6 +30,7 @@ from __future__ import annotations
 import copy
 import os
 import re
+from collections import Counter
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
@@ -43,9 +44,9 @@ from pydantic import (
     model_validator,
 )
 
-from brdfcorr._validation import describe_errors
+from brdfcorr._validation import Integer, Number, describe_errors, short_repr
 from brdfcorr.errors import ConfigError, UnknownNameError
-from brdfcorr.io.files import parse_yaml
+from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.io.sensors import ANGLE_KINDS
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.materials import load_material, material_names
@@ -138,6 +139,11 @@ class InputsConfig(_Strict):
         Class-map code -> table class id (e.g. ESA WorldCover 10 -> 3); codes not listed: no class.
     wavelengths : list of float, optional
         Band centres [nm] for every image, overriding what the files say.
+    scale, offset : float, optional
+        Reflectance factor per stored unit (> 0) and of a stored 0, for every image, for products
+        that do not tag them (e.g. 0.0001 for 0-10000; Landsat C2 L2 2.75e-5 and -0.2); a given
+        value replaces the files' GDAL scale/offset (default: the files', else 1 and 0). Applied on
+        read by the fit and correct steps and recorded in the outputs' tags.
     """
 
     images: list[str] = Field(min_length=1)
@@ -145,8 +151,10 @@ class InputsConfig(_Strict):
     angles: AngleSource
     classes: str = Field(min_length=1)
     align_classes: bool = False
-    class_lookup: dict[int, Annotated[int, Field(ge=0, le=65535)]] = Field(default_factory=dict)
-    wavelengths: list[Annotated[float, Field(gt=0)]] | None = None
+    class_lookup: dict[Integer, Annotated[Integer, Field(ge=0, le=65535)]] = Field(default_factory=dict)
+    wavelengths: list[Annotated[Number, Field(gt=0)]] | None = None
+    scale: Number | None = Field(None, gt=0, allow_inf_nan=False)
+    offset: Number | None = Field(None, allow_inf_nan=False)
 
     @field_validator("images")
     @classmethod
@@ -165,7 +173,7 @@ class InputsConfig(_Strict):
         except re.error as error:
             raise ValueError(f"not a regular expression: {error}") from None
         if "scene" not in compiled.groupindex:
-            raise ValueError(f"{value!r} has no named group (?P<scene>...)")
+            raise ValueError(f"{short_repr(value)} has no named group (?P<scene>...)")
         return value
 
     @field_validator("classes")
@@ -194,14 +202,14 @@ class MeasurementSet(_Strict):
     """
 
     file: str = Field(min_length=1)
-    class_id: int = Field(ge=1)
+    class_id: Integer = Field(ge=1)
     name: str = Field(min_length=1)
     model: SurfaceModel = "torrance_sparrow"
-    fixed: dict[str, float] = Field(default_factory=dict)
-    initial: dict[str, float] = Field(default_factory=dict)
-    min_phi: float | None = Field(None, ge=0, le=180)
-    max_phi: float | None = Field(None, ge=0, le=180)
-    max_zenith: float | None = Field(None, gt=0, lt=90)
+    fixed: dict[str, Number] = Field(default_factory=dict)
+    initial: dict[str, Number] = Field(default_factory=dict)
+    min_phi: Number | None = Field(None, ge=0, le=180)
+    max_phi: Number | None = Field(None, ge=0, le=180)
+    max_zenith: Number | None = Field(None, gt=0, lt=90)
 
 
 
@@ -226,14 +234,14 @@ class ImageryFit(_Strict):
 
     source: Literal["imagery"]
     model: SurfaceModel = "torrance_sparrow"
-    class_models: dict[Annotated[int, Field(ge=1)], SurfaceModel] = Field(default_factory=dict)
-    names: dict[Annotated[int, Field(ge=1)], str] = Field(default_factory=dict)
-    fixed: dict[str, float] | None = None
-    max_samples: int = Field(50_000, ge=10)
-    seed: int = 0
-    reflectance_scale: float = Field(1.0, gt=0)
-    min_samples: int = Field(500, ge=1)
-    min_vza_spread: float = Field(10.0, ge=0)
+    class_models: dict[Annotated[Integer, Field(ge=1)], SurfaceModel] = Field(default_factory=dict)
+    names: dict[Annotated[Integer, Field(ge=1)], str] = Field(default_factory=dict)
+    fixed: dict[str, Number] | None = None
+    max_samples: Integer = Field(50_000, ge=10)
+    seed: Integer = 0
+    reflectance_scale: Number = Field(1.0, gt=0)
+    min_samples: Integer = Field(500, ge=1)
+    min_vza_spread: Number = Field(10.0, ge=0)
     fallback: str | None = None
     output: str = "fitted_params.yaml"
 
@@ -250,7 +258,7 @@ def _check_material(name: str) -> str:
         load_material(name)
     except UnknownNameError:
         allowed = ", ".join(map(repr, material_names()))
-        raise ValueError(f"{name!r} is not a built-in material; allowed: {allowed}") from None
+        raise ValueError(f"{short_repr(name)} is not a built-in material; allowed: {allowed}") from None
     return name
 
 
@@ -269,7 +277,7 @@ class ParametersConfig(_Strict):
     """
 
     table: str | None = None
-    materials: dict[Annotated[int, Field(ge=1)], str] = Field(default_factory=dict)
+    materials: dict[Annotated[Integer, Field(ge=1)], str] = Field(default_factory=dict)
     classes: list[ClassEntry] = Field(default_factory=list)
 
     @field_validator("materials")
@@ -282,8 +290,7 @@ class ParametersConfig(_Strict):
     @field_validator("classes")
     @classmethod
     def _unique(cls, value: list[ClassEntry]) -> list[ClassEntry]:
-        ids = [entry.id for entry in value]
-        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        duplicates = sorted(i for i, count in Counter(entry.id for entry in value).items() if count > 1)
         if duplicates:
             raise ValueError(f"class id(s) {', '.join(map(str, duplicates))} appear more than once")
         return value
@@ -306,7 +313,7 @@ class CorrectStep(_Strict):
         Also write the QA flag raster.
     """
 
-    limits: tuple[Annotated[float, Field(gt=0)], Annotated[float, Field(gt=0)]] | None = (0.2, 5.0)
+    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = (0.2, 5.0)
     unknown: Literal["keep", "nan"] = "keep"
     extrapolate: bool = False
     flip_view_azimuth: bool = False
@@ -333,9 +340,9 @@ class QuicklookStep(_Strict):
         Longest side of the quicklook [pixels]; larger images are block-averaged.
     """
 
-    bands: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [3, 2, 1])
-    percentiles: tuple[Annotated[float, Field(ge=0, le=100)], Annotated[float, Field(ge=0, le=100)]] = (2.0, 98.0)
-    max_size: int = Field(800, ge=16)
+    bands: list[Annotated[Integer, Field(ge=1)]] = Field(default_factory=lambda: [3, 2, 1])
+    percentiles: tuple[Annotated[Number, Field(ge=0, le=100)], Annotated[Number, Field(ge=0, le=100)]] = (2.0, 98.0)
+    max_size: Integer = Field(800, ge=16)
 
     @field_validator("bands")
     @classmethod
@@ -403,9 +410,10 @@ class OutputsConfig(_Strict):
     def _names(cls, value: str) -> str:
         check_pattern(value, ("parent", "stem", "scene"))
         if "/" in value or "\\" in value:
-            raise ValueError(f"{value!r} must be a file name (no directory part)")
+            raise ValueError(f"{short_repr(value)} must be a file name (no directory part)")
         if "{" not in value:
-            raise ValueError(f"{value!r} must contain {{scene}}, {{stem}} or {{parent}}: scenes need distinct names")
+            raise ValueError(f"{short_repr(value)} must contain {{scene}}, {{stem}} or {{parent}}: "
+                             "scenes need distinct names")
         return value
 
 
@@ -438,9 +446,9 @@ class EngineConfig(_Strict):
     """
 
     scheduler: Literal["threads", "processes", "synchronous", "distributed"] = "threads"
-    workers: int = Field(default_factory=lambda: max(1, os.cpu_count() or 1), ge=1)
-    threads_per_worker: int = Field(1, ge=1)
-    chunk: int = Field(512, ge=16, le=8192)
+    workers: Integer = Field(default_factory=lambda: max(1, os.cpu_count() or 1), ge=1)
+    threads_per_worker: Integer = Field(1, ge=1)
+    chunk: Integer = Field(512, ge=16, le=8192)
     address: str | None = None
 
     @field_validator("chunk")
@@ -540,14 +548,12 @@ def load_config(path: str | os.PathLike, overrides: Mapping[str, object] | None 
     Raises
     ------
     ConfigError
-        Unreadable file, invalid YAML (with line and column) or invalid content (key path and
-        allowed values).
+        Unreadable file (also: not a regular file, larger than
+        :data:`brdfcorr.io.files.MAX_DOCUMENT_BYTES`, not UTF-8), invalid YAML (with line and
+        column) or invalid content (key path and allowed values).
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as error:
-        raise ConfigError(f"cannot read chain config {path}: {error.strerror}") from None
+    text = read_document(path, "chain config", ConfigError)
     data = parse_yaml(text, str(path), ConfigError)
     if data is None:
         data = {}

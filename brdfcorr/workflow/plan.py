@@ -4,23 +4,34 @@ A plan expands a :class:`~brdfcorr.workflow.config.ChainConfig` into scenes (ima
 class map and output names for every input image) and decides each scene's action:
 
 ``run``   the scene is corrected;
-``skip``  its complete outputs exist (``outputs.existing: skip``) and were made with the parameter
-          table of this run;
+``skip``  its complete outputs exist (``outputs.existing: skip``) and were made from the same inputs,
+          settings and parameter table as this run would use;
 ``fail``  an input is missing, or its outputs exist under ``outputs.existing: error``.
 
 The plan is the one place that decides: ``brdfcorr run --dry-run`` shows it and
 :func:`brdfcorr.workflow.chain.run_chain` follows it, so both say the same about every scene.
 Outputs appear complete or not at all, so a scene whose outputs all exist is complete; it is still
 redone when its corrected image records (provenance tag ``brdf_parameter_table_content``) another
-parameter table than the one this run will use (:func:`planned_table`). When the fit step makes a
-new table, that table is not known before the run, and such scenes are redone.
+parameter table than the one this run will use (:func:`planned_table`), or another fingerprint
+(tags ``brdf_fingerprint``, ``brdf_fingerprint_content``) than the one this run would write
+(:func:`scene_fingerprint`: the input files' path, size and modification time, the reference
+geometry, limits and other settings, the brdfcorr version). When the fit step makes a new table,
+that table is not known before the run, and such scenes are redone.
+
+Before anything runs, every file the run writes (scene outputs, run report, fitted table) is
+checked against every file it reads (every scene's inputs, the chain config, the parameter table,
+measurement files) and against each other (:func:`brdfcorr.io.paths.check_outputs`). Paths keep
+the form the config gives them (a scene image given as a link has ``{dir}`` of the link); file
+identity is only compared in that check.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import glob
+import hashlib
 import json
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,12 +39,14 @@ from pathlib import Path
 import rasterio
 import rasterio.errors
 
-from brdfcorr.errors import InputError
+from brdfcorr import __version__
+from brdfcorr.errors import InputError, OutputError
+from brdfcorr.io.paths import InputOverwriteError, check_outputs
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 from brdfcorr.workflow.config import ChainConfig, format_pattern
 
-__all__ = ["Scene", "RunPlan", "plan_run", "configured_table", "reuses_fit", "planned_table"]
+__all__ = ["Scene", "RunPlan", "plan_run", "configured_table", "reuses_fit", "planned_table", "scene_fingerprint"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +70,9 @@ class Scene:
     action : {"run", "skip", "fail"}
         What the run will do; ``reason`` says why for ``skip`` and ``fail`` (and for ``run`` when
         existing outputs are redone).
+    fingerprint : str
+        What the corrected output will record of its inputs and settings
+        (:func:`scene_fingerprint`).
     """
 
     name: str
@@ -68,6 +84,16 @@ class Scene:
     outputs: dict
     action: str = "run"
     reason: str = ""
+    fingerprint: str = ""
+
+    def inputs(self) -> list[tuple[str, Path]]:
+        """(role, path) of the files the scene reads: image, class map and angle file."""
+        files = [("image", self.image)]
+        if self.classes != Path():  # Path(): a scene failed before its files were named
+            files.append(("class map", self.classes))
+        if self.angles_kind != "solar" and self.angles:  # the solar source is a time, not a file
+            files.append(("angles", Path(self.angles)))
+        return files
 
     def describe(self) -> dict:
         """JSON-friendly description (for the report and ``--dry-run``)."""
@@ -100,6 +126,11 @@ class RunPlan:
         steps = self.config.steps
         return [name for name in ("fit", "correct", "quicklook") if getattr(steps, name) is not None]
 
+    def files_written(self) -> list[Path]:
+        """Every file the run may write: the scenes' outputs, the run report, the fitted table."""
+        files = [path for scene in self.scenes for path in scene.outputs.values()] + [self.report]
+        return files + ([self.fit_output] if self.fit_output is not None else [])
+
     def describe(self) -> dict:
         """JSON-friendly summary: steps, parameter sources, engine, scenes and their actions."""
         engine = self.config.engine
@@ -130,17 +161,20 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     ------
     InputError
         No input image, or (with ``require_inputs``) an ``inputs.images`` glob matching no file;
-        two scenes with the same output name; an output that would overwrite an input; a missing
-        parameter table or measurement file.
+        two scenes with the same output name; an output that would overwrite an input
+        (:class:`~brdfcorr.io.paths.InputOverwriteError` of :func:`~brdfcorr.io.paths.check_outputs`);
+        a missing parameter table or measurement file.
+    OutputError
+        Two outputs of the run are the same file, or an output is no regular file.
     ParameterError
         An invalid parameter table file (or fitted table reused by ``outputs.existing: skip``).
     """
     images, notes = _images(config, require_inputs)
-    output_dir = config.resolve(config.outputs.directory).resolve()
+    output_dir = config.resolve(config.outputs.directory)
     scenes = _plan_scenes(config, images, output_dir)
     sources, fit_output, parameter_notes = _parameter_sources(config, output_dir, require_inputs)
     report = output_dir / config.outputs.report
-    _refuse_overwriting_inputs(config, scenes, {"outputs.report": report, "steps.fit.output": fit_output})
+    _check_outputs(config, scenes, report, fit_output)
     scenes = _redo_stale(config, scenes, fit_output)
     return RunPlan(config, tuple(scenes), output_dir, report, fit_output, tuple(sources),
                    tuple(notes + parameter_notes))
@@ -159,7 +193,7 @@ def _images(config: ChainConfig, require_inputs: bool) -> tuple[list[Path], list
             images += matches
         else:
             images.append(Path(pattern))
-    images = list(dict.fromkeys(path.resolve() for path in images))
+    images = list(dict.fromkeys(images))  # as given: a link stays a link ({dir} is its directory)
     if not images:
         message = f"inputs.images matches no file ({', '.join(config.inputs.images)})"
         if require_inputs:
@@ -181,21 +215,20 @@ def _scene_name(config: ChainConfig, image: Path, shared_stems=frozenset()) -> s
 
 
 def _plan_scenes(config: ChainConfig, images: list[Path], output_dir: Path) -> list[Scene]:
-    """One scene per image; no two scenes may write the same file, no output may be an input."""
+    """One scene per image; no two scenes may write the same file name (:func:`_check_outputs` then
+    checks every output against every input and output by file identity)."""
     stems = [image.stem for image in images]
     shared = frozenset(stem for stem in stems if stems.count(stem) > 1)
     scenes, writers = [], {}
-    for image in images:
+    for index, image in enumerate(images):
         scene = _plan_scene(config, image, shared, output_dir)
-        for key, path in scene.outputs.items():
-            if path in writers:
+        for path in scene.outputs.values():
+            if path in writers and writers[path][0] != index:  # one scene's own outputs: _check_outputs
                 raise InputError(
-                    f"outputs: scenes {writers[path]} and {scene.name} would both write {path}; use {{scene}} or "
+                    f"outputs: scenes {writers[path][1]} and {scene.name} would both write {path}; use {{scene}} or "
                     "{stem} in the output naming patterns, or a scene_regex giving distinct names"
                 )
-            if path in (scene.image, scene.classes) or (scene.angles_kind != "solar" and str(path) == scene.angles):
-                raise InputError(f"outputs: {key} output {path} of scene {scene.name} would overwrite an input")
-            writers[path] = scene.name
+            writers[path] = (index, scene.name)
         scenes.append(scene)
     return scenes
 
@@ -210,13 +243,14 @@ def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, outpu
     def fill(pattern: str) -> str:
         return format_pattern(pattern, image, name)
 
-    classes = config.resolve(fill(config.inputs.classes)).resolve()
+    classes = config.resolve(fill(config.inputs.classes))  # not resolved: the user's paths, in messages too
     angle_source = fill(angles.path)
     if angles.kind != "solar":  # the solar source is a time, not a file
-        angle_source = str(config.resolve(angle_source).resolve())
+        angle_source = str(config.resolve(angle_source))
     outputs = _output_paths(config, output_dir, fill)
     action, reason = _action(config, image, classes, angle_source, outputs)
-    return Scene(name, image, classes, angles.kind, angle_source, dict(angles.options), outputs, action, reason)
+    scene = Scene(name, image, classes, angles.kind, angle_source, dict(angles.options), outputs, action, reason)
+    return dataclasses.replace(scene, fingerprint=scene_fingerprint(scene, config))
 
 
 def _output_paths(config: ChainConfig, output_dir: Path, fill) -> dict[str, Path]:
@@ -278,13 +312,29 @@ def _parameter_sources(config: ChainConfig, output_dir: Path,
     return sources, fit_output, notes
 
 
-def _refuse_overwriting_inputs(config: ChainConfig, scenes: list[Scene], outputs: dict[str, Path | None]) -> None:
-    inputs = {scene.image for scene in scenes} | {scene.classes for scene in scenes}
+def _check_outputs(config: ChainConfig, scenes: list[Scene], report: Path, fit_output: Path | None) -> None:
+    """The output guard over the whole run (:func:`brdfcorr.io.paths.check_outputs`): every file
+    the run writes against every file it reads (every scene's inputs, the chain config, the
+    parameter table, measurement files) and against each other, whatever each scene's action."""
+    written = [(f"outputs: {key} output {path} of scene {scene.name}", path)
+               for scene in scenes for key, path in scene.outputs.items()]
+    written.append((f"outputs.report {report}", report))
+    if fit_output is not None:
+        written.append((f"steps.fit.output {fit_output}", fit_output))
+    read = [(f"the {role} of scene {scene.name}", path) for scene in scenes for role, path in scene.inputs()]
+    if os.path.isfile(config.source):  # a config made in Python has a label, not a file
+        read.append(("the chain config", Path(config.source)))
     if config.parameters.table is not None:
-        inputs.add(config.resolve(config.parameters.table).resolve())
-    for key, path in outputs.items():
-        if path is not None and path.resolve() in inputs:
-            raise InputError(f"{config.source}: {key} {path} would overwrite an input")
+        read.append(("parameters.table", config.resolve(config.parameters.table)))
+    if config.steps.fit is not None and config.steps.fit.source == "goniometer":
+        read += [("steps.fit.measurements", config.resolve(item.file)) for item in config.steps.fit.measurements]
+    try:
+        check_outputs(written, read)
+    except InputOverwriteError as clash:
+        raise InputError(f"{config.source}: {clash.output_name} would overwrite an input (the same file as "
+                         f"{clash.input_name} {clash.input})") from None
+    except OutputError as error:  # two outputs on one file, an output that is no regular file
+        raise OutputError(f"{config.source}: {error}") from None
 
 
 def configured_table(config: ChainConfig) -> ParameterTable:
@@ -318,7 +368,7 @@ def planned_table(config: ChainConfig, fit_output: Path | None) -> ParameterTabl
 
 def _redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | None) -> list[Scene]:
     """The scenes, with skipped ones turned to ``run`` when their outputs were not made with the
-    run's parameter table."""
+    run's parameter table, inputs and settings."""
     if not any(scene.action == "skip" and "corrected" in scene.outputs for scene in scenes):
         return scenes
     table_file = config.parameters.table
@@ -331,16 +381,89 @@ def _redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | Non
 def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
     """The scene, turned from ``skip`` to ``run`` if its corrected output was written with another
     parameter table than ``table`` (provenance tag ``brdf_parameter_table_content`` of
-    :func:`brdfcorr.workflow.tasks.correct_files`), or ``table`` is not known before the run."""
+    :func:`brdfcorr.workflow.tasks.correct_files`) or ``table`` is not known before the run, or
+    with another fingerprint than ``scene.fingerprint`` (tag ``brdf_fingerprint``)."""
     if scene.action != "skip" or "corrected" not in scene.outputs:
         return scene
     if table is None:
         return dataclasses.replace(scene, action="run", reason="the fit step makes a new parameter table")
     try:
         with rasterio.open(scene.outputs["corrected"]) as dataset:
-            written = json.loads(dataset.tags().get("brdf_parameter_table_content", "null"))
+            tags = dataset.tags()
+        written = json.loads(tags.get("brdf_parameter_table_content", "null"))
     except (rasterio.errors.RasterioError, ValueError):
-        written = None
-    if written == json.loads(json.dumps(table.to_dict())):
-        return scene
-    return dataclasses.replace(scene, action="run", reason="outputs were made with another parameter table")
+        tags, written = {}, None
+    if written != json.loads(json.dumps(table.to_dict())):
+        return dataclasses.replace(scene, action="run", reason="outputs were made with another parameter table")
+    if tags.get("brdf_fingerprint") != hashlib.sha256(scene.fingerprint.encode()).hexdigest():
+        return dataclasses.replace(scene, action="run", reason=_what_changed(tags, scene.fingerprint))
+    return scene
+
+
+# ----------------------------------------------------------------------------------- fingerprints
+def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
+    """Everything a scene's corrected output depends on besides the parameter table, as canonical
+    JSON (sorted keys, no spaces): what :func:`brdfcorr.workflow.tasks.correct_files` records
+    (tags ``brdf_fingerprint``, its SHA-256, and ``brdf_fingerprint_content``) and a resumed run
+    compares.
+
+    It holds the input files' path (as given), size and modification time [ns] (the acquisition
+    time of a ``solar`` angle source), the angle source's kind and options, the other ``inputs``
+    settings (wavelengths, class lookup, ...), the reference geometry, the correct step's options
+    (limits, ...), the output format and the brdfcorr version. The parameter table is recorded in
+    full apart from it (tag ``brdf_parameter_table_content``, :func:`planned_table`): a table from
+    the fit step is only known once the run has fitted it.
+    """
+    inputs = {role: _file_state(path) for role, path in scene.inputs()}
+    if scene.angles_kind == "solar":
+        inputs["angles"] = {"time": scene.angles}
+    correct = config.steps.correct
+    document = {
+        "brdfcorr": __version__,
+        "inputs": inputs,
+        "angle source": {"kind": scene.angles_kind, "options": scene.angle_options},
+        "settings": config.inputs.model_dump(mode="json", exclude={"images", "scene_regex", "angles", "classes"}),
+        "reference": None if config.reference is None else config.reference.model_dump(mode="json"),
+        "correct": None if correct is None else correct.model_dump(mode="json", exclude={"qa"}),
+        "format": config.outputs.model_dump(mode="json", include={"format", "compress", "cog"}),
+    }
+    return json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def _file_state(path: Path) -> dict:
+    """A file's identity in a fingerprint: path (as given), size [bytes], modification time [ns]."""
+    try:
+        status = os.stat(path)
+    except OSError:
+        return {"path": str(path)}
+    return {"path": str(path), "size": status.st_size, "mtime_ns": status.st_mtime_ns}
+
+
+#: How a reason names a part of a fingerprint.
+_PARTS = {"brdfcorr": "brdfcorr version", "angle source": "angle source", "settings": "inputs settings",
+          "reference": "reference geometry", "correct": "steps.correct", "format": "output format"}
+
+
+def _what_changed(tags: dict, fingerprint: str) -> str:
+    """Why an output's recorded fingerprint is not ``fingerprint``, in words ("reference geometry
+    changed since it was written")."""
+    generic = "inputs or settings changed since it was written"
+    try:
+        written, planned = json.loads(tags["brdf_fingerprint_content"]), json.loads(fingerprint)
+    except (KeyError, ValueError):  # an output of a brdfcorr that recorded no fingerprint
+        return generic
+    if not isinstance(written, dict):
+        return generic
+    changed = []
+    for part, value in planned.items():
+        if written.get(part) == value:
+            continue
+        if part == "inputs":
+            old = written.get(part) if isinstance(written.get(part), dict) else {}
+            changed += [f"{role} {value[role].get('path', value[role].get('time'))}" for role in value
+                        if old.get(role) != value[role]]
+        elif part == "correct" and isinstance(written.get(part), dict) and isinstance(value, dict):
+            changed += [f"steps.correct.{key}" for key in value if written[part].get(key) != value[key]]
+        else:
+            changed.append(_PARTS.get(part, part))
+    return f"{', '.join(changed)} changed since it was written" if changed else generic

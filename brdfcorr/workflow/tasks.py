@@ -11,6 +11,7 @@ Warnings of the fits are collected into the results (``warnings``), one line eac
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import warnings
@@ -29,6 +30,7 @@ from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, GuardRails, fi
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
 from brdfcorr.io import rasters
+from brdfcorr.io.paths import check_outputs
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.strata import align_class_map, remap_classes
 
@@ -44,15 +46,8 @@ __all__ = [
 ]
 
 
-def refuse_overwriting_inputs(outputs: Mapping[str, str | os.PathLike | None], inputs: Sequence) -> None:
-    """Raise :class:`InputError` if an output path (by option or key name) is one of the inputs.
-
-    Paths are compared after resolving links, so a link to an input is that input.
-    """
-    resolved = {Path(p).resolve() for p in inputs if p is not None}
-    for name, target in outputs.items():
-        if target is not None and Path(target).resolve() in resolved:
-            raise InputError(f"{name} {target} is also an input; inputs are never overwritten")
+#: The output guard (:func:`brdfcorr.io.paths.check_outputs`) under its brdfcorr 0.1 name.
+refuse_overwriting_inputs = check_outputs
 
 
 def class_preparation(align: bool = False, lookup: Mapping[int, int] | None = None):
@@ -90,6 +85,8 @@ def correct_files(
     angles_kind: str = "geotiff", angle_options: dict | None = None, overwrite: bool = True,
     align_classes: bool = False, class_lookup: Mapping[int, int] | None = None,
     scheduler: str | None = None, num_workers: int | None = None,
+    scale: float | None = None, offset: float | None = None,
+    reads: Mapping[str, str | os.PathLike | None] | Sequence = (), fingerprint: str | None = None,
 ) -> dict[str, object]:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
@@ -99,6 +96,12 @@ def correct_files(
     a temporary name renamed when complete, with band descriptions and provenance tags (reference
     geometry, limits, parameter table, brdfcorr version). The optional QA layer is written in the
     same pass.
+
+    The image's stored values are read as reflectance factors: scaled with the file's per-band GDAL
+    scale and offset (``reflectance = stored * scale + offset``), or with ``scale``/``offset`` where
+    given. The output holds reflectance factors (float32, float64 for a float64 input, no GDAL
+    scale/offset) and records the scaling applied in the tags ``brdf_input_scale`` and
+    ``brdf_input_offset`` (one value, or one per band comma-separated).
 
     Parameters
     ----------
@@ -142,6 +145,20 @@ def correct_files(
         dask scheduler of the computations and its number of workers (as for
         :func:`dask.compute`; default: dask's), e.g. ``"threads"`` and 2 inside a process or
         cluster worker, where several scenes may run side by side.
+    scale, offset : float, optional
+        Reflectance factor per stored unit and of a stored 0, for images that do not tag them
+        (e.g. 0.0001 for reflectance stored as 0-10000); a given value replaces the file's
+        (:func:`brdfcorr.io.rasters.open_image`). Without ``scale`` a sample of the image is
+        checked for raw counts (:func:`brdfcorr.io.rasters.check_reflectance_scale`, a few chunks
+        read, not a pass); a given scale is trusted.
+    reads : mapping of name to path, or sequence of paths, optional
+        Further files the caller read for this correction (the parameter table file, a class
+        lookup table): like the inputs, never overwritten (:func:`brdfcorr.io.paths.check_outputs`).
+    fingerprint : str, optional
+        Canonical JSON of everything the output depends on
+        (:func:`brdfcorr.workflow.plan.scene_fingerprint`), written in the tags
+        ``brdf_fingerprint`` (its SHA-256, hex) and ``brdf_fingerprint_content``: a resumed chain
+        redoes an output whose fingerprint is not the one it would write.
 
     Returns
     -------
@@ -154,18 +171,22 @@ def correct_files(
         A missing, unreadable or malformed input (named): wrong band counts, a float class map,
         angles that look like radians or hold no zenith in [0, 90)
         (:func:`brdfcorr.io.rasters.check_angles`; single pixels outside the domain are flagged,
-        not an error), an output that is an input.
+        not an error), an image that holds no reflectance factors after scaling (raw counts without
+        ``scale``), an output that is the same file as an input
+        (:class:`brdfcorr.io.paths.InputOverwriteError`).
     GridMismatchError
         A layer not on the image's grid (shape, transform or CRS).
     ParameterError
         The table does not fit the image's bands (names the table, the class and the parameter).
     OutputError
-        An existing output without ``overwrite``, or a failed write (disk full); nothing is left
-        at the output paths.
+        An existing output without ``overwrite``, an output that is no regular file or the same
+        file as the other output, or a failed write (disk full); nothing is left at the output paths.
     """
-    inputs = [image, sza, saa, vza, vaa, classes] + ([angles] if angles_kind == "geotiff" else [])
-    outputs = {"output": output, "QA output": qa_output}
-    refuse_overwriting_inputs(outputs, inputs)
+    inputs = [("image", image), ("angles", None if angles_kind == "solar" else angles), ("sza raster", sza),
+              ("saa raster", saa), ("vza raster", vza), ("vaa raster", vaa), ("class map", classes),
+              ("parameter table", None if isinstance(params, ParameterTable) else params)]
+    inputs += list(reads.items()) if isinstance(reads, Mapping) else list(reads)
+    check_outputs({"output": output, "QA output": qa_output}, inputs)
     for target in (output, qa_output):
         if target is not None and not overwrite and Path(target).exists():
             raise OutputError(f"output {target} exists; give --overwrite to replace it")
@@ -177,9 +198,11 @@ def correct_files(
     scene = rasters.open_scene(
         image, classes, angles, angles_kind=angles_kind, angle_options=angle_options,
         sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks, wavelengths=wavelengths,
-        prepare_classes=class_preparation(align_classes, class_lookup),
+        scale=scale, offset=offset, prepare_classes=class_preparation(align_classes, class_lookup),
         scheduler=scheduler, num_workers=num_workers,
     )
+    if scale is None:  # a given scale is the user's word; else catch raw counts before the correction pass
+        rasters.check_reflectance_scale(scene.reflectance, str(image), scheduler=scheduler, num_workers=num_workers)
     reference = resolve_reference(reference, params)
     source = "fixed" if not isinstance(reference.sza, str) else reference.sza
     if reference.sza == "mean":
@@ -207,11 +230,16 @@ def correct_files(
         "brdf_limits": describe_limits(limits),
         "brdf_parameter_table": table_path or "(in memory)",
         "brdf_parameter_table_content": json.dumps(params.to_dict(), separators=(",", ":")),
+        "brdf_input_scale": _describe_scaling(scene.reflectance.attrs["brdf_input_scale"]),
+        "brdf_input_offset": _describe_scaling(scene.reflectance.attrs["brdf_input_offset"]),
         "brdfcorr_version": __version__,
     }
     class_map_note = describe_class_map(scene.classes, class_lookup)
     if class_map_note:
         tags["brdf_class_map"] = class_map_note
+    if fingerprint is not None:  # what a resumed chain compares (brdfcorr.workflow.plan)
+        tags["brdf_fingerprint"] = hashlib.sha256(fingerprint.encode()).hexdigest()
+        tags["brdf_fingerprint_content"] = fingerprint
     if "wavelength" in scene.reflectance.coords:
         tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
         tags["wavelength_units"] = "nm"
@@ -224,6 +252,12 @@ def correct_files(
         scheduler=scheduler, num_workers=num_workers,
     )
     return {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+
+
+def _describe_scaling(value: float | Sequence[float]) -> str:
+    """A scale or offset of :func:`brdfcorr.io.rasters.open_image` as a tag: ``"0.0001"``, or one
+    value per band comma-separated (shortest exact form)."""
+    return ",".join(repr(float(v)) for v in np.atleast_1d(value))
 
 
 # ---------------------------------------------------------------------------- goniometer fit
@@ -315,7 +349,8 @@ def fit_measurement_file(
 # ------------------------------------------------------------------------------ imagery fit
 @dataclass(frozen=True)
 class SceneFiles:
-    """The files of one scene: image, class map and angle source (as for :func:`correct_files`)."""
+    """The files of one scene: image, class map and angle source, and how to read them (as for
+    :func:`correct_files`; ``scale``/``offset``: the image's, None for the file's)."""
 
     image: Path
     classes: Path
@@ -325,6 +360,8 @@ class SceneFiles:
     name: str = ""
     align_classes: bool = False
     class_lookup: Mapping[int, int] | None = None
+    scale: float | None = None
+    offset: float | None = None
 
 
 @dataclass
@@ -358,15 +395,23 @@ def fit_class_files(
 ) -> ImageryFit:
     """Fit per-class, per-band parameters from the pixels of one or many scenes.
 
-    Each scene is opened lazily and checked (:func:`brdfcorr.io.rasters.open_scene`), then the
-    classes' pixels are pooled over the scenes, sampled and fitted
-    (:func:`brdfcorr.fit.fit_classes`, with its guard rails).
+    Each scene is opened lazily and checked (:func:`brdfcorr.io.rasters.open_scene`), its stored
+    values read as reflectance factors (the file's GDAL scale/offset, or the scene's ``scale`` and
+    ``offset``), then the classes' pixels are pooled over the scenes, sampled and fitted
+    (:func:`brdfcorr.fit.fit_classes`, with its guard rails). A scene without a given scale whose
+    sample does not look like reflectance factors (raw counts) is an :class:`InputError`
+    (:func:`brdfcorr.io.rasters.check_reflectance_scale`).
 
     Parameters
     ----------
     scenes : sequence of SceneFiles
-    model, class_models, names, fixed, max_samples, seed, reflectance_scale, guard, fallback :
+    model, class_models, names, fixed, max_samples, seed, guard, fallback :
         As for :func:`brdfcorr.fit.fit_classes`.
+    reflectance_scale : float, default 1
+        Kept for callers of brdfcorr 0.1: the scale of every scene's stored values, applied on read
+        as a given ``SceneFiles.scale`` (so it replaces a tagged scale, and the file's offset still
+        applies); prefer ``SceneFiles.scale``. A scene with a different scale of its own is an
+        :class:`InputError`.
     chunks, wavelengths :
         As for :func:`brdfcorr.io.rasters.open_image`.
     skip_unreadable : bool, default False
@@ -375,12 +420,21 @@ def fit_class_files(
     """
     opened, used, left_out = [], [], []
     for scene in scenes:
+        scale = scene.scale
+        if reflectance_scale != 1.0:  # the 0.1 option: the scale of the stored values, now applied on read
+            if scale is not None and scale != reflectance_scale:
+                raise InputError(f"{scene.image}: scale {scale} and reflectance_scale {reflectance_scale} "
+                                 "differ; give the scale once")
+            scale = reflectance_scale
         try:
             data = rasters.open_scene(
                 scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
                 angle_options=dict(scene.angle_options), chunks=chunks, wavelengths=wavelengths,
+                scale=scale, offset=scene.offset,
                 prepare_classes=class_preparation(scene.align_classes, scene.class_lookup),
             )
+            if scale is None:
+                rasters.check_reflectance_scale(data.reflectance, str(scene.image))
         except BrdfcorrError as error:
             if not skip_unreadable:
                 raise
@@ -396,8 +450,7 @@ def fit_class_files(
         result = fit_classes(
             [s.reflectance for s in opened], [s.classes for s in opened],
             [xr.Dataset(s.angles) for s in opened], model, class_models=class_models, names=names,
-            fixed=fixed, max_samples=max_samples, seed=seed, reflectance_scale=reflectance_scale,
-            guard=guard, fallback=fallback,
+            fixed=fixed, max_samples=max_samples, seed=seed, guard=guard, fallback=fallback,
         )
     first = opened[0].reflectance
     found = first.coords["wavelength"].values if "wavelength" in first.coords else None

@@ -1,0 +1,150 @@
+"""The output guard: what a command writes, checked against what it reads, before anything is written.
+
+One rule for every brdfcorr command and chain (:func:`check_outputs`):
+
+1. an output is a regular file or absent: a directory, device, FIFO or socket is refused;
+2. an output is not the same file as any input: inputs are never overwritten;
+3. no two outputs are the same file (the second would replace the first).
+
+"The same file" is decided by file identity where both paths exist (``os.stat``: device and inode,
+through symbolic links, so a link to an input or a hard link of it is that input), and by the
+resolved path otherwise (an output not yet written is the input of the same path). Paths are shown
+as the user gave them; identity is only compared here.
+
+:func:`remove_partials` removes the temporary files an interrupted run left beside its outputs
+(the names of :func:`brdfcorr.io.files.atomic_path`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import stat
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+from brdfcorr.errors import InputError, OutputError
+
+__all__ = ["check_outputs", "same_file", "file_identity", "remove_partials", "InputOverwriteError",
+           "SameOutputError"]
+
+PathLike = str | os.PathLike
+Named = Mapping[str, PathLike | None] | Iterable[PathLike | tuple[str, PathLike | None] | None]
+
+
+class InputOverwriteError(InputError):
+    """An output is the same file as an input (attributes: ``output_name``, ``output``,
+    ``input_name``, ``input``)."""
+
+    def __init__(self, output_name: str, output: PathLike, input_name: str, input: PathLike):
+        self.output_name, self.output, self.input_name, self.input = output_name, output, input_name, input
+        super().__init__(f"{_describe(output_name, output)} is also an input; inputs are never overwritten "
+                         f"(the same file as {_describe(input_name, input)})")
+
+
+class SameOutputError(OutputError):
+    """Two outputs are the same file (attributes: ``output_name``, ``output``, ``other_name``,
+    ``other``)."""
+
+    def __init__(self, output_name: str, output: PathLike, other_name: str, other: PathLike):
+        self.output_name, self.output, self.other_name, self.other = output_name, output, other_name, other
+        super().__init__(f"{_describe(output_name, output)} and {_describe(other_name, other)} are the same "
+                         "file; give each output its own file")
+
+
+def _describe(name: str, path: PathLike) -> str:
+    """``name path``, or ``name`` alone where it already shows the path (as a word of its own)."""
+    return name if f" {path} " in f" {name} " else f"{name} {path}"
+
+
+def _named(items: Named, default: str) -> list[tuple[str, Path]]:
+    """(name, path) pairs of a mapping or of an iterable of paths and pairs; None paths left out."""
+    pairs = items.items() if isinstance(items, Mapping) else (
+        item if isinstance(item, tuple) else (default, item) for item in items)
+    return [(name, Path(path)) for name, path in pairs if path is not None and str(path) != ""]
+
+
+def file_identity(path: PathLike) -> tuple:
+    """What makes a file the same file: ``("inode", st_dev, st_ino)`` of an existing file (through
+    symbolic links), else ``("path", resolved path)``."""
+    try:
+        status = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return ("path", Path(path).resolve())
+    except OSError:  # no permission to look: the spelling is all there is
+        return ("path", Path(os.path.abspath(path)))
+    return ("inode", status.st_dev, status.st_ino)
+
+
+def same_file(a: PathLike, b: PathLike) -> bool:
+    """Whether two paths are the same file (:func:`file_identity`)."""
+    return file_identity(a) == file_identity(b)
+
+
+_KINDS = ((stat.S_ISDIR, "directory"), (stat.S_ISCHR, "character device"), (stat.S_ISBLK, "block device"),
+          (stat.S_ISFIFO, "FIFO"), (stat.S_ISSOCK, "socket"))
+
+
+def _not_regular(path: Path) -> str | None:
+    """What an existing path is when it is no regular file ("directory", ...); None otherwise."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode):
+        return None
+    return next((kind for test, kind in _KINDS if test(mode)), "special file")
+
+
+def check_outputs(outputs: Named, inputs: Named = ()) -> None:
+    """Refuse outputs that are not regular files, that are an input, or that are another output.
+
+    Parameters
+    ----------
+    outputs : mapping of name to path, or iterable of paths or (name, path) pairs
+        What the command writes; the name is how messages call it (an option ``-o``, a config key
+        ``outputs.report``; a name that shows the path is used as it is). None paths are skipped.
+    inputs : mapping or iterable, as ``outputs``
+        What the command reads.
+
+    Raises
+    ------
+    OutputError
+        An output is a directory, device, FIFO or socket.
+    InputOverwriteError
+        An output is the same file as an input (an :class:`~brdfcorr.errors.InputError`).
+    SameOutputError
+        Two outputs are the same file (an :class:`~brdfcorr.errors.OutputError`).
+    """
+    read = [(name, path, file_identity(path)) for name, path in _named(inputs, "input")]
+    written = []
+    for name, path in _named(outputs, "output"):
+        kind = _not_regular(path)
+        if kind is not None:
+            raise OutputError(f"{_describe(name, path)} is a {kind}, not a regular file; outputs are written "
+                              "as regular files only")
+        identity = file_identity(path)
+        for input_name, input_path, input_identity in read:
+            if identity == input_identity:
+                raise InputOverwriteError(name, path, input_name, input_path)
+        for other_name, other_path, other_identity in written:
+            if identity == other_identity:
+                raise SameOutputError(other_name, other_path, name, path)
+        written.append((name, path, identity))
+
+
+def remove_partials(target: PathLike) -> list[Path]:
+    """Remove what an interrupted write left beside ``target``: the temporary files
+    ``.NAME.XXXXXXXX.partial`` (and ``.partial.gtiff`` of COG writes) of
+    :func:`brdfcorr.io.files.atomic_path`. Returns the removed paths."""
+    target = Path(target)
+    pattern = re.compile(re.escape(f".{target.name}.") + r"[A-Za-z0-9_]+\.partial(\.gtiff)?")
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(target.parent):
+            if pattern.fullmatch(entry.name) and entry.is_file(follow_symlinks=False):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(entry.path)
+                    removed.append(Path(entry.path))
+    return removed

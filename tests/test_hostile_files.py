@@ -1,0 +1,526 @@
+"""Hostile input files and values: answered within seconds by one line and exit 2, never a hang,
+a gigabyte, a traceback or a silently wrong number.
+
+Each command-line case builds one hostile file beside a good synthetic scene
+(:mod:`brdfcorr.testing`) and checks: exit code 2; stderr exactly one line ``brdfcorr: error: ...``
+matching the expected message (naming the file and the key or line at fault); no output written;
+every input byte-identical; answered within :data:`TIME_LIMIT` seconds. Files that could block
+(a FIFO, ``/dev/urandom``) are given to the command line in a subprocess with a timeout, so a
+regression fails instead of hanging the test run.
+
+The parameter bounds of the registry are checked against the models on a dense angle grid, and the
+correction's rule for invalid factors (``nodata``, never counted as corrected) on small scenes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.correct import QA_LIMITED, QA_NODATA, normalize, qa_counts
+from brdfcorr.errors import InputError, ParameterError
+from brdfcorr.geometry import ScatteringGeometry
+from brdfcorr.io.files import MAX_ALIAS_NODES, MAX_DOCUMENT_BYTES, parse_yaml
+from brdfcorr.models import SURFACE_MODELS, get_model
+from brdfcorr.params import ParameterTable, merge_tables
+from brdfcorr.testing import example_table, synthetic_scene, write_scene
+
+NY, NX = 16, 20
+#: Every hostile input is answered within this many seconds [s] (a subprocess includes start-up).
+TIME_LIMIT = 10.0
+
+TABLE = ("classes: [{id: 1, name: tile, model: torrance_sparrow, "
+         "params: {t0: 0.02, t1: %s, w: 0.036, n: %s, k: 0.25}}]\n")
+
+
+def _bomb(leaf: str = "0.1") -> str:
+    """Half a kilobyte whose aliases expand to 9^10 = 3.5 billion values (``*l9``)."""
+    lines = [f"l0: &l0 [{', '.join([leaf] * 9)}]"]
+    lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]" for i in range(1, 10)]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.fixture(scope="module")
+def template(tmp_path_factory) -> Path:
+    directory = tmp_path_factory.mktemp("template") / "scene"
+    write_scene(directory, synthetic_scene(ny=NY, nx=NX))
+    example_table().save(directory / "params.yaml")
+    return directory
+
+
+@pytest.fixture
+def scene(template, tmp_path) -> dict[str, Path]:
+    directory = tmp_path / "scene"
+    shutil.copytree(template, directory)
+    (tmp_path / "out").mkdir()
+    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
+            "classes": directory / "classes.tif", "params": directory / "params.yaml",
+            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}
+
+
+# ------------------------------------------------------------------------------------- helpers
+def _digests(directory: Path) -> dict[str, str]:
+    # is_file() is False for a FIFO: the check never opens one.
+    return {str(path.relative_to(directory)): hashlib.sha256(path.read_bytes()).hexdigest()
+            for path in sorted(directory.rglob("*")) if path.is_file()}
+
+
+def _one_error_line(stderr: str) -> str:
+    lines = stderr.splitlines()
+    assert len(lines) == 1, stderr[:2000]
+    assert lines[0].startswith("brdfcorr: error: "), lines[0]
+    assert "Traceback" not in stderr
+    return lines[0]
+
+
+def _correct_args(scene, params: Path | str) -> list[str]:
+    return ["correct", str(scene["image"]), "--angles", str(scene["angles"]), "--classes",
+            str(scene["classes"]), "--params", str(params), "-o", str(scene["output"]), "--chunk", "16"]
+
+
+def _chain(scene, text: str | None = None, **sections) -> Path:
+    """A chain config over the scene (one scene, output ``chain_out``), or ``text`` as it is."""
+    path = scene["dir"].parent / "chain.yaml"
+    if text is None:
+        document = {
+            "inputs": {"images": ["scene/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
+                       "classes": "{dir}/classes.tif"},
+            "parameters": {"table": "scene/params.yaml"},
+            "outputs": {"directory": "chain_out"},
+            "engine": {"scheduler": "synchronous", "workers": 1, "chunk": 16},
+            **sections,
+        }
+        text = yaml.safe_dump(document, sort_keys=False)
+    path.write_text(text)
+    return path
+
+
+def _check(scene, run, pattern: str) -> str:
+    """Run ``run() -> (exit code, stderr)``; check exit 2, one line matching ``pattern``, the time,
+    no output and unchanged inputs. Returns the line."""
+    before = _digests(scene["dir"].parent)
+    start = time.monotonic()
+    code, stderr = run()
+    elapsed = time.monotonic() - start
+    assert code == 2, stderr[:2000]
+    line = _one_error_line(stderr)
+    assert re.search(pattern, line), line
+    assert elapsed < TIME_LIMIT, f"answered in {elapsed:.1f} s"
+    assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
+    assert not (scene["dir"].parent / "chain_out").exists()
+    assert _digests(scene["dir"].parent) == before, "inputs must be byte-identical"
+    return line
+
+
+def _in_process(args: list[str]):
+    def run():
+        result = CliRunner().invoke(main, args)
+        return result.exit_code, result.stderr
+    return run
+
+
+def _subprocess(args: list[str], cwd: Path | None = None):
+    """The command line in its own process, killed after :data:`TIME_LIMIT` (a FIFO cannot hang
+    the test run)."""
+    def run():
+        result = subprocess.run([sys.executable, "-c", "from brdfcorr.cli import main; main()", *args],
+                                capture_output=True, text=True, timeout=TIME_LIMIT, cwd=cwd)
+        return result.returncode, result.stderr
+    return run
+
+
+# ------------------------------------------------------------------------ parameter tables (correct)
+LATIN_1 = "classes: [{id: 4, name: b\u00e9ton, model: lambertian, params: {t0: 0.1}}]\n"
+
+TABLE_CASES = {
+    "alias bomb": (
+        lambda s: _write(s, "bomb.yaml", _bomb() + "classes: [{id: 4, name: flat, model: lambertian, "
+                                                   "params: {t0: *l9}}]\n"),
+        r"bomb\.yaml: not valid YAML \(line \d+, column \d+\): its aliases expand to more than 1,000,000 "
+        r"values \(an alias bomb\?\)"),
+    "duplicate key: the first classes vanish": (
+        lambda s: _write(s, "dup.yaml", "classes: [{id: 1, name: tile, model: lambertian, params: {t0: 0.1}}]\n"
+                                        "reference: {sza: 30}\n"
+                                        "classes: [{id: 4, name: flat, model: lambertian, params: {t0: 0.1}}]\n"),
+        r"dup\.yaml: not valid YAML \(line 3, column 1\): duplicate key 'classes' \(first on line 1\)"),
+    "duplicate key inside a class": (
+        lambda s: _write(s, "dup.yaml", "classes:\n- id: 1\n  name: tile\n  model: lambertian\n"
+                                        "  params: {t0: 0.1}\n  id: 4\n"),
+        r"dup\.yaml: not valid YAML \(line 6, column 3\): duplicate key 'id' \(first on line 2\)"),
+    "yes as a parameter": (
+        lambda s: _write(s, "yes.yaml", TABLE % ("yes", "1.77")),
+        r"yes\.yaml: class 1 \(tile\): params\.t1: expected a number, got the boolean true \(YAML reads "
+        r"unquoted yes, no, on, off"),
+    "off in a per-band list": (
+        lambda s: _write(s, "off.yaml", "classes: [{id: 4, name: flat, model: lambertian, "
+                                        "params: {t0: [0.1, 0.1, off, 0.1]}}]\n"),
+        r"off\.yaml: .*class 4 \(flat\): params\.t0\[2\]: expected a number, got the boolean false"),
+    "on as the reference view zenith": (
+        lambda s: _write(s, "on.yaml", "reference: {vza: on}\n" + TABLE % ("0.2", "1.77")),
+        r"on\.yaml: reference\.vza: expected a number, got the boolean true"),
+    "yes as a class id": (
+        lambda s: _write(s, "id.yaml", "classes: [{id: yes, name: flat, model: lambertian, params: {t0: 0.1}}]\n"),
+        r"id\.yaml: class True \(flat\): id: expected a number, got the boolean true"),
+    "t1 = 1e308": (
+        lambda s: _write(s, "t1.yaml", TABLE % ("1e308", "1.77")),
+        r"t1\.yaml: class 1 \(tile\): torrance_sparrow: parameter t1 = 1e\+308 is invalid; it must be "
+        r"finite and >= 0 and <= 1000 \[sr\^-1\]"),
+    "n = 1e308": (
+        lambda s: _write(s, "n.yaml", TABLE % ("0.2", "1.0e+308")),
+        r"n\.yaml: class 1 \(tile\): torrance_sparrow: parameter n = 1e\+308 is invalid; it must be "
+        r"finite and > 0 and <= 1e\+10 \[1\]"),
+    "binary file": (
+        lambda s: _write_bytes(s, "image_copy.yaml", s["image"].read_bytes()),
+        r"cannot read parameter table \S*image_copy\.yaml: a binary file, not UTF-8 text \(NUL byte at offset \d+\)"),
+    "Latin-1 file": (
+        lambda s: _write_bytes(s, "latin1.yaml", LATIN_1.encode("latin-1")),
+        r"cannot read parameter table \S*latin1\.yaml: not UTF-8 text \(byte 0xe9 on line 1\); save it as UTF-8"),
+    "UTF-16 file": (
+        lambda s: _write_bytes(s, "utf16.yaml", LATIN_1.encode("utf-16")),
+        r"cannot read parameter table \S*utf16\.yaml: UTF-16 or UTF-32 text; save it as UTF-8"),
+    "file over 10 MB": (
+        lambda s: _write_bytes(s, "huge.yaml", b"# padding\n" * (MAX_DOCUMENT_BYTES // 10 + 1)),
+        r"cannot read parameter table \S*huge\.yaml: larger than 10 MB; is it the right file\?"),
+    "a huge string value": (
+        lambda s: _write(s, "long.yaml", "classes: [{id: 4, name: flat, model: lambertian, params: {t0: '"
+                                         + "x" * 1_000_000 + "'}}]\n"),
+        r"long\.yaml: class 4 \(flat\): params\.t0: invalid value 'xxx+\.\.\.x+'$"),
+}
+
+
+def _write(scene, name: str, text: str) -> Path:
+    path = scene["dir"] / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _write_bytes(scene, name: str, data: bytes) -> Path:
+    path = scene["dir"] / name
+    path.write_bytes(data)
+    return path
+
+
+@pytest.mark.parametrize("case", list(TABLE_CASES))
+def test_hostile_parameter_table(scene, case):
+    build, pattern = TABLE_CASES[case]
+    table = build(scene)
+    line = _check(scene, _in_process(_correct_args(scene, table)), pattern)
+    assert len(line) < 1000, "a message never repeats a huge input"
+
+
+def test_the_alias_bomb_is_small_and_refused_before_it_grows():
+    text = _bomb() + "t0: *l9\n"
+    assert len(text) < 600 and 9**10 > 1000 * MAX_ALIAS_NODES
+    start = time.monotonic()
+    with pytest.raises(ParameterError, match=r"its aliases expand to more than 1,000,000 values"):
+        parse_yaml(text, "bomb.yaml", ParameterError)
+    assert time.monotonic() - start < 1.0
+
+
+@pytest.mark.parametrize("text, pattern", [
+    ("a: &r [1, *r]\n", r"alias \*r is inside the node it names \(a recursive document\)"),
+    ("[" * 100_000 + "]" * 100_000, r"nested more than 100 levels deep"),
+    ("- " * 1_000_000 + "1\n", r"nested more than 100 levels deep"),  # libyaml's composer would crash
+    ("a: " + "1" * 5000 + "\n", r"not valid YAML: Exceeds the limit \(4300 digits\)"),
+])
+def test_recursive_deep_and_oversized_documents_are_one_error(text, pattern):
+    with pytest.raises(InputError, match=pattern):
+        parse_yaml(text, "x.yaml", InputError)
+
+
+def test_legitimate_aliases_and_merge_keys_still_work():
+    data = parse_yaml("base: &b {t0: 0.1, t1: 0.2}\nlist: &l [1, 2]\n"
+                      "top: {<<: *b, t1: 0.3}\nmid: {<<: &m {<<: *b, t0: 0.5}}\nagain: *m\nmore: *l\n",
+                      "x.yaml", InputError)
+    assert data["top"] == {"t0": 0.1, "t1": 0.3}
+    assert data["again"] == {"t0": 0.5, "t1": 0.2} and data["more"] == [1, 2]
+
+
+def test_a_long_list_of_problems_is_one_short_line():
+    classes = [{"id": i, "name": "x" * 10_000, "model": "lambertian", "params": {"t0": -1.0}} for i in range(1, 2001)]
+    with pytest.raises(ParameterError) as raised:
+        ParameterTable.from_dict({"classes": classes}, source="many.yaml")
+    message = str(raised.value)
+    assert len(message) < 3000 and "\n" not in message
+    assert message.endswith("and 1990 more problems")
+
+
+# --------------------------------------------------------- files that block: FIFO, /dev/urandom
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_fifo_as_a_table(scene):
+    fifo = scene["dir"] / "fifo.yaml"
+    os.mkfifo(fifo)
+    _check(scene, _subprocess(_correct_args(scene, fifo)),
+           r"cannot read parameter table \S*fifo\.yaml: not a regular file \(a FIFO \(named pipe\)\)")
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/urandom"), reason="needs /dev/urandom")
+def test_dev_urandom_as_a_table(scene):
+    _check(scene, _subprocess(_correct_args(scene, "/dev/urandom")),
+           r"cannot read parameter table /dev/urandom: not a regular file \(a character device\)")
+
+
+def test_directory_as_a_table(scene):
+    sub = scene["dir"] / "tables"
+    sub.mkdir()
+    with pytest.raises(InputError, match=r"cannot read parameter table \S*tables: Is a directory"):
+        ParameterTable.load(sub)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_fifo_as_a_chain_config(scene):
+    fifo = scene["dir"].parent / "fifo_chain.yaml"
+    os.mkfifo(fifo)
+    _check(scene, _subprocess(["run", str(fifo)], cwd=scene["dir"].parent),
+           r"cannot read chain config \S*fifo_chain\.yaml: not a regular file \(a FIFO")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_fifo_as_the_table_of_a_chain(scene):
+    os.mkfifo(scene["dir"] / "fifo.yaml")
+    chain = _chain(scene, parameters={"table": "scene/fifo.yaml"})
+    _check(scene, _subprocess(["run", str(chain)], cwd=scene["dir"].parent),
+           r"cannot read parameter table \S*fifo\.yaml: not a regular file \(a FIFO")
+
+
+# ------------------------------------------------------------------------- chain configs (run)
+CHAIN_CASES = {
+    "binary file": (lambda s: _chain(s).write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR"),
+                    r"cannot read chain config \S*chain\.yaml: a binary file, not UTF-8 text"),
+    "Latin-1 file": (lambda s: _chain(s).write_bytes("name: r\u00e9sum\u00e9\n".encode("latin-1")),
+                     r"cannot read chain config \S*chain\.yaml: not UTF-8 text \(byte 0xe9 on line 1\)"),
+    "UTF-16 file": (lambda s: _chain(s).write_bytes(_chain(s).read_text().encode("utf-16")),
+                    r"cannot read chain config \S*chain\.yaml: UTF-16 or UTF-32 text; save it as UTF-8"),
+    "alias bomb": (lambda s: _chain(s, text=_bomb("x") + "name: *l9\n"),
+                   r"chain\.yaml: not valid YAML \(line \d+, column \d+\): its aliases expand to more than"),
+    "duplicate section: the first outputs vanish": (
+        lambda s: _chain(s, text=_chain(s).read_text() + "outputs: {directory: elsewhere}\n"),
+        r"chain\.yaml: not valid YAML \(line \d+, column 1\): duplicate key 'outputs' \(first on line \d+\)"),
+    "yes as a worker count": (lambda s: _chain(s, engine={"scheduler": "synchronous", "workers": True}),
+                              r"chain\.yaml: engine\.workers: expected a number, got the boolean true"),
+    "on as a class-lookup id": (
+        lambda s: _chain(s, inputs={"images": ["scene/image.tif"], "angles": {"path": "{dir}/angles.tif"},
+                                    "classes": "{dir}/classes.tif", "class_lookup": {10: True}}),
+        r"chain\.yaml: inputs\.class_lookup\[10\]: expected a number, got the boolean true"),
+    "off as a factor limit": (
+        lambda s: _chain(s, steps={"correct": {"limits": [False, 5]}}),
+        r"chain\.yaml: steps\.correct\.limits\[0\]: expected a number, got the boolean false"),
+    "file over 10 MB": (
+        lambda s: _chain(s).write_bytes(_chain(s).read_bytes() + b"#" * MAX_DOCUMENT_BYTES),
+        r"cannot read chain config \S*chain\.yaml: larger than 10 MB"),
+    "Latin-1 parameter table": (
+        lambda s: (_write_bytes(s, "latin1.yaml", LATIN_1.encode("latin-1")),
+                   _chain(s, parameters={"table": "scene/latin1.yaml"})),
+        r"cannot read parameter table \S*latin1\.yaml: not UTF-8 text"),
+}
+
+
+@pytest.mark.parametrize("case", list(CHAIN_CASES))
+def test_hostile_chain_config(scene, case, monkeypatch):
+    build, pattern = CHAIN_CASES[case]
+    monkeypatch.chdir(scene["dir"].parent)
+    build(scene)
+    _check(scene, _in_process(["run", str(scene["dir"].parent / "chain.yaml")]), pattern)
+
+
+def test_yes_as_an_override_value(scene, monkeypatch):
+    monkeypatch.chdir(scene["dir"].parent)
+    chain = _chain(scene)
+    _check(scene, _in_process(["run", str(chain), "--set", "engine.chunk=yes"]),
+           r"engine\.chunk: expected a number, got the boolean true")
+
+
+# ------------------------------------------------------------------------- big valid tables
+def _big_table_text(n_classes: int) -> str:
+    lines = ["classes:"]
+    lines += [f"  - {{id: {i}, name: c{i}, model: torrance_sparrow, "
+              "params: {t0: 0.02, t1: 0.2, w: 0.036, n: 1.77, k: 0.25}}" for i in range(1, n_classes + 1)]
+    return "\n".join(lines) + "\n"
+
+
+def test_a_big_valid_table_loads_well_within_the_limit(tmp_path):
+    path = tmp_path / "big.yaml"
+    path.write_text(_big_table_text(20_000))
+    assert 2e6 < path.stat().st_size < MAX_DOCUMENT_BYTES
+    start = time.monotonic()
+    table = ParameterTable.load(path)
+    elapsed = time.monotonic() - start
+    assert len(table) == 20_000 and table.class_ids[-1] == 20_000
+    assert elapsed < TIME_LIMIT, f"20 000 classes loaded in {elapsed:.1f} s"
+    start = time.monotonic()
+    merged = merge_tables([table, example_table()])  # linear, not a copy per class
+    assert time.monotonic() - start < 2.0
+    assert len(merged) == 20_000 and merged[2].model == "empirical"
+
+
+def test_one_shared_anchor_for_20000_classes_is_no_bomb(tmp_path):
+    lines = ["shared: &p {t0: 0.02, t1: 0.2, w: 0.036, n: 1.77, k: 0.25}", "classes:"]
+    lines += [f"  - {{id: {i}, name: c{i}, model: torrance_sparrow, params: *p}}" for i in range(1, 20_001)]
+    data = parse_yaml("\n".join(lines), "shared.yaml", ParameterError)
+    del data["shared"]
+    assert len(ParameterTable.from_dict(data).classes) == 20_000
+
+
+def test_duplicate_ids_of_a_big_table_are_found_quickly():
+    classes = [{"id": i % 19_999 + 1, "name": "c", "model": "lambertian", "params": {"t0": 0.1}}
+               for i in range(20_000)]
+    start = time.monotonic()
+    with pytest.raises(ParameterError, match=r"class id\(s\) 1 appear more than once"):
+        ParameterTable(classes=classes)
+    assert time.monotonic() - start < TIME_LIMIT / 2
+
+
+# ------------------------------------------------------------- parameter bounds keep models finite
+#: The angle domain [0, 90) deg densely, with the largest float below 90 (cos = 2.5e-16).
+ZENITHS = np.unique(np.concatenate([np.linspace(0.0, 89.9, 46), [89.99, 89.9999, 89.999999, 89.99999999,
+                                                                   np.nextafter(90.0, 0.0)]]))
+AZIMUTHS = np.unique(np.concatenate([np.linspace(0.0, 180.0, 37), [1e-9, 180.0 - 1e-9]]))
+
+
+def _dense_geometry() -> ScatteringGeometry:
+    ti, tr, phi = np.meshgrid(ZENITHS, ZENITHS, AZIMUTHS, indexing="ij")
+    return ScatteringGeometry(ti.ravel(), tr.ravel(), phi.ravel())
+
+
+def _corner_values(parameter) -> list[float]:
+    """The ends of a parameter's range (the smallest positive float for an open 0, +-1e308 where
+    unbounded) and its default."""
+    low = parameter.lower if math.isfinite(parameter.lower) else -1e308
+    if parameter.lower_open:
+        low = np.nextafter(low, np.inf)
+    high = parameter.upper if math.isfinite(parameter.upper) else 1e308
+    return sorted({float(low), float(high), parameter.default})
+
+
+@pytest.mark.parametrize("name", SURFACE_MODELS)
+def test_every_model_is_finite_at_every_corner_of_its_bounds(name):
+    model = get_model(name)
+    geometry = _dense_geometry()
+    for values in itertools.product(*(_corner_values(p) for p in model.parameters)):
+        params = dict(zip(model.parameter_names, values))
+        # A huge w or c overflows (w alpha)^2 on the way to exp(-inf) = 0: the value is still finite.
+        with np.errstate(over="ignore"):
+            brdf = np.asarray(model.evaluate(geometry, **params), dtype=float)
+        assert np.isfinite(brdf).all(), params
+
+
+@pytest.mark.parametrize("name, params", [
+    ("torrance_sparrow", {"t0": 1e3, "t1": 1e3, "w": 1e-6, "n": 1e10, "k": 1e10}),
+    ("torrance_sparrow_simplified", {"t0": 1e3, "t1": 1e3, "w": 5.0, "n": 1e-6, "k": 0.0}),
+    ("empirical", {"a": 1e3, "b": 10.0, "c": 1e-6, "t0": 1e3}),
+    ("lambertian", {"t0": 1e3}),
+    ("ross_thin_li_sparse", {"f_iso": 1e3, "f_vol": 1e3, "f_geo": 0.0}),
+    ("ross_thick_li_dense", {"f_iso": 1e3, "f_vol": 1e3, "f_geo": 0.0}),
+    ("rpv", {"rho0": 1e3, "k": 2.0, "theta": -0.5, "rho_c": 0.0}),
+])
+def test_factors_at_the_upper_bounds_are_finite_on_a_dense_angle_grid(name, params):
+    """f(ref) / f(obs) at the intensity bounds: finite and positive for every pair of geometries of
+    the grid (closed form: the model itself, evaluated in float64)."""
+    model = get_model(name)
+    brdf = np.asarray(model.evaluate(_dense_geometry(), **params), dtype=float)
+    assert np.isfinite(brdf).all() and (brdf > 0).all()
+    factors = brdf.max() / brdf.min()  # the largest factor between any two geometries
+    assert np.isfinite(factors) and factors > 0
+
+
+def test_a_table_at_the_bounds_corrects_every_pixel_with_a_finite_factor():
+    table = ParameterTable(classes=[
+        {"id": 1, "name": "ts", "model": "torrance_sparrow",
+         "params": {"t0": 1e3, "t1": 1e3, "w": 1e-6, "n": 1e10, "k": 1e10}},
+        {"id": 2, "name": "emp", "model": "empirical", "params": {"a": 1e3, "b": 10.0, "c": 1e-6, "t0": 1e3}},
+        # f_geo K_geo is negative; a large f_geo makes f <= 0 (no valid factor, the next tests).
+        {"id": 3, "name": "kernels", "model": "ross_thin_li_sparse",
+         "params": {"f_iso": 1e3, "f_vol": 1e3, "f_geo": 0.0}},
+        {"id": 4, "name": "rpv", "model": "rpv", "params": {"rho0": 1e3, "k": 2.0, "theta": -0.5, "rho_c": 0.0}},
+    ])
+    scene = synthetic_scene(ny=NY, nx=NX, table=table)
+    for dtype in (np.float32, np.float64):
+        cube = scene["reflectance"].astype(dtype)
+        result = normalize(cube, scene["classes"], scene["sza"], scene["saa"], scene["vza"], scene["vaa"],
+                           table, reference={"sza": 35.0, "vza": 0.0, "raa": 0.0}, limits=None)
+        assert np.isfinite(result.reflectance.values).all() and (result.reflectance.values > 0).all()
+        counts = {key: int(value) for key, value in qa_counts(result.qa).items()}
+        assert counts["corrected"] == NY * NX and counts["nodata"] == 0
+
+
+# --------------------------------------------------- invalid factors: nodata, never "corrected"
+
+
+def test_negative_model_values_are_nodata_not_limited_nor_corrected():
+    # f = f_geo K_geo < 0 away from the hot spot (and 0 at nadir): no valid factor anywhere.
+    table = ParameterTable(classes=[{"id": 1, "name": "shadow", "model": "ross_thick_li_sparse",
+                                     "params": {"f_iso": 0.0, "f_vol": 0.0, "f_geo": 1.0}}])
+    cube = np.full((2, 1, 3), 0.3)
+    angles = np.array([[20.0, 40.0, 60.0]])
+    result = normalize(cube, np.ones((1, 3), np.uint8), angles, np.zeros((1, 3)), angles,
+                       np.full((1, 3), 90.0), table)
+    assert np.isnan(result.reflectance.values).all()
+    assert (result.qa.values & QA_NODATA).all() and not (result.qa.values & QA_LIMITED).any()
+    counts = {key: int(value) for key, value in qa_counts(result.qa).items()}
+    assert counts == {"corrected": 0, "limited": 0, "unknown_class": 0, "no_class": 0, "nodata": 3}
+
+
+def test_a_peak_vanishing_at_the_reference_is_nodata_not_clipped():
+    # A narrow pure peak (t0 = 0) underflows to 0 at the nadir reference: the factor is 0, not a
+    # number to clip to the lower limit.
+    table = ParameterTable(classes=[{"id": 1, "name": "mirror", "model": "empirical",
+                                     "params": {"a": 1.0, "b": 1.0, "c": 5.0, "t0": 0.0}}])
+    sza = vza = np.full((1, 3), 30.0)
+    saa, vaa = np.zeros((1, 3)), np.full((1, 3), 180.0)  # the specular direction: the observed peak
+    result = normalize(np.full((2, 1, 3), 0.3), np.ones((1, 3), np.uint8), sza, saa, vza, vaa, table,
+                       reference={"sza": 30.0, "vza": 0.0})
+    assert np.isnan(result.reflectance.values).all()
+    assert ((result.qa.values & QA_NODATA) > 0).all() and not (result.qa.values & QA_LIMITED).any()
+    assert int(qa_counts(result.qa)["corrected"]) == 0
+
+
+def test_a_model_beyond_float32_is_nodata_in_float32_and_finite_in_float64():
+    # RPV within its bounds at the hot spot near grazing: up to ~1e56 sr^-1, finite in float64 but
+    # beyond float32's 3.4e38.
+    table = ParameterTable(classes=[{"id": 1, "name": "rpv", "model": "rpv",
+                                     "params": {"rho0": 1e3, "k": 1e-300, "theta": -0.999, "rho_c": 0.0}}])
+    zenith = np.array([[30.0, 89.9999999999, np.nextafter(90.0, 0.0)]])
+    zeros = np.zeros((1, 3))
+    for dtype in (np.float64, np.float32):
+        cube = np.full((2, 1, 3), 0.3, dtype=dtype)
+        result = normalize(cube, np.ones((1, 3), np.uint8), zenith, zeros, zenith, zeros, table, limits=None)
+        values, qa = result.reflectance.values, result.qa.values[0]
+        invalid = (qa & QA_NODATA) > 0
+        assert np.isnan(values[:, 0, invalid]).all() and np.isfinite(values[:, 0, ~invalid]).all()
+        assert (values[:, 0, ~invalid] > 0).all()
+        if dtype == np.float64:
+            assert not invalid.any()
+        else:
+            assert invalid[1:].all() and not invalid[0]
+        assert int(qa_counts(result.qa)["corrected"]) == int((~invalid).sum())
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+@pytest.mark.parametrize("command, pattern", [
+    (lambda s, fifo: ["fit", str(fifo)], r"fifo: not a regular file"),
+    (lambda s, fifo: ["validate", str(fifo)], r"cannot read chain config \S*fifo: not a regular file"),
+    (lambda s, fifo: ["correct", str(s["image"]), "--angles", str(s["angles"]), "--classes", str(s["classes"]),
+                      "--params", str(s["params"]), "--class-lookup", str(fifo), "-o", str(s["out"] / "x.tif")],
+     r"cannot read lookup table \S*fifo: not a regular file"),
+], ids=["measurements", "validate", "lookup table"])
+def test_fifo_as_another_input(scene, command, pattern):
+    fifo = scene["dir"] / "fifo"
+    os.mkfifo(fifo)
+    try:
+        _check(scene, _subprocess(command(scene, fifo)), pattern)
+    finally:
+        fifo.unlink()

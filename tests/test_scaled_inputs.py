@@ -1,0 +1,273 @@
+"""Scaled integer images (issue 14): the GDAL scale/offset is applied on read, given ones replace it,
+outputs hold reflectance factors with the scaling in their tags, and raw counts are refused.
+
+Each stored image is made from the float image of the same scene (``counts = round((reflectance -
+offset) / scale)``), so the float image's results are the reference, to within the quantization
+step of the storage.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import rasterio
+import yaml
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.errors import InputError
+from brdfcorr.io import rasters
+from brdfcorr.params import ParameterTable
+from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
+
+#: name -> (dtype, scale, offset, nodata): reflectance x 10000 in int16, Landsat Collection 2 level 2.
+STORAGE = {
+    "int16": ("int16", 1e-4, 0.0, -9999),
+    "landsat_c2": ("uint16", 2.75e-5, -0.2, 0),
+}
+NODATA_PIXELS = (slice(None), 0, slice(0, 5))  # written as nodata in every stored image
+
+
+def _store(source, target, dtype, scale, offset, nodata, *, tag=True, scales=None, offsets=None):
+    """Write the float image ``source`` as counts (all pixels of NODATA_PIXELS nodata); GDAL scale
+    and offset tagged (``tag``), per band where ``scales``/``offsets`` are given."""
+    with rasterio.open(source) as dataset:
+        profile, values, descriptions = dataset.profile, dataset.read(), dataset.descriptions
+    n_bands = values.shape[0]
+    scales = np.full(n_bands, scale) if scales is None else np.asarray(scales, float)
+    offsets = np.full(n_bands, offset) if offsets is None else np.asarray(offsets, float)
+    counts = np.round((values - offsets[:, None, None]) / scales[:, None, None])
+    if np.dtype(dtype).kind in "iu":
+        info = np.iinfo(dtype)
+        assert counts.min() > info.min and counts.max() < info.max  # the scene fits the storage
+    counts[NODATA_PIXELS] = nodata
+    profile.update(dtype=dtype, nodata=nodata)
+    with rasterio.open(target, "w", **profile) as dataset:
+        dataset.write(counts.astype(dtype))
+        dataset.descriptions = descriptions  # the wavelengths
+        if tag:
+            dataset.scales, dataset.offsets = tuple(scales), tuple(offsets)
+    return target
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("scaled")
+    paths = write_scene(directory, synthetic_scene(ny=40, nx=48))
+    paths["params"] = example_table().save(directory / "params.yaml")
+    for name, storage in STORAGE.items():
+        paths[name] = _store(paths["image"], directory / f"{name}.tif", *storage)
+        paths[f"{name}_untagged"] = _store(paths["image"], directory / f"{name}_untagged.tif", *storage, tag=False)
+    return paths
+
+
+def _invoke(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def _correct(files, image, output, *extra):
+    result = _invoke("correct", image, "--angles", files["angles"], "--classes", files["classes"],
+                     "--params", files["params"], "-o", output, "--chunk", 16, "--no-progress", *extra)
+    assert result.exit_code == 0, result.output
+    with rasterio.open(output) as dataset:
+        return dataset.read(), {"tags": dataset.tags(), "dtypes": dataset.dtypes, "nodata": dataset.nodata,
+                                "scales": dataset.scales, "offsets": dataset.offsets}
+
+
+def _float_reference(files, directory):
+    """The float image corrected, and the correction factor of each pixel."""
+    corrected, _ = _correct(files, files["image"], directory / "float.tif")
+    with rasterio.open(files["image"]) as dataset:
+        return corrected, corrected / dataset.read()
+
+
+def _one_error_line(result) -> str:
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("brdfcorr: error: "), lines[0]
+    return lines[0]
+
+
+# ---------------------------------------------------------------------------------- open_image
+@pytest.mark.parametrize("name", list(STORAGE))
+def test_open_image_applies_the_file_scale_and_offset(files, name):
+    _, scale, offset, _ = STORAGE[name]
+    image = rasters.open_image(files[name], chunks=16)
+    with rasterio.open(files["image"]) as dataset:
+        truth = dataset.read()
+    values = image.values
+    assert image.dtype == np.float32
+    assert np.isnan(values[NODATA_PIXELS]).all()
+    valid = np.isfinite(values)
+    assert valid.sum() == values.size - values[NODATA_PIXELS].size
+    np.testing.assert_allclose(values[valid], truth[valid], rtol=0, atol=scale / 2 + 1e-7)  # + float32 rounding
+    assert image.attrs["brdf_input_scale"] == scale and image.attrs["brdf_input_offset"] == offset
+    assert "scale_factor" not in image.attrs and "add_offset" not in image.attrs
+    np.testing.assert_allclose(image["wavelength"], [480, 560, 660, 830])
+
+
+def test_open_image_per_band_scales_and_given_values(files, tmp_path):
+    scales, offsets = [1e-4, 2e-4, 1e-4, 5e-5], [0.0, -0.1, 0.0, 0.05]
+    path = _store(files["image"], tmp_path / "bands.tif", "int16", None, None, -9999, scales=scales, offsets=offsets)
+    with rasterio.open(files["image"]) as dataset:
+        truth = dataset.read()
+    image = rasters.open_image(path)  # rioxarray applies each band's own scale and offset
+    valid = np.isfinite(image.values)
+    np.testing.assert_allclose(image.values[valid], truth[valid], rtol=0, atol=max(scales) / 2 + 1e-7)
+    assert image.attrs["brdf_input_scale"] == tuple(scales)
+    assert image.attrs["brdf_input_offset"] == tuple(offsets)
+    # A given value replaces the file's for every band; the one not given stays the file's.
+    given = rasters.open_image(path, scale=1e-3)
+    with rasterio.open(path) as dataset:
+        counts = dataset.read(masked=True).astype(float).filled(np.nan)
+    expected = counts * 1e-3 + np.asarray(offsets)[:, None, None]
+    np.testing.assert_allclose(given.values, expected, rtol=1e-6, atol=1e-7, equal_nan=True)  # float32
+    assert given.dtype == np.float32
+    assert given.attrs["brdf_input_scale"] == 1e-3 and given.attrs["brdf_input_offset"] == tuple(offsets)
+    with pytest.raises(InputError, match=r"scale -1\.0 must be > 0"):
+        rasters.open_image(path, scale=-1.0)
+
+
+@pytest.mark.parametrize(("dtype", "expected"), [("int32", np.float32), ("float64", np.float64)])
+def test_open_image_gives_float32_unless_the_file_is_float64(files, tmp_path, dtype, expected):
+    path = _store(files["image"], tmp_path / f"{dtype}.tif", dtype, 1e-4, 0.0, -9999)
+    assert rasters.open_image(path).dtype == expected
+
+
+# ------------------------------------------------------------------------------------- correct
+@pytest.mark.parametrize("name", list(STORAGE))
+def test_correct_scaled_image_matches_the_float_image(files, tmp_path, name):
+    _, scale, offset, _ = STORAGE[name]
+    reference, factor = _float_reference(files, tmp_path)
+    corrected, written = _correct(files, files[name], tmp_path / "out.tif")
+    tags = written["tags"]
+    assert float(tags["brdf_input_scale"]) == scale and float(tags["brdf_input_offset"]) == offset
+    # Reflectance factors, not counts: float32, no GDAL scale/offset, NaN nodata.
+    assert written["dtypes"] == ("float32",) * 4 and np.isnan(written["nodata"])
+    assert written["scales"] == (1.0,) * 4 and written["offsets"] == (0.0,) * 4
+    assert np.isnan(corrected[NODATA_PIXELS]).all()
+    valid = np.ones(corrected.shape, bool)
+    valid[NODATA_PIXELS] = False
+    assert np.isfinite(corrected[valid]).all()
+    # Within the correction factor times half the quantization step (plus float32 rounding).
+    tolerance = factor * scale / 2 * 1.001 + 1e-6
+    assert (np.abs(corrected - reference)[valid] <= tolerance[valid]).all()
+
+
+@pytest.mark.parametrize("name", list(STORAGE))
+def test_given_scale_and_offset_on_an_untagged_image_give_the_same(files, tmp_path, name):
+    _, scale, offset, _ = STORAGE[name]
+    tagged, _ = _correct(files, files[name], tmp_path / "tagged.tif")
+    given, written = _correct(files, files[f"{name}_untagged"], tmp_path / "given.tif",
+                              "--scale", scale, "--offset", offset)
+    np.testing.assert_allclose(given, tagged, rtol=1e-6, equal_nan=True)
+    tags = written["tags"]
+    assert float(tags["brdf_input_scale"]) == scale and float(tags["brdf_input_offset"]) == offset
+
+
+def test_given_scale_wins_over_the_tagged_one(files, tmp_path):
+    tagged, _ = _correct(files, files["int16"], tmp_path / "tagged.tif")
+    doubled, written = _correct(files, files["int16"], tmp_path / "doubled.tif", "--scale", 2e-4)
+    # The correction is a factor: twice the input reflectance, twice the output (limits not hit).
+    np.testing.assert_allclose(doubled, 2 * tagged, rtol=1e-6, equal_nan=True)
+    assert written["tags"]["brdf_input_scale"] == "0.0002"
+
+
+# ---------------------------------------------------------------------------------- fit-classes
+@pytest.fixture(scope="module")
+def fit_files(tmp_path_factory):
+    """One Torrance-Sparrow class over a wider scene: a fit the data constrain."""
+    directory = tmp_path_factory.mktemp("scaled_fit")
+    table = ParameterTable(classes=[example_table()[1]])
+    paths = write_scene(directory, synthetic_scene(ny=64, nx=96, table=table))
+    for name, storage in STORAGE.items():
+        paths[name] = _store(paths["image"], directory / f"{name}.tif", *storage)
+    paths["int16_untagged"] = _store(paths["image"], directory / "int16_untagged.tif", *STORAGE["int16"], tag=False)
+    with rasterio.open(paths["image"]) as dataset:
+        paths["median"] = float(np.median(dataset.read()))
+    return paths
+
+
+def _fit(files, image, output, *extra):
+    return _invoke("fit-classes", image, "--angles", files["angles"], "--classes", files["classes"],
+                   "-o", output, *extra)
+
+
+@pytest.mark.parametrize("name", list(STORAGE))
+def test_fit_classes_on_the_scaled_image_matches_the_float_image(fit_files, tmp_path, name):
+    _, scale, _, _ = STORAGE[name]
+    reports = {}
+    for image, output in ((fit_files["image"], "float"), (fit_files[name], "scaled")):
+        result = _fit(fit_files, image, tmp_path / f"{output}.yaml", "--report", tmp_path / f"{output}.json")
+        assert result.exit_code == 0, result.output
+        reports[output] = json.loads((tmp_path / f"{output}.json").read_text())["classes"][0]
+    reference, scaled = (ParameterTable.load(tmp_path / f"{n}.yaml")[1] for n in ("float", "scaled"))
+    assert scaled.model == reference.model and reports["scaled"]["status"] == reports["float"]["status"] == "fitted"
+    assert 0.001 < reference.params["t0"] < 0.1  # reflectance factors [sr^-1], not counts
+    # The linear parameter moves by about the relative quantization step at the median reflectance;
+    # every parameter by a small fraction of its own 1-sigma fit error.
+    np.testing.assert_allclose(scaled.params["t0"], reference.params["t0"], rtol=scale / fit_files["median"])
+    for parameter, value in reference.params.items():
+        error = np.asarray(reports["float"]["errors"][parameter])
+        assert np.all(np.abs(np.asarray(scaled.params[parameter]) - value) <= 0.05 * error), parameter
+
+
+def test_fit_class_files_reflectance_scale_is_the_scale_on_read(fit_files):
+    def fit(**options):
+        scene = SceneFiles(fit_files["int16_untagged"], fit_files["classes"], fit_files["angles"],
+                           scale=options.pop("scale", None))
+        return fit_class_files([scene], "torrance_sparrow", **options).table[1].params
+
+    assert fit(reflectance_scale=1e-4) == fit(scale=1e-4)
+    with pytest.raises(InputError, match="raw counts"):
+        fit()
+    with pytest.raises(InputError, match="give the scale once"):
+        fit(scale=2e-4, reflectance_scale=1e-4)
+
+
+# -------------------------------------------------------------------------------- raw-count guard
+@pytest.mark.parametrize("command", ["correct", "fit-classes"])
+def test_raw_counts_without_a_scale_are_one_error(files, tmp_path, command):
+    output = tmp_path / ("out.tif" if command == "correct" else "params.yaml")
+    if command == "correct":
+        result = _invoke("correct", files["int16_untagged"], "--angles", files["angles"], "--classes",
+                         files["classes"], "--params", files["params"], "-o", output, "--no-progress")
+    else:
+        result = _fit(files, files["int16_untagged"], output)
+    assert result.exit_code == 2, result.output
+    line = _one_error_line(result)
+    assert "int16_untagged.tif: the values do not look like reflectance factors" in line
+    assert "raw counts?" in line and "--scale" in line
+    assert not output.exists()
+
+
+def test_a_given_scale_is_trusted(files, tmp_path):
+    # --scale 1: the counts as they are, on the user's word (no guard).
+    counts, written = _correct(files, files["int16_untagged"], tmp_path / "counts.tif", "--scale", 1)
+    assert written["tags"]["brdf_input_scale"] == "1.0"
+    assert np.nanpercentile(counts, 99) > 1000
+
+
+# ------------------------------------------------------------------------------------ chain keys
+def test_chain_inputs_scale_and_offset(files, tmp_path):
+    _, scale, offset, _ = STORAGE["landsat_c2"]
+    reference, _ = _correct(files, files["landsat_c2"], tmp_path / "tagged.tif")
+    document = {
+        "inputs": {"images": [str(files["landsat_c2_untagged"])],
+                   "angles": {"kind": "geotiff", "path": str(files["angles"])}, "classes": str(files["classes"]),
+                   "scale": scale, "offset": offset},
+        "parameters": {"table": str(files["params"])},
+        "steps": {"correct": {"qa": False}, "quicklook": None},
+        "outputs": {"directory": str(tmp_path / "out"), "naming": "{stem}_brdf.tif"},
+        "engine": {"scheduler": "synchronous", "workers": 1, "chunk": 16},
+    }
+    chain = tmp_path / "chain.yaml"
+    chain.write_text(yaml.safe_dump(document))
+    result = _invoke("run", chain, "--no-progress")
+    assert result.exit_code == 0, result.output
+    with rasterio.open(tmp_path / "out" / "landsat_c2_untagged_brdf.tif") as dataset:
+        np.testing.assert_allclose(dataset.read(), reference, rtol=1e-6, equal_nan=True)
+        assert dataset.tags()["brdf_input_offset"] == "-0.2"
