@@ -524,3 +524,13 @@ def test_fifo_as_another_input(scene, command, pattern):
         _check(scene, _subprocess(command(scene, fifo)), pattern)
     finally:
         fifo.unlink()
+
+
+def test_escape_beyond_unicode_is_a_yaml_error():
+    # Found by hypothesis in tests/test_property_parsing.py: libyaml refuses "\U00110000" and the
+    # re-scan for PyYAML's message raised ValueError from chr() (an internal error).
+    from brdfcorr.errors import ParameterError
+    from brdfcorr.io.files import parse_yaml
+
+    with pytest.raises(ParameterError, match=r"^t\.yaml: not valid YAML \(line 1, column 7\)"):
+        parse_yaml('a: "\\U00110000"', "t.yaml", ParameterError)

@@ -257,7 +257,7 @@ def _rescanned(text: str, problem: yaml.MarkedYAMLError) -> yaml.YAMLError:
             pass
     except (ScannerError, ParserError) as better:
         return better
-    except yaml.YAMLError:
+    except (yaml.YAMLError, ValueError):  # PyYAML's scanner fails on an escape beyond U+10FFFF
         pass
     return problem
 
