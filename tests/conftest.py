@@ -6,6 +6,13 @@ from pathlib import Path
 
 import dask
 import pytest
+from hypothesis import settings
+
+# Property tests draw the same examples on every run (a CI run that passes here passes there); a
+# random exploration is `pytest --hypothesis-profile=explore`.
+settings.register_profile("default", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile("default")
 
 #: Small real sensor files (AVIRIS-NG, Sentinel-2, Landsat) beside the repository; tests that need
 #: them are skipped where they are absent.
