@@ -36,11 +36,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import rioxarray  # noqa: F401  (registers .rio)
 import xarray as xr
+from scipy.ndimage import gaussian_filter
 
 from brdfcorr.errors import InputError
 from brdfcorr.io.files import atomic_path
+from brdfcorr.io.sensors.solar import solar_angles
+from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ParameterTable
+from brdfcorr.plot.materials import plot_materials
+from brdfcorr.testing import render
+from brdfcorr.workflow.chain import run_chain
+from brdfcorr.workflow.config import load_config
 
 __all__ = [
     "DEMO_TIME",
@@ -133,7 +141,6 @@ SPECTRA = {
 def demo_table() -> ParameterTable:
     """The demo's parameter table: roof tile and concrete from paper 003 Table 1 (built-in
     ``roof_tile`` and ``blue_concrete``), grass, trees and bare soil from :data:`KERNEL_CLASSES`."""
-    from brdfcorr.models.materials import load_material
 
     entries = []
     for class_id, name in ((ROOF_TILE, "roof_tile"), (CONCRETE, "blue_concrete")):
@@ -146,7 +153,6 @@ def demo_table() -> ParameterTable:
 
 def _grid(rows: int, columns: int, pixel: float) -> xr.DataArray:
     """An empty (y, x) template on the demo grid (north up; CRS and transform)."""
-    import rioxarray  # noqa: F401  (registers .rio)
 
     x = DEMO_ORIGIN[0] + pixel * (np.arange(columns) + 0.5)
     y = DEMO_ORIGIN[1] + pixel * rows - pixel * (np.arange(rows) + 0.5)
@@ -176,7 +182,6 @@ def demo_angles(rows: int = 300, pixel: float = 3.0, altitude: float = 1000.0, f
     xarray.Dataset
         ``sza``, ``saa``, ``vza``, ``vaa`` (y, x) float32 [deg], numpy-backed.
     """
-    from brdfcorr.io.sensors.solar import solar_angles
 
     if not 0 < fov < 180:
         raise InputError(f"fov = {fov:g} deg must be in (0, 180)")
@@ -199,7 +204,6 @@ def demo_classes(rows: int, columns: int, pixel: float, seed: int = 0) -> np.nda
     """A town-like class map: grass with a concrete street grid, tiled-roof houses in the blocks,
     concrete yards, groups of trees and patches of bare soil in the open ground, and a pond
     (class 0, no class). Sizes in metres scaled by ``pixel`` [m]."""
-    from scipy.ndimage import gaussian_filter
 
     rng = np.random.default_rng(seed)
     classes = np.full((rows, columns), GRASS, dtype=np.uint8)
@@ -240,9 +244,7 @@ def demo_scene(rows: int = 300, pixel: float = 3.0, altitude: float = 1000.0, fo
     See the module docstring for the scene; :func:`demo_angles` for the parameters. ``noise`` is
     the relative standard deviation of the sensor noise [-].
     """
-    from scipy.ndimage import gaussian_filter
 
-    from brdfcorr.testing import render
 
     angles = demo_angles(rows, pixel, altitude, fov, time)
     rows, columns = angles.sizes["y"], angles.sizes["x"]
@@ -341,8 +343,6 @@ def run_demo(output_dir: str | os.PathLike = "demo_output", config: str | os.Pat
     overrides : dict, optional
         Dotted config keys to override (:func:`brdfcorr.workflow.config.apply_overrides`).
     """
-    from brdfcorr.workflow.chain import run_chain
-    from brdfcorr.workflow.config import load_config
 
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
@@ -357,8 +357,6 @@ def run_demo(output_dir: str | os.PathLike = "demo_output", config: str | os.Pat
     figures = [Path(path) for result in report.scenes for key, path in result.get("outputs", {}).items()
                if key == "quicklook"]
     if materials_figure:
-        from brdfcorr.models.materials import load_material, material_names
-        from brdfcorr.plot.materials import plot_materials
 
         target = output_dir / "materials_brdf.png"
         with atomic_path(target) as temporary:
