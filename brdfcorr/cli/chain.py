@@ -171,9 +171,11 @@ def _echo_plan(plan) -> None:
 def validate_command(chains, settings):
     """Check chain configs without running them: keys, values, names, patterns, parameter table.
 
-    Files that do not exist yet (inputs, tables) are warnings; a malformed config is an error
-    naming the key path and the allowed values (exit code 2). A parameter table file (a document
-    with `classes` but no `inputs`) is checked as a table.
+    The checks are those of `run` (its plan): what `run` refuses is an error here too (exit code
+    2), e.g. a malformed config (naming the key path and the allowed values), an image glob
+    matching no file in an existing folder, quicklook bands beyond an image's band count. Files
+    that do not exist yet (inputs in a folder not made yet, tables) are warnings. A parameter
+    table file (a document with `classes` but no `inputs`) is checked as a table.
     """
     overrides = _overrides(settings)
     for chain in chains:

@@ -11,6 +11,7 @@ from tqdm.dask import TqdmCallback
 
 from brdfcorr.cli._base import _options, handle_errors, main
 from brdfcorr.io.sensors import ANGLE_KINDS
+from brdfcorr.io.writer import FORMATS
 from brdfcorr.params import ParameterTable
 from brdfcorr.workflow.classmaps import read_lookup
 from brdfcorr.workflow.tasks import correct_files
@@ -50,7 +51,12 @@ def _reference_sza(value: str | None):
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter table (YAML).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Output GeoTIFF.")
+              help="Output raster (.tif for GTiff; .img, .bsq, .bil, .dat or no extension for ENVI).")
+@click.option("--format", "output_format", type=click.Choice(FORMATS), default="GTiff", show_default=True,
+              help="Output format; ENVI writes the data file, a .hdr header (wavelengths, map info) and "
+                   ".aux.xml (tags). The QA layer is always a GeoTIFF.")
+@click.option("--interleave", type=click.Choice(["bsq", "bil"], case_sensitive=False), default="bsq",
+              show_default=True, help="Interleave of an ENVI output.")
 @click.option("--ref-sza", help="Reference sun zenith [deg], 'mean' or 'observed' [default: table, else observed].")
 @click.option("--ref-vza", type=float, help="Reference view zenith [deg] [default: table, else 0].")
 @click.option("--ref-raa", type=float, help="Reference relative azimuth [deg] [default: table, else 0].")
@@ -80,7 +86,8 @@ def _reference_sza(value: str | None):
 def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, align_classes,
                     class_lookup, params_path, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, scale, offset, extrapolate,
-                    flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite):
+                    flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite, output_format,
+                    interleave):
     """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.
 
     IMAGE's stored values are read as reflectance factors with its GDAL scale/offset, or --scale
@@ -111,7 +118,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
         callbacks=callbacks, table_source=str(params_path), angles_kind=angles_kind,
         angle_options=_options("--angle-option", angle_option), overwrite=overwrite,
         align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
-        scale=scale, offset=offset,
+        scale=scale, offset=offset, output_format=output_format, interleave=interleave.lower(),
         reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
     )
     click.echo(

@@ -136,10 +136,10 @@ def check_outputs(outputs: Named, inputs: Named = ()) -> None:
 
 def remove_partials(target: PathLike) -> list[Path]:
     """Remove what an interrupted write left beside ``target``: the temporary files
-    ``.NAME.XXXXXXXX.partial`` (and ``.partial.gtiff`` of COG writes) of
-    :func:`brdfcorr.io.files.atomic_path`. Returns the removed paths."""
+    ``.NAME.XXXXXXXX.partial`` of :func:`brdfcorr.io.files.atomic_path` (and ``.partial.gtiff`` of
+    COG writes, ``.partial.hdr`` and ``.partial.aux.xml`` of ENVI writes). Returns the removed paths."""
     target = Path(target)
-    pattern = re.compile(re.escape(f".{target.name}.") + r"[A-Za-z0-9_]+\.partial(\.gtiff)?")
+    pattern = re.compile(re.escape(f".{target.name}.") + r"[A-Za-z0-9_]+\.partial(\.gtiff|\.hdr|\.aux\.xml)?")
     removed = []
     with contextlib.suppress(OSError):
         for entry in os.scandir(target.parent):

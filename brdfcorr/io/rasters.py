@@ -49,9 +49,22 @@ __all__ = [
     "gdal_cache_bytes",
     "DEFAULT_CHUNK",
     "ANGLE_NAMES",
+    "ANGLE_BAND_NAMES",
+    "angle_band_name",
+    "SENTINEL2_WAVELENGTHS",
+    "LANDSAT_OLI_WAVELENGTHS",
 ]
 
 ANGLE_NAMES = ("sza", "saa", "vza", "vaa")
+
+#: Band descriptions that name an angle in a 4-band angle raster (:func:`open_angles`), after
+#: lower-casing, spaces and hyphens turned into ``_`` and an ``_angle`` suffix dropped.
+ANGLE_BAND_NAMES = {
+    "sza": ("sza", "solar_zenith", "sun_zenith"),
+    "saa": ("saa", "solar_azimuth", "sun_azimuth"),
+    "vza": ("vza", "view_zenith", "viewing_zenith", "sensor_zenith"),
+    "vaa": ("vaa", "view_azimuth", "viewing_azimuth", "sensor_azimuth"),
+}
 
 _UNITS_TO_NM = {
     "": 1.0, "nm": 1.0, "nanometer": 1.0, "nanometers": 1.0, "nanometre": 1.0, "nanometres": 1.0,
@@ -59,6 +72,21 @@ _UNITS_TO_NM = {
     "micrometers": 1e3, "micrometre": 1e3, "micrometres": 1e3,
 }
 _NUMBER = r"[0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?"
+
+#: Central wavelengths [nm] of the Sentinel-2A MSI bands (ESA, Sentinel-2 spectral response
+#: functions, COPE-GSEG-EOPG-TN-15-0007). Sentinel-2B's centres differ by 3 nm or less in B01 to
+#: B8A (by up to 17 nm in B12): the S2A values serve both.
+SENTINEL2_WAVELENGTHS = {
+    "B01": 442.7, "B02": 492.4, "B03": 559.8, "B04": 664.6, "B05": 704.1, "B06": 740.5, "B07": 782.8,
+    "B08": 832.8, "B8A": 864.7, "B09": 945.1, "B10": 1373.5, "B11": 1613.7, "B12": 2202.4,
+}
+
+#: Central wavelengths [nm] of the Landsat 8/9 OLI reflective bands 1-7 (USGS, Landsat 8 Data
+#: Users Handbook, Table 2-1), used only for images whose tags state the sensor (:func:`band_wavelengths`).
+LANDSAT_OLI_WAVELENGTHS = {1: 443.0, 2: 482.0, 3: 562.0, 4: 655.0, 5: 865.0, 6: 1609.0, 7: 2201.0}
+
+#: Dataset tags that may state the sensor of an image (Landsat MTL's ``SENSOR_ID``: ``OLI_TIRS``).
+_SENSOR_TAGS = ("sensor", "SENSOR", "SENSOR_ID")
 
 
 def _open(path, role: str, chunks, masked: bool, mask_and_scale: bool = False) -> xr.DataArray:
@@ -139,13 +167,51 @@ def parse_wavelength(text: str) -> float | None:
     return float(match[1]) * _UNITS_TO_NM[match[2].lower()]
 
 
+def _sentinel2_band(text: str | None) -> str | None:
+    """``"B02"`` for a description ``"B02"``, ``"b2"`` or ``"B2"``; ``"B8A"`` for ``"B8A"``; else None."""
+    match = re.fullmatch(r"B(0?[1-9]|1[0-2]|8A)", (text or "").strip(), re.I)
+    if match is None:
+        return None
+    number = match[1].upper()
+    return "B8A" if number == "8A" else f"B{int(number):02d}"
+
+
+def _landsat_oli_band(text: str | None) -> int | None:
+    """Band number of a Landsat OLI band name (``"SR_B4"``, ``"B4"``, ``"B04"``) of bands 1-7, or None."""
+    match = re.fullmatch(r"(?:SR_)?B0?([1-7])", (text or "").strip(), re.I)
+    return int(match[1]) if match else None
+
+
+def _named_band_wavelengths(descriptions, tags) -> tuple[list[float] | None, str]:
+    """Wavelengths [nm] from band names, and their origin: Landsat OLI names where a tag states the
+    sensor (``sensor``/``SENSOR_ID`` holding ``OLI``), else Sentinel-2 names when every description
+    is one. Anything else (a mix, ``SR_B4`` without the sensor): None, no guess."""
+    if not descriptions:
+        return None, ""
+    sensor = next((str(tags[key]) for key in _SENSOR_TAGS if key in tags), "")
+    if "OLI" in sensor.upper():
+        bands = [_landsat_oli_band(text) for text in descriptions]
+        if all(band is not None for band in bands):
+            return [LANDSAT_OLI_WAVELENGTHS[band] for band in bands], f"Landsat OLI band names (sensor {sensor})"
+        return None, ""
+    names = [_sentinel2_band(text) for text in descriptions]
+    if all(name is not None for name in names):
+        return [SENTINEL2_WAVELENGTHS[name] for name in names], "Sentinel-2 band names"
+    return None, ""
+
+
 def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
                      explicit: Sequence[float] | None = None) -> np.ndarray | None:
     """Band-centre wavelengths [nm] of an image, or None when nothing gives them.
 
     Sources, in the order of ``DESIGN.md``: ``explicit``; a dataset tag ``wavelength`` with
     comma-separated values (``wavelength_units`` tag honoured, nm by default); band descriptions
-    holding a number with an optional unit; the ENVI header of an ENVI image.
+    holding a number with an optional unit; band descriptions that are band names, Landsat 8/9 OLI
+    names (``SR_B1`` ... ``SR_B7``, ``B1`` ...; :data:`LANDSAT_OLI_WAVELENGTHS`) where a dataset tag
+    ``sensor`` or ``SENSOR_ID`` says ``OLI``, else Sentinel-2 names (``B02``, ``B2``, ``B8A``;
+    Sentinel-2A centres, :data:`SENTINEL2_WAVELENGTHS`) when every band has one; the ENVI header of
+    an ENVI image. Band names that fit neither rule (a mix, ``SR_B4`` without the sensor) give no
+    wavelengths rather than a guess.
 
     Raises
     ------
@@ -183,8 +249,11 @@ def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
         origin = "tag 'wavelength'"
     else:
         parsed = [parse_wavelength(d or "") for d in descriptions] if descriptions else []
+        named, named_origin = _named_band_wavelengths(descriptions, tags)
         if parsed and all(p is not None for p in parsed):
             values, origin = parsed, "band descriptions"
+        elif named is not None:
+            values, origin = named, named_origin
         elif "wavelength" in envi_header:
             from brdfcorr.io.sensors.envi import envi_wavelengths
 
@@ -290,10 +359,54 @@ def open_classes(path, chunks=None) -> xr.DataArray:
     return classes.rio.write_nodata(nodata) if nodata is not None else classes
 
 
+def angle_band_name(description: str | None) -> str | None:
+    """The angle (``"sza"``, ``"saa"``, ``"vza"``, ``"vaa"``) a band description names, or None.
+
+    Case and spaces/hyphens are ignored (``"Solar Zenith"`` is ``solar_zenith``), and a suffix
+    ``_angle`` is allowed (CF standard names: ``solar_zenith_angle``, ``sensor_azimuth_angle``);
+    the names are those of :data:`ANGLE_BAND_NAMES`.
+    """
+    if not description:
+        return None
+    key = re.sub(r"[\s\-]+", "_", description.strip().lower())
+    key = key.removesuffix("_angle")
+    return next((angle for angle, names in ANGLE_BAND_NAMES.items() if key in names), None)
+
+
+def _angle_band_order(path, descriptions) -> dict[str, int]:
+    """Band index of each angle of a 4-band angle raster: by band descriptions that name the
+    angles, else the documented order sza, saa, vza, vaa."""
+    if isinstance(descriptions, str):  # rioxarray keeps one description as a string
+        descriptions = (descriptions,)
+    descriptions = tuple(descriptions or ())
+    named = [angle_band_name(text) for text in descriptions]
+    # No descriptions, none naming an angle ("Band 1"), or one on every band (rioxarray describes
+    # every band by the array's name: a stack of layers named "sza" says "sza" four times): positional.
+    if not any(named) or len(set(descriptions)) == 1:
+        return {name: index for index, name in enumerate(ANGLE_NAMES)}
+    if len(named) != len(ANGLE_NAMES) or sorted(map(str, named)) != sorted(ANGLE_NAMES):
+        shown = ", ".join(repr(text) if text else "(none)" for text in descriptions)
+        raise InputError(
+            f"angle file {path}: band descriptions {shown} do not name each of sza, saa, vza, vaa once; "
+            "describe every band (sza, saa, vza, vaa, or solar_zenith, ...) or none (then the order "
+            "is sza, saa, vza, vaa)"
+        )
+    return {name: index for index, name in enumerate(named)}
+
+
 def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=None) -> dict[str, xr.DataArray]:
     """Open the sun/view angles [deg] as four (y, x) arrays, nodata as NaN.
 
-    Either ``path``, a 4-band raster in the order sza, saa, vza, vaa, or four single-band files.
+    Either ``path``, a 4-band raster, or four single-band files. The bands of a 4-band raster are
+    picked by their band descriptions where these name the angles (:data:`ANGLE_BAND_NAMES`: ``sza``
+    or ``solar_zenith``, ..., any case), else (no descriptions, none naming an angle, or the same
+    one on every band) taken in the order sza, saa, vza, vaa.
+
+    Raises
+    ------
+    InputError
+        A missing or unreadable file, a wrong band count, or band descriptions that name some
+        angles but not each of the four once (one line naming the file and its descriptions).
     """
     separate = {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
     given = [name for name, value in separate.items() if value is not None]
@@ -305,10 +418,8 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=Non
             raise InputError(
                 f"angle file {path} has {stack.sizes[stack.dims[0]]} bands; it needs 4 (sza, saa, vza, vaa)"
             )
-        return {
-            name: stack.isel({stack.dims[0]: index}, drop=True).rename(name)
-            for index, name in enumerate(ANGLE_NAMES)
-        }
+        order = _angle_band_order(path, stack.attrs.get("long_name"))
+        return {name: stack.isel({stack.dims[0]: order[name]}, drop=True).rename(name) for name in ANGLE_NAMES}
     missing = [name for name in ANGLE_NAMES if separate[name] is None]
     if missing:
         raise InputError(f"missing angle file(s): {', '.join(missing)} (or give one 4-band angle file)")

@@ -1,8 +1,11 @@
-"""Writing GeoTIFFs: tiled, compressed (optionally COG), chunk by chunk, atomically.
+"""Writing GeoTIFFs (tiled, compressed, optionally COG) or ENVI files, chunk by chunk, atomically.
 
 :func:`write_rasters` writes DataArrays through rioxarray's writer under a lock per file, to
 temporary names renamed when complete, computing any extra lazy results (QA counts) in the same
 dask pass; a failed write (disk full, permissions) is one :class:`~brdfcorr.errors.OutputError`.
+An ENVI target (:class:`EnviOutput`) is written by GDAL's ENVI driver: the data file, its header
+(``.hdr``: map info, coordinate system, band names, data ignore value, wavelengths) and its
+``.aux.xml`` (the tags) all under temporary names, renamed when complete, the data file last.
 """
 
 from __future__ import annotations
@@ -12,7 +15,9 @@ import logging
 import os
 import threading
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import dask
 import rasterio
@@ -24,12 +29,58 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io.files import atomic_path
 
-__all__ = ["write_rasters", "DEFAULT_CHUNK", "COMPRESSIONS"]
+__all__ = ["write_rasters", "EnviOutput", "check_format", "envi_header_path", "DEFAULT_CHUNK", "COMPRESSIONS",
+           "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
 #: Lossless GeoTIFF compressions for reflectance (GDAL names, lower case; the CLI's choices).
 COMPRESSIONS = ("deflate", "lzw", "zstd", "none")
+#: Output raster formats (GDAL driver names; the CLI's ``--format`` choices).
+FORMATS = ("GTiff", "ENVI")
+#: File name extensions of each format (lower case; "" is a name without extension).
+EXTENSIONS = {"GTiff": (".tif", ".tiff"), "ENVI": (".img", ".bsq", ".bil", ".dat", "")}
+
+
+@dataclass(frozen=True)
+class EnviOutput:
+    """How :func:`write_rasters` writes a target as ENVI.
+
+    Attributes
+    ----------
+    interleave : {"bsq", "bil"}
+        Band sequential or band interleaved by line.
+    wavelength, fwhm : sequence of float, optional
+        Band centres and full widths at half maximum [nm], written to the header as
+        ``wavelength``, ``fwhm`` and ``wavelength units = Nanometers``.
+    """
+
+    interleave: Literal["bsq", "bil"] = "bsq"
+    wavelength: Sequence[float] | None = None
+    fwhm: Sequence[float] | None = None
+
+
+def check_format(path: str | os.PathLike, driver: str, what: str = "output") -> None:
+    """Refuse an output whose file name extension does not belong to its format (:data:`EXTENSIONS`):
+    ``out.img`` written as a GeoTIFF, or ``out.tif`` as ENVI, would mislead every reader.
+
+    Raises
+    ------
+    InputError
+        An unknown format, or an extension of another format.
+    """
+    if driver not in EXTENSIONS:
+        raise InputError(f"unknown output format {driver!r}; choose one of {', '.join(FORMATS)}")
+    suffix = Path(path).suffix.lower()
+    if suffix not in EXTENSIONS[driver]:
+        allowed = ", ".join(extension or "no extension" for extension in EXTENSIONS[driver])
+        raise InputError(f"{what} {path}: extension {suffix or '(none)'} does not fit format {driver} "
+                         f"(use {allowed})")
+
+
+def envi_header_path(path: str | os.PathLike) -> Path:
+    """The header GDAL writes beside an ENVI data file: ``out.img`` -> ``out.hdr``."""
+    return Path(path).with_suffix(".hdr")
 
 
 def _write_options(compress: str, blocksize: int, array: xr.DataArray) -> dict:
@@ -37,6 +88,9 @@ def _write_options(compress: str, blocksize: int, array: xr.DataArray) -> dict:
                "compress": compress, "BIGTIFF": "IF_SAFER"}
     if compress.lower() in ("deflate", "lzw", "zstd"):
         options["predictor"] = 3 if array.dtype.kind == "f" else 2
+        # GDAL compresses the tiles of each written window on all cores (the writer holds a lock
+        # per file; without this one thread compressed every tile of a scene).
+        options["num_threads"] = "ALL_CPUS"
     return options
 
 
@@ -52,8 +106,9 @@ def write_rasters(
     gdal_cache: int | None = None,
     scheduler: str | None = None,
     num_workers: int | None = None,
+    envi: Mapping[str | os.PathLike, EnviOutput] | None = None,
 ):
-    """Write DataArrays to tiled, compressed GeoTIFFs, chunk by chunk, atomically.
+    """Write DataArrays to tiled, compressed GeoTIFFs (or ENVI files), chunk by chunk, atomically.
 
     All rasters (and ``compute_with``, any dask collection such as lazy QA counts) are computed in
     one dask pass, so shared inputs are read once. Each file is written under its own lock to a
@@ -86,6 +141,10 @@ def write_rasters(
     scheduler, num_workers : optional
         dask scheduler of the pass and its number of workers (as for :func:`dask.compute`;
         default: dask's).
+    envi : mapping of path to EnviOutput, optional
+        Targets to write as ENVI (uncompressed, ``compress`` and ``cog`` do not apply), with their
+        header (``.hdr`` beside the data file, :func:`envi_header_path`) and ``.aux.xml`` (tags);
+        all written to temporary names and renamed when complete, the data file last.
 
     Returns
     -------
@@ -99,11 +158,14 @@ def write_rasters(
     compress = "none" if compress is None else str(compress).lower()
     if compress not in COMPRESSIONS:  # GDAL would write uncompressed, silently
         raise InputError(f"unknown compression {compress!r}; choose one of {', '.join(COMPRESSIONS)}")
+    envi = {Path(target): layout for target, layout in (envi or {}).items()}
+    if cog and envi:
+        raise InputError("Cloud-Optimized GeoTIFF (cog) and ENVI output exclude each other")
     gdal_messages = _GdalMessages()
     try:
         with gdal_messages:
             return _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache,
-                          scheduler, num_workers)
+                          scheduler, num_workers, envi)
     except BrdfcorrError:
         raise
     except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
@@ -151,11 +213,21 @@ def _io_failure(error: Exception, targets: list, messages: list[str]) -> Brdfcor
     )
 
 
-def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers):
+def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers,
+           envi):
     with contextlib.ExitStack() as stack:
-        writes, copies = [], []
+        writes, copies, headers = [], [], []
         for target, array in rasters.items():
             temporary = stack.enter_context(atomic_path(target))
+            layout = envi.get(Path(target))
+            if layout is not None:  # exits before atomic_path's: the sidecars are renamed first
+                stack.enter_context(_envi_sidecars(temporary, target))
+                headers.append((temporary, layout))
+                writes.append(array.rio.to_raster(
+                    temporary, tags=dict(tags or {}), lock=threading.Lock(), compute=False,
+                    driver="ENVI", interleave=layout.interleave.upper(), SUFFIX="ADD",
+                ))
+                continue
             if cog:  # GDAL's COG driver only copies: write a tiled GeoTIFF first, beside the target
                 gtiff = stack.enter_context(_scratch_path(temporary))
                 copies.append((gtiff, temporary))
@@ -179,7 +251,47 @@ def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gda
                     gtiff, temporary, driver="COG", compress=compress.upper(), blocksize=blocksize,
                     overview_resampling="average", BIGTIFF="IF_SAFER",
                 )
+            for temporary, layout in headers:
+                _write_envi_header(temporary, layout)
     return extra
+
+
+def _header_list(values: Sequence[float]) -> str:
+    return "{" + ", ".join(f"{float(value):g}" for value in values) + "}"
+
+
+def _write_envi_header(path: Path, layout: EnviOutput) -> None:
+    """Add the spectral fields to the header GDAL wrote (GDAL rewrites it on close): items of the
+    dataset's ENVI metadata domain are header fields (GDAL's ENVI driver)."""
+    items = {}
+    if layout.wavelength is not None:
+        items.update(wavelength=_header_list(layout.wavelength), wavelength_units="Nanometers")
+    if layout.fwhm is not None:
+        items["fwhm"] = _header_list(layout.fwhm)
+    if items:
+        with rasterio.open(path, "r+") as dataset:
+            dataset.update_tags(ns="ENVI", **items)
+
+
+@contextlib.contextmanager
+def _envi_sidecars(temporary: Path, target: str | os.PathLike):
+    """The header and ``.aux.xml`` GDAL writes beside an ENVI data file at ``temporary``
+    (``SUFFIX=ADD``: ``temporary.hdr``), renamed to those of ``target`` on success (a stale
+    ``.aux.xml`` of an earlier output is removed: GDAL would read its tags) and removed on failure."""
+    sidecars = [(Path(f"{temporary}.hdr"), envi_header_path(target)),
+                (Path(f"{temporary}.aux.xml"), Path(f"{target}.aux.xml"))]
+    try:
+        yield
+        for written, final in sidecars:
+            if written.exists():
+                os.replace(written, final)
+            else:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(final)
+    finally:
+        for written, _ in sidecars:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(written)
 
 
 @contextlib.contextmanager

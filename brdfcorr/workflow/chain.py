@@ -214,6 +214,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
         angle_options=dict(scene.angle_options), align_classes=config.inputs.align_classes,
         class_lookup=dict(config.inputs.class_lookup), scheduler=scheduler, num_workers=num_workers,
         scale=config.inputs.scale, offset=config.inputs.offset,
+        output_format=outputs.format,
         fingerprint=scene.fingerprint or None,  # what a resumed run compares (brdfcorr.workflow.plan)
     )
 

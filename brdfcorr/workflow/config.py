@@ -45,9 +45,10 @@ from pydantic import (
 )
 
 from brdfcorr._validation import Integer, Number, describe_errors, short_repr
-from brdfcorr.errors import ConfigError, UnknownNameError
+from brdfcorr.errors import ConfigError, InputError, UnknownNameError
 from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.io.sensors import ANGLE_KINDS
+from brdfcorr.io.writer import check_format
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ReferenceGeometry
@@ -382,10 +383,14 @@ class OutputsConfig(_Strict):
     directory : str
         Output directory (created).
     naming, qa_naming, quicklook_naming : str
-        Patterns with ``{scene}``, ``{stem}``, ``{parent}`` for the corrected GeoTIFF, the QA raster and the
-        quicklook PNG.
-    format : {"GTiff"}
-        Raster format of the outputs.
+        Patterns with ``{scene}``, ``{stem}``, ``{parent}`` for the corrected raster, the QA GeoTIFF and the
+        quicklook PNG. ``naming``'s extension must fit ``format``
+        (:func:`brdfcorr.io.writer.check_format`); its default is ``{scene}_brdf.tif`` for GTiff and
+        ``{scene}_brdf.img`` for ENVI.
+    format : {"GTiff", "ENVI"}
+        Raster format of the corrected images (the QA raster is a GeoTIFF). ENVI: a data file, its
+        ``.hdr`` header (wavelengths, map info) and ``.aux.xml`` (tags); uncompressed, band
+        sequential (BSQ), no ``cog``.
     compress : {"deflate", "lzw", "zstd", "none"}
     cog : bool
         Write Cloud-Optimized GeoTIFFs.
@@ -399,7 +404,7 @@ class OutputsConfig(_Strict):
     naming: str = "{scene}_brdf.tif"
     qa_naming: str = "{scene}_qa.tif"
     quicklook_naming: str = "{scene}_quicklook.png"
-    format: Literal["GTiff"] = "GTiff"
+    format: Literal["GTiff", "ENVI"] = "GTiff"
     compress: Literal["deflate", "lzw", "zstd", "none"] = "deflate"
     cog: bool = False
     existing: Literal["error", "skip", "overwrite"] = "skip"
@@ -415,6 +420,24 @@ class OutputsConfig(_Strict):
             raise ValueError(f"{short_repr(value)} must contain {{scene}}, {{stem}} or {{parent}}: "
                              "scenes need distinct names")
         return value
+
+    @model_validator(mode="before")
+    @classmethod
+    def _envi_naming(cls, data: Any) -> Any:
+        if isinstance(data, Mapping) and data.get("format") == "ENVI" and "naming" not in data:
+            data = {**data, "naming": "{scene}_brdf.img"}
+        return data
+
+    @model_validator(mode="after")
+    def _format(self) -> OutputsConfig:
+        for key, name, driver in (("naming", self.naming, self.format), ("qa_naming", self.qa_naming, "GTiff")):
+            try:
+                check_format(name, driver, f"outputs.{key}")
+            except InputError as error:
+                raise ValueError(str(error)) from None
+        if self.format == "ENVI" and self.cog:
+            raise ValueError("cog applies to GeoTIFF outputs, not format ENVI")
+        return self
 
 
 class EngineConfig(_Strict):

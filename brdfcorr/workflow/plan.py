@@ -160,8 +160,10 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     Raises
     ------
     InputError
-        No input image, or (with ``require_inputs``) an ``inputs.images`` glob matching no file;
-        two scenes with the same output name; an output that would overwrite an input
+        No input image, or an ``inputs.images`` glob matching no file (without ``require_inputs``
+        only where the glob's folder exists: a folder not there yet is a warning); quicklook bands
+        (``steps.quicklook.bands``) beyond the band count of an existing input image; two scenes
+        with the same output name; an output that would overwrite an input
         (:class:`~brdfcorr.io.paths.InputOverwriteError` of :func:`~brdfcorr.io.paths.check_outputs`);
         a missing parameter table or measurement file.
     OutputError
@@ -172,6 +174,7 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     images, notes = _images(config, require_inputs)
     output_dir = config.resolve(config.outputs.directory)
     scenes = _plan_scenes(config, images, output_dir)
+    _check_quicklook_bands(config, scenes)
     sources, fit_output, parameter_notes = _parameter_sources(config, output_dir, require_inputs)
     report = output_dir / config.outputs.report
     _check_outputs(config, scenes, report, fit_output)
@@ -183,25 +186,64 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
 # ---------------------------------------------------------------------------------------- scenes
 def _images(config: ChainConfig, require_inputs: bool) -> tuple[list[Path], list[str]]:
     """The input images (globs expanded, duplicates dropped) and notes on patterns matching nothing."""
-    images, notes = [], []
+    images, notes, typo = [], [], False
     for item in config.inputs.images:
         pattern = str(config.resolve(item))
         if glob.has_magic(pattern):
             matches = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file())
             if not matches:
                 notes.append(f"inputs.images: {item!r} matches no file")
+                typo = typo or _glob_root(pattern).is_dir()
             images += matches
         else:
             images.append(Path(pattern))
     images = list(dict.fromkeys(images))  # as given: a link stays a link ({dir} is its directory)
+    # A pattern matching nothing is a typo, not an empty batch: an error, also without
+    # require_inputs (validate, --dry-run) where its folder exists; only the data of a folder
+    # that does not exist yet may be missing there (a warning).
     if not images:
         message = f"inputs.images matches no file ({', '.join(config.inputs.images)})"
-        if require_inputs:
+        if require_inputs or typo:
             raise InputError(f"{config.source}: {message}")
         notes = [message]
-    elif notes and require_inputs:  # a pattern that matches nothing is a typo, not an empty batch
+    elif notes and (require_inputs or typo):
         raise InputError(f"{config.source}: {'; '.join(notes)} (fix or remove the pattern)")
     return images, notes
+
+
+def _glob_root(pattern: str) -> Path:
+    """The folder of a glob pattern up to its first wildcard (``data/*/x.tif`` -> ``data``)."""
+    parts = Path(pattern).parts
+    fixed = next(index for index, part in enumerate(parts) if glob.has_magic(part))
+    return Path(*parts[:fixed]) if fixed else Path()
+
+
+def _check_quicklook_bands(config: ChainConfig, scenes: list[Scene]) -> None:
+    """Refuse quicklook bands beyond the band count of an input image (read from the file's header),
+    before anything is corrected: one band list serves the whole batch, so an image with fewer
+    bands means the setting is wrong, as a glob typo is. Images that are missing or unreadable are
+    left to their scene (which fails on them)."""
+    step = config.steps.quicklook
+    if step is None:
+        return
+    needed = max(step.bands)
+    short = []
+    for scene in scenes:
+        if not scene.image.is_file():  # missing (the scene fails) or no regular file: not opened here
+            continue
+        try:
+            with rasterio.open(scene.image) as dataset:
+                count = dataset.count
+        except (OSError, rasterio.errors.RasterioError):
+            continue
+        if count < needed:
+            short.append(f"{scene.image} has {count}")
+    if short:
+        more = f" (and {len(short) - 1} more)" if len(short) > 1 else ""
+        raise InputError(
+            f"{config.source}: steps.quicklook.bands {list(step.bands)} needs {needed} bands, but image "
+            f"{short[0]}{more}; choose bands of every image"
+        )
 
 
 def _scene_name(config: ChainConfig, image: Path, shared_stems=frozenset()) -> str:

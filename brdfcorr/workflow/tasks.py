@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+import rasterio
 import xarray as xr
 
 from brdfcorr import __version__
@@ -29,7 +31,7 @@ from brdfcorr.errors import BrdfcorrError, InputError, OutputError, ParameterErr
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, GuardRails, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
-from brdfcorr.io import rasters
+from brdfcorr.io import rasters, writer
 from brdfcorr.io.paths import check_outputs
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.strata import align_class_map, remap_classes
@@ -87,6 +89,7 @@ def correct_files(
     scheduler: str | None = None, num_workers: int | None = None,
     scale: float | None = None, offset: float | None = None,
     reads: Mapping[str, str | os.PathLike | None] | Sequence = (), fingerprint: str | None = None,
+    output_format: Literal["GTiff", "ENVI"] = "GTiff", interleave: Literal["bsq", "bil"] = "bsq",
 ) -> dict[str, object]:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
@@ -106,7 +109,7 @@ def correct_files(
     Parameters
     ----------
     image, output : path-like
-        Input reflectance raster and output GeoTIFF.
+        Input reflectance raster and output raster (``output_format``).
     params : ParameterTable or path-like
         The parameter table (a path is loaded with :meth:`ParameterTable.load`).
     angles : path-like, optional
@@ -159,6 +162,14 @@ def correct_files(
         (:func:`brdfcorr.workflow.plan.scene_fingerprint`), written in the tags
         ``brdf_fingerprint`` (its SHA-256, hex) and ``brdf_fingerprint_content``: a resumed chain
         redoes an output whose fingerprint is not the one it would write.
+    output_format : {"GTiff", "ENVI"}, default "GTiff"
+        Format of ``output`` (the QA layer is always a GeoTIFF); its extension must fit
+        (:func:`brdfcorr.io.writer.check_format`: ``.tif``/``.tiff``; ``.img``, ``.bsq``, ``.bil``,
+        ``.dat`` or none). ENVI: uncompressed, a header ``.hdr`` beside it (map info, coordinate
+        system, band names, ``data ignore value = nan``, ``wavelength``/``fwhm`` [nm] where known)
+        and the tags in ``.aux.xml``.
+    interleave : {"bsq", "bil"}, default "bsq"
+        Interleave of an ENVI output.
 
     Returns
     -------
@@ -186,10 +197,7 @@ def correct_files(
               ("saa raster", saa), ("vza raster", vza), ("vaa raster", vaa), ("class map", classes),
               ("parameter table", None if isinstance(params, ParameterTable) else params)]
     inputs += list(reads.items()) if isinstance(reads, Mapping) else list(reads)
-    check_outputs({"output": output, "QA output": qa_output}, inputs)
-    for target in (output, qa_output):
-        if target is not None and not overwrite and Path(target).exists():
-            raise OutputError(f"output {target} exists; give --overwrite to replace it")
+    _check_correct_outputs(output, qa_output, output_format, inputs, overwrite)
     table_path = table_source
     if not isinstance(params, ParameterTable):
         table_path = str(params)
@@ -222,8 +230,11 @@ def correct_files(
     except ParameterError as error:  # the table does not fit the image's bands: name both files
         raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {image})") from None
     corrected = corrected.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
+    corrected.attrs["long_name"] = _band_descriptions(scene.reflectance)
     for name in ("scale_factor", "add_offset"):  # the output holds physical values
         corrected.attrs.pop(name, None)
+    for name in _envi_header_items(image, corrected.attrs):  # an ENVI input's header is no tag of the output
+        corrected.attrs.pop(name)
     tags = {
         "brdf_reference": reference.describe(),
         "brdf_reference_sza_source": source,
@@ -243,21 +254,72 @@ def correct_files(
     if "wavelength" in scene.reflectance.coords:
         tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
         tags["wavelength_units"] = "nm"
+    envi = {}
+    if output_format == "ENVI":
+        coords = scene.reflectance.coords
+        envi[output] = writer.EnviOutput(
+            interleave=interleave,
+            wavelength=coords["wavelength"].values.tolist() if "wavelength" in coords else None,
+            fwhm=np.asarray(coords["fwhm"].values).tolist() if "fwhm" in coords else None,
+        )
     targets = {output: corrected}
     if qa_output is not None:
         targets[qa_output] = qa
     counts = rasters.write_rasters(
         targets, compress=compress, blocksize=chunks, cog=cog, tags=tags,
         compute_with=qa_counts(qa), callbacks=callbacks, gdal_cache=rasters.gdal_cache_bytes(image, chunks),
-        scheduler=scheduler, num_workers=num_workers,
+        scheduler=scheduler, num_workers=num_workers, envi=envi,
     )
     return {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+
+
+def _check_correct_outputs(output, qa_output, output_format: str, inputs: list, overwrite: bool) -> None:
+    """The output guard, formats and extensions, and existing outputs (``overwrite``)."""
+    outputs = {"output": output, "QA output": qa_output}
+    if output_format == "ENVI":  # never the header of an ENVI input (image.img and image.bsq share image.hdr)
+        outputs["output header"] = writer.envi_header_path(output)
+        named = [item if isinstance(item, tuple) else ("input", item) for item in inputs]
+        inputs = inputs + [(f"{name} header", writer.envi_header_path(path)) for name, path in named
+                           if path is not None and writer.envi_header_path(path).exists()]
+    check_outputs(outputs, inputs)
+    writer.check_format(output, output_format)
+    if qa_output is not None:
+        writer.check_format(qa_output, "GTiff", "QA output")
+    for target in (output, qa_output):
+        if target is not None and not overwrite and Path(target).exists():
+            raise OutputError(f"output {target} exists; give --overwrite to replace it")
+
+
+def _envi_header_items(image, attrs: Mapping) -> list[str]:
+    """The attrs that rioxarray took from an ENVI input's header (its ENVI metadata domain, and the
+    ``Band_N`` band names and ``wavelength_units`` GDAL mirrors into the default domain): header
+    fields of the input, not provenance of the output. None for another format."""
+    try:
+        with rasterio.open(image) as dataset:
+            if dataset.driver != "ENVI":
+                return []
+            header = set(dataset.tags(ns="ENVI")) | {"wavelength", "wavelength_units", "fwhm"}
+    except rasterio.errors.RasterioIOError:
+        return []
+    return [name for name in attrs if name in header or re.fullmatch(r"Band_\d+", name)]
 
 
 def _describe_scaling(value: float | Sequence[float]) -> str:
     """A scale or offset of :func:`brdfcorr.io.rasters.open_image` as a tag: ``"0.0001"``, or one
     value per band comma-separated (shortest exact form)."""
     return ",".join(repr(float(v)) for v in np.atleast_1d(value))
+
+
+def _band_descriptions(reflectance: xr.DataArray) -> tuple[str, ...]:
+    """The output's band descriptions: the input's own where every band has one, else the band
+    centres ("560 nm"), else "band 1" ... (not the array's name on every band)."""
+    n_bands = reflectance.sizes[reflectance.dims[0]]
+    described = reflectance.attrs.get("long_name")
+    if isinstance(described, (tuple, list)) and len(described) == n_bands and all(described):
+        return tuple(str(text) for text in described)
+    if "wavelength" in reflectance.coords:
+        return tuple(f"{wavelength:g} nm" for wavelength in reflectance["wavelength"].values)
+    return tuple(f"band {number}" for number in range(1, n_bands + 1))
 
 
 # ---------------------------------------------------------------------------- goniometer fit

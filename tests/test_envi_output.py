@@ -1,0 +1,152 @@
+"""ENVI output (issue 16): ``correct --format ENVI`` and chains with ``outputs.format: ENVI`` write a
+data file and its header atomically, with the GeoTIFF's numbers and georeference and the wavelengths
+in the header; extensions must fit the format; an ENVI input's header is not copied into tags."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+import rasterio
+from click.testing import CliRunner
+from test_pipeline import make_scenes, write_chain
+
+from brdfcorr.cli import main
+from brdfcorr.io.rasters import band_wavelengths, open_image
+from brdfcorr.testing import example_table, synthetic_scene, write_scene
+
+WAVELENGTHS = [480.0, 560.0, 660.0, 830.0]  # synthetic_scene's default band centres [nm]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("envi")
+    paths = write_scene(directory, synthetic_scene(ny=40, nx=48, wavelengths=WAVELENGTHS))
+    paths["params"] = example_table().save(directory / "params.yaml")
+    return paths
+
+
+def _correct(files, output, *extra, image=None):
+    args = ["correct", image or files["image"], "--angles", files["angles"], "--classes", files["classes"],
+            "--params", files["params"], "-o", output, "--chunk", 16, "--no-progress", *extra]
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def _header(path) -> dict[str, str]:
+    """The fields of an ENVI header (``key = value``, ``{...}`` values may span lines)."""
+    text = path.read_text()
+    assert text.startswith("ENVI")
+    return {key.strip(): " ".join(value.split()) for key, value in
+            re.findall(r"^([^=\n]+?)\s*=\s*(\{[^}]*\}|[^\n]*)", text, flags=re.MULTILINE)}
+
+
+def _numbers(field: str) -> list[float]:
+    return [float(value) for value in field.strip("{}").split(",")]
+
+
+@pytest.fixture(scope="module")
+def geotiff(files, tmp_path_factory):
+    output = tmp_path_factory.mktemp("gtiff") / "out.tif"
+    result = _correct(files, output)
+    assert result.exit_code == 0, result.output
+    return output
+
+
+@pytest.mark.parametrize("interleave", ["bsq", "bil"])
+def test_envi_output_equals_the_geotiff_and_has_a_header(files, geotiff, tmp_path, interleave):
+    output = tmp_path / "out.img"
+    result = _correct(files, output, "--format", "ENVI", "--interleave", interleave)
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.hdr", "out.img", "out.img.aux.xml"]  # no .partial
+    with rasterio.open(output) as envi, rasterio.open(geotiff) as gtiff:
+        assert envi.driver == "ENVI" and envi.dtypes == gtiff.dtypes == ("float32",) * 4
+        assert envi.crs == gtiff.crs and envi.transform == gtiff.transform
+        np.testing.assert_array_equal(envi.read(), gtiff.read())  # NaN where the GeoTIFF has NaN
+        assert envi.tags()["brdf_reference"] == gtiff.tags()["brdf_reference"]  # provenance in .aux.xml
+        assert envi.descriptions == gtiff.descriptions
+
+    header = _header(tmp_path / "out.hdr")
+    assert header["interleave"] == interleave
+    assert header["data type"] == "4"  # float32
+    assert header["data ignore value"] == "nan"
+    assert header["wavelength units"] == "Nanometers"
+    assert _numbers(header["wavelength"]) == WAVELENGTHS
+    assert header["map info"].startswith("{UTM") and "coordinate system string" in header
+    assert "band names" in header
+    np.testing.assert_array_equal(band_wavelengths(open_image(output), output), WAVELENGTHS)
+    # The header alone gives them too (without the .aux.xml's tags).
+    (tmp_path / "out.img.aux.xml").unlink()
+    np.testing.assert_array_equal(band_wavelengths(open_image(output), output), WAVELENGTHS)
+
+
+@pytest.mark.parametrize("name, extra", [("out.tif", ["--format", "ENVI"]), ("out.img", []),
+                                         ("out.bsq", ["--format", "GTiff"])])
+def test_an_extension_of_another_format_is_refused(files, tmp_path, name, extra):
+    result = _correct(files, tmp_path / name, *extra)
+    assert result.exit_code == 2, result.output
+    assert len(result.output.strip().splitlines()) == 1 and "does not fit format" in result.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_envi_without_extension_writes_name_and_name_hdr(files, tmp_path):
+    result = _correct(files, tmp_path / "cube", "--format", "ENVI")
+    assert result.exit_code == 0, result.output
+    assert {"cube", "cube.hdr"} <= {p.name for p in tmp_path.iterdir()}
+    assert not [p for p in tmp_path.iterdir() if "partial" in p.name]
+
+
+def test_chain_writes_envi_outputs(tmp_path):
+    scenes = make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path, outputs={"directory": "out", "format": "ENVI",
+                                           "naming": "{parent}_brdf.img", "qa_naming": "{parent}_qa.tif"})
+    result = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    for name in scenes:
+        output = tmp_path / "out" / f"{name}_brdf.img"
+        with rasterio.open(output) as dataset:
+            assert dataset.driver == "ENVI" and dataset.count == 4
+        assert _header(tmp_path / "out" / f"{name}_brdf.hdr")["interleave"] == "bsq"
+        with rasterio.open(tmp_path / "out" / f"{name}_qa.tif") as dataset:
+            assert dataset.driver == "GTiff"
+    assert not [p for p in (tmp_path / "out").iterdir() if "partial" in p.name]
+    # A second run resumes: the outputs (and their fingerprints in .aux.xml) are recognised.
+    again = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
+    assert again.exit_code == 0, again.output
+
+
+def test_chain_envi_default_naming_and_mismatch(tmp_path):
+    from brdfcorr.errors import ConfigError
+    from brdfcorr.workflow.config import OutputsConfig
+
+    assert OutputsConfig(directory="out", format="ENVI").naming == "{scene}_brdf.img"
+    for bad in ({"format": "ENVI", "naming": "{scene}.tif"}, {"naming": "{scene}.img"},
+                {"format": "ENVI", "cog": True}):
+        with pytest.raises((ValueError, ConfigError)):
+            OutputsConfig(directory="out", **bad)
+
+
+def test_envi_input_header_is_not_copied_into_geotiff_tags(files, tmp_path):
+    with rasterio.open(files["image"]) as source:
+        profile, data = source.profile, source.read()
+    for key in ("tiled", "blockxsize", "blockysize", "compress", "interleave"):
+        profile.pop(key, None)
+    image = tmp_path / "input.img"
+    with rasterio.open(image, "w", **{**profile, "driver": "ENVI"}) as envi:
+        envi.write(data)
+        envi.update_tags(ns="ENVI", wavelength="{480, 560, 660, 830}", fwhm="{10, 10, 10, 10}",
+                         wavelength_units="Nanometers")
+    output = tmp_path / "out.tif"
+    result = _correct(files, output, image=image)
+    assert result.exit_code == 0, result.output
+    with rasterio.open(output) as dataset:
+        tags = dataset.tags()
+    assert not [key for key in tags if re.fullmatch(r"Band_\d+", key)]
+    for key in ("interleave", "file_type", "map_info", "samples", "data_type", "band_names", "fwhm"):
+        assert key not in tags, key
+    assert tags["wavelength"] == "480,560,660,830" and tags["wavelength_units"] == "nm"  # brdfcorr's own
+
+    # ... and the ENVI output of an ENVI input carries the input's fwhm in its header.
+    result = _correct(files, tmp_path / "out.bsq", "--format", "ENVI", image=image)
+    assert result.exit_code == 0, result.output
+    assert _numbers(_header(tmp_path / "out.hdr")["fwhm"]) == [10.0] * 4
