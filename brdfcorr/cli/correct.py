@@ -10,7 +10,7 @@ import click
 from tqdm.dask import TqdmCallback
 
 from brdfcorr.cli._base import _options, handle_errors, main
-from brdfcorr.io.sensors import ANGLE_KINDS
+from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
 from brdfcorr.io.writer import FORMATS
 from brdfcorr.params import ParameterTable
 from brdfcorr.workflow.classmaps import read_lookup
@@ -31,23 +31,14 @@ def _reference_sza(value: str | None):
 @click.argument("image", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--angles", help="Angle source: a 4-band raster of sza, saa, vza, vaa [deg] on the image grid, or "
                                 "what --angles-kind names (a sensor file, or a UTC time for 'solar').")
-@click.option("--angles-kind", type=click.Choice(["geotiff", *ANGLE_KINDS]),
-              default="geotiff", show_default=True,
-              help="What --angles is: a 4-band GeoTIFF, an ENVI obs file (AVIRIS-NG/-3), a Sentinel-2 "
-                   "MTD_TL.xml, a Landsat C2 angle band (…_SZA.TIF) or, for 'solar', a UTC time.")
-@click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE",
-              help="Option of the angle reader (repeatable), e.g. band=B04, resolution=20, "
-                   "ang=LC08_..._ANG.txt.")
+@angle_source_options
 @click.option("--sza", type=click.Path(dir_okay=False, path_type=Path), help="Solar zenith raster [deg].")
 @click.option("--saa", type=click.Path(dir_okay=False, path_type=Path), help="Solar azimuth raster [deg].")
 @click.option("--vza", type=click.Path(dir_okay=False, path_type=Path), help="View zenith raster [deg].")
 @click.option("--vaa", type=click.Path(dir_okay=False, path_type=Path), help="View azimuth raster [deg].")
 @click.option("--classes", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map raster (ids of the parameter table; 0 = no class).")
-@click.option("--align-classes", is_flag=True,
-              help="The class map may lie on another grid or CRS: resample it by nearest neighbour.")
-@click.option("--class-lookup", type=click.Path(dir_okay=False, path_type=Path),
-              help="YAML mapping of class-map codes to table class ids (e.g. land-cover codes).")
+@class_map_options
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter table (YAML).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
@@ -66,12 +57,7 @@ def _reference_sza(value: str | None):
 @click.option("--unknown", type=click.Choice(["keep", "nan"]), default="keep", show_default=True,
               help="Pixels of class 0 or of classes not in the table: keep unchanged, or set to NaN.")
 @click.option("--wavelengths", help="Band centres [nm], comma-separated (overrides the image's).")
-@click.option("--scale", type=click.FloatRange(min=0, min_open=True),
-              help="Reflectance factor per stored unit, e.g. 0.0001 for 0-10000 [default: the image's "
-                   "GDAL scale, else 1]; replaces a tagged scale.")
-@click.option("--offset", type=float,
-              help="Reflectance factor of a stored 0, e.g. -0.2 for Landsat C2 L2 [default: the image's "
-                   "GDAL offset, else 0].")
+@scale_options
 @click.option("--extrapolate", is_flag=True, help="Allow band centres outside a class's table wavelengths.")
 @click.option("--flip-view-azimuth", is_flag=True,
               help="View azimuths are stored as seen from the sensor: add 180 deg.")

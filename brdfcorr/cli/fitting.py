@@ -17,10 +17,10 @@ from brdfcorr.cli._base import (
     handle_errors,
     main,
 )
+from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import GuardRails
 from brdfcorr.io.files import atomic_path
-from brdfcorr.io.sensors import ANGLE_KINDS
 from brdfcorr.models import get_model
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
@@ -35,16 +35,10 @@ from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement
 @click.option("--angles", multiple=True, required=True,
               help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa "
                    "[deg]) or what --angles-kind names.")
-@click.option("--angles-kind", type=click.Choice(["geotiff", *ANGLE_KINDS]), default="geotiff", show_default=True,
-              help="What --angles are (as for `brdfcorr correct`).")
-@click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE",
-              help="Option of the angle reader (repeatable), as for `brdfcorr correct`.")
+@angle_source_options
 @click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map per image, in the images' order.")
-@click.option("--align-classes", is_flag=True,
-              help="Class maps may lie on another grid or CRS: resample them by nearest neighbour.")
-@click.option("--class-lookup", type=click.Path(dir_okay=False, path_type=Path),
-              help="YAML mapping of class-map codes to table class ids (e.g. land-cover codes).")
+@class_map_options
 @click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
               help="Model for every class (see `brdfcorr models`).")
 @click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
@@ -53,12 +47,7 @@ from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement
               help="Hold a shape parameter fixed [default: k=0.25 for TS].")
 @click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
-@click.option("--scale", type=click.FloatRange(min=0, min_open=True),
-              help="Reflectance factor per stored unit of every image, e.g. 0.0001 for 0-10000, applied "
-                   "on read [default: each image's GDAL scale, else 1]; replaces a tagged scale.")
-@click.option("--offset", type=float,
-              help="Reflectance factor of a stored 0, e.g. -0.2 for Landsat C2 L2 [default: each image's "
-                   "GDAL offset, else 0].")
+@scale_options
 @click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
 @click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
               help="Guard rail: minimum 5-95 %% view zenith spread [deg].")

@@ -1,0 +1,49 @@
+"""Options that say how a scene's inputs are read, shared by ``correct`` and ``fit-classes``:
+the angle source, the class map's grid and codes, and the image's scale and offset."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from brdfcorr.io.sensors import ANGLE_KINDS
+
+
+def _stack(*options):
+    def decorate(command):
+        for option in reversed(options):
+            command = option(command)
+        return command
+
+    return decorate
+
+
+#: ``--angles-kind`` and ``--angle-option``: which reader the angle source goes through.
+angle_source_options = _stack(
+    click.option("--angles-kind", type=click.Choice(["geotiff", *ANGLE_KINDS]), default="geotiff",
+                 show_default=True,
+                 help="What --angles is: a 4-band GeoTIFF, an ENVI obs file (AVIRIS-NG/-3), a Sentinel-2 "
+                      "MTD_TL.xml, a Landsat C2 angle band (…_SZA.TIF) or, for 'solar', a UTC time."),
+    click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE",
+                 help="Option of the angle reader (repeatable), e.g. band=B04, resolution=20, "
+                      "ang=LC08_..._ANG.txt."),
+)
+
+#: ``--align-classes`` and ``--class-lookup``: a class map on another grid, or with other codes.
+class_map_options = _stack(
+    click.option("--align-classes", is_flag=True,
+                 help="The class map may lie on another grid or CRS: resample it by nearest neighbour."),
+    click.option("--class-lookup", type=click.Path(dir_okay=False, path_type=Path),
+                 help="YAML mapping of class-map codes to table class ids (e.g. land-cover codes)."),
+)
+
+#: ``--scale`` and ``--offset``: stored values to reflectance factors, applied on read.
+scale_options = _stack(
+    click.option("--scale", type=click.FloatRange(min=0, min_open=True),
+                 help="Reflectance factor per stored unit, e.g. 0.0001 for 0-10000, applied on read "
+                      "[default: the image's GDAL scale, else 1]; replaces a tagged scale."),
+    click.option("--offset", type=float,
+                 help="Reflectance factor of a stored 0, e.g. -0.2 for Landsat C2 L2 [default: the "
+                      "image's GDAL offset, else 0]."),
+)
