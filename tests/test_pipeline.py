@@ -353,3 +353,26 @@ def test_progress_bar_and_events(tmp_path):
     result = CliRunner().invoke(main, ["run", str(chain), "--overwrite", "--progress"])
     assert result.exit_code == 0
     assert "2/2" in result.stderr  # the overall bar counts scenes
+
+
+def test_chain_and_correct_choose_the_tile_size_by_the_same_band_count_rule(tmp_path):
+    # 100 bands: a 256 x 256 chunk of all bands would be 26 MB, so both choose 128 (auto_chunk:
+    # the largest of 512, 256, 128, 64 whose chunk of all bands holds at most 16 MB as float32).
+    import rasterio
+    from click.testing import CliRunner
+
+    from brdfcorr.cli import main
+
+    wavelengths = tuple(np.linspace(480.0, 830.0, 100))
+    scene = synthetic_scene(160, 160, wavelengths=wavelengths)
+    paths = write_scene(tmp_path / "scenes" / "line0", scene)
+    chain = write_chain(tmp_path, engine={"scheduler": "threads", "workers": 2}, steps={"correct": {"limits": None}})
+    report = run_chain(load_config(chain))
+    assert report.ok, report.scenes
+    result = CliRunner().invoke(main, ["correct", str(paths["image"]), "--angles", str(paths["angles"]),
+                                       "--classes", str(paths["classes"]), "--params", str(tmp_path / "params.yaml"),
+                                       "-o", str(tmp_path / "correct.tif")])
+    assert result.exit_code == 0, result.output
+    for output in (tmp_path / "out" / "line0_brdf.tif", tmp_path / "correct.tif"):
+        with rasterio.open(output) as dataset:
+            assert dataset.block_shapes[0] == (128, 128), output

@@ -455,8 +455,11 @@ class EngineConfig(_Strict):
         Threads (``threads``) or processes (``processes``, local ``distributed``).
     threads_per_worker : int
         Threads for the chunks of a scene inside a process or cluster worker.
-    chunk : int
-        Spatial chunk and output tile size [pixels], a multiple of 16.
+    chunk : int, optional
+        Spatial chunk and output tile size [pixels], a multiple of 16. Default: the rule of
+        ``brdfcorr correct`` for each image (:func:`brdfcorr.io.rasters.auto_chunk`: 512, smaller
+        for many bands, so that a chunk of all bands stays near 16 MB and a spectrum is read from
+        one small tile).
     address : str, optional
         Scheduler address of a running cluster (``tcp://host:8786``); only with ``distributed``.
 
@@ -471,13 +474,13 @@ class EngineConfig(_Strict):
     scheduler: Literal["threads", "processes", "synchronous", "distributed"] = "threads"
     workers: Integer = Field(default_factory=lambda: max(1, os.cpu_count() or 1), ge=1)
     threads_per_worker: Integer = Field(1, ge=1)
-    chunk: Integer = Field(512, ge=16, le=8192)
+    chunk: Integer | None = Field(None, ge=16, le=8192)
     address: str | None = None
 
     @field_validator("chunk")
     @classmethod
-    def _tile(cls, value: int) -> int:
-        if value % 16:
+    def _tile(cls, value: int | None) -> int | None:
+        if value is not None and value % 16:
             raise ValueError(f"chunk {value} must be a multiple of 16 (GeoTIFF tile size)")
         return value
 
