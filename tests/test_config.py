@@ -139,3 +139,10 @@ def test_validate_cli_rejects_bad_config(tmp_path):
     assert "engine.scheduler: 'mpi' is not allowed" in result.output
     result = CliRunner().invoke(main, ["validate", str(path), "--set", "engine.scheduler=threads"])
     assert result.exit_code == 0, result.output
+
+
+def test_engine_address_must_be_a_scheduler_address():
+    document = minimal(engine={"scheduler": "distributed", "address": "localhost"})
+    assert "engine: address 'localhost' is not a dask scheduler address like 'tcp://host:8786'" in error_of(document)
+    config = ChainConfig.from_dict(minimal(engine={"scheduler": "distributed", "address": "tcp://10.0.0.5:8786"}))
+    assert config.engine.address == "tcp://10.0.0.5:8786"

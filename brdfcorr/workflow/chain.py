@@ -72,6 +72,9 @@ __all__ = [
     "versions",
 ]
 
+#: Seconds to wait for a dask scheduler at ``engine.address`` before the run is refused (exit 2).
+CONNECT_TIMEOUT = 10
+
 Progress = Callable[[str, dict], None]
 
 
@@ -261,9 +264,8 @@ def _cluster(engine: EngineConfig) -> Iterator[concurrent.futures.Executor]:
         else:
             address = engine.address
         try:
-            # connect timeout: dask config distributed.comm.timeouts.connect (30 s by default)
-            client = stack.enter_context(Client(address, set_as_default=False))
-        except OSError as error:
+            client = stack.enter_context(Client(address, set_as_default=False, timeout=CONNECT_TIMEOUT))
+        except (OSError, TimeoutError) as error:
             raise InputError(f"engine.address: cannot reach the dask scheduler at {address}: {error}") from None
         yield client.get_executor(pure=False)
 

@@ -488,6 +488,10 @@ class EngineConfig(_Strict):
     def _address(self) -> EngineConfig:
         if self.address is not None and self.scheduler != "distributed":
             raise ValueError(f"address is only used with scheduler 'distributed', not {self.scheduler!r}")
+        # A dask scheduler address: PROTOCOL://HOST:PORT (a typo would otherwise wait for a timeout).
+        if self.address is not None and not re.fullmatch(r"(tcp|tls|ucx|ws|wss)://[^\s/:]+:\d{1,5}/?", self.address):
+            raise ValueError(f"address {short_repr(self.address)} is not a dask scheduler address like "
+                             "'tcp://host:8786'")
         return self
 
 
