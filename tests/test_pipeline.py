@@ -3,8 +3,10 @@ dry run, fit steps, the processes engine."""
 
 import json
 import os
+import sys
 
 import numpy as np
+import pytest
 import rasterio
 import yaml
 from click.testing import CliRunner
@@ -376,3 +378,48 @@ def test_chain_and_correct_choose_the_tile_size_by_the_same_band_count_rule(tmp_
     for output in (tmp_path / "out" / "line0_brdf.tif", tmp_path / "correct.tif"):
         with rasterio.open(output) as dataset:
             assert dataset.block_shapes[0] == (128, 128), output
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_scene_workers_end_with_the_run(tmp_path):
+    # A worker process of the `processes` engine ends when the run's process is killed (kill -9).
+    import signal
+    import subprocess
+    import textwrap
+    import time
+
+    script = tmp_path / "parent.py"
+    script.write_text(textwrap.dedent("""
+        import concurrent.futures, multiprocessing, os, sys, time
+        from brdfcorr.workflow.chain import _die_with_parent
+
+        def sleep():
+            time.sleep(120)
+
+        if __name__ == "__main__":
+            with concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                                                        initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
+                future = pool.submit(sleep)
+                time.sleep(3)
+                print(" ".join(str(p.pid) for p in multiprocessing.active_children()), flush=True)
+                future.result()
+    """))
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    workers = [int(pid) for pid in parent.stdout.readline().split()]
+    assert workers
+    parent.send_signal(signal.SIGKILL)
+    parent.wait(timeout=30)
+    deadline = time.monotonic() + 20
+    alive = workers
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        alive = [pid for pid in alive if _running(pid)]
+    assert not alive, f"workers {alive} outlived the killed run"
+
+
+def _running(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().split(")")[-1].split()[0] != "Z"  # a zombie has ended
+    except FileNotFoundError:
+        return False

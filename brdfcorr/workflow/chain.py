@@ -45,7 +45,11 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import ctypes
 import multiprocessing
+import os
+import signal
+import sys
 import time
 from collections.abc import Callable, Iterator
 from datetime import datetime, timezone
@@ -231,6 +235,16 @@ def _quicklook(scene: Scene, config: ChainConfig, table: ParameterTable) -> None
     )
 
 
+def _die_with_parent(parent: int) -> None:
+    """In a scene worker process: end when the run's process ends, however it ends (kill -9
+    included), instead of writing scenes on for a run that is gone (Linux: PR_SET_PDEATHSIG)."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # 1: PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent ended before the call above
+        os._exit(1)
+
+
 # -------------------------------------------------------------------------------------- engines
 @contextlib.contextmanager
 def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executor | None, dict]]:
@@ -241,7 +255,8 @@ def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executo
     elif engine.scheduler == "processes":
         # spawn: a forked child would inherit the parent's thread pools and locks mid-use.
         with concurrent.futures.ProcessPoolExecutor(
-                engine.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+                engine.workers, mp_context=multiprocessing.get_context("spawn"),
+                initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
             yield pool, {"scheduler": "threads", "threads": engine.threads_per_worker}
     else:
         with _cluster(engine) as executor:
