@@ -61,9 +61,10 @@ from pydantic import (
 )
 
 from brdfcorr._validation import Integer, Number, describe_errors, refuse_boolean, short_repr
-from brdfcorr.errors import InputError, ParameterError
+from brdfcorr.errors import InputError, ParameterError, UnknownNameError
 from brdfcorr.io.files import atomic_path, parse_yaml, read_document
 from brdfcorr.models import SURFACE_MODELS, Model, get_model
+from brdfcorr.models.materials import load_material, material_names
 
 __all__ = [
     "ReferenceGeometry",
@@ -72,6 +73,10 @@ __all__ = [
     "BandParameters",
     "merge_tables",
 ]
+
+#: Distance [nm] between a band centre and a library material's fit wavelength beyond which the
+#: correction warns (:meth:`ClassEntry.wavelength_caveat`).
+MATERIAL_WAVELENGTH_TOLERANCE = 100.0
 
 SunZenith = Annotated[float | Literal["mean", "observed"], BeforeValidator(refuse_boolean)]
 
@@ -130,6 +135,13 @@ class ClassEntry(BaseModel):
         with ``wavelengths``, one entry per wavelength.
     wavelengths : list of float, optional
         Strictly increasing wavelengths [nm] at which list-valued parameters are given.
+    material : str, optional
+        A built-in material (:mod:`brdfcorr.models.materials`) given instead of ``model`` and
+        ``params``: ``{id: 1, material: roof_tile}`` takes the material's model and its
+        band-independent parameters, and ``name`` defaults to the material's name. Kept on the
+        entry (library key) so that the correction can warn when the material's single-wavelength
+        fit is applied to far-away bands; a saved table writes the resolved ``model`` and ``params``
+        instead (:meth:`ParameterTable.to_dict`).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -139,6 +151,7 @@ class ClassEntry(BaseModel):
     model: str
     params: dict[str, ParameterValue]
     wavelengths: list[Number] | None = None
+    material: str | None = None
 
     @property
     def label(self) -> str:
@@ -150,6 +163,54 @@ class ClassEntry(BaseModel):
     def brdf_model(self) -> Model:
         """The registered :class:`~brdfcorr.models.Model`."""
         return get_model(self.model)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _resolve_material(cls, data: object) -> object:
+        # ``material: NAME`` stands for the material's model and parameters (and default name).
+        if not isinstance(data, Mapping) or data.get("material") is None:
+            return data
+        name = data["material"]
+        shown = data.get("name") or name
+        printable = isinstance(shown, str) and len(shown) <= 60 and shown.isprintable()
+        label = f"class {data.get('id', '?')} ({shown if printable else short_repr(shown, 60)})"
+        given = [key for key in ("model", "params", "wavelengths") if key in data]
+        if given:
+            raise ValueError(
+                f"{label}: 'material' replaces {', '.join(map(repr, given))}; give either 'material' "
+                "or 'model' and 'params'"
+            )
+        if not isinstance(name, str):
+            raise ValueError(f"{label}: material must be a name; built-in materials: {', '.join(material_names())}")
+        try:
+            material = load_material(name)
+        except UnknownNameError:
+            raise ValueError(
+                f"{label}: unknown material {short_repr(name)}; built-in materials: {', '.join(material_names())}"
+            ) from None
+        return {**data, "name": data.get("name") or material.name, "material": material.name,
+                "model": material.model.name, "params": dict(material.params)}
+
+    def wavelength_caveat(self, wavelengths: Sequence[float] | None) -> str | None:
+        """Why this class may not fit the image's bands, or None.
+
+        A library ``material`` is a fit at one wavelength (paper 003: 550 nm) applied unchanged to
+        every band; this says so when a band centre is more than
+        :data:`MATERIAL_WAVELENGTH_TOLERANCE` [nm] from it. None for other classes and for unknown
+        band wavelengths.
+        """
+        if self.material is None or wavelengths is None or len(wavelengths) == 0:
+            return None
+        source = load_material(self.material).wavelength
+        centres = np.asarray(wavelengths, dtype=float)
+        distance = np.abs(centres - source)
+        if not np.nanmax(distance) > MATERIAL_WAVELENGTH_TOLERANCE:  # NaN band centres: nothing known
+            return None
+        return (
+            f"{self.label}: material {self.material} is a fit at {source:g} nm, applied unchanged to bands "
+            f"{np.nanmin(centres):g}-{np.nanmax(centres):g} nm (up to {np.nanmax(distance):g} nm away); "
+            "a table fitted per band (brdfcorr fit-classes) suits such bands better"
+        )
 
     @model_validator(mode="after")
     def _check(self) -> ClassEntry:
@@ -438,12 +499,19 @@ class ParameterTable(BaseModel):
         return cls.from_yaml_text(text, source=str(path))
 
     def to_dict(self) -> dict:
-        """The table as plain Python data in the file format (unset optional keys left out)."""
+        """The table as plain Python data in the file format (unset optional keys left out).
+
+        A class given as a built-in ``material`` is written with its resolved ``model`` and
+        ``params``: a saved table (and the provenance tag of a corrected image) holds the numbers
+        used, whatever later versions of the library hold, and stays readable by brdfcorr versions
+        without the ``material`` key.
+        """
         document: dict = {}
         if self.reference is not None:
             document["reference"] = self.reference.model_dump()
         document["classes"] = [
-            entry.model_dump(exclude_none=True) for entry in sorted(self.classes, key=lambda c: c.id)
+            entry.model_dump(exclude_none=True, exclude={"material"})
+            for entry in sorted(self.classes, key=lambda c: c.id)
         ]
         return document
 

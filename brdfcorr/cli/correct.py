@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import click
+import click.shell_completion
 from tqdm.dask import TqdmCallback
 
 from brdfcorr.cli._base import _options, handle_errors, main
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
+from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
 from brdfcorr.io.writer import FORMATS
-from brdfcorr.params import ParameterTable
+from brdfcorr.models.materials import load_material, material_names
+from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.workflow.classmaps import read_lookup
 from brdfcorr.workflow.tasks import correct_files
 
@@ -27,6 +31,40 @@ def _reference_sza(value: str | None):
         raise click.BadParameter(f"{value!r} is not a number, 'mean' or 'observed'") from None
 
 
+class _ClassMaterial(click.ParamType):
+    """``--material ID=NAME``: a class id and a built-in material, as a parameter table class."""
+
+    name = "ID=MATERIAL"
+
+    def shell_complete(self, ctx, param, incomplete):
+        key, separator, text = incomplete.partition("=")
+        if not separator:
+            return []
+        return [click.shell_completion.CompletionItem(f"{key}={name}")
+                for name in material_names() if name.startswith(text)]
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, ClassEntry):
+            return value
+        key, separator, name = str(value).partition("=")
+        if not separator or not key.strip().isdigit() or int(key) < 1 or not name.strip():
+            self.fail(f"{value!r}: expected CLASS_ID=MATERIAL, e.g. 1=roof_tile", param, ctx)
+        try:
+            load_material(name.strip())
+        except UnknownNameError as error:
+            self.fail(str(error), param, ctx)
+        return ClassEntry(id=int(key), material=name.strip())
+
+
+def _show_warnings(caught: list[warnings.WarningMessage]) -> None:
+    """brdfcorr's own warnings as ``brdfcorr: warning:`` lines; others (--debug) as Python shows them."""
+    for warning in caught:
+        if issubclass(warning.category, BrdfcorrWarning):
+            click.echo(f"brdfcorr: warning: {warning.message}", err=True)
+        else:
+            warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
+
+
 @main.command("correct")
 @click.argument("image", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--angles", help="Angle source: a 4-band raster of sza, saa, vza, vaa [deg] on the image grid, or "
@@ -39,8 +77,11 @@ def _reference_sza(value: str | None):
 @click.option("--classes", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map raster (ids of the parameter table; 0 = no class).")
 @class_map_options
-@click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Parameter table (YAML).")
+@click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Parameter table (YAML); optional with --material.")
+@click.option("--material", "materials", multiple=True, type=_ClassMaterial(),
+              help="Class ID takes a built-in material (brdfcorr materials; a fit at 550 nm), over "
+                   "--params' class of that id; repeatable, the last wins for an id.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Output raster (.tif for GTiff; .img, .bsq, .bil, .dat or no extension for ENVI).")
 @click.option("--format", "output_format", type=click.Choice(FORMATS), default="GTiff", show_default=True,
@@ -70,7 +111,7 @@ def _reference_sza(value: str | None):
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
 @handle_errors
 def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, align_classes,
-                    class_lookup, params_path, output, ref_sza, ref_vza,
+                    class_lookup, params_path, materials, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, scale, offset, extrapolate,
                     flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite, output_format,
                     interleave):
@@ -80,8 +121,16 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     and --offset; an image that still looks like raw counts is refused unless --scale is given.
     Outputs are written to temporary names beside them and renamed when complete; an existing
     output is replaced only with --overwrite, and an input never.
+
+    Classes come from --params, and from --material ID=NAME (a built-in material, over the
+    table's class of that id); a material applied to bands more than 100 nm from its fit's
+    wavelength (550 nm) is warned about once per class.
     """
-    table = ParameterTable.load(params_path)
+    if params_path is None and not materials:
+        raise click.UsageError("give a parameter table (--params) or at least one --material")
+    table = ParameterTable.load(params_path) if params_path is not None else ParameterTable()
+    for entry in materials:
+        table = table.with_class(entry)
     reference = table.reference.model_dump() if table.reference else {}
     for key, value in (("sza", _reference_sza(ref_sza)), ("vza", ref_vza), ("raa", ref_raa)):
         if value is not None:
@@ -95,18 +144,26 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     if progress is None:
         progress = sys.stderr.isatty()
     callbacks = [TqdmCallback(desc="correct", leave=False)] if progress else []
+    source = " ".join([str(params_path)] * (params_path is not None)
+                      + [f"--material {entry.id}={entry.material}" for entry in materials])
     start = time.perf_counter()
-    summary = correct_files(
-        image, output, params=table, angles=angles, sza=sza, saa=saa, vza=vza, vaa=vaa,
-        classes=classes, reference=reference, qa_output=qa_path, wavelengths=wavelengths,
-        extrapolate=extrapolate, limits=None if no_limits else limits, unknown=unknown,
-        flip_view_azimuth=flip_view_azimuth, chunks=chunk, compress=compress, cog=cog,
-        callbacks=callbacks, table_source=str(params_path), angles_kind=angles_kind,
-        angle_options=_options("--angle-option", angle_option), overwrite=overwrite,
-        align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
-        scale=scale, offset=offset, output_format=output_format, interleave=interleave.lower(),
-        reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BrdfcorrWarning)  # each class's caveat, however often run
+        try:
+            summary = correct_files(
+                image, output, params=table, angles=angles, sza=sza, saa=saa, vza=vza, vaa=vaa,
+                classes=classes, reference=reference, qa_output=qa_path, wavelengths=wavelengths,
+                extrapolate=extrapolate, limits=None if no_limits else limits, unknown=unknown,
+                flip_view_azimuth=flip_view_azimuth, chunks=chunk, compress=compress, cog=cog,
+                callbacks=callbacks, table_source=source, angles_kind=angles_kind,
+                angle_options=_options("--angle-option", angle_option), overwrite=overwrite,
+                align_classes=align_classes,
+                class_lookup=read_lookup(class_lookup) if class_lookup else None,
+                scale=scale, offset=offset, output_format=output_format, interleave=interleave.lower(),
+                reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
+            )
+        finally:  # shown also when the correction then fails
+            _show_warnings(caught)
     click.echo(
         f"wrote {output}: {summary['corrected']} pixels corrected, {summary['limited']} limited, "
         f"{summary['unknown_class']} unknown class, {summary['no_class']} no class, "

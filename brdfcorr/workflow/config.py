@@ -489,7 +489,7 @@ class EngineConfig(_Strict):
         if self.address is not None and self.scheduler != "distributed":
             raise ValueError(f"address is only used with scheduler 'distributed', not {self.scheduler!r}")
         # A dask scheduler address: PROTOCOL://HOST:PORT (a typo would otherwise wait for a timeout).
-        if self.address is not None and not re.fullmatch(r"(tcp|tls|ucx|ws|wss)://[^\s/:]+:\d{1,5}/?", self.address):
+        if self.address is not None and not re.fullmatch(r"(tcp|tls|ucx|ws|wss|inproc)://[^\s/]+\S*", self.address):
             raise ValueError(f"address {short_repr(self.address)} is not a dask scheduler address like "
                              "'tcp://host:8786'")
         return self

@@ -42,7 +42,6 @@ import rasterio.errors
 from brdfcorr import __version__
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.paths import InputOverwriteError, check_outputs
-from brdfcorr.models.materials import load_material
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 from brdfcorr.workflow.config import ChainConfig, format_pattern
 
@@ -384,9 +383,7 @@ def configured_table(config: ChainConfig) -> ParameterTable:
     (later wins for a class id)."""
     entries = []
     for class_id, name in sorted(config.parameters.materials.items()):
-        material = load_material(name)
-        entries.append(ClassEntry(id=class_id, name=material.name, model=material.model.name,
-                                  params=dict(material.params)))
+        entries.append(ClassEntry(id=class_id, material=name))  # the library's model and values
     tables = [ParameterTable(classes=entries), ParameterTable(classes=list(config.parameters.classes))]
     if config.parameters.table is not None:
         tables.append(ParameterTable.load(config.resolve(config.parameters.table)))

@@ -27,7 +27,7 @@ import xarray as xr
 
 from brdfcorr import __version__
 from brdfcorr.correct import describe_limits, normalize, qa_counts, resolve_reference
-from brdfcorr.errors import BrdfcorrError, InputError, OutputError, ParameterError
+from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, OutputError, ParameterError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, GuardRails, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
@@ -176,6 +176,12 @@ def correct_files(
     dict
         Pixel counts (:func:`brdfcorr.correct.qa_counts`) plus ``reference`` (the geometry used).
 
+    Warns
+    -----
+    BrdfcorrWarning
+        Once per class given as a library ``material`` (a fit at one wavelength) when a band
+        centre is more than 100 nm from that wavelength (:meth:`ClassEntry.wavelength_caveat`).
+
     Raises
     ------
     InputError
@@ -209,6 +215,7 @@ def correct_files(
         scale=scale, offset=offset, prepare_classes=class_preparation(align_classes, class_lookup),
         scheduler=scheduler, num_workers=num_workers,
     )
+    _warn_wavelength_caveats(params, scene.reflectance)
     if scale is None:  # a given scale is the user's word; else catch raw counts before the correction pass
         rasters.check_reflectance_scale(scene.reflectance, str(image), scheduler=scheduler, num_workers=num_workers)
     reference = resolve_reference(reference, params)
@@ -271,6 +278,17 @@ def correct_files(
         scheduler=scheduler, num_workers=num_workers, envi=envi,
     )
     return {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+
+
+def _warn_wavelength_caveats(table: ParameterTable, reflectance: xr.DataArray) -> None:
+    """A :class:`BrdfcorrWarning` per class whose single-wavelength fit (a library material) is
+    applied to far-away bands (:meth:`brdfcorr.params.ClassEntry.wavelength_caveat`)."""
+    if "wavelength" not in reflectance.coords:  # band centres unknown: nothing to compare
+        return
+    for entry in table.classes:
+        caveat = entry.wavelength_caveat(reflectance["wavelength"].values)
+        if caveat is not None:
+            warnings.warn(caveat, BrdfcorrWarning, stacklevel=3)
 
 
 def _check_correct_outputs(output, qa_output, output_format: str, inputs: list, overwrite: bool) -> None:
