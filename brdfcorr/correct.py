@@ -1,7 +1,7 @@
 """BRDF normalization of reflectance cubes to a reference sun/view geometry (lazy, chunked).
 
 For a pixel of class c observed at sun zenith theta_i, view zenith theta_r and relative azimuth phi,
-with the class's model f_c and per-band parameters p_c(lambda) (``DESIGN.md``, "Correction")::
+with the class's model f_c and per-band parameters p_c(lambda) (``docs/conventions.md``, "The correction")::
 
     corrected(lambda) = observed(lambda) * clip(f_c(ref; p_c(lambda)) / f_c(obs; p_c(lambda)), limits)
 
@@ -203,7 +203,7 @@ def _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata):
     """QA flags for nodata and invalid geometry, the usable pixels, the unclassified ones, and the
     few pixels with non-finite reflectance (their indices and where in them it is +-inf)."""
     angles_finite = np.isfinite(theta_i) & np.isfinite(theta_r) & np.isfinite(saa) & np.isfinite(vaa)
-    # The class map's nodata (and NaN) means "no class", like class 0 (DESIGN.md).
+    # The class map's nodata (and NaN) means "no class", like class 0 (docs/conventions.md).
     no_class = classes == 0
     if classes.dtype.kind == "f":
         no_class |= np.isnan(classes)
@@ -367,7 +367,7 @@ def normalize(
     classes : xarray.DataArray (y, x)
         Class map: ids of ``params``; 0, NaN and ``class_nodata`` mean "no class".
     sza, saa, vza, vaa : xarray.DataArray (y, x)
-        Solar zenith, solar azimuth, view zenith, view azimuth per pixel [deg] (``DESIGN.md``
+        Solar zenith, solar azimuth, view zenith, view azimuth per pixel [deg] (``docs/conventions.md``
         conventions: azimuths of the directions from the pixel towards the sun and the sensor).
     params : ParameterTable
         Model and parameters per class.
@@ -406,7 +406,7 @@ def normalize(
 
     Notes
     -----
-    ``corrected = observed * f(ref) / f(obs)`` (``DESIGN.md``, "Correction"), the factor evaluated
+    ``corrected = observed * f(ref) / f(obs)`` (``docs/conventions.md``, "The correction"), the factor evaluated
     with the model of the pixel's class (paper 003 eq. 1, paper 000 eq. 5) at the pixel's geometry.
     """
     if not isinstance(params, ParameterTable):

@@ -1,6 +1,6 @@
 """Sun/view geometry of a reflection: relative azimuth, facet inclination, specular deviation.
 
-Conventions (``DESIGN.md``): all angles in degrees. ``theta_i`` is the solar zenith, ``theta_r`` the
+Conventions (``docs/conventions.md``): all angles in degrees. ``theta_i`` is the solar zenith, ``theta_r`` the
 view zenith, both in [0, 90). Sun and view azimuths are the azimuths, clockwise from north, of the
 directions from the pixel *towards* the sun and *towards* the sensor; the relative azimuth ``phi``
 is their difference folded into [0, 180]. ``phi = 180`` is forward scattering: the specular

@@ -3,7 +3,7 @@
 A table pairs each land-cover class id of a class map with a registered surface model
 (:data:`brdfcorr.models.SURFACE_MODELS`) and its parameters. A parameter is a scalar (every band),
 a list with one value per image band, or, with ``wavelengths`` [nm], a list interpolated linearly to
-the image's band centres. The file format is fixed in ``DESIGN.md``::
+the image's band centres. The file format is described in ``docs/parameter-tables.md``::
 
     reference: {sza: 30.0, vza: 0.0, raa: 0.0}      # optional default reference geometry
     classes:
@@ -92,7 +92,7 @@ class ReferenceGeometry(BaseModel):
     vza : float
         Reference view zenith [deg] in [0, 90); 0 (nadir) by default.
     raa : float
-        Reference relative azimuth [deg] in [0, 180] (``DESIGN.md`` convention; 180 is forward
+        Reference relative azimuth [deg] in [0, 180] (``docs/conventions.md`` convention; 180 is forward
         scattering). Irrelevant at nadir.
     """
 

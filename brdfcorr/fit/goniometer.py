@@ -183,7 +183,7 @@ class FitResult:
         return self.model(theta_i, theta_r, phi, **self.params)
 
     def table_entry(self, class_id: int, name: str) -> dict:
-        """The fit as one class of a parameter table (``DESIGN.md`` format), for
+        """The fit as one class of a parameter table (``docs/parameter-tables.md`` format), for
         :meth:`brdfcorr.params.ParameterTable.with_class`; values as plain floats."""
         return {
             "id": int(class_id),
@@ -561,7 +561,7 @@ def fit_wavelengths(model, measurements: Measurements, **kwargs) -> dict[float, 
 
 
 def spectral_table_entry(results: Mapping[float, FitResult], class_id: int, name: str) -> dict:
-    """Fits at several wavelengths as one class of a parameter table (``DESIGN.md`` format).
+    """Fits at several wavelengths as one class of a parameter table (``docs/parameter-tables.md`` format).
 
     Parameters with the same value at every wavelength (the fixed ones) are written as a scalar,
     the others as a list with ``wavelengths`` [nm], which :class:`brdfcorr.params.ParameterTable`

@@ -22,7 +22,7 @@ wavelength optional wavelength of the measurement [nm]            finite, > 0
 A table with a ``wavelength`` column holds several spectral bands of the same geometries (the EGO
 spectroradiometer measured 425-975 nm); :meth:`Measurements.at_wavelength` selects one.
 
-The angle conventions are those of ``DESIGN.md`` (:mod:`brdfcorr.geometry`). Every check reports
+The angle conventions are those of ``docs/conventions.md`` (:mod:`brdfcorr.geometry`). Every check reports
 all offending rows of a column at once, by their line number in the file, in a single
 :class:`~brdfcorr.errors.MeasurementError`.
 

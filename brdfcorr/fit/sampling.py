@@ -58,7 +58,7 @@ def sample_classes(
         Integer class maps on the images' grids; 0, negative values and the map's nodata
         (``.rio.nodata``) mean "no class".
     angles : Dataset or list of Dataset
-        ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on the images' grids (DESIGN.md conventions).
+        ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on the images' grids (docs/conventions.md).
     class_ids : sequence of int, optional
         Classes to sample (default: every positive id found).
     max_samples : int, default 50000

@@ -5,7 +5,7 @@ kept as integers with its nodata value; the image's stored values are scaled to 
 factors (the file's GDAL scale/offset, or given ones; :func:`check_reflectance_scale` catches raw
 counts). :func:`check_same_grid` says which layer differs from the
 image and how (shape, transform or CRS). :func:`band_wavelengths` finds band centres in the
-order fixed by ``DESIGN.md``. :func:`write_rasters` (from :mod:`brdfcorr.io.writer`) writes tiled,
+order fixed by ``docs/conventions.md``. :func:`write_rasters` (from :mod:`brdfcorr.io.writer`) writes tiled,
 compressed GeoTIFFs chunk by chunk, atomically.
 """
 
@@ -204,7 +204,7 @@ def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
                      explicit: Sequence[float] | None = None) -> np.ndarray | None:
     """Band-centre wavelengths [nm] of an image, or None when nothing gives them.
 
-    Sources, in the order of ``DESIGN.md``: ``explicit``; a dataset tag ``wavelength`` with
+    Sources, in the order of ``docs/conventions.md``: ``explicit``; a dataset tag ``wavelength`` with
     comma-separated values (``wavelength_units`` tag honoured, nm by default); band descriptions
     holding a number with an optional unit; band descriptions that are band names, Landsat 8/9 OLI
     names (``SR_B1`` ... ``SR_B7``, ``B1`` ...; :data:`LANDSAT_OLI_WAVELENGTHS`) where a dataset tag

@@ -270,7 +270,7 @@ class ParametersConfig(_Strict):
     Attributes
     ----------
     table : str, optional
-        Parameter table YAML (``DESIGN.md`` format).
+        Parameter table YAML (``docs/parameter-tables.md`` format).
     materials : dict of int to str
         Class id -> built-in material name (paper 003, Table 1; ``brdfcorr materials``).
     classes : list

@@ -162,7 +162,7 @@ def _grid(rows: int, columns: int, pixel: float) -> xr.DataArray:
 
 def demo_angles(rows: int = 300, pixel: float = 3.0, altitude: float = 1000.0, fov: float = 72.0,
                 time: str = DEMO_TIME) -> xr.Dataset:
-    """Sun and view angles [deg] of the demo line (``DESIGN.md`` conventions), georeferenced.
+    """Sun and view angles [deg] of the demo line (``docs/conventions.md`` conventions), georeferenced.
 
     Parameters
     ----------

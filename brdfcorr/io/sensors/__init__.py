@@ -3,7 +3,7 @@
 Every reader returns the same thing: an :class:`xarray.Dataset` with ``sza``, ``saa``, ``vza``,
 ``vaa`` in degrees on the image grid (dims ``y``, ``x``; CRS and transform where the product has
 them), dask-backed, azimuths clockwise from north of the directions from the pixel *towards* the sun
-and *towards* the sensor (``DESIGN.md``). Each product's own convention is stated in its module and
+and *towards* the sensor (``docs/conventions.md``). Each product's own convention is stated in its module and
 converted explicitly (``view_azimuth="to_sensor"|"from_sensor"``), never guessed.
 
 =============  ==========================================================  =====================

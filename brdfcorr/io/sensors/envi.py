@@ -10,7 +10,7 @@ more. Both are read lazily through GDAL (rioxarray); obs bands are found by thei
 Conventions of the obs file (JPL AVIRIS-NG / AVIRIS-3 processing, also EMIT): "To-sensor azimuth
 (0 to 360 degrees cw from N)" is the azimuth of the direction *from the pixel towards the sensor*
 and "To-sun azimuth" that of the direction from the pixel towards the sun, exactly the brdfcorr
-convention (``DESIGN.md``). The band ``Solar phase`` (the angle between the two directions) confirms
+convention (``docs/conventions.md``). The band ``Solar phase`` (the angle between the two directions) confirms
 it on the real lines in ``shared/realdata``: with the azimuths taken as stored, the angle between
 the to-sun and to-sensor unit vectors equals the phase band to 1e-3 deg; flipped by 180 deg it is
 off by up to 19 deg. ``view_azimuth="from_sensor"`` flips explicitly for a product that differs.
@@ -218,7 +218,7 @@ def read_envi_obs(path: str | Path, like: xr.DataArray | None = None, *,
     -------
     xarray.Dataset
         ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on (y, x), dask-backed, nodata as NaN; azimuths
-        in [0, 360) towards the sun and the sensor (``DESIGN.md``).
+        in [0, 360) towards the sun and the sensor (``docs/conventions.md``).
     """
     path = Path(path)
     if view_azimuth not in ("to_sensor", "from_sensor"):

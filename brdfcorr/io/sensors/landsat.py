@@ -8,7 +8,7 @@ band the scene-mean sun and satellite vectors in the local (east, north, up) fra
 
 Conventions: the USGS angle tools compute the satellite and sun vectors from the target (pixel)
 towards the satellite and the sun, so the stored azimuths are "to sensor" and "to sun" as brdfcorr
-wants them (``DESIGN.md``). On the real scene in ``shared/realdata`` the ANG.txt band-1 mean sun
+wants them (``docs/conventions.md``). On the real scene in ``shared/realdata`` the ANG.txt band-1 mean sun
 vector gives the sun azimuth of pvlib's SPA at the scene centre to 0.01 deg with ``atan2(east,
 north)``, confirming the (east, north, up) frame. ``view_azimuth="from_sensor"`` flips explicitly for
 a product that differs.

@@ -12,7 +12,7 @@ Node ``(i, j)`` of an angle grid lies at ``(ULX + j * COL_STEP, ULY - i * ROW_ST
 upper-left corner being node (0, 0) (ESA S2 MSI product specification, Tile_Angles); as a raster
 the nodes are pixel centres of a grid whose corner is half a step up and left of the tile corner.
 
-Conventions (``DESIGN.md``): the sun azimuth in the metadata is the azimuth of the direction towards
+Conventions (``docs/conventions.md``): the sun azimuth in the metadata is the azimuth of the direction towards
 the sun; the viewing incidence azimuth is the azimuth of the direction from the pixel towards the
 satellite (the view zenith of the real tile in ``shared/realdata`` decreases towards the stored view
 azimuth, that is towards the satellite ground track; tests check both against the product's own
