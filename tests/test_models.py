@@ -384,3 +384,13 @@ def test_lambertian_broadcasts_over_all_angles():
 
     result = lambertian(30.0, np.zeros((2, 1)), np.zeros(3), t0=0.1)
     assert result.shape == (2, 3) and np.all(result == 0.1)
+
+
+def test_attenuation_is_one_only_up_to_45_deg_zeniths():
+    # Docstring claim, checked: G = 1 wherever both zeniths are <= 45 deg (over all azimuths), and
+    # not beyond: at the hotspot (50, 50, 0) the half vector is the view direction itself, so
+    # alpha = 50 deg and beta = 0, and G = 2 cos(alpha) cos(50) / cos(beta) = 2 cos(50 deg)^2 = 0.826
+    # (Blinn's closed form).
+    grid = np.meshgrid(np.linspace(0, 45, 46), np.linspace(0, 45, 46), np.linspace(0, 180, 61), indexing="ij")
+    np.testing.assert_allclose(geometric_attenuation(*grid), 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(geometric_attenuation(50.0, 50.0, 0.0), 2 * np.cos(np.radians(50.0)) ** 2, rtol=1e-12)

@@ -123,7 +123,9 @@ def geometric_attenuation(theta_i, theta_r, phi):
     -------
     G : array-like
         Fraction of the specularly reflecting facets that is both illuminated and visible [-], in
-        [0, 1]. G = 1 in the specular direction and wherever both zeniths are <= 60 deg.
+        [0, 1]. G = 1 in the specular direction and wherever both zeniths are <= 45 deg; beyond
+        that it can be smaller away from the forward principal plane (G(50, 50, 0) = 0.826,
+        G(60, 60, 0) = 0.5).
 
     Notes
     -----
@@ -210,8 +212,9 @@ def torrance_sparrow(theta_i, theta_r, phi, t0, t1, w, n, k, shadowing=True):
     shadowing : bool, default True
         Include the V-cavity geometric attenuation factor G. False gives the simplified model of
         paper 003, section 5 (G = 1): for zeniths <= 70 deg it differs by at most ~10 % for the
-        Table-1 roof tile (the roughest surface measured there) and up to ~34 % for a rough peak
-        over a dark (albedo 0.01) background; it must not be used for albedo.
+        Table-1 roof tile (the roughest surface measured there) and, for a rough peak over a dark
+        (albedo 0.01) background, by up to 34 % in the forward half (phi >= 90 deg, paper 003's
+        figure) and 38 % over all azimuths; it must not be used for albedo.
 
     Returns
     -------
