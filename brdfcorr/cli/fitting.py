@@ -21,13 +21,14 @@ from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import GuardRails
 from brdfcorr.io.files import atomic_path
+from brdfcorr.io.paths import check_outputs
 from brdfcorr.models import get_model
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
 from brdfcorr.plot.materials import plot_class_fit
 from brdfcorr.workflow.classmaps import read_lookup
-from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file, refuse_overwriting_inputs
+from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file
 
 
 @main.command("fit-classes")
@@ -77,7 +78,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     written = {"-o": output, "--report": report_path}
     read = [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
             *(("--angles", path) for path in angles if angles_kind != "solar"), ("--class-lookup", class_lookup)]
-    refuse_overwriting_inputs(written, read)
+    check_outputs(written, read)
     if fallback:
         load_material(fallback)  # fail before the work if the name is wrong
     lookup = read_lookup(class_lookup) if class_lookup else None
@@ -92,7 +93,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     )
     plots = {class_fit.class_id: plot_dir / f"class_{class_fit.class_id}_{class_fit.name}.png"
              for class_fit in fit.result.fits if class_fit.params} if plot_dir else {}
-    refuse_overwriting_inputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)
+    check_outputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
     click.echo(_format_table([_class_row(class_fit) for class_fit in fit.result.fits]))
@@ -163,7 +164,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     Prints the fitted parameters with 1-sigma errors and chi2/dof (as paper 003, Table 1) and the
     parameter correlations; with -o writes the fit as a class of a parameter table.
     """
-    refuse_overwriting_inputs({"-o": output}, {"MEASUREMENTS": measurements})
+    check_outputs({"-o": output}, {"MEASUREMENTS": measurements})
     table = ParameterTable.load(output) if output is not None and output.exists() else None
     fit = fit_measurement_file(
         measurements, model_name, fixed=_assignments("--fix", fix), initial=_assignments("--init", initial),
@@ -175,7 +176,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     name = class_name or measurements.stem
     if plot_dir is not None:  # the figures' names are known now: check them before writing anything
         plots = {f"--plot-dir file {path}": path for path in _measurement_plot_files(fit, name, plot_dir).values()}
-        refuse_overwriting_inputs({"-o": output, **plots}, {"MEASUREMENTS": measurements})
+        check_outputs({"-o": output, **plots}, {"MEASUREMENTS": measurements})
     _echo_measurement_fit(fit, name)
     if plot_dir is not None:
         _plot_measurement_fit(fit, name, plot_dir, "log" if log_scale else "linear")

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from brdfcorr.errors import InputError, OutputError
 
-__all__ = ["check_outputs", "same_file", "file_identity", "remove_partials", "InputOverwriteError",
+__all__ = ["check_outputs", "same_file", "file_identity", "refuse_existing", "remove_partials", "InputOverwriteError",
            "SameOutputError"]
 
 PathLike = str | os.PathLike
@@ -132,6 +132,14 @@ def check_outputs(outputs: Named, inputs: Named = ()) -> None:
             if identity == other_identity:
                 raise SameOutputError(other_name, other_path, name, path)
         written.append((name, path, identity))
+
+
+def refuse_existing(targets: Iterable[PathLike | None]) -> None:
+    """Raise :class:`OutputError` for the first target that exists (a command run without
+    ``--overwrite`` never replaces a file). None targets are skipped."""
+    for target in targets:
+        if target is not None and Path(target).exists():
+            raise OutputError(f"output {target} exists; give --overwrite to replace it")
 
 
 def remove_partials(target: PathLike) -> list[Path]:

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import xarray as xr
 
-from brdfcorr.errors import InputError, OutputError
+from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
 from brdfcorr.io.files import parse_yaml, read_document
-from brdfcorr.io.paths import check_outputs
+from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata
 from brdfcorr.workflow.tasks import describe_class_map
 
@@ -43,8 +43,8 @@ def read_lookup(path: str | os.PathLike) -> dict[int, int]:
 def _write_class_map(classes: xr.DataArray, output, *, inputs: Sequence[tuple], overwrite: bool, chunks: int,
                      tags: Mapping[str, str]) -> None:
     check_outputs({"output": output}, inputs)
-    if not overwrite and Path(output).exists():
-        raise OutputError(f"output {output} exists; give --overwrite to replace it")
+    if not overwrite:
+        refuse_existing([output])
     Path(output).parent.mkdir(parents=True, exist_ok=True)
     rasters.write_rasters({output: classes}, blocksize=chunks, tags=dict(tags))
 

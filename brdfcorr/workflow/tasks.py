@@ -27,12 +27,12 @@ import xarray as xr
 
 from brdfcorr import __version__
 from brdfcorr.correct import describe_limits, normalize, qa_counts, resolve_reference
-from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, OutputError, ParameterError
+from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, GuardRails, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
 from brdfcorr.io import rasters, writer
-from brdfcorr.io.paths import check_outputs
+from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.strata import align_class_map, remap_classes
 
@@ -43,13 +43,8 @@ __all__ = [
     "fit_class_files",
     "SceneFiles",
     "ImageryFit",
-    "refuse_overwriting_inputs",
     "class_preparation",
 ]
-
-
-#: The output guard (:func:`brdfcorr.io.paths.check_outputs`) under its brdfcorr 0.1 name.
-refuse_overwriting_inputs = check_outputs
 
 
 def class_preparation(align: bool = False, lookup: Mapping[int, int] | None = None):
@@ -303,9 +298,8 @@ def _check_correct_outputs(output, qa_output, output_format: str, inputs: list, 
     writer.check_format(output, output_format)
     if qa_output is not None:
         writer.check_format(qa_output, "GTiff", "QA output")
-    for target in (output, qa_output):
-        if target is not None and not overwrite and Path(target).exists():
-            raise OutputError(f"output {target} exists; give --overwrite to replace it")
+    if not overwrite:
+        refuse_existing([output, qa_output])
 
 
 def _envi_header_items(image, attrs: Mapping) -> list[str]:
