@@ -120,6 +120,12 @@ class ScatteringGeometry:
         return cosd(self.local_incidence)
 
     @cached_property
+    def shared(self) -> dict:
+        """Further terms that models compute once per geometry and share, by name (the
+        kernel-driven models' trigonometry, :mod:`brdfcorr.models.kernels`)."""
+        return {}
+
+    @cached_property
     def attenuation(self):
         """Torrance-Sparrow V-cavity masking/shadowing factor G [-] (purely geometric, so computed
         once per geometry; see :func:`brdfcorr.models.geometric_attenuation`)."""

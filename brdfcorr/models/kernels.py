@@ -44,7 +44,6 @@ References
 from __future__ import annotations
 
 import math
-import weakref
 from functools import cached_property
 from typing import Any
 
@@ -88,8 +87,9 @@ H_B = Parameter("h_b", "1", 2.0, 0.0, 1e3, lower_open=True, description="crown h
 class _Angles:
     """The trigonometry the kernels share at one geometry, each term computed once.
 
-    Kept per :class:`ScatteringGeometry` (weakly), so that several kernels, bands evaluated one by
-    one with :meth:`Model.evaluate`, or RPV shapes at the same geometry reuse it.
+    Kept on its :class:`ScatteringGeometry` (:attr:`~ScatteringGeometry.shared`), so that several
+    kernels, bands evaluated one by one with :meth:`Model.evaluate`, or RPV shapes at the same
+    geometry reuse it.
     """
 
     def __init__(self, geometry: ScatteringGeometry):
@@ -163,14 +163,11 @@ class _Angles:
         return self._li[key]
 
 
-_ANGLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _angles(geometry: ScatteringGeometry) -> _Angles:
-    angles = _ANGLES.get(geometry)
-    if angles is None:
-        angles = _ANGLES[geometry] = _Angles(geometry)
-    return angles
+    """The kernels' trigonometry at ``geometry``, computed once and kept on it."""
+    if "kernel_angles" not in geometry.shared:
+        geometry.shared["kernel_angles"] = _Angles(geometry)
+    return geometry.shared["kernel_angles"]
 
 
 def _ross_thick(angles: _Angles):
