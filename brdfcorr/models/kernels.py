@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import math
 from functools import cached_property
-from typing import Any
 
 import numpy as np
 
@@ -100,7 +99,6 @@ class _Angles:
         self.cos_phi = cosd(geometry.phi)
         self.sin_phi = sind(geometry.phi)
         self._li: dict[tuple[float, float], tuple] = {}
-        self.cache: dict[str, Any] = {}  # kernels and other geometry-only terms, by name
 
     @cached_property
     def one_minus_cos_xi(self):
@@ -199,10 +197,9 @@ GEOMETRIC_KERNELS: tuple[str, ...] = ("li_sparse", "li_dense")
 
 def _kernel_at(geometry: ScatteringGeometry, name: str):
     """A registered kernel at a geometry, computed once per geometry (shared by all bands)."""
-    angles = _angles(geometry)
-    if name not in angles.cache:
-        angles.cache[name] = _KERNELS[name](angles)
-    return angles.cache[name]
+    if name not in geometry.shared:
+        geometry.shared[name] = _KERNELS[name](_angles(geometry))
+    return geometry.shared[name]
 
 
 def _li_shape(function: str, b_r, h_b) -> tuple[float, float]:

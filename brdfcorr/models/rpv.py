@@ -66,7 +66,7 @@ RHO_C = Parameter(
 def _rpv_shape(geometry: ScatteringGeometry, k, theta, rho_c):
     """``rpv / rho0``: the basis function of the amplitude."""
     angles = _angles(geometry)
-    shared = angles.cache
+    shared = geometry.shared
     if "rpv_geometry" not in shared:
         cos_i, cos_r = angles.cos_i, angles.cos_r
         # cos ti cos tv (cos ti + cos tv) > 0 on [0, 90); the floor keeps a grazing edge finite.
