@@ -127,6 +127,10 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
         "brdfcorr.cli.analyze",
         "The papers' analyses: shadowing impact, azimuthal width, albedo, paper figures.",
     ),
+    "assess": (
+        "brdfcorr.cli.assess",
+        "Did the BRDF correction work? View-angle slopes, side ratios, profiles and overlaps, before and after.",
+    ),
     "classes": (
         "brdfcorr.cli.classes",
         'Make class maps: NDVI strata of an image, or a land-cover map brought onto its grid.',

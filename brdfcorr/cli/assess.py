@@ -1,0 +1,112 @@
+"""``brdfcorr assess``: did the correction work? (library: :func:`brdfcorr.analysis.assess.assess_files`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from brdfcorr.cli._base import _format_table, _options, _pairs, handle_errors, main
+from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
+from brdfcorr.io.paths import check_outputs, refuse_existing
+from brdfcorr.workflow.classmaps import read_lookup
+
+
+def _summary_rows(report: dict) -> list[dict[str, str]]:
+    """One row per class: pixels, median |relative slope| over bands and median side ratio."""
+    import numpy as np
+
+    rows = []
+    for entry in report["view_angles"]["classes"]:
+        row = {"class": str(entry["id"]), "name": entry["name"], "pixels": str(entry["pixels"])}
+        for stage in ("before", "after"):
+            slopes = np.abs(np.array(entry[stage]["relative_slope"], dtype=float))
+            ratios = np.array(entry[stage]["side_ratio"], dtype=float)
+            row[f"|slope| {stage} [%/10deg]"] = f"{np.nanmedian(slopes):.2f}" if np.isfinite(slopes).any() else "-"
+            row[f"ratio {stage}"] = f"{np.nanmedian(ratios):.3f}" if np.isfinite(ratios).any() else "-"
+        rows.append(row)
+    return rows
+
+
+def _number(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
+@main.command("assess")
+@click.argument("before", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("after", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--classes", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Class map raster of BEFORE (ids > 0; 0 = no class).")
+@class_map_options
+@click.option("--angles", required=True,
+              help="Angle source of BEFORE: a 4-band raster of sza, saa, vza, vaa [deg] on its grid, or what "
+                   "--angles-kind names.")
+@angle_source_options
+@scale_options
+@click.option("--overlap", nargs=2, type=click.Path(dir_okay=False, path_type=Path),
+              metavar="OTHER_BEFORE OTHER_AFTER",
+              help="Another line's input and corrected image: compare the two lines where they overlap.")
+@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME",
+              help="Name of a class in the report and figures (repeatable), e.g. 1=roof_tile.")
+@click.option("--sign-by", type=click.Choice(["sun", "track"]), default="sun", show_default=True,
+              help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
+                   "(track, with --heading).")
+@click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
+@click.option("--bin-width", type=click.FloatRange(min=0, min_open=True, max=90), default=2.0, show_default=True,
+              help="Bin width of the across-track profiles [deg of signed view zenith].")
+@click.option("--min-vza", type=click.FloatRange(min=0, max=90, max_open=True), default=0.0, show_default=True,
+              help="The side ratio compares pixels at least this far from nadir [deg].")
+@click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
+@click.option("--resampling", default="nearest", show_default=True,
+              help="Resampling of the other line onto this line's grid (rasterio name).")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="JSON report to write.")
+@click.option("--figures", "figures_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Directory for the PNG figures (assess_profiles.png, assess_overlap.png).")
+@click.option("--chunk", type=int, help="Chunk size [pixels] [default: 512, less for many bands].")
+@click.option("--overwrite", is_flag=True, help="Replace existing outputs [default: refuse].")
+@handle_errors
+def assess_command(before, after, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
+                   offset, overlap, class_names, sign_by, heading, bin_width, min_vza, flip_view_azimuth,
+                   resampling, output, figures_dir, chunk, overwrite):
+    """Did the BRDF correction work? View-angle slopes, side ratios, profiles and overlaps, before and after.
+
+    Measures the view-angle signal in BEFORE (the input) and AFTER (the corrected image), per
+    class and band: the slope of reflectance against the signed view zenith [%/10 deg], the ratio of the
+    two sides of nadir (forward/backward scattering) and the across-track profiles, before and
+    after; with --overlap, the RMSE, mean absolute difference and bias of two lines where they
+    overlap. Writes a JSON report (-o) and PNG figures (--figures).
+    """
+    from brdfcorr.analysis.assess import assess_files, write_json
+    from brdfcorr.plot.assess import figure_paths, write_assessment_figures
+
+    if sign_by == "track" and heading is None:
+        raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
+    figures = figure_paths(figures_dir, overlap=bool(overlap)) if figures_dir is not None else []
+    inputs = {"BEFORE": before, "AFTER": after, "--classes": classes, "--class-lookup": class_lookup,
+              "--angles": None if angles_kind == "solar" else angles}
+    if overlap:
+        inputs.update({"OTHER_BEFORE": overlap[0], "OTHER_AFTER": overlap[1]})
+    check_outputs({"-o": output, **{f"figure {path}": path for path in figures}}, inputs)
+    if not overwrite:
+        refuse_existing([output, *figures])
+    assessment = assess_files(
+        before, after, classes=classes, angles=angles, angles_kind=angles_kind,
+        angle_options=_options("--angle-option", angle_option), overlap=tuple(overlap) if overlap else None,
+        class_names=_pairs("--class-name", class_names), by=sign_by, heading=heading, bin_width=bin_width,
+        min_vza=min_vza, flip_view_azimuth=flip_view_azimuth, align_classes=align_classes,
+        class_lookup=read_lookup(class_lookup) if class_lookup else None, scale=scale, offset=offset,
+        chunks=chunk, resampling=resampling,
+    )
+    report = assessment.report()
+    write_json(report, output)
+    click.echo(_format_table(_summary_rows(report)))
+    if report["overlap"] is not None:
+        summary = report["overlap"]["summary"]
+        before_rmse, after_rmse = (summary[f"median_relative_rmse_percent_{stage}"] for stage in ("before", "after"))
+        click.echo(f"overlap ({report['overlap']['pixels']} pixels): median relative RMSE "
+                   f"{_number(before_rmse)} % before, {_number(after_rmse)} % after")
+    click.echo(f"wrote {output}")
+    if figures_dir is not None:
+        for path in write_assessment_figures(assessment, figures_dir):
+            click.echo(f"wrote {path}")

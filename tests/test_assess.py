@@ -1,0 +1,246 @@
+"""brdfcorr.analysis.assess and brdfcorr.plot.assess: closed forms, numpy computations, and a
+leave-one-line-out run on lines rendered with a known model."""
+
+import json
+
+import dask.array as da
+import numpy as np
+import pytest
+import xarray as xr
+
+from brdfcorr.analysis.assess import (
+    Assessment,
+    Line,
+    assess_overlap,
+    assess_view_angles,
+    leave_one_line_out,
+    leave_one_line_out_report,
+    overlap_report,
+    signed_view_zenith,
+    view_angle_report,
+    write_json,
+)
+from brdfcorr.errors import InputError
+from brdfcorr.params import ParameterTable
+from brdfcorr.plot.assess import overlap_figure, profile_figure, write_assessment_figures
+from brdfcorr.testing import georeference, render, synthetic_angles
+
+NY, NX = 20, 40
+
+
+def _cube(*bands):
+    return georeference(xr.DataArray(np.stack(bands).astype(np.float64), dims=("band", "y", "x"),
+                                     coords={"band": np.arange(1, len(bands) + 1)}))
+
+
+@pytest.fixture
+def geometry():
+    """A push-broom line, vza 0-30 deg across x, sun due east (saa 90): one half forward, one back."""
+    return synthetic_angles(NY, NX, vza_max=30.0, saa=90.0, dtype=np.float64)
+
+
+@pytest.fixture
+def class_map():
+    return np.where(np.arange(NX)[None, :] % 2 == 0, 1, 2) * np.ones((NY, 1), dtype=np.int64)
+
+
+def test_signed_view_zenith_by_sun_and_by_track():
+    # Closed form: sun in the east (saa 90); a sensor east of the pixel (vaa 90) is on the sun's side
+    # (backscatter, -), one west of it (vaa 270) opposite the sun (forward, +); perpendicular: 0.
+    vza = np.array([20.0, 20.0, 20.0])
+    vaa = np.array([90.0, 270.0, 0.0])
+    np.testing.assert_array_equal(signed_view_zenith(vza, vaa, 90.0), [-20.0, 20.0, 0.0])
+    # A line flown north: a pixel east of the track sees the sensor to its west (vaa 270): right, +.
+    np.testing.assert_array_equal(signed_view_zenith(vza, vaa, by="track", heading=0.0), [-20.0, 20.0, 0.0])
+    # Flown south, right is west.
+    np.testing.assert_array_equal(signed_view_zenith(vza[:2], vaa[:2], by="track", heading=180.0), [20.0, -20.0])
+    lazy = signed_view_zenith(da.from_array(vza, chunks=1), vaa, 90.0)
+    assert isinstance(lazy, da.Array)
+    np.testing.assert_array_equal(lazy.compute(), [-20.0, 20.0, 0.0])
+    with pytest.raises(InputError, match="solar azimuth"):
+        signed_view_zenith(vza, vaa)
+    with pytest.raises(InputError, match="heading"):
+        signed_view_zenith(vza, vaa, by="track")
+
+
+def test_linear_scene_gives_its_slope_exactly_and_a_flat_one_slope_0_ratio_1(geometry, class_map):
+    signed = signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"])
+    # Closed form: R = a + b * signed vza per class and band -> the least-squares slope is b.
+    a = {1: (0.2, 0.05), 2: (0.4, 0.3)}
+    b = {1: (0.003, -0.0005), 2: (-0.002, 0.001)}
+    before = np.zeros((2, NY, NX))
+    for class_id in (1, 2):
+        for band in range(2):
+            before[band][class_map == class_id] = (a[class_id][band] + b[class_id][band] * signed)[class_map == class_id]
+    after = np.stack([np.where(class_map == 1, a[1][band], a[2][band]) for band in range(2)])  # flat
+    result = assess_view_angles(_cube(*before), _cube(*after), class_map, geometry["vza"], geometry["vaa"],
+                                geometry["saa"], class_names={1: "tile"})
+    np.testing.assert_allclose(result["slope"].sel(stage="before").values,
+                               [[b[1][0], b[2][0]], [b[1][1], b[2][1]]], rtol=1e-10)
+    np.testing.assert_allclose(result["slope"].sel(stage="after").values, 0.0, atol=1e-15)
+    np.testing.assert_allclose(result["side_ratio"].sel(stage="after").values, 1.0, rtol=1e-12)
+    # relative slope: 1000 b / mean R; the signed zeniths of a class are symmetric here, so mean R = a.
+    mean = result["mean"].sel(stage="before").values
+    np.testing.assert_allclose(result["relative_slope"].sel(stage="before").values,
+                               1000 * result["slope"].sel(stage="before").values / mean, rtol=1e-12)
+    # side ratio of the linear scene, independently: mean over + columns / mean over - columns.
+    for index, class_id in enumerate((1, 2)):
+        mask = class_map == class_id
+        expected = before[0][mask & (signed > 0)].mean() / before[0][mask & (signed < 0)].mean()
+        assert result["side_ratio"].sel(stage="before").values[0, index] == pytest.approx(expected, rel=1e-12)
+    assert list(result["class_name"].values) == ["tile", "class 2"]
+    assert result["pixels"].values.tolist() == [(class_map == 1).sum(), (class_map == 2).sum()]
+    # profile: the bin means of a linear scene follow a + b * (bin mean of signed vza).
+    profile = result["profile"].sel(stage="before", band=1).isel({"class": 0}).values
+    edges = result["vza_bin_edges"].values
+    mask = class_map == 1
+    for k, (low, high) in enumerate(edges):
+        inside = mask & (signed >= low) & (signed < high)
+        if inside.any():
+            assert profile[k] == pytest.approx(before[0][inside].mean(), rel=1e-12)
+    assert result["bin_pixels"].values.sum() == mask.sum() + (class_map == 2).sum()
+
+
+def test_dask_equals_numpy_and_pixels_invalid_in_either_stage_are_left_out(geometry, class_map):
+    rng = np.random.default_rng(1)
+    before = rng.uniform(0.1, 0.5, (3, NY, NX))
+    after = before * rng.uniform(0.9, 1.1, (3, NY, NX))
+    after[1, 3, 4] = np.nan  # one band NaN after: the pixel leaves both stages
+    eager = assess_view_angles(before, after, class_map, geometry["vza"], geometry["vaa"], geometry["saa"])
+    lazy = assess_view_angles(da.from_array(before, chunks=(3, 7, 9)), da.from_array(after, chunks=(1, 5, 5)),
+                              da.from_array(class_map, chunks=6), geometry["vza"], geometry["vaa"], geometry["saa"])
+    for name in ("slope", "side_ratio", "profile", "mean"):
+        np.testing.assert_allclose(lazy[name].values, eager[name].values, rtol=1e-12, equal_nan=True)
+    assert eager["pixels"].values.sum() == NY * NX - 1
+    # mean against numpy over the same pixels
+    valid = np.isfinite(after).all(axis=0) & (class_map == 1)
+    assert float(eager["mean"].sel(stage="before").values[2, 0]) == pytest.approx(before[2][valid].mean(), rel=1e-12)
+
+
+def test_view_angle_report_is_valid_json_with_null_for_nan(geometry, class_map, tmp_path):
+    before = np.full((1, NY, NX), 0.3)
+    classes = class_map.copy()
+    classes[:, NX // 2:] = 0  # class 2 and 1 only on one side: the side ratio has no negative side -> NaN
+    result = assess_view_angles(before, before, classes, geometry["vza"], geometry["vaa"], geometry["saa"],
+                                class_ids=[1, 2])
+    report = view_angle_report(result)
+    text = json.dumps(report, allow_nan=False)
+    assert json.loads(text)["classes"][1]["pixels"] == int((classes == 2).sum())
+    assert report["classes"][0]["before"]["side_ratio"] == [None]
+    path = write_json(Assessment({"before": "x"}, result).report(), tmp_path / "r.json")
+    assert json.loads(path.read_text())["kind"] == "brdfcorr assess"
+
+
+def test_bad_input_is_one_clear_error(geometry, class_map):
+    cube = np.ones((2, NY, NX))
+    with pytest.raises(InputError, match="differ in shape"):
+        assess_view_angles(cube, cube[:1], class_map, geometry["vza"], geometry["vaa"], geometry["saa"])
+    with pytest.raises(InputError, match="grid"):
+        assess_view_angles(cube, cube, class_map[:5], geometry["vza"], geometry["vaa"], geometry["saa"])
+    with pytest.raises(InputError, match="no class"):
+        assess_view_angles(cube, cube, np.zeros_like(class_map), geometry["vza"], geometry["vaa"], geometry["saa"])
+    with pytest.raises(InputError, match="bin width"):
+        assess_view_angles(cube, cube, class_map, geometry["vza"], geometry["vaa"], geometry["saa"], bin_width=0)
+
+
+def _shifted(array: xr.DataArray, columns: int) -> xr.DataArray:
+    """The array's grid moved east by ``columns`` pixels (10 m)."""
+    moved = array.assign_coords(x=array["x"] + 10.0 * columns)
+    return moved.rio.write_transform(moved.rio.transform(recalc=True))
+
+
+def test_overlap_metrics_against_numpy():
+    rng = np.random.default_rng(2)
+    this_before = _cube(*rng.uniform(0.1, 0.4, (2, NY, NX)))
+    this_after = _cube(*rng.uniform(0.1, 0.4, (2, NY, NX)))
+    shift = 15
+    other_before = _shifted(_cube(*rng.uniform(0.1, 0.4, (2, NY, NX))), shift)
+    other_after = _shifted(_cube(*rng.uniform(0.1, 0.4, (2, NY, NX))), shift)
+    other_after.values[0, 2, 1] = np.nan  # left out of every metric
+    result = assess_overlap(this_before, this_after, other_before.chunk(8), other_after)
+    # independent: the overlap is this line's columns shift.. and the other's 0..NX-shift
+    for stage, this, other in (("before", this_before, other_before), ("after", this_after, other_after)):
+        difference = other.values[:, :, :NX - shift] - this.values[:, :, shift:]
+        valid = np.isfinite(other_after.values[:, :, :NX - shift]).all(axis=0)
+        d = difference[:, valid]
+        np.testing.assert_allclose(result["bias"].sel(stage=stage).values, d.mean(axis=1), rtol=1e-12)
+        np.testing.assert_allclose(result["mad"].sel(stage=stage).values, np.abs(d).mean(axis=1), rtol=1e-12)
+        np.testing.assert_allclose(result["rmse"].sel(stage=stage).values, np.sqrt((d**2).mean(axis=1)), rtol=1e-12)
+        assert result["histogram"].sel(stage=stage).values.sum() == valid.sum()
+    assert int(result["pixels"]) == NY * (NX - shift) - 1
+    report = overlap_report(result)
+    json.dumps(report, allow_nan=False)
+    assert report["pixels"] == NY * (NX - shift) - 1
+    with pytest.raises(InputError, match="do not overlap"):
+        assess_overlap(this_before, this_after, _shifted(other_before, NX), _shifted(other_after, NX))
+
+
+# ------------------------------------------------------------------- leave one line out
+KERNEL_TABLE = ParameterTable(classes=[
+    {"id": 1, "name": "grass", "model": "ross_thick_li_sparse",
+     "params": {"f_iso": [0.03, 0.12], "f_vol": [0.02, 0.09], "f_geo": [0.006, 0.02]}, "wavelengths": [560, 860]},
+    {"id": 2, "name": "soil", "model": "ross_thick_li_sparse",
+     "params": {"f_iso": [0.05, 0.07], "f_vol": [0.005, 0.007], "f_geo": [0.015, 0.02]}, "wavelengths": [560, 860]},
+])
+
+
+def _lines(n_lines=3, ny=48, nx=64, shift=24):
+    """Lines flown north side by side over one ground (classes, albedo texture), each with its own
+    view geometry across its swath, rendered with KERNEL_TABLE (brdfcorr.testing.render)."""
+    rng = np.random.default_rng(3)
+    width = nx + shift * (n_lines - 1)
+    ground_classes = np.kron(rng.choice([1, 2], size=(ny // 4, -(-width // 4))), np.ones((4, 4), int))[:ny, :width]
+    ground_brightness = rng.uniform(0.8, 1.2, (ny, width))  # albedo texture
+    angles = synthetic_angles(ny, nx, sza=(35.0, 35.0), vza_max=30.0, saa=120.0, dtype=np.float64)
+    lines = []
+    for index in range(n_lines):
+        window = slice(index * shift, index * shift + nx)
+        classes, brightness = ground_classes[:, window], ground_brightness[:, window]
+        cube = render(KERNEL_TABLE, classes, **angles, wavelengths=[560.0, 860.0], brightness=brightness)
+        reflectance = _shifted(_cube(*(np.pi * cube)).assign_coords(wavelength=("band", [560.0, 860.0])),
+                               index * shift)
+        layers = {name: _shifted(georeference(xr.DataArray(value, dims=("y", "x"))), index * shift)
+                  for name, value in angles.items()}
+        class_map = _shifted(georeference(xr.DataArray(classes, dims=("y", "x"))), index * shift)
+        lines.append(Line(f"line{index + 1}", reflectance, class_map, layers))
+    return lines
+
+
+def test_leave_one_line_out_improves_the_held_out_metrics():
+    lines = _lines()
+    results = leave_one_line_out(lines, "ross_thick_li_sparse", names={1: "grass", 2: "soil"},
+                                 reference={"sza": 35.0, "vza": 0.0})
+    assert [r.name for r in results] == ["line1", "line2", "line3"]
+    for result in results:
+        slope = np.abs(result.view["relative_slope"])
+        # property: the held-out line's view-angle slope falls by far in every class and band
+        # (not to 0: the texture makes the fit on two lines imperfect and has side differences of its own)
+        assert (slope.sel(stage="after") < 0.2 * slope.sel(stage="before")).all(), result.name
+        imbalance = np.abs(result.view["side_ratio"] - 1)
+        assert (imbalance.sel(stage="after") < 0.2 * imbalance.sel(stage="before")).all(), result.name
+        assert result.table.class_ids == (1, 2)  # both classes were fitted without the held-out line
+        assert result.overlaps  # every line overlaps a neighbour
+        for overlap in result.overlaps.values():
+            assert (overlap["rmse"].sel(stage="after") < 0.2 * overlap["rmse"].sel(stage="before")).all()
+    report = leave_one_line_out_report(results)
+    json.dumps(report, allow_nan=False)
+    assert set(report["lines"][1]["overlaps"]) == {"line1", "line3"}
+
+
+def test_figures_are_drawn_and_written(geometry, class_map, tmp_path):
+    rng = np.random.default_rng(4)
+    before = _cube(*rng.uniform(0.1, 0.4, (2, NY, NX))).assign_coords(wavelength=("band", [560.0, 860.0]))
+    after = before * 1.0
+    view = assess_view_angles(before, after, class_map, geometry["vza"], geometry["vaa"], geometry["saa"],
+                              class_names={1: "roof_tile", 2: "grass"})
+    figure = profile_figure(view)
+    left = figure.axes[0]
+    assert left.get_xlabel() == "signed view zenith [deg]"
+    assert "560 nm" in left.get_title()  # the default band: nearest 660 nm (|560 - 660| < |860 - 660|)
+    labels = [text.get_text() for text in figure.legends[0].get_texts()]
+    assert "roof_tile before" in labels and "grass after" in labels
+    overlap = assess_overlap(before, after, _shifted(before, 10), _shifted(after, 10))
+    assert overlap_figure(overlap).axes[0].get_xlabel().endswith("[reflectance, 1]")
+    written = write_assessment_figures(Assessment({}, view, overlap), tmp_path / "figures")
+    assert [p.name for p in written] == ["assess_profiles.png", "assess_overlap.png"]
+    assert all(p.read_bytes().startswith(b"\x89PNG") for p in written)

@@ -1,0 +1,94 @@
+"""Tests of ``brdfcorr assess``: exit codes, the JSON report and figures reopened, the same numbers
+as the library."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from brdfcorr.analysis.assess import assess_files
+from brdfcorr.cli import main
+from brdfcorr.testing import example_table, render, synthetic_scene, write_scene
+from brdfcorr.workflow.tasks import correct_files
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("assess")
+    scene = synthetic_scene(ny=40, nx=48)
+    paths = write_scene(directory, scene)
+    paths["scene"] = scene
+    paths["after"] = directory / "corrected.tif"
+    correct_files(paths["image"], paths["after"], params=example_table(), angles=paths["angles"],
+                  classes=paths["classes"], reference={"sza": "observed", "vza": 0.0})
+    return paths
+
+
+def _invoke(*args):
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+def _common(files):
+    return [files["image"], files["after"], "--classes", files["classes"], "--angles", files["angles"]]
+
+
+def test_assess_writes_the_library_report_and_figures(files, tmp_path):
+    report_path, figures = tmp_path / "report.json", tmp_path / "figures"
+    result = _invoke("assess", *_common(files), "--class-name", "1=roof_tile", "--overlap", files["image"],
+                     files["after"], "-o", report_path, "--figures", figures)
+    assert result.exit_code == 0, result.output
+    assert "roof_tile" in result.output and f"wrote {report_path}" in result.output
+    report = json.loads(report_path.read_text())
+    expected = assess_files(files["image"], files["after"], classes=files["classes"], angles=files["angles"],
+                            class_names={1: "roof_tile"}, overlap=(files["image"], files["after"])).report()
+    assert report["view_angles"] == json.loads(json.dumps(expected["view_angles"]))
+    classes = {entry["id"]: entry for entry in report["view_angles"]["classes"]}
+    assert classes[1]["name"] == "roof_tile" and classes[2]["name"] == "class 2"
+    # The scene is rendered from the table it is corrected with, so the corrected image is the
+    # scene rendered at nadir view: its slope is that of the albedo texture alone, computed here
+    # independently (numpy polyfit of the nadir rendering against the signed view zenith).
+    scene = files["scene"]
+    angles = {name: scene[name].values for name in ("sza", "saa", "vza", "vaa")}
+    nadir = render(example_table(), scene["classes"].values, angles["sza"], angles["saa"], 0 * angles["vza"],
+                   angles["vaa"], wavelengths=list(scene["reflectance"]["wavelength"].values),
+                   brightness=scene["brightness"].values)
+    signed = np.where(angles["vaa"] == 270, 1.0, -1.0) * angles["vza"]  # sun at saa 150: vaa 270 is forward
+    for class_id in (1, 2, 3, 4):
+        mask = scene["classes"].values == class_id
+        for band in range(4):
+            slope = np.polyfit(signed[mask], nadir[band][mask], 1)[0]
+            expected = 1000 * slope / nadir[band][mask].mean()
+            assert classes[class_id]["after"]["relative_slope"][band] == pytest.approx(expected, rel=1e-3, abs=1e-4)
+    # a line compared with itself: the overlap differs by exactly 0
+    assert report["overlap"]["before"]["rmse"] == [0.0] * 4 and report["overlap"]["pixels"] > 0
+    assert sorted(p.name for p in figures.iterdir()) == ["assess_overlap.png", "assess_profiles.png"]
+
+
+def test_existing_outputs_inputs_and_bad_options_are_exit_2(files, tmp_path):
+    report_path = tmp_path / "report.json"
+    report_path.write_text("{}")
+    result = _invoke("assess", *_common(files), "-o", report_path)
+    assert result.exit_code == 2 and "exists; give --overwrite" in result.output
+    assert report_path.read_text() == "{}"
+    result = _invoke("assess", *_common(files), "-o", files["after"], "--overwrite")
+    assert result.exit_code == 2 and "inputs are never overwritten" in result.output
+    result = _invoke("assess", *_common(files), "-o", tmp_path / "r.json", "--sign-by", "track")
+    assert result.exit_code == 2 and "--heading" in result.output
+    result = _invoke("assess", files["image"], tmp_path / "missing.tif", "--classes", files["classes"],
+                     "--angles", files["angles"], "-o", tmp_path / "r.json")
+    assert result.exit_code == 2 and "missing.tif" in result.output
+    assert len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_sign_by_track_mirrors_sun_for_this_scene(files, tmp_path):
+    # brdfcorr.testing's sun is at saa 150 (south-east): the pixels with vaa 270 see the sensor
+    # opposite the sun (forward, + by sun) and lie right of a northbound track (+ by track).
+    paths = [tmp_path / "sun.json", tmp_path / "track.json"]
+    assert _invoke("assess", *_common(files), "-o", paths[0]).exit_code == 0
+    assert _invoke("assess", *_common(files), "-o", paths[1], "--sign-by", "track", "--heading", "0").exit_code == 0
+    sun, track = (json.loads(p.read_text())["view_angles"]["classes"] for p in paths)
+    assert [c["before"]["slope"] for c in sun] == [c["before"]["slope"] for c in track]
