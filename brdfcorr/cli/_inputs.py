@@ -24,7 +24,8 @@ angle_source_options = _stack(
     click.option("--angles-kind", type=click.Choice(["geotiff", *ANGLE_KINDS]), default="geotiff",
                  show_default=True,
                  help="What --angles is: a 4-band GeoTIFF, an ENVI obs file (AVIRIS-NG/-3), a Sentinel-2 "
-                      "MTD_TL.xml, a Landsat C2 angle band (…_SZA.TIF) or, for 'solar', a UTC time."),
+                      "MTD_TL.xml, a Landsat C2 angle band (…_SZA.TIF), a NEON AOP reflectance .h5, an "
+                      "EMIT L1B OBS .nc or, for 'solar', a UTC time."),
     click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE",
                  help="Option of the angle reader (repeatable), e.g. band=B04, resolution=20, "
                       "ang=LC08_..._ANG.txt."),

@@ -101,19 +101,80 @@ def _open(path, role: str, chunks, masked: bool, mask_and_scale: bool = False) -
             array = rioxarray.open_rasterio(path, chunks=chunks, masked=masked, mask_and_scale=mask_and_scale,
                                             lock=False)
     except rasterio.errors.RasterioError as error:
-        raise InputError(f"cannot read {role} file {path}: {error}") from None
+        raise InputError(f"cannot read {role} file {path}: {error}{_hdf5_hint(path)}") from None
     if isinstance(array, list):  # subdatasets: not a plain raster
-        raise InputError(f"{role} file {path} holds several subdatasets; give one raster")
+        raise InputError(f"{role} file {path} holds several subdatasets; give one raster{_hdf5_hint(path)}")
     array.encoding["source"] = str(path)
     return array
+
+
+def _hdf5_product(path) -> str | None:
+    """``"neon"`` or ``"emit"`` for an image that is a NEON AOP reflectance HDF5 or an EMIT L2A
+    reflectance NetCDF (told by content, not by name), else None: a raster GDAL reads. Without h5py
+    such a file is None too, and GDAL's error on it says what to install (:func:`_hdf5_hint`)."""
+    from brdfcorr.io.sensors import emit, neon
+
+    if not neon.is_hdf5(path):
+        return None
+    try:
+        neon.require_hdf5(path)
+    except InputError:
+        return None
+    if neon.is_neon_reflectance(path):
+        return "neon"
+    if emit.is_emit_reflectance(path):
+        return "emit"
+    return None
+
+
+def _hdf5_hint(path) -> str:
+    """For an error on an HDF5/NetCDF-4 file while h5py or h5netcdf is missing: what to install."""
+    from brdfcorr.io.sensors import neon
+
+    if not neon.is_hdf5(path):
+        return ""
+    try:
+        neon.require_hdf5(path)
+    except InputError:
+        return " (NEON AOP .h5 and EMIT .nc images need h5py and h5netcdf: pip install 'brdfcorr[hdf5]')"
+    return ""
+
+
+def _open_product(kind: str, path, chunks, wavelengths: Sequence[float] | None, scale: float | None,
+                  offset: float | None) -> xr.DataArray:
+    """A NEON or EMIT image through its reader (:mod:`brdfcorr.io.sensors.neon`, ``.emit``), with
+    ``wavelengths`` replacing the product's band centres where given."""
+    from brdfcorr.io.sensors import read_emit_image, read_neon_image
+
+    reader = read_neon_image if kind == "neon" else read_emit_image
+    try:
+        image = reader(path, chunks=_chunks(chunks), scale=scale, offset=offset)
+    except OSError as error:  # an HDF5 file that h5py opened but cannot read further
+        raise InputError(f"cannot read image file {path}: {error}") from None
+    if wavelengths is not None:
+        values = np.asarray([float(value) for value in wavelengths])
+        if values.size != image.sizes["band"] or not np.all(np.isfinite(values) & (values > 0)):
+            raise InputError(f"{path}: the given wavelengths must be {image.sizes['band']} finite values > 0 nm")
+        image = image.assign_coords(wavelength=("band", values, {"units": "nm"}))
+    return image
+
+
+def _band_count(path) -> int:
+    """Number of bands of an image file (GDAL's count, or the NEON/EMIT product's)."""
+    kind = _hdf5_product(path)
+    if kind is not None:
+        from brdfcorr.io.sensors import emit, neon
+
+        return neon.neon_band_count(path) if kind == "neon" else emit.emit_band_count(path)
+    with _opened(path, "image") as dataset:
+        return dataset.count
 
 
 def auto_chunk(path, target_bytes: int = 16 * 2**20) -> int:
     """Spatial chunk (and tile) size [pixels] for an image: the largest of 512, 256, 128, 64 whose
     chunk of all bands (as float32) holds at most ``target_bytes``, so memory stays flat for
     hyperspectral cubes."""
-    with _opened(path, "image") as dataset:
-        count = dataset.count
+    count = _band_count(path)
     for size in (512, 256, 128, 64):
         if count * size * size * 4 <= target_bytes:
             return size
@@ -123,7 +184,10 @@ def auto_chunk(path, target_bytes: int = 16 * 2**20) -> int:
 def gdal_cache_bytes(path, chunk: int) -> int:
     """A GDAL block cache [bytes] for reading ``path`` in chunks of ``chunk`` pixels: room for two
     decompressed input tiles (all bands) and four chunks, between 64 and 512 MiB. GDAL's default
-    (5 % of RAM) would let the cache, and so the peak memory, grow with the image."""
+    (5 % of RAM) would let the cache, and so the peak memory, grow with the image. A NEON or EMIT
+    image is not read through GDAL: room for four chunks (the class map's reads) suffices."""
+    if _hdf5_product(path) is not None:
+        return int(np.clip(4 * _band_count(path) * chunk * chunk * 4, 64 * 2**20, 512 * 2**20))
     with _opened(path, "image") as dataset:
         count, itemsize = dataset.count, np.dtype(dataset.dtypes[0]).itemsize
         tile_rows, tile_columns = dataset.block_shapes[0]
@@ -282,10 +346,16 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
     do not tag them: a given value replaces the file's for every band (an explicit scale wins over a
     different tagged one), one not given stays the file's.
 
+    A NEON AOP reflectance HDF5 (``.h5``) or an EMIT L2A reflectance NetCDF (``.nc``), told by
+    content, is opened by its reader instead (:func:`brdfcorr.io.sensors.read_neon_image`,
+    :func:`brdfcorr.io.sensors.read_emit_image`: the product's scale and nodata, wavelengths and
+    FWHM, CRS and transform; EMIT's swath orthorectified onto its GLT grid); ``scale``/``offset``
+    given replace the product's.
+
     Parameters
     ----------
     path : path-like
-        Any raster GDAL reads (GeoTIFF, ENVI, ...).
+        Any raster GDAL reads (GeoTIFF, ENVI, ...), or a NEON ``.h5`` / EMIT ``.nc`` image.
     chunks : int or dict, optional
         Dask chunks; an int is the spatial chunk size with all bands in one chunk (default 512).
     wavelengths : sequence of float, optional
@@ -309,6 +379,10 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
             raise InputError(f"image {path}: the given {name} {value} is not a finite number")
     if scale is not None and scale <= 0:
         raise InputError(f"image {path}: the given scale {scale} must be > 0")
+    if Path(path).exists():
+        product = _hdf5_product(path)
+        if product is not None:
+            return _open_product(product, path, chunks, wavelengths, scale, offset)
     given = scale is not None or offset is not None
     image = _open(path, "image", _chunks(chunks), masked=True, mask_and_scale=not given)
     metadata = {**image.attrs, **image.encoding}  # scaled by rioxarray: in encoding, else in attrs

@@ -14,7 +14,12 @@ kind           product                                                     reade
 ``landsat``    Landsat Collection 2 angle bands (+ ANG.txt)                :func:`read_landsat_angles`
 ``solar``      none: solar angles from time and pixel coordinates, plus   :func:`read_solar_angles`
                an explicitly given constant view geometry
+``neon``       NEON AOP reflectance HDF5 (to-sensor rasters, logged sun)  :func:`read_neon_angles`
+``emit``       EMIT L1B OBS NetCDF, orthorectified by its GLT             :func:`read_emit_obs`
 =============  ==========================================================  =====================
+
+The NEON and EMIT reflectance cubes themselves are images (:func:`read_neon_image`,
+:func:`read_emit_image`), which :func:`brdfcorr.io.rasters.open_image` opens by content.
 
 The one call for the correction and chain configs is ``read_angles(kind, path, like=image)``.
 """
@@ -26,23 +31,30 @@ from collections.abc import Callable
 import xarray as xr
 
 from brdfcorr.errors import SensorInputError
+from brdfcorr.io.sensors.emit import apply_glt, read_emit_image, read_emit_obs
 from brdfcorr.io.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
 from brdfcorr.io.sensors.grids import grid_template, to_grid
 from brdfcorr.io.sensors.landsat import parse_ang_txt, read_landsat_angles
+from brdfcorr.io.sensors.neon import read_neon_angles, read_neon_image
 from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
 from brdfcorr.io.sensors.solar import solar_angles, solar_position
 
 __all__ = [
     "ANGLE_KINDS",
     "acquisition_time",
+    "apply_glt",
     "envi_wavelengths",
     "grid_template",
     "parse_ang_txt",
     "parse_mtd_tl",
     "read_angles",
+    "read_emit_image",
+    "read_emit_obs",
     "read_envi_image",
     "read_envi_obs",
     "read_landsat_angles",
+    "read_neon_angles",
+    "read_neon_image",
     "read_sentinel2_angles",
     "read_solar_angles",
     "solar_angles",
@@ -93,6 +105,8 @@ ANGLE_KINDS: dict[str, Callable[..., xr.Dataset]] = {
     "sentinel2": read_sentinel2_angles,
     "landsat": read_landsat_angles,
     "solar": read_solar_angles,
+    "neon": read_neon_angles,
+    "emit": read_emit_obs,
 }
 
 
@@ -101,11 +115,11 @@ def read_angles(kind: str, source, like: xr.DataArray | None = None, **options) 
 
     Parameters
     ----------
-    kind : {"envi_obs", "sentinel2", "landsat", "solar"}
+    kind : {"envi_obs", "sentinel2", "landsat", "solar", "neon", "emit"}
         The source kind (see the module table).
     source :
-        The obs file, the ``MTD_TL.xml``, the Landsat product directory or file, or for
-        ``"solar"`` the acquisition time.
+        The obs file, the ``MTD_TL.xml``, the Landsat product directory or file, the NEON
+        reflectance HDF5, the EMIT L1B OBS NetCDF, or for ``"solar"`` the acquisition time.
     like : xarray.DataArray, optional
         The image the angles are for (required for ``"solar"``).
     **options :

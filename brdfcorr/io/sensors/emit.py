@@ -1,0 +1,345 @@
+"""EMIT L2A surface reflectance and L1B observation geometry (NetCDF-4), orthorectified by the GLT.
+
+Layout followed: EMIT L2A RFL and L1B OBS V001 NetCDF granules as the EMIT Data Product User
+Guide and the LP DAAC ``emit_tools`` document them::
+
+    EMIT_L2A_RFL_001_<time>_<orbit>_<scene>.nc
+      reflectance                      (downtrack, crosstrack, bands) float32, _FillValue -9999
+      sensor_band_parameters/wavelengths, fwhm      (bands,) [nm]; good_wavelengths (bands,) 1/0
+      location/glt_x, glt_y            (ortho_y, ortho_x) int32: 1-based crosstrack (glt_x) and
+                                       downtrack (glt_y) index of the swath pixel seen at each
+                                       orthorectified cell; 0 = no pixel
+      location/lat, lon                (downtrack, crosstrack) [deg]
+      global attrs geotransform        GDAL order (x0, dx, 0, y0, 0, dy) of the GLT grid's corners
+                   spatial_ref         WKT of its CRS (EPSG:4326)
+    EMIT_L1B_OBS_001_<time>_<orbit>_<scene>.nc
+      obs                              (downtrack, crosstrack, bands) float32, _FillValue -9999
+      sensor_band_parameters/observation_bands      (bands,) names: "Path length ...",
+                                       "To-sensor azimuth (0 to 360 degrees CW from N)",
+                                       "To-sensor zenith ...", "To-sun azimuth ...", "To-sun zenith ...",
+                                       "Solar phase ...", ...
+      location/glt_x, glt_y and the global attrs as above
+
+The swath (downtrack, crosstrack) is brought onto the GLT grid (y, x) by nearest-pixel lookup,
+:func:`apply_glt`: ``ortho[:, i, j] = swath[glt_y[i, j] - 1, glt_x[i, j] - 1, :]`` where both GLT
+values are > 0, NaN where either is 0. This is what EMIT's own ``apply_glt`` does; brdfcorr does it
+lazily: the GLT (two small integer rasters) is read into memory, and each output chunk is one dask
+task that reads only the bounding box of the swath rows and columns its cells point to, then
+indexes it with numpy (vectorised, no loop over pixels).
+
+Angle convention: EMIT's obs bands follow the JPL obs convention of AVIRIS-NG
+(:mod:`brdfcorr.io.sensors.envi`): "To-sensor azimuth (0 to 360 degrees CW from N)" is the azimuth of
+the direction *from the pixel towards the sensor*, "To-sun azimuth" that towards the sun, both
+clockwise from north: brdfcorr's convention (``docs/conventions.md``), used as stored;
+``view_azimuth="from_sensor"`` flips the view azimuth for a product that differs. Bands are found by
+their names (as for ENVI obs files), never by position.
+
+Reading needs h5py and h5netcdf (``pip install 'brdfcorr[hdf5]'``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import dask
+import dask.array as da
+import numpy as np
+import xarray as xr
+from affine import Affine
+from dask.base import tokenize
+from rasterio.crs import CRS
+from rasterio.errors import CRSError
+
+from brdfcorr.errors import SensorInputError
+from brdfcorr.io.sensors.envi import ANGLE_LONG_NAMES, OBS_BAND_NAMES, _normalize, _obs_band_index
+from brdfcorr.io.sensors.grids import wrap_azimuth
+from brdfcorr.io.sensors.neon import DEFAULT_CHUNK, on_grid, require_hdf5
+
+__all__ = [
+    "apply_glt",
+    "emit_band_count",
+    "is_emit_reflectance",
+    "read_emit_image",
+    "read_emit_obs",
+    "read_glt",
+]
+
+#: _FillValue of EMIT's reflectance and obs variables when the variable does not state one.
+EMIT_FILL_VALUE = -9999.0
+
+
+def is_emit_reflectance(path: str | Path) -> bool:
+    """True if ``path`` is laid out as an EMIT L2A reflectance granule (root ``reflectance``,
+    ``location/glt_x`` and ``glt_y``, ``sensor_band_parameters``). Needs h5py."""
+    h5py = require_hdf5(path)
+    try:
+        with h5py.File(path, "r") as h5file:
+            return all(isinstance(h5file.get(name), h5py.Dataset) for name in
+                       ("reflectance", "location/glt_x", "location/glt_y", "sensor_band_parameters/wavelengths"))
+    except OSError:
+        return False
+
+
+def emit_band_count(path: str | Path) -> int:
+    """Number of bands of an EMIT L2A reflectance granule."""
+    h5py = require_hdf5(path)
+    with h5py.File(path, "r") as h5file:
+        return int(h5file["reflectance"].shape[-1])
+
+
+def apply_glt(swath: np.ndarray, glt_x: np.ndarray, glt_y: np.ndarray, row0: int = 0, col0: int = 0) -> np.ndarray:
+    """Orthorectify (a box of) a swath with a geometry lookup table, by nearest pixel.
+
+    Parameters
+    ----------
+    swath : ndarray, (rows, columns, bands)
+        Swath values, or the box of the swath that starts at downtrack row ``row0`` and crosstrack
+        column ``col0`` (0-based) and holds every pixel the GLT cells point to.
+    glt_x, glt_y : ndarray of int, (ny, nx)
+        1-based crosstrack (``glt_x``) and downtrack (``glt_y``) indices; 0 = no pixel.
+    row0, col0 : int
+        Offset of the box in the swath.
+
+    Returns
+    -------
+    ndarray, (bands, ny, nx)
+        float, NaN where the GLT has no pixel:
+        ``out[:, i, j] = swath[glt_y[i, j] - 1 - row0, glt_x[i, j] - 1 - col0, :]``.
+    """
+    valid = (glt_x > 0) & (glt_y > 0)
+    dtype = np.result_type(swath.dtype, np.float32)
+    out = np.full((swath.shape[2], *glt_x.shape), np.nan, dtype=dtype)
+    out[:, valid] = swath[glt_y[valid] - 1 - row0, glt_x[valid] - 1 - col0, :].T
+    return out
+
+
+def read_glt(path: str | Path, swath_shape: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The GLT ``(glt_x, glt_y)`` of an EMIT granule as int64 arrays, checked.
+
+    Raises
+    ------
+    SensorInputError
+        Missing ``location/glt_x``/``glt_y``, shapes that differ, negative values, or indices
+        beyond the swath (``swath_shape``: rows, columns).
+    """
+    h5py = require_hdf5(path)
+    with h5py.File(path, "r") as h5file:
+        if "location/glt_x" not in h5file or "location/glt_y" not in h5file:
+            raise SensorInputError(f"{path}: no location/glt_x and location/glt_y (the geometry lookup table)")
+        glt_x = np.asarray(h5file["location/glt_x"][()], dtype=np.int64)
+        glt_y = np.asarray(h5file["location/glt_y"][()], dtype=np.int64)
+    if glt_x.shape != glt_y.shape or glt_x.ndim != 2:
+        raise SensorInputError(f"{path}: location/glt_x {glt_x.shape} and glt_y {glt_y.shape} must be one 2-D grid")
+    if (glt_x < 0).any() or (glt_y < 0).any():
+        raise SensorInputError(f"{path}: negative values in location/glt_x or glt_y (1-based indices, 0 = no pixel)")
+    if swath_shape is not None and (glt_y.max(initial=0) > swath_shape[0] or glt_x.max(initial=0) > swath_shape[1]):
+        raise SensorInputError(
+            f"{path}: the GLT points beyond the swath of {swath_shape[0]} x {swath_shape[1]} pixels "
+            f"(largest glt_y {glt_y.max()}, glt_x {glt_x.max()})"
+        )
+    return glt_x, glt_y
+
+
+def _grid(path: Path, attrs: Mapping) -> tuple[Affine, CRS | None]:
+    """The GLT grid's transform and CRS from the global attrs ``geotransform`` and ``spatial_ref``."""
+    if "geotransform" not in attrs:
+        raise SensorInputError(f"{path}: no global attribute 'geotransform' (the GLT grid)")
+    values = np.asarray(attrs["geotransform"], dtype=float).ravel()
+    if values.size != 6:
+        raise SensorInputError(f"{path}: geotransform has {values.size} values; it needs 6 (GDAL order)")
+    crs = None
+    if "spatial_ref" in attrs:
+        try:
+            crs = CRS.from_user_input(str(attrs["spatial_ref"]))
+        except CRSError as error:
+            raise SensorInputError(f"{path}: spatial_ref is no CRS ({error})") from None
+    return Affine.from_gdal(*values), crs
+
+
+def _open(path: Path, group: str | None = None) -> xr.Dataset:
+    require_hdf5(path)
+    try:
+        return xr.open_dataset(path, engine="h5netcdf", group=group, mask_and_scale=False, decode_times=False,
+                               cache=False, phony_dims="sort")
+    except (OSError, ValueError) as error:
+        where = f" group {group}" if group else ""
+        raise SensorInputError(f"{path}: cannot open as NetCDF-4{where} ({error})") from None
+
+
+def _ortho_block(source, glt_x: np.ndarray, glt_y: np.ndarray, bands, fill: float) -> np.ndarray:
+    """One output chunk: read the swath box its GLT cells point to, mask the fill, apply the GLT."""
+    valid = (glt_x > 0) & (glt_y > 0)
+    if not valid.any():
+        return np.full((len(bands), *glt_x.shape), np.nan, dtype=np.float32)
+    row0, row1 = int(glt_y[valid].min()) - 1, int(glt_y[valid].max())
+    col0, col1 = int(glt_x[valid].min()) - 1, int(glt_x[valid].max())
+    box = np.asarray(source[row0:row1, col0:col1, :].values, dtype=np.float32)[:, :, bands]
+    box[box == fill] = np.nan
+    return apply_glt(box, glt_x, glt_y, row0, col0).astype(np.float32, copy=False)
+
+
+def _orthorectified(source: xr.Variable, glt_x: np.ndarray, glt_y: np.ndarray, bands, fill: float,
+                    chunks: tuple[int, int], name: str) -> da.Array:
+    """(bands, ny, nx) dask array on the GLT grid: one task per (y, x) chunk (:func:`_ortho_block`)."""
+    ny, nx = glt_x.shape
+    token = tokenize(name, glt_x, glt_y, list(bands), fill, chunks)
+    rows = [(start, min(start + chunks[0], ny)) for start in range(0, ny, chunks[0])]
+    cols = [(start, min(start + chunks[1], nx)) for start in range(0, nx, chunks[1])]
+    blocks = [[
+        da.from_delayed(
+            dask.delayed(_ortho_block, pure=True)(
+                source, glt_x[r0:r1, c0:c1], glt_y[r0:r1, c0:c1], list(bands), fill,
+                dask_key_name=f"emit-ortho-{token}-{i}-{j}"),
+            shape=(len(bands), r1 - r0, c1 - c0), dtype=np.float32, meta=np.empty((0, 0, 0), np.float32))
+        for j, (c0, c1) in enumerate(cols)] for i, (r0, r1) in enumerate(rows)]
+    return da.block([blocks])
+
+
+def _chunk_sizes(chunks, like: xr.DataArray | None = None) -> tuple[int, int]:
+    if chunks is None and like is not None and like.chunks:
+        return int(max(like.chunksizes["y"])), int(max(like.chunksizes["x"]))
+    if chunks is None:
+        return DEFAULT_CHUNK, DEFAULT_CHUNK
+    if isinstance(chunks, int):
+        return chunks, chunks
+    return int(chunks.get("y", DEFAULT_CHUNK)), int(chunks.get("x", DEFAULT_CHUNK))
+
+
+def _swath_layers(path: Path, variable: xr.DataArray, bands: list[int], ortho: bool, chunks: tuple[int, int],
+                  attrs: Mapping) -> xr.DataArray:
+    """The chosen bands of a (downtrack, crosstrack, bands) variable as (band, y, x) float32 with the
+    fill as NaN: on the GLT grid (georeferenced) with ``ortho``, else on the swath (no CRS)."""
+    fill = float(np.asarray(variable.attrs.get("_FillValue", EMIT_FILL_VALUE)).ravel()[0])
+    if variable.ndim != 3:
+        raise SensorInputError(f"{path}: {variable.name} has dims {variable.dims}; EMIT's are "
+                               "(downtrack, crosstrack, bands)")
+    if not ortho:
+        swath = variable.isel({variable.dims[2]: bands}).rename(dict(zip(variable.dims, ("y", "x", "band"))))
+        swath = swath.chunk({"y": chunks[0], "x": chunks[1], "band": -1}).transpose("band", "y", "x")
+        return swath.astype("float32").where(swath != fill)
+    glt_x, glt_y = read_glt(path, variable.shape[:2])
+    transform, crs = _grid(path, attrs)
+    data = _orthorectified(variable.variable, glt_x, glt_y, bands, fill, chunks, f"{path}:{variable.name}")
+    return on_grid(xr.DataArray(data, dims=("band", "y", "x")), transform, crs)
+
+
+def read_emit_image(path: str | Path, chunks=None, *, ortho: bool = True, scale: float | None = None,
+                    offset: float | None = None) -> xr.DataArray:
+    """Open an EMIT L2A reflectance granule lazily as (band, y, x) reflectance factors.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``EMIT_L2A_RFL_001_...nc`` granule.
+    chunks : int or dict, optional
+        Spatial chunk size [pixels] of the output (a dict with ``"y"``, ``"x"``); default 512.
+    ortho : bool, default True
+        Map the swath onto the GLT grid (:func:`apply_glt`), georeferenced by ``geotransform`` and
+        ``spatial_ref``; False keeps the (downtrack, crosstrack) swath as (y, x), without a CRS.
+    scale, offset : float, optional
+        Reflectance factor per stored unit and of a stored 0 [1] (EMIT stores reflectance
+        factors: 1 and 0 unless given).
+
+    Returns
+    -------
+    xarray.DataArray
+        float32, dask-backed, ``_FillValue`` and cells without a swath pixel as NaN, coords
+        ``wavelength`` and ``fwhm`` [nm] along ``band`` (all 285 bands as delivered, the
+        ``good_wavelengths = 0`` water-vapour bands included).
+
+    Raises
+    ------
+    SensorInputError
+        A granule not laid out as EMIT's (the message names the missing item).
+    """
+    path = Path(path)
+    root = _open(path)
+    if "reflectance" not in root:
+        raise SensorInputError(f"{path}: no root variable 'reflectance' (an EMIT L2A RFL granule has one)")
+    parameters = _open(path, "sensor_band_parameters")
+    if "wavelengths" not in parameters:
+        raise SensorInputError(f"{path}: no sensor_band_parameters/wavelengths")
+    variable = root["reflectance"]
+    n_bands = variable.shape[-1]
+    wavelength = np.asarray(parameters["wavelengths"].values, dtype=float)
+    fwhm = np.asarray(parameters["fwhm"].values, dtype=float) if "fwhm" in parameters else None
+    if wavelength.size != n_bands or (fwhm is not None and fwhm.size != n_bands):
+        raise SensorInputError(f"{path}: {wavelength.size} wavelengths in sensor_band_parameters for {n_bands} bands")
+    image = _swath_layers(path, variable, list(range(n_bands)), ortho, _chunk_sizes(chunks), root.attrs)
+    if scale is not None:
+        image = image * np.float32(scale)
+    if offset:
+        image = image + np.float32(offset)
+    image = image.assign_coords(
+        band=np.arange(1, n_bands + 1),
+        wavelength=("band", wavelength, {"units": "nm", "long_name": "band-centre wavelength"}),
+    )
+    if fwhm is not None:
+        image = image.assign_coords(fwhm=("band", fwhm, {"units": "nm", "long_name": "full width at half maximum"}))
+    image.attrs = {"brdf_input_scale": float(1.0 if scale is None else scale),
+                   "brdf_input_offset": float(offset or 0.0), "units": "1"}
+    image.encoding.update({"source": str(path), "rasterio_dtype": str(variable.dtype)})
+    image.name = "reflectance"
+    return image
+
+
+def read_emit_obs(path: str | Path, like: xr.DataArray | None = None, *, view_azimuth: str = "to_sensor",
+                  band_names: Mapping[str, str] | None = None, ortho: bool = True, chunks=None) -> xr.Dataset:
+    """Sun and view angles [deg] from an EMIT L1B OBS granule, on the GLT grid.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``EMIT_L1B_OBS_001_...nc`` granule of the scene (its GLT is the L2A granule's).
+    like : xarray.DataArray, optional
+        The image the angles are for: its (y, x) chunks are taken (the grid is checked by
+        :func:`brdfcorr.io.rasters.check_same_grid` in :func:`brdfcorr.io.rasters.open_scene`).
+    view_azimuth : {"to_sensor", "from_sensor"}
+        What the to-sensor azimuth band holds; EMIT: "to_sensor" (the module notes).
+    band_names : mapping, optional
+        Band-name prefixes overriding :data:`brdfcorr.io.sensors.envi.OBS_BAND_NAMES`.
+    ortho : bool, default True
+        On the GLT grid (as :func:`read_emit_image`), or False for the swath.
+    chunks : int or dict, optional
+        Spatial chunks (default: ``like``'s, else 512).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``sza``, ``saa``, ``vza``, ``vaa`` on (y, x), dask-backed, float32, nodata as NaN, azimuths
+        in [0, 360) towards the sun and the sensor.
+    """
+    path = Path(path)
+    if view_azimuth not in ("to_sensor", "from_sensor"):
+        raise SensorInputError(f"view_azimuth must be 'to_sensor' or 'from_sensor', got {view_azimuth!r}")
+    names = {**OBS_BAND_NAMES, **{key: _normalize(value) for key, value in (band_names or {}).items()}}
+    unknown = set(names) - set(OBS_BAND_NAMES)
+    if unknown:
+        raise SensorInputError(f"band_names: unknown angle(s) {sorted(unknown)}; use sza, saa, vza, vaa")
+    root = _open(path)
+    parameters = _open(path, "sensor_band_parameters")
+    if "obs" not in root or "observation_bands" not in parameters:
+        raise SensorInputError(f"{path}: no 'obs' variable and sensor_band_parameters/observation_bands "
+                               "(an EMIT L1B OBS granule has both)")
+    descriptions = tuple(str(name.decode() if isinstance(name, bytes) else name)
+                         for name in np.asarray(parameters["observation_bands"].values).ravel())
+    if len(descriptions) != root["obs"].shape[-1]:
+        raise SensorInputError(f"{path}: {len(descriptions)} observation_bands for {root['obs'].shape[-1]} obs bands")
+    keys = list(names)
+    indices = [_obs_band_index(path, descriptions, names[key], key) for key in keys]
+    layers = _swath_layers(path, root["obs"], indices, ortho, _chunk_sizes(chunks, like), root.attrs)
+    variables = {}
+    for position, key in enumerate(keys):
+        angle = layers.isel(band=position, drop=True)
+        if key == "vaa" and view_azimuth == "from_sensor":
+            angle = angle + np.float32(180.0)
+        if key in ("saa", "vaa"):
+            angle = wrap_azimuth(angle)
+        angle.attrs = {"units": "degree", "long_name": ANGLE_LONG_NAMES[key],
+                       "source_band": descriptions[indices[position]]}
+        variables[key] = angle.rename(key)
+    angles = xr.Dataset(variables)
+    angles.attrs = {"source": str(path), "source_kind": "emit", "view_azimuth_stored": view_azimuth,
+                    "orthorectified": int(ortho)}
+    return angles

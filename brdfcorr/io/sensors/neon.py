@@ -1,0 +1,434 @@
+"""NEON AOP imaging-spectrometer reflectance in HDF5: the image cube and its sun and view angles.
+
+Layout followed: the NEON AOP spectrometer reflectance HDF5 of the data products DP1.30006.001
+(flight lines) and DP3.30006.001 (1 km mosaic tiles), as NEON's HDF5 file description and its
+"NEON AOP Hyperspectral Data in HDF5 format with Python" tutorial document it (also read so by
+HyTools' ``open_neon``). One root group named after the site holds everything::
+
+    /<SITE>/Reflectance/Reflectance_Data        (rows, columns, bands) int16, attrs
+                                                Scale_Factor (10000), Data_Ignore_Value (-9999)
+    /<SITE>/Reflectance/Metadata/Spectral_Data/Wavelength, FWHM     (bands,) [nm]
+    /<SITE>/Reflectance/Metadata/Coordinate_System/Map_Info         ENVI map info string
+    /<SITE>/Reflectance/Metadata/Coordinate_System/EPSG Code        "32618"
+    /<SITE>/Reflectance/Metadata/Coordinate_System/Coordinate_System_String   WKT
+    /<SITE>/Reflectance/Metadata/to-sensor_Azimuth_Angle, to-sensor_Zenith_Angle   (rows, columns) [deg]
+    /<SITE>/Reflectance/Metadata/Logs/<HHMMSS>/Solar_Azimuth_Angle, Solar_Zenith_Angle   scalars [deg]
+
+(the ``Logs`` values are scalar datasets in NEON's files; attributes of the ``<HHMMSS>`` group are
+read too). NEON's ``Scale_Factor`` is a *divisor*: reflectance = stored / Scale_Factor, i.e. stored
+x scale with brdfcorr's scale = 1 / Scale_Factor (``brdf_input_scale``). Stored values equal to
+``Data_Ignore_Value`` are nodata (NaN).
+
+Angle conventions: the to-sensor azimuth is the azimuth of the direction *from the pixel towards
+the sensor*, clockwise from north (0-360 deg), as in the JPL obs files of the AVIRIS-NG design NEON's
+spectrometer shares (:mod:`brdfcorr.io.sensors.envi`); the solar azimuth of the logs is the sun's
+azimuth seen from the ground (pixel towards the sun), clockwise from north. Both are brdfcorr's
+convention (``docs/conventions.md``) and are used as stored; ``view_azimuth="from_sensor"`` flips
+the view azimuth by 180 deg for a file that differs. The sun angles are one value per flight line:
+a DP1 flight line has one log, a DP3 mosaic tile one per flight line it is made of, and brdfcorr
+then needs the flight line named (``flight_line="HHMMSS"``), never picks one.
+
+The bidirectional products DP1/DP3.30006.002 (2024 on) are already BRDF- and topography-corrected:
+correct the directional .001 reflectance, not those.
+
+Reading needs h5py and h5netcdf (``pip install 'brdfcorr[hdf5]'``): metadata is read with h5py, the
+cube and the angle rasters lazily, in dask chunks, through xarray's h5netcdf engine.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import rioxarray  # noqa: F401  (registers the .rio accessor)
+import xarray as xr
+from affine import Affine
+from rasterio.crs import CRS
+from rasterio.errors import CRSError
+
+from brdfcorr.errors import InputError, SensorInputError
+from brdfcorr.io.sensors.grids import grid_template, wrap_azimuth
+
+__all__ = [
+    "HDF5_SIGNATURE",
+    "is_hdf5",
+    "is_neon_reflectance",
+    "neon_band_count",
+    "parse_map_info",
+    "read_neon_angles",
+    "read_neon_image",
+]
+
+#: The 8 bytes an HDF5 file (and so a NetCDF-4 file) starts with.
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+_INSTALL_HINT = "reading it needs h5py and h5netcdf: pip install 'brdfcorr[hdf5]'"
+
+ANGLE_LONG_NAMES = {
+    "sza": "solar zenith angle",
+    "saa": "solar azimuth angle (pixel to sun, clockwise from north)",
+    "vza": "view zenith angle",
+    "vaa": "view azimuth angle (pixel to sensor, clockwise from north)",
+}
+
+#: Default dask chunk [pixels] along y and x.
+DEFAULT_CHUNK = 512
+
+
+def is_hdf5(path: str | Path) -> bool:
+    """True if the file starts with the HDF5 signature (HDF5 and NetCDF-4 files)."""
+    try:
+        with open(path, "rb") as stream:
+            return stream.read(8) == HDF5_SIGNATURE
+    except OSError:
+        return False
+
+
+def require_hdf5(path: str | Path):
+    """The h5py module, or :class:`InputError` naming the file and the extra to install.
+
+    h5netcdf (xarray's engine for the lazy reads) is checked too.
+    """
+    try:
+        import h5netcdf  # noqa: F401
+        import h5py
+    except ImportError:
+        raise InputError(f"{path} is an HDF5/NetCDF-4 product; {_INSTALL_HINT}") from None
+    return h5py
+
+
+def _site_group(h5file, path: Path, site: str | None) -> str:
+    """Name of the root group holding ``Reflectance/Reflectance_Data`` (the NEON site code)."""
+    sites = [name for name in h5file if isinstance(h5file.get(f"{name}/Reflectance/Reflectance_Data"),
+                                                    _h5py_dataset())]
+    if site is not None:
+        if site not in sites:
+            raise SensorInputError(f"{path}: no /{site}/Reflectance/Reflectance_Data (sites found: {sites})")
+        return site
+    if len(sites) != 1:
+        raise SensorInputError(
+            f"{path}: {len(sites)} root groups with Reflectance/Reflectance_Data ({sites}); a NEON AOP "
+            "reflectance file has one (the site code); name it with site=..."
+        )
+    return sites[0]
+
+
+def _h5py_dataset():
+    import h5py
+
+    return h5py.Dataset
+
+
+def is_neon_reflectance(path: str | Path) -> bool:
+    """True if ``path`` is an HDF5 file laid out as a NEON AOP reflectance file (one root group
+    with ``Reflectance/Reflectance_Data``). Needs h5py (:func:`require_hdf5`)."""
+    h5py = require_hdf5(path)
+    try:
+        with h5py.File(path, "r") as h5file:
+            return any(isinstance(h5file.get(f"{name}/Reflectance/Reflectance_Data"), h5py.Dataset)
+                       for name in h5file)
+    except OSError:
+        return False
+
+
+def _text(value) -> str:
+    """A string from an HDF5 scalar (bytes, str, or a one-element array of either)."""
+    value = np.asarray(value).ravel()[0] if np.ndim(value) else value
+    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
+def parse_map_info(text: str, source: str = "Map_Info") -> Affine:
+    """Pixel-corner affine transform from an ENVI ``map info`` string.
+
+    The items are: projection name, reference pixel x and y (1-based file coordinates, (1, 1) the
+    upper-left corner of the upper-left pixel), the easting and northing of that reference point,
+    the pixel sizes in x and y [CRS units], then zone, hemisphere, datum, ``units=``,
+    ``rotation=``. As GDAL's ENVI driver: x0 = easting - (ref_x - 1) * dx,
+    y0 = northing + (ref_y - 1) * dy.
+
+    Examples
+    --------
+    >>> parse_map_info("UTM, 1.000, 1.000, 368000.0, 4307000.0, 1.0, 1.0, 18, North, WGS-84, units=Meters")
+    Affine(1.0, 0.0, 368000.0,
+           0.0, -1.0, 4307000.0)
+
+    Raises
+    ------
+    SensorInputError
+        Fewer than seven items, non-numeric ones, or a rotation (not supported).
+    """
+    items = [item.strip() for item in text.strip().strip("{}").split(",")]
+    try:
+        ref_x, ref_y, easting, northing, dx, dy = (float(item) for item in items[1:7])
+    except ValueError:
+        raise SensorInputError(f"{source}: {text!r} is not an ENVI map info (numbers expected in items 2-7)") from None
+    rotation = next((item for item in items if item.lower().startswith("rotation")), None)
+    if rotation is not None and float(re.sub(r"[^0-9.eE+-]", "", rotation.split("=")[-1]) or 0) != 0.0:
+        raise SensorInputError(f"{source}: a rotated map info ({rotation}) is not supported")
+    if dx <= 0 or dy <= 0:
+        raise SensorInputError(f"{source}: pixel sizes {dx}, {dy} in {text!r} must be > 0")
+    return Affine(dx, 0.0, easting - (ref_x - 1.0) * dx, 0.0, -dy, northing + (ref_y - 1.0) * dy)
+
+
+def _crs(coordinates, path: Path) -> CRS | None:
+    """CRS from ``EPSG Code``, else ``Coordinate_System_String`` (WKT), else ``Proj4``."""
+    for name, parse in (("EPSG Code", lambda text: CRS.from_epsg(int(float(text)))),
+                        ("Coordinate_System_String", CRS.from_wkt), ("Proj4", CRS.from_proj4)):
+        if name in coordinates:
+            text = _text(coordinates[name][()])
+            try:
+                return parse(text)
+            except (CRSError, ValueError) as error:
+                raise SensorInputError(f"{path}: Coordinate_System/{name} {text!r} is no CRS ({error})") from None
+    return None
+
+
+def _metadata(path: Path, site: str | None) -> dict:
+    """Everything but the big arrays: site, shape, scaling, wavelengths, grid, logs."""
+    h5py = require_hdf5(path)
+    try:
+        h5file = h5py.File(path, "r")
+    except OSError as error:
+        raise SensorInputError(f"{path}: cannot open as HDF5 ({error})") from None
+    with h5file:
+        site = _site_group(h5file, path, site)
+        group = h5file[f"{site}/Reflectance"]
+        data = group["Reflectance_Data"]
+        if data.ndim != 3:
+            raise SensorInputError(f"{path}: Reflectance_Data has {data.ndim} dimensions; NEON's has 3 "
+                                   "(rows, columns, bands)")
+        metadata = group.get("Metadata")
+        if metadata is None:
+            raise SensorInputError(f"{path}: no /{site}/Reflectance/Metadata group")
+        missing = [name for name in ("Spectral_Data/Wavelength", "Coordinate_System/Map_Info") if name not in metadata]
+        if missing:
+            raise SensorInputError(f"{path}: no {', '.join(missing)} in /{site}/Reflectance/Metadata")
+        info = {
+            "site": site, "shape": data.shape, "dtype": data.dtype,
+            "scale_factor": float(data.attrs.get("Scale_Factor", 1.0)),
+            "ignore": float(data.attrs["Data_Ignore_Value"]) if "Data_Ignore_Value" in data.attrs else None,
+            "wavelength": np.asarray(metadata["Spectral_Data/Wavelength"][()], dtype=float),
+            "wavelength_units": _text(metadata["Spectral_Data/Wavelength"].attrs.get("Units", "nanometers")),
+            "fwhm": (np.asarray(metadata["Spectral_Data/FWHM"][()], dtype=float)
+                     if "Spectral_Data/FWHM" in metadata else None),
+            "transform": parse_map_info(_text(metadata["Coordinate_System/Map_Info"][()]), f"{path}: Map_Info"),
+            "crs": _crs(metadata["Coordinate_System"], path),
+            "logs": _logs(metadata.get("Logs")),
+            "angle_ignore": {name: float(metadata[name].attrs["Data_Ignore_Value"])
+                             for name in ("to-sensor_Azimuth_Angle", "to-sensor_Zenith_Angle")
+                             if name in metadata and "Data_Ignore_Value" in metadata[name].attrs},
+            "angle_rasters": [name for name in ("to-sensor_Azimuth_Angle", "to-sensor_Zenith_Angle")
+                              if name in metadata],
+        }
+    return info
+
+
+def _logs(logs) -> dict[str, dict[str, float]]:
+    """``{flight line: {"Solar_Zenith_Angle": ..., "Solar_Azimuth_Angle": ...}}`` from the Logs
+    group: scalar datasets, or attributes of the flight line's group."""
+    found: dict[str, dict[str, float]] = {}
+    for line, group in (logs or {}).items():
+        values = {}
+        for name in ("Solar_Zenith_Angle", "Solar_Azimuth_Angle"):
+            if name in getattr(group, "keys", lambda: ())():
+                values[name] = float(np.asarray(group[name][()]).ravel()[0])
+            elif name in getattr(group, "attrs", {}):
+                values[name] = float(np.asarray(group.attrs[name]).ravel()[0])
+        if values:
+            found[line] = values
+    return found
+
+
+def neon_band_count(path: str | Path) -> int:
+    """Number of bands of a NEON AOP reflectance file (the last dimension of Reflectance_Data)."""
+    return int(_metadata(Path(path), None)["shape"][2])
+
+
+def _spatial_chunks(chunks) -> tuple[int | str, int | str]:
+    """(y, x) chunk sizes from an int, a dict with "y"/"x", or None (512)."""
+    if chunks is None:
+        return DEFAULT_CHUNK, DEFAULT_CHUNK
+    if isinstance(chunks, int):
+        return chunks, chunks
+    return chunks.get("y", DEFAULT_CHUNK), chunks.get("x", DEFAULT_CHUNK)
+
+
+def _open_lazy(path: Path, group: str) -> xr.Dataset:
+    """A group of the file as a lazy Dataset (h5netcdf engine, no CF decoding, no caching)."""
+    return xr.open_dataset(path, engine="h5netcdf", group=group, phony_dims="sort", mask_and_scale=False,
+                           decode_times=False, cache=False)
+
+
+def on_grid(array: xr.DataArray, transform: Affine, crs) -> xr.DataArray:
+    """``array`` (..., y, x) with pixel-centre ``y``/``x`` coords, CRS (where not None) and transform."""
+    template = grid_template(transform, (array.sizes["y"], array.sizes["x"]), None)
+    array = array.assign_coords(y=template["y"].values, x=template["x"].values)
+    if crs is not None:
+        array = array.rio.write_crs(crs)
+    return array.rio.write_transform(transform)
+
+
+def read_neon_image(path: str | Path, chunks=None, *, site: str | None = None, scale: float | None = None,
+                    offset: float | None = None) -> xr.DataArray:
+    """Open a NEON AOP reflectance HDF5 cube lazily as reflectance factors (band, y, x).
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``NEON_D.._<SITE>_DP1_..._reflectance.h5`` (or DP3 tile) file.
+    chunks : int or dict, optional
+        Spatial chunk size [pixels] (or a dict with ``"y"``, ``"x"``); all bands in one chunk.
+        Default 512.
+    site : str, optional
+        The root group (site code); needed only if the file has several.
+    scale, offset : float, optional
+        Reflectance factor per stored unit and of a stored 0 [1], replacing the file's
+        (1 / ``Scale_Factor`` and 0).
+
+    Returns
+    -------
+    xarray.DataArray
+        float32 (band, y, x), dask-backed: ``stored * scale + offset`` with ``Data_Ignore_Value`` as
+        NaN; coords ``wavelength`` and ``fwhm`` [nm] along ``band``; CRS and transform from the
+        file's ``EPSG Code`` and ``Map_Info``; attrs ``brdf_input_scale`` and ``brdf_input_offset``.
+
+    Raises
+    ------
+    SensorInputError
+        A file not laid out as NEON's (the message names the missing item).
+    """
+    path = Path(path)
+    info = _metadata(path, site)
+    n_bands = info["shape"][2]
+    wavelength, fwhm = info["wavelength"], info["fwhm"]
+    if wavelength.size != n_bands or (fwhm is not None and fwhm.size != n_bands):
+        raise SensorInputError(
+            f"{path}: {wavelength.size} wavelengths and {None if fwhm is None else fwhm.size} FWHM values "
+            f"in Metadata/Spectral_Data for {n_bands} bands"
+        )
+    unit = info["wavelength_units"].strip().lower()
+    factor = 1e3 if unit in ("micrometers", "micrometer", "microns", "micron", "um") else 1.0
+    if info["scale_factor"] <= 0 and scale is None:
+        raise SensorInputError(f"{path}: Reflectance_Data Scale_Factor {info['scale_factor']} must be > 0")
+    stored = _open_lazy(path, f"/{info['site']}/Reflectance")["Reflectance_Data"]
+    stored = stored.rename(dict(zip(stored.dims, ("y", "x", "band")))).transpose("band", "y", "x")
+    rows, cols = _spatial_chunks(chunks)
+    stored = stored.chunk({"band": -1, "y": rows, "x": cols})
+    valid = stored != info["ignore"] if info["ignore"] is not None else True
+    if scale is None:  # NEON's Scale_Factor divides: dividing is exact where multiplying by 1e-4 rounds
+        values = stored.astype("float32") / np.float32(info["scale_factor"])
+        applied_scale = 1.0 / info["scale_factor"]
+    else:
+        values = stored.astype("float32") * np.float32(scale)
+        applied_scale = float(scale)
+    if offset:
+        values = values + np.float32(offset)
+    image = values.where(valid).astype("float32")
+    image = image.assign_coords(
+        band=np.arange(1, n_bands + 1),
+        wavelength=("band", wavelength * factor, {"units": "nm", "long_name": "band-centre wavelength"}),
+    )
+    if fwhm is not None:
+        image = image.assign_coords(fwhm=("band", fwhm * factor, {"units": "nm",
+                                                                  "long_name": "full width at half maximum"}))
+    image = on_grid(image, info["transform"], info["crs"])
+    image.attrs = {"brdf_input_scale": applied_scale, "brdf_input_offset": float(offset or 0.0),
+                   "units": "1", "long_name_product": "NEON AOP reflectance"}
+    image.encoding.update({"source": str(path), "rasterio_dtype": str(info["dtype"])})
+    image.name = "reflectance"
+    return image
+
+
+def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view_azimuth: str = "to_sensor",
+                     flight_line: str | None = None, site: str | None = None, chunks=None) -> xr.Dataset:
+    """Sun and view angles [deg] of a NEON AOP reflectance HDF5 file on its image grid.
+
+    Parameters
+    ----------
+    path : str or Path
+        The NEON reflectance file (the same file as the image).
+    like : xarray.DataArray, optional
+        The image the angles are for: its (y, x) chunks are taken (the grid itself is checked by
+        :func:`brdfcorr.io.rasters.check_same_grid` in :func:`brdfcorr.io.rasters.open_scene`).
+    view_azimuth : {"to_sensor", "from_sensor"}
+        What ``to-sensor_Azimuth_Angle`` holds: "to_sensor" for NEON (the default, see the module
+        notes); "from_sensor" flips it by 180 deg.
+    flight_line : str, optional
+        The ``Logs`` group (``"HHMMSS"``) whose sun angles to use; needed where the file logs
+        several flight lines (a mosaic tile).
+    site : str, optional
+        The root group (site code), where the file has several.
+    chunks : int or dict, optional
+        Spatial chunks (default: ``like``'s, else 512).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``sza``, ``saa`` (constant: the flight line's) and ``vza``, ``vaa`` (per pixel) on (y, x),
+        dask-backed, nodata (``Data_Ignore_Value``) as NaN, azimuths in [0, 360) towards the sun
+        and the sensor, with the file's CRS and transform.
+
+    Raises
+    ------
+    SensorInputError
+        Missing angle rasters or logs, several flight lines and none named, a bad option.
+    """
+    path = Path(path)
+    if view_azimuth not in ("to_sensor", "from_sensor"):
+        raise SensorInputError(f"view_azimuth must be 'to_sensor' or 'from_sensor', got {view_azimuth!r}")
+    info = _metadata(path, site)
+    if len(info["angle_rasters"]) != 2:
+        raise SensorInputError(
+            f"{path}: no to-sensor_Azimuth_Angle and to-sensor_Zenith_Angle rasters in "
+            f"/{info['site']}/Reflectance/Metadata"
+        )
+    sun = _flight_line_sun(path, info["logs"], flight_line)
+    if chunks is None and like is not None and like.chunks:
+        chunks = {"y": like.chunksizes["y"], "x": like.chunksizes["x"]}
+    rows, cols = _spatial_chunks(chunks)
+    metadata = _open_lazy(path, f"/{info['site']}/Reflectance/Metadata")
+    variables = {}
+    for key, name in (("vza", "to-sensor_Zenith_Angle"), ("vaa", "to-sensor_Azimuth_Angle")):
+        stored = metadata[name]
+        if stored.shape != info["shape"][:2]:
+            raise SensorInputError(f"{path}: {name} is {stored.shape}, the reflectance {info['shape'][:2]}")
+        stored = stored.rename(dict(zip(stored.dims, ("y", "x")))).chunk({"y": rows, "x": cols})
+        ignore = info["angle_ignore"].get(name, info["ignore"])
+        angle = stored.astype("float64")
+        if ignore is not None:
+            angle = angle.where(stored != ignore)
+        if key == "vaa":
+            angle = wrap_azimuth(angle + 180.0) if view_azimuth == "from_sensor" else wrap_azimuth(angle)
+        variables[key] = angle.assign_attrs(units="degree", long_name=ANGLE_LONG_NAMES[key], source_item=name)
+    for key, name in (("sza", "Solar_Zenith_Angle"), ("saa", "Solar_Azimuth_Angle")):
+        value = sun[name] % 360.0 if key == "saa" else sun[name]
+        variables[key] = xr.full_like(variables["vza"], value).assign_attrs(
+            units="degree", long_name=ANGLE_LONG_NAMES[key], source_item=f"Logs/{sun['line']}/{name}")
+    angles = xr.Dataset({key: on_grid(variables[key].rename(key), info["transform"], info["crs"])
+                         for key in ("sza", "saa", "vza", "vaa")})
+    angles.attrs = {"source": str(path), "source_kind": "neon", "flight_line": sun["line"],
+                    "view_azimuth_stored": view_azimuth}
+    return angles
+
+
+def _flight_line_sun(path: Path, logs: dict, flight_line: str | None) -> dict:
+    """The sun zenith and azimuth [deg] of the chosen (or only) flight line of the logs."""
+    complete = {line: values for line, values in logs.items() if len(values) == 2}
+    if not complete:
+        raise SensorInputError(f"{path}: no Metadata/Logs/<flight line>/Solar_Zenith_Angle and "
+                               "Solar_Azimuth_Angle")
+    if flight_line is None:
+        if len(complete) > 1:
+            raise SensorInputError(
+                f"{path}: sun angles of {len(complete)} flight lines in Metadata/Logs ({', '.join(sorted(complete))}); "
+                "name one: flight_line=HHMMSS (--angle-option flight_line=...)"
+            )
+        flight_line = next(iter(complete))
+    # A flight line given on the command line is read as a YAML number (070512 -> 70512): match digits.
+    flight_line = next((line for line in complete if line == str(flight_line)
+                        or (line.isdigit() and line.lstrip("0") == str(flight_line).lstrip("0"))), str(flight_line))
+    if flight_line not in complete:
+        raise SensorInputError(f"{path}: no sun angles of flight line {flight_line!r} in Metadata/Logs "
+                               f"(found: {', '.join(sorted(complete))})")
+    return {**complete[flight_line], "line": flight_line}
