@@ -26,8 +26,18 @@ bit  name             meaning
                       or NaN on request)
 4    unknown_class    class id absent from the parameter table: not corrected (1, or NaN)
 8    limited          the factor was clipped to the limits in at least one band
-16   invalid_geometry a zenith outside [0, 90) deg: output is nodata
+16   invalid_geometry a zenith outside [0, 90) deg, or a slope outside [0, 90] deg: output is nodata
+32   facing_away      with slope and aspect: the sun or the sensor is at or below the tilted
+                      surface's horizon (local zenith >= 90 deg): output is nodata
 ==== ================ ========================================================================
+
+Tilted surfaces (``slope``/``aspect`` given, :mod:`brdfcorr.terrain`): the observed geometry is
+evaluated in the frame of the tilted surface (:func:`brdfcorr.terrain.local_angles`), the reference
+geometry in the horizontal frame (reference sza ``"observed"`` is the pixel's horizontal sza), so
+a tilted surface is normalized to how a horizontal one of the same material would look. The factor
+is the BRDF ratio only; the illumination term cos i / cos sza is the topographic step's
+(:func:`brdfcorr.topographic.topographic_correction` with ``method="cosine"``; ``docs/terrain.md``).
+A slope of 0 gives bit for bit the result without slope and aspect.
 
 A factor is valid when it is a finite positive number: the model predicts a positive finite signal
 at both geometries and their ratio neither overflows nor underflows. Otherwise (a kernel-driven
@@ -54,6 +64,7 @@ from brdfcorr.errors import GridMismatchError, InputError
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model
 from brdfcorr.params import ParameterTable, ReferenceGeometry
+from brdfcorr.terrain import local_angles
 
 __all__ = [
     "normalize",
@@ -64,6 +75,7 @@ __all__ = [
     "QA_UNKNOWN_CLASS",
     "QA_LIMITED",
     "QA_INVALID_GEOMETRY",
+    "QA_FACING_AWAY",
     "QA_FLAGS",
     "qa_counts",
 ]
@@ -73,12 +85,14 @@ QA_NO_CLASS = np.uint8(2)
 QA_UNKNOWN_CLASS = np.uint8(4)
 QA_LIMITED = np.uint8(8)
 QA_INVALID_GEOMETRY = np.uint8(16)
+QA_FACING_AWAY = np.uint8(32)
 QA_FLAGS = {
     "nodata": QA_NODATA,
     "no_class": QA_NO_CLASS,
     "unknown_class": QA_UNKNOWN_CLASS,
     "limited": QA_LIMITED,
     "invalid_geometry": QA_INVALID_GEOMETRY,
+    "facing_away": QA_FACING_AWAY,
 }
 
 class Normalized(NamedTuple):
@@ -141,7 +155,7 @@ class _Plans:
 
 
 def _normalize_block(
-    reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, *,
+    reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, slope=None, aspect=None, *,
     plans: _Plans, reference: ReferenceGeometry, limits, unknown_nan: bool,
     class_nodata, flip_view_azimuth: bool, out_dtype,
 ):
@@ -155,6 +169,9 @@ def _normalize_block(
         vaa = vaa + 180.0
 
     qa, usable, no_class, candidates, infinite = _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata)
+    local = None
+    if slope is not None:
+        local, usable = _local_frame(qa, usable, theta_i, saa, theta_r, vaa, slope, aspect)
     base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
     base[~usable] = np.nan
     unclassified = usable & no_class
@@ -171,7 +188,11 @@ def _normalize_block(
                 base[members] = np.nan
             continue
         index = np.flatnonzero(members)
-        observed = ScatteringGeometry(theta_i[index], theta_r[index], relative_azimuth(saa[index], vaa[index]))
+        if local is None:
+            observed = ScatteringGeometry(theta_i[index], theta_r[index], relative_azimuth(saa[index], vaa[index]))
+        else:
+            observed = ScatteringGeometry(local.sza[index], local.vza[index],
+                                          relative_azimuth(local.saa[index], local.vaa[index]))
         ref_sza = theta_i[index] if reference.sza == "observed" else np.asarray(reference_sza, dtype=np.float64)
         ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
         # The basis functions in float64; the per-band linear combination in the output precision.
@@ -197,6 +218,24 @@ def _normalize_block(
         qa[index[limited]] |= QA_LIMITED
         qa[index[invalid]] |= QA_NODATA
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
+
+
+def _local_frame(qa, usable, theta_i, saa, theta_r, vaa, slope, aspect):
+    """Sun and view angles in the tilted surfaces' frames (1-D, per pixel) and the usable pixels:
+    a slope outside [0, 90] is invalid geometry, non-finite slope or aspect nodata, and a sun or
+    sensor at or below the surface's horizon (local zenith >= 90 deg) facing away."""
+    slope, aspect = (np.asarray(a, dtype=np.float64).reshape(-1) for a in (slope, aspect))
+    finite = np.isfinite(slope) & np.isfinite(aspect)
+    with np.errstate(invalid="ignore"):
+        bad_slope = finite & ~((slope >= 0) & (slope <= 90))
+    qa[~finite] |= QA_NODATA
+    qa[bad_slope] |= QA_INVALID_GEOMETRY
+    usable = usable & finite & ~bad_slope
+    local = local_angles(theta_i, saa, theta_r, vaa, np.where(usable, slope, 0.0), np.where(usable, aspect, 0.0))
+    with np.errstate(invalid="ignore"):
+        away = usable & ((local.sza >= 90) | (local.vza >= 90))
+    qa[away] |= QA_FACING_AWAY
+    return local, usable & ~away
 
 
 def _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata):
@@ -356,6 +395,8 @@ def normalize(
     unknown: Literal["keep", "nan"] = "keep",
     class_nodata: float | None = None,
     flip_view_azimuth: bool = False,
+    slope=None,
+    aspect=None,
 ) -> Normalized:
     """Normalize a reflectance cube to a reference sun/view geometry with per-class BRDF models.
 
@@ -389,6 +430,13 @@ def normalize(
     flip_view_azimuth : bool, default False
         Add 180 deg to ``vaa``, for products storing the azimuth of the view direction as seen from
         the sensor.
+    slope, aspect : xarray.DataArray (y, x), optional
+        Surface slope [deg] in [0, 90] and the azimuth the surface faces (downslope, clockwise from
+        north) [deg], both or neither (:func:`brdfcorr.terrain.slope_aspect` from a DEM, or
+        :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`). The observed geometry is then
+        evaluated in each surface's own frame, the reference in the horizontal frame (module
+        docstring, "Tilted surfaces"); pixels whose sun or sensor is behind the surface are nodata,
+        flagged ``facing_away``. Slope 0 gives exactly the result without them.
 
     Returns
     -------
@@ -423,8 +471,13 @@ def normalize(
     if reflectance.ndim != 3:
         raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
     band_dim = reflectance.dims[0]
+    if (slope is None) != (aspect is None):
+        raise InputError("slope and aspect go together: give both or neither")
+    named = {"classes": classes, "sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
+    if slope is not None:
+        named.update(slope=slope, aspect=aspect)
     layers = {}
-    for name, layer in {"classes": classes, "sza": sza, "saa": saa, "vza": vza, "vaa": vaa}.items():
+    for name, layer in named.items():
         layers[name] = _check_grid(reflectance, name, _as_dataarray(layer, name, reflectance.dims[1:]))
     if layers["classes"].dtype.kind not in "iuf":
         raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
@@ -439,18 +492,19 @@ def normalize(
     out_dtype = np.result_type(reflectance.dtype, np.float32)
 
     arrays = [reflectance.data] + [layers[name].data for name in ("classes", "sza", "saa", "vza", "vaa")]
-    lazy = any(isinstance(a, da.Array) for a in arrays)
+    terrain = [layers[name].data for name in ("slope", "aspect") if name in layers]
+    lazy = any(isinstance(a, da.Array) for a in arrays + terrain)
     kwargs: dict[str, Any] = dict(
         plans=plans, reference=reference, limits=limits, unknown_nan=unknown == "nan",
         class_nodata=class_nodata, flip_view_azimuth=flip_view_azimuth, out_dtype=out_dtype,
     )
     if lazy:
-        corrected, qa = _normalize_dask(arrays, reference, kwargs)
+        corrected, qa = _normalize_dask(arrays, terrain, reference, kwargs)
     else:
         reference_sza = _scene_mean(arrays[2], np) if reference.sza == "mean" else _fixed_sza(reference)
         cube, classes_block, sza, saa, vza, vaa = arrays
         corrected, qa = _normalize_block(
-            cube, np.arange(n_bands), classes_block, sza, saa, vza, vaa, reference_sza, **kwargs
+            cube, np.arange(n_bands), classes_block, sza, saa, vza, vaa, reference_sza, *terrain, **kwargs
         )
         qa = qa[0]
 
@@ -472,12 +526,13 @@ def normalize(
     return Normalized(corrected, qa)
 
 
-def _normalize_dask(arrays, reference: ReferenceGeometry, kwargs):
+def _normalize_dask(arrays, terrain, reference: ReferenceGeometry, kwargs):
     reflectance = arrays[0]
     if not isinstance(reflectance, da.Array):
         reflectance = da.from_array(reflectance, chunks="auto")
     spatial_chunks = reflectance.chunks[1:]
     layers = [da.asarray(a).rechunk(spatial_chunks) for a in arrays[1:]]
+    terrain_layers = [da.asarray(a).rechunk(spatial_chunks) for a in terrain]
     band_index = da.arange(reflectance.shape[0], chunks=(reflectance.chunks[0],))
     if reference.sza == "mean":
         reference_sza = _scene_mean(layers[1], da)
@@ -488,6 +543,7 @@ def _normalize_dask(arrays, reference: ReferenceGeometry, kwargs):
         reflectance, "byx", band_index, "b",
         *(item for layer in layers for item in (layer, "yx")),
         reference_sza, (),
+        *(item for layer in terrain_layers for item in (layer, "yx")),
         meta=np.empty((0, 0, 0), dtype=kwargs["out_dtype"]),
         **kwargs,
     )
@@ -545,17 +601,17 @@ def qa_counts(qa) -> dict[str, object]:
 
     ``corrected``: pixels with a class of the table, valid data and a valid factor in every band
     (limited ones included); ``limited``, ``unknown_class``, ``no_class``, ``nodata`` (nodata, no
-    valid factor, or invalid geometry).
+    valid factor, invalid geometry, or a tilted surface facing away from the sun or the sensor).
     """
     data = qa.data if isinstance(qa, xr.DataArray) else qa
     xp = da if isinstance(data, da.Array) else np
-    skipped = QA_NODATA | QA_NO_CLASS | QA_UNKNOWN_CLASS | QA_INVALID_GEOMETRY
+    skipped = QA_NODATA | QA_NO_CLASS | QA_UNKNOWN_CLASS | QA_INVALID_GEOMETRY | QA_FACING_AWAY
     return {
         "corrected": xp.count_nonzero((data & skipped) == 0),
         "limited": xp.count_nonzero(data & QA_LIMITED),
         "unknown_class": xp.count_nonzero(data & QA_UNKNOWN_CLASS),
         "no_class": xp.count_nonzero(data & QA_NO_CLASS),
-        "nodata": xp.count_nonzero(data & (QA_NODATA | QA_INVALID_GEOMETRY)),
+        "nodata": xp.count_nonzero(data & (QA_NODATA | QA_INVALID_GEOMETRY | QA_FACING_AWAY)),
     }
 
 

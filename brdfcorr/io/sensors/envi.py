@@ -33,10 +33,12 @@ from brdfcorr.io.sensors.grids import wrap_azimuth
 
 __all__ = [
     "OBS_BAND_NAMES",
+    "OBS_TERRAIN_BAND_NAMES",
     "acquisition_time",
     "envi_wavelengths",
     "read_envi_image",
     "read_envi_obs",
+    "read_envi_obs_terrain",
 ]
 
 #: Normalized band-name prefixes of the four angles in an obs file (see :func:`_normalize`).
@@ -45,6 +47,17 @@ OBS_BAND_NAMES = {
     "saa": "to sun azimuth",
     "vza": "to sensor zenith",
     "vaa": "to sensor azimuth",
+}
+
+#: Normalized band-name prefixes of the surface orientation in an ``obs_ort`` file ("Slope", "Aspect").
+OBS_TERRAIN_BAND_NAMES = {
+    "slope": "slope",
+    "aspect": "aspect",
+}
+
+TERRAIN_LONG_NAMES = {
+    "slope": "surface slope",
+    "aspect": "surface aspect (direction faced, downslope, clockwise from north)",
 }
 
 ANGLE_LONG_NAMES = {
@@ -265,3 +278,57 @@ def _check_same_grid(path: Path, obs: xr.DataArray, like: xr.DataArray) -> None:
                 f"{path}: obs transform {tuple(obs.rio.transform())[:6]} differs from the image "
                 f"transform {tuple(like.rio.transform())[:6]}"
             )
+
+
+def read_envi_obs_terrain(path: str | Path, like: xr.DataArray | None = None, *,
+                          band_names: Mapping[str, str] | None = None, chunks=None) -> xr.Dataset:
+    """Per-pixel surface slope and aspect from an ENVI ``obs_ort``/``obs_ortdem`` file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The obs file (ENVI, header ``band names`` required); its bands "Slope" and "Aspect" are
+        found by name like the angle bands (:func:`read_envi_obs`).
+    like : xarray.DataArray, optional
+        The image the layers are for; its (y, x) grid must be the obs grid, else
+        :class:`SensorInputError`. The output then takes its ``y``/``x`` coordinates and chunks.
+    band_names : mapping, optional
+        Band-name prefixes overriding :data:`OBS_TERRAIN_BAND_NAMES` for ``slope`` and ``aspect``.
+    chunks :
+        Dask chunks for :func:`rioxarray.open_rasterio` (default 512 x 512 pixels).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``slope`` [deg] and ``aspect`` [deg, wrapped into [0, 360)] on (y, x), dask-backed, nodata
+        as NaN. Aspect is the azimuth of the direction the surface faces (downslope), clockwise from
+        north: the "Cosine(i)" band of the real AVIRIS-NG obs file ang20170323t202244 in
+        ``shared/realdata`` equals ``cos sza cos slope + sin sza sin slope cos(saa - aspect)``
+        (:func:`brdfcorr.terrain.cos_incidence`) to 1e-16; with the aspect reversed it is off by
+        1.0. (The other real file, ``..._obs_ortdem_mod``, has edited slope and aspect bands whose
+        "Cosine(i)" matches no convention.)
+    """
+    path = Path(path)
+    names = {**OBS_TERRAIN_BAND_NAMES, **{key: _normalize(value) for key, value in (band_names or {}).items()}}
+    unknown = set(names) - set(OBS_TERRAIN_BAND_NAMES)
+    if unknown:
+        raise SensorInputError(f"band_names: unknown layer(s) {sorted(unknown)}; use slope, aspect")
+    _, descriptions = _envi_tags(path)
+    indices = {key: _obs_band_index(path, descriptions, wanted, key) for key, wanted in names.items()}
+    obs = rioxarray.open_rasterio(path, chunks=chunks or {"band": 1, "y": 512, "x": 512}, masked=True)
+    if like is not None:
+        _check_same_grid(path, obs, like)
+    variables = {}
+    for key, index in indices.items():
+        layer = obs.isel(band=index, drop=True)
+        if key == "aspect":
+            layer = wrap_azimuth(layer)
+        layer.attrs = {"units": "degree", "long_name": TERRAIN_LONG_NAMES[key], "source_band": descriptions[index]}
+        variables[key] = layer.rename(key)
+    layers = xr.Dataset(variables)
+    if like is not None:
+        layers = layers.assign_coords(y=like["y"].values, x=like["x"].values)
+        if like.chunks and chunks is None:  # align blocks with the image's for blockwise work
+            layers = layers.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
+    layers.attrs = {"source": str(path), "source_kind": "envi_obs"}
+    return layers

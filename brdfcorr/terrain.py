@@ -1,0 +1,324 @@
+"""Surface orientation: slope and aspect from a DEM, sun and view angles in a tilted surface's frame.
+
+Conventions (``docs/conventions.md``, "Tilted surfaces"): all angles in degrees. ``slope`` is the
+angle between the surface normal and the vertical, in [0, 90]; ``aspect`` is the azimuth, clockwise
+from north, of the direction the surface faces (its downslope direction, the horizontal part of its
+normal), the convention of the AVIRIS-NG/-3 ``obs_ort`` "Slope" and "Aspect" bands (the
+"Cosine(i)" band of the real line ang20170323t202244 equals :func:`cos_incidence` of its stored
+angles to 1e-16; ``tests/test_terrain.py``). In the east-north-up frame the unit vectors are::
+
+    normal       n = (sin s sin A,  sin s cos A,  cos s)          (slope s, aspect A)
+    to the sun   i = (sin ti sin saa, sin ti cos saa, cos ti)
+    to sensor    r = (sin tr sin vaa, sin tr cos vaa, cos tr)
+
+The local frame of a tilted surface is the east-north-up frame rotated about the horizontal axis
+``z x n`` by the slope, so that ``n`` becomes the local vertical. Local zeniths are the angles of
+``i`` and ``r`` from ``n``; local azimuths are measured in the tilted plane from the image of north
+(for a horizontal surface the local frame is the horizontal one). BRDF models depend only on the
+two local zeniths and the local relative azimuth, which do not depend on that choice.
+
+References
+----------
+.. [1] B. K. P. Horn (1981): Hill shading and the reflectance map. Proc. IEEE 69(1), 14-47.
+.. [2] P. M. Teillet, B. Guindon, D. G. Goodenough (1982): On the slope-aspect correction of
+   multispectral scanner data. Can. J. Remote Sens. 8(2), 84-106.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import dask.array as da
+import numpy as np
+import xarray as xr
+
+from brdfcorr._arrays import array_function, cosd, sind
+from brdfcorr.errors import InputError
+
+__all__ = [
+    "LocalAngles",
+    "SlopeAspect",
+    "cos_incidence",
+    "local_angles",
+    "slope_aspect",
+    "slope_aspect_layers",
+]
+
+
+class SlopeAspect(NamedTuple):
+    """Surface orientation per pixel: ``slope`` [deg] in [0, 90] and ``aspect`` [deg] in [0, 360)."""
+
+    slope: xr.DataArray
+    aspect: xr.DataArray
+
+
+class LocalAngles(NamedTuple):
+    """Sun and view angles in a tilted surface's frame [deg] (module docstring)."""
+
+    sza: object
+    saa: object
+    vza: object
+    vaa: object
+
+
+def _unit(zenith, azimuth):
+    """East, north, up components of the unit vector at (zenith, azimuth) [deg]."""
+    sin_z = sind(zenith)
+    return sin_z * sind(azimuth), sin_z * cosd(azimuth), cosd(zenith)
+
+
+def _angles_of(east, north, up):
+    """Zenith [deg] in [0, 180] and azimuth [deg] in [0, 360) of a vector."""
+    zenith = np.degrees(np.arctan2(np.hypot(east, north), up))
+    azimuth = np.degrees(np.arctan2(east, north)) % 360.0
+    return zenith, azimuth
+
+
+def _rotation(slope, aspect):
+    """The rotation taking the surface normal to the vertical, as (k_east, k_north, cos, sin): the
+    rotation about the horizontal unit axis ``k = z x n / |z x n| = (-cos A, sin A, 0)`` (perpendicular
+    to the aspect) by ``-slope``."""
+    return -cosd(aspect), sind(aspect), cosd(slope), -sind(slope)
+
+
+def _to_local(zenith, azimuth, rotation):
+    """One direction rotated into the surface frame (Rodrigues' rotation formula)."""
+    k_east, k_north, cos_s, sin_s = rotation
+    east, north, up = _unit(zenith, azimuth)
+    k_dot_v = k_east * east + k_north * north
+    # v cos s + (k x v) sin s + k (k.v)(1 - cos s); k x v = (k_n up, -k_e up, k_e north - k_n east)
+    new_east = east * cos_s + k_north * up * sin_s + k_east * k_dot_v * (1.0 - cos_s)
+    new_north = north * cos_s - k_east * up * sin_s + k_north * k_dot_v * (1.0 - cos_s)
+    new_up = up * cos_s + (k_east * north - k_north * east) * sin_s
+    return _angles_of(new_east, new_north, new_up)
+
+
+def _local_angles(sza, saa, vza, vaa, slope, aspect):
+    rotation = _rotation(slope, aspect)
+    local_sza, local_saa = _to_local(sza, saa, rotation)
+    local_vza, local_vaa = _to_local(vza, vaa, rotation)
+    # A horizontal surface's frame is the horizontal one: its angles are returned exactly as given,
+    # so that slope 0 reproduces the horizontal correction bit for bit.
+    flat = slope == 0
+    angles = (np.where(flat, sza, local_sza), np.where(flat, saa, local_saa),
+              np.where(flat, vza, local_vza), np.where(flat, vaa, local_vaa))
+    return LocalAngles(*np.broadcast_arrays(*angles))
+
+
+def local_angles(sza, saa, vza, vaa, slope, aspect) -> LocalAngles:
+    """Sun and view angles in the frame of a tilted surface.
+
+    Parameters
+    ----------
+    sza, saa : array-like
+        Solar zenith and azimuth (pixel towards the sun, clockwise from north) [deg].
+    vza, vaa : array-like
+        View zenith and azimuth (pixel towards the sensor, clockwise from north) [deg].
+    slope : array-like
+        Surface slope [deg], in [0, 90].
+    aspect : array-like
+        Azimuth of the direction the surface faces (downslope), clockwise from north [deg].
+
+    Returns
+    -------
+    LocalAngles
+        ``(sza, saa, vza, vaa)`` in the surface's frame [deg]; zeniths in [0, 180] (>= 90: the sun
+        or the sensor is behind the surface), azimuths in [0, 360) from the image of north in the
+        tilted plane (module docstring). Where ``slope == 0`` the inputs are returned unchanged.
+        numpy, dask (lazy) or xarray like the inputs.
+
+    Notes
+    -----
+    Each direction is rotated by Rodrigues' formula about the horizontal axis perpendicular to the
+    aspect by the slope, the rotation that takes the surface normal to the vertical. The local sun
+    zenith is the incidence angle of Teillet et al. 1982 [2]_, eq. 1 (:func:`cos_incidence`).
+    Examples: a roof of slope 20 deg facing the sun (aspect = saa) under a sun at 40 deg has the
+    sun at 20 deg in its frame, and a nadir sensor at 20 deg on the other side (relative azimuth
+    180): the specular geometry.
+    """
+    arguments = {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa, "slope": slope, "aspect": aspect}
+    labelled = [key for key, value in arguments.items() if isinstance(value, xr.DataArray)]
+    if not labelled:
+        return _local_angles(**arguments)
+    results = xr.apply_ufunc(
+        lambda *values: tuple(_local_angles(**{**arguments, **dict(zip(labelled, values))})),
+        *(arguments[key] for key in labelled), dask="allowed", keep_attrs=False, output_core_dims=[[]] * 4,
+    )
+    names = ("sza", "saa", "vza", "vaa")
+    long_names = ("local solar zenith angle", "local solar azimuth angle", "local view zenith angle",
+                  "local view azimuth angle")
+    out = []
+    for result, name, long_name in zip(results, names, long_names):
+        result.name = f"local_{name}"
+        result.attrs = {"units": "degree", "long_name": long_name}
+        out.append(result)
+    return LocalAngles(*out)
+
+
+@array_function("cos_i", "1", "cosine of the local solar incidence angle")
+def cos_incidence(sza, saa, slope, aspect):
+    """Cosine of the solar incidence angle on a tilted surface (cos i).
+
+    Parameters
+    ----------
+    sza, saa : array-like
+        Solar zenith and azimuth (pixel towards the sun, clockwise from north) [deg].
+    slope, aspect : array-like
+        Surface slope [deg] and the azimuth it faces (downslope, clockwise from north) [deg].
+
+    Returns
+    -------
+    cos_i : array-like
+        ``cos i`` [-], in [-1, 1]; <= 0 where the surface is self-shadowed.
+
+    Notes
+    -----
+    Teillet et al. 1982 [2]_, eq. 1::
+
+        cos i = cos sza cos s + sin sza sin s cos(saa - A)
+    """
+    return cosd(sza) * cosd(slope) + sind(sza) * sind(slope) * cosd(saa - aspect)
+
+
+def _pixel_size(dem: xr.DataArray, pixel_size) -> tuple[float, float]:
+    """(dx, dy) [m]: east per column and north per row (dy < 0 when rows go south)."""
+    if pixel_size is not None:
+        if np.ndim(pixel_size) == 0:
+            return float(pixel_size), -float(pixel_size)
+        dx, dy = (float(v) for v in pixel_size)
+        return dx, dy
+    try:
+        import rioxarray  # noqa: F401  (registers the .rio accessor)
+
+        transform = dem.rio.transform()
+        crs = dem.rio.crs
+    except Exception as error:  # no georeference rioxarray can read
+        raise InputError(f"DEM: no pixel size (give pixel_size): {error}") from error
+    if crs is None:
+        raise InputError("DEM: no CRS, so no pixel size in metres; give pixel_size=(dx, dy)")
+    if crs.is_geographic:
+        raise InputError(f"DEM: CRS {crs} is geographic (degrees); reproject it to metres first")
+    if transform.b != 0 or transform.d != 0:
+        raise InputError(f"DEM: rotated grid (transform {tuple(transform)[:6]}) is not supported")
+    return float(transform.a), float(transform.e)
+
+
+def _odd_pad(z, axis: int):
+    """Pad one line on each side along ``axis`` with linear extrapolation ``2 z0 - z1``, so that the
+    central differences at the edge become one-sided ones (exact for planes)."""
+    xp = da if isinstance(z, da.Array) else np
+    n = z.shape[axis]
+    first = 2.0 * xp.take(z, [0], axis=axis) - xp.take(z, [1], axis=axis)
+    last = 2.0 * xp.take(z, [n - 1], axis=axis) - xp.take(z, [n - 2], axis=axis)
+    return xp.concatenate([first, z, last], axis=axis)
+
+
+def _horn(z, dx: float, dy: float):
+    """Slope and aspect [deg] of a 2-D elevation array by Horn's 3x3 finite differences."""
+    z = _odd_pad(_odd_pad(z.astype(np.float64), 0), 1)
+    # The 3x3 window  a b c / d e f / g h i  around each pixel (rows downwards, columns rightwards).
+    a, b, c = z[:-2, :-2], z[:-2, 1:-1], z[:-2, 2:]
+    d, f = z[1:-1, :-2], z[1:-1, 2:]
+    g, h, i = z[2:, :-2], z[2:, 1:-1], z[2:, 2:]
+    dz_dcol = ((c + 2.0 * f + i) - (a + 2.0 * d + g)) / 8.0
+    dz_drow = ((g + 2.0 * h + i) - (a + 2.0 * b + c)) / 8.0
+    dz_deast, dz_dnorth = dz_dcol / dx, dz_drow / dy
+    slope = np.degrees(np.arctan(np.hypot(dz_deast, dz_dnorth)))
+    # The surface faces downslope: its normal's horizontal part is (-dz/de, -dz/dn).
+    aspect = np.degrees(np.arctan2(-dz_deast, -dz_dnorth)) % 360.0
+    return slope, np.where(slope == 0, 0.0, aspect)
+
+
+def slope_aspect(dem, *, pixel_size: float | tuple[float, float] | None = None) -> SlopeAspect:
+    """Slope and aspect [deg] of a DEM or surface model on the image grid (Horn 1981).
+
+    Parameters
+    ----------
+    dem : xarray.DataArray (y, x) or array-like
+        Elevation [m] on the image grid; numpy or dask backed (stays lazy). A single-band (1, y, x)
+        raster is accepted.
+    pixel_size : float or (dx, dy), optional
+        Ground distance [m] per column (east) and per row (north; negative when rows go south, as
+        in a north-up raster). A single number d means (d, -d). By default from the raster's
+        transform (``dem.rio.transform()``: ``a`` and ``e``); required for arrays without one.
+
+    Returns
+    -------
+    SlopeAspect
+        ``(slope, aspect)`` DataArrays (y, x) [deg] with the DEM's coords: slope in [0, 90],
+        aspect (direction faced, downslope, clockwise from north) in [0, 360); 0 on flat ground.
+        NaN in the DEM makes the 3x3 neighbourhood NaN.
+
+    Raises
+    ------
+    InputError
+        No pixel size (no CRS or a geographic one, a rotated grid), or a grid under 2 x 2.
+
+    Notes
+    -----
+    Horn 1981 [1]_, eqs. in section III.B: with the 3x3 window ``a b c / d e f / g h i`` (rows
+    downwards)::
+
+        dz/dcol = ((c + 2f + i) - (a + 2d + g)) / 8,     dz/drow = ((g + 2h + i) - (a + 2b + c)) / 8
+        p = dz/dcol / dx,   q = dz/drow / dy             (east and north gradients)
+        slope = arctan(sqrt(p^2 + q^2)),   aspect = atan2(-p, -q)  (clockwise from north)
+
+    Edge pixels use a window extended by linear extrapolation (``2 z0 - z1``), which turns the
+    central differences into one-sided ones: exact for planes, so a planar roof or slope has the
+    same slope and aspect up to the image border.
+    """
+    if not isinstance(dem, xr.DataArray):
+        array = dem if isinstance(dem, da.Array) else np.asarray(dem)
+        dem = xr.DataArray(array, dims=("band", "y", "x")[-array.ndim:] if array.ndim <= 3 else None)
+    if dem.ndim == 3 and dem.shape[0] == 1:
+        dem = dem.isel({dem.dims[0]: 0}, drop=True)
+    if dem.ndim != 2:
+        raise InputError(f"DEM must be 2-D (y, x), got dims {dem.dims}")
+    if min(dem.shape) < 2:
+        raise InputError(f"DEM of shape {dem.shape} is too small for 3x3 differences (at least 2 x 2)")
+    dx, dy = _pixel_size(dem, pixel_size)
+    if not (np.isfinite(dx) and np.isfinite(dy) and dx != 0 and dy != 0):
+        raise InputError(f"DEM pixel size ({dx}, {dy}) must be finite and non-zero")
+    data = dem.data
+    slope, aspect = _horn(data, dx, dy)
+    if isinstance(data, da.Array):
+        slope, aspect = slope.rechunk(data.chunks), aspect.rechunk(data.chunks)
+    coords = {k: v for k, v in dem.coords.items() if set(v.dims) <= set(dem.dims)}
+    return SlopeAspect(
+        xr.DataArray(slope, dims=dem.dims, coords=coords, name="slope",
+                     attrs={"units": "degree", "long_name": "surface slope (Horn 1981)"}),
+        xr.DataArray(aspect, dims=dem.dims, coords=coords, name="aspect",
+                     attrs={"units": "degree", "long_name": "surface aspect (downslope, clockwise from north)"}),
+    )
+
+
+def slope_aspect_layers(raster: xr.DataArray) -> SlopeAspect:
+    """Slope and aspect [deg] from a 2-band raster (band, y, x).
+
+    Band descriptions (``long_name`` attr, as rioxarray reads them) naming ``slope`` and ``aspect``
+    (case-insensitive, anywhere in the name) decide which band is which; without such names the
+    order is slope, aspect.
+
+    Raises
+    ------
+    InputError
+        Not 2 bands, or names that do not give each of slope and aspect once.
+    """
+    if raster.ndim != 3 or raster.shape[0] != 2:
+        raise InputError(f"slope/aspect raster must have 2 bands (band, y, x), got shape {raster.shape}")
+    names = raster.attrs.get("long_name")
+    order = (0, 1)
+    if isinstance(names, (tuple, list)) and len(names) == 2:
+        lowered = [str(name).lower() for name in names]
+        found = {key: [i for i, name in enumerate(lowered) if key in name] for key in ("slope", "aspect")}
+        if any(found.values()):
+            if sorted(len(v) for v in found.values()) != [1, 1] or found["slope"] == found["aspect"]:
+                raise InputError(f"slope/aspect raster: band names {tuple(names)} must name slope and aspect once")
+            order = (found["slope"][0], found["aspect"][0])
+    band = raster.dims[0]
+    layers = []
+    for index, name in zip(order, ("slope", "aspect")):
+        layer = raster.isel({band: index}, drop=True).rename(name)
+        layer.attrs = {"units": "degree", "long_name": f"surface {name}"}
+        layers.append(layer)
+    return SlopeAspect(*layers)

@@ -1,0 +1,518 @@
+"""Topographic illumination correction: cosine, C, SCS and SCS+C (lazy, chunked).
+
+A surface of slope s and aspect A under a sun at zenith sza receives the direct sunlight at the
+incidence angle i (:func:`brdfcorr.terrain.cos_incidence`); a reflectance computed for horizontal
+irradiance (as image reflectance products are) is then too bright on slopes facing the sun and too
+dark on those facing away. The corrections scale each pixel and band to a horizontal surface::
+
+    cosine  (Teillet et al. 1982, eq. 4)      rho_h = rho_t * cos sza / cos i
+    C       (Teillet et al. 1982, eq. 8)      rho_h = rho_t * (cos sza + C) / (cos i + C)
+    SCS     (Gu & Gillespie 1998, eq. 8)      rho_h = rho_t * cos s cos sza / cos i
+    SCS+C   (Soenen et al. 2005, eq. 9)       rho_h = rho_t * (cos s cos sza + C) / (cos i + C)
+
+The cosine correction is exact for a Lambertian surface: it removes the illumination term, and
+chained with :func:`brdfcorr.correct.normalize` given the same slope and aspect (the BRDF in the
+surface's frame) it is exact for any surface whose model is known (``docs/terrain.md``). C and SCS+C
+are the empirical corrections for when the BRDF is not modelled: C = b / m from the least-squares
+line ``rho_t = m cos i + b`` of the image's pixels, per class and band (:func:`fit_c`).
+
+Guard: a fit with fewer than ``min_pixels`` pixels, a slope ``m <= 0``, a coefficient of
+determination R^2 below ``r2_min`` (default :data:`R2_MIN` = 0.1: cos i explains under 10 % of the
+variance, the line says nothing about the illumination) or C outside ``c_range`` (default
+:data:`C_RANGE` = [0, 10]: a negative C makes ``cos i + C`` vanish on lit slopes, and above 10 the
+correction changes a pixel by under 10 % of the cosine correction's change) is rejected: that class
+and band are not corrected (factor 1), flagged ``fit_rejected``, and a warning names them.
+
+QA layer (uint8 bit flags, CF ``flag_masks``/``flag_meanings`` in its attrs):
+
+==== ============= =========================================================================
+bit  name          meaning
+==== ============= =========================================================================
+1    nodata        NaN or +-inf in some band, angle, slope or aspect: output nodata (there)
+2    no_class      C methods with a class map: class 0, NaN or its nodata: not corrected
+4    fit_rejected  the C fit of the pixel's class was rejected in some band: not corrected there
+8    limited       the factor was clipped to the limits in at least one band
+16   shadowed      cos i <= ``cos_i_min`` (self-shadowed, no direct sunlight): output nodata
+==== ============= =========================================================================
+
+References
+----------
+.. [1] P. M. Teillet, B. Guindon, D. G. Goodenough (1982): On the slope-aspect correction of
+   multispectral scanner data. Can. J. Remote Sens. 8(2), 84-106.
+.. [2] X. Gu, A. Gillespie (1998): Topographic normalization of Landsat TM images of forest based
+   on subpixel sun-canopy-sensor geometry. Remote Sens. Environ. 64, 166-175.
+.. [3] S. A. Soenen, D. R. Peddle, C. A. Coburn (2005): SCS+C: a modified sun-canopy-sensor
+   topographic correction in forested terrain. IEEE Trans. Geosci. Remote Sens. 43(9), 2148-2159.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from typing import Any, Literal, NamedTuple
+
+import dask
+import dask.array as da
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from brdfcorr._arrays import cosd
+from brdfcorr.correct import _check_grid
+from brdfcorr.errors import BrdfcorrWarning, InputError
+from brdfcorr.terrain import cos_incidence
+
+__all__ = [
+    "METHODS",
+    "C_RANGE",
+    "R2_MIN",
+    "MIN_PIXELS",
+    "TOPO_QA_FLAGS",
+    "Topographic",
+    "fit_c",
+    "topographic_correction",
+    "topographic_factor",
+]
+
+Method = Literal["cosine", "c", "scs", "scs+c"]
+METHODS: tuple[str, ...] = ("cosine", "c", "scs", "scs+c")
+#: Methods with a fitted C coefficient.
+C_METHODS = ("c", "scs+c")
+#: Least coefficient of determination of an accepted C fit [-].
+R2_MIN = 0.1
+#: Accepted range of C [-].
+C_RANGE = (0.0, 10.0)
+#: Least number of pixels of an accepted C fit.
+MIN_PIXELS = 30
+
+TOPO_QA_NODATA = np.uint8(1)
+TOPO_QA_NO_CLASS = np.uint8(2)
+TOPO_QA_FIT_REJECTED = np.uint8(4)
+TOPO_QA_LIMITED = np.uint8(8)
+TOPO_QA_SHADOWED = np.uint8(16)
+TOPO_QA_FLAGS = {
+    "nodata": TOPO_QA_NODATA,
+    "no_class": TOPO_QA_NO_CLASS,
+    "fit_rejected": TOPO_QA_FIT_REJECTED,
+    "limited": TOPO_QA_LIMITED,
+    "shadowed": TOPO_QA_SHADOWED,
+}
+
+_TABLE_COLUMNS = ["class", "band", "wavelength", "n", "slope", "intercept", "r2", "c", "accepted", "reason"]
+
+
+class Topographic(NamedTuple):
+    """Result of :func:`topographic_correction`."""
+
+    reflectance: xr.DataArray
+    qa: xr.DataArray
+    c_table: pd.DataFrame | None
+
+
+def topographic_factor(method: str, cos_i, cos_sza, cos_slope=None, c=None):
+    """The topographic correction factor rho_h / rho_t [-] (module docstring equations).
+
+    Parameters
+    ----------
+    method : {"cosine", "c", "scs", "scs+c"}
+    cos_i : array-like
+        Cosine of the solar incidence angle on the surface [-] (:func:`brdfcorr.terrain.cos_incidence`).
+    cos_sza : array-like
+        Cosine of the solar zenith [-].
+    cos_slope : array-like, optional
+        Cosine of the slope [-]; required by "scs" and "scs+c".
+    c : array-like, optional
+        The C coefficient [-]; required by "c" and "scs+c".
+
+    Returns
+    -------
+    array-like
+        ``cos sza / cos i`` (cosine, Teillet et al. 1982 eq. 4), ``(cos sza + C) / (cos i + C)``
+        (C, eq. 8), ``cos s cos sza / cos i`` (SCS, Gu & Gillespie 1998 eq. 8),
+        ``(cos s cos sza + C) / (cos i + C)`` (SCS+C, Soenen et al. 2005 eq. 9).
+    """
+    if method not in METHODS:
+        raise InputError(f"topographic method must be one of {', '.join(METHODS)}, got {method!r}")
+    if method in ("scs", "scs+c") and cos_slope is None:
+        raise InputError(f"topographic method {method!r} needs cos_slope")
+    if method in C_METHODS and c is None:
+        raise InputError(f"topographic method {method!r} needs the C coefficient")
+    numerator = cos_sza if method in ("cosine", "c") else cos_slope * cos_sza
+    if method in C_METHODS:
+        return (numerator + c) / (cos_i + c)
+    return numerator / cos_i
+
+
+# --- the C fit -------------------------------------------------------------------------------------
+
+def _class_index(classes, class_ids: np.ndarray, class_nodata):
+    """Index into ``class_ids`` per pixel and whether the pixel belongs to one of them."""
+    if classes is None:
+        return None, None
+    classes = np.asarray(classes).reshape(-1)
+    no_class = classes == 0
+    if classes.dtype.kind == "f":
+        no_class |= np.isnan(classes)
+    if class_nodata is not None:
+        no_class |= classes == class_nodata
+    index = np.clip(np.searchsorted(class_ids, classes), 0, max(class_ids.size - 1, 0))
+    member = ~no_class & (class_ids[index] == classes) if class_ids.size else np.zeros(classes.shape, bool)
+    return index, member
+
+
+def _block_sums(reflectance, cos_i, classes, class_ids, class_nodata, cos_i_min):
+    """Sums (n, x, y, xx, xy, yy) per class and band of one block: array (class, band, 6)."""
+    n_bands = reflectance.shape[0]
+    cube = np.asarray(reflectance, dtype=np.float64).reshape(n_bands, -1)
+    x = np.asarray(cos_i, dtype=np.float64).reshape(-1)
+    n_classes = max(len(class_ids), 1)
+    index, member = _class_index(classes, class_ids, class_nodata)
+    if index is None:
+        index, member = np.zeros(x.shape, dtype=np.intp), np.ones(x.shape, bool)
+    with np.errstate(invalid="ignore"):
+        lit = member & np.isfinite(x) & (x > cos_i_min)
+    sums = np.zeros((n_classes, n_bands, 6))
+    for band in range(n_bands):
+        y = cube[band]
+        use = lit & np.isfinite(y)
+        where, xs, ys = index[use], x[use], y[use]
+        for k, weights in enumerate((None, xs, ys, xs * xs, xs * ys, ys * ys)):
+            sums[:, band, k] = np.bincount(where, weights=weights, minlength=n_classes)
+    return sums
+
+
+def _fit_row(sums: np.ndarray, r2_min: float, c_range: tuple[float, float], min_pixels: int) -> dict:
+    n, sx, sy, sxx, sxy, syy = sums
+    row: dict[str, Any] = dict(n=int(n), slope=np.nan, intercept=np.nan, r2=np.nan, c=np.nan)
+    if n < min_pixels:
+        return {**row, "accepted": False, "reason": f"{int(n)} pixels < {min_pixels}"}
+    var_x, var_y, cov = sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n
+    if var_x <= 0:
+        return {**row, "accepted": False, "reason": "cos i does not vary"}
+    slope = cov / var_x
+    intercept = (sy - slope * sx) / n
+    r2 = cov * cov / (var_x * var_y) if var_y > 0 else 0.0
+    c = intercept / slope if slope != 0 else np.inf
+    row.update(slope=slope, intercept=intercept, r2=r2, c=c)
+    if slope <= 0:
+        return {**row, "accepted": False, "reason": f"slope m = {slope:.3g} <= 0"}
+    if r2 < r2_min:
+        return {**row, "accepted": False, "reason": f"R2 = {r2:.3f} < {r2_min:g}"}
+    if not c_range[0] <= c <= c_range[1]:
+        return {**row, "accepted": False, "reason": f"C = {c:.3g} outside [{c_range[0]:g}, {c_range[1]:g}]"}
+    return {**row, "accepted": True, "reason": ""}
+
+
+def _class_ids(classes, class_nodata) -> np.ndarray:
+    values = classes.data
+    unique = da.unique(values).compute() if isinstance(values, da.Array) else np.unique(values)
+    keep = unique != 0
+    if unique.dtype.kind == "f":
+        keep &= ~np.isnan(unique)
+    if class_nodata is not None:
+        keep &= unique != class_nodata
+    return unique[keep]
+
+
+def fit_c(
+    reflectance,
+    cos_i,
+    classes=None,
+    *,
+    class_nodata: float | None = None,
+    r2_min: float = R2_MIN,
+    c_range: tuple[float, float] = C_RANGE,
+    min_pixels: int = MIN_PIXELS,
+    cos_i_min: float = 0.0,
+) -> pd.DataFrame:
+    """Fit the C coefficient per class and band: least squares of reflectance on cos i.
+
+    Parameters
+    ----------
+    reflectance : xarray.DataArray (band, y, x)
+        Reflectance (any units); NaN and +-inf are left out. numpy or dask backed (read once).
+    cos_i : xarray.DataArray (y, x)
+        Cosine of the solar incidence angle [-] (:func:`brdfcorr.terrain.cos_incidence`).
+    classes : xarray.DataArray (y, x), optional
+        Class map; 0, NaN and ``class_nodata`` are no class and left out. Without it all pixels are
+        one class, reported as class 0.
+    class_nodata : number, optional
+        Nodata value of the class map.
+    r2_min : float, default :data:`R2_MIN`
+        Least coefficient of determination of an accepted fit [-].
+    c_range : (float, float), default :data:`C_RANGE`
+        Accepted range of C [-].
+    min_pixels : int, default :data:`MIN_PIXELS`
+        Least number of pixels of an accepted fit.
+    cos_i_min : float, default 0
+        Only lit pixels, ``cos i > cos_i_min``, enter the fit.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per class and band: ``class``, ``band`` (0-based), ``wavelength`` [nm] (NaN
+        without a ``wavelength`` coord), ``n``, ``slope`` m and ``intercept`` b of
+        ``rho = m cos i + b``, ``r2``, ``c`` = b / m (Teillet et al. 1982, eq. 7), ``accepted``
+        and, when rejected, the ``reason`` (module docstring, "Guard").
+    """
+    reflectance = _as_cube(reflectance)
+    cos_i = _layer(reflectance, "cos_i", cos_i)
+    if classes is not None:
+        classes = _layer(reflectance, "classes", classes)
+        class_ids = _class_ids(classes, class_nodata)
+    else:
+        class_ids = np.array([0])
+    arrays = [reflectance.data, cos_i.data] + ([classes.data] if classes is not None else [])
+    options = dict(class_ids=class_ids, class_nodata=class_nodata, cos_i_min=float(cos_i_min))
+    if any(isinstance(a, da.Array) for a in arrays):
+        sums = _dask_sums(arrays, options)
+    else:
+        sums = _block_sums(arrays[0], arrays[1], arrays[2] if classes is not None else None, **options)
+    wavelengths = (reflectance["wavelength"].values if "wavelength" in reflectance.coords
+                   else np.full(reflectance.shape[0], np.nan))
+    rows = []
+    for k, class_id in enumerate(class_ids.tolist()):
+        for band in range(reflectance.shape[0]):
+            row = _fit_row(sums[k, band], float(r2_min), (float(c_range[0]), float(c_range[1])), int(min_pixels))
+            rows.append({"class": class_id, "band": band, "wavelength": float(wavelengths[band]), **row})
+    return pd.DataFrame(rows, columns=_TABLE_COLUMNS)
+
+
+def _dask_sums(arrays, options) -> np.ndarray:
+    """The per-block sums of :func:`_block_sums`, added up in one pass over the image."""
+    cube = arrays[0] if isinstance(arrays[0], da.Array) else da.from_array(arrays[0], chunks="auto")
+    layers = [da.asarray(a).rechunk(cube.chunks[1:]).to_delayed() for a in arrays[1:]]
+    blocks = cube.to_delayed()
+    band_starts = np.cumsum((0,) + cube.chunks[0])
+    parts = []
+    for b, y, x in np.ndindex(blocks.shape):
+        parts.append((b, dask.delayed(_block_sums)(
+            blocks[b, y, x], layers[0][y, x], layers[1][y, x] if len(layers) > 1 else None, **options)))
+    computed = dask.compute(*(part for _, part in parts))
+    total = np.zeros((max(len(options["class_ids"]), 1), cube.shape[0], 6))
+    for (b, _), sums in zip(parts, computed):
+        total[:, band_starts[b]:band_starts[b + 1]] += sums
+    return total
+
+
+# --- the correction --------------------------------------------------------------------------------
+
+def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=None, *, method, class_ids,
+                   c_matrix, accepted, class_nodata, limits, cos_i_min, out_dtype):
+    """Correct one (band, y, x) block; returns (corrected block, QA block (1, y, x))."""
+    n_bands, ny, nx = reflectance.shape
+    cube = reflectance.reshape(n_bands, -1)
+    ci, cz, cs = (np.asarray(a, dtype=np.float64).reshape(-1) for a in (cos_i, cos_sza, cos_slope))
+    qa = np.zeros(ci.size, dtype=np.uint8)
+    finite = np.isfinite(ci) & np.isfinite(cz) & np.isfinite(cs)
+    qa[~finite] |= TOPO_QA_NODATA
+    with np.errstate(invalid="ignore"):
+        shadowed = finite & (ci <= cos_i_min)
+    qa[shadowed] |= TOPO_QA_SHADOWED
+    if cube.dtype.kind == "f":
+        qa[~np.isfinite(cube).all(axis=0)] |= TOPO_QA_NODATA
+    index, member = None, np.ones(ci.size, bool)
+    if method in C_METHODS:
+        index, member = _class_index(classes, class_ids, class_nodata)
+        if index is None:
+            index, member = np.zeros(ci.size, dtype=np.intp), np.ones(ci.size, bool)
+        else:
+            qa[~member] |= TOPO_QA_NO_CLASS
+    usable = finite & ~shadowed
+    out = np.empty(cube.shape, dtype=out_dtype)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for position, band in enumerate(np.asarray(band_index).reshape(-1)):
+            factor = np.ones(ci.size)
+            if index is None:
+                factor = topographic_factor(method, ci, cz, cs)
+            else:
+                ok = member & accepted[index, band]
+                qa[member & ~ok] |= TOPO_QA_FIT_REJECTED
+                factor[ok] = topographic_factor(method, ci[ok], cz[ok], cs[ok], c_matrix[index[ok], band])
+            if limits is not None:
+                qa[usable & ((factor < limits[0]) | (factor > limits[1]))] |= TOPO_QA_LIMITED
+                factor = np.clip(factor, *limits)
+            factor[~usable] = np.nan
+            np.multiply(cube[position], factor, out=out[position], casting="unsafe")
+    return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
+
+
+def _as_cube(reflectance) -> xr.DataArray:
+    if not isinstance(reflectance, xr.DataArray):
+        array = reflectance if isinstance(reflectance, da.Array) else np.asarray(reflectance)
+        reflectance = xr.DataArray(array, dims=("band", "y", "x"), name="reflectance")
+    if reflectance.ndim != 3:
+        raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
+    return reflectance
+
+
+def _layer(reflectance: xr.DataArray, name: str, value) -> xr.DataArray:
+    """A (y, x) layer on the reflectance's grid (numbers broadcast); GridMismatchError otherwise."""
+    spatial = reflectance.dims[1:]
+    if not isinstance(value, xr.DataArray):
+        array = value if isinstance(value, da.Array) else np.asarray(value)
+        if array.ndim == 0:
+            array = np.broadcast_to(array, reflectance.shape[1:])
+        if array.ndim != 2:
+            raise InputError(f"{name} must be 2-D (y, x), got shape {array.shape}")
+        value = xr.DataArray(array, dims=spatial, name=name)
+    # Same checks as the BRDF step (shape, coordinates, CRS); then positional: the output takes
+    # the reflectance's coordinates.
+    value = _check_grid(reflectance, name, value)
+    return value.drop_vars(list(value.coords))
+
+
+def _c_lookup(c_table: pd.DataFrame, n_bands: int):
+    """Class ids, C (class, band) and accepted (class, band) arrays from a C table."""
+    missing = {"class", "band", "c", "accepted"} - set(c_table.columns)
+    if missing:
+        raise InputError(f"C table lacks the column(s) {sorted(missing)}")
+    class_ids = np.unique(c_table["class"].to_numpy())
+    c_matrix = np.zeros((class_ids.size, n_bands))
+    accepted = np.zeros((class_ids.size, n_bands), dtype=bool)
+    bands = c_table["band"].to_numpy().astype(int)
+    if bands.size and not ((bands >= 0) & (bands < n_bands)).all():
+        raise InputError(f"C table: bands {sorted(set(bands[(bands < 0) | (bands >= n_bands)]))} outside "
+                         f"the image's {n_bands} bands")
+    rows = np.searchsorted(class_ids, c_table["class"].to_numpy())
+    c_matrix[rows, bands] = c_table["c"].to_numpy(dtype=np.float64)
+    accepted[rows, bands] = c_table["accepted"].to_numpy(dtype=bool) & np.isfinite(c_matrix[rows, bands])
+    return class_ids, c_matrix, accepted
+
+
+def _warn_rejected(table: pd.DataFrame) -> None:
+    rejected = table[~table["accepted"].astype(bool)]
+    if len(rejected):
+        listed = "; ".join(f"class {r['class']} band {r['band']}: {r['reason']}"
+                           for _, r in rejected.head(5).iterrows())
+        more = f" (and {len(rejected) - 5} more)" if len(rejected) > 5 else ""
+        warnings.warn(f"topographic C fit rejected for {len(rejected)} class/band(s), not corrected there: "
+                      f"{listed}{more}", BrdfcorrWarning, stacklevel=3)
+
+
+def topographic_correction(
+    reflectance,
+    sza,
+    saa,
+    slope,
+    aspect,
+    *,
+    method: Method = "scs+c",
+    classes=None,
+    c_table: pd.DataFrame | None = None,
+    limits: tuple[float, float] | None = (0.2, 5.0),
+    class_nodata: float | None = None,
+    r2_min: float = R2_MIN,
+    c_range: tuple[float, float] = C_RANGE,
+    min_pixels: int = MIN_PIXELS,
+    cos_i_min: float = 0.0,
+) -> Topographic:
+    """Correct a reflectance cube for the illumination of sloped terrain.
+
+    Parameters
+    ----------
+    reflectance : xarray.DataArray (band, y, x)
+        Reflectance for horizontal irradiance (any units; kept). numpy or dask backed.
+    sza, saa : xarray.DataArray (y, x) or number
+        Solar zenith and azimuth (pixel towards the sun, clockwise from north) [deg].
+    slope, aspect : xarray.DataArray (y, x) or number
+        Surface slope [deg] and the azimuth it faces (downslope, clockwise from north) [deg]
+        (:func:`brdfcorr.terrain.slope_aspect`, an ``obs_ort`` file's bands).
+    method : {"cosine", "c", "scs", "scs+c"}, default "scs+c"
+        The correction (module docstring). "cosine" is the one to chain with the BRDF correction
+        in the surface's frame (``docs/terrain.md``).
+    classes : xarray.DataArray (y, x), optional
+        Class map: C is fitted per class and band; without it, one C per band for the whole image.
+    c_table : pandas.DataFrame, optional
+        C coefficients to use (the table :func:`fit_c` returns, e.g. from another scene); by
+        default fitted on this image (which reads it once; the correction itself stays lazy).
+    limits : (float, float) or None, default (0.2, 5)
+        The factor is clipped to this range [-]; clipped pixels are flagged ``limited``.
+    class_nodata : number, optional
+        Nodata value of the class map.
+    r2_min, c_range, min_pixels, cos_i_min :
+        The fit's guard (:func:`fit_c`); ``cos_i_min`` also marks the self-shadowed pixels
+        (``cos i <= cos_i_min``, output nodata).
+
+    Returns
+    -------
+    Topographic
+        ``(reflectance, qa, c_table)``: the corrected cube (the input's dims, coords, attrs and
+        chunks; lazy for dask input), the QA layer (y, x) of uint8 flags (module docstring) and the
+        C table used (None for "cosine" and "scs").
+
+    Warns
+    -----
+    BrdfcorrWarning
+        Some class/band C fits were rejected (they are not corrected and flagged).
+    """
+    if method not in METHODS:
+        raise InputError(f"topographic method must be one of {', '.join(METHODS)}, got {method!r}")
+    if limits is not None:
+        limits = (float(limits[0]), float(limits[1]))
+        if not (0 < limits[0] <= 1 <= limits[1] < np.inf):
+            raise InputError(f"factor limits {limits} must satisfy 0 < lower <= 1 <= upper < inf")
+    reflectance = _as_cube(reflectance)
+    sza, saa, slope, aspect = (_layer(reflectance, n, v) for n, v in
+                               (("sza", sza), ("saa", saa), ("slope", slope), ("aspect", aspect)))
+    cos_i = cos_incidence(sza, saa, slope, aspect)
+    class_layer = _layer(reflectance, "classes", classes) if classes is not None else None
+    n_bands = reflectance.shape[0]
+    lookup: tuple = (np.array([0]), np.zeros((1, n_bands)), np.zeros((1, n_bands), bool))
+    if method in C_METHODS:
+        if c_table is None:
+            c_table = fit_c(reflectance, cos_i, class_layer, class_nodata=class_nodata, r2_min=r2_min,
+                            c_range=c_range, min_pixels=min_pixels, cos_i_min=cos_i_min)
+        _warn_rejected(c_table)
+        lookup = _c_lookup(c_table, n_bands)
+    else:
+        c_table = None
+    out_dtype = np.result_type(reflectance.dtype, np.float32)
+    kwargs = dict(method=method, class_ids=lookup[0], c_matrix=lookup[1], accepted=lookup[2],
+                  class_nodata=class_nodata, limits=limits, cos_i_min=float(cos_i_min), out_dtype=out_dtype)
+    layers = [cos_i.data, cosd(sza.data), cosd(slope.data)]
+    if class_layer is not None and method in C_METHODS:
+        layers.append(class_layer.data)
+    if any(isinstance(a, da.Array) for a in [reflectance.data, *layers]):
+        corrected, qa = _correct_dask(reflectance.data, layers, kwargs)
+    else:
+        corrected, qa = _correct_block(reflectance.data, np.arange(n_bands), *layers, **kwargs)
+        qa = qa[0]
+    corrected = xr.DataArray(corrected, dims=reflectance.dims, coords=reflectance.coords,
+                             attrs={**reflectance.attrs, "topographic_correction": method}, name=reflectance.name)
+    band_dim = reflectance.dims[0]
+    spatial_coords = {k: v for k, v in reflectance.coords.items() if band_dim not in v.dims}
+    qa = xr.DataArray(qa, dims=reflectance.dims[1:], coords=spatial_coords, name="topographic_qa", attrs={
+        "long_name": "topographic correction quality flags", "units": "1",
+        "flag_masks": np.array(list(TOPO_QA_FLAGS.values()), dtype=np.uint8),
+        "flag_meanings": " ".join(TOPO_QA_FLAGS),
+    })
+    return Topographic(corrected, qa, c_table)
+
+
+def _correct_dask(cube, layers: Sequence, kwargs):
+    if not isinstance(cube, da.Array):
+        cube = da.from_array(cube, chunks="auto")
+    spatial = cube.chunks[1:]
+    layers = [da.asarray(a).rechunk(spatial) for a in layers]
+    band_index = da.arange(cube.shape[0], chunks=(cube.chunks[0],))
+    out_dtype = kwargs["out_dtype"]
+    pairs = da.blockwise(
+        _correct_block, "byx", cube, "byx", band_index, "b",
+        *(item for layer in layers for item in (layer, "yx")),
+        meta=np.empty((0, 0, 0), dtype=out_dtype), **kwargs,
+    )
+    corrected = pairs.map_blocks(lambda pair: pair[0], dtype=out_dtype, meta=np.empty((0, 0, 0), out_dtype))
+    per_band_chunk = pairs.map_blocks(
+        lambda pair: pair[1], dtype=np.uint8, chunks=((1,) * len(cube.chunks[0]),) + spatial,
+        meta=np.empty((0, 0, 0), np.uint8),
+    )
+    qa = da.reduction(
+        per_band_chunk, chunk=_bitwise_or, aggregate=_bitwise_or, axis=0, dtype=np.uint8,
+        concatenate=True, meta=np.empty((0, 0), np.uint8),
+    )
+    return corrected, qa
+
+
+def _bitwise_or(block, axis, keepdims):
+    return np.bitwise_or.reduce(block, axis=axis, keepdims=keepdims)
