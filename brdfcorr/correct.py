@@ -379,6 +379,111 @@ def resolve_reference(reference, params: ParameterTable) -> ReferenceGeometry:
     return validated if validated is not None else ReferenceGeometry()
 
 
+@dataclass(frozen=True)
+class CorrectionInputs:
+    """The inputs of a per-pixel correction, checked and resolved once (:func:`prepare_inputs`).
+
+    ``arrays`` holds the data of the reflectance (band, y, x), classes, sza, saa, vza and vaa
+    (y, x), ``terrain`` that of slope and aspect (or nothing); ``resolved`` the table at the bands.
+    """
+
+    reflectance: xr.DataArray
+    arrays: list
+    terrain: list
+    resolved: dict
+    reference: ReferenceGeometry
+    limits: tuple[float, float] | None
+    class_nodata: float | None
+    out_dtype: np.dtype
+
+    @property
+    def lazy(self) -> bool:
+        return any(isinstance(a, da.Array) for a in self.arrays + self.terrain)
+
+    def apply(self, block_function, kwargs: Mapping[str, Any]):
+        """``block_function`` on the whole (numpy) inputs as one block."""
+        reference_sza = (
+            _scene_mean(self.arrays[2], np) if self.reference.sza == "mean" else _fixed_sza(self.reference)
+        )
+        cube, *layers = self.arrays
+        return block_function(
+            cube, np.arange(cube.shape[0]), *layers, reference_sza, *self.terrain, **kwargs
+        )
+
+    def blockwise(self, block_function, kwargs: Mapping[str, Any]) -> da.Array:
+        """``block_function`` lazily, one task per reflectance chunk (with its chunks); every
+        layer is rechunked to the reflectance's spatial chunks. Functions built on the same
+        inputs share their dask keys, so computing them together reads each chunk once."""
+        reflectance = self.arrays[0]
+        if not isinstance(reflectance, da.Array):
+            reflectance = da.from_array(reflectance, chunks="auto")
+        spatial_chunks = reflectance.chunks[1:]
+        layers = [da.asarray(a).rechunk(spatial_chunks) for a in self.arrays[1:]]
+        terrain = [da.asarray(a).rechunk(spatial_chunks) for a in self.terrain]
+        band_index = da.arange(reflectance.shape[0], chunks=(reflectance.chunks[0],))
+        if self.reference.sza == "mean":
+            reference_sza = _scene_mean(layers[1], da)
+        else:
+            reference_sza = da.asarray(_fixed_sza(self.reference))
+        return da.blockwise(
+            block_function, "byx",
+            reflectance, "byx", band_index, "b",
+            *(item for layer in layers for item in (layer, "yx")),
+            reference_sza, (),
+            *(item for layer in terrain for item in (layer, "yx")),
+            meta=np.empty((0, 0, 0), dtype=kwargs["out_dtype"]),
+            **kwargs,
+        )
+
+
+def prepare_inputs(
+    reflectance, classes, sza, saa, vza, vaa, params: ParameterTable, reference=None, *,
+    limits: tuple[float, float] | None, wavelengths: Sequence[float] | None, extrapolate: bool,
+    class_nodata: float | None, slope=None, aspect=None,
+) -> CorrectionInputs:
+    """Check the inputs of :func:`normalize` (and of its companions, e.g.
+    :func:`brdfcorr.uncertainty.correction_uncertainty`) and resolve the table to the bands.
+
+    Raises InputError, GridMismatchError or ParameterError as documented in :func:`normalize`.
+    """
+    if not isinstance(params, ParameterTable):
+        raise InputError(f"params must be a ParameterTable, got {type(params).__name__}")
+    if limits is not None:
+        limits = (float(limits[0]), float(limits[1]))
+        if not (0 < limits[0] <= 1 <= limits[1] < np.inf):
+            raise InputError(f"factor limits {limits} must satisfy 0 < lower <= 1 <= upper < inf")
+    reference = resolve_reference(reference, params)
+    reflectance = _as_dataarray(reflectance, "reflectance", ("band", "y", "x"))
+    if reflectance.ndim != 3:
+        raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
+    if (slope is None) != (aspect is None):
+        raise InputError("slope and aspect go together: give both or neither")
+    named = {"classes": classes, "sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
+    if slope is not None:
+        named.update(slope=slope, aspect=aspect)
+    layers = {
+        name: _check_grid(reflectance, name, _as_dataarray(layer, name, reflectance.dims[1:]))
+        for name, layer in named.items()
+    }
+    if layers["classes"].dtype.kind not in "iuf":
+        raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
+    if class_nodata is None:
+        class_nodata = _rio_nodata(layers["classes"])
+    if wavelengths is None and "wavelength" in reflectance.coords:
+        wavelengths = reflectance["wavelength"].values.tolist()
+    resolved = params.for_bands(wavelengths, n_bands=reflectance.shape[0], extrapolate=extrapolate)
+    return CorrectionInputs(
+        reflectance=reflectance,
+        arrays=[reflectance.data] + [layers[name].data for name in ("classes", "sza", "saa", "vza", "vaa")],
+        terrain=[layers[name].data for name in ("slope", "aspect") if name in layers],
+        resolved=resolved,
+        reference=reference,
+        limits=limits,
+        class_nodata=class_nodata,
+        out_dtype=np.result_type(reflectance.dtype, np.float32),
+    )
+
+
 def normalize(
     reflectance,
     classes,
@@ -457,55 +562,24 @@ def normalize(
     ``corrected = observed * f(ref) / f(obs)`` (``docs/conventions.md``, "The correction"), the factor evaluated
     with the model of the pixel's class (paper 003 eq. 1, paper 000 eq. 5) at the pixel's geometry.
     """
-    if not isinstance(params, ParameterTable):
-        raise InputError(f"params must be a ParameterTable, got {type(params).__name__}")
     if unknown not in ("keep", "nan"):
         raise InputError(f"unknown must be 'keep' or 'nan', got {unknown!r}")
-    if limits is not None:
-        limits = (float(limits[0]), float(limits[1]))
-        if not (0 < limits[0] <= 1 <= limits[1] < np.inf):
-            raise InputError(f"factor limits {limits} must satisfy 0 < lower <= 1 <= upper < inf")
-    reference = resolve_reference(reference, params)
-
-    reflectance = _as_dataarray(reflectance, "reflectance", ("band", "y", "x"))
-    if reflectance.ndim != 3:
-        raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
+    inputs = prepare_inputs(
+        reflectance, classes, sza, saa, vza, vaa, params, reference, limits=limits, wavelengths=wavelengths,
+        extrapolate=extrapolate, class_nodata=class_nodata, slope=slope, aspect=aspect,
+    )
+    reflectance, reference, limits = inputs.reflectance, inputs.reference, inputs.limits
     band_dim = reflectance.dims[0]
-    if (slope is None) != (aspect is None):
-        raise InputError("slope and aspect go together: give both or neither")
-    named = {"classes": classes, "sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
-    if slope is not None:
-        named.update(slope=slope, aspect=aspect)
-    layers = {}
-    for name, layer in named.items():
-        layers[name] = _check_grid(reflectance, name, _as_dataarray(layer, name, reflectance.dims[1:]))
-    if layers["classes"].dtype.kind not in "iuf":
-        raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
-    if class_nodata is None:
-        class_nodata = _rio_nodata(layers["classes"])
-
-    if wavelengths is None and "wavelength" in reflectance.coords:
-        wavelengths = reflectance["wavelength"].values.tolist()
-    n_bands = reflectance.shape[0]
-    resolved = params.for_bands(wavelengths, n_bands=n_bands, extrapolate=extrapolate)
-    plans = _Plans({cid: _plan(cid, entry.model, entry.params) for cid, entry in resolved.items()})
-    out_dtype = np.result_type(reflectance.dtype, np.float32)
-
-    arrays = [reflectance.data] + [layers[name].data for name in ("classes", "sza", "saa", "vza", "vaa")]
-    terrain = [layers[name].data for name in ("slope", "aspect") if name in layers]
-    lazy = any(isinstance(a, da.Array) for a in arrays + terrain)
+    plans = _Plans({cid: _plan(cid, entry.model, entry.params) for cid, entry in inputs.resolved.items()})
     kwargs: dict[str, Any] = dict(
         plans=plans, reference=reference, limits=limits, unknown_nan=unknown == "nan",
-        class_nodata=class_nodata, flip_view_azimuth=flip_view_azimuth, out_dtype=out_dtype,
+        class_nodata=inputs.class_nodata, flip_view_azimuth=flip_view_azimuth, out_dtype=inputs.out_dtype,
     )
-    if lazy:
-        corrected, qa = _normalize_dask(arrays, terrain, reference, kwargs)
+    if inputs.lazy:
+        pairs = inputs.blockwise(_normalize_block, kwargs)
+        corrected, qa = _split_pairs(pairs, inputs.reflectance.data.chunks, kwargs["out_dtype"])
     else:
-        reference_sza = _scene_mean(arrays[2], np) if reference.sza == "mean" else _fixed_sza(reference)
-        cube, classes_block, sza, saa, vza, vaa = arrays
-        corrected, qa = _normalize_block(
-            cube, np.arange(n_bands), classes_block, sza, saa, vza, vaa, reference_sza, *terrain, **kwargs
-        )
+        corrected, qa = inputs.apply(_normalize_block, kwargs)
         qa = qa[0]
 
     attrs = dict(reflectance.attrs)
@@ -526,30 +600,11 @@ def normalize(
     return Normalized(corrected, qa)
 
 
-def _normalize_dask(arrays, terrain, reference: ReferenceGeometry, kwargs):
-    reflectance = arrays[0]
-    if not isinstance(reflectance, da.Array):
-        reflectance = da.from_array(reflectance, chunks="auto")
-    spatial_chunks = reflectance.chunks[1:]
-    layers = [da.asarray(a).rechunk(spatial_chunks) for a in arrays[1:]]
-    terrain_layers = [da.asarray(a).rechunk(spatial_chunks) for a in terrain]
-    band_index = da.arange(reflectance.shape[0], chunks=(reflectance.chunks[0],))
-    if reference.sza == "mean":
-        reference_sza = _scene_mean(layers[1], da)
-    else:
-        reference_sza = da.asarray(_fixed_sza(reference))
-    pairs = da.blockwise(
-        _normalize_block, "byx",
-        reflectance, "byx", band_index, "b",
-        *(item for layer in layers for item in (layer, "yx")),
-        reference_sza, (),
-        *(item for layer in terrain_layers for item in (layer, "yx")),
-        meta=np.empty((0, 0, 0), dtype=kwargs["out_dtype"]),
-        **kwargs,
-    )
-    corrected = pairs.map_blocks(_first, dtype=kwargs["out_dtype"], meta=np.empty((0, 0, 0), kwargs["out_dtype"]))
+def _split_pairs(pairs, chunks, out_dtype):
+    """The corrected cube and the QA layer from the blockwise (corrected, QA) pairs."""
+    corrected = pairs.map_blocks(_first, dtype=out_dtype, meta=np.empty((0, 0, 0), out_dtype))
     per_band_chunk = pairs.map_blocks(
-        _second, dtype=np.uint8, chunks=((1,) * len(reflectance.chunks[0]),) + spatial_chunks,
+        _second, dtype=np.uint8, chunks=((1,) * len(chunks[0]),) + tuple(chunks[1:]),
         meta=np.empty((0, 0, 0), np.uint8),
     )
     # Combine the flags of all band chunks of a pixel (limited / NaN in any band).

@@ -34,6 +34,11 @@ Example
 >>> table.to_xarray(wavelengths=[550, 650])["a"].sel({"class": 2}).values.round(3).tolist()
 [0.02, 0.03]
 
+A class fitted by ``brdfcorr fit`` or ``fit-classes`` also carries a ``fit:`` block
+(:class:`FitRecord`): the source, N, chi^2/dof, R^2, the 1-sigma errors and the covariance of the
+fitted parameters, which :meth:`ParameterTable.for_bands` resolves to the bands with the parameters
+(:attr:`BandParameters.covariance`).
+
 Errors in a table raise :class:`brdfcorr.errors.ParameterError` naming the class and the parameter
 (and the file, for :meth:`ParameterTable.load`).
 """
@@ -69,6 +74,7 @@ from brdfcorr.models.materials import load_material, material_names
 __all__ = [
     "ReferenceGeometry",
     "ClassEntry",
+    "FitRecord",
     "ParameterTable",
     "BandParameters",
     "merge_tables",
@@ -119,6 +125,132 @@ class ReferenceGeometry(BaseModel):
 ParameterValue = Annotated[float | list[Number], BeforeValidator(refuse_boolean)]
 
 
+#: A covariance as written in a table: one p x p matrix (nested lists) or one per wavelength.
+#: A numpy array is taken as its nested lists.
+def _nested_lists(value: object) -> object:
+    value = refuse_boolean(value)
+    return value.tolist() if isinstance(value, np.ndarray) else value
+
+
+Covariance = Annotated[
+    list[list[Number]] | list[list[list[Number]]], BeforeValidator(_nested_lists)
+]
+#: A fit statistic: one number, or one per wavelength (band) of the entry.
+Statistic = Annotated[float | list[Number], BeforeValidator(_nested_lists)]
+#: A sample count: one, or one per wavelength (band) of the entry.
+Count = Annotated[int | list[Integer], BeforeValidator(_nested_lists)]
+#: Relative agreement required between ``errors`` and ``sqrt(diag(covariance))``.
+ERROR_TOLERANCE = 1e-6
+
+
+class FitRecord(BaseModel):
+    """Where a class's parameters come from, and how well they are known (the ``fit:`` block).
+
+    ``brdfcorr fit`` and ``brdfcorr fit-classes`` write it; hand-written and library classes have
+    none. The covariance is that of the fitted (free) parameters, shape and intensity jointly;
+    parameters held fixed in the fit are not listed and have zero variance.
+
+    Attributes
+    ----------
+    source : str
+        What the fit used: the command and its input files.
+    parameters : list of str
+        The fitted parameters of the class's model, in the order of the covariance's rows and
+        columns.
+    covariance : list
+        One p x p matrix (nested lists, p = ``len(parameters)``) per wavelength of the entry's
+        ``wavelengths`` (or per band, for per-band parameter lists), or a single p x p matrix when the
+        entry's fitted parameters are band-independent. Units: products of the parameters' registry
+        units. Symmetric, finite, with a non-negative diagonal.
+    n : int or list of int
+        Number of samples (measurements or pixels) fitted; one, or one per matrix.
+    chi2_dof : float or list of float
+        Reduced chi-square: residual sum of squares over (N - p), in the fit's weights (NaN when N <= p).
+    r2 : float or list of float
+        Coefficient of determination of the fit.
+    errors : dict of str to float or list of float
+        1-sigma errors of the fitted parameters, ``sqrt(diag(covariance))`` (checked to a relative
+        :data:`ERROR_TOLERANCE`), in registry units; one value per matrix.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    source: str = Field(min_length=1)
+    parameters: list[str] = Field(min_length=1)
+    n: Count
+    chi2_dof: Statistic
+    r2: Statistic
+    errors: dict[str, Statistic]
+    covariance: Covariance
+
+    @property
+    def per_wavelength(self) -> bool:
+        """True when the record holds one matrix per wavelength (band) of the entry."""
+        return bool(self.covariance) and isinstance(self.covariance[0][0], list)
+
+    def matrices(self) -> np.ndarray:
+        """The covariance as a float64 array of shape (m, p, p); m = 1 for a single matrix."""
+        matrices = np.asarray(self.covariance, dtype=float)
+        return matrices if self.per_wavelength else matrices[np.newaxis]
+
+    @model_validator(mode="after")
+    def _check(self) -> FitRecord:
+        duplicates = sorted(name for name, count in Counter(self.parameters).items() if count > 1)
+        if duplicates:
+            raise ValueError(f"parameters {', '.join(duplicates)} are listed more than once")
+        p = len(self.parameters)
+        try:
+            matrices = self.matrices()
+        except ValueError:  # ragged nested lists
+            raise ValueError("covariance: every matrix must have the same shape") from None
+        if matrices.ndim != 3 or matrices.shape[1:] != (p, p) or matrices.shape[0] == 0:
+            shape = " x ".join(map(str, matrices.shape[1:]))
+            raise ValueError(
+                f"covariance: expected {p} x {p} matrices (one row and column per fitted parameter "
+                f"{', '.join(self.parameters)}), got {shape or 'an empty list'}"
+            )
+        if not np.all(np.isfinite(matrices)):
+            raise ValueError("covariance: values must be finite numbers")
+        if not np.allclose(matrices, np.swapaxes(matrices, 1, 2), rtol=1e-9, atol=0.0):
+            raise ValueError("covariance: the matrices must be symmetric")
+        variances = np.diagonal(matrices, axis1=1, axis2=2)  # (m, p)
+        if np.any(variances < 0):
+            raise ValueError("covariance: the diagonal (variances) must be >= 0")
+        self._check_lengths(matrices.shape[0])
+        self._check_errors(np.sqrt(variances))
+        return self
+
+    def _check_lengths(self, m: int) -> None:
+        for key in ("n", "chi2_dof", "r2"):
+            value = getattr(self, key)
+            if isinstance(value, list) != self.per_wavelength or (isinstance(value, list) and len(value) != m):
+                expected = f"a list of {m} values (one per matrix)" if self.per_wavelength else "one number"
+                raise ValueError(f"{key}: expected {expected}, like the covariance")
+        counts = np.atleast_1d(np.asarray(self.n))
+        if np.any(counts < 1):
+            raise ValueError("n: the number of samples must be >= 1")
+
+    def _check_errors(self, sigma: np.ndarray) -> None:
+        if set(self.errors) != set(self.parameters):
+            raise ValueError(
+                f"errors: expected one entry per fitted parameter ({', '.join(self.parameters)}), "
+                f"got {', '.join(self.errors) or 'none'}"
+            )
+        for column, name in enumerate(self.parameters):
+            value = self.errors[name]
+            if isinstance(value, list) != self.per_wavelength or (
+                    isinstance(value, list) and len(value) != sigma.shape[0]):
+                expected = f"{sigma.shape[0]} values (one per matrix)" if self.per_wavelength else "one number"
+                raise ValueError(f"errors.{name}: expected {expected}, like the covariance")
+            given = np.atleast_1d(np.asarray(value, dtype=float))
+            expected_sigma = sigma[:, column]
+            if not np.all(np.abs(given - expected_sigma) <= ERROR_TOLERANCE * expected_sigma):
+                raise ValueError(
+                    f"errors.{name} = {short_repr(value)} is not sqrt(diag(covariance)) = "
+                    f"{short_repr(expected_sigma.tolist())}"
+                )
+
+
 class ClassEntry(BaseModel):
     """One class of a parameter table: its id in the class map, its model and parameters.
 
@@ -142,6 +274,9 @@ class ClassEntry(BaseModel):
         entry (library key) so that the correction can warn when the material's single-wavelength
         fit is applied to far-away bands; a saved table writes the resolved ``model`` and ``params``
         instead (:meth:`ParameterTable.to_dict`).
+    fit : FitRecord, optional
+        How the parameters were fitted and how well they are known (errors, covariance, chi-square
+        per degree of freedom, N, R^2, source), written by ``brdfcorr fit`` and ``fit-classes``.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -152,6 +287,7 @@ class ClassEntry(BaseModel):
     params: dict[str, ParameterValue]
     wavelengths: list[Number] | None = None
     material: str | None = None
+    fit: FitRecord | None = None
 
     @property
     def label(self) -> str:
@@ -244,7 +380,34 @@ class ClassEntry(BaseModel):
             model.validate({k: np.asarray(v, dtype=float) for k, v in self.params.items()})
         except ParameterError as error:
             raise ValueError(f"{self.label}: {error}") from None
+        if self.fit is not None:
+            self._check_fit(self.fit, model)
         return self
+
+    def _check_fit(self, fit: FitRecord, model: Model) -> None:
+        """The ``fit`` block agrees with the model and with the shape of ``params``."""
+        unknown = [name for name in fit.parameters if name not in model.parameter_names]
+        if unknown:
+            raise ValueError(
+                f"{self.label}: fit.parameters: {', '.join(map(short_repr, unknown))} not a parameter of "
+                f"{model.name}; its parameters: {', '.join(model.parameter_names)}"
+            )
+        lengths = {len(v) for v in self.params.values() if isinstance(v, list)}
+        count = len(self.wavelengths) if self.wavelengths is not None else next(iter(lengths), None)
+        m = fit.matrices().shape[0]
+        if fit.per_wavelength and m != count:
+            where = "wavelengths" if self.wavelengths is not None else "per-band values"
+            raise ValueError(
+                f"{self.label}: fit.covariance has {m} matrices but the class has "
+                f"{count if count is not None else 'no'} {where}; give one matrix per wavelength, or "
+                "a single matrix for band-independent parameters"
+            )
+        varying = [name for name in fit.parameters if isinstance(self.params.get(name), list)]
+        if not fit.per_wavelength and varying:
+            raise ValueError(
+                f"{self.label}: fit.covariance is a single matrix but {', '.join(varying)} "
+                "vary with wavelength; give one matrix per wavelength"
+            )
 
     def band_values(
         self,
@@ -296,6 +459,43 @@ class ClassEntry(BaseModel):
             raise ParameterError(f"{self.label}: {error}") from None
         return values
 
+    def band_covariance(
+        self,
+        wavelengths: Sequence[float] | None = None,
+        n_bands: int | None = None,
+        extrapolate: bool = False,
+    ) -> np.ndarray | None:
+        """The fit's covariance at the image's bands, shape (n_bands, p, p), or None without a fit.
+
+        Resolved as :meth:`band_values` resolves the parameters: matrices given per wavelength are
+        interpolated element-wise, linearly in wavelength (a convex combination of covariance
+        matrices, so still positive semi-definite), with the same edge-extrapolation rule; matrices
+        given per band are taken as they are; a single matrix applies to every band. Rows and
+        columns follow ``fit.parameters``.
+        """
+        if self.fit is None:
+            return None
+        if n_bands is None:
+            if wavelengths is None:
+                raise ParameterError(f"{self.label}: give the image's wavelengths or number of bands")
+            n_bands = len(wavelengths)
+        matrices = self.fit.matrices()
+        if not self.fit.per_wavelength:
+            return np.repeat(matrices, n_bands, axis=0)
+        if self.wavelengths is None:
+            if matrices.shape[0] != n_bands:
+                raise ParameterError(
+                    f"{self.label}: fit.covariance has {matrices.shape[0]} per-band matrices but the "
+                    f"image has {n_bands} bands"
+                )
+            return matrices.copy()
+        p = matrices.shape[1]
+        flat = matrices.reshape(matrices.shape[0], p * p)
+        columns = [self._interpolate("fit.covariance", flat[:, j], wavelengths, extrapolate)
+                   for j in range(p * p)]
+        resolved = np.stack(columns, axis=-1).reshape(len(columns[0]), p, p)
+        return 0.5 * (resolved + np.swapaxes(resolved, 1, 2))  # symmetric to the last bit
+
     def _interpolate(self, name, value, wavelengths, extrapolate) -> np.ndarray:
         if wavelengths is None:
             raise ParameterError(
@@ -328,12 +528,20 @@ class BandParameters:
         The registered model.
     params : dict of str to ndarray
         One float64 array of shape (n_bands,) per model parameter, in signature order.
+    covariance : ndarray or None
+        The fit's covariance of the parameters ``covariance_names`` at each band, shape
+        (n_bands, p, p), in products of registry units; None when the class has no ``fit`` block.
+        Parameters not in ``covariance_names`` were held fixed (zero variance).
+    covariance_names : tuple of str
+        The parameters of the covariance's rows and columns, in order (empty without a fit).
     """
 
     id: int
     name: str
     model: Model
     params: dict[str, np.ndarray]
+    covariance: np.ndarray | None = None
+    covariance_names: tuple[str, ...] = ()
 
 
 class ParameterTable(BaseModel):
@@ -433,6 +641,8 @@ class ParameterTable(BaseModel):
             entry.id: BandParameters(
                 entry.id, entry.name, entry.brdf_model,
                 entry.band_values(wavelengths, n_bands, extrapolate),
+                entry.band_covariance(wavelengths, n_bands, extrapolate),
+                tuple(entry.fit.parameters) if entry.fit is not None else (),
             )
             for entry in sorted(self.classes, key=lambda c: c.id)
         }

@@ -125,6 +125,13 @@ class ClassFit:
         Every model parameter, one value per band (shape parameters repeated).
     errors : dict of str to ndarray
         1-sigma errors of the free parameters, per band (0 for fixed ones).
+    free : tuple of str
+        The free parameters (shape and intensities), in the model's signature order.
+    covariance : ndarray
+        Joint sandwich covariance of ``free`` per band, shape (n_bands, p, p)
+        (:func:`brdfcorr.fit.solver.fit_class_samples`).
+    chi2_dof : ndarray
+        Per band: sum of squared residuals / (N - p) [sr^-2].
     r2, rmse : ndarray
         Per band: coefficient of determination, and residual RMS of the BRDF [sr^-1].
     angular_r2 : ndarray
@@ -156,6 +163,9 @@ class ClassFit:
     condition: float = math.nan
     params: dict[str, np.ndarray] = field(default_factory=dict)
     errors: dict[str, np.ndarray] = field(default_factory=dict)
+    free: tuple[str, ...] = ()
+    covariance: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))
+    chi2_dof: np.ndarray = field(default_factory=lambda: np.array([]))
     r2: np.ndarray = field(default_factory=lambda: np.array([]))
     rmse: np.ndarray = field(default_factory=lambda: np.array([]))
     angular_r2: np.ndarray = field(default_factory=lambda: np.array([]))
@@ -334,6 +344,7 @@ def fit_one_class(
             model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points, clusters=clusters
         )
         report.params, report.errors = result["params"], result["errors"]
+        report.free, report.covariance, report.chi2_dof = result["free"], result["covariance"], result["chi2_dof"]
         report.r2, report.rmse, report.angular_r2 = result["r2"], result["rmse"], result["angular_r2"]
         report.condition, report.fixed = result["condition"], result["fixed"]
         report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
@@ -377,7 +388,28 @@ class ClassFitResult:
         return [fit.summary() for fit in self.fits]
 
 
-def _entry(fit: ClassFit, wavelengths):
+def _fit_record(fit: ClassFit, source: str, per_band: bool) -> dict | None:
+    """The table's ``fit:`` block (:class:`brdfcorr.params.FitRecord`) of a fitted class: one
+    matrix per band, or a single one when the parameters are band-independent. None when the
+    covariance is not finite or has a negative variance (a table holds numbers only)."""
+    covariance = 0.5 * (fit.covariance + np.swapaxes(fit.covariance, 1, 2))
+    variances = np.diagonal(covariance, axis1=1, axis2=2)
+    if covariance.size == 0 or not np.all(np.isfinite(covariance)) or np.any(variances < 0):
+        return None
+    errors = np.sqrt(variances)
+    if not per_band:
+        return {"source": source, "parameters": list(fit.free), "n": fit.n_samples,
+                "chi2_dof": float(fit.chi2_dof[0]), "r2": float(fit.r2[0]),
+                "errors": {name: float(errors[0, j]) for j, name in enumerate(fit.free)},
+                "covariance": covariance[0].tolist()}
+    n_bands = covariance.shape[0]
+    return {"source": source, "parameters": list(fit.free), "n": [fit.n_samples] * n_bands,
+            "chi2_dof": np.asarray(fit.chi2_dof, float).tolist(), "r2": np.asarray(fit.r2, float).tolist(),
+            "errors": {name: errors[:, j].tolist() for j, name in enumerate(fit.free)},
+            "covariance": covariance.tolist()}
+
+
+def _entry(fit: ClassFit, wavelengths, source: str):
     if fit.status == "uncorrected":
         return None
     if fit.status == "fallback":
@@ -385,12 +417,18 @@ def _entry(fit: ClassFit, wavelengths):
         return ClassEntry(id=fit.class_id, name=fit.name, model=material.model.name, params=material.params)
     params = {name: _compact(values) for name, values in fit.params.items()}
     per_band = any(isinstance(value, list) for value in params.values())
+    if not per_band and fit.covariance.shape[0] > 1 and np.any(fit.covariance != fit.covariance[:1]):
+        # Equal values in every band but not equal errors: the table keeps one value per band.
+        params = {name: np.asarray(values, float).tolist() if name in fit.free else params[name]
+                  for name, values in fit.params.items()}
+        per_band = True
     return ClassEntry(
         id=fit.class_id,
         name=fit.name,
         model=fit.model,
         params=params,
         wavelengths=[float(w) for w in wavelengths] if per_band and wavelengths is not None else None,
+        fit=_fit_record(fit, source, per_band),
     )
 
 
@@ -414,6 +452,7 @@ def fit_classes(
     grid_points: int = 9,
     keep_samples: int = 2000,
     progress=None,
+    source: str = "brdfcorr.fit.fit_classes",
 ) -> ClassFitResult:
     """Fit a BRDF model per class (shape per class, intensities per band) from imagery.
 
@@ -450,6 +489,9 @@ def fit_classes(
         Samples per class kept in the result for plots.
     progress : callable, optional
         Called as ``progress(class_id)`` after each class (e.g. a progress bar's update).
+    source : str, default "brdfcorr.fit.fit_classes"
+        What was fitted (command, input files), the ``source`` of each fitted class's ``fit:``
+        block in the table: its errors, joint covariance, N, chi^2/dof and R^2 per band.
 
     Returns
     -------
@@ -482,7 +524,7 @@ def fit_classes(
             clusters=samples.block,
         )
         fits.append(fit)
-        entry = _entry(fit, wavelengths)
+        entry = _entry(fit, wavelengths, source)
         if entry is not None:
             entries.append(entry)
         step = max(1, samples.theta_i.size // keep_samples)

@@ -123,6 +123,9 @@ class FitResult:
     n_converged : int
         Number of starts that reached the best chi^2 (within 1e-6 relative); a small fraction
         means a multi-modal chi^2 surface.
+    r2 : float
+        Coefficient of determination of the measurements, ``1 - sum(r^2) / sum((f - mean f)^2)``
+        (unweighted; NaN when the measurements are all equal).
     """
 
     model: Model
@@ -142,6 +145,7 @@ class FitResult:
     n_starts: int = 1
     n_converged: int = 1
     warnings: tuple[str, ...] = field(default=())
+    r2: float = math.nan
 
     @property
     def reduced_chi2(self) -> float:
@@ -182,14 +186,39 @@ class FitResult:
         """The fitted model's BRDF [sr^-1] at the given angles [deg] (numpy, dask or xarray)."""
         return self.model(theta_i, theta_r, phi, **self.params)
 
-    def table_entry(self, class_id: int, name: str) -> dict:
+    def table_entry(self, class_id: int, name: str, source: str | None = None) -> dict:
         """The fit as one class of a parameter table (``docs/parameter-tables.md`` format), for
-        :meth:`brdfcorr.params.ParameterTable.with_class`; values as plain floats."""
-        return {
+        :meth:`brdfcorr.params.ParameterTable.with_class`; values as plain floats.
+
+        With ``source`` (what was fitted: the command and its input file) the entry carries the
+        ``fit:`` provenance block (:meth:`fit_record`), unless the covariance is singular.
+        """
+        entry = {
             "id": int(class_id),
             "name": str(name),
             "model": self.model.name,
             "params": {key: float(value) for key, value in self.params.items()},
+        }
+        record = None if source is None else self.fit_record(source)
+        if record is not None:
+            entry["fit"] = record
+        return entry
+
+    def fit_record(self, source: str) -> dict | None:
+        """The ``fit:`` block of a parameter table (:class:`brdfcorr.params.FitRecord`): the free
+        parameters, their covariance and 1-sigma errors, N, chi^2/dof and R^2. None when the
+        covariance is not finite (a singular Jacobian): a table holds numbers only."""
+        covariance = _symmetric(self.covariance)
+        if covariance is None:
+            return None
+        return {
+            "source": str(source),
+            "parameters": list(self.free),
+            "n": int(self.n_measurements),
+            "chi2_dof": float(self.reduced_chi2),
+            "r2": float(self.r2),
+            "errors": dict(zip(self.free, np.sqrt(np.diag(covariance)).tolist())),
+            "covariance": covariance.tolist(),
         }
 
     def summary(self) -> dict[str, str]:
@@ -205,6 +234,15 @@ class FitResult:
             )
         row["chi2/dof"] = f"{self.reduced_chi2:.3g}"
         return row
+
+
+def _symmetric(covariance: np.ndarray) -> np.ndarray | None:
+    """A covariance made exactly symmetric for a table, or None if it is not finite or has a
+    negative variance."""
+    covariance = np.asarray(covariance, dtype=float)
+    if not np.all(np.isfinite(covariance)) or np.any(np.diag(covariance) < 0):
+        return None
+    return 0.5 * (covariance + covariance.T)
 
 
 def format_with_error(value: float, error: float) -> str:
@@ -468,6 +506,8 @@ def fit_brdf(
     residuals = data - model_values
     chi2 = float(np.sum((residuals * weights) ** 2))
     dof = data.size - len(free)
+    spread = float(np.sum((data - data.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(residuals**2)) / spread if spread > 0 else math.nan
     covariance, condition_number = jacobian_covariance(best.jac)
     if scale_errors is None:
         scale_errors = sigma is None
@@ -514,6 +554,7 @@ def fit_brdf(
         n_starts=len(starts),
         n_converged=int(n_converged),
         warnings=tuple(messages),
+        r2=r2,
     )
 
 
@@ -560,13 +601,18 @@ def fit_wavelengths(model, measurements: Measurements, **kwargs) -> dict[float, 
     return results
 
 
-def spectral_table_entry(results: Mapping[float, FitResult], class_id: int, name: str) -> dict:
+def spectral_table_entry(
+    results: Mapping[float, FitResult], class_id: int, name: str, source: str | None = None
+) -> dict:
     """Fits at several wavelengths as one class of a parameter table (``docs/parameter-tables.md`` format).
 
     Parameters with the same value at every wavelength (the fixed ones) are written as a scalar,
     the others as a list with ``wavelengths`` [nm], which :class:`brdfcorr.params.ParameterTable`
     interpolates linearly to an image's band centres. A single wavelength gives scalars (no
     ``wavelengths``): the paper-003 practice of one fit (550 nm) for every band.
+
+    With ``source`` the entry carries the ``fit:`` block (:meth:`FitResult.fit_record`): one
+    covariance matrix, N, chi^2/dof and R^2 per wavelength; none if a covariance is singular.
     """
     wavelengths = sorted(results)
     if not wavelengths:
@@ -575,16 +621,26 @@ def spectral_table_entry(results: Mapping[float, FitResult], class_id: int, name
     if len(models) > 1:
         raise FitError(f"fits of different models ({', '.join(sorted(models))}) cannot form one class")
     if len(wavelengths) == 1:
-        return results[wavelengths[0]].table_entry(class_id, name)
+        return results[wavelengths[0]].table_entry(class_id, name, source)
     first = results[wavelengths[0]]
     params = {}
     for parameter in first.model.parameter_names:
         values = [float(results[wavelength].params[parameter]) for wavelength in wavelengths]
         params[parameter] = values[0] if len(set(values)) == 1 else values
-    return {
+    entry = {
         "id": int(class_id),
         "name": str(name),
         "model": first.model.name,
         "wavelengths": [float(wavelength) for wavelength in wavelengths],
         "params": params,
     }
+    records = [] if source is None else [results[wavelength].fit_record(source) for wavelength in wavelengths]
+    if records and all(record is not None for record in records):
+        entry["fit"] = {
+            "source": str(source),
+            "parameters": list(first.free),
+            **{key: [record[key] for record in records] for key in ("n", "chi2_dof", "r2")},
+            "errors": {name: [record["errors"][name] for record in records] for name in first.free},
+            "covariance": [record["covariance"] for record in records],
+        }
+    return entry

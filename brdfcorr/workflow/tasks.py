@@ -364,11 +364,24 @@ class MeasurementFit:
     results: dict[float | None, FitResult]
     warnings: list[str] = field(default_factory=list)
 
+    @property
+    def source(self) -> str:
+        """What was fitted, for the table's ``fit:`` block: ``"brdfcorr fit tiles.csv (torrance_sparrow;
+        fixed k=0.25; phi >= 90)"``."""
+        first = next(iter(self.results.values()))
+        details = [first.model.name]
+        if first.fixed:
+            details.append("fixed " + ", ".join(f"{key}={value:g}" for key, value in first.fixed.items()))
+        if self.selection:
+            details.append(self.selection)
+        return f"brdfcorr fit {self.path.name} ({'; '.join(details)})"
+
     def table_entry(self, class_id: int, name: str) -> dict:
-        """The fit as a class of a parameter table (spectral where there are several wavelengths)."""
+        """The fit as a class of a parameter table (spectral where there are several wavelengths),
+        with its ``fit:`` provenance block (:meth:`brdfcorr.fit.FitResult.fit_record`)."""
         if len(self.results) > 1:
-            return spectral_table_entry(self.results, class_id, name)
-        return next(iter(self.results.values())).table_entry(class_id, name)
+            return spectral_table_entry(self.results, class_id, name, self.source)
+        return next(iter(self.results.values())).table_entry(class_id, name, self.source)
 
     def report(self) -> list[dict]:
         """JSON-friendly fits per wavelength: params, errors, reduced chi^2."""
@@ -460,6 +473,17 @@ class ImageryFit:
         }
 
 
+def _imagery_source(scenes: Sequence[SceneFiles], model: str, class_models: Mapping[int, str] | None) -> str:
+    """What an imagery fit used, for the table's ``fit:`` blocks: ``"brdfcorr fit-classes a.tif,
+    b.tif (classes a_classes.tif, b_classes.tif; model torrance_sparrow)"``."""
+    images = ", ".join(Path(scene.image).name for scene in scenes)
+    classes = ", ".join(Path(scene.classes).name for scene in scenes)
+    models = f"model {model}" + (
+        "; class models " + ", ".join(f"{key}={value}" for key, value in sorted(class_models.items()))
+        if class_models else "")
+    return f"brdfcorr fit-classes {images} (classes {classes}; {models})"
+
+
 def fit_class_files(
     scenes: Sequence[SceneFiles], model: str, *, class_models: Mapping[int, str] | None = None,
     names: Mapping[int, str] | None = None, fixed: Mapping[str, float] | None = None,
@@ -525,6 +549,7 @@ def fit_class_files(
             [s.reflectance for s in opened], [s.classes for s in opened],
             [xr.Dataset(s.angles) for s in opened], model, class_models=class_models, names=names,
             fixed=fixed, max_samples=max_samples, seed=seed, guard=guard, fallback=fallback,
+            source=_imagery_source(used, model, class_models),
         )
     first = opened[0].reflectance
     found = first.coords["wavelength"].values if "wavelength" in first.coords else None
