@@ -10,6 +10,9 @@ Prints ratios against baselines measured in the same run, never absolute targets
 3. peak RSS of the end-to-end run at the given scene size and at 4x the pixels (twice the side),
    each in a fresh subprocess; target: growth < 25 % and well under 1 GiB for a 1 GiB scene.
 
+How the end-to-end time scales with the cores, against GDAL's own multithreaded copy, and one
+scene on a dask.distributed cluster: ``benchmarks/bench_scaling.py``.
+
 Usage::
 
     python benchmarks/bench_correct.py --size 2048 --bands 64      # the 1 GiB scene of the issue

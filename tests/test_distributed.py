@@ -1,12 +1,22 @@
-"""The same chain on a dask.distributed cluster gives the same outputs as the local run."""
+"""The write path: one scene, or a chain, on a dask.distributed cluster gives the outputs of the
+local run, and the local writer (one open handle, GDAL's compression threads) writes what
+rioxarray's own writer writes."""
 
+import errno
 import json
+import os
+import re
 
 import dask
 import numpy as np
 import pytest
 import rasterio
+from click.testing import CliRunner
 
+from brdfcorr.cli import main
+from brdfcorr.io import writer
+from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.workflow import chain
 from brdfcorr.workflow.chain import run_chain
 from brdfcorr.workflow.config import load_config
 
@@ -44,9 +54,10 @@ def test_distributed_matches_local(tmp_path):
     assert any(s["qa"]["limited"] for s in local.scenes)  # the limits were exercised
 
 
-def test_unreachable_scheduler_is_a_clear_error(tmp_path):
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
     from brdfcorr.errors import InputError
 
+    monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 1)  # seconds; nothing listens on port 9
     make_scenes(tmp_path, count=1)
     config = load_config(write_chain(tmp_path), {
         "engine": {"scheduler": "distributed", "address": "tcp://127.0.0.1:9"}})
@@ -54,3 +65,108 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path):
         with pytest.raises(InputError, match="cannot reach the dask scheduler at tcp://127.0.0.1:9"):
             run_chain(config)
     assert not (tmp_path / "out" / "run_report.json").exists()
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory) -> dict:
+    directory = tmp_path_factory.mktemp("scene")
+    paths = write_scene(directory, synthetic_scene(ny=96, nx=128), blocksize=32)
+    paths["params"] = example_table().save(directory / "params.yaml")
+    return paths
+
+
+def _correct(scene, output, *extra, env=None):
+    args = ["correct", scene["image"], "--angles", scene["angles"], "--classes", scene["classes"], "--params",
+            scene["params"], "-o", output, "--qa", output.with_name(f"{output.stem}_qa.tif"), "--chunk", 32,
+            "--no-progress", *extra]
+    return CliRunner().invoke(main, [str(a) for a in args], env=env)
+
+
+def _assert_same_raster(a_path, b_path):
+    with rasterio.open(a_path) as a, rasterio.open(b_path) as b:
+        np.testing.assert_array_equal(a.read(), b.read())
+        assert a.tags() == b.tags() and a.descriptions == b.descriptions
+        assert {**a.profile, "nodata": 0} == {**b.profile, "nodata": 0}
+        np.testing.assert_array_equal(a.nodatavals, b.nodatavals)  # NaN == NaN here
+
+
+def test_one_scene_on_two_worker_processes_uses_both_and_matches_local(scene, tmp_path):
+    local = _correct(scene, tmp_path / "local.tif")
+    assert local.exit_code == 0, local.output
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as observer:
+        workers = set(observer.scheduler_info()["workers"])
+        with distributed.get_task_stream(client=observer) as stream:  # every task the scheduler runs
+            remote = _correct(scene, tmp_path / "cluster.tif",
+                              env={"DASK_SCHEDULER_ADDRESS": cluster.scheduler_address})
+    assert remote.exit_code == 0, remote.output
+    # 3 x 4 chunks of 32 pixels: the correction and the writes of both files ran on both processes.
+    assert len(workers) == 2 and all(address.startswith("tcp://") for address in workers)
+    writes = [task["worker"] for task in stream.data if "store" in str(task["key"])]
+    assert len(writes) == 2 * 12 and set(writes) == workers
+    assert {task["worker"] for task in stream.data} == workers
+    for name in ("", "_qa"):
+        _assert_same_raster(tmp_path / f"local{name}.tif", tmp_path / f"cluster{name}.tif")
+    # The same summary (pixel counts, reference) but for the time taken.
+    assert re.sub(r" in [0-9.]+ s", "", local.output).replace("local", "cluster") == re.sub(
+        r" in [0-9.]+ s", "", remote.output)
+
+
+def test_unreachable_scheduler_address_of_correct_is_one_clear_error(scene, tmp_path, monkeypatch):
+    monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 1)  # seconds; nothing listens on port 9
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        result = _correct(scene, tmp_path / "out.tif", "--scheduler", "tcp://127.0.0.1:9")
+    assert result.exit_code == 2
+    assert result.stderr.startswith("brdfcorr: error: --scheduler: cannot reach the dask scheduler at "
+                                    "tcp://127.0.0.1:9"), result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("compress", ["deflate", "none"])
+def test_local_writer_writes_what_rioxarray_writes(scene, tmp_path, compress):
+    """One open handle with GDAL's compression threads; the reference is rioxarray's own writer
+    (a reopened file per chunk under a lock) with the same creation options."""
+    import rioxarray
+
+    array = rioxarray.open_rasterio(scene["image"], chunks={"x": 32, "y": 32}, masked=True)
+    array = array.rio.write_nodata(np.nan, encoded=True)
+    array.attrs["long_name"] = tuple(f"band {n}" for n in range(1, array.sizes["band"] + 1))
+    writer.write_rasters({tmp_path / "ours.tif": array}, compress=compress, blocksize=32, tags={"origin": "test"},
+                         scheduler="threads", num_workers=2)
+    options = writer._write_options(compress, 32, array)
+    array.rio.to_raster(tmp_path / "rioxarray.tif", tags={"origin": "test"}, lock=True, **options)
+    _assert_same_raster(tmp_path / "ours.tif", tmp_path / "rioxarray.tif")
+    with rasterio.open(tmp_path / "ours.tif") as written:
+        assert written.profile["compress" if compress != "none" else "tiled"] == (compress if compress != "none" else True)
+        assert written.block_shapes == [(32, 32)] * written.count
+
+
+@pytest.mark.parametrize("cog", [False, True])
+def test_local_writer_disk_full_leaves_nothing(scene, tmp_path, monkeypatch, cog):
+    """GDAL's writes fail with ENOSPC after two chunks, as on a full disk: one OutputError naming
+    the targets, and no file left (the open handle is closed, the temporary files removed)."""
+    original, calls = rasterio.io.DatasetWriter.write, []
+
+    def fills_up(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) > 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(rasterio.io.DatasetWriter, "write", fills_up)
+    (tmp_path / "out").mkdir()
+    result = _correct(scene, tmp_path / "out" / "corrected.tif", *(["--cog"] if cog else []))
+    assert len(calls) > 2, "the simulated disk never filled"
+    assert result.exit_code == 2
+    assert re.match(r"brdfcorr: error: cannot write \S*corrected\.tif, \S*corrected_qa\.tif: No space left on "
+                    r"device", result.stderr), result.stderr
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_cog_keeps_the_predictor(scene, tmp_path):
+    """GDAL's COG driver writes no predictor unless asked: the copy asks for the GeoTIFF's own."""
+    assert _correct(scene, tmp_path / "cog.tif", "--cog").exit_code == 0
+    with rasterio.open(tmp_path / "cog.tif") as cog, rasterio.open(tmp_path / "cog_qa.tif") as qa:
+        assert cog.tags(ns="IMAGE_STRUCTURE")["PREDICTOR"] == "3"  # floating point
+        assert qa.tags(ns="IMAGE_STRUCTURE")["PREDICTOR"] == "2"  # horizontal differencing
+        assert cog.tags(ns="IMAGE_STRUCTURE")["LAYOUT"] == "COG"

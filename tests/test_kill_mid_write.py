@@ -121,18 +121,17 @@ def small(tmp_path) -> dict:
 
 @pytest.mark.parametrize("cog", [False, True])
 def test_disk_full_mid_write_exits_2_and_leaves_nothing(small, tmp_path, monkeypatch, cog):
-    """The block writer raises ENOSPC after two blocks, as a full disk would."""
-    from rioxarray.raster_writer import RasterioWriter
+    """GDAL's block writes raise ENOSPC after two blocks, as a full disk would (rasterio's
+    DatasetWriter.write: the path of every writer, local or on a cluster)."""
+    original, calls = rasterio.io.DatasetWriter.write, []
 
-    original, calls = RasterioWriter.__setitem__, []
-
-    def fills_up(self, key, item):
-        calls.append(key)
+    def fills_up(self, *args, **kwargs):
+        calls.append(args)
         if len(calls) > 2:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        return original(self, key, item)
+        return original(self, *args, **kwargs)
 
-    monkeypatch.setattr(RasterioWriter, "__setitem__", fills_up)
+    monkeypatch.setattr(rasterio.io.DatasetWriter, "write", fills_up)
     output = tmp_path / "out" / "corrected.tif"
     args = ["correct", small["image"], "--angles", small["angles"], "--classes", small["classes"],
             "--params", small["params"], "-o", output, "--chunk", 16, "--qa", tmp_path / "out" / "qa.tif"]

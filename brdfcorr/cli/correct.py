@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 import warnings
@@ -65,6 +66,15 @@ def _show_warnings(caught: list[warnings.WarningMessage]) -> None:
             warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
 
 
+def _cluster(address: str | None):
+    """The client of the dask.distributed scheduler at ``address`` (None: this machine's threads)."""
+    if not address:
+        return contextlib.nullcontext(None)
+    from brdfcorr.workflow.chain import connect_cluster  # imported only for a cluster
+
+    return connect_cluster(address, setting="--scheduler")
+
+
 @main.command("correct")
 @click.argument("image", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--angles", help="Angle source: a 4-band raster of sza, saa, vza, vaa [deg] on the image grid, or "
@@ -109,12 +119,16 @@ def _show_warnings(caught: list[warnings.WarningMessage]) -> None:
 @click.option("--chunk", type=int, help="Chunk and tile size [pixels] [default: 512, less for many bands].")
 @click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
+@click.option("--scheduler", metavar="ADDRESS", envvar="DASK_SCHEDULER_ADDRESS", show_envvar=True,
+              help="Address of a dask.distributed scheduler (tcp://host:8786): spread the scene chunk by chunk "
+                   "over all its workers, which need the file system of the inputs and outputs [default: all "
+                   "cores of this machine].")
 @handle_errors
 def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, align_classes,
                     class_lookup, params_path, materials, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, scale, offset, extrapolate,
                     flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite, output_format,
-                    interleave):
+                    interleave, scheduler):
     """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.
 
     IMAGE's stored values are read as reflectance factors with its GDAL scale/offset, or --scale
@@ -147,7 +161,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     source = " ".join([str(params_path)] * (params_path is not None)
                       + [f"--material {entry.id}={entry.material}" for entry in materials])
     start = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
+    with _cluster(scheduler) as client, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BrdfcorrWarning)  # each class's caveat, however often run
         try:
             summary = correct_files(
@@ -161,6 +175,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                 class_lookup=read_lookup(class_lookup) if class_lookup else None,
                 scale=scale, offset=offset, output_format=output_format, interleave=interleave.lower(),
                 reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
+                scheduler=client,
             )
         finally:  # shown also when the correction then fails
             _show_warnings(caught)

@@ -1,8 +1,18 @@
 """Writing GeoTIFFs (tiled, compressed, optionally COG) or ENVI files, chunk by chunk, atomically.
 
-:func:`write_rasters` writes DataArrays through rioxarray's writer under a lock per file, to
-temporary names renamed when complete, computing any extra lazy results (QA counts) in the same
-dask pass; a failed write (disk full, permissions) is one :class:`~brdfcorr.errors.OutputError`.
+:func:`write_rasters` writes DataArrays to temporary names renamed when complete, computing any
+extra lazy results (QA counts) in the same dask pass; a failed write (disk full, permissions) is
+one :class:`~brdfcorr.errors.OutputError`. rioxarray creates each file (georeference, nodata,
+band descriptions, tags); the chunks then go
+
+- on one machine (dask's threaded or synchronous scheduler) through *one* open GDAL handle per
+  file, under a lock: each written tile is handed to GDAL's pool of compression threads
+  (``NUM_THREADS=ALL_CPUS``) and the writing dask thread returns at once, so compression runs on
+  all cores while dask computes the next chunks (GDAL bounds its queue of tiles waiting for a
+  compressor, and dask's workers bound the chunks waiting for the lock);
+- on a dask.distributed cluster through rioxarray's own writer, from the worker that computed the
+  chunk, under a :class:`distributed.Lock` per file (each write reopens the file, so the lock and
+  the writes travel between processes).
 An ENVI target (:class:`EnviOutput`) is written by GDAL's ENVI driver: the data file, its header
 (``.hdr``: map info, coordinate system, band names, data ignore value, wavelengths) and its
 ``.aux.xml`` (the tags) all under temporary names, renamed when complete, the data file last.
@@ -14,17 +24,21 @@ import contextlib
 import logging
 import os
 import threading
+import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
 import dask
+import dask.threaded
 import rasterio
 import rasterio.shutil
+import rasterio.windows
 import rioxarray  # noqa: F401  (registers the .rio accessor the writer uses)
 import xarray as xr
 from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
+from xarray.conventions import encode_cf_variable
 
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io.files import atomic_path
@@ -34,6 +48,11 @@ __all__ = ["write_rasters", "EnviOutput", "check_format", "envi_header_path", "D
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
+#: Cores per dask thread of a writing pass on this machine when the caller names no thread count:
+#: reading and correcting a chunk costs a third of compressing it (deflate with predictor, measured
+#: on a 64-band cube), and GDAL compresses on all cores; every further dask thread holds its chunks
+#: and their intermediates (about 170 MiB for a 16 MiB chunk), docs/scaling.md.
+CORES_PER_THREAD = 4
 #: Lossless GeoTIFF compressions for reflectance (GDAL names, lower case; the CLI's choices).
 COMPRESSIONS = ("deflate", "lzw", "zstd", "none")
 #: Output raster formats (GDAL driver names; the CLI's ``--format`` choices).
@@ -140,7 +159,11 @@ def write_rasters(
         default otherwise.
     scheduler, num_workers : optional
         dask scheduler of the pass and its number of workers (as for :func:`dask.compute`;
-        default: dask's).
+        default: dask's). A ``dask.distributed`` client (or ``"distributed"``, or dask's default
+        client) spreads the chunks over the cluster's workers, each writing under a
+        :class:`distributed.Lock` of its file. On dask's threaded scheduler without a thread count
+        (``num_workers`` or dask's ``num_workers`` setting) the pass uses one thread per
+        :data:`CORES_PER_THREAD` cores: GDAL compresses the tiles on all of them.
     envi : mapping of path to EnviOutput, optional
         Targets to write as ENVI (uncompressed, ``compress`` and ``cog`` do not apply), with their
         header (``.hdr`` beside the data file, :func:`envi_header_path`) and ``.aux.xml`` (tags);
@@ -215,45 +238,129 @@ def _io_failure(error: Exception, targets: list, messages: list[str]) -> Brdfcor
 
 def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers,
            envi):
+    client = _distributed_client(scheduler)
     with contextlib.ExitStack() as stack:
-        writes, copies, headers = [], [], []
+        writes, copies, headers, handles = [], [], [], []
         for target, array in rasters.items():
             temporary = stack.enter_context(atomic_path(target))
             layout = envi.get(Path(target))
             if layout is not None:  # exits before atomic_path's: the sidecars are renamed first
                 stack.enter_context(_envi_sidecars(temporary, target))
                 headers.append((temporary, layout))
-                writes.append(array.rio.to_raster(
-                    temporary, tags=dict(tags or {}), lock=threading.Lock(), compute=False,
-                    driver="ENVI", interleave=layout.interleave.upper(), SUFFIX="ADD",
-                ))
-                continue
-            if cog:  # GDAL's COG driver only copies: write a tiled GeoTIFF first, beside the target
-                gtiff = stack.enter_context(_scratch_path(temporary))
-                copies.append((gtiff, temporary))
+                path, options = temporary, {"driver": "ENVI", "interleave": layout.interleave.upper(), "SUFFIX": "ADD"}
+            elif cog:  # GDAL's COG driver only copies: write a tiled GeoTIFF first, beside the target
+                path = stack.enter_context(_scratch_path(temporary))
+                options = _write_options(compress, blocksize, array)
+                copies.append((path, temporary))
             else:
-                gtiff = temporary
-            writes.append(
-                array.rio.to_raster(
-                    gtiff, tags=dict(tags or {}), lock=threading.Lock(), compute=False,
-                    **_write_options(compress, blocksize, array),
-                )
-            )
+                path, options = temporary, _write_options(compress, blocksize, array)
+            writes.append(_store(array, path, options, dict(tags or {}), client, handles))
         environment = rasterio.Env(GDAL_CACHEMAX=int(gdal_cache)) if gdal_cache else contextlib.nullcontext()
         with environment:
             with contextlib.ExitStack() as active:
                 for callback in callbacks:
                     active.enter_context(callback)
                 # One pass for everything: shared inputs are read and normalized once.
-                *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler, num_workers=num_workers)
+                try:
+                    *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler,
+                                             num_workers=_threads(scheduler, num_workers))
+                except BaseException:
+                    for handle in handles:  # the failure is the news; the files are discarded
+                        with contextlib.suppress(Exception):
+                            handle.close()
+                    raise
+            for handle in handles:  # waits for GDAL's last compressed tiles; a full disk fails here
+                handle.close()
             for gtiff, temporary in copies:
                 rasterio.shutil.copy(
                     gtiff, temporary, driver="COG", compress=compress.upper(), blocksize=blocksize,
-                    overview_resampling="average", BIGTIFF="IF_SAFER",
+                    overview_resampling="average", BIGTIFF="IF_SAFER", **_cog_options(compress),
                 )
             for temporary, layout in headers:
                 _write_envi_header(temporary, layout)
     return extra
+
+
+def _cog_options(compress: str) -> dict:
+    """The COG copy's predictor (``YES``: 2 for integers, 3 for floats, as the GeoTIFF written
+    first) and compression threads, for the compressions that take them."""
+    if compress in ("deflate", "lzw", "zstd"):
+        return {"predictor": "YES", "num_threads": "ALL_CPUS"}
+    return {}
+
+
+def _threads(scheduler, num_workers: int | None) -> int | None:
+    """The dask threads of a writing pass: as given, else one per :data:`CORES_PER_THREAD` cores of
+    this process (its CPU affinity) on dask's threaded scheduler; None leaves other schedulers be."""
+    if num_workers is not None or dask.config.get("num_workers", None) is not None:
+        return num_workers
+    if dask.base.get_scheduler(scheduler=scheduler) not in (None, dask.threaded.get):  # None: arrays' own, threads
+        return None
+    return max(1, len(os.sched_getaffinity(0)) // CORES_PER_THREAD)
+
+
+def _distributed_client(scheduler):
+    """The dask.distributed Client that ``dask.compute(scheduler=scheduler)`` would run on (a
+    Client, its ``get``, ``"distributed"`` or dask's default), or None for a local scheduler."""
+    get = dask.base.get_scheduler(scheduler=scheduler)
+    owner = getattr(get, "__self__", None)
+    return owner if type(owner).__name__ == "Client" else None
+
+
+def _store(array: xr.DataArray, path: Path, options: dict, tags: dict, client, handles: list):
+    """The lazy write of ``array`` to ``path`` (created here by rioxarray: georeference, nodata,
+    band descriptions, tags): through one open handle (:class:`_OpenRaster`, appended to
+    ``handles``) on a local scheduler, through rioxarray's reopening writer under a
+    :class:`distributed.Lock` on a cluster; None when ``array`` is in memory (written here)."""
+    if client is None:
+        lock = threading.Lock()
+    else:
+        from distributed import Lock  # only with a cluster: dask.distributed is then imported
+
+        # The client's own connection: dask's default client may be another one, or none.
+        lock = Lock(f"brdfcorr-write-{uuid.uuid4().hex}", scheduler_rpc=client.scheduler, loop=client.loop)
+    write = array.rio.to_raster(path, tags=tags, lock=lock, compute=False, **options)
+    if write is None or client is not None:
+        return write
+    with rasterio.open(path) as created:  # the data type rioxarray chose for the file
+        dtype = created.dtypes[0]
+    threads = {"num_threads": options["num_threads"]} if "num_threads" in options else {}
+    handle = _OpenRaster(path, lock, threads)
+    handles.append(handle)
+    # rioxarray's own encoding of the data (nodata fill, CF encoding), stored through one handle.
+    return dask.array.store(encode_cf_variable(array.variable).data.astype(dtype), handle, lock=False,
+                            compute=False)
+
+
+class _OpenRaster:
+    """A :func:`dask.array.store` target that writes every chunk through one open dataset.
+
+    rioxarray's writer reopens the file for every chunk, and closing a GeoTIFF waits until its
+    tiles are compressed: compression then runs one tile at a time under the file's lock. Kept
+    open, GDAL hands each finished tile to its compression threads (``num_threads``, an open
+    option of the GTiff driver) and the write returns, so tiles are compressed in parallel.
+    Datasets are not thread-safe: every use holds ``lock``.
+    """
+
+    def __init__(self, path: Path, lock, options: Mapping[str, str]):
+        self.path, self.lock, self.options = path, lock, dict(options)
+        self.dataset = None
+
+    def __setitem__(self, key: tuple[slice, ...], chunk) -> None:
+        *bands, rows, columns = key
+        window = rasterio.windows.Window.from_slices(rows, columns)
+        indexes = list(range(bands[0].start + 1, bands[0].stop + 1)) if bands else 1
+        with self.lock:
+            if self.dataset is None:
+                self.dataset = rasterio.open(self.path, "r+", **self.options)
+            self.dataset.write(chunk, window=window, indexes=indexes)
+
+    def close(self) -> None:
+        """Flush and close (waits for the tiles still being compressed)."""
+        with self.lock:
+            dataset, self.dataset = self.dataset, None
+            if dataset is not None:
+                dataset.close()
 
 
 def _header_list(values: Sequence[float]) -> str:

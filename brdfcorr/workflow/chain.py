@@ -25,16 +25,16 @@ Execution engines (``engine.scheduler``):
 ``threads``       scenes one after another, each scene's chunks on ``workers`` threads
 ``synchronous``   everything in the calling thread
 ``processes``     ``workers`` scenes at once in a process pool (``threads_per_worker`` each)
-``distributed``   scenes as tasks on a ``dask.distributed`` cluster (``address``, or a local
-                  cluster of ``workers`` processes); each task runs its scene's chunks on
-                  ``threads_per_worker`` local threads and writes its own files (so workers need
-                  the file system of the inputs and outputs)
+``distributed``   every scene spread chunk by chunk over all workers of a ``dask.distributed``
+                  cluster (``address``, or a local cluster of ``workers`` processes with
+                  ``threads_per_worker`` threads each), ``workers`` scenes in flight at once, so
+                  the cluster also runs several scenes side by side; workers read the inputs and
+                  write the outputs (each chunk under a :class:`distributed.Lock` of its file,
+                  :mod:`brdfcorr.io.writer`), so they need the file system of both
 
-Scenes are the unit of parallelism in the ``processes`` and ``distributed`` engines: a GeoTIFF is
-written by one process (no cross-process file locks) and a batch of many scenes keeps every worker
-busy. The dask scheduler of a scene's chunks is passed to each computation (``scheduler``,
-``num_workers`` of :func:`dask.compute`), never set process-wide: scene tasks running side by side
-in one worker process do not share a setting.
+The dask scheduler of a scene's chunks is passed to each computation (``scheduler``,
+``num_workers`` of :func:`dask.compute`; the cluster's client for ``distributed``), never set
+process-wide: scenes running side by side do not share a setting.
 
 Nothing here prints: progress goes to a callback ``progress(event, info)`` with events ``"plan"``
 (``{"scenes": n, "to_run": n_not_skipped}``), ``"fit"`` (``{"classes": [...]}``) and ``"scene"``
@@ -65,6 +65,7 @@ from brdfcorr.workflow.report import RunReport, earlier_findings, scene_result, 
 from brdfcorr.workflow.tasks import SceneFiles, correct_files, fit_class_files, fit_measurement_file
 
 __all__ = [
+    "connect_cluster",
     "Scene",
     "RunPlan",
     "RunReport",
@@ -162,7 +163,7 @@ def build_table(plan: RunPlan, progress: Progress | None = None) -> tuple[Parame
 
 
 # --------------------------------------------------------------------------------------- scenes
-def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler: str | None = None,
+def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler: object = None,
                   threads: int | None = None) -> dict:
     """Correct one scene and write its outputs; never raises: failures go into the result.
 
@@ -171,12 +172,13 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
     scene : Scene
     table : ParameterTable
     config : ChainConfig
-    scheduler : {"threads", "synchronous"}, optional
-        dask scheduler of the scene's computations; ``"threads"`` when ``threads`` is given, else
-        dask's default (the caller's configuration).
+    scheduler : {"threads", "synchronous"} or distributed.Client, optional
+        dask scheduler of the scene's computations (a cluster's client spreads its chunks over
+        the cluster); ``"threads"`` when ``threads`` is given, else dask's default (the caller's
+        configuration).
     threads : int, optional
-        Number of threads of the ``"threads"`` scheduler (inside process or cluster workers, the
-        engine's ``threads_per_worker``).
+        Number of threads of the ``"threads"`` scheduler (inside process workers, the engine's
+        ``threads_per_worker``).
 
     Returns
     -------
@@ -209,7 +211,7 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
     return scene_result(scene, "ok" if failure is None else "failed", found=found, error=failure, seconds=seconds)
 
 
-def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler: str | None,
+def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler,
              num_workers: int | None) -> dict:
     step, outputs = config.steps.correct, config.outputs
     return correct_files(
@@ -259,30 +261,46 @@ def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executo
                 initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
             yield pool, {"scheduler": "threads", "threads": engine.threads_per_worker}
     else:
-        with _cluster(engine) as executor:
-            yield executor, {"scheduler": "threads", "threads": engine.threads_per_worker}
+        # Scenes are driven from threads here; their chunks run on every worker of the cluster.
+        with connect_cluster(engine.address, workers=engine.workers,
+                             threads_per_worker=engine.threads_per_worker, setting="engine.address") as client, \
+                concurrent.futures.ThreadPoolExecutor(engine.workers) as scenes:
+            yield scenes, {"scheduler": client}
 
 
 @contextlib.contextmanager
-def _cluster(engine: EngineConfig) -> Iterator[concurrent.futures.Executor]:
-    """An executor on the dask cluster at ``engine.address``, or on a local cluster made here."""
-    try:  # an optional dependency, for this engine only
+def connect_cluster(address: str | None = None, *, workers: int = 1, threads_per_worker: int = 1,
+                    setting: str | None = None):
+    """A :class:`distributed.Client` of the dask scheduler at ``address``, or of a local cluster of
+    ``workers`` processes with ``threads_per_worker`` threads each made here (and closed on exit).
+
+    ``setting`` names where the address came from in errors (``engine.address``, ``--scheduler``).
+    The client is not made dask's default: pass it as the ``scheduler`` of a computation (e.g.
+    of :func:`brdfcorr.workflow.tasks.correct_files`), which then runs chunk by chunk on all the
+    cluster's workers.
+
+    Raises
+    ------
+    InputError
+        dask.distributed is not installed, or no scheduler answers at ``address`` within
+        :data:`CONNECT_TIMEOUT` seconds.
+    """
+    try:  # an optional dependency, for clusters only
         from distributed import Client, LocalCluster
     except ImportError:
-        raise InputError("engine.scheduler 'distributed' needs the dask.distributed package "
+        raise InputError("a dask.distributed cluster needs the dask.distributed package "
                          "(pip install 'dask[distributed]')") from None
     with contextlib.ExitStack() as stack:
-        if engine.address is None:
+        if address is None:
             cluster = stack.enter_context(LocalCluster(
-                n_workers=engine.workers, threads_per_worker=1, dashboard_address=None))
+                n_workers=workers, threads_per_worker=threads_per_worker, processes=True, dashboard_address=None))
             address = cluster.scheduler_address
-        else:
-            address = engine.address
         try:
             client = stack.enter_context(Client(address, set_as_default=False, timeout=CONNECT_TIMEOUT))
         except (OSError, TimeoutError) as error:
-            raise InputError(f"engine.address: cannot reach the dask scheduler at {address}: {error}") from None
-        yield client.get_executor(pure=False)
+            where = f"{setting}: " if setting else ""
+            raise InputError(f"{where}cannot reach the dask scheduler at {address}: {error}") from None
+        yield client
 
 
 def _run_scenes(scenes: list[Scene], table: ParameterTable, config: ChainConfig) -> Iterator[dict]:

@@ -449,12 +449,15 @@ class EngineConfig(_Strict):
         ``threads``: scenes one after another, each scene's chunks on ``workers`` threads.
         ``processes``: ``workers`` scenes at a time in separate processes.
         ``synchronous``: everything in the calling thread (debugging).
-        ``distributed``: scenes as tasks on a ``dask.distributed`` cluster at ``address`` (or a
-        local cluster of ``workers`` processes when no address is given).
+        ``distributed``: every scene spread chunk by chunk over all workers of a
+        ``dask.distributed`` cluster at ``address`` (or of a local cluster of ``workers``
+        processes when no address is given), ``workers`` scenes in flight at once.
     workers : int
-        Threads (``threads``) or processes (``processes``, local ``distributed``).
+        Threads (``threads``), processes (``processes``, local ``distributed``); with
+        ``distributed`` also the number of scenes in flight at once.
     threads_per_worker : int
-        Threads for the chunks of a scene inside a process or cluster worker.
+        Threads for the chunks of a scene inside a process, and of each worker process of a local
+        ``distributed`` cluster.
     chunk : int, optional
         Spatial chunk and output tile size [pixels], a multiple of 16. Default: the rule of
         ``brdfcorr correct`` for each image (:func:`brdfcorr.io.rasters.auto_chunk`: 512, smaller
@@ -466,9 +469,10 @@ class EngineConfig(_Strict):
     Notes
     -----
     On one machine ``threads`` is usually fastest (GDAL, numpy and the model kernels release the
-    GIL; measured: 6 scenes of 400 x 581 x 6 on 2 cores, threads 3.6 s, processes 8.4 s,
-    local distributed 8.7 s, mostly worker start-up). ``processes`` and ``distributed`` pay off for
-    long batches of large scenes and for several machines.
+    GIL, and GDAL compresses the output tiles on all cores; measured: 6 scenes of 400 x 581 x 6
+    on 2 cores, threads 3.6 s, processes 8.4 s, local distributed 8.7 s, mostly worker
+    start-up). ``processes`` pays off for long batches of scenes, ``distributed`` for several
+    machines (docs/scaling.md).
     """
 
     scheduler: Literal["threads", "processes", "synchronous", "distributed"] = "threads"

@@ -19,7 +19,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import rasterio
@@ -35,6 +35,9 @@ from brdfcorr.io import rasters, writer
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.strata import align_class_map, remap_classes
+
+if TYPE_CHECKING:  # optional dependency, for the annotation only
+    import distributed
 
 __all__ = [
     "correct_files",
@@ -81,7 +84,7 @@ def correct_files(
     cog: bool = False, callbacks=(), table_source: str | None = None,
     angles_kind: str = "geotiff", angle_options: dict | None = None, overwrite: bool = True,
     align_classes: bool = False, class_lookup: Mapping[int, int] | None = None,
-    scheduler: str | None = None, num_workers: int | None = None,
+    scheduler: str | distributed.Client | None = None, num_workers: int | None = None,
     scale: float | None = None, offset: float | None = None,
     reads: Mapping[str, str | os.PathLike | None] | Sequence = (), fingerprint: str | None = None,
     output_format: Literal["GTiff", "ENVI"] = "GTiff", interleave: Literal["bsq", "bil"] = "bsq",
@@ -142,7 +145,8 @@ def correct_files(
     scheduler, num_workers : optional
         dask scheduler of the computations and its number of workers (as for
         :func:`dask.compute`; default: dask's), e.g. ``"threads"`` and 2 inside a process or
-        cluster worker, where several scenes may run side by side.
+        cluster worker, where several scenes may run side by side; a ``distributed.Client``
+        spreads the scene's chunks over the cluster's workers (:mod:`brdfcorr.io.writer`).
     scale, offset : float, optional
         Reflectance factor per stored unit and of a stored 0, for images that do not tag them
         (e.g. 0.0001 for reflectance stored as 0-10000); a given value replaces the file's
