@@ -29,6 +29,9 @@ bit  name             meaning
 16   invalid_geometry a zenith outside [0, 90) deg, or a slope outside [0, 90] deg: output is nodata
 32   facing_away      with slope and aspect: the sun or the sensor is at or below the tilted
                       surface's horizon (local zenith >= 90 deg): output is nodata
+64   topography_      with a topographic step before the correction
+     uncorrected      (:func:`brdfcorr.workflow.tasks.correct_files`): the C fit of the pixel's
+                      class was rejected in some band, which was not corrected for illumination
 ==== ================ ========================================================================
 
 Tilted surfaces (``slope``/``aspect`` given, :mod:`brdfcorr.terrain`): the observed geometry is
@@ -76,6 +79,7 @@ __all__ = [
     "QA_LIMITED",
     "QA_INVALID_GEOMETRY",
     "QA_FACING_AWAY",
+    "QA_TOPOGRAPHY_UNCORRECTED",
     "QA_FLAGS",
     "qa_counts",
 ]
@@ -86,6 +90,7 @@ QA_UNKNOWN_CLASS = np.uint8(4)
 QA_LIMITED = np.uint8(8)
 QA_INVALID_GEOMETRY = np.uint8(16)
 QA_FACING_AWAY = np.uint8(32)
+QA_TOPOGRAPHY_UNCORRECTED = np.uint8(64)
 QA_FLAGS = {
     "nodata": QA_NODATA,
     "no_class": QA_NO_CLASS,
@@ -93,6 +98,7 @@ QA_FLAGS = {
     "limited": QA_LIMITED,
     "invalid_geometry": QA_INVALID_GEOMETRY,
     "facing_away": QA_FACING_AWAY,
+    "topography_uncorrected": QA_TOPOGRAPHY_UNCORRECTED,
 }
 
 class Normalized(NamedTuple):

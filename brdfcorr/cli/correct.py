@@ -19,7 +19,7 @@ from brdfcorr.io.writer import FORMATS
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.workflow.classmaps import read_lookup
-from brdfcorr.workflow.tasks import correct_files
+from brdfcorr.workflow.tasks import Terrain, correct_files
 
 
 def _reference_sza(value: str | None):
@@ -75,6 +75,17 @@ def _cluster(address: str | None):
     return connect_cluster(address, setting="--scheduler")
 
 
+def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
+    """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
+    if slope_aspect is None and dem is None:
+        if topographic is not None or brdf_frame is not None:
+            raise click.UsageError("--topographic and --brdf-frame need --slope-aspect or --dem")
+        return None
+    topographic = topographic or "cosine"
+    brdf_frame = brdf_frame or ("horizontal" if topographic in ("c", "scs+c") else "surface")
+    return Terrain(slope_aspect=slope_aspect, dem=dem, topographic=topographic, brdf_frame=brdf_frame)
+
+
 @main.command("correct")
 @click.argument("image", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--angles", help="Angle source: a 4-band raster of sza, saa, vza, vaa [deg] on the image grid, or "
@@ -123,12 +134,26 @@ def _cluster(address: str | None):
               help="Address of a dask.distributed scheduler (tcp://host:8786): spread the scene chunk by chunk "
                    "over all its workers, which need the file system of the inputs and outputs [default: all "
                    "cores of this machine].")
+@click.option("--uncertainty", "uncertainty_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also write the per-pixel 1-sigma of the corrected reflectance (from the table's fit: "
+                   "covariances; NaN for classes without one) to this GeoTIFF.")
+@click.option("--slope-aspect", type=click.Path(dir_okay=False, path_type=Path),
+              help="Tilted surfaces: a 2-band raster of slope and aspect [deg] on the image grid, or an ENVI "
+                   "obs_ort file (bands Slope, Aspect).")
+@click.option("--dem", type=click.Path(dir_okay=False, path_type=Path),
+              help="Tilted surfaces: a DEM/DSM [m] on the image grid (projected CRS); slope and aspect by "
+                   "Horn's differences.")
+@click.option("--topographic", type=click.Choice(["cosine", "c", "scs", "scs+c", "none"]), default=None,
+              help="Illumination correction before the BRDF step, with --slope-aspect or --dem [default: cosine].")
+@click.option("--brdf-frame", type=click.Choice(["surface", "horizontal"]), default=None,
+              help="Evaluate the BRDF in each tilted surface's frame or the horizontal one [default: surface; "
+                   "horizontal for c and scs+c].")
 @handle_errors
 def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, align_classes,
                     class_lookup, params_path, materials, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, scale, offset, extrapolate,
                     flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite, output_format,
-                    interleave, scheduler):
+                    interleave, scheduler, uncertainty_path, slope_aspect, dem, topographic, brdf_frame):
     """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.
 
     IMAGE's stored values are read as reflectance factors with its GDAL scale/offset, or --scale
@@ -175,7 +200,8 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                 class_lookup=read_lookup(class_lookup) if class_lookup else None,
                 scale=scale, offset=offset, output_format=output_format, interleave=interleave.lower(),
                 reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
-                scheduler=client,
+                scheduler=client, uncertainty_output=uncertainty_path,
+                terrain=_terrain(slope_aspect, dem, topographic, brdf_frame),
             )
         finally:  # shown also when the correction then fails
             _show_warnings(caught)
@@ -185,5 +211,11 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
         f"{summary['nodata']} nodata ({summary['reference'].describe()}) in "
         f"{time.perf_counter() - start:.1f} s"
     )
+    if "topographic" in summary:
+        rows = summary["topographic"]["c"]
+        rejected = sum(not row["accepted"] for row in rows)
+        click.echo(f"topographic correction {summary['topographic']['method']}: "
+                   f"{len(rows) - rejected} class-band C fits used, {rejected} rejected (flagged)" if rows else
+                   f"topographic correction {summary['topographic']['method']}")
 
 

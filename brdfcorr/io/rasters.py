@@ -108,6 +108,11 @@ def _open(path, role: str, chunks, masked: bool, mask_and_scale: bool = False) -
     return array
 
 
+def open_layer(path, role: str, chunks=None) -> xr.DataArray:
+    """Any raster (band, y, x), lazily, nodata as NaN; ``role`` names it in errors ("DEM")."""
+    return _open(path, role, _chunks(chunks), masked=True)
+
+
 def _hdf5_product(path) -> str | None:
     """``"neon"`` or ``"emit"`` for an image that is a NEON AOP reflectance HDF5 or an EMIT L2A
     reflectance NetCDF (told by content, not by name), else None: a raster GDAL reads. Without h5py

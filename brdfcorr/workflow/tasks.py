@@ -26,7 +26,15 @@ import rasterio
 import xarray as xr
 
 from brdfcorr import __version__
-from brdfcorr.correct import describe_limits, normalize, qa_counts, resolve_reference
+from brdfcorr.correct import (
+    QA_FACING_AWAY,
+    QA_LIMITED,
+    QA_TOPOGRAPHY_UNCORRECTED,
+    describe_limits,
+    normalize,
+    qa_counts,
+    resolve_reference,
+)
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, GuardRails, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
@@ -35,12 +43,22 @@ from brdfcorr.io import rasters, writer
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.strata import align_class_map, remap_classes
+from brdfcorr.terrain import SlopeAspect, slope_aspect, slope_aspect_layers
+from brdfcorr.topographic import (
+    C_METHODS,
+    TOPO_QA_FIT_REJECTED,
+    TOPO_QA_LIMITED,
+    TOPO_QA_SHADOWED,
+    topographic_correction,
+)
+from brdfcorr.uncertainty import correction_uncertainty
 
 if TYPE_CHECKING:  # optional dependency, for the annotation only
     import distributed
 
 __all__ = [
     "correct_files",
+    "Terrain",
     "fit_measurement_file",
     "MeasurementFit",
     "fit_class_files",
@@ -76,6 +94,103 @@ def describe_class_map(classes: xr.DataArray, lookup: Mapping[int, int] | None) 
 
 
 # ------------------------------------------------------------------------------------ correct
+@dataclass(frozen=True)
+class Terrain:
+    """Tilted surfaces in a correction (``docs/terrain.md``): where slope and aspect come from and
+    what is done with them.
+
+    Attributes
+    ----------
+    slope_aspect : path-like, optional
+        A 2-band raster of slope and aspect [deg] on the image grid (band descriptions naming
+        ``slope`` and ``aspect`` decide which is which, else that order), or an ENVI ``obs_ort``
+        file (its bands "Slope" and "Aspect", :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`).
+    dem : path-like, optional
+        Or a DEM/DSM [m] on the image grid in a projected CRS: slope and aspect by Horn's
+        differences (:func:`brdfcorr.terrain.slope_aspect`). Give one of the two.
+    topographic : {"cosine", "c", "scs", "scs+c", "none"}, default "cosine"
+        Illumination correction before the BRDF step (:func:`brdfcorr.topographic.topographic_correction`;
+        C fitted per class and band from the image for ``"c"`` and ``"scs+c"``).
+    brdf_frame : {"surface", "horizontal"}, default "surface"
+        Evaluate the BRDF in each surface's own frame (the observed geometry rotated by slope and
+        aspect; the reference stays horizontal) or in the horizontal frame. ``"surface"`` takes
+        the illumination's cos i into account itself only with ``"cosine"`` (or ``"none"``) before
+        it; the empirical C of ``"c"``/``"scs+c"`` absorbs part of the BRDF's slope dependence, so
+        those go with ``"horizontal"`` (combining them corrects the illumination twice, 15 % off
+        between the sides of a synthetic hill in ``tests/test_terrain.py``).
+    """
+
+    slope_aspect: str | os.PathLike | None = None
+    dem: str | os.PathLike | None = None
+    topographic: Literal["cosine", "c", "scs", "scs+c", "none"] = "cosine"
+    brdf_frame: Literal["surface", "horizontal"] = "surface"
+
+    def __post_init__(self):
+        if (self.slope_aspect is None) == (self.dem is None):
+            raise InputError("terrain: give slope and aspect (a 2-band raster or an obs file) or a DEM, one of them")
+        if self.topographic in C_METHODS and self.brdf_frame == "surface":
+            raise InputError(
+                f"terrain: topographic '{self.topographic}' fits an empirical C that absorbs part of the "
+                "BRDF's slope dependence; combine it with brdf_frame 'horizontal', or use 'cosine' with 'surface'"
+            )
+
+    @property
+    def inputs(self) -> list[tuple[str, object]]:
+        return [("slope/aspect raster", self.slope_aspect), ("DEM", self.dem)]
+
+    def open(self, like: xr.DataArray, chunks: int) -> SlopeAspect:
+        """Slope and aspect [deg] (y, x) on ``like``'s grid, lazily."""
+        if self.dem is not None:
+            dem = rasters.open_layer(self.dem, "DEM", chunks)
+            if dem.shape[0] != 1:
+                raise InputError(f"DEM file {self.dem} has {dem.shape[0]} bands; it needs 1")
+            surface = slope_aspect(dem[0])
+        elif _is_envi(self.slope_aspect):
+            from brdfcorr.io.sensors.envi import read_envi_obs_terrain  # sensors import this module's layer
+
+            layers = read_envi_obs_terrain(self.slope_aspect, like=like)
+            surface = SlopeAspect(layers["slope"], layers["aspect"])
+        else:
+            surface = slope_aspect_layers(rasters.open_layer(self.slope_aspect, "slope/aspect", chunks))
+        rasters.check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
+        return surface
+
+    def apply(self, scene: rasters.SceneData, chunks: int, limits):
+        """The reflectance after the topographic step, the slope and aspect layers for
+        :func:`brdfcorr.normalize` (none in the horizontal frame) and the topographic result."""
+        slope, aspect = self.open(scene.reflectance, chunks)
+        reflectance, topographic = scene.reflectance, None
+        if self.topographic != "none":
+            topographic = topographic_correction(
+                reflectance, scene.angles["sza"], scene.angles["saa"], slope, aspect, method=self.topographic,
+                classes=scene.classes, limits=limits,
+            )
+            reflectance = topographic.reflectance
+        surface = {"slope": slope, "aspect": aspect} if self.brdf_frame == "surface" else {}
+        return reflectance, surface, topographic
+
+
+def _is_envi(path) -> bool:
+    try:
+        with rasterio.open(path) as dataset:
+            return dataset.driver == "ENVI"
+    except rasterio.errors.RasterioIOError:
+        return False  # the reader names the file
+
+
+def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:
+    """The topographic step's flags in the correction's QA layer: sun behind the surface ->
+    ``facing_away``, illumination factor clipped -> ``limited``, C fit rejected ->
+    ``topography_uncorrected`` (nodata is the BRDF step's own: the step writes NaN there)."""
+    flags = xr.zeros_like(qa)
+    for topographic_flag, flag in ((TOPO_QA_SHADOWED, QA_FACING_AWAY), (TOPO_QA_LIMITED, QA_LIMITED),
+                                   (TOPO_QA_FIT_REJECTED, QA_TOPOGRAPHY_UNCORRECTED)):
+        flags = flags | xr.where((topographic_qa & topographic_flag) > 0, flag, 0).astype(np.uint8)
+    merged = qa | flags
+    merged.attrs = qa.attrs
+    return merged
+
+
 def correct_files(
     image, output, *, params, angles=None, sza=None, saa=None, vza=None, vaa=None, classes,
     reference: ReferenceGeometry | dict | None = None, qa_output=None, wavelengths=None,
@@ -88,6 +203,7 @@ def correct_files(
     scale: float | None = None, offset: float | None = None,
     reads: Mapping[str, str | os.PathLike | None] | Sequence = (), fingerprint: str | None = None,
     output_format: Literal["GTiff", "ENVI"] = "GTiff", interleave: Literal["bsq", "bil"] = "bsq",
+    uncertainty_output=None, terrain: Terrain | None = None,
 ) -> dict[str, object]:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
@@ -169,11 +285,18 @@ def correct_files(
         and the tags in ``.aux.xml``.
     interleave : {"bsq", "bil"}, default "bsq"
         Interleave of an ENVI output.
+    uncertainty_output : path-like, optional
+        Where to write the per-pixel 1-sigma of the corrected reflectance (a GeoTIFF like the
+        output, same pass; :func:`brdfcorr.uncertainty.correction_uncertainty`): NaN for classes
+        whose table entry has no ``fit:`` covariance.
+    terrain : Terrain, optional
+        Tilted surfaces: slope and aspect, the topographic step and the BRDF's frame.
 
     Returns
     -------
     dict
-        Pixel counts (:func:`brdfcorr.correct.qa_counts`) plus ``reference`` (the geometry used).
+        Pixel counts (:func:`brdfcorr.correct.qa_counts`) plus ``reference`` (the geometry used)
+        and, with a topographic step, ``topographic``: its method and the C fit per class and band.
 
     Warns
     -----
@@ -202,7 +325,8 @@ def correct_files(
               ("saa raster", saa), ("vza raster", vza), ("vaa raster", vaa), ("class map", classes),
               ("parameter table", None if isinstance(params, ParameterTable) else params)]
     inputs += list(reads.items()) if isinstance(reads, Mapping) else list(reads)
-    _check_correct_outputs(output, qa_output, output_format, inputs, overwrite)
+    inputs += terrain.inputs if terrain is not None else []
+    _check_correct_outputs(output, qa_output, output_format, inputs, overwrite, uncertainty_output)
     table_path = table_source
     if not isinstance(params, ParameterTable):
         table_path = str(params)
@@ -227,14 +351,21 @@ def correct_files(
         reference = reference.model_copy(update={"sza": float(mean)})
 
     layers = scene.angles
+    reflectance, surface, topographic = scene.reflectance, {}, None
+    if terrain is not None:
+        reflectance, surface, topographic = terrain.apply(scene, chunks, limits)
+    arguments = dict(
+        reflectance=reflectance, classes=scene.classes, sza=layers["sza"], saa=layers["saa"], vza=layers["vza"],
+        vaa=layers["vaa"], params=params, reference=reference, limits=limits, extrapolate=extrapolate,
+        flip_view_azimuth=flip_view_azimuth, **surface,
+    )
     try:
-        corrected, qa = normalize(
-            scene.reflectance, scene.classes, layers["sza"], layers["saa"], layers["vza"], layers["vaa"],
-            params, reference, limits=limits, extrapolate=extrapolate, unknown=unknown,
-            flip_view_azimuth=flip_view_azimuth,
-        )
+        corrected, qa = normalize(**arguments, unknown=unknown)
+        sigma = correction_uncertainty(**arguments) if uncertainty_output is not None else None
     except ParameterError as error:  # the table does not fit the image's bands: name both files
         raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {image})") from None
+    if topographic is not None:
+        qa = _merged_qa(qa, topographic.qa)
     corrected = corrected.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
     corrected.attrs["long_name"] = _band_descriptions(scene.reflectance)
     for name in ("scale_factor", "add_offset"):  # the output holds physical values
@@ -247,6 +378,39 @@ def correct_files(
         "brdf_limits": describe_limits(limits),
         "brdf_parameter_table": table_path or "(in memory)",
         "brdf_parameter_table_content": json.dumps(params.to_dict(), separators=(",", ":")),
+        **_scene_tags(scene, class_lookup, fingerprint),
+    }
+    envi = {}
+    if output_format == "ENVI":
+        coords = scene.reflectance.coords
+        envi[output] = writer.EnviOutput(
+            interleave=interleave,
+            wavelength=coords["wavelength"].values.tolist() if "wavelength" in coords else None,
+            fwhm=np.asarray(coords["fwhm"].values).tolist() if "fwhm" in coords else None,
+        )
+    targets = {output: corrected}
+    if qa_output is not None:
+        targets[qa_output] = qa
+    if sigma is not None:
+        sigma = sigma.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
+        sigma.attrs["long_name"] = corrected.attrs["long_name"]
+        targets[uncertainty_output] = sigma
+    counts = rasters.write_rasters(
+        targets, compress=compress, blocksize=chunks, cog=cog, tags=tags,
+        compute_with=qa_counts(qa), callbacks=callbacks, gdal_cache=rasters.gdal_cache_bytes(image, chunks),
+        scheduler=scheduler, num_workers=num_workers, envi=envi,
+    )
+    result: dict[str, object] = {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+    if topographic is not None:
+        table = topographic.c_table
+        result["topographic"] = {"method": terrain.topographic,  # type: ignore[union-attr]
+                                 "c": [] if table is None else table.to_dict(orient="records")}
+    return result
+
+
+def _scene_tags(scene: rasters.SceneData, class_lookup, fingerprint: str | None) -> dict[str, str]:
+    """The output's tags that describe the scene: input scaling, class map, fingerprint, wavelengths."""
+    tags = {
         "brdf_input_scale": _describe_scaling(scene.reflectance.attrs["brdf_input_scale"]),
         "brdf_input_offset": _describe_scaling(scene.reflectance.attrs["brdf_input_offset"]),
         "brdfcorr_version": __version__,
@@ -260,23 +424,7 @@ def correct_files(
     if "wavelength" in scene.reflectance.coords:
         tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
         tags["wavelength_units"] = "nm"
-    envi = {}
-    if output_format == "ENVI":
-        coords = scene.reflectance.coords
-        envi[output] = writer.EnviOutput(
-            interleave=interleave,
-            wavelength=coords["wavelength"].values.tolist() if "wavelength" in coords else None,
-            fwhm=np.asarray(coords["fwhm"].values).tolist() if "fwhm" in coords else None,
-        )
-    targets = {output: corrected}
-    if qa_output is not None:
-        targets[qa_output] = qa
-    counts = rasters.write_rasters(
-        targets, compress=compress, blocksize=chunks, cog=cog, tags=tags,
-        compute_with=qa_counts(qa), callbacks=callbacks, gdal_cache=rasters.gdal_cache_bytes(image, chunks),
-        scheduler=scheduler, num_workers=num_workers, envi=envi,
-    )
-    return {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+    return tags
 
 
 def _warn_wavelength_caveats(table: ParameterTable, reflectance: xr.DataArray) -> None:
@@ -290,9 +438,10 @@ def _warn_wavelength_caveats(table: ParameterTable, reflectance: xr.DataArray) -
             warnings.warn(caveat, BrdfcorrWarning, stacklevel=3)
 
 
-def _check_correct_outputs(output, qa_output, output_format: str, inputs: list, overwrite: bool) -> None:
+def _check_correct_outputs(output, qa_output, output_format: str, inputs: list, overwrite: bool,
+                           uncertainty_output=None) -> None:
     """The output guard, formats and extensions, and existing outputs (``overwrite``)."""
-    outputs = {"output": output, "QA output": qa_output}
+    outputs = {"output": output, "QA output": qa_output, "uncertainty output": uncertainty_output}
     if output_format == "ENVI":  # never the header of an ENVI input (image.img and image.bsq share image.hdr)
         outputs["output header"] = writer.envi_header_path(output)
         named = [item if isinstance(item, tuple) else ("input", item) for item in inputs]
@@ -300,10 +449,11 @@ def _check_correct_outputs(output, qa_output, output_format: str, inputs: list, 
                            if path is not None and writer.envi_header_path(path).exists()]
     check_outputs(outputs, inputs)
     writer.check_format(output, output_format)
-    if qa_output is not None:
-        writer.check_format(qa_output, "GTiff", "QA output")
+    for path, what in ((qa_output, "QA output"), (uncertainty_output, "uncertainty output")):
+        if path is not None:
+            writer.check_format(path, "GTiff", what)
     if not overwrite:
-        refuse_existing([output, qa_output])
+        refuse_existing([output, qa_output, uncertainty_output])
 
 
 def _envi_header_items(image, attrs: Mapping) -> list[str]:
