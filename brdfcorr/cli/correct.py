@@ -108,6 +108,9 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
 @click.option("--format", "output_format", type=click.Choice(FORMATS), default="GTiff", show_default=True,
               help="Output format; ENVI writes the data file, a .hdr header (wavelengths, map info) and "
                    ".aux.xml (tags). The QA layer is always a GeoTIFF.")
+@click.option("--output-type", type=click.Choice(["float", "input"]), default="float", show_default=True,
+              help="float: reflectance factors as float32; input: an integer input's own type, scale, offset "
+                   "and nodata (smaller files; values that do not fit are nodata and flagged).")
 @click.option("--interleave", type=click.Choice(["bsq", "bil"], case_sensitive=False), default="bsq",
               show_default=True, help="Interleave of an ENVI output.")
 @click.option("--ref-sza", help="Reference sun zenith [deg], 'mean' or 'observed' [default: table, else observed].")
@@ -153,7 +156,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                     class_lookup, params_path, materials, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, scale, offset, extrapolate,
                     flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite, output_format,
-                    interleave, scheduler, uncertainty_path, slope_aspect, dem, topographic, brdf_frame):
+                    interleave, output_type, scheduler, uncertainty_path, slope_aspect, dem, topographic, brdf_frame):
     """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.
 
     IMAGE's stored values are read as reflectance factors with its GDAL scale/offset, or --scale
@@ -200,7 +203,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                 class_lookup=read_lookup(class_lookup) if class_lookup else None,
                 scale=scale, offset=offset, output_format=output_format, interleave=interleave.lower(),
                 reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
-                scheduler=client, uncertainty_output=uncertainty_path,
+                scheduler=client, uncertainty_output=uncertainty_path, output_type=output_type,
                 terrain=_terrain(slope_aspect, dem, topographic, brdf_frame),
             )
         finally:  # shown also when the correction then fails

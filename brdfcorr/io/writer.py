@@ -32,6 +32,7 @@ from typing import Literal
 
 import dask
 import dask.threaded
+import numpy as np
 import rasterio
 import rasterio.shutil
 import rasterio.windows
@@ -43,8 +44,8 @@ from xarray.conventions import encode_cf_variable
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io.files import atomic_path
 
-__all__ = ["write_rasters", "EnviOutput", "check_format", "envi_header_path", "DEFAULT_CHUNK", "COMPRESSIONS",
-           "FORMATS", "EXTENSIONS"]
+__all__ = ["write_rasters", "encode_integers", "EnviOutput", "check_format", "envi_header_path", "DEFAULT_CHUNK",
+           "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
@@ -111,6 +112,49 @@ def _write_options(compress: str, blocksize: int, array: xr.DataArray) -> dict:
         # per file; without this one thread compressed every tile of a scene).
         options["num_threads"] = "ALL_CPUS"
     return options
+
+
+def encode_integers(array: xr.DataArray, dtype, scale, offset, nodata: float | None = None):
+    """Reflectance as stored integers, ``stored = round((reflectance - offset) / scale)``, for an output
+    in the input's integer type.
+
+    Parameters
+    ----------
+    array : xarray.DataArray (band, y, x)
+        Reflectance factors, NaN as nodata; numpy or dask backed (stays lazy).
+    dtype : numpy integer dtype
+        The stored type (e.g. the input's ``int16``).
+    scale, offset : float or sequence of float
+        Reflectance per stored unit and of a stored 0 [1]: one value, or one per band. Written as the
+        file's GDAL scales and offsets (``attrs["scales"]``, ``attrs["offsets"]``), so that readers
+        get reflectance back as ``stored * scale + offset``.
+    nodata : number, optional
+        Stored value of nodata; by default the type's lowest (signed) or highest (unsigned) value.
+
+    Returns
+    -------
+    (xarray.DataArray, xarray.DataArray)
+        The stored values (``dtype``, nodata written as the rioxarray nodata) and a (y, x) mask of the
+        pixels that were valid but fell outside the type's range in some band (or on the nodata value):
+        they are stored as nodata, never wrapped around or clipped silently.
+    """
+    dtype = np.dtype(dtype)
+    if dtype.kind not in "iu":
+        raise InputError(f"encode_integers needs an integer type, got {dtype}")
+    info = np.iinfo(dtype)
+    if nodata is None:
+        nodata = info.min if dtype.kind == "i" else info.max
+    band = array.dims[0]
+    per_band = {"dims": band, "coords": {band: array[band]}} if band in array.coords else {"dims": band}
+    scales = xr.DataArray(np.broadcast_to(np.asarray(scale, float), array.shape[:1]), **per_band)
+    offsets = xr.DataArray(np.broadcast_to(np.asarray(offset, float), array.shape[:1]), **per_band)
+    stored = np.round((array.astype(np.float64) - offsets) / scales)
+    outside = (stored < info.min) | (stored > info.max) | (stored == nodata)
+    out_of_range = outside.any(dim=band)
+    encoded = stored.where(~outside & stored.notnull(), nodata).astype(dtype)
+    encoded.attrs = {**array.attrs, "scales": tuple(scales.values.tolist()), "offsets": tuple(offsets.values.tolist())}
+    encoded.encoding = {}
+    return encoded.rio.write_nodata(nodata, encoded=False), out_of_range
 
 
 def write_rasters(
