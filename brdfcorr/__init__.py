@@ -7,16 +7,28 @@ try:
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0+unknown"
 
+import importlib  # noqa: E402
+
 from brdfcorr import (  # noqa: E402
     _compat,
-    accessor,  # noqa: E402,F401  (registers the .brdf xarray accessor)
-    geometry,
-    models,
+    accessor,  # noqa: F401  (registers the .brdf xarray accessor; needs xarray only)
 )
-from brdfcorr.correct import normalize  # noqa: E402
 from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # noqa: E402
 
 _compat.install()
+
+#: Names imported at first use (PEP 562), so that `import brdfcorr` and the command line's
+#: `--help` and argument errors do not pay for dask and scipy.
+_LAZY = {"geometry": "brdfcorr.geometry", "models": "brdfcorr.models", "normalize": "brdfcorr.correct"}
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module 'brdfcorr' has no attribute {name!r}")
+    module = importlib.import_module(_LAZY[name])
+    value = module if module.__name__.endswith(name) else getattr(module, name)
+    globals()[name] = value
+    return value
 
 __all__ = [
     "__version__", "geometry", "models", "normalize", "BrdfcorrError", "ParameterError", "UnknownNameError",

@@ -8,9 +8,13 @@ The accessor holds no state and no science: metadata lives in coords/attrs of th
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import xarray as xr
 
-from brdfcorr import correct
+if TYPE_CHECKING:
+    from brdfcorr.correct import Normalized
+
 
 __all__ = ["BrdfAccessor"]
 
@@ -22,6 +26,8 @@ class BrdfAccessor:
     def __init__(self, reflectance: xr.DataArray):
         self._reflectance = reflectance
 
-    def normalize(self, classes, sza, saa, vza, vaa, params, reference=None, **options) -> correct.Normalized:
+    def normalize(self, classes, sza, saa, vza, vaa, params, reference=None, **options) -> Normalized:
         """:func:`brdfcorr.normalize` with this array as the reflectance (same options)."""
+        from brdfcorr import correct  # at first use: `import brdfcorr` (and the CLI) need no dask
+
         return correct.normalize(self._reflectance, classes, sza, saa, vza, vaa, params, reference, **options)

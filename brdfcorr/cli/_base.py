@@ -22,7 +22,14 @@ import click.shell_completion
 from brdfcorr import __version__
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, ParameterError, UnknownNameError
 from brdfcorr.io.files import atomic_path, parse_yaml
-from brdfcorr.models import SURFACE_MODELS, get_model
+
+
+def _surface_models() -> tuple[str, ...]:
+    # The registry pulls in the models (scipy): imported when a --model is shown or parsed, not for
+    # every command's start.
+    from brdfcorr.models import SURFACE_MODELS
+
+    return tuple(SURFACE_MODELS)
 
 
 class _ModelName(click.ParamType):
@@ -31,19 +38,22 @@ class _ModelName(click.ParamType):
     name = "model"
 
     def get_metavar(self, param, ctx=None) -> str:
-        return "[" + "|".join(SURFACE_MODELS) + "]"
+        return "[" + "|".join(_surface_models()) + "]"
 
     def shell_complete(self, ctx, param, incomplete):
-        return [click.shell_completion.CompletionItem(n) for n in SURFACE_MODELS if n.startswith(incomplete)]
+        return [click.shell_completion.CompletionItem(n) for n in _surface_models() if n.startswith(incomplete)]
 
     def convert(self, value, param, ctx):
-        if value in SURFACE_MODELS:
+        from brdfcorr.models import get_model
+
+        surface_models = _surface_models()
+        if value in surface_models:
             return value
         try:
             get_model(value)
         except UnknownNameError as error:
             self.fail(str(error), param, ctx)
-        self.fail(f"{value!r} is not a surface model; surface models: {', '.join(SURFACE_MODELS)}", param, ctx)
+        self.fail(f"{value!r} is not a surface model; surface models: {', '.join(surface_models)}", param, ctx)
 
 
 MODEL_CHOICE = _ModelName()
