@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Literal, NamedTuple
 
 import dask.array as da
@@ -127,33 +127,45 @@ class _ClassPlan:
     row_of_band: np.ndarray
 
 
-def _plan(class_id: int, model: Model, params: dict[str, np.ndarray]) -> _ClassPlan:
+def band_shapes(model: Model, params: Mapping[str, np.ndarray]):
+    """A class's per-band parameters split for evaluation: the distinct sets of shape parameters
+    (``shapes``), which of them each band uses (``shape_of_band``) and the linear coefficients
+    (n_bands, n_linear), in :attr:`Model.linear` order."""
     n_bands = len(next(iter(params.values())))
     coefficients = np.stack([params[name] for name in model.linear], axis=1)
     shape_names = model.shape_names
     shape_matrix = np.stack([params[name] for name in shape_names], axis=1) if shape_names else np.zeros((n_bands, 0))
     unique_shapes, shape_of_band = np.unique(shape_matrix, axis=0, return_inverse=True)
-    shape_of_band = shape_of_band.reshape(-1)
     shapes = tuple(dict(zip(shape_names, map(float, row))) for row in unique_shapes)
+    return shapes, shape_of_band.reshape(-1), coefficients
+
+
+def _plan(class_id: int, model: Model, params: dict[str, np.ndarray]) -> _ClassPlan:
+    shapes, shape_of_band, coefficients = band_shapes(model, params)
     _, row_of_band = np.unique(np.column_stack([shape_of_band, coefficients]), axis=0, return_inverse=True)
     return _ClassPlan(class_id, model, shapes, shape_of_band, coefficients, row_of_band.reshape(-1))
 
 
-class _Plans:
-    """The class plans of a table as one opaque block argument: dask would otherwise walk and hash
-    every plan to build the graph (20 000 classes: 20 s). Its token is a digest of the plans."""
+class Plans:
+    """Per-class plans (dataclasses; None for a class with nothing to do) as one opaque block
+    argument: dask would otherwise walk and hash every plan to build the graph (20 000 classes:
+    20 s). Its token is a digest of the plans' fields."""
 
-    def __init__(self, plans: Mapping[int, _ClassPlan]):
+    def __init__(self, plans: Mapping[int, Any]):
         self._plans = dict(plans)
         digest = hashlib.sha256()
-        for plan in self._plans.values():
-            digest.update(f"{plan.id}|{plan.model.name}|{plan.shapes!r}|".encode())
-            for array in (plan.shape_of_band, plan.coefficients, plan.row_of_band):
-                digest.update(f"{array.dtype}{array.shape}".encode())
-                digest.update(np.ascontiguousarray(array).tobytes())
+        for class_id, plan in self._plans.items():
+            digest.update(f"{class_id}|".encode())
+            for item in fields(plan) if plan is not None else ():
+                value = getattr(plan, item.name)
+                if isinstance(value, np.ndarray):
+                    digest.update(f"{value.dtype}{value.shape}".encode())
+                    digest.update(np.ascontiguousarray(value).tobytes())
+                else:
+                    digest.update(f"{value.name if isinstance(value, Model) else value!r}|".encode())
         self._token = digest.hexdigest()
 
-    def get(self, class_id: int) -> _ClassPlan | None:
+    def get(self, class_id: int):
         return self._plans.get(class_id)
 
     def __dask_tokenize__(self) -> str:
@@ -162,7 +174,7 @@ class _Plans:
 
 def _normalize_block(
     reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, slope=None, aspect=None, *,
-    plans: _Plans, reference: ReferenceGeometry, limits, unknown_nan: bool,
+    plans: Plans, reference: ReferenceGeometry, limits, unknown_nan: bool,
     class_nodata, flip_view_azimuth: bool, out_dtype,
 ):
     """Normalize one (band, y, x) block; returns (corrected block, QA block of shape (1, y, x))."""
@@ -576,7 +588,7 @@ def normalize(
     )
     reflectance, reference, limits = inputs.reflectance, inputs.reference, inputs.limits
     band_dim = reflectance.dims[0]
-    plans = _Plans({cid: _plan(cid, entry.model, entry.params) for cid, entry in inputs.resolved.items()})
+    plans = Plans({cid: _plan(cid, entry.model, entry.params) for cid, entry in inputs.resolved.items()})
     kwargs: dict[str, Any] = dict(
         plans=plans, reference=reference, limits=limits, unknown_nan=unknown == "nan",
         class_nodata=inputs.class_nodata, flip_view_azimuth=flip_view_azimuth, out_dtype=inputs.out_dtype,

@@ -54,7 +54,6 @@ chunk once.
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -62,7 +61,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from brdfcorr.correct import _present_classes, describe_limits, prepare_inputs
+from brdfcorr.correct import Plans, _present_classes, band_shapes, describe_limits, prepare_inputs
 from brdfcorr.errors import ParameterError
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model
@@ -278,12 +277,7 @@ def _plan(entry: BandParameters) -> _ClassPlan | None:
             f"parameters of {model.name} ({', '.join(model.parameter_names)})"
         )
     covariance = _checked_covariance(entry, covariance, names, n_bands)
-    coefficients = np.stack([params[name] for name in model.linear], axis=1)
-    shape_names = model.shape_names
-    shape_matrix = np.stack([params[name] for name in shape_names], axis=1) if shape_names else np.zeros((n_bands, 0))
-    unique_shapes, shape_of_band = np.unique(shape_matrix, axis=0, return_inverse=True)
-    shape_of_band = shape_of_band.reshape(-1)
-    shapes = tuple(dict(zip(shape_names, map(float, row))) for row in unique_shapes)
+    shapes, shape_of_band, coefficients = band_shapes(model, params)
     rows = np.column_stack([shape_of_band, coefficients, covariance.reshape(n_bands, -1)])
     _, row_of_band = np.unique(rows, axis=0, return_inverse=True)
     return _ClassPlan(entry.id, model, names, shapes, shape_of_band, coefficients, covariance, row_of_band.reshape(-1))
@@ -312,31 +306,6 @@ def _checked_covariance(entry: BandParameters, covariance, names: tuple[str, ...
     return covariance
 
 
-class _Plans:
-    """The class plans as one opaque block argument (dask would otherwise walk and hash every
-    plan to build its graph); its token is a digest of the plans. ``None`` marks a class of the
-    table without covariance."""
-
-    def __init__(self, plans: Mapping[int, _ClassPlan | None]):
-        self._plans = dict(plans)
-        digest = hashlib.sha256()
-        for class_id, plan in self._plans.items():
-            digest.update(f"{class_id}|".encode())
-            if plan is None:
-                continue
-            digest.update(f"{plan.model.name}|{plan.names!r}|{plan.shapes!r}|".encode())
-            for array in (plan.shape_of_band, plan.coefficients, plan.covariance, plan.row_of_band):
-                digest.update(f"{array.dtype}{array.shape}".encode())
-                digest.update(np.ascontiguousarray(array).tobytes())
-        self._token = digest.hexdigest()
-
-    def get(self, class_id: int) -> _ClassPlan | None:
-        return self._plans.get(class_id)
-
-    def __dask_tokenize__(self) -> str:
-        return self._token
-
-
 # ------------------------------------------------------------------------------------- blocks
 def _usable(classes, theta_i, theta_r, saa, vaa, class_nodata) -> np.ndarray:
     """Pixels with finite angles, zeniths in [0, 90) and a class (not 0, NaN or the nodata)."""
@@ -352,7 +321,7 @@ def _usable(classes, theta_i, theta_r, saa, vaa, class_nodata) -> np.ndarray:
 
 def _uncertainty_block(
     reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, slope=None, aspect=None, *,
-    plans: _Plans, reference: ReferenceGeometry, limits, class_nodata, flip_view_azimuth: bool, out_dtype,
+    plans: Plans, reference: ReferenceGeometry, limits, class_nodata, flip_view_azimuth: bool, out_dtype,
 ):
     """The 1-sigma of the corrected reflectance of one (band, y, x) block (module docstring)."""
     n_bands, ny, nx = reflectance.shape
@@ -504,7 +473,7 @@ def correction_uncertainty(
         extrapolate=extrapolate, class_nodata=class_nodata, slope=slope, aspect=aspect,
     )
     reflectance, reference, limits = inputs.reflectance, inputs.reference, inputs.limits
-    plans = _Plans({class_id: _plan(entry) for class_id, entry in inputs.resolved.items()})
+    plans = Plans({class_id: _plan(entry) for class_id, entry in inputs.resolved.items()})
     kwargs: dict[str, Any] = dict(
         plans=plans, reference=reference, limits=limits, class_nodata=inputs.class_nodata,
         flip_view_azimuth=flip_view_azimuth, out_dtype=inputs.out_dtype,

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 import rasterio
 from click.testing import CliRunner
+from test_scaled_inputs import _store
 
 from brdfcorr.cli import main
 from brdfcorr.correct import QA_NODATA
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
-from test_scaled_inputs import _store
 
 
 def _correct(paths, image, output, *extra):

@@ -52,7 +52,7 @@ from rasterio.crs import CRS
 from rasterio.errors import CRSError
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.io.sensors.envi import ANGLE_LONG_NAMES, OBS_BAND_NAMES, _normalize, _obs_band_index
+from brdfcorr.io.sensors.envi import ANGLE_LONG_NAMES, OBS_BAND_NAMES, _obs_band_index, wanted_bands
 from brdfcorr.io.sensors.grids import wrap_azimuth
 from brdfcorr.io.sensors.neon import DEFAULT_CHUNK, on_grid, require_hdf5
 
@@ -313,10 +313,7 @@ def read_emit_obs(path: str | Path, like: xr.DataArray | None = None, *, view_az
     path = Path(path)
     if view_azimuth not in ("to_sensor", "from_sensor"):
         raise SensorInputError(f"view_azimuth must be 'to_sensor' or 'from_sensor', got {view_azimuth!r}")
-    names = {**OBS_BAND_NAMES, **{key: _normalize(value) for key, value in (band_names or {}).items()}}
-    unknown = set(names) - set(OBS_BAND_NAMES)
-    if unknown:
-        raise SensorInputError(f"band_names: unknown angle(s) {sorted(unknown)}; use sza, saa, vza, vaa")
+    names = wanted_bands(band_names, OBS_BAND_NAMES, "angle(s)")
     root = _open(path)
     parameters = _open(path, "sensor_band_parameters")
     if "obs" not in root or "observation_bands" not in parameters:

@@ -203,6 +203,27 @@ def _obs_band_index(path: Path, names: tuple, wanted: str, label: str) -> int:
     raise SensorInputError(f"{path}: several obs bands match {label} ({wanted!r}): {listed}")
 
 
+def wanted_bands(band_names: Mapping[str, str] | None, defaults: Mapping[str, str], what: str) -> dict[str, str]:
+    """The band-name prefix of each layer: ``defaults`` with the user's ``band_names`` over them
+    (normalized, :func:`_normalize`); a key that is no layer is a :class:`SensorInputError`."""
+    names = {**defaults, **{key: _normalize(value) for key, value in (band_names or {}).items()}}
+    unknown = set(names) - set(defaults)
+    if unknown:
+        raise SensorInputError(f"band_names: unknown {what} {sorted(unknown)}; use {', '.join(defaults)}")
+    return names
+
+
+def _open_obs_bands(path: Path, names: Mapping[str, str], like, chunks):
+    """The obs file (band, y, x) lazily, the index of each named layer's band and the band names;
+    the grid checked against ``like``."""
+    _, descriptions = _envi_tags(path)
+    indices = {key: _obs_band_index(path, descriptions, wanted, key) for key, wanted in names.items()}
+    obs = rioxarray.open_rasterio(path, chunks=chunks or {"band": 1, "y": 512, "x": 512}, masked=True)
+    if like is not None:
+        _check_same_grid(path, obs, like)
+    return obs, indices, descriptions
+
+
 def read_envi_obs(path: str | Path, like: xr.DataArray | None = None, *,
                   view_azimuth: str = "to_sensor", band_names: Mapping[str, str] | None = None,
                   chunks=None) -> xr.Dataset:
@@ -236,15 +257,8 @@ def read_envi_obs(path: str | Path, like: xr.DataArray | None = None, *,
     path = Path(path)
     if view_azimuth not in ("to_sensor", "from_sensor"):
         raise SensorInputError(f"view_azimuth must be 'to_sensor' or 'from_sensor', got {view_azimuth!r}")
-    names = {**OBS_BAND_NAMES, **{key: _normalize(value) for key, value in (band_names or {}).items()}}
-    unknown = set(names) - set(OBS_BAND_NAMES)
-    if unknown:
-        raise SensorInputError(f"band_names: unknown angle(s) {sorted(unknown)}; use sza, saa, vza, vaa")
-    _, descriptions = _envi_tags(path)
-    indices = {key: _obs_band_index(path, descriptions, wanted, key) for key, wanted in names.items()}
-    obs = rioxarray.open_rasterio(path, chunks=chunks or {"band": 1, "y": 512, "x": 512}, masked=True)
-    if like is not None:
-        _check_same_grid(path, obs, like)
+    names = wanted_bands(band_names, OBS_BAND_NAMES, "angle(s)")
+    obs, indices, descriptions = _open_obs_bands(path, names, like, chunks)
     variables = {}
     for key, index in indices.items():
         angle = obs.isel(band=index, drop=True)
@@ -309,15 +323,8 @@ def read_envi_obs_terrain(path: str | Path, like: xr.DataArray | None = None, *,
         "Cosine(i)" matches no convention.)
     """
     path = Path(path)
-    names = {**OBS_TERRAIN_BAND_NAMES, **{key: _normalize(value) for key, value in (band_names or {}).items()}}
-    unknown = set(names) - set(OBS_TERRAIN_BAND_NAMES)
-    if unknown:
-        raise SensorInputError(f"band_names: unknown layer(s) {sorted(unknown)}; use slope, aspect")
-    _, descriptions = _envi_tags(path)
-    indices = {key: _obs_band_index(path, descriptions, wanted, key) for key, wanted in names.items()}
-    obs = rioxarray.open_rasterio(path, chunks=chunks or {"band": 1, "y": 512, "x": 512}, masked=True)
-    if like is not None:
-        _check_same_grid(path, obs, like)
+    names = wanted_bands(band_names, OBS_TERRAIN_BAND_NAMES, "layer(s)")
+    obs, indices, descriptions = _open_obs_bands(path, names, like, chunks)
     variables = {}
     for key, index in indices.items():
         layer = obs.isel(band=index, drop=True)
