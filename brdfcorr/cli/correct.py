@@ -7,19 +7,21 @@ import sys
 import time
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import click.shell_completion
-from tqdm.dask import TqdmCallback
 
 from brdfcorr.cli._base import _options, handle_errors, main
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
 from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
-from brdfcorr.io.writer import FORMATS
-from brdfcorr.models.materials import load_material, material_names
-from brdfcorr.params import ClassEntry, ParameterTable
-from brdfcorr.workflow.classmaps import read_lookup
-from brdfcorr.workflow.tasks import Terrain, correct_files
+from brdfcorr.io import FORMATS
+
+if TYPE_CHECKING:
+    from brdfcorr.workflow.tasks import Terrain
+
+# The library (dask, rasterio, scipy) is imported when the command runs, not when its options are
+# parsed: --help and argument errors answer at once.
 
 
 def _reference_sza(value: str | None):
@@ -38,6 +40,8 @@ class _ClassMaterial(click.ParamType):
     name = "ID=MATERIAL"
 
     def shell_complete(self, ctx, param, incomplete):
+        from brdfcorr.models.materials import material_names
+
         key, separator, text = incomplete.partition("=")
         if not separator:
             return []
@@ -45,6 +49,9 @@ class _ClassMaterial(click.ParamType):
                 for name in material_names() if name.startswith(text)]
 
     def convert(self, value, param, ctx):
+        from brdfcorr.models.materials import load_material
+        from brdfcorr.params import ClassEntry
+
         if isinstance(value, ClassEntry):
             return value
         key, separator, name = str(value).partition("=")
@@ -77,6 +84,7 @@ def _cluster(address: str | None):
 
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
     """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
+    from brdfcorr.workflow.tasks import Terrain
     if slope_aspect is None and dem is None:
         if topographic is not None or brdf_frame is not None:
             raise click.UsageError("--topographic and --brdf-frame need --slope-aspect or --dem")
@@ -168,6 +176,12 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     table's class of that id); a material applied to bands more than 100 nm from its fit's
     wavelength (550 nm) is warned about once per class.
     """
+    from tqdm.dask import TqdmCallback
+
+    from brdfcorr.params import ParameterTable
+    from brdfcorr.workflow.classmaps import read_lookup
+    from brdfcorr.workflow.tasks import correct_files
+
     if params_path is None and not materials:
         raise click.UsageError("give a parameter table (--params) or at least one --material")
     table = ParameterTable.load(params_path) if params_path is not None else ParameterTable()

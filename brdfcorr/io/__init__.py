@@ -10,6 +10,13 @@ import importlib
 
 __all__ = ["open_angles", "open_classes", "open_image", "open_scene", "write_rasters"]
 
+#: Lossless GeoTIFF compressions for reflectance (GDAL names, lower case; the CLI's choices).
+COMPRESSIONS = ("deflate", "lzw", "zstd", "none")
+#: Output raster formats (GDAL driver names; the CLI's ``--format`` choices).
+FORMATS = ("GTiff", "ENVI")
+#: File name extensions of each format (lower case; "" is a name without extension).
+EXTENSIONS = {"GTiff": (".tif", ".tiff"), "ENVI": (".img", ".bsq", ".bil", ".dat", "")}
+
 
 def __getattr__(name: str):
     if name in __all__:

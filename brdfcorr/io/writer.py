@@ -42,6 +42,7 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 from xarray.conventions import encode_cf_variable
 
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
+from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
 from brdfcorr.io.files import atomic_path
 
 __all__ = ["write_rasters", "encode_integers", "EnviOutput", "check_format", "envi_header_path", "DEFAULT_CHUNK",
@@ -54,12 +55,6 @@ DEFAULT_CHUNK = 512
 #: on a 64-band cube), and GDAL compresses on all cores; every further dask thread holds its chunks
 #: and their intermediates (about 170 MiB for a 16 MiB chunk), docs/scaling.md.
 CORES_PER_THREAD = 4
-#: Lossless GeoTIFF compressions for reflectance (GDAL names, lower case; the CLI's choices).
-COMPRESSIONS = ("deflate", "lzw", "zstd", "none")
-#: Output raster formats (GDAL driver names; the CLI's ``--format`` choices).
-FORMATS = ("GTiff", "ENVI")
-#: File name extensions of each format (lower case; "" is a name without extension).
-EXTENSIONS = {"GTiff": (".tif", ".tiff"), "ENVI": (".img", ".bsq", ".bil", ".dat", "")}
 
 
 @dataclass(frozen=True)

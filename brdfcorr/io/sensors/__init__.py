@@ -26,18 +26,42 @@ The one call for the correction and chain configs is ``read_angles(kind, path, l
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 
 import xarray as xr
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.io.sensors.emit import apply_glt, read_emit_image, read_emit_obs
-from brdfcorr.io.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
-from brdfcorr.io.sensors.grids import grid_template, to_grid
-from brdfcorr.io.sensors.landsat import parse_ang_txt, read_landsat_angles
-from brdfcorr.io.sensors.neon import read_neon_angles, read_neon_image
-from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
-from brdfcorr.io.sensors.solar import solar_angles, solar_position
+
+#: Where each public name lives. The readers are imported at first use (PEP 562): they pull in
+#: pandas, pvlib, h5py and rasterio, which the command line's start and argument errors need not.
+_MODULES = {
+    "apply_glt": "emit", "read_emit_image": "emit", "read_emit_obs": "emit",
+    "acquisition_time": "envi", "envi_wavelengths": "envi", "read_envi_image": "envi", "read_envi_obs": "envi",
+    "grid_template": "grids", "to_grid": "grids",
+    "parse_ang_txt": "landsat", "read_landsat_angles": "landsat",
+    "read_neon_angles": "neon", "read_neon_image": "neon",
+    "parse_mtd_tl": "sentinel2", "read_sentinel2_angles": "sentinel2",
+    "solar_angles": "solar", "solar_position": "solar",
+}
+
+
+def __getattr__(name: str):
+    if name not in _MODULES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_MODULES[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def _reader(name: str) -> Callable[..., xr.Dataset]:
+    """The reader ``name``, imported when it is called."""
+
+    def read(*args, **options) -> xr.Dataset:
+        return __getattr__(name)(*args, **options)
+
+    read.__name__ = read.__qualname__ = name
+    return read
 
 __all__ = [
     "ANGLE_KINDS",
@@ -89,6 +113,8 @@ def read_solar_angles(time, like: xr.DataArray, *, view_zenith: float | None = N
             "angle source kind 'solar' gives only sun angles: set view_zenith and view_azimuth "
             "(degrees; e.g. view_zenith=0 for a nadir view) explicitly"
         )
+    from brdfcorr.io.sensors.solar import solar_angles  # pvlib: only for this kind
+
     angles = solar_angles(time, like, **options)
     for key, value, long_name in (
         ("vza", view_zenith, "view zenith angle"),
@@ -101,12 +127,12 @@ def read_solar_angles(time, like: xr.DataArray, *, view_zenith: float | None = N
 
 #: Source kinds accepted by :func:`read_angles` and their readers.
 ANGLE_KINDS: dict[str, Callable[..., xr.Dataset]] = {
-    "envi_obs": read_envi_obs,
-    "sentinel2": read_sentinel2_angles,
-    "landsat": read_landsat_angles,
+    "envi_obs": _reader("read_envi_obs"),
+    "sentinel2": _reader("read_sentinel2_angles"),
+    "landsat": _reader("read_landsat_angles"),
     "solar": read_solar_angles,
-    "neon": read_neon_angles,
-    "emit": read_emit_obs,
+    "neon": _reader("read_neon_angles"),
+    "emit": _reader("read_emit_obs"),
 }
 
 
