@@ -141,6 +141,10 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
         "brdfcorr.cli.assess",
         "Did the BRDF correction work? View-angle slopes, side ratios, profiles and overlaps, before and after.",
     ),
+    "assess-lines": (
+        "brdfcorr.cli.assess",
+        "Leave-one-line-out: fit on the other flight lines, correct and assess each held-out line.",
+    ),
     "classes": (
         "brdfcorr.cli.classes",
         'Make class maps: NDVI strata of an image, or a land-cover map brought onto its grid.',

@@ -1,4 +1,6 @@
-"""``brdfcorr assess``: did the correction work? (library: :func:`brdfcorr.analysis.assess.assess_files`)."""
+"""``brdfcorr assess``: did the correction work? (library: :func:`brdfcorr.analysis.assess.assess_files`);
+``brdfcorr assess-lines``: leave-one-line-out over flight lines
+(:func:`brdfcorr.analysis.assess.leave_one_line_out_files`)."""
 
 from __future__ import annotations
 
@@ -6,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from brdfcorr.cli._base import _format_table, _options, _pairs, handle_errors, main
+from brdfcorr.cli._base import MODEL_CHOICE, _assignments, _format_table, _options, _pairs, handle_errors, main
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.workflow.classmaps import read_lookup
@@ -110,3 +112,89 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     if figures_dir is not None:
         for path in write_assessment_figures(assessment, figures_dir):
             click.echo(f"wrote {path}")
+
+
+def _held_out_rows(line: dict) -> list[dict[str, str]]:
+    """One held-out line of the leave-one-line-out report as rows: the largest |relative slope|
+    over classes and bands, then the median relative overlap RMSE over bands with each neighbour."""
+    slope = line["view_angles"]["summary"]["abs_relative_slope_percent_per_10deg"]
+    rows = [{"measure": "largest |relative slope| [%/10deg]", "before": _number(slope["before"]["max"]),
+             "after": _number(slope["after"]["max"])}]
+    for neighbour, overlap in line["overlaps"].items():
+        summary = overlap["summary"]
+        rows.append({"measure": f"overlap with {neighbour} ({overlap['pixels']} px): relative RMSE [%]",
+                     **{stage: _number(summary[f"median_relative_rmse_percent_{stage}"])
+                        for stage in ("before", "after")}})
+    return rows
+
+
+@main.command("assess-lines")
+@click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Class map per image, in the images' order.")
+@class_map_options
+@click.option("--angles", multiple=True, required=True,
+              help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa [deg]) "
+                   "or what --angles-kind names.")
+@angle_source_options
+@scale_options
+@click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
+              help="Model fitted for every class (see `brdfcorr models`).")
+@click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
+@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME",
+              help="Name of a class in the fit and the report (repeatable), e.g. 1=roof_tile.")
+@click.option("--fix", multiple=True, metavar="NAME=VALUE", help="Hold a shape parameter fixed in the fits.")
+@click.option("--max-samples", type=int, default=50_000, show_default=True,
+              help="Samples per class, over the training lines.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
+@click.option("--ref-sza", help="Reference sun zenith [deg], 'mean' or 'observed' [default: mean]; the view is "
+                                "normalized to nadir.")
+@click.option("--sign-by", type=click.Choice(["sun", "track"]), default="sun", show_default=True,
+              help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
+                   "(track, with --heading).")
+@click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
+@click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="JSON report to write.")
+@click.option("--chunk", type=int, help="Chunk size [pixels] [default: 512, less for many bands].")
+@click.option("--overwrite", is_flag=True, help="Replace an existing report [default: refuse].")
+@handle_errors
+def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
+                         offset, model_name, class_model, class_names, fix, max_samples, seed, ref_sza, sign_by,
+                         heading, flip_view_azimuth, output, chunk, overwrite):
+    """Leave-one-line-out: fit on the other flight lines, correct and assess each held-out line.
+
+    For each of IMAGES (at least 2 flight lines, each with its --classes and --angles, in the same
+    order), fits per-class parameters on the other lines (as `brdfcorr fit-classes`), corrects the
+    held-out line with them and measures its view-angle slopes and its overlaps with the other
+    lines, before and after (as `brdfcorr assess`): a test of the correction on data its
+    parameters never saw. Prints a table per held-out line and writes a JSON report (-o).
+    """
+    from brdfcorr.analysis.assess import leave_one_line_out_files, write_json
+    from brdfcorr.cli.correct import _reference_sza
+
+    if sign_by == "track" and heading is None:
+        raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
+    check_outputs({"-o": output}, [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
+                                   *(("--angles", path) for path in angles if angles_kind != "solar"),
+                                   ("--class-lookup", class_lookup)])
+    if not overwrite:
+        refuse_existing([output])
+    sza = _reference_sza(ref_sza)
+    assessment = leave_one_line_out_files(
+        images, classes=classes, angles=angles, angles_kind=angles_kind,
+        angle_options=_options("--angle-option", angle_option), model=model_name,
+        class_models=_pairs("--class-model", class_model), names=_pairs("--class-name", class_names),
+        fixed=_assignments("--fix", fix) or None, reference={"sza": "mean" if sza is None else sza, "vza": 0.0},
+        max_samples=max_samples, seed=seed, by=sign_by, heading=heading, flip_view_azimuth=flip_view_azimuth,
+        align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
+        scale=scale, offset=offset, chunks=chunk,
+    )
+    report = assessment.report()
+    write_json(report, output)
+    for line in report["lines"]:
+        training = ", ".join(entry["name"] for entry in report["inputs"] if entry["name"] != line["held_out"])
+        click.echo(f"{line['held_out']} (parameters fitted on {training})")
+        click.echo(_format_table(_held_out_rows(line)))
+        click.echo()
+    click.echo(f"wrote {output}")

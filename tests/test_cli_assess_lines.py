@@ -1,0 +1,123 @@
+"""Tests of ``brdfcorr assess-lines`` and :func:`brdfcorr.analysis.assess.leave_one_line_out_files`:
+three overlapping lines rendered with a known kernel model (the builder of tests/test_assess.py),
+written as GeoTIFFs; the CLI's JSON equals the library's numbers, the held-out slopes fall."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from test_assess import _lines
+
+from brdfcorr.analysis.assess import leave_one_line_out, leave_one_line_out_files, leave_one_line_out_report
+from brdfcorr.cli import main
+from brdfcorr.errors import InputError
+from brdfcorr.testing import write_scene
+
+NAMES = {1: "grass", 2: "soil"}
+REFERENCE = {"sza": 35.0, "vza": 0.0}
+
+
+@pytest.fixture(scope="module")
+def lines():
+    return _lines()
+
+
+@pytest.fixture(scope="module")
+def files(lines, tmp_path_factory):
+    """Each line as image, class map and 4-band angle GeoTIFFs; the images named line1.tif ..."""
+    directory = tmp_path_factory.mktemp("lines")
+    paths = {"images": [], "classes": [], "angles": []}
+    for line in lines:
+        scene = {"reflectance": line.reflectance, "classes": line.classes, **line.angles}
+        written = write_scene(directory / line.name, scene)
+        image = written["image"].rename(directory / f"{line.name}.tif")
+        paths["images"].append(image)
+        paths["classes"].append(written["classes"])
+        paths["angles"].append(written["angles"])
+    return paths
+
+
+@pytest.fixture(scope="module")
+def library_report(files):
+    assessment = leave_one_line_out_files(files["images"], classes=files["classes"], angles=files["angles"],
+                                          model="ross_thick_li_sparse", names=NAMES, reference=REFERENCE)
+    return assessment.report()
+
+
+def _invoke(*args):
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+def _arguments(files, images=None, classes=None, angles=None):
+    arguments = [*(files["images"] if images is None else images)]
+    for option, paths in (("--classes", files["classes"] if classes is None else classes),
+                          ("--angles", files["angles"] if angles is None else angles)):
+        for path in paths:
+            arguments += [option, path]
+    return arguments
+
+
+def test_files_give_the_numbers_of_the_lines_in_memory(lines, library_report):
+    # Independent computation: the same lines, never written, through leave_one_line_out. The files
+    # hold the same float64 values, so every number agrees to rounding.
+    memory = leave_one_line_out_report(leave_one_line_out(lines, "ross_thick_li_sparse", names=NAMES,
+                                                          reference=REFERENCE))
+    assert [line["held_out"] for line in library_report["lines"]] == ["line1", "line2", "line3"]
+    for from_files, in_memory in zip(library_report["lines"], memory["lines"]):
+        for stage in ("before", "after"):
+            for got, expected in zip(from_files["view_angles"]["classes"], in_memory["view_angles"]["classes"]):
+                np.testing.assert_allclose(got[stage]["relative_slope"], expected[stage]["relative_slope"],
+                                           rtol=1e-6)
+            for name, overlap in in_memory["overlaps"].items():
+                np.testing.assert_allclose(from_files["overlaps"][name][stage]["rmse"], overlap[stage]["rmse"],
+                                           rtol=1e-6)
+
+
+def test_held_out_slopes_and_overlap_differences_fall(library_report):
+    for line in library_report["lines"]:
+        slope = line["view_angles"]["summary"]["abs_relative_slope_percent_per_10deg"]
+        # property: parameters fitted on the other lines take most of the view-angle signal out
+        assert slope["after"]["max"] < 0.2 * slope["before"]["max"], line["held_out"]
+        assert line["overlaps"], line["held_out"]  # every line overlaps a neighbour
+        for overlap in line["overlaps"].values():
+            assert np.all(np.array(overlap["after"]["rmse"]) < 0.2 * np.array(overlap["before"]["rmse"]))
+
+
+def test_cli_report_equals_the_library_report(files, library_report, tmp_path):
+    output = tmp_path / "lines.json"
+    result = _invoke("assess-lines", *_arguments(files), "--model", "ross_thick_li_sparse",
+                     "--class-name", "1=grass", "--class-name", "2=soil", "--ref-sza", "35", "-o", output)
+    assert result.exit_code == 0, result.output
+    report = json.loads(output.read_text())
+    assert report["kind"] == "leave-one-line-out"
+    assert [entry["name"] for entry in report["inputs"]] == ["line1", "line2", "line3"]
+    assert report == library_report  # the command is one call of the library function
+    # the printed table: per held-out line, the largest |relative slope| before and after
+    line = report["lines"][1]
+    assert "line2 (parameters fitted on line1, line3)" in result.output
+    slope = line["view_angles"]["summary"]["abs_relative_slope_percent_per_10deg"]
+    assert f"{slope['before']['max']:.2f}" in result.output and f"{slope['after']['max']:.2f}" in result.output
+    assert "overlap with line1" in result.output and "overlap with line3" in result.output
+    # an existing report is replaced only with --overwrite
+    again = _invoke("assess-lines", *_arguments(files), "--model", "ross_thick_li_sparse", "-o", output)
+    assert again.exit_code == 2
+
+
+def test_bad_input_is_one_line_and_exit_2(files, tmp_path):
+    output = tmp_path / "r.json"
+    mismatched = _invoke("assess-lines", *_arguments(files, classes=files["classes"][:2]), "-o", output)
+    assert mismatched.exit_code == 2
+    assert mismatched.output.strip().count("\n") == 0
+    assert "3 image(s), 2 class map(s) and 3 angle source(s)" in mismatched.output
+    missing = _invoke("assess-lines", *_arguments(files, images=[*files["images"][:2], tmp_path / "nope.tif"]),
+                      "-o", output)
+    assert missing.exit_code == 2
+    assert missing.output.strip().count("\n") == 0 and "nope.tif" in missing.output
+    assert not output.exists()
+    with pytest.raises(InputError, match="at least 2 lines"):
+        leave_one_line_out_files(files["images"][:1], classes=files["classes"][:1], angles=files["angles"][:1])
+    with pytest.raises(InputError, match="given twice"):
+        leave_one_line_out_files(files["images"][:1] * 2, classes=files["classes"][:2], angles=files["angles"][:2])
