@@ -51,7 +51,7 @@ def test_defaults_and_base_dir(tmp_path):
      "'synchronous' or 'distributed'"),
     ("outputs", {"directory": "out", "compres": "lzw"},
      "chain.yaml: outputs.compres: unknown key; allowed keys: cog, compress, directory, existing, "
-     "format, naming, qa_naming, quicklook_naming, report"),
+     "format, interleave, naming, qa_naming, quicklook_naming, report, uncertainty, uncertainty_naming"),
     ("reference", {"sza": "meen"},
      "chain.yaml: reference.sza: 'meen' is not allowed; allowed: a number, 'mean' or 'observed'"),
     ("steps", {"fit": {"source": "imag"}},
@@ -93,6 +93,57 @@ def test_patterns_and_semantic_checks():
     document = minimal()
     document["inputs"]["scene_regex"] = "(?P<name>.+)"
     assert "no named group (?P<scene>...)" in error_of(document)
+
+
+def with_inputs(**keys) -> dict:
+    return {**minimal()["inputs"], **keys}
+
+
+@pytest.mark.parametrize("sections, expected", [
+    ({"steps": {"correct": {"terrain": {}}}},
+     "chain.yaml: steps.correct.terrain needs slope and aspect: set inputs.slope_aspect or inputs.dem"),
+    ({"inputs": with_inputs(dem="{dir}/{scene}_dem.tif")},
+     "chain.yaml: inputs.slope_aspect and inputs.dem are read by steps.correct.terrain"),
+    ({"inputs": with_inputs(dem="{dir}/{scene}_dem.tif", slope_aspect="{dir}/{scene}_sa.tif"),
+      "steps": {"correct": {"terrain": {}}}},
+     "chain.yaml: inputs: give slope_aspect or dem, not both"),
+    ({"inputs": with_inputs(dem="{dir}/{sceen}_dem.tif"), "steps": {"correct": {"terrain": {}}}},
+     "chain.yaml: inputs.dem: pattern '{dir}/{sceen}_dem.tif' uses {sceen}"),
+    ({"inputs": with_inputs(dem="{dir}/{scene}_dem.tif"), "steps": {"correct": {"terrain": {"topographic": "c"}}}},
+     "chain.yaml: steps.correct.terrain: topographic 'c' fits an empirical C"),
+    ({"steps": {"correct": {"terrain": {"topographic": "minnaert"}}}},
+     "chain.yaml: steps.correct.terrain.topographic: 'minnaert' is not allowed; allowed: 'cosine', 'c', 'scs', "
+     "'scs+c' or 'none'"),
+    ({"steps": {"correct": None, "assess": {}}},
+     "chain.yaml: steps: assess compares input and corrected images: it needs the correct step"),
+    ({"steps": {"assess": {"sign_by": "track"}}},
+     "chain.yaml: steps.assess: sign_by 'track' needs the flight direction: set heading [deg]"),
+    ({"steps": {"assess": {"heading": 10}}}, "chain.yaml: steps.assess: heading is only used with sign_by 'track'"),
+    ({"steps": {"assess": {"bin_width": 0}}}, "chain.yaml: steps.assess.bin_width: Input should be greater than 0"),
+    ({"outputs": {"directory": "o", "interleave": "bil"}},
+     "chain.yaml: outputs: interleave applies to format ENVI, not 'GTiff'"),
+    ({"outputs": {"directory": "o", "format": "ENVI", "interleave": "bip"}},
+     "chain.yaml: outputs.interleave: 'bip' is not allowed; allowed: 'bsq' or 'bil'"),
+    ({"outputs": {"directory": "o", "uncertainty": True}, "steps": {"correct": None}},
+     "chain.yaml: outputs.uncertainty is written by the correct step: it needs steps.correct"),
+    ({"outputs": {"directory": "o", "uncertainty_naming": "{scene}_u.img"}},
+     "chain.yaml: outputs: outputs.uncertainty_naming {scene}_u.img: extension .img does not fit format GTiff"),
+])
+def test_terrain_assess_uncertainty_and_interleave_settings_are_checked(sections, expected):
+    assert error_of(minimal(**sections)).startswith(expected)
+
+
+def test_terrain_assess_uncertainty_and_interleave_defaults():
+    config = ChainConfig.from_dict(minimal(
+        inputs=with_inputs(slope_aspect="{dir}/{scene}_slope_aspect.tif"),
+        steps={"correct": {"terrain": {}}, "assess": {}},
+        outputs={"directory": "o", "format": "ENVI", "interleave": "bil", "uncertainty": True}))
+    terrain, assess = config.steps.correct.terrain, config.steps.assess
+    # the defaults of brdfcorr.workflow.tasks.Terrain and brdfcorr.analysis.assess.assess_files
+    assert (terrain.topographic, terrain.brdf_frame) == ("cosine", "surface")
+    assert (assess.sign_by, assess.heading, assess.bin_width, assess.min_vza) == ("sun", None, 2.0, 0.0)
+    assert config.outputs.uncertainty_naming == "{scene}_uncertainty.tif"
+    assert ChainConfig.from_dict(minimal()).outputs.interleave is None  # ENVI's bsq unless asked
 
 
 def test_format_pattern():

@@ -86,8 +86,18 @@ def test_demo_run_removes_the_gradient(tmp_path):
     report = json.loads(result.report.path.read_text())
     assert report["scenes"][0]["qa"]["no_class"] == int(water.sum())
     assert report["scenes"][0]["qa"]["corrected"] == int((~water).sum())
-    picture = tmp_path / "corrected" / "line01_before_after.png"
-    assert result.figures == [picture] and picture.read_bytes()[:4] == b"\x89PNG"
+    # The assess step measures the same: every class leans by 5-10 %/10 deg of view zenith before;
+    # a correction with the parameters the scene was rendered with leaves only texture and 0.3 %
+    # noise, so more than 95 % of the slope must go (docs/assess.md: 9.7 -> 0.07 on 300 lines).
+    summary = report["scenes"][0]["assess"]
+    assert [row["id"] for row in summary] == [1, 2, 3, 4, 5]
+    for row in summary:
+        slopes = row["median_abs_relative_slope_percent_per_10deg"]
+        assert slopes["before"] > 5.0 and slopes["after"] < 0.05 * slopes["before"], row
+    assessed = json.loads((tmp_path / "corrected" / "line01_assess.json").read_text())
+    assert assessed["kind"] == "brdfcorr assess" and len(assessed["view_angles"]["classes"]) == 5
+    figures = [tmp_path / "corrected" / name for name in ("line01_assess_profiles.png", "line01_before_after.png")]
+    assert result.figures == figures and all(path.read_bytes()[:4] == b"\x89PNG" for path in figures)
     assert (tmp_path / "demo.yaml").read_text() == (REPO / "configs" / "demo.yaml").read_text()
 
 
@@ -102,6 +112,7 @@ def test_demo_cli(tmp_path):
     result = CliRunner().invoke(main, ["demo", "-o", str(tmp_path / "demo"), "--no-progress"])
     assert result.exit_code == 0, result.output
     for name in ("corrected/line01_brdf.tif", "corrected/line01_qa.tif", "corrected/line01_before_after.png",
+                 "corrected/line01_assess.json", "corrected/line01_assess_profiles.png",
                  "corrected/run_report.json", "materials_brdf.png", "demo.yaml", "scene/line01_image.tif"):
         assert (tmp_path / "demo" / name).exists(), name
     assert "1 ok, 0 skipped, 0 failed" in result.output

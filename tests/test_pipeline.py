@@ -350,11 +350,23 @@ def test_progress_bar_and_events(tmp_path):
     make_scenes(tmp_path, count=2)
     chain = write_chain(tmp_path)
     events = []
-    run_chain(load_config(chain), progress=lambda event, info: events.append((event, info.get("status"))))
-    assert events == [("plan", None), ("scene", "ok"), ("scene", "ok")]
+    run_chain(load_config(chain), progress=lambda event, info: events.append((event, dict(info))))
+    assert [(event, info.get("status")) for event, info in events if event != "chunks"] == [
+        ("plan", None), ("scene", "ok"), ("scene", "ok")]
+    # Between the scene events, the chunks of each scene's correction pass (threads engine): counts
+    # that only grow, and a last event with every task done, before that scene's own event.
+    for name in ("line0_image", "line1_image"):  # scene names: the shared stem qualified by its directory
+        chunks = [info for event, info in events if event == "chunks" and info["scene"] == name]
+        assert chunks, name
+        done = [info["done"] for info in chunks]
+        assert done == sorted(done) and chunks[0]["done"] == 0
+        assert chunks[-1]["done"] == chunks[-1]["total"] > 0
+    scene_events = [index for index, (event, _) in enumerate(events) if event == "scene"]
+    assert all(events[index - 1][0] == "chunks" for index in scene_events)
     result = CliRunner().invoke(main, ["run", str(chain), "--overwrite", "--progress"])
     assert result.exit_code == 0
     assert "2/2" in result.stderr  # the overall bar counts scenes
+    assert "task" in result.stderr  # and the bar of the scene's tasks shows below it
 
 
 def test_chain_and_correct_choose_the_tile_size_by_the_same_band_count_rule(tmp_path):

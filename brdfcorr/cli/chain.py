@@ -35,8 +35,8 @@ def demo_command(output_dir: Path, config_path, progress):
     """Build a demo airborne line, correct it with the demo chain and write a before/after picture.
 
     Writes OUTPUT_DIR/scene/ (image, angles, classes), OUTPUT_DIR/corrected/ (corrected GeoTIFF,
-    QA, before/after quicklook, run report), OUTPUT_DIR/demo.yaml (the chain, rerun with
-    `brdfcorr run`) and OUTPUT_DIR/materials_brdf.png.
+    QA, assessment report and profile figure, before/after quicklook, run report),
+    OUTPUT_DIR/demo.yaml (the chain, rerun with `brdfcorr run`) and OUTPUT_DIR/materials_brdf.png.
     """
     with _chain_progress(progress, "demo") as callback:
         result = run_demo(output_dir, config_path, progress=callback)
@@ -64,12 +64,14 @@ def _overrides(items: tuple[str, ...]) -> dict:
 
 class _chain_progress:
     """Context manager giving a ``progress(event, info)`` callback that drives an overall tqdm bar
-    over the scenes (on a terminal, or when asked)."""
+    over the scenes and, below it, a bar over the dask tasks of the scene being corrected (the
+    ``chunks`` events of the threads and synchronous engines), on a terminal or when asked."""
 
     def __init__(self, enabled, description: str):
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.description = description
         self.bar = None
+        self.chunks = None
 
     def __enter__(self):
         return self.callback
@@ -81,11 +83,27 @@ class _chain_progress:
             self.bar = tqdm(total=info["scenes"], desc=self.description, unit="scene", file=sys.stderr)
         elif event == "fit" and self.bar is not None:
             self.bar.write(f"fit: {len(info.get('classes', []))} classes")
+        elif event == "chunks":
+            self._chunks(info)
         elif event == "scene" and self.bar is not None:
+            self._close_chunks()
             self.bar.set_postfix_str(f"{info['scene']}: {info['status']}")
             self.bar.update(1)
 
+    def _chunks(self, info: dict) -> None:
+        if self.chunks is None or self.chunks.total != info["total"]:  # a scene's (next) pass
+            self._close_chunks()
+            self.chunks = tqdm(total=info["total"], desc=info["scene"], unit="task", leave=False,
+                               position=1, file=sys.stderr)
+        self.chunks.update(info["done"] - self.chunks.n)
+
+    def _close_chunks(self) -> None:
+        if self.chunks is not None:
+            self.chunks.close()
+            self.chunks = None
+
     def __exit__(self, *exc):
+        self._close_chunks()
         if self.bar is not None:
             self.bar.close()
         return False
@@ -133,6 +151,8 @@ def run_command(chain, dry_run, resume, overwrite, settings, progress):
     if dry_run:
         _echo_plan(plan)
         return
+    for warning in plan.warnings:
+        click.echo(f"brdfcorr: warning: {warning}", err=True)
     with _chain_progress(progress, chain.name) as callback:
         report = run_chain(config, progress=callback, plan=plan)
     _echo_run(report)

@@ -9,8 +9,10 @@ into scenes and decides what happens to each (``run``, ``skip``, ``fail``; :mod:
    with :func:`brdfcorr.workflow.tasks.fit_class_files`), merged in that order (later wins for a
    class id);
 2. normalizes every scene to run with :func:`brdfcorr.workflow.tasks.correct_files` (lazy, chunked,
-   atomic writes, QA counts) and writes a before/after quicklook
-   (:func:`brdfcorr.plot.quicklook.write_quicklook`);
+   atomic writes, QA counts; optionally the uncertainty raster and tilted surfaces,
+   :class:`brdfcorr.workflow.tasks.Terrain`), assesses the view-angle signal left in it
+   (``steps.assess``: :func:`brdfcorr.analysis.assess.assess_files`, a JSON report and a figure)
+   and writes a before/after quicklook (:func:`brdfcorr.plot.quicklook.write_quicklook`);
 3. writes the run report (JSON; :mod:`.report`): inputs, parameter table and its sources,
    versions, timings, per-scene QA counts and errors.
 
@@ -37,8 +39,10 @@ The dask scheduler of a scene's chunks is passed to each computation (``schedule
 process-wide: scenes running side by side do not share a setting.
 
 Nothing here prints: progress goes to a callback ``progress(event, info)`` with events ``"plan"``
-(``{"scenes": n, "to_run": n_not_skipped}``), ``"fit"`` (``{"classes": [...]}``) and ``"scene"``
-(the scene's result, :func:`~brdfcorr.workflow.report.scene_result`).
+(``{"scenes": n, "to_run": n_not_skipped}``), ``"fit"`` (``{"classes": [...]}``), ``"chunks"``
+(``{"scene": name, "done": n, "total": n}``: the dask tasks of a scene's correction pass, with the
+``threads`` and ``synchronous`` engines only, at most every :data:`CHUNK_EVENT_SECONDS` and at the
+end) and ``"scene"`` (the scene's result, :func:`~brdfcorr.workflow.report.scene_result`).
 """
 
 from __future__ import annotations
@@ -53,16 +57,21 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from datetime import datetime, timezone
+from typing import Any
 
+from dask.callbacks import Callback
+
+from brdfcorr.analysis.assess import assess_files, write_json
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import GuardRails
 from brdfcorr.io.paths import remove_partials
 from brdfcorr.params import ParameterTable, merge_tables
+from brdfcorr.plot.assess import write_assessment_figures
 from brdfcorr.plot.quicklook import write_quicklook
 from brdfcorr.workflow.config import ChainConfig, EngineConfig
 from brdfcorr.workflow.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
-from brdfcorr.workflow.report import RunReport, earlier_findings, scene_result, versions
-from brdfcorr.workflow.tasks import SceneFiles, correct_files, fit_class_files, fit_measurement_file
+from brdfcorr.workflow.report import RunReport, assessment_summary, earlier_findings, scene_result, versions
+from brdfcorr.workflow.tasks import SceneFiles, Terrain, correct_files, fit_class_files, fit_measurement_file
 
 __all__ = [
     "connect_cluster",
@@ -73,14 +82,52 @@ __all__ = [
     "build_table",
     "run_chain",
     "process_scene",
+    "ChunkProgress",
     "write_quicklook",
     "versions",
 ]
 
 #: Seconds to wait for a dask scheduler at ``engine.address`` before the run is refused (exit 2).
 CONNECT_TIMEOUT = 10
+#: Least time between two ``"chunks"`` progress events of a scene [s].
+CHUNK_EVENT_SECONDS = 0.2
 
 Progress = Callable[[str, dict], None]
+
+
+class ChunkProgress(Callback):
+    """A dask callback (local schedulers) that reports the tasks of a computation as
+    ``progress("chunks", {"scene": name, "done": n, "total": n})``: at the start, at most every
+    ``interval`` seconds, and when the computation ends."""
+
+    def __init__(self, scene: str, progress: Progress, interval: float = CHUNK_EVENT_SECONDS):
+        super().__init__()
+        self.scene, self.progress, self.interval = scene, progress, interval
+        self._state: dict | None = None
+        self._last = 0.0
+
+    def _counts(self) -> tuple[int, int]:
+        state = self._state or {}
+        done = len(state.get("finished", ()))
+        return done, done + sum(len(state.get(key, ())) for key in ("ready", "waiting", "running"))
+
+    def _emit(self) -> None:
+        done, total = self._counts()
+        self._last = time.monotonic()
+        self.progress("chunks", {"scene": self.scene, "done": done, "total": total})
+
+    def _start_state(self, dsk, state) -> None:
+        self._state = state
+        self._emit()
+
+    def _posttask(self, key, result, dsk, state, worker_id) -> None:
+        if time.monotonic() - self._last >= self.interval:
+            self._emit()
+
+    def _finish(self, dsk, state, errored) -> None:
+        if not errored:
+            self._emit()
+        self._state = None
 
 
 # ----------------------------------------------------------------------------------- parameters
@@ -164,8 +211,8 @@ def build_table(plan: RunPlan, progress: Progress | None = None) -> tuple[Parame
 
 # --------------------------------------------------------------------------------------- scenes
 def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler: object = None,
-                  threads: int | None = None) -> dict:
-    """Correct one scene and write its outputs; never raises: failures go into the result.
+                  threads: int | None = None, progress: Progress | None = None) -> dict:
+    """Correct one scene, assess it and write its outputs; never raises: failures go into the result.
 
     Parameters
     ----------
@@ -179,42 +226,59 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
     threads : int, optional
         Number of threads of the ``"threads"`` scheduler (inside process workers, the engine's
         ``threads_per_worker``).
+    progress : callable, optional
+        ``progress("chunks", {...})`` during the correction pass (:class:`ChunkProgress`; dask's
+        local schedulers only, not a cluster's).
 
     Returns
     -------
     dict
         :func:`~brdfcorr.workflow.report.scene_result`: ``scene``, ``status`` (``ok``,
         ``failed``), ``outputs``, ``qa`` (pixel counts of :func:`brdfcorr.correct.qa_counts`),
-        ``reference``, ``seconds`` (per step) and, on failure, ``error`` and ``error_type``.
+        ``reference``, ``topographic`` (with ``steps.correct.terrain``), ``assess`` (with
+        ``steps.assess``, :func:`~brdfcorr.workflow.report.assessment_summary`), ``seconds`` (per
+        step) and, on failure, ``error`` and ``error_type``.
     """
     scheduler = scheduler or ("threads" if threads else None)
-    found, seconds, failure = {}, {}, None
+    compute: dict[str, Any] = {"scheduler": scheduler, "num_workers": threads}
+    found: dict = {}
+    seconds: dict = {}
+    failure = None
     start = time.perf_counter()
+    steps = config.steps
     try:
         if scene.action == "fail":
             raise InputError(scene.reason)
         for path in scene.outputs.values():
             path.parent.mkdir(parents=True, exist_ok=True)
-        if config.steps.correct is not None:
+        callbacks = [ChunkProgress(scene.name, progress)] if progress is not None else []
+        for name, run in (("correct", lambda: _correct(scene, table, config, callbacks=callbacks, **compute)),
+                          ("assess", lambda: _assess(scene, table, config, **compute)),
+                          ("quicklook", lambda: _quicklook(scene, config, table))):
+            if getattr(steps, name) is None:
+                continue
             tick = time.perf_counter()
-            summary = _correct(scene, table, config, scheduler=scheduler, num_workers=threads)
-            seconds["correct"] = round(time.perf_counter() - tick, 3)
-            found["reference"] = summary.pop("reference").describe()
-            found["qa"] = summary
-        if config.steps.quicklook is not None:
-            tick = time.perf_counter()
-            _quicklook(scene, config, table)
-            seconds["quicklook"] = round(time.perf_counter() - tick, 3)
+            found.update(run())
+            seconds[name] = round(time.perf_counter() - tick, 3)
     except Exception as error:  # noqa: BLE001 (isolation: a scene's failure must not stop the run)
         failure = error
     seconds["total"] = round(time.perf_counter() - start, 3)
     return scene_result(scene, "ok" if failure is None else "failed", found=found, error=failure, seconds=seconds)
 
 
+def _terrain(scene: Scene, config: ChainConfig) -> Terrain | None:
+    step = config.steps.correct.terrain
+    if step is None:
+        return None
+    return Terrain(slope_aspect=scene.slope_aspect, dem=scene.dem, topographic=step.topographic,
+                   brdf_frame=step.brdf_frame)
+
+
 def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler,
-             num_workers: int | None) -> dict:
+             num_workers: int | None, callbacks=()) -> dict:
+    """The correct step; returns what it found: ``reference``, ``qa`` and ``topographic``."""
     step, outputs = config.steps.correct, config.outputs
-    return correct_files(
+    summary = correct_files(
         scene.image, scene.outputs["corrected"], params=table, classes=scene.classes,
         reference=config.reference, qa_output=scene.outputs.get("qa"), wavelengths=config.inputs.wavelengths,
         extrapolate=step.extrapolate, limits=step.limits, unknown=step.unknown,
@@ -223,18 +287,44 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
         angle_options=dict(scene.angle_options), align_classes=config.inputs.align_classes,
         class_lookup=dict(config.inputs.class_lookup), scheduler=scheduler, num_workers=num_workers,
         scale=config.inputs.scale, offset=config.inputs.offset,
-        output_format=outputs.format,
+        output_format=outputs.format, interleave=outputs.interleave or "bsq",
+        uncertainty_output=scene.outputs.get("uncertainty"), terrain=_terrain(scene, config),
+        callbacks=callbacks,
         fingerprint=scene.fingerprint or None,  # what a resumed run compares (brdfcorr.workflow.plan)
     )
+    found = {"reference": summary.pop("reference").describe()}
+    if "topographic" in summary:
+        found["topographic"] = summary.pop("topographic")
+    found["qa"] = summary
+    return found
 
 
-def _quicklook(scene: Scene, config: ChainConfig, table: ParameterTable) -> None:
+def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler, num_workers: int | None) -> dict:
+    """The assess step: the JSON report and the profile figure; returns ``assess``, the per-class
+    summary (:func:`~brdfcorr.workflow.report.assessment_summary`)."""
+    step, inputs = config.steps.assess, config.inputs
+    assessment = assess_files(
+        scene.image, scene.outputs["corrected"], classes=scene.classes, angles=scene.angles,
+        angles_kind=scene.angles_kind, angle_options=dict(scene.angle_options),
+        class_names={entry.id: entry.name for entry in table.classes}, by=step.sign_by, heading=step.heading,
+        bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.steps.correct.flip_view_azimuth,
+        align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup), scale=inputs.scale,
+        offset=inputs.offset, chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers,
+    )
+    report = assessment.report()
+    write_json(report, scene.outputs["assess"])
+    write_assessment_figures(assessment, scene.outputs["assess_profiles"].parent, prefix=f"{scene.name}_assess")
+    return {"assess": assessment_summary(report)}
+
+
+def _quicklook(scene: Scene, config: ChainConfig, table: ParameterTable) -> dict:
     step = config.steps.quicklook
     write_quicklook(
         scene.image, scene.outputs["corrected"], scene.outputs["quicklook"], classes=scene.classes,
         bands=step.bands, percentiles=step.percentiles, max_size=step.max_size, title=scene.name,
         class_names={entry.id: entry.name for entry in table.classes},
     )
+    return {}
 
 
 def _die_with_parent(parent: int) -> None:
@@ -303,12 +393,14 @@ def connect_cluster(address: str | None = None, *, workers: int = 1, threads_per
         yield client
 
 
-def _run_scenes(scenes: list[Scene], table: ParameterTable, config: ChainConfig) -> Iterator[dict]:
-    """The results of the scenes, as they finish, on the config's engine."""
+def _run_scenes(scenes: list[Scene], table: ParameterTable, config: ChainConfig,
+                progress: Progress | None = None) -> Iterator[dict]:
+    """The results of the scenes, as they finish, on the config's engine; ``progress`` hears the
+    chunks of scenes run inline (``threads``, ``synchronous``)."""
     with _executor(config.engine) as (executor, compute):
         if executor is None:
             for scene in scenes:
-                yield process_scene(scene, table, config, **compute)
+                yield process_scene(scene, table, config, progress=progress, **compute)
             return
         futures = {executor.submit(process_scene, scene, table, config, **compute): scene for scene in scenes}
         for future in concurrent.futures.as_completed(futures):
@@ -364,7 +456,7 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
                                               found=earlier.get(str(scene.image))))
             notify("scene", report.scenes[-1])
     tick = time.perf_counter()
-    for result in _run_scenes([scene for scene in plan.scenes if scene.action != "skip"], table, config):
+    for result in _run_scenes([scene for scene in plan.scenes if scene.action != "skip"], table, config, progress):
         report.scenes.append(result)
         notify("scene", result)
     timings["scenes"] = round(time.perf_counter() - tick, 3)

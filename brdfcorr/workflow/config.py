@@ -52,6 +52,7 @@ from brdfcorr.io.writer import check_format
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ReferenceGeometry
+from brdfcorr.topographic import C_METHODS
 from brdfcorr.workflow.patterns import PATTERN_FIELDS, check_pattern, format_pattern
 
 __all__ = [
@@ -64,7 +65,9 @@ __all__ = [
     "GoniometerFit",
     "MeasurementSet",
     "CorrectStep",
+    "TerrainStep",
     "QuicklookStep",
+    "AssessStep",
     "StepsConfig",
     "OutputsConfig",
     "EngineConfig",
@@ -138,6 +141,10 @@ class InputsConfig(_Strict):
         class map on another grid is an error.
     class_lookup : dict of int to int
         Class-map code -> table class id (e.g. ESA WorldCover 10 -> 3); codes not listed: no class.
+    slope_aspect, dem : str, optional
+        Name patterns of the per-scene terrain source of ``steps.correct.terrain``
+        (:class:`brdfcorr.workflow.tasks.Terrain`): a 2-band slope/aspect raster [deg] (or an ENVI
+        ``obs_ort`` file), or a DEM [m] in a projected CRS, on the image grid; give one of them.
     wavelengths : list of float, optional
         Band centres [nm] for every image, overriding what the files say.
     scale, offset : float, optional
@@ -153,6 +160,8 @@ class InputsConfig(_Strict):
     classes: str = Field(min_length=1)
     align_classes: bool = False
     class_lookup: dict[Integer, Annotated[Integer, Field(ge=0, le=65535)]] = Field(default_factory=dict)
+    slope_aspect: str | None = Field(None, min_length=1)
+    dem: str | None = Field(None, min_length=1)
     wavelengths: list[Annotated[Number, Field(gt=0)]] | None = None
     scale: Number | None = Field(None, gt=0, allow_inf_nan=False)
     offset: Number | None = Field(None, allow_inf_nan=False)
@@ -181,6 +190,17 @@ class InputsConfig(_Strict):
     @classmethod
     def _pattern(cls, value: str) -> str:
         return check_pattern(value)
+
+    @field_validator("slope_aspect", "dem")
+    @classmethod
+    def _terrain_pattern(cls, value: str | None) -> str | None:
+        return value if value is None else check_pattern(value)
+
+    @model_validator(mode="after")
+    def _one_terrain_source(self) -> InputsConfig:
+        if self.slope_aspect is not None and self.dem is not None:
+            raise ValueError("give slope_aspect or dem, not both: slope and aspect come from one of them")
+        return self
 
 
 class MeasurementSet(_Strict):
@@ -297,6 +317,33 @@ class ParametersConfig(_Strict):
         return value
 
 
+class TerrainStep(_Strict):
+    """Tilted surfaces in the correct step (:class:`brdfcorr.workflow.tasks.Terrain`,
+    ``docs/terrain.md``); slope and aspect come from ``inputs.slope_aspect`` or ``inputs.dem``.
+
+    Attributes
+    ----------
+    topographic : {"cosine", "c", "scs", "scs+c", "none"}
+        Illumination correction before the BRDF step
+        (:func:`brdfcorr.topographic.topographic_correction`).
+    brdf_frame : {"surface", "horizontal"}
+        Evaluate the BRDF in each surface's own frame or in the horizontal frame. The empirical C
+        of ``"c"`` and ``"scs+c"`` goes with ``"horizontal"`` only (it absorbs part of the BRDF's
+        slope dependence).
+    """
+
+    topographic: Literal["cosine", "c", "scs", "scs+c", "none"] = "cosine"
+    brdf_frame: Literal["surface", "horizontal"] = "surface"
+
+    @model_validator(mode="after")
+    def _frame(self) -> TerrainStep:
+        if self.topographic in C_METHODS and self.brdf_frame == "surface":
+            raise ValueError(f"topographic {self.topographic!r} fits an empirical C that absorbs part of the "
+                             "BRDF's slope dependence; use brdf_frame 'horizontal' with it, or topographic "
+                             "'cosine' with 'surface'")
+        return self
+
+
 class CorrectStep(_Strict):
     """The normalization step (:func:`brdfcorr.correct.correct_files` options).
 
@@ -312,6 +359,9 @@ class CorrectStep(_Strict):
         View azimuths are stored as seen from the sensor: add 180 deg.
     qa : bool
         Also write the QA flag raster.
+    terrain : TerrainStep, optional
+        Correct tilted surfaces (needs ``inputs.slope_aspect`` or ``inputs.dem``); null: a flat
+        surface.
     """
 
     limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = (0.2, 5.0)
@@ -319,6 +369,7 @@ class CorrectStep(_Strict):
     extrapolate: bool = False
     flip_view_azimuth: bool = False
     qa: bool = True
+    terrain: TerrainStep | None = None
 
     @field_validator("limits")
     @classmethod
@@ -360,18 +411,54 @@ class QuicklookStep(_Strict):
         return value
 
 
+class AssessStep(_Strict):
+    """The view-angle signal left in every scene, before and after the correction
+    (:func:`brdfcorr.analysis.assess.assess_files`): ``{scene}_assess.json`` and the figure
+    ``{scene}_assess_profiles.png`` (:func:`brdfcorr.plot.assess.write_assessment_figures`) in
+    the output directory.
+
+    Attributes
+    ----------
+    sign_by : {"sun", "track"}
+        Sign of the view zenith (:func:`brdfcorr.analysis.assess.signed_view_zenith`): positive
+        towards forward scattering (``sun``) or right of the flight direction (``track``).
+    heading : float, optional
+        Flight direction [deg] clockwise from north; needed for ``sign_by: track`` (only there).
+    bin_width : float
+        Width of the bins of signed view zenith of the across-track profiles [deg].
+    min_vza : float
+        The side ratio compares pixels with ``|signed vza| >= min_vza`` [deg] (and never 0).
+    """
+
+    sign_by: Literal["sun", "track"] = "sun"
+    heading: Number | None = Field(None, ge=0, lt=360, allow_inf_nan=False)
+    bin_width: Number = Field(2.0, gt=0, le=45)
+    min_vza: Number = Field(0.0, ge=0, lt=90)
+
+    @model_validator(mode="after")
+    def _heading(self) -> AssessStep:
+        if self.sign_by == "track" and self.heading is None:
+            raise ValueError("sign_by 'track' needs the flight direction: set heading [deg]")
+        if self.sign_by == "sun" and self.heading is not None:
+            raise ValueError("heading is only used with sign_by 'track'")
+        return self
+
+
 class StepsConfig(_Strict):
-    """The steps, always run in the order fit -> correct -> quicklook; leave one out (or null)
-    to skip it. ``correct`` is on by default."""
+    """The steps, always run in the order fit -> correct -> assess -> quicklook; leave one out (or
+    null) to skip it. ``correct`` is on by default."""
 
     fit: Annotated[Union[ImageryFit, GoniometerFit], Field(discriminator="source")] | None = None
     correct: CorrectStep | None = Field(default_factory=CorrectStep)
+    assess: AssessStep | None = None
     quicklook: QuicklookStep | None = None
 
     @model_validator(mode="after")
     def _something(self) -> StepsConfig:
         if self.correct is None and self.quicklook is not None:
             raise ValueError("quicklook compares input and corrected images: it needs the correct step")
+        if self.correct is None and self.assess is not None:
+            raise ValueError("assess compares input and corrected images: it needs the correct step")
         return self
 
 
@@ -382,15 +469,22 @@ class OutputsConfig(_Strict):
     ----------
     directory : str
         Output directory (created).
-    naming, qa_naming, quicklook_naming : str
-        Patterns with ``{scene}``, ``{stem}``, ``{parent}`` for the corrected raster, the QA GeoTIFF and the
-        quicklook PNG. ``naming``'s extension must fit ``format``
+    naming, qa_naming, uncertainty_naming, quicklook_naming : str
+        Patterns with ``{scene}``, ``{stem}``, ``{parent}`` for the corrected raster, the QA GeoTIFF,
+        the uncertainty GeoTIFF and the quicklook PNG. ``naming``'s extension must fit ``format``
         (:func:`brdfcorr.io.writer.check_format`); its default is ``{scene}_brdf.tif`` for GTiff and
         ``{scene}_brdf.img`` for ENVI.
+    uncertainty : bool
+        Also write the per-pixel 1-sigma of the corrected reflectance [1]
+        (:func:`brdfcorr.uncertainty.correction_uncertainty`, ``docs/uncertainty.md``): from the
+        ``fit:`` covariance of each class's table entry, NaN for classes without one.
     format : {"GTiff", "ENVI"}
-        Raster format of the corrected images (the QA raster is a GeoTIFF). ENVI: a data file, its
-        ``.hdr`` header (wavelengths, map info) and ``.aux.xml`` (tags); uncompressed, band
-        sequential (BSQ), no ``cog``.
+        Raster format of the corrected images (the QA and uncertainty rasters are GeoTIFFs). ENVI: a
+        data file, its ``.hdr`` header (wavelengths, map info) and ``.aux.xml`` (tags);
+        uncompressed, no ``cog``.
+    interleave : {"bsq", "bil"}, optional
+        Interleave of ENVI outputs: band sequential (default) or band interleaved by line; only with
+        ``format: ENVI``.
     compress : {"deflate", "lzw", "zstd", "none"}
     cog : bool
         Write Cloud-Optimized GeoTIFFs.
@@ -403,14 +497,17 @@ class OutputsConfig(_Strict):
     directory: str = Field(min_length=1)
     naming: str = "{scene}_brdf.tif"
     qa_naming: str = "{scene}_qa.tif"
+    uncertainty_naming: str = "{scene}_uncertainty.tif"
     quicklook_naming: str = "{scene}_quicklook.png"
+    uncertainty: bool = False
     format: Literal["GTiff", "ENVI"] = "GTiff"
+    interleave: Literal["bsq", "bil"] | None = None
     compress: Literal["deflate", "lzw", "zstd", "none"] = "deflate"
     cog: bool = False
     existing: Literal["error", "skip", "overwrite"] = "skip"
     report: str = "run_report.json"
 
-    @field_validator("naming", "qa_naming", "quicklook_naming")
+    @field_validator("naming", "qa_naming", "uncertainty_naming", "quicklook_naming")
     @classmethod
     def _names(cls, value: str) -> str:
         check_pattern(value, ("parent", "stem", "scene"))
@@ -430,13 +527,16 @@ class OutputsConfig(_Strict):
 
     @model_validator(mode="after")
     def _format(self) -> OutputsConfig:
-        for key, name, driver in (("naming", self.naming, self.format), ("qa_naming", self.qa_naming, "GTiff")):
+        for key, name, driver in (("naming", self.naming, self.format), ("qa_naming", self.qa_naming, "GTiff"),
+                                  ("uncertainty_naming", self.uncertainty_naming, "GTiff")):
             try:
                 check_format(name, driver, f"outputs.{key}")
             except InputError as error:
                 raise ValueError(str(error)) from None
         if self.format == "ENVI" and self.cog:
             raise ValueError("cog applies to GeoTIFF outputs, not format ENVI")
+        if self.interleave is not None and self.format != "ENVI":
+            raise ValueError(f"interleave applies to format ENVI, not {self.format!r}")
         return self
 
 
@@ -534,6 +634,15 @@ class ChainConfig(_Strict):
                 "the correct step needs a parameter table: set parameters.table, parameters.materials, "
                 "parameters.classes or a steps.fit step"
             )
+        correct, inputs = self.steps.correct, self.inputs
+        has_terrain = inputs.slope_aspect is not None or inputs.dem is not None
+        if correct is not None and correct.terrain is not None and not has_terrain:
+            raise ValueError("steps.correct.terrain needs slope and aspect: set inputs.slope_aspect or inputs.dem")
+        if has_terrain and (correct is None or correct.terrain is None):
+            raise ValueError("inputs.slope_aspect and inputs.dem are read by steps.correct.terrain: set it "
+                             "(e.g. terrain: {}) or leave the terrain inputs out")
+        if self.outputs.uncertainty and correct is None:
+            raise ValueError("outputs.uncertainty is written by the correct step: it needs steps.correct")
         return self
 
     @property

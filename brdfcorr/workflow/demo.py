@@ -25,7 +25,8 @@ with brdfcorr's public model functions, so a correction with the same parameters
 geometry must give ``pi * f_class(reference) * spectrum * texture``: the gradient disappears.
 
 :func:`run_demo` writes the scene as GeoTIFFs, runs the chain ``configs/demo.yaml`` on it
-(corrected GeoTIFF, QA raster, before/after quicklook, run report) and the material-library figure.
+(corrected GeoTIFF, QA raster, assessment report and profile figure, before/after quicklook, run
+report) and the material-library figure.
 """
 
 from __future__ import annotations
@@ -355,7 +356,7 @@ def run_demo(output_dir: str | os.PathLike = "demo_output", config: str | os.Pat
     inputs = write_demo_scene(output_dir / "scene", demo_scene(rows=rows, pixel=pixel))
     report = run_chain(settings, progress=progress)
     figures = [Path(path) for result in report.scenes for key, path in result.get("outputs", {}).items()
-               if key == "quicklook"]
+               if key in ("assess_profiles", "quicklook")]
     if materials_figure:
 
         target = output_dir / "materials_brdf.png"

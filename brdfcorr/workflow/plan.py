@@ -43,6 +43,7 @@ from brdfcorr import __version__
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.paths import InputOverwriteError, check_outputs
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
+from brdfcorr.plot.assess import figure_paths
 from brdfcorr.workflow.config import ChainConfig, format_pattern
 
 __all__ = ["Scene", "RunPlan", "plan_run", "configured_table", "reuses_fit", "planned_table", "scene_fingerprint"]
@@ -65,13 +66,16 @@ class Scene:
     angle_options : dict
         Options of the angle reader.
     outputs : dict of str to Path
-        ``corrected`` and, when enabled, ``qa`` and ``quicklook``.
+        ``corrected`` and, when enabled, ``qa``, ``uncertainty``, ``assess`` (JSON report),
+        ``assess_profiles`` (its figure) and ``quicklook``.
     action : {"run", "skip", "fail"}
         What the run will do; ``reason`` says why for ``skip`` and ``fail`` (and for ``run`` when
         existing outputs are redone).
     fingerprint : str
         What the corrected output will record of its inputs and settings
         (:func:`scene_fingerprint`).
+    slope_aspect, dem : Path, optional
+        The terrain source of ``steps.correct.terrain`` (one of them, or neither).
     """
 
     name: str
@@ -84,14 +88,19 @@ class Scene:
     action: str = "run"
     reason: str = ""
     fingerprint: str = ""
+    slope_aspect: Path | None = None
+    dem: Path | None = None
 
     def inputs(self) -> list[tuple[str, Path]]:
-        """(role, path) of the files the scene reads: image, class map and angle file."""
+        """(role, path) of the files the scene reads: image, class map, angle file and the terrain
+        source."""
         files = [("image", self.image)]
         if self.classes != Path():  # Path(): a scene failed before its files were named
             files.append(("class map", self.classes))
         if self.angles_kind != "solar" and self.angles:  # the solar source is a time, not a file
             files.append(("angles", Path(self.angles)))
+        files += [(role, path) for role, path in (("slope/aspect", self.slope_aspect), ("DEM", self.dem))
+                  if path is not None]
         return files
 
     def describe(self) -> dict:
@@ -102,6 +111,8 @@ class Scene:
             "angles": {"kind": self.angles_kind, "source": self.angles, **(
                 {"options": self.angle_options} if self.angle_options else {})},
             "classes": str(self.classes),
+            **{role: str(path) for role, path in (("slope_aspect", self.slope_aspect), ("dem", self.dem))
+               if path is not None},
             "outputs": {key: str(value) for key, value in self.outputs.items()},
             "action": self.action,
             **({"reason": self.reason} if self.reason else {}),
@@ -123,7 +134,7 @@ class RunPlan:
     @property
     def steps(self) -> list[str]:
         steps = self.config.steps
-        return [name for name in ("fit", "correct", "quicklook") if getattr(steps, name) is not None]
+        return [name for name in ("fit", "correct", "assess", "quicklook") if getattr(steps, name) is not None]
 
     def files_written(self) -> list[Path]:
         """Every file the run may write: the scenes' outputs, the run report, the fitted table."""
@@ -178,8 +189,23 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     report = output_dir / config.outputs.report
     _check_outputs(config, scenes, report, fit_output)
     scenes = _redo_stale(config, scenes, fit_output)
+    if not parameter_notes:  # the table's files exist
+        notes += _uncertainty_notes(config, fit_output)
     return RunPlan(config, tuple(scenes), output_dir, report, fit_output, tuple(sources),
                    tuple(notes + parameter_notes))
+
+
+def _uncertainty_notes(config: ChainConfig, fit_output: Path | None) -> list[str]:
+    """A warning when ``outputs.uncertainty`` is on and classes of the planned table have no
+    ``fit:`` covariance: their pixels are NaN in the uncertainty raster (docs/uncertainty.md)."""
+    table = planned_table(config, fit_output) if config.outputs.uncertainty else None
+    if table is None:  # no uncertainty raster, or the fit step makes the table (with covariances)
+        return []
+    bare = [entry.label for entry in table.classes if entry.fit is None]
+    if not bare:
+        return []
+    return [f"outputs.uncertainty: {', '.join(bare)} have no fit: block (covariance) in the parameter "
+            "table; their pixels are NaN in the uncertainty raster"]
 
 
 # ---------------------------------------------------------------------------------------- scenes
@@ -288,33 +314,39 @@ def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, outpu
     angle_source = fill(angles.path)
     if angles.kind != "solar":  # the solar source is a time, not a file
         angle_source = str(config.resolve(angle_source))
-    outputs = _output_paths(config, output_dir, fill)
-    action, reason = _action(config, image, classes, angle_source, outputs)
-    scene = Scene(name, image, classes, angles.kind, angle_source, dict(angles.options), outputs, action, reason)
+    slope_aspect, dem = (None if pattern is None else config.resolve(fill(pattern))
+                         for pattern in (config.inputs.slope_aspect, config.inputs.dem))
+    outputs = _output_paths(config, output_dir, fill, name)
+    scene = Scene(name, image, classes, angles.kind, angle_source, dict(angles.options), outputs,
+                  slope_aspect=slope_aspect, dem=dem)
+    action, reason = _action(config, scene)
+    scene = dataclasses.replace(scene, action=action, reason=reason)
     return dataclasses.replace(scene, fingerprint=scene_fingerprint(scene, config))
 
 
-def _output_paths(config: ChainConfig, output_dir: Path, fill) -> dict[str, Path]:
+def _output_paths(config: ChainConfig, output_dir: Path, fill, name: str) -> dict[str, Path]:
     naming, steps, outputs = config.outputs, config.steps, {}
     if steps.correct is not None:
         outputs["corrected"] = output_dir / fill(naming.naming)
         if steps.correct.qa:
             outputs["qa"] = output_dir / fill(naming.qa_naming)
+        if naming.uncertainty:
+            outputs["uncertainty"] = output_dir / fill(naming.uncertainty_naming)
+    if steps.assess is not None:  # the figure's name: brdfcorr.plot.assess.write_assessment_figures
+        outputs["assess"] = output_dir / f"{name}_assess.json"
+        outputs["assess_profiles"], = figure_paths(output_dir, prefix=f"{name}_assess")
     if steps.quicklook is not None:
         outputs["quicklook"] = output_dir / fill(naming.quicklook_naming)
     return outputs
 
 
-def _action(config: ChainConfig, image: Path, classes: Path, angle_source: str,
-            outputs: dict[str, Path]) -> tuple[str, str]:
+def _action(config: ChainConfig, scene: Scene) -> tuple[str, str]:
     """(action, reason) from the files alone; :func:`_redo_stale` then checks the skipped scenes."""
-    missing = [f"{role} {path}" for role, path in (("image", image), ("class map", classes)) if not path.exists()]
-    if config.inputs.angles.kind != "solar" and not Path(angle_source).exists():
-        missing.append(f"angles {angle_source}")
+    missing = [f"{role} {path}" for role, path in scene.inputs() if not path.exists()]
     if missing:
         return "fail", "missing input: " + ", ".join(missing)
     existing = config.outputs.existing
-    if outputs and all(path.exists() for path in outputs.values()):
+    if scene.outputs and all(path.exists() for path in scene.outputs.values()):
         if existing == "skip":
             return "skip", "complete outputs exist"
         if existing == "error":
@@ -446,25 +478,31 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     (tags ``brdf_fingerprint``, its SHA-256, and ``brdf_fingerprint_content``) and a resumed run
     compares.
 
-    It holds the input files' path (as given), size and modification time [ns] (the acquisition
-    time of a ``solar`` angle source), the angle source's kind and options, the other ``inputs``
-    settings (wavelengths, class lookup, ...), the reference geometry, the correct step's options
-    (limits, ...), the output format and the brdfcorr version. The parameter table is recorded in
+    It holds the input files' (image, class map, angles, terrain source) path (as given), size and
+    modification time [ns] (the acquisition time of a ``solar`` angle source), the angle source's
+    kind and options, the other ``inputs`` settings (wavelengths, class lookup, ...), the reference
+    geometry, the correct step's options (limits, terrain, ...; not ``qa``: the QA and uncertainty
+    rasters are extra outputs of the same pass, their presence is checked as a file's), the output
+    format (compression, COG, ENVI interleave) and the brdfcorr version. The parameter table is recorded in
     full apart from it (tag ``brdf_parameter_table_content``, :func:`planned_table`): a table from
     the fit step is only known once the run has fitted it.
     """
     inputs = {role: _file_state(path) for role, path in scene.inputs()}
     if scene.angles_kind == "solar":
         inputs["angles"] = {"time": scene.angles}
-    correct = config.steps.correct
+    correct = None if config.steps.correct is None else config.steps.correct.model_dump(mode="json", exclude={"qa"})
+    if correct is not None and correct["terrain"] is None:  # a flat correction records what it did before terrain
+        del correct["terrain"]
     document = {
         "brdfcorr": __version__,
         "inputs": inputs,
         "angle source": {"kind": scene.angles_kind, "options": scene.angle_options},
-        "settings": config.inputs.model_dump(mode="json", exclude={"images", "scene_regex", "angles", "classes"}),
+        "settings": config.inputs.model_dump(mode="json", exclude={"images", "scene_regex", "angles", "classes",
+                                                                    "slope_aspect", "dem"}),
         "reference": None if config.reference is None else config.reference.model_dump(mode="json"),
-        "correct": None if correct is None else correct.model_dump(mode="json", exclude={"qa"}),
-        "format": config.outputs.model_dump(mode="json", include={"format", "compress", "cog"}),
+        "correct": correct,
+        "format": config.outputs.model_dump(mode="json", include={"format", "compress", "cog", "interleave"},
+                                            exclude_none=True),
     }
     return json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
 

@@ -24,7 +24,11 @@ from brdfcorr.io.files import atomic_path
 from brdfcorr.params import ParameterTable
 from brdfcorr.workflow.plan import RunPlan, Scene
 
-__all__ = ["RunReport", "scene_result", "earlier_findings", "versions"]
+__all__ = ["RunReport", "scene_result", "assessment_summary", "earlier_findings", "versions"]
+
+#: What a scene's result keeps of its correction and assessment (and a resumed run copies from the
+#: report of the run that wrote the outputs).
+FINDINGS = ("reference", "qa", "topographic", "assess")
 
 
 def scene_result(scene: Scene, status: str, *, reason: str = "", found: Mapping | None = None,
@@ -39,8 +43,9 @@ def scene_result(scene: Scene, status: str, *, reason: str = "", found: Mapping 
     reason : str, optional
         Why a scene was skipped.
     found : mapping, optional
-        What the correction found: ``reference`` (the geometry used) and ``qa`` (pixel counts of
-        :func:`brdfcorr.correct.qa_counts`).
+        What the steps found: ``reference`` (the geometry used), ``qa`` (pixel counts of
+        :func:`brdfcorr.correct.qa_counts`), ``topographic`` (the terrain step's method and C fit)
+        and ``assess`` (:func:`assessment_summary`).
     error : exception, optional
         Why the scene failed: ``error`` (the message, after the error type unless it is a
         :class:`~brdfcorr.errors.BrdfcorrError` of the scene) and ``error_type``.
@@ -73,13 +78,34 @@ def scene_result(scene: Scene, status: str, *, reason: str = "", found: Mapping 
     return result
 
 
+def assessment_summary(report: Mapping) -> list[dict]:
+    """Per class of an assessment report (:meth:`brdfcorr.analysis.assess.Assessment.report`): id,
+    name, pixels and the median over bands of |relative slope| [%/10 deg] before and after the
+    correction (None where no band has a finite slope).
+
+    The relative slope is the least-squares slope of reflectance against the signed view zenith,
+    1000 b / mean R (:func:`brdfcorr.analysis.assess.assess_view_angles`): near 0 after a
+    correction that took the view-angle signal out.
+    """
+    rows = []
+    for entry in report["view_angles"]["classes"]:
+        medians = {}
+        for stage in ("before", "after"):
+            slopes = np.abs(np.array(entry[stage]["relative_slope"], dtype=float))  # None (NaN in JSON) -> nan
+            finite = slopes[np.isfinite(slopes)]
+            medians[stage] = float(np.median(finite)) if finite.size else None
+        rows.append({"id": entry["id"], "name": entry["name"], "pixels": entry["pixels"],
+                     "median_abs_relative_slope_percent_per_10deg": medians})
+    return rows
+
+
 def earlier_findings(report: Path) -> dict[str, dict]:
-    """What an earlier run found for its completed scenes (``reference``, ``qa``), by image, from
-    its report at ``report`` (empty if there is none or it is unreadable)."""
+    """What an earlier run found for its completed scenes (:data:`FINDINGS`), by image, from its
+    report at ``report`` (empty if there is none or it is unreadable)."""
     try:
         scenes = json.loads(report.read_text())["scenes"]
         return {
-            result["image"]: {key: result[key] for key in ("reference", "qa") if key in result}
+            result["image"]: {key: result[key] for key in FINDINGS if key in result}
             for result in scenes if result.get("status") in ("ok", "skipped")
         }
     except (OSError, ValueError, KeyError, TypeError):
@@ -125,6 +151,7 @@ class RunReport:
                 "config_content": config.to_dict(),
                 "started": self.started,
                 "steps": self.plan.steps,
+                "warnings": list(self.plan.warnings),
             },
             "versions": versions(config.engine.scheduler == "distributed"),
             "engine": config.engine.model_dump(),
