@@ -9,7 +9,6 @@ import pytest
 import xarray as xr
 
 from brdfcorr.analysis.assess import (
-    Assessment,
     Line,
     assess_overlap,
     assess_view_angles,
@@ -18,12 +17,12 @@ from brdfcorr.analysis.assess import (
     overlap_report,
     signed_view_zenith,
     view_angle_report,
-    write_json,
 )
 from brdfcorr.errors import InputError
 from brdfcorr.params import ParameterTable
 from brdfcorr.plot.assess import overlap_figure, profile_figure, write_assessment_figures
 from brdfcorr.testing import georeference, render, synthetic_angles
+from brdfcorr.workflow.assessment import Assessment, write_json
 
 NY, NX = 20, 40
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from brdfcorr.analysis.assess import assess_files
 from brdfcorr.cli import main
 from brdfcorr.testing import example_table, render, synthetic_scene, write_scene
+from brdfcorr.workflow.assessment import assess_files
 from brdfcorr.workflow.tasks import correct_files
 
 

@@ -1,4 +1,4 @@
-"""Tests of ``brdfcorr assess-lines`` and :func:`brdfcorr.analysis.assess.leave_one_line_out_files`:
+"""Tests of ``brdfcorr assess-lines`` and :func:`brdfcorr.workflow.assessment.leave_one_line_out_files`:
 three overlapping lines rendered with a known kernel model (the builder of tests/test_assess.py),
 written as GeoTIFFs; the CLI's JSON equals the library's numbers, the held-out slopes fall."""
 
@@ -11,10 +11,11 @@ import pytest
 from click.testing import CliRunner
 from test_assess import _lines
 
-from brdfcorr.analysis.assess import leave_one_line_out, leave_one_line_out_files, leave_one_line_out_report
+from brdfcorr.analysis.assess import leave_one_line_out, leave_one_line_out_report
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError
 from brdfcorr.testing import write_scene
+from brdfcorr.workflow.assessment import leave_one_line_out_files
 
 NAMES = {1: "grass", 2: "soil"}
 REFERENCE = {"sza": 35.0, "vza": 0.0}

@@ -1,6 +1,6 @@
-"""``brdfcorr assess``: did the correction work? (library: :func:`brdfcorr.analysis.assess.assess_files`);
+"""``brdfcorr assess``: did the correction work? (library: :func:`brdfcorr.workflow.assessment.assess_files`);
 ``brdfcorr assess-lines``: leave-one-line-out over flight lines
-(:func:`brdfcorr.analysis.assess.leave_one_line_out_files`)."""
+(:func:`brdfcorr.workflow.assessment.leave_one_line_out_files`)."""
 
 from __future__ import annotations
 
@@ -79,8 +79,8 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     after; with --overlap, the RMSE, mean absolute difference and bias of two lines where they
     overlap. Writes a JSON report (-o) and PNG figures (--figures).
     """
-    from brdfcorr.analysis.assess import assess_files, write_json
     from brdfcorr.plot.assess import figure_paths, write_assessment_figures
+    from brdfcorr.workflow.assessment import assess_files, write_json
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
@@ -170,8 +170,8 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     lines, before and after (as `brdfcorr assess`): a test of the correction on data its
     parameters never saw. Prints a table per held-out line and writes a JSON report (-o).
     """
-    from brdfcorr.analysis.assess import leave_one_line_out_files, write_json
     from brdfcorr.cli.correct import _reference_sza
+    from brdfcorr.workflow.assessment import leave_one_line_out_files, write_json
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")

@@ -10,15 +10,18 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 
-from brdfcorr.analysis.assess import Assessment
 from brdfcorr.errors import InputError
 from brdfcorr.io.files import atomic_path
+
+if TYPE_CHECKING:  # the workflow's result type, for annotations only (plot sits below workflow)
+    from brdfcorr.workflow.assessment import Assessment
 
 __all__ = ["profile_figure", "overlap_figure", "figure_paths", "write_assessment_figures", "default_band"]
 

@@ -11,7 +11,7 @@ into scenes and decides what happens to each (``run``, ``skip``, ``fail``; :mod:
 2. normalizes every scene to run with :func:`brdfcorr.workflow.tasks.correct_files` (lazy, chunked,
    atomic writes, QA counts; optionally the uncertainty raster and tilted surfaces,
    :class:`brdfcorr.workflow.tasks.Terrain`), assesses the view-angle signal left in it
-   (``steps.assess``: :func:`brdfcorr.analysis.assess.assess_files`, a JSON report and a figure)
+   (``steps.assess``: :func:`brdfcorr.workflow.assessment.assess_files`, a JSON report and a figure)
    and writes a before/after quicklook (:func:`brdfcorr.plot.quicklook.write_quicklook`);
 3. writes the run report (JSON; :mod:`.report`): inputs, parameter table and its sources,
    versions, timings, per-scene QA counts and errors.
@@ -61,13 +61,13 @@ from typing import Any
 
 from dask.callbacks import Callback
 
-from brdfcorr.analysis.assess import assess_files, write_json
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import GuardRails
 from brdfcorr.io.paths import remove_partials
 from brdfcorr.params import ParameterTable, merge_tables
 from brdfcorr.plot.assess import write_assessment_figures
 from brdfcorr.plot.quicklook import write_quicklook
+from brdfcorr.workflow.assessment import assess_files, write_json
 from brdfcorr.workflow.config import ChainConfig, EngineConfig
 from brdfcorr.workflow.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
 from brdfcorr.workflow.report import RunReport, assessment_summary, earlier_findings, scene_result, versions

@@ -413,7 +413,7 @@ class QuicklookStep(_Strict):
 
 class AssessStep(_Strict):
     """The view-angle signal left in every scene, before and after the correction
-    (:func:`brdfcorr.analysis.assess.assess_files`): ``{scene}_assess.json`` and the figure
+    (:func:`brdfcorr.workflow.assessment.assess_files`): ``{scene}_assess.json`` and the figure
     ``{scene}_assess_profiles.png`` (:func:`brdfcorr.plot.assess.write_assessment_figures`) in
     the output directory.
 

@@ -79,7 +79,7 @@ def scene_result(scene: Scene, status: str, *, reason: str = "", found: Mapping 
 
 
 def assessment_summary(report: Mapping) -> list[dict]:
-    """Per class of an assessment report (:meth:`brdfcorr.analysis.assess.Assessment.report`): id,
+    """Per class of an assessment report (:meth:`brdfcorr.workflow.assessment.Assessment.report`): id,
     name, pixels and the median over bands of |relative slope| [%/10 deg] before and after the
     correction (None where no band has a finite slope).
 
