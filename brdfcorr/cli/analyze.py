@@ -9,22 +9,15 @@ from pathlib import Path
 import click
 import numpy as np
 
-from brdfcorr.analysis.papers import (
-    PAPER_SHADOWING_TEXT,
-    WORST_CASE_PARAMS,
-    albedo,
-    shadowing_impact,
-    specular_albedo_bound,
-    width_reduction,
-)
 from brdfcorr.cli._base import (
     _format_table,
     _save_figure,
     handle_errors,
     main,
 )
-from brdfcorr.models.materials import load_material, material_names
-from brdfcorr.plot.analysis import plot_azimuthal_widths, plot_figure2, plot_polar
+
+# The analyses (scipy) and figures (matplotlib) are imported when a command runs, not when its
+# options are parsed: --help and argument errors answer at once.
 
 
 def _zenith_list(value: str) -> list[float]:
@@ -47,6 +40,8 @@ def analyze_group():
 @handle_errors
 def analyze_shadowing_command(max_zenith, phi_range, step):
     """Simplified (G = 1) vs full TS model for the material library (paper 003, section 5)."""
+    from brdfcorr.analysis.papers import PAPER_SHADOWING_TEXT, WORST_CASE_PARAMS, shadowing_impact
+    from brdfcorr.models.materials import load_material, material_names
 
     cases = [("worst case (roof-tile peak, albedo 0.01)", WORST_CASE_PARAMS, None)]
     cases += [(name, load_material(name).params, PAPER_SHADOWING_TEXT.get(name)) for name in material_names()]
@@ -73,6 +68,9 @@ def analyze_shadowing_command(max_zenith, phi_range, step):
 @handle_errors
 def analyze_width_command(names, output):
     """Azimuthal FWHM of the specular peak at the geometries of paper 003, fig. 3."""
+    from brdfcorr.analysis.papers import width_reduction
+    from brdfcorr.models.materials import load_material, material_names
+    from brdfcorr.plot.analysis import plot_azimuthal_widths
 
     materials = [load_material(name) for name in (names or material_names())]
     rows = []
@@ -98,6 +96,8 @@ def analyze_width_command(names, output):
 @handle_errors
 def analyze_albedo_command(name, zeniths, simplified, resolution):
     """Directional-hemispherical reflectance of a material at several sun zeniths."""
+    from brdfcorr.analysis.papers import albedo, specular_albedo_bound
+    from brdfcorr.models.materials import load_material
 
     material = load_material(name)
     model = "torrance_sparrow_simplified" if simplified else material.model.name
@@ -125,6 +125,7 @@ def analyze_albedo_command(name, zeniths, simplified, resolution):
 @handle_errors
 def analyze_figure2_command(output, view_step, step_fraction):
     """Figure 2 of paper 000: TS model, V-cavity simulation and empirical model, normalized."""
+    from brdfcorr.plot.analysis import plot_figure2
 
     if not view_step > 0:
         raise click.BadParameter("must be > 0", param_hint="--view-step")
@@ -140,6 +141,8 @@ def analyze_figure2_command(output, view_step, step_fraction):
 @handle_errors
 def analyze_polar_command(name, zeniths, output):
     """Polar plots of a material's BRDF over the view hemisphere."""
+    from brdfcorr.models.materials import load_material
+    from brdfcorr.plot.analysis import plot_polar
 
     material = load_material(name)
     _save_figure(plot_polar(material, _zenith_list(zeniths)), output or Path(f"polar_{material.name}.png"))

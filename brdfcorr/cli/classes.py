@@ -8,7 +8,9 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import _format_table, handle_errors, main
-from brdfcorr.workflow.classmaps import align_class_file, ndvi_class_file, read_lookup
+
+# brdfcorr.workflow.classmaps (rasterio, dask) is imported when a command runs, not when its options
+# are parsed: --help and argument errors answer at once.
 
 
 def _numbers(value: str | None) -> list[float] | None:
@@ -38,6 +40,8 @@ def classes_group():
 @handle_errors
 def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id, wavelengths, overwrite):
     """Classes of IMAGE by NDVI bins (strata for per-class kernel-model fits), water and shadow masked."""
+    from brdfcorr.workflow.classmaps import ndvi_class_file
+
     strata = ndvi_class_file(
         image, output, edges=_numbers(edges), percentiles=_numbers(percentiles), water_id=water_id,
         shadow_id=shadow_id, wavelengths=_numbers(wavelengths), overwrite=overwrite,
@@ -58,6 +62,8 @@ def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id,
 @handle_errors
 def classes_align_command(landcover, image, lookup, output, overwrite):
     """Bring LANDCOVER (any grid and CRS) onto the grid of an image by nearest neighbour."""
+    from brdfcorr.workflow.classmaps import align_class_file, read_lookup
+
     aligned = align_class_file(landcover, image, output, lookup=read_lookup(lookup) if lookup else None,
                                overwrite=overwrite, reads={"--lookup": lookup})
     click.echo(f"wrote {output} ({aligned.attrs.get('resampled_from_crs', '')} -> {aligned.rio.crs})")

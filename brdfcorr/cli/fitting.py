@@ -19,16 +19,12 @@ from brdfcorr.cli._base import (
 )
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
 from brdfcorr.errors import InputError
-from brdfcorr.fit.classes import GuardRails
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.paths import check_outputs
-from brdfcorr.models import get_model
-from brdfcorr.models.materials import load_material
-from brdfcorr.params import ParameterTable
-from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
-from brdfcorr.plot.materials import plot_class_fit
-from brdfcorr.workflow.classmaps import read_lookup
-from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file
+
+# The library (scipy, dask, rasterio, matplotlib) is imported when a command runs, not when its
+# options are parsed: --help and argument errors answer at once. --model is checked against the
+# registry by MODEL_CHOICE's convert(), which imports it only then.
 
 
 @main.command("fit-classes")
@@ -70,6 +66,12 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     --scale and --offset; an image that still looks like raw counts is refused unless --scale is
     given.
     """
+    from brdfcorr.fit.classes import GuardRails
+    from brdfcorr.models.materials import load_material
+    from brdfcorr.plot.materials import plot_class_fit
+    from brdfcorr.workflow.classmaps import read_lookup
+    from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
+
     if not len(images) == len(angles) == len(classes):
         raise InputError(
             f"{len(images)} image(s), {len(angles)} --angles and {len(classes)} --classes: give one "
@@ -111,6 +113,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
 
 
 def _class_row(fit) -> dict[str, str]:
+    from brdfcorr.models import get_model
+
     summary = fit.summary()
     linear = get_model(fit.model).linear
     return {
@@ -164,6 +168,9 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     Prints the fitted parameters with 1-sigma errors and chi2/dof (as paper 003, Table 1) and the
     parameter correlations; with -o writes the fit as a class of a parameter table.
     """
+    from brdfcorr.params import ParameterTable
+    from brdfcorr.workflow.tasks import fit_measurement_file
+
     check_outputs({"-o": output}, {"MEASUREMENTS": measurements})
     table = ParameterTable.load(output) if output is not None and output.exists() else None
     fit = fit_measurement_file(
@@ -231,6 +238,8 @@ def _measurement_plot_files(fit, name: str, plot_dir: Path) -> dict[tuple, Path]
 
 def _plot_measurement_fit(fit, name: str, plot_dir: Path, scale: str) -> None:
     """Principal-plane and azimuth figures (paper 003, figs. 2 and 3) per wavelength."""
+    from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
+
     others_all = fit.everything.select(~fit.keep, "not fitted") if not fit.keep.all() else None
     files = _measurement_plot_files(fit, name, plot_dir)
     for band, result in fit.results.items():

@@ -6,19 +6,27 @@ from pathlib import Path
 
 import click
 
-from brdfcorr import models
 from brdfcorr.cli._base import (
     _format_table,
     handle_errors,
     main,
 )
-from brdfcorr.models.materials import load_material, material_names
-from brdfcorr.params import ParameterTable
+
+# The registry and the material library (scipy) are imported when a command runs, not when its
+# options are parsed: --help and argument errors answer at once.
+
+
+def material_names() -> tuple[str, ...]:
+    """The built-in materials' names, importing the material library only when called."""
+    from brdfcorr.models import materials
+
+    return materials.material_names()
 
 
 @main.command("models")
 def models_command():
     """List the BRDF models and their parameters (units, defaults, physical range)."""
+    from brdfcorr import models
 
     for model in models.REGISTRY.values():
         click.echo(f"{model.name}: {model.description} [{model.reference}]")
@@ -38,6 +46,9 @@ def materials_command(name, output, class_id):
     With -o, the material becomes a class of a parameter table. The library's fits are at one
     wavelength (paper 003: 550 nm) and apply to every band of an image.
     """
+    from brdfcorr.models.materials import load_material
+    from brdfcorr.params import ParameterTable
+
     if output is not None:
         if name is None:
             raise click.UsageError("-o needs a material NAME")

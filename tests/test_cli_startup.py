@@ -1,0 +1,82 @@
+"""The command line starts without the heavy libraries (issue 15: ``--help`` and argument errors
+answer in <= 0.5 s).
+
+A property, not a timing: importing a command's module, showing ``brdfcorr --help``, or refusing
+an unknown option loads none of dask, scipy, rasterio, pandas or matplotlib beyond what
+``import brdfcorr.cli`` itself loads; the library is imported in the command's body, when it runs.
+Each check runs in a fresh interpreter, since this test session has long imported everything.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+
+import pytest
+
+from brdfcorr.cli._base import LAZY_COMMANDS
+
+#: The libraries whose import costs the command line its start (each 0.1-1 s on 2 cores).
+HEAVY = ("dask", "scipy", "rasterio", "pandas", "matplotlib")
+
+#: Command modules that still import the library at module level. Other engineers are making
+#: them lazy; the lead empties this set once they are, and then every command module is checked.
+NOT_YET_LAZY = {
+    "brdfcorr.cli.chain",
+    "brdfcorr.cli.assess",
+}
+
+#: ``import brdfcorr`` imports xarray (the ``.brdf`` accessor), and xarray imports pandas: the
+#: only heavy library the command line may load before a command runs.
+XARRAY_DEPENDENCIES = {"pandas"}
+
+COMMAND_MODULES = sorted({module for module, _ in LAZY_COMMANDS.values()} - NOT_YET_LAZY)
+
+#: Print the heavy libraries loaded so far (the last line of the subprocess's output).
+_REPORT = f"import sys; print(sorted(m for m in {HEAVY!r} if m in sys.modules))"
+
+
+def _heavy_after(code: str) -> list[str]:
+    """The heavy libraries in sys.modules of a fresh interpreter after running ``code``."""
+    result = subprocess.run([sys.executable, "-c", f"{code}\n{_REPORT}"], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    return ast.literal_eval(result.stdout.strip().splitlines()[-1])
+
+
+def _main_with(*args: str) -> str:
+    """Code that runs the click group with ``args`` as ``brdfcorr`` would, catching its exit."""
+    return f"from brdfcorr.cli import main\ntry:\n    main({list(args)!r})\nexcept SystemExit:\n    pass"
+
+
+@pytest.fixture(scope="module")
+def baseline() -> set[str]:
+    """The heavy libraries of ``import brdfcorr.cli`` alone."""
+    return set(_heavy_after("import brdfcorr.cli"))
+
+
+def test_the_command_line_itself_loads_only_xarrays_dependencies(baseline):
+    assert baseline <= XARRAY_DEPENDENCIES
+
+
+def test_not_yet_lazy_names_command_modules():
+    # A stale entry (a renamed or removed module) would silently exempt nothing.
+    assert NOT_YET_LAZY <= {module for module, _ in LAZY_COMMANDS.values()}
+
+
+@pytest.mark.parametrize("module", COMMAND_MODULES)
+def test_importing_a_command_module_loads_no_heavy_library(module, baseline):
+    assert set(_heavy_after(f"import brdfcorr.cli; import {module}")) == baseline
+
+
+def test_help_loads_no_heavy_library(baseline):
+    assert set(_heavy_after(_main_with("--help"))) == baseline
+
+
+@pytest.mark.parametrize("command", [name for name, (module, _) in LAZY_COMMANDS.items()
+                                     if module not in NOT_YET_LAZY])
+def test_an_unknown_option_is_refused_without_a_heavy_library(command, baseline):
+    # `brdfcorr COMMAND --bogus`: click refuses the option before the command's body runs. A group
+    # (`classes`, `analyze`) refuses it before choosing a subcommand.
+    assert set(_heavy_after(_main_with(command, "--bogus"))) == baseline
