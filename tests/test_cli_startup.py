@@ -20,12 +20,8 @@ from brdfcorr.cli._base import LAZY_COMMANDS
 #: The libraries whose import costs the command line its start (each 0.1-1 s on 2 cores).
 HEAVY = ("dask", "scipy", "rasterio", "pandas", "matplotlib")
 
-#: Command modules that still import the library at module level. Other engineers are making
-#: them lazy; the lead empties this set once they are, and then every command module is checked.
-NOT_YET_LAZY = {
-    "brdfcorr.cli.chain",
-    "brdfcorr.cli.assess",
-}
+#: Command modules that still import the library at module level (none: every one is checked).
+NOT_YET_LAZY: set[str] = set()
 
 #: ``import brdfcorr`` imports xarray (the ``.brdf`` accessor), and xarray imports pandas: the
 #: only heavy library the command line may load before a command runs.

@@ -11,7 +11,6 @@ import click
 from brdfcorr.cli._base import MODEL_CHOICE, _assignments, _format_table, _options, _pairs, handle_errors, main
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
 from brdfcorr.io.paths import check_outputs, refuse_existing
-from brdfcorr.workflow.classmaps import read_lookup
 
 
 def _summary_rows(report: dict) -> list[dict[str, str]]:
@@ -81,6 +80,7 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     """
     from brdfcorr.plot.assess import figure_paths, write_assessment_figures
     from brdfcorr.workflow.assessment import assess_files, write_json
+    from brdfcorr.workflow.classmaps import read_lookup
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
@@ -172,6 +172,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     """
     from brdfcorr.cli.correct import _reference_sza
     from brdfcorr.workflow.assessment import leave_one_line_out_files, write_json
+    from brdfcorr.workflow.classmaps import read_lookup
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")

@@ -16,10 +16,9 @@ from brdfcorr.cli._base import (
 )
 from brdfcorr.errors import ConfigError, InputError
 from brdfcorr.io.files import parse_yaml, read_document
-from brdfcorr.params import ParameterTable
-from brdfcorr.workflow.chain import plan_run, run_chain
-from brdfcorr.workflow.config import load_config
-from brdfcorr.workflow.demo import run_demo
+
+# The library (dask, rasterio, scipy, matplotlib) is imported when a command runs, not when its
+# options are parsed: --help and argument errors answer at once.
 
 
 @main.command("demo")
@@ -38,6 +37,8 @@ def demo_command(output_dir: Path, config_path, progress):
     QA, assessment report and profile figure, before/after quicklook, run report),
     OUTPUT_DIR/demo.yaml (the chain, rerun with `brdfcorr run`) and OUTPUT_DIR/materials_brdf.png.
     """
+    from brdfcorr.workflow.demo import run_demo
+
     with _chain_progress(progress, "demo") as callback:
         result = run_demo(output_dir, config_path, progress=callback)
     _echo_run(result.report)
@@ -141,6 +142,9 @@ def run_command(chain, dry_run, resume, overwrite, settings, progress):
     (listed, with the reason, in the table and the report); 2 a bad config or input before any
     scene ran (nothing is written); 1 an internal error.
     """
+    from brdfcorr.workflow.chain import plan_run, run_chain
+    from brdfcorr.workflow.config import load_config
+
     if resume and overwrite:
         raise InputError("--resume and --overwrite exclude each other")
     overrides = _overrides(settings)
@@ -197,6 +201,10 @@ def validate_command(chains, settings):
     that do not exist yet (inputs in a folder not made yet, tables) are warnings. A parameter
     table file (a document with `classes` but no `inputs`) is checked as a table.
     """
+    from brdfcorr.params import ParameterTable
+    from brdfcorr.workflow.chain import plan_run
+    from brdfcorr.workflow.config import load_config
+
     overrides = _overrides(settings)
     for chain in chains:
         try:
