@@ -179,18 +179,12 @@ def _normalize_block(
 ):
     """Normalize one (band, y, x) block; returns (corrected block, QA block of shape (1, y, x))."""
     n_bands, ny, nx = reflectance.shape
-    n = ny * nx
-    cube = reflectance.reshape(n_bands, n)
-    classes = classes.reshape(n)
-    theta_i, theta_r, saa, vaa = (np.asarray(a, dtype=np.float64).reshape(n) for a in (sza, vza, saa, vaa))
-    if flip_view_azimuth:
-        vaa = vaa + 180.0
-
-    qa, usable, no_class, candidates, infinite = _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata)
-    local = None
-    if slope is not None:
-        local, usable = _local_frame(qa, usable, theta_i, saa, theta_r, vaa, slope, aspect)
-    base = np.ones(n, dtype=out_dtype)  # factor of pixels no class corrects
+    cube = reflectance.reshape(n_bands, ny * nx)
+    pixels = PixelGeometry.of_block(classes, sza, saa, vza, vaa, slope, aspect, class_nodata=class_nodata,
+                                    flip_view_azimuth=flip_view_azimuth)
+    classes, qa, usable, no_class = pixels.classes, pixels.qa, pixels.usable, pixels.no_class
+    candidates, infinite = _cube_masks(cube, qa)
+    base = np.ones(ny * nx, dtype=out_dtype)  # factor of pixels no class corrects
     base[~usable] = np.nan
     unclassified = usable & no_class
     qa[unclassified] |= QA_NO_CLASS
@@ -206,13 +200,7 @@ def _normalize_block(
                 base[members] = np.nan
             continue
         index = np.flatnonzero(members)
-        if local is None:
-            observed = ScatteringGeometry(theta_i[index], theta_r[index], relative_azimuth(saa[index], vaa[index]))
-        else:
-            observed = ScatteringGeometry(local.sza[index], local.vza[index],
-                                          relative_azimuth(local.saa[index], local.vaa[index]))
-        ref_sza = theta_i[index] if reference.sza == "observed" else np.asarray(reference_sza, dtype=np.float64)
-        ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
+        observed, ref = pixels.geometries(index, reference, reference_sza)
         # The basis functions in float64; the per-band linear combination in the output precision.
         # Parameters were validated when the table was resolved to the bands. A term beyond the
         # output precision becomes inf, and its pixels nodata (_ratio).
@@ -238,7 +226,59 @@ def _normalize_block(
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
 
 
-def _local_frame(qa, usable, theta_i, saa, theta_r, vaa, slope, aspect):
+@dataclass(frozen=True)
+class PixelGeometry:
+    """A block's pixels (flattened) as the correction and its uncertainty see them.
+
+    ``qa`` holds the geometry's flags (nodata angles, invalid geometry, a surface facing away),
+    ``usable`` the pixels with a valid geometry, ``no_class`` those of class 0, NaN or the class
+    map's nodata, ``angles`` (sza, saa, vza, vaa) the observed geometry: in each tilted surface's
+    frame where slope and aspect are given, else horizontal; ``theta_i`` the horizontal sun zenith.
+    """
+
+    classes: np.ndarray
+    qa: np.ndarray
+    usable: np.ndarray
+    no_class: np.ndarray
+    theta_i: np.ndarray
+    angles: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+    @classmethod
+    def of_block(cls, classes, sza, saa, vza, vaa, slope=None, aspect=None, *, class_nodata,
+                 flip_view_azimuth: bool) -> PixelGeometry:
+        classes = np.asarray(classes).reshape(-1)
+        theta_i, theta_r, saa, vaa = (np.asarray(a, dtype=np.float64).reshape(-1) for a in (sza, vza, saa, vaa))
+        if flip_view_azimuth:
+            vaa = vaa + 180.0
+        angles_finite = np.isfinite(theta_i) & np.isfinite(theta_r) & np.isfinite(saa) & np.isfinite(vaa)
+        # The class map's nodata (and NaN) means "no class", like class 0 (docs/conventions.md).
+        no_class = classes == 0
+        if classes.dtype.kind == "f":
+            no_class |= np.isnan(classes)
+        if class_nodata is not None:
+            no_class |= classes == class_nodata
+        with np.errstate(invalid="ignore"):
+            in_domain = (theta_i >= 0) & (theta_i < 90) & (theta_r >= 0) & (theta_r < 90)
+        invalid_geometry = angles_finite & ~in_domain
+        qa = np.zeros(classes.size, dtype=np.uint8)
+        qa[~angles_finite] |= QA_NODATA
+        qa[invalid_geometry] |= QA_INVALID_GEOMETRY
+        usable = angles_finite & ~invalid_geometry
+        angles = (theta_i, saa, theta_r, vaa)
+        if slope is not None:
+            angles, usable = _local_frame(qa, usable, angles, slope, aspect)
+        return cls(classes, qa, usable, no_class, theta_i, angles)
+
+    def geometries(self, index: np.ndarray, reference: ReferenceGeometry, reference_sza):
+        """The observed and the reference geometry of the pixels ``index``. The reference is
+        horizontal: ``"observed"`` is each pixel's horizontal sun zenith."""
+        sza, saa, vza, vaa = (angle[index] for angle in self.angles)
+        observed = ScatteringGeometry(sza, vza, relative_azimuth(saa, vaa))
+        ref_sza = self.theta_i[index] if reference.sza == "observed" else np.asarray(reference_sza, dtype=np.float64)
+        return observed, ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
+
+
+def _local_frame(qa, usable, angles, slope, aspect):
     """Sun and view angles in the tilted surfaces' frames (1-D, per pixel) and the usable pixels:
     a slope outside [0, 90] is invalid geometry, non-finite slope or aspect nodata, and a sun or
     sensor at or below the surface's horizon (local zenith >= 90 deg) facing away."""
@@ -249,29 +289,16 @@ def _local_frame(qa, usable, theta_i, saa, theta_r, vaa, slope, aspect):
     qa[~finite] |= QA_NODATA
     qa[bad_slope] |= QA_INVALID_GEOMETRY
     usable = usable & finite & ~bad_slope
-    local = local_angles(theta_i, saa, theta_r, vaa, np.where(usable, slope, 0.0), np.where(usable, aspect, 0.0))
+    local = local_angles(*angles, np.where(usable, slope, 0.0), np.where(usable, aspect, 0.0))
     with np.errstate(invalid="ignore"):
         away = usable & ((local.sza >= 90) | (local.vza >= 90))
     qa[away] |= QA_FACING_AWAY
-    return local, usable & ~away
+    return (local.sza, local.saa, local.vza, local.vaa), usable & ~away
 
 
-def _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata):
-    """QA flags for nodata and invalid geometry, the usable pixels, the unclassified ones, and the
-    few pixels with non-finite reflectance (their indices and where in them it is +-inf)."""
-    angles_finite = np.isfinite(theta_i) & np.isfinite(theta_r) & np.isfinite(saa) & np.isfinite(vaa)
-    # The class map's nodata (and NaN) means "no class", like class 0 (docs/conventions.md).
-    no_class = classes == 0
-    if classes.dtype.kind == "f":
-        no_class |= np.isnan(classes)
-    if class_nodata is not None:
-        no_class |= classes == class_nodata
-    with np.errstate(invalid="ignore"):
-        in_domain = (theta_i >= 0) & (theta_i < 90) & (theta_r >= 0) & (theta_r < 90)
-    invalid_geometry = angles_finite & ~in_domain
-    qa = np.zeros(classes.size, dtype=np.uint8)
-    qa[~angles_finite] |= QA_NODATA
-    qa[invalid_geometry] |= QA_INVALID_GEOMETRY
+def _cube_masks(cube, qa):
+    """Flag pixels with non-finite reflectance in some band (``qa`` in place); returns the few
+    pixels with a non-finite band sum (indices) and where in them a value is +-inf."""
     candidates = infinite = None
     if cube.dtype.kind == "f":
         # NaN or +-inf in some band makes the band sum non-finite (one pass, no mask cube); those
@@ -282,7 +309,7 @@ def _block_masks(cube, classes, theta_i, theta_r, saa, vaa, class_nodata):
             values = cube[:, candidates]
             qa[candidates[~np.isfinite(values).all(axis=0)]] |= QA_NODATA
             infinite = np.isinf(values)
-    return qa, angles_finite & ~invalid_geometry, no_class, candidates, infinite
+    return candidates, infinite
 
 
 def _apply_factors(cube, band_index, base, states, limits, out_dtype):

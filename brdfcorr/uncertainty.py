@@ -61,12 +61,11 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from brdfcorr.correct import Plans, _present_classes, band_shapes, describe_limits, prepare_inputs
+from brdfcorr.correct import PixelGeometry, Plans, _present_classes, band_shapes, describe_limits, prepare_inputs
 from brdfcorr.errors import ParameterError
-from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
+from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model
 from brdfcorr.params import BandParameters, ParameterTable, ReferenceGeometry
-from brdfcorr.terrain import local_angles
 
 __all__ = ["correction_uncertainty", "factor_jacobian", "difference_step"]
 
@@ -307,67 +306,30 @@ def _checked_covariance(entry: BandParameters, covariance, names: tuple[str, ...
 
 
 # ------------------------------------------------------------------------------------- blocks
-def _usable(classes, theta_i, theta_r, saa, vaa, class_nodata) -> np.ndarray:
-    """Pixels with finite angles, zeniths in [0, 90) and a class (not 0, NaN or the nodata)."""
-    with np.errstate(invalid="ignore"):
-        usable = (theta_i >= 0) & (theta_i < 90) & (theta_r >= 0) & (theta_r < 90) & np.isfinite(saa + vaa)
-    usable &= classes != 0
-    if classes.dtype.kind == "f":
-        usable &= ~np.isnan(classes)
-    if class_nodata is not None:
-        usable &= classes != class_nodata
-    return usable
-
-
 def _uncertainty_block(
     reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, slope=None, aspect=None, *,
     plans: Plans, reference: ReferenceGeometry, limits, class_nodata, flip_view_azimuth: bool, out_dtype,
 ):
     """The 1-sigma of the corrected reflectance of one (band, y, x) block (module docstring)."""
     n_bands, ny, nx = reflectance.shape
-    n = ny * nx
-    cube = reflectance.reshape(n_bands, n)
-    classes = classes.reshape(n)
-    theta_i, theta_r, saa, vaa = (np.asarray(a, dtype=np.float64).reshape(n) for a in (sza, vza, saa, vaa))
-    if flip_view_azimuth:
-        vaa = vaa + 180.0
-    out = np.full((n_bands, n), np.nan, dtype=out_dtype)
-    usable = _usable(classes, theta_i, theta_r, saa, vaa, class_nodata)
-    local = None
-    if slope is not None:
-        local, usable = _local_frame(usable, theta_i, saa, theta_r, vaa, slope, aspect)
+    cube = reflectance.reshape(n_bands, ny * nx)
+    pixels = PixelGeometry.of_block(classes, sza, saa, vza, vaa, slope, aspect, class_nodata=class_nodata,
+                                    flip_view_azimuth=flip_view_azimuth)
+    out = np.full(cube.shape, np.nan, dtype=out_dtype)
+    usable = pixels.usable & ~pixels.no_class
     bands = np.asarray(band_index).reshape(-1)
-    for class_id in _present_classes(classes[usable]):
+    for class_id in _present_classes(pixels.classes[usable]):
         plan = plans.get(int(class_id)) if float(class_id).is_integer() else None
         if plan is None:  # unknown class, or no covariance: nodata
             continue
-        index = np.flatnonzero(usable & (classes == class_id))
-        angles = (theta_i, saa, theta_r, vaa) if local is None else local
-        observed = ScatteringGeometry(
-            angles[0][index], angles[2][index], relative_azimuth(angles[1][index], angles[3][index])
-        )
-        # The reference is horizontal: "observed" is the pixel's horizontal sun zenith (as normalize).
-        ref_sza = theta_i[index] if reference.sza == "observed" else np.asarray(reference_sza, dtype=np.float64)
-        ref = ScatteringGeometry(ref_sza, np.float64(reference.vza), np.float64(reference.raa))
+        index = np.flatnonzero(usable & (pixels.classes == class_id))
+        observed, ref = pixels.geometries(index, reference, reference_sza)
         sigma = _class_sigma(plan, observed, ref, bands, index.size, limits)
         with np.errstate(invalid="ignore", over="ignore"):
             values = cube[:, index].astype(np.float64)
             values[~np.isfinite(values)] = np.nan  # +-inf reflectance is nodata, like NaN
             out[:, index] = values * sigma
     return out.reshape(n_bands, ny, nx)
-
-
-def _local_frame(usable, theta_i, saa, theta_r, vaa, slope, aspect):
-    """Sun and view angles (sza, saa, vza, vaa) in the tilted surfaces' frames and the usable pixels,
-    by the rules of :func:`brdfcorr.correct.normalize`: a non-finite slope or aspect, a slope
-    outside [0, 90] deg, or a sun or sensor at or below the surface's horizon is nodata."""
-    slope, aspect = (np.asarray(a, dtype=np.float64).reshape(-1) for a in (slope, aspect))
-    with np.errstate(invalid="ignore"):
-        usable = usable & (slope >= 0) & (slope <= 90) & np.isfinite(aspect)  # NaN compares False
-    local = local_angles(theta_i, saa, theta_r, vaa, np.where(usable, slope, 0.0), np.where(usable, aspect, 0.0))
-    with np.errstate(invalid="ignore"):
-        usable &= (local.sza < 90) & (local.vza < 90)
-    return (local.sza, local.saa, local.vza, local.vaa), usable
 
 
 def _class_sigma(plan: _ClassPlan, observed, reference, bands, n: int, limits) -> np.ndarray:
