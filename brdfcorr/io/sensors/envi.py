@@ -269,13 +269,20 @@ def read_envi_obs(path: str | Path, like: xr.DataArray | None = None, *,
         angle.attrs = {"units": "degree", "long_name": ANGLE_LONG_NAMES[key],
                        "source_band": descriptions[index]}
         variables[key] = angle.rename(key)
-    angles = xr.Dataset(variables)
-    if like is not None:
-        angles = angles.assign_coords(y=like["y"].values, x=like["x"].values)
-        if like.chunks and chunks is None:  # align blocks with the image's for blockwise work
-            angles = angles.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
+    angles = _on_image_grid(xr.Dataset(variables), like, chunks)
     angles.attrs = {"source": str(path), "source_kind": "envi_obs", "view_azimuth_stored": view_azimuth}
     return angles
+
+
+def _on_image_grid(layers: xr.Dataset, like: xr.DataArray | None, chunks) -> xr.Dataset:
+    """Layers read from an obs file with the image's ``y``/``x`` coordinates and, unless ``chunks``
+    were given, its blocks (for blockwise work with the image)."""
+    if like is None:
+        return layers
+    layers = layers.assign_coords(y=like["y"].values, x=like["x"].values)
+    if like.chunks and chunks is None:
+        layers = layers.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
+    return layers
 
 
 def _check_same_grid(path: Path, obs: xr.DataArray, like: xr.DataArray) -> None:
@@ -332,10 +339,6 @@ def read_envi_obs_terrain(path: str | Path, like: xr.DataArray | None = None, *,
             layer = wrap_azimuth(layer)
         layer.attrs = {"units": "degree", "long_name": TERRAIN_LONG_NAMES[key], "source_band": descriptions[index]}
         variables[key] = layer.rename(key)
-    layers = xr.Dataset(variables)
-    if like is not None:
-        layers = layers.assign_coords(y=like["y"].values, x=like["x"].values)
-        if like.chunks and chunks is None:  # align blocks with the image's for blockwise work
-            layers = layers.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
+    layers = _on_image_grid(xr.Dataset(variables), like, chunks)
     layers.attrs = {"source": str(path), "source_kind": "envi_obs"}
     return layers
