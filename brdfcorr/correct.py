@@ -226,6 +226,16 @@ def _normalize_block(
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
 
 
+def no_class_mask(classes: np.ndarray, class_nodata) -> np.ndarray:
+    """Where a class map says "no class": 0, NaN or its nodata value (docs/conventions.md)."""
+    no_class = classes == 0
+    if classes.dtype.kind == "f":
+        no_class |= np.isnan(classes)
+    if class_nodata is not None:
+        no_class |= classes == class_nodata
+    return no_class
+
+
 @dataclass(frozen=True)
 class PixelGeometry:
     """A block's pixels (flattened) as the correction and its uncertainty see them.
@@ -251,12 +261,7 @@ class PixelGeometry:
         if flip_view_azimuth:
             vaa = vaa + 180.0
         angles_finite = np.isfinite(theta_i) & np.isfinite(theta_r) & np.isfinite(saa) & np.isfinite(vaa)
-        # The class map's nodata (and NaN) means "no class", like class 0 (docs/conventions.md).
-        no_class = classes == 0
-        if classes.dtype.kind == "f":
-            no_class |= np.isnan(classes)
-        if class_nodata is not None:
-            no_class |= classes == class_nodata
+        no_class = no_class_mask(classes, class_nodata)
         with np.errstate(invalid="ignore"):
             in_domain = (theta_i >= 0) & (theta_i < 90) & (theta_r >= 0) & (theta_r < 90)
         invalid_geometry = angles_finite & ~in_domain
@@ -622,7 +627,7 @@ def normalize(
     )
     if inputs.lazy:
         pairs = inputs.blockwise(_normalize_block, kwargs)
-        corrected, qa = _split_pairs(pairs, inputs.reflectance.data.chunks, kwargs["out_dtype"])
+        corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, kwargs["out_dtype"])
     else:
         corrected, qa = inputs.apply(_normalize_block, kwargs)
         qa = qa[0]
@@ -645,7 +650,7 @@ def normalize(
     return Normalized(corrected, qa)
 
 
-def _split_pairs(pairs, chunks, out_dtype):
+def split_pairs(pairs, chunks, out_dtype):
     """The corrected cube and the QA layer from the blockwise (corrected, QA) pairs."""
     corrected = pairs.map_blocks(_first, dtype=out_dtype, meta=np.empty((0, 0, 0), out_dtype))
     per_band_chunk = pairs.map_blocks(

@@ -58,7 +58,7 @@ import pandas as pd
 import xarray as xr
 
 from brdfcorr._arrays import cosd
-from brdfcorr.correct import _check_grid
+from brdfcorr.correct import _check_grid, no_class_mask, split_pairs
 from brdfcorr.errors import BrdfcorrWarning, InputError
 from brdfcorr.terrain import cos_incidence
 
@@ -150,11 +150,7 @@ def _class_index(classes, class_ids: np.ndarray, class_nodata):
     if classes is None:
         return None, None
     classes = np.asarray(classes).reshape(-1)
-    no_class = classes == 0
-    if classes.dtype.kind == "f":
-        no_class |= np.isnan(classes)
-    if class_nodata is not None:
-        no_class |= classes == class_nodata
+    no_class = no_class_mask(classes, class_nodata)
     index = np.clip(np.searchsorted(class_ids, classes), 0, max(class_ids.size - 1, 0))
     member = ~no_class & (class_ids[index] == classes) if class_ids.size else np.zeros(classes.shape, bool)
     return index, member
@@ -206,12 +202,7 @@ def _fit_row(sums: np.ndarray, r2_min: float, c_range: tuple[float, float], min_
 def _class_ids(classes, class_nodata) -> np.ndarray:
     values = classes.data
     unique = da.unique(values).compute() if isinstance(values, da.Array) else np.unique(values)
-    keep = unique != 0
-    if unique.dtype.kind == "f":
-        keep &= ~np.isnan(unique)
-    if class_nodata is not None:
-        keep &= unique != class_nodata
-    return unique[keep]
+    return unique[~no_class_mask(unique, class_nodata)]
 
 
 def fit_c(
@@ -496,23 +487,9 @@ def _correct_dask(cube, layers: Sequence, kwargs):
     spatial = cube.chunks[1:]
     layers = [da.asarray(a).rechunk(spatial) for a in layers]
     band_index = da.arange(cube.shape[0], chunks=(cube.chunks[0],))
-    out_dtype = kwargs["out_dtype"]
     pairs = da.blockwise(
         _correct_block, "byx", cube, "byx", band_index, "b",
         *(item for layer in layers for item in (layer, "yx")),
-        meta=np.empty((0, 0, 0), dtype=out_dtype), **kwargs,
+        meta=np.empty((0, 0, 0), dtype=kwargs["out_dtype"]), **kwargs,
     )
-    corrected = pairs.map_blocks(lambda pair: pair[0], dtype=out_dtype, meta=np.empty((0, 0, 0), out_dtype))
-    per_band_chunk = pairs.map_blocks(
-        lambda pair: pair[1], dtype=np.uint8, chunks=((1,) * len(cube.chunks[0]),) + spatial,
-        meta=np.empty((0, 0, 0), np.uint8),
-    )
-    qa = da.reduction(
-        per_band_chunk, chunk=_bitwise_or, aggregate=_bitwise_or, axis=0, dtype=np.uint8,
-        concatenate=True, meta=np.empty((0, 0), np.uint8),
-    )
-    return corrected, qa
-
-
-def _bitwise_or(block, axis, keepdims):
-    return np.bitwise_or.reduce(block, axis=axis, keepdims=keepdims)
+    return split_pairs(pairs, cube.chunks, kwargs["out_dtype"])
