@@ -48,3 +48,13 @@ scale_options = _stack(
                  help="Reflectance factor of a stored 0, e.g. -0.2 for Landsat C2 L2 [default: the "
                       "image's GDAL offset, else 0]."),
 )
+
+
+def reference_sza(value: str | None):
+    """--ref-sza: a zenith [deg] or 'mean' / 'observed' (validated by ReferenceGeometry)."""
+    if value is None or value in ("mean", "observed"):
+        return value
+    try:
+        return float(value)
+    except ValueError:
+        raise click.BadParameter(f"{value!r} is not a number, 'mean' or 'observed'") from None

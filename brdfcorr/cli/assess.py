@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import MODEL_CHOICE, _assignments, _format_table, _options, _pairs, handle_errors, main
-from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
+from brdfcorr.cli._inputs import angle_source_options, class_map_options, reference_sza, scale_options
 from brdfcorr.io.paths import check_outputs, refuse_existing
 
 
@@ -170,7 +170,6 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     lines, before and after (as `brdfcorr assess`): a test of the correction on data its
     parameters never saw. Prints a table per held-out line and writes a JSON report (-o).
     """
-    from brdfcorr.cli.correct import _reference_sza
     from brdfcorr.workflow.assessment import leave_one_line_out_files, write_json
     from brdfcorr.workflow.classmaps import read_lookup
 
@@ -181,7 +180,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
                                    ("--class-lookup", class_lookup)])
     if not overwrite:
         refuse_existing([output])
-    sza = _reference_sza(ref_sza)
+    sza = reference_sza(ref_sza)
     assessment = leave_one_line_out_files(
         images, classes=classes, angles=angles, angles_kind=angles_kind,
         angle_options=_options("--angle-option", angle_option), model=model_name,

@@ -13,7 +13,7 @@ import click
 import click.shell_completion
 
 from brdfcorr.cli._base import _options, handle_errors, main
-from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
+from brdfcorr.cli._inputs import angle_source_options, class_map_options, reference_sza, scale_options
 from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
 from brdfcorr.io import FORMATS
 
@@ -22,16 +22,6 @@ if TYPE_CHECKING:
 
 # The library (dask, rasterio, scipy) is imported when the command runs, not when its options are
 # parsed: --help and argument errors answer at once.
-
-
-def _reference_sza(value: str | None):
-    """--ref-sza: a zenith [deg] or 'mean' / 'observed' (validated by ReferenceGeometry)."""
-    if value is None or value in ("mean", "observed"):
-        return value
-    try:
-        return float(value)
-    except ValueError:
-        raise click.BadParameter(f"{value!r} is not a number, 'mean' or 'observed'") from None
 
 
 class _ClassMaterial(click.ParamType):
@@ -188,7 +178,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     for entry in materials:
         table = table.with_class(entry)
     reference = table.reference.model_dump() if table.reference else {}
-    for key, value in (("sza", _reference_sza(ref_sza)), ("vza", ref_vza), ("raa", ref_raa)):
+    for key, value in (("sza", reference_sza(ref_sza)), ("vza", ref_vza), ("raa", ref_raa)):
         if value is not None:
             reference[key] = value
     if wavelengths is not None:
