@@ -18,6 +18,7 @@ from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
 from brdfcorr.io import FORMATS
 
 if TYPE_CHECKING:
+    from brdfcorr.topographic import C_METHODS
     from brdfcorr.workflow.tasks import Terrain
 
 # The library (dask, rasterio, scipy) is imported when the command runs, not when its options are
@@ -80,7 +81,7 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
             raise click.UsageError("--topographic and --brdf-frame need --slope-aspect or --dem")
         return None
     topographic = topographic or "cosine"
-    brdf_frame = brdf_frame or ("horizontal" if topographic in ("c", "scs+c") else "surface")
+    brdf_frame = brdf_frame or ("horizontal" if topographic in C_METHODS else "surface")
     return Terrain(slope_aspect=slope_aspect, dem=dem, topographic=topographic, brdf_frame=brdf_frame)
 
 

@@ -52,7 +52,7 @@ from brdfcorr.io.writer import check_format
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ReferenceGeometry
-from brdfcorr.topographic import C_METHODS
+from brdfcorr.topographic import frame_conflict
 from brdfcorr.workflow.patterns import PATTERN_FIELDS, check_pattern, format_pattern
 
 __all__ = [
@@ -337,10 +337,9 @@ class TerrainStep(_Strict):
 
     @model_validator(mode="after")
     def _frame(self) -> TerrainStep:
-        if self.topographic in C_METHODS and self.brdf_frame == "surface":
-            raise ValueError(f"topographic {self.topographic!r} fits an empirical C that absorbs part of the "
-                             "BRDF's slope dependence; use brdf_frame 'horizontal' with it, or topographic "
-                             "'cosine' with 'surface'")
+        conflict = frame_conflict(self.topographic, self.brdf_frame)
+        if conflict:
+            raise ValueError(conflict)
         return self
 
 

@@ -46,10 +46,10 @@ from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.strata import align_class_map, remap_classes
 from brdfcorr.terrain import SlopeAspect, slope_aspect, slope_aspect_layers
 from brdfcorr.topographic import (
-    C_METHODS,
     TOPO_QA_FIT_REJECTED,
     TOPO_QA_LIMITED,
     TOPO_QA_SHADOWED,
+    frame_conflict,
     topographic_correction,
 )
 from brdfcorr.uncertainty import correction_uncertainty
@@ -129,11 +129,9 @@ class Terrain:
     def __post_init__(self):
         if (self.slope_aspect is None) == (self.dem is None):
             raise InputError("terrain: give slope and aspect (a 2-band raster or an obs file) or a DEM, one of them")
-        if self.topographic in C_METHODS and self.brdf_frame == "surface":
-            raise InputError(
-                f"terrain: topographic '{self.topographic}' fits an empirical C that absorbs part of the "
-                "BRDF's slope dependence; combine it with brdf_frame 'horizontal', or use 'cosine' with 'surface'"
-            )
+        conflict = frame_conflict(self.topographic, self.brdf_frame)
+        if conflict:
+            raise InputError(f"terrain: {conflict}")
 
     @property
     def inputs(self) -> list[tuple[str, object]]:
