@@ -18,7 +18,6 @@ from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
 from brdfcorr.io import FORMATS
 
 if TYPE_CHECKING:
-    from brdfcorr.topographic import C_METHODS
     from brdfcorr.workflow.tasks import Terrain
 
 # The library (dask, rasterio, scipy) is imported when the command runs, not when its options are
@@ -75,6 +74,7 @@ def _cluster(address: str | None):
 
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
     """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
+    from brdfcorr.topographic import C_METHODS
     from brdfcorr.workflow.tasks import Terrain
     if slope_aspect is None and dem is None:
         if topographic is not None or brdf_frame is not None:
