@@ -1,21 +1,32 @@
 # brdfcorr developer commands. `make demo` and `make test` work from a fresh clone.
+#
+# Both install exact versions from the lock files in requirements/ (made by `make lock` from the
+# version ranges in pyproject.toml), so a new release upstream cannot change what a fresh clone
+# runs. `make test-latest` runs the suite against the newest releases instead (not part of CI).
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
+# pytest-xdist workers: one per core (`make test WORKERS=1` runs the suite in one process).
+WORKERS ?= auto
+# The version of uv that makes the lock files (`make lock` only; installing needs pip alone).
+UV_VERSION := 0.13.9
+LOCK := uv pip compile --quiet --universal --python-version 3.11 --generate-hashes --no-header
 
-.PHONY: demo test lint clean
+.PHONY: demo test lint lock test-latest clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
 
-# The stamps re-run the install when pyproject.toml changes.
-$(VENV)/.installed: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e .
+# Every package with its hash, then brdfcorr itself (editable, built by the locked setuptools).
+# The stamps re-run the install when a lock file or pyproject.toml changes.
+$(VENV)/.installed: requirements/run.lock pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet --require-hashes --no-deps -r requirements/run.lock
+	PYTHONWARNINGS=ignore $(BIN)/python -m pip install --quiet --no-deps --no-build-isolation -e .
 	touch $@
 
-$(VENV)/.installed-test: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+$(VENV)/.installed-test: requirements/test.lock pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet --require-hashes --no-deps -r requirements/test.lock
+	PYTHONWARNINGS=ignore $(BIN)/python -m pip install --quiet --no-deps --no-build-isolation -e .
 	touch $@ $(VENV)/.installed
 
 demo: $(VENV)/.installed
@@ -28,7 +39,22 @@ lint: $(VENV)/.installed-test
 	$(BIN)/mypy
 
 test: lint
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(WORKERS)
+
+# Refresh both lock files from pyproject.toml's ranges; the run lock takes the test lock's
+# versions, so `make demo` and `make test` install the same brdfcorr dependencies.
+lock:
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet uv==$(UV_VERSION)
+	.venv-lock/bin/$(LOCK) pyproject.toml requirements/build.in --extra test -o requirements/test.lock
+	.venv-lock/bin/$(LOCK) pyproject.toml requirements/build.in -c requirements/test.lock -o requirements/run.lock
+
+# The suite against the newest releases of every dependency, in a separate environment.
+test-latest:
+	$(PYTHON) -m venv .venv-latest
+	.venv-latest/bin/python -m pip install --quiet --upgrade pip
+	.venv-latest/bin/python -m pip install --quiet --upgrade -e '.[test]'
+	.venv-latest/bin/python -m pytest -n $(WORKERS)
 
 clean:
-	rm -rf $(VENV) demo_output .pytest_cache .hypothesis
+	rm -rf $(VENV) .venv-latest .venv-lock demo_output .pytest_cache .hypothesis

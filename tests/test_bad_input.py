@@ -211,17 +211,17 @@ CORRECT_CASES = {
     "table with a python tag (YAML loaded safely)": (
         lambda s: _correct_args(s, **{"--params": _table(
             s, "classes: !!python/object/apply:os.system ['touch pwned']\n")}),
-        r"bad\.yaml: not valid YAML.*could not determine a constructor"),
+        r"bad\.yaml: not valid YAML \(line 1, column 10\): the tag !!python/object/apply:os\.system is not allowed"),
     "wavelengths for another band count": (
         lambda s: _correct_args(s, **{"--wavelengths": "480,560,660"}),
         r"image\.tif: 3 wavelengths from the given wavelengths for 4 bands"),
     # --- options
     "required option missing": (lambda s: _correct_args(s, **{"--classes": None}),
-                                r"^brdfcorr: error: correct: Missing option '--classes'\. \(see --help of correct\)$"),
+                                r"^brdfcorr: error: correct: .*'--classes'.* \(see --help of correct\)$"),  # click's words between
     "option with a bad value": (lambda s: _correct_args(s, **{"--ref-sza": "noon"}),
-                                r"correct: Invalid value: 'noon' is not a number, 'mean' or 'observed'"),
+                                r"correct: .*'noon' is not a number, 'mean' or 'observed'"),
     "option of the wrong type": (lambda s: _correct_args(s, **{"--ref-vza": "ten"}),
-                                 r"correct: Invalid value for '--ref-vza': 'ten' is not a valid float"),
+                                 r"correct: .*'--ref-vza'.*'ten'"),
     # --- outputs
     "output is the image": (lambda s: _correct_args(s, **{"-o": s["image"]}),
                             r"output \S*image\.tif is also an input; inputs are never overwritten"),
@@ -375,7 +375,7 @@ RUN_CASES = {
     "not YAML": (lambda s: _chain_text(s, "inputs: {images: [a\n"), r"chain\.yaml: not valid YAML \(line 2"),
     "python tag (YAML loaded safely)": (
         lambda s: _chain_text(s, "inputs: !!python/object/apply:os.system ['touch pwned']\n"),
-        r"chain\.yaml: not valid YAML.*could not determine a constructor"),
+        r"chain\.yaml: not valid YAML \(line 1, column 9\): the tag !!python/object/apply:os\.system is not allowed"),
     "not a mapping": (lambda s: _chain_text(s, "just text\n"),
                       r"chain\.yaml: expected a mapping of sections \(inputs, outputs, \.\.\.\), got str"),
     "fit output is the parameter table": (

@@ -4,9 +4,10 @@ a gigabyte, a traceback or a silently wrong number.
 Each command-line case builds one hostile file beside a good synthetic scene
 (:mod:`brdfcorr.testing`) and checks: exit code 2; stderr exactly one line ``brdfcorr: error: ...``
 matching the expected message (naming the file and the key or line at fault); no output written;
-every input byte-identical; answered within :data:`TIME_LIMIT` seconds. Files that could block
-(a FIFO, ``/dev/urandom``) are given to the command line in a subprocess with a timeout, so a
-regression fails instead of hanging the test run.
+every input byte-identical. Files that could block (a FIFO, ``/dev/urandom``) are given to the
+command line in a subprocess killed after :data:`HANG_GUARD` seconds, so a regression fails instead
+of hanging the test run. How fast bad documents are refused is measured by
+``benchmarks/bench_documents.py``, not here: a test never reads the clock.
 
 The parameter bounds of the registry are checked against the models on a dense angle grid, and the
 correction's rule for invalid factors (``nodata``, never counted as corrected) on small scenes.
@@ -22,7 +23,7 @@ import re
 import shutil
 import subprocess
 import sys
-import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -40,8 +41,9 @@ from brdfcorr.params import ParameterTable, merge_tables
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
 
 NY, NX = 16, 20
-#: Every hostile input is answered within this many seconds [s] (a subprocess includes start-up).
-TIME_LIMIT = 10.0
+#: A command that could block is killed after this many seconds [s]: a guard against a hang, far
+#: above any real answer (about 1 s), never a measurement of speed.
+HANG_GUARD = 300.0
 
 TABLE = ("classes: [{id: 1, name: tile, model: torrance_sparrow, "
          "params: {t0: 0.02, t1: %s, w: 0.036, n: %s, k: 0.25}}]\n")
@@ -110,16 +112,13 @@ def _chain(scene, text: str | None = None, **sections) -> Path:
 
 
 def _check(scene, run, pattern: str) -> str:
-    """Run ``run() -> (exit code, stderr)``; check exit 2, one line matching ``pattern``, the time,
-    no output and unchanged inputs. Returns the line."""
+    """Run ``run() -> (exit code, stderr)``; check exit 2, one line matching ``pattern``, no output
+    and unchanged inputs. Returns the line."""
     before = _digests(scene["dir"].parent)
-    start = time.monotonic()
     code, stderr = run()
-    elapsed = time.monotonic() - start
     assert code == 2, stderr[:2000]
     line = _one_error_line(stderr)
     assert re.search(pattern, line), line
-    assert elapsed < TIME_LIMIT, f"answered in {elapsed:.1f} s"
     assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
     assert not (scene["dir"].parent / "chain_out").exists()
     assert _digests(scene["dir"].parent) == before, "inputs must be byte-identical"
@@ -134,11 +133,11 @@ def _in_process(args: list[str]):
 
 
 def _subprocess(args: list[str], cwd: Path | None = None):
-    """The command line in its own process, killed after :data:`TIME_LIMIT` (a FIFO cannot hang
+    """The command line in its own process, killed after :data:`HANG_GUARD` (a FIFO cannot hang
     the test run)."""
     def run():
         result = subprocess.run([sys.executable, "-c", "from brdfcorr.cli import main; main()", *args],
-                                capture_output=True, text=True, timeout=TIME_LIMIT, cwd=cwd)
+                                capture_output=True, text=True, timeout=HANG_GUARD, cwd=cwd)
         return result.returncode, result.stderr
     return run
 
@@ -225,21 +224,30 @@ def test_hostile_parameter_table(scene, case):
 def test_the_alias_bomb_is_small_and_refused_before_it_grows():
     text = _bomb() + "t0: *l9\n"
     assert len(text) < 600 and 9**10 > 1000 * MAX_ALIAS_NODES
-    start = time.monotonic()
-    with pytest.raises(ParameterError, match=r"its aliases expand to more than 1,000,000 values"):
-        parse_yaml(text, "bomb.yaml", ParameterError)
-    assert time.monotonic() - start < 1.0
+    tracemalloc.start()
+    try:
+        with pytest.raises(ParameterError, match=r"its aliases expand to more than 1,000,000 values"):
+            parse_yaml(text, "bomb.yaml", ParameterError)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1e6, f"{peak} bytes: the bomb grew before it was refused"
 
 
 @pytest.mark.parametrize("text, pattern", [
-    ("a: &r [1, *r]\n", r"alias \*r is inside the node it names \(a recursive document\)"),
-    ("[" * 100_000 + "]" * 100_000, r"nested more than 100 levels deep"),
-    ("- " * 1_000_000 + "1\n", r"nested more than 100 levels deep"),  # libyaml's composer would crash
-    ("a: " + "1" * 5000 + "\n", r"not valid YAML: Exceeds the limit \(4300 digits\)"),
+    ("a: &r [1, *r]\n", r"^x\.yaml: not valid YAML \(line 1, column 11\): alias \*r is inside the node it names "
+                       r"\(a recursive document\)$"),
+    # Deeper than MAX_DEPTH: refused by our composer (at level 101) or, deeper still, by libyaml's
+    # own nesting bound first, in its words; either way one error naming the file and the place.
+    ("[" * 150 + "]" * 150, r"^x\.yaml: not valid YAML \(line 1, column 101\): nested more than 100 levels deep$"),
+    ("[" * 100_000 + "]" * 100_000, r"^x\.yaml: not valid YAML \(line 1, column \d+\): "),
+    ("- " * 1_000_000 + "1\n", r"^x\.yaml: not valid YAML \(line 1, column \d+\): "),
+    ("a: " + "1" * 5000 + "\n", r"^x\.yaml: not valid YAML: "),  # Python's bound on int() digits
 ])
 def test_recursive_deep_and_oversized_documents_are_one_error(text, pattern):
-    with pytest.raises(InputError, match=pattern):
+    with pytest.raises(InputError, match=pattern) as raised:
         parse_yaml(text, "x.yaml", InputError)
+    assert "\n" not in str(raised.value) and len(str(raised.value)) < 300
 
 
 def test_legitimate_aliases_and_merge_keys_still_work():
@@ -352,18 +360,13 @@ def _big_table_text(n_classes: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def test_a_big_valid_table_loads_well_within_the_limit(tmp_path):
+def test_a_big_valid_table_loads_and_merges(tmp_path):
     path = tmp_path / "big.yaml"
     path.write_text(_big_table_text(20_000))
     assert 2e6 < path.stat().st_size < MAX_DOCUMENT_BYTES
-    start = time.monotonic()
-    table = ParameterTable.load(path)
-    elapsed = time.monotonic() - start
+    table = ParameterTable.load(path)  # its speed: benchmarks/bench_documents.py
     assert len(table) == 20_000 and table.class_ids[-1] == 20_000
-    assert elapsed < TIME_LIMIT, f"20 000 classes loaded in {elapsed:.1f} s"
-    start = time.monotonic()
-    merged = merge_tables([table, example_table()])  # linear, not a copy per class
-    assert time.monotonic() - start < 2.0
+    merged = merge_tables([table, example_table()])
     assert len(merged) == 20_000 and merged[2].model == "empirical"
 
 
@@ -375,13 +378,11 @@ def test_one_shared_anchor_for_20000_classes_is_no_bomb(tmp_path):
     assert len(ParameterTable.from_dict(data).classes) == 20_000
 
 
-def test_duplicate_ids_of_a_big_table_are_found_quickly():
+def test_duplicate_ids_of_a_big_table_are_found():
     classes = [{"id": i % 19_999 + 1, "name": "c", "model": "lambertian", "params": {"t0": 0.1}}
                for i in range(20_000)]
-    start = time.monotonic()
     with pytest.raises(ParameterError, match=r"class id\(s\) 1 appear more than once"):
         ParameterTable(classes=classes)
-    assert time.monotonic() - start < TIME_LIMIT / 2
 
 
 # ------------------------------------------------------------- parameter bounds keep models finite

@@ -126,7 +126,7 @@ def test_per_band_lists_must_match_band_count():
         ("reference: {sza: noon}", r"reference\.sza: 'noon' is not allowed; allowed: a number, 'mean' or 'observed'"),
         ("reference: {vza: 10, raz: 3}", r"reference\.raz: unknown key; allowed keys: raa, sza, vza"),
         ("- 1\n- 2", r"expected a mapping"),
-        ("classes: [", r"not valid YAML \(line 1, column 11\)"),
+        ("classes: [", r"not valid YAML \(line \d+, column \d+\)"),  # where depends on the parser
     ],
 )
 def test_invalid_tables_name_the_class_and_parameter(text, pattern):

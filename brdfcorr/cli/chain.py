@@ -201,21 +201,20 @@ def validate_command(chains, settings):
     that do not exist yet (inputs in a folder not made yet, tables) are warnings. A parameter
     table file (a document with `classes` but no `inputs`) is checked as a table.
     """
-    from brdfcorr.params import ParameterTable
-    from brdfcorr.workflow.chain import plan_run
-    from brdfcorr.workflow.config import load_config
-
     overrides = _overrides(settings)
     for chain in chains:
-        try:
-            document = parse_yaml(read_document(chain, "chain config", ConfigError), str(chain), ConfigError)
-        except (OSError, ConfigError):
-            document = None  # load_config reports it
+        # Parsed before the library is imported: a malformed document is refused at once.
+        document = parse_yaml(read_document(chain, "chain config", ConfigError), str(chain), ConfigError)
         if isinstance(document, dict) and "classes" in document and "inputs" not in document:
-            table = ParameterTable.load(chain)
+            from brdfcorr.params import ParameterTable
+
+            table = ParameterTable.from_dict(document, source=str(chain))
             click.echo(f"{chain}: valid parameter table; classes {', '.join(map(str, table.class_ids))}")
             continue
-        plan = plan_run(load_config(chain, overrides), require_inputs=False)
+        from brdfcorr.workflow.chain import plan_run
+        from brdfcorr.workflow.config import config_from_document
+
+        plan = plan_run(config_from_document(document, chain, overrides), require_inputs=False)
         for warning in plan.warnings:
             click.echo(f"brdfcorr: warning: {chain}: {warning}", err=True)
         missing = [scene for scene in plan.scenes if scene.action == "fail"]

@@ -695,8 +695,15 @@ def load_config(path: str | os.PathLike, overrides: Mapping[str, object] | None 
         column) or invalid content (key path and allowed values).
     """
     path = Path(path)
-    text = read_document(path, "chain config", ConfigError)
-    data = parse_yaml(text, str(path), ConfigError)
+    data = parse_yaml(read_document(path, "chain config", ConfigError), str(path), ConfigError)
+    return config_from_document(data, path, overrides)
+
+
+def config_from_document(
+    data: object, path: str | os.PathLike, overrides: Mapping[str, object] | None = None
+) -> ChainConfig:
+    """Validate the parsed YAML ``data`` of the chain config file ``path`` (see :func:`load_config`)."""
+    path = Path(path)
     if data is None:
         data = {}
     if overrides:
