@@ -22,6 +22,13 @@ from brdfcorr.workflow.config import load_config
 
 distributed = pytest.importorskip("distributed")
 
+
+@pytest.fixture(autouse=True)
+def patient_connections(monkeypatch):
+    """Clusters in these tests are real and on this machine: under load, connecting to one may take
+    longer than the library's timeout for unreachable schedulers (tests of that set their own)."""
+    monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 300)
+
 from test_pipeline import make_scenes, write_chain  # noqa: E402
 
 
