@@ -2,7 +2,7 @@
 
 Prints ratios against baselines measured in the same run, never absolute targets:
 
-1. end to end, GeoTIFF in -> GeoTIFF out (``brdfcorr.workflow.tasks.correct_files``, as the CLI runs it)
+1. end to end, GeoTIFF in -> GeoTIFF out (``brdfcorr.workflow.correction.correct_files``, as the CLI runs it)
    versus a plain chunked rasterio read + write of the same image with the same output options
    (tiles, deflate + predictor); target <= 1.5;
 2. in memory, per band: ``normalize`` on a numpy cube versus the bare ``cube * factor``, for a
@@ -95,12 +95,14 @@ def plain_copy(source: Path, target: Path, chunk: int) -> None:
 
 
 def run_correct(paths: dict, output: Path, chunk: int | None) -> dict:
-    from brdfcorr.workflow.tasks import correct_files
+    from brdfcorr.io.scene import SceneSources
+    from brdfcorr.workflow.correction import correct_files
+    from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
-    return correct_files(
-        paths["image"], output, params=paths["params"], angles=paths["angles"],
-        classes=paths["classes"], reference={"sza": "mean", "vza": 0, "raa": 0}, chunks=chunk,
-    )
+    return correct_files(CorrectionRequest(
+        SceneSources(paths["image"], paths["classes"], paths["angles"]), paths["params"], OutputFiles(output),
+        reference={"sza": "mean", "vza": 0, "raa": 0}, engine=Engine(chunks=chunk),
+    ))
 
 
 def timed(function, *args, repeat: int = 1) -> float:

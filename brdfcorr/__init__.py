@@ -9,13 +9,8 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 
 import importlib  # noqa: E402
 
-from brdfcorr import (  # noqa: E402
-    _compat,
-    accessor,  # noqa: F401  (registers the .brdf xarray accessor; needs xarray only)
-)
+from brdfcorr import accessor  # noqa: E402, F401  (registers the .brdf xarray accessor; needs xarray only)
 from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # noqa: E402
-
-_compat.install()
 
 #: Names imported at first use (PEP 562), so that `import brdfcorr` and the command line's
 #: `--help` and argument errors do not pay for dask and scipy.

@@ -30,7 +30,7 @@ bit  name             meaning
 32   facing_away      with slope and aspect: the sun or the sensor is at or below the tilted
                       surface's horizon (local zenith >= 90 deg): output is nodata
 64   topography_      with a topographic step before the correction
-     uncorrected      (:func:`brdfcorr.workflow.tasks.correct_files`): the C fit of the pixel's
+     uncorrected      (:func:`brdfcorr.workflow.correction.correct_files`): the C fit of the pixel's
                       class was rejected in some band, which was not corrected for illumination
 ==== ================ ========================================================================
 
@@ -63,6 +63,7 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
+from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import GridMismatchError, InputError
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model
@@ -544,7 +545,7 @@ def normalize(
     params: ParameterTable,
     reference: ReferenceGeometry | dict | None = None,
     *,
-    limits: tuple[float, float] | None = (0.2, 5.0),
+    limits: tuple[float, float] | None = DEFAULT_LIMITS,
     wavelengths: Sequence[float] | None = None,
     extrapolate: bool = False,
     unknown: Literal["keep", "nan"] = "keep",
@@ -719,15 +720,3 @@ def qa_counts(qa) -> dict[str, object]:
         "nodata": xp.count_nonzero(data & (QA_NODATA | QA_INVALID_GEOMETRY | QA_FACING_AWAY)),
     }
 
-
-def __getattr__(name: str):
-    # brdfcorr 0.1 had the file-level correction here; it moved to the workflow layer in 0.2.
-    if name == "correct_files":
-        import warnings
-
-        from brdfcorr.workflow import tasks
-
-        warnings.warn("brdfcorr.correct.correct_files moved to brdfcorr.workflow.tasks.correct_files in 0.2",
-                      DeprecationWarning, stacklevel=2)
-        return tasks.correct_files
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

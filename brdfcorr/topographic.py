@@ -59,6 +59,7 @@ import xarray as xr
 
 from brdfcorr._arrays import cosd
 from brdfcorr.correct import _check_grid, no_class_mask, split_pairs
+from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import BrdfcorrWarning, InputError
 from brdfcorr.terrain import cos_incidence
 
@@ -402,7 +403,7 @@ def topographic_correction(
     method: Method = "scs+c",
     classes=None,
     c_table: pd.DataFrame | None = None,
-    limits: tuple[float, float] | None = (0.2, 5.0),
+    limits: tuple[float, float] | None = DEFAULT_LIMITS,
     class_nodata: float | None = None,
     r2_min: float = R2_MIN,
     c_range: tuple[float, float] = C_RANGE,

@@ -62,6 +62,7 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr.correct import PixelGeometry, Plans, _present_classes, band_shapes, describe_limits, prepare_inputs
+from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model
@@ -373,7 +374,7 @@ def correction_uncertainty(
     extrapolate: bool = False,
     class_nodata: float | None = None,
     flip_view_azimuth: bool = False,
-    limits: tuple[float, float] | None = (0.2, 5.0),
+    limits: tuple[float, float] | None = DEFAULT_LIMITS,
     slope=None,
     aspect=None,
 ) -> xr.DataArray:

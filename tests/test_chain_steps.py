@@ -11,11 +11,13 @@ import rasterio
 import xarray as xr
 import yaml
 
+from brdfcorr.io.scene import SceneSources
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import PIXEL, example_table, georeference, synthetic_scene, write_scene
 from brdfcorr.workflow.chain import plan_run, run_chain
 from brdfcorr.workflow.config import load_config
-from brdfcorr.workflow.tasks import Terrain, correct_files
+from brdfcorr.workflow.correction import Terrain, correct_files
+from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
 REFERENCE = {"sza": 35.0, "vza": 0.0, "raa": 0.0}
 NY, NX = 32, 48
@@ -52,10 +54,12 @@ def read(path):
         return dataset.read(), dataset.tags()
 
 
-def direct(paths, output, table, **options):
+def direct(paths, output, table, uncertainty=None, **options):
     """The call of correct_files the chain's correct step makes for a scene of write_chain."""
-    return correct_files(paths["image"], output, params=table, classes=paths["classes"], angles=paths["angles"],
-                         reference=REFERENCE, limits=None, chunks=16, **options)
+    return correct_files(CorrectionRequest(
+        SceneSources(paths["image"], paths["classes"], paths["angles"]), table,
+        OutputFiles(output, uncertainty=uncertainty), reference=REFERENCE, limits=None, engine=Engine(chunks=16),
+        **options))
 
 
 # ------------------------------------------------------------------------------------- assess
@@ -128,7 +132,7 @@ def test_uncertainty_output(tmp_path):
     assert np.isfinite(sigma[:, classes == 1]).all() and (sigma[:, classes == 1] > 0).all()
     assert np.isnan(sigma[:, (classes == 2) | (classes == 3)]).all()  # no fit: block, nothing known
     # The chain writes what the library call writes.
-    direct(paths, tmp_path / "direct.tif", table, uncertainty_output=tmp_path / "direct_sigma.tif")
+    direct(paths, tmp_path / "direct.tif", table, uncertainty=tmp_path / "direct_sigma.tif")
     np.testing.assert_array_equal(sigma, read(tmp_path / "direct_sigma.tif")[0])
     # The plan says beforehand which classes will be NaN.
     assert plan_run(load_config(chain)).warnings == (

@@ -10,9 +10,11 @@ import pytest
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
+from brdfcorr.io.scene import SceneSources
 from brdfcorr.testing import example_table, render, synthetic_scene, write_scene
 from brdfcorr.workflow.assessment import assess_files
-from brdfcorr.workflow.tasks import correct_files
+from brdfcorr.workflow.correction import correct_files
+from brdfcorr.workflow.request import CorrectionRequest, OutputFiles
 
 
 @pytest.fixture(scope="module")
@@ -22,8 +24,8 @@ def files(tmp_path_factory):
     paths = write_scene(directory, scene)
     paths["scene"] = scene
     paths["after"] = directory / "corrected.tif"
-    correct_files(paths["image"], paths["after"], params=example_table(), angles=paths["angles"],
-                  classes=paths["classes"], reference={"sza": "observed", "vza": 0.0})
+    correct_files(CorrectionRequest(SceneSources(paths["image"], paths["classes"], paths["angles"]), example_table(),
+                                    OutputFiles(paths["after"]), reference={"sza": "observed", "vza": 0.0}))
     return paths
 
 

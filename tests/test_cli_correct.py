@@ -162,20 +162,25 @@ def test_correct_files_reads_sensor_angle_sources(files, scene, tmp_path, monkey
     import xarray as xr
 
     import brdfcorr.io.sensors
-    from brdfcorr.workflow.tasks import correct_files
+    from brdfcorr.io.scene import SceneSources
+    from brdfcorr.workflow.correction import correct_files
+    from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
     def stand_in(source, like, scale=1.0):
         assert source == "obs.bin" and like.sizes["x"] == 48
         return xr.Dataset({name: scene[name] * scale for name in ANGLES})
 
     monkeypatch.setitem(brdfcorr.io.sensors.ANGLE_KINDS, "stand_in", stand_in)
-    common = dict(params=example_table(), classes=files["classes"], reference={"sza": 35.0}, chunks=16)
-    correct_files(files["image"], tmp_path / "a.tif", angles=files["angles"], **common)
-    correct_files(files["image"], tmp_path / "b.tif", angles="obs.bin", angles_kind="stand_in",
-                  angle_options={"scale": 1.0}, **common)
+    def correct(output, angles, **sources):
+        request = CorrectionRequest(SceneSources(files["image"], files["classes"], angles, **sources), example_table(),
+                                    OutputFiles(tmp_path / output), reference={"sza": 35.0}, engine=Engine(chunks=16))
+        return correct_files(request)
+
+    correct("a.tif", files["angles"])
+    correct("b.tif", "obs.bin", angles_kind="stand_in", angle_options={"scale": 1.0})
     with rasterio.open(tmp_path / "a.tif") as a, rasterio.open(tmp_path / "b.tif") as b:
         np.testing.assert_array_equal(a.read(), b.read())
     monkeypatch.setitem(brdfcorr.io.sensors.ANGLE_KINDS, "sun_only",
                         lambda source, like: xr.Dataset({n: scene[n] for n in ("sza", "saa")}))
     with pytest.raises(InputError, match=r"angle source t0 \(sun_only\) gives no vza, vaa"):
-        correct_files(files["image"], tmp_path / "c.tif", angles="t0", angles_kind="sun_only", **common)
+        correct("c.tif", "t0", angles_kind="sun_only")

@@ -20,7 +20,8 @@ from click.testing import CliRunner
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError, SensorInputError
 from brdfcorr.geometry import relative_azimuth
-from brdfcorr.io.rasters import open_image, open_scene
+from brdfcorr.io.rasters import open_image
+from brdfcorr.io.scene import SceneSources, open_scene
 from brdfcorr.io.sensors import read_angles
 from brdfcorr.io.sensors.neon import parse_map_info, read_neon_angles, read_neon_image
 from brdfcorr.models import torrance_sparrow
@@ -195,7 +196,7 @@ def _write_classes(path, like: xr.DataArray, value: int = 1) -> None:
 
 def test_open_scene_puts_image_angles_and_classes_on_one_grid(neon_file, tmp_path):
     _write_classes(tmp_path / "classes.tif", read_neon_image(neon_file))
-    scene = open_scene(neon_file, tmp_path / "classes.tif", neon_file, angles_kind="neon")
+    scene = open_scene(SceneSources(neon_file, tmp_path / "classes.tif", neon_file, angles_kind="neon"))
     assert scene.statistics.means["sza"] == pytest.approx(34.5)
     assert scene.statistics.ranges["vza"] == (0.0, 10.0)
 

@@ -46,6 +46,7 @@ import xarray as xr
 from rasterio.enums import Resampling
 
 from brdfcorr._arrays import cosd, sind
+from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
 
 __all__ = [
@@ -642,7 +643,7 @@ def _overlaps(a: xr.DataArray, b: xr.DataArray) -> bool:
 def leave_one_line_out(
     lines: Sequence[Line], model: str = "torrance_sparrow", *, class_models: Mapping[int, str] | None = None,
     names: Mapping[int, str] | None = None, fixed: Mapping[str, float] | None = None,
-    reference: Mapping[str, object] | None = None, limits: tuple[float, float] | None = (0.2, 5.0),
+    reference: Mapping[str, object] | None = None, limits: tuple[float, float] | None = DEFAULT_LIMITS,
     max_samples: int = 50_000, seed: int = 0, by: Literal["sun", "track"] = "sun",
     heading: float | None = None, bin_width: float = 2.0, overlap: bool = True,
     flip_view_azimuth: bool = False,

@@ -1,4 +1,4 @@
-"""``brdfcorr correct``: normalize one image (library: :func:`brdfcorr.workflow.tasks.correct_files`)."""
+"""``brdfcorr correct``: normalize one image (library: :func:`brdfcorr.workflow.correction.correct_files`)."""
 
 from __future__ import annotations
 
@@ -14,11 +14,12 @@ import click.shell_completion
 
 from brdfcorr.cli._base import _options, handle_errors, main
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, reference_sza, scale_options
+from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
 from brdfcorr.io import FORMATS
 
 if TYPE_CHECKING:
-    from brdfcorr.workflow.tasks import Terrain
+    from brdfcorr.workflow.correction import Terrain
 
 # The library (dask, rasterio, scipy) is imported when the command runs, not when its options are
 # parsed: --help and argument errors answer at once.
@@ -75,7 +76,7 @@ def _cluster(address: str | None):
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
     """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
     from brdfcorr.topographic import C_METHODS
-    from brdfcorr.workflow.tasks import Terrain
+    from brdfcorr.workflow.correction import Terrain
     if slope_aspect is None and dem is None:
         if topographic is not None or brdf_frame is not None:
             raise click.UsageError("--topographic and --brdf-frame need --slope-aspect or --dem")
@@ -115,7 +116,7 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
 @click.option("--ref-sza", help="Reference sun zenith [deg], 'mean' or 'observed' [default: table, else observed].")
 @click.option("--ref-vza", type=float, help="Reference view zenith [deg] [default: table, else 0].")
 @click.option("--ref-raa", type=float, help="Reference relative azimuth [deg] [default: table, else 0].")
-@click.option("--limits", nargs=2, type=float, default=(0.2, 5.0), show_default=True,
+@click.option("--limits", nargs=2, type=float, default=DEFAULT_LIMITS, show_default=True,
               help="Lower and upper limit of the correction factor.")
 @click.option("--no-limits", is_flag=True, help="Do not limit the correction factor.")
 @click.option("--unknown", type=click.Choice(["keep", "nan"]), default="keep", show_default=True,
@@ -169,9 +170,11 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     """
     from tqdm.dask import TqdmCallback
 
+    from brdfcorr.io.scene import SceneSources
     from brdfcorr.params import ParameterTable
     from brdfcorr.workflow.classmaps import read_lookup
-    from brdfcorr.workflow.tasks import correct_files
+    from brdfcorr.workflow.correction import correct_files
+    from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
     if params_path is None and not materials:
         raise click.UsageError("give a parameter table (--params) or at least one --material")
@@ -194,23 +197,24 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     source = " ".join([str(params_path)] * (params_path is not None)
                       + [f"--material {entry.id}={entry.material}" for entry in materials])
     start = time.perf_counter()
+    sources = SceneSources(image, classes, angles, angles_kind=angles_kind,
+                           angle_options=_options("--angle-option", angle_option), sza=sza, saa=saa, vza=vza,
+                           vaa=vaa, wavelengths=wavelengths, scale=scale, offset=offset)
+    outputs = OutputFiles(output, qa=qa_path, uncertainty=uncertainty_path, format=output_format,
+                          interleave=interleave.lower(), data_type=output_type, compress=compress, cog=cog,
+                          overwrite=overwrite)
+    terrain = _terrain(slope_aspect, dem, topographic, brdf_frame)
+    lookup = read_lookup(class_lookup) if class_lookup else None
     with _cluster(scheduler) as client, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BrdfcorrWarning)  # each class's caveat, however often run
         try:
-            summary = correct_files(
-                image, output, params=table, angles=angles, sza=sza, saa=saa, vza=vza, vaa=vaa,
-                classes=classes, reference=reference, qa_output=qa_path, wavelengths=wavelengths,
-                extrapolate=extrapolate, limits=None if no_limits else limits, unknown=unknown,
-                flip_view_azimuth=flip_view_azimuth, chunks=chunk, compress=compress, cog=cog,
-                callbacks=callbacks, table_source=source, angles_kind=angles_kind,
-                angle_options=_options("--angle-option", angle_option), overwrite=overwrite,
-                align_classes=align_classes,
-                class_lookup=read_lookup(class_lookup) if class_lookup else None,
-                scale=scale, offset=offset, output_format=output_format, interleave=interleave.lower(),
+            summary = correct_files(CorrectionRequest(
+                sources, table, outputs, reference=reference, limits=None if no_limits else limits,
+                extrapolate=extrapolate, unknown=unknown, flip_view_azimuth=flip_view_azimuth, terrain=terrain,
+                align_classes=align_classes, class_lookup=lookup,
+                engine=Engine(chunks=chunk, scheduler=client, callbacks=callbacks), table_source=source,
                 reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
-                scheduler=client, uncertainty_output=uncertainty_path, output_type=output_type,
-                terrain=_terrain(slope_aspect, dem, topographic, brdf_frame),
-            )
+            ))
         finally:  # shown also when the correction then fails
             _show_warnings(caught)
     click.echo(

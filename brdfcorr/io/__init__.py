@@ -20,6 +20,7 @@ EXTENSIONS = {"GTiff": (".tif", ".tiff"), "ENVI": (".img", ".bsq", ".bil", ".dat
 
 def __getattr__(name: str):
     if name in __all__:
-        module = "brdfcorr.io.writer" if name == "write_rasters" else "brdfcorr.io.rasters"
+        module = {"write_rasters": "brdfcorr.io.writer", "open_scene": "brdfcorr.io.scene"}.get(
+            name, "brdfcorr.io.rasters")
         return getattr(importlib.import_module(module), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

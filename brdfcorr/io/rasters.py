@@ -6,7 +6,8 @@ factors (the file's GDAL scale/offset, or given ones; :func:`check_reflectance_s
 counts). :func:`check_same_grid` says which layer differs from the
 image and how (shape, transform or CRS). :func:`band_wavelengths` finds band centres in the
 order fixed by ``docs/conventions.md``. :func:`write_rasters` (from :mod:`brdfcorr.io.writer`) writes tiled,
-compressed GeoTIFFs chunk by chunk, atomically.
+compressed GeoTIFFs chunk by chunk, atomically. A whole scene is opened and checked by
+:func:`brdfcorr.io.scene.open_scene`.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import math
 import os
 import re
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -33,8 +34,6 @@ from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError
 from brdfcorr.io.writer import DEFAULT_CHUNK, _GdalMessages, write_rasters
 
 __all__ = [
-    "open_scene",
-    "SceneData",
     "AngleStatistics",
     "open_image",
     "open_angles",
@@ -509,73 +508,6 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=Non
             raise InputError(f"{name} angle file {separate[name]} has {layer.sizes[layer.dims[0]]} bands; it needs 1")
         angles[name] = layer.isel({layer.dims[0]: 0}, drop=True).rename(name)
     return angles
-
-
-class SceneData(NamedTuple):
-    """One scene opened lazily and checked (:func:`open_scene`)."""
-
-    reflectance: xr.DataArray
-    """(band, y, x), nodata as NaN, with a ``wavelength`` coordinate [nm] where known."""
-    classes: xr.DataArray
-    """(y, x) integer class ids, with the file's nodata."""
-    angles: dict[str, xr.DataArray]
-    """``sza``, ``saa``, ``vza``, ``vaa`` (y, x) [deg] on the image grid."""
-    statistics: AngleStatistics
-    """Ranges and means of the angle layers (the scene-mean sun zenith among them)."""
-
-
-def open_scene(image, classes, angles=None, *, angles_kind: str = "geotiff", angle_options=None,
-               sza=None, saa=None, vza=None, vaa=None, chunks=None, wavelengths=None,
-               scale: float | None = None, offset: float | None = None,
-               prepare_classes: Callable[[xr.DataArray, xr.DataArray], xr.DataArray] | None = None,
-               scheduler: str | None = None, num_workers: int | None = None) -> SceneData:
-    """Open one scene lazily and check it: reflectance, class map and the four angle layers.
-
-    Parameters
-    ----------
-    image, classes : path-like
-        Reflectance raster and class map.
-    angles : path-like or str, optional
-        The angle source: a 4-band raster (sza, saa, vza, vaa [deg]) for ``angles_kind="geotiff"``
-        (or give the four separate files ``sza`` ... ``vaa``), else what
-        :func:`brdfcorr.io.sensors.read_angles` reads for that kind (``envi_obs``, ``sentinel2``,
-        ``landsat``, ``solar``) with ``angle_options``, brought onto the image grid.
-    chunks, wavelengths, scale, offset :
-        As for :func:`open_image`.
-    prepare_classes : callable, optional
-        ``prepare_classes(class_map, reflectance)`` -> class map, applied before the grid check:
-        e.g. :func:`brdfcorr.strata.align_class_map` to bring a land-cover map on another grid onto
-        the image's (an opt-in: by default a class map on another grid is an error).
-    scheduler, num_workers : optional
-        As for :func:`check_angles`.
-
-    Returns
-    -------
-    SceneData
-        Reflectance (band, y, x), class map (y, x) and the angle layers by name, all on one grid
-        (:func:`check_same_grid`, the one grid check) and with angles in degrees
-        (:func:`check_angles`, the one pass over the angle data before the correction), with the
-        angle statistics of that pass.
-    """
-    reflectance = open_image(image, chunks=chunks, wavelengths=wavelengths, scale=scale, offset=offset)
-    class_map = open_classes(classes, chunks=chunks)
-    if prepare_classes is not None:
-        class_map = prepare_classes(class_map, reflectance)
-    if angles_kind == "geotiff":
-        layers = open_angles(angles, sza=sza, saa=saa, vza=vza, vaa=vaa, chunks=chunks)
-        source = None
-    else:
-        from brdfcorr.io.sensors import read_angles
-
-        dataset = read_angles(angles_kind, angles, like=reflectance, **(angle_options or {}))
-        missing = [name for name in ANGLE_NAMES if name not in dataset]
-        if missing:
-            raise InputError(f"angle source {angles} ({angles_kind}) gives no {', '.join(missing)}")
-        layers = {name: dataset[name] for name in ANGLE_NAMES}
-        source = f"{angles} ({angles_kind})"
-    check_same_grid({"image": reflectance, "classes": class_map, **layers})
-    statistics = check_angles(layers, source=source, scheduler=scheduler, num_workers=num_workers)
-    return SceneData(reflectance, class_map, layers, statistics)
 
 
 class AngleStatistics(NamedTuple):

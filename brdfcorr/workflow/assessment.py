@@ -31,10 +31,12 @@ from brdfcorr.analysis.assess import (
     overlap_report,
     view_angle_report,
 )
+from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
 from brdfcorr.io.files import atomic_path
-from brdfcorr.workflow.tasks import class_preparation
+from brdfcorr.io.scene import SceneSources, open_scene
+from brdfcorr.workflow.classmaps import class_preparation
 
 __all__ = ["Assessment", "assess_files", "LinesAssessment", "leave_one_line_out_files", "write_json"]
 
@@ -81,13 +83,13 @@ def write_json(report: Mapping[str, object], target: str | os.PathLike) -> Path:
 def _open_scene_files(image, classes, angles, *, angles_kind: str, angle_options: dict | None, align_classes: bool,
                       class_lookup: Mapping[int, int] | None, scale: float | None, offset: float | None,
                       chunks: int | None, scheduler: str | None = None, num_workers: int | None = None):
-    """One scene's files opened lazily and checked (:func:`brdfcorr.io.rasters.open_scene`), the
-    class map aligned or remapped as for the correction (:func:`brdfcorr.workflow.tasks.class_preparation`)."""
+    """One scene's files opened lazily and checked (:func:`brdfcorr.io.scene.open_scene`), the
+    class map aligned or remapped as for the correction (:func:`brdfcorr.workflow.classmaps.class_preparation`)."""
     chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
-    return rasters.open_scene(image, classes, angles, angles_kind=angles_kind, angle_options=angle_options,
-                              chunks=chunks, scale=scale, offset=offset,
-                              prepare_classes=class_preparation(align_classes, class_lookup),
-                              scheduler=scheduler, num_workers=num_workers)
+    sources = SceneSources(image, classes, angles, angles_kind=angles_kind, angle_options=angle_options or {},
+                           scale=scale, offset=offset)
+    return open_scene(sources, chunks=chunks, prepare_classes=class_preparation(align_classes, class_lookup),
+                      scheduler=scheduler, num_workers=num_workers)
 
 
 def assess_files(
@@ -107,11 +109,11 @@ def assess_files(
     before : path-like
         The input image (read as reflectance factors with its GDAL scale/offset, or ``scale`` and
         ``offset``), with its class map and angle source checked on its grid
-        (:func:`brdfcorr.io.rasters.open_scene`).
+        (:func:`brdfcorr.io.scene.open_scene`).
     after : path-like
         The corrected image, on the same grid (``brdfcorr correct``'s output: physical values).
     classes, angles, angles_kind, angle_options, align_classes, class_lookup, scale, offset, chunks :
-        As for :func:`brdfcorr.workflow.tasks.correct_files`.
+        As for :func:`brdfcorr.workflow.correction.correct_files`.
     overlap : (path-like, path-like), optional
         Another line's input and corrected image (any grid; only the overlap is compared).
     class_names, class_ids, by, heading, bin_width, min_vza, flip_view_azimuth, scheduler, num_workers :
@@ -184,7 +186,7 @@ def leave_one_line_out_files(
     angles_kind: str = "geotiff", angle_options: dict | None = None, model: str = "torrance_sparrow",
     class_models: Mapping[int, str] | None = None, names: Mapping[int, str] | None = None,
     fixed: Mapping[str, float] | None = None, reference: Mapping[str, object] | None = None,
-    limits: tuple[float, float] | None = (0.2, 5.0), max_samples: int = 50_000, seed: int = 0,
+    limits: tuple[float, float] | None = DEFAULT_LIMITS, max_samples: int = 50_000, seed: int = 0,
     by: Literal["sun", "track"] = "sun", heading: float | None = None, bin_width: float = 2.0,
     overlap: bool = True, flip_view_azimuth: bool = False, align_classes: bool = False,
     class_lookup: Mapping[int, int] | None = None, scale: float | None = None, offset: float | None = None,
@@ -198,7 +200,7 @@ def leave_one_line_out_files(
     images : sequence of path-like
         At least 2 reflectance images, one per flight line (read as reflectance factors [1] with
         their GDAL scale/offset, or ``scale`` and ``offset``), opened lazily and checked with their
-        class maps and angle sources (:func:`brdfcorr.io.rasters.open_scene`). Lines that overlap
+        class maps and angle sources (:func:`brdfcorr.io.scene.open_scene`). Lines that overlap
         are compared in the overlap. A line's name in the report is its file's stem (its path where
         two stems are equal).
     classes, angles : sequence of path-like

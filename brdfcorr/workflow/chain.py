@@ -8,9 +8,9 @@ into scenes and decides what happens to each (``run``, ``skip``, ``fail``; :mod:
    goniometer CSVs with :func:`brdfcorr.workflow.tasks.fit_measurement_file` or from the imagery
    with :func:`brdfcorr.workflow.tasks.fit_class_files`), merged in that order (later wins for a
    class id);
-2. normalizes every scene to run with :func:`brdfcorr.workflow.tasks.correct_files` (lazy, chunked,
+2. normalizes every scene to run with :func:`brdfcorr.workflow.correction.correct_files` (lazy, chunked,
    atomic writes, QA counts; optionally the uncertainty raster and tilted surfaces,
-   :class:`brdfcorr.workflow.tasks.Terrain`), assesses the view-angle signal left in it
+   :class:`brdfcorr.workflow.correction.Terrain`), assesses the view-angle signal left in it
    (``steps.assess``: :func:`brdfcorr.workflow.assessment.assess_files`, a JSON report and a figure)
    and writes a before/after quicklook (:func:`brdfcorr.plot.quicklook.write_quicklook`);
 3. writes the run report (JSON; :mod:`.report`): inputs, parameter table and its sources,
@@ -64,14 +64,17 @@ from dask.callbacks import Callback
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import GuardRails
 from brdfcorr.io.paths import remove_partials
+from brdfcorr.io.scene import SceneSources
 from brdfcorr.params import ParameterTable, merge_tables
 from brdfcorr.plot.assess import write_assessment_figures
 from brdfcorr.plot.quicklook import write_quicklook
 from brdfcorr.workflow.assessment import assess_files, write_json
 from brdfcorr.workflow.config import ChainConfig, EngineConfig
+from brdfcorr.workflow.correction import Terrain, correct_files
 from brdfcorr.workflow.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
 from brdfcorr.workflow.report import RunReport, assessment_summary, earlier_findings, scene_result, versions
-from brdfcorr.workflow.tasks import SceneFiles, Terrain, correct_files, fit_class_files, fit_measurement_file
+from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
+from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file
 
 __all__ = [
     "connect_cluster",
@@ -278,20 +281,22 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
              num_workers: int | None, callbacks=()) -> dict:
     """The correct step; returns what it found: ``reference``, ``qa`` and ``topographic``."""
     step, outputs = config.steps.correct, config.outputs
-    summary = correct_files(
-        scene.image, scene.outputs["corrected"], params=table, classes=scene.classes,
-        reference=config.reference, qa_output=scene.outputs.get("qa"), wavelengths=config.inputs.wavelengths,
-        extrapolate=step.extrapolate, limits=step.limits, unknown=step.unknown,
-        flip_view_azimuth=step.flip_view_azimuth, chunks=config.engine.chunk, compress=outputs.compress,
-        cog=outputs.cog, table_source=config.source, angles=scene.angles, angles_kind=scene.angles_kind,
-        angle_options=dict(scene.angle_options), align_classes=config.inputs.align_classes,
-        class_lookup=dict(config.inputs.class_lookup), scheduler=scheduler, num_workers=num_workers,
-        scale=config.inputs.scale, offset=config.inputs.offset,
-        output_format=outputs.format, interleave=outputs.interleave or "bsq",
-        uncertainty_output=scene.outputs.get("uncertainty"), terrain=_terrain(scene, config),
-        callbacks=callbacks,
+    inputs = config.inputs
+    sources = SceneSources(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
+                           angle_options=dict(scene.angle_options), wavelengths=inputs.wavelengths,
+                           scale=inputs.scale, offset=inputs.offset)
+    files = OutputFiles(
+        scene.outputs["corrected"], qa=scene.outputs.get("qa"), uncertainty=scene.outputs.get("uncertainty"),
+        format=outputs.format, interleave=outputs.interleave or "bsq", compress=outputs.compress, cog=outputs.cog,
         fingerprint=scene.fingerprint or None,  # what a resumed run compares (brdfcorr.workflow.plan)
     )
+    summary = correct_files(CorrectionRequest(
+        sources, table, files, reference=config.reference, limits=step.limits, extrapolate=step.extrapolate,
+        unknown=step.unknown, flip_view_azimuth=step.flip_view_azimuth, terrain=_terrain(scene, config),
+        align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup),
+        engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers, callbacks=callbacks),
+        table_source=config.source,
+    ))
     found = {"reference": summary.pop("reference").describe()}
     if "topographic" in summary:
         found["topographic"] = summary.pop("topographic")
@@ -366,7 +371,7 @@ def connect_cluster(address: str | None = None, *, workers: int = 1, threads_per
 
     ``setting`` names where the address came from in errors (``engine.address``, ``--scheduler``).
     The client is not made dask's default: pass it as the ``scheduler`` of a computation (e.g.
-    of :func:`brdfcorr.workflow.tasks.correct_files`), which then runs chunk by chunk on all the
+    of :func:`brdfcorr.workflow.correction.correct_files`), which then runs chunk by chunk on all the
     cluster's workers.
 
     Raises

@@ -17,10 +17,34 @@ from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
 from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.io.paths import check_outputs, refuse_existing
-from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata
-from brdfcorr.workflow.tasks import describe_class_map
+from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata, remap_classes
 
-__all__ = ["ndvi_class_file", "align_class_file", "read_lookup"]
+__all__ = ["ndvi_class_file", "align_class_file", "read_lookup", "class_preparation", "describe_class_map"]
+
+
+def class_preparation(align: bool = False, lookup: Mapping[int, int] | None = None):
+    """The class-map step before the grid check (:func:`brdfcorr.io.scene.open_scene`), or None.
+
+    ``align``: bring a class map on another grid or CRS onto the image grid by nearest neighbour
+    (:func:`brdfcorr.strata.align_class_map`); ``lookup``: remap its codes to table ids (e.g. ESA
+    WorldCover codes, :func:`brdfcorr.strata.remap_classes`).
+    """
+    if align:
+        return lambda classes, image: align_class_map(classes, image, lookup)
+    if lookup:
+        return lambda classes, image: remap_classes(classes, lookup)
+    return None
+
+
+def describe_class_map(classes: xr.DataArray, lookup: Mapping[int, int] | None) -> str:
+    """Provenance of a prepared class map, for output tags ("" when used as it is)."""
+    parts = []
+    if "resampled_from_crs" in classes.attrs:
+        parts.append(f"resampled from {classes.attrs['resampled_from_crs']} "
+                     f"({classes.attrs['resampled_from_resolution']}, {classes.attrs['resampling']})")
+    if lookup:
+        parts.append("codes remapped " + ",".join(f"{code}:{ident}" for code, ident in sorted(lookup.items())))
+    return "; ".join(parts)
 
 
 def read_lookup(path: str | os.PathLike) -> dict[int, int]:

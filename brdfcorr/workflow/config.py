@@ -45,6 +45,7 @@ from pydantic import (
 )
 
 from brdfcorr._validation import Integer, Number, describe_errors, short_repr
+from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import ConfigError, InputError, UnknownNameError
 from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.io.sensors import ANGLE_KINDS
@@ -143,7 +144,7 @@ class InputsConfig(_Strict):
         Class-map code -> table class id (e.g. ESA WorldCover 10 -> 3); codes not listed: no class.
     slope_aspect, dem : str, optional
         Name patterns of the per-scene terrain source of ``steps.correct.terrain``
-        (:class:`brdfcorr.workflow.tasks.Terrain`): a 2-band slope/aspect raster [deg] (or an ENVI
+        (:class:`brdfcorr.workflow.correction.Terrain`): a 2-band slope/aspect raster [deg] (or an ENVI
         ``obs_ort`` file), or a DEM [m] in a projected CRS, on the image grid; give one of them.
     wavelengths : list of float, optional
         Band centres [nm] for every image, overriding what the files say.
@@ -318,7 +319,7 @@ class ParametersConfig(_Strict):
 
 
 class TerrainStep(_Strict):
-    """Tilted surfaces in the correct step (:class:`brdfcorr.workflow.tasks.Terrain`,
+    """Tilted surfaces in the correct step (:class:`brdfcorr.workflow.correction.Terrain`,
     ``docs/terrain.md``); slope and aspect come from ``inputs.slope_aspect`` or ``inputs.dem``.
 
     Attributes
@@ -363,7 +364,7 @@ class CorrectStep(_Strict):
         surface.
     """
 
-    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = (0.2, 5.0)
+    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = DEFAULT_LIMITS
     unknown: Literal["keep", "nan"] = "keep"
     extrapolate: bool = False
     flip_view_azimuth: bool = False

@@ -452,7 +452,7 @@ def _redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | Non
 def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
     """The scene, turned from ``skip`` to ``run`` if its corrected output was written with another
     parameter table than ``table`` (provenance tag ``brdf_parameter_table_content`` of
-    :func:`brdfcorr.workflow.tasks.correct_files`) or ``table`` is not known before the run, or
+    :func:`brdfcorr.workflow.correction.correct_files`) or ``table`` is not known before the run, or
     with another fingerprint than ``scene.fingerprint`` (tag ``brdf_fingerprint``)."""
     if scene.action != "skip" or "corrected" not in scene.outputs:
         return scene
@@ -474,7 +474,7 @@ def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
 # ----------------------------------------------------------------------------------- fingerprints
 def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     """Everything a scene's corrected output depends on besides the parameter table, as canonical
-    JSON (sorted keys, no spaces): what :func:`brdfcorr.workflow.tasks.correct_files` records
+    JSON (sorted keys, no spaces): what :func:`brdfcorr.workflow.correction.correct_files` records
     (tags ``brdf_fingerprint``, its SHA-256, and ``brdf_fingerprint_content``) and a resumed run
     compares.
 

@@ -294,7 +294,7 @@ def read_emit_obs(path: str | Path, like: xr.DataArray | None = None, *, view_az
         The ``EMIT_L1B_OBS_001_...nc`` granule of the scene (its GLT is the L2A granule's).
     like : xarray.DataArray, optional
         The image the angles are for: its (y, x) chunks are taken (the grid is checked by
-        :func:`brdfcorr.io.rasters.check_same_grid` in :func:`brdfcorr.io.rasters.open_scene`).
+        :func:`brdfcorr.io.rasters.check_same_grid` in :func:`brdfcorr.io.scene.open_scene`).
     view_azimuth : {"to_sensor", "from_sensor"}
         What the to-sensor azimuth band holds; EMIT: "to_sensor" (the module notes).
     band_names : mapping, optional

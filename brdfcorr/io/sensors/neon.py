@@ -350,7 +350,7 @@ def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view
         The NEON reflectance file (the same file as the image).
     like : xarray.DataArray, optional
         The image the angles are for: its (y, x) chunks are taken (the grid itself is checked by
-        :func:`brdfcorr.io.rasters.check_same_grid` in :func:`brdfcorr.io.rasters.open_scene`).
+        :func:`brdfcorr.io.rasters.check_same_grid` in :func:`brdfcorr.io.scene.open_scene`).
     view_azimuth : {"to_sensor", "from_sensor"}
         What ``to-sensor_Azimuth_Angle`` holds: "to_sensor" for NEON (the default, see the module
         notes); "from_sensor" flips it by 180 deg.

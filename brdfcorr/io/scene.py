@@ -1,0 +1,129 @@
+"""One scene's input files, opened lazily and checked together: where they are
+(:class:`SceneSources`) and what they hold (:class:`SceneData`, :func:`open_scene`)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import xarray as xr
+
+from brdfcorr.errors import InputError
+from brdfcorr.io.rasters import (
+    ANGLE_NAMES,
+    AngleStatistics,
+    check_angles,
+    check_same_grid,
+    open_angles,
+    open_classes,
+    open_image,
+)
+
+__all__ = ["SceneSources", "SceneData", "open_scene"]
+
+PathLike = str | os.PathLike
+
+
+@dataclass(frozen=True)
+class SceneSources:
+    """Where one scene's reflectance, class map and sun/view angles come from.
+
+    Attributes
+    ----------
+    image, classes : path-like
+        Reflectance raster and class map.
+    angles : path-like or str, optional
+        The angle source: a 4-band raster (sza, saa, vza, vaa [deg]) for ``angles_kind="geotiff"``
+        (or give the four separate files ``sza`` ... ``vaa``), else what
+        :func:`brdfcorr.io.sensors.read_angles` reads for that kind (``envi_obs``, ``sentinel2``,
+        ``landsat``, ``solar``, ...) with ``angle_options``, brought onto the image grid.
+    wavelengths : sequence of float, optional
+        Band centres [nm] replacing the image's (:func:`brdfcorr.io.rasters.open_image`).
+    scale, offset : float, optional
+        Reflectance factor per stored unit and of a stored 0, replacing the file's.
+    """
+
+    image: PathLike
+    classes: PathLike
+    angles: PathLike | None = None
+    angles_kind: str = "geotiff"
+    angle_options: Mapping[str, object] = field(default_factory=dict)
+    sza: PathLike | None = None
+    saa: PathLike | None = None
+    vza: PathLike | None = None
+    vaa: PathLike | None = None
+    wavelengths: Sequence[float] | None = None
+    scale: float | None = None
+    offset: float | None = None
+
+    @property
+    def inputs(self) -> list[tuple[str, PathLike | None]]:
+        """The files read, by role (for the output guard, :func:`brdfcorr.io.paths.check_outputs`)."""
+        return [("image", self.image), ("angles", None if self.angles_kind == "solar" else self.angles),
+                ("sza raster", self.sza), ("saa raster", self.saa), ("vza raster", self.vza),
+                ("vaa raster", self.vaa), ("class map", self.classes)]
+
+
+class SceneData(NamedTuple):
+    """One scene opened lazily and checked (:func:`open_scene`)."""
+
+    reflectance: xr.DataArray
+    """(band, y, x), nodata as NaN, with a ``wavelength`` coordinate [nm] where known."""
+    classes: xr.DataArray
+    """(y, x) integer class ids, with the file's nodata."""
+    angles: dict[str, xr.DataArray]
+    """``sza``, ``saa``, ``vza``, ``vaa`` (y, x) [deg] on the image grid."""
+    statistics: AngleStatistics
+    """Ranges and means of the angle layers (the scene-mean sun zenith among them)."""
+
+
+def open_scene(sources: SceneSources, *, chunks=None,
+               prepare_classes: Callable[[xr.DataArray, xr.DataArray], xr.DataArray] | None = None,
+               scheduler: str | None = None, num_workers: int | None = None) -> SceneData:
+    """Open one scene lazily and check it: reflectance, class map and the four angle layers.
+
+    Parameters
+    ----------
+    sources : SceneSources
+        The files.
+    chunks :
+        As for :func:`brdfcorr.io.rasters.open_image`.
+    prepare_classes : callable, optional
+        ``prepare_classes(class_map, reflectance)`` -> class map, applied before the grid check:
+        e.g. :func:`brdfcorr.strata.align_class_map` to bring a land-cover map on another grid onto
+        the image's (an opt-in: by default a class map on another grid is an error).
+    scheduler, num_workers : optional
+        As for :func:`brdfcorr.io.rasters.check_angles`.
+
+    Returns
+    -------
+    SceneData
+        Reflectance (band, y, x), class map (y, x) and the angle layers by name, all on one grid
+        (:func:`brdfcorr.io.rasters.check_same_grid`) and with angles in degrees
+        (:func:`brdfcorr.io.rasters.check_angles`, the one pass over the angle data before the
+        correction), with the angle statistics of that pass.
+    """
+    reflectance = open_image(sources.image, chunks=chunks, wavelengths=sources.wavelengths, scale=sources.scale,
+                             offset=sources.offset)
+    class_map = open_classes(sources.classes, chunks=chunks)
+    if prepare_classes is not None:
+        class_map = prepare_classes(class_map, reflectance)
+    if sources.angles_kind == "geotiff":
+        layers = open_angles(sources.angles, sza=sources.sza, saa=sources.saa, vza=sources.vza, vaa=sources.vaa,
+                             chunks=chunks)
+        source = None
+    else:
+        from brdfcorr.io.sensors import read_angles
+
+        where = f"{sources.angles} ({sources.angles_kind})"
+        dataset = read_angles(sources.angles_kind, sources.angles, like=reflectance, **sources.angle_options)
+        missing = [name for name in ANGLE_NAMES if name not in dataset]
+        if missing:
+            raise InputError(f"angle source {where} gives no {', '.join(missing)}")
+        layers = {name: dataset[name] for name in ANGLE_NAMES}
+        source = where
+    check_same_grid({"image": reflectance, "classes": class_map, **layers})
+    statistics = check_angles(layers, source=source, scheduler=scheduler, num_workers=num_workers)
+    return SceneData(reflectance, class_map, layers, statistics)

@@ -1,0 +1,399 @@
+"""The correction of one image file (``brdfcorr correct``, a chain's correct step):
+:func:`correct_files` runs a :class:`~brdfcorr.workflow.request.CorrectionRequest`.
+
+It reads and writes files but prints nothing: the CLI shows the summary, chains report it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import rasterio
+import xarray as xr
+
+from brdfcorr import __version__
+from brdfcorr.correct import (
+    QA_FACING_AWAY,
+    QA_LIMITED,
+    QA_NODATA,
+    QA_TOPOGRAPHY_UNCORRECTED,
+    describe_limits,
+    normalize,
+    qa_counts,
+    resolve_reference,
+)
+from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
+from brdfcorr.io import rasters, writer
+from brdfcorr.io.paths import check_outputs, refuse_existing
+from brdfcorr.io.scene import SceneData, open_scene
+from brdfcorr.params import ParameterTable, ReferenceGeometry
+from brdfcorr.terrain import SlopeAspect, slope_aspect, slope_aspect_layers
+from brdfcorr.topographic import (
+    TOPO_QA_FIT_REJECTED,
+    TOPO_QA_LIMITED,
+    TOPO_QA_SHADOWED,
+    frame_conflict,
+    topographic_correction,
+)
+from brdfcorr.uncertainty import correction_uncertainty
+from brdfcorr.workflow.classmaps import class_preparation, describe_class_map
+from brdfcorr.workflow.request import CorrectionRequest
+
+__all__ = ["correct_files", "Terrain"]
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """Tilted surfaces in a correction (``docs/terrain.md``): where slope and aspect come from and
+    what is done with them.
+
+    Attributes
+    ----------
+    slope_aspect : path-like, optional
+        A 2-band raster of slope and aspect [deg] on the image grid (band descriptions naming
+        ``slope`` and ``aspect`` decide which is which, else that order), or an ENVI ``obs_ort``
+        file (its bands "Slope" and "Aspect", :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`).
+    dem : path-like, optional
+        Or a DEM/DSM [m] on the image grid in a projected CRS: slope and aspect by Horn's
+        differences (:func:`brdfcorr.terrain.slope_aspect`). Give one of the two.
+    topographic : {"cosine", "c", "scs", "scs+c", "none"}, default "cosine"
+        Illumination correction before the BRDF step (:func:`brdfcorr.topographic.topographic_correction`;
+        C fitted per class and band from the image for ``"c"`` and ``"scs+c"``).
+    brdf_frame : {"surface", "horizontal"}, default "surface"
+        Evaluate the BRDF in each surface's own frame (the observed geometry rotated by slope and
+        aspect; the reference stays horizontal) or in the horizontal frame. ``"surface"`` takes
+        the illumination's cos i into account itself only with ``"cosine"`` (or ``"none"``) before
+        it; the empirical C of ``"c"``/``"scs+c"`` absorbs part of the BRDF's slope dependence, so
+        those go with ``"horizontal"`` (combining them corrects the illumination twice, 15 % off
+        between the sides of a synthetic hill in ``tests/test_terrain.py``).
+    """
+
+    slope_aspect: str | os.PathLike | None = None
+    dem: str | os.PathLike | None = None
+    topographic: Literal["cosine", "c", "scs", "scs+c", "none"] = "cosine"
+    brdf_frame: Literal["surface", "horizontal"] = "surface"
+
+    def __post_init__(self):
+        if (self.slope_aspect is None) == (self.dem is None):
+            raise InputError("terrain: give slope and aspect (a 2-band raster or an obs file) or a DEM, one of them")
+        conflict = frame_conflict(self.topographic, self.brdf_frame)
+        if conflict:
+            raise InputError(f"terrain: {conflict}")
+
+    @property
+    def inputs(self) -> list[tuple[str, object]]:
+        return [("slope/aspect raster", self.slope_aspect), ("DEM", self.dem)]
+
+    def open(self, like: xr.DataArray, chunks: int) -> SlopeAspect:
+        """Slope and aspect [deg] (y, x) on ``like``'s grid, lazily."""
+        if self.dem is not None:
+            dem = rasters.open_layer(self.dem, "DEM", chunks)
+            if dem.shape[0] != 1:
+                raise InputError(f"DEM file {self.dem} has {dem.shape[0]} bands; it needs 1")
+            surface = slope_aspect(dem[0])
+        elif _is_envi(self.slope_aspect):
+            from brdfcorr.io.sensors.envi import read_envi_obs_terrain  # sensors import this module's layer
+
+            layers = read_envi_obs_terrain(self.slope_aspect, like=like)
+            surface = SlopeAspect(layers["slope"], layers["aspect"])
+        else:
+            surface = slope_aspect_layers(rasters.open_layer(self.slope_aspect, "slope/aspect", chunks))
+        rasters.check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
+        return surface
+
+    def apply(self, scene: SceneData, chunks: int, limits):
+        """The reflectance after the topographic step, the slope and aspect layers for
+        :func:`brdfcorr.normalize` (none in the horizontal frame) and the topographic result."""
+        slope, aspect = self.open(scene.reflectance, chunks)
+        reflectance, topographic = scene.reflectance, None
+        if self.topographic != "none":
+            topographic = topographic_correction(
+                reflectance, scene.angles["sza"], scene.angles["saa"], slope, aspect, method=self.topographic,
+                classes=scene.classes, limits=limits,
+            )
+            reflectance = topographic.reflectance
+        surface = {"slope": slope, "aspect": aspect} if self.brdf_frame == "surface" else {}
+        return reflectance, surface, topographic
+
+
+def _is_envi(path) -> bool:
+    try:
+        with rasterio.open(path) as dataset:
+            return dataset.driver == "ENVI"
+    except rasterio.errors.RasterioIOError:
+        return False  # the reader names the file
+
+
+def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:
+    """The topographic step's flags in the correction's QA layer: sun behind the surface ->
+    ``facing_away``, illumination factor clipped -> ``limited``, C fit rejected ->
+    ``topography_uncorrected`` (nodata is the BRDF step's own: the step writes NaN there)."""
+    flags = xr.zeros_like(qa)
+    for topographic_flag, flag in ((TOPO_QA_SHADOWED, QA_FACING_AWAY), (TOPO_QA_LIMITED, QA_LIMITED),
+                                   (TOPO_QA_FIT_REJECTED, QA_TOPOGRAPHY_UNCORRECTED)):
+        flags = flags | xr.where((topographic_qa & topographic_flag) > 0, flag, 0).astype(np.uint8)
+    merged = qa | flags
+    merged.attrs = qa.attrs
+    return merged
+
+
+def correct_files(request: CorrectionRequest) -> dict[str, object]:
+    """Normalize an image file: read image, angles and class map, write the corrected image.
+
+    Inputs are opened lazily in chunks and checked once (:func:`brdfcorr.io.scene.open_scene`:
+    one grid check, one pass over the angle data that also gives the scene-mean sun zenith),
+    normalized with :func:`brdfcorr.normalize` and written tiled and compressed, chunk by chunk, to
+    a temporary name renamed when complete, with band descriptions and provenance tags (reference
+    geometry, limits, parameter table, brdfcorr version). The QA layer and the uncertainty are
+    written in the same pass.
+
+    The image's stored values are read as reflectance factors: scaled with the file's per-band GDAL
+    scale and offset (``reflectance = stored * scale + offset``), or with the request's
+    ``scene.scale``/``scene.offset``. Without a given scale a sample of the image is checked for raw
+    counts (:func:`brdfcorr.io.rasters.check_reflectance_scale`, a few chunks read, not a pass). The
+    output holds reflectance factors (float32, float64 for a float64 input, no GDAL scale/offset)
+    and records the scaling applied in the tags ``brdf_input_scale`` and ``brdf_input_offset``;
+    with ``outputs.data_type="input"`` an integer input's type instead, with its scale, offset and
+    nodata.
+
+    Parameters
+    ----------
+    request : CorrectionRequest
+        The inputs, the table, the reference, the outputs and the engine
+        (:mod:`brdfcorr.workflow.request`).
+
+    Returns
+    -------
+    dict
+        Pixel counts (:func:`brdfcorr.correct.qa_counts`) plus ``reference`` (the geometry used)
+        and, with a topographic step, ``topographic``: its method and the C fit per class and band.
+
+    Warns
+    -----
+    BrdfcorrWarning
+        Once per class given as a library ``material`` (a fit at one wavelength) when a band
+        centre is more than 100 nm from that wavelength (:meth:`ClassEntry.wavelength_caveat`).
+
+    Raises
+    ------
+    InputError
+        A missing, unreadable or malformed input (named): wrong band counts, a float class map,
+        angles that look like radians or hold no zenith in [0, 90)
+        (:func:`brdfcorr.io.rasters.check_angles`; single pixels outside the domain are flagged,
+        not an error), an image that holds no reflectance factors after scaling (raw counts without
+        a scale), an output that is the same file as an input
+        (:class:`brdfcorr.io.paths.InputOverwriteError`).
+    GridMismatchError
+        A layer not on the image's grid (shape, transform or CRS).
+    ParameterError
+        The table does not fit the image's bands (names the table, the class and the parameter).
+    OutputError
+        An existing output without ``overwrite``, an output that is no regular file or the same
+        file as the other output, or a failed write (disk full); nothing is left at the output paths.
+    """
+    _check_outputs(request)
+    table, table_path = _load_table(request)
+    engine = request.engine
+    chunks = rasters.auto_chunk(request.scene.image) if engine.chunks is None else int(engine.chunks)
+    compute = {"scheduler": engine.scheduler, "num_workers": engine.num_workers}
+    scene = open_scene(request.scene, chunks=chunks,
+                       prepare_classes=class_preparation(request.align_classes, request.class_lookup), **compute)
+    _warn_wavelength_caveats(table, scene.reflectance)
+    if request.scene.scale is None:  # a given scale is the user's word; else catch raw counts first
+        rasters.check_reflectance_scale(scene.reflectance, str(request.scene.image), **compute)
+    reference, sza_source = _scene_reference(request.reference, table, scene)
+    corrected, qa, sigma, topographic = _corrected_layers(request, scene, table, reference, chunks)
+    if topographic is not None:
+        qa = _merged_qa(qa, topographic.qa)
+    corrected, qa = _as_output(corrected, qa, scene, request)
+    files = request.outputs
+    targets = {path: layer for path, layer in ((files.corrected, corrected), (files.qa, qa), (files.uncertainty, sigma))
+               if path is not None}
+    tags = {
+        "brdf_reference": reference.describe(),
+        "brdf_reference_sza_source": sza_source,
+        "brdf_limits": describe_limits(request.limits),
+        "brdf_parameter_table": table_path or "(in memory)",
+        "brdf_parameter_table_content": json.dumps(table.to_dict(), separators=(",", ":")),
+        **_scene_tags(scene, request.class_lookup, request.outputs.fingerprint),
+    }
+    counts = rasters.write_rasters(
+        targets, compress=files.compress, blocksize=chunks, cog=files.cog, tags=tags,
+        compute_with=qa_counts(qa), callbacks=engine.callbacks,
+        gdal_cache=rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
+        **compute,
+    )
+    result: dict[str, object] = {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+    if topographic is not None:
+        c_table = topographic.c_table
+        result["topographic"] = {"method": request.terrain.topographic,  # type: ignore[union-attr]
+                                 "c": [] if c_table is None else c_table.to_dict(orient="records")}
+    return result
+
+
+def _check_outputs(request: CorrectionRequest) -> None:
+    """The output guard, formats and extensions, and existing outputs (``overwrite``)."""
+    files, inputs = request.outputs, request.inputs
+    outputs = {"output": files.corrected, "QA output": files.qa, "uncertainty output": files.uncertainty}
+    if files.format == "ENVI":  # never the header of an ENVI input (image.img and image.bsq share image.hdr)
+        outputs["output header"] = writer.envi_header_path(files.corrected)
+        named = [item if isinstance(item, tuple) else ("input", item) for item in inputs]
+        inputs = inputs + [(f"{name} header", writer.envi_header_path(path)) for name, path in named
+                           if path is not None and writer.envi_header_path(path).exists()]
+    check_outputs(outputs, inputs)
+    writer.check_format(files.corrected, files.format)
+    for path, what in ((files.qa, "QA output"), (files.uncertainty, "uncertainty output")):
+        if path is not None:
+            writer.check_format(path, "GTiff", what)
+    if not files.overwrite:
+        refuse_existing([files.corrected, files.qa, files.uncertainty])
+
+
+def _load_table(request: CorrectionRequest) -> tuple[ParameterTable, str | None]:
+    """The parameter table and where it came from (for the provenance tag and messages)."""
+    if isinstance(request.table, ParameterTable):
+        return request.table, request.table_source
+    return ParameterTable.load(request.table), str(request.table)
+
+
+def _scene_reference(reference, table: ParameterTable, scene: SceneData) -> tuple[ReferenceGeometry, str]:
+    """The reference geometry, a ``"mean"`` sun zenith replaced by the scene's mean, and how its
+    sun zenith was chosen: ``"fixed"``, ``"mean"`` or ``"observed"``."""
+    resolved = resolve_reference(reference, table)
+    if resolved.sza != "mean":
+        return resolved, resolved.sza if isinstance(resolved.sza, str) else "fixed"
+    mean = scene.statistics.means["sza"]
+    if not np.isfinite(mean):
+        where = scene.angles["sza"].encoding.get("source", "sza")
+        raise InputError(f"{where}: no valid solar zenith for the scene mean")
+    return resolved.model_copy(update={"sza": float(mean)}), "mean"
+
+
+def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: ParameterTable,
+                      reference: ReferenceGeometry, chunks: int):
+    """The corrected reflectance, its QA flags and 1-sigma (or None), and the topographic step's
+    result (or None), all lazy."""
+    layers = scene.angles
+    reflectance, surface, topographic = scene.reflectance, {}, None
+    if request.terrain is not None:
+        reflectance, surface, topographic = request.terrain.apply(scene, chunks, request.limits)
+    arguments = dict(
+        reflectance=reflectance, classes=scene.classes, sza=layers["sza"], saa=layers["saa"], vza=layers["vza"],
+        vaa=layers["vaa"], params=table, reference=reference, limits=request.limits,
+        extrapolate=request.extrapolate, flip_view_azimuth=request.flip_view_azimuth, **surface,
+    )
+    try:
+        corrected, qa = normalize(**arguments, unknown=request.unknown)
+        sigma = correction_uncertainty(**arguments) if request.outputs.uncertainty is not None else None
+    except ParameterError as error:  # the table does not fit the image's bands: name both files
+        table_path = request.table_source if isinstance(request.table, ParameterTable) else request.table
+        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {request.scene.image})") from None
+    if sigma is not None:
+        sigma = sigma.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
+        sigma.attrs["long_name"] = _band_descriptions(scene.reflectance)
+    return corrected, qa, sigma, topographic
+
+
+def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, request: CorrectionRequest):
+    """The corrected layer as it is written (physical values or the input's integers, band
+    descriptions, no input scaling or ENVI header fields), and the QA layer with values that do
+    not fit an integer output flagged ``nodata``."""
+    corrected = corrected.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
+    corrected.attrs["long_name"] = _band_descriptions(scene.reflectance)
+    for name in ("scale_factor", "add_offset"):  # the output holds physical values
+        corrected.attrs.pop(name, None)
+    for name in _envi_header_items(request.scene.image, corrected.attrs):  # no tags of the output
+        corrected.attrs.pop(name)
+    stored = np.dtype(scene.reflectance.encoding.get("rasterio_dtype", scene.reflectance.dtype))
+    if request.outputs.data_type == "input" and stored.kind in "iu":
+        attrs = scene.reflectance.attrs
+        corrected, out_of_range = writer.encode_integers(
+            corrected, stored, attrs["brdf_input_scale"], attrs["brdf_input_offset"],
+            scene.reflectance.encoding.get("_FillValue"),
+        )
+        qa = (qa | xr.where(out_of_range, QA_NODATA, 0).astype(np.uint8)).assign_attrs(qa.attrs)
+    return corrected, qa
+
+
+def _envi_outputs(request: CorrectionRequest, scene: SceneData) -> dict:
+    """The ENVI header contents of an ENVI output (none for a GeoTIFF)."""
+    if request.outputs.format != "ENVI":
+        return {}
+    coords = scene.reflectance.coords
+    return {request.outputs.corrected: writer.EnviOutput(
+        interleave=request.outputs.interleave,
+        wavelength=coords["wavelength"].values.tolist() if "wavelength" in coords else None,
+        fwhm=np.asarray(coords["fwhm"].values).tolist() if "fwhm" in coords else None,
+    )}
+
+
+def _scene_tags(scene: SceneData, class_lookup, fingerprint: str | None) -> dict[str, str]:
+    """The output's tags that describe the scene: input scaling, class map, fingerprint, wavelengths."""
+    tags = {
+        "brdf_input_scale": _describe_scaling(scene.reflectance.attrs["brdf_input_scale"]),
+        "brdf_input_offset": _describe_scaling(scene.reflectance.attrs["brdf_input_offset"]),
+        "brdfcorr_version": __version__,
+    }
+    class_map_note = describe_class_map(scene.classes, class_lookup)
+    if class_map_note:
+        tags["brdf_class_map"] = class_map_note
+    if fingerprint is not None:  # what a resumed chain compares (brdfcorr.workflow.plan)
+        tags["brdf_fingerprint"] = hashlib.sha256(fingerprint.encode()).hexdigest()
+        tags["brdf_fingerprint_content"] = fingerprint
+    if "wavelength" in scene.reflectance.coords:
+        tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
+        tags["wavelength_units"] = "nm"
+    return tags
+
+
+def _warn_wavelength_caveats(table: ParameterTable, reflectance: xr.DataArray) -> None:
+    """A :class:`BrdfcorrWarning` per class whose single-wavelength fit (a library material) is
+    applied to far-away bands (:meth:`brdfcorr.params.ClassEntry.wavelength_caveat`)."""
+    if "wavelength" not in reflectance.coords:  # band centres unknown: nothing to compare
+        return
+    for entry in table.classes:
+        caveat = entry.wavelength_caveat(reflectance["wavelength"].values)
+        if caveat is not None:
+            warnings.warn(caveat, BrdfcorrWarning, stacklevel=3)
+
+
+def _envi_header_items(image, attrs: Mapping) -> list[str]:
+    """The attrs that rioxarray took from an ENVI input's header (its ENVI metadata domain, and the
+    ``Band_N`` band names and ``wavelength_units`` GDAL mirrors into the default domain): header
+    fields of the input, not provenance of the output. None for another format."""
+    try:
+        with rasterio.open(image) as dataset:
+            if dataset.driver != "ENVI":
+                return []
+            header = set(dataset.tags(ns="ENVI")) | {"wavelength", "wavelength_units", "fwhm"}
+    except rasterio.errors.RasterioIOError:
+        return []
+    return [name for name in attrs if name in header or re.fullmatch(r"Band_\d+", name)]
+
+
+def _describe_scaling(value: float | Sequence[float]) -> str:
+    """A scale or offset of :func:`brdfcorr.io.rasters.open_image` as a tag: ``"0.0001"``, or one
+    value per band comma-separated (shortest exact form)."""
+    return ",".join(repr(float(v)) for v in np.atleast_1d(value))
+
+
+def _band_descriptions(reflectance: xr.DataArray) -> tuple[str, ...]:
+    """The output's band descriptions: the input's own where every band has one, else the band
+    centres ("560 nm"), else "band 1" ... (not the array's name on every band)."""
+    n_bands = reflectance.sizes[reflectance.dims[0]]
+    described = reflectance.attrs.get("long_name")
+    if isinstance(described, (tuple, list)) and len(described) == n_bands and all(described):
+        return tuple(str(text) for text in described)
+    if "wavelength" in reflectance.coords:
+        return tuple(f"{wavelength:g} nm" for wavelength in reflectance["wavelength"].values)
+    return tuple(f"band {number}" for number in range(1, n_bands + 1))
+
+
