@@ -32,11 +32,13 @@ $(VENV)/.installed-test: requirements/test.lock pyproject.toml | $(BIN)/python
 demo: $(VENV)/.installed
 	$(BIN)/brdfcorr demo --output-dir demo_output
 
-# Lint (ruff: pyflakes, pycodestyle, import order, complexity <= 15) and type-check the core
-# packages (mypy; the file list is in pyproject.toml) before the tests.
+# Lint (ruff: pyflakes, pycodestyle, import order, complexity <= 15), type-check the core
+# packages (mypy; the file list is in pyproject.toml) and check the layers and that no modules
+# import each other in a circle (import-linter; the contracts are in pyproject.toml) before the tests.
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check brdfcorr tests benchmarks examples
 	$(BIN)/mypy
+	$(BIN)/lint-imports --no-cache
 
 test: lint
 	$(BIN)/python -m pytest -n $(WORKERS)

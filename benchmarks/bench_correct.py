@@ -131,7 +131,7 @@ def end_to_end(directory: Path, size: int, bands: int, chunk: int, repeat: int) 
 
 
 def in_memory(size: int, bands: int, repeat: int) -> None:
-    from brdfcorr.correct import normalize
+    from brdfcorr.correction import normalize
     from brdfcorr.params import ParameterTable
     from brdfcorr.testing import synthetic_angles, synthetic_classes
 
@@ -175,7 +175,7 @@ def _peak_rss_mib() -> float:
 
 def child_rss(args: argparse.Namespace) -> None:
     """In a fresh process: run the end-to-end correction and print peak RSS [MiB] as JSON."""
-    import brdfcorr.correct  # noqa: F401  (count the imports in the baseline below)
+    import brdfcorr.correction  # noqa: F401  (count the imports in the baseline below)
 
     directory = Path(args.dir)
     paths = {name: directory / f"{name}.tif" for name in ("image", "angles", "classes")}

@@ -14,7 +14,7 @@ from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # n
 
 #: Names imported at first use (PEP 562), so that `import brdfcorr` and the command line's
 #: `--help` and argument errors do not pay for dask and scipy.
-_LAZY = {"geometry": "brdfcorr.geometry", "models": "brdfcorr.models", "normalize": "brdfcorr.correct"}
+_LAZY = {"geometry": "brdfcorr.geometry", "models": "brdfcorr.models", "normalize": "brdfcorr.correction"}
 
 
 def __getattr__(name: str):

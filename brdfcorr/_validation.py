@@ -4,6 +4,10 @@ Parameter tables and chain configs are pydantic models; their errors become one 
 key path (``steps.fit.model``; for a parameter table's class ``class 2 (grass): params.w``), what
 is wrong and, where the schema knows it, what is allowed: the keys of a section for an unknown
 key, the values of a ``Literal`` (the registry's model names, built-in materials, ...).
+
+Both kinds of document also share their building blocks here: :class:`StrictModel` (the base of
+every section) and the field types that refuse YAML's booleans (:data:`Number`, :data:`Integer`,
+:data:`PositiveInteger`).
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ from collections.abc import Mapping
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
 #: Tags pydantic inserts into error locations for the members of a union (``float``,
 #: ``list[float]``, ``literal['mean','observed']``): not keys of the document.
@@ -65,6 +69,15 @@ def refuse_boolean(value: object) -> object:
 Number = Annotated[float, BeforeValidator(refuse_boolean)]
 #: An int field that refuses booleans (``class_lookup: {10: yes}`` is no class id 1).
 Integer = Annotated[int, BeforeValidator(refuse_boolean)]
+#: An int >= 1 that refuses booleans: a class id, a 1-based band.
+PositiveInteger = Annotated[Integer, Field(ge=1)]
+
+
+class StrictModel(BaseModel):
+    """Base of the document models (parameter tables, chain configs): immutable, and a key the
+    schema does not know is an error (``extra="forbid"``), not silently ignored."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 def _location(loc: tuple) -> str:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import xarray as xr
 
 if TYPE_CHECKING:
-    from brdfcorr.correct import Normalized
+    from brdfcorr.correction import Normalized
 
 
 __all__ = ["BrdfAccessor"]
@@ -28,6 +28,6 @@ class BrdfAccessor:
 
     def normalize(self, classes, sza, saa, vza, vaa, params, reference=None, **options) -> Normalized:
         """:func:`brdfcorr.normalize` with this array as the reflectance (same options)."""
-        from brdfcorr import correct  # at first use: `import brdfcorr` (and the CLI) need no dask
+        from brdfcorr import correction  # at first use: `import brdfcorr` (and the CLI) need no dask
 
-        return correct.normalize(self._reflectance, classes, sza, saa, vza, vaa, params, reference, **options)
+        return correction.normalize(self._reflectance, classes, sza, saa, vza, vaa, params, reference, **options)

@@ -21,16 +21,19 @@ The expressions are algebraically those of the papers (noted per function).
 References
 ----------
 .. [1] G. Meister, R. Wiemker, R. Monno, H. Spitzer, A. Strahler (1998): Investigation on the
-   Torrance-Sparrow specular BRDF model. Proc. IGARSS'98, IV, 2095-2097 (``seeds/000``).
+   Torrance-Sparrow specular BRDF model. Proc. IGARSS'98, IV, 2095-2097.
 .. [2] G. Meister, A. Rothkirch, H. Spitzer, J. Bienlein (2000): The shape of the specular peak of
-   rough surfaces. Int. Arch. ISPRS XXXIII (``seeds/003``).
+   rough surfaces. Int. Arch. ISPRS XXXIII.
 """
 
 from __future__ import annotations
 
+import re
+import textwrap
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -43,6 +46,46 @@ __all__ = [
     "specular_deviation",
     "local_incidence",
 ]
+
+_ZENITHS_DOC = """\
+theta_i, theta_r : array-like
+    Solar and view zenith angles [deg], in [0, 90)."""
+
+#: numpydoc entries that the docstrings of the geometry, model and kernel functions share, by name:
+#: the angle arguments and the results. :func:`_fill_doc` puts them where a docstring has a line
+#: ``%(name)s``. ``angles`` states the relative azimuth as the specular models see it,
+#: ``angles_backscattering`` as the kernel-driven models do (hot spot at ``phi = 0``).
+_DOCS = {
+    "zeniths": _ZENITHS_DOC,
+    "angles": _ZENITHS_DOC + """
+phi : array-like
+    Relative azimuth [deg], in [0, 180]; 180 is forward scattering.""",
+    "angles_backscattering": _ZENITHS_DOC + """
+phi : array-like
+    Relative azimuth [deg], in [0, 180]; 0 is backscattering, 180 forward scattering.""",
+    "brdf": """\
+brdf : array-like
+    BRDF [sr^-1], same kind as the inputs (numpy, lazy dask, or xarray with broadcast dims).""",
+    "kernel_value": """\
+K : array-like
+    Kernel value [-], same kind as the inputs; 0 at ``ti = tv = 0``.""",
+}
+
+_Function = TypeVar("_Function", bound=Callable)
+
+
+def _fill_doc(function: _Function) -> _Function:
+    """Replace each docstring line ``%(name)s`` by the entry ``name`` of :data:`_DOCS`, indented as
+    that line (the docstring-template pattern of numpy, pandas and MNE). Apply it below
+    :func:`~brdfcorr._arrays.array_function`, which copies the docstring."""
+    if function.__doc__:  # None under python -OO
+        function.__doc__ = re.sub(
+            r"^( *)%\((\w+)\)s$",
+            lambda line: textwrap.indent(_DOCS[line[2]], line[1]),
+            function.__doc__,
+            flags=re.MULTILINE,
+        )
+    return function
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,15 +237,13 @@ def facet_inclination(theta_i, theta_r, phi):
 
 
 @array_function("psi", "degree", "specular deviation")
+@_fill_doc
 def specular_deviation(theta_i, theta_r, phi):
     """Angle psi between the view direction and the specular (mirror) direction.
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
-    phi : array-like
-        Relative azimuth [deg], in [0, 180]; 180 is forward scattering.
+    %(angles)s
 
     Returns
     -------
@@ -219,15 +260,13 @@ def specular_deviation(theta_i, theta_r, phi):
 
 
 @array_function("beta", "degree", "local incidence angle on the facet")
+@_fill_doc
 def local_incidence(theta_i, theta_r, phi):
     """Local incidence angle beta of the sunlight on the specularly reflecting facet.
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
-    phi : array-like
-        Relative azimuth [deg], in [0, 180]; 180 is forward scattering.
+    %(angles)s
 
     Returns
     -------

@@ -41,6 +41,11 @@ fitted parameters, which :meth:`ParameterTable.for_bands` resolves to the bands 
 
 Errors in a table raise :class:`brdfcorr.errors.ParameterError` naming the class and the parameter
 (and the file, for :meth:`ParameterTable.load`).
+
+This module holds the table, its classes and the file format; the ``fit:`` record and its checks
+are in :mod:`brdfcorr.params_fit`, the resolution of a class to an image's bands
+(:class:`BandParameters`, interpolation in wavelength) in :mod:`brdfcorr.params_bands`. Import
+every name from here.
 """
 
 from __future__ import annotations
@@ -48,28 +53,33 @@ from __future__ import annotations
 import os
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import xarray as xr
 import yaml
-from pydantic import (
-    BaseModel,
-    BeforeValidator,
-    ConfigDict,
-    Field,
-    ValidationError,
-    field_validator,
-    model_validator,
-)
+from pydantic import BeforeValidator, Field, ValidationError, field_validator, model_validator
 
-from brdfcorr._validation import Integer, Number, describe_errors, refuse_boolean, short_repr
+from brdfcorr._validation import Integer, Number, StrictModel, describe_errors, refuse_boolean, short_repr
 from brdfcorr.errors import InputError, ParameterError, UnknownNameError
 from brdfcorr.io.files import atomic_path, parse_yaml, read_document
 from brdfcorr.models import SURFACE_MODELS, Model, get_model
 from brdfcorr.models.materials import load_material, material_names
+from brdfcorr.params_bands import MATERIAL_WAVELENGTH_TOLERANCE as MATERIAL_WAVELENGTH_TOLERANCE
+from brdfcorr.params_bands import (
+    BandParameters,
+    band_covariance,
+    band_values,
+    bands_dataset,
+    material_caveat,
+    resolve_entry,
+)
+from brdfcorr.params_fit import ERROR_TOLERANCE as ERROR_TOLERANCE
+from brdfcorr.params_fit import Count as Count
+from brdfcorr.params_fit import Covariance as Covariance
+from brdfcorr.params_fit import FitRecord
+from brdfcorr.params_fit import Statistic as Statistic
 
 __all__ = [
     "ReferenceGeometry",
@@ -80,14 +90,10 @@ __all__ = [
     "merge_tables",
 ]
 
-#: Distance [nm] between a band centre and a library material's fit wavelength beyond which the
-#: correction warns (:meth:`ClassEntry.wavelength_caveat`).
-MATERIAL_WAVELENGTH_TOLERANCE = 100.0
-
 SunZenith = Annotated[float | Literal["mean", "observed"], BeforeValidator(refuse_boolean)]
 
 
-class ReferenceGeometry(BaseModel):
+class ReferenceGeometry(StrictModel):
     """The sun/view geometry a scene is normalized to.
 
     Attributes
@@ -101,8 +107,6 @@ class ReferenceGeometry(BaseModel):
         Reference relative azimuth [deg] in [0, 180] (``docs/conventions.md`` convention; 180 is forward
         scattering). Irrelevant at nadir.
     """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     sza: SunZenith = "observed"
     vza: Number = Field(0.0, ge=0.0, lt=90.0)
@@ -125,133 +129,7 @@ class ReferenceGeometry(BaseModel):
 ParameterValue = Annotated[float | list[Number], BeforeValidator(refuse_boolean)]
 
 
-#: A covariance as written in a table: one p x p matrix (nested lists) or one per wavelength.
-#: A numpy array is taken as its nested lists.
-def _nested_lists(value: object) -> object:
-    value = refuse_boolean(value)
-    return value.tolist() if isinstance(value, np.ndarray) else value
-
-
-Covariance = Annotated[
-    list[list[Number]] | list[list[list[Number]]], BeforeValidator(_nested_lists)
-]
-#: A fit statistic: one number, or one per wavelength (band) of the entry.
-Statistic = Annotated[float | list[Number], BeforeValidator(_nested_lists)]
-#: A sample count: one, or one per wavelength (band) of the entry.
-Count = Annotated[int | list[Integer], BeforeValidator(_nested_lists)]
-#: Relative agreement required between ``errors`` and ``sqrt(diag(covariance))``.
-ERROR_TOLERANCE = 1e-6
-
-
-class FitRecord(BaseModel):
-    """Where a class's parameters come from, and how well they are known (the ``fit:`` block).
-
-    ``brdfcorr fit`` and ``brdfcorr fit-classes`` write it; hand-written and library classes have
-    none. The covariance is that of the fitted (free) parameters, shape and intensity jointly;
-    parameters held fixed in the fit are not listed and have zero variance.
-
-    Attributes
-    ----------
-    source : str
-        What the fit used: the command and its input files.
-    parameters : list of str
-        The fitted parameters of the class's model, in the order of the covariance's rows and
-        columns.
-    covariance : list
-        One p x p matrix (nested lists, p = ``len(parameters)``) per wavelength of the entry's
-        ``wavelengths`` (or per band, for per-band parameter lists), or a single p x p matrix when the
-        entry's fitted parameters are band-independent. Units: products of the parameters' registry
-        units. Symmetric, finite, with a non-negative diagonal.
-    n : int or list of int
-        Number of samples (measurements or pixels) fitted; one, or one per matrix.
-    chi2_dof : float or list of float
-        Reduced chi-square: residual sum of squares over (N - p), in the fit's weights (NaN when N <= p).
-    r2 : float or list of float
-        Coefficient of determination of the fit.
-    errors : dict of str to float or list of float
-        1-sigma errors of the fitted parameters, ``sqrt(diag(covariance))`` (checked to a relative
-        :data:`ERROR_TOLERANCE`), in registry units; one value per matrix.
-    """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    source: str = Field(min_length=1)
-    parameters: list[str] = Field(min_length=1)
-    n: Count
-    chi2_dof: Statistic
-    r2: Statistic
-    errors: dict[str, Statistic]
-    covariance: Covariance
-
-    @property
-    def per_wavelength(self) -> bool:
-        """True when the record holds one matrix per wavelength (band) of the entry."""
-        return bool(self.covariance) and isinstance(self.covariance[0][0], list)
-
-    def matrices(self) -> np.ndarray:
-        """The covariance as a float64 array of shape (m, p, p); m = 1 for a single matrix."""
-        matrices = np.asarray(self.covariance, dtype=float)
-        return matrices if self.per_wavelength else matrices[np.newaxis]
-
-    @model_validator(mode="after")
-    def _check(self) -> FitRecord:
-        duplicates = sorted(name for name, count in Counter(self.parameters).items() if count > 1)
-        if duplicates:
-            raise ValueError(f"parameters {', '.join(duplicates)} are listed more than once")
-        p = len(self.parameters)
-        try:
-            matrices = self.matrices()
-        except ValueError:  # ragged nested lists
-            raise ValueError("covariance: every matrix must have the same shape") from None
-        if matrices.ndim != 3 or matrices.shape[1:] != (p, p) or matrices.shape[0] == 0:
-            shape = " x ".join(map(str, matrices.shape[1:]))
-            raise ValueError(
-                f"covariance: expected {p} x {p} matrices (one row and column per fitted parameter "
-                f"{', '.join(self.parameters)}), got {shape or 'an empty list'}"
-            )
-        if not np.all(np.isfinite(matrices)):
-            raise ValueError("covariance: values must be finite numbers")
-        if not np.allclose(matrices, np.swapaxes(matrices, 1, 2), rtol=1e-9, atol=0.0):
-            raise ValueError("covariance: the matrices must be symmetric")
-        variances = np.diagonal(matrices, axis1=1, axis2=2)  # (m, p)
-        if np.any(variances < 0):
-            raise ValueError("covariance: the diagonal (variances) must be >= 0")
-        self._check_lengths(matrices.shape[0])
-        self._check_errors(np.sqrt(variances))
-        return self
-
-    def _check_lengths(self, m: int) -> None:
-        for key in ("n", "chi2_dof", "r2"):
-            value = getattr(self, key)
-            if isinstance(value, list) != self.per_wavelength or (isinstance(value, list) and len(value) != m):
-                expected = f"a list of {m} values (one per matrix)" if self.per_wavelength else "one number"
-                raise ValueError(f"{key}: expected {expected}, like the covariance")
-        counts = np.atleast_1d(np.asarray(self.n))
-        if np.any(counts < 1):
-            raise ValueError("n: the number of samples must be >= 1")
-
-    def _check_errors(self, sigma: np.ndarray) -> None:
-        if set(self.errors) != set(self.parameters):
-            raise ValueError(
-                f"errors: expected one entry per fitted parameter ({', '.join(self.parameters)}), "
-                f"got {', '.join(self.errors) or 'none'}"
-            )
-        for column, name in enumerate(self.parameters):
-            value = self.errors[name]
-            if isinstance(value, list) != self.per_wavelength or (
-                    isinstance(value, list) and len(value) != sigma.shape[0]):
-                expected = f"{sigma.shape[0]} values (one per matrix)" if self.per_wavelength else "one number"
-                raise ValueError(f"errors.{name}: expected {expected}, like the covariance")
-            given = np.atleast_1d(np.asarray(value, dtype=float))
-            expected_sigma = sigma[:, column]
-            if not np.all(np.abs(given - expected_sigma) <= ERROR_TOLERANCE * expected_sigma):
-                raise ValueError(
-                    f"errors.{name} = {short_repr(value)} is not sqrt(diag(covariance)) = "
-                    f"{short_repr(expected_sigma.tolist())}"
-                )
-
-
-class ClassEntry(BaseModel):
+class ClassEntry(StrictModel):
     """One class of a parameter table: its id in the class map, its model and parameters.
 
     Attributes
@@ -278,8 +156,6 @@ class ClassEntry(BaseModel):
         How the parameters were fitted and how well they are known (errors, covariance, chi-square
         per degree of freedom, N, R^2, source), written by ``brdfcorr fit`` and ``fit-classes``.
     """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     id: Integer = Field(ge=1)
     name: str = Field(min_length=1)
@@ -335,18 +211,7 @@ class ClassEntry(BaseModel):
         :data:`MATERIAL_WAVELENGTH_TOLERANCE` [nm] from it. None for other classes and for unknown
         band wavelengths.
         """
-        if self.material is None or wavelengths is None or len(wavelengths) == 0:
-            return None
-        source = load_material(self.material).wavelength
-        centres = np.asarray(wavelengths, dtype=float)
-        distance = np.abs(centres - source)
-        if not np.nanmax(distance) > MATERIAL_WAVELENGTH_TOLERANCE:  # NaN band centres: nothing known
-            return None
-        return (
-            f"{self.label}: material {self.material} is a fit at {source:g} nm, applied unchanged to bands "
-            f"{np.nanmin(centres):g}-{np.nanmax(centres):g} nm (up to {np.nanmax(distance):g} nm away); "
-            "a table fitted per band (brdfcorr fit-classes) suits such bands better"
-        )
+        return material_caveat(self, wavelengths)
 
     @model_validator(mode="after")
     def _check(self) -> ClassEntry:
@@ -381,33 +246,8 @@ class ClassEntry(BaseModel):
         except ParameterError as error:
             raise ValueError(f"{self.label}: {error}") from None
         if self.fit is not None:
-            self._check_fit(self.fit, model)
+            self.fit.check_entry(self, model)
         return self
-
-    def _check_fit(self, fit: FitRecord, model: Model) -> None:
-        """The ``fit`` block agrees with the model and with the shape of ``params``."""
-        unknown = [name for name in fit.parameters if name not in model.parameter_names]
-        if unknown:
-            raise ValueError(
-                f"{self.label}: fit.parameters: {', '.join(map(short_repr, unknown))} not a parameter of "
-                f"{model.name}; its parameters: {', '.join(model.parameter_names)}"
-            )
-        lengths = {len(v) for v in self.params.values() if isinstance(v, list)}
-        count = len(self.wavelengths) if self.wavelengths is not None else next(iter(lengths), None)
-        m = fit.matrices().shape[0]
-        if fit.per_wavelength and m != count:
-            where = "wavelengths" if self.wavelengths is not None else "per-band values"
-            raise ValueError(
-                f"{self.label}: fit.covariance has {m} matrices but the class has "
-                f"{count if count is not None else 'no'} {where}; give one matrix per wavelength, or "
-                "a single matrix for band-independent parameters"
-            )
-        varying = [name for name in fit.parameters if isinstance(self.params.get(name), list)]
-        if not fit.per_wavelength and varying:
-            raise ValueError(
-                f"{self.label}: fit.covariance is a single matrix but {', '.join(varying)} "
-                "vary with wavelength; give one matrix per wavelength"
-            )
 
     def band_values(
         self,
@@ -431,33 +271,7 @@ class ClassEntry(BaseModel):
         ParameterError
             Naming the class and parameter, when the values cannot be mapped to the bands.
         """
-        if n_bands is None:
-            if wavelengths is None:
-                raise ParameterError(f"{self.label}: give the image's wavelengths or number of bands")
-            n_bands = len(wavelengths)
-        if wavelengths is not None and len(wavelengths) != n_bands:
-            raise ParameterError(
-                f"{len(wavelengths)} band wavelengths given for an image of {n_bands} bands"
-            )
-        values: dict[str, np.ndarray] = {}
-        for name in self.brdf_model.parameter_names:
-            value = self.params[name]
-            if not isinstance(value, list):
-                values[name] = np.full(n_bands, float(value))
-            elif self.wavelengths is not None:
-                values[name] = self._interpolate(name, np.asarray(value, float), wavelengths, extrapolate)
-            elif len(value) != n_bands:
-                raise ParameterError(
-                    f"{self.label}: parameter {name} has {len(value)} per-band values but the image "
-                    f"has {n_bands} bands"
-                )
-            else:
-                values[name] = np.asarray(value, dtype=float)
-        try:  # linear interpolation stays within the bounds, but check what the kernels will see
-            self.brdf_model.validate(values)
-        except ParameterError as error:
-            raise ParameterError(f"{self.label}: {error}") from None
-        return values
+        return band_values(self, wavelengths, n_bands, extrapolate)
 
     def band_covariance(
         self,
@@ -473,86 +287,23 @@ class ClassEntry(BaseModel):
         given per band are taken as they are; a single matrix applies to every band. Rows and
         columns follow ``fit.parameters``.
         """
-        if self.fit is None:
-            return None
-        if n_bands is None:
-            if wavelengths is None:
-                raise ParameterError(f"{self.label}: give the image's wavelengths or number of bands")
-            n_bands = len(wavelengths)
-        matrices = self.fit.matrices()
-        if not self.fit.per_wavelength:
-            return np.repeat(matrices, n_bands, axis=0)
-        if self.wavelengths is None:
-            if matrices.shape[0] != n_bands:
-                raise ParameterError(
-                    f"{self.label}: fit.covariance has {matrices.shape[0]} per-band matrices but the "
-                    f"image has {n_bands} bands"
-                )
-            return matrices.copy()
-        p = matrices.shape[1]
-        flat = matrices.reshape(matrices.shape[0], p * p)
-        columns = [self._interpolate("fit.covariance", flat[:, j], wavelengths, extrapolate)
-                   for j in range(p * p)]
-        resolved = np.stack(columns, axis=-1).reshape(len(columns[0]), p, p)
-        return 0.5 * (resolved + np.swapaxes(resolved, 1, 2))  # symmetric to the last bit
-
-    def _interpolate(self, name, value, wavelengths, extrapolate) -> np.ndarray:
-        if wavelengths is None:
-            raise ParameterError(
-                f"{self.label}: parameter {name} is given per wavelength; the image's band "
-                "wavelengths are needed (band descriptions, a 'wavelength' tag, or --wavelengths)"
-            )
-        table = np.asarray(self.wavelengths, dtype=float)
-        centres = np.asarray(wavelengths, dtype=float)
-        if not np.all(np.isfinite(centres)):
-            raise ParameterError("band wavelengths must be finite numbers [nm]")
-        outside = (centres < table[0]) | (centres > table[-1])
-        if np.any(outside) and not extrapolate:
-            raise ParameterError(
-                f"{self.label}: parameter {name}: band centre {centres[outside][0]:g} nm is outside "
-                f"the table's wavelengths [{table[0]:g}, {table[-1]:g}] nm; allow edge "
-                "extrapolation to use the edge values"
-            )
-        return np.interp(centres, table, value)  # holds the edge values outside the range
+        return band_covariance(self, wavelengths, n_bands, extrapolate)
 
 
-@dataclass(frozen=True)
-class BandParameters:
-    """A class's model and its parameters resolved to an image's bands.
-
-    Attributes
-    ----------
-    id, name : int, str
-        Class id and name.
-    model : Model
-        The registered model.
-    params : dict of str to ndarray
-        One float64 array of shape (n_bands,) per model parameter, in signature order.
-    covariance : ndarray or None
-        The fit's covariance of the parameters ``covariance_names`` at each band, shape
-        (n_bands, p, p), in products of registry units; None when the class has no ``fit`` block.
-        Parameters not in ``covariance_names`` were held fixed (zero variance).
-    covariance_names : tuple of str
-        The parameters of the covariance's rows and columns, in order (empty without a fit).
-    """
-
-    id: int
-    name: str
-    model: Model
-    params: dict[str, np.ndarray]
-    covariance: np.ndarray | None = None
-    covariance_names: tuple[str, ...] = ()
+def check_distinct_ids(entries: Iterable[ClassEntry]) -> None:
+    """Raise ``ValueError`` (in a pydantic validator) when two of ``entries`` share a class id."""
+    duplicates = sorted(i for i, count in Counter(entry.id for entry in entries).items() if count > 1)
+    if duplicates:
+        raise ValueError(f"class id(s) {', '.join(map(str, duplicates))} appear more than once")
 
 
-class ParameterTable(BaseModel):
+class ParameterTable(StrictModel):
     """Per-class BRDF models and parameters, with an optional default reference geometry.
 
     Construct from keywords or :meth:`from_dict`, read with :meth:`load`, write with :meth:`save`.
     Tables are immutable: :meth:`with_class` returns a new table. Invalid content raises
     :class:`~brdfcorr.errors.ParameterError` naming the class and the parameter.
     """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     reference: ReferenceGeometry | None = None
     classes: list[ClassEntry] = Field(default_factory=list)
@@ -567,9 +318,7 @@ class ParameterTable(BaseModel):
 
     @model_validator(mode="after")
     def _unique_ids(self) -> ParameterTable:
-        duplicates = sorted(i for i, count in Counter(entry.id for entry in self.classes).items() if count > 1)
-        if duplicates:
-            raise ValueError(f"class id(s) {', '.join(map(str, duplicates))} appear more than once")
+        check_distinct_ids(self.classes)
         return self
 
     # ----------------------------------------------------------------------------------- access
@@ -638,12 +387,7 @@ class ParameterTable(BaseModel):
             raising :class:`~brdfcorr.errors.ParameterError`.
         """
         return {
-            entry.id: BandParameters(
-                entry.id, entry.name, entry.brdf_model,
-                entry.band_values(wavelengths, n_bands, extrapolate),
-                entry.band_covariance(wavelengths, n_bands, extrapolate),
-                tuple(entry.fit.parameters) if entry.fit is not None else (),
-            )
+            entry.id: resolve_entry(entry, wavelengths, n_bands, extrapolate)
             for entry in sorted(self.classes, key=lambda c: c.id)
         }
 
@@ -659,29 +403,7 @@ class ParameterTable(BaseModel):
         with coordinates ``class`` (id), ``name`` and ``model`` along ``class`` and ``band``
         (1-based) with ``wavelength`` [nm] along ``band`` when given.
         """
-        resolved = self.for_bands(wavelengths, n_bands, extrapolate)
-        if n_bands is None:
-            n_bands = len(wavelengths) if wavelengths is not None else 0
-        names = list(dict.fromkeys(n for entry in resolved.values() for n in entry.params))
-        variables = {}
-        for name in names:
-            data = np.full((len(resolved), n_bands), np.nan)
-            for row, entry in enumerate(resolved.values()):
-                if name in entry.params:
-                    data[row] = entry.params[name]
-            units = next(
-                e.model.parameter(name).units for e in resolved.values() if name in e.params
-            )
-            variables[name] = (("class", "band"), data, {"units": units})
-        coords: dict[str, Any] = {
-            "class": ("class", np.array(list(resolved), dtype=np.int64)),
-            "name": ("class", [entry.name for entry in resolved.values()]),
-            "model": ("class", [entry.model.name for entry in resolved.values()]),
-            "band": ("band", np.arange(1, n_bands + 1)),
-        }
-        if wavelengths is not None:
-            coords["wavelength"] = ("band", np.asarray(wavelengths, float), {"units": "nm"})
-        return xr.Dataset(variables, coords=coords, attrs={"long_name": "BRDF parameter table"})
+        return bands_dataset(self.for_bands(wavelengths, n_bands, extrapolate), wavelengths, n_bands)
 
     # ------------------------------------------------------------------------------ file format
     @classmethod

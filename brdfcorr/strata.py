@@ -3,7 +3,7 @@ bin NDVI), or a land-cover map brought onto the image grid with its codes remapp
 
 All functions are lazy on dask input (only :func:`ndvi_strata` with ``percentiles`` reads the image
 once, for its edges) and keep the x/y coords and CRS/transform of their input. Class maps are
-integer; id 0 means "no class" (left uncorrected by :mod:`brdfcorr.correct`) and is the nodata of
+integer; id 0 means "no class" (left uncorrected by :mod:`brdfcorr.correction`) and is the nodata of
 the maps made here.
 
 References: Queally, N. et al. (2022), FlexBRDF, JGR Biogeosciences 127, e2021JG006622. Zhu, Z.

@@ -2,7 +2,7 @@
 
 A scene is rendered from known parameters with the public model functions
 (:meth:`brdfcorr.models.Model.__call__`, one full evaluation per class and band), independently of
-the block machinery of :mod:`brdfcorr.correct`::
+the block machinery of :mod:`brdfcorr.correction`::
 
     reflectance(band, y, x) = brightness(y, x) * f_class(y, x)(sza, vza, phi; p(band))
 

@@ -11,7 +11,7 @@ Each case of the tables below builds one bad input beside a good synthetic scene
 4. every input file is byte-identical afterwards (SHA-256 of every file of the scene directory).
 
 Pixel-level problems that are not input errors by design (``DESIGN.md``; QA table of
-:mod:`brdfcorr.correct`) are checked at the end: NaN/inf reflectance and zeniths outside [0, 90)
+:mod:`brdfcorr.correction`) are checked at the end: NaN/inf reflectance and zeniths outside [0, 90)
 become nodata and are counted.
 """
 
@@ -528,7 +528,7 @@ def test_run_isolates_a_scene_with_bad_angles(scene, monkeypatch):
 def test_only_non_finite_values_are_nodata_even_when_the_band_sum_overflows():
     """Finite float32 values whose band sum overflows (3e38 + 3e38) are data, not nodata; a pixel
     with +inf is nodata. Class 0 (no class, kept: factor 1) so the values pass unchanged."""
-    from brdfcorr.correct import QA_NODATA, normalize
+    from brdfcorr.correction import QA, normalize
 
     cube = np.full((2, 1, 3), 0.5, dtype=np.float32)
     cube[:, 0, 0] = 3e38
@@ -536,6 +536,6 @@ def test_only_non_finite_values_are_nodata_even_when_the_band_sum_overflows():
     zeros = np.zeros((1, 3))
     table = ParameterTable(classes=[{"id": 1, "name": "flat", "model": "lambertian", "params": {"t0": 0.1}}])
     corrected, qa = normalize(cube, np.zeros((1, 3), np.uint8), zeros + 30, zeros, zeros + 10, zeros, table)
-    assert qa.values.tolist() == [[0 | 2, QA_NODATA | 2, 2]]  # 2: no class
+    assert qa.values.tolist() == [[0 | 2, QA.NODATA | 2, 2]]  # 2: no class
     np.testing.assert_array_equal(corrected.values[:, 0, 0], cube[:, 0, 0])
     assert corrected.values[0, 0, 1] == 0.5 and np.isnan(corrected.values[1, 0, 1])

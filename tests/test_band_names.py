@@ -10,9 +10,9 @@ import xarray as xr
 from click.testing import CliRunner
 from test_pipeline import make_scenes, write_chain
 
+from brdfcorr import io
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError
-from brdfcorr.io import rasters
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
@@ -54,7 +54,7 @@ def correct(files, angles, output):
 ], ids=["short names", "synonyms"])
 def test_angle_bands_are_read_by_name(files, scene, tmp_path, descriptions):
     path = write_angles(tmp_path / "angles.tif", scene, ("vza", "vaa", "sza", "saa"), descriptions)
-    layers = rasters.open_angles(path)
+    layers = io.open_angles(path)
     for name in ANGLES:
         np.testing.assert_array_equal(layers[name].values, scene[name].values)
     standard, named = tmp_path / "standard.tif", tmp_path / "named.tif"
@@ -73,7 +73,7 @@ def test_angle_bands_are_read_by_name(files, scene, tmp_path, descriptions):
 def test_partial_or_contradictory_angle_names_are_one_line_errors(files, scene, tmp_path, descriptions):
     path = write_angles(tmp_path / "angles.tif", scene, ANGLES, descriptions)
     with pytest.raises(InputError, match="do not name each of sza, saa, vza, vaa once"):
-        rasters.open_angles(path)
+        io.open_angles(path)
     result = correct(files, path, tmp_path / "out.tif")
     assert result.exit_code == 2
     errors = [line for line in result.output.splitlines() if "band descriptions" in line]
@@ -87,7 +87,7 @@ def test_angle_bands_without_names_are_positional(scene, tmp_path, descriptions)
     path = write_angles(tmp_path / "angles.tif", scene, ANGLES, descriptions)
     with rasterio.open(path) as dataset:
         assert dataset.descriptions == (descriptions or (None,) * 4)
-    layers = rasters.open_angles(path)
+    layers = io.open_angles(path)
     for name in ANGLES:
         np.testing.assert_array_equal(layers[name].values, scene[name].values)
 
@@ -146,21 +146,21 @@ def test_sentinel2_band_names_give_the_s2a_centres(tmp_path):
     # ESA S2 MSI spectral responses, Sentinel-2A central wavelengths [nm]
     path = write_image(tmp_path / "s2.tif", ["B02", "b3", "B4", "B8A", "B11", "B12", "B01"])
     expected = [492.4, 559.8, 664.6, 864.7, 1613.7, 2202.4, 442.7]
-    np.testing.assert_array_equal(rasters.band_wavelengths(rasters.open_image(path), path), expected)
-    np.testing.assert_array_equal(rasters.open_image(path)["wavelength"].values, expected)
+    np.testing.assert_array_equal(io.band_wavelengths(io.open_image(path), path), expected)
+    np.testing.assert_array_equal(io.open_image(path)["wavelength"].values, expected)
 
 
 def test_landsat_band_names_need_the_sensor(tmp_path):
     names = ["SR_B2", "SR_B3", "SR_B4", "SR_B5"]
     plain = write_image(tmp_path / "plain.tif", names)
-    assert rasters.band_wavelengths(rasters.open_image(plain), plain) is None
+    assert io.band_wavelengths(io.open_image(plain), plain) is None
     stated = write_image(tmp_path / "oli.tif", names, {"SENSOR_ID": "OLI_TIRS"})
-    np.testing.assert_array_equal(rasters.band_wavelengths(rasters.open_image(stated), stated),
+    np.testing.assert_array_equal(io.band_wavelengths(io.open_image(stated), stated),
                                   [482.0, 562.0, 655.0, 865.0])  # Landsat 8 Data Users Handbook
     stated = write_image(tmp_path / "oli_b.tif", ["B2", "B3", "B4", "B5"], {"sensor": "OLI"})
-    np.testing.assert_array_equal(rasters.band_wavelengths(rasters.open_image(stated), stated),
+    np.testing.assert_array_equal(io.band_wavelengths(io.open_image(stated), stated),
                                   [482.0, 562.0, 655.0, 865.0])
-    explicit = rasters.band_wavelengths(rasters.open_image(plain), plain, [480, 560, 650, 860])
+    explicit = io.band_wavelengths(io.open_image(plain), plain, [480, 560, 650, 860])
     np.testing.assert_array_equal(explicit, [480, 560, 650, 860])
 
 
@@ -172,8 +172,8 @@ def test_landsat_band_names_need_the_sensor(tmp_path):
 ], ids=["s2 and landsat", "s2 and words", "no such band", "generic"])
 def test_ambiguous_band_names_give_no_wavelengths(tmp_path, descriptions):
     path = write_image(tmp_path / "image.tif", descriptions)
-    assert rasters.band_wavelengths(rasters.open_image(path), path) is None
-    assert "wavelength" not in rasters.open_image(path).coords
+    assert io.band_wavelengths(io.open_image(path), path) is None
+    assert "wavelength" not in io.open_image(path).coords
 
 
 def test_output_bands_are_described_by_wavelength_when_the_input_has_no_descriptions(tmp_path):

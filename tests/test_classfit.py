@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from brdfcorr.correct import normalize
+from brdfcorr.correction import normalize
 from brdfcorr.fit.classes import (
     ClassFitWarning,
     GuardRails,

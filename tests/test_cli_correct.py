@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from brdfcorr import __version__, normalize
 from brdfcorr.cli import main
-from brdfcorr.correct import QA_NO_CLASS, QA_UNKNOWN_CLASS
+from brdfcorr.correction import QA
 from brdfcorr.errors import InputError
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
@@ -71,7 +71,7 @@ def test_cli_matches_library_numbers_and_writes_provenance(files, scene, tmp_pat
     # One summary line, with the counts of the QA layer.
     line = result.output.strip().splitlines()[-1]
     assert f"{40 * 48 - 16} pixels corrected" in line and "8 unknown class" in line and "8 no class" in line
-    assert (qa[1, :8] == QA_UNKNOWN_CLASS).all() and (qa[0, :8] == QA_NO_CLASS).all()
+    assert (qa[1, :8] == QA.UNKNOWN_CLASS).all() and (qa[0, :8] == QA.NO_CLASS).all()
 
 
 def test_separate_angle_files_give_the_same_output(files, scene, tmp_path):

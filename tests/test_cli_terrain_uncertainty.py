@@ -12,12 +12,12 @@ from click.testing import CliRunner
 
 from brdfcorr import normalize
 from brdfcorr.cli import main
-from brdfcorr.correct import QA_FACING_AWAY, QA_TOPOGRAPHY_UNCORRECTED
+from brdfcorr.correction import QA
+from brdfcorr.correction.terrain import slope_aspect
+from brdfcorr.correction.topographic import topographic_correction
+from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.params import ParameterTable
-from brdfcorr.terrain import slope_aspect
 from brdfcorr.testing import PIXEL, example_table, georeference, synthetic_scene, write_scene
-from brdfcorr.topographic import topographic_correction
-from brdfcorr.uncertainty import correction_uncertainty
 
 
 @pytest.fixture
@@ -79,7 +79,7 @@ def test_tilted_plane_matches_the_library_chain(scene, tmp_path):
     )
     np.testing.assert_allclose(_read(output), expected.values, rtol=2e-6, equal_nan=True)
     assert not np.allclose(_read(output), _read_plain(scene, tmp_path), equal_nan=True)
-    assert np.array_equal(_read(qa)[0] & ~np.uint8(QA_TOPOGRAPHY_UNCORRECTED), expected_qa.values)
+    assert np.array_equal(_read(qa)[0] & ~np.uint8(QA.TOPOGRAPHY_UNCORRECTED), expected_qa.values)
 
 
 def _read_plain(scene, tmp_path):
@@ -114,7 +114,7 @@ def test_surface_facing_away_from_the_sun_is_flagged(scene, tmp_path):
     output, qa = tmp_path / "steep_out.tif", tmp_path / "steep_qa.tif"
     result = _correct(scene, output, "--slope-aspect", path, "--qa", qa)
     assert result.exit_code == 0, result.output
-    assert np.all(_read(qa)[0] & QA_FACING_AWAY)
+    assert np.all(_read(qa)[0] & QA.FACING_AWAY)
     assert np.isnan(_read(output)).all()
 
 

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from test_pipeline import make_scenes, write_chain
 
 from brdfcorr.cli import main
-from brdfcorr.io.rasters import band_wavelengths, open_image
+from brdfcorr.io import band_wavelengths, open_image
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
 
 WAVELENGTHS = [480.0, 560.0, 660.0, 830.0]  # synthetic_scene's default band centres [nm]

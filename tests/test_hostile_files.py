@@ -32,7 +32,7 @@ import yaml
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.correct import QA_LIMITED, QA_NODATA, normalize, qa_counts
+from brdfcorr.correction import QA, normalize, qa_counts
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.io.files import MAX_ALIAS_NODES, MAX_DOCUMENT_BYTES, parse_yaml
@@ -470,7 +470,7 @@ def test_negative_model_values_are_nodata_not_limited_nor_corrected():
     result = normalize(cube, np.ones((1, 3), np.uint8), angles, np.zeros((1, 3)), angles,
                        np.full((1, 3), 90.0), table)
     assert np.isnan(result.reflectance.values).all()
-    assert (result.qa.values & QA_NODATA).all() and not (result.qa.values & QA_LIMITED).any()
+    assert (result.qa.values & QA.NODATA).all() and not (result.qa.values & QA.LIMITED).any()
     counts = {key: int(value) for key, value in qa_counts(result.qa).items()}
     assert counts == {"corrected": 0, "limited": 0, "unknown_class": 0, "no_class": 0, "nodata": 3}
 
@@ -485,7 +485,7 @@ def test_a_peak_vanishing_at_the_reference_is_nodata_not_clipped():
     result = normalize(np.full((2, 1, 3), 0.3), np.ones((1, 3), np.uint8), sza, saa, vza, vaa, table,
                        reference={"sza": 30.0, "vza": 0.0})
     assert np.isnan(result.reflectance.values).all()
-    assert ((result.qa.values & QA_NODATA) > 0).all() and not (result.qa.values & QA_LIMITED).any()
+    assert ((result.qa.values & QA.NODATA) > 0).all() and not (result.qa.values & QA.LIMITED).any()
     assert int(qa_counts(result.qa)["corrected"]) == 0
 
 
@@ -500,7 +500,7 @@ def test_a_model_beyond_float32_is_nodata_in_float32_and_finite_in_float64():
         cube = np.full((2, 1, 3), 0.3, dtype=dtype)
         result = normalize(cube, np.ones((1, 3), np.uint8), zenith, zeros, zenith, zeros, table, limits=None)
         values, qa = result.reflectance.values, result.qa.values[0]
-        invalid = (qa & QA_NODATA) > 0
+        invalid = (qa & QA.NODATA) > 0
         assert np.isnan(values[:, 0, invalid]).all() and np.isfinite(values[:, 0, ~invalid]).all()
         assert (values[:, 0, ~invalid] > 0).all()
         if dtype == np.float64:

@@ -10,8 +10,8 @@ import pytest
 import rasterio
 import xarray as xr
 
+from brdfcorr import io
 from brdfcorr.errors import GridMismatchError, InputError
-from brdfcorr.io import rasters as io
 from brdfcorr.testing import georeference, synthetic_scene, write_scene
 
 

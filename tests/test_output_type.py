@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from test_scaled_inputs import _store
 
 from brdfcorr.cli import main
-from brdfcorr.correct import QA_NODATA
+from brdfcorr.correction import QA
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
 
 
@@ -46,7 +46,7 @@ def test_int16_output_keeps_the_input_storage(paths, tmp_path):
     np.testing.assert_array_equal(values[valid], np.round(expected[valid] / 1e-4))
     assert np.all(values[~valid] == -9999) and (~valid).any()
     with rasterio.open(tmp_path / "qa.tif") as qa:
-        assert not (qa.read(1) & QA_NODATA)[valid.all(axis=0)].any()  # nothing out of range here
+        assert not (qa.read(1) & QA.NODATA)[valid.all(axis=0)].any()  # nothing out of range here
 
 
 def test_values_beyond_the_type_are_nodata_and_flagged(paths, tmp_path):
@@ -72,7 +72,7 @@ def test_values_beyond_the_type_are_nodata_and_flagged(paths, tmp_path):
     assert np.all(values[beyond] == 255)
     fits = np.isfinite(counts) & ~beyond
     np.testing.assert_array_equal(values[fits], counts[fits])
-    np.testing.assert_array_equal((flags & QA_NODATA) > 0, ~np.isfinite(counts).all(axis=0) | beyond.any(axis=0))
+    np.testing.assert_array_equal((flags & QA.NODATA) > 0, ~np.isfinite(counts).all(axis=0) | beyond.any(axis=0))
 
 
 def test_float_input_stays_float(paths, tmp_path):

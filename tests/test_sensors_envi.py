@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import rasterio
 
-from brdfcorr.errors import SensorInputError
+from brdfcorr.errors import GridMismatchError, SensorInputError
 from brdfcorr.geometry import facet_inclination, local_incidence, relative_azimuth, specular_deviation
 from brdfcorr.io.sensors import read_angles
 from brdfcorr.io.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
@@ -146,7 +146,7 @@ def test_missing_obs_band_is_named(tmp_path):
 
 
 def test_obs_on_another_grid_is_refused():
-    with pytest.raises(SensorInputError, match="differs from the image grid"):
+    with pytest.raises(GridMismatchError, match=r"obs file \(\S*obs\S*\) is not on the grid of image .*: shape"):
         read_envi_obs(CUBE_OBS, like=read_envi_image(TOPO_IMAGE))
 
 
@@ -213,9 +213,9 @@ def test_not_an_envi_file(tmp_path):
 
 
 def test_angles_fit_the_correction_input_contract():
-    """What brdfcorr.correct needs: the image opened by brdfcorr.io.rasters and the four angle layers on
-    its grid (brdfcorr.io.rasters.check_same_grid), in blocks aligned with the image's."""
-    from brdfcorr.io import rasters as rio_io
+    """What brdfcorr.correction needs: the image opened by brdfcorr.io.rasters and the four angle layers on
+    its grid (brdfcorr.io.grid.check_same_grid), in blocks aligned with the image's."""
+    from brdfcorr import io as rio_io
 
     image = rio_io.open_image(TOPO_IMAGE, chunks=16)
     angles = read_angles("envi_obs", TOPO_OBS, like=image)

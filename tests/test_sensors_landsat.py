@@ -157,7 +157,7 @@ def test_missing_bands_are_named(tmp_path):
 
 @needs_realdata
 def test_angles_fit_the_correction_input_contract():
-    from brdfcorr.io import rasters as rio_io
+    from brdfcorr import io as rio_io
 
     band = rio_io.open_image(B1, chunks=64, wavelengths=[478.0])
     angles = read_angles("landsat", SZA, like=band, ang=ANG, view_from_ang="mean")

@@ -1,4 +1,4 @@
-"""Tests of brdfcorr.terrain and of normalize's slope/aspect layers: closed forms of Horn's finite
+"""Tests of brdfcorr.correction.terrain and of normalize's slope/aspect layers: closed forms of Horn's finite
 differences, the local-frame rotation, the specular peak of a tilted roof, the new QA flag."""
 
 from __future__ import annotations
@@ -14,13 +14,13 @@ import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from brdfcorr.correct import QA_FACING_AWAY, QA_FLAGS, QA_INVALID_GEOMETRY, QA_NODATA, normalize
+from brdfcorr.correction import QA, normalize
+from brdfcorr.correction.terrain import cos_incidence, local_angles, slope_aspect, slope_aspect_layers
 from brdfcorr.errors import InputError
 from brdfcorr.geometry import facet_inclination, relative_azimuth
 from brdfcorr.io.sensors.envi import read_envi_obs_terrain
 from brdfcorr.models import load_material, specular_peak, torrance_sparrow
 from brdfcorr.params import ParameterTable
-from brdfcorr.terrain import cos_incidence, local_angles, slope_aspect, slope_aspect_layers
 from brdfcorr.testing import example_table, georeference, synthetic_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
@@ -29,7 +29,7 @@ needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor 
 
 
 def _unit(zenith, azimuth):
-    """East, north, up unit vector (independent of brdfcorr.terrain: plain numpy radians)."""
+    """East, north, up unit vector (independent of brdfcorr.correction.terrain: plain numpy radians)."""
     z, a = np.radians(zenith), np.radians(azimuth)
     return np.array([np.sin(z) * np.sin(a), np.sin(z) * np.cos(a), np.cos(z)])
 
@@ -250,10 +250,10 @@ def test_surface_facing_away_is_flagged_and_nodata(scene):
     slope[0, 0], slope[0, 1], aspect[0, 2] = 0.0, 95.0, np.nan
     result = _normalize(scene, slope=slope, aspect=aspect)
     qa = result.qa.values
-    assert QA_FLAGS["facing_away"] == QA_FACING_AWAY == 32
-    assert (qa[1:] & QA_FACING_AWAY).all() and np.isnan(result.reflectance.values[:, 1:]).all()
-    assert not qa[0, 0] & QA_FACING_AWAY
-    assert qa[0, 1] & QA_INVALID_GEOMETRY and qa[0, 2] & QA_NODATA
+    assert QA.FACING_AWAY == 32 and "facing_away" in result.qa.attrs["flag_meanings"].split()
+    assert (qa[1:] & QA.FACING_AWAY).all() and np.isnan(result.reflectance.values[:, 1:]).all()
+    assert not qa[0, 0] & QA.FACING_AWAY
+    assert qa[0, 1] & QA.INVALID_GEOMETRY and qa[0, 2] & QA.NODATA
     assert "facing_away" in result.qa.attrs["flag_meanings"].split()
 
 

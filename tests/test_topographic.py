@@ -1,4 +1,4 @@
-"""Tests of brdfcorr.topographic (cosine, C, SCS, SCS+C; the C fit and its guard; QA; laziness) and the
+"""Tests of brdfcorr.correction.topographic (cosine, C, SCS, SCS+C; the C fit and its guard; QA; laziness) and the
 end-to-end synthetic scene of pitched roofs and a vegetated hill corrected in the surfaces' frames."""
 
 from __future__ import annotations
@@ -9,22 +9,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from brdfcorr.correct import QA_FACING_AWAY, normalize
+from brdfcorr.correction import QA, normalize
+from brdfcorr.correction.terrain import cos_incidence, local_angles, slope_aspect
+from brdfcorr.correction.topographic import fit_c, topographic_correction, topographic_factor
 from brdfcorr.errors import BrdfcorrWarning, GridMismatchError, InputError
 from brdfcorr.geometry import relative_azimuth
 from brdfcorr.models import load_material
 from brdfcorr.params import ParameterTable
-from brdfcorr.terrain import cos_incidence, local_angles, slope_aspect
-from brdfcorr.topographic import (
-    TOPO_QA_FIT_REJECTED,
-    TOPO_QA_LIMITED,
-    TOPO_QA_NO_CLASS,
-    TOPO_QA_NODATA,
-    TOPO_QA_SHADOWED,
-    fit_c,
-    topographic_correction,
-    topographic_factor,
-)
 
 SZA, SAA = 40.0, 150.0
 
@@ -51,7 +42,7 @@ def test_cosine_makes_a_lambertian_slope_horizontal():
     result = topographic_correction(observed, SZA, SAA, slope, aspect, method="cosine", limits=None)
     lit = cos_i > 0
     np.testing.assert_allclose(result.reflectance.values[0][lit], 0.3, rtol=1e-12)
-    assert (result.qa.values[~lit] == TOPO_QA_SHADOWED).all() and np.isnan(result.reflectance.values[0][~lit]).all()
+    assert (result.qa.values[~lit] == QA.FACING_AWAY).all() and np.isnan(result.reflectance.values[0][~lit]).all()
     assert result.c_table is None
 
 
@@ -94,13 +85,13 @@ def test_c_is_fitted_per_class():
     table = fit_c(observed, cos_i, xr.DataArray(classes, dims=("y", "x")))
     np.testing.assert_allclose(table.set_index("class")["c"].to_numpy(), [0.5, 1.0], rtol=1e-9)
     result = topographic_correction(observed, SZA, SAA, slope, aspect, method="c", classes=classes, limits=None)
-    assert (result.qa.values[0, :5] == TOPO_QA_NO_CLASS).all()
+    assert (result.qa.values[0, :5] == QA.NO_CLASS).all()
     np.testing.assert_array_equal(result.reflectance.values[0, 0, :5], 999.0)
 
 
 def test_layers_must_be_on_the_reflectance_grid():
     slope, aspect, cos_i = _terrain()
-    with pytest.raises(GridMismatchError, match="slope has shape"):
+    with pytest.raises(GridMismatchError, match=r"slope is not on the grid of reflectance: shape \(rows, columns\)"):
         topographic_correction(_cube(cos_i), SZA, SAA, slope[:-1], aspect, method="cosine")
     with pytest.raises(InputError, match="2-D"):
         topographic_correction(_cube(cos_i), SZA, SAA, slope[None, None], aspect, method="cosine")
@@ -135,7 +126,7 @@ def test_poor_fit_is_rejected_left_uncorrected_flagged_and_warned():
     assert "slope m" in table.loc[1, "reason"]
     lit = cos_i > 0
     np.testing.assert_array_equal(result.reflectance.values[:2][:, lit], observed.values[:2][:, lit])
-    assert (result.qa.values[lit] & TOPO_QA_FIT_REJECTED).all()
+    assert (result.qa.values[lit] & QA.TOPOGRAPHY_UNCORRECTED).all()
     assert not np.allclose(result.reflectance.values[2][lit], observed.values[2][lit])
 
 
@@ -158,9 +149,11 @@ def test_limits_and_nodata_are_flagged():
     factor = np.cos(np.radians(SZA)) / cos_i
     clipped = (cos_i > 0) & ((factor > 2.0) | (factor < 0.5))
     assert clipped.any()
-    assert ((result.qa.values & TOPO_QA_LIMITED) > 0).sum() == clipped.sum()
-    assert result.qa.values[0, 0] & TOPO_QA_NODATA and np.isnan(result.reflectance.values[0, 0, 0])
-    assert result.qa.attrs["flag_meanings"] == "nodata no_class fit_rejected limited shadowed"
+    assert ((result.qa.values & QA.LIMITED) > 0).sum() == clipped.sum()
+    assert result.qa.values[0, 0] & QA.NODATA and np.isnan(result.reflectance.values[0, 0, 0])
+    # One flag set for every step (brdfcorr.correction.qa, the table in docs/conventions.md).
+    assert result.qa.attrs["flag_meanings"] == ("nodata no_class unknown_class limited invalid_geometry facing_away "
+                                                "topography_uncorrected")
 
 
 def test_dask_is_lazy_and_equals_numpy(no_compute):
@@ -332,7 +325,7 @@ def test_only_wall_pixels_face_away_and_flat_ground_is_unchanged(corrected_scene
     # none lies on an inner face.
     scene, slope, _, brdf = corrected_scene
     qa = brdf.qa.values
-    flagged = (qa & QA_FACING_AWAY) > 0
+    flagged = (qa & QA.FACING_AWAY) > 0
     assert flagged.any() and not flagged[scene["faces"] > 0].any()
     assert (slope.values[flagged] > 40).all()
     assert np.isnan(brdf.reflectance.values[0][flagged]).all()

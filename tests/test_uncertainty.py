@@ -1,4 +1,4 @@
-"""Tests of brdfcorr.uncertainty.correction_uncertainty: the 1-sigma of the corrected reflectance.
+"""Tests of brdfcorr.correction.uncertainty.correction_uncertainty: the 1-sigma of the corrected reflectance.
 
 Sources of the expected values: a Monte-Carlo propagation through brdfcorr's own ``normalize``
 (independent of the Jacobian), closed forms of the factor F = f(ref)/f(obs) for one parameter, and
@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from brdfcorr.correct import normalize
+from brdfcorr.correction import normalize
+from brdfcorr.correction.uncertainty import correction_uncertainty, difference_step, factor_jacobian
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import REGISTRY, SURFACE_MODELS, kernel_driven, torrance_sparrow
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, synthetic_scene
-from brdfcorr.uncertainty import correction_uncertainty, difference_step, factor_jacobian
 
 ANGLES = ("sza", "saa", "vza", "vaa")
 ROOF = {"t0": 0.0245, "t1": 0.20, "w": 0.0362, "n": 1.77, "k": 0.25}  # paper 003, Table 1 (roof tile)
@@ -369,10 +369,10 @@ def test_computed_with_the_correction_each_input_chunk_is_read_once():
 # ---------------------------------------------------------------------------------- terrain
 def test_tilted_surfaces_take_the_geometry_in_their_own_frame():
     # Property (the rule of normalize): with slope/aspect and a fixed reference, sigma equals that of
-    # a flat pixel observed at the local angles (brdfcorr.terrain.local_angles); slope 0 gives the
+    # a flat pixel observed at the local angles (brdfcorr.correction.terrain.local_angles); slope 0 gives the
     # flat result bit for bit; a sun behind the surface (pixel 2: a 60 deg slope facing away from a
     # sun at 40 deg) is nodata. Dask gives the numpy result.
-    from brdfcorr.terrain import local_angles
+    from brdfcorr.correction.terrain import local_angles
 
     table = _table(_class(1, "torrance_sparrow", ROOF, ("t0", "t1", "w"), np.diag([1e-6, 1e-4, 4e-6])),
                    _class(2, "rpv", {"rho0": 0.03, "k": 0.75, "theta": -0.1, "rho_c": 0.5}, ("k", "theta"),

@@ -10,9 +10,9 @@
 References
 ----------
 .. [1] G. Meister, A. Rothkirch, H. Spitzer, J. Bienlein (2000): The shape of the specular peak of
-   rough surfaces. Int. Arch. ISPRS XXXIII (``seeds/003``).
+   rough surfaces. Int. Arch. ISPRS XXXIII.
 .. [2] G. Meister, R. Wiemker, R. Monno, H. Spitzer, A. Strahler (1998): Investigation on the
-   Torrance-Sparrow specular BRDF model. Proc. IGARSS'98 (``seeds/000``).
+   Torrance-Sparrow specular BRDF model. Proc. IGARSS'98.
 .. [3] F. E. Nicodemus (1970): Reflectance nomenclature and directional reflectance and
    emissivity. Applied Optics 9(6), 1474-1475.
 """

@@ -51,7 +51,7 @@ about 1-2 ms per geometry, mostly fixed overhead; it grows as 1 / step_fraction^
 References
 ----------
 .. [1] G. Meister, R. Wiemker, R. Monno, H. Spitzer, A. Strahler (1998): Investigation on the
-   Torrance-Sparrow specular BRDF model. Proc. IGARSS'98, IV, 2095-2097 (``seeds/000``).
+   Torrance-Sparrow specular BRDF model. Proc. IGARSS'98, IV, 2095-2097.
 .. [2] K. Torrance, E. Sparrow (1967): Theory for off-specular reflection from roughened surfaces.
    J. Opt. Soc. Am. 57(9), 1105-1114.
 """

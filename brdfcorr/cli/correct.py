@@ -75,7 +75,7 @@ def _cluster(address: str | None):
 
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
     """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
-    from brdfcorr.topographic import C_METHODS
+    from brdfcorr.correction.topographic import C_METHODS
     from brdfcorr.workflow.correction import Terrain
     if slope_aspect is None and dem is None:
         if topographic is not None or brdf_frame is not None:

@@ -2,38 +2,20 @@
 
 - :mod:`brdfcorr.fit.measurements`: goniometer measurement tables (CSV), selection, synthesis.
 - :mod:`brdfcorr.fit.goniometer`: weighted non-linear least squares as in paper 003 (``fit_brdf``).
+- :mod:`brdfcorr.fit.results`: the result of those fits (``FitResult``) and the parameter-table
+  entries and report rows made from it.
 - :mod:`brdfcorr.fit.identifiability`: covariance, correlations and identifiability messages of
   those fits.
 - :mod:`brdfcorr.fit.sampling`: pooling and sampling each class's pixels from scenes.
 - :mod:`brdfcorr.fit.solver`: the variable-projection solver of a class fit (shape shared by the
   bands, intensities per band; one linear pass for models without shape parameters).
+- :mod:`brdfcorr.fit.sandwich`: the joint, cluster-robust sandwich covariance of a class fit.
 - :mod:`brdfcorr.fit.classes`: class-pooled fits from imagery with guard rails (``fit_classes``).
 """
 
+from brdfcorr.fit import goniometer as _goniometer
 from brdfcorr.fit.classes import ClassFitResult, fit_classes
-from brdfcorr.fit.goniometer import (
-    FitResult,
-    FitWarning,
-    NonIdentifiableWarning,
-    fit_brdf,
-    fit_measurements,
-    fit_wavelengths,
-    format_with_error,
-    spectral_table_entry,
-)
+from brdfcorr.fit.goniometer import *  # noqa: F403  (the names of goniometer.__all__: fit_brdf, FitResult, ...)
 from brdfcorr.fit.measurements import Measurements, read_measurements
 
-__all__ = [
-    "FitResult",
-    "FitWarning",
-    "NonIdentifiableWarning",
-    "fit_brdf",
-    "fit_measurements",
-    "fit_wavelengths",
-    "format_with_error",
-    "spectral_table_entry",
-    "fit_classes",
-    "ClassFitResult",
-    "Measurements",
-    "read_measurements",
-]
+__all__ = [*_goniometer.__all__, "fit_classes", "ClassFitResult", "Measurements", "read_measurements"]

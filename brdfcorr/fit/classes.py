@@ -294,7 +294,7 @@ def _suggest_model(report: ClassFit, model: Model, samples: tuple) -> None:
         fixed = report.fixed if name == model.name else None
         try:
             with np.errstate(all="ignore"):
-                scores[name] = median_r2(candidate, *samples, fixed=fixed, grid_points=SUGGEST_GRID)
+                scores[name] = median_r2(candidate, samples, fixed=fixed, grid_points=SUGGEST_GRID)
         except (ParameterError, np.linalg.LinAlgError, ValueError):
             continue  # a candidate that cannot be fitted here is no suggestion
     own = scores.pop(model.name, report.median_r2)

@@ -11,12 +11,14 @@ section 4: n, k and t1 trade off).
 The helpers that turn a model and a user's ``fixed``/``initial``/``bounds`` into a bounded problem
 (:func:`_free_parameters`) and that find starting values (:func:`_starting_points`) do not depend
 on where the measurements come from. The covariance, correlations and identifiability messages
-live in :mod:`brdfcorr.fit.identifiability`.
+live in :mod:`brdfcorr.fit.identifiability`; :class:`FitResult` and the parameter-table entries
+made from fits (:func:`spectral_table_entry`) in :mod:`brdfcorr.fit.results` (importable from here
+as well).
 
 References
 ----------
 .. [1] G. Meister, A. Rothkirch, H. Spitzer, J. Bienlein (2000): The shape of the specular peak of
-   rough surfaces. Int. Arch. ISPRS XXXIII (``seeds/003``), section 4, eq. 4 and Table 1.
+   rough surfaces. Int. Arch. ISPRS XXXIII, section 4, eq. 4 and Table 1.
 .. [2] S. Brandt (1992): Datenanalyse. BI-Wissenschaftsverlag, p. 276 (errors of a non-linear
    least-squares fit from the linearized model, i.e. the inverse of J^T W J).
 .. [3] W. H. Press et al. (2007): Numerical Recipes, 3rd ed., section 15.4-15.5 (chi^2 fitting,
@@ -29,22 +31,21 @@ import itertools
 import math
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
-from scipy.stats import chi2 as chi2_distribution
 
 from brdfcorr.errors import BrdfcorrWarning, FitError, ParameterError
 from brdfcorr.fit.identifiability import (
     CONDITION_LIMIT,  # noqa: F401  (importable from here as before the split)
     CORRELATION_LIMIT,
     correlation_matrix,
-    global_correlation,
     identifiability_messages,
     jacobian_covariance,
 )
 from brdfcorr.fit.measurements import Measurements, check_measurements
+from brdfcorr.fit.results import FitResult, format_with_error, spectral_table_entry
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model, get_model
 
@@ -81,188 +82,43 @@ class NonIdentifiableWarning(FitWarning):
 
 
 @dataclass(frozen=True, eq=False)
-class FitResult:
-    """The result of a least-squares BRDF model fit.
+class _Problem:
+    """The bounded weighted least-squares problem of :func:`fit_brdf`.
 
     Attributes
     ----------
     model : Model
-        The fitted registry model.
-    params : dict of str to float
-        All parameters in the model's signature order: fitted values and the fixed ones.
-    errors : dict of str to float
-        1-sigma errors of ``params`` from :attr:`covariance` (0.0 for fixed parameters, inf where
-        the covariance is singular). See :func:`fit_brdf` for how they are scaled.
-    free : tuple of str
-        Names of the fitted parameters: the order of the rows of :attr:`covariance`.
+        The registry model.
+    geometry : ScatteringGeometry
+        The measurements' geometry, computed once.
+    data : numpy.ndarray
+        Measured BRDF [sr^-1].
+    weights : numpy.ndarray
+        ``1 / sigma`` [sr] (ones for an unweighted fit [-]).
     fixed : dict of str to float
-        The parameters held fixed.
-    covariance : numpy.ndarray
-        Covariance matrix of the free parameters, shape ``(len(free), len(free))``, in the
-        parameters' units squared.
-    correlation : numpy.ndarray
-        Correlation matrix of the free parameters (``covariance`` normalized by its diagonal).
-    chi2 : float
-        ``sum(((measured - model) / sigma)^2)`` (paper 003, eq. 4); without sigma the plain sum of
-        squared residuals [sr^-2].
-    dof : int
-        Degrees of freedom: measurements minus free parameters.
-    residuals : numpy.ndarray
-        ``measured - model`` for every measurement [sr^-1].
-    sigma : numpy.ndarray or None
-        The measurement errors used as weights [sr^-1] (None for an unweighted fit).
-    errors_scaled : bool
-        Whether the covariance was multiplied by ``chi2 / dof``.
-    condition_number : float
-        Condition number of the Jacobian with unit-norm columns (1 is ideal; large values mean some
-        parameter combination is barely constrained).
-    at_bounds : tuple of str
-        Free parameters that ended on a bound (their errors are not meaningful).
-    n_starts : int
-        Number of starting points tried.
-    n_converged : int
-        Number of starts that reached the best chi^2 (within 1e-6 relative); a small fraction
-        means a multi-modal chi^2 surface.
-    r2 : float
-        Coefficient of determination of the measurements, ``1 - sum(r^2) / sum((f - mean f)^2)``
-        (unweighted; NaN when the measurements are all equal).
+        Values of the fixed parameters (validated).
+    free : tuple of str
+        Names of the free parameters in signature order.
+    lower, upper : numpy.ndarray
+        The optimizer's closed bounds of the free parameters.
     """
 
     model: Model
-    params: dict[str, float]
-    errors: dict[str, float]
-    free: tuple[str, ...]
+    geometry: ScatteringGeometry
+    data: np.ndarray
+    weights: np.ndarray
     fixed: dict[str, float]
-    covariance: np.ndarray
-    correlation: np.ndarray
-    chi2: float
-    dof: int
-    residuals: np.ndarray
-    sigma: np.ndarray | None
-    errors_scaled: bool
-    condition_number: float
-    at_bounds: tuple[str, ...] = ()
-    n_starts: int = 1
-    n_converged: int = 1
-    warnings: tuple[str, ...] = field(default=())
-    r2: float = math.nan
+    free: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
 
-    @property
-    def reduced_chi2(self) -> float:
-        """chi^2 per degree of freedom (the chi^2/d_f of paper 003, Table 1)."""
-        return self.chi2 / self.dof if self.dof > 0 else math.nan
-
-    @property
-    def n_measurements(self) -> int:
-        return self.residuals.size
-
-    @property
-    def p_value(self) -> float:
-        """Probability of a chi^2 at least this large if the model and the errors were right
-        (the chi^2 test of paper 003; NaN for an unweighted fit, whose chi^2 has units)."""
-        if self.sigma is None or self.dof <= 0:
-            return math.nan
-        return float(chi2_distribution.sf(self.chi2, self.dof))
-
-    @property
-    def pulls(self) -> np.ndarray:
-        """Residuals in units of their errors, ``(measured - model) / sigma`` [-]."""
-        return self.residuals if self.sigma is None else self.residuals / self.sigma
-
-    @property
-    def global_correlation(self) -> dict[str, float]:
-        """Each free parameter's global correlation coefficient with all the others [-]: 0 when it
-        is independent, 1 when the others can fully compensate a change of it (MINUIT's
-        ``sqrt(1 - 1 / (V_jj (V^-1)_jj))``)."""
-        if not np.all(np.isfinite(self.covariance)):
-            return {name: math.nan for name in self.free}
-        return dict(zip(self.free, map(float, global_correlation(self.covariance))))
-
-    def correlation_of(self, first: str, second: str) -> float:
-        """Correlation coefficient of two free parameters."""
-        return float(self.correlation[self.free.index(first), self.free.index(second)])
-
-    def predict(self, theta_i, theta_r, phi):
-        """The fitted model's BRDF [sr^-1] at the given angles [deg] (numpy, dask or xarray)."""
-        return self.model(theta_i, theta_r, phi, **self.params)
-
-    def table_entry(self, class_id: int, name: str, source: str | None = None) -> dict:
-        """The fit as one class of a parameter table (``docs/parameter-tables.md`` format), for
-        :meth:`brdfcorr.params.ParameterTable.with_class`; values as plain floats.
-
-        With ``source`` (what was fitted: the command and its input file) the entry carries the
-        ``fit:`` provenance block (:meth:`fit_record`), unless the covariance is singular.
-        """
-        entry = {
-            "id": int(class_id),
-            "name": str(name),
-            "model": self.model.name,
-            "params": {key: float(value) for key, value in self.params.items()},
-        }
-        record = None if source is None else self.fit_record(source)
-        if record is not None:
-            entry["fit"] = record
-        return entry
-
-    def fit_record(self, source: str) -> dict | None:
-        """The ``fit:`` block of a parameter table (:class:`brdfcorr.params.FitRecord`): the free
-        parameters, their covariance and 1-sigma errors, N, chi^2/dof and R^2. None when the
-        covariance is not finite (a singular Jacobian): a table holds numbers only."""
-        covariance = _symmetric(self.covariance)
-        if covariance is None:
-            return None
-        return {
-            "source": str(source),
-            "parameters": list(self.free),
-            "n": int(self.n_measurements),
-            "chi2_dof": float(self.reduced_chi2),
-            "r2": float(self.r2),
-            "errors": dict(zip(self.free, np.sqrt(np.diag(covariance)).tolist())),
-            "covariance": covariance.tolist(),
-        }
-
-    def summary(self) -> dict[str, str]:
-        """One row of a table like paper 003, Table 1: ``"value ± error"`` per parameter (with
-        units in the keys) and chi^2/dof."""
-        row = {}
-        for parameter in self.model.parameters:
-            name, value = parameter.name, self.params[parameter.name]
-            key = name if parameter.units == "1" else f"{name} [{parameter.units}]"
-            row[key] = (
-                f"{value:.4g} (fixed)" if name in self.fixed
-                else format_with_error(value, self.errors[name])
-            )
-        row["chi2/dof"] = f"{self.reduced_chi2:.3g}"
-        return row
-
-
-def _symmetric(covariance: np.ndarray) -> np.ndarray | None:
-    """A covariance made exactly symmetric for a table, or None if it is not finite or has a
-    negative variance."""
-    covariance = np.asarray(covariance, dtype=float)
-    if not np.all(np.isfinite(covariance)) or np.any(np.diag(covariance) < 0):
-        return None
-    return 0.5 * (covariance + covariance.T)
-
-
-def format_with_error(value: float, error: float) -> str:
-    """``value ± error`` with the error rounded to 1-2 significant digits and the value to match.
-
-    Two digits when the error's leading digit is 1 or 2 (0.0012, 0.25), one otherwise (0.0004,
-    0.3), the usual convention for quoting measurement errors.
-    """
-    if not math.isfinite(error) or error <= 0:
-        return f"{value:.4g} ± {error:g}"
-    mantissa, exponent = f"{error:.3e}".split("e")  # decimal digits, free of binary rounding
-    exponent = int(exponent)
-    digits = 2 if float(mantissa) < 3.0 else 1
-    decimals = -(exponent - digits + 1)
-    rounded = round(error, decimals)
-    if rounded >= 10 ** (exponent + 1) and digits == 1:  # 0.96 -> 1.0: keep one digit
-        decimals -= 1
-    if decimals > 0:
-        return f"{value:.{decimals}f} ± {error:.{decimals}f}"
-    return f"{round(value, decimals):.0f} ± {round(error, decimals):.0f}"
+    def weighted_residuals(self, x: np.ndarray) -> np.ndarray:
+        """``(model - measured) / sigma`` at the free parameter values ``x`` [-]; a huge finite
+        value where the model overflows, so that the optimizer can back off."""
+        with np.errstate(all="ignore"):
+            values = self.model.kernel(self.geometry, **self.fixed, **dict(zip(self.free, x)))
+            residuals = (np.asarray(values, dtype=float) - self.data) * self.weights
+        return np.where(np.isfinite(residuals), residuals, _NON_FINITE_RESIDUAL)
 
 
 def _scalar(value, what: str) -> float:
@@ -332,14 +188,17 @@ def _free_parameters(model: Model, fixed, initial, bounds):
     return fixed, free, np.array(lower), np.array(upper), initial
 
 
-def _starting_points(model, geometry, data, weights, fixed, free, lower, upper, initial):
+def _starting_points(problem: _Problem, initial: Mapping[str, float]) -> list[np.ndarray]:
     """Deterministic starting vectors for the non-linear fit.
 
-    Scale parameters (registry range open at 0: w, n, c, sigma) without a user starting value are
-    stepped over a multiplicative grid around their default (5 values for the first, 3 for the
-    others); for each grid point the parameters that enter linearly (t0, t1, a) are solved by
-    bounded linear least squares, so every start already matches the data's level and peak height.
+    Scale parameters (registry range open at 0: w, n, c, sigma) without a user starting value
+    (``initial``) are stepped over a multiplicative grid around their default (5 values for the
+    first, 3 for the others); for each grid point the parameters that enter linearly (t0, t1, a)
+    are solved by bounded linear least squares, so every start already matches the data's level
+    and peak height.
     """
+    model, geometry, data, weights = problem.model, problem.geometry, problem.data, problem.weights
+    fixed, free, lower, upper = problem.fixed, problem.free, problem.lower, problem.upper
     centre = {name: initial.get(name, model.parameter(name).default) for name in free}
     for index, name in enumerate(free):  # keep defaults strictly inside user-narrowed bounds
         if name not in initial and not lower[index] < centre[name] < upper[index]:
@@ -465,49 +324,18 @@ def fit_brdf(
     warns, these errors are rough for strongly non-linear parameters with large errors (n, k).
     """
     model = get_model(model)
-    theta_i, theta_r, phi, data, sigma = check_measurements(theta_i, theta_r, phi, brdf, sigma)
-    fixed, free, lower, upper, initial = _free_parameters(model, fixed, initial, bounds)
-    if data.size <= len(free):
-        raise FitError(
-            f"{model.name}: {data.size} measurements cannot determine {len(free)} free parameters "
-            f"({', '.join(free)}); at least {len(free) + 1} are needed"
-        )
-    geometry = ScatteringGeometry(theta_i, theta_r, phi)
-    weights = np.ones_like(data) if sigma is None else 1.0 / sigma
-
-    def weighted_residuals(x):
-        with np.errstate(all="ignore"):
-            values = model.kernel(geometry, **fixed, **dict(zip(free, x)))
-            residuals = (np.asarray(values, dtype=float) - data) * weights
-        return np.where(np.isfinite(residuals), residuals, _NON_FINITE_RESIDUAL)
-
-    starts = _starting_points(model, geometry, data, weights, fixed, free, lower, upper, initial)
+    problem, sigma, initial = _problem(model, (theta_i, theta_r, phi, brdf, sigma), fixed, initial, bounds)
+    data, free = problem.data, problem.free
+    starts = _starting_points(problem, initial)
     if initial:  # the user's start first, then the default grid: a poor guess cannot spoil the fit
-        starts += _starting_points(model, geometry, data, weights, fixed, free, lower, upper, {})
-    solutions = []
-    for start in starts:
-        try:
-            solution = least_squares(
-                weighted_residuals, start, bounds=(lower, upper), x_scale="jac", method="trf"
-            )
-        except (ValueError, np.linalg.LinAlgError):  # a start where the model is not finite
-            continue
-        if solution.status > 0 and np.isfinite(solution.cost):
-            solutions.append(solution)
-    if not solutions:
-        raise FitError(f"{model.name}: the fit did not converge from any of {len(starts)} starts")
-    best = min(solutions, key=lambda solution: solution.cost)
-    n_converged = sum(
-        solution.cost <= best.cost * (1 + 1e-6) + 1e-300 for solution in solutions
-    )
+        starts += _starting_points(problem, {})
+    best, n_converged = _best_solution(problem, starts)
 
     values = dict(zip(free, map(float, best.x)))
-    model_values = np.asarray(model.kernel(geometry, **fixed, **values), dtype=float)
+    model_values = np.asarray(model.kernel(problem.geometry, **problem.fixed, **values), dtype=float)
     residuals = data - model_values
-    chi2 = float(np.sum((residuals * weights) ** 2))
+    chi2, r2 = _goodness(data, residuals, problem.weights)
     dof = data.size - len(free)
-    spread = float(np.sum((data - data.mean()) ** 2))
-    r2 = 1.0 - float(np.sum(residuals**2)) / spread if spread > 0 else math.nan
     covariance, condition_number = jacobian_covariance(best.jac)
     if scale_errors is None:
         scale_errors = sigma is None
@@ -516,32 +344,15 @@ def fit_brdf(
     correlation = correlation_matrix(covariance)
     deviations = np.sqrt(np.diag(covariance))
 
-    messages = identifiability_messages(
-        model, free, values, covariance, condition_number, correlation_limit
-    )
-    for message in messages:
-        warnings.warn(message, NonIdentifiableWarning, stacklevel=2)
-    at_bounds = tuple(name for name, active in zip(free, best.active_mask) if active != 0)
-    if at_bounds:
-        message = (
-            f"{model.name}: parameter(s) {', '.join(at_bounds)} ended on a bound "
-            f"({', '.join(f'{name} = {values[name]:.4g}' for name in at_bounds)}); "
-            "their errors are not meaningful"
-        )
-        messages.append(message)
-        warnings.warn(message, FitWarning, stacklevel=2)
-
-    all_values = {name: values.get(name, fixed.get(name)) for name in model.parameter_names}
-    errors = {
-        name: float(deviations[free.index(name)]) if name in values else 0.0
-        for name in model.parameter_names
-    }
+    messages, at_bounds = _fit_warnings(problem, values, best.active_mask, covariance, condition_number,
+                                        correlation_limit)
+    all_values, errors = _parameter_values(problem, values, deviations)
     return FitResult(
         model=model,
         params=all_values,
         errors=errors,
         free=free,
-        fixed=fixed,
+        fixed=problem.fixed,
         covariance=covariance,
         correlation=correlation,
         chi2=chi2,
@@ -552,10 +363,103 @@ def fit_brdf(
         condition_number=condition_number,
         at_bounds=at_bounds,
         n_starts=len(starts),
-        n_converged=int(n_converged),
+        n_converged=n_converged,
         warnings=tuple(messages),
         r2=r2,
     )
+
+
+def _problem(model: Model, measurements: tuple, fixed, initial, bounds):
+    """The least-squares problem of :func:`fit_brdf` from its arguments.
+
+    ``measurements`` are (theta_i, theta_r, phi [deg], brdf, sigma [sr^-1] or None), checked by
+    :func:`~brdfcorr.fit.measurements.check_measurements`; ``fixed``, ``initial`` and ``bounds`` as
+    for :func:`fit_brdf` (:func:`_free_parameters`). Returns the :class:`_Problem`, the checked
+    sigma (None: unweighted) and the user's starting values (a dict). Raises :class:`FitError`
+    when there are not more measurements than free parameters.
+    """
+    theta_i, theta_r, phi, data, sigma = check_measurements(*measurements)
+    fixed, free, lower, upper, initial = _free_parameters(model, fixed, initial, bounds)
+    if data.size <= len(free):
+        raise FitError(
+            f"{model.name}: {data.size} measurements cannot determine {len(free)} free parameters "
+            f"({', '.join(free)}); at least {len(free) + 1} are needed"
+        )
+    weights = np.ones_like(data) if sigma is None else 1.0 / sigma
+    problem = _Problem(model, ScatteringGeometry(theta_i, theta_r, phi), data, weights, fixed, free, lower, upper)
+    return problem, sigma, initial
+
+
+def _best_solution(problem: _Problem, starts: list[np.ndarray]):
+    """Least squares (trust-region reflective, within the bounds) from every start.
+
+    Returns the solution with the lowest cost (:class:`scipy.optimize.OptimizeResult`) and how many
+    starts reached it (within 1e-6 relative). Raises :class:`FitError` when none converged.
+    """
+    solutions = []
+    for start in starts:
+        try:
+            solution = least_squares(
+                problem.weighted_residuals, start, bounds=(problem.lower, problem.upper), x_scale="jac",
+                method="trf",
+            )
+        except (ValueError, np.linalg.LinAlgError):  # a start where the model is not finite
+            continue
+        if solution.status > 0 and np.isfinite(solution.cost):
+            solutions.append(solution)
+    if not solutions:
+        raise FitError(f"{problem.model.name}: the fit did not converge from any of {len(starts)} starts")
+    best = min(solutions, key=lambda solution: solution.cost)
+    n_converged = sum(
+        solution.cost <= best.cost * (1 + 1e-6) + 1e-300 for solution in solutions
+    )
+    return best, int(n_converged)
+
+
+def _goodness(data: np.ndarray, residuals: np.ndarray, weights: np.ndarray) -> tuple[float, float]:
+    """chi^2 ``sum((residuals * weights)^2)`` ([-]; [sr^-2] with unit weights) and the unweighted
+    R^2 of the measurements (NaN when they are all equal)."""
+    chi2 = float(np.sum((residuals * weights) ** 2))
+    spread = float(np.sum((data - data.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(residuals**2)) / spread if spread > 0 else math.nan
+    return chi2, r2
+
+
+def _parameter_values(problem: _Problem, values: Mapping[str, float], deviations: np.ndarray):
+    """All parameters in the model's signature order, the fitted ``values`` and the fixed ones, and
+    their 1-sigma errors (``deviations`` of the free parameters, 0.0 for the fixed ones): two dicts."""
+    names = problem.model.parameter_names
+    params = {name: values.get(name, problem.fixed.get(name)) for name in names}
+    errors = {
+        name: float(deviations[problem.free.index(name)]) if name in values else 0.0
+        for name in names
+    }
+    return params, errors
+
+
+def _fit_warnings(problem: _Problem, values, active_mask, covariance, condition_number, correlation_limit):
+    """Warn, as from the caller of :func:`fit_brdf`, with :class:`NonIdentifiableWarning` for what
+    the measurements cannot separate (:func:`~brdfcorr.fit.identifiability.identifiability_messages`
+    of the ``covariance`` and ``condition_number`` at the fitted ``values``, ``correlation_limit``)
+    and with :class:`FitWarning` for free parameters that ended on a bound (``active_mask`` of the
+    solution). Returns the messages (a list) and the parameters at a bound (a tuple).
+    """
+    model, free = problem.model, problem.free
+    messages = identifiability_messages(
+        model, free, values, covariance, condition_number, correlation_limit
+    )
+    for message in messages:
+        warnings.warn(message, NonIdentifiableWarning, stacklevel=3)
+    at_bounds = tuple(name for name, active in zip(free, active_mask) if active != 0)
+    if at_bounds:
+        message = (
+            f"{model.name}: parameter(s) {', '.join(at_bounds)} ended on a bound "
+            f"({', '.join(f'{name} = {values[name]:.4g}' for name in at_bounds)}); "
+            "their errors are not meaningful"
+        )
+        messages.append(message)
+        warnings.warn(message, FitWarning, stacklevel=3)
+    return messages, at_bounds
 
 
 def fit_measurements(model, measurements: Measurements, **kwargs) -> FitResult:
@@ -600,47 +504,3 @@ def fit_wavelengths(model, measurements: Measurements, **kwargs) -> dict[float, 
             warnings.warn(f"{wavelength:g} nm: {warning.message}", warning.category, stacklevel=2)
     return results
 
-
-def spectral_table_entry(
-    results: Mapping[float, FitResult], class_id: int, name: str, source: str | None = None
-) -> dict:
-    """Fits at several wavelengths as one class of a parameter table (``docs/parameter-tables.md`` format).
-
-    Parameters with the same value at every wavelength (the fixed ones) are written as a scalar,
-    the others as a list with ``wavelengths`` [nm], which :class:`brdfcorr.params.ParameterTable`
-    interpolates linearly to an image's band centres. A single wavelength gives scalars (no
-    ``wavelengths``): the paper-003 practice of one fit (550 nm) for every band.
-
-    With ``source`` the entry carries the ``fit:`` block (:meth:`FitResult.fit_record`): one
-    covariance matrix, N, chi^2/dof and R^2 per wavelength; none if a covariance is singular.
-    """
-    wavelengths = sorted(results)
-    if not wavelengths:
-        raise FitError("no fits to put into a parameter table")
-    models = {results[wavelength].model.name for wavelength in wavelengths}
-    if len(models) > 1:
-        raise FitError(f"fits of different models ({', '.join(sorted(models))}) cannot form one class")
-    if len(wavelengths) == 1:
-        return results[wavelengths[0]].table_entry(class_id, name, source)
-    first = results[wavelengths[0]]
-    params = {}
-    for parameter in first.model.parameter_names:
-        values = [float(results[wavelength].params[parameter]) for wavelength in wavelengths]
-        params[parameter] = values[0] if len(set(values)) == 1 else values
-    entry = {
-        "id": int(class_id),
-        "name": str(name),
-        "model": first.model.name,
-        "wavelengths": [float(wavelength) for wavelength in wavelengths],
-        "params": params,
-    }
-    records = [] if source is None else [results[wavelength].fit_record(source) for wavelength in wavelengths]
-    if records and all(record is not None for record in records):
-        entry["fit"] = {
-            "source": str(source),
-            "parameters": list(first.free),
-            **{key: [record[key] for record in records] for key in ("n", "chi2_dof", "r2")},
-            "errors": {name: [record["errors"][name] for record in records] for name in first.free},
-            "covariance": [record["covariance"] for record in records],
-        }
-    return entry

@@ -29,7 +29,7 @@ all offending rows of a column at once, by their line number in the file, in a s
 References
 ----------
 .. [1] G. Meister, A. Rothkirch, H. Spitzer, J. Bienlein (2000): The shape of the specular peak of
-   rough surfaces. Int. Arch. ISPRS XXXIII (``seeds/003``): 122-145 EGO goniometer measurements a
+   rough surfaces. Int. Arch. ISPRS XXXIII: 122-145 EGO goniometer measurements a
    sample at theta_i = 30, 50, 65 deg, principal plane and azimuthal cuts, relative azimuth >= 90
    deg fitted, total errors 4-15 %.
 """

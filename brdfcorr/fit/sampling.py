@@ -37,6 +37,26 @@ def _as_list(value) -> list:
     return list(value) if isinstance(value, (list, tuple)) else [value]
 
 
+def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int) -> tuple:
+    """The samples of one scene (number ``scene``) at the flat pixel indices ``flat`` of its class
+    map (of ``shape`` (y, x)): sun zenith, view zenith and relative azimuth [deg], BRDF (N, B)
+    [sr^-1], and the id of each sample's spatial block of ``block_size`` pixels (unique over the
+    scenes). Stored values times ``reflectance_scale`` are reflectance factors."""
+    iy, ix = np.unravel_index(flat, shape)
+    where = {"y": xr.DataArray(iy, dims="sample"), "x": xr.DataArray(ix, dims="sample")}
+
+    def pick(array):
+        # Pointwise (vectorized) indexing: lazy on dask, reads only the sampled pixels.
+        return np.asarray(array.isel(where).values, dtype=float)
+
+    reflectance = pick(image.transpose("band", "y", "x")).T * reflectance_scale
+    saa, vaa = pick(angle_set["saa"]), pick(angle_set["vaa"])
+    blocks_x = -(-shape[1] // block_size)
+    block = (scene, iy // block_size, ix // block_size)
+    return (pick(angle_set["sza"]), pick(angle_set["vza"]), relative_azimuth(saa, vaa), reflectance / math.pi,
+            (block[0] * 10**9 + block[1] * blocks_x + block[2]).astype(np.int64))
+
+
 def sample_classes(
     images,
     classes,
@@ -107,23 +127,9 @@ def sample_classes(
         parts = []
         for scene, (image, angle_set) in enumerate(zip(images, angles)):
             flat = candidates[scene][chosen[scene_of == scene] - offsets[scene]]
-            if flat.size == 0:
-                continue
-            iy, ix = np.unravel_index(flat, maps[scene].shape)
-            where = {"y": xr.DataArray(iy, dims="sample"), "x": xr.DataArray(ix, dims="sample")}
-
-            def pick(array):
-                # Pointwise (vectorized) indexing: lazy on dask, reads only the sampled pixels.
-                return np.asarray(array.isel(where).values, dtype=float)
-
-            reflectance = pick(image.transpose("band", "y", "x")).T * reflectance_scale
-            saa, vaa = pick(angle_set["saa"]), pick(angle_set["vaa"])
-            blocks_x = -(-maps[scene].shape[1] // block_size)
-            block = (scene, iy // block_size, ix // block_size)
-            parts.append(
-                (pick(angle_set["sza"]), pick(angle_set["vza"]), relative_azimuth(saa, vaa), reflectance / math.pi,
-                 (block[0] * 10**9 + block[1] * blocks_x + block[2]).astype(np.int64))
-            )
+            if flat.size:
+                parts.append(_scene_samples(scene, image, angle_set, maps[scene].shape, flat, reflectance_scale,
+                                            block_size))
         if not parts:
             n_bands = images[0].sizes["band"]
             pooled[class_id] = ClassSamples(

@@ -1,6 +1,7 @@
-"""Reading and writing: rasters through rioxarray/rasterio (:mod:`brdfcorr.io.rasters`), GeoTIFF
-output (:mod:`brdfcorr.io.writer`), atomic output files and safe YAML (:mod:`brdfcorr.io.files`),
-and sun/view angles as sensor products deliver them (:mod:`brdfcorr.io.sensors`).
+"""Reading and writing: images and class maps (:mod:`.rasters`), angle rasters (:mod:`.angles`),
+band centres (:mod:`.wavelengths`), the grid check (:mod:`.grid`), a whole scene (:mod:`.scene`),
+GeoTIFF and ENVI output (:mod:`.writer`), atomic output files and safe YAML (:mod:`.files`), the
+output guard (:mod:`.paths`), and what sensor products deliver (:mod:`.sensors`).
 
 The raster functions are imported on first use (``brdfcorr.io.open_image``): rasterio and
 rioxarray take a while to load, and parameter tables and configs need only :mod:`.files`.
@@ -8,7 +9,14 @@ rioxarray take a while to load, and parameter tables and configs need only :mod:
 
 import importlib
 
-__all__ = ["open_angles", "open_classes", "open_image", "open_scene", "write_rasters"]
+#: The public face of the package, imported on first use: name -> module.
+_PUBLIC = {
+    "open_image": "rasters", "open_classes": "rasters", "check_reflectance_scale": "rasters",
+    "auto_chunk": "rasters", "open_angles": "angles", "check_angles": "angles", "ANGLE_NAMES": "angles",
+    "open_scene": "scene", "SceneSources": "scene", "check_same_grid": "grid", "open_layer": "opening",
+    "band_wavelengths": "wavelengths", "parse_wavelength": "wavelengths", "write_rasters": "writer",
+}
+__all__ = list(_PUBLIC)
 
 #: Lossless GeoTIFF compressions for reflectance (GDAL names, lower case; the CLI's choices).
 COMPRESSIONS = ("deflate", "lzw", "zstd", "none")
@@ -19,8 +27,6 @@ EXTENSIONS = {"GTiff": (".tif", ".tiff"), "ENVI": (".img", ".bsq", ".bil", ".dat
 
 
 def __getattr__(name: str):
-    if name in __all__:
-        module = {"write_rasters": "brdfcorr.io.writer", "open_scene": "brdfcorr.io.scene"}.get(
-            name, "brdfcorr.io.rasters")
-        return getattr(importlib.import_module(module), name)
+    if name in _PUBLIC:
+        return getattr(importlib.import_module(f"brdfcorr.io.{_PUBLIC[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,15 +11,9 @@ from typing import NamedTuple
 import xarray as xr
 
 from brdfcorr.errors import InputError
-from brdfcorr.io.rasters import (
-    ANGLE_NAMES,
-    AngleStatistics,
-    check_angles,
-    check_same_grid,
-    open_angles,
-    open_classes,
-    open_image,
-)
+from brdfcorr.io.angles import ANGLE_NAMES, AngleStatistics, check_angles, open_angles
+from brdfcorr.io.grid import check_same_grid
+from brdfcorr.io.rasters import open_classes, open_image
 
 __all__ = ["SceneSources", "SceneData", "open_scene"]
 
@@ -95,14 +89,14 @@ def open_scene(sources: SceneSources, *, chunks=None,
         e.g. :func:`brdfcorr.strata.align_class_map` to bring a land-cover map on another grid onto
         the image's (an opt-in: by default a class map on another grid is an error).
     scheduler, num_workers : optional
-        As for :func:`brdfcorr.io.rasters.check_angles`.
+        As for :func:`brdfcorr.io.angles.check_angles`.
 
     Returns
     -------
     SceneData
         Reflectance (band, y, x), class map (y, x) and the angle layers by name, all on one grid
-        (:func:`brdfcorr.io.rasters.check_same_grid`) and with angles in degrees
-        (:func:`brdfcorr.io.rasters.check_angles`, the one pass over the angle data before the
+        (:func:`brdfcorr.io.grid.check_same_grid`) and with angles in degrees
+        (:func:`brdfcorr.io.angles.check_angles`, the one pass over the angle data before the
         correction), with the angle statistics of that pass.
     """
     reflectance = open_image(sources.image, chunks=chunks, wavelengths=sources.wavelengths, scale=sources.scale,

@@ -3,7 +3,7 @@
 References
 ----------
 .. [1] G. Meister, R. Wiemker, R. Monno, H. Spitzer, A. Strahler (1998): Investigation on the
-   Torrance-Sparrow specular BRDF model. Proc. IGARSS'98, IV, 2095-2097 (``seeds/000``).
+   Torrance-Sparrow specular BRDF model. Proc. IGARSS'98, IV, 2095-2097.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from brdfcorr.geometry import ScatteringGeometry
+from brdfcorr.geometry import ScatteringGeometry, _fill_doc
 from brdfcorr.models._base import MAX_INTENSITY, Model, Parameter
 
 __all__ = ["empirical", "specular_peak", "lambertian", "EMPIRICAL", "SPECULAR_PEAK", "LAMBERTIAN"]
@@ -58,15 +58,13 @@ EMPIRICAL = Model(
 )
 
 
+@_fill_doc
 def empirical(theta_i, theta_r, phi, a, b, c, t0=0.0):
     """Empirical specular-peak BRDF of paper 000 (eq. 5), plus an optional Lambertian term.
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
-    phi : array-like
-        Relative azimuth [deg], in [0, 180]; 180 is forward scattering.
+    %(angles)s
     a : array-like
         Intensity of the peak [sr^-1], >= 0.
     b : array-like
@@ -113,15 +111,13 @@ SPECULAR_PEAK = Model(
 )
 
 
+@_fill_doc
 def specular_peak(theta_i, theta_r, phi, sigma):
     """Gaussian approximation of a perfect specular peak (paper 000, eq. 3), reciprocal form.
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
-    phi : array-like
-        Relative azimuth [deg], in [0, 180]; 180 is forward scattering.
+    %(angles)s
     sigma : array-like
         Standard deviation of the Gaussian in the specular deviation psi [deg], > 0. Paper 000
         used 0.07 deg (and 0.03 deg for its smoothest surface) as the facet BRDF of its V-cavity

@@ -50,7 +50,7 @@ import numpy as np
 
 from brdfcorr._arrays import TINY, array_function, cosd, sind
 from brdfcorr.errors import ParameterError, UnknownNameError
-from brdfcorr.geometry import ScatteringGeometry
+from brdfcorr.geometry import ScatteringGeometry, _fill_doc
 from brdfcorr.models._base import MAX_INTENSITY, Model, Parameter
 
 __all__ = [
@@ -213,21 +213,20 @@ def _li_shape(function: str, b_r, h_b) -> tuple[float, float]:
 
 
 @array_function("K_vol", "1", "Ross-Thick volume-scattering kernel")
+@_fill_doc
 def ross_thick(theta_i, theta_r, phi):
     """Ross-Thick volume-scattering kernel (MODIS normalization).
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
+    %(zeniths)s
     phi : array-like
         Relative azimuth [deg], in [0, 180]; 0 is backscattering (hot spot at ``theta_r =
         theta_i, phi = 0``), 180 forward scattering.
 
     Returns
     -------
-    K : array-like
-        Kernel value [-], same kind as the inputs; 0 at ``ti = tv = 0``.
+    %(kernel_value)s
 
     Notes
     -----
@@ -252,20 +251,17 @@ def ross_thick(theta_i, theta_r, phi):
 
 
 @array_function("K_vol", "1", "Ross-Thin volume-scattering kernel")
+@_fill_doc
 def ross_thin(theta_i, theta_r, phi):
     """Ross-Thin volume-scattering kernel (MODIS normalization).
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
-    phi : array-like
-        Relative azimuth [deg], in [0, 180]; 0 is backscattering, 180 forward scattering.
+    %(angles_backscattering)s
 
     Returns
     -------
-    K : array-like
-        Kernel value [-], same kind as the inputs; 0 at ``ti = tv = 0``.
+    %(kernel_value)s
 
     Notes
     -----
@@ -280,15 +276,13 @@ def ross_thin(theta_i, theta_r, phi):
 
 
 @array_function("K_geo", "1", "Li-Sparse-Reciprocal geometric-optical kernel")
+@_fill_doc
 def li_sparse(theta_i, theta_r, phi, *, b_r=LI_SPARSE_SHAPE["b_r"], h_b=LI_SPARSE_SHAPE["h_b"]):
     """Li-Sparse-Reciprocal geometric-optical kernel (MODIS normalization).
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
-    phi : array-like
-        Relative azimuth [deg], in [0, 180]; 0 is backscattering, 180 forward scattering.
+    %(angles_backscattering)s
     b_r, h_b : float, keyword-only
         Crown shape (vertical / horizontal radius) and relative height of the crown centres
         (height / vertical radius), > 0. The defaults are MODIS's, b/r = 1 and h/b = 2 [1]_; the
@@ -296,8 +290,7 @@ def li_sparse(theta_i, theta_r, phi, *, b_r=LI_SPARSE_SHAPE["b_r"], h_b=LI_SPARS
 
     Returns
     -------
-    K : array-like
-        Kernel value [-], same kind as the inputs; 0 at ``ti = tv = 0``.
+    %(kernel_value)s
 
     Notes
     -----
@@ -322,23 +315,20 @@ def li_sparse(theta_i, theta_r, phi, *, b_r=LI_SPARSE_SHAPE["b_r"], h_b=LI_SPARS
 
 
 @array_function("K_geo", "1", "Li-Dense-Reciprocal geometric-optical kernel")
+@_fill_doc
 def li_dense(theta_i, theta_r, phi, *, b_r=LI_DENSE_SHAPE["b_r"], h_b=LI_DENSE_SHAPE["h_b"]):
     """Li-Dense-Reciprocal geometric-optical kernel (MODIS normalization).
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
-    phi : array-like
-        Relative azimuth [deg], in [0, 180]; 0 is backscattering, 180 forward scattering.
+    %(angles_backscattering)s
     b_r, h_b : float, keyword-only
         Crown shape and relative height, > 0. The defaults are the MODIS Li-Dense values,
         b/r = 2.5 (prolate crowns) and h/b = 2 [2]_; the registered models use these.
 
     Returns
     -------
-    K : array-like
-        Kernel value [-], same kind as the inputs; 0 at ``ti = tv = 0``.
+    %(kernel_value)s
 
     Notes
     -----
@@ -429,13 +419,13 @@ KERNEL_DRIVEN_MODELS: dict[tuple[str, str], Model] = {
 }
 
 
+@_fill_doc
 def kernel_driven(theta_i, theta_r, phi, f_iso, f_vol, f_geo, volume="ross_thick", geometric="li_sparse"):
     """Kernel-driven (Ross-Li) BRDF ``f_iso + f_vol K_vol + f_geo K_geo``.
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
+    %(zeniths)s
     phi : array-like
         Relative azimuth [deg], in [0, 180]; 0 is backscattering (the hot spot is at
         ``theta_r = theta_i, phi = 0``, as in the kernel literature), 180 forward scattering.
@@ -452,8 +442,7 @@ def kernel_driven(theta_i, theta_r, phi, f_iso, f_vol, f_geo, volume="ross_thick
 
     Returns
     -------
-    brdf : array-like
-        BRDF [sr^-1], same kind as the inputs (numpy, lazy dask, or xarray with broadcast dims).
+    %(brdf)s
 
     Raises
     ------

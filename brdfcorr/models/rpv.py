@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from brdfcorr._arrays import TINY
-from brdfcorr.geometry import ScatteringGeometry
+from brdfcorr.geometry import ScatteringGeometry, _fill_doc
 from brdfcorr.models._base import MAX_INTENSITY, Model, Parameter
 from brdfcorr.models.kernels import _angles
 
@@ -41,7 +41,7 @@ __all__ = ["rpv", "RPV"]
 # 1 / (cos ti cos tv (cos ti + cos tv)) < 1e47, the Henyey-Greenstein term at most
 # 2 / (1 - |theta|)^2 < 2e32 for |theta| < 1 (0 at |theta| = 1), the hot-spot term 2; with
 # rho0 <= MAX_INTENSITY the model stays below 1e83 in float64 (a float32 correction flags the
-# overflow of such extreme parameters as nodata, brdfcorr.correct).
+# overflow of such extreme parameters as nodata, brdfcorr.correction).
 RHO0 = Parameter(
     "rho0", "sr^-1", 0.03, 0.0, MAX_INTENSITY,
     description="amplitude; the RPV reflectance-factor amplitude rho_0 divided by pi",
@@ -109,13 +109,13 @@ RPV = Model(
 )
 
 
+@_fill_doc
 def rpv(theta_i, theta_r, phi, rho0, k, theta, rho_c):
     """Rahman-Pinty-Verstraete BRDF with a separate hot-spot parameter.
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
+    %(zeniths)s
     phi : array-like
         Relative azimuth [deg], in [0, 180]; 0 is backscattering (the hot spot is at
         ``theta_r = theta_i, phi = 0``), 180 forward scattering.
@@ -140,8 +140,7 @@ def rpv(theta_i, theta_r, phi, rho0, k, theta, rho_c):
 
     Returns
     -------
-    brdf : array-like
-        BRDF [sr^-1], same kind as the inputs (numpy, lazy dask, or xarray with broadcast dims).
+    %(brdf)s
 
     Raises
     ------

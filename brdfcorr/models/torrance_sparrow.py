@@ -5,7 +5,7 @@ References
 .. [1] K. Torrance, E. Sparrow (1967): Theory for off-specular reflection from roughened surfaces.
    J. Opt. Soc. Am. 57(9), 1105-1114.
 .. [2] G. Meister, A. Rothkirch, H. Spitzer, J. Bienlein (2000): The shape of the specular peak of
-   rough surfaces. Int. Arch. ISPRS XXXIII (``seeds/003``).
+   rough surfaces. Int. Arch. ISPRS XXXIII.
 .. [3] J. F. Blinn (1977): Models of light reflection for computer synthesized pictures.
    SIGGRAPH '77, 192-198 (closed form of the V-cavity attenuation of [1]_ in three dimensions).
 .. [4] M. Born, E. Wolf: Principles of Optics, section 14.2 (reflection at an absorbing medium).
@@ -13,12 +13,13 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 from brdfcorr._arrays import TINY, array_function
-from brdfcorr.geometry import ScatteringGeometry
+from brdfcorr.geometry import ScatteringGeometry, _fill_doc
 from brdfcorr.models._base import MAX_INTENSITY, Model, Parameter
 
 __all__ = [
@@ -109,15 +110,13 @@ def fresnel(cos_local, n, k=0.0):
 
 
 @array_function("G", "1", "geometric attenuation factor (V-cavity masking/shadowing)")
+@_fill_doc
 def geometric_attenuation(theta_i, theta_r, phi):
     """Torrance-Sparrow geometric attenuation factor G of symmetric V-cavities, in 3-D.
 
     Parameters
     ----------
-    theta_i, theta_r : array-like
-        Solar and view zenith angles [deg], in [0, 90).
-    phi : array-like
-        Relative azimuth [deg], in [0, 180]; 180 is forward scattering.
+    %(angles)s
 
     Returns
     -------
@@ -151,40 +150,39 @@ def _specular_term(geometry: ScatteringGeometry, w, n, k, *, shadowing: bool = T
     return specular / (geometry.cos_i * geometry.cos_r)
 
 
-def _ts_kernel(geometry: ScatteringGeometry, t0, t1, w, n, k, *, shadowing: bool = True):
+def _ts_kernel(geometry: ScatteringGeometry, t0, t1, w, n, k, *, shadowing: bool):
     return t0 + t1 * _specular_term(geometry, w, n, k, shadowing=shadowing)
 
 
-def _ts_basis(geometry: ScatteringGeometry, w, n, k):
-    return 1.0, _specular_term(geometry, w, n, k)
+def _ts_basis(geometry: ScatteringGeometry, w, n, k, *, shadowing: bool):
+    return 1.0, _specular_term(geometry, w, n, k, shadowing=shadowing)
 
 
-def _ts_simplified_kernel(geometry: ScatteringGeometry, t0, t1, w, n, k):
-    return _ts_kernel(geometry, t0, t1, w, n, k, shadowing=False)
+def _ts_model(name: str, description: str, reference: str, *, shadowing: bool) -> Model:
+    """The Torrance-Sparrow model with or without the masking/shadowing factor G."""
+    return Model(
+        name=name,
+        description=description,
+        reference=reference,
+        parameters=TS_PARAMETERS,
+        kernel=functools.partial(_ts_kernel, shadowing=shadowing),
+        linear=("t0", "t1"),
+        basis=functools.partial(_ts_basis, shadowing=shadowing),
+    )
 
 
-def _ts_simplified_basis(geometry: ScatteringGeometry, w, n, k):
-    return 1.0, _specular_term(geometry, w, n, k, shadowing=False)
-
-
-TORRANCE_SPARROW = Model(
-    name="torrance_sparrow",
-    description="Torrance-Sparrow: Lambertian + specular peak with Fresnel and V-cavity masking/shadowing",
-    reference="Meister et al. (2000), eq. 1; Torrance & Sparrow (1967)",
-    parameters=TS_PARAMETERS,
-    kernel=_ts_kernel,
-    linear=("t0", "t1"),
-    basis=_ts_basis,
+TORRANCE_SPARROW = _ts_model(
+    "torrance_sparrow",
+    "Torrance-Sparrow: Lambertian + specular peak with Fresnel and V-cavity masking/shadowing",
+    "Meister et al. (2000), eq. 1; Torrance & Sparrow (1967)",
+    shadowing=True,
 )
 
-TORRANCE_SPARROW_SIMPLIFIED = Model(
-    name="torrance_sparrow_simplified",
-    description="simplified Torrance-Sparrow (G = 1): no masking/shadowing; safe for zeniths <= 70 deg",
-    reference="Meister et al. (2000), section 5",
-    parameters=TS_PARAMETERS,
-    kernel=_ts_simplified_kernel,
-    linear=("t0", "t1"),
-    basis=_ts_simplified_basis,
+TORRANCE_SPARROW_SIMPLIFIED = _ts_model(
+    "torrance_sparrow_simplified",
+    "simplified Torrance-Sparrow (G = 1): no masking/shadowing; safe for zeniths <= 70 deg",
+    "Meister et al. (2000), section 5",
+    shadowing=False,
 )
 
 

@@ -7,7 +7,7 @@ line; measurements that were not fitted (e.g. phi < 90 deg, as in paper 003) can
 References
 ----------
 .. [1] G. Meister, A. Rothkirch, H. Spitzer, J. Bienlein (2000): The shape of the specular peak of
-   rough surfaces. Int. Arch. ISPRS XXXIII (``seeds/003``), figs. 2 and 3.
+   rough surfaces. Int. Arch. ISPRS XXXIII, figs. 2 and 3.
 """
 
 from __future__ import annotations

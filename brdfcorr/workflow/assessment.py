@@ -35,6 +35,7 @@ from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
 from brdfcorr.io.files import atomic_path
+from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scene import SceneSources, open_scene
 from brdfcorr.workflow.classmaps import class_preparation
 
@@ -132,7 +133,7 @@ def assess_files(
                               align_classes=align_classes, class_lookup=class_lookup, scale=scale, offset=offset,
                               chunks=chunks, scheduler=scheduler, num_workers=num_workers)
     corrected = rasters.open_image(after, chunks=chunks)
-    rasters.check_same_grid({"before": scene.reflectance, "after": corrected})
+    check_same_grid({"before": scene.reflectance, "after": corrected})
     if corrected.shape != scene.reflectance.shape:
         raise InputError(f"{after} has {corrected.shape[0]} bands, {before} has {scene.reflectance.shape[0]}")
     layers = scene.angles

@@ -237,7 +237,7 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
     -------
     dict
         :func:`~brdfcorr.workflow.report.scene_result`: ``scene``, ``status`` (``ok``,
-        ``failed``), ``outputs``, ``qa`` (pixel counts of :func:`brdfcorr.correct.qa_counts`),
+        ``failed``), ``outputs``, ``qa`` (pixel counts of :func:`brdfcorr.correction.qa_counts`),
         ``reference``, ``topographic`` (with ``steps.correct.terrain``), ``assess`` (with
         ``steps.assess``, :func:`~brdfcorr.workflow.report.assessment_summary`), ``seconds`` (per
         step) and, on failure, ``error`` and ``error_type``.

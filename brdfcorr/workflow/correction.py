@@ -20,30 +20,17 @@ import rasterio
 import xarray as xr
 
 from brdfcorr import __version__
-from brdfcorr.correct import (
-    QA_FACING_AWAY,
-    QA_LIMITED,
-    QA_NODATA,
-    QA_TOPOGRAPHY_UNCORRECTED,
-    describe_limits,
-    normalize,
-    qa_counts,
-    resolve_reference,
-)
+from brdfcorr.correction import QA, describe_limits, normalize, qa_counts, resolve_reference
+from brdfcorr.correction.terrain import SlopeAspect, slope_aspect, slope_aspect_layers
+from brdfcorr.correction.topographic import frame_conflict, topographic_correction
+from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import rasters, writer
+from brdfcorr.io.grid import check_same_grid
+from brdfcorr.io.opening import open_layer
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.scene import SceneData, open_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
-from brdfcorr.terrain import SlopeAspect, slope_aspect, slope_aspect_layers
-from brdfcorr.topographic import (
-    TOPO_QA_FIT_REJECTED,
-    TOPO_QA_LIMITED,
-    TOPO_QA_SHADOWED,
-    frame_conflict,
-    topographic_correction,
-)
-from brdfcorr.uncertainty import correction_uncertainty
 from brdfcorr.workflow.classmaps import class_preparation, describe_class_map
 from brdfcorr.workflow.request import CorrectionRequest
 
@@ -63,9 +50,9 @@ class Terrain:
         file (its bands "Slope" and "Aspect", :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`).
     dem : path-like, optional
         Or a DEM/DSM [m] on the image grid in a projected CRS: slope and aspect by Horn's
-        differences (:func:`brdfcorr.terrain.slope_aspect`). Give one of the two.
+        differences (:func:`brdfcorr.correction.terrain.slope_aspect`). Give one of the two.
     topographic : {"cosine", "c", "scs", "scs+c", "none"}, default "cosine"
-        Illumination correction before the BRDF step (:func:`brdfcorr.topographic.topographic_correction`;
+        Illumination correction before the BRDF step (:func:`brdfcorr.correction.topographic.topographic_correction`;
         C fitted per class and band from the image for ``"c"`` and ``"scs+c"``).
     brdf_frame : {"surface", "horizontal"}, default "surface"
         Evaluate the BRDF in each surface's own frame (the observed geometry rotated by slope and
@@ -95,7 +82,7 @@ class Terrain:
     def open(self, like: xr.DataArray, chunks: int) -> SlopeAspect:
         """Slope and aspect [deg] (y, x) on ``like``'s grid, lazily."""
         if self.dem is not None:
-            dem = rasters.open_layer(self.dem, "DEM", chunks)
+            dem = open_layer(self.dem, "DEM", chunks)
             if dem.shape[0] != 1:
                 raise InputError(f"DEM file {self.dem} has {dem.shape[0]} bands; it needs 1")
             surface = slope_aspect(dem[0])
@@ -105,8 +92,8 @@ class Terrain:
             layers = read_envi_obs_terrain(self.slope_aspect, like=like)
             surface = SlopeAspect(layers["slope"], layers["aspect"])
         else:
-            surface = slope_aspect_layers(rasters.open_layer(self.slope_aspect, "slope/aspect", chunks))
-        rasters.check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
+            surface = slope_aspect_layers(open_layer(self.slope_aspect, "slope/aspect", chunks))
+        check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
         return surface
 
     def apply(self, scene: SceneData, chunks: int, limits):
@@ -133,16 +120,11 @@ def _is_envi(path) -> bool:
 
 
 def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:
-    """The topographic step's flags in the correction's QA layer: sun behind the surface ->
-    ``facing_away``, illumination factor clipped -> ``limited``, C fit rejected ->
-    ``topography_uncorrected`` (nodata is the BRDF step's own: the step writes NaN there)."""
-    flags = xr.zeros_like(qa)
-    for topographic_flag, flag in ((TOPO_QA_SHADOWED, QA_FACING_AWAY), (TOPO_QA_LIMITED, QA_LIMITED),
-                                   (TOPO_QA_FIT_REJECTED, QA_TOPOGRAPHY_UNCORRECTED)):
-        flags = flags | xr.where((topographic_qa & topographic_flag) > 0, flag, 0).astype(np.uint8)
-    merged = qa | flags
-    merged.attrs = qa.attrs
-    return merged
+    """The topographic step's flags in the correction's QA layer: ``facing_away`` (self-shadowed),
+    ``limited`` and ``topography_uncorrected``; nodata and no class are the BRDF step's own (the
+    topographic step writes NaN where it has no value)."""
+    passed_on = np.uint8(QA.FACING_AWAY | QA.LIMITED | QA.TOPOGRAPHY_UNCORRECTED)
+    return (qa | (topographic_qa & passed_on)).assign_attrs(qa.attrs)
 
 
 def correct_files(request: CorrectionRequest) -> dict[str, object]:
@@ -173,7 +155,7 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
     Returns
     -------
     dict
-        Pixel counts (:func:`brdfcorr.correct.qa_counts`) plus ``reference`` (the geometry used)
+        Pixel counts (:func:`brdfcorr.correction.qa_counts`) plus ``reference`` (the geometry used)
         and, with a topographic step, ``topographic``: its method and the C fit per class and band.
 
     Warns
@@ -187,7 +169,7 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
     InputError
         A missing, unreadable or malformed input (named): wrong band counts, a float class map,
         angles that look like radians or hold no zenith in [0, 90)
-        (:func:`brdfcorr.io.rasters.check_angles`; single pixels outside the domain are flagged,
+        (:func:`brdfcorr.io.angles.check_angles`; single pixels outside the domain are flagged,
         not an error), an image that holds no reflectance factors after scaling (raw counts without
         a scale), an output that is the same file as an input
         (:class:`brdfcorr.io.paths.InputOverwriteError`).
@@ -319,7 +301,7 @@ def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, requ
             corrected, stored, attrs["brdf_input_scale"], attrs["brdf_input_offset"],
             scene.reflectance.encoding.get("_FillValue"),
         )
-        qa = (qa | xr.where(out_of_range, QA_NODATA, 0).astype(np.uint8)).assign_attrs(qa.attrs)
+        qa = (qa | xr.where(out_of_range, QA.NODATA, 0).astype(np.uint8)).assign_attrs(qa.attrs)
     return corrected, qa
 
 

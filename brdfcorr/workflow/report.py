@@ -44,7 +44,7 @@ def scene_result(scene: Scene, status: str, *, reason: str = "", found: Mapping 
         Why a scene was skipped.
     found : mapping, optional
         What the steps found: ``reference`` (the geometry used), ``qa`` (pixel counts of
-        :func:`brdfcorr.correct.qa_counts`), ``topographic`` (the terrain step's method and C fit)
+        :func:`brdfcorr.correction.qa_counts`), ``topographic`` (the terrain step's method and C fit)
         and ``assess`` (:func:`assessment_summary`).
     error : exception, optional
         Why the scene failed: ``error`` (the message, after the error type unless it is a

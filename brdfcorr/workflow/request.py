@@ -43,7 +43,7 @@ class OutputFiles:
         The corrected image (``format``).
     qa, uncertainty : path-like, optional
         The QA flags (uint8 GeoTIFF) and the per-pixel 1-sigma of the corrected reflectance (a
-        GeoTIFF like the output, :func:`brdfcorr.uncertainty.correction_uncertainty`; NaN for
+        GeoTIFF like the output, :func:`brdfcorr.correction.uncertainty.correction_uncertainty`; NaN for
         classes whose table entry has no ``fit:`` covariance), written in the same pass.
     format : {"GTiff", "ENVI"}, default "GTiff"
         Format of ``corrected``; its extension must fit (:func:`brdfcorr.io.writer.check_format`).
@@ -113,7 +113,7 @@ class CorrectionRequest:
     outputs : OutputFiles
         What is written.
     reference : ReferenceGeometry or mapping, optional
-        The reference geometry (:func:`brdfcorr.correct.resolve_reference`: the table's, with
+        The reference geometry (:func:`brdfcorr.correction.resolve_reference`: the table's, with
         these keys over it); a ``"mean"`` sun zenith becomes the scene mean.
     limits, extrapolate, unknown, flip_view_azimuth :
         As for :func:`brdfcorr.normalize`.

@@ -54,7 +54,7 @@ from rasterio.errors import CRSError
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.sensors.envi import ANGLE_LONG_NAMES, OBS_BAND_NAMES, _obs_band_index, wanted_bands
 from brdfcorr.io.sensors.grids import wrap_azimuth
-from brdfcorr.io.sensors.neon import DEFAULT_CHUNK, on_grid, require_hdf5
+from brdfcorr.io.sensors.hdf5 import on_grid, require_hdf5, spatial_chunks
 
 __all__ = [
     "apply_glt",
@@ -196,16 +196,6 @@ def _orthorectified(source: xr.Variable, glt_x: np.ndarray, glt_y: np.ndarray, b
     return da.block([blocks])
 
 
-def _chunk_sizes(chunks, like: xr.DataArray | None = None) -> tuple[int, int]:
-    if chunks is None and like is not None and like.chunks:
-        return int(max(like.chunksizes["y"])), int(max(like.chunksizes["x"]))
-    if chunks is None:
-        return DEFAULT_CHUNK, DEFAULT_CHUNK
-    if isinstance(chunks, int):
-        return chunks, chunks
-    return int(chunks.get("y", DEFAULT_CHUNK)), int(chunks.get("x", DEFAULT_CHUNK))
-
-
 def _swath_layers(path: Path, variable: xr.DataArray, bands: list[int], ortho: bool, chunks: tuple[int, int],
                   attrs: Mapping) -> xr.DataArray:
     """The chosen bands of a (downtrack, crosstrack, bands) variable as (band, y, x) float32 with the
@@ -266,7 +256,7 @@ def read_emit_image(path: str | Path, chunks=None, *, ortho: bool = True, scale:
     fwhm = np.asarray(parameters["fwhm"].values, dtype=float) if "fwhm" in parameters else None
     if wavelength.size != n_bands or (fwhm is not None and fwhm.size != n_bands):
         raise SensorInputError(f"{path}: {wavelength.size} wavelengths in sensor_band_parameters for {n_bands} bands")
-    image = _swath_layers(path, variable, list(range(n_bands)), ortho, _chunk_sizes(chunks), root.attrs)
+    image = _swath_layers(path, variable, list(range(n_bands)), ortho, spatial_chunks(chunks), root.attrs)
     if scale is not None:
         image = image * np.float32(scale)
     if offset:
@@ -294,7 +284,7 @@ def read_emit_obs(path: str | Path, like: xr.DataArray | None = None, *, view_az
         The ``EMIT_L1B_OBS_001_...nc`` granule of the scene (its GLT is the L2A granule's).
     like : xarray.DataArray, optional
         The image the angles are for: its (y, x) chunks are taken (the grid is checked by
-        :func:`brdfcorr.io.rasters.check_same_grid` in :func:`brdfcorr.io.scene.open_scene`).
+        :func:`brdfcorr.io.grid.check_same_grid` in :func:`brdfcorr.io.scene.open_scene`).
     view_azimuth : {"to_sensor", "from_sensor"}
         What the to-sensor azimuth band holds; EMIT: "to_sensor" (the module notes).
     band_names : mapping, optional
@@ -325,7 +315,7 @@ def read_emit_obs(path: str | Path, like: xr.DataArray | None = None, *, view_az
         raise SensorInputError(f"{path}: {len(descriptions)} observation_bands for {root['obs'].shape[-1]} obs bands")
     keys = list(names)
     indices = [_obs_band_index(path, descriptions, names[key], key) for key in keys]
-    layers = _swath_layers(path, root["obs"], indices, ortho, _chunk_sizes(chunks, like), root.attrs)
+    layers = _swath_layers(path, root["obs"], indices, ortho, spatial_chunks(chunks, like), root.attrs)
     variables = {}
     for position, key in enumerate(keys):
         angle = layers.isel(band=position, drop=True)

@@ -29,6 +29,7 @@ import rioxarray
 import xarray as xr
 
 from brdfcorr.errors import SensorInputError
+from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.sensors.grids import wrap_azimuth
 
 __all__ = [
@@ -220,7 +221,7 @@ def _open_obs_bands(path: Path, names: Mapping[str, str], like, chunks):
     indices = {key: _obs_band_index(path, descriptions, wanted, key) for key, wanted in names.items()}
     obs = rioxarray.open_rasterio(path, chunks=chunks or {"band": 1, "y": 512, "x": 512}, masked=True)
     if like is not None:
-        _check_same_grid(path, obs, like)
+        check_same_grid({"image": like, "obs file": obs})
     return obs, indices, descriptions
 
 
@@ -285,22 +286,6 @@ def _on_image_grid(layers: xr.Dataset, like: xr.DataArray | None, chunks) -> xr.
     return layers
 
 
-def _check_same_grid(path: Path, obs: xr.DataArray, like: xr.DataArray) -> None:
-    obs_shape = (obs.sizes["y"], obs.sizes["x"])
-    like_shape = (like.sizes["y"], like.sizes["x"])
-    if obs_shape != like_shape:
-        raise SensorInputError(
-            f"{path}: obs grid {obs_shape[0]} x {obs_shape[1]} differs from the image grid "
-            f"{like_shape[0]} x {like_shape[1]} (rows x columns)"
-        )
-    if obs.rio.crs is not None and like.rio.crs is not None:
-        if not np.allclose(obs.rio.transform(), like.rio.transform(), rtol=0, atol=1e-6):
-            raise SensorInputError(
-                f"{path}: obs transform {tuple(obs.rio.transform())[:6]} differs from the image "
-                f"transform {tuple(like.rio.transform())[:6]}"
-            )
-
-
 def read_envi_obs_terrain(path: str | Path, like: xr.DataArray | None = None, *,
                           band_names: Mapping[str, str] | None = None, chunks=None) -> xr.Dataset:
     """Per-pixel surface slope and aspect from an ENVI ``obs_ort``/``obs_ortdem`` file.
@@ -325,7 +310,7 @@ def read_envi_obs_terrain(path: str | Path, like: xr.DataArray | None = None, *,
         as NaN. Aspect is the azimuth of the direction the surface faces (downslope), clockwise from
         north: the "Cosine(i)" band of the real AVIRIS-NG obs file ang20170323t202244 in
         ``shared/realdata`` equals ``cos sza cos slope + sin sza sin slope cos(saa - aspect)``
-        (:func:`brdfcorr.terrain.cos_incidence`) to 1e-16; with the aspect reversed it is off by
+        (:func:`brdfcorr.correction.terrain.cos_incidence`) to 1e-16; with the aspect reversed it is off by
         1.0. (The other real file, ``..._obs_ortdem_mod``, has edited slope and aspect bands whose
         "Cosine(i)" matches no convention.)
     """

@@ -26,7 +26,8 @@ from brdfcorr.errors import SensorInputError
 
 __all__ = ["grid_template", "pixel_centres", "to_grid", "wrap_azimuth"]
 
-DEFAULT_CHUNK = 2048
+#: Chunk size [pixels] of angle grids interpolated onto an image grid (a cheap computation: large chunks).
+GRID_CHUNK = 2048
 
 
 def wrap_azimuth(azimuth):
@@ -36,7 +37,7 @@ def wrap_azimuth(azimuth):
     return wrapped - 360.0 * (wrapped >= 360.0)
 
 
-def grid_template(transform: Affine, shape: tuple[int, int], crs, chunks=DEFAULT_CHUNK) -> xr.DataArray:
+def grid_template(transform: Affine, shape: tuple[int, int], crs, chunks=GRID_CHUNK) -> xr.DataArray:
     """A lazy, all-zero (y, x) DataArray that carries an image grid (coords, CRS, transform).
 
     Parameters
@@ -142,7 +143,7 @@ def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, ch
             f"(coarse: {source_crs}, image: {target_crs})"
         )
     if chunks is None:
-        chunks = plane.data.chunks if isinstance(plane.data, da.Array) else DEFAULT_CHUNK
+        chunks = plane.data.chunks if isinstance(plane.data, da.Array) else GRID_CHUNK
     values = np.asarray(coarse.transpose("y", "x").values, dtype="float64")
     template = da.empty(shape, dtype="float64", chunks=chunks)
     data = da.map_blocks(

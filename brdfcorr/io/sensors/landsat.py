@@ -38,7 +38,8 @@ from pyproj import CRS, Transformer
 from scipy.interpolate import CubicSpline
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.io.sensors.grids import DEFAULT_CHUNK, _grid_of, pixel_centres, to_grid, wrap_azimuth
+from brdfcorr.io.grid import grid_difference
+from brdfcorr.io.sensors.grids import GRID_CHUNK, _grid_of, pixel_centres, to_grid, wrap_azimuth
 from brdfcorr.io.sensors.solar import solar_angles
 
 __all__ = [
@@ -260,7 +261,7 @@ def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=N
     if crs is None:
         raise SensorInputError("angles from the ANG.txt need pixel coordinates: the image grid has no CRS")
     if chunks is None:
-        chunks = plane.data.chunks if isinstance(plane.data, da.Array) else DEFAULT_CHUNK
+        chunks = plane.data.chunks if isinstance(plane.data, da.Array) else GRID_CHUNK
     template = da.empty(shape, chunks=chunks)
     model = {"times": times, "position": position, "inertial_velocity": inertial_velocity, "sun": sun}
     stacked = da.map_blocks(
@@ -312,21 +313,13 @@ def _read_angle_band(path: Path, key: str, like, chunks, flip: bool) -> xr.DataA
     if azimuth:
         band = wrap_azimuth(band)
     attrs = {"units": "degree", "long_name": LONG_NAMES[key], "source": str(path)}
-    if like is not None and not _same_grid(band, like):
+    if like is not None and grid_difference(band, like) is not None:
         # A coarser or reprojected angle raster: interpolate lazily onto the image grid.
         return to_grid(band, like, angle=azimuth, name=key, attrs=attrs)
     band.attrs = attrs
     if like is not None and like.chunks and chunks is None:  # align blocks with the image's
         band = band.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
     return band.rename(key)
-
-
-def _same_grid(band: xr.DataArray, like: xr.DataArray) -> bool:
-    if (band.sizes["y"], band.sizes["x"]) != (like.sizes["y"], like.sizes["x"]):
-        return False
-    if band.rio.crs != like.rio.crs:
-        return False
-    return np.allclose(band.rio.transform(), like.rio.transform(), rtol=0, atol=1e-6)
 
 
 def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,

@@ -47,12 +47,11 @@ from affine import Affine
 from rasterio.crs import CRS
 from rasterio.errors import CRSError
 
-from brdfcorr.errors import InputError, SensorInputError
-from brdfcorr.io.sensors.grids import grid_template, wrap_azimuth
+from brdfcorr.errors import SensorInputError
+from brdfcorr.io.sensors.grids import wrap_azimuth
+from brdfcorr.io.sensors.hdf5 import on_grid, require_hdf5, spatial_chunks
 
 __all__ = [
-    "HDF5_SIGNATURE",
-    "is_hdf5",
     "is_neon_reflectance",
     "neon_band_count",
     "parse_map_info",
@@ -60,43 +59,12 @@ __all__ = [
     "read_neon_image",
 ]
 
-#: The 8 bytes an HDF5 file (and so a NetCDF-4 file) starts with.
-HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-
-_INSTALL_HINT = "reading it needs h5py and h5netcdf: pip install 'brdfcorr[hdf5]'"
-
 ANGLE_LONG_NAMES = {
     "sza": "solar zenith angle",
     "saa": "solar azimuth angle (pixel to sun, clockwise from north)",
     "vza": "view zenith angle",
     "vaa": "view azimuth angle (pixel to sensor, clockwise from north)",
 }
-
-#: Default dask chunk [pixels] along y and x.
-DEFAULT_CHUNK = 512
-
-
-def is_hdf5(path: str | Path) -> bool:
-    """True if the file starts with the HDF5 signature (HDF5 and NetCDF-4 files)."""
-    try:
-        with open(path, "rb") as stream:
-            return stream.read(8) == HDF5_SIGNATURE
-    except OSError:
-        return False
-
-
-def require_hdf5(path: str | Path):
-    """The h5py module, or :class:`InputError` naming the file and the extra to install.
-
-    h5netcdf (xarray's engine for the lazy reads) is checked too.
-    """
-    try:
-        import h5netcdf  # noqa: F401
-        import h5py
-    except ImportError:
-        raise InputError(f"{path} is an HDF5/NetCDF-4 product; {_INSTALL_HINT}") from None
-    return h5py
-
 
 def _site_group(h5file, path: Path, site: str | None) -> str:
     """Name of the root group holding ``Reflectance/Reflectance_Data`` (the NEON site code)."""
@@ -245,28 +213,10 @@ def neon_band_count(path: str | Path) -> int:
     return int(_metadata(Path(path), None)["shape"][2])
 
 
-def _spatial_chunks(chunks) -> tuple[int | str, int | str]:
-    """(y, x) chunk sizes from an int, a dict with "y"/"x", or None (512)."""
-    if chunks is None:
-        return DEFAULT_CHUNK, DEFAULT_CHUNK
-    if isinstance(chunks, int):
-        return chunks, chunks
-    return chunks.get("y", DEFAULT_CHUNK), chunks.get("x", DEFAULT_CHUNK)
-
-
 def _open_lazy(path: Path, group: str) -> xr.Dataset:
     """A group of the file as a lazy Dataset (h5netcdf engine, no CF decoding, no caching)."""
     return xr.open_dataset(path, engine="h5netcdf", group=group, phony_dims="sort", mask_and_scale=False,
                            decode_times=False, cache=False)
-
-
-def on_grid(array: xr.DataArray, transform: Affine, crs) -> xr.DataArray:
-    """``array`` (..., y, x) with pixel-centre ``y``/``x`` coords, CRS (where not None) and transform."""
-    template = grid_template(transform, (array.sizes["y"], array.sizes["x"]), None)
-    array = array.assign_coords(y=template["y"].values, x=template["x"].values)
-    if crs is not None:
-        array = array.rio.write_crs(crs)
-    return array.rio.write_transform(transform)
 
 
 def read_neon_image(path: str | Path, chunks=None, *, site: str | None = None, scale: float | None = None,
@@ -313,7 +263,7 @@ def read_neon_image(path: str | Path, chunks=None, *, site: str | None = None, s
         raise SensorInputError(f"{path}: Reflectance_Data Scale_Factor {info['scale_factor']} must be > 0")
     stored = _open_lazy(path, f"/{info['site']}/Reflectance")["Reflectance_Data"]
     stored = stored.rename(dict(zip(stored.dims, ("y", "x", "band")))).transpose("band", "y", "x")
-    rows, cols = _spatial_chunks(chunks)
+    rows, cols = spatial_chunks(chunks)
     stored = stored.chunk({"band": -1, "y": rows, "x": cols})
     valid = stored != info["ignore"] if info["ignore"] is not None else True
     if scale is None:  # NEON's Scale_Factor divides: dividing is exact where multiplying by 1e-4 rounds
@@ -350,7 +300,7 @@ def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view
         The NEON reflectance file (the same file as the image).
     like : xarray.DataArray, optional
         The image the angles are for: its (y, x) chunks are taken (the grid itself is checked by
-        :func:`brdfcorr.io.rasters.check_same_grid` in :func:`brdfcorr.io.scene.open_scene`).
+        :func:`brdfcorr.io.grid.check_same_grid` in :func:`brdfcorr.io.scene.open_scene`).
     view_azimuth : {"to_sensor", "from_sensor"}
         What ``to-sensor_Azimuth_Angle`` holds: "to_sensor" for NEON (the default, see the module
         notes); "from_sensor" flips it by 180 deg.
@@ -386,7 +336,7 @@ def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view
     sun = _flight_line_sun(path, info["logs"], flight_line)
     if chunks is None and like is not None and like.chunks:
         chunks = {"y": like.chunksizes["y"], "x": like.chunksizes["x"]}
-    rows, cols = _spatial_chunks(chunks)
+    rows, cols = spatial_chunks(chunks)
     metadata = _open_lazy(path, f"/{info['site']}/Reflectance/Metadata")
     variables = {}
     for key, name in (("vza", "to-sensor_Zenith_Angle"), ("vaa", "to-sensor_Azimuth_Angle")):

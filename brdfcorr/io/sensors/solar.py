@@ -21,7 +21,7 @@ from pvlib import spa
 from pyproj import CRS, Transformer
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.io.sensors.grids import DEFAULT_CHUNK, _grid_of, pixel_centres
+from brdfcorr.io.sensors.grids import GRID_CHUNK, _grid_of, pixel_centres
 
 __all__ = ["solar_angles", "solar_position"]
 
@@ -112,7 +112,7 @@ def solar_angles(time, like: xr.DataArray, *, altitude=0.0, refraction: bool = F
     transformer = Transformer.from_crs(crs, CRS.from_epsg(4326), always_xy=True)
     _unix_seconds(time)  # refuse a naive time now rather than inside a dask task
     if chunks is None:
-        chunks = plane.data.chunks if isinstance(plane.data, da.Array) else DEFAULT_CHUNK
+        chunks = plane.data.chunks if isinstance(plane.data, da.Array) else GRID_CHUNK
     template = da.empty(shape, chunks=chunks)
     both = da.map_blocks(
         _solar_block, dtype="float64", chunks=((2,),) + template.chunks,

@@ -1,6 +1,6 @@
 """Per-pixel 1-sigma of the BRDF-corrected reflectance, propagated from the fit's parameter covariance.
 
-The correction (:func:`brdfcorr.correct.normalize`, ``docs/conventions.md``, "The correction")
+The correction (:func:`brdfcorr.correction.normalize`, ``docs/conventions.md``, "The correction")
 multiplies each pixel by the factor
 
     F(p) = f(ref; p) / f(obs; p)                                                            (1)
@@ -61,7 +61,9 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from brdfcorr.correct import PixelGeometry, Plans, _present_classes, band_shapes, describe_limits, prepare_inputs
+from brdfcorr.correction.blocks import PixelGeometry, Plans, band_shapes, present_classes
+from brdfcorr.correction.inputs import prepare_inputs
+from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import ParameterError
 from brdfcorr.geometry import ScatteringGeometry
@@ -158,7 +160,7 @@ def _factor_and_jacobian(
     ``coefficients`` are the linear parameters (in :attr:`Model.linear` order); ``linear_columns[j]``
     is the Jacobian column of linear parameter j (-1: not in the covariance), ``shape_columns[m]``
     that of the m-th stencil of ``terms``. F is NaN where it is no valid factor (not finite and
-    positive with f(obs) > 0, the rule of :func:`brdfcorr.correct.normalize`, 0 / 0 included).
+    positive with f(obs) > 0, the rule of :func:`brdfcorr.correction.normalize`, 0 / 0 included).
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         f_observed = coefficients @ terms.observed
@@ -319,7 +321,7 @@ def _uncertainty_block(
     out = np.full(cube.shape, np.nan, dtype=out_dtype)
     usable = pixels.usable & ~pixels.no_class
     bands = np.asarray(band_index).reshape(-1)
-    for class_id in _present_classes(pixels.classes[usable]):
+    for class_id in present_classes(pixels.classes[usable]):
         plan = plans.get(int(class_id)) if float(class_id).is_integer() else None
         if plan is None:  # unknown class, or no covariance: nodata
             continue
@@ -383,7 +385,7 @@ def correction_uncertainty(
     ``sigma = observed * sqrt(J Sigma J^T)`` with ``J = dF/dp`` of the correction factor
     ``F = f(ref; p) / f(obs; p)`` over the parameters of the class's covariance Sigma (module
     docstring, eqs. 1-5; ``docs/uncertainty.md``). Takes the arguments of
-    :func:`brdfcorr.correct.normalize` (give the same ones) and is its companion: lazy and chunked
+    :func:`brdfcorr.correction.normalize` (give the same ones) and is its companion: lazy and chunked
     the same way, so both can be computed in one pass.
 
     Parameters
@@ -412,7 +414,7 @@ def correction_uncertainty(
     slope, aspect : xarray.DataArray (y, x), optional
         Surface slope [deg] in [0, 90] and the azimuth the surface faces [deg], both or neither, as
         for :func:`normalize`: the observed geometry is then taken in each surface's own frame
-        (:func:`brdfcorr.terrain.local_angles`), the reference in the horizontal frame; pixels
+        (:func:`brdfcorr.correction.terrain.local_angles`), the reference in the horizontal frame; pixels
         whose sun or sensor is behind the surface (or with an invalid slope) are NaN.
 
     Returns

@@ -1,7 +1,7 @@
 """Topographic illumination correction: cosine, C, SCS and SCS+C (lazy, chunked).
 
 A surface of slope s and aspect A under a sun at zenith sza receives the direct sunlight at the
-incidence angle i (:func:`brdfcorr.terrain.cos_incidence`); a reflectance computed for horizontal
+incidence angle i (:func:`brdfcorr.correction.terrain.cos_incidence`); a reflectance computed for horizontal
 irradiance (as image reflectance products are) is then too bright on slopes facing the sun and too
 dark on those facing away. The corrections scale each pixel and band to a horizontal surface::
 
@@ -11,7 +11,7 @@ dark on those facing away. The corrections scale each pixel and band to a horizo
     SCS+C   (Soenen et al. 2005, eq. 9)       rho_h = rho_t * (cos s cos sza + C) / (cos i + C)
 
 The cosine correction is exact for a Lambertian surface: it removes the illumination term, and
-chained with :func:`brdfcorr.correct.normalize` given the same slope and aspect (the BRDF in the
+chained with :func:`brdfcorr.correction.normalize` given the same slope and aspect (the BRDF in the
 surface's frame) it is exact for any surface whose model is known (``docs/terrain.md``). C and SCS+C
 are the empirical corrections for when the BRDF is not modelled: C = b / m from the least-squares
 line ``rho_t = m cos i + b`` of the image's pixels, per class and band (:func:`fit_c`).
@@ -21,19 +21,14 @@ determination R^2 below ``r2_min`` (default :data:`R2_MIN` = 0.1: cos i explains
 variance, the line says nothing about the illumination) or C outside ``c_range`` (default
 :data:`C_RANGE` = [0, 10]: a negative C makes ``cos i + C`` vanish on lit slopes, and above 10 the
 correction changes a pixel by under 10 % of the cosine correction's change) is rejected: that class
-and band are not corrected (factor 1), flagged ``fit_rejected``, and a warning names them.
+and band are not corrected (factor 1), flagged ``topography_uncorrected``, and a warning names them.
 
-QA layer (uint8 bit flags, CF ``flag_masks``/``flag_meanings`` in its attrs):
-
-==== ============= =========================================================================
-bit  name          meaning
-==== ============= =========================================================================
-1    nodata        NaN or +-inf in some band, angle, slope or aspect: output nodata (there)
-2    no_class      C methods with a class map: class 0, NaN or its nodata: not corrected
-4    fit_rejected  the C fit of the pixel's class was rejected in some band: not corrected there
-8    limited       the factor was clipped to the limits in at least one band
-16   shadowed      cos i <= ``cos_i_min`` (self-shadowed, no direct sunlight): output nodata
-==== ============= =========================================================================
+QA layer: the correction's flags (:class:`brdfcorr.correction.qa.QA`), of which this step sets
+``NODATA`` (NaN or +-inf in some band, angle, slope or aspect: output nodata there), ``NO_CLASS``
+(C methods with a class map: class 0, NaN or its nodata: not corrected), ``TOPOGRAPHY_UNCORRECTED``
+(the C fit of the pixel's class was rejected in some band: not corrected there), ``LIMITED`` (the
+factor was clipped to the limits in at least one band) and ``FACING_AWAY`` (cos i <= ``cos_i_min``:
+self-shadowed, no direct sunlight; output nodata).
 
 References
 ----------
@@ -58,17 +53,18 @@ import pandas as pd
 import xarray as xr
 
 from brdfcorr._arrays import cosd
-from brdfcorr.correct import _check_grid, no_class_mask, split_pairs
+from brdfcorr.correction.blocks import no_class_mask, split_pairs
+from brdfcorr.correction.inputs import check_grid
+from brdfcorr.correction.qa import QA, qa_attrs, set_flags
+from brdfcorr.correction.terrain import cos_incidence
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import BrdfcorrWarning, InputError
-from brdfcorr.terrain import cos_incidence
 
 __all__ = [
     "METHODS",
     "C_RANGE",
     "R2_MIN",
     "MIN_PIXELS",
-    "TOPO_QA_FLAGS",
     "Topographic",
     "fit_c",
     "topographic_correction",
@@ -97,18 +93,6 @@ C_RANGE = (0.0, 10.0)
 #: Least number of pixels of an accepted C fit.
 MIN_PIXELS = 30
 
-TOPO_QA_NODATA = np.uint8(1)
-TOPO_QA_NO_CLASS = np.uint8(2)
-TOPO_QA_FIT_REJECTED = np.uint8(4)
-TOPO_QA_LIMITED = np.uint8(8)
-TOPO_QA_SHADOWED = np.uint8(16)
-TOPO_QA_FLAGS = {
-    "nodata": TOPO_QA_NODATA,
-    "no_class": TOPO_QA_NO_CLASS,
-    "fit_rejected": TOPO_QA_FIT_REJECTED,
-    "limited": TOPO_QA_LIMITED,
-    "shadowed": TOPO_QA_SHADOWED,
-}
 
 _TABLE_COLUMNS = ["class", "band", "wavelength", "n", "slope", "intercept", "r2", "c", "accepted", "reason"]
 
@@ -128,7 +112,7 @@ def topographic_factor(method: str, cos_i, cos_sza, cos_slope=None, c=None):
     ----------
     method : {"cosine", "c", "scs", "scs+c"}
     cos_i : array-like
-        Cosine of the solar incidence angle on the surface [-] (:func:`brdfcorr.terrain.cos_incidence`).
+        Cosine of the solar incidence angle on the surface [-] (:func:`brdfcorr.correction.terrain.cos_incidence`).
     cos_sza : array-like
         Cosine of the solar zenith [-].
     cos_slope : array-like, optional
@@ -235,7 +219,7 @@ def fit_c(
     reflectance : xarray.DataArray (band, y, x)
         Reflectance (any units); NaN and +-inf are left out. numpy or dask backed (read once).
     cos_i : xarray.DataArray (y, x)
-        Cosine of the solar incidence angle [-] (:func:`brdfcorr.terrain.cos_incidence`).
+        Cosine of the solar incidence angle [-] (:func:`brdfcorr.correction.terrain.cos_incidence`).
     classes : xarray.DataArray (y, x), optional
         Class map; 0, NaN and ``class_nodata`` are no class and left out. Without it all pixels are
         one class, reported as class 0.
@@ -308,19 +292,19 @@ def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=N
     ci, cz, cs = (np.asarray(a, dtype=np.float64).reshape(-1) for a in (cos_i, cos_sza, cos_slope))
     qa = np.zeros(ci.size, dtype=np.uint8)
     finite = np.isfinite(ci) & np.isfinite(cz) & np.isfinite(cs)
-    qa[~finite] |= TOPO_QA_NODATA
+    set_flags(qa, ~finite, QA.NODATA)
     with np.errstate(invalid="ignore"):
         shadowed = finite & (ci <= cos_i_min)
-    qa[shadowed] |= TOPO_QA_SHADOWED
+    set_flags(qa, shadowed, QA.FACING_AWAY)
     if cube.dtype.kind == "f":
-        qa[~np.isfinite(cube).all(axis=0)] |= TOPO_QA_NODATA
+        set_flags(qa, ~np.isfinite(cube).all(axis=0), QA.NODATA)
     index, member = None, np.ones(ci.size, bool)
     if method in C_METHODS:
         index, member = _class_index(classes, class_ids, class_nodata)
         if index is None:
             index, member = np.zeros(ci.size, dtype=np.intp), np.ones(ci.size, bool)
         else:
-            qa[~member] |= TOPO_QA_NO_CLASS
+            set_flags(qa, ~member, QA.NO_CLASS)
     usable = finite & ~shadowed
     out = np.empty(cube.shape, dtype=out_dtype)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -330,10 +314,10 @@ def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=N
                 factor = topographic_factor(method, ci, cz, cs)
             else:
                 ok = member & accepted[index, band]
-                qa[member & ~ok] |= TOPO_QA_FIT_REJECTED
+                set_flags(qa, member & ~ok, QA.TOPOGRAPHY_UNCORRECTED)
                 factor[ok] = topographic_factor(method, ci[ok], cz[ok], cs[ok], c_matrix[index[ok], band])
             if limits is not None:
-                qa[usable & ((factor < limits[0]) | (factor > limits[1]))] |= TOPO_QA_LIMITED
+                set_flags(qa, usable & ((factor < limits[0]) | (factor > limits[1])), QA.LIMITED)
                 factor = np.clip(factor, *limits)
             factor[~usable] = np.nan
             np.multiply(cube[position], factor, out=out[position], casting="unsafe")
@@ -361,7 +345,7 @@ def _layer(reflectance: xr.DataArray, name: str, value) -> xr.DataArray:
         value = xr.DataArray(array, dims=spatial, name=name)
     # Same checks as the BRDF step (shape, coordinates, CRS); then positional: the output takes
     # the reflectance's coordinates.
-    value = _check_grid(reflectance, name, value)
+    value = check_grid(reflectance, name, value)
     return value.drop_vars(list(value.coords))
 
 
@@ -420,7 +404,7 @@ def topographic_correction(
         Solar zenith and azimuth (pixel towards the sun, clockwise from north) [deg].
     slope, aspect : xarray.DataArray (y, x) or number
         Surface slope [deg] and the azimuth it faces (downslope, clockwise from north) [deg]
-        (:func:`brdfcorr.terrain.slope_aspect`, an ``obs_ort`` file's bands).
+        (:func:`brdfcorr.correction.terrain.slope_aspect`, an ``obs_ort`` file's bands).
     method : {"cosine", "c", "scs", "scs+c"}, default "scs+c"
         The correction (module docstring). "cosine" is the one to chain with the BRDF correction
         in the surface's frame (``docs/terrain.md``).
@@ -485,11 +469,8 @@ def topographic_correction(
                              attrs={**reflectance.attrs, "topographic_correction": method}, name=reflectance.name)
     band_dim = reflectance.dims[0]
     spatial_coords = {k: v for k, v in reflectance.coords.items() if band_dim not in v.dims}
-    qa = xr.DataArray(qa, dims=reflectance.dims[1:], coords=spatial_coords, name="topographic_qa", attrs={
-        "long_name": "topographic correction quality flags", "units": "1",
-        "flag_masks": np.array(list(TOPO_QA_FLAGS.values()), dtype=np.uint8),
-        "flag_meanings": " ".join(TOPO_QA_FLAGS),
-    })
+    qa = xr.DataArray(qa, dims=reflectance.dims[1:], coords=spatial_coords, name="topographic_qa",
+                      attrs=qa_attrs("topographic correction quality flags"))
     return Topographic(corrected, qa, c_table)
 
 

@@ -1,0 +1,418 @@
+"""The view-angle signal left in a scene, per class and band, before and after a correction.
+
+:func:`assess_view_angles` measures the least-squares slope of reflectance against the *signed*
+view zenith (:func:`signed_view_zenith`), absolute [1/deg] and relative [%/10 deg]; the ratio of
+the mean reflectance on the positive side of nadir to that on the negative side
+(forward/backward scattering, or right/left of the flight direction); and the across-track
+profile, the mean reflectance in bins of signed view zenith. One chunk-wise pass over the before
+and after cubes (dask: per-block sums, :class:`_Sums`, added in a tree, one compute).
+:func:`view_angle_report` turns the result into a plain dict (NaN as ``None``, valid JSON).
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import dask
+import dask.array as da
+import numpy as np
+import rioxarray  # noqa: F401  (registers .rio)
+import xarray as xr
+
+from brdfcorr._arrays import cosd, sind
+from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
+from brdfcorr.errors import InputError
+
+__all__ = ["SIGN_CONVENTIONS", "signed_view_zenith", "assess_view_angles", "view_angle_report"]
+
+#: How the sign of the view zenith is chosen (:func:`signed_view_zenith`).
+SIGN_CONVENTIONS = ("sun", "track")
+_SIGN_WORDS = {
+    "sun": ("forward scattering: relative azimuth > 90 deg, the sensor opposite the sun",
+            "backscattering: relative azimuth < 90 deg, the sensor on the sun's side"),
+    "track": ("right of the flight direction (east of a line flown north)",
+              "left of the flight direction (west of a line flown north)"),
+}
+
+
+# ----------------------------------------------------------------------------- signed zenith
+def signed_view_zenith(vza, vaa, saa=None, *, by: Literal["sun", "track"] = "sun", heading: float | None = None):
+    """The view zenith with a sign for the side of nadir the pixel is seen from.
+
+    Parameters
+    ----------
+    vza : array-like
+        View zenith [deg].
+    vaa : array-like
+        Azimuth of the direction from the pixel towards the sensor [deg], clockwise from north
+        (``docs/conventions.md``).
+    saa : array-like, optional
+        Azimuth of the direction from the pixel towards the sun [deg]; needed for ``by="sun"``.
+    by : {"sun", "track"}, default "sun"
+        ``"sun"``: positive in the forward-scattering half (relative azimuth φ > 90°, the sensor
+        opposite the sun: the side of the specular peak), negative in the backscattering half
+        (φ < 90°: the side of the hot spot). ``"track"``: positive to the right of the flight
+        direction ``heading`` (east of a line flown north), negative to its left.
+    heading : float, optional
+        Flight direction [deg], clockwise from north; needed for ``by="track"``.
+
+    Returns
+    -------
+    array-like
+        Signed view zenith [deg] in (-90, 90), of the kind of the inputs (numpy, dask or xarray).
+        Pixels seen exactly perpendicular to the sun (φ = 90°) or to the track get 0.
+
+    Notes
+    -----
+    ``"sun"``: θ_signed = θ_r · sign(−cos(saa − vaa)), since cos φ = cos(saa − vaa) < 0 exactly
+    when φ > 90°. ``"track"``: θ_signed = θ_r · sign(sin(heading − vaa)); a pixel right of a
+    northbound track sees the sensor to its west (vaa = 270°), sin(0° − 270°) = 1.
+    """
+    if by == "sun":
+        if saa is None:
+            raise InputError("the signed view zenith by the sun needs the solar azimuth (saa)")
+        side = -cosd(saa - vaa)
+    elif by == "track":
+        if heading is None or not math.isfinite(heading):
+            raise InputError("the signed view zenith by the track needs the flight direction (heading) in degrees")
+        side = sind(heading - vaa)
+    else:
+        raise InputError(f"sign convention {by!r} is not one of {', '.join(SIGN_CONVENTIONS)}")
+    return vza * np.sign(side)
+
+
+# -------------------------------------------------------------------------- per-block sums
+@dataclass
+class _Sums:
+    """Sums over valid pixels from which every statistic follows: K classes, B bands, 2 stages,
+    M bins of signed view zenith, 2 sides (negative, positive)."""
+
+    n: np.ndarray       # (K,) pixels
+    s: np.ndarray       # (K,) sum of the signed zenith [deg]
+    ss: np.ndarray      # (K,) sum of its square [deg^2]
+    r: np.ndarray       # (2, B, K) sum of reflectance
+    sr: np.ndarray      # (2, B, K) sum of signed zenith times reflectance
+    bin_n: np.ndarray   # (K, M)
+    bin_r: np.ndarray   # (2, B, K, M)
+    side_n: np.ndarray  # (K, 2)
+    side_r: np.ndarray  # (2, B, K, 2)
+
+    def __add__(self, other: _Sums) -> _Sums:
+        return _Sums(*(getattr(self, name) + getattr(other, name) for name in self.__dataclass_fields__))
+
+
+def _class_index(classes: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Index of each pixel's class in ``ids`` (sorted), -1 for other values (0, nodata, NaN)."""
+    position = np.clip(np.searchsorted(ids, classes), 0, max(len(ids) - 1, 0))
+    found = (ids[position] == classes) if len(ids) else np.zeros(classes.shape, bool)
+    return np.where(found, position, -1)
+
+
+@dataclass(frozen=True, eq=False)
+class _SumOptions:
+    """How :func:`_block_sums` sums a block.
+
+    Attributes
+    ----------
+    ids : numpy.ndarray
+        The class ids assessed, sorted.
+    edges : numpy.ndarray
+        Edges of the bins of signed view zenith [deg], increasing.
+    by, heading :
+        The sign convention and the flight direction [deg] (:func:`signed_view_zenith`).
+    min_vza : float
+        The smallest |signed view zenith| [deg] that counts for a side of nadir.
+    flip_view_azimuth : bool
+        ``vaa`` is stored as seen from the sensor: add 180 deg.
+    """
+
+    ids: np.ndarray
+    edges: np.ndarray
+    by: Literal["sun", "track"]
+    heading: float | None
+    min_vza: float
+    flip_view_azimuth: bool
+
+
+def _block_sums(before, after, classes, vza, vaa, saa, options: _SumOptions) -> _Sums:
+    """:class:`_Sums` of one block: cubes (band, y, x), layers (y, x), numpy."""
+    ids, edges, min_vza = options.ids, options.edges, options.min_vza
+    n_bands, n_classes, n_bins = before.shape[0], len(ids), len(edges) - 1
+    vaa = vaa + 180.0 if options.flip_view_azimuth else vaa
+    with np.errstate(invalid="ignore"):
+        signed = signed_view_zenith(vza.astype(np.float64), vaa, saa, by=options.by, heading=options.heading)
+        valid = (vza >= 0) & (vza < 90) & np.isfinite(signed)
+    valid &= np.isfinite(before).all(axis=0) & np.isfinite(after).all(axis=0)
+    index = _class_index(classes, ids)
+    valid &= index >= 0
+    k, s = index[valid], signed[valid]
+    cubes = (before[:, valid].astype(np.float64), after[:, valid].astype(np.float64))
+    bins = np.clip(np.searchsorted(edges, s, side="right") - 1, 0, n_bins - 1)  # the last edge closes the last bin
+    groups = k * n_bins + bins
+    outer = np.abs(s) >= max(min_vza, np.finfo(float).tiny)  # 0 (nadir, or perpendicular) is on neither side
+    sides = k[outer] * 2 + (s[outer] > 0)
+    sums = _Sums(
+        n=np.bincount(k, minlength=n_classes).astype(np.float64),
+        s=np.bincount(k, weights=s, minlength=n_classes),
+        ss=np.bincount(k, weights=s * s, minlength=n_classes),
+        r=np.zeros((2, n_bands, n_classes)), sr=np.zeros((2, n_bands, n_classes)),
+        bin_n=np.bincount(groups, minlength=n_classes * n_bins).astype(np.float64).reshape(n_classes, n_bins),
+        bin_r=np.zeros((2, n_bands, n_classes, n_bins)),
+        side_n=np.bincount(sides, minlength=n_classes * 2).astype(np.float64).reshape(n_classes, 2),
+        side_r=np.zeros((2, n_bands, n_classes, 2)),
+    )
+    for stage, cube in enumerate(cubes):
+        for band, values in enumerate(cube):
+            sums.r[stage, band] = np.bincount(k, weights=values, minlength=n_classes)
+            sums.sr[stage, band] = np.bincount(k, weights=s * values, minlength=n_classes)
+            sums.bin_r[stage, band] = np.bincount(groups, weights=values,
+                                                  minlength=n_classes * n_bins).reshape(n_classes, n_bins)
+            sums.side_r[stage, band] = np.bincount(sides, weights=values[outer],
+                                                   minlength=n_classes * 2).reshape(n_classes, 2)
+    return sums
+
+
+def _tree_sum(parts: list):
+    """Add delayed partial sums pairwise (a tree: few partial results alive at once)."""
+    while len(parts) > 1:
+        parts = [dask.delayed(operator.add)(*parts[i:i + 2]) if i + 1 < len(parts) else parts[i]
+                 for i in range(0, len(parts), 2)]
+    return parts[0]
+
+
+def _scene_sums(arrays: list, options: _SumOptions, compute: dict) -> _Sums:
+    """:class:`_Sums` of whole arrays (before, after, classes, vza, vaa, saa): directly for numpy,
+    per dask block and added in a tree otherwise (one compute; every block read once)."""
+    if not any(isinstance(a, da.Array) for a in arrays):
+        return _block_sums(*(None if a is None else np.asarray(a) for a in arrays), options)
+    cube = next(a for a in arrays[:2] if isinstance(a, da.Array))
+    spatial = cube.chunks[1:]
+    cubes = [da.asarray(a).rechunk((-1, *spatial)).to_delayed()[0] for a in arrays[:2]]
+    layers = [None if a is None else da.asarray(a).rechunk(spatial).to_delayed() for a in arrays[2:]]
+    block = dask.delayed(_block_sums, pure=True)
+    parts = [
+        block(cubes[0][i, j], cubes[1][i, j], *(None if layer is None else layer[i, j] for layer in layers),
+              options)
+        for i in range(len(spatial[0])) for j in range(len(spatial[1]))
+    ]
+    (total,) = dask.compute(_tree_sum(parts), **compute)
+    return total
+
+
+def _present_ids(classes, nodata) -> np.ndarray:
+    """The positive class ids of a class map (its nodata value excepted)."""
+    data = classes.data if isinstance(classes, xr.DataArray) else classes
+    values = da.unique(data).compute() if isinstance(data, da.Array) else np.unique(np.asarray(data))
+    values = values[np.isfinite(values) & (values > 0)]
+    return values[values != nodata] if nodata is not None else values
+
+
+def _class_nodata(classes):
+    if isinstance(classes, xr.DataArray):
+        nodata = classes.rio.nodata
+        return None if nodata is None or (isinstance(nodata, float) and math.isnan(nodata)) else nodata
+    return None
+
+
+def _check_cubes(before, after) -> tuple[xr.DataArray, xr.DataArray]:
+    cubes = []
+    for name, cube in (("before", before), ("after", after)):
+        if not isinstance(cube, xr.DataArray):
+            cube = xr.DataArray(cube, dims=("band", "y", "x"))
+        if cube.ndim != 3:
+            raise InputError(f"the {name} reflectance must be 3-D (band, y, x), got dims {cube.dims}")
+        cubes.append(cube)
+    if cubes[0].shape != cubes[1].shape:
+        raise InputError(f"the before and after reflectance differ in shape: {cubes[0].shape} and {cubes[1].shape} "
+                         "(band, y, x); give the corrected image of the same scene")
+    return cubes[0], cubes[1]
+
+
+def _layer(value, name: str, shape: tuple[int, ...]):
+    if value is None:
+        return None
+    data = value.data if isinstance(value, xr.DataArray) else value
+    if tuple(np.shape(data)) != shape:
+        raise InputError(f"{name} has shape {tuple(np.shape(data))}, the reflectance's grid is {shape}")
+    return data
+
+
+def assess_view_angles(
+    before, after, classes, vza, vaa, saa=None, *, by: Literal["sun", "track"] = "sun",
+    heading: float | None = None, class_ids: Sequence[int] | None = None,
+    class_names: Mapping[int, str] | None = None, bin_width: float = 2.0, min_vza: float = 0.0,
+    flip_view_azimuth: bool = False, scheduler: str | None = None, num_workers: int | None = None,
+) -> xr.Dataset:
+    """Per class and band, before and after a correction: the slope of reflectance against the
+    signed view zenith, the ratio of the two sides of nadir and the across-track profile.
+
+    Parameters
+    ----------
+    before, after : xarray.DataArray or array (band, y, x)
+        Reflectance [1] before and after the correction, on one grid (numpy or dask). Only pixels
+        valid (finite) in every band of both enter, so both stages are measured on the same pixels.
+    classes : xarray.DataArray or array (y, x)
+        Class map: ids > 0; 0, NaN and the map's rioxarray nodata are no class.
+    vza, vaa, saa : xarray.DataArray or array (y, x)
+        View zenith, view azimuth and solar azimuth [deg] (``docs/conventions.md``); ``saa`` is
+        needed for ``by="sun"``. Pixels with a view zenith outside [0°, 90°) are left out.
+    by, heading :
+        The sign convention (:func:`signed_view_zenith`).
+    class_ids : sequence of int, optional
+        Classes to assess (default: every class id in the map).
+    class_names : mapping of int to str, optional
+        Names for the report and the figures (default ``class ID``).
+    bin_width : float, default 2
+        Width of the bins of signed view zenith of the profiles [deg]; bins are centred on
+        multiples of it shifted by half a width, so that nadir is a bin edge.
+    min_vza : float, default 0
+        The side ratio compares pixels with ``|signed vza| >= min_vza`` [deg] (and never 0).
+    flip_view_azimuth : bool, default False
+        ``vaa`` is stored as seen from the sensor: add 180°.
+    scheduler, num_workers : optional
+        dask scheduler and workers of the one compute (as for :func:`dask.compute`).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``stage`` (before, after), ``band``, ``class``, ``vza_bin``, ``side`` (negative,
+        positive), with variables
+
+        - ``pixels`` (class): valid pixels;
+        - ``mean`` (stage, band, class): mean reflectance R̄ [1];
+        - ``slope`` (stage, band, class): least-squares slope b of R against the signed view
+          zenith θ [1/deg] (Notes);
+        - ``relative_slope`` (stage, band, class): 1000 · b / R̄ [%/10 deg];
+        - ``side_ratio`` (stage, band, class): mean R on the positive side over that on the negative
+          side [-] (forward/backward with ``by="sun"``, right/left with ``by="track"``), 1 when
+          the sides agree; ``side_pixels`` (class, side);
+        - ``profile`` (stage, band, class, vza_bin): mean R per bin [1], NaN where empty;
+          ``bin_pixels`` (class, vza_bin); coordinate ``vza_bin``: the bin centres [deg],
+          ``vza_bin_edges`` (vza_bin, 2) its edges. Bins from the first to the last non-empty one.
+
+        attrs ``sign_convention``, ``positive_side``, ``negative_side``, ``heading``, ``min_vza``.
+
+    Notes
+    -----
+    The slope is the ordinary least-squares estimate
+    b = Σ(θ − θ̄)(R − R̄) / Σ(θ − θ̄)², computed from the sums n, Σθ, Σθ², ΣR, ΣθR of one pass as
+    b = (ΣθR/n − θ̄R̄) / (Σθ²/n − θ̄²); NaN when a class is seen at one signed zenith only. A
+    correction that worked leaves b ≈ 0 and a side ratio ≈ 1 in every class and band.
+    """
+    before, after = _check_cubes(before, after)
+    if by not in SIGN_CONVENTIONS:
+        raise InputError(f"sign convention {by!r} is not one of {', '.join(SIGN_CONVENTIONS)}")
+    if not (math.isfinite(bin_width) and 0 < bin_width <= 90):
+        raise InputError(f"bin width {bin_width} deg must be in (0, 90]")
+    if not (math.isfinite(min_vza) and 0 <= min_vza < 90):
+        raise InputError(f"min_vza {min_vza} deg must be in [0, 90)")
+    shape = before.shape[1:]
+    layers = [_layer(value, name, shape) for name, value in
+              (("the class map", classes), ("vza", vza), ("vaa", vaa), ("saa", saa))]
+    if layers[3] is None and by == "sun":
+        raise InputError("the signed view zenith by the sun needs the solar azimuth (saa)")
+    ids = np.sort(np.asarray(class_ids if class_ids is not None else _present_ids(classes, _class_nodata(classes))))
+    if ids.size == 0:
+        raise InputError("the class map holds no class (no id > 0 outside its nodata)")
+    half = math.ceil(90.0 / bin_width)
+    edges = bin_width * np.arange(-half, half + 1, dtype=np.float64)
+    options = _SumOptions(ids=ids, edges=edges, by=by, heading=heading, min_vza=float(min_vza),
+                          flip_view_azimuth=flip_view_azimuth)
+    compute = {key: value for key, value in (("scheduler", scheduler), ("num_workers", num_workers)) if value}
+    sums = _scene_sums([before.data, after.data, *layers], options, compute)
+    return _statistics(sums, ids, edges, before, class_names or {},
+                       {"sign_convention": by, "heading": heading, "min_vza": float(min_vza)})
+
+
+def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataArray,
+                names: Mapping[int, str], settings: dict) -> xr.Dataset:
+    """The statistics of :func:`assess_view_angles` from the sums."""
+    n = sums.n
+    mean = _divide(sums.r, n)
+    mean_s = _divide(sums.s, n)
+    variance = _divide(sums.ss, n) - mean_s**2
+    covariance = _divide(sums.sr, n) - mean_s * mean
+    slope = _divide(covariance, np.where(variance > 1e-12 * np.maximum(_divide(sums.ss, n), 1.0), variance, 0.0))
+    occupied = np.flatnonzero(sums.bin_n.sum(axis=0) > 0)
+    keep = slice(occupied[0], occupied[-1] + 1) if occupied.size else slice(0, 0)
+    bin_n = sums.bin_n[:, keep]
+    lower, upper = edges[:-1][keep], edges[1:][keep]
+    side_mean = _divide(sums.side_r, sums.side_n)
+    data = {
+        "pixels": (("class",), n.astype(np.int64), {"long_name": "valid pixels", "units": "1"}),
+        "mean": (("stage", "band", "class"), mean, {"long_name": "mean reflectance", "units": "1"}),
+        "slope": (("stage", "band", "class"), slope,
+                  {"long_name": "least-squares slope of reflectance against signed view zenith", "units": "1/degree"}),
+        "relative_slope": (("stage", "band", "class"), 1000.0 * _divide(slope, mean),
+                           {"long_name": "slope relative to the class mean", "units": "%/10 degree"}),
+        "side_ratio": (("stage", "band", "class"), _divide(side_mean[..., 1], side_mean[..., 0]),
+                       {"long_name": "mean reflectance, positive over negative side of nadir", "units": "1"}),
+        "side_pixels": (("class", "side"), sums.side_n.astype(np.int64), {"units": "1"}),
+        "profile": (("stage", "band", "class", "vza_bin"), _divide(sums.bin_r[..., keep], bin_n),
+                    {"long_name": "mean reflectance per bin of signed view zenith", "units": "1"}),
+        "bin_pixels": (("class", "vza_bin"), bin_n.astype(np.int64), {"units": "1"}),
+    }
+    coords = {
+        "stage": ("stage", list(STAGES)),
+        **_band_coords(cube),
+        "class": ("class", ids.astype(np.int64)),
+        "class_name": ("class", [names.get(int(i), f"class {int(i)}") for i in ids]),
+        "side": ("side", ["negative", "positive"]),
+        "vza_bin": ("vza_bin", (lower + upper) / 2, {"long_name": "signed view zenith, bin centre", "units": "degree"}),
+        "vza_bin_edges": (("vza_bin", "edge"), np.stack([lower, upper], axis=-1), {"units": "degree"}),
+    }
+    positive, negative = _SIGN_WORDS[settings["sign_convention"]]
+    attrs = {**{k: v for k, v in settings.items() if v is not None}, "positive_side": positive,
+             "negative_side": negative}
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _stage_summary(values: xr.DataArray) -> dict[str, object]:
+    """Median and maximum of |values| over every class and band, per stage."""
+    summary = {}
+    for stage in STAGES:
+        magnitudes = np.abs(values.sel(stage=stage).values)
+        magnitudes = magnitudes[np.isfinite(magnitudes)]
+        summary[stage] = {"median": _json_numbers(np.median(magnitudes)) if magnitudes.size else None,
+                          "max": _json_numbers(magnitudes.max()) if magnitudes.size else None}
+    return summary
+
+
+def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
+    """The result of :func:`assess_view_angles` as a JSON-serialisable dict.
+
+    Per class (id, name, pixels) and stage: per band lists of ``mean`` [1], ``slope`` [1/deg],
+    ``relative_slope`` [%/10 deg] and ``side_ratio`` [-]; the profile (bin edges [deg], pixels,
+    mean per band and bin). ``summary``: median and largest |relative slope| and |side ratio − 1|
+    [%] over classes and bands, before and after.
+    """
+    classes = []
+    for index, class_id in enumerate(dataset["class"].values):
+        one = dataset.isel({"class": index})
+        entry: dict[str, object] = {"id": int(class_id), "name": str(one["class_name"].values),
+                                    "pixels": int(one["pixels"])}
+        for stage in STAGES:
+            values = one.sel(stage=stage)
+            entry[stage] = {name: _json_numbers(values[name].values)
+                            for name in ("mean", "slope", "relative_slope", "side_ratio")}
+        entry["side_pixels"] = {"negative": int(one["side_pixels"].values[0]),
+                                "positive": int(one["side_pixels"].values[1])}
+        entry["profile"] = {
+            "vza_bin_edges_deg": _json_numbers(one["vza_bin_edges"].values),
+            "pixels": [int(v) for v in one["bin_pixels"].values],
+            **{stage: _json_numbers(one["profile"].sel(stage=stage).values) for stage in STAGES},
+        }
+        classes.append(entry)
+    return {
+        "sign": {key: dataset.attrs[key] for key in ("sign_convention", "positive_side", "negative_side", "heading",
+                                                      "min_vza") if key in dataset.attrs},
+        "units": {"mean": "1", "slope": "1/degree", "relative_slope": "%/10 degree", "side_ratio": "1"},
+        "bands": _band_list(dataset),
+        "classes": classes,
+        "summary": {"abs_relative_slope_percent_per_10deg": _stage_summary(dataset["relative_slope"]),
+                    "abs_side_ratio_minus_1_percent": _stage_summary(100.0 * (dataset["side_ratio"] - 1.0))},
+    }

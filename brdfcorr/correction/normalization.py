@@ -1,0 +1,292 @@
+"""BRDF normalization of reflectance cubes to a reference sun/view geometry (lazy, chunked).
+
+For a pixel of class c observed at sun zenith theta_i, view zenith theta_r and relative azimuth phi,
+with the class's model f_c and per-band parameters p_c(lambda) (``docs/conventions.md``, "The correction")::
+
+    corrected(lambda) = observed(lambda) * clip(f_c(ref; p_c(lambda)) / f_c(obs; p_c(lambda)), limits)
+
+The geometry of each pixel (relative azimuth, facet inclination, local incidence, cosines) is
+computed once and shared by all bands; each class's model is evaluated only at that class's pixels.
+Bands whose parameters are equal share one factor map, so with band-independent parameters the
+per-band cost is the bare multiplication; with spectral tables the basis functions are evaluated once
+per shape and only their linear combination (``t0 + t1 g``; ``f_iso + f_vol K_vol + f_geo K_geo``)
+is re-evaluated per band.
+
+With dask-backed inputs the result is lazy (one task per reflectance chunk, no computation until
+asked) and its chunks are those of the reflectance.
+
+The QA layer: :mod:`brdfcorr.correction.qa`.
+
+Tilted surfaces (``slope``/``aspect`` given, :mod:`brdfcorr.terrain`): the observed geometry is
+evaluated in the frame of the tilted surface (:func:`brdfcorr.terrain.local_angles`), the reference
+geometry in the horizontal frame (reference sza ``"observed"`` is the pixel's horizontal sza), so
+a tilted surface is normalized to how a horizontal one of the same material would look. The factor
+is the BRDF ratio only; the illumination term cos i / cos sza is the topographic step's
+(:func:`brdfcorr.topographic.topographic_correction` with ``method="cosine"``; ``docs/terrain.md``).
+A slope of 0 gives bit for bit the result without slope and aspect.
+
+A factor is valid when it is a finite positive number: the model predicts a positive finite signal
+at both geometries and their ratio neither overflows nor underflows. Otherwise (a kernel-driven
+model with negative coefficients predicting none or a negative one, a peak underflowing to 0 at
+the reference, extreme parameters overflowing the output precision) the pixel is nodata (NaN) in
+that band and flagged ``nodata``, never ``limited`` and never counted as corrected: a wrong number
+delivered silently is worse than none. The one exception is a model predicting no signal at either
+geometry (0 / 0): the pixel is left unchanged (factor 1). The registry's parameter bounds
+(:data:`brdfcorr.models._base.MAX_INTENSITY`) keep every model itself finite.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Literal, NamedTuple
+
+import numpy as np
+import xarray as xr
+
+from brdfcorr.correction.blocks import ClassPlan, PixelGeometry, Plans, class_plan, present_classes, split_pairs
+from brdfcorr.correction.inputs import prepare_inputs
+from brdfcorr.correction.qa import QA, qa_attrs, set_flags
+from brdfcorr.correction.reference import describe_limits
+from brdfcorr.defaults import DEFAULT_LIMITS
+from brdfcorr.errors import InputError
+from brdfcorr.params import ParameterTable, ReferenceGeometry
+
+__all__ = ["normalize", "Normalized"]
+
+
+class Normalized(NamedTuple):
+    """Result of :func:`normalize`: the corrected cube and its QA layer (both DataArrays)."""
+
+    reflectance: xr.DataArray
+    qa: xr.DataArray
+
+
+def normalize(
+    reflectance,
+    classes,
+    sza,
+    saa,
+    vza,
+    vaa,
+    params: ParameterTable,
+    reference: ReferenceGeometry | dict | None = None,
+    *,
+    limits: tuple[float, float] | None = DEFAULT_LIMITS,
+    wavelengths: Sequence[float] | None = None,
+    extrapolate: bool = False,
+    unknown: Literal["keep", "nan"] = "keep",
+    class_nodata: float | None = None,
+    flip_view_azimuth: bool = False,
+    slope=None,
+    aspect=None,
+) -> Normalized:
+    """Normalize a reflectance cube to a reference sun/view geometry with per-class BRDF models.
+
+    Parameters
+    ----------
+    reflectance : xarray.DataArray (band, y, x)
+        Reflectance (any units; they are kept). NaN and +-inf are nodata (NaN in the output).
+        numpy or dask backed.
+    classes : xarray.DataArray (y, x)
+        Class map: ids of ``params``; 0, NaN and ``class_nodata`` mean "no class".
+    sza, saa, vza, vaa : xarray.DataArray (y, x)
+        Solar zenith, solar azimuth, view zenith, view azimuth per pixel [deg] (``docs/conventions.md``
+        conventions: azimuths of the directions from the pixel towards the sun and the sensor).
+    params : ParameterTable
+        Model and parameters per class.
+    reference : ReferenceGeometry or dict, optional
+        Target geometry: ``sza`` [deg] or ``"mean"`` (scene mean of the valid ``sza``) or
+        ``"observed"``, ``vza`` [deg] and ``raa`` [deg]. Defaults to the table's reference, else
+        ``ReferenceGeometry()`` (observed sun, nadir view).
+    limits : (float, float) or None, default (0.2, 5)
+        The factor f(ref)/f(obs) is clipped to this range [-]; clipped pixels are flagged.
+    wavelengths : sequence of float, optional
+        Band centres [nm]; by default the reflectance's ``wavelength`` coordinate, if any.
+    extrapolate : bool, default False
+        Let band centres outside a class's table wavelengths take the edge values.
+    unknown : {"keep", "nan"}, default "keep"
+        What to do with pixels of no class or of ids absent from the table: keep them unchanged
+        (factor 1) or set them to NaN. They are flagged in the QA layer either way.
+    class_nodata : number, optional
+        Nodata value of the class map; by default its rioxarray nodata (``classes.rio.nodata``).
+    flip_view_azimuth : bool, default False
+        Add 180 deg to ``vaa``, for products storing the azimuth of the view direction as seen from
+        the sensor.
+    slope, aspect : xarray.DataArray (y, x), optional
+        Surface slope [deg] in [0, 90] and the azimuth the surface faces (downslope, clockwise from
+        north) [deg], both or neither (:func:`brdfcorr.terrain.slope_aspect` from a DEM, or
+        :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`). The observed geometry is then
+        evaluated in each surface's own frame, the reference in the horizontal frame (module
+        docstring, "Tilted surfaces"); pixels whose sun or sensor is behind the surface are nodata,
+        flagged ``facing_away``. Slope 0 gives exactly the result without them.
+
+    Returns
+    -------
+    Normalized
+        ``(reflectance, qa)``: the corrected cube with the input's dims, coords (including the
+        ``spatial_ref`` georeference), attrs and chunks, and the QA layer (y, x) of uint8 flags
+        (module docstring). Lazy if any input is dask-backed.
+
+    Raises
+    ------
+    ParameterError
+        The table cannot be resolved to the bands (names the class and parameter).
+    GridMismatchError, InputError
+        A layer is not on the reflectance's grid, or has the wrong dimensions.
+
+    Notes
+    -----
+    ``corrected = observed * f(ref) / f(obs)`` (``docs/conventions.md``, "The correction"), the factor evaluated
+    with the model of the pixel's class (paper 003 eq. 1, paper 000 eq. 5) at the pixel's geometry.
+    """
+    if unknown not in ("keep", "nan"):
+        raise InputError(f"unknown must be 'keep' or 'nan', got {unknown!r}")
+    inputs = prepare_inputs(
+        reflectance, classes, sza, saa, vza, vaa, params, reference, limits=limits, wavelengths=wavelengths,
+        extrapolate=extrapolate, class_nodata=class_nodata, slope=slope, aspect=aspect,
+    )
+    reflectance, reference, limits = inputs.reflectance, inputs.reference, inputs.limits
+    band_dim = reflectance.dims[0]
+    plans = Plans({cid: class_plan(cid, entry.model, entry.params) for cid, entry in inputs.resolved.items()})
+    kwargs: dict[str, Any] = dict(
+        plans=plans, reference=reference, limits=limits, unknown_nan=unknown == "nan",
+        class_nodata=inputs.class_nodata, flip_view_azimuth=flip_view_azimuth, out_dtype=inputs.out_dtype,
+    )
+    if inputs.lazy:
+        pairs = inputs.blockwise(_normalize_block, kwargs)
+        corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, kwargs["out_dtype"])
+    else:
+        corrected, qa = inputs.apply(_normalize_block, kwargs)
+        qa = qa[0]
+
+    attrs = dict(reflectance.attrs)
+    attrs.update(brdf_reference=reference.describe(), brdf_limits=describe_limits(limits))
+    corrected = xr.DataArray(
+        corrected, dims=reflectance.dims, coords=reflectance.coords, attrs=attrs, name=reflectance.name
+    )
+    spatial_coords = {k: v for k, v in reflectance.coords.items() if band_dim not in v.dims}
+    qa = xr.DataArray(
+        qa, dims=reflectance.dims[1:], coords=spatial_coords, name="qa",
+        attrs=qa_attrs("BRDF normalization quality flags"),
+    )
+    return Normalized(corrected, qa)
+
+
+def _normalize_block(
+    reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, slope=None, aspect=None, *,
+    plans: Plans, reference: ReferenceGeometry, limits, unknown_nan: bool,
+    class_nodata, flip_view_azimuth: bool, out_dtype,
+):
+    """Normalize one (band, y, x) block; returns (corrected block, QA block of shape (1, y, x))."""
+    n_bands, ny, nx = reflectance.shape
+    cube = reflectance.reshape(n_bands, ny * nx)
+    pixels = PixelGeometry.of_block(classes, sza, saa, vza, vaa, slope, aspect, class_nodata=class_nodata,
+                                    flip_view_azimuth=flip_view_azimuth)
+    classes, qa, usable, no_class = pixels.classes, pixels.qa, pixels.usable, pixels.no_class
+    candidates, infinite = _cube_masks(cube, qa)
+    base = np.ones(ny * nx, dtype=out_dtype)  # factor of pixels no class corrects
+    base[~usable] = np.nan
+    unclassified = usable & no_class
+    set_flags(qa, unclassified, QA.NO_CLASS)
+    if unknown_nan:
+        base[unclassified] = np.nan
+    states = []
+    for class_id in present_classes(classes[usable & ~no_class]):
+        members = usable & (classes == class_id)
+        plan = plans.get(int(class_id)) if float(class_id).is_integer() else None
+        if plan is None:
+            set_flags(qa, members, QA.UNKNOWN_CLASS)
+            if unknown_nan:
+                base[members] = np.nan
+            continue
+        index = np.flatnonzero(members)
+        observed, ref = pixels.geometries(index, reference, reference_sza)
+        # The basis functions in float64; the per-band linear combination in the output precision.
+        # Parameters were validated when the table was resolved to the bands. A term beyond the
+        # output precision becomes inf, and its pixels nodata (_ratio).
+        with np.errstate(over="ignore"):
+            terms = [
+                tuple(
+                    tuple(np.broadcast_to(np.asarray(t, dtype=out_dtype), index.shape)
+                          for t in plan.model.terms(where, shape))
+                    for where in (observed, ref)
+                )
+                for shape in plan.shapes
+            ]
+        states.append((plan, index, terms))
+
+    out, flags = _apply_factors(cube, band_index, base, states, limits, out_dtype)
+    if infinite is not None and infinite.any():  # +-inf is nodata like NaN: NaN in the output
+        corrected = out[:, candidates]
+        corrected[infinite] = np.nan
+        out[:, candidates] = corrected
+    for index, limited, invalid in flags:
+        set_flags(qa, index[limited], QA.LIMITED)
+        set_flags(qa, index[invalid], QA.NODATA)
+    return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
+
+
+def _cube_masks(cube, qa):
+    """Flag pixels with non-finite reflectance in some band (``qa`` in place); returns the few
+    pixels with a non-finite band sum (indices) and where in them a value is +-inf."""
+    candidates = infinite = None
+    if cube.dtype.kind == "f":
+        # NaN or +-inf in some band makes the band sum non-finite (one pass, no mask cube); those
+        # few pixels are then checked band by band (a sum of finite values may overflow).
+        with np.errstate(over="ignore", invalid="ignore"):
+            candidates = np.flatnonzero(~np.isfinite(np.add.reduce(cube, axis=0)))
+        if candidates.size:
+            values = cube[:, candidates]
+            set_flags(qa, candidates[~np.isfinite(values).all(axis=0)], QA.NODATA)
+            infinite = np.isinf(values)
+    return candidates, infinite
+
+
+def _apply_factors(cube, band_index, base, states, limits, out_dtype):
+    """Multiply each band by its factor map; returns the output and, per class, its pixel indices,
+    which of them were limited in some band and which had no valid factor (NaN) in some band.
+
+    One factor map serves the block, updated band by band only where a class's parameters change:
+    with band-independent parameters every band costs one multiplication.
+    """
+    factor = base
+    current_row = {plan.id: -1 for plan, _, _ in states}
+    limited = {plan.id: np.zeros(index.size, dtype=bool) for plan, index, _ in states}
+    invalid = {plan.id: np.zeros(index.size, dtype=bool) for plan, index, _ in states}
+    out = np.empty(cube.shape, dtype=out_dtype)
+    for position, band in enumerate(np.asarray(band_index).reshape(-1)):
+        for plan, index, terms in states:
+            if plan.row_of_band[band] == current_row[plan.id]:
+                continue
+            current_row[plan.id] = plan.row_of_band[band]
+            ratio = _ratio(plan, band, *terms[plan.shape_of_band[band]])
+            invalid[plan.id] |= np.isnan(ratio)
+            if limits is not None:
+                # NaN compares False: a pixel without a valid factor is nodata, not limited.
+                limited[plan.id] |= (ratio < limits[0]) | (ratio > limits[1])
+                ratio = np.clip(ratio, *limits)
+            factor[index] = ratio
+        np.multiply(cube[position], factor, out=out[position], casting="unsafe")
+    return out, [(index, limited[plan.id], invalid[plan.id]) for plan, index, _ in states]
+
+
+def _ratio(plan: ClassPlan, band: int, terms_observed: tuple, terms_reference: tuple) -> np.ndarray:
+    """f(ref) / f(obs) at a class's pixels for one band (a new array in the terms' precision).
+
+    Only a finite positive ratio with f(obs) > 0 is a factor; anything else is NaN (the pixel is
+    nodata in that band and flagged ``nodata``, module docstring): no signal or a negative one
+    at a geometry (a kernel-driven model with negative coefficients can predict that), a peak
+    underflowing to 0, a value or ratio beyond the terms' precision. Where the model predicts no
+    signal at either geometry (0 / 0) the pixel is left unchanged (ratio 1).
+    """
+    coefficients = [float(c) for c in plan.coefficients[band]]  # Python floats keep the terms' dtype
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        f_observed = sum(c * term for c, term in zip(coefficients, terms_observed))
+        f_reference = sum(c * term for c, term in zip(coefficients, terms_reference))
+        ratio = f_reference / f_observed
+    # NaN compares False, so NaN, +-inf, 0 and negative ratios and f(obs) <= 0 are all invalid.
+    invalid = ~((f_observed > 0) & (ratio > 0) & (ratio < np.inf))
+    if invalid.any():
+        ratio[invalid] = np.where((f_observed[invalid] == 0) & (f_reference[invalid] == 0), 1.0, np.nan)
+    return ratio
+
+

@@ -1,0 +1,193 @@
+"""Sun and view angle rasters: reading a 4-band raster or four files (:func:`open_angles`,
+bands found by their descriptions) and the one physical check of their values
+(:func:`check_angles`: degrees, a zenith in [0, 90) somewhere), which also gives the scene means."""
+
+from __future__ import annotations
+
+import math
+import re
+import warnings
+from collections.abc import Mapping
+from typing import NamedTuple
+
+import dask
+import dask.array
+import numpy as np
+import xarray as xr
+
+from brdfcorr.errors import InputError
+from brdfcorr.io.grid import describe_layer
+from brdfcorr.io.opening import chunk_spec, open_raster
+
+__all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "angle_band_name", "open_angles", "AngleStatistics", "check_angles"]
+
+ANGLE_NAMES = ("sza", "saa", "vza", "vaa")
+
+#: Band descriptions that name an angle in a 4-band angle raster (:func:`open_angles`), after
+#: lower-casing, spaces and hyphens turned into ``_`` and an ``_angle`` suffix dropped.
+ANGLE_BAND_NAMES = {
+    "sza": ("sza", "solar_zenith", "sun_zenith"),
+    "saa": ("saa", "solar_azimuth", "sun_azimuth"),
+    "vza": ("vza", "view_zenith", "viewing_zenith", "sensor_zenith"),
+    "vaa": ("vaa", "view_azimuth", "viewing_azimuth", "sensor_azimuth"),
+}
+
+
+def angle_band_name(description: str | None) -> str | None:
+    """The angle (``"sza"``, ``"saa"``, ``"vza"``, ``"vaa"``) a band description names, or None.
+
+    Case and spaces/hyphens are ignored (``"Solar Zenith"`` is ``solar_zenith``), and a suffix
+    ``_angle`` is allowed (CF standard names: ``solar_zenith_angle``, ``sensor_azimuth_angle``);
+    the names are those of :data:`ANGLE_BAND_NAMES`.
+    """
+    if not description:
+        return None
+    key = re.sub(r"[\s\-]+", "_", description.strip().lower())
+    key = key.removesuffix("_angle")
+    return next((angle for angle, names in ANGLE_BAND_NAMES.items() if key in names), None)
+
+
+def _angle_band_order(path, descriptions) -> dict[str, int]:
+    """Band index of each angle of a 4-band angle raster: by band descriptions that name the
+    angles, else the documented order sza, saa, vza, vaa."""
+    if isinstance(descriptions, str):  # rioxarray keeps one description as a string
+        descriptions = (descriptions,)
+    descriptions = tuple(descriptions or ())
+    named = [angle_band_name(text) for text in descriptions]
+    # No descriptions, none naming an angle ("Band 1"), or one on every band (rioxarray describes
+    # every band by the array's name: a stack of layers named "sza" says "sza" four times): positional.
+    if not any(named) or len(set(descriptions)) == 1:
+        return {name: index for index, name in enumerate(ANGLE_NAMES)}
+    if len(named) != len(ANGLE_NAMES) or sorted(map(str, named)) != sorted(ANGLE_NAMES):
+        shown = ", ".join(repr(text) if text else "(none)" for text in descriptions)
+        raise InputError(
+            f"angle file {path}: band descriptions {shown} do not name each of sza, saa, vza, vaa once; "
+            "describe every band (sza, saa, vza, vaa, or solar_zenith, ...) or none (then the order "
+            "is sza, saa, vza, vaa)"
+        )
+    return {name: index for index, name in enumerate(named)}
+
+
+def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=None) -> dict[str, xr.DataArray]:
+    """Open the sun/view angles [deg] as four (y, x) arrays, nodata as NaN.
+
+    Either ``path``, a 4-band raster, or four single-band files. The bands of a 4-band raster are
+    picked by their band descriptions where these name the angles (:data:`ANGLE_BAND_NAMES`: ``sza``
+    or ``solar_zenith``, ..., any case), else (no descriptions, none naming an angle, or the same
+    one on every band) taken in the order sza, saa, vza, vaa.
+
+    Raises
+    ------
+    InputError
+        A missing or unreadable file, a wrong band count, or band descriptions that name some
+        angles but not each of the four once (one line naming the file and its descriptions).
+    """
+    separate = {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
+    given = [name for name, value in separate.items() if value is not None]
+    if path is not None and given:
+        raise InputError("give either one 4-band angle file or the separate sza/saa/vza/vaa files, not both")
+    if path is not None:
+        stack = open_raster(path, "angle", chunk_spec(chunks), masked=True)
+        if stack.sizes[stack.dims[0]] != 4:
+            raise InputError(
+                f"angle file {path} has {stack.sizes[stack.dims[0]]} bands; it needs 4 (sza, saa, vza, vaa)"
+            )
+        order = _angle_band_order(path, stack.attrs.get("long_name"))
+        return {name: stack.isel({stack.dims[0]: order[name]}, drop=True).rename(name) for name in ANGLE_NAMES}
+    missing = [name for name in ANGLE_NAMES if separate[name] is None]
+    if missing:
+        raise InputError(f"missing angle file(s): {', '.join(missing)} (or give one 4-band angle file)")
+    angles = {}
+    for name in ANGLE_NAMES:
+        layer = open_raster(separate[name], f"{name} angle", chunk_spec(chunks), masked=True)
+        if layer.sizes[layer.dims[0]] != 1:
+            raise InputError(f"{name} angle file {separate[name]} has {layer.sizes[layer.dims[0]]} bands; it needs 1")
+        angles[name] = layer.isel({layer.dims[0]: 0}, drop=True).rename(name)
+    return angles
+
+
+class AngleStatistics(NamedTuple):
+    """What one pass over the angle layers found (:func:`check_angles`)."""
+
+    ranges: dict[str, tuple[float, float]]
+    """(min, max) of the finite values of each layer [deg]."""
+    means: dict[str, float]
+    """Mean of each layer's values in [0, 90) [deg] (NaN where there is none); ``means["sza"]`` is
+    the scene-mean sun zenith of a ``"mean"`` reference geometry."""
+
+
+def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, *, scheduler: str | None = None,
+                 num_workers: int | None = None) -> AngleStatistics:
+    """Check that sun/view angle layers hold degrees; return their ranges and means [deg].
+
+    One pass over the (lazy) layers, which also gives the scene-mean sun zenith. Pixels with a
+    zenith outside [0, 90) are not an error here: :func:`brdfcorr.correction.normalize` flags them
+    (QA ``invalid_geometry``) and writes nodata. A layer set that cannot be degrees is an error:
+    every zenith below 1.6 with every azimuth below 6.3 (radians: pi/2 and 2 pi), or no zenith of a
+    layer in [0, 90) at all (scaled or other units).
+
+    Parameters
+    ----------
+    layers : mapping of str to DataArray
+        ``sza``, ``saa``, ``vza``, ``vaa`` [deg] (as from :func:`open_angles`).
+    source : str, optional
+        Name of the angle source for messages (default: the layers' files).
+    scheduler, num_workers : optional
+        dask scheduler of the pass and its number of workers (as for :func:`dask.compute`;
+        default: dask's).
+
+    Raises
+    ------
+    InputError
+        Naming the angle file (or layer) and the range found.
+    """
+    names = [name for name in ANGLE_NAMES if name in layers]
+    arrays = [layers[name].data for name in names]
+    if any(isinstance(a, dask.array.Array) for a in arrays):
+        # One small task per chunk for all layers (not one graph per statistic and layer).
+        first = next(a for a in arrays if isinstance(a, dask.array.Array))
+        arrays = [dask.array.asarray(a).rechunk(first.chunks) for a in arrays]
+        per_block = dask.array.map_blocks(
+            _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 5), dtype=np.float64,
+        ).compute(scheduler=scheduler, num_workers=num_workers)
+    else:
+        per_block = _angle_statistics(*(np.asarray(a) for a in arrays))
+    per_block = per_block.reshape(-1, len(names), 5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN layers: NaN range
+        low, high = np.nanmin(per_block[..., 0], axis=0), np.nanmax(per_block[..., 1], axis=0)
+    totals = per_block[..., 2:].sum(axis=0)
+    ranges = {name: (float(low[i]), float(high[i])) for i, name in enumerate(names)}
+    counts = {name: (int(totals[i, 0]), int(totals[i, 1])) for i, name in enumerate(names)}
+    means = {name: totals[i, 2] / totals[i, 1] if totals[i, 1] else math.nan for i, name in enumerate(names)}
+
+    def where(name):
+        return source or describe_layer(name, layers[name])
+
+    zeniths = [name for name in ("sza", "vza") if name in ranges and counts[name][0]]
+    azimuths = [name for name in ("saa", "vaa") if name in ranges and counts[name][0]]
+    if zeniths and azimuths and all(ranges[n][1] < 1.6 for n in zeniths) and all(
+            ranges[n][1] < 6.3 for n in azimuths):
+        found = ", ".join(f"{n} {ranges[n][0]:.3g}..{ranges[n][1]:.3g}" for n in zeniths + azimuths)
+        raise InputError(f"{where(zeniths[0])}: the angles look like radians ({found}); brdfcorr needs degrees")
+    for name in zeniths:
+        finite, in_domain = counts[name]
+        if in_domain == 0:
+            lowest, highest = ranges[name]
+            raise InputError(
+                f"{where(name)}: no {name} value in [0, 90) deg (found {lowest:.6g}..{highest:.6g}); "
+                "are the angles scaled or in other units?"
+            )
+    return AngleStatistics(ranges, means)
+
+
+def _angle_statistics(*blocks: np.ndarray) -> np.ndarray:
+    """(1, 1, n_layers, 5): min, max, finite count, count in [0, 90) and the sum of the values in
+    [0, 90) of each (y, x) block."""
+    result = np.empty((1, 1, len(blocks), 5))
+    for index, block in enumerate(blocks):
+        values = block[np.isfinite(block)]
+        in_domain = values[(values >= 0) & (values < 90)]
+        result[0, 0, index, :2] = (values.min(), values.max()) if values.size else (np.nan, np.nan)
+        result[0, 0, index, 2:] = values.size, in_domain.size, in_domain.sum(dtype=np.float64)
+    return result

@@ -1,0 +1,87 @@
+"""The one grid check: are two rasters on the same grid (shape, CRS, transform)?
+
+Every layer a correction reads (angles, class map, slope and aspect, an obs file, a corrected image
+beside its input) must lie on the image's grid pixel for pixel. :func:`grid_difference` says how two
+layers' grids differ, with one tolerance (:data:`TOLERANCE`); :func:`check_same_grid` turns a
+difference into the one error, :class:`~brdfcorr.errors.GridMismatchError`, naming both layers
+and what differs.
+
+A layer that carries no georeference at all (a bare array: no CRS and no x/y coordinates) has no
+grid to contradict the image's; it is on the grid when its shape is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import rioxarray  # noqa: F401  (registers the .rio accessor)
+import xarray as xr
+
+from brdfcorr.errors import GridMismatchError
+
+__all__ = ["TOLERANCE", "grid_difference", "check_same_grid", "describe_layer"]
+
+#: Largest difference between two transforms' coefficients that still means the same grid, as a
+#: fraction of the pixel size [-]: far below any real misregistration, far above rounding.
+TOLERANCE = 1e-6
+
+
+def _shape(layer: xr.DataArray) -> tuple[int, int]:
+    return tuple(layer.shape[-2:])  # type: ignore[return-value]
+
+
+def _georeferenced(layer: xr.DataArray) -> bool:
+    return layer.rio.crs is not None or any(dim in layer.coords for dim in layer.dims[-2:])
+
+
+def grid_difference(layer: xr.DataArray, base: xr.DataArray) -> str | None:
+    """How ``layer``'s grid differs from ``base``'s, or None when they are the same grid.
+
+    Compared on the last two dims: the shape (rows, columns), then the CRS (one of them without a
+    CRS differs from one with), then the transforms, coefficient by coefficient within
+    :data:`TOLERANCE` of ``base``'s pixel size. A layer without any georeference (module docstring)
+    is compared by its shape only.
+    """
+    if _shape(layer) != _shape(base):
+        return f"shape (rows, columns) {_shape(layer)} differs from {_shape(base)}"
+    if not (_georeferenced(layer) and _georeferenced(base)):
+        return None
+    crs, base_crs = layer.rio.crs, base.rio.crs
+    if crs != base_crs:
+        return f"CRS {crs} differs from {base_crs}"
+    transform, base_transform = layer.rio.transform(), base.rio.transform()
+    pixel = max(abs(base_transform.a), abs(base_transform.e), 1e-12)
+    if not np.allclose(tuple(transform)[:6], tuple(base_transform)[:6], rtol=0, atol=TOLERANCE * pixel):
+        return f"transform {tuple(transform)[:6]} differs from {tuple(base_transform)[:6]}"
+    return None
+
+
+def describe_layer(name: str, layer: xr.DataArray) -> str:
+    """A layer's name for messages, with its file where it has one: ``classes (classes.tif)``."""
+    source = layer.encoding.get("source")
+    return f"{name} ({source})" if source else name
+
+
+def check_same_grid(layers: Mapping[str, xr.DataArray], reference: str | None = None) -> None:
+    """Raise :class:`GridMismatchError` unless all layers are on one grid (:func:`grid_difference`).
+
+    Parameters
+    ----------
+    layers : mapping of str to DataArray
+        Named layers (``{"image": ..., "classes": ...}``), compared on their last two dims.
+    reference : str, optional
+        The layer the others are compared with (default: the first).
+
+    Raises
+    ------
+    GridMismatchError
+        ``{name} ({file}) is not on the grid of {reference} ({file}): {what differs}``.
+    """
+    reference = reference or next(iter(layers))
+    base = layers[reference]
+    for name, layer in layers.items():
+        difference = None if name == reference else grid_difference(layer, base)
+        if difference is not None:
+            where = describe_layer(reference, base)
+            raise GridMismatchError(f"{describe_layer(name, layer)} is not on the grid of {where}: {difference}")

@@ -1,0 +1,57 @@
+"""Band names as sensors write them, and their centre wavelengths: Sentinel-2 MSI (``B02``,
+``B8A``) and Landsat 8/9 OLI (``SR_B4``)."""
+
+from __future__ import annotations
+
+import re
+
+__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "named_band_wavelengths"]
+
+#: Central wavelengths [nm] of the Sentinel-2A MSI bands (ESA, Sentinel-2 spectral response
+#: functions, COPE-GSEG-EOPG-TN-15-0007). Sentinel-2B's centres differ by 3 nm or less in B01 to
+#: B8A (by up to 17 nm in B12): the S2A values serve both.
+SENTINEL2_WAVELENGTHS = {
+    "B01": 442.7, "B02": 492.4, "B03": 559.8, "B04": 664.6, "B05": 704.1, "B06": 740.5, "B07": 782.8,
+    "B08": 832.8, "B8A": 864.7, "B09": 945.1, "B10": 1373.5, "B11": 1613.7, "B12": 2202.4,
+}
+
+#: Central wavelengths [nm] of the Landsat 8/9 OLI reflective bands 1-7 (USGS, Landsat 8 Data
+#: Users Handbook, Table 2-1), used only for images whose tags state the sensor
+#: (:func:`brdfcorr.io.wavelengths.band_wavelengths`).
+LANDSAT_OLI_WAVELENGTHS = {1: 443.0, 2: 482.0, 3: 562.0, 4: 655.0, 5: 865.0, 6: 1609.0, 7: 2201.0}
+
+#: Dataset tags that may state the sensor of an image (Landsat MTL's ``SENSOR_ID``: ``OLI_TIRS``).
+_SENSOR_TAGS = ("sensor", "SENSOR", "SENSOR_ID")
+
+
+def sentinel2_band(text: str | None) -> str | None:
+    """``"B02"`` for a description ``"B02"``, ``"b2"`` or ``"B2"``; ``"B8A"`` for ``"B8A"``; else None."""
+    match = re.fullmatch(r"B(0?[1-9]|1[0-2]|8A)", (text or "").strip(), re.I)
+    if match is None:
+        return None
+    number = match[1].upper()
+    return "B8A" if number == "8A" else f"B{int(number):02d}"
+
+
+def landsat_oli_band(text: str | None) -> int | None:
+    """Band number of a Landsat OLI band name (``"SR_B4"``, ``"B4"``, ``"B04"``) of bands 1-7, or None."""
+    match = re.fullmatch(r"(?:SR_)?B0?([1-7])", (text or "").strip(), re.I)
+    return int(match[1]) if match else None
+
+
+def named_band_wavelengths(descriptions, tags) -> tuple[list[float] | None, str]:
+    """Wavelengths [nm] from band names, and their origin: Landsat OLI names where a tag states the
+    sensor (``sensor``/``SENSOR_ID`` holding ``OLI``), else Sentinel-2 names when every description
+    is one. Anything else (a mix, ``SR_B4`` without the sensor): None, no guess."""
+    if not descriptions:
+        return None, ""
+    sensor = next((str(tags[key]) for key in _SENSOR_TAGS if key in tags), "")
+    if "OLI" in sensor.upper():
+        bands = [landsat_oli_band(text) for text in descriptions]
+        if all(band is not None for band in bands):
+            return [LANDSAT_OLI_WAVELENGTHS[band] for band in bands], f"Landsat OLI band names (sensor {sensor})"
+        return None, ""
+    names = [sentinel2_band(text) for text in descriptions]
+    if all(name is not None for name in names):
+        return [SENTINEL2_WAVELENGTHS[name] for name in names], "Sentinel-2 band names"
+    return None, ""

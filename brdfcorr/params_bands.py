@@ -1,0 +1,202 @@
+"""A parameter-table class resolved to an image's bands (:class:`BandParameters`).
+
+A class gives each parameter as a scalar, one value per band, or values at its own
+``wavelengths`` [nm]; the functions here turn them, and the ``fit:`` covariance, into one value
+(one p x p matrix) per image band, interpolating linearly in wavelength, and gather a whole table
+into an xarray Dataset. They back :meth:`brdfcorr.params.ClassEntry.band_values`,
+:meth:`~brdfcorr.params.ClassEntry.band_covariance`,
+:meth:`~brdfcorr.params.ClassEntry.wavelength_caveat`,
+:meth:`brdfcorr.params.ParameterTable.for_bands` and
+:meth:`~brdfcorr.params.ParameterTable.to_xarray`; import the names from :mod:`brdfcorr.params`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import xarray as xr
+
+from brdfcorr.errors import ParameterError
+from brdfcorr.models import Model
+from brdfcorr.models.materials import load_material
+
+if TYPE_CHECKING:
+    from brdfcorr.params import ClassEntry
+
+__all__ = ["BandParameters", "MATERIAL_WAVELENGTH_TOLERANCE"]
+
+#: Distance [nm] between a band centre and a library material's fit wavelength beyond which the
+#: correction warns (:meth:`ClassEntry.wavelength_caveat`).
+MATERIAL_WAVELENGTH_TOLERANCE = 100.0
+
+
+@dataclass(frozen=True)
+class BandParameters:
+    """A class's model and its parameters resolved to an image's bands.
+
+    Attributes
+    ----------
+    id, name : int, str
+        Class id and name.
+    model : Model
+        The registered model.
+    params : dict of str to ndarray
+        One float64 array of shape (n_bands,) per model parameter, in signature order.
+    covariance : ndarray or None
+        The fit's covariance of the parameters ``covariance_names`` at each band, shape
+        (n_bands, p, p), in products of registry units; None when the class has no ``fit`` block.
+        Parameters not in ``covariance_names`` were held fixed (zero variance).
+    covariance_names : tuple of str
+        The parameters of the covariance's rows and columns, in order (empty without a fit).
+    """
+
+    id: int
+    name: str
+    model: Model
+    params: dict[str, np.ndarray]
+    covariance: np.ndarray | None = None
+    covariance_names: tuple[str, ...] = ()
+
+
+def _band_count(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None) -> int:
+    if n_bands is None:
+        if wavelengths is None:
+            raise ParameterError(f"{entry.label}: give the image's wavelengths or number of bands")
+        n_bands = len(wavelengths)
+    return n_bands
+
+
+def band_values(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None,
+                extrapolate: bool) -> dict[str, np.ndarray]:
+    """The parameters of ``entry`` at the image's bands (:meth:`ClassEntry.band_values`)."""
+    n_bands = _band_count(entry, wavelengths, n_bands)
+    if wavelengths is not None and len(wavelengths) != n_bands:
+        raise ParameterError(
+            f"{len(wavelengths)} band wavelengths given for an image of {n_bands} bands"
+        )
+    values: dict[str, np.ndarray] = {}
+    for name in entry.brdf_model.parameter_names:
+        value = entry.params[name]
+        if not isinstance(value, list):
+            values[name] = np.full(n_bands, float(value))
+        elif entry.wavelengths is not None:
+            values[name] = interpolate(entry, name, np.asarray(value, float), wavelengths, extrapolate)
+        elif len(value) != n_bands:
+            raise ParameterError(
+                f"{entry.label}: parameter {name} has {len(value)} per-band values but the image "
+                f"has {n_bands} bands"
+            )
+        else:
+            values[name] = np.asarray(value, dtype=float)
+    try:  # linear interpolation stays within the bounds, but check what the kernels will see
+        entry.brdf_model.validate(values)
+    except ParameterError as error:
+        raise ParameterError(f"{entry.label}: {error}") from None
+    return values
+
+
+def band_covariance(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None,
+                    extrapolate: bool) -> np.ndarray | None:
+    """The ``fit:`` covariance of ``entry`` at the image's bands (:meth:`ClassEntry.band_covariance`)."""
+    if entry.fit is None:
+        return None
+    n_bands = _band_count(entry, wavelengths, n_bands)
+    matrices = entry.fit.matrices()
+    if not entry.fit.per_wavelength:
+        return np.repeat(matrices, n_bands, axis=0)
+    if entry.wavelengths is None:
+        if matrices.shape[0] != n_bands:
+            raise ParameterError(
+                f"{entry.label}: fit.covariance has {matrices.shape[0]} per-band matrices but the "
+                f"image has {n_bands} bands"
+            )
+        return matrices.copy()
+    p = matrices.shape[1]
+    flat = matrices.reshape(matrices.shape[0], p * p)
+    columns = [interpolate(entry, "fit.covariance", flat[:, j], wavelengths, extrapolate)
+               for j in range(p * p)]
+    resolved = np.stack(columns, axis=-1).reshape(len(columns[0]), p, p)
+    return 0.5 * (resolved + np.swapaxes(resolved, 1, 2))  # symmetric to the last bit
+
+
+def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Sequence[float] | None,
+                extrapolate: bool) -> np.ndarray:
+    """``value`` (one number per wavelength of ``entry``) at the band centres ``wavelengths``."""
+    if wavelengths is None:
+        raise ParameterError(
+            f"{entry.label}: parameter {name} is given per wavelength; the image's band "
+            "wavelengths are needed (band descriptions, a 'wavelength' tag, or --wavelengths)"
+        )
+    table = np.asarray(entry.wavelengths, dtype=float)
+    centres = np.asarray(wavelengths, dtype=float)
+    if not np.all(np.isfinite(centres)):
+        raise ParameterError("band wavelengths must be finite numbers [nm]")
+    outside = (centres < table[0]) | (centres > table[-1])
+    if np.any(outside) and not extrapolate:
+        raise ParameterError(
+            f"{entry.label}: parameter {name}: band centre {centres[outside][0]:g} nm is outside "
+            f"the table's wavelengths [{table[0]:g}, {table[-1]:g}] nm; allow edge "
+            "extrapolation to use the edge values"
+        )
+    return np.interp(centres, table, value)  # holds the edge values outside the range
+
+
+def resolve_entry(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None,
+                  extrapolate: bool) -> BandParameters:
+    """``entry``'s model, parameters and covariance at the image's bands."""
+    return BandParameters(
+        entry.id, entry.name, entry.brdf_model,
+        band_values(entry, wavelengths, n_bands, extrapolate),
+        band_covariance(entry, wavelengths, n_bands, extrapolate),
+        tuple(entry.fit.parameters) if entry.fit is not None else (),
+    )
+
+
+def material_caveat(entry: ClassEntry, wavelengths: Sequence[float] | None) -> str | None:
+    """Why ``entry`` may not fit the image's bands, or None (:meth:`ClassEntry.wavelength_caveat`)."""
+    if entry.material is None or wavelengths is None or len(wavelengths) == 0:
+        return None
+    source = load_material(entry.material).wavelength
+    centres = np.asarray(wavelengths, dtype=float)
+    distance = np.abs(centres - source)
+    if not np.nanmax(distance) > MATERIAL_WAVELENGTH_TOLERANCE:  # NaN band centres: nothing known
+        return None
+    return (
+        f"{entry.label}: material {entry.material} is a fit at {source:g} nm, applied unchanged to bands "
+        f"{np.nanmin(centres):g}-{np.nanmax(centres):g} nm (up to {np.nanmax(distance):g} nm away); "
+        "a table fitted per band (brdfcorr fit-classes) suits such bands better"
+    )
+
+
+def bands_dataset(
+    resolved: Mapping[int, BandParameters],
+    wavelengths: Sequence[float] | None = None,
+    n_bands: int | None = None,
+) -> xr.Dataset:
+    """Classes resolved to the bands as a Dataset of (class, band) arrays
+    (:meth:`ParameterTable.to_xarray`)."""
+    if n_bands is None:
+        n_bands = len(wavelengths) if wavelengths is not None else 0
+    names = list(dict.fromkeys(n for entry in resolved.values() for n in entry.params))
+    variables = {}
+    for name in names:
+        data = np.full((len(resolved), n_bands), np.nan)
+        for row, entry in enumerate(resolved.values()):
+            if name in entry.params:
+                data[row] = entry.params[name]
+        units = next(
+            e.model.parameter(name).units for e in resolved.values() if name in e.params
+        )
+        variables[name] = (("class", "band"), data, {"units": units})
+    coords: dict[str, Any] = {
+        "class": ("class", np.array(list(resolved), dtype=np.int64)),
+        "name": ("class", [entry.name for entry in resolved.values()]),
+        "model": ("class", [entry.model.name for entry in resolved.values()]),
+        "band": ("band", np.arange(1, n_bands + 1)),
+    }
+    if wavelengths is not None:
+        coords["wavelength"] = ("band", np.asarray(wavelengths, float), {"units": "nm"})
+    return xr.Dataset(variables, coords=coords, attrs={"long_name": "BRDF parameter table"})

@@ -1,0 +1,248 @@
+"""The ``steps:`` section of a chain config: fit, correct (with terrain), assess and quicklook.
+
+:class:`StepsConfig` holds one optional model per step: :class:`ImageryFit` or
+:class:`GoniometerFit` (with its :class:`MeasurementSet` tables), :class:`CorrectStep` (with
+:class:`TerrainStep`), :class:`AssessStep` and :class:`QuicklookStep`. Pydantic models, validated as
+part of :class:`brdfcorr.workflow.config.ChainConfig`; import them from
+:mod:`brdfcorr.workflow.config`.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import Field, field_validator, model_validator
+
+from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
+from brdfcorr.correction.topographic import frame_conflict
+from brdfcorr.defaults import DEFAULT_LIMITS
+from brdfcorr.models import SURFACE_MODELS
+from brdfcorr.workflow.config_inputs import check_material
+
+__all__ = [
+    "MeasurementSet",
+    "GoniometerFit",
+    "ImageryFit",
+    "TerrainStep",
+    "CorrectStep",
+    "AssessStep",
+    "QuicklookStep",
+    "StepsConfig",
+]
+
+#: A surface model of the registry (its names are the allowed values).
+SurfaceModel = Literal[SURFACE_MODELS]  # type: ignore[valid-type]
+
+
+class MeasurementSet(StrictModel):
+    """One goniometer measurement table fitted as one class (``brdfcorr fit`` in a chain).
+
+    Attributes
+    ----------
+    file : str
+        Measurements CSV (``theta_i, theta_r, phi, brdf[, sigma, wavelength]``).
+    class_id : int
+        Class id in the parameter table (>= 1).
+    name : str
+        Class name.
+    model : str
+        Registered surface model (``brdfcorr models``).
+    fixed, initial : dict of str to float
+        Parameters held fixed / starting values (paper 003 fixes k = 0.25).
+    min_phi, max_phi, max_zenith : float, optional
+        Measurement selection [deg] (paper 003 fits phi >= 90).
+    """
+
+    file: str = Field(min_length=1)
+    class_id: Integer = Field(ge=1)
+    name: str = Field(min_length=1)
+    model: SurfaceModel = "torrance_sparrow"
+    fixed: dict[str, Number] = Field(default_factory=dict)
+    initial: dict[str, Number] = Field(default_factory=dict)
+    min_phi: Number | None = Field(None, ge=0, le=180)
+    max_phi: Number | None = Field(None, ge=0, le=180)
+    max_zenith: Number | None = Field(None, gt=0, lt=90)
+
+
+class GoniometerFit(StrictModel):
+    """Fit step from goniometer measurements: one class per measurement table."""
+
+    source: Literal["goniometer"]
+    measurements: list[MeasurementSet] = Field(min_length=1)
+    output: str = "fitted_params.yaml"
+
+    @model_validator(mode="after")
+    def _unique(self) -> GoniometerFit:
+        ids = [m.class_id for m in self.measurements]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"class ids {ids} of measurements must be distinct")
+        return self
+
+
+class ImageryFit(StrictModel):
+    """Fit step from the imagery itself: per-class fits pooled over the run's scenes
+    (:func:`brdfcorr.fit.classes.fit_classes`)."""
+
+    source: Literal["imagery"]
+    model: SurfaceModel = "torrance_sparrow"
+    class_models: dict[PositiveInteger, SurfaceModel] = Field(default_factory=dict)
+    names: dict[PositiveInteger, str] = Field(default_factory=dict)
+    fixed: dict[str, Number] | None = None
+    max_samples: Integer = Field(50_000, ge=10)
+    seed: Integer = 0
+    reflectance_scale: Number = Field(1.0, gt=0)
+    min_samples: Integer = Field(500, ge=1)
+    min_vza_spread: Number = Field(10.0, ge=0)
+    fallback: str | None = None
+    output: str = "fitted_params.yaml"
+
+    @field_validator("fallback")
+    @classmethod
+    def _fallback(cls, value: str | None) -> str | None:
+        if value is not None:
+            check_material(value)
+        return value
+
+
+class TerrainStep(StrictModel):
+    """Tilted surfaces in the correct step (:class:`brdfcorr.workflow.correction.Terrain`,
+    ``docs/terrain.md``); slope and aspect come from ``inputs.slope_aspect`` or ``inputs.dem``.
+
+    Attributes
+    ----------
+    topographic : {"cosine", "c", "scs", "scs+c", "none"}
+        Illumination correction before the BRDF step
+        (:func:`brdfcorr.correction.topographic.topographic_correction`).
+    brdf_frame : {"surface", "horizontal"}
+        Evaluate the BRDF in each surface's own frame or in the horizontal frame. The empirical C
+        of ``"c"`` and ``"scs+c"`` goes with ``"horizontal"`` only (it absorbs part of the BRDF's
+        slope dependence).
+    """
+
+    topographic: Literal["cosine", "c", "scs", "scs+c", "none"] = "cosine"
+    brdf_frame: Literal["surface", "horizontal"] = "surface"
+
+    @model_validator(mode="after")
+    def _frame(self) -> TerrainStep:
+        conflict = frame_conflict(self.topographic, self.brdf_frame)
+        if conflict:
+            raise ValueError(conflict)
+        return self
+
+
+class CorrectStep(StrictModel):
+    """The normalization step (:func:`brdfcorr.correction.correct_files` options).
+
+    Attributes
+    ----------
+    limits : (float, float) or None
+        Limits of the correction factor [-] (default 0.2 to 5); null for none.
+    unknown : {"keep", "nan"}
+        Pixels of class 0 or of classes absent from the table: unchanged, or NaN.
+    extrapolate : bool
+        Let band centres outside a class's table wavelengths take the edge values.
+    flip_view_azimuth : bool
+        View azimuths are stored as seen from the sensor: add 180 deg.
+    qa : bool
+        Also write the QA flag raster.
+    terrain : TerrainStep, optional
+        Correct tilted surfaces (needs ``inputs.slope_aspect`` or ``inputs.dem``); null: a flat
+        surface.
+    """
+
+    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = DEFAULT_LIMITS
+    unknown: Literal["keep", "nan"] = "keep"
+    extrapolate: bool = False
+    flip_view_azimuth: bool = False
+    qa: bool = True
+    terrain: TerrainStep | None = None
+
+    @field_validator("limits")
+    @classmethod
+    def _limits(cls, value):
+        if value is not None and not value[0] <= 1.0 <= value[1]:
+            raise ValueError(f"limits {list(value)} must satisfy lower <= 1 <= upper")
+        return value
+
+
+class AssessStep(StrictModel):
+    """The view-angle signal left in every scene, before and after the correction
+    (:func:`brdfcorr.workflow.assessment.assess_files`): ``{scene}_assess.json`` and the figure
+    ``{scene}_assess_profiles.png`` (:func:`brdfcorr.plot.assess.write_assessment_figures`) in
+    the output directory.
+
+    Attributes
+    ----------
+    sign_by : {"sun", "track"}
+        Sign of the view zenith (:func:`brdfcorr.analysis.assess.signed_view_zenith`): positive
+        towards forward scattering (``sun``) or right of the flight direction (``track``).
+    heading : float, optional
+        Flight direction [deg] clockwise from north; needed for ``sign_by: track`` (only there).
+    bin_width : float
+        Width of the bins of signed view zenith of the across-track profiles [deg].
+    min_vza : float
+        The side ratio compares pixels with ``|signed vza| >= min_vza`` [deg] (and never 0).
+    """
+
+    sign_by: Literal["sun", "track"] = "sun"
+    heading: Number | None = Field(None, ge=0, lt=360, allow_inf_nan=False)
+    bin_width: Number = Field(2.0, gt=0, le=45)
+    min_vza: Number = Field(0.0, ge=0, lt=90)
+
+    @model_validator(mode="after")
+    def _heading(self) -> AssessStep:
+        if self.sign_by == "track" and self.heading is None:
+            raise ValueError("sign_by 'track' needs the flight direction: set heading [deg]")
+        if self.sign_by == "sun" and self.heading is not None:
+            raise ValueError("heading is only used with sign_by 'track'")
+        return self
+
+
+class QuicklookStep(StrictModel):
+    """Before/after quicklook PNG of every scene.
+
+    Attributes
+    ----------
+    bands : list of int
+        1-based bands shown as red, green, blue (three), or one band in grey.
+    percentiles : (float, float)
+        Contrast stretch of the *input* image, applied to both panels so they compare [%].
+    max_size : int
+        Longest side of the quicklook [pixels]; larger images are block-averaged.
+    """
+
+    bands: list[PositiveInteger] = Field(default_factory=lambda: [3, 2, 1])
+    percentiles: tuple[Annotated[Number, Field(ge=0, le=100)], Annotated[Number, Field(ge=0, le=100)]] = (2.0, 98.0)
+    max_size: Integer = Field(800, ge=16)
+
+    @field_validator("bands")
+    @classmethod
+    def _count(cls, value: list[int]) -> list[int]:
+        if len(value) not in (1, 3):
+            raise ValueError(f"give 1 or 3 bands, got {len(value)}")
+        return value
+
+    @field_validator("percentiles")
+    @classmethod
+    def _order(cls, value):
+        if not value[0] < value[1]:
+            raise ValueError(f"percentiles {list(value)} must be increasing")
+        return value
+
+
+class StepsConfig(StrictModel):
+    """The steps, always run in the order fit -> correct -> assess -> quicklook; leave one out (or
+    null) to skip it. ``correct`` is on by default."""
+
+    fit: Annotated[Union[ImageryFit, GoniometerFit], Field(discriminator="source")] | None = None
+    correct: CorrectStep | None = Field(default_factory=CorrectStep)
+    assess: AssessStep | None = None
+    quicklook: QuicklookStep | None = None
+
+    @model_validator(mode="after")
+    def _something(self) -> StepsConfig:
+        if self.correct is None and self.quicklook is not None:
+            raise ValueError("quicklook compares input and corrected images: it needs the correct step")
+        if self.correct is None and self.assess is not None:
+            raise ValueError("assess compares input and corrected images: it needs the correct step")
+        return self
