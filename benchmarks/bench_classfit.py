@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from brdfcorr.fit.classes import fit_one_class
+from brdfcorr.fit.classes import ClassSamples, fit_one_class
 from brdfcorr.models import torrance_sparrow
 
 
@@ -50,7 +50,8 @@ def main() -> None:
     for class_id, (sza, vza, phi, brdf, w) in enumerate(data, start=1):
         # Spatial blocks as fit_classes labels them (about 1000 blocks of 32 x 32 pixels a class).
         blocks = np.random.default_rng(class_id).integers(0, 1000, sza.size)
-        fit = fit_one_class(class_id, f"class_{class_id}", "torrance_sparrow", sza, vza, phi, brdf, clusters=blocks)
+        samples = ClassSamples(sza, vza, phi, brdf, block=blocks)
+        fit = fit_one_class(class_id, f"class_{class_id}", "torrance_sparrow", samples)
         errors.append(abs(fit.params["w"][0] - w) / fit.errors["w"][0])
     elapsed = time.perf_counter() - start
     print(f"{args.classes} classes x {args.bands} bands from {per_class * args.classes:,} samples")

@@ -150,12 +150,12 @@ def in_memory(size: int, bands: int, repeat: int) -> None:
         {"id": 4, "name": "flat", "model": "lambertian", "params": {"t0": 0.1}},
     ])
     spectral = example_table()
-    normalize(cube[:1], classes, **angles, params=scalar, reference={"sza": 35.0})  # warm-up (imports)
+    normalize(cube[:1], classes, angles, scalar, reference={"sza": 35.0})  # warm-up (imports)
     bare = timed(lambda: cube * factor, repeat=repeat)
     few = max(bands // 4, 1)
     for label, table in (("band-independent table", scalar), ("per-wavelength table", spectral)):
         def run(n):
-            return timed(lambda: normalize(cube[:n], classes, **angles, params=table, wavelengths=wavelengths[:n],
+            return timed(lambda: normalize(cube[:n], classes, angles, table, wavelengths=wavelengths[:n],
                                            reference={"sza": 35.0}), repeat=repeat)
         full, part = run(bands), run(few)
         marginal = (full - part) / (bands - few)  # cost of one more band; the geometry is shared

@@ -59,7 +59,7 @@ import xarray as xr
 from scipy.ndimage import gaussian_filter
 
 from brdfcorr import normalize
-from brdfcorr.fit import fit_classes
+from brdfcorr.fit import ClassModels, fit_classes
 from brdfcorr.geometry import relative_azimuth
 from brdfcorr.models import get_model
 from brdfcorr.models.materials import load_material
@@ -234,11 +234,11 @@ def class_map(scene: dict, values: np.ndarray) -> xr.DataArray:
     return xr.DataArray(values, dims=("y", "x"), coords={"y": image["y"].values, "x": image["x"].values})
 
 
-def fit(scene: dict, classes: xr.DataArray, **fit_options):
-    """fit_classes on ``classes``; its warnings are printed (not raised)."""
+def fit(scene: dict, classes: xr.DataArray, models: ClassModels | str):
+    """fit_classes on ``classes`` with ``models``; its warnings are printed (not raised)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = fit_classes(scene["image"], classes, scene["angles"], **fit_options)
+        result = fit_classes(scene["image"], classes, scene["angles"], models)
     for message in dict.fromkeys(str(warning.message) for warning in caught):
         if message not in _SHOWN:  # once per run, not once per timed repeat
             _SHOWN.add(message)
@@ -250,8 +250,7 @@ def correct(scene: dict, classes: xr.DataArray, table) -> np.ndarray:
     """normalize to the scene's reference geometry (scene-mean sun, nadir view)."""
     angles = scene["angles"]
     reference = {"sza": scene["reference_sza"], "vza": 0.0, "raa": 0.0}
-    corrected, _ = normalize(scene["image"], classes, *(angles[k] for k in ("sza", "saa", "vza", "vaa")), table,
-                             reference)
+    corrected, _ = normalize(scene["image"], classes, angles, table, reference)
     return np.asarray(corrected.values)
 
 
@@ -340,7 +339,7 @@ def workflow_a(scene: dict):
     phases, start = {}, time.perf_counter()
     strata = ndvi_strata(scene["image"], percentiles=PERCENTILES).classes
     phases["strata"], start = time.perf_counter() - start, time.perf_counter()
-    result = fit(scene, strata, model="ross_thick_li_sparse")
+    result = fit(scene, strata, "ross_thick_li_sparse")
     phases["fit"], start = time.perf_counter() - start, time.perf_counter()
     corrected = correct(scene, strata, result.table)
     phases["correct"] = time.perf_counter() - start
@@ -398,7 +397,7 @@ def diagnose(args, scene: dict, strata: np.ndarray) -> None:
     white_strata = np.asarray(ndvi_strata(white["image"], percentiles=PERCENTILES).classes.values)
     finer = ndvi_strata(scene["image"], percentiles=tuple(np.linspace(5, 95, 19))).classes.values
     layer = class_map(scene, strata)
-    first_pass = scene["image"].copy(data=correct(scene, layer, fit(scene, layer, model="ross_thick_li_sparse").table))
+    first_pass = scene["image"].copy(data=correct(scene, layer, fit(scene, layer, "ross_thick_li_sparse").table))
     second = np.asarray(ndvi_strata(first_pass, percentiles=PERCENTILES).classes.values)
     cases = [
         ("as run: NDVI strata, fitted", scene, strata, None),
@@ -412,7 +411,7 @@ def diagnose(args, scene: dict, strata: np.ndarray) -> None:
     for label, case, classes, table in cases:
         layer = class_map(case, classes)
         if table is None:
-            table = fit(case, layer, model="ross_thick_li_sparse").table
+            table = fit(case, layer, "ross_thick_li_sparse").table
         values = scores(case, correct(case, layer, table), classes, np.unique(classes[classes > 0]))
         print(f"    {label:56s} {values['brdf']:7.3%} {values['after']:7.2%} {values['truth']:7.2%} "
               f"{values['residual']:7.2%}")
@@ -422,11 +421,11 @@ def fit_urban(scene: dict, classes: xr.DataArray, n_fixed: float | None):
     """Per-class models in one fit_classes call, or (``n_fixed``) Torrance-Sparrow with n held
     fixed, which needs a call of its own (``fixed`` applies to every class of a call)."""
     if n_fixed is None:
-        return fit(scene, classes, model="ross_thick_li_sparse", names=URBAN_NAMES,
-                   class_models={ROOF: "torrance_sparrow", CONCRETE: "torrance_sparrow"})
-    specular = fit(scene, classes, model="torrance_sparrow", class_ids=[ROOF, CONCRETE], names=URBAN_NAMES,
-                   fixed={"n": n_fixed})
-    kernels = fit(scene, classes, model="ross_thick_li_sparse", class_ids=[GRASS, SOIL], names=URBAN_NAMES)
+        return fit(scene, classes, ClassModels("ross_thick_li_sparse", names=URBAN_NAMES,
+                                               class_models={ROOF: "torrance_sparrow", CONCRETE: "torrance_sparrow"}))
+    specular = fit(scene, classes, ClassModels("torrance_sparrow", class_ids=[ROOF, CONCRETE], names=URBAN_NAMES,
+                                               fixed={"n": n_fixed}))
+    kernels = fit(scene, classes, ClassModels("ross_thick_li_sparse", class_ids=[GRASS, SOIL], names=URBAN_NAMES))
     return specular.fits + kernels.fits, ParameterTable(classes=[*specular.table.classes, *kernels.table.classes])
 
 

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from brdfcorr.fit.classes import fit_one_class
+from brdfcorr.fit.classes import ClassSamples, fit_one_class
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import get_model
 
@@ -81,7 +81,7 @@ def main() -> None:
 
     start = time.perf_counter()
     fits = [
-        fit_one_class(class_id, f"class_{class_id}", MODEL, sza, vza, phi, brdf, clusters=blocks)
+        fit_one_class(class_id, f"class_{class_id}", MODEL, ClassSamples(sza, vza, phi, brdf, block=blocks))
         for class_id, (sza, vza, phi, brdf, blocks, _) in enumerate(data, start=1)
     ]
     elapsed = time.perf_counter() - start

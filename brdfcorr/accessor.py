@@ -1,7 +1,7 @@
 """The ``.brdf`` xarray accessor: notebook shortcuts that delegate to library functions.
 
 >>> import brdfcorr  # registers the accessor
->>> corrected, qa = cube.brdf.normalize(classes, sza, saa, vza, vaa, table)  # doctest: +SKIP
+>>> corrected, qa = cube.brdf.normalize(classes, angles, table)  # doctest: +SKIP
 
 The accessor holds no state and no science: metadata lives in coords/attrs of the arrays.
 """
@@ -26,8 +26,9 @@ class BrdfAccessor:
     def __init__(self, reflectance: xr.DataArray):
         self._reflectance = reflectance
 
-    def normalize(self, classes, sza, saa, vza, vaa, params, reference=None, **options) -> Normalized:
-        """:func:`brdfcorr.normalize` with this array as the reflectance (same options)."""
+    def normalize(self, classes, angles, params, reference=None, **options) -> Normalized:
+        """:func:`brdfcorr.normalize` with this array as the reflectance (same options); ``angles``
+        is a Dataset (or mapping) with ``sza``, ``saa``, ``vza``, ``vaa`` [deg]."""
         from brdfcorr import correction  # at first use: `import brdfcorr` (and the CLI) need no dask
 
-        return correction.normalize(self._reflectance, classes, sza, saa, vza, vaa, params, reference, **options)
+        return correction.normalize(self._reflectance, classes, angles, params, reference, **options)

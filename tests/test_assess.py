@@ -9,7 +9,9 @@ import pytest
 import xarray as xr
 
 from brdfcorr.analysis.assess import (
+    HoldoutFit,
     Line,
+    ViewAngleOptions,
     assess_overlap,
     assess_view_angles,
     leave_one_line_out,
@@ -73,7 +75,7 @@ def test_linear_scene_gives_its_slope_exactly_and_a_flat_one_slope_0_ratio_1(geo
             before[band][class_map == class_id] = (a[class_id][band] + b[class_id][band] * signed)[class_map == class_id]
     after = np.stack([np.where(class_map == 1, a[1][band], a[2][band]) for band in range(2)])  # flat
     result = assess_view_angles(_cube(*before), _cube(*after), class_map, geometry["vza"], geometry["vaa"],
-                                geometry["saa"], class_names={1: "tile"})
+                                geometry["saa"], options=ViewAngleOptions(class_names={1: "tile"}))
     np.testing.assert_allclose(result["slope"].sel(stage="before").values,
                                [[b[1][0], b[2][0]], [b[1][1], b[2][1]]], rtol=1e-10)
     np.testing.assert_allclose(result["slope"].sel(stage="after").values, 0.0, atol=1e-15)
@@ -121,7 +123,7 @@ def test_view_angle_report_is_valid_json_with_null_for_nan(geometry, class_map, 
     classes = class_map.copy()
     classes[:, NX // 2:] = 0  # class 2 and 1 only on one side: the side ratio has no negative side -> NaN
     result = assess_view_angles(before, before, classes, geometry["vza"], geometry["vaa"], geometry["saa"],
-                                class_ids=[1, 2])
+                                options=ViewAngleOptions(class_ids=[1, 2]))
     report = view_angle_report(result)
     text = json.dumps(report, allow_nan=False)
     assert json.loads(text)["classes"][1]["pixels"] == int((classes == 2).sum())
@@ -139,7 +141,8 @@ def test_bad_input_is_one_clear_error(geometry, class_map):
     with pytest.raises(InputError, match="no class"):
         assess_view_angles(cube, cube, np.zeros_like(class_map), geometry["vza"], geometry["vaa"], geometry["saa"])
     with pytest.raises(InputError, match="bin width"):
-        assess_view_angles(cube, cube, class_map, geometry["vza"], geometry["vaa"], geometry["saa"], bin_width=0)
+        assess_view_angles(cube, cube, class_map, geometry["vza"], geometry["vaa"], geometry["saa"],
+                           options=ViewAngleOptions(bin_width=0))
 
 
 def _shifted(array: xr.DataArray, columns: int) -> xr.DataArray:
@@ -207,8 +210,8 @@ def _lines(n_lines=3, ny=48, nx=64, shift=24):
 
 def test_leave_one_line_out_improves_the_held_out_metrics():
     lines = _lines()
-    results = leave_one_line_out(lines, "ross_thick_li_sparse", names={1: "grass", 2: "soil"},
-                                 reference={"sza": 35.0, "vza": 0.0})
+    results = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference={"sza": 35.0, "vza": 0.0}),
+                                 view_options=ViewAngleOptions(class_names={1: "grass", 2: "soil"}))
     assert [r.name for r in results] == ["line1", "line2", "line3"]
     for result in results:
         slope = np.abs(result.view["relative_slope"])
@@ -231,7 +234,7 @@ def test_figures_are_drawn_and_written(geometry, class_map, tmp_path):
     before = _cube(*rng.uniform(0.1, 0.4, (2, NY, NX))).assign_coords(wavelength=("band", [560.0, 860.0]))
     after = before * 1.0
     view = assess_view_angles(before, after, class_map, geometry["vza"], geometry["vaa"], geometry["saa"],
-                              class_names={1: "roof_tile", 2: "grass"})
+                              options=ViewAngleOptions(class_names={1: "roof_tile", 2: "grass"}))
     figure = profile_figure(view)
     left = figure.axes[0]
     assert left.get_xlabel() == "signed view zenith [deg]"

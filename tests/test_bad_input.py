@@ -535,7 +535,8 @@ def test_only_non_finite_values_are_nodata_even_when_the_band_sum_overflows():
     cube[1, 0, 1] = np.inf
     zeros = np.zeros((1, 3))
     table = ParameterTable(classes=[{"id": 1, "name": "flat", "model": "lambertian", "params": {"t0": 0.1}}])
-    corrected, qa = normalize(cube, np.zeros((1, 3), np.uint8), zeros + 30, zeros, zeros + 10, zeros, table)
+    angles = {"sza": zeros + 30, "saa": zeros, "vza": zeros + 10, "vaa": zeros}
+    corrected, qa = normalize(cube, np.zeros((1, 3), np.uint8), angles, table)
     assert qa.values.tolist() == [[0 | 2, QA.NODATA | 2, 2]]  # 2: no class
     np.testing.assert_array_equal(corrected.values[:, 0, 0], cube[:, 0, 0])
     assert corrected.values[0, 0, 1] == 0.5 and np.isnan(corrected.values[1, 0, 1])

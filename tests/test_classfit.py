@@ -10,7 +10,9 @@ import xarray as xr
 from brdfcorr.correction import normalize
 from brdfcorr.fit.classes import (
     ClassFitWarning,
+    ClassModels,
     GuardRails,
+    Sampling,
     fit_class_samples,
     fit_classes,
     sample_classes,
@@ -62,7 +64,7 @@ def fitted():
     image, classes, angles = airborne_line()
     result = fit_classes(
         image, classes, angles,
-        model="torrance_sparrow", class_models={2: "empirical"}, names={1: "roof_tile", 2: "grass"},
+        ClassModels("torrance_sparrow", class_models={2: "empirical"}, names={1: "roof_tile", 2: "grass"}),
     )
     return image, classes, angles, result
 
@@ -104,10 +106,10 @@ def test_shape_errors_are_calibrated_over_seeds():
 def test_correcting_with_fitted_parameters_removes_the_gradient_like_the_truth(fitted):
     image, classes, angles, result = fitted
     kwargs = dict(reference={"sza": 40.0, "vza": 0.0, "raa": 0.0}, limits=None)
-    layers = [angles[k] for k in ("sza", "saa", "vza", "vaa")]
+    layers = {k: angles[k] for k in ("sza", "saa", "vza", "vaa")}
     observed = image.sel(band=1).where(classes == 1)
-    with_fit = normalize(image, classes, *layers, result.table, **kwargs).reflectance
-    with_truth = normalize(image, classes, *layers, TRUTH, **kwargs).reflectance
+    with_fit = normalize(image, classes, layers, result.table, **kwargs).reflectance
+    with_truth = normalize(image, classes, layers, TRUTH, **kwargs).reflectance
 
     def across_track_spread(cube):
         # Relative spread of the column means of the roof-tile class in band 1.
@@ -139,15 +141,15 @@ def test_guard_rails_fall_back_or_leave_uncorrected_and_say_so():
     # Class 2 only in a narrow strip near nadir: view zenith spread far below 10 deg.
     narrow = xr.where(np.abs(angles["vza"]) < 3, classes, 1)
     with pytest.warns(ClassFitWarning, match=r"class 2 \(class_2\): .*view zenith spread"):
-        result = fit_classes(image, narrow, angles, model="empirical")
+        result = fit_classes(image, narrow, angles, "empirical")
     fits = {fit.class_id: fit for fit in result.fits}
     assert fits[2].status == "uncorrected" and 2 not in result.table
     assert fits[1].status == "fitted" and 1 in result.table
 
     with pytest.warns(ClassFitWarning, match="using built-in material 'roof_tile'"):
         result = fit_classes(
-            image, narrow, angles, model="empirical", guard=GuardRails(min_samples=10**6),
-            fallback="roof_tile",
+            image, narrow, angles, ClassModels("empirical", fallback="roof_tile"),
+            guard=GuardRails(min_samples=10**6),
         )
     assert all(fit.status == "fallback" for fit in result.fits)
     assert result.table[1].model == "torrance_sparrow" and result.table[1].params["w"] == 0.0362
@@ -258,7 +260,7 @@ def test_block_robust_errors_grow_with_spatially_correlated_albedo():
     # independent from pixel to pixel, and are several times larger when it is smooth in space
     # (neighbouring pixels share their error, so there are fewer independent samples).
     def w_error(scene, block_size):
-        return fit_classes(*scene, block_size=block_size).fits[0].errors["w"][0]
+        return fit_classes(*scene, sampling=Sampling(block_size=block_size)).fits[0].errors["w"][0]
 
     independent = _single_class_line(1, texture_sigma=0)
     assert w_error(independent, 8) == pytest.approx(w_error(independent, 1), rel=0.3)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.cli import main
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.testing import example_table, render, synthetic_scene, write_scene
@@ -44,8 +45,9 @@ def test_assess_writes_the_library_report_and_figures(files, tmp_path):
     assert result.exit_code == 0, result.output
     assert "roof_tile" in result.output and f"wrote {report_path}" in result.output
     report = json.loads(report_path.read_text())
-    expected = assess_files(files["image"], files["after"], classes=files["classes"], angles=files["angles"],
-                            class_names={1: "roof_tile"}, overlap=(files["image"], files["after"])).report()
+    expected = assess_files(SceneSources(files["image"], files["classes"], files["angles"]), files["after"],
+                            view_options=ViewAngleOptions(class_names={1: "roof_tile"}),
+                            overlap=(files["image"], files["after"])).report()
     assert report["view_angles"] == json.loads(json.dumps(expected["view_angles"]))
     classes = {entry["id"]: entry for entry in report["view_angles"]["classes"]}
     assert classes[1]["name"] == "roof_tile" and classes[2]["name"] == "class 2"

@@ -11,9 +11,10 @@ import pytest
 from click.testing import CliRunner
 from test_assess import _lines
 
-from brdfcorr.analysis.assess import leave_one_line_out, leave_one_line_out_report
+from brdfcorr.analysis.assess import HoldoutFit, ViewAngleOptions, leave_one_line_out, leave_one_line_out_report
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError
+from brdfcorr.io.scene import SceneSources
 from brdfcorr.testing import write_scene
 from brdfcorr.workflow.assessment import leave_one_line_out_files
 
@@ -43,9 +44,16 @@ def files(lines, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def library_report(files):
-    assessment = leave_one_line_out_files(files["images"], classes=files["classes"], angles=files["angles"],
-                                          model="ross_thick_li_sparse", names=NAMES, reference=REFERENCE)
+    assessment = leave_one_line_out_files(_scenes(files), HoldoutFit("ross_thick_li_sparse", reference=REFERENCE),
+                                          view_options=ViewAngleOptions(class_names=NAMES))
     return assessment.report()
+
+
+def _scenes(files, count=None, images=None):
+    """The lines' SceneSources: image, class map and angle source of each, in order."""
+    images = files["images"][:count] if images is None else images
+    return [SceneSources(image, classes, angles) for image, classes, angles in
+            zip(images, files["classes"], files["angles"])]
 
 
 def _invoke(*args):
@@ -64,8 +72,8 @@ def _arguments(files, images=None, classes=None, angles=None):
 def test_files_give_the_numbers_of_the_lines_in_memory(lines, library_report):
     # Independent computation: the same lines, never written, through leave_one_line_out. The files
     # hold the same float64 values, so every number agrees to rounding.
-    memory = leave_one_line_out_report(leave_one_line_out(lines, "ross_thick_li_sparse", names=NAMES,
-                                                          reference=REFERENCE))
+    memory = leave_one_line_out_report(leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE),
+                                                          view_options=ViewAngleOptions(class_names=NAMES)))
     assert [line["held_out"] for line in library_report["lines"]] == ["line1", "line2", "line3"]
     for from_files, in_memory in zip(library_report["lines"], memory["lines"]):
         for stage in ("before", "after"):
@@ -119,6 +127,6 @@ def test_bad_input_is_one_line_and_exit_2(files, tmp_path):
     assert missing.output.strip().count("\n") == 0 and "nope.tif" in missing.output
     assert not output.exists()
     with pytest.raises(InputError, match="at least 2 lines"):
-        leave_one_line_out_files(files["images"][:1], classes=files["classes"][:1], angles=files["angles"][:1])
+        leave_one_line_out_files(_scenes(files, count=1))
     with pytest.raises(InputError, match="given twice"):
-        leave_one_line_out_files(files["images"][:1] * 2, classes=files["classes"][:2], angles=files["angles"][:2])
+        leave_one_line_out_files(_scenes(files, images=files["images"][:1] * 2))

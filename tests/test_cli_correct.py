@@ -49,7 +49,7 @@ def test_cli_matches_library_numbers_and_writes_provenance(files, scene, tmp_pat
     result = _invoke(*_base(files, output), "--ref-sza", 35, "--ref-vza", 5, "--ref-raa", 60, "--qa", qa_path)
     assert result.exit_code == 0, result.output
     expected, expected_qa = normalize(
-        scene["reflectance"], scene["classes"].rio.write_nodata(255), *(scene[a] for a in ANGLES),
+        scene["reflectance"], scene["classes"].rio.write_nodata(255), {a: scene[a] for a in ANGLES},
         example_table(), reference={"sza": 35.0, "vza": 5.0, "raa": 60.0})
     with rasterio.open(output) as written:
         np.testing.assert_array_equal(written.read(), expected.values)  # numpy path == CLI path

@@ -71,11 +71,10 @@ def test_tilted_plane_matches_the_library_chain(scene, tmp_path):
     surface = slope_aspect(dem)
     np.testing.assert_allclose(surface.slope.values, np.degrees(np.arctan(0.3)), atol=1e-4)
     np.testing.assert_allclose(surface.aspect.values, 180.0, atol=1e-4)
-    topographic = topographic_correction(data["reflectance"], data["sza"], data["saa"], surface.slope,
-                                         surface.aspect, method="cosine", classes=data["classes"])
+    angles = {**{a: data[a] for a in ("sza", "saa", "vza", "vaa")}, "slope": surface.slope, "aspect": surface.aspect}
+    topographic = topographic_correction(data["reflectance"], angles, method="cosine", classes=data["classes"])
     expected, expected_qa = normalize(
-        topographic.reflectance, data["classes"], data["sza"], data["saa"], data["vza"], data["vaa"],
-        example_table(), {"sza": 35.0}, slope=surface.slope, aspect=surface.aspect, class_nodata=255,
+        topographic.reflectance, data["classes"].rio.write_nodata(255), angles, example_table(), {"sza": 35.0},
     )
     np.testing.assert_allclose(_read(output), expected.values, rtol=2e-6, equal_nan=True)
     assert not np.allclose(_read(output), _read_plain(scene, tmp_path), equal_nan=True)
@@ -149,8 +148,8 @@ def test_uncertainty_output_is_the_propagated_sigma(scene, tmp_path):
 
     data = scene["data"]
     expected = correction_uncertainty(
-        data["reflectance"], data["classes"], data["sza"], data["saa"], data["vza"], data["vaa"],
-        ParameterTable.load(params), {"sza": 35.0}, class_nodata=255,
+        data["reflectance"], data["classes"].rio.write_nodata(255), {a: data[a] for a in ("sza", "saa", "vza", "vaa")},
+        ParameterTable.load(params), {"sza": 35.0},
     )
     sigma = _read(sigma_path)
     np.testing.assert_allclose(sigma, expected.values, rtol=2e-6, equal_nan=True)

@@ -139,7 +139,7 @@ def test_terrain_assess_uncertainty_and_interleave_defaults():
         steps={"correct": {"terrain": {}}, "assess": {}},
         outputs={"directory": "o", "format": "ENVI", "interleave": "bil", "uncertainty": True}))
     terrain, assess = config.steps.correct.terrain, config.steps.assess
-    # the defaults of brdfcorr.workflow.correction.Terrain and brdfcorr.workflow.assessment.assess_files
+    # the defaults of brdfcorr.workflow.correction.Terrain and brdfcorr.analysis.view_angles.ViewAngleOptions
     assert (terrain.topographic, terrain.brdf_frame) == ("cosine", "surface")
     assert (assess.sign_by, assess.heading, assess.bin_width, assess.min_vza) == ("sun", None, 2.0, 0.0)
     assert config.outputs.uncertainty_naming == "{scene}_uncertainty.tif"

@@ -28,7 +28,7 @@ def scene():
 
 def _run(scene, table=None, **options):
     table = example_table() if table is None else table
-    return normalize(scene["reflectance"], scene["classes"], *(scene[a] for a in ANGLES), table, **options)
+    return normalize(scene["reflectance"], scene["classes"], {a: scene[a] for a in ANGLES}, table, **options)
 
 
 def _rendered_at(scene, table, sza, vza, raa):
@@ -75,8 +75,8 @@ def test_normalizing_twice_a_to_b_to_c_equals_rendered_at_c(scene):
     table = example_table()
     at_b, _ = _run(scene, table, reference={"sza": 35.0}, limits=None)
     shape = scene["classes"].shape
-    angles_b = [xr.DataArray(np.full(shape, v), dims=("y", "x")) for v in (35.0, 0.0, 0.0, 0.0)]
-    at_c, _ = normalize(at_b, scene["classes"], *angles_b, table,
+    angles_b = {a: xr.DataArray(np.full(shape, v), dims=("y", "x")) for a, v in zip(ANGLES, (35.0, 0.0, 0.0, 0.0))}
+    at_c, _ = normalize(at_b, scene["classes"], angles_b, table,
                         reference={"sza": "observed", "vza": 20.0, "raa": 90.0}, limits=None)
     np.testing.assert_allclose(at_c.values, _rendered_at(scene, table, 35.0, 20.0, 90.0), rtol=1e-12)
 
@@ -148,7 +148,7 @@ def test_mixed_unknown_and_no_class(scene):
     classes[1, :4] = 9  # not in the table
     table = example_table()
     reference = {"sza": 35.0}
-    corrected, qa = normalize(scene["reflectance"], classes, *(scene[a] for a in ANGLES), table,
+    corrected, qa = normalize(scene["reflectance"], classes, {a: scene[a] for a in ANGLES}, table,
                               reference=reference, limits=None)
     observed = scene["reflectance"].values
     np.testing.assert_array_equal(corrected.values[:, 0, :4], observed[:, 0, :4])  # factor 1
@@ -160,7 +160,7 @@ def test_mixed_unknown_and_no_class(scene):
     assert (int(counts["no_class"]), int(counts["unknown_class"])) == (4, 4)
     assert int(counts["corrected"]) == classes.size - 8
 
-    as_nan, _ = normalize(scene["reflectance"], classes, *(scene[a] for a in ANGLES), table,
+    as_nan, _ = normalize(scene["reflectance"], classes, {a: scene[a] for a in ANGLES}, table,
                           reference=reference, unknown="nan")
     assert np.isnan(as_nan.values[:, :2, :4]).all()
     assert not np.isnan(as_nan.values[:, 2:]).any()
@@ -174,7 +174,7 @@ def test_per_wavelength_values_by_hand():
     reflectance = xr.DataArray(np.full((2, 1, 1), 0.2), dims=("band", "y", "x"),
                                coords={"wavelength": ("band", [500.0, 850.0])})
     one = lambda v: xr.DataArray(np.full((1, 1), v), dims=("y", "x"))  # noqa: E731
-    corrected, _ = normalize(reflectance, one(2), one(sza), one(saa), one(vza), one(vaa), table,
+    corrected, _ = normalize(reflectance, one(2), {"sza": one(sza), "saa": one(saa), "vza": one(vza), "vaa": one(vaa)}, table,
                              reference={"sza": 30.0}, limits=None)
     f = lambda ti, tr, phi, a, t0: empirical(ti, tr, phi, a=a, b=1.0, c=0.02, t0=t0)  # noqa: E731
     expected_500 = 0.2 * f(30, 0, 0, 0.015, 0.035) / f(40, 30, 180, 0.015, 0.035)
@@ -184,7 +184,7 @@ def test_per_wavelength_values_by_hand():
 
 def test_per_wavelength_out_of_range_and_extrapolation(scene):
     shifted = scene["reflectance"].assign_coords(wavelength=("band", [400.0, 560.0, 660.0, 830.0]))
-    layers = [scene["classes"], *(scene[a] for a in ANGLES)]
+    layers = [scene["classes"], {a: scene[a] for a in ANGLES}]
     with pytest.raises(ParameterError, match=r"class 2 \(grass\).*400 nm is outside"):
         normalize(shifted, *layers, example_table())
     corrected, _ = normalize(shifted, *layers, example_table(), extrapolate=True)
@@ -192,7 +192,7 @@ def test_per_wavelength_out_of_range_and_extrapolation(scene):
 
 
 def test_explicit_wavelengths_override_coordinate(scene):
-    layers = [scene["classes"], *(scene[a] for a in ANGLES)]
+    layers = [scene["classes"], {a: scene[a] for a in ANGLES}]
     bare = scene["reflectance"].drop_vars("wavelength")
     with pytest.raises(ParameterError, match="wavelengths are needed"):
         normalize(bare, *layers, example_table())
@@ -213,7 +213,7 @@ def test_limits_clip_and_flag():
     one = lambda v: xr.DataArray(np.broadcast_to(v, (1, 3)).astype(float), dims=("y", "x"))  # noqa: E731
     reflectance = xr.DataArray(np.ones((1, 1, 3)), dims=("band", "y", "x"))
     limits = (0.8, 1.25)
-    corrected, qa = normalize(reflectance, one(1), one(40.0), one(0.0), one(vza), one(180.0), table,
+    corrected, qa = normalize(reflectance, one(1), {"sza": one(40.0), "saa": one(0.0), "vza": one(vza), "vaa": one(180.0)}, table,
                               reference={"sza": 40.0}, limits=limits, wavelengths=[550])
     np.testing.assert_allclose(corrected.values[0], np.clip(factor, *limits), rtol=1e-12)
     clipped = (factor < limits[0]) | (factor > limits[1])
@@ -230,8 +230,9 @@ def test_nodata_propagation(scene):
     vza[0, 2] = 95.0  # outside the model's domain
     classes = scene["classes"].copy()
     classes[0, 3] = 255  # the class map's nodata
-    corrected, qa = normalize(reflectance, classes, sza, scene["saa"], vza, scene["vaa"], example_table(),
-                              reference={"sza": 35.0}, class_nodata=255)
+    corrected, qa = normalize(reflectance, classes.rio.write_nodata(255),
+                              {"sza": sza, "saa": scene["saa"], "vza": vza, "vaa": scene["vaa"]}, example_table(),
+                              reference={"sza": 35.0})
     values = corrected.values
     assert np.isnan(values[1, 0, 0]) and np.isfinite(values[[0, 2, 3], 0, 0]).all()
     assert np.isnan(values[:, 0, 1:3]).all()
@@ -247,14 +248,15 @@ def test_class_nodata_from_rio(scene):
     classes = scene["classes"].copy()
     classes[2, 2] = 200
     classes = classes.rio.write_nodata(200)
-    _, qa = normalize(scene["reflectance"], classes, *(scene[a] for a in ANGLES), example_table())
+    _, qa = normalize(scene["reflectance"], classes, {a: scene[a] for a in ANGLES}, example_table())
     assert qa.values[2, 2] == QA.NO_CLASS
 
 
 def test_flip_view_azimuth(scene):
     flipped = (scene["vaa"] + 180.0) % 360.0
-    a, _ = normalize(scene["reflectance"], scene["classes"], scene["sza"], scene["saa"], scene["vza"],
-                     flipped, example_table(), flip_view_azimuth=True)
+    a, _ = normalize(scene["reflectance"], scene["classes"],
+                     {"sza": scene["sza"], "saa": scene["saa"], "vza": scene["vza"], "vaa": flipped},
+                     example_table(), flip_view_azimuth=True)
     b, _ = _run(scene)
     np.testing.assert_allclose(a.values, b.values, rtol=1e-12)
 
@@ -285,9 +287,9 @@ def test_band_independent_table_gives_the_same_factor_for_every_band(scene):
 
 def test_accessor_delegates(scene):
     a, qa_a = scene["reflectance"].brdf.normalize(
-        scene["classes"], *(scene[n] for n in ANGLES), example_table(), reference={"sza": 35.0})
+        scene["classes"], {n: scene[n] for n in ANGLES}, example_table(), reference={"sza": 35.0})
     b, qa_b = brdfcorr.normalize(
-        scene["reflectance"], scene["classes"], *(scene[n] for n in ANGLES), example_table(),
+        scene["reflectance"], scene["classes"], {n: scene[n] for n in ANGLES}, example_table(),
         reference={"sza": 35.0})
     xr.testing.assert_identical(a, b)
     xr.testing.assert_identical(qa_a, qa_b)
@@ -302,10 +304,11 @@ def test_reference_defaults_to_the_table_then_observed_nadir(scene):
 
 
 def test_bad_inputs_have_clear_messages(scene):
-    layers = [scene["classes"], *(scene[a] for a in ANGLES)]
+    layers = [scene["classes"], {a: scene[a] for a in ANGLES}]
     with pytest.raises(GridMismatchError, match=r"vza is not on the grid of reflectance: shape \(rows, columns\) \(20, 27\) differs"):
-        normalize(scene["reflectance"], scene["classes"], scene["sza"], scene["saa"],
-                  scene["vza"][:, :-1], scene["vaa"], example_table())
+        normalize(scene["reflectance"], scene["classes"],
+                  {"sza": scene["sza"], "saa": scene["saa"], "vza": scene["vza"][:, :-1], "vaa": scene["vaa"]},
+                  example_table())
     with pytest.raises(InputError, match="limits"):
         normalize(scene["reflectance"], *layers, example_table(), limits=(2.0, 5.0))
     with pytest.raises(InputError, match="unknown must be"):
@@ -316,10 +319,10 @@ def test_bad_inputs_have_clear_messages(scene):
         normalize(scene["reflectance"][0], *layers, example_table())
     other_crs = scene["classes"].rio.write_crs("EPSG:32633")
     with pytest.raises(GridMismatchError, match="classes is not on the grid of reflectance: CRS EPSG:32633 differs from EPSG:32632"):
-        normalize(scene["reflectance"], other_crs, *(scene[a] for a in ANGLES), example_table())
+        normalize(scene["reflectance"], other_crs, {a: scene[a] for a in ANGLES}, example_table())
     shifted = scene["sza"].assign_coords(x=scene["sza"]["x"] + 5.0)
     with pytest.raises(GridMismatchError, match=r"sza is not on the grid of reflectance: transform \(10\.0, 0\.0, 500005\.0"):
-        normalize(scene["reflectance"], scene["classes"], shifted, *(scene[a] for a in ANGLES[1:]),
+        normalize(scene["reflectance"], scene["classes"], {"sza": shifted, **{a: scene[a] for a in ANGLES[1:]}},
                   example_table())
 
 
@@ -335,7 +338,7 @@ def test_reference_equal_to_the_observed_geometry_changes_nothing(sza, vza, saa,
     phi = min(phi, 360.0 - phi)
     reflectance = xr.DataArray(np.full((2, 1, 1), 0.3), dims=("band", "y", "x"),
                                coords={"wavelength": ("band", [500.0, 800.0])})
-    corrected, qa = normalize(reflectance, one(class_id), one(sza), one(saa), one(vza), one(vaa),
+    corrected, qa = normalize(reflectance, one(class_id), {"sza": one(sza), "saa": one(saa), "vza": one(vza), "vaa": one(vaa)},
                               example_table(), reference={"sza": "observed", "vza": vza, "raa": phi})
     np.testing.assert_allclose(corrected.values, 0.3, rtol=1e-9)
     assert qa.values[0, 0] == 0

@@ -42,11 +42,15 @@ def test_correct_aviris_ng_line_with_obs_angles(tmp_path):
     table.save(tmp_path / "params.yaml")
     before = IMAGE.read_bytes()
 
-    result = CliRunner().invoke(main, [
-        "correct", str(IMAGE), "--angles", str(OBS), "--angles-kind", "envi_obs",
-        "--classes", str(tmp_path / "classes.tif"), "--params", str(tmp_path / "params.yaml"),
-        "-o", str(tmp_path / "out.tif"), "--no-limits", "--ref-vza", "0", "--no-progress",
-    ])
+    arguments = ["correct", str(IMAGE), "--angles", str(OBS), "--angles-kind", "envi_obs",
+                 "--classes", str(tmp_path / "classes.tif"), "--params", str(tmp_path / "params.yaml"),
+                 "-o", str(tmp_path / "out.tif"), "--no-limits", "--ref-vza", "0", "--no-progress"]
+    # Radiance (uW cm-2 sr-1 nm-1, up to ~15) is no reflectance factor: used as it is only on the
+    # user's word (--scale 1), never silently.
+    refused = CliRunner().invoke(main, arguments)
+    assert refused.exit_code == 2 and "do not look like reflectance factors" in refused.stderr
+    assert "--scale 1: use them as they are" in refused.stderr and not (tmp_path / "out.tif").exists()
+    result = CliRunner().invoke(main, [*arguments, "--scale", "1"])
     assert result.exit_code == 0, result.output
     assert IMAGE.read_bytes() == before
 

@@ -138,8 +138,8 @@ def test_local_writer_writes_what_rioxarray_writes(scene, tmp_path, compress):
     array = rioxarray.open_rasterio(scene["image"], chunks={"x": 32, "y": 32}, masked=True)
     array = array.rio.write_nodata(np.nan, encoded=True)
     array.attrs["long_name"] = tuple(f"band {n}" for n in range(1, array.sizes["band"] + 1))
-    writer.write_rasters({tmp_path / "ours.tif": array}, compress=compress, blocksize=32, tags={"origin": "test"},
-                         scheduler="threads", num_workers=2)
+    writer.write_rasters({tmp_path / "ours.tif": array}, geotiff=writer.GeoTiffOutput(compress=compress, blocksize=32),
+                         tags={"origin": "test"}, scheduler="threads", num_workers=2)
     options = writer._write_options(compress, 32, array)
     array.rio.to_raster(tmp_path / "rioxarray.tif", tags={"origin": "test"}, lock=True, **options)
     _assert_same_raster(tmp_path / "ours.tif", tmp_path / "rioxarray.tif")

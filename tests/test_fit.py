@@ -9,6 +9,7 @@ from scipy.stats import chi2 as chi2_distribution
 
 from brdfcorr.errors import BrdfcorrError, FitError, MeasurementError, ParameterError
 from brdfcorr.fit.goniometer import (
+    ErrorAnalysis,
     FitWarning,
     NonIdentifiableWarning,
     fit_brdf,
@@ -95,7 +96,7 @@ def test_unweighted_errors_are_scaled_by_the_residual_scatter():
     with pytest.warns(NonIdentifiableWarning, match="not determined"):
         unscaled = fit_brdf(
             "torrance_sparrow", data.theta_i, data.theta_r, data.phi, data.brdf, fixed=fixed,
-            scale_errors=False,
+            error_analysis=ErrorAnalysis(scale_errors=False),
         )
     np.testing.assert_allclose(unscaled.covariance, np.linalg.inv(design.T @ design), rtol=1e-4)
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from brdfcorr.fit import solver
-from brdfcorr.fit.classes import ClassFitWarning, GuardRails, fit_one_class
+from brdfcorr.fit.classes import ClassFitWarning, ClassSamples, GuardRails, fit_one_class
 from brdfcorr.fit.solver import fit_class_samples
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model, Parameter, get_model, torrance_sparrow
@@ -99,7 +99,7 @@ def test_kernel_class_fitted_with_empirical_fails_and_a_kernel_model_is_suggeste
     angles = (sza, 40 * np.abs(across), relative_azimuth(np.full(n, 95.0), np.where(across < 0, 270.0, 90.0)))
     brdf = render(angles) * (1 + 0.01 * rng.standard_normal((n, 4)))
     with pytest.warns(ClassFitWarning, match=r"empirical explains almost none.*ross_.* explains more"):
-        fit = fit_one_class(7, "meadow", "empirical", *angles, brdf)
+        fit = fit_one_class(7, "meadow", "empirical", ClassSamples(*angles, brdf))
     assert fit.status == "uncorrected"
     assert any("median angular R^2" in reason for reason in fit.reasons)
     assert fit.median_angular_r2 < 0.05
@@ -114,7 +114,7 @@ def test_kernel_class_fitted_with_empirical_fails_and_a_kernel_model_is_suggeste
     # The right model passes, with no suggestion.
     with warnings.catch_warnings():
         warnings.simplefilter("error", ClassFitWarning)
-        good = fit_one_class(7, "meadow", RTLSR, *angles, brdf)
+        good = fit_one_class(7, "meadow", RTLSR, ClassSamples(*angles, brdf))
     assert good.status == "fitted" and good.better_model is None and good.median_r2 > 0.9
 
 
@@ -128,7 +128,8 @@ def test_specular_intensity_stays_non_negative_without_a_specular_peak():
         noisy = clean + 0.002 * np.random.default_rng(seed).standard_normal(clean.shape)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ClassFitWarning)
-            fit = fit_one_class(1, "flat", "torrance_sparrow", *ts_angles, noisy, guard=GuardRails(min_samples=100))
+            fit = fit_one_class(1, "flat", "torrance_sparrow", ClassSamples(*ts_angles, noisy),
+                                guard=GuardRails(min_samples=100))
         assert np.all(fit.params["t1"] >= 0), fit.params["t1"]
         assert np.all(fit.params["t0"] > 0)
         assert fit.status == "uncorrected" and fit.median_r2 < 0.05

@@ -247,9 +247,9 @@ def _scene(ny=48, nx=80, seed=0):
 
 
 def test_imagery_fit_writes_its_fit_block(tmp_path):
-    from brdfcorr.fit.classes import fit_classes
+    from brdfcorr.fit.classes import ClassModels, fit_classes
 
-    result = fit_classes(*_scene(), names={1: "roof_tile"}, source="test scene")
+    result = fit_classes(*_scene(), ClassModels(names={1: "roof_tile"}), source="test scene")
     fit, entry = result.fits[0], result.table[1]
     record = entry.fit
     assert fit.status == "fitted" and record.source == "test scene"

@@ -451,7 +451,7 @@ def test_a_table_at_the_bounds_corrects_every_pixel_with_a_finite_factor():
     scene = synthetic_scene(ny=NY, nx=NX, table=table)
     for dtype in (np.float32, np.float64):
         cube = scene["reflectance"].astype(dtype)
-        result = normalize(cube, scene["classes"], scene["sza"], scene["saa"], scene["vza"], scene["vaa"],
+        result = normalize(cube, scene["classes"], {a: scene[a] for a in ("sza", "saa", "vza", "vaa")},
                            table, reference={"sza": 35.0, "vza": 0.0, "raa": 0.0}, limits=None)
         assert np.isfinite(result.reflectance.values).all() and (result.reflectance.values > 0).all()
         counts = {key: int(value) for key, value in qa_counts(result.qa).items()}
@@ -467,8 +467,8 @@ def test_negative_model_values_are_nodata_not_limited_nor_corrected():
                                      "params": {"f_iso": 0.0, "f_vol": 0.0, "f_geo": 1.0}}])
     cube = np.full((2, 1, 3), 0.3)
     angles = np.array([[20.0, 40.0, 60.0]])
-    result = normalize(cube, np.ones((1, 3), np.uint8), angles, np.zeros((1, 3)), angles,
-                       np.full((1, 3), 90.0), table)
+    result = normalize(cube, np.ones((1, 3), np.uint8),
+                       {"sza": angles, "saa": np.zeros((1, 3)), "vza": angles, "vaa": np.full((1, 3), 90.0)}, table)
     assert np.isnan(result.reflectance.values).all()
     assert (result.qa.values & QA.NODATA).all() and not (result.qa.values & QA.LIMITED).any()
     counts = {key: int(value) for key, value in qa_counts(result.qa).items()}
@@ -482,7 +482,8 @@ def test_a_peak_vanishing_at_the_reference_is_nodata_not_clipped():
                                      "params": {"a": 1.0, "b": 1.0, "c": 5.0, "t0": 0.0}}])
     sza = vza = np.full((1, 3), 30.0)
     saa, vaa = np.zeros((1, 3)), np.full((1, 3), 180.0)  # the specular direction: the observed peak
-    result = normalize(np.full((2, 1, 3), 0.3), np.ones((1, 3), np.uint8), sza, saa, vza, vaa, table,
+    result = normalize(np.full((2, 1, 3), 0.3), np.ones((1, 3), np.uint8),
+                       {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa}, table,
                        reference={"sza": 30.0, "vza": 0.0})
     assert np.isnan(result.reflectance.values).all()
     assert ((result.qa.values & QA.NODATA) > 0).all() and not (result.qa.values & QA.LIMITED).any()
@@ -498,7 +499,8 @@ def test_a_model_beyond_float32_is_nodata_in_float32_and_finite_in_float64():
     zeros = np.zeros((1, 3))
     for dtype in (np.float64, np.float32):
         cube = np.full((2, 1, 3), 0.3, dtype=dtype)
-        result = normalize(cube, np.ones((1, 3), np.uint8), zenith, zeros, zenith, zeros, table, limits=None)
+        result = normalize(cube, np.ones((1, 3), np.uint8),
+                           {"sza": zenith, "saa": zeros, "vza": zenith, "vaa": zeros}, table, limits=None)
         values, qa = result.reflectance.values, result.qa.values[0]
         invalid = (qa & QA.NODATA) > 0
         assert np.isnan(values[:, 0, invalid]).all() and np.isfinite(values[:, 0, ~invalid]).all()

@@ -142,7 +142,7 @@ def test_write_round_trip_georeference_tags_descriptions(files, tmp_path):
     image = io.open_image(files["image"], chunks=16)
     out = image.drop_vars("wavelength").rio.write_nodata(np.nan, encoded=True)
     target = tmp_path / "out.tif"
-    io.write_rasters({target: out}, tags={"brdf_reference": "sza=30 vza=0 raa=0"}, blocksize=16)
+    io.write_rasters({target: out}, tags={"brdf_reference": "sza=30 vza=0 raa=0"}, geotiff=io.GeoTiffOutput(blocksize=16))
     with rasterio.open(target) as written, rasterio.open(files["image"]) as source:
         assert written.crs == source.crs
         assert written.transform == source.transform
@@ -158,7 +158,7 @@ def test_write_round_trip_georeference_tags_descriptions(files, tmp_path):
 def test_write_cog(files, tmp_path):
     image = io.open_image(files["image"], chunks=16)
     target = tmp_path / "out_cog.tif"
-    io.write_rasters({target: image.drop_vars("wavelength")}, cog=True, blocksize=16)
+    io.write_rasters({target: image.drop_vars("wavelength")}, geotiff=io.GeoTiffOutput(cog=True, blocksize=16))
     with rasterio.open(target) as written:
         assert written.tags(ns="IMAGE_STRUCTURE").get("LAYOUT") == "COG"
         assert written.descriptions == ("480 nm", "560 nm", "660 nm", "830 nm")
@@ -182,7 +182,7 @@ def test_failed_write_leaves_nothing_at_the_target(scene, tmp_path, cog):
     qa_target = tmp_path / "qa.tif"
     qa = georeference(xr.DataArray(np.zeros((40, 48), "uint8"), dims=("y", "x")))
     with pytest.raises(RuntimeError, match="disk on fire"):
-        io.write_rasters({target: _failing_array(scene), qa_target: qa}, blocksize=16, cog=cog)
+        io.write_rasters({target: _failing_array(scene), qa_target: qa}, geotiff=io.GeoTiffOutput(blocksize=16, cog=cog))
     assert list(tmp_path.iterdir()) == []
 
 
@@ -190,14 +190,14 @@ def test_existing_target_survives_a_failed_write(scene, tmp_path):
     target = tmp_path / "out.tif"
     target.write_bytes(b"previous result")
     with pytest.raises(RuntimeError):
-        io.write_rasters({target: _failing_array(scene)}, blocksize=16)
+        io.write_rasters({target: _failing_array(scene)}, geotiff=io.GeoTiffOutput(blocksize=16))
     assert target.read_bytes() == b"previous result"
     assert [p.name for p in tmp_path.iterdir()] == ["out.tif"]
 
 
 def test_blocksize_must_be_a_multiple_of_16(scene, tmp_path):
     with pytest.raises(InputError, match="multiple of 16"):
-        io.write_rasters({tmp_path / "x.tif": scene["reflectance"]}, blocksize=20)
+        io.write_rasters({tmp_path / "x.tif": scene["reflectance"]}, geotiff=io.GeoTiffOutput(blocksize=20))
 
 
 def test_envi_header_wavelengths(tmp_path):

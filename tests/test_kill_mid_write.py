@@ -78,7 +78,7 @@ def test_sigkill_mid_write_leaves_only_a_partial_file_and_a_rerun_succeeds(big, 
     # The rerun's output is complete: the same numbers as the in-memory (numpy) normalization.
     scene = big["scene"]
     expected, _ = normalize(scene["reflectance"], scene["classes"].rio.write_nodata(255),
-                            *(scene[name] for name in ("sza", "saa", "vza", "vaa")), example_table())
+                            {name: scene[name] for name in ("sza", "saa", "vza", "vaa")}, example_table())
     with rasterio.open(output) as dataset:
         np.testing.assert_array_equal(dataset.read(), expected.values)
 

@@ -33,7 +33,7 @@ import xarray as xr
 from scipy.ndimage import gaussian_filter
 
 from brdfcorr import normalize
-from brdfcorr.fit import fit_classes
+from brdfcorr.fit import ClassModels, fit_classes
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 from brdfcorr.strata import ndvi_strata
@@ -109,8 +109,8 @@ def east_west_sigma(mask: np.ndarray) -> float:
 
 
 def correct(image, classes, angles, table, reference_sza) -> np.ndarray:
-    layers = [angles[k] for k in ("sza", "saa", "vza", "vaa")]
-    corrected, qa = normalize(image, classes, *layers, table, {"sza": reference_sza, "vza": 0.0, "raa": 0.0},
+    layers = {k: angles[k] for k in ("sza", "saa", "vza", "vaa")}
+    corrected, qa = normalize(image, classes, layers, table, {"sza": reference_sza, "vza": 0.0, "raa": 0.0},
                               limits=None)
     assert int(qa.max()) == 0  # every pixel classed and corrected
     return np.asarray(corrected.values)
@@ -129,8 +129,9 @@ def urban():
     at_reference, reference_sza = reference_angles(angles)
     truth = render(table, classes, **at_reference, wavelengths=WAVELENGTHS, brightness=np.full(classes.shape, math.pi))
     class_map = xr.DataArray(classes, dims=("y", "x"), coords={"y": image.y, "x": image.x})
-    result = fit_classes(image, class_map, angles, "ross_thick_li_sparse", class_models={ROOF: "torrance_sparrow"},
-                         names={ROOF: "roof_tile", GRASS: "grass", SOIL: "soil"})
+    result = fit_classes(image, class_map, angles,
+                         ClassModels("ross_thick_li_sparse", class_models={ROOF: "torrance_sparrow"},
+                                     names={ROOF: "roof_tile", GRASS: "grass", SOIL: "soil"}))
     corrected = correct(image, class_map, angles, result.table, reference_sza)
     return {"image": image.values, "classes": classes, "truth": truth, "corrected": corrected, "result": result}
 
@@ -186,7 +187,7 @@ def test_ndvi_strata_and_rtlsr_remove_the_gradient_of_a_mixture():
     truth = mixture(at_reference)
     image = as_image(observed * (1.0 + NOISE * rng.standard_normal(observed.shape)))
     strata = ndvi_strata(image, percentiles=(33, 67))
-    result = fit_classes(image, strata.classes, angles, "ross_thick_li_sparse", names=strata.names)
+    result = fit_classes(image, strata.classes, angles, ClassModels("ross_thick_li_sparse", names=strata.names))
     assert [fit.status for fit in result.fits] == ["fitted"] * 3
     classes = np.asarray(strata.classes.values)
     corrected = correct(image, strata.classes, angles, result.table, reference_sza)

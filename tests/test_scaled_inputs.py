@@ -18,6 +18,7 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError
+from brdfcorr.fit.classes import Sampling
 from brdfcorr.io import rasters
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
@@ -216,10 +217,10 @@ def test_fit_classes_on_the_scaled_image_matches_the_float_image(fit_files, tmp_
 
 
 def test_fit_class_files_reflectance_scale_is_the_scale_on_read(fit_files):
-    def fit(**options):
-        scene = SceneFiles(fit_files["int16_untagged"], fit_files["classes"], fit_files["angles"],
-                           scale=options.pop("scale", None))
-        return fit_class_files([scene], "torrance_sparrow", **options).table[1].params
+    def fit(scale=None, reflectance_scale=1.0):
+        scene = SceneFiles(fit_files["int16_untagged"], fit_files["classes"], fit_files["angles"], scale=scale)
+        sampling = Sampling(reflectance_scale=reflectance_scale)
+        return fit_class_files([scene], "torrance_sparrow", sampling=sampling).table[1].params
 
     assert fit(reflectance_scale=1e-4) == fit(scale=1e-4)
     with pytest.raises(InputError, match="raw counts"):
@@ -242,6 +243,35 @@ def test_raw_counts_without_a_scale_are_one_error(files, tmp_path, command):
     assert "int16_untagged.tif: the values do not look like reflectance factors" in line
     assert "raw counts?" in line and "--scale" in line
     assert not output.exists()
+
+
+@pytest.mark.parametrize("kind", ["reflectance x 10000 as float", "divisor scale tag"])
+def test_scaled_floats_and_divisor_tags_are_one_error_naming_scale(files, tmp_path, kind):
+    # Reflectance x 10000 kept as float32 (HyTools, NEON, many ENVI cubes), and int16 counts whose
+    # GDAL scale tag is the divisor 10000 (the MODIS HDF convention) instead of 0.0001: both would
+    # be "corrected" into numbers 10^4 or 10^8 too large; each is refused before any output.
+    if kind == "divisor scale tag":
+        image = _store(files["image"], tmp_path / "divisor.tif", "int16", 1e-4, 0.0, -9999, tag=False)
+        with rasterio.open(image, "r+") as dataset:
+            dataset.scales = [1e4] * dataset.count
+    else:
+        image = _store(files["image"], tmp_path / "float_x10000.tif", "float32", 1e-4, 0.0, -9999, tag=False)
+    for command in ("correct", "fit-classes"):
+        output = tmp_path / ("out.tif" if command == "correct" else "params.yaml")
+        result = (_invoke("correct", image, "--angles", files["angles"], "--classes", files["classes"],
+                          "--params", files["params"], "-o", output, "--no-progress")
+                  if command == "correct" else _fit(files, image, output))
+        assert result.exit_code == 2, result.output
+        line = _one_error_line(result)
+        assert f"{image.name}: the values do not look like reflectance factors" in line
+        assert "--scale 0.0001" in line and not output.exists()
+        assert ("looks like a divisor" in line) == (kind == "divisor scale tag")
+    # With the scale given, the same image corrects like the float reflectance image.
+    reference, _ = _float_reference(files, tmp_path)
+    corrected, _ = _correct(files, image, tmp_path / "given.tif", "--scale", 1e-4)
+    valid = np.isfinite(corrected)
+    assert np.isnan(corrected[NODATA_PIXELS]).all() and valid.sum() == corrected.size - corrected[NODATA_PIXELS].size
+    np.testing.assert_allclose(corrected[valid], reference[valid], rtol=1e-3, atol=2e-4)
 
 
 def test_a_given_scale_is_trusted(files, tmp_path):

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from brdfcorr.analysis.simulate import facet_visible_fraction, paper_sigma, simulate_vcavity
+from brdfcorr.analysis.simulate import FacetGrid, facet_visible_fraction, paper_sigma, simulate_vcavity
 from brdfcorr.errors import ParameterError
 from brdfcorr.models import geometric_attenuation, torrance_sparrow
 
@@ -75,10 +75,10 @@ def test_simulation_is_reciprocal():
 def test_coarse_grids_fail_as_the_benchmark_says():
     # The check is sensitive: a grid step of 1.5 sigma or a zenith-pole grid misses by percents.
     expected = analytic_normalized(45.0, 30.0, 180.0, 0.05)
-    coarse = simulate_vcavity(45.0, 30.0, 180.0, 0.05, step_fraction=1.5, normalize=True)
+    coarse = simulate_vcavity(45.0, 30.0, 180.0, 0.05, grid=FacetGrid(step_fraction=1.5), normalize=True)
     assert abs(coarse / expected - 1.0) > 0.05
     specular = simulate_vcavity(45.0, 45.0, 180.0, 0.05)
-    zenith_pole = simulate_vcavity(45.0, 45.0, 180.0, 0.05, pole="zenith")
+    zenith_pole = simulate_vcavity(45.0, 45.0, 180.0, 0.05, grid=FacetGrid(pole="zenith"))
     assert specular == pytest.approx(0.25 * torrance_sparrow(45, 45, 180, 0, 1, 0.05, 1e9, 0), rel=1e-3)
     assert abs(zenith_pole / specular - 1.0) > 0.01
 
@@ -106,8 +106,8 @@ def test_paper_sigma_and_bad_settings():
     assert paper_sigma(0.01) == paper_sigma(0.05) == 0.07
     assert paper_sigma(0.15) == 0.03
     with pytest.raises(ParameterError, match="step_fraction"):
-        simulate_vcavity(45, 45, 180, 0.05, step_fraction=0)
+        simulate_vcavity(45, 45, 180, 0.05, grid=FacetGrid(step_fraction=0))
     with pytest.raises(ParameterError, match="zenith"):
         simulate_vcavity(45, 90, 180, 0.05)
     with pytest.raises(ParameterError, match="pole"):
-        simulate_vcavity(45, 45, 180, 0.05, pole="north")
+        simulate_vcavity(45, 45, 180, 0.05, grid=FacetGrid(pole="north"))

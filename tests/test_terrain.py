@@ -206,9 +206,10 @@ def scene():
     return synthetic_scene(ny=12, nx=16, dtype=np.float64)
 
 
-def _normalize(scene, **options):
-    return normalize(scene["reflectance"], scene["classes"], *(scene[a] for a in ANGLES), example_table(),
-                     **options)
+def _normalize(scene, slope=None, aspect=None, **options):
+    angles = {a: scene[a] for a in ANGLES}
+    angles.update({k: v for k, v in (("slope", slope), ("aspect", aspect)) if v is not None})
+    return normalize(scene["reflectance"], scene["classes"], angles, example_table(), **options)
 
 
 @pytest.mark.parametrize("lazy", [False, True])
@@ -235,7 +236,8 @@ def test_tilted_roof_is_normalized_to_the_horizontal_roof(scene):
     classes = xr.full_like(scene["classes"], 1)
     observed = scene["brightness"] * torrance_sparrow(local.sza, local.vza, relative_azimuth(local.saa, local.vaa), **tile)
     cube = observed.expand_dims(band=[1]).transpose("band", "y", "x")
-    result = normalize(cube, classes, *(scene[a] for a in ANGLES), table, limits=None, slope=slope, aspect=aspect)
+    result = normalize(cube, classes, {**{a: scene[a] for a in ANGLES}, "slope": slope, "aspect": aspect}, table,
+                       limits=None)
     expected = scene["brightness"] * torrance_sparrow(scene["sza"], 0.0, 0.0, **tile)
     valid = result.qa.values == 0
     assert valid.mean() > 0.9

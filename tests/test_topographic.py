@@ -39,7 +39,7 @@ def test_cosine_makes_a_lambertian_slope_horizontal():
     # irradiance assumed); the cosine correction gives back R (Teillet et al. 1982, eq. 4).
     slope, aspect, cos_i = _terrain()
     observed = _cube(0.3 * cos_i / np.cos(np.radians(SZA)))
-    result = topographic_correction(observed, SZA, SAA, slope, aspect, method="cosine", limits=None)
+    result = topographic_correction(observed, {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}, method="cosine", limits=None)
     lit = cos_i > 0
     np.testing.assert_allclose(result.reflectance.values[0][lit], 0.3, rtol=1e-12)
     assert (result.qa.values[~lit] == QA.FACING_AWAY).all() and np.isnan(result.reflectance.values[0][~lit]).all()
@@ -50,7 +50,7 @@ def test_scs_gives_the_canopy_seen_on_flat_ground():
     # Gu & Gillespie 1998, eq. 8: rho_t cos s cos sza / cos i; for rho_t = R cos i / cos sza: R cos s.
     slope, aspect, cos_i = _terrain()
     observed = _cube(0.3 * cos_i / np.cos(np.radians(SZA)))
-    result = topographic_correction(observed, SZA, SAA, slope, aspect, method="scs", limits=None)
+    result = topographic_correction(observed, {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}, method="scs", limits=None)
     lit = cos_i > 0
     np.testing.assert_allclose(result.reflectance.values[0][lit], (0.3 * np.cos(np.radians(slope)))[lit], rtol=1e-12)
 
@@ -62,7 +62,7 @@ def test_c_fit_recovers_b_over_m_and_flattens_a_linear_scene(method):
     slope, aspect, cos_i = _terrain()
     m, b = np.array([0.2, 0.4]), np.array([0.05, 0.02])
     observed = _cube(*(m_ * cos_i + b_ for m_, b_ in zip(m, b)))
-    result = topographic_correction(observed, SZA, SAA, slope, aspect, method=method, limits=None)
+    result = topographic_correction(observed, {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}, method=method, limits=None)
     table = result.c_table
     np.testing.assert_allclose(table["c"], b / m, rtol=1e-9)
     np.testing.assert_allclose(table["r2"], 1.0, rtol=1e-12)
@@ -84,7 +84,7 @@ def test_c_is_fitted_per_class():
     observed[0, 0, :5] = 999.0
     table = fit_c(observed, cos_i, xr.DataArray(classes, dims=("y", "x")))
     np.testing.assert_allclose(table.set_index("class")["c"].to_numpy(), [0.5, 1.0], rtol=1e-9)
-    result = topographic_correction(observed, SZA, SAA, slope, aspect, method="c", classes=classes, limits=None)
+    result = topographic_correction(observed, {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}, method="c", classes=classes, limits=None)
     assert (result.qa.values[0, :5] == QA.NO_CLASS).all()
     np.testing.assert_array_equal(result.reflectance.values[0, 0, :5], 999.0)
 
@@ -92,9 +92,9 @@ def test_c_is_fitted_per_class():
 def test_layers_must_be_on_the_reflectance_grid():
     slope, aspect, cos_i = _terrain()
     with pytest.raises(GridMismatchError, match=r"slope is not on the grid of reflectance: shape \(rows, columns\)"):
-        topographic_correction(_cube(cos_i), SZA, SAA, slope[:-1], aspect, method="cosine")
+        topographic_correction(_cube(cos_i), {"sza": SZA, "saa": SAA, "slope": slope[:-1], "aspect": aspect}, method="cosine")
     with pytest.raises(InputError, match="2-D"):
-        topographic_correction(_cube(cos_i), SZA, SAA, slope[None, None], aspect, method="cosine")
+        topographic_correction(_cube(cos_i), {"sza": SZA, "saa": SAA, "slope": slope[None, None], "aspect": aspect}, method="cosine")
 
 
 def test_factor_equations_and_errors():
@@ -119,7 +119,7 @@ def test_poor_fit_is_rejected_left_uncorrected_flagged_and_warned():
     rng = np.random.default_rng(5)
     observed = _cube(rng.uniform(0.1, 0.2, cos_i.shape), 0.3 - 0.1 * cos_i, 0.2 * cos_i + 0.1)
     with pytest.warns(BrdfcorrWarning, match="rejected for 2 class/band"):
-        result = topographic_correction(observed, SZA, SAA, slope, aspect, method="c", limits=None)
+        result = topographic_correction(observed, {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}, method="c", limits=None)
     table = result.c_table.set_index("band")
     assert list(table["accepted"]) == [False, False, True]
     assert table.loc[0, "r2"] < 0.1 and "R2" in table.loc[0, "reason"]
@@ -145,7 +145,7 @@ def test_limits_and_nodata_are_flagged():
     slope, aspect, cos_i = _terrain(seed=6)
     observed = _cube(np.full(cos_i.shape, 0.2))
     observed[0, 0, 0] = np.nan
-    result = topographic_correction(observed, SZA, SAA, slope, aspect, method="cosine", limits=(0.5, 2.0))
+    result = topographic_correction(observed, {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}, method="cosine", limits=(0.5, 2.0))
     factor = np.cos(np.radians(SZA)) / cos_i
     clipped = (cos_i > 0) & ((factor > 2.0) | (factor < 0.5))
     assert clipped.any()
@@ -166,10 +166,11 @@ def test_dask_is_lazy_and_equals_numpy(no_compute):
         table = fit_c(lazy_cube, cos_incidence(SZA, SAA, lazy_layers[0], lazy_layers[1]), lazy_layers[2])
     eager_table = fit_c(observed, cos_i, xr.DataArray(classes, dims=("y", "x")))
     np.testing.assert_allclose(table["c"], eager_table["c"], rtol=1e-12)
-    lazy = topographic_correction(lazy_cube, SZA, SAA, lazy_layers[0], lazy_layers[1], method="scs+c",
+    lazy = topographic_correction(lazy_cube, {"sza": SZA, "saa": SAA, "slope": lazy_layers[0], "aspect": lazy_layers[1]},
+                                  method="scs+c",
                                   classes=lazy_layers[2], c_table=table)
     assert isinstance(lazy.reflectance.data, da.Array) and isinstance(lazy.qa.data, da.Array)
-    eager = topographic_correction(observed, SZA, SAA, slope, aspect, method="scs+c", classes=classes, c_table=table)
+    eager = topographic_correction(observed, {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}, method="scs+c", classes=classes, c_table=table)
     with dask.config.set(scheduler="sync"):
         np.testing.assert_array_equal(lazy.reflectance.values, eager.reflectance.values)
         np.testing.assert_array_equal(lazy.qa.values, eager.qa.values)
@@ -280,10 +281,9 @@ def _disagreement(means, a, b) -> float:
 def corrected_scene():
     scene = roofs_and_hill_scene()
     slope, aspect = slope_aspect(scene["dem"], pixel_size=1.0)
-    topo = topographic_correction(scene["reflectance"], scene["sza"], scene["saa"], slope, aspect, method="cosine",
-                                  limits=None)
-    brdf = normalize(topo.reflectance, scene["classes"], scene["sza"], scene["saa"], scene["vza"], scene["vaa"],
-                     scene["table"], limits=None, slope=slope, aspect=aspect)
+    angles = {**{a: scene[a] for a in ("sza", "saa", "vza", "vaa")}, "slope": slope, "aspect": aspect}
+    topo = topographic_correction(scene["reflectance"], angles, method="cosine", limits=None)
+    brdf = normalize(topo.reflectance, scene["classes"], angles, scene["table"], limits=None)
     return scene, slope, aspect, brdf
 
 
@@ -337,8 +337,8 @@ def test_scs_c_alone_evens_the_hill_sides(corrected_scene):
     # The empirical alternative without a BRDF model: SCS+C with C fitted on the grass pixels.
     scene, slope, aspect, _ = corrected_scene
     grass = xr.where(scene["classes"] == GRASS, GRASS, 0)
-    topo = topographic_correction(scene["reflectance"], scene["sza"], scene["saa"], slope, aspect,
-                                  method="scs+c", classes=grass, limits=None)
+    topo = topographic_correction(scene["reflectance"], {"sza": scene["sza"], "saa": scene["saa"], "slope": slope,
+                                                         "aspect": aspect}, method="scs+c", classes=grass, limits=None)
     before = _face_means(scene["reflectance"].values[0], scene["faces"])
     after = _face_means(topo.reflectance.values[0], scene["faces"])
     assert topo.c_table["accepted"].all()

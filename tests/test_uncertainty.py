@@ -64,9 +64,10 @@ def _pixels(sza, saa, vza, vaa, classes=None, n_bands=1):
     return layers
 
 
-def _sigma(layers, table, **options):
-    return correction_uncertainty(layers["reflectance"], layers["classes"], *(layers[a] for a in ANGLES), table,
-                                  **options)
+def _sigma(layers, table, slope=None, aspect=None, **options):
+    angles = {a: layers[a] for a in ANGLES}
+    angles.update({k: v for k, v in (("slope", slope), ("aspect", aspect)) if v is not None})
+    return correction_uncertainty(layers["reflectance"], layers["classes"], angles, table, **options)
 
 
 def _covariance(sd, correlation):
@@ -111,7 +112,7 @@ def test_sigma_equals_the_spread_of_the_factor_over_parameter_draws(model):
     draws = np.random.default_rng(17).multivariate_normal([params[n] for n in names], covariance, size=20_000)
     drawn = {**params, **{name: draws[:, i].tolist() for i, name in enumerate(names)}}
     many = _pixels(SZA, SAA, VZA, VAA, n_bands=draws.shape[0])
-    corrected = normalize(many["reflectance"], many["classes"], *(many[a] for a in ANGLES),
+    corrected = normalize(many["reflectance"], many["classes"], {a: many[a] for a in ANGLES},
                           _table(_class(1, model, drawn)), reference=REFERENCE, limits=None).reflectance
     spread = corrected.values[:, 0, :].std(axis=0, ddof=1)
     assert np.all(spread > 0)
@@ -276,7 +277,7 @@ def test_nodata_where_there_is_nothing_to_propagate():
     layers = _pixels(sza, [0] * 8, vza, vaa, classes=[1, 2, 9, 0, 1, 1, 1, 1])
     layers["reflectance"][0, 0, 5] = np.nan
     limits = (0.75, 1.5)  # F: 0.83 at pixel 0, 0.67 at the specular pixel 6, 1.01 at pixel 7
-    corrected = normalize(layers["reflectance"], layers["classes"], *(layers[a] for a in ANGLES), table,
+    corrected = normalize(layers["reflectance"], layers["classes"], {a: layers[a] for a in ANGLES}, table,
                           reference=REFERENCE, limits=limits)
     assert corrected.qa.values[0, 6] & 8  # the test's premise: pixel 6 is limited
     sigma = _sigma(layers, table, reference=REFERENCE, limits=limits).values[0, 0]
@@ -288,7 +289,7 @@ def test_nodata_where_there_is_nothing_to_propagate():
 
 def test_a_table_without_covariance_gives_all_nodata_and_the_attrs():
     scene = synthetic_scene(ny=8, nx=8, dtype=np.float32)
-    sigma = correction_uncertainty(scene["reflectance"], scene["classes"], *(scene[a] for a in ANGLES),
+    sigma = correction_uncertainty(scene["reflectance"], scene["classes"], {a: scene[a] for a in ANGLES},
                                    example_table())
     assert sigma.dims == ("band", "y", "x") and sigma.dtype == np.float32
     assert np.isnan(sigma.values).all()
@@ -304,7 +305,7 @@ def test_bad_input_is_one_clear_error():
     with pytest.raises(InputError, match="limits"):
         _sigma(layers, table, limits=(2.0, 5.0))
     with pytest.raises(InputError, match="ParameterTable"):
-        correction_uncertainty(layers["reflectance"], layers["classes"], *(layers[a] for a in ANGLES), {})
+        correction_uncertainty(layers["reflectance"], layers["classes"], {a: layers[a] for a in ANGLES}, {})
     with pytest.raises(ParameterError, match="w"):
         factor_jacobian(REGISTRY["torrance_sparrow"], ScatteringGeometry(30.0, 10.0, 0.0),
                         ScatteringGeometry(30.0, 0.0, 0.0), {**ROOF, "w": -1.0}, ("t0",))
@@ -333,12 +334,12 @@ def test_dask_equals_numpy_keeps_the_chunks_and_stays_lazy(no_compute):
     chunked = {name: layer.copy(data=da.from_array(layer.values, chunks=tuple(chunks[d] for d in layer.dims)))
                for name, layer in scene.items()}
     for reference in ({"sza": "mean", "vza": 0.0, "raa": 0.0}, {"sza": 30.0, "vza": 10.0, "raa": 90.0}):
-        lazy = correction_uncertainty(chunked["reflectance"], chunked["classes"], *(chunked[a] for a in ANGLES),
+        lazy = correction_uncertainty(chunked["reflectance"], chunked["classes"], {a: chunked[a] for a in ANGLES},
                                       table, reference=reference)
         assert isinstance(lazy.data, da.Array)
         assert lazy.chunks == chunked["reflectance"].chunks
         computed = lazy.data.compute(scheduler="sync")
-        eager = correction_uncertainty(scene["reflectance"], scene["classes"], *(scene[a] for a in ANGLES),
+        eager = correction_uncertainty(scene["reflectance"], scene["classes"], {a: scene[a] for a in ANGLES},
                                        table, reference=reference)
         np.testing.assert_array_equal(computed, eager.values)
         classes = scene["classes"].values
@@ -358,7 +359,7 @@ def test_computed_with_the_correction_each_input_chunk_is_read_once():
 
     reflectance = scene["reflectance"].copy(data=da.from_array(scene["reflectance"].values, chunks=(4, 10, 14))
                                             .map_blocks(counted, dtype=np.float32))
-    arguments = (reflectance, scene["classes"], *(scene[a] for a in ANGLES), table)
+    arguments = (reflectance, scene["classes"], {a: scene[a] for a in ANGLES}, table)
     corrected = normalize(*arguments, reference={"sza": "mean"}).reflectance
     sigma = correction_uncertainty(*arguments, reference={"sza": "mean"})
     with dask.config.set(scheduler="sync"):

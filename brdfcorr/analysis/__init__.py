@@ -9,7 +9,7 @@ from brdfcorr.analysis.papers import (
     specular_albedo_bound,
     width_reduction,
 )
-from brdfcorr.analysis.simulate import simulate_vcavity
+from brdfcorr.analysis.simulate import FacetGrid, simulate_vcavity
 
 __all__ = [
     "albedo",
@@ -18,4 +18,5 @@ __all__ = [
     "specular_albedo_bound",
     "width_reduction",
     "simulate_vcavity",
+    "FacetGrid",
 ]

@@ -10,7 +10,8 @@ class and band:
   mean reflectance on the positive side of nadir to that on the negative side (forward/backward
   scattering, or right/left of the flight direction); and the across-track profile, the mean
   reflectance in bins of signed view zenith. One chunk-wise pass over the before and after cubes
-  (dask: per-block sums, added in a tree, one compute).
+  (dask: per-block sums, added in a tree, one compute); how it measures (sign convention, classes,
+  bins): :class:`ViewAngleOptions`.
 - :func:`assess_overlap`: for two overlapping lines, the difference in the overlap (other line minus
   this one, on this line's grid via rioxarray's ``reproject_match``): RMSE, mean absolute
   difference and bias per band, before and after, with a histogram and a small map of the
@@ -18,7 +19,7 @@ class and band:
 - :func:`leave_one_line_out`: for N lines, fit the parameters on N - 1 of them
   (:func:`brdfcorr.fit.fit_classes`), correct the held-out line with them
   (:func:`brdfcorr.normalize`) and assess it: a test of the correction on data its parameters
-  never saw.
+  never saw (the fit and the correction: :class:`HoldoutFit`).
 
 This module gathers them; they live in :mod:`brdfcorr.analysis.view_angles`,
 :mod:`brdfcorr.analysis.overlap` and :mod:`brdfcorr.analysis.holdout` (leave one line out), with
@@ -34,19 +35,27 @@ The results are :class:`xarray.Dataset` objects with labelled dims (``stage``: b
 """
 
 from brdfcorr.analysis._assess_common import STAGES  # noqa: F401  (importable from here as before the split)
-from brdfcorr.analysis.holdout import HeldOutLine, Line, leave_one_line_out, leave_one_line_out_report
+from brdfcorr.analysis.holdout import HeldOutLine, HoldoutFit, Line, leave_one_line_out, leave_one_line_out_report
 from brdfcorr.analysis.overlap import assess_overlap, overlap_report
-from brdfcorr.analysis.view_angles import SIGN_CONVENTIONS, assess_view_angles, signed_view_zenith, view_angle_report
+from brdfcorr.analysis.view_angles import (
+    SIGN_CONVENTIONS,
+    ViewAngleOptions,
+    assess_view_angles,
+    signed_view_zenith,
+    view_angle_report,
+)
 
 __all__ = [
     "SIGN_CONVENTIONS",
     "signed_view_zenith",
+    "ViewAngleOptions",
     "assess_view_angles",
     "view_angle_report",
     "assess_overlap",
     "overlap_report",
     "Line",
     "HeldOutLine",
+    "HoldoutFit",
     "leave_one_line_out",
     "leave_one_line_out_report",
 ]

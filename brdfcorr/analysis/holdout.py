@@ -11,16 +11,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, NamedTuple
+from typing import Any, NamedTuple
 
 import xarray as xr
 
 from brdfcorr.analysis.overlap import _overlaps, assess_overlap, overlap_report
-from brdfcorr.analysis.view_angles import assess_view_angles, view_angle_report
+from brdfcorr.analysis.view_angles import ViewAngleOptions, assess_view_angles, view_angle_report
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
 
-__all__ = ["Line", "HeldOutLine", "leave_one_line_out", "leave_one_line_out_report"]
+__all__ = ["Line", "HeldOutLine", "HoldoutFit", "leave_one_line_out", "leave_one_line_out_report"]
 
 
 class Line(NamedTuple):
@@ -58,13 +58,42 @@ class HeldOutLine:
     fit_report: list = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class HoldoutFit:
+    """How :func:`leave_one_line_out` fits the parameters on the other lines and corrects the
+    held-out line with them.
+
+    Attributes
+    ----------
+    model : str, default "torrance_sparrow"
+        Model fitted for every class (:func:`brdfcorr.fit.fit_classes`).
+    class_models : mapping of int to str, optional
+        The model of single classes, by class id.
+    fixed : mapping of str to float, optional
+        Shape parameters held fixed in the fits.
+    max_samples : int, default 50000
+        Pixels sampled per class over the training lines.
+    seed : int, default 0
+        Seed of the pixel sampler.
+    reference : mapping, optional
+        Reference geometry of the correction (:func:`brdfcorr.normalize`; default: the scene-mean
+        sun zenith, nadir view: ``{"sza": "mean", "vza": 0.0}``).
+    limits : (float, float) or None, default DEFAULT_LIMITS
+        Limits of the correction factor [-] (:data:`brdfcorr.defaults.DEFAULT_LIMITS`; None: none).
+    """
+
+    model: str = "torrance_sparrow"
+    class_models: Mapping[int, str] | None = None
+    fixed: Mapping[str, float] | None = None
+    max_samples: int = 50_000
+    seed: int = 0
+    reference: Mapping[str, object] | None = None
+    limits: tuple[float, float] | None = DEFAULT_LIMITS
+
+
 def leave_one_line_out(
-    lines: Sequence[Line], model: str = "torrance_sparrow", *, class_models: Mapping[int, str] | None = None,
-    names: Mapping[int, str] | None = None, fixed: Mapping[str, float] | None = None,
-    reference: Mapping[str, object] | None = None, limits: tuple[float, float] | None = DEFAULT_LIMITS,
-    max_samples: int = 50_000, seed: int = 0, by: Literal["sun", "track"] = "sun",
-    heading: float | None = None, bin_width: float = 2.0, overlap: bool = True,
-    flip_view_azimuth: bool = False,
+    lines: Sequence[Line], fit: HoldoutFit = HoldoutFit(), *,
+    view_options: ViewAngleOptions = ViewAngleOptions(), overlap: bool = True,
 ) -> list[HeldOutLine]:
     """Fit on N − 1 lines, correct the held-out one, assess it: for each of N lines.
 
@@ -72,21 +101,17 @@ def leave_one_line_out(
     ----------
     lines : sequence of Line
         At least 2 lines (angles by name ``sza``, ``saa``, ``vza``, ``vaa`` [deg]).
-    model, class_models, names, fixed, max_samples, seed :
+    fit : HoldoutFit
         The imagery fit, as for :func:`brdfcorr.fit.fit_classes` (its default guard rails; a
-        class that fails them is left uncorrected).
-    reference : mapping, optional
-        Reference geometry of the correction (:func:`brdfcorr.normalize`; default: the scene-mean
-        sun zenith, nadir view).
-    limits : (float, float) or None
-        Limits of the correction factor.
-    by, heading, bin_width :
-        As for :func:`assess_view_angles`.
+        class that fails them is left uncorrected), and the correction's reference geometry and
+        limits (:func:`brdfcorr.normalize`).
+    view_options : ViewAngleOptions
+        The assessment of each held-out line (:func:`assess_view_angles`). Its ``class_names`` also
+        name the classes of the fits, and its ``flip_view_azimuth`` (``vaa`` stored as seen from
+        the sensor) applies to the correction too.
     overlap : bool, default True
         Also compare the held-out line with every other line it overlaps (both corrected with the
         parameters fitted without it), :func:`assess_overlap`.
-    flip_view_azimuth : bool, default False
-        ``vaa`` is stored as seen from the sensor.
 
     Returns
     -------
@@ -94,28 +119,29 @@ def leave_one_line_out(
         One per line, in order.
     """
     from brdfcorr.correction import normalize
-    from brdfcorr.fit import fit_classes
+    from brdfcorr.fit import ClassModels, Sampling, fit_classes
 
     if len(lines) < 2:
         raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(lines)}")
-    reference = dict(reference) if reference is not None else {"sza": "mean", "vza": 0.0}
+    # The settings by the names the fit and the correction below take them.
+    model, class_models, fixed, max_samples, seed = fit.model, fit.class_models, fit.fixed, fit.max_samples, fit.seed
+    limits, names, flip_view_azimuth = fit.limits, view_options.class_names, view_options.flip_view_azimuth
+    reference = dict(fit.reference) if fit.reference is not None else {"sza": "mean", "vza": 0.0}
     results = []
     for held, line in enumerate(lines):
         training = [other for index, other in enumerate(lines) if index != held]
         fitted = fit_classes([t.reflectance for t in training], [t.classes for t in training],
-                             [xr.Dataset(dict(t.angles)) for t in training], model, class_models=class_models,
-                             names=names, fixed=fixed, max_samples=max_samples, seed=seed)
+                             [xr.Dataset(dict(t.angles)) for t in training],
+                             ClassModels(model, class_models=class_models, fixed=fixed, names=names),
+                             sampling=Sampling(max_samples=max_samples, seed=seed))
 
         def corrected(target: Line, table=fitted.table) -> xr.DataArray:
-            angles = target.angles
-            return normalize(target.reflectance, target.classes, angles["sza"], angles["saa"], angles["vza"],
-                             angles["vaa"], table, reference, limits=limits,
+            return normalize(target.reflectance, target.classes, target.angles, table, reference, limits=limits,
                              flip_view_azimuth=flip_view_azimuth).reflectance
 
         after = corrected(line)
         view = assess_view_angles(line.reflectance, after, line.classes, line.angles["vza"], line.angles["vaa"],
-                                  line.angles["saa"], by=by, heading=heading, class_names=names,
-                                  bin_width=bin_width, flip_view_azimuth=flip_view_azimuth)
+                                  line.angles["saa"], options=view_options)
         overlaps = {}
         if overlap:
             for other in training:

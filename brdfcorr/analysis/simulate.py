@@ -35,7 +35,8 @@ Accuracy and time
 The sum runs over a fixed grid of facet normals: rings of constant alpha spaced ``step`` degrees,
 each ring divided into cells of about ``step`` degrees of arc (cell solid angles exact). The facet
 peak has a width sigma in the reflected direction, i.e. sigma / 2 in the facet normal, so the grid
-must resolve sigma / 2: ``step`` is given as a fraction of sigma (``step_fraction``). Only grid
+must resolve sigma / 2: ``step`` is given as a fraction of sigma (``step_fraction`` of the
+:class:`FacetGrid`, with ``cutoff`` and ``pole``). Only grid
 cells whose normal lies within ``cutoff`` standard deviations of the facet peak of the half vector
 contribute more than ``exp(-cutoff^2 / 2)`` of the peak value; the others are skipped (an
 omission bounded by that factor, not an approximation of the physics). Paper 000 notes that the
@@ -59,6 +60,8 @@ References
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -71,6 +74,7 @@ __all__ = [
     "paper_sigma",
     "facet_visible_fraction",
     "simulate_vcavity",
+    "FacetGrid",
     "NORMALIZATION_GEOMETRY",
 ]
 
@@ -78,6 +82,35 @@ __all__ = [
 NORMALIZATION_GEOMETRY = (45.0, 45.0, 180.0)
 
 _SPECULAR_PEAK = get_model("specular_peak")
+
+
+@dataclass(frozen=True)
+class FacetGrid:
+    """The grid of facet normals that :func:`simulate_vcavity` sums over: its accuracy and cost.
+
+    The defaults are the accurate setting of the module notes (0.16 % at the geometries of paper
+    000, fig. 2); :func:`simulate_vcavity` checks the values.
+
+    Attributes
+    ----------
+    step_fraction : float, default 0.5
+        Grid step of facet normals as a fraction of sigma [-], > 0 (the step is
+        ``step_fraction * sigma`` degrees). Smaller is more accurate and slower; see the module
+        notes and ``benchmarks/bench_simulate.py``.
+    cutoff : float, default 5
+        Facet normals farther than ``cutoff`` peak standard deviations from the half vector are
+        skipped [-], > 0; they would contribute less than ``exp(-cutoff^2 / 2)`` of the peak.
+    pole : {"horizontal", "zenith"}, default "horizontal"
+        Axis of the latitude-longitude grid of facet normals. "zenith" is the plain (alpha, Phi)
+        grid of rings of constant inclination; its pole alpha = 0 is the half vector of every
+        specular geometry, where the sum has an O(step^2) error (about 3 % at the default
+        step). "horizontal" puts the pole on the horizon, perpendicular to the principal plane,
+        where no half vector lies; the sum is then accurate everywhere.
+    """
+
+    step_fraction: float = 0.5
+    cutoff: float = 5.0
+    pole: Literal["horizontal", "zenith"] = "horizontal"
 
 
 def paper_sigma(w: float) -> float:
@@ -250,12 +283,10 @@ def simulate_vcavity(
     w,
     *,
     sigma=None,
-    step_fraction=0.5,
-    cutoff=5.0,
+    grid: FacetGrid = FacetGrid(),
     n=None,
     k=0.0,
     normalize=False,
-    pole="horizontal",
 ):
     """Simulated specular BRDF of a surface of symmetric V-cavities (paper 000).
 
@@ -271,25 +302,17 @@ def simulate_vcavity(
     sigma : float, optional
         Standard deviation of the Gaussian facet peak (paper 000, eq. 3) [deg], > 0. Default:
         :func:`paper_sigma` (0.07 deg, 0.03 deg for w >= 0.1 deg^-1).
-    step_fraction : float, default 0.5
-        Grid step of facet normals as a fraction of sigma [-], > 0 (the step is
-        ``step_fraction * sigma`` degrees). Smaller is more accurate and slower; see the module
-        notes and ``benchmarks/bench_simulate.py``.
-    cutoff : float, default 5
-        Facet normals farther than ``cutoff`` peak standard deviations from the half vector are
-        skipped [-], > 0; they would contribute less than ``exp(-cutoff^2 / 2)`` of the peak.
+    grid : FacetGrid, default FacetGrid()
+        Grid of facet normals: step as a fraction of sigma [-] (default 0.5), cutoff in peak
+        standard deviations [-] (default 5) and pole ("horizontal", default, or "zenith"). A
+        finer grid is more accurate and slower; see the module notes and
+        ``benchmarks/bench_simulate.py``.
     n, k : float, optional
         Complex refractive index of the facets [-]. ``n=None`` (default) is a constant Fresnel
         reflectance F = 1, as in paper 000.
     normalize : bool, default False
         Divide by the simulated value at theta_i = theta_r = 45, phi = 180 deg, as paper 000,
         fig. 2 does (same settings).
-    pole : {"horizontal", "zenith"}, default "horizontal"
-        Axis of the latitude-longitude grid of facet normals. "zenith" is the plain (alpha, Phi)
-        grid of rings of constant inclination; its pole alpha = 0 is the half vector of every
-        specular geometry, where the sum has an O(step^2) error (about 3 % at the default
-        step). "horizontal" puts the pole on the horizon, perpendicular to the principal plane,
-        where no half vector lies; the sum is then accurate everywhere.
 
     Returns
     -------
@@ -302,8 +325,10 @@ def simulate_vcavity(
     Notes
     -----
     See the module docstring for the surface, the sum and the accuracy/time trade-off. The cost
-    is about ``(2 cutoff / step_fraction)^2`` facet normals per geometry, independent of w.
+    is about ``(2 grid.cutoff / grid.step_fraction)^2`` facet normals per geometry, independent
+    of w.
     """
+    step_fraction, cutoff, pole = grid.step_fraction, grid.cutoff, grid.pole
     for name, value in (("w", w), ("step_fraction", step_fraction), ("cutoff", cutoff)):
         if not (np.isfinite(value) and value > 0):
             raise ParameterError(f"simulate_vcavity: {name} = {value!r} must be finite and > 0")

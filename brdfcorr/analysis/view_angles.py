@@ -27,7 +27,7 @@ from brdfcorr._arrays import cosd, sind
 from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
 from brdfcorr.errors import InputError
 
-__all__ = ["SIGN_CONVENTIONS", "signed_view_zenith", "assess_view_angles", "view_angle_report"]
+__all__ = ["SIGN_CONVENTIONS", "signed_view_zenith", "ViewAngleOptions", "assess_view_angles", "view_angle_report"]
 
 #: How the sign of the view zenith is chosen (:func:`signed_view_zenith`).
 SIGN_CONVENTIONS = ("sun", "track")
@@ -241,11 +241,43 @@ def _layer(value, name: str, shape: tuple[int, ...]):
     return data
 
 
+@dataclass(frozen=True)
+class ViewAngleOptions:
+    """How the view-angle signal is measured (:func:`assess_view_angles`); shared by
+    :func:`brdfcorr.analysis.holdout.leave_one_line_out`, the files' assessments
+    (:mod:`brdfcorr.workflow.assessment`) and the chains' assess step.
+
+    Attributes
+    ----------
+    by : {"sun", "track"}, default "sun"
+        The sign convention of the view zenith (:func:`signed_view_zenith`).
+    heading : float, optional
+        Flight direction [deg], clockwise from north; needed for ``by="track"``.
+    class_ids : sequence of int, optional
+        Classes to assess (default: every class id in the map).
+    class_names : mapping of int to str, optional
+        Names for the report and the figures (default ``class ID``).
+    bin_width : float, default 2
+        Width of the bins of signed view zenith of the profiles [deg]; bins are centred on
+        multiples of it shifted by half a width, so that nadir is a bin edge.
+    min_vza : float, default 0
+        The side ratio compares pixels with ``|signed vza| >= min_vza`` [deg] (and never 0).
+    flip_view_azimuth : bool, default False
+        ``vaa`` is stored as seen from the sensor: add 180°.
+    """
+
+    by: Literal["sun", "track"] = "sun"
+    heading: float | None = None
+    class_ids: Sequence[int] | None = None
+    class_names: Mapping[int, str] | None = None
+    bin_width: float = 2.0
+    min_vza: float = 0.0
+    flip_view_azimuth: bool = False
+
+
 def assess_view_angles(
-    before, after, classes, vza, vaa, saa=None, *, by: Literal["sun", "track"] = "sun",
-    heading: float | None = None, class_ids: Sequence[int] | None = None,
-    class_names: Mapping[int, str] | None = None, bin_width: float = 2.0, min_vza: float = 0.0,
-    flip_view_azimuth: bool = False, scheduler: str | None = None, num_workers: int | None = None,
+    before, after, classes, vza, vaa, saa=None, *, options: ViewAngleOptions = ViewAngleOptions(),
+    scheduler: str | None = None, num_workers: int | None = None,
 ) -> xr.Dataset:
     """Per class and band, before and after a correction: the slope of reflectance against the
     signed view zenith, the ratio of the two sides of nadir and the across-track profile.
@@ -260,19 +292,9 @@ def assess_view_angles(
     vza, vaa, saa : xarray.DataArray or array (y, x)
         View zenith, view azimuth and solar azimuth [deg] (``docs/conventions.md``); ``saa`` is
         needed for ``by="sun"``. Pixels with a view zenith outside [0°, 90°) are left out.
-    by, heading :
-        The sign convention (:func:`signed_view_zenith`).
-    class_ids : sequence of int, optional
-        Classes to assess (default: every class id in the map).
-    class_names : mapping of int to str, optional
-        Names for the report and the figures (default ``class ID``).
-    bin_width : float, default 2
-        Width of the bins of signed view zenith of the profiles [deg]; bins are centred on
-        multiples of it shifted by half a width, so that nadir is a bin edge.
-    min_vza : float, default 0
-        The side ratio compares pixels with ``|signed vza| >= min_vza`` [deg] (and never 0).
-    flip_view_azimuth : bool, default False
-        ``vaa`` is stored as seen from the sensor: add 180°.
+    options : ViewAngleOptions
+        The sign convention and flight direction, the classes and their names, the profiles' bin
+        width and the side ratio's smallest view zenith [deg], the view azimuth's convention.
     scheduler, num_workers : optional
         dask scheduler and workers of the one compute (as for :func:`dask.compute`).
 
@@ -304,6 +326,7 @@ def assess_view_angles(
     correction that worked leaves b ≈ 0 and a side ratio ≈ 1 in every class and band.
     """
     before, after = _check_cubes(before, after)
+    by, bin_width, min_vza = options.by, options.bin_width, options.min_vza
     if by not in SIGN_CONVENTIONS:
         raise InputError(f"sign convention {by!r} is not one of {', '.join(SIGN_CONVENTIONS)}")
     if not (math.isfinite(bin_width) and 0 < bin_width <= 90):
@@ -315,17 +338,18 @@ def assess_view_angles(
               (("the class map", classes), ("vza", vza), ("vaa", vaa), ("saa", saa))]
     if layers[3] is None and by == "sun":
         raise InputError("the signed view zenith by the sun needs the solar azimuth (saa)")
+    class_ids = options.class_ids
     ids = np.sort(np.asarray(class_ids if class_ids is not None else _present_ids(classes, _class_nodata(classes))))
     if ids.size == 0:
         raise InputError("the class map holds no class (no id > 0 outside its nodata)")
     half = math.ceil(90.0 / bin_width)
     edges = bin_width * np.arange(-half, half + 1, dtype=np.float64)
-    options = _SumOptions(ids=ids, edges=edges, by=by, heading=heading, min_vza=float(min_vza),
-                          flip_view_azimuth=flip_view_azimuth)
+    summing = _SumOptions(ids=ids, edges=edges, by=by, heading=options.heading, min_vza=float(min_vza),
+                          flip_view_azimuth=options.flip_view_azimuth)
     compute = {key: value for key, value in (("scheduler", scheduler), ("num_workers", num_workers)) if value}
-    sums = _scene_sums([before.data, after.data, *layers], options, compute)
-    return _statistics(sums, ids, edges, before, class_names or {},
-                       {"sign_convention": by, "heading": heading, "min_vza": float(min_vza)})
+    sums = _scene_sums([before.data, after.data, *layers], summing, compute)
+    return _statistics(sums, ids, edges, before, options.class_names or {},
+                       {"sign_convention": by, "heading": options.heading, "min_vza": float(min_vza)})
 
 
 def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataArray,

@@ -125,12 +125,13 @@ def analyze_albedo_command(name, zeniths, simplified, resolution):
 @handle_errors
 def analyze_figure2_command(output, view_step, step_fraction):
     """Figure 2 of paper 000: TS model, V-cavity simulation and empirical model, normalized."""
+    from brdfcorr.analysis.simulate import FacetGrid
     from brdfcorr.plot.analysis import plot_figure2
 
     if not view_step > 0:
         raise click.BadParameter("must be > 0", param_hint="--view-step")
     view = np.arange(0.0, 85.0 + 1e-9, view_step)
-    _save_figure(plot_figure2(view, step_fraction=step_fraction), output)
+    _save_figure(plot_figure2(view, grid=FacetGrid(step_fraction=step_fraction)), output)
 
 
 @analyze_group.command("polar")

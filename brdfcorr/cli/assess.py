@@ -78,9 +78,12 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     after; with --overlap, the RMSE, mean absolute difference and bias of two lines where they
     overlap. Writes a JSON report (-o) and PNG figures (--figures).
     """
+    from brdfcorr.analysis.assess import ViewAngleOptions
+    from brdfcorr.io.scene import SceneSources
     from brdfcorr.plot.assess import figure_paths, write_assessment_figures
     from brdfcorr.workflow.assessment import assess_files, write_json
     from brdfcorr.workflow.classmaps import read_lookup
+    from brdfcorr.workflow.request import Engine
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
@@ -93,12 +96,13 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     if not overwrite:
         refuse_existing([output, *figures])
     assessment = assess_files(
-        before, after, classes=classes, angles=angles, angles_kind=angles_kind,
-        angle_options=_options("--angle-option", angle_option), overlap=tuple(overlap) if overlap else None,
-        class_names=_pairs("--class-name", class_names), by=sign_by, heading=heading, bin_width=bin_width,
-        min_vza=min_vza, flip_view_azimuth=flip_view_azimuth, align_classes=align_classes,
-        class_lookup=read_lookup(class_lookup) if class_lookup else None, scale=scale, offset=offset,
-        chunks=chunk, resampling=resampling,
+        SceneSources(before, classes, angles, angles_kind=angles_kind,
+                     angle_options=_options("--angle-option", angle_option), scale=scale, offset=offset),
+        after, overlap=tuple(overlap) if overlap else None, resampling=resampling,
+        view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
+                                      bin_width=bin_width, min_vza=min_vza, flip_view_azimuth=flip_view_azimuth),
+        align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
+        engine=Engine(chunks=chunk),
     )
     report = assessment.report()
     write_json(report, output)
@@ -170,25 +174,30 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     lines, before and after (as `brdfcorr assess`): a test of the correction on data its
     parameters never saw. Prints a table per held-out line and writes a JSON report (-o).
     """
-    from brdfcorr.workflow.assessment import leave_one_line_out_files, write_json
+    from brdfcorr.analysis.assess import HoldoutFit, ViewAngleOptions
+    from brdfcorr.io.scene import SceneSources
+    from brdfcorr.workflow.assessment import check_line_files, leave_one_line_out_files, write_json
     from brdfcorr.workflow.classmaps import read_lookup
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
+    check_line_files(images, classes, angles)
     check_outputs({"-o": output}, [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
                                    *(("--angles", path) for path in angles if angles_kind != "solar"),
                                    ("--class-lookup", class_lookup)])
     if not overwrite:
         refuse_existing([output])
     sza = reference_sza(ref_sza)
+    options = _options("--angle-option", angle_option)
     assessment = leave_one_line_out_files(
-        images, classes=classes, angles=angles, angles_kind=angles_kind,
-        angle_options=_options("--angle-option", angle_option), model=model_name,
-        class_models=_pairs("--class-model", class_model), names=_pairs("--class-name", class_names),
-        fixed=_assignments("--fix", fix) or None, reference={"sza": "mean" if sza is None else sza, "vza": 0.0},
-        max_samples=max_samples, seed=seed, by=sign_by, heading=heading, flip_view_azimuth=flip_view_azimuth,
-        align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
-        scale=scale, offset=offset, chunks=chunk,
+        [SceneSources(image, class_map, angle_source, angles_kind=angles_kind, angle_options=options, scale=scale,
+                      offset=offset) for image, class_map, angle_source in zip(images, classes, angles)],
+        HoldoutFit(model_name, class_models=_pairs("--class-model", class_model),
+                   fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed,
+                   reference={"sza": "mean" if sza is None else sza, "vza": 0.0}),
+        view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
+                                      flip_view_azimuth=flip_view_azimuth),
+        align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None, chunks=chunk,
     )
     report = assessment.report()
     write_json(report, output)

@@ -66,7 +66,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     --scale and --offset; an image that still looks like raw counts is refused unless --scale is
     given.
     """
-    from brdfcorr.fit.classes import GuardRails
+    from brdfcorr.fit.classes import ClassModels, GuardRails, Sampling
     from brdfcorr.models.materials import load_material
     from brdfcorr.plot.materials import plot_class_fit
     from brdfcorr.workflow.classmaps import read_lookup
@@ -89,8 +89,9 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
                     class_lookup=lookup, scale=scale, offset=offset)
          for image, angle_source, class_map in zip(images, angles, classes)],
-        model_name, class_models=_pairs("--class-model", class_model), names=_pairs("--name", names),
-        fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed, fallback=fallback,
+        ClassModels(model_name, class_models=_pairs("--class-model", class_model),
+                    fixed=_assignments("--fix", fix) or None, fallback=fallback, names=_pairs("--name", names)),
+        sampling=Sampling(max_samples=max_samples, seed=seed),
         guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread),
     )
     plots = {class_fit.class_id: plot_dir / f"class_{class_fit.class_id}_{class_fit.name}.png"

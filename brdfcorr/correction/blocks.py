@@ -6,9 +6,9 @@ blockwise (values, QA) pairs."""
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import dask.array as da
 import numpy as np
@@ -18,6 +18,9 @@ from brdfcorr.correction.terrain import local_angles
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model
 from brdfcorr.params import ReferenceGeometry
+
+if TYPE_CHECKING:
+    from brdfcorr.correction.inputs import BlockSettings
 
 
 @dataclass(frozen=True)
@@ -112,14 +115,16 @@ class PixelGeometry:
     angles: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
     @classmethod
-    def of_block(cls, classes, sza, saa, vza, vaa, slope=None, aspect=None, *, class_nodata,
-                 flip_view_azimuth: bool) -> PixelGeometry:
+    def of_block(cls, layers: Sequence[np.ndarray], settings: BlockSettings) -> PixelGeometry:
+        """The pixels of a block's layers: classes, sza, saa, vza, vaa and, for a tilted surface,
+        slope and aspect (:class:`brdfcorr.correction.inputs.CorrectionInputs`)."""
+        classes, sza, saa, vza, vaa, *terrain = layers
         classes = np.asarray(classes).reshape(-1)
         theta_i, theta_r, saa, vaa = (np.asarray(a, dtype=np.float64).reshape(-1) for a in (sza, vza, saa, vaa))
-        if flip_view_azimuth:
+        if settings.flip_view_azimuth:
             vaa = vaa + 180.0
         angles_finite = np.isfinite(theta_i) & np.isfinite(theta_r) & np.isfinite(saa) & np.isfinite(vaa)
-        no_class = no_class_mask(classes, class_nodata)
+        no_class = no_class_mask(classes, settings.class_nodata)
         with np.errstate(invalid="ignore"):
             in_domain = (theta_i >= 0) & (theta_i < 90) & (theta_r >= 0) & (theta_r < 90)
         invalid_geometry = angles_finite & ~in_domain
@@ -128,8 +133,8 @@ class PixelGeometry:
         set_flags(qa, invalid_geometry, QA.INVALID_GEOMETRY)
         usable = angles_finite & ~invalid_geometry
         angles = (theta_i, saa, theta_r, vaa)
-        if slope is not None:
-            angles, usable = local_frame(qa, usable, angles, slope, aspect)
+        if terrain:
+            angles, usable = local_frame(qa, usable, angles, *terrain)
         return cls(classes, qa, usable, no_class, theta_i, angles)
 
     def geometries(self, index: np.ndarray, reference: ReferenceGeometry, reference_sza):

@@ -40,7 +40,8 @@ def check_grid(reflectance: xr.DataArray, name: str, layer: xr.DataArray) -> xr.
     return layer
 
 
-def _rio_nodata(layer: xr.DataArray):
+def layer_nodata(layer: xr.DataArray):
+    """The nodata value rioxarray declares for a layer, else its ``_FillValue`` attribute (or None)."""
     try:
         import rioxarray  # noqa: F401  (registers the .rio accessor)
 
@@ -49,36 +50,63 @@ def _rio_nodata(layer: xr.DataArray):
         return layer.attrs.get("_FillValue")
 
 
+#: The layers of ``angles`` every correction needs, and the two a tilted surface adds [deg].
+ANGLE_LAYERS = ("sza", "saa", "vza", "vaa")
+TERRAIN_LAYERS = ("slope", "aspect")
+
+
+def angle_layers(angles, names: Sequence[str] = ANGLE_LAYERS) -> dict:
+    """The layers ``names`` of ``angles`` (an xarray Dataset, or a mapping of name to array),
+    plus ``slope`` and ``aspect`` where it holds them (both or neither)."""
+    if not isinstance(angles, (Mapping, xr.Dataset)):
+        raise InputError(f"angles must be a Dataset or mapping with {', '.join(names)}, got {type(angles).__name__}")
+    missing = [name for name in names if name not in angles]
+    if missing:
+        raise InputError(f"angles has no {', '.join(missing)} (it needs {', '.join(names)})")
+    terrain = [name for name in TERRAIN_LAYERS if name in angles and name not in names]
+    if len(terrain) == 1:
+        raise InputError("slope and aspect go together: give both or neither")
+    return {name: angles[name] for name in (*names, *terrain)}
+
+
+@dataclass(frozen=True)
+class BlockSettings:
+    """What every block of a correction needs besides its arrays: the reference geometry, the
+    factor limits, the class map's nodata, whether view azimuths are flipped, the output dtype."""
+
+    reference: ReferenceGeometry
+    limits: tuple[float, float] | None
+    class_nodata: float | None
+    flip_view_azimuth: bool
+    out_dtype: np.dtype
+
+
 @dataclass(frozen=True)
 class CorrectionInputs:
     """The inputs of a per-pixel correction, checked and resolved once (:func:`prepare_inputs`).
 
     ``arrays`` holds the data of the reflectance (band, y, x), classes, sza, saa, vza and vaa
-    (y, x), ``terrain`` that of slope and aspect (or nothing); ``resolved`` the table at the bands.
+    (y, x) and, for a tilted surface, slope and aspect; ``resolved`` the table at the bands.
+
+    A block function is called as ``block(reflectance, band_index, reference_sza, classes, sza,
+    saa, vza, vaa[, slope, aspect], **kwargs)``.
     """
 
     reflectance: xr.DataArray
     arrays: list
-    terrain: list
     resolved: dict
-    reference: ReferenceGeometry
-    limits: tuple[float, float] | None
-    class_nodata: float | None
-    out_dtype: np.dtype
+    settings: BlockSettings
 
     @property
     def lazy(self) -> bool:
-        return any(isinstance(a, da.Array) for a in self.arrays + self.terrain)
+        return any(isinstance(a, da.Array) for a in self.arrays)
 
     def apply(self, block_function, kwargs: Mapping[str, Any]):
         """``block_function`` on the whole (numpy) inputs as one block."""
-        reference_sza = (
-            scene_mean_sza(self.arrays[2], np) if self.reference.sza == "mean" else fixed_sza(self.reference)
-        )
+        reference = self.settings.reference
+        reference_sza = scene_mean_sza(self.arrays[2], np) if reference.sza == "mean" else fixed_sza(reference)
         cube, *layers = self.arrays
-        return block_function(
-            cube, np.arange(cube.shape[0]), *layers, reference_sza, *self.terrain, **kwargs
-        )
+        return block_function(cube, np.arange(cube.shape[0]), reference_sza, *layers, **kwargs)
 
     def blockwise(self, block_function, kwargs: Mapping[str, Any]) -> da.Array:
         """``block_function`` lazily, one task per reflectance chunk (with its chunks); every
@@ -89,32 +117,31 @@ class CorrectionInputs:
             reflectance = da.from_array(reflectance, chunks="auto")
         spatial_chunks = reflectance.chunks[1:]
         layers = [da.asarray(a).rechunk(spatial_chunks) for a in self.arrays[1:]]
-        terrain = [da.asarray(a).rechunk(spatial_chunks) for a in self.terrain]
         band_index = da.arange(reflectance.shape[0], chunks=(reflectance.chunks[0],))
-        if self.reference.sza == "mean":
+        reference = self.settings.reference
+        if reference.sza == "mean":
             reference_sza = scene_mean_sza(layers[1], da)
         else:
-            reference_sza = da.asarray(fixed_sza(self.reference))
+            reference_sza = da.asarray(fixed_sza(reference))
         return da.blockwise(
             block_function, "byx",
-            reflectance, "byx", band_index, "b",
+            reflectance, "byx", band_index, "b", reference_sza, (),
             *(item for layer in layers for item in (layer, "yx")),
-            reference_sza, (),
-            *(item for layer in terrain for item in (layer, "yx")),
-            meta=np.empty((0, 0, 0), dtype=kwargs["out_dtype"]),
+            meta=np.empty((0, 0, 0), dtype=self.settings.out_dtype),
             **kwargs,
         )
 
 
 def prepare_inputs(
-    reflectance, classes, sza, saa, vza, vaa, params: ParameterTable, reference=None, *,
+    reflectance, classes, angles, params: ParameterTable, reference=None, *,
     limits: tuple[float, float] | None, wavelengths: Sequence[float] | None, extrapolate: bool,
-    class_nodata: float | None, slope=None, aspect=None,
+    flip_view_azimuth: bool = False,
 ) -> CorrectionInputs:
-    """Check the inputs of :func:`normalize` (and of its companions, e.g.
-    :func:`brdfcorr.uncertainty.correction_uncertainty`) and resolve the table to the bands.
+    """Check the inputs of :func:`~brdfcorr.correction.normalize` (and of its companions, e.g.
+    :func:`~brdfcorr.correction.uncertainty.correction_uncertainty`) and resolve the table to the bands.
 
-    Raises InputError, GridMismatchError or ParameterError as documented in :func:`normalize`.
+    Raises InputError, GridMismatchError or ParameterError as documented in
+    :func:`~brdfcorr.correction.normalize`.
     """
     if not isinstance(params, ParameterTable):
         raise InputError(f"params must be a ParameterTable, got {type(params).__name__}")
@@ -126,29 +153,17 @@ def prepare_inputs(
     reflectance = as_dataarray(reflectance, "reflectance", ("band", "y", "x"))
     if reflectance.ndim != 3:
         raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
-    if (slope is None) != (aspect is None):
-        raise InputError("slope and aspect go together: give both or neither")
-    named = {"classes": classes, "sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
-    if slope is not None:
-        named.update(slope=slope, aspect=aspect)
+    named = {"classes": classes, **angle_layers(angles)}
     layers = {
         name: check_grid(reflectance, name, as_dataarray(layer, name, reflectance.dims[1:]))
         for name, layer in named.items()
     }
     if layers["classes"].dtype.kind not in "iuf":
         raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
-    if class_nodata is None:
-        class_nodata = _rio_nodata(layers["classes"])
     if wavelengths is None and "wavelength" in reflectance.coords:
         wavelengths = reflectance["wavelength"].values.tolist()
     resolved = params.for_bands(wavelengths, n_bands=reflectance.shape[0], extrapolate=extrapolate)
-    return CorrectionInputs(
-        reflectance=reflectance,
-        arrays=[reflectance.data] + [layers[name].data for name in ("classes", "sza", "saa", "vza", "vaa")],
-        terrain=[layers[name].data for name in ("slope", "aspect") if name in layers],
-        resolved=resolved,
-        reference=reference,
-        limits=limits,
-        class_nodata=class_nodata,
-        out_dtype=np.result_type(reflectance.dtype, np.float32),
-    )
+    settings = BlockSettings(reference, limits, layer_nodata(layers["classes"]), flip_view_azimuth,
+                             np.result_type(reflectance.dtype, np.float32))
+    return CorrectionInputs(reflectance, [reflectance.data] + [layer.data for layer in layers.values()], resolved,
+                            settings)

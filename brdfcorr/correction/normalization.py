@@ -43,7 +43,7 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr.correction.blocks import ClassPlan, PixelGeometry, Plans, class_plan, present_classes, split_pairs
-from brdfcorr.correction.inputs import prepare_inputs
+from brdfcorr.correction.inputs import BlockSettings, prepare_inputs
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
@@ -63,10 +63,7 @@ class Normalized(NamedTuple):
 def normalize(
     reflectance,
     classes,
-    sza,
-    saa,
-    vza,
-    vaa,
+    angles,
     params: ParameterTable,
     reference: ReferenceGeometry | dict | None = None,
     *,
@@ -74,10 +71,7 @@ def normalize(
     wavelengths: Sequence[float] | None = None,
     extrapolate: bool = False,
     unknown: Literal["keep", "nan"] = "keep",
-    class_nodata: float | None = None,
     flip_view_azimuth: bool = False,
-    slope=None,
-    aspect=None,
 ) -> Normalized:
     """Normalize a reflectance cube to a reference sun/view geometry with per-class BRDF models.
 
@@ -87,10 +81,18 @@ def normalize(
         Reflectance (any units; they are kept). NaN and +-inf are nodata (NaN in the output).
         numpy or dask backed.
     classes : xarray.DataArray (y, x)
-        Class map: ids of ``params``; 0, NaN and ``class_nodata`` mean "no class".
-    sza, saa, vza, vaa : xarray.DataArray (y, x)
-        Solar zenith, solar azimuth, view zenith, view azimuth per pixel [deg] (``docs/conventions.md``
-        conventions: azimuths of the directions from the pixel towards the sun and the sensor).
+        Class map: ids of ``params``; 0, NaN and the map's nodata (``classes.rio.nodata``, else its
+        ``_FillValue``) mean "no class".
+    angles : xarray.Dataset or mapping of str to xarray.DataArray (y, x)
+        ``sza``, ``saa``, ``vza``, ``vaa``: solar zenith, solar azimuth, view zenith, view azimuth
+        per pixel [deg] (``docs/conventions.md`` conventions: azimuths of the directions from the
+        pixel towards the sun and the sensor). For tilted surfaces also ``slope`` [deg] in [0, 90]
+        and ``aspect``, the azimuth the surface faces (downslope, clockwise from north) [deg], both
+        or neither (:func:`brdfcorr.correction.terrain.slope_aspect` from a DEM, or
+        :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`): the observed geometry is then
+        evaluated in each surface's own frame, the reference in the horizontal frame (module
+        docstring, "Tilted surfaces"); pixels whose sun or sensor is behind the surface are nodata,
+        flagged ``facing_away``. Slope 0 gives exactly the result without them.
     params : ParameterTable
         Model and parameters per class.
     reference : ReferenceGeometry or dict, optional
@@ -106,18 +108,9 @@ def normalize(
     unknown : {"keep", "nan"}, default "keep"
         What to do with pixels of no class or of ids absent from the table: keep them unchanged
         (factor 1) or set them to NaN. They are flagged in the QA layer either way.
-    class_nodata : number, optional
-        Nodata value of the class map; by default its rioxarray nodata (``classes.rio.nodata``).
     flip_view_azimuth : bool, default False
         Add 180 deg to ``vaa``, for products storing the azimuth of the view direction as seen from
         the sensor.
-    slope, aspect : xarray.DataArray (y, x), optional
-        Surface slope [deg] in [0, 90] and the azimuth the surface faces (downslope, clockwise from
-        north) [deg], both or neither (:func:`brdfcorr.terrain.slope_aspect` from a DEM, or
-        :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`). The observed geometry is then
-        evaluated in each surface's own frame, the reference in the horizontal frame (module
-        docstring, "Tilted surfaces"); pixels whose sun or sensor is behind the surface are nodata,
-        flagged ``facing_away``. Slope 0 gives exactly the result without them.
 
     Returns
     -------
@@ -140,20 +133,15 @@ def normalize(
     """
     if unknown not in ("keep", "nan"):
         raise InputError(f"unknown must be 'keep' or 'nan', got {unknown!r}")
-    inputs = prepare_inputs(
-        reflectance, classes, sza, saa, vza, vaa, params, reference, limits=limits, wavelengths=wavelengths,
-        extrapolate=extrapolate, class_nodata=class_nodata, slope=slope, aspect=aspect,
-    )
-    reflectance, reference, limits = inputs.reflectance, inputs.reference, inputs.limits
+    inputs = prepare_inputs(reflectance, classes, angles, params, reference, limits=limits, wavelengths=wavelengths,
+                            extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
+    reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits
     band_dim = reflectance.dims[0]
     plans = Plans({cid: class_plan(cid, entry.model, entry.params) for cid, entry in inputs.resolved.items()})
-    kwargs: dict[str, Any] = dict(
-        plans=plans, reference=reference, limits=limits, unknown_nan=unknown == "nan",
-        class_nodata=inputs.class_nodata, flip_view_azimuth=flip_view_azimuth, out_dtype=inputs.out_dtype,
-    )
+    kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings, unknown_nan=unknown == "nan")
     if inputs.lazy:
         pairs = inputs.blockwise(_normalize_block, kwargs)
-        corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, kwargs["out_dtype"])
+        corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, inputs.settings.out_dtype)
     else:
         corrected, qa = inputs.apply(_normalize_block, kwargs)
         qa = qa[0]
@@ -171,16 +159,13 @@ def normalize(
     return Normalized(corrected, qa)
 
 
-def _normalize_block(
-    reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, slope=None, aspect=None, *,
-    plans: Plans, reference: ReferenceGeometry, limits, unknown_nan: bool,
-    class_nodata, flip_view_azimuth: bool, out_dtype,
-):
+def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Plans, settings: BlockSettings,
+                     unknown_nan: bool):
     """Normalize one (band, y, x) block; returns (corrected block, QA block of shape (1, y, x))."""
     n_bands, ny, nx = reflectance.shape
     cube = reflectance.reshape(n_bands, ny * nx)
-    pixels = PixelGeometry.of_block(classes, sza, saa, vza, vaa, slope, aspect, class_nodata=class_nodata,
-                                    flip_view_azimuth=flip_view_azimuth)
+    reference, limits, out_dtype = settings.reference, settings.limits, settings.out_dtype
+    pixels = PixelGeometry.of_block(layers, settings)
     classes, qa, usable, no_class = pixels.classes, pixels.qa, pixels.usable, pixels.no_class
     candidates, infinite = _cube_masks(cube, qa)
     base = np.ones(ny * nx, dtype=out_dtype)  # factor of pixels no class corrects

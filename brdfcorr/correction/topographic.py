@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
 import dask
@@ -54,7 +55,7 @@ import xarray as xr
 
 from brdfcorr._arrays import cosd
 from brdfcorr.correction.blocks import no_class_mask, split_pairs
-from brdfcorr.correction.inputs import check_grid
+from brdfcorr.correction.inputs import angle_layers, check_grid, layer_nodata
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.terrain import cos_incidence
 from brdfcorr.defaults import DEFAULT_LIMITS
@@ -223,8 +224,6 @@ def fit_c(
     classes : xarray.DataArray (y, x), optional
         Class map; 0, NaN and ``class_nodata`` are no class and left out. Without it all pixels are
         one class, reported as class 0.
-    class_nodata : number, optional
-        Nodata value of the class map.
     r2_min : float, default :data:`R2_MIN`
         Least coefficient of determination of an accepted fit [-].
     c_range : (float, float), default :data:`C_RANGE`
@@ -284,9 +283,27 @@ def _dask_sums(arrays, options) -> np.ndarray:
 
 # --- the correction --------------------------------------------------------------------------------
 
-def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=None, *, method, class_ids,
-                   c_matrix, accepted, class_nodata, limits, cos_i_min, out_dtype):
+@dataclass(frozen=True)
+class _StepSettings:
+    """What every block of the topographic step needs besides its arrays: the method, the C
+    lookup (class ids, C per class and band, accepted fits), the class map's nodata, the limits,
+    the self-shadowing threshold and the output dtype."""
+
+    method: str
+    class_ids: np.ndarray
+    c_matrix: np.ndarray
+    accepted: np.ndarray
+    class_nodata: float | None
+    limits: tuple[float, float] | None
+    cos_i_min: float
+    out_dtype: np.dtype
+
+
+def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=None, *, settings: _StepSettings):
     """Correct one (band, y, x) block; returns (corrected block, QA block (1, y, x))."""
+    method, class_ids, c_matrix, accepted = settings.method, settings.class_ids, settings.c_matrix, settings.accepted
+    class_nodata, limits, cos_i_min, out_dtype = (settings.class_nodata, settings.limits, settings.cos_i_min,
+                                                  settings.out_dtype)
     n_bands, ny, nx = reflectance.shape
     cube = reflectance.reshape(n_bands, -1)
     ci, cz, cs = (np.asarray(a, dtype=np.float64).reshape(-1) for a in (cos_i, cos_sza, cos_slope))
@@ -379,16 +396,12 @@ def _warn_rejected(table: pd.DataFrame) -> None:
 
 def topographic_correction(
     reflectance,
-    sza,
-    saa,
-    slope,
-    aspect,
+    angles,
     *,
     method: Method = "scs+c",
     classes=None,
     c_table: pd.DataFrame | None = None,
     limits: tuple[float, float] | None = DEFAULT_LIMITS,
-    class_nodata: float | None = None,
     r2_min: float = R2_MIN,
     c_range: tuple[float, float] = C_RANGE,
     min_pixels: int = MIN_PIXELS,
@@ -400,23 +413,22 @@ def topographic_correction(
     ----------
     reflectance : xarray.DataArray (band, y, x)
         Reflectance for horizontal irradiance (any units; kept). numpy or dask backed.
-    sza, saa : xarray.DataArray (y, x) or number
-        Solar zenith and azimuth (pixel towards the sun, clockwise from north) [deg].
-    slope, aspect : xarray.DataArray (y, x) or number
-        Surface slope [deg] and the azimuth it faces (downslope, clockwise from north) [deg]
-        (:func:`brdfcorr.correction.terrain.slope_aspect`, an ``obs_ort`` file's bands).
+    angles : xarray.Dataset or mapping of str to xarray.DataArray (y, x) or number
+        ``sza`` and ``saa``, solar zenith and azimuth (pixel towards the sun, clockwise from north)
+        [deg], and ``slope`` and ``aspect``, the surface slope [deg] and the azimuth it faces
+        (downslope, clockwise from north) [deg] (:func:`brdfcorr.correction.terrain.slope_aspect`,
+        an ``obs_ort`` file's bands). Other variables are not used.
     method : {"cosine", "c", "scs", "scs+c"}, default "scs+c"
         The correction (module docstring). "cosine" is the one to chain with the BRDF correction
         in the surface's frame (``docs/terrain.md``).
     classes : xarray.DataArray (y, x), optional
         Class map: C is fitted per class and band; without it, one C per band for the whole image.
+        Its nodata (``classes.rio.nodata``, else ``_FillValue``), 0 and NaN mean "no class".
     c_table : pandas.DataFrame, optional
         C coefficients to use (the table :func:`fit_c` returns, e.g. from another scene); by
         default fitted on this image (which reads it once; the correction itself stays lazy).
     limits : (float, float) or None, default (0.2, 5)
         The factor is clipped to this range [-]; clipped pixels are flagged ``limited``.
-    class_nodata : number, optional
-        Nodata value of the class map.
     r2_min, c_range, min_pixels, cos_i_min :
         The fit's guard (:func:`fit_c`); ``cos_i_min`` also marks the self-shadowed pixels
         (``cos i <= cos_i_min``, output nodata).
@@ -440,10 +452,11 @@ def topographic_correction(
         if not (0 < limits[0] <= 1 <= limits[1] < np.inf):
             raise InputError(f"factor limits {limits} must satisfy 0 < lower <= 1 <= upper < inf")
     reflectance = _as_cube(reflectance)
-    sza, saa, slope, aspect = (_layer(reflectance, n, v) for n, v in
-                               (("sza", sza), ("saa", saa), ("slope", slope), ("aspect", aspect)))
+    sza, saa, slope, aspect = (_layer(reflectance, name, layer)
+                               for name, layer in angle_layers(angles, ("sza", "saa", "slope", "aspect")).items())
     cos_i = cos_incidence(sza, saa, slope, aspect)
     class_layer = _layer(reflectance, "classes", classes) if classes is not None else None
+    class_nodata = layer_nodata(classes) if isinstance(classes, xr.DataArray) else None
     n_bands = reflectance.shape[0]
     lookup: tuple = (np.array([0]), np.zeros((1, n_bands)), np.zeros((1, n_bands), bool))
     if method in C_METHODS:
@@ -455,15 +468,15 @@ def topographic_correction(
     else:
         c_table = None
     out_dtype = np.result_type(reflectance.dtype, np.float32)
-    kwargs = dict(method=method, class_ids=lookup[0], c_matrix=lookup[1], accepted=lookup[2],
-                  class_nodata=class_nodata, limits=limits, cos_i_min=float(cos_i_min), out_dtype=out_dtype)
+    settings = _StepSettings(method, lookup[0], lookup[1], lookup[2], class_nodata, limits, float(cos_i_min),
+                             out_dtype)
     layers = [cos_i.data, cosd(sza.data), cosd(slope.data)]
     if class_layer is not None and method in C_METHODS:
         layers.append(class_layer.data)
     if any(isinstance(a, da.Array) for a in [reflectance.data, *layers]):
-        corrected, qa = _correct_dask(reflectance.data, layers, kwargs)
+        corrected, qa = _correct_dask(reflectance.data, layers, settings)
     else:
-        corrected, qa = _correct_block(reflectance.data, np.arange(n_bands), *layers, **kwargs)
+        corrected, qa = _correct_block(reflectance.data, np.arange(n_bands), *layers, settings=settings)
         qa = qa[0]
     corrected = xr.DataArray(corrected, dims=reflectance.dims, coords=reflectance.coords,
                              attrs={**reflectance.attrs, "topographic_correction": method}, name=reflectance.name)
@@ -474,7 +487,7 @@ def topographic_correction(
     return Topographic(corrected, qa, c_table)
 
 
-def _correct_dask(cube, layers: Sequence, kwargs):
+def _correct_dask(cube, layers: Sequence, settings: _StepSettings):
     if not isinstance(cube, da.Array):
         cube = da.from_array(cube, chunks="auto")
     spatial = cube.chunks[1:]
@@ -483,6 +496,6 @@ def _correct_dask(cube, layers: Sequence, kwargs):
     pairs = da.blockwise(
         _correct_block, "byx", cube, "byx", band_index, "b",
         *(item for layer in layers for item in (layer, "yx")),
-        meta=np.empty((0, 0, 0), dtype=kwargs["out_dtype"]), **kwargs,
+        meta=np.empty((0, 0, 0), dtype=settings.out_dtype), settings=settings,
     )
-    return split_pairs(pairs, cube.chunks, kwargs["out_dtype"])
+    return split_pairs(pairs, cube.chunks, settings.out_dtype)

@@ -62,7 +62,7 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr.correction.blocks import PixelGeometry, Plans, band_shapes, present_classes
-from brdfcorr.correction.inputs import prepare_inputs
+from brdfcorr.correction.inputs import BlockSettings, prepare_inputs
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import ParameterError
@@ -309,16 +309,12 @@ def _checked_covariance(entry: BandParameters, covariance, names: tuple[str, ...
 
 
 # ------------------------------------------------------------------------------------- blocks
-def _uncertainty_block(
-    reflectance, band_index, classes, sza, saa, vza, vaa, reference_sza, slope=None, aspect=None, *,
-    plans: Plans, reference: ReferenceGeometry, limits, class_nodata, flip_view_azimuth: bool, out_dtype,
-):
+def _uncertainty_block(reflectance, band_index, reference_sza, *layers, plans: Plans, settings: BlockSettings):
     """The 1-sigma of the corrected reflectance of one (band, y, x) block (module docstring)."""
     n_bands, ny, nx = reflectance.shape
     cube = reflectance.reshape(n_bands, ny * nx)
-    pixels = PixelGeometry.of_block(classes, sza, saa, vza, vaa, slope, aspect, class_nodata=class_nodata,
-                                    flip_view_azimuth=flip_view_azimuth)
-    out = np.full(cube.shape, np.nan, dtype=out_dtype)
+    pixels = PixelGeometry.of_block(layers, settings)
+    out = np.full(cube.shape, np.nan, dtype=settings.out_dtype)
     usable = pixels.usable & ~pixels.no_class
     bands = np.asarray(band_index).reshape(-1)
     for class_id in present_classes(pixels.classes[usable]):
@@ -326,8 +322,8 @@ def _uncertainty_block(
         if plan is None:  # unknown class, or no covariance: nodata
             continue
         index = np.flatnonzero(usable & (pixels.classes == class_id))
-        observed, ref = pixels.geometries(index, reference, reference_sza)
-        sigma = _class_sigma(plan, observed, ref, bands, index.size, limits)
+        observed, ref = pixels.geometries(index, settings.reference, reference_sza)
+        sigma = _class_sigma(plan, observed, ref, bands, index.size, settings.limits)
         with np.errstate(invalid="ignore", over="ignore"):
             values = cube[:, index].astype(np.float64)
             values[~np.isfinite(values)] = np.nan  # +-inf reflectance is nodata, like NaN
@@ -365,20 +361,14 @@ def _class_sigma(plan: _ClassPlan, observed, reference, bands, n: int, limits) -
 def correction_uncertainty(
     reflectance,
     classes,
-    sza,
-    saa,
-    vza,
-    vaa,
+    angles,
     params: ParameterTable,
     reference: ReferenceGeometry | dict | None = None,
     *,
     wavelengths: Sequence[float] | None = None,
     extrapolate: bool = False,
-    class_nodata: float | None = None,
     flip_view_azimuth: bool = False,
     limits: tuple[float, float] | None = DEFAULT_LIMITS,
-    slope=None,
-    aspect=None,
 ) -> xr.DataArray:
     """The per-pixel 1-sigma of the BRDF-corrected reflectance from the fit's parameter covariance.
 
@@ -393,9 +383,13 @@ def correction_uncertainty(
     reflectance : xarray.DataArray (band, y, x)
         Observed reflectance (any units; the result has them). numpy or dask backed.
     classes : xarray.DataArray (y, x)
-        Class map: ids of ``params``; 0, NaN and ``class_nodata`` mean "no class".
-    sza, saa, vza, vaa : xarray.DataArray (y, x)
-        Solar zenith, solar azimuth, view zenith, view azimuth per pixel [deg] (``docs/conventions.md``).
+        Class map: ids of ``params``; 0, NaN and the map's nodata mean "no class".
+    angles : xarray.Dataset or mapping of str to xarray.DataArray (y, x)
+        ``sza``, ``saa``, ``vza``, ``vaa`` per pixel [deg] (``docs/conventions.md``) and, for tilted
+        surfaces, ``slope`` and ``aspect`` [deg], as for :func:`normalize`: the observed geometry is
+        then taken in each surface's own frame (:func:`brdfcorr.correction.terrain.local_angles`),
+        the reference in the horizontal frame; pixels whose sun or sensor is behind the surface (or
+        with an invalid slope) are NaN.
     params : ParameterTable
         Model, parameters and (per class, optionally) the fit's covariance (its ``fit:`` block).
     reference : ReferenceGeometry or dict, optional
@@ -405,17 +399,10 @@ def correction_uncertainty(
         Band centres [nm]; by default the reflectance's ``wavelength`` coordinate, if any.
     extrapolate : bool, default False
         Let band centres outside a class's table wavelengths take the edge values.
-    class_nodata : number, optional
-        Nodata value of the class map; by default its rioxarray nodata.
     flip_view_azimuth : bool, default False
         Add 180 deg to ``vaa`` (view azimuth stored as seen from the sensor).
     limits : (float, float) or None, default (0.2, 5)
         The factor limits [-] of the correction: where the factor is clipped, the result is NaN.
-    slope, aspect : xarray.DataArray (y, x), optional
-        Surface slope [deg] in [0, 90] and the azimuth the surface faces [deg], both or neither, as
-        for :func:`normalize`: the observed geometry is then taken in each surface's own frame
-        (:func:`brdfcorr.correction.terrain.local_angles`), the reference in the horizontal frame; pixels
-        whose sun or sensor is behind the surface (or with an invalid slope) are NaN.
 
     Returns
     -------
@@ -433,16 +420,11 @@ def correction_uncertainty(
     GridMismatchError, InputError
         A layer is not on the reflectance's grid, has the wrong dimensions, or an option is invalid.
     """
-    inputs = prepare_inputs(
-        reflectance, classes, sza, saa, vza, vaa, params, reference, limits=limits, wavelengths=wavelengths,
-        extrapolate=extrapolate, class_nodata=class_nodata, slope=slope, aspect=aspect,
-    )
-    reflectance, reference, limits = inputs.reflectance, inputs.reference, inputs.limits
+    inputs = prepare_inputs(reflectance, classes, angles, params, reference, limits=limits, wavelengths=wavelengths,
+                            extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
+    reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits
     plans = Plans({class_id: _plan(entry) for class_id, entry in inputs.resolved.items()})
-    kwargs: dict[str, Any] = dict(
-        plans=plans, reference=reference, limits=limits, class_nodata=inputs.class_nodata,
-        flip_view_azimuth=flip_view_azimuth, out_dtype=inputs.out_dtype,
-    )
+    kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings)
     sigma = inputs.blockwise(_uncertainty_block, kwargs) if inputs.lazy else inputs.apply(_uncertainty_block, kwargs)
     attrs = {
         "long_name": "1-sigma uncertainty of the BRDF-corrected reflectance",

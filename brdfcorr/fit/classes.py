@@ -46,6 +46,8 @@ __all__ = [
     "sample_classes",
     "fit_one_class",
     "GuardRails",
+    "ClassModels",
+    "Sampling",
     "ClassFit",
     "ClassFitWarning",
     "intensity_terms",
@@ -103,6 +105,83 @@ class GuardRails:
     min_vza_spread: float = 10.0
     max_condition: float = 1e3
     min_r2: float = 0.05
+
+
+@dataclass(frozen=True)
+class ClassModels:
+    """Which classes an imagery fit fits, what they are called, and with which surface model.
+
+    Attributes
+    ----------
+    model : str or Model, default "torrance_sparrow"
+        Surface model with intensity terms (:func:`intensity_terms`) for every class ...
+    class_models : mapping of int to str, optional
+        ... except these classes (class id to model name), which get their own model.
+    fixed : mapping of str to float, optional
+        Shape parameters held fixed in every class whose model has them (default: k = 0.25 for
+        the Torrance-Sparrow models, :data:`DEFAULT_FIXED`).
+    fallback : str or mapping of int to str, optional
+        Built-in material (:func:`brdfcorr.models.materials.load_material`) used for a class that
+        fails its guard rails, one for all classes or one per class id; without one the class is
+        left out of the table (left uncorrected, and flagged by the correction).
+    names : mapping of int to str, optional
+        Class names (default ``class_<id>``).
+    class_ids : sequence of int, optional
+        Classes to fit (default: every positive id in the class maps).
+
+    Examples
+    --------
+    >>> models = ClassModels("ross_thick_li_sparse", class_models={1: "torrance_sparrow"},
+    ...                      names={1: "roof_tile", 2: "grass"})
+    >>> models.model_of(1), models.model_of(2), models.name_of(3)
+    ('torrance_sparrow', 'ross_thick_li_sparse', 'class_3')
+    """
+
+    model: str | Model = "torrance_sparrow"
+    class_models: Mapping[int, str] | None = None
+    fixed: Mapping[str, float] | None = None
+    fallback: str | Mapping[int, str] | None = None
+    names: Mapping[int, str] | None = None
+    class_ids: Sequence[int] | None = None
+
+    def model_of(self, class_id: int) -> str | Model:
+        """The surface model of class ``class_id``."""
+        return (self.class_models or {}).get(class_id, self.model)
+
+    def name_of(self, class_id: int) -> str:
+        """The name of class ``class_id`` (``class_<id>`` when it has none)."""
+        return (self.names or {}).get(class_id, f"class_{class_id}")
+
+    def fallback_of(self, class_id: int) -> str | None:
+        """The built-in material of class ``class_id`` should its fit fail (None: left uncorrected)."""
+        return self.fallback.get(class_id) if isinstance(self.fallback, Mapping) else self.fallback
+
+
+@dataclass(frozen=True)
+class Sampling:
+    """How an imagery fit pools and samples each class's pixels (:func:`sample_classes`).
+
+    Attributes
+    ----------
+    max_samples : int, default 50000
+        Cap on the samples per class, over all scenes together (without replacement, seeded).
+    seed : int, default 0
+        Seed of the sampler: the same inputs and seed give the same samples.
+    reflectance_scale : float, default 1
+        Multiplier that turns stored values into reflectance factors [-] (e.g. 1e-4 for
+        0-10000).
+    block_size : int, default 32
+        Side [pixels] of the square spatial blocks that label the samples; the fit's errors are
+        cluster-robust over these blocks.
+    keep_samples : int, default 2000
+        Samples per class kept in the result (:attr:`ClassFitResult.samples`) for plots.
+    """
+
+    max_samples: int = 50_000
+    seed: int = 0
+    reflectance_scale: float = 1.0
+    block_size: int = 32
+    keep_samples: int = 2000
 
 
 @dataclass
@@ -311,24 +390,46 @@ def fit_one_class(
     class_id: int,
     name: str,
     model: str | Model,
-    theta_i: np.ndarray,
-    theta_r: np.ndarray,
-    phi: np.ndarray,
-    brdf: np.ndarray,
+    samples: ClassSamples,
     *,
     fixed: Mapping[str, float] | None = None,
     guard: GuardRails = GuardRails(),
     fallback: str | None = None,
     grid_points: int = 9,
-    clusters=None,
 ) -> ClassFit:
     """Fit one class's samples and apply the guard rails (see :func:`fit_class_samples`).
 
     A class that fails a guard rail, or fits poorly (median R^2 < :data:`POOR_R2`), is also
     fitted with the other surface models that can be fitted from imagery, on a subsample; one that
     explains clearly more is recorded in :attr:`ClassFit.better_model`.
+
+    Parameters
+    ----------
+    class_id : int
+        Class id.
+    name : str
+        Class name.
+    model : str or Model
+        Surface model with intensity terms (:func:`intensity_terms`).
+    samples : ClassSamples
+        The class's samples: sun zenith, view zenith and relative azimuth [deg], BRDF per band
+        [sr^-1], shape (N, B), and optionally the spatial block of each sample (``block``), over
+        which the errors are cluster-robust (None: every sample is its own cluster).
+    fixed : mapping of str to float, optional
+        Shape parameters held fixed (default k = 0.25 for the Torrance-Sparrow models).
+    guard : GuardRails
+        Minimum requirements for the fit to be used.
+    fallback : str, optional
+        Built-in material used when the fit fails its guard rails (None: left uncorrected).
+    grid_points : int, default 9
+        Coarse-grid points per free shape parameter.
+
+    Returns
+    -------
+    ClassFit
     """
     model = get_model(model)
+    theta_i, theta_r, phi, brdf = samples.theta_i, samples.theta_r, samples.phi, samples.brdf
     report = ClassFit(
         class_id=class_id,
         name=name,
@@ -341,7 +442,7 @@ def fit_one_class(
     report.reasons = _sample_reasons(report, guard)
     if report.n_samples >= max(len(model.parameters) + 1, 3):
         result = fit_class_samples(
-            model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points, clusters=clusters
+            model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points, clusters=samples.block
         )
         report.params, report.errors = result["params"], result["errors"]
         report.free, report.covariance, report.chi2_dof = result["free"], result["covariance"], result["chi2_dof"]
@@ -376,7 +477,7 @@ class ClassFitResult:
     fits : list of ClassFit
         Per class: samples, angular spread, conditioning, R^2, RMS, errors, status and reasons.
     samples : dict of int to ClassSamples
-        A subsample (at most ``keep_samples`` per class) for plots.
+        A subsample (at most :attr:`Sampling.keep_samples` per class) for plots.
     """
 
     table: object
@@ -436,21 +537,12 @@ def fit_classes(
     images,
     classes,
     angles,
-    model: str | Model = "torrance_sparrow",
+    models: ClassModels | str | Model = ClassModels(),
     *,
-    class_models: Mapping[int, str] | None = None,
-    names: Mapping[int, str] | None = None,
-    class_ids: Sequence[int] | None = None,
+    sampling: Sampling = Sampling(),
     wavelengths: Sequence[float] | None = None,
-    fixed: Mapping[str, float] | None = None,
-    max_samples: int = 50_000,
-    seed: int = 0,
-    reflectance_scale: float = 1.0,
-    block_size: int = 32,
     guard: GuardRails = GuardRails(),
-    fallback: str | Mapping[int, str] | None = None,
     grid_points: int = 9,
-    keep_samples: int = 2000,
     progress=None,
     source: str = "brdfcorr.fit.fit_classes",
 ) -> ClassFitResult:
@@ -460,33 +552,26 @@ def fit_classes(
     ----------
     images, classes, angles :
         One or many scenes; see :func:`sample_classes`.
-    model : str or Model, default "torrance_sparrow"
-        Surface model with intensity terms (:func:`intensity_terms`) for every class ...
-    class_models : mapping of int to str, optional
-        ... except these classes, which get their own model.
-    names : mapping of int to str, optional
-        Class names (default ``class_<id>``).
-    class_ids : sequence of int, optional
-        Classes to fit (default: every positive id in the class maps).
+    models : ClassModels or str or Model, default ClassModels()
+        The classes to fit, their names, surface models (by default "torrance_sparrow" for every
+        class), fixed shape parameters (by default k = 0.25 for the Torrance-Sparrow models) and
+        fallback materials. A model name or model alone stands for ``ClassModels(model)``. A class
+        that fails its guard rails gets its fallback material or, without one, is left out of the
+        table (left uncorrected, and flagged by the correction); either way a
+        :class:`ClassFitWarning` says so.
+    sampling : Sampling, default Sampling()
+        Samples per class, seed, reflectance scale and spatial block size of the sampler
+        (:func:`sample_classes`; the errors are cluster-robust over the blocks), and the samples
+        per class kept in the result for plots.
     wavelengths : sequence of float, optional
         Band centres [nm]; default: the images' ``wavelength`` coordinate if present. Written to
         the table so that it can be applied to other sensors by interpolation.
-    fixed : mapping, optional
-        Shape parameters held fixed (default k = 0.25 for the Torrance-Sparrow models).
-    max_samples, seed, reflectance_scale, block_size :
-        See :func:`sample_classes`. The errors are cluster-robust over the spatial blocks.
     guard : GuardRails
         Minimum samples, view-zenith spread, conditioning and R^2 a class must meet, with its
         shape parameters inside their search ranges. A class that fails, or fits poorly, gets a
         suggested better model in its report if another one explains clearly more.
-    fallback : str or mapping of int to str, optional
-        Built-in material used for a class that fails its guard rails; without one the class is
-        left out of the table (left uncorrected, and flagged by the correction). Either way a
-        :class:`ClassFitWarning` says so.
     grid_points : int, default 9
         Coarse-grid points per free shape parameter.
-    keep_samples : int, default 2000
-        Samples per class kept in the result for plots.
     progress : callable, optional
         Called as ``progress(class_id)`` after each class (e.g. a progress bar's update).
     source : str, default "brdfcorr.fit.fit_classes"
@@ -497,37 +582,26 @@ def fit_classes(
     -------
     ClassFitResult
     """
+    if not isinstance(models, ClassModels):
+        models = ClassModels(models)
     scenes = _as_list(images)
     if wavelengths is None and "wavelength" in scenes[0].coords:
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
     pooled = sample_classes(
-        images, classes, angles, class_ids=class_ids, max_samples=max_samples, seed=seed,
-        reflectance_scale=reflectance_scale, block_size=block_size,
+        images, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
+        seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
     )
-    names = dict(names or {})
     fits, entries, kept = [], [], {}
     for class_id, samples in pooled.items():
-        class_model = (class_models or {}).get(class_id, model)
-        class_fallback = fallback.get(class_id) if isinstance(fallback, Mapping) else fallback
         fit = fit_one_class(
-            class_id,
-            names.get(class_id, f"class_{class_id}"),
-            class_model,
-            samples.theta_i,
-            samples.theta_r,
-            samples.phi,
-            samples.brdf,
-            fixed=fixed,
-            guard=guard,
-            fallback=class_fallback,
-            grid_points=grid_points,
-            clusters=samples.block,
+            class_id, models.name_of(class_id), models.model_of(class_id), samples,
+            fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id), grid_points=grid_points,
         )
         fits.append(fit)
         entry = _entry(fit, wavelengths, source)
         if entry is not None:
             entries.append(entry)
-        step = max(1, samples.theta_i.size // keep_samples)
+        step = max(1, samples.theta_i.size // sampling.keep_samples)
         kept[class_id] = ClassSamples(
             samples.theta_i[::step], samples.theta_r[::step], samples.phi[::step], samples.brdf[::step]
         )

@@ -50,6 +50,7 @@ from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model, get_model
 
 __all__ = [
+    "ErrorAnalysis",
     "FitResult",
     "FitWarning",
     "NonIdentifiableWarning",
@@ -79,6 +80,29 @@ class FitWarning(BrdfcorrWarning):
 class NonIdentifiableWarning(FitWarning):
     """The measurements do not determine some free parameters separately (large correlations or
     an ill-conditioned or singular Jacobian). Fix one of them (paper 003 fixes k = 0.25)."""
+
+
+@dataclass(frozen=True)
+class ErrorAnalysis:
+    """How :func:`fit_brdf` estimates the errors of the fitted parameters and when it warns that
+    the measurements do not determine them.
+
+    Attributes
+    ----------
+    scale_errors : bool or None, default None
+        Multiply the covariance by chi^2/dof. None: only when the fit has no ``sigma``, so that
+        the errors of an unweighted fit are estimated from the scatter of the residuals. With
+        ``sigma`` given the errors are those implied by the measurement errors alone (Brandt [2]_,
+        as in paper 003, Table 1) and chi^2/dof says separately how well the model fits; a
+        chi^2/dof well above 1 means the errors are too small by about sqrt(chi^2/dof).
+    correlation_limit : float, default :data:`~brdfcorr.fit.identifiability.CORRELATION_LIMIT`
+        Warn with :class:`NonIdentifiableWarning` when a parameter's global correlation
+        coefficient [-] (its correlation with the best linear combination of all the others, as
+        in MINUIT) exceeds this.
+    """
+
+    scale_errors: bool | None = None
+    correlation_limit: float = CORRELATION_LIMIT
 
 
 @dataclass(frozen=True, eq=False)
@@ -253,8 +277,7 @@ def fit_brdf(
     initial: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
     *,
-    scale_errors: bool | None = None,
-    correlation_limit: float = CORRELATION_LIMIT,
+    error_analysis: ErrorAnalysis = ErrorAnalysis(),
 ) -> FitResult:
     """Fit a BRDF model to measurements by weighted least squares (paper 003, section 4).
 
@@ -280,16 +303,9 @@ def fit_brdf(
     bounds : mapping of (lower, upper), optional
         Narrower bounds for free parameters, intersected with the registry's physical range
         (the default; open lower bounds such as w > 0 become ``OPEN_BOUND_FLOOR`` of the default).
-    scale_errors : bool, optional
-        Multiply the covariance by chi^2/dof. Default: only when ``sigma`` is None, so that the
-        errors of an unweighted fit are estimated from the scatter of the residuals. With
-        ``sigma`` given the errors are those implied by the measurement errors alone (Brandt [2]_,
-        as in paper 003, Table 1) and chi^2/dof says separately how well the model fits; a
-        chi^2/dof well above 1 means the errors are too small by about sqrt(chi^2/dof).
-    correlation_limit : float
-        Warn with :class:`NonIdentifiableWarning` when a parameter's global correlation
-        coefficient (its correlation with the best linear combination of all the others, as in
-        MINUIT) exceeds this.
+    error_analysis : ErrorAnalysis, default ErrorAnalysis()
+        Whether the covariance is scaled by chi^2/dof (by default only when ``sigma`` is None)
+        and from which global correlation on a parameter counts as not identifiable.
 
     Returns
     -------
@@ -307,9 +323,9 @@ def fit_brdf(
     Warns
     -----
     NonIdentifiableWarning
-        A parameter with a global correlation beyond ``correlation_limit``, a parameter whose
-        error exceeds both its value and its default, or an ill-conditioned or singular Jacobian
-        (paper 003: n, k and t1 trade off unless k is fixed).
+        A parameter with a global correlation beyond ``error_analysis.correlation_limit``, a
+        parameter whose error exceeds both its value and its default, or an ill-conditioned or
+        singular Jacobian (paper 003: n, k and t1 trade off unless k is fixed).
     FitWarning
         A free parameter ended on a bound.
 
@@ -337,6 +353,7 @@ def fit_brdf(
     chi2, r2 = _goodness(data, residuals, problem.weights)
     dof = data.size - len(free)
     covariance, condition_number = jacobian_covariance(best.jac)
+    scale_errors = error_analysis.scale_errors
     if scale_errors is None:
         scale_errors = sigma is None
     if scale_errors:
@@ -345,7 +362,7 @@ def fit_brdf(
     deviations = np.sqrt(np.diag(covariance))
 
     messages, at_bounds = _fit_warnings(problem, values, best.active_mask, covariance, condition_number,
-                                        correlation_limit)
+                                        error_analysis.correlation_limit)
     all_values, errors = _parameter_values(problem, values, deviations)
     return FitResult(
         model=model,

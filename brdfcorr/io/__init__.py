@@ -15,6 +15,7 @@ _PUBLIC = {
     "auto_chunk": "rasters", "open_angles": "angles", "check_angles": "angles", "ANGLE_NAMES": "angles",
     "open_scene": "scene", "SceneSources": "scene", "check_same_grid": "grid", "open_layer": "opening",
     "band_wavelengths": "wavelengths", "parse_wavelength": "wavelengths", "write_rasters": "writer",
+    "GeoTiffOutput": "writer",
 }
 __all__ = list(_PUBLIC)
 

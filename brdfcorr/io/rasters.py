@@ -25,7 +25,7 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.opening import chunk_spec, open_raster, opened
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths
-from brdfcorr.io.writer import DEFAULT_CHUNK, _GdalMessages, write_rasters
+from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, _GdalMessages, write_rasters
 
 __all__ = [
     "open_image",
@@ -34,6 +34,7 @@ __all__ = [
     "auto_chunk",
     "gdal_cache_bytes",
     "write_rasters",
+    "GeoTiffOutput",
     "DEFAULT_CHUNK",
 ]
 
@@ -176,14 +177,17 @@ def open_classes(path, chunks=None) -> xr.DataArray:
 def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, limit: float = 2.0,
                             blocks: int = 3, scheduler: str | None = None,
                             num_workers: int | None = None) -> float | None:
-    """Raise :class:`InputError` if an image stored as integers does not hold reflectance factors
-    [1] after scaling (raw counts read without their scale).
+    """Raise :class:`InputError` if an image does not hold reflectance factors [1] after scaling:
+    raw counts read without their scale, reflectance x 10 000 stored as floats, or a scale tag
+    that is a divisor (the MODIS HDF convention: 10 000 where GDAL expects 0.0001).
 
     A cheap check, not a pass over the image: it reads at most ``blocks`` x ``blocks`` chunks spread
     evenly over the image (corners, edges and centre) and takes the 99th percentile of their valid
     values. Reflectance factors are mostly 0-1; counts read without their scale (0-10000,
-    7273-43636 for Landsat Collection 2) are far above ``limit``. An image stored as floats holds
-    physical values (reflectance, or radiance, which corrects as well) and is not checked.
+    7273-43636 for Landsat Collection 2), reflectance x 10 000 and reflectance multiplied by a
+    divisor are far above ``limit``. Integer and float images are checked alike; values that are
+    meant as they are (radiance, which corrects as well) are accepted with a given scale of 1
+    (the caller skips the check for a given scale).
 
     Parameters
     ----------
@@ -202,11 +206,9 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
     Returns
     -------
     float or None
-        The 99th percentile of the sample; None for a float image or a sample without a valid
-        value (nothing to judge: no error).
+        The 99th percentile of the sample; None for a sample without a valid value (nothing to
+        judge: no error).
     """
-    if np.dtype(image.encoding.get("rasterio_dtype", image.dtype)).kind not in "iu":
-        return None
     data = image.data
     where = source or image.encoding.get("source", "image")
     if isinstance(data, dask.array.Array):
@@ -231,11 +233,15 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
     percentile = float(np.percentile(values, 99))
     if percentile > limit:
         scale, offset = image.attrs.get("brdf_input_scale", 1.0), image.attrs.get("brdf_input_offset", 0.0)
+        divisor = max(np.atleast_1d(scale)) > 1
+        guess = ("the file's scale tag looks like a divisor (as MODIS HDF files store it), not GDAL's "
+                 "multiplier" if divisor else "raw counts? Or reflectance x 10000 stored as floats?")
         raise InputError(
             f"{where}: the values do not look like reflectance factors: 99th percentile {percentile:.5g} "
-            f"of a sample of valid pixels (scale {scale}, offset {offset} applied); raw counts? Give the "
+            f"of a sample of valid pixels (scale {scale}, offset {offset} applied); {guess} Give the "
             "scale (and offset) of the stored values: --scale/--offset (inputs.scale/inputs.offset in a "
-            "chain), e.g. --scale 0.0001 for reflectance stored as 0-10000 (--scale 1: use them as they are)"
+            "chain), e.g. --scale 0.0001 for reflectance stored as 0-10000 (--scale 1: use them as they "
+            "are, e.g. radiance)"
         )
     return percentile
 

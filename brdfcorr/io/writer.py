@@ -26,7 +26,7 @@ import os
 import threading
 import uuid
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -45,8 +45,8 @@ from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
 from brdfcorr.io.files import atomic_path
 
-__all__ = ["write_rasters", "encode_integers", "EnviOutput", "check_format", "envi_header_path", "DEFAULT_CHUNK",
-           "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
+__all__ = ["write_rasters", "encode_integers", "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path",
+           "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
@@ -55,6 +55,27 @@ DEFAULT_CHUNK = 512
 #: on a 64-band cube), and GDAL compresses on all cores; every further dask thread holds its chunks
 #: and their intermediates (about 170 MiB for a 16 MiB chunk), docs/scaling.md.
 CORES_PER_THREAD = 4
+
+
+@dataclass(frozen=True)
+class GeoTiffOutput:
+    """How :func:`write_rasters` creates its GeoTIFF targets (GDAL creation settings, as a
+    rasterio creation profile holds them).
+
+    Attributes
+    ----------
+    compress : str, default "deflate"
+        GDAL compression (``deflate``, ``lzw``, ``zstd``, ``none``; case-insensitive, None is
+        ``none``).
+    blocksize : int, default 512
+        Tile size [pixels]; a positive multiple of 16. Chunks should be multiples of it.
+    cog : bool, default False
+        Write Cloud-Optimized GeoTIFFs (the finished GeoTIFF copied with overviews).
+    """
+
+    compress: str = "deflate"
+    blocksize: int = DEFAULT_CHUNK
+    cog: bool = False
 
 
 @dataclass(frozen=True)
@@ -155,9 +176,7 @@ def encode_integers(array: xr.DataArray, dtype, scale, offset, nodata: float | N
 def write_rasters(
     rasters: Mapping[str | os.PathLike, xr.DataArray],
     *,
-    compress: str = "deflate",
-    blocksize: int = DEFAULT_CHUNK,
-    cog: bool = False,
+    geotiff: GeoTiffOutput = GeoTiffOutput(),
     tags: Mapping[str, str] | None = None,
     compute_with: object = None,
     callbacks: Sequence = (),
@@ -170,8 +189,8 @@ def write_rasters(
 
     All rasters (and ``compute_with``, any dask collection such as lazy QA counts) are computed in
     one dask pass, so shared inputs are read once. Each file is written under its own lock to a
-    temporary name beside the target and renamed only when complete (with ``cog``, the finished
-    GeoTIFF is then copied to a Cloud-Optimized GeoTIFF with overviews, streaming by blocks).
+    temporary name beside the target and renamed only when complete (with ``geotiff.cog``, the
+    finished GeoTIFF is then copied to a Cloud-Optimized GeoTIFF with overviews, streaming by blocks).
     Nothing appears at a target when anything fails; a failed write (disk full, file size limit,
     permissions) raises :class:`~brdfcorr.errors.OutputError` naming the targets and the reason.
 
@@ -181,12 +200,9 @@ def write_rasters(
         Targets and their (band, y, x) or (y, x) arrays with georeference (``spatial_ref``);
         the array's ``rio.nodata`` (or ``_FillValue``) is written as nodata, ``long_name``
         tuples as band descriptions and attrs as dataset tags.
-    compress : str, default "deflate"
-        GDAL compression (``deflate``, ``lzw``, ``zstd``, ``none``).
-    blocksize : int, default 512
-        Tile size [pixels]; a multiple of 16. Chunks should be multiples of it.
-    cog : bool, default False
-        Write Cloud-Optimized GeoTIFFs.
+    geotiff : GeoTiffOutput, default GeoTiffOutput()
+        Compression, tile size [pixels] and Cloud-Optimized GeoTIFF switch of the GeoTIFF targets
+        (default: deflate, 512-pixel tiles, no COG).
     tags : mapping, optional
         Extra dataset tags for every file (provenance).
     compute_with : optional
@@ -204,7 +220,7 @@ def write_rasters(
         (``num_workers`` or dask's ``num_workers`` setting) the pass uses one thread per
         :data:`CORES_PER_THREAD` cores: GDAL compresses the tiles on all of them.
     envi : mapping of path to EnviOutput, optional
-        Targets to write as ENVI (uncompressed, ``compress`` and ``cog`` do not apply), with their
+        Targets to write as ENVI (uncompressed, ``geotiff`` does not apply), with their
         header (``.hdr`` beside the data file, :func:`envi_header_path`) and ``.aux.xml`` (tags);
         all written to temporary names and renamed when complete, the data file last.
 
@@ -212,22 +228,23 @@ def write_rasters(
     -------
     The computed ``compute_with`` (None if not given).
     """
+    blocksize = geotiff.blocksize
     if not (blocksize >= 16 and blocksize % 16 == 0):
         raise InputError(f"tile size {blocksize} must be a positive multiple of 16")
     for target in rasters:
         if not Path(target).parent.is_dir():
             raise InputError(f"output directory {Path(target).parent} does not exist")
-    compress = "none" if compress is None else str(compress).lower()
+    compress = "none" if geotiff.compress is None else str(geotiff.compress).lower()
     if compress not in COMPRESSIONS:  # GDAL would write uncompressed, silently
         raise InputError(f"unknown compression {compress!r}; choose one of {', '.join(COMPRESSIONS)}")
+    geotiff = replace(geotiff, compress=compress)
     envi = {Path(target): layout for target, layout in (envi or {}).items()}
-    if cog and envi:
+    if geotiff.cog and envi:
         raise InputError("Cloud-Optimized GeoTIFF (cog) and ENVI output exclude each other")
     gdal_messages = _GdalMessages()
     try:
         with gdal_messages:
-            return _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache,
-                          scheduler, num_workers, envi)
+            return _write(rasters, geotiff, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers, envi)
     except BrdfcorrError:
         raise
     except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
@@ -275,8 +292,9 @@ def _io_failure(error: Exception, targets: list, messages: list[str]) -> Brdfcor
     )
 
 
-def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers,
-           envi):
+def _write(rasters, geotiff: GeoTiffOutput, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers, envi):
+    """The writing pass of :func:`write_rasters`, its arguments checked (``geotiff.compress`` lower case)."""
+    compress, blocksize = geotiff.compress, geotiff.blocksize
     client = _distributed_client(scheduler)
     with contextlib.ExitStack() as stack:
         writes, copies, headers, handles = [], [], [], []
@@ -287,7 +305,7 @@ def _write(rasters, compress, blocksize, cog, tags, compute_with, callbacks, gda
                 stack.enter_context(_envi_sidecars(temporary, target))
                 headers.append((temporary, layout))
                 path, options = temporary, {"driver": "ENVI", "interleave": layout.interleave.upper(), "SUFFIX": "ADD"}
-            elif cog:  # GDAL's COG driver only copies: write a tiled GeoTIFF first, beside the target
+            elif geotiff.cog:  # GDAL's COG driver only copies: write a tiled GeoTIFF first, beside the target
                 path = stack.enter_context(_scratch_path(temporary))
                 options = _write_options(compress, blocksize, array)
                 copies.append((path, temporary))

@@ -42,7 +42,8 @@ def plot_figure2(
     roughnesses : sequence of float
         c = w [deg^-1] of the columns (paper: 0.01, 0.05, 0.15).
     **simulation
-        Settings passed to :func:`brdfcorr.analysis.simulate.simulate_vcavity` (``step_fraction``, ...).
+        Settings passed to :func:`brdfcorr.analysis.simulate.simulate_vcavity` (``grid``, a
+        :class:`~brdfcorr.analysis.simulate.FacetGrid`; ``sigma``, ...).
 
     Notes
     -----

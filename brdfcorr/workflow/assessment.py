@@ -11,19 +11,21 @@ assess step (the measures themselves: :mod:`brdfcorr.analysis.assess`).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal
 
 import xarray as xr
 
 from brdfcorr import __version__
 from brdfcorr.analysis.assess import (
     HeldOutLine,
+    HoldoutFit,
     Line,
+    ViewAngleOptions,
     assess_overlap,
     assess_view_angles,
     leave_one_line_out,
@@ -31,15 +33,16 @@ from brdfcorr.analysis.assess import (
     overlap_report,
     view_angle_report,
 )
-from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.scene import SceneSources, open_scene
+from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.workflow.classmaps import class_preparation
+from brdfcorr.workflow.request import Engine
 
-__all__ = ["Assessment", "assess_files", "LinesAssessment", "leave_one_line_out_files", "write_json"]
+__all__ = ["Assessment", "assess_files", "LinesAssessment", "check_line_files", "leave_one_line_out_files",
+           "write_json"]
 
 
 @dataclass
@@ -81,46 +84,55 @@ def write_json(report: Mapping[str, object], target: str | os.PathLike) -> Path:
     return target
 
 
-def _open_scene_files(image, classes, angles, *, angles_kind: str, angle_options: dict | None, align_classes: bool,
-                      class_lookup: Mapping[int, int] | None, scale: float | None, offset: float | None,
-                      chunks: int | None, scheduler: str | None = None, num_workers: int | None = None):
-    """One scene's files opened lazily and checked (:func:`brdfcorr.io.scene.open_scene`), the
+def _open_scene_files(sources: SceneSources, engine: Engine, *, align_classes: bool,
+                      class_lookup: Mapping[int, int] | None) -> SceneData:
+    """One scene's files opened lazily and checked (:func:`brdfcorr.io.scene.open_scene`) with the
+    engine's chunks (default :func:`brdfcorr.io.rasters.auto_chunk`), scheduler and workers, the
     class map aligned or remapped as for the correction (:func:`brdfcorr.workflow.classmaps.class_preparation`)."""
-    chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
-    sources = SceneSources(image, classes, angles, angles_kind=angles_kind, angle_options=angle_options or {},
-                           scale=scale, offset=offset)
+    chunks = rasters.auto_chunk(sources.image) if engine.chunks is None else int(engine.chunks)
     return open_scene(sources, chunks=chunks, prepare_classes=class_preparation(align_classes, class_lookup),
-                      scheduler=scheduler, num_workers=num_workers)
+                      scheduler=engine.scheduler, num_workers=engine.num_workers)
+
+
+@contextlib.contextmanager
+def _active(callbacks: Sequence) -> Iterator[None]:
+    """The engine's dask callbacks (a progress bar) active while the block computes."""
+    with contextlib.ExitStack() as active:
+        for callback in callbacks:
+            active.enter_context(callback)
+        yield
 
 
 def assess_files(
-    before, after, *, classes, angles=None, angles_kind: str = "geotiff", angle_options: dict | None = None,
-    overlap: tuple[str | os.PathLike, str | os.PathLike] | None = None, class_names: Mapping[int, str] | None = None,
-    class_ids: Sequence[int] | None = None, by: Literal["sun", "track"] = "sun", heading: float | None = None,
-    bin_width: float = 2.0, min_vza: float = 0.0, flip_view_azimuth: bool = False,
-    align_classes: bool = False, class_lookup: Mapping[int, int] | None = None,
-    scale: float | None = None, offset: float | None = None, chunks: int | None = None,
-    resampling: str = "nearest", scheduler: str | None = None, num_workers: int | None = None,
+    scene: SceneSources, after: str | os.PathLike, *, view_options: ViewAngleOptions = ViewAngleOptions(),
+    overlap: tuple[str | os.PathLike, str | os.PathLike] | None = None, resampling: str = "nearest",
+    align_classes: bool = False, class_lookup: Mapping[int, int] | None = None, engine: Engine = Engine(),
 ) -> Assessment:
     """Assess a corrected image file against its input: view-angle signal per class and band, and
     optionally the difference in the overlap with another line.
 
     Parameters
     ----------
-    before : path-like
-        The input image (read as reflectance factors with its GDAL scale/offset, or ``scale`` and
-        ``offset``), with its class map and angle source checked on its grid
+    scene : SceneSources
+        The input image (``before``: read as reflectance factors with its GDAL scale/offset, or the
+        sources' ``scale`` and ``offset``), with its class map and angle source checked on its grid
         (:func:`brdfcorr.io.scene.open_scene`).
     after : path-like
         The corrected image, on the same grid (``brdfcorr correct``'s output: physical values).
-    classes, angles, angles_kind, angle_options, align_classes, class_lookup, scale, offset, chunks :
-        As for :func:`brdfcorr.workflow.correction.correct_files`.
+    view_options : ViewAngleOptions
+        How the view-angle signal is measured (:func:`assess_view_angles`): sign convention,
+        classes and their names, bin width and smallest view zenith [deg], view azimuth convention.
     overlap : (path-like, path-like), optional
-        Another line's input and corrected image (any grid; only the overlap is compared).
-    class_names, class_ids, by, heading, bin_width, min_vza, flip_view_azimuth, scheduler, num_workers :
-        As for :func:`assess_view_angles`.
+        Another line's input and corrected image (any grid; only the overlap is compared). The
+        other input is read with the scene's ``scale`` and ``offset``.
     resampling : str, default "nearest"
         As for :func:`assess_overlap`.
+    align_classes, class_lookup :
+        As for :class:`brdfcorr.workflow.request.CorrectionRequest`.
+    engine : Engine
+        Chunk size [pixels] (default :func:`brdfcorr.io.rasters.auto_chunk` of the input), dask
+        scheduler and workers of the angle check and of the view-angle pass, and dask callbacks
+        active meanwhile.
 
     Returns
     -------
@@ -128,26 +140,28 @@ def assess_files(
         ``report()`` is the JSON report; :func:`brdfcorr.plot.assess.write_assessment_figures`
         draws it.
     """
-    chunks = rasters.auto_chunk(before) if chunks is None else int(chunks)
-    scene = _open_scene_files(before, classes, angles, angles_kind=angles_kind, angle_options=angle_options,
-                              align_classes=align_classes, class_lookup=class_lookup, scale=scale, offset=offset,
-                              chunks=chunks, scheduler=scheduler, num_workers=num_workers)
-    corrected = rasters.open_image(after, chunks=chunks)
-    check_same_grid({"before": scene.reflectance, "after": corrected})
-    if corrected.shape != scene.reflectance.shape:
-        raise InputError(f"{after} has {corrected.shape[0]} bands, {before} has {scene.reflectance.shape[0]}")
-    layers = scene.angles
-    view = assess_view_angles(scene.reflectance, corrected, scene.classes, layers["vza"], layers["vaa"],
-                              layers["saa"], by=by, heading=heading, class_ids=class_ids, class_names=class_names,
-                              bin_width=bin_width, min_vza=min_vza, flip_view_azimuth=flip_view_azimuth,
-                              scheduler=scheduler, num_workers=num_workers)
-    inputs = {"before": str(before), "after": str(after), "classes": str(classes), "angles": str(angles)}
-    result = Assessment(inputs, view)
-    if overlap is not None:
-        other_before = rasters.open_image(overlap[0], chunks=chunks, scale=scale, offset=offset)
-        other_after = rasters.open_image(overlap[1], chunks=chunks)
-        result.overlap = assess_overlap(scene.reflectance, corrected, other_before, other_after, resampling=resampling)
-        inputs.update(overlap_before=str(overlap[0]), overlap_after=str(overlap[1]))
+    engine = replace(engine, chunks=rasters.auto_chunk(scene.image) if engine.chunks is None else int(engine.chunks))
+    with _active(engine.callbacks):
+        data = _open_scene_files(scene, engine, align_classes=align_classes, class_lookup=class_lookup)
+        corrected = rasters.open_image(after, chunks=engine.chunks)
+        check_same_grid({"before": data.reflectance, "after": corrected})
+        if corrected.shape != data.reflectance.shape:
+            raise InputError(f"{after} has {corrected.shape[0]} bands, {scene.image} has {data.reflectance.shape[0]}")
+        layers = data.angles
+        view = assess_view_angles(data.reflectance, corrected, data.classes, layers["vza"], layers["vaa"],
+                                  layers["saa"], options=view_options, scheduler=engine.scheduler,
+                                  num_workers=engine.num_workers)
+        inputs = {"before": str(scene.image), "after": str(after), "classes": str(scene.classes),
+                  "angles": str(scene.angles)}
+        inputs.update({name: str(path) for name in ("sza", "saa", "vza", "vaa")
+                       if (path := getattr(scene, name)) is not None})
+        result = Assessment(inputs, view)
+        if overlap is not None:
+            other_before = rasters.open_image(overlap[0], chunks=engine.chunks, scale=scene.scale, offset=scene.offset)
+            other_after = rasters.open_image(overlap[1], chunks=engine.chunks)
+            result.overlap = assess_overlap(data.reflectance, corrected, other_before, other_after,
+                                            resampling=resampling)
+            inputs.update(overlap_before=str(overlap[0]), overlap_after=str(overlap[1]))
     return result
 
 
@@ -182,58 +196,53 @@ def _line_names(images: Sequence[str | os.PathLike]) -> list[str]:
     return stems if len(set(stems)) == len(stems) else [str(image) for image in images]
 
 
+def check_line_files(images: Sequence, classes: Sequence, angles: Sequence) -> None:
+    """One class map and one angle source per image (``brdfcorr assess-lines``), else an
+    :class:`~brdfcorr.errors.InputError` that counts them."""
+    if not len(images) == len(classes) == len(angles):
+        raise InputError(f"{len(images)} image(s), {len(classes)} class map(s) and {len(angles)} angle source(s): "
+                         "give one class map and one angle source per image, in the same order")
+
+
 def leave_one_line_out_files(
-    images: Sequence[str | os.PathLike], *, classes: Sequence[str | os.PathLike], angles: Sequence[str | os.PathLike],
-    angles_kind: str = "geotiff", angle_options: dict | None = None, model: str = "torrance_sparrow",
-    class_models: Mapping[int, str] | None = None, names: Mapping[int, str] | None = None,
-    fixed: Mapping[str, float] | None = None, reference: Mapping[str, object] | None = None,
-    limits: tuple[float, float] | None = DEFAULT_LIMITS, max_samples: int = 50_000, seed: int = 0,
-    by: Literal["sun", "track"] = "sun", heading: float | None = None, bin_width: float = 2.0,
-    overlap: bool = True, flip_view_azimuth: bool = False, align_classes: bool = False,
-    class_lookup: Mapping[int, int] | None = None, scale: float | None = None, offset: float | None = None,
-    chunks: int | None = None,
+    scenes: Sequence[SceneSources], fit: HoldoutFit = HoldoutFit(), *,
+    view_options: ViewAngleOptions = ViewAngleOptions(), overlap: bool = True, align_classes: bool = False,
+    class_lookup: Mapping[int, int] | None = None, chunks: int | None = None,
 ) -> LinesAssessment:
     """Leave-one-line-out on files: fit on N − 1 flight lines, correct the held-out one, assess
     it (:func:`leave_one_line_out`), for each of N lines.
 
     Parameters
     ----------
-    images : sequence of path-like
-        At least 2 reflectance images, one per flight line (read as reflectance factors [1] with
-        their GDAL scale/offset, or ``scale`` and ``offset``), opened lazily and checked with their
-        class maps and angle sources (:func:`brdfcorr.io.scene.open_scene`). Lines that overlap
-        are compared in the overlap. A line's name in the report is its file's stem (its path where
+    scenes : sequence of SceneSources
+        At least 2 flight lines: each one's reflectance image (read as reflectance factors [1] with
+        its GDAL scale/offset, or the sources' ``scale`` and ``offset``), class map and angle
+        source (a 4-band raster of sza, saa, vza, vaa [deg], or what ``angles_kind`` names),
+        opened lazily and checked (:func:`brdfcorr.io.scene.open_scene`). Lines that overlap are
+        compared in the overlap. A line's name in the report is its image's stem (its path where
         two stems are equal).
-    classes, angles : sequence of path-like
-        Class map and angle source of each image, in the images' order (``angles``: a 4-band
-        raster of sza, saa, vza, vaa [deg], or what ``angles_kind`` names).
-    angles_kind, angle_options, align_classes, class_lookup, scale, offset, chunks :
-        As for :func:`assess_files`, the same for every line.
-    model, class_models, names, fixed, reference, limits, max_samples, seed, by, heading, bin_width,
-    overlap, flip_view_azimuth :
+    fit, view_options, overlap :
         As for :func:`leave_one_line_out`.
+    align_classes, class_lookup :
+        As for :func:`assess_files`, the same for every line.
+    chunks : int, optional
+        Chunk size [pixels] of every line (default :func:`brdfcorr.io.rasters.auto_chunk` of each
+        image).
 
     Returns
     -------
     LinesAssessment
         The held-out lines' results; ``report()`` is the JSON report.
     """
-    if not len(images) == len(classes) == len(angles):
-        raise InputError(f"{len(images)} image(s), {len(classes)} class map(s) and {len(angles)} angle source(s): "
-                         "give one class map and one angle source per image, in the same order")
-    if len(images) < 2:
-        raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(images)}")
-    line_names = _line_names(images)
+    if len(scenes) < 2:
+        raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(scenes)}")
+    line_names = _line_names([scene.image for scene in scenes])
     lines, inputs = [], []
-    for name, image, class_map, angle_source in zip(line_names, images, classes, angles):
-        scene = _open_scene_files(image, class_map, angle_source, angles_kind=angles_kind,
-                                  angle_options=angle_options, align_classes=align_classes,
-                                  class_lookup=class_lookup, scale=scale, offset=offset, chunks=chunks)
-        lines.append(Line(name, scene.reflectance, scene.classes, scene.angles))
-        inputs.append({"name": name, "image": str(image), "classes": str(class_map), "angles": str(angle_source)})
-    results = leave_one_line_out(
-        lines, model, class_models=class_models, names=names, fixed=fixed, reference=reference, limits=limits,
-        max_samples=max_samples, seed=seed, by=by, heading=heading, bin_width=bin_width, overlap=overlap,
-        flip_view_azimuth=flip_view_azimuth,
-    )
+    for name, scene in zip(line_names, scenes):
+        data = _open_scene_files(scene, Engine(chunks=chunks), align_classes=align_classes,
+                                 class_lookup=class_lookup)
+        lines.append(Line(name, data.reflectance, data.classes, data.angles))
+        inputs.append({"name": name, "image": str(scene.image), "classes": str(scene.classes),
+                       "angles": str(scene.angles)})
+    results = leave_one_line_out(lines, fit, view_options=view_options, overlap=overlap)
     return LinesAssessment(inputs, results)

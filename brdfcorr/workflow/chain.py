@@ -61,8 +61,9 @@ from typing import Any
 
 from dask.callbacks import Callback
 
+from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.errors import InputError
-from brdfcorr.fit.classes import GuardRails
+from brdfcorr.fit.classes import ClassModels, GuardRails, Sampling
 from brdfcorr.io.paths import remove_partials
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.params import ParameterTable, merge_tables
@@ -153,11 +154,12 @@ def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
     names.update(step.names)
     try:
         fit = fit_class_files(
-            candidates, step.model, class_models=step.class_models, names=names, fixed=step.fixed,
-            max_samples=step.max_samples, seed=step.seed, reflectance_scale=step.reflectance_scale,
+            candidates,
+            ClassModels(step.model, class_models=step.class_models, fixed=step.fixed, fallback=step.fallback,
+                        names=names),
+            sampling=Sampling(max_samples=step.max_samples, seed=step.seed, reflectance_scale=step.reflectance_scale),
             guard=GuardRails(min_samples=step.min_samples, min_vza_spread=step.min_vza_spread),
-            fallback=step.fallback, chunks=config.engine.chunk, wavelengths=config.inputs.wavelengths,
-            skip_unreadable=True,
+            chunks=config.engine.chunk, wavelengths=config.inputs.wavelengths, skip_unreadable=True,
         )
     except InputError as error:
         raise InputError(f"steps.fit: {error}{reasons}") from None
@@ -308,13 +310,16 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
     """The assess step: the JSON report and the profile figure; returns ``assess``, the per-class
     summary (:func:`~brdfcorr.workflow.report.assessment_summary`)."""
     step, inputs = config.steps.assess, config.inputs
-    assessment = assess_files(
-        scene.image, scene.outputs["corrected"], classes=scene.classes, angles=scene.angles,
-        angles_kind=scene.angles_kind, angle_options=dict(scene.angle_options),
-        class_names={entry.id: entry.name for entry in table.classes}, by=step.sign_by, heading=step.heading,
+    sources = SceneSources(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
+                           angle_options=dict(scene.angle_options), scale=inputs.scale, offset=inputs.offset)
+    view_options = ViewAngleOptions(
+        by=step.sign_by, heading=step.heading, class_names={entry.id: entry.name for entry in table.classes},
         bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.steps.correct.flip_view_azimuth,
-        align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup), scale=inputs.scale,
-        offset=inputs.offset, chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers,
+    )
+    assessment = assess_files(
+        sources, scene.outputs["corrected"], view_options=view_options, align_classes=inputs.align_classes,
+        class_lookup=dict(inputs.class_lookup),
+        engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers),
     )
     report = assessment.report()
     write_json(report, scene.outputs["assess"])

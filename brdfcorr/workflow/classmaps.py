@@ -70,7 +70,7 @@ def _write_class_map(classes: xr.DataArray, output, *, inputs: Sequence[tuple], 
     if not overwrite:
         refuse_existing([output])
     Path(output).parent.mkdir(parents=True, exist_ok=True)
-    rasters.write_rasters({output: classes}, blocksize=chunks, tags=dict(tags))
+    rasters.write_rasters({output: classes}, geotiff=rasters.GeoTiffOutput(blocksize=chunks), tags=dict(tags))
 
 
 def ndvi_class_file(

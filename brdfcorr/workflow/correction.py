@@ -103,7 +103,7 @@ class Terrain:
         reflectance, topographic = scene.reflectance, None
         if self.topographic != "none":
             topographic = topographic_correction(
-                reflectance, scene.angles["sza"], scene.angles["saa"], slope, aspect, method=self.topographic,
+                reflectance, {**scene.angles, "slope": slope, "aspect": aspect}, method=self.topographic,
                 classes=scene.classes, limits=limits,
             )
             reflectance = topographic.reflectance
@@ -208,7 +208,7 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
         **_scene_tags(scene, request.class_lookup, request.outputs.fingerprint),
     }
     counts = rasters.write_rasters(
-        targets, compress=files.compress, blocksize=chunks, cog=files.cog, tags=tags,
+        targets, geotiff=writer.GeoTiffOutput(compress=files.compress, blocksize=chunks, cog=files.cog), tags=tags,
         compute_with=qa_counts(qa), callbacks=engine.callbacks,
         gdal_cache=rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
         **compute,
@@ -263,14 +263,13 @@ def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: Param
                       reference: ReferenceGeometry, chunks: int):
     """The corrected reflectance, its QA flags and 1-sigma (or None), and the topographic step's
     result (or None), all lazy."""
-    layers = scene.angles
     reflectance, surface, topographic = scene.reflectance, {}, None
     if request.terrain is not None:
         reflectance, surface, topographic = request.terrain.apply(scene, chunks, request.limits)
     arguments = dict(
-        reflectance=reflectance, classes=scene.classes, sza=layers["sza"], saa=layers["saa"], vza=layers["vza"],
-        vaa=layers["vaa"], params=table, reference=reference, limits=request.limits,
-        extrapolate=request.extrapolate, flip_view_azimuth=request.flip_view_azimuth, **surface,
+        reflectance=reflectance, classes=scene.classes, angles={**scene.angles, **surface}, params=table,
+        reference=reference, limits=request.limits, extrapolate=request.extrapolate,
+        flip_view_azimuth=request.flip_view_azimuth,
     )
     try:
         corrected, qa = normalize(**arguments, unknown=request.unknown)

@@ -14,14 +14,14 @@ from __future__ import annotations
 import os
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from brdfcorr.errors import BrdfcorrError, InputError
-from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, GuardRails, fit_classes
+from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, ClassModels, GuardRails, Sampling, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
 from brdfcorr.io import rasters
@@ -177,23 +177,22 @@ class ImageryFit:
         }
 
 
-def _imagery_source(scenes: Sequence[SceneFiles], model: str, class_models: Mapping[int, str] | None) -> str:
+def _imagery_source(scenes: Sequence[SceneFiles], choice: ClassModels) -> str:
     """What an imagery fit used, for the table's ``fit:`` blocks: ``"brdfcorr fit-classes a.tif,
     b.tif (classes a_classes.tif, b_classes.tif; model torrance_sparrow)"``."""
     images = ", ".join(Path(scene.image).name for scene in scenes)
     classes = ", ".join(Path(scene.classes).name for scene in scenes)
-    models = f"model {model}" + (
+    class_models = choice.class_models
+    models = f"model {getattr(choice.model, 'name', choice.model)}" + (
         "; class models " + ", ".join(f"{key}={value}" for key, value in sorted(class_models.items()))
         if class_models else "")
     return f"brdfcorr fit-classes {images} (classes {classes}; {models})"
 
 
 def fit_class_files(
-    scenes: Sequence[SceneFiles], model: str, *, class_models: Mapping[int, str] | None = None,
-    names: Mapping[int, str] | None = None, fixed: Mapping[str, float] | None = None,
-    max_samples: int = 50_000, seed: int = 0, reflectance_scale: float = 1.0,
-    guard: GuardRails = GuardRails(), fallback: str | None = None, chunks: int | None = None,
-    wavelengths: Sequence[float] | None = None, skip_unreadable: bool = False,
+    scenes: Sequence[SceneFiles], models: ClassModels | str, *, sampling: Sampling = Sampling(),
+    guard: GuardRails = GuardRails(), chunks: int | None = None, wavelengths: Sequence[float] | None = None,
+    skip_unreadable: bool = False,
 ) -> ImageryFit:
     """Fit per-class, per-band parameters from the pixels of one or many scenes.
 
@@ -207,19 +206,26 @@ def fit_class_files(
     Parameters
     ----------
     scenes : sequence of SceneFiles
-    model, class_models, names, fixed, max_samples, seed, guard, fallback :
-        As for :func:`brdfcorr.fit.fit_classes`.
-    reflectance_scale : float, default 1
-        Kept for callers of brdfcorr 0.1: the scale of every scene's stored values, applied on read
-        as a given ``SceneFiles.scale`` (so it replaces a tagged scale, and the file's offset still
-        applies); prefer ``SceneFiles.scale``. A scene with a different scale of its own is an
+    models : ClassModels or str
+        The classes, their names, models, fixed shape parameters and fallback materials, as for
+        :func:`brdfcorr.fit.fit_classes` (a model name alone: ``ClassModels(model)``).
+    sampling : Sampling, default Sampling()
+        As for :func:`brdfcorr.fit.fit_classes`, except ``reflectance_scale``: kept for callers
+        of brdfcorr 0.1, it is the scale of every scene's stored values, applied on read as a given
+        ``SceneFiles.scale`` (so it replaces a tagged scale, and the file's offset still applies);
+        prefer ``SceneFiles.scale``. A scene with a different scale of its own is an
         :class:`InputError`.
+    guard : GuardRails
+        As for :func:`brdfcorr.fit.fit_classes`.
     chunks, wavelengths :
         As for :func:`brdfcorr.io.rasters.open_image`.
     skip_unreadable : bool, default False
         Leave out a scene that cannot be opened (listed in ``left_out``) instead of raising; at
         least one scene must open (a chain's fit step uses this).
     """
+    if not isinstance(models, ClassModels):
+        models = ClassModels(models)
+    reflectance_scale = sampling.reflectance_scale
     opened, used, left_out = [], [], []
     for scene in scenes:
         scale = scene.scale
@@ -250,9 +256,8 @@ def fit_class_files(
         warnings.simplefilter("always", ClassFitWarning)
         result = fit_classes(
             [s.reflectance for s in opened], [s.classes for s in opened],
-            [xr.Dataset(s.angles) for s in opened], model, class_models=class_models, names=names,
-            fixed=fixed, max_samples=max_samples, seed=seed, guard=guard, fallback=fallback,
-            source=_imagery_source(used, model, class_models),
+            [xr.Dataset(s.angles) for s in opened], models, sampling=replace(sampling, reflectance_scale=1.0),
+            guard=guard, source=_imagery_source(used, models),
         )
     first = opened[0].reflectance
     found = first.coords["wavelength"].values if "wavelength" in first.coords else None
