@@ -26,6 +26,7 @@ import numpy as np
 
 from brdfcorr.errors import BrdfcorrWarning, ParameterError
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
+from brdfcorr.fit.settings import ClassModels, GuardRails, Sampling
 from brdfcorr.fit.solver import (
     DEFAULT_FIXED,
     SEARCH_RANGES,
@@ -71,117 +72,6 @@ SUGGEST_GRID = 5
 
 class ClassFitWarning(BrdfcorrWarning):
     """A class failed a guard rail and fell back to a built-in material or to no correction."""
-
-
-@dataclass(frozen=True)
-class GuardRails:
-    """Minimum requirements for a class fit to be used.
-
-    Attributes
-    ----------
-    min_samples : int
-        Minimum number of valid pixels of the class.
-    min_vza_spread : float
-        Minimum spread of the view zenith [deg] between its 5th and 95th percentiles.
-    max_condition : float
-        Maximum condition number of the column-normalized linear design (one column per intensity
-        term); above it the terms (e.g. the constant and the specular term) cannot be told apart.
-    min_r2 : float
-        Minimum median (over bands) *angular* R^2 (:meth:`~brdfcorr.fit.solver._LinearProfile.angular_r2`:
-        the fit against the data's means in bins of geometry, so that albedo texture does not count
-        against it): below it the model explains (almost) none of the angular signal. Not applied
-        to a model without angular variation (Lambertian).
-
-    Notes
-    -----
-    A fit with a free shape parameter at an end of its search range
-    (:func:`~brdfcorr.fit.solver.search_range`, unless that end is a closed physical bound) fails
-    as well when its angular R^2 is below :data:`POOR_R2`: the data do not constrain the parameter
-    and the model does not follow the angular signal. With a good angular fit the parameter is
-    only poorly determined (n of the Torrance-Sparrow model often is): that is noted, not failed.
-    """
-
-    min_samples: int = 500
-    min_vza_spread: float = 10.0
-    max_condition: float = 1e3
-    min_r2: float = 0.05
-
-
-@dataclass(frozen=True)
-class ClassModels:
-    """Which classes an imagery fit fits, what they are called, and with which surface model.
-
-    Attributes
-    ----------
-    model : str or Model, default "torrance_sparrow"
-        Surface model with intensity terms (:func:`intensity_terms`) for every class ...
-    class_models : mapping of int to str, optional
-        ... except these classes (class id to model name), which get their own model.
-    fixed : mapping of str to float, optional
-        Shape parameters held fixed in every class whose model has them (default: k = 0.25 for
-        the Torrance-Sparrow models, :data:`DEFAULT_FIXED`).
-    fallback : str or mapping of int to str, optional
-        Built-in material (:func:`brdfcorr.models.materials.load_material`) used for a class that
-        fails its guard rails, one for all classes or one per class id; without one the class is
-        left out of the table (left uncorrected, and flagged by the correction).
-    names : mapping of int to str, optional
-        Class names (default ``class_<id>``).
-    class_ids : sequence of int, optional
-        Classes to fit (default: every positive id in the class maps).
-
-    Examples
-    --------
-    >>> models = ClassModels("ross_thick_li_sparse", class_models={1: "torrance_sparrow"},
-    ...                      names={1: "roof_tile", 2: "grass"})
-    >>> models.model_of(1), models.model_of(2), models.name_of(3)
-    ('torrance_sparrow', 'ross_thick_li_sparse', 'class_3')
-    """
-
-    model: str | Model = "torrance_sparrow"
-    class_models: Mapping[int, str] | None = None
-    fixed: Mapping[str, float] | None = None
-    fallback: str | Mapping[int, str] | None = None
-    names: Mapping[int, str] | None = None
-    class_ids: Sequence[int] | None = None
-
-    def model_of(self, class_id: int) -> str | Model:
-        """The surface model of class ``class_id``."""
-        return (self.class_models or {}).get(class_id, self.model)
-
-    def name_of(self, class_id: int) -> str:
-        """The name of class ``class_id`` (``class_<id>`` when it has none)."""
-        return (self.names or {}).get(class_id, f"class_{class_id}")
-
-    def fallback_of(self, class_id: int) -> str | None:
-        """The built-in material of class ``class_id`` should its fit fail (None: left uncorrected)."""
-        return self.fallback.get(class_id) if isinstance(self.fallback, Mapping) else self.fallback
-
-
-@dataclass(frozen=True)
-class Sampling:
-    """How an imagery fit pools and samples each class's pixels (:func:`sample_classes`).
-
-    Attributes
-    ----------
-    max_samples : int, default 50000
-        Cap on the samples per class, over all scenes together (without replacement, seeded).
-    seed : int, default 0
-        Seed of the sampler: the same inputs and seed give the same samples.
-    reflectance_scale : float, default 1
-        Multiplier that turns stored values into reflectance factors [-] (e.g. 1e-4 for
-        0-10000).
-    block_size : int, default 32
-        Side [pixels] of the square spatial blocks that label the samples; the fit's errors are
-        cluster-robust over these blocks.
-    keep_samples : int, default 2000
-        Samples per class kept in the result (:attr:`ClassFitResult.samples`) for plots.
-    """
-
-    max_samples: int = 50_000
-    seed: int = 0
-    reflectance_scale: float = 1.0
-    block_size: int = 32
-    keep_samples: int = 2000
 
 
 @dataclass
