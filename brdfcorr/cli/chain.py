@@ -209,6 +209,8 @@ def validate_command(chains, settings):
             from brdfcorr.params import ParameterTable
 
             table = ParameterTable.from_dict(document, source=str(chain))
+            if not table.classes:
+                raise InputError(f"{chain}: the parameter table has no classes: nothing would be corrected")
             click.echo(f"{chain}: valid parameter table; classes {', '.join(map(str, table.class_ids))}")
             continue
         from brdfcorr.workflow.chain import plan_run

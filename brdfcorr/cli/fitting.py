@@ -100,6 +100,9 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
     click.echo(_format_table([_class_row(class_fit) for class_fit in fit.result.fits]))
+    if not fit.table.classes:  # a table that corrects nothing is never written as a result
+        raise InputError(f"no class passed the guard rails (see the table above): nothing would be corrected; "
+                         f"{output} not written")
     output.parent.mkdir(parents=True, exist_ok=True)
     path = fit.table.save(output)
     click.echo(f"wrote {path}")

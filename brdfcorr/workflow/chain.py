@@ -300,6 +300,8 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
         table_source=config.source,
     ))
     found = {"reference": summary.pop("reference").describe()}
+    if "notes" in summary:  # most pixels left uncorrected: said in the report too
+        found["notes"] = summary.pop("notes")
     if "topographic" in summary:
         found["topographic"] = summary.pop("topographic")
     found["qa"] = summary

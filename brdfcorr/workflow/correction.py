@@ -34,7 +34,7 @@ from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.workflow.classmaps import class_preparation, describe_class_map
 from brdfcorr.workflow.request import CorrectionRequest
 
-__all__ = ["correct_files", "Terrain"]
+__all__ = ["correct_files", "Terrain", "uncorrected_note", "MOSTLY_UNCORRECTED"]
 
 
 @dataclass(frozen=True)
@@ -155,19 +155,23 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
     Returns
     -------
     dict
-        Pixel counts (:func:`brdfcorr.correction.qa_counts`) plus ``reference`` (the geometry used)
-        and, with a topographic step, ``topographic``: its method and the C fit per class and band.
+        Pixel counts (:func:`brdfcorr.correction.qa_counts`) plus ``reference`` (the geometry used),
+        with a topographic step ``topographic`` (its method and the C fit per class and band), and
+        where most valid pixels were left uncorrected ``notes`` (:func:`uncorrected_note`; also a
+        warning).
 
     Warns
     -----
     BrdfcorrWarning
         Once per class given as a library ``material`` (a fit at one wavelength) when a band
-        centre is more than 100 nm from that wavelength (:meth:`ClassEntry.wavelength_caveat`).
+        centre is more than 100 nm from that wavelength (:meth:`ClassEntry.wavelength_caveat`);
+        when fewer than half of the valid pixels were corrected (:func:`uncorrected_note`).
 
     Raises
     ------
     InputError
-        A missing, unreadable or malformed input (named): wrong band counts, a float class map,
+        A parameter table without classes; a missing, unreadable or malformed input (named):
+        wrong band counts, a float class map,
         angles that look like radians or hold no zenith in [0, 90)
         (:func:`brdfcorr.io.angles.check_angles`; single pixels outside the domain are flagged,
         not an error), an image that holds no reflectance factors after scaling (raw counts without
@@ -214,6 +218,10 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
         **compute,
     )
     result: dict[str, object] = {**{key: int(value) for key, value in counts.items()}, "reference": reference}
+    note = uncorrected_note({key: int(value) for key, value in counts.items()})
+    if note is not None:
+        warnings.warn(note, BrdfcorrWarning, stacklevel=2)
+        result["notes"] = [note]
     if topographic is not None:
         c_table = topographic.c_table
         result["topographic"] = {"method": request.terrain.topographic,  # type: ignore[union-attr]
@@ -240,10 +248,30 @@ def _check_outputs(request: CorrectionRequest) -> None:
 
 
 def _load_table(request: CorrectionRequest) -> tuple[ParameterTable, str | None]:
-    """The parameter table and where it came from (for the provenance tag and messages)."""
+    """The parameter table and where it came from (for the provenance tag and messages); a table
+    without classes, which would write an unchanged copy, is an InputError."""
     if isinstance(request.table, ParameterTable):
-        return request.table, request.table_source
-    return ParameterTable.load(request.table), str(request.table)
+        table, source = request.table, request.table_source
+    else:
+        table, source = ParameterTable.load(request.table), str(request.table)
+    if not table.classes:
+        raise InputError(f"{source or 'parameter table'}: the parameter table has no classes: nothing would be "
+                         "corrected")
+    return table, source
+
+
+#: Below this fraction of the valid pixels corrected, a correction says so (a warning and a note).
+MOSTLY_UNCORRECTED = 0.5
+
+
+def uncorrected_note(counts: dict[str, int]) -> str | None:
+    """A note when most valid pixels (not nodata) were left uncorrected, naming why; else None."""
+    valid = counts["corrected"] + counts["no_class"] + counts["unknown_class"]
+    if not valid or counts["corrected"] >= MOSTLY_UNCORRECTED * valid:
+        return None
+    return (f"only {100 * counts['corrected'] / valid:.0f} % of the {valid} valid pixels were corrected: "
+            f"{counts['no_class']} have no class and {counts['unknown_class']} a class the parameter table does "
+            "not have; check the class map against the table's class ids")
 
 
 def _scene_reference(reference, table: ParameterTable, scene: SceneData) -> tuple[ReferenceGeometry, str]:
