@@ -17,6 +17,7 @@ parameters in the resulting table are in sr^-1 like the goniometer fits of paper
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Mapping, Sequence
@@ -400,7 +401,27 @@ def _fit_record(fit: ClassFit, source: str, per_band: bool) -> dict | None:
             "covariance": covariance.tolist()}
 
 
+def _in_wavelength_order(fit: ClassFit, wavelengths):
+    """The fit and the band wavelengths with the bands sorted by wavelength: a table lists its
+    wavelengths increasing, an image may hold its bands in the sensor's order (MODIS: 645, 858,
+    469, 2130 nm). Arrays with one entry per band are permuted alike."""
+    if wavelengths is None or np.all(np.diff(np.asarray(wavelengths, float)) > 0):
+        return fit, wavelengths
+    order = np.argsort(np.asarray(wavelengths, float), kind="stable")
+
+    def sort(values):
+        values = np.asarray(values)
+        return values[order] if values.ndim and values.shape[0] == order.size else values
+
+    return dataclasses.replace(
+        fit, params={name: sort(values) for name, values in fit.params.items()},
+        errors={name: sort(values) for name, values in fit.errors.items()}, covariance=sort(fit.covariance),
+        chi2_dof=sort(fit.chi2_dof), r2=sort(fit.r2), rmse=sort(fit.rmse), angular_r2=sort(fit.angular_r2),
+    ), np.asarray(wavelengths, float)[order]
+
+
 def _entry(fit: ClassFit, wavelengths, source: str):
+    fit, wavelengths = _in_wavelength_order(fit, wavelengths)
     if fit.status == "uncorrected":
         return None
     if fit.status == "fallback":
