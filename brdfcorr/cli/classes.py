@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import _format_table, handle_errors, main
+from brdfcorr.cli._inputs import scale_options
 
 # brdfcorr.workflow.classmaps (rasterio, dask) is imported when a command runs, not when its options
 # are parsed: --help and argument errors answer at once.
@@ -36,16 +37,21 @@ def classes_group():
 @click.option("--water-id", type=int, default=0, show_default=True, help="Class of water pixels (0: no class).")
 @click.option("--shadow-id", type=int, default=0, show_default=True, help="Class of shadow pixels (0: no class).")
 @click.option("--wavelengths", help="Band centres [nm], comma-separated (overrides the image's).")
+@scale_options
 @click.option("--overwrite", is_flag=True, help="Replace an existing output.")
 @handle_errors
-def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id, wavelengths, overwrite):
-    """Classes of IMAGE by NDVI bins (strata for per-class kernel-model fits), water and shadow masked."""
-    from brdfcorr.workflow.classmaps import ndvi_class_file
+def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id, wavelengths, scale, offset,
+                         overwrite):
+    """Classes of IMAGE by NDVI bins (strata for per-class kernel-model fits), water and shadow masked.
 
-    strata = ndvi_class_file(
-        image, output, edges=_numbers(edges), percentiles=_numbers(percentiles), water_id=water_id,
-        shadow_id=shadow_id, wavelengths=_numbers(wavelengths), overwrite=overwrite,
-    )
+    IMAGE's stored values are read as reflectance factors with its GDAL scale/offset, or --scale
+    and --offset (an offset changes NDVI); an image that does not look like reflectance factors
+    is refused unless --scale is given."""
+    from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
+
+    bins = NdviBins(edges=_numbers(edges), percentiles=_numbers(percentiles), water_id=water_id, shadow_id=shadow_id)
+    strata = ndvi_class_file(image, output, bins=bins, wavelengths=_numbers(wavelengths), scale=scale, offset=offset,
+                             overwrite=overwrite)
     click.echo(_format_table([{"class": str(ident), "stratum": name} for ident, name in sorted(strata.names.items())]))
     click.echo(f"wrote {output} (NDVI edges {', '.join(f'{edge:.3g}' for edge in strata.edges)})")
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import xarray as xr
@@ -19,7 +20,7 @@ from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata, remap_classes
 
-__all__ = ["ndvi_class_file", "align_class_file", "read_lookup", "class_preparation", "describe_class_map"]
+__all__ = ["ndvi_class_file", "NdviBins", "align_class_file", "read_lookup", "class_preparation", "describe_class_map"]
 
 
 def class_preparation(align: bool = False, lookup: Mapping[int, int] | None = None):
@@ -73,10 +74,22 @@ def _write_class_map(classes: xr.DataArray, output, *, inputs: Sequence[tuple], 
     rasters.write_rasters({output: classes}, geotiff=rasters.GeoTiffOutput(blocksize=chunks), tags=dict(tags))
 
 
+@dataclass(frozen=True)
+class NdviBins:
+    """How NDVI strata are cut (:func:`brdfcorr.strata.ndvi_strata`): fixed ``edges`` or scene
+    ``percentiles`` (default: fixed edges 0.1, 0.3, 0.5, 0.7), and the classes of water and shadow
+    pixels (0: no class)."""
+
+    edges: Sequence[float] | None = None
+    percentiles: Sequence[float] | None = None
+    water_id: int = 0
+    shadow_id: int = 0
+
+
 def ndvi_class_file(
-    image: str | os.PathLike, output: str | os.PathLike, *, edges: Sequence[float] | None = None,
-    percentiles: Sequence[float] | None = None, water_id: int = 0, shadow_id: int = 0,
-    wavelengths: Sequence[float] | None = None, chunks: int | None = None, overwrite: bool = False,
+    image: str | os.PathLike, output: str | os.PathLike, *, bins: NdviBins = NdviBins(),
+    wavelengths: Sequence[float] | None = None, scale: float | None = None, offset: float | None = None,
+    chunks: int | None = None, overwrite: bool = False,
 ) -> NdviStrata:
     """Write a class map of NDVI strata of ``image`` (:func:`brdfcorr.strata.ndvi_strata`).
 
@@ -85,8 +98,13 @@ def ndvi_class_file(
     image, output : path-like
         Reflectance image (with band wavelengths, or give ``wavelengths`` [nm]) and the class map
         GeoTIFF to write (uint8, nodata 0).
-    edges, percentiles, water_id, shadow_id :
-        As for :func:`brdfcorr.strata.ndvi_strata` (default: fixed edges 0.1, 0.3, 0.5, 0.7).
+    bins : NdviBins
+        The strata's edges and the classes of water and shadow.
+    scale, offset : float, optional
+        Reflectance factor per stored unit and of a stored 0, replacing the file's
+        (:func:`brdfcorr.io.rasters.open_image`). Without ``scale`` the image is checked for values
+        that are no reflectance factors (:func:`brdfcorr.io.rasters.check_reflectance_scale`): an
+        offset left out changes NDVI.
     chunks : int, optional
         Chunk and tile size [pixels] (default :func:`brdfcorr.io.rasters.auto_chunk`).
     overwrite : bool, default False
@@ -98,9 +116,11 @@ def ndvi_class_file(
         The strata: ``edges`` and ``names`` (id -> label) to pair with a parameter table.
     """
     chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
-    reflectance = rasters.open_image(image, chunks=chunks, wavelengths=wavelengths)
-    strata = ndvi_strata(reflectance, edges=edges, percentiles=percentiles, water_id=water_id,
-                         shadow_id=shadow_id)
+    reflectance = rasters.open_image(image, chunks=chunks, wavelengths=wavelengths, scale=scale, offset=offset)
+    if scale is None:
+        rasters.check_reflectance_scale(reflectance, str(image))
+    strata = ndvi_strata(reflectance, edges=bins.edges, percentiles=bins.percentiles, water_id=bins.water_id,
+                         shadow_id=bins.shadow_id)
     names = ",".join(f"{ident}:{name}" for ident, name in sorted(strata.names.items()))
     tags = {"brdf_class_map": f"NDVI strata of {Path(image).name}; edges "
                               + ",".join(f"{edge:g}" for edge in strata.edges), "class_names": names}
