@@ -138,9 +138,13 @@ CORRECT_CASES = {
     "classes missing": (lambda s: _correct_args(s, **{"--classes": s["dir"] / "nope_classes.tif"}),
                         r"class map file \S*nope_classes\.tif does not exist"),
     # --- angle rasters
-    "angles with 3 bands": (
+    # 3 bands are sza, vza, raa (MODIS/VIIRS, tests/test_relative_azimuth.py): 2 are no angle raster.
+    "angles with 2 bands": (
+        lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles2.tif", lambda d: d[:2])}),
+        r"angle file \S*angles2\.tif has 2 bands; it needs 4 \(sza, saa, vza, vaa\) or 3 \(sza, vza, raa\)"),
+    "sza, saa, vza as sza, vza, raa": (
         lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles3.tif", lambda d: d[:3])}),
-        r"angle file \S*angles3\.tif has 3 bands; it needs 4 \(sza, saa, vza, vaa\)"),
+        r"vza \(\S*angles3\.tif\): no vza value in \[0, 90\) deg"),
     "angles in radians": (
         lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles_rad.tif", np.deg2rad)}),
         r"angles_rad\.tif.*: the angles look like radians \(sza 0\.5.*\); brdfcorr needs degrees"),

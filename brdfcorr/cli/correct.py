@@ -95,6 +95,9 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
 @click.option("--saa", type=click.Path(dir_okay=False, path_type=Path), help="Solar azimuth raster [deg].")
 @click.option("--vza", type=click.Path(dir_okay=False, path_type=Path), help="View zenith raster [deg].")
 @click.option("--vaa", type=click.Path(dir_okay=False, path_type=Path), help="View azimuth raster [deg].")
+@click.option("--raa", type=click.Path(dir_okay=False, path_type=Path),
+              help="Relative azimuth raster [deg], vaa - saa (0 at the hotspot), with --sza and --vza, for "
+                   "products that give no absolute azimuths (MODIS, VIIRS).")
 @click.option("--classes", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map raster (ids of the parameter table; 0 = no class).")
 @class_map_options
@@ -152,7 +155,7 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
               help="Evaluate the BRDF in each tilted surface's frame or the horizontal one [default: surface; "
                    "horizontal for c and scs+c].")
 @handle_errors
-def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, classes, align_classes,
+def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, raa, classes, align_classes,
                     class_lookup, params_path, materials, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, scale, offset, extrapolate,
                     flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite, output_format,
@@ -199,7 +202,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     start = time.perf_counter()
     sources = SceneSources(image, classes, angles, angles_kind=angles_kind,
                            angle_options=_options("--angle-option", angle_option), sza=sza, saa=saa, vza=vza,
-                           vaa=vaa, wavelengths=wavelengths, scale=scale, offset=offset)
+                           vaa=vaa, raa=raa, wavelengths=wavelengths, scale=scale, offset=offset)
     outputs = OutputFiles(output, qa=qa_path, uncertainty=uncertainty_path, format=output_format,
                           interleave=interleave.lower(), data_type=output_type, compress=compress, cog=cog,
                           overwrite=overwrite)

@@ -19,7 +19,8 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.grid import describe_layer
 from brdfcorr.io.opening import chunk_spec, open_raster
 
-__all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "angle_band_name", "open_angles", "AngleStatistics", "check_angles"]
+__all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY", "angle_band_name", "open_angles",
+           "from_relative_azimuth", "AngleStatistics", "check_angles"]
 
 ANGLE_NAMES = ("sza", "saa", "vza", "vaa")
 
@@ -30,7 +31,14 @@ ANGLE_BAND_NAMES = {
     "saa": ("saa", "solar_azimuth", "sun_azimuth"),
     "vza": ("vza", "view_zenith", "viewing_zenith", "sensor_zenith"),
     "vaa": ("vaa", "view_azimuth", "viewing_azimuth", "sensor_azimuth"),
+    "raa": ("raa", "relative_azimuth", "relative_view_azimuth", "sun_sensor_relative_azimuth"),
 }
+#: The layers of a 3-band angle raster of products that give the relative azimuth only (MODIS,
+#: VIIRS): solar zenith, view zenith and the relative azimuth raa = vaa - saa [deg].
+RELATIVE_ANGLE_NAMES = ("sza", "vza", "raa")
+#: Attribute of the ``saa`` layer made up for such a source (0 deg, with ``vaa`` = raa): the
+#: correction needs only the relative azimuth, a tilted surface or a heading the true ones.
+RELATIVE_ONLY = "relative_azimuth_only"
 
 
 def angle_band_name(description: str | None) -> str | None:
@@ -47,9 +55,9 @@ def angle_band_name(description: str | None) -> str | None:
     return next((angle for angle, names in ANGLE_BAND_NAMES.items() if key in names), None)
 
 
-def _angle_band_order(path, descriptions) -> dict[str, int]:
-    """Band index of each angle of a 4-band angle raster: by band descriptions that name the
-    angles, else the documented order sza, saa, vza, vaa."""
+def _angle_band_order(path, descriptions, names: tuple[str, ...] = ANGLE_NAMES) -> dict[str, int]:
+    """Band index of each angle of an angle raster of the layers ``names``: by band descriptions
+    that name the angles, else the documented order of ``names``."""
     if isinstance(descriptions, str):  # rioxarray keeps one description as a string
         descriptions = (descriptions,)
     descriptions = tuple(descriptions or ())
@@ -57,53 +65,72 @@ def _angle_band_order(path, descriptions) -> dict[str, int]:
     # No descriptions, none naming an angle ("Band 1"), or one on every band (rioxarray describes
     # every band by the array's name: a stack of layers named "sza" says "sza" four times): positional.
     if not any(named) or len(set(descriptions)) == 1:
-        return {name: index for index, name in enumerate(ANGLE_NAMES)}
-    if len(named) != len(ANGLE_NAMES) or sorted(map(str, named)) != sorted(ANGLE_NAMES):
+        return {name: index for index, name in enumerate(names)}
+    if len(named) != len(names) or sorted(map(str, named)) != sorted(names):
         shown = ", ".join(repr(text) if text else "(none)" for text in descriptions)
+        listed = ", ".join(names)
         raise InputError(
-            f"angle file {path}: band descriptions {shown} do not name each of sza, saa, vza, vaa once; "
-            "describe every band (sza, saa, vza, vaa, or solar_zenith, ...) or none (then the order "
-            "is sza, saa, vza, vaa)"
+            f"angle file {path}: band descriptions {shown} do not name each of {listed} once; "
+            f"describe every band ({listed}, or solar_zenith, ...) or none (then the order is {listed})"
         )
     return {name: index for index, name in enumerate(named)}
 
 
-def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, chunks=None) -> dict[str, xr.DataArray]:
+def from_relative_azimuth(sza: xr.DataArray, vza: xr.DataArray, raa: xr.DataArray) -> dict[str, xr.DataArray]:
+    """The four layers of a source that gives the relative azimuth only: ``saa`` = 0 deg (flagged
+    with the attribute :data:`RELATIVE_ONLY`) and ``vaa`` = ``raa``, so that |saa - vaa| is |raa|
+    (brdfcorr's convention, ``docs/conventions.md``: raa = vaa - saa, 0 deg at the hotspot)."""
+    saa = xr.zeros_like(sza).rename("saa").assign_attrs({RELATIVE_ONLY: 1, "units": "degree"})
+    return {"sza": sza, "saa": saa, "vza": vza, "vaa": raa.rename("vaa")}
+
+
+def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, raa=None,
+                chunks=None) -> dict[str, xr.DataArray]:
     """Open the sun/view angles [deg] as four (y, x) arrays, nodata as NaN.
 
-    Either ``path``, a 4-band raster, or four single-band files. The bands of a 4-band raster are
-    picked by their band descriptions where these name the angles (:data:`ANGLE_BAND_NAMES`: ``sza``
-    or ``solar_zenith``, ..., any case), else (no descriptions, none naming an angle, or the same
-    one on every band) taken in the order sza, saa, vza, vaa.
+    Either ``path``, a 4-band raster (sza, saa, vza, vaa) or a 3-band raster of products that give
+    the relative azimuth only (sza, vza, raa: MODIS, VIIRS; :func:`from_relative_azimuth`), or
+    single-band files: ``sza``, ``saa``, ``vza``, ``vaa``, or ``sza``, ``vza``, ``raa``. The bands
+    of a raster are picked by their band descriptions where these name the angles
+    (:data:`ANGLE_BAND_NAMES`: ``sza`` or ``solar_zenith``, ..., ``raa`` or ``relative_azimuth``,
+    any case), else (no descriptions, none naming an angle, or the same one on every band) taken in
+    the order sza, saa, vza, vaa (sza, vza, raa for 3 bands).
 
     Raises
     ------
     InputError
         A missing or unreadable file, a wrong band count, or band descriptions that name some
-        angles but not each of the four once (one line naming the file and its descriptions).
+        angles but not each once (one line naming the file and its descriptions).
     """
-    separate = {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
+    separate = {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa, "raa": raa}
     given = [name for name, value in separate.items() if value is not None]
     if path is not None and given:
-        raise InputError("give either one 4-band angle file or the separate sza/saa/vza/vaa files, not both")
+        raise InputError("give either one angle file or the separate sza/saa/vza/vaa (or sza/vza/raa) files, not both")
     if path is not None:
         stack = open_raster(path, "angle", chunk_spec(chunks), masked=True)
-        if stack.sizes[stack.dims[0]] != 4:
-            raise InputError(
-                f"angle file {path} has {stack.sizes[stack.dims[0]]} bands; it needs 4 (sza, saa, vza, vaa)"
-            )
-        order = _angle_band_order(path, stack.attrs.get("long_name"))
-        return {name: stack.isel({stack.dims[0]: order[name]}, drop=True).rename(name) for name in ANGLE_NAMES}
-    missing = [name for name in ANGLE_NAMES if separate[name] is None]
+        count = stack.sizes[stack.dims[0]]
+        if count not in (3, 4):
+            raise InputError(f"angle file {path} has {count} bands; it needs 4 (sza, saa, vza, vaa) or 3 "
+                             "(sza, vza, raa)")
+        names = ANGLE_NAMES if count == 4 else RELATIVE_ANGLE_NAMES
+        order = _angle_band_order(path, stack.attrs.get("long_name"), names)
+        layers = {name: stack.isel({stack.dims[0]: order[name]}, drop=True).rename(name) for name in names}
+        return layers if count == 4 else from_relative_azimuth(**layers)
+    names = RELATIVE_ANGLE_NAMES if raa is not None else ANGLE_NAMES
+    missing = [name for name in names if separate[name] is None]
+    extra = [name for name in given if name not in names]
+    if extra:
+        raise InputError(f"angle file(s) of {', '.join(extra)} do not go with raa: give sza, vza, raa or sza, saa, "
+                         "vza, vaa")
     if missing:
-        raise InputError(f"missing angle file(s): {', '.join(missing)} (or give one 4-band angle file)")
+        raise InputError(f"missing angle file(s): {', '.join(missing)} (or give one angle file)")
     angles = {}
-    for name in ANGLE_NAMES:
+    for name in names:
         layer = open_raster(separate[name], f"{name} angle", chunk_spec(chunks), masked=True)
         if layer.sizes[layer.dims[0]] != 1:
             raise InputError(f"{name} angle file {separate[name]} has {layer.sizes[layer.dims[0]]} bands; it needs 1")
         angles[name] = layer.isel({layer.dims[0]: 0}, drop=True).rename(name)
-    return angles
+    return angles if raa is None else from_relative_azimuth(**angles)
 
 
 class AngleStatistics(NamedTuple):

@@ -29,8 +29,9 @@ class SceneSources:
     image, classes : path-like
         Reflectance raster and class map.
     angles : path-like or str, optional
-        The angle source: a 4-band raster (sza, saa, vza, vaa [deg]) for ``angles_kind="geotiff"``
-        (or give the four separate files ``sza`` ... ``vaa``), else what
+        The angle source: a 4-band raster (sza, saa, vza, vaa [deg]) or a 3-band raster (sza, vza,
+        raa: products that give the relative azimuth only) for ``angles_kind="geotiff"`` (or give
+        the separate files ``sza`` ... ``vaa``, or ``sza``, ``vza``, ``raa``), else what
         :func:`brdfcorr.io.sensors.read_angles` reads for that kind (``envi_obs``, ``sentinel2``,
         ``landsat``, ``solar``, ...) with ``angle_options``, brought onto the image grid.
     wavelengths : sequence of float, optional
@@ -48,6 +49,7 @@ class SceneSources:
     saa: PathLike | None = None
     vza: PathLike | None = None
     vaa: PathLike | None = None
+    raa: PathLike | None = None
     wavelengths: Sequence[float] | None = None
     scale: float | None = None
     offset: float | None = None
@@ -57,7 +59,7 @@ class SceneSources:
         """The files read, by role (for the output guard, :func:`brdfcorr.io.paths.check_outputs`)."""
         return [("image", self.image), ("angles", None if self.angles_kind == "solar" else self.angles),
                 ("sza raster", self.sza), ("saa raster", self.saa), ("vza raster", self.vza),
-                ("vaa raster", self.vaa), ("class map", self.classes)]
+                ("vaa raster", self.vaa), ("raa raster", self.raa), ("class map", self.classes)]
 
 
 class SceneData(NamedTuple):
@@ -106,7 +108,7 @@ def open_scene(sources: SceneSources, *, chunks=None,
         class_map = prepare_classes(class_map, reflectance)
     if sources.angles_kind == "geotiff":
         layers = open_angles(sources.angles, sza=sources.sza, saa=sources.saa, vza=sources.vza, vaa=sources.vaa,
-                             chunks=chunks)
+                             raa=sources.raa, chunks=chunks)
         source = None
     else:
         from brdfcorr.io.sensors import read_angles

@@ -35,6 +35,7 @@ from brdfcorr.analysis.assess import (
 )
 from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
+from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
@@ -94,6 +95,14 @@ def _open_scene_files(sources: SceneSources, engine: Engine, *, align_classes: b
                       scheduler=engine.scheduler, num_workers=engine.num_workers)
 
 
+def _check_signing(data: SceneData, view_options: ViewAngleOptions) -> None:
+    """Signing by the flight track needs the sensor's own azimuth, which a source that gives the
+    relative azimuth only does not have (signing by the sun needs only the relative one)."""
+    if view_options.by == "track" and data.angles["saa"].attrs.get(RELATIVE_ONLY):
+        raise InputError("signing by the track needs the sensor's azimuth; the angle source gives only the "
+                         "relative azimuth (raa): sign by the sun")
+
+
 @contextlib.contextmanager
 def _active(callbacks: Sequence) -> Iterator[None]:
     """The engine's dask callbacks (a progress bar) active while the block computes."""
@@ -143,6 +152,7 @@ def assess_files(
     engine = replace(engine, chunks=rasters.auto_chunk(scene.image) if engine.chunks is None else int(engine.chunks))
     with _active(engine.callbacks):
         data = _open_scene_files(scene, engine, align_classes=align_classes, class_lookup=class_lookup)
+        _check_signing(data, view_options)
         corrected = rasters.open_image(after, chunks=engine.chunks)
         check_same_grid({"before": data.reflectance, "after": corrected})
         if corrected.shape != data.reflectance.shape:

@@ -26,6 +26,7 @@ from brdfcorr.correction.topographic import frame_conflict, topographic_correcti
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import rasters, writer
+from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.opening import open_layer
 from brdfcorr.io.paths import check_outputs, refuse_existing
@@ -99,6 +100,9 @@ class Terrain:
     def apply(self, scene: SceneData, chunks: int, limits):
         """The reflectance after the topographic step, the slope and aspect layers for
         :func:`brdfcorr.normalize` (none in the horizontal frame) and the topographic result."""
+        if scene.angles["saa"].attrs.get(RELATIVE_ONLY):
+            raise InputError("terrain: a tilted surface needs the sun's and the sensor's azimuths; the angle "
+                             "source gives only their relative azimuth (raa)")
         slope, aspect = self.open(scene.reflectance, chunks)
         reflectance, topographic = scene.reflectance, None
         if self.topographic != "none":
