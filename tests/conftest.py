@@ -1,12 +1,22 @@
-"""Shared test helpers: the real sensor files, and a guard that lazy code computes nothing."""
+"""Shared test helpers: the real sensor files, a guard that lazy code computes nothing, and the
+builders that several test files use, as fixtures (a test file imports nothing from another):
+chains of synthetic scenes, overlapping flight lines, scaled integer images."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import dask
+import numpy as np
 import pytest
+import rasterio
+import xarray as xr
+import yaml
 from hypothesis import settings
+
+from brdfcorr.analysis.assess import Line
+from brdfcorr.params import ParameterTable
+from brdfcorr.testing import example_table, georeference, render, synthetic_angles, synthetic_scene, write_scene
 
 # Property tests draw the same examples on every run (a CI run that passes here passes there); a
 # random exploration is `pytest --hypothesis-profile=explore`.
@@ -29,3 +39,190 @@ def no_compute():
     """Within the test, any dask computation fails: lazy functions must stay lazy."""
     with dask.config.set(scheduler=_raising_scheduler):
         yield
+
+
+# ------------------------------------------------------------------- chains of synthetic scenes
+# make_scenes, write_chain, expected, read: chain runs of tests/test_pipeline.py and the tests that
+# run a chain of their own (band names, distributed, ENVI output, output guard).
+
+REFERENCE = {"sza": 35.0, "vza": 0.0, "raa": 0.0}
+
+
+def _make_scenes(root, count=3, ny=32, nx=48):
+    """Scenes rendered from the example table (testing.synthetic_scene), one directory each."""
+    scenes = {}
+    for index in range(count):
+        scene = synthetic_scene(ny, nx, seed=index)
+        scenes[f"line{index}"] = (scene, write_scene(root / "scenes" / f"line{index}", scene))
+    return scenes
+
+
+def _write_chain(root, **changes):
+    document = {
+        "inputs": {"images": ["scenes/*/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
+                   "classes": "{dir}/classes.tif"},
+        "parameters": {"table": "params.yaml"},
+        "reference": REFERENCE,
+        "steps": {"correct": {"limits": None}},
+        "outputs": {"directory": "out", "naming": "{parent}_brdf.tif", "qa_naming": "{parent}_qa.tif",
+                    "quicklook_naming": "{parent}.png"},
+        "engine": {"scheduler": "threads", "workers": 2, "chunk": 16},
+    }
+    for key, value in changes.items():
+        section, _, name = key.partition("__")
+        if name:
+            document.setdefault(section, {})[name] = value
+        else:
+            document[section] = value
+    example_table().save(root / "params.yaml")
+    path = root / "chain.yaml"
+    path.write_text(yaml.safe_dump(document))
+    return path
+
+
+def _expected(scene):
+    """Closed form (brdfcorr.testing): the scene rendered at the reference geometry."""
+    shape = scene["classes"].shape
+    return render(
+        example_table(), scene["classes"].values, np.full(shape, REFERENCE["sza"]), np.zeros(shape),
+        np.zeros(shape), np.zeros(shape), wavelengths=scene["reflectance"]["wavelength"].values.tolist(),
+        brightness=scene["brightness"].values,
+    )
+
+
+def _read(path):
+    with rasterio.open(path) as dataset:
+        return dataset.read(), dataset.tags()
+
+
+@pytest.fixture(scope="session")
+def make_scenes():
+    """``make_scenes(root, count=3, ny=32, nx=48)``: synthetic scenes written under ``root/scenes``,
+    {name: (scene, paths)}."""
+    return _make_scenes
+
+
+@pytest.fixture(scope="session")
+def write_chain():
+    """``write_chain(root, **changes)``: the chain file of the scenes of ``make_scenes`` (and the
+    example table as params.yaml) under ``root``; a change replaces a section, ``section__name`` one
+    entry of it."""
+    return _write_chain
+
+
+@pytest.fixture(scope="session")
+def expected():
+    """``expected(scene)``: the closed-form output of a scene of ``make_scenes`` at the reference of
+    ``write_chain``."""
+    return _expected
+
+
+@pytest.fixture(scope="session")
+def read():
+    """``read(path)``: a raster's values and tags."""
+    return _read
+
+
+# ------------------------------------------------------------------- overlapping flight lines
+# make_lines, make_cube, shifted: the assessment tests (tests/test_assess.py, tests/test_cli_assess_lines.py).
+
+def _cube(*bands):
+    return georeference(xr.DataArray(np.stack(bands).astype(np.float64), dims=("band", "y", "x"),
+                                     coords={"band": np.arange(1, len(bands) + 1)}))
+
+
+def _shifted(array: xr.DataArray, columns: int) -> xr.DataArray:
+    """The array's grid moved east by ``columns`` pixels (10 m)."""
+    moved = array.assign_coords(x=array["x"] + 10.0 * columns)
+    return moved.rio.write_transform(moved.rio.transform(recalc=True))
+
+
+KERNEL_TABLE = ParameterTable(classes=[
+    {"id": 1, "name": "grass", "model": "ross_thick_li_sparse",
+     "params": {"f_iso": [0.03, 0.12], "f_vol": [0.02, 0.09], "f_geo": [0.006, 0.02]}, "wavelengths": [560, 860]},
+    {"id": 2, "name": "soil", "model": "ross_thick_li_sparse",
+     "params": {"f_iso": [0.05, 0.07], "f_vol": [0.005, 0.007], "f_geo": [0.015, 0.02]}, "wavelengths": [560, 860]},
+])
+
+
+
+def _lines(n_lines=3, ny=48, nx=64, shift=24):
+    """Lines flown north side by side over one ground (classes, albedo texture), each with its own
+    view geometry across its swath, rendered with KERNEL_TABLE (brdfcorr.testing.render)."""
+    rng = np.random.default_rng(3)
+    width = nx + shift * (n_lines - 1)
+    ground_classes = np.kron(rng.choice([1, 2], size=(ny // 4, -(-width // 4))), np.ones((4, 4), int))[:ny, :width]
+    ground_brightness = rng.uniform(0.8, 1.2, (ny, width))  # albedo texture
+    angles = synthetic_angles(ny, nx, sza=(35.0, 35.0), vza_max=30.0, saa=120.0, dtype=np.float64)
+    lines = []
+    for index in range(n_lines):
+        window = slice(index * shift, index * shift + nx)
+        classes, brightness = ground_classes[:, window], ground_brightness[:, window]
+        cube = render(KERNEL_TABLE, classes, **angles, wavelengths=[560.0, 860.0], brightness=brightness)
+        reflectance = _shifted(_cube(*(np.pi * cube)).assign_coords(wavelength=("band", [560.0, 860.0])),
+                               index * shift)
+        layers = {name: _shifted(georeference(xr.DataArray(value, dims=("y", "x"))), index * shift)
+                  for name, value in angles.items()}
+        class_map = _shifted(georeference(xr.DataArray(classes, dims=("y", "x"))), index * shift)
+        lines.append(Line(f"line{index + 1}", reflectance, class_map, layers))
+    return lines
+
+
+@pytest.fixture(scope="session")
+def make_cube():
+    """``make_cube(*bands)``: the 2-d arrays as one georeferenced float64 (band, y, x) cube."""
+    return _cube
+
+
+@pytest.fixture(scope="session")
+def shifted():
+    """``shifted(array, columns)``: the array's grid moved east by ``columns`` pixels (10 m)."""
+    return _shifted
+
+
+@pytest.fixture(scope="session")
+def make_lines():
+    """``make_lines(n_lines=3, ny=48, nx=64, shift=24)``: overlapping lines rendered with a known
+    kernel model (KERNEL_TABLE), as brdfcorr.analysis.assess.Line."""
+    return _lines
+
+
+# ------------------------------------------------------------------- scaled integer images
+# store, nodata_pixels: tests/test_scaled_inputs.py and tests/test_output_type.py.
+
+NODATA_PIXELS = (slice(None), 0, slice(0, 5))  # written as nodata in every stored image
+
+
+def _store(source, target, dtype, scale, offset, nodata, *, tag=True, scales=None, offsets=None):
+    """Write the float image ``source`` as counts (all pixels of NODATA_PIXELS nodata); GDAL scale
+    and offset tagged (``tag``), per band where ``scales``/``offsets`` are given."""
+    with rasterio.open(source) as dataset:
+        profile, values, descriptions = dataset.profile, dataset.read(), dataset.descriptions
+    n_bands = values.shape[0]
+    scales = np.full(n_bands, scale) if scales is None else np.asarray(scales, float)
+    offsets = np.full(n_bands, offset) if offsets is None else np.asarray(offsets, float)
+    counts = np.round((values - offsets[:, None, None]) / scales[:, None, None])
+    if np.dtype(dtype).kind in "iu":
+        info = np.iinfo(dtype)
+        assert counts.min() > info.min and counts.max() < info.max  # the scene fits the storage
+    counts[NODATA_PIXELS] = nodata
+    profile.update(dtype=dtype, nodata=nodata)
+    with rasterio.open(target, "w", **profile) as dataset:
+        dataset.write(counts.astype(dtype))
+        dataset.descriptions = descriptions  # the wavelengths
+        if tag:
+            dataset.scales, dataset.offsets = tuple(scales), tuple(offsets)
+    return target
+
+
+@pytest.fixture(scope="session")
+def store():
+    """``store(source, target, dtype, scale, offset, nodata, *, tag=True, scales=None, offsets=None)``:
+    the float image ``source`` written as scaled integer counts to ``target``."""
+    return _store
+
+
+@pytest.fixture(scope="session")
+def nodata_pixels():
+    """The pixels (an index of the (band, y, x) values) that ``store`` writes as nodata."""
+    return NODATA_PIXELS

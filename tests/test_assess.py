@@ -6,11 +6,9 @@ import json
 import dask.array as da
 import numpy as np
 import pytest
-import xarray as xr
 
 from brdfcorr.analysis.assess import (
     HoldoutFit,
-    Line,
     ViewAngleOptions,
     assess_overlap,
     assess_view_angles,
@@ -21,17 +19,11 @@ from brdfcorr.analysis.assess import (
     view_angle_report,
 )
 from brdfcorr.errors import InputError
-from brdfcorr.params import ParameterTable
 from brdfcorr.plot.assess import overlap_figure, profile_figure, write_assessment_figures
-from brdfcorr.testing import georeference, render, synthetic_angles
+from brdfcorr.testing import synthetic_angles
 from brdfcorr.workflow.assessment import Assessment, write_json
 
 NY, NX = 20, 40
-
-
-def _cube(*bands):
-    return georeference(xr.DataArray(np.stack(bands).astype(np.float64), dims=("band", "y", "x"),
-                                     coords={"band": np.arange(1, len(bands) + 1)}))
 
 
 @pytest.fixture
@@ -64,7 +56,7 @@ def test_signed_view_zenith_by_sun_and_by_track():
         signed_view_zenith(vza, vaa, by="track")
 
 
-def test_linear_scene_gives_its_slope_exactly_and_a_flat_one_slope_0_ratio_1(geometry, class_map):
+def test_linear_scene_gives_its_slope_exactly_and_a_flat_one_slope_0_ratio_1(geometry, class_map, make_cube):
     signed = signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"])
     # Closed form: R = a + b * signed vza per class and band -> the least-squares slope is b.
     a = {1: (0.2, 0.05), 2: (0.4, 0.3)}
@@ -74,7 +66,7 @@ def test_linear_scene_gives_its_slope_exactly_and_a_flat_one_slope_0_ratio_1(geo
         for band in range(2):
             before[band][class_map == class_id] = (a[class_id][band] + b[class_id][band] * signed)[class_map == class_id]
     after = np.stack([np.where(class_map == 1, a[1][band], a[2][band]) for band in range(2)])  # flat
-    result = assess_view_angles(_cube(*before), _cube(*after), class_map, geometry["vza"], geometry["vaa"],
+    result = assess_view_angles(make_cube(*before), make_cube(*after), class_map, geometry["vza"], geometry["vaa"],
                                 geometry["saa"], options=ViewAngleOptions(class_names={1: "tile"}))
     np.testing.assert_allclose(result["slope"].sel(stage="before").values,
                                [[b[1][0], b[2][0]], [b[1][1], b[2][1]]], rtol=1e-10)
@@ -145,19 +137,13 @@ def test_bad_input_is_one_clear_error(geometry, class_map):
                            options=ViewAngleOptions(bin_width=0))
 
 
-def _shifted(array: xr.DataArray, columns: int) -> xr.DataArray:
-    """The array's grid moved east by ``columns`` pixels (10 m)."""
-    moved = array.assign_coords(x=array["x"] + 10.0 * columns)
-    return moved.rio.write_transform(moved.rio.transform(recalc=True))
-
-
-def test_overlap_metrics_against_numpy():
+def test_overlap_metrics_against_numpy(make_cube, shifted):
     rng = np.random.default_rng(2)
-    this_before = _cube(*rng.uniform(0.1, 0.4, (2, NY, NX)))
-    this_after = _cube(*rng.uniform(0.1, 0.4, (2, NY, NX)))
+    this_before = make_cube(*rng.uniform(0.1, 0.4, (2, NY, NX)))
+    this_after = make_cube(*rng.uniform(0.1, 0.4, (2, NY, NX)))
     shift = 15
-    other_before = _shifted(_cube(*rng.uniform(0.1, 0.4, (2, NY, NX))), shift)
-    other_after = _shifted(_cube(*rng.uniform(0.1, 0.4, (2, NY, NX))), shift)
+    other_before = shifted(make_cube(*rng.uniform(0.1, 0.4, (2, NY, NX))), shift)
+    other_after = shifted(make_cube(*rng.uniform(0.1, 0.4, (2, NY, NX))), shift)
     other_after.values[0, 2, 1] = np.nan  # left out of every metric
     result = assess_overlap(this_before, this_after, other_before.chunk(8), other_after)
     # independent: the overlap is this line's columns shift.. and the other's 0..NX-shift
@@ -174,42 +160,12 @@ def test_overlap_metrics_against_numpy():
     json.dumps(report, allow_nan=False)
     assert report["pixels"] == NY * (NX - shift) - 1
     with pytest.raises(InputError, match="do not overlap"):
-        assess_overlap(this_before, this_after, _shifted(other_before, NX), _shifted(other_after, NX))
+        assess_overlap(this_before, this_after, shifted(other_before, NX), shifted(other_after, NX))
 
 
 # ------------------------------------------------------------------- leave one line out
-KERNEL_TABLE = ParameterTable(classes=[
-    {"id": 1, "name": "grass", "model": "ross_thick_li_sparse",
-     "params": {"f_iso": [0.03, 0.12], "f_vol": [0.02, 0.09], "f_geo": [0.006, 0.02]}, "wavelengths": [560, 860]},
-    {"id": 2, "name": "soil", "model": "ross_thick_li_sparse",
-     "params": {"f_iso": [0.05, 0.07], "f_vol": [0.005, 0.007], "f_geo": [0.015, 0.02]}, "wavelengths": [560, 860]},
-])
-
-
-def _lines(n_lines=3, ny=48, nx=64, shift=24):
-    """Lines flown north side by side over one ground (classes, albedo texture), each with its own
-    view geometry across its swath, rendered with KERNEL_TABLE (brdfcorr.testing.render)."""
-    rng = np.random.default_rng(3)
-    width = nx + shift * (n_lines - 1)
-    ground_classes = np.kron(rng.choice([1, 2], size=(ny // 4, -(-width // 4))), np.ones((4, 4), int))[:ny, :width]
-    ground_brightness = rng.uniform(0.8, 1.2, (ny, width))  # albedo texture
-    angles = synthetic_angles(ny, nx, sza=(35.0, 35.0), vza_max=30.0, saa=120.0, dtype=np.float64)
-    lines = []
-    for index in range(n_lines):
-        window = slice(index * shift, index * shift + nx)
-        classes, brightness = ground_classes[:, window], ground_brightness[:, window]
-        cube = render(KERNEL_TABLE, classes, **angles, wavelengths=[560.0, 860.0], brightness=brightness)
-        reflectance = _shifted(_cube(*(np.pi * cube)).assign_coords(wavelength=("band", [560.0, 860.0])),
-                               index * shift)
-        layers = {name: _shifted(georeference(xr.DataArray(value, dims=("y", "x"))), index * shift)
-                  for name, value in angles.items()}
-        class_map = _shifted(georeference(xr.DataArray(classes, dims=("y", "x"))), index * shift)
-        lines.append(Line(f"line{index + 1}", reflectance, class_map, layers))
-    return lines
-
-
-def test_leave_one_line_out_improves_the_held_out_metrics():
-    lines = _lines()
+def test_leave_one_line_out_improves_the_held_out_metrics(make_lines):
+    lines = make_lines()
     results = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference={"sza": 35.0, "vza": 0.0}),
                                  view_options=ViewAngleOptions(class_names={1: "grass", 2: "soil"}))
     assert [r.name for r in results] == ["line1", "line2", "line3"]
@@ -229,9 +185,9 @@ def test_leave_one_line_out_improves_the_held_out_metrics():
     assert set(report["lines"][1]["overlaps"]) == {"line1", "line3"}
 
 
-def test_figures_are_drawn_and_written(geometry, class_map, tmp_path):
+def test_figures_are_drawn_and_written(geometry, class_map, tmp_path, make_cube, shifted):
     rng = np.random.default_rng(4)
-    before = _cube(*rng.uniform(0.1, 0.4, (2, NY, NX))).assign_coords(wavelength=("band", [560.0, 860.0]))
+    before = make_cube(*rng.uniform(0.1, 0.4, (2, NY, NX))).assign_coords(wavelength=("band", [560.0, 860.0]))
     after = before * 1.0
     view = assess_view_angles(before, after, class_map, geometry["vza"], geometry["vaa"], geometry["saa"],
                               options=ViewAngleOptions(class_names={1: "roof_tile", 2: "grass"}))
@@ -241,7 +197,7 @@ def test_figures_are_drawn_and_written(geometry, class_map, tmp_path):
     assert "560 nm" in left.get_title()  # the default band: nearest 660 nm (|560 - 660| < |860 - 660|)
     labels = [text.get_text() for text in figure.legends[0].get_texts()]
     assert "roof_tile before" in labels and "grass after" in labels
-    overlap = assess_overlap(before, after, _shifted(before, 10), _shifted(after, 10))
+    overlap = assess_overlap(before, after, shifted(before, 10), shifted(after, 10))
     assert overlap_figure(overlap).axes[0].get_xlabel().endswith("[reflectance, 1]")
     written = write_assessment_figures(Assessment({}, view, overlap), tmp_path / "figures")
     assert [p.name for p in written] == ["assess_profiles.png", "assess_overlap.png"]

@@ -8,7 +8,6 @@ import pytest
 import rasterio
 import xarray as xr
 from click.testing import CliRunner
-from test_pipeline import make_scenes, write_chain
 
 from brdfcorr import io
 from brdfcorr.cli import main
@@ -99,7 +98,7 @@ def _exit_codes(chain):
     return validate, run
 
 
-def test_validate_refuses_a_glob_matching_nothing_as_run_does(tmp_path):
+def test_validate_refuses_a_glob_matching_nothing_as_run_does(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=1)
     for images in (["scenes/*/imagee.tif"], ["scenes/*/image.tif", "scenes/*/other.tif"]):
         chain = write_chain(tmp_path, inputs={"images": images, "angles": {"path": "{dir}/angles.tif"},
@@ -110,7 +109,7 @@ def test_validate_refuses_a_glob_matching_nothing_as_run_does(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_validate_warns_only_for_a_folder_not_there_yet(tmp_path):
+def test_validate_warns_only_for_a_folder_not_there_yet(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path, inputs={"images": ["later/*/image.tif"], "angles": {"path": "{dir}/angles.tif"},
                                           "classes": "{dir}/classes.tif"})
@@ -119,7 +118,7 @@ def test_validate_warns_only_for_a_folder_not_there_yet(tmp_path):
     assert "warning" in result.output and "matches no file" in result.output
 
 
-def test_quicklook_bands_beyond_the_image_are_refused_by_validate_and_run(tmp_path):
+def test_quicklook_bands_beyond_the_image_are_refused_by_validate_and_run(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=2)  # 4-band images
     chain = write_chain(tmp_path, steps={"correct": {"limits": None}, "quicklook": {"bands": [5, 3, 2]}})
     validate, run = _exit_codes(chain)

@@ -1,5 +1,5 @@
 """Tests of ``brdfcorr assess-lines`` and :func:`brdfcorr.workflow.assessment.leave_one_line_out_files`:
-three overlapping lines rendered with a known kernel model (the builder of tests/test_assess.py),
+three overlapping lines rendered with a known kernel model (``make_lines`` of tests/conftest.py),
 written as GeoTIFFs; the CLI's JSON equals the library's numbers, the held-out slopes fall."""
 
 from __future__ import annotations
@@ -9,7 +9,6 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from test_assess import _lines
 
 from brdfcorr.analysis.assess import HoldoutFit, ViewAngleOptions, leave_one_line_out, leave_one_line_out_report
 from brdfcorr.cli import main
@@ -23,8 +22,8 @@ REFERENCE = {"sza": 35.0, "vza": 0.0}
 
 
 @pytest.fixture(scope="module")
-def lines():
-    return _lines()
+def lines(make_lines):
+    return make_lines()
 
 
 @pytest.fixture(scope="module")

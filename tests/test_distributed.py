@@ -29,10 +29,8 @@ def patient_connections(monkeypatch):
     longer than the library's timeout for unreachable schedulers (tests of that set their own)."""
     monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 300)
 
-from test_pipeline import make_scenes, write_chain  # noqa: E402
 
-
-def test_distributed_matches_local(tmp_path):
+def test_distributed_matches_local(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=3)
     chain = write_chain(tmp_path, steps={"correct": {"limits": [0.95, 1.05]}, "quicklook": {}})
     local = run_chain(load_config(chain, {"outputs.directory": "local"}))
@@ -61,7 +59,7 @@ def test_distributed_matches_local(tmp_path):
     assert any(s["qa"]["limited"] for s in local.scenes)  # the limits were exercised
 
 
-def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch, make_scenes, write_chain):
     from brdfcorr.errors import InputError
 
     monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 1)  # seconds; nothing listens on port 9

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 import rasterio
 from click.testing import CliRunner
-from test_pipeline import make_scenes, write_chain
 
 from brdfcorr.cli import main
 from brdfcorr.io import band_wavelengths, open_image
@@ -96,7 +95,7 @@ def test_envi_without_extension_writes_name_and_name_hdr(files, tmp_path):
     assert not [p for p in tmp_path.iterdir() if "partial" in p.name]
 
 
-def test_chain_writes_envi_outputs(tmp_path):
+def test_chain_writes_envi_outputs(tmp_path, make_scenes, write_chain):
     scenes = make_scenes(tmp_path, count=2)
     chain = write_chain(tmp_path, outputs={"directory": "out", "format": "ENVI",
                                            "naming": "{parent}_brdf.img", "qa_naming": "{parent}_qa.tif"})

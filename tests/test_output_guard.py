@@ -23,7 +23,6 @@ import rasterio
 from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_pipeline import make_scenes, read, write_chain
 
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError, OutputError
@@ -128,7 +127,7 @@ def test_chain_report_on_a_hard_link_of_an_input(demo):
              r"of scene line01 \S*scene/line01_angles\.tif\)$")
 
 
-def test_chain_output_on_a_symbolic_link_to_the_parameter_table(tmp_path):
+def test_chain_output_on_a_symbolic_link_to_the_parameter_table(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path)
     (tmp_path / "out").mkdir()
@@ -137,7 +136,7 @@ def test_chain_output_on_a_symbolic_link_to_the_parameter_table(tmp_path):
                                        r"\(the same file as parameters\.table \S*params\.yaml\)$")
 
 
-def test_chain_output_that_is_a_directory(tmp_path):
+def test_chain_output_that_is_a_directory(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path)
     (tmp_path / "out" / "run_report.json").mkdir(parents=True)
@@ -343,7 +342,7 @@ def test_guard_on_devices_and_missing_paths(tmp_path):
 
 
 # --------------------------------------------------------------------------- paths as given
-def test_scene_given_as_a_link_reads_the_files_beside_the_link(tmp_path):
+def test_scene_given_as_a_link_reads_the_files_beside_the_link(tmp_path, make_scenes, write_chain, read):
     """``{dir}`` of an image given as a symbolic link is the link's directory: its class map and
     angles are the ones beside the link, and the messages show the link's path."""
     scenes = make_scenes(tmp_path, count=1)
@@ -383,7 +382,7 @@ def _actions(chain, *options) -> tuple[dict[str, str], dict[str, str], str]:
     return planned, status, dry.output
 
 
-def test_resume_redoes_what_changed_and_skips_the_rest(tmp_path):
+def test_resume_redoes_what_changed_and_skips_the_rest(tmp_path, make_scenes, write_chain, read):
     scenes = make_scenes(tmp_path, count=2)
     chain = write_chain(tmp_path)
     out = tmp_path / "out"
@@ -416,7 +415,7 @@ def test_resume_redoes_what_changed_and_skips_the_rest(tmp_path):
     assert planned == {"line0_image": "run", "line1_image": "run"} and "steps.correct.limits changed" in output
 
 
-def test_fingerprint_is_recorded_with_its_digest(tmp_path):
+def test_fingerprint_is_recorded_with_its_digest(tmp_path, make_scenes, write_chain, read):
     make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path)
     plan = plan_run(load_config(chain))
@@ -427,7 +426,7 @@ def test_fingerprint_is_recorded_with_its_digest(tmp_path):
         assert tags["brdf_fingerprint"] == hashlib.sha256(plan.scenes[0].fingerprint.encode()).hexdigest()
 
 
-def test_resume_removes_partial_files_of_its_outputs_only(tmp_path):
+def test_resume_removes_partial_files_of_its_outputs_only(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path)
     out = tmp_path / "out"

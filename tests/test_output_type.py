@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 import rasterio
 from click.testing import CliRunner
-from test_scaled_inputs import _store
 
 from brdfcorr.cli import main
 from brdfcorr.correction import QA
@@ -31,8 +30,8 @@ def paths(tmp_path_factory):
     return paths
 
 
-def test_int16_output_keeps_the_input_storage(paths, tmp_path):
-    image = _store(paths["image"], tmp_path / "int16.tif", "int16", 1e-4, 0.0, -9999)
+def test_int16_output_keeps_the_input_storage(paths, tmp_path, store):
+    image = store(paths["image"], tmp_path / "int16.tif", "int16", 1e-4, 0.0, -9999)
     _correct(paths, image, tmp_path / "float.tif")
     _correct(paths, image, tmp_path / "int.tif", "--output-type", "input", "--qa", tmp_path / "qa.tif")
     with rasterio.open(tmp_path / "float.tif") as reference, rasterio.open(tmp_path / "int.tif") as stored:
@@ -49,7 +48,7 @@ def test_int16_output_keeps_the_input_storage(paths, tmp_path):
         assert not (qa.read(1) & QA.NODATA)[valid.all(axis=0)].any()  # nothing out of range here
 
 
-def test_values_beyond_the_type_are_nodata_and_flagged(paths, tmp_path):
+def test_values_beyond_the_type_are_nodata_and_flagged(paths, tmp_path, store):
     # uint8 at 0.004 per count (255 = nodata): a bright scene whose corrected values exceed 254 counts
     # where the factor is above 1 in some band.
     with rasterio.open(paths["image"]) as dataset:
@@ -60,7 +59,7 @@ def test_values_beyond_the_type_are_nodata_and_flagged(paths, tmp_path):
     with rasterio.open(bright, "w", **profile) as dataset:
         dataset.write(values.astype(np.float32))
         dataset.descriptions = descriptions
-    image = _store(bright, tmp_path / "uint8.tif", "uint8", 0.004, 0.0, 255)
+    image = store(bright, tmp_path / "uint8.tif", "uint8", 0.004, 0.0, 255)
     _correct(paths, image, tmp_path / "float.tif")
     _correct(paths, image, tmp_path / "int.tif", "--output-type", "input", "--qa", tmp_path / "qa.tif")
     with rasterio.open(tmp_path / "float.tif") as reference, rasterio.open(tmp_path / "int.tif") as stored, \

@@ -12,61 +12,12 @@ import yaml
 from click.testing import CliRunner
 
 from brdfcorr.cli import EXIT_SCENES_FAILED, main
-from brdfcorr.testing import example_table, render, synthetic_scene, write_scene
+from brdfcorr.testing import example_table, synthetic_scene, write_scene
 from brdfcorr.workflow.chain import build_table, plan_run, run_chain
 from brdfcorr.workflow.config import load_config
 
-REFERENCE = {"sza": 35.0, "vza": 0.0, "raa": 0.0}
 
-
-def make_scenes(root, count=3, ny=32, nx=48):
-    """Scenes rendered from the example table (testing.synthetic_scene), one directory each."""
-    scenes = {}
-    for index in range(count):
-        scene = synthetic_scene(ny, nx, seed=index)
-        scenes[f"line{index}"] = (scene, write_scene(root / "scenes" / f"line{index}", scene))
-    return scenes
-
-
-def write_chain(root, **changes):
-    document = {
-        "inputs": {"images": ["scenes/*/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
-                   "classes": "{dir}/classes.tif"},
-        "parameters": {"table": "params.yaml"},
-        "reference": REFERENCE,
-        "steps": {"correct": {"limits": None}},
-        "outputs": {"directory": "out", "naming": "{parent}_brdf.tif", "qa_naming": "{parent}_qa.tif",
-                    "quicklook_naming": "{parent}.png"},
-        "engine": {"scheduler": "threads", "workers": 2, "chunk": 16},
-    }
-    for key, value in changes.items():
-        section, _, name = key.partition("__")
-        if name:
-            document.setdefault(section, {})[name] = value
-        else:
-            document[section] = value
-    example_table().save(root / "params.yaml")
-    path = root / "chain.yaml"
-    path.write_text(yaml.safe_dump(document))
-    return path
-
-
-def expected(scene):
-    """Closed form (brdfcorr.testing): the scene rendered at the reference geometry."""
-    shape = scene["classes"].shape
-    return render(
-        example_table(), scene["classes"].values, np.full(shape, REFERENCE["sza"]), np.zeros(shape),
-        np.zeros(shape), np.zeros(shape), wavelengths=scene["reflectance"]["wavelength"].values.tolist(),
-        brightness=scene["brightness"].values,
-    )
-
-
-def read(path):
-    with rasterio.open(path) as dataset:
-        return dataset.read(), dataset.tags()
-
-
-def test_run_writes_closed_form_outputs_and_report(tmp_path):
+def test_run_writes_closed_form_outputs_and_report(tmp_path, make_scenes, write_chain, expected, read):
     scenes = make_scenes(tmp_path, count=2)
     chain = write_chain(tmp_path, steps={"correct": {"limits": None}, "quicklook": {"bands": [3, 2, 1]}})
     result = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
@@ -91,7 +42,7 @@ def test_run_writes_closed_form_outputs_and_report(tmp_path):
     assert report["timings"]["total"] >= report["timings"]["scenes"]
 
 
-def test_failure_isolation_and_resume(tmp_path):
+def test_failure_isolation_and_resume(tmp_path, make_scenes, write_chain, expected, read):
     scenes = make_scenes(tmp_path, count=3)
     bad_angles = scenes["line1"][1]["angles"]
     kept = bad_angles.read_bytes()
@@ -131,7 +82,7 @@ def test_failure_isolation_and_resume(tmp_path):
     assert result.exit_code == 0 and good.stat().st_mtime_ns != stamp
 
 
-def test_missing_input_and_grid_mismatch_are_per_scene_failures(tmp_path):
+def test_missing_input_and_grid_mismatch_are_per_scene_failures(tmp_path, make_scenes, write_chain):
     scenes = make_scenes(tmp_path, count=3)
     os.unlink(scenes["line0"][1]["classes"])
     small = synthetic_scene(16, 16, seed=5)
@@ -148,7 +99,7 @@ def test_missing_input_and_grid_mismatch_are_per_scene_failures(tmp_path):
     assert not report.ok and report.n_failed == 2
 
 
-def test_dry_run_lists_and_writes_nothing(tmp_path):
+def test_dry_run_lists_and_writes_nothing(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=2)
     chain = write_chain(tmp_path)
     result = CliRunner().invoke(main, ["run", str(chain), "--dry-run"])
@@ -159,7 +110,7 @@ def test_dry_run_lists_and_writes_nothing(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_bad_config_and_fatal_errors_exit_2(tmp_path):
+def test_bad_config_and_fatal_errors_exit_2(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path, engine={"scheduler": "threads", "workers": 0})
     result = CliRunner().invoke(main, ["run", str(chain)])
@@ -173,7 +124,7 @@ def test_bad_config_and_fatal_errors_exit_2(tmp_path):
     assert result.exit_code == 2 and "would overwrite an input" in result.output
 
 
-def test_imagery_fit_step(tmp_path):
+def test_imagery_fit_step(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=2, ny=48, nx=64)
     chain = write_chain(
         tmp_path,
@@ -202,7 +153,7 @@ def test_imagery_fit_step(tmp_path):
     assert again.fit == {"source": "imagery", "reused": str(tmp_path / "out" / "fitted_params.yaml")}
 
 
-def test_goniometer_fit_step(tmp_path):
+def test_goniometer_fit_step(tmp_path, make_scenes, write_chain):
     from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
     from brdfcorr.models.materials import load_material
 
@@ -222,7 +173,7 @@ def test_goniometer_fit_step(tmp_path):
     assert table[0]["name"] == "tile_fit" and table[1]["name"] == "grass"  # fit replaced class 1 only
 
 
-def test_processes_engine_matches_threads(tmp_path):
+def test_processes_engine_matches_threads(tmp_path, make_scenes, write_chain, read):
     make_scenes(tmp_path, count=2)
     chain = write_chain(tmp_path)
     threads = run_chain(load_config(chain, {"outputs.directory": "threads"}))
@@ -235,7 +186,7 @@ def test_processes_engine_matches_threads(tmp_path):
     assert [r["qa"] for r in threads.scenes] == [r["qa"] for r in processes.scenes]
 
 
-def test_resume_redoes_outputs_of_another_parameter_table(tmp_path):
+def test_resume_redoes_outputs_of_another_parameter_table(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=2)
     chain = write_chain(tmp_path)
     assert run_chain(load_config(chain)).ok
@@ -259,7 +210,7 @@ def _dry_run_actions(chain):
     return {str(scene.image): scene.action for scene in plan.scenes}, result.output
 
 
-def test_dry_run_and_run_agree_on_stale_scenes(tmp_path):
+def test_dry_run_and_run_agree_on_stale_scenes(tmp_path, make_scenes, write_chain):
     """The parameter table changed after a run with ``outputs.existing: skip``: the dry run says
     what the run then does with every scene (redo outputs of another table, skip the others)."""
     make_scenes(tmp_path, count=3)
@@ -288,7 +239,7 @@ def test_dry_run_and_run_agree_on_stale_scenes(tmp_path):
     assert run_chain(load_config(chain)).n_skipped == 3
 
 
-def test_dry_run_and_run_agree_when_the_fit_makes_a_new_table(tmp_path):
+def test_dry_run_and_run_agree_when_the_fit_makes_a_new_table(tmp_path, make_scenes, write_chain):
     """Complete outputs, but the fitted table of the earlier run is gone: the fit runs again and
     its table is not known before the run, so the dry run and the run both redo the scenes."""
     from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
@@ -311,7 +262,7 @@ def test_dry_run_and_run_agree_when_the_fit_makes_a_new_table(tmp_path):
     assert report.n_ok == 2 and report.n_skipped == 0 and "reused" not in report.fit
 
 
-def test_sensor_angle_source_solar(tmp_path):
+def test_sensor_angle_source_solar(tmp_path, make_scenes, write_chain, read):
     """The ``solar`` kind (sun from time and coordinates, constant view) gives the same output as
     a geotiff of the same angles computed beforehand with brdfcorr.io.sensors.read_angles."""
     import xarray as xr
@@ -346,7 +297,7 @@ def test_sensor_angle_source_solar(tmp_path):
     assert plan.scenes[0].angles == str(tmp_path / "scenes" / "line0" / "obs")
 
 
-def test_progress_bar_and_events(tmp_path):
+def test_progress_bar_and_events(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=2)
     chain = write_chain(tmp_path)
     events = []
@@ -369,7 +320,7 @@ def test_progress_bar_and_events(tmp_path):
     assert "task" in result.stderr  # and the bar of the scene's tasks shows below it
 
 
-def test_chain_and_correct_choose_the_tile_size_by_the_same_band_count_rule(tmp_path):
+def test_chain_and_correct_choose_the_tile_size_by_the_same_band_count_rule(tmp_path, write_chain):
     # 100 bands: a 256 x 256 chunk of all bands would be 26 MB, so both choose 128 (auto_chunk:
     # the largest of 512, 256, 128, 64 whose chunk of all bands holds at most 16 MB as float32).
     import rasterio

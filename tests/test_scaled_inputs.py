@@ -29,39 +29,16 @@ STORAGE = {
     "int16": ("int16", 1e-4, 0.0, -9999),
     "landsat_c2": ("uint16", 2.75e-5, -0.2, 0),
 }
-NODATA_PIXELS = (slice(None), 0, slice(0, 5))  # written as nodata in every stored image
-
-
-def _store(source, target, dtype, scale, offset, nodata, *, tag=True, scales=None, offsets=None):
-    """Write the float image ``source`` as counts (all pixels of NODATA_PIXELS nodata); GDAL scale
-    and offset tagged (``tag``), per band where ``scales``/``offsets`` are given."""
-    with rasterio.open(source) as dataset:
-        profile, values, descriptions = dataset.profile, dataset.read(), dataset.descriptions
-    n_bands = values.shape[0]
-    scales = np.full(n_bands, scale) if scales is None else np.asarray(scales, float)
-    offsets = np.full(n_bands, offset) if offsets is None else np.asarray(offsets, float)
-    counts = np.round((values - offsets[:, None, None]) / scales[:, None, None])
-    if np.dtype(dtype).kind in "iu":
-        info = np.iinfo(dtype)
-        assert counts.min() > info.min and counts.max() < info.max  # the scene fits the storage
-    counts[NODATA_PIXELS] = nodata
-    profile.update(dtype=dtype, nodata=nodata)
-    with rasterio.open(target, "w", **profile) as dataset:
-        dataset.write(counts.astype(dtype))
-        dataset.descriptions = descriptions  # the wavelengths
-        if tag:
-            dataset.scales, dataset.offsets = tuple(scales), tuple(offsets)
-    return target
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
+def files(tmp_path_factory, store):
     directory = tmp_path_factory.mktemp("scaled")
     paths = write_scene(directory, synthetic_scene(ny=40, nx=48))
     paths["params"] = example_table().save(directory / "params.yaml")
     for name, storage in STORAGE.items():
-        paths[name] = _store(paths["image"], directory / f"{name}.tif", *storage)
-        paths[f"{name}_untagged"] = _store(paths["image"], directory / f"{name}_untagged.tif", *storage, tag=False)
+        paths[name] = store(paths["image"], directory / f"{name}.tif", *storage)
+        paths[f"{name}_untagged"] = store(paths["image"], directory / f"{name}_untagged.tif", *storage, tag=False)
     return paths
 
 
@@ -94,25 +71,25 @@ def _one_error_line(result) -> str:
 
 # ---------------------------------------------------------------------------------- open_image
 @pytest.mark.parametrize("name", list(STORAGE))
-def test_open_image_applies_the_file_scale_and_offset(files, name):
+def test_open_image_applies_the_file_scale_and_offset(files, name, nodata_pixels):
     _, scale, offset, _ = STORAGE[name]
     image = rasters.open_image(files[name], chunks=16)
     with rasterio.open(files["image"]) as dataset:
         truth = dataset.read()
     values = image.values
     assert image.dtype == np.float32
-    assert np.isnan(values[NODATA_PIXELS]).all()
+    assert np.isnan(values[nodata_pixels]).all()
     valid = np.isfinite(values)
-    assert valid.sum() == values.size - values[NODATA_PIXELS].size
+    assert valid.sum() == values.size - values[nodata_pixels].size
     np.testing.assert_allclose(values[valid], truth[valid], rtol=0, atol=scale / 2 + 1e-7)  # + float32 rounding
     assert image.attrs["brdf_input_scale"] == scale and image.attrs["brdf_input_offset"] == offset
     assert "scale_factor" not in image.attrs and "add_offset" not in image.attrs
     np.testing.assert_allclose(image["wavelength"], [480, 560, 660, 830])
 
 
-def test_open_image_per_band_scales_and_given_values(files, tmp_path):
+def test_open_image_per_band_scales_and_given_values(files, tmp_path, store):
     scales, offsets = [1e-4, 2e-4, 1e-4, 5e-5], [0.0, -0.1, 0.0, 0.05]
-    path = _store(files["image"], tmp_path / "bands.tif", "int16", None, None, -9999, scales=scales, offsets=offsets)
+    path = store(files["image"], tmp_path / "bands.tif", "int16", None, None, -9999, scales=scales, offsets=offsets)
     with rasterio.open(files["image"]) as dataset:
         truth = dataset.read()
     image = rasters.open_image(path)  # rioxarray applies each band's own scale and offset
@@ -133,14 +110,14 @@ def test_open_image_per_band_scales_and_given_values(files, tmp_path):
 
 
 @pytest.mark.parametrize(("dtype", "expected"), [("int32", np.float32), ("float64", np.float64)])
-def test_open_image_gives_float32_unless_the_file_is_float64(files, tmp_path, dtype, expected):
-    path = _store(files["image"], tmp_path / f"{dtype}.tif", dtype, 1e-4, 0.0, -9999)
+def test_open_image_gives_float32_unless_the_file_is_float64(files, tmp_path, dtype, expected, store):
+    path = store(files["image"], tmp_path / f"{dtype}.tif", dtype, 1e-4, 0.0, -9999)
     assert rasters.open_image(path).dtype == expected
 
 
 # ------------------------------------------------------------------------------------- correct
 @pytest.mark.parametrize("name", list(STORAGE))
-def test_correct_scaled_image_matches_the_float_image(files, tmp_path, name):
+def test_correct_scaled_image_matches_the_float_image(files, tmp_path, name, nodata_pixels):
     _, scale, offset, _ = STORAGE[name]
     reference, factor = _float_reference(files, tmp_path)
     corrected, written = _correct(files, files[name], tmp_path / "out.tif")
@@ -149,9 +126,9 @@ def test_correct_scaled_image_matches_the_float_image(files, tmp_path, name):
     # Reflectance factors, not counts: float32, no GDAL scale/offset, NaN nodata.
     assert written["dtypes"] == ("float32",) * 4 and np.isnan(written["nodata"])
     assert written["scales"] == (1.0,) * 4 and written["offsets"] == (0.0,) * 4
-    assert np.isnan(corrected[NODATA_PIXELS]).all()
+    assert np.isnan(corrected[nodata_pixels]).all()
     valid = np.ones(corrected.shape, bool)
-    valid[NODATA_PIXELS] = False
+    valid[nodata_pixels] = False
     assert np.isfinite(corrected[valid]).all()
     # Within the correction factor times half the quantization step (plus float32 rounding).
     tolerance = factor * scale / 2 * 1.001 + 1e-6
@@ -179,14 +156,14 @@ def test_given_scale_wins_over_the_tagged_one(files, tmp_path):
 
 # ---------------------------------------------------------------------------------- fit-classes
 @pytest.fixture(scope="module")
-def fit_files(tmp_path_factory):
+def fit_files(tmp_path_factory, store):
     """One Torrance-Sparrow class over a wider scene: a fit the data constrain."""
     directory = tmp_path_factory.mktemp("scaled_fit")
     table = ParameterTable(classes=[example_table()[1]])
     paths = write_scene(directory, synthetic_scene(ny=64, nx=96, table=table))
     for name, storage in STORAGE.items():
-        paths[name] = _store(paths["image"], directory / f"{name}.tif", *storage)
-    paths["int16_untagged"] = _store(paths["image"], directory / "int16_untagged.tif", *STORAGE["int16"], tag=False)
+        paths[name] = store(paths["image"], directory / f"{name}.tif", *storage)
+    paths["int16_untagged"] = store(paths["image"], directory / "int16_untagged.tif", *STORAGE["int16"], tag=False)
     with rasterio.open(paths["image"]) as dataset:
         paths["median"] = float(np.median(dataset.read()))
     return paths
@@ -246,16 +223,16 @@ def test_raw_counts_without_a_scale_are_one_error(files, tmp_path, command):
 
 
 @pytest.mark.parametrize("kind", ["reflectance x 10000 as float", "divisor scale tag"])
-def test_scaled_floats_and_divisor_tags_are_one_error_naming_scale(files, tmp_path, kind):
+def test_scaled_floats_and_divisor_tags_are_one_error_naming_scale(files, tmp_path, kind, store, nodata_pixels):
     # Reflectance x 10000 kept as float32 (HyTools, NEON, many ENVI cubes), and int16 counts whose
     # GDAL scale tag is the divisor 10000 (the MODIS HDF convention) instead of 0.0001: both would
     # be "corrected" into numbers 10^4 or 10^8 too large; each is refused before any output.
     if kind == "divisor scale tag":
-        image = _store(files["image"], tmp_path / "divisor.tif", "int16", 1e-4, 0.0, -9999, tag=False)
+        image = store(files["image"], tmp_path / "divisor.tif", "int16", 1e-4, 0.0, -9999, tag=False)
         with rasterio.open(image, "r+") as dataset:
             dataset.scales = [1e4] * dataset.count
     else:
-        image = _store(files["image"], tmp_path / "float_x10000.tif", "float32", 1e-4, 0.0, -9999, tag=False)
+        image = store(files["image"], tmp_path / "float_x10000.tif", "float32", 1e-4, 0.0, -9999, tag=False)
     for command in ("correct", "fit-classes"):
         output = tmp_path / ("out.tif" if command == "correct" else "params.yaml")
         result = (_invoke("correct", image, "--angles", files["angles"], "--classes", files["classes"],
@@ -270,7 +247,7 @@ def test_scaled_floats_and_divisor_tags_are_one_error_naming_scale(files, tmp_pa
     reference, _ = _float_reference(files, tmp_path)
     corrected, _ = _correct(files, image, tmp_path / "given.tif", "--scale", 1e-4)
     valid = np.isfinite(corrected)
-    assert np.isnan(corrected[NODATA_PIXELS]).all() and valid.sum() == corrected.size - corrected[NODATA_PIXELS].size
+    assert np.isnan(corrected[nodata_pixels]).all() and valid.sum() == corrected.size - corrected[nodata_pixels].size
     np.testing.assert_allclose(corrected[valid], reference[valid], rtol=1e-3, atol=2e-4)
 
 
