@@ -7,6 +7,8 @@ Lambertian albedo of 0.01, ``WORST_CASE_PARAMS``):
 quantity                                               paper 003    brdfcorr
 =====================================================  ===========  ===================
 worst case, (theta_i, theta_r) = (0, 65): relative     14 %         13.7 %
+worst case, zeniths <= 65, phi >= 90: relative         14 %         19.2 % (52.5, 65, 90)
+worst case, zeniths <= 65, all phi: relative           14 %         24.4 % (24, 65, 0)
 worst case, (0, 65): absolute [sr^-1]                  0.0019       0.00176
 worst case, zeniths <= 70, phi >= 90: relative         34 %         34.0 %
 worst case, zeniths <= 70: absolute [sr^-1]            0.0044       0.0041
@@ -57,6 +59,18 @@ def test_worst_case_at_nadir_illumination_65_deg():
     assert impact.where_relative == (0.0, 65.0, 180.0)
     assert impact.max_relative == pytest.approx(0.14, abs=0.005)
     assert impact.max_absolute == pytest.approx(0.0019, rel=0.1)
+
+
+def test_worst_case_up_to_65_deg_is_not_14_percent():
+    # Documented disagreement (docs/models.md): the paper states 14 % as the maximum up to 65 deg;
+    # the same model gives 13.7 % at (0, 65, 180) (above) but 19.2 % over phi >= 90 and 24.4 %
+    # over all azimuths (backscatter), on the 0.5 deg grid.
+    forward = shadowing_impact(WORST_CASE_PARAMS, max_zenith=65.0, phi_range=(90.0, 180.0), step=0.5)
+    assert forward.max_relative == pytest.approx(0.192, abs=5e-4)
+    assert forward.where_relative == (52.5, 65.0, 90.0)
+    everywhere = shadowing_impact(WORST_CASE_PARAMS, max_zenith=65.0, step=0.5)
+    assert everywhere.max_relative == pytest.approx(0.244, abs=5e-4)
+    assert everywhere.where_relative == (24.0, 65.0, 0.0)
 
 
 def test_worst_case_up_to_70_deg_forward_half():

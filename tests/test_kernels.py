@@ -3,6 +3,7 @@ implementation, properties over the domain, array kinds, invalid input."""
 
 import math
 import warnings
+from decimal import Decimal, getcontext, localcontext
 
 import dask.array as da
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 import xarray as xr
 from hypothesis import given
 from hypothesis import strategies as st
+from scipy.optimize import brentq
 
 from brdfcorr.errors import ParameterError, UnknownNameError
 from brdfcorr.geometry import ScatteringGeometry
@@ -215,6 +217,157 @@ def test_ross_thick_has_no_hot_spot_peak_of_its_own():
     assert signed[np.argmax(values)] == pytest.approx(89.0)
     slope = (ross_thick(30, 30.001, 0) - ross_thick(30, 29.999, 0)) / math.radians(0.002)
     assert slope == pytest.approx(math.pi / 8 * 0.5 / 0.75, rel=1e-5)
+
+
+def _decimal_pi():
+    # The pi() recipe of the Python documentation of the decimal module ("Recipes").
+    getcontext().prec += 2
+    three = Decimal(3)
+    lasts, t, s, n, na, d, da_ = 0, three, 3, 1, 0, 0, 24
+    while s != lasts:
+        lasts = s
+        n, na = n + na, na + 8
+        d, da_ = d + da_, da_ + 32
+        t = (t * n) / d
+        s += t
+    getcontext().prec -= 2
+    return +s
+
+
+def _decimal_series(x, first, power):
+    # sin (first = x, power = 1) and cos (first = 1, power = 0) by their Taylor series, as the
+    # sin() and cos() recipes of the decimal documentation.
+    getcontext().prec += 2
+    total, term, k, last = first, first, power, None
+    while total != last:
+        last = total
+        term = -term * x * x / ((k + 1) * (k + 2))
+        k += 2
+        total += term
+    getcontext().prec -= 2
+    return +total
+
+
+def _decimal_asin(x):
+    # asin x = sum (2n)! / (4^n (n!)^2 (2n + 1)) x^(2n + 1) after halving the angle down to
+    # |x| <= 1/2 (sin(a/2) = x / sqrt(2 (1 + sqrt(1 - x^2))) for x = sin a, 0 <= a <= pi/2).
+    if x > Decimal("0.5"):
+        return 2 * _decimal_asin(x / (2 * (1 + (1 - x * x).sqrt())).sqrt())
+    total, power, coefficient, n, last = x, x, Decimal(1), 0, None
+    while total != last:
+        last = total
+        n += 1
+        power *= x * x
+        coefficient *= Decimal(2 * n - 1) / (2 * n)
+        total += coefficient * power / (2 * n + 1)
+    return total
+
+
+def _li_sparse_equal_zeniths_decimal(theta_deg, phi_deg):
+    """Li-Sparse-R (b/r = 1, h/b = 2) at ti = tv = theta in 40-digit decimal arithmetic, from the
+    closed form of the kernel at equal zeniths, written without 1 - cos phi:
+
+        D^2 = 2 tan^2 theta (1 - cos phi) = 4 tan^2 theta sin^2(phi/2),   tan ti tan tv sin phi = tan^2 theta sin phi
+        cos t = min(1, 2 sqrt(D^2 + tan^4 theta sin^2 phi) / (2 sec theta)),  O = (t - sin t cos t) 2 sec theta / pi
+        (1 + cos xi') sec^2 theta / 2 = (2 - 2 sin^2 theta sin^2(phi/2)) sec^2 theta / 2 = sec^2 theta - tan^2 theta sin^2(phi/2)
+        K = O - 2 sec theta + sec^2 theta - tan^2 theta sin^2(phi/2)
+    """
+    with localcontext() as context:
+        context.prec = 40
+        pi = _decimal_pi()
+        theta, phi = Decimal(theta_deg) * pi / 180, Decimal(phi_deg) * pi / 180
+        sin_t, cos_t = _decimal_series(theta, theta, 1), _decimal_series(theta, Decimal(1), 0)
+        tan, secant = sin_t / cos_t, 1 / cos_t
+        half = _decimal_series(phi / 2, phi / 2, 1) ** 2  # sin^2(phi / 2)
+        sin_phi = _decimal_series(phi, phi, 1)
+        cos_shadow = min(Decimal(1), 2 * (4 * tan**2 * half + tan**4 * sin_phi**2).sqrt() / (2 * secant))
+        t = pi / 2 - _decimal_asin(cos_shadow)
+        overlap = (t - (1 - cos_shadow**2).sqrt() * cos_shadow) * 2 * secant / pi
+        return overlap - 2 * secant + secant**2 - tan**2 * half
+
+
+@pytest.mark.parametrize("theta", [5.0, 10.0, 30.0, 45.0, 60.0, 75.0])
+def test_li_sparse_next_to_the_hot_spot_equals_a_40_digit_evaluation(theta):
+    # At phi = 1e-6 deg, 1 - cos phi = 1.5e-16 is below the spacing of doubles near 1: formed by
+    # subtraction it rounded to 1.1e-16 and Li-Sparse came out 7.4e-8 (theta = 5) to 2.6e-10
+    # (theta = 75) too high. brdfcorr forms it as 2 sin^2(phi/2); the reference is the closed form
+    # above in decimal arithmetic (Python's decimal module, 40 digits; pi, sin and cos after the
+    # recipes of its documentation). The reference itself equals the kernel at phi = 0 (the closed
+    # form sec(sec - 1)) and at phi = 20 deg, where doubles lose nothing.
+    for phi in ("0", "20"):
+        reference = float(_li_sparse_equal_zeniths_decimal(str(theta), phi))
+        assert li_sparse(theta, theta, float(phi)) == pytest.approx(reference, rel=1e-13)
+    assert float(_li_sparse_equal_zeniths_decimal(str(theta), "0")) == pytest.approx(sec(theta) * (sec(theta) - 1), rel=1e-13)
+    reference = _li_sparse_equal_zeniths_decimal(str(theta), "1e-6")
+    assert li_sparse(theta, theta, 1e-6) == pytest.approx(float(reference), rel=1e-12)
+
+
+def test_ross_thick_falls_with_phi_only_while_the_phase_angle_is_below_90_deg():
+    # The phase term (pi/2 - xi) cos xi + sin xi has the derivative -(pi/2 - xi) sin xi: it falls up
+    # to xi = 90 deg and rises after, and xi grows with phi from |ti - tv| to ti + tv. So for
+    # ti + tv <= 90 deg Ross-Thick falls monotonically over phi in [0, 180]; otherwise it is least
+    # where cos phi = -cot ti cot tv (xi = 90 deg) and rises from there to phi = 180.
+    phi = np.arange(0.0, 180.01, 0.25)
+    for ti in np.arange(0.0, 89.6, 2.5):
+        for tv in np.arange(0.0, 89.6, 2.5):
+            values = ross_thick(ti, tv, phi)
+            steps = np.diff(values)
+            tol = 1e-12 * (1.0 + np.abs(values[1:]))
+            if ti + tv <= 90.0:
+                assert np.all(steps <= tol), (ti, tv)
+                continue
+            least = math.degrees(math.acos(-1.0 / (math.tan(math.radians(ti)) * math.tan(math.radians(tv)))))
+            assert abs(phi[np.argmin(values)] - least) <= 0.25, (ti, tv)
+            falling, rising = phi[1:] <= least, phi[:-1] >= least
+            assert np.all(steps[falling] <= tol[falling]) and np.all(steps[rising] >= -tol[rising]), (ti, tv)
+    # The docstring's example: (60, 60), least at phi = acos(-1/3) = 109.47 deg.
+    assert math.degrees(math.acos(-1 / 3)) == pytest.approx(109.47, abs=0.005)
+    assert ross_thick(60, 60, 109.47) == pytest.approx(0.2146, abs=5e-5)
+    assert ross_thick(60, 60, 109) == pytest.approx(0.2146, abs=5e-5)
+    assert ross_thick(60, 60, 180) == pytest.approx(0.3424, abs=5e-5)
+    assert ross_thick(60, 60, 0) > ross_thick(60, 60, 180)  # still largest at phi = 0
+
+
+def test_li_sparse_hot_spot_is_the_principal_plane_maximum_only_up_to_36_87_deg():
+    # Near the hot spot on its far side (tv = ti + d, phi = 0, MODIS shape) cos t = sec ti d, so
+    # O = sec ti + sec ti tan ti d / 2 - (4/pi) sec^2 ti d and the slope is
+    # dK/dtv = sec ti (sec ti tan ti - tan ti / 2 - (4/pi) sec ti): positive from
+    # tan ti - sin ti / 2 = 4/pi, ti = 59.60 deg, where the hot spot stops being a local maximum.
+    local = brentq(lambda t: math.tan(t) - math.sin(t) / 2 - 4 / math.pi, 0.5, 1.4, xtol=1e-15)
+    assert math.degrees(local) == pytest.approx(59.60, abs=0.005)
+    for ti in (30.0, 45.0, 59.0, 60.0, 70.0):
+        t = math.radians(ti)
+        slope = sec(ti) * (sec(ti) * math.tan(t) - math.tan(t) / 2 - 4 / math.pi * sec(ti))
+        numeric = (li_sparse(ti, ti + 1e-6, 0.0) - li_sparse(ti, ti, 0.0)) / math.radians(1e-6)
+        assert numeric == pytest.approx(slope, rel=1e-4, abs=1e-6)
+        assert (slope > 0) == (ti > math.degrees(local))
+    # At phi = 0 and tv -> 90 deg the shadows no longer overlap (O = 0) and
+    # K = sec tv ((1 + cos(tv - ti)) sec ti / 2 - 1) - sec ti: the factor of sec tv tends to
+    # (1 + sin ti) / (2 cos ti) - 1, positive (K unbounded) for sin ti > 3/5, ti > 36.87 deg.
+    threshold = math.degrees(math.asin(0.6))
+    assert threshold == pytest.approx(36.87, abs=0.005)
+    for ti in (60.0, 45.0, 37.0):
+        factor = (1 + math.sin(math.radians(ti))) / (2 * math.cos(math.radians(ti))) - 1
+        tv = 89.9999
+        assert li_sparse(ti, tv, 0.0) == pytest.approx(sec(tv) * ((1 + math.cos(math.radians(tv - ti))) * sec(ti) / 2 - 1)
+                                                      - sec(ti), rel=1e-9)
+        assert li_sparse(ti, tv, 0.0) * math.cos(math.radians(tv)) == pytest.approx(factor, abs=1e-5)
+    signed = np.concatenate([-89.9999 + np.zeros(1), np.arange(-89.9, 89.95, 0.1), 89.9999 + np.zeros(1)])
+    for ti in (5.0, 20.0, 30.0, 36.8, 36.86, 36.88, 37.0, 40.0, 45.0, 60.0):
+        plane = np.append(signed, ti)  # the hot spot itself
+        values = li_sparse(ti, np.abs(plane), np.where(plane >= 0, 0.0, 180.0))
+        hot = li_sparse(ti, ti, 0.0)
+        if ti < threshold:
+            assert values.max() <= hot + 1e-12 * abs(hot), ti
+        else:
+            assert values.max() > hot and plane[np.argmax(values)] == pytest.approx(89.9999), ti
+        # A local maximum below 59.60 deg; above, K rises from the hot spot towards larger tv.
+        assert li_sparse(ti, ti - 0.01, 0.0) < hot and li_sparse(ti, ti, 0.01) < hot
+        assert (li_sparse(ti, ti + 0.01, 0.0) < hot) == (ti < math.degrees(local))
+    # The docstring's example.
+    assert li_sparse(60, 75, 0) == pytest.approx(2.332, abs=5e-4)
+    assert li_sparse(60, 60, 0) == pytest.approx(2.000, abs=5e-4)
+    assert li_sparse(60, 75, 0) > li_sparse(60, 60, 0)
 
 
 def test_rtlsr_peaks_at_the_hot_spot_over_the_view_hemisphere():

@@ -77,6 +77,28 @@ def test_quadratic_surface_gradient_is_exact_inside():
     np.testing.assert_allclose(aspect.values[inner][moving], expected[inner][moving], atol=1e-9)
 
 
+def test_quadratic_surface_gradient_is_one_sided_on_the_border():
+    # docs/terrain.md: on the border the window extended by 2 z0 - z1 gives (z1 - z0) / dx, off by
+    # a dx for z = a e^2 (first column +a dx, last column -a dx); likewise |b| |dy| on the first
+    # and last rows. The same surface as above: up to 2.56 deg in slope, at the corner (0, 0).
+    a, b, d = 0.01, -0.02, 2.0
+    rows, cols = np.mgrid[0:9, 0:11].astype(float)
+    e, n = cols * d, -rows * d
+    slope, aspect = slope_aspect(a * e**2 + b * n**2, pixel_size=d)
+    gradient = np.tan(np.radians(slope.values))
+    p = -gradient * np.sin(np.radians(aspect.values)) - 2 * a * e  # error of the east gradient
+    q = -gradient * np.cos(np.radians(aspect.values)) - 2 * b * n  # error of the north gradient
+    np.testing.assert_allclose(p[:, 0], a * d, atol=1e-12)
+    np.testing.assert_allclose(p[:, -1], -a * d, atol=1e-12)
+    np.testing.assert_allclose(p[:, 1:-1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(q[0], abs(b) * d, atol=1e-12)
+    np.testing.assert_allclose(q[-1], -abs(b) * d, atol=1e-12)
+    np.testing.assert_allclose(q[1:-1], 0.0, atol=1e-12)
+    error = np.abs(slope.values - np.degrees(np.arctan(np.hypot(2 * a * e, 2 * b * n))))
+    assert error.max() == pytest.approx(2.56, abs=0.005) and error.argmax() == 0
+    assert error[1:-1, 1:-1].max() < 1e-10
+
+
 def test_dask_dem_stays_lazy_and_equals_numpy(no_compute):
     rng = np.random.default_rng(1)
     dem = rng.normal(size=(20, 24)).cumsum(axis=0)
@@ -280,6 +302,39 @@ def test_obs_slope_aspect_reproduce_the_obs_cosine_i():
     assert terrain.slope.attrs["source_band"] == "Slope" and terrain.aspect.attrs["source_band"] == "Aspect"
     np.testing.assert_allclose(cos_incidence(sun_zenith, sun_azimuth, terrain.slope.values, terrain.aspect.values),
                                cosine_i, atol=1e-9)
+
+
+def _obs_bands(path):
+    with rasterio.open(path) as source:
+        bands = source.read().astype(float)
+        names = source.descriptions
+    return {key: bands[names.index(name)] for key, name in (
+        ("sza", "To-sun zenith (0 to 90 degrees from zenith)"), ("saa", "To-sun azimuth (0 to 360 degrees cw from N)"),
+        ("slope", "Slope"), ("aspect", "Aspect"), ("cosine_i", "Cosine(i)"))}
+
+
+@needs_realdata
+@pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")
+def test_what_the_obs_cosine_i_checks_and_what_it_does_not():
+    # docs/terrain.md: the profiling cube's match (previous test) is with placeholder Slope 90 and
+    # Aspect 0, which cannot tell A from -A; on the topoflux file no aspect convention reproduces
+    # Cosine(i) (0.774 off as stored, 0.69-0.73 under the others), and the file contradicts itself:
+    # Cosine(i) > cos(sza - slope), the largest cos i of its slope, in 274 of its 750 pixels.
+    cube = _obs_bands(REALDATA / "isofit_avirisng_profiling_cube" / "ang20170323t202244_obs_7000-7010")
+    np.testing.assert_allclose(cube["slope"], 90.0, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(cube["aspect"], 0.0)
+    np.testing.assert_allclose(cos_incidence(cube["sza"], cube["saa"], cube["slope"], -cube["aspect"]), cube["cosine_i"],
+                               atol=1e-9)
+    obs = _obs_bands(REALDATA / "isofit_avirisng_topoflux" / "ang20160910t185702_obs_ortdem_mod")
+    a = obs["aspect"]
+    off = {name: np.max(np.abs(cos_incidence(obs["sza"], obs["saa"], obs["slope"], aspect) - obs["cosine_i"]))
+           for name, aspect in (("A", a), ("A+180", a + 180), ("-A", -a), ("90-A", 90 - a), ("A+90", a + 90),
+                                ("A-90", a - 90))}
+    assert off.pop("A") == pytest.approx(0.774, abs=5e-4)
+    assert all(0.68 < value < 0.74 for value in off.values()), off
+    excess = obs["cosine_i"] - np.cos(np.radians(obs["sza"] - obs["slope"]))
+    assert excess.size == 750 and (excess > 0).sum() == 274
+    assert excess.max() == pytest.approx(0.12, abs=0.005)
 
 
 @needs_realdata

@@ -3,6 +3,8 @@ end-to-end synthetic scene of pitched roofs and a vegetated hill corrected in th
 
 from __future__ import annotations
 
+import warnings
+
 import dask
 import dask.array as da
 import numpy as np
@@ -136,9 +138,87 @@ def test_too_few_pixels_and_c_out_of_range_are_rejected():
     assert not table["accepted"][0] and "< 30" in table["reason"][0]
     slope, aspect, cos_i = _terrain()
     table = fit_c(_cube(0.01 * cos_i + 0.5), cos_i)  # C = 50
-    assert not table["accepted"][0] and "outside [0, 10]" in table["reason"][0]
+    # The accepted interval is (-min cos i over the lit pixels, 10] (the guard's lower bound, below).
+    assert not table["accepted"][0] and f"outside ({-cos_i[cos_i > 0].min():.4g}, 10]" in table["reason"][0]
     table = fit_c(_cube(0.01 * cos_i + 0.5), cos_i, c_range=(0, 100))
     assert table["accepted"][0] and table["c"][0] == pytest.approx(50.0)
+
+
+def test_lambertian_class_keeps_its_near_zero_c_and_is_flat():
+    # A Lambertian class (class 1, left half): rho_t = R cos i / cos sza exactly, plus additive noise
+    # sigma = 0.001 (R = 0.3, i.e. 0.2 % to 4 % of rho_t). The true C is 0, so the fitted C is 0 plus
+    # noise (|C| <= 9.4e-4 over these seeds) and negative about half the time (4 of these 10 seeds);
+    # the guard accepts it as long as C > -min(cos i) of the class's lit pixels (-0.088 to -0.152
+    # here, sun at 40 deg, slopes <= 45 deg). Class 2 (right half) is a line with C = 0.5.
+    cos_sza, sigma = np.cos(np.radians(SZA)), 0.001
+    classes = np.where(np.arange(40)[None, :] < 20, 1, 2) * np.ones((30, 1), int)
+    negative = 0
+    for seed in range(10):
+        slope, aspect, cos_i = _terrain(seed=seed)
+        noise = sigma * np.random.default_rng(100 + seed).standard_normal(cos_i.shape)
+        observed = _cube(np.where(classes == 1, 0.3 * cos_i / cos_sza + noise, 0.2 * cos_i + 0.1))
+        angles = {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", BrdfcorrWarning)  # no fit rejected
+            result = topographic_correction(observed, angles, method="c", classes=classes, limits=None)
+        cosine = topographic_correction(observed, angles, method="cosine", limits=None)
+        table = result.c_table.set_index("class")
+        assert table["accepted"].all()
+        c = table.loc[1, "c"]
+        assert abs(c) < 2e-3 and table.loc[2, "c"] == pytest.approx(0.5, rel=1e-9)
+        negative += c < 0
+        if c < 0:  # what the former guard, C in [0, 10], did: reject the class and leave it raw
+            former = fit_c(observed, cos_i, xr.DataArray(classes, dims=("y", "x")), c_range=(0, 10))
+            assert not former.set_index("class").loc[1, "accepted"]
+            assert former.set_index("class").loc[1, "reason"] == f"C = {c:.3g} outside [0, 10]"
+        lit = (classes == 1) & (cos_i > 0)
+        assert not (result.qa.values[lit] & QA.TOPOGRAPHY_UNCORRECTED).any()
+        corrected, reference = result.reflectance.values[0][lit], cosine.reflectance.values[0][lit]
+        # Equal to the cosine correction within half of each pixel's noise, sigma cos sza / cos i
+        # (at most 0.32 of it over these seeds), and flat: mean R within 2e-4 (3 standard errors of
+        # the mean, at most 1.3e-4 off over these seeds), the spread the cosine correction's within 5 %
+        # (at most 2.8 % off).
+        np.testing.assert_array_less(np.abs(corrected - reference), 0.5 * sigma * cos_sza / cos_i[lit])
+        assert abs(corrected.mean() - 0.3) < 2e-4
+        assert corrected.std() == pytest.approx(reference.std(), rel=0.05)
+    assert negative == 4
+
+
+def test_c_below_minus_min_cos_i_is_rejected_and_above_it_applied():
+    # rho = m (cos i + C) exactly. C = -0.2 < -min(cos i) (~ -0.10: cos i + C < 0 on the least lit
+    # pixels) is rejected; C = -0.05, between -min(cos i) and 0, is applied: every lit pixel becomes
+    # m (cos sza + C), the closed form of eq. 8.
+    slope, aspect, cos_i = _terrain()
+    min_cos_i = cos_i[cos_i > 0].min()
+    assert 0.09 < min_cos_i < 0.11
+    angles = {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}
+    observed = _cube(0.5 * (cos_i - 0.2), 0.5 * (cos_i - 0.05))
+    with pytest.warns(BrdfcorrWarning, match="rejected for 1 class/band"):
+        result = topographic_correction(observed, angles, method="c", limits=None)
+    table = result.c_table
+    np.testing.assert_allclose(table["c"], [-0.2, -0.05], rtol=1e-9)
+    assert list(table["accepted"]) == [False, True]
+    assert table["reason"][0] == f"C = -0.2 outside ({-min_cos_i:.4g}, 10]"
+    lit = cos_i > 0
+    np.testing.assert_array_equal(result.reflectance.values[0][lit], observed.values[0][lit])
+    np.testing.assert_allclose(result.reflectance.values[1][lit], 0.5 * (np.cos(np.radians(SZA)) - 0.05), rtol=1e-9)
+    # The bound is over the fit's pixels whichever way the image is chunked (a minimum over blocks).
+    with dask.config.set(scheduler="sync"):
+        lazy = fit_c(observed.chunk({"band": 1, "y": 7, "x": 9}), cos_i)
+    assert list(lazy["reason"]) == list(table["reason"])
+    # A C table from another scene may hold a C < -min(cos i) of this one: the pixels where
+    # cos i + C <= 0 are left raw and flagged, the others corrected.
+    other = table.assign(accepted=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BrdfcorrWarning)
+        applied = topographic_correction(observed, angles, method="c", c_table=other, limits=None)
+    dark = lit & (cos_i <= 0.2)
+    assert dark.any() and (lit & ~dark).any()
+    np.testing.assert_array_equal(applied.reflectance.values[0][dark], observed.values[0][dark])
+    assert (applied.qa.values[dark] & QA.TOPOGRAPHY_UNCORRECTED).all()
+    assert not (applied.qa.values[lit & ~dark] & QA.TOPOGRAPHY_UNCORRECTED).any()
+    np.testing.assert_allclose(applied.reflectance.values[0][lit & ~dark], 0.5 * (np.cos(np.radians(SZA)) - 0.2),
+                               rtol=1e-9)
 
 
 def test_limits_and_nodata_are_flagged():

@@ -20,6 +20,7 @@ import click
 import click.shell_completion
 
 from brdfcorr import __version__
+from brdfcorr.defaults import chunk_size_problem
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, ParameterError, UnknownNameError
 from brdfcorr.io.files import atomic_path, parse_yaml
 
@@ -57,6 +58,31 @@ class _ModelName(click.ParamType):
 
 
 MODEL_CHOICE = _ModelName()
+
+
+class _ChunkSize(click.ParamType):
+    """``--chunk``: a chunk and tile size [pixels], a multiple of 16 in
+    :data:`brdfcorr.defaults.CHUNK_RANGE` (the rule of a chain's ``engine.chunk``), refused while
+    the options are parsed (0 divided by zero, a negative size failed inside dask)."""
+
+    name = "integer"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) and not isinstance(value, bool):
+            number = value
+        else:
+            try:
+                number = int(str(value).strip(), 10)
+            except ValueError:
+                self.fail(f"{value!r} is not an integer", param, ctx)
+        problem = chunk_size_problem(number)
+        if problem:
+            self.fail(f"{number} {problem}", param, ctx)
+        return number
+
+
+#: The type of every command's ``--chunk``.
+CHUNK_SIZE = _ChunkSize()
 
 
 def _format_table(rows: list[dict[str, str]]) -> str:

@@ -8,7 +8,16 @@ from pathlib import Path
 
 import click
 
-from brdfcorr.cli._base import MODEL_CHOICE, _assignments, _format_table, _options, _pairs, handle_errors, main
+from brdfcorr.cli._base import (
+    CHUNK_SIZE,
+    MODEL_CHOICE,
+    _assignments,
+    _format_table,
+    _options,
+    _pairs,
+    handle_errors,
+    main,
+)
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, reference_sza, scale_options
 from brdfcorr.io.paths import check_outputs, refuse_existing
 
@@ -64,7 +73,8 @@ def _number(value: float | None) -> str:
               help="JSON report to write.")
 @click.option("--figures", "figures_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Directory for the PNG figures (assess_profiles.png, assess_overlap.png).")
-@click.option("--chunk", type=int, help="Chunk size [pixels] [default: 512, less for many bands].")
+@click.option("--chunk", type=CHUNK_SIZE,
+              help="Chunk size [pixels], a multiple of 16 [default: 512, less for many bands].")
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs [default: refuse].")
 @handle_errors
 def assess_command(before, after, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
@@ -160,7 +170,8 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="JSON report to write.")
-@click.option("--chunk", type=int, help="Chunk size [pixels] [default: 512, less for many bands].")
+@click.option("--chunk", type=CHUNK_SIZE,
+              help="Chunk size [pixels], a multiple of 16 [default: 512, less for many bands].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing report [default: refuse].")
 @handle_errors
 def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,

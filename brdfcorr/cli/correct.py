@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import click
 import click.shell_completion
 
-from brdfcorr.cli._base import _options, handle_errors, main
+from brdfcorr.cli._base import CHUNK_SIZE, _options, handle_errors, main
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, reference_sza, scale_options
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
@@ -112,8 +112,9 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
               help="Output format; ENVI writes the data file, a .hdr header (wavelengths, map info) and "
                    ".aux.xml (tags). The QA layer is always a GeoTIFF.")
 @click.option("--output-type", type=click.Choice(["float", "input"]), default="float", show_default=True,
-              help="float: reflectance factors as float32; input: an integer input's own type, scale, offset "
-                   "and nodata (smaller files; values that do not fit are nodata and flagged).")
+              help="float: reflectance factors as float32; input: an integer input's own type (up to 32 bits; "
+                   "64-bit integers are refused), scale, offset and nodata (smaller files; values that do not fit "
+                   "are nodata and flagged).")
 @click.option("--interleave", type=click.Choice(["bsq", "bil"], case_sensitive=False), default="bsq",
               show_default=True, help="Interleave of an ENVI output.")
 @click.option("--ref-sza", help="Reference sun zenith [deg], 'mean' or 'observed' [default: table, else observed].")
@@ -133,7 +134,8 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
               help="Also write the QA flags (uint8) to this GeoTIFF.")
 @click.option("--compress", default="deflate", show_default=True, help="GDAL compression.")
 @click.option("--cog", is_flag=True, help="Write Cloud-Optimized GeoTIFFs.")
-@click.option("--chunk", type=int, help="Chunk and tile size [pixels] [default: 512, less for many bands].")
+@click.option("--chunk", type=CHUNK_SIZE,
+              help="Chunk and tile size [pixels], a multiple of 16 [default: 512, less for many bands].")
 @click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
 @click.option("--scheduler", metavar="ADDRESS", envvar="DASK_SCHEDULER_ADDRESS", show_envvar=True,
@@ -147,8 +149,8 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
               help="Tilted surfaces: a 2-band raster of slope and aspect [deg] on the image grid, or an ENVI "
                    "obs_ort file (bands Slope, Aspect).")
 @click.option("--dem", type=click.Path(dir_okay=False, path_type=Path),
-              help="Tilted surfaces: a DEM/DSM [m] on the image grid (projected CRS); slope and aspect by "
-                   "Horn's differences.")
+              help="Tilted surfaces: a DEM/DSM [m] on the image grid (projected CRS; its pixel size in the CRS's "
+                   "unit, e.g. US survey feet, is converted to metres); slope and aspect by Horn's differences.")
 @click.option("--topographic", type=click.Choice(["cosine", "c", "scs", "scs+c", "none"]), default=None,
               help="Illumination correction before the BRDF step, with --slope-aspect or --dem [default: cosine].")
 @click.option("--brdf-frame", type=click.Choice(["surface", "horizontal"]), default=None,

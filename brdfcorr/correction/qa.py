@@ -17,7 +17,8 @@ bit  name             meaning
                       cos i <= its ``cos_i_min`` (self-shadowed): output is nodata
 64   topography_      with a topographic step before the correction
      uncorrected      (:mod:`brdfcorr.correction.topographic`): the C fit of the pixel's
-                      class was rejected in some band, which was not corrected for illumination
+                      class was rejected in some band (or its C gives the pixel no finite
+                      positive factor), which was not corrected for illumination
 ==== ================ ========================================================================
 
 The layer is a uint8 raster; its attrs carry the flags as CF ``flag_masks``/``flag_meanings``

@@ -3,9 +3,12 @@
 Conventions (``docs/conventions.md``, "Tilted surfaces"): all angles in degrees. ``slope`` is the
 angle between the surface normal and the vertical, in [0, 90]; ``aspect`` is the azimuth, clockwise
 from north, of the direction the surface faces (its downslope direction, the horizontal part of its
-normal), the convention of the AVIRIS-NG/-3 ``obs_ort`` "Slope" and "Aspect" bands (the
-"Cosine(i)" band of the real line ang20170323t202244 equals :func:`cos_incidence` of its stored
-angles to 1e-16; ``tests/test_terrain.py``). In the east-north-up frame the unit vectors are::
+normal), the convention documented for the AVIRIS-NG/-3 ``obs_ort`` "Slope" and "Aspect" bands.
+What was checked against real files (``docs/terrain.md``, ``tests/test_terrain.py``): the
+"Cosine(i)" band of ang20170323t202244 equals :func:`cos_incidence` to 2.2e-16, but its Slope and
+Aspect are placeholders (90 deg, 0 deg) that cannot tell an aspect from its mirror; on the
+topoflux line the band matches no aspect convention (the file is inconsistent in itself). In the
+east-north-up frame the unit vectors are::
 
     normal       n = (sin s sin A,  sin s cos A,  cos s)          (slope s, aspect A)
     to the sun   i = (sin ti sin saa, sin ti cos saa, cos ti)
@@ -38,6 +41,7 @@ from brdfcorr.errors import InputError
 __all__ = [
     "LocalAngles",
     "SlopeAspect",
+    "check_slope_aspect",
     "cos_incidence",
     "local_angles",
     "slope_aspect",
@@ -181,7 +185,8 @@ def cos_incidence(sza, saa, slope, aspect):
 
 
 def _pixel_size(dem: xr.DataArray, pixel_size) -> tuple[float, float]:
-    """(dx, dy) [m]: east per column and north per row (dy < 0 when rows go south)."""
+    """(dx, dy) [m]: east per column and north per row (dy < 0 when rows go south); from the
+    transform in the CRS's linear unit, converted to metres."""
     if pixel_size is not None:
         if np.ndim(pixel_size) == 0:
             return float(pixel_size), -float(pixel_size)
@@ -200,7 +205,22 @@ def _pixel_size(dem: xr.DataArray, pixel_size) -> tuple[float, float]:
         raise InputError(f"DEM: CRS {crs} is geographic (degrees); reproject it to metres first")
     if transform.b != 0 or transform.d != 0:
         raise InputError(f"DEM: rotated grid (transform {tuple(transform)[:6]}) is not supported")
-    return float(transform.a), float(transform.e)
+    metres = _metres_per_unit(crs)
+    return float(transform.a) * metres, float(transform.e) * metres
+
+
+def _metres_per_unit(crs) -> float:
+    """Metres per unit of a projected (or local) CRS's axes: the pixel size in metres for elevations
+    in metres (US survey feet: 0.3048006; a foot-based grid read as metres gave slopes 3.3 times too
+    flat, 1.75 deg for 5.71)."""
+    try:
+        unit, factor = crs.linear_units_factor if crs.is_projected else crs.units_factor
+    except (ValueError, AttributeError) as error:  # rasterio's CRSError: no unit to be found
+        raise InputError(f"DEM: CRS {crs} names no linear unit, so no pixel size in metres; give "
+                         f"pixel_size=(dx, dy) ({error})") from None
+    if not (np.isfinite(factor) and factor > 0):
+        raise InputError(f"DEM: CRS {crs} has the linear unit {unit!r} of {factor} m; give pixel_size=(dx, dy)")
+    return float(factor)
 
 
 def _odd_pad(z, axis: int):
@@ -240,7 +260,8 @@ def slope_aspect(dem, *, pixel_size: float | tuple[float, float] | None = None) 
     pixel_size : float or (dx, dy), optional
         Ground distance [m] per column (east) and per row (north; negative when rows go south, as
         in a north-up raster). A single number d means (d, -d). By default from the raster's
-        transform (``dem.rio.transform()``: ``a`` and ``e``); required for arrays without one.
+        transform (``dem.rio.transform()``: ``a`` and ``e``) in its CRS's linear unit, converted to
+        metres (a CRS in US survey feet, EPSG:2263: x 0.3048006); required for arrays without one.
 
     Returns
     -------
@@ -252,7 +273,8 @@ def slope_aspect(dem, *, pixel_size: float | tuple[float, float] | None = None) 
     Raises
     ------
     InputError
-        No pixel size (no CRS or a geographic one, a rotated grid), or a grid under 2 x 2.
+        No pixel size (no CRS or a geographic one, a CRS without a linear unit, a rotated grid), or
+        a grid under 2 x 2.
 
     Notes
     -----
@@ -290,6 +312,64 @@ def slope_aspect(dem, *, pixel_size: float | tuple[float, float] | None = None) 
         xr.DataArray(aspect, dims=dem.dims, coords=coords, name="aspect",
                      attrs={"units": "degree", "long_name": "surface aspect (downslope, clockwise from north)"}),
     )
+
+
+def check_slope_aspect(surface: SlopeAspect, source: str, *, scheduler: str | None = None,
+                       num_workers: int | None = None) -> None:
+    """Check that slope and aspect layers read from a file hold degrees, in one pass over them.
+
+    Pixels outside the domain are not an error here (:func:`brdfcorr.normalize` flags a slope
+    outside [0, 90] ``invalid_geometry`` and writes nodata); layers that cannot be degrees are:
+    every slope at most pi/2 with every aspect in [-pi, 2 pi] and spread over more than 1
+    (radians), no slope in [0, 90] at all, or no aspect in [-360, 360] at all (scaled or other
+    units: every pixel would be nodata). Layers without a finite value are left to the correction.
+
+    Parameters
+    ----------
+    surface : SlopeAspect
+        ``(slope, aspect)`` [deg] (y, x), numpy or dask backed.
+    source : str
+        What they were read from, for messages (``"slope/aspect file slope.tif"``).
+    scheduler, num_workers : optional
+        dask scheduler of the pass and its number of workers (as for :func:`dask.compute`).
+
+    Raises
+    ------
+    InputError
+        ``{source}: ...`` with the ranges found.
+    """
+    slope = surface.slope.data
+    aspect = surface.aspect.data
+    if isinstance(slope, da.Array) or isinstance(aspect, da.Array):
+        slope = da.asarray(slope)
+        aspect = da.asarray(aspect).rechunk(slope.chunks)
+        per_block = da.map_blocks(_surface_statistics, slope, aspect, new_axis=[2, 3], chunks=(1, 1, 2, 4),
+                                  dtype=np.float64).compute(scheduler=scheduler, num_workers=num_workers)
+    else:
+        per_block = _surface_statistics(np.asarray(slope), np.asarray(aspect))
+    per_block = per_block.reshape(-1, 2, 4)
+    finite, in_domain = per_block[..., 2].sum(axis=0), per_block[..., 3].sum(axis=0)
+    if not finite.all():
+        return
+    low, high = np.nanmin(per_block[..., 0], axis=0), np.nanmax(per_block[..., 1], axis=0)
+    found = f"slope {low[0]:.6g}..{high[0]:.6g}, aspect {low[1]:.6g}..{high[1]:.6g}"
+    if high[0] <= np.pi / 2 + 0.03 and low[1] >= -np.pi - 0.03 and high[1] <= 2 * np.pi + 0.03 and high[1] - low[1] > 1:
+        raise InputError(f"{source}: slope and aspect look like radians ({found}); brdfcorr needs degrees")
+    for index, (name, domain) in enumerate((("slope", "[0, 90]"), ("aspect", "[-360, 360]"))):
+        if not in_domain[index]:
+            raise InputError(f"{source}: no {name} value in {domain} deg (found {found}); are slope and aspect "
+                             "scaled or in other units? (Every pixel would be nodata.)")
+
+
+def _surface_statistics(slope: np.ndarray, aspect: np.ndarray) -> np.ndarray:
+    """(1, 1, 2, 4): min, max, finite count and count in the domain ([0, 90], [-360, 360]) of a
+    (y, x) block of slope and of aspect."""
+    result = np.empty((1, 1, 2, 4))
+    for index, (block, low, high) in enumerate(((slope, 0.0, 90.0), (aspect, -360.0, 360.0))):
+        values = block[np.isfinite(block)]
+        result[0, 0, index, :2] = (values.min(), values.max()) if values.size else (np.nan, np.nan)
+        result[0, 0, index, 2:] = values.size, np.count_nonzero((values >= low) & (values <= high))
+    return result
 
 
 def slope_aspect_layers(raster: xr.DataArray) -> SlopeAspect:

@@ -18,15 +18,25 @@ line ``rho_t = m cos i + b`` of the image's pixels, per class and band (:func:`f
 
 Guard: a fit with fewer than ``min_pixels`` pixels, a slope ``m <= 0``, a coefficient of
 determination R^2 below ``r2_min`` (default :data:`R2_MIN` = 0.1: cos i explains under 10 % of the
-variance, the line says nothing about the illumination) or C outside ``c_range`` (default
-:data:`C_RANGE` = [0, 10]: a negative C makes ``cos i + C`` vanish on lit slopes, and above 10 the
-correction changes a pixel by under 10 % of the cosine correction's change) is rejected: that class
-and band are not corrected (factor 1), flagged ``topography_uncorrected``, and a warning names them.
+variance, the line says nothing about the illumination) or C outside ``(-min cos i, 10]`` is
+rejected: that class and band are not corrected (factor 1), flagged ``topography_uncorrected``, and a
+warning names them (the reason states the interval, e.g. ``C = -0.5 outside (-0.4226, 10]``). The
+lower bound is what the correction needs: ``cos i + C`` must not vanish on a lit pixel, so C must
+exceed -min(cos i) over the lit pixels (``cos i > cos_i_min``) of the class that entered the fit. A
+C between that bound and 0 is applied: a Lambertian class fits C = 0 plus noise, negative about
+half the time, and its near-zero C gives the cosine correction's values. Above 10 the correction
+changes a pixel by under 10 % of the cosine correction's change. ``c_range`` (default
+:data:`C_RANGE` = (-inf, 10]) gives the upper bound and may raise the lower one (its lower end,
+inclusive, applies where it exceeds -min cos i). A lit pixel whose factor is not finite and positive
+(possible only for C < 0: with a C table from another scene, ``cos i + C <= 0``, or
+``cos sza + C <= 0`` where every pixel of the class is lit more steeply than flat ground) is not
+corrected either and is flagged ``topography_uncorrected``.
 
 QA layer: the correction's flags (:class:`brdfcorr.correction.qa.QA`), of which this step sets
 ``NODATA`` (NaN or +-inf in some band, angle, slope or aspect: output nodata there), ``NO_CLASS``
 (C methods with a class map: class 0, NaN or its nodata: not corrected), ``TOPOGRAPHY_UNCORRECTED``
-(the C fit of the pixel's class was rejected in some band: not corrected there), ``LIMITED`` (the
+(the C fit of the pixel's class was rejected in some band, or its C gives the pixel no finite
+positive factor: not corrected there), ``LIMITED`` (the
 factor was clipped to the limits in at least one band) and ``FACING_AWAY`` (cos i <= ``cos_i_min``:
 self-shadowed, no direct sunlight; output nodata).
 
@@ -89,13 +99,18 @@ def frame_conflict(method: str, brdf_frame: str) -> str | None:
     return None
 #: Least coefficient of determination of an accepted C fit [-].
 R2_MIN = 0.1
-#: Accepted range of C [-].
-C_RANGE = (0.0, 10.0)
+#: Accepted range of C [-], besides the bound C > -min(cos i) over the class's lit pixels that every
+#: fit must meet (module docstring, "Guard"): no further lower bound, at most 10.
+C_RANGE = (-np.inf, 10.0)
 #: Least number of pixels of an accepted C fit.
 MIN_PIXELS = 30
 
 
 _TABLE_COLUMNS = ["class", "band", "wavelength", "n", "slope", "intercept", "r2", "c", "accepted", "reason"]
+#: Columns of the per-class and band statistics of the fit: the sums n, x, y, xx, xy, yy (x = cos i,
+#: y = reflectance; added up over blocks) and the least x (combined by minimum).
+_N_SUMS = 6
+_MIN_X = 6
 
 
 class Topographic(NamedTuple):
@@ -154,7 +169,8 @@ def _class_index(classes, class_ids: np.ndarray, class_nodata):
 
 
 def _block_sums(reflectance, cos_i, classes, class_ids, class_nodata, cos_i_min):
-    """Sums (n, x, y, xx, xy, yy) per class and band of one block: array (class, band, 6)."""
+    """Sums (n, x, y, xx, xy, yy) and the least x per class and band of one block: array (class,
+    band, 7) (x = cos i of the lit pixels, y = reflectance; the least x is +inf without pixels)."""
     n_bands = reflectance.shape[0]
     cube = np.asarray(reflectance, dtype=np.float64).reshape(n_bands, -1)
     x = np.asarray(cos_i, dtype=np.float64).reshape(-1)
@@ -164,18 +180,20 @@ def _block_sums(reflectance, cos_i, classes, class_ids, class_nodata, cos_i_min)
         index, member = np.zeros(x.shape, dtype=np.intp), np.ones(x.shape, bool)
     with np.errstate(invalid="ignore"):
         lit = member & np.isfinite(x) & (x > cos_i_min)
-    sums = np.zeros((n_classes, n_bands, 6))
+    sums = np.zeros((n_classes, n_bands, _N_SUMS + 1))
+    sums[:, :, _MIN_X] = np.inf
     for band in range(n_bands):
         y = cube[band]
         use = lit & np.isfinite(y)
         where, xs, ys = index[use], x[use], y[use]
         for k, weights in enumerate((None, xs, ys, xs * xs, xs * ys, ys * ys)):
             sums[:, band, k] = np.bincount(where, weights=weights, minlength=n_classes)
+        np.minimum.at(sums[:, band, _MIN_X], where, xs)
     return sums
 
 
 def _fit_row(sums: np.ndarray, r2_min: float, c_range: tuple[float, float], min_pixels: int) -> dict:
-    n, sx, sy, sxx, sxy, syy = sums
+    n, sx, sy, sxx, sxy, syy, min_cos_i = sums
     row: dict[str, Any] = dict(n=int(n), slope=np.nan, intercept=np.nan, r2=np.nan, c=np.nan)
     if n < min_pixels:
         return {**row, "accepted": False, "reason": f"{int(n)} pixels < {min_pixels}"}
@@ -191,8 +209,13 @@ def _fit_row(sums: np.ndarray, r2_min: float, c_range: tuple[float, float], min_
         return {**row, "accepted": False, "reason": f"slope m = {slope:.3g} <= 0"}
     if r2 < r2_min:
         return {**row, "accepted": False, "reason": f"R2 = {r2:.3f} < {r2_min:g}"}
-    if not c_range[0] <= c <= c_range[1]:
-        return {**row, "accepted": False, "reason": f"C = {c:.3g} outside [{c_range[0]:g}, {c_range[1]:g}]"}
+    # cos i + C > 0 on every lit pixel of the fit: C > -min(cos i) (open bound), and within c_range.
+    if c_range[0] > -min_cos_i:
+        inside, lower = c_range[0] <= c, f"[{c_range[0]:g}"
+    else:
+        inside, lower = c > -min_cos_i, f"({-min_cos_i:.4g}"
+    if not (inside and c <= c_range[1]):
+        return {**row, "accepted": False, "reason": f"C = {c:.3g} outside {lower}, {c_range[1]:g}]"}
     return {**row, "accepted": True, "reason": ""}
 
 
@@ -227,7 +250,9 @@ def fit_c(
     r2_min : float, default :data:`R2_MIN`
         Least coefficient of determination of an accepted fit [-].
     c_range : (float, float), default :data:`C_RANGE`
-        Accepted range of C [-].
+        Accepted range of C [-] (both ends inclusive), on top of the bound every fit must meet,
+        C > -min(cos i) over its lit pixels (module docstring, "Guard"); the default (-inf, 10]
+        adds only the upper bound.
     min_pixels : int, default :data:`MIN_PIXELS`
         Least number of pixels of an accepted fit.
     cos_i_min : float, default 0
@@ -275,9 +300,12 @@ def _dask_sums(arrays, options) -> np.ndarray:
         parts.append((b, dask.delayed(_block_sums)(
             blocks[b, y, x], layers[0][y, x], layers[1][y, x] if len(layers) > 1 else None, **options)))
     computed = dask.compute(*(part for _, part in parts))
-    total = np.zeros((max(len(options["class_ids"]), 1), cube.shape[0], 6))
+    total = np.zeros((max(len(options["class_ids"]), 1), cube.shape[0], _N_SUMS + 1))
+    total[:, :, _MIN_X] = np.inf
     for (b, _), sums in zip(parts, computed):
-        total[:, band_starts[b]:band_starts[b + 1]] += sums
+        bands = slice(band_starts[b], band_starts[b + 1])
+        total[:, bands, :_N_SUMS] += sums[:, :, :_N_SUMS]
+        total[:, bands, _MIN_X] = np.minimum(total[:, bands, _MIN_X], sums[:, :, _MIN_X])
     return total
 
 
@@ -331,8 +359,12 @@ def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=N
                 factor = topographic_factor(method, ci, cz, cs)
             else:
                 ok = member & accepted[index, band]
-                set_flags(qa, member & ~ok, QA.TOPOGRAPHY_UNCORRECTED)
                 factor[ok] = topographic_factor(method, ci[ok], cz[ok], cs[ok], c_matrix[index[ok], band])
+                # Only a C < 0 (e.g. from a C table of another scene) can give a lit pixel a factor that
+                # is not finite and positive (cos i + C <= 0, or numerator + C <= 0): not corrected there.
+                invalid = ok & usable & ~(np.isfinite(factor) & (factor > 0))
+                factor[invalid] = 1.0
+                set_flags(qa, (member & ~ok) | invalid, QA.TOPOGRAPHY_UNCORRECTED)
             if limits is not None:
                 set_flags(qa, usable & ((factor < limits[0]) | (factor > limits[1])), QA.LIMITED)
                 factor = np.clip(factor, *limits)

@@ -17,7 +17,7 @@ import xarray as xr
 
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import describe_layer
-from brdfcorr.io.opening import chunk_spec, open_raster
+from brdfcorr.io.opening import chunk_spec, open_raster, reading
 
 __all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY", "angle_band_name", "open_angles",
            "from_relative_azimuth", "AngleStatistics", "check_angles"]
@@ -166,7 +166,8 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
     Raises
     ------
     InputError
-        Naming the angle file (or layer) and the range found.
+        Naming the angle file (or layer) and the range found; a file that cannot be read to the end
+        (truncated, damaged), naming it and GDAL's reason.
     """
     names = [name for name in ANGLE_NAMES if name in layers]
     arrays = [layers[name].data for name in names]
@@ -174,9 +175,12 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
         # One small task per chunk for all layers (not one graph per statistic and layer).
         first = next(a for a in arrays if isinstance(a, dask.array.Array))
         arrays = [dask.array.asarray(a).rechunk(first.chunks) for a in arrays]
-        per_block = dask.array.map_blocks(
-            _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 5), dtype=np.float64,
-        ).compute(scheduler=scheduler, num_workers=num_workers)
+        files = [str(file) for file in dict.fromkeys(layers[n].encoding.get("source") for n in names) if file]
+        what = source or (f"angle file{'s' * (len(files) > 1)} {', '.join(files)}" if files else "angles")
+        with reading(what):  # a truncated file fails here, in its first pass
+            per_block = dask.array.map_blocks(
+                _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 5), dtype=np.float64,
+            ).compute(scheduler=scheduler, num_workers=num_workers)
     else:
         per_block = _angle_statistics(*(np.asarray(a) for a in arrays))
     per_block = per_block.reshape(-1, len(names), 5)

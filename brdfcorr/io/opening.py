@@ -5,18 +5,22 @@ reads only as subdatasets, is an :class:`~brdfcorr.errors.InputError` naming the
 from __future__ import annotations
 
 import contextlib
+import logging
+import threading
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 
 import rasterio
 import rioxarray
 import xarray as xr
+from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
-from brdfcorr.errors import InputError
+from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.io.sensors.products import hdf5_hint
-from brdfcorr.io.writer import DEFAULT_CHUNK
+from brdfcorr.io.writer import DEFAULT_CHUNK, _GdalMessages
 
-__all__ = ["open_raster", "open_layer", "opened", "chunk_spec"]
+__all__ = ["open_raster", "open_layer", "opened", "reading", "read_failure", "chunk_spec"]
 
 
 def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = False) -> xr.DataArray:
@@ -24,8 +28,11 @@ def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = Fa
     path = Path(path)
     if not path.exists():
         raise InputError(f"{role} file {path} does not exist")
+    # GDAL's warnings while opening, through rasterio's logger (under an Env, never printed by GDAL
+    # itself): a header tag it could not read means a file cut short, not a raster without a CRS.
+    messages = _GdalMessages(logging.WARNING, thread=threading.get_ident())
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), rasterio.Env(), messages:
             # Per-band scales/offsets: rioxarray applies each band's, and says so in a warning.
             warnings.filterwarnings("ignore", r"(Scales|Offsets) differ across bands", UserWarning)
             # lock=False: every dask thread reads through its own handle, so reads run in parallel.
@@ -33,6 +40,9 @@ def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = Fa
                                             lock=False)
     except rasterio.errors.RasterioError as error:
         raise InputError(f"cannot read {role} file {path}: {error}{hdf5_hint(path)}") from None
+    damaged = [message for message in messages.messages if "IO error" in message]
+    if damaged:
+        raise InputError(f"cannot read {role} file {path}: {damaged[0]} (a truncated or damaged file?)")
     if isinstance(array, list):  # subdatasets: not a plain raster
         raise InputError(f"{role} file {path} holds several subdatasets; give one raster{hdf5_hint(path)}")
     array.encoding["source"] = str(path)
@@ -52,6 +62,35 @@ def opened(path, role: str):
             yield dataset
     except rasterio.errors.RasterioError as error:
         raise InputError(f"cannot read {role} file {path}: {error}") from None
+
+
+@contextlib.contextmanager
+def reading(what: str):
+    """A pass over lazily opened layers: a read that fails (a truncated or damaged file: GDAL opens
+    it, and a block read fails later) is an InputError ``cannot read {what}: {GDAL's reason}``."""
+    messages = _GdalMessages()  # GDAL's log lines of a failed read: into the one error
+    try:
+        with messages:
+            yield
+    except BrdfcorrError:
+        raise
+    except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
+        raise InputError(f"cannot read {what}: {read_failure(error, messages.messages)}") from None
+
+
+def read_failure(error: BaseException, messages: Sequence[str] = ()) -> str:
+    """GDAL's reason of a failed read, from its log lines and the exception's causes (rasterio's own
+    "Read failed. See previous exception" names none): the first (file and band) and the last (the
+    root cause, e.g. a tile that ends early) of them."""
+    reasons = list(messages)
+    cause: BaseException | None = error
+    while cause is not None:
+        reasons.append(str(cause).strip())
+        cause = cause.__cause__ or cause.__context__
+    reasons = [reason for reason in dict.fromkeys(reasons) if reason and "See previous exception" not in reason]
+    if not reasons:
+        return type(error).__name__
+    return "; ".join(dict.fromkeys([reasons[0], reasons[-1]])) + " (a truncated or damaged file?)"
 
 
 def chunk_spec(chunks):

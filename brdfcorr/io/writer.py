@@ -139,7 +139,9 @@ def encode_integers(array: xr.DataArray, dtype, scale, offset, nodata: float | N
     array : xarray.DataArray (band, y, x)
         Reflectance factors, NaN as nodata; numpy or dask backed (stays lazy).
     dtype : numpy integer dtype
-        The stored type (e.g. the input's ``int16``).
+        The stored type (e.g. the input's ``int16``), of at most 32 bits: a 64-bit type is an
+        :class:`~brdfcorr.errors.InputError` (GDAL keeps a raster's nodata as a double, and rasterio
+        reads int64's lowest value back as -9; uint64's highest is refused when written).
     scale, offset : float or sequence of float
         Reflectance per stored unit and of a stored 0 [1]: one value, or one per band. Written as the
         file's GDAL scales and offsets (``attrs["scales"]``, ``attrs["offsets"]``), so that readers
@@ -157,6 +159,9 @@ def encode_integers(array: xr.DataArray, dtype, scale, offset, nodata: float | N
     dtype = np.dtype(dtype)
     if dtype.kind not in "iu":
         raise InputError(f"encode_integers needs an integer type, got {dtype}")
+    if dtype.itemsize > 4:  # the nodata of a 64-bit raster goes through a double in GDAL and rasterio
+        raise InputError(f"encode_integers: {dtype} cannot be written exactly (its nodata does not read back); "
+                         "use a type of at most 32 bits, or floats")
     info = np.iinfo(dtype)
     if nodata is None:
         nodata = info.min if dtype.kind == "i" else info.max
@@ -253,14 +258,18 @@ def write_rasters(
 
 class _GdalMessages(logging.Handler):
     """Collects GDAL's error messages (logged by rasterio) while writing, for one clear error
-    instead of one log line per failed block on stderr."""
+    instead of one log line per failed block on stderr (``level`` WARNING: also GDAL's warnings,
+    such as a header tag it could not read; ``thread``: only those of that thread, not of another
+    scene opened at the same time)."""
 
-    def __init__(self):
-        super().__init__(logging.ERROR)
+    def __init__(self, level: int = logging.ERROR, thread: int | None = None):
+        super().__init__(level)
         self.messages: list[str] = []
+        self.thread = thread
 
     def emit(self, record: logging.LogRecord) -> None:
-        self.messages.append(record.getMessage().strip())
+        if self.thread is None or record.thread == self.thread:
+            self.messages.append(record.getMessage().strip())
 
     def __enter__(self):
         logging.getLogger("rasterio").addHandler(self)

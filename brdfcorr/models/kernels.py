@@ -98,6 +98,7 @@ class _Angles:
         self.sin_r = sind(geometry.theta_r)
         self.cos_phi = cosd(geometry.phi)
         self.sin_phi = sind(geometry.phi)
+        self._phi = geometry.phi
         self._li: dict[tuple[float, float], tuple] = {}
 
     @cached_property
@@ -129,7 +130,9 @@ class _Angles:
 
     @cached_property
     def one_minus_cos_phi(self):
-        return 1.0 - self.cos_phi
+        """1 - cos(phi) as 2 sin^2(phi / 2), without the cancellation of the subtraction near phi = 0
+        (the hot spot): at phi = 1e-6 deg, 1 - cos(phi) rounds to 1.1e-16 instead of 1.5e-16."""
+        return 2.0 * sind(0.5 * self._phi) ** 2
 
     def _primed(self, b_r: float):
         # Zeniths of the equivalent spheres: tan t' = (b/r) tan t [2]_, eqs. 37 and 52.
@@ -237,7 +240,11 @@ def ross_thick(theta_i, theta_r, phi):
         cos xi = cos ti cos tv + sin ti sin tv cos phi
 
     At the hot spot (``tv = ti, phi = 0``, xi = 0) ``K = (pi/4)(sec ti - 1)``. For fixed zeniths it
-    falls monotonically from phi = 0 to phi = 180; along the principal plane it has no maximum at
+    is largest at phi = 0. The phase term falls with xi up to xi = 90 deg and is symmetric about it,
+    and xi grows with phi, so K falls monotonically from phi = 0 to phi = 180 only when
+    ``ti + tv <= 90`` deg; otherwise it falls to its minimum where xi = 90 deg
+    (``cos phi = -cot ti cot tv``) and rises from there to phi = 180: ``ross_thick(60, 60, 109.47)``
+    = 0.2146 < ``ross_thick(60, 60, 180)`` = 0.3424. Along the principal plane it has no maximum at
     the hot spot but keeps rising towards grazing views (it has no hot-spot peak of its own).
 
     Examples
@@ -303,7 +310,19 @@ def li_sparse(theta_i, theta_r, phi, *, b_r=LI_SPARSE_SHAPE["b_r"], h_b=LI_SPARS
         cos xi' = cos ti' cos tv' + sin ti' sin tv' cos phi
         tan t' = (b/r) tan t
 
-    At the hot spot ``K = sec ti' (sec ti' - 1)``, the maximum along the principal plane (a cusp).
+    At the hot spot ``K = sec ti' (sec ti' - 1)``, a cusp (the slope along the principal plane jumps
+    there); for fixed zeniths K falls monotonically from phi = 0 to phi = 180. Along the principal
+    plane, with the MODIS shape (b/r = 1, h/b = 2):
+
+    - the hot spot is a local maximum only for ti < 59.60 deg: on its far side (tv > ti, phi = 0)
+      the slope ``dK/dtv = sec ti (sec ti tan ti - tan ti / 2 - (4/pi) sec ti)`` [per radian]
+      turns positive where ``tan ti - sin ti / 2 = 4/pi``;
+    - it is the maximum over the whole principal plane only for ti <= 36.87 deg (sin ti = 3/5).
+      Beyond, K rises towards grazing backscatter views without bound: for h/b >= 1 the shadows
+      stop overlapping as tv -> 90 deg at phi = 0 (O = 0), so
+      ``K = sec tv' ((1 + cos(tv' - ti')) sec ti' / 2 - 1) - sec ti'``, and the factor of sec tv'
+      tends to (1 + sin ti') / (2 cos ti') - 1, positive for sin ti' > 3/5. For example
+      ``li_sparse(60, 75, 0)`` = 2.332 > ``li_sparse(60, 60, 0)`` = 2.000.
 
     Examples
     --------

@@ -16,6 +16,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, StrictModel, short_repr
+from brdfcorr.defaults import chunk_size_problem
 from brdfcorr.errors import InputError
 from brdfcorr.io.writer import check_format
 from brdfcorr.workflow.patterns import check_pattern
@@ -120,7 +121,7 @@ class EngineConfig(StrictModel):
         Threads for the chunks of a scene inside a process, and of each worker process of a local
         ``distributed`` cluster.
     chunk : int, optional
-        Spatial chunk and output tile size [pixels], a multiple of 16. Default: the rule of
+        Spatial chunk and output tile size [pixels], a multiple of 16 from 16 to 8192. Default: the rule of
         ``brdfcorr correct`` for each image (:func:`brdfcorr.io.rasters.auto_chunk`: 512, smaller
         for many bands, so that a chunk of all bands stays near 16 MB and a spectrum is read from
         one small tile).
@@ -139,14 +140,15 @@ class EngineConfig(StrictModel):
     scheduler: Literal["threads", "processes", "synchronous", "distributed"] = "threads"
     workers: Integer = Field(default_factory=lambda: max(1, os.cpu_count() or 1), ge=1)
     threads_per_worker: Integer = Field(1, ge=1)
-    chunk: Integer | None = Field(None, ge=16, le=8192)
+    chunk: Integer | None = None
     address: str | None = None
 
     @field_validator("chunk")
     @classmethod
     def _tile(cls, value: int | None) -> int | None:
-        if value is not None and value % 16:
-            raise ValueError(f"chunk {value} must be a multiple of 16 (GeoTIFF tile size)")
+        problem = None if value is None else chunk_size_problem(value)
+        if problem:  # the rule of --chunk (brdfcorr.defaults.CHUNK_RANGE)
+            raise ValueError(f"chunk {value} {problem}")
         return value
 
     @model_validator(mode="after")

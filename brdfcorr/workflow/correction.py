@@ -21,14 +21,14 @@ import xarray as xr
 
 from brdfcorr import __version__
 from brdfcorr.correction import QA, describe_limits, normalize, qa_counts, resolve_reference
-from brdfcorr.correction.terrain import SlopeAspect, slope_aspect, slope_aspect_layers
+from brdfcorr.correction.terrain import SlopeAspect, check_slope_aspect, slope_aspect, slope_aspect_layers
 from brdfcorr.correction.topographic import frame_conflict, topographic_correction
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import rasters, writer
 from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.opening import open_layer
+from brdfcorr.io.opening import open_layer, reading
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.scene import SceneData, open_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
@@ -49,9 +49,12 @@ class Terrain:
         A 2-band raster of slope and aspect [deg] on the image grid (band descriptions naming
         ``slope`` and ``aspect`` decide which is which, else that order), or an ENVI ``obs_ort``
         file (its bands "Slope" and "Aspect", :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`).
+        Their values are checked in one pass (:func:`brdfcorr.correction.terrain.check_slope_aspect`):
+        radians, or no slope in [0, 90] deg at all, are an :class:`~brdfcorr.errors.InputError`.
     dem : path-like, optional
         Or a DEM/DSM [m] on the image grid in a projected CRS: slope and aspect by Horn's
-        differences (:func:`brdfcorr.correction.terrain.slope_aspect`). Give one of the two.
+        differences (:func:`brdfcorr.correction.terrain.slope_aspect`), the pixel size converted
+        from the CRS's linear unit to metres (EPSG:2263, US survey feet). Give one of the two.
     topographic : {"cosine", "c", "scs", "scs+c", "none"}, default "cosine"
         Illumination correction before the BRDF step (:func:`brdfcorr.correction.topographic.topographic_correction`;
         C fitted per class and band from the image for ``"c"`` and ``"scs+c"``).
@@ -80,30 +83,40 @@ class Terrain:
     def inputs(self) -> list[tuple[str, object]]:
         return [("slope/aspect raster", self.slope_aspect), ("DEM", self.dem)]
 
-    def open(self, like: xr.DataArray, chunks: int) -> SlopeAspect:
-        """Slope and aspect [deg] (y, x) on ``like``'s grid, lazily."""
+    def open(self, like: xr.DataArray, chunks: int, compute: Mapping | None = None) -> SlopeAspect:
+        """Slope and aspect [deg] (y, x) on ``like``'s grid, lazily; layers read from a file are
+        checked in one pass (:func:`brdfcorr.correction.terrain.check_slope_aspect`: degrees, and
+        the file read to its end), with the dask settings ``compute`` (``scheduler``, ``num_workers``)."""
         if self.dem is not None:
             dem = open_layer(self.dem, "DEM", chunks)
             if dem.shape[0] != 1:
                 raise InputError(f"DEM file {self.dem} has {dem.shape[0]} bands; it needs 1")
-            surface = slope_aspect(dem[0])
-        elif _is_envi(self.slope_aspect):
-            from brdfcorr.io.sensors.envi import read_envi_obs_terrain  # sensors import this module's layer
-
-            layers = read_envi_obs_terrain(self.slope_aspect, like=like)
-            surface = SlopeAspect(layers["slope"], layers["aspect"])
+            try:
+                surface = slope_aspect(dem[0])
+            except InputError as error:  # "DEM: no CRS ...": name the file
+                raise InputError(f"DEM file {self.dem}: {str(error).removeprefix('DEM: ')}") from None
+            check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
         else:
-            surface = slope_aspect_layers(open_layer(self.slope_aspect, "slope/aspect", chunks))
-        check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
+            if _is_envi(self.slope_aspect):
+                from brdfcorr.io.sensors.envi import read_envi_obs_terrain  # sensors import this module's layer
+
+                layers = read_envi_obs_terrain(self.slope_aspect, like=like)
+                surface, source = SlopeAspect(layers["slope"], layers["aspect"]), f"obs file {self.slope_aspect}"
+            else:
+                surface = slope_aspect_layers(open_layer(self.slope_aspect, "slope/aspect", chunks))
+                source = f"slope/aspect file {self.slope_aspect}"
+            check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
+            with reading(source):
+                check_slope_aspect(surface, source, **(compute or {}))
         return surface
 
-    def apply(self, scene: SceneData, chunks: int, limits):
+    def apply(self, scene: SceneData, chunks: int, limits, compute: Mapping | None = None):
         """The reflectance after the topographic step, the slope and aspect layers for
         :func:`brdfcorr.normalize` (none in the horizontal frame) and the topographic result."""
         if scene.angles["saa"].attrs.get(RELATIVE_ONLY):
             raise InputError("terrain: a tilted surface needs the sun's and the sensor's azimuths; the angle "
                              "source gives only their relative azimuth (raa)")
-        slope, aspect = self.open(scene.reflectance, chunks)
+        slope, aspect = self.open(scene.reflectance, chunks, compute)
         reflectance, topographic = scene.reflectance, None
         if self.topographic != "none":
             topographic = topographic_correction(
@@ -297,7 +310,8 @@ def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: Param
     result (or None), all lazy."""
     reflectance, surface, topographic = scene.reflectance, {}, None
     if request.terrain is not None:
-        reflectance, surface, topographic = request.terrain.apply(scene, chunks, request.limits)
+        compute = {"scheduler": request.engine.scheduler, "num_workers": request.engine.num_workers}
+        reflectance, surface, topographic = request.terrain.apply(scene, chunks, request.limits, compute)
     arguments = dict(
         reflectance=reflectance, classes=scene.classes, angles={**scene.angles, **surface}, params=table,
         reference=reference, limits=request.limits, extrapolate=request.extrapolate,
@@ -327,6 +341,12 @@ def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, requ
         corrected.attrs.pop(name)
     stored = np.dtype(scene.reflectance.encoding.get("rasterio_dtype", scene.reflectance.dtype))
     if request.outputs.data_type == "input" and stored.kind in "iu":
+        if stored.itemsize > 4:
+            raise InputError(
+                f"output type 'input' (--output-type input): image {request.scene.image} is stored as {stored}, "
+                "and a 64-bit integer output cannot be written exactly (GDAL keeps its nodata as a double: "
+                "int64's lowest and uint64's highest value do not read back); write floats (--output-type float)"
+            )
         attrs = scene.reflectance.attrs
         corrected, out_of_range = writer.encode_integers(
             corrected, stored, attrs["brdf_input_scale"], attrs["brdf_input_offset"],

@@ -19,7 +19,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
-from brdfcorr.defaults import DEFAULT_LIMITS
+from brdfcorr.defaults import DEFAULT_LIMITS, chunk_size_problem
+from brdfcorr.errors import InputError
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
@@ -53,7 +54,9 @@ class OutputFiles:
     data_type : {"float", "input"}, default "float"
         ``"float"``: reflectance factors as float32 (float64 for a float64 input). ``"input"``: an
         integer input's own type, scale, offset and nodata
-        (:func:`brdfcorr.io.writer.encode_integers`); values that do not fit are nodata and flagged.
+        (:func:`brdfcorr.io.writer.encode_integers`); values that do not fit are nodata and flagged. A
+        64-bit integer input is refused (an :class:`~brdfcorr.errors.InputError`): its nodata would not
+        read back.
     compress : str, default "deflate"
         GDAL compression of GeoTIFF outputs.
     cog : bool, default False
@@ -86,7 +89,8 @@ class Engine:
     Attributes
     ----------
     chunks : int, optional
-        Spatial chunk and tile size [pixels]; by default :func:`brdfcorr.io.rasters.auto_chunk`.
+        Spatial chunk and tile size [pixels], a multiple of 16 from 16 to 8192 (else an
+        :class:`~brdfcorr.errors.InputError`); by default :func:`brdfcorr.io.rasters.auto_chunk`.
     scheduler, num_workers : optional
         dask scheduler of the computations and its number of workers (as for :func:`dask.compute`);
         a ``distributed.Client`` spreads the scene's chunks over the cluster's workers.
@@ -98,6 +102,11 @@ class Engine:
     scheduler: str | distributed.Client | None = None
     num_workers: int | None = None
     callbacks: Sequence = ()
+
+    def __post_init__(self):
+        problem = None if self.chunks is None else chunk_size_problem(self.chunks)
+        if problem:  # the rule of --chunk and engine.chunk, before anything is read
+            raise InputError(f"chunk size {self.chunks} {problem}")
 
 
 @dataclass(frozen=True)

@@ -308,11 +308,12 @@ def read_envi_obs_terrain(path: str | Path, like: xr.DataArray | None = None, *,
     xarray.Dataset
         ``slope`` [deg] and ``aspect`` [deg, wrapped into [0, 360)] on (y, x), dask-backed, nodata
         as NaN. Aspect is the azimuth of the direction the surface faces (downslope), clockwise from
-        north: the "Cosine(i)" band of the real AVIRIS-NG obs file ang20170323t202244 in
-        ``shared/realdata`` equals ``cos sza cos slope + sin sza sin slope cos(saa - aspect)``
-        (:func:`brdfcorr.correction.terrain.cos_incidence`) to 1e-16; with the aspect reversed it is off by
-        1.0. (The other real file, ``..._obs_ortdem_mod``, has edited slope and aspect bands whose
-        "Cosine(i)" matches no convention.)
+        north, as documented for these files. Checked on real files (``docs/terrain.md``): the
+        "Cosine(i)" band of ang20170323t202244 equals
+        :func:`brdfcorr.correction.terrain.cos_incidence` to 2.2e-16, but its Slope and Aspect are
+        placeholders (90 deg, 0 deg) that do not pin the aspect convention down; the other file,
+        ``..._obs_ortdem_mod``, has edited slope and aspect bands whose "Cosine(i)" matches no
+        convention.
     """
     path = Path(path)
     names = wanted_bands(band_names, OBS_TERRAIN_BAND_NAMES, "layer(s)")

@@ -1,0 +1,358 @@
+"""Hostile inputs, round 3 ("Nothing lost"): each case ends in exit code 2, exactly one stderr line
+``brdfcorr: error: ...`` naming the cause, no file in the output directory and inputs unchanged.
+
+1. ``--chunk`` (every command that has it) and a chain's ``engine.chunk``: 0, negative and
+   non-multiples of 16 are refused while parsing (0 was a ZeroDivisionError, exit 1);
+2. ``--output-type input`` for a 64-bit integer image (uint64 was exit 1; int64's nodata at its
+   lowest value read back as -9);
+3. an angle or slope/aspect raster cut short (GDAL opens it, a block read fails later: was a
+   RasterioIOError, exit 1);
+4. a DEM in a CRS whose unit is the US survey foot: its pixel size is converted to metres (slopes
+   were 1.75 deg for 5.71);
+5. slope/aspect layers in radians or outside any plausible range (was 100 % nodata, exit 0).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+import rioxarray
+import xarray as xr
+import yaml
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.correction.terrain import slope_aspect
+from brdfcorr.errors import InputError
+from brdfcorr.io.writer import encode_integers
+from brdfcorr.testing import PIXEL, example_table, georeference, synthetic_scene, write_scene
+from brdfcorr.workflow.request import Engine
+
+NY, NX = 32, 32
+#: Metres per US survey foot (EPSG:9003).
+US_SURVEY_FOOT = 1200 / 3937
+
+
+@pytest.fixture(scope="module")
+def template(tmp_path_factory) -> Path:
+    directory = tmp_path_factory.mktemp("round3") / "scene"
+    write_scene(directory, synthetic_scene(ny=NY, nx=NX))
+    example_table().save(directory / "params.yaml")
+    return directory
+
+
+@pytest.fixture
+def scene(template, tmp_path) -> dict[str, Path]:
+    directory = tmp_path / "scene"
+    shutil.copytree(template, directory)
+    (tmp_path / "out").mkdir()
+    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
+            "classes": directory / "classes.tif", "params": directory / "params.yaml",
+            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}
+
+
+# ------------------------------------------------------------------------------------- helpers
+def _digests(directory: Path) -> dict[str, str]:
+    return {str(path.relative_to(directory)): hashlib.sha256(path.read_bytes()).hexdigest()
+            for path in sorted(directory.rglob("*")) if path.is_file()}
+
+
+def _in_process(args) -> tuple[int, str]:
+    result = CliRunner().invoke(main, [str(a) for a in args])
+    return result.exit_code, result.stderr
+
+
+def _check(scene, args, pattern: str, run=_in_process) -> str:
+    """Run the command line ``args``: exit 2, one ``brdfcorr: error:`` line matching ``pattern``,
+    nothing in the output directory (nor a chain's), inputs byte-identical. Returns the line."""
+    before = _digests(scene["dir"])
+    code, stderr = run(args)
+    assert code == 2, stderr[:2000]
+    lines = stderr.splitlines()
+    assert len(lines) == 1, stderr[:2000]
+    assert lines[0].startswith("brdfcorr: error: ") and "Traceback" not in stderr, lines[0]
+    assert re.search(pattern, lines[0]), lines[0]
+    assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
+    assert not (scene["dir"].parent / "chain_out").exists()
+    assert _digests(scene["dir"]) == before, "inputs must be byte-identical"
+    return lines[0]
+
+
+def _correct_args(scene, *extra, image=None, angles: tuple = ()) -> list:
+    angles = angles or ("--angles", scene["angles"])
+    return ["correct", image or scene["image"], *angles, "--classes", scene["classes"], "--params",
+            scene["params"], "-o", scene["output"], "--qa", scene["out"] / "qa.tif", "--no-progress", *extra]
+
+
+def _truncated(source: Path, target: Path) -> Path:
+    """A copy of ``source`` cut to half its size: GDAL still opens it (the header and the tile index
+    come first), and reading the tiles of its second half fails."""
+    shutil.copy(source, target)
+    os.truncate(target, target.stat().st_size // 2)
+    return target
+
+
+def _slope_aspect_raster(path: Path, slope, aspect, crs: str | None = None) -> Path:
+    layers = np.stack([np.broadcast_to(np.asarray(v, float), (NY, NX)) for v in (slope, aspect)]).astype(np.float32)
+    raster = georeference(xr.DataArray(layers, dims=("band", "y", "x")), **({"crs": crs} if crs else {}))
+    raster.attrs["long_name"] = ("slope", "aspect")
+    raster.rio.to_raster(path, tiled=True, blockxsize=16, blockysize=16, compress="deflate")
+    return path
+
+
+def _random_surface(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Slopes of 2-40 deg facing every way [deg]."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(2.0, 40.0, (NY, NX)), rng.uniform(0.0, 359.0, (NY, NX))
+
+
+# ------------------------------------------------------------------------ 1. chunk sizes
+CHUNK_MESSAGE = r"Invalid value for '--chunk': {} must be a multiple of 16 from 16 to 8192"
+
+
+def _assess_args(scene, chunk: str) -> list:
+    return ["assess", scene["image"], scene["image"], "--classes", scene["classes"], "--angles", scene["angles"],
+            "-o", scene["out"] / "report.json", "--chunk", chunk]
+
+
+def _assess_lines_args(scene, chunk: str) -> list:
+    return ["assess-lines", scene["image"], scene["image"], "--classes", scene["classes"], "--classes",
+            scene["classes"], "--angles", scene["angles"], "--angles", scene["angles"],
+            "-o", scene["out"] / "lines.json", "--chunk", chunk]
+
+
+@pytest.mark.parametrize("command, chunk", [
+    ("correct", "0"), ("correct", "-16"), ("correct", "17"), ("correct", "8208"),
+    ("assess", "0"), ("assess-lines", "-16"),
+])
+def test_chunk_sizes_are_refused_while_parsing(scene, command, chunk):
+    args = {"correct": lambda: _correct_args(scene, "--chunk", chunk),
+            "assess": lambda: _assess_args(scene, chunk),
+            "assess-lines": lambda: _assess_lines_args(scene, chunk)}[command]()
+    line = _check(scene, args, CHUNK_MESSAGE.format(re.escape(chunk)))
+    assert f"(see --help of {command})" in line
+
+
+def test_chunk_that_is_no_integer_is_refused(scene):
+    _check(scene, _correct_args(scene, "--chunk", "1e3"), r"Invalid value for '--chunk': '1e3' is not an integer")
+
+
+def _chain(scene, **engine) -> Path:
+    path = scene["dir"].parent / "chain.yaml"
+    document = {
+        "inputs": {"images": ["scene/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
+                   "classes": "{dir}/classes.tif"},
+        "parameters": {"table": "scene/params.yaml"},
+        "outputs": {"directory": "chain_out"},
+        "engine": {"scheduler": "synchronous", "workers": 1, "chunk": 16, **engine},
+    }
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize("command, chunk, override", [
+    ("run", 0, None), ("run", -16, None), ("validate", 0, None), ("run", 16, "engine.chunk=0"),
+])
+def test_chain_engine_chunk_is_refused(scene, monkeypatch, command, chunk, override):
+    monkeypatch.chdir(scene["dir"].parent)
+    chain = _chain(scene, chunk=chunk)
+    value = "0" if override else str(chunk)
+    _check(scene, [command, chain, *(["--set", override] if override else [])],
+           rf"chain\.yaml: engine\.chunk: chunk {value} must be a multiple of 16 from 16 to 8192")
+
+
+@pytest.mark.parametrize("chunks", [0, -16, 24])
+def test_library_engine_refuses_the_same_chunks(chunks):
+    with pytest.raises(InputError, match=f"chunk size {chunks} must be a multiple of 16"):
+        Engine(chunks=chunks)
+    assert Engine(chunks=np.int64(32)).chunks == 32 and Engine().chunks is None
+
+
+def test_a_good_chunk_still_corrects(scene):
+    result = CliRunner().invoke(main, [str(a) for a in _correct_args(scene, "--chunk", "32")])
+    assert result.exit_code == 0, result.output
+    assert scene["output"].is_file()
+
+
+# ------------------------------------------------------------------- 2. 64-bit integer outputs
+def _integer_image(scene, dtype: str, nodata) -> Path:
+    """The scene's image stored as ``dtype`` counts of 1e-4 (GDAL scale tags), nodata ``nodata``."""
+    with rasterio.open(scene["image"]) as dataset:
+        data, profile, descriptions = dataset.read(), dataset.profile, dataset.descriptions
+    path = scene["dir"] / f"image_{dtype}_{'none' if nodata is None else 'nodata'}.tif"
+    with rasterio.open(path, "w", **{**profile, "dtype": dtype, "nodata": nodata}) as target:
+        target.write(np.round(data / 1e-4).astype(dtype))
+        target.scales = (1e-4,) * profile["count"]
+        target.descriptions = descriptions
+    return path
+
+
+@pytest.mark.parametrize("dtype, nodata", [
+    ("uint64", None), ("uint64", 0), ("int64", None), ("int64", -9999), ("int64", -2**63),
+])
+def test_output_type_input_refuses_64_bit_integers(scene, dtype, nodata):
+    image = _integer_image(scene, dtype, nodata)
+    _check(scene, _correct_args(scene, "--output-type", "input", image=image),
+           rf"output type 'input' \(--output-type input\): image \S*{image.name} is stored as {dtype}, and a "
+           r"64-bit integer output cannot be written exactly .* write floats \(--output-type float\)")
+
+
+def test_a_64_bit_image_still_corrects_to_floats(scene):
+    image = _integer_image(scene, "uint64", None)
+    result = CliRunner().invoke(main, [str(a) for a in _correct_args(scene, "--output-type", "float", image=image)])
+    assert result.exit_code == 0, result.output
+    with rasterio.open(scene["output"]) as dataset:
+        assert dataset.dtypes[0] == "float32"
+
+
+@pytest.mark.parametrize("dtype", [np.int64, np.uint64])
+def test_encode_integers_refuses_64_bit_types(dtype):
+    array = georeference(xr.DataArray(np.full((1, 2, 2), 0.5), dims=("band", "y", "x")))
+    with pytest.raises(InputError, match=f"{np.dtype(dtype)} cannot be written exactly"):
+        encode_integers(array, dtype, 1e-4, 0.0)
+
+
+# ------------------------------------------------------------------------- 3. files cut short
+def _cli(args) -> tuple[int, str]:
+    """The installed command in its own process: stderr is everything written to it, GDAL's own
+    lines included."""
+    command = [str(Path(sys.executable).parent / "brdfcorr"), *map(str, args)]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    return result.returncode, result.stderr
+
+
+def test_truncated_angle_raster(scene):
+    cut = _truncated(scene["angles"], scene["dir"] / "angles_cut.tif")
+    line = _check(scene, _correct_args(scene, angles=("--angles", cut)),
+                  r"cannot read angle file \S*angles_cut\.tif: angles_cut\.tif, band \d+: ", run=_cli)
+    assert "(a truncated or damaged file?)" in line
+
+
+def test_truncated_single_angle_file(scene):
+    with rasterio.open(scene["angles"]) as dataset:
+        data, profile = dataset.read(), {**dataset.profile, "count": 1}
+    files = {}
+    for index, name in enumerate(("sza", "saa", "vza", "vaa")):
+        files[name] = scene["dir"] / f"{name}.tif"
+        with rasterio.open(files[name], "w", **profile) as target:
+            target.write(data[index:index + 1])
+    files["vza"] = _truncated(files["vza"], scene["dir"] / "vza_cut.tif")
+    angles = tuple(item for name, path in files.items() for item in (f"--{name}", path))
+    # Cut within its header (GDAL writes the georeference tags last): refused when opened, not taken
+    # for a raster without a CRS; cut within its tiles: refused in the pass over the angles.
+    line = _check(scene, _correct_args(scene, angles=angles), r"cannot read (vza )?angle files? .*vza_cut\.tif: "
+                  r".*vza_cut\.tif", run=_cli)
+    assert "(a truncated or damaged file?)" in line
+
+
+def test_truncated_slope_aspect_raster(scene):
+    good = _slope_aspect_raster(scene["dir"] / "slope_aspect.tif", *_random_surface())
+    cut = _truncated(good, scene["dir"] / "slope_aspect_cut.tif")
+    _check(scene, _correct_args(scene, "--slope-aspect", cut),
+           r"cannot read slope/aspect file \S*slope_aspect_cut\.tif: slope_aspect_cut\.tif, band \d")
+
+
+# ------------------------------------------------------------------ 4. DEM units (US survey feet)
+def _feet_scene(directory: Path) -> dict[str, Path]:
+    """The helpers' scene on a grid of 10 US survey feet (EPSG:2263, New York Long Island)."""
+    data = {name: layer.rio.write_crs("EPSG:2263") for name, layer in synthetic_scene(ny=NY, nx=NX).items()}
+    paths = write_scene(directory, data)
+    paths["params"] = example_table().save(directory / "params.yaml")
+    return paths
+
+
+def test_dem_in_us_survey_feet_gives_slopes_in_metres(tmp_path):
+    # Elevations in metres rising 0.1 m per metre northwards (rows go south): 5.71 deg facing south,
+    # where the pixel size in feet read as metres gave 1.75 deg.
+    paths = _feet_scene(tmp_path / "scene")
+    rows = np.arange(NY)[:, None] * np.ones((1, NX))
+    heights = 100.0 - 0.1 * PIXEL * US_SURVEY_FOOT * rows
+    dem = georeference(xr.DataArray(heights[None].astype(np.float64), dims=("band", "y", "x")), crs="EPSG:2263")
+    dem.rio.to_raster(tmp_path / "scene" / "dem.tif")
+
+    surface = slope_aspect(rioxarray.open_rasterio(tmp_path / "scene" / "dem.tif")[0])
+    expected = np.degrees(np.arctan(0.1))
+    np.testing.assert_allclose(surface.slope.values, expected, atol=1e-6)
+    np.testing.assert_allclose(surface.aspect.values, 180.0, atol=1e-6)
+
+    # The command corrects as with a slope/aspect raster of the true surface.
+    layers = _slope_aspect_raster(tmp_path / "scene" / "true_surface.tif", expected, 180.0, crs="EPSG:2263")
+    outputs = {}
+    for option, path in (("--dem", tmp_path / "scene" / "dem.tif"), ("--slope-aspect", layers)):
+        outputs[option] = tmp_path / f"out{option}.tif"
+        args = ["correct", paths["image"], "--angles", paths["angles"], "--classes", paths["classes"], "--params",
+                paths["params"], "-o", outputs[option], "--no-progress", option, path]
+        result = CliRunner().invoke(main, [str(a) for a in args])
+        assert result.exit_code == 0, result.output
+    with rasterio.open(outputs["--dem"]) as by_dem, rasterio.open(outputs["--slope-aspect"]) as by_layers:
+        np.testing.assert_allclose(by_dem.read(), by_layers.read(), rtol=1e-5, equal_nan=True)
+
+
+def test_dem_pixel_size_in_metres_is_unchanged():
+    dem = georeference(xr.DataArray(np.arange(NY)[:, None] * np.ones((NY, NX)), dims=("y", "x")))
+    slope = slope_aspect(dem).slope.values
+    np.testing.assert_allclose(slope, np.degrees(np.arctan(1.0 / PIXEL)), atol=1e-9)
+
+
+# ------------------------------------------------------------------- 5. slope/aspect plausibility
+@pytest.mark.parametrize("case, transform, pattern", [
+    ("radians", lambda s, a: (np.radians(s), np.radians(a)),
+     r"slope/aspect file \S*radians\.tif: slope and aspect look like radians \(slope 0\.0\d+\.\.0\.6\d+, "
+     r"aspect [\d.]+\.\.6\.\d+\); brdfcorr needs degrees"),
+    ("slope_outside", lambda s, a: (s + 100.0, a),
+     r"slope/aspect file \S*slope_outside\.tif: no slope value in \[0, 90\] deg \(found slope 1\d\d\.\d+\.\.1\d\d\.\d+, "),
+    ("slope_negative", lambda s, a: (-s, a), r"no slope value in \[0, 90\] deg \(found slope -"),
+    ("aspect_scaled", lambda s, a: (s, a * 100.0 + 400.0), r"no aspect value in \[-360, 360\] deg"),
+])
+def test_implausible_slope_aspect_raster(scene, case, transform, pattern):
+    path = _slope_aspect_raster(scene["dir"] / f"{case}.tif", *transform(*_random_surface()))
+    line = _check(scene, _correct_args(scene, "--slope-aspect", path), pattern)
+    if "no " in pattern:
+        assert "every pixel would be nodata" in line.lower()
+
+
+def _obs_file(scene, slope, aspect) -> Path:
+    """An ENVI obs_ort file on the image grid with the bands Slope and Aspect of AVIRIS-NG."""
+    with rasterio.open(scene["image"]) as dataset:
+        profile = {key: dataset.profile[key] for key in ("width", "height", "crs", "transform")}
+    path = scene["dir"] / "ang_obs_ort"
+    with rasterio.open(path, "w", driver="ENVI", count=2, dtype="float32", **profile) as target:
+        target.write(np.stack([slope, aspect]).astype(np.float32))
+        target.descriptions = ("Slope (local surface slope as derived from DEM in degrees)",
+                               "Aspect (local surface aspect 0 to 360 degrees clockwise from N)")
+    return path
+
+
+def test_obs_file_slope_aspect_in_radians(scene):
+    slope, aspect = _random_surface()
+    path = _obs_file(scene, np.radians(slope), np.radians(aspect))
+    _check(scene, _correct_args(scene, "--slope-aspect", path),
+           r"obs file \S*ang_obs_ort: slope and aspect look like radians")
+
+
+def test_obs_file_slope_outside_its_domain(scene):
+    slope, aspect = _random_surface()
+    path = _obs_file(scene, 100.0 * slope, aspect)
+    _check(scene, _correct_args(scene, "--slope-aspect", path), r"obs file \S*ang_obs_ort: no slope value in \[0, 90\]")
+
+
+@pytest.mark.parametrize("slope, aspect", [
+    (0.0, 0.0),  # flat: small numbers, but no aspects spread like radians
+    (1.2, 200.0),  # gentle slopes facing one way
+    (None, None),  # a real spread of slopes and aspects in degrees
+])
+def test_plausible_slope_aspect_rasters_still_correct(scene, slope, aspect):
+    values = _random_surface() if slope is None else (np.full((NY, NX), slope), np.full((NY, NX), aspect))
+    path = _slope_aspect_raster(scene["dir"] / "surface.tif", *values)
+    result = CliRunner().invoke(main, [str(a) for a in _correct_args(scene, "--slope-aspect", path)])
+    assert result.exit_code == 0, result.output
+    assert scene["output"].is_file()
