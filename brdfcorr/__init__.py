@@ -14,7 +14,8 @@ from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # n
 
 #: Names imported at first use (PEP 562), so that `import brdfcorr` and the command line's
 #: `--help` and argument errors do not pay for dask and scipy.
-_LAZY = {"geometry": "brdfcorr.geometry", "models": "brdfcorr.models", "normalize": "brdfcorr.correction"}
+_LAZY = {"geometry": "brdfcorr.geometry", "models": "brdfcorr.models", "normalize": "brdfcorr.correction",
+         "ParameterTable": "brdfcorr.params", "run_chain": "brdfcorr.workflow.api"}
 
 
 def __getattr__(name: str):
@@ -26,5 +27,6 @@ def __getattr__(name: str):
     return value
 
 __all__ = [
-    "__version__", "geometry", "models", "normalize", "BrdfcorrError", "ParameterError", "UnknownNameError",
+    "__version__", "geometry", "models", "normalize", "ParameterTable", "run_chain",
+    "BrdfcorrError", "ParameterError", "UnknownNameError",
 ]

@@ -27,3 +27,25 @@ def chunk_size_problem(value: object) -> str | None:
     if not (low <= number <= high and number % 16 == 0):
         return f"must be a multiple of 16 from {low} to {high} (GeoTIFF tile size; e.g. 256 or 512)"
     return None
+
+
+#: Names of the registered BRDF models, in :data:`brdfcorr.models.REGISTRY`'s order: for the
+#: command line's ``--model`` choices and messages without importing the models (scipy).
+#: tests/test_registry.py keeps them equal to the registry.
+MODEL_NAMES: tuple[str, ...] = (
+    "torrance_sparrow",
+    "torrance_sparrow_simplified",
+    "empirical",
+    "lambertian",
+    "specular_peak",
+    "ross_thick_li_sparse",
+    "ross_thin_li_sparse",
+    "ross_thick_li_dense",
+    "ross_thin_li_dense",
+    "rpv",
+)
+
+#: Models that describe a whole surface (diffuse + specular) and so may be paired with a class in
+#: a parameter table (:data:`brdfcorr.models.SURFACE_MODELS`); ``specular_peak`` is a facet BRDF
+#: used by the V-cavity simulation.
+SURFACE_MODEL_NAMES: tuple[str, ...] = tuple(name for name in MODEL_NAMES if name != "specular_peak")

@@ -80,3 +80,25 @@ def test_help_does_not_import_the_commands():
             "print(sorted(m for m in sys.modules if m.startswith(('matplotlib', 'rasterio', 'scipy.optimize', 'pvlib'))))")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.stdout.strip().splitlines()[-1] == "[]", result.stdout
+
+
+def test_help_texts_have_no_doubled_percent():
+    # click does not %-format help strings: "%%" would be shown as it is ("5-95 %% view zenith").
+    import click
+
+    def commands(group, path):
+        context = click.Context(group)
+        for name in group.list_commands(context):
+            command = group.get_command(context, name)
+            yield (*path, name), command
+            if isinstance(command, click.Group):
+                yield from commands(command, (*path, name))
+
+    runner = CliRunner()
+    for path, command in commands(main, ()):
+        texts = [command.help or ""] + [getattr(p, "help", None) or "" for p in command.params]
+        assert not [text for text in texts if "%%" in text], path
+        result = runner.invoke(main, [*path, "--help"])
+        assert result.exit_code == 0 and "%%" not in result.output, (path, result.output)
+    result = runner.invoke(main, ["fit-classes", "--help"])
+    assert "5-95 % view zenith spread" in " ".join(result.output.split())

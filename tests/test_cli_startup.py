@@ -70,6 +70,32 @@ def test_help_loads_no_heavy_library(baseline):
     assert set(_heavy_after(_main_with("--help"))) == baseline
 
 
+def _command_paths() -> list[tuple[str, ...]]:
+    """Every command as typed: each of :data:`LAZY_COMMANDS`, and each subcommand of a group."""
+    import click
+
+    from brdfcorr.cli import main
+
+    context = click.Context(main)
+    paths: list[tuple[str, ...]] = []
+    for name in sorted(LAZY_COMMANDS):
+        command = main.get_command(context, name)
+        paths.append((name,))
+        if isinstance(command, click.Group):
+            paths += [(name, sub) for sub in command.list_commands(context)]
+    return paths
+
+
+@pytest.mark.parametrize("command", _command_paths(), ids=" ".join)
+def test_every_commands_help_loads_no_heavy_library(command, baseline):
+    # `brdfcorr fit --help` once imported the model registry (scipy) to list the --model choices.
+    assert set(_heavy_after(_main_with(*command, "--help"))) == baseline
+
+
+def test_a_wrong_model_name_is_refused_without_a_heavy_library(baseline):
+    assert set(_heavy_after(_main_with("fit", "--model", "bogus"))) == baseline
+
+
 @pytest.mark.parametrize("command", [name for name, (module, _) in LAZY_COMMANDS.items()
                                      if module not in NOT_YET_LAZY])
 def test_an_unknown_option_is_refused_without_a_heavy_library(command, baseline):

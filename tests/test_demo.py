@@ -119,3 +119,18 @@ def test_demo_cli(tmp_path):
     # The copied chain reruns with `brdfcorr run` (and resumes: the scene is complete).
     again = CliRunner().invoke(main, ["run", str(tmp_path / "demo" / "demo.yaml"), "--no-progress"])
     assert again.exit_code == 0 and "0 ok, 1 skipped, 0 failed" in again.output
+
+
+def test_demo_config_is_package_data():
+    # `pip install .` (not editable) has no configs/: the demo reads its chain from the package,
+    # a copy of the documented configs/demo.yaml that must not drift from it.
+    from importlib.resources import files
+
+    from brdfcorr.workflow.demo import default_config
+
+    packaged = files("brdfcorr").joinpath("data/demo.yaml")
+    assert packaged.is_file()
+    assert default_config() == Path(str(packaged))
+    assert "configs" not in default_config().parts
+    assert packaged.read_bytes() == (REPO / "configs" / "demo.yaml").read_bytes(), (
+        "configs/demo.yaml and brdfcorr/data/demo.yaml differ: edit one, copy it to the other")

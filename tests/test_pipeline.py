@@ -110,6 +110,28 @@ def test_dry_run_lists_and_writes_nothing(tmp_path, make_scenes, write_chain):
     assert not (tmp_path / "out").exists()
 
 
+def test_one_scene_is_singular(tmp_path, make_scenes, write_chain):
+    make_scenes(tmp_path, count=1)
+    chain = write_chain(tmp_path)
+    result = CliRunner().invoke(main, ["run", str(chain), "--dry-run"])
+    assert result.exit_code == 0, result.output
+    assert "1 scene: 1 to run, 0 to skip, 0 would fail" in result.output
+    result = CliRunner().invoke(main, ["validate", str(chain)])
+    assert result.exit_code == 0, result.output
+    assert "valid; 1 scene found," in result.output
+
+
+def test_dry_run_of_no_scenes_exits_2_as_run_does(tmp_path, write_chain):
+    # The images' folder is not there: run refuses the empty batch, so must its dry run.
+    chain = write_chain(tmp_path)
+    run = CliRunner().invoke(main, ["run", str(chain)])
+    dry = CliRunner().invoke(main, ["run", str(chain), "--dry-run"])
+    assert run.exit_code == dry.exit_code == 2, (run.output, dry.output)
+    assert "inputs.images matches no file" in run.output
+    assert dry.output == run.output and len(dry.output.strip().splitlines()) == 1
+    assert "0 scenes" not in dry.output and not (tmp_path / "out").exists()
+
+
 def test_bad_config_and_fatal_errors_exit_2(tmp_path, make_scenes, write_chain):
     make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path, engine={"scheduler": "threads", "workers": 0})

@@ -99,3 +99,12 @@ def test_material_names_and_lookup():
 def test_material_brdf_is_its_model():
     tile = load_material("roof_tile")
     assert tile.brdf(50, 60, 180) == torrance_sparrow(50, 60, 180, **tile.params)
+
+
+def test_the_light_table_of_model_names_is_the_registrys():
+    # The command line's --model choices come from brdfcorr.defaults (no scipy); they must not drift.
+    from brdfcorr.defaults import MODEL_NAMES, SURFACE_MODEL_NAMES
+
+    assert MODEL_NAMES == tuple(REGISTRY)
+    assert SURFACE_MODEL_NAMES == tuple(SURFACE_MODELS)
+    assert set(SURFACE_MODELS) < set(REGISTRY)

@@ -20,41 +20,29 @@ import click
 import click.shell_completion
 
 from brdfcorr import __version__
-from brdfcorr.defaults import chunk_size_problem
-from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, ParameterError, UnknownNameError
+from brdfcorr.defaults import MODEL_NAMES, SURFACE_MODEL_NAMES, chunk_size_problem
+from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, ParameterError
 from brdfcorr.io.files import atomic_path, parse_yaml
 
 
-def _surface_models() -> tuple[str, ...]:
-    # The registry pulls in the models (scipy): imported when a --model is shown or parsed, not for
-    # every command's start.
-    from brdfcorr.models import SURFACE_MODELS
-
-    return tuple(SURFACE_MODELS)
-
-
 class _ModelName(click.ParamType):
-    """``--model``: a surface model of the registry (the registry's own message for another name)."""
+    """``--model``: a surface model of the registry (the registry's message for another name), from
+    the names in :mod:`brdfcorr.defaults`: ``--help`` and a wrong name import no model (scipy)."""
 
     name = "model"
 
     def get_metavar(self, param, ctx=None) -> str:
-        return "[" + "|".join(_surface_models()) + "]"
+        return "[" + "|".join(SURFACE_MODEL_NAMES) + "]"
 
     def shell_complete(self, ctx, param, incomplete):
-        return [click.shell_completion.CompletionItem(n) for n in _surface_models() if n.startswith(incomplete)]
+        return [click.shell_completion.CompletionItem(n) for n in SURFACE_MODEL_NAMES if n.startswith(incomplete)]
 
     def convert(self, value, param, ctx):
-        from brdfcorr.models import get_model
-
-        surface_models = _surface_models()
-        if value in surface_models:
+        if value in SURFACE_MODEL_NAMES:
             return value
-        try:
-            get_model(value)
-        except UnknownNameError as error:
-            self.fail(str(error), param, ctx)
-        self.fail(f"{value!r} is not a surface model; surface models: {', '.join(surface_models)}", param, ctx)
+        if value not in MODEL_NAMES:  # get_model's message
+            self.fail(f"unknown BRDF model {value!r}; known models: {', '.join(MODEL_NAMES)}", param, ctx)
+        self.fail(f"{value!r} is not a surface model; surface models: {', '.join(SURFACE_MODEL_NAMES)}", param, ctx)
 
 
 MODEL_CHOICE = _ModelName()

@@ -27,7 +27,7 @@ from brdfcorr.io.files import parse_yaml, read_document
     show_default=True, help="Directory for the demo outputs.",
 )
 @click.option("--config", "config_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Chain config to run on the demo scene [default: configs/demo.yaml].")
+              help="Chain config to run on the demo scene [default: the demo chain, configs/demo.yaml].")
 @click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
 @handle_errors
 def demo_command(output_dir: Path, config_path, progress):
@@ -110,6 +110,11 @@ class _chain_progress:
         return False
 
 
+def _scenes(count: int) -> str:
+    """``1 scene``, ``2 scenes``, ``0 scenes``."""
+    return f"{count} scene" if count == 1 else f"{count} scenes"
+
+
 def _echo_run(report) -> None:
     rows = []
     for result in report.scenes:
@@ -153,6 +158,8 @@ def run_command(chain, dry_run, resume, overwrite, settings, progress):
     config = load_config(chain, overrides)
     plan = plan_run(config, require_inputs=not dry_run)
     if dry_run:
+        if not plan.scenes:  # an empty batch is refused by the run: the dry run says so, with its line and exit code 2
+            plan_run(config)  # raises the run's InputError (inputs.images matches no file)
         _echo_plan(plan)
         return
     for warning in plan.warnings:
@@ -185,7 +192,7 @@ def _echo_plan(plan) -> None:
     for warning in description["warnings"]:
         click.echo(f"brdfcorr: warning: {warning}", err=True)
     counts = {action: sum(s["action"] == action for s in description["scenes"]) for action in ("run", "skip", "fail")}
-    click.echo(f"{len(rows)} scenes: {counts['run']} to run, {counts['skip']} to skip, {counts['fail']} would fail")
+    click.echo(f"{_scenes(len(rows))}: {counts['run']} to run, {counts['skip']} to skip, {counts['fail']} would fail")
 
 
 @main.command("validate")
@@ -223,7 +230,7 @@ def validate_command(chains, settings):
         for scene in missing:
             click.echo(f"brdfcorr: warning: {chain}: scene {scene.name}: {scene.reason}", err=True)
         incomplete = f" ({len(missing)} with missing inputs)" if missing else ""
-        click.echo(f"{chain}: valid; {len(plan.scenes)} scenes found{incomplete}, "
+        click.echo(f"{chain}: valid; {_scenes(len(plan.scenes))} found{incomplete}, "
                    f"steps {', '.join(plan.steps) or '(none)'}")
 
 

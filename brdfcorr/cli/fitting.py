@@ -24,7 +24,7 @@ from brdfcorr.io.paths import check_outputs
 
 # The library (scipy, dask, rasterio, matplotlib) is imported when a command runs, not when its
 # options are parsed: --help and argument errors answer at once. --model is checked against the
-# registry by MODEL_CHOICE's convert(), which imports it only then.
+# registry's names in brdfcorr.defaults (MODEL_CHOICE), without importing the models.
 
 
 @main.command("fit-classes")
@@ -47,7 +47,7 @@ from brdfcorr.io.paths import check_outputs
 @scale_options
 @click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
 @click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
-              help="Guard rail: minimum 5-95 %% view zenith spread [deg].")
+              help="Guard rail: minimum 5-95 % view zenith spread [deg].")
 @click.option("--fallback",
               help="Built-in material for classes that fail the guard rails [default: leave uncorrected].")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),

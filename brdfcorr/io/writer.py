@@ -57,6 +57,22 @@ DEFAULT_CHUNK = 512
 CORES_PER_THREAD = 4
 
 
+def available_cores() -> int:
+    """The cores this process may run on: its CPU affinity where the system has one (``taskset``,
+    a container's CPU set), else the machine's cores."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # no affinity on macOS and Windows
+        return max(1, os.cpu_count() or 1)
+
+
+def default_threads() -> int:
+    """The dask threads of a scene's pass on this machine when the user names none: one per
+    :data:`CORES_PER_THREAD` of :func:`available_cores` (GDAL compresses on all of them). The one
+    rule of ``brdfcorr correct`` (:func:`write_rasters`) and of a chain's ``threads`` engine."""
+    return max(1, available_cores() // CORES_PER_THREAD)
+
+
 @dataclass(frozen=True)
 class GeoTiffOutput:
     """How :func:`write_rasters` creates its GeoTIFF targets (GDAL creation settings, as a
@@ -356,13 +372,13 @@ def _cog_options(compress: str) -> dict:
 
 
 def _threads(scheduler, num_workers: int | None) -> int | None:
-    """The dask threads of a writing pass: as given, else one per :data:`CORES_PER_THREAD` cores of
-    this process (its CPU affinity) on dask's threaded scheduler; None leaves other schedulers be."""
+    """The dask threads of a writing pass: as given, else :func:`default_threads` on dask's threaded
+    scheduler; None leaves other schedulers be."""
     if num_workers is not None or dask.config.get("num_workers", None) is not None:
         return num_workers
     if dask.base.get_scheduler(scheduler=scheduler) not in (None, dask.threaded.get):  # None: arrays' own, threads
         return None
-    return max(1, len(os.sched_getaffinity(0)) // CORES_PER_THREAD)
+    return default_threads()
 
 
 def _distributed_client(scheduler):

@@ -6,6 +6,7 @@ their parameter names, units, defaults and bounds from here.
 
 from __future__ import annotations
 
+from brdfcorr.defaults import SURFACE_MODEL_NAMES
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.models._base import Model
 from brdfcorr.models.empirical import EMPIRICAL, LAMBERTIAN, SPECULAR_PEAK
@@ -35,18 +36,9 @@ REGISTRY: dict[str, Model] = {
 }
 
 #: Models that describe a whole surface (diffuse + specular) and so may be paired with a class in
-#: a parameter table; ``specular_peak`` is a facet BRDF used by the V-cavity simulation.
-SURFACE_MODELS: tuple[str, ...] = (
-    "torrance_sparrow",
-    "torrance_sparrow_simplified",
-    "empirical",
-    "lambertian",
-    "ross_thick_li_sparse",
-    "ross_thin_li_sparse",
-    "ross_thick_li_dense",
-    "ross_thin_li_dense",
-    "rpv",
-)
+#: a parameter table; ``specular_peak`` is a facet BRDF used by the V-cavity simulation. Written
+#: once in :mod:`brdfcorr.defaults` (which imports nothing), so the command line lists them fast.
+SURFACE_MODELS: tuple[str, ...] = SURFACE_MODEL_NAMES
 
 
 def get_model(name: str | Model) -> Model:

@@ -24,7 +24,8 @@ and settings (:func:`brdfcorr.workflow.plan.scene_fingerprint`) for the next res
 
 Execution engines (``engine.scheduler``):
 
-``threads``       scenes one after another, each scene's chunks on ``workers`` threads
+``threads``       scenes one after another, each scene's chunks on ``workers`` threads (default:
+                  those of ``brdfcorr correct``, :func:`brdfcorr.io.writer.default_threads`)
 ``synchronous``   everything in the calling thread
 ``processes``     ``workers`` scenes at once in a process pool (``threads_per_worker`` each)
 ``distributed``   every scene spread chunk by chunk over all workers of a ``dask.distributed``
@@ -66,6 +67,7 @@ from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import ClassModels, GuardRails, Sampling
 from brdfcorr.io.paths import remove_partials
 from brdfcorr.io.scene import SceneSources
+from brdfcorr.io.writer import default_threads
 from brdfcorr.params import ParameterTable, merge_tables
 from brdfcorr.plot.assess import write_assessment_figures
 from brdfcorr.plot.quicklook import write_quicklook
@@ -355,7 +357,9 @@ def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executo
     """(executor, compute): the executor of scene tasks (None: run them inline) and the keyword
     arguments of :func:`process_scene` naming the dask scheduler of a scene's chunks."""
     if engine.scheduler in ("threads", "synchronous"):
-        yield None, {"scheduler": engine.scheduler, "threads": engine.workers}
+        # Without engine.workers, the thread count of `brdfcorr correct` (one per 4 cores), not all cores.
+        given = "workers" in engine.model_fields_set
+        yield None, {"scheduler": engine.scheduler, "threads": engine.workers if given else default_threads()}
     elif engine.scheduler == "processes":
         # spawn: a forked child would inherit the parent's thread pools and locks mid-use.
         with concurrent.futures.ProcessPoolExecutor(

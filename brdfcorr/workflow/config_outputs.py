@@ -116,7 +116,9 @@ class EngineConfig(StrictModel):
         processes when no address is given), ``workers`` scenes in flight at once.
     workers : int
         Threads (``threads``), processes (``processes``, local ``distributed``); with
-        ``distributed`` also the number of scenes in flight at once.
+        ``distributed`` also the number of scenes in flight at once. Default: the cores; with
+        ``threads`` left out, the threads of ``brdfcorr correct`` (one per 4 cores,
+        :func:`brdfcorr.io.writer.default_threads`).
     threads_per_worker : int
         Threads for the chunks of a scene inside a process, and of each worker process of a local
         ``distributed`` cluster.

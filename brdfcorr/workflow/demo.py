@@ -34,6 +34,7 @@ from __future__ import annotations
 import os
 import shutil
 from dataclasses import dataclass
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
@@ -302,12 +303,16 @@ def write_demo_scene(directory: str | os.PathLike, scene: xr.Dataset, name: str 
 
 
 def default_config() -> Path:
-    """``configs/demo.yaml`` of the source tree brdfcorr runs from."""
-    path = Path(__file__).resolve().parents[2] / "configs" / "demo.yaml"
-    if not path.exists():
-        raise InputError(f"the demo chain {path} is not there (brdfcorr is not run from its source tree); "
+    """The demo chain shipped in the package, ``brdfcorr/data/demo.yaml``.
+
+    It is a copy of the documented ``configs/demo.yaml`` of the repository (a test keeps the two
+    identical), read through :mod:`importlib.resources` so that an installed brdfcorr finds it.
+    """
+    resource = files("brdfcorr").joinpath("data/demo.yaml")
+    if not isinstance(resource, Path) or not resource.is_file():
+        raise InputError(f"the demo chain {resource} is not there (brdfcorr is installed without its data files); "
                          "give the chain config explicitly (brdfcorr demo --config CHAIN.yaml)")
-    return path
+    return resource
 
 
 @dataclass
