@@ -40,6 +40,8 @@ def test_third_party_warnings_only_with_debug():
     stderr = _stderr("warns")
     assert "a third-party warning" not in stderr and "a brdfcorr warning" in stderr
     assert "a third-party warning" in _stderr("--debug", "warns")
+    # brdfcorr's own warning is one line of ours, whatever the command: no Python format, no source line.
+    assert stderr.splitlines() == ["brdfcorr: warning: a brdfcorr warning"]
 
 
 def test_keyboard_interrupt_is_exit_130_with_one_line(monkeypatch):

@@ -229,7 +229,22 @@ class _Group(click.Group):
             if not ctx.params.get("debug"):
                 warnings.simplefilter("ignore")
                 warnings.simplefilter("default", BrdfcorrWarning)
+            warnings.showwarning = _warning_lines(warnings.showwarning)
             return handle_errors(super().invoke)(ctx)
+
+
+def _warning_lines(fallback):
+    """A ``warnings.showwarning`` that writes brdfcorr's own warnings as one ``brdfcorr: warning:
+    ...`` line each (from any command, a chain's scenes included) and passes the others (shown
+    with --debug) to ``fallback``."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, BrdfcorrWarning):
+            click.echo(f"brdfcorr: warning: {message}", err=True)
+        else:
+            fallback(message, category, filename, lineno, file, line)
+
+    return show
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]},
