@@ -12,6 +12,7 @@ B (the brightness cancels in the ratio).
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 
@@ -23,6 +24,7 @@ from brdfcorr.params import ParameterTable
 
 __all__ = [
     "example_table",
+    "file_digests",
     "synthetic_angles",
     "synthetic_classes",
     "render",
@@ -164,3 +166,11 @@ def write_scene(directory: str | os.PathLike, scene: dict[str, xr.DataArray], bl
         classes = classes.rio.write_nodata(class_nodata)
     classes.rio.to_raster(paths["classes"], **options)
     return paths
+
+
+def file_digests(directory: str | os.PathLike) -> dict[str, str]:
+    """SHA-256 of every regular file below ``directory``, by relative path: compare two calls to
+    show that nothing was modified. ``is_file()`` is False for a FIFO, so none is ever opened."""
+    directory = Path(directory)
+    return {str(path.relative_to(directory)): hashlib.sha256(path.read_bytes()).hexdigest()
+            for path in sorted(directory.rglob("*")) if path.is_file()}

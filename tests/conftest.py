@@ -4,6 +4,7 @@ chains of synthetic scenes, overlapping flight lines, scaled integer images."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import dask
@@ -226,3 +227,16 @@ def store():
 def nodata_pixels():
     """The pixels (an index of the (band, y, x) values) that ``store`` writes as nodata."""
     return NODATA_PIXELS
+
+
+@pytest.fixture
+def scene(template, tmp_path) -> dict[str, Path]:
+    """A fresh copy of the module's ``template`` scene directory (image, angles, classes,
+    params.yaml), and an empty output directory: a test may damage its copy. Modules with their
+    own ``scene`` fixture use theirs."""
+    directory = tmp_path / "scene"
+    shutil.copytree(template, directory)
+    (tmp_path / "out").mkdir()
+    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
+            "classes": directory / "classes.tif", "params": directory / "params.yaml",
+            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}

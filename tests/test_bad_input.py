@@ -17,7 +17,6 @@ become nodata and are counted.
 
 from __future__ import annotations
 
-import hashlib
 import re
 import shutil
 from pathlib import Path
@@ -30,7 +29,7 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import example_table, file_digests, synthetic_scene, write_scene
 
 NY, NX = 32, 40
 
@@ -42,16 +41,6 @@ def template(tmp_path_factory) -> Path:
     write_scene(directory / "scene", synthetic_scene(ny=NY, nx=NX))
     example_table().save(directory / "scene" / "params.yaml")
     return directory / "scene"
-
-
-@pytest.fixture
-def scene(template, tmp_path) -> dict[str, Path]:
-    directory = tmp_path / "scene"
-    shutil.copytree(template, directory)
-    (tmp_path / "out").mkdir()
-    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
-            "classes": directory / "classes.tif", "params": directory / "params.yaml",
-            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}
 
 
 # ------------------------------------------------------------------------------------- helpers
@@ -98,11 +87,6 @@ def _correct_args(scene, **replace) -> list[str]:
         if value is not None:
             args += [key, str(value)]
     return args
-
-
-def _digests(directory: Path) -> dict[str, str]:
-    return {str(path.relative_to(directory)): hashlib.sha256(path.read_bytes()).hexdigest()
-            for path in sorted(directory.rglob("*")) if path.is_file()}
 
 
 def _one_error_line(result) -> str:
@@ -255,33 +239,33 @@ def test_correct_bad_input(scene, case, monkeypatch):
     build, pattern = CORRECT_CASES[case]
     monkeypatch.chdir(scene["dir"])  # a YAML tag that ran code would leave ./pwned here
     args = build(scene)
-    before = _digests(scene["dir"])
+    before = file_digests(scene["dir"])
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 2, result.output
     line = _one_error_line(result)
     assert re.search(pattern, line), line
     assert not scene["output"].exists()
     assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
-    assert _digests(scene["dir"]) == before, "inputs must be byte-identical"
+    assert file_digests(scene["dir"]) == before, "inputs must be byte-identical"
     assert not (scene["dir"] / "pwned").exists()
 
 
 def test_existing_output_needs_overwrite(scene):
     """An existing output is refused without --overwrite (and left as it was), replaced with it."""
     scene["output"].write_bytes(b"an earlier result")
-    before = _digests(scene["dir"])
+    before = file_digests(scene["dir"])
     result = CliRunner().invoke(main, _correct_args(scene))
     assert result.exit_code == 2
     assert re.search(r"output \S*corrected\.tif exists; give --overwrite to replace it", _one_error_line(result))
     assert scene["output"].read_bytes() == b"an earlier result"
-    assert _digests(scene["dir"]) == before
+    assert file_digests(scene["dir"]) == before
 
     result = CliRunner().invoke(main, _correct_args(scene) + ["--overwrite"])
     assert result.exit_code == 0, result.output
     with rasterio.open(scene["output"]) as dataset:
         assert dataset.count == 4 and dataset.shape == (NY, NX)
     assert sorted(p.name for p in scene["out"].iterdir()) == ["corrected.tif"]
-    assert _digests(scene["dir"]) == before
+    assert file_digests(scene["dir"]) == before
 
 
 # ----------------------------------------------------------------------- brdfcorr fit-classes
@@ -309,23 +293,23 @@ def test_fit_classes_bad_input(scene, case):
     args = ["fit-classes", str(scene["image"])] + ([str(options.pop("image2"))] if "image2" in options else [])
     for key, value in options.items():
         args += [key, str(value)]
-    before = _digests(scene["dir"])
+    before = file_digests(scene["dir"])
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 2, result.output
     line = _one_error_line(result)
     assert re.search(pattern, line), line
     assert list(scene["out"].iterdir()) == []
-    assert _digests(scene["dir"]) == before
+    assert file_digests(scene["dir"]) == before
 
 
 def test_fit_output_is_the_measurements(scene):
     measurements = scene["dir"] / "tile.csv"
     measurements.write_text("theta_i,theta_r,phi,brdf\n30,30,180,0.5\n30,10,180,0.1\n30,50,90,0.05\n")
-    before = _digests(scene["dir"])
+    before = file_digests(scene["dir"])
     result = CliRunner().invoke(main, ["fit", str(measurements), "-o", str(measurements)])
     assert result.exit_code == 2
     assert re.search(r"-o \S*tile\.csv is also an input; inputs are never overwritten", _one_error_line(result))
-    assert _digests(scene["dir"]) == before
+    assert file_digests(scene["dir"]) == before
 
 
 # ------------------------------------------------------------------------------- brdfcorr run
@@ -397,13 +381,13 @@ def test_run_bad_config(scene, case, monkeypatch):
     build, pattern = RUN_CASES[case]
     monkeypatch.chdir(scene["dir"].parent)
     chain = build(scene)
-    before = _digests(scene["dir"])
+    before = file_digests(scene["dir"])
     result = CliRunner().invoke(main, ["run", str(chain)])
     assert result.exit_code == 2, result.output
     line = _one_error_line(result)
     assert re.search(pattern, line), line
     assert not (scene["dir"].parent / "chain_out").exists()
-    assert _digests(scene["dir"]) == before
+    assert file_digests(scene["dir"]) == before
     assert not (scene["dir"].parent / "pwned").exists()
 
 
@@ -515,7 +499,7 @@ def test_run_isolates_a_scene_with_bad_angles(scene, monkeypatch):
     monkeypatch.chdir(scene["dir"].parent)
     chain = _chain(scene, inputs={"images": ["*/image.tif"], "angles": {"path": "{dir}/angles.tif"},
                                   "classes": "{dir}/classes.tif", "scene_regex": None})
-    before = {**_digests(scene["dir"]), **{f"bad/{k}": v for k, v in _digests(bad).items()}}
+    before = {**file_digests(scene["dir"]), **{f"bad/{k}": v for k, v in file_digests(bad).items()}}
     result = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
     assert result.exit_code == 3, result.output
     output_dir = scene["dir"].parent / "chain_out"
@@ -526,7 +510,7 @@ def test_run_isolates_a_scene_with_bad_angles(scene, monkeypatch):
     assert "the angles look like radians" in status["bad_scene_image"]["error"]
     assert sorted(p.name for p in output_dir.iterdir()) == ["run_report.json", "scene_image_brdf.tif",
                                                             "scene_image_qa.tif"]
-    assert {**_digests(scene["dir"]), **{f"bad/{k}": v for k, v in _digests(bad).items()}} == before
+    assert {**file_digests(scene["dir"]), **{f"bad/{k}": v for k, v in file_digests(bad).items()}} == before
 
 
 def test_only_non_finite_values_are_nodata_even_when_the_band_sum_overflows():

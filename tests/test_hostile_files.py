@@ -15,12 +15,10 @@ correction's rule for invalid factors (``nodata``, never counted as corrected) o
 
 from __future__ import annotations
 
-import hashlib
 import itertools
 import math
 import os
 import re
-import shutil
 import subprocess
 import sys
 import tracemalloc
@@ -38,7 +36,7 @@ from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.io.files import MAX_ALIAS_NODES, MAX_DOCUMENT_BYTES, parse_yaml
 from brdfcorr.models import SURFACE_MODELS, get_model
 from brdfcorr.params import ParameterTable, merge_tables
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import example_table, file_digests, synthetic_scene, write_scene
 
 NY, NX = 16, 20
 #: A command that could block is killed after this many seconds [s]: a guard against a hang, far
@@ -64,23 +62,7 @@ def template(tmp_path_factory) -> Path:
     return directory
 
 
-@pytest.fixture
-def scene(template, tmp_path) -> dict[str, Path]:
-    directory = tmp_path / "scene"
-    shutil.copytree(template, directory)
-    (tmp_path / "out").mkdir()
-    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
-            "classes": directory / "classes.tif", "params": directory / "params.yaml",
-            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}
-
-
 # ------------------------------------------------------------------------------------- helpers
-def _digests(directory: Path) -> dict[str, str]:
-    # is_file() is False for a FIFO: the check never opens one.
-    return {str(path.relative_to(directory)): hashlib.sha256(path.read_bytes()).hexdigest()
-            for path in sorted(directory.rglob("*")) if path.is_file()}
-
-
 def _one_error_line(stderr: str) -> str:
     lines = stderr.splitlines()
     assert len(lines) == 1, stderr[:2000]
@@ -114,14 +96,14 @@ def _chain(scene, text: str | None = None, **sections) -> Path:
 def _check(scene, run, pattern: str) -> str:
     """Run ``run() -> (exit code, stderr)``; check exit 2, one line matching ``pattern``, no output
     and unchanged inputs. Returns the line."""
-    before = _digests(scene["dir"].parent)
+    before = file_digests(scene["dir"].parent)
     code, stderr = run()
     assert code == 2, stderr[:2000]
     line = _one_error_line(stderr)
     assert re.search(pattern, line), line
     assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
     assert not (scene["dir"].parent / "chain_out").exists()
-    assert _digests(scene["dir"].parent) == before, "inputs must be byte-identical"
+    assert file_digests(scene["dir"].parent) == before, "inputs must be byte-identical"
     return line
 
 

@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 import shutil
@@ -34,7 +33,7 @@ from brdfcorr.cli import main
 from brdfcorr.correction.terrain import slope_aspect
 from brdfcorr.errors import InputError
 from brdfcorr.io.writer import encode_integers
-from brdfcorr.testing import PIXEL, example_table, georeference, synthetic_scene, write_scene
+from brdfcorr.testing import PIXEL, example_table, file_digests, georeference, synthetic_scene, write_scene
 from brdfcorr.workflow.request import Engine
 
 NY, NX = 32, 32
@@ -50,22 +49,7 @@ def template(tmp_path_factory) -> Path:
     return directory
 
 
-@pytest.fixture
-def scene(template, tmp_path) -> dict[str, Path]:
-    directory = tmp_path / "scene"
-    shutil.copytree(template, directory)
-    (tmp_path / "out").mkdir()
-    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
-            "classes": directory / "classes.tif", "params": directory / "params.yaml",
-            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}
-
-
 # ------------------------------------------------------------------------------------- helpers
-def _digests(directory: Path) -> dict[str, str]:
-    return {str(path.relative_to(directory)): hashlib.sha256(path.read_bytes()).hexdigest()
-            for path in sorted(directory.rglob("*")) if path.is_file()}
-
-
 def _in_process(args) -> tuple[int, str]:
     result = CliRunner().invoke(main, [str(a) for a in args])
     return result.exit_code, result.stderr
@@ -74,7 +58,7 @@ def _in_process(args) -> tuple[int, str]:
 def _check(scene, args, pattern: str, run=_in_process) -> str:
     """Run the command line ``args``: exit 2, one ``brdfcorr: error:`` line matching ``pattern``,
     nothing in the output directory (nor a chain's), inputs byte-identical. Returns the line."""
-    before = _digests(scene["dir"])
+    before = file_digests(scene["dir"])
     code, stderr = run(args)
     assert code == 2, stderr[:2000]
     lines = stderr.splitlines()
@@ -83,7 +67,7 @@ def _check(scene, args, pattern: str, run=_in_process) -> str:
     assert re.search(pattern, lines[0]), lines[0]
     assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
     assert not (scene["dir"].parent / "chain_out").exists()
-    assert _digests(scene["dir"]) == before, "inputs must be byte-identical"
+    assert file_digests(scene["dir"]) == before, "inputs must be byte-identical"
     return lines[0]
 
 
