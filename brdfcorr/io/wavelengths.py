@@ -14,7 +14,8 @@ from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.io.opening import opened
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, named_band_wavelengths
 
-__all__ = ["band_wavelengths", "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS", "SENTINEL2_WAVELENGTHS"]
+__all__ = ["band_wavelengths", "file_wavelengths", "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS",
+           "SENTINEL2_WAVELENGTHS"]
 
 _UNITS_TO_NM = {
     "": 1.0, "nm": 1.0, "nanometer": 1.0, "nanometers": 1.0, "nanometre": 1.0, "nanometres": 1.0,
@@ -62,18 +63,32 @@ def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
     """
     n_bands = image.sizes[image.dims[0]]
     source = path or image.encoding.get("source", "image")
-    envi_header = {}
     if path is not None:
-        # The file's own dataset-level tags: rioxarray's attrs mix in the tags of band 1.
-        with opened(path, "image") as dataset:
-            tags, descriptions = dataset.tags(), dataset.descriptions
-            if dataset.driver == "ENVI":
-                envi_header = dataset.tags(ns="ENVI")
+        _, tags, descriptions, envi_header = _file_metadata(path)
     else:
-        tags = image.attrs
+        tags, envi_header = image.attrs, {}
         descriptions = image.attrs.get("long_name")
         if isinstance(descriptions, str):
             descriptions = (descriptions,) if n_bands == 1 else None
+    return _from_metadata(n_bands, tags, descriptions, envi_header, path, source, explicit)
+
+
+def file_wavelengths(path: str | os.PathLike) -> np.ndarray | None:
+    """Band-centre wavelengths [nm] of a raster file (its tags, band descriptions or ENVI header:
+    the file sources of :func:`band_wavelengths`), or None when nothing gives them."""
+    return _from_metadata(*_file_metadata(path), path, path, None)
+
+
+def _file_metadata(path) -> tuple[int, dict, tuple, dict]:
+    """A file's band count, dataset-level tags (rioxarray's attrs mix in the tags of band 1), band
+    descriptions and ENVI header items."""
+    with opened(path, "image") as dataset:
+        envi_header = dataset.tags(ns="ENVI") if dataset.driver == "ENVI" else {}
+        return dataset.count, dataset.tags(), dataset.descriptions, envi_header
+
+
+def _from_metadata(n_bands: int, tags, descriptions, envi_header, path, source, explicit) -> np.ndarray | None:
+    """:func:`band_wavelengths` from what the image or file holds."""
     values = None
     origin = ""
     if explicit is not None:

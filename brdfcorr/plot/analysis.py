@@ -94,8 +94,10 @@ def plot_polar(material: Material, zeniths: Sequence[float] = (30.0, 50.0, 65.0)
     for axis, theta_i, value in zip(axes, zeniths, values):
         mesh = axis.pcolormesh(np.radians(azimuth), view, value, norm=norm, shading="gouraud", cmap="viridis")
         axis.set(title=f"θi = {theta_i:g}°", theta_zero_location="N")
-        axis.set_rticks([30.0, 60.0])
+        axis.set_rticks([30.0, 60.0], labels=["θr = 30°", "60°"])
         axis.set_rlabel_position(90)
+        axis.tick_params(axis="y", colors="white")  # the radial labels sit on the dark colour map
+        axis.set_xlabel("relative azimuth φ (angle) and view zenith θr (radius)", fontsize="small")
     figure.colorbar(mesh, ax=list(axes), label="BRDF [sr⁻¹]", shrink=0.8)
     figure.suptitle(f"{material.label}: {material.model.name}, {material.wavelength:g} nm (φ = 0: towards the sun)")
     return figure

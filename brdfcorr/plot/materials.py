@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 
 from brdfcorr.models import get_model
 from brdfcorr.models.materials import Material
+from brdfcorr.plot._display import display_name, representative_bands
 
 #: The illumination geometries of paper 003, fig. 3: (theta_i, theta_r) of each azimuthal cut [deg].
 AZIMUTH_CUTS = ((30.0, 30.0), (50.0, 50.0), (65.0, 70.0))
@@ -54,7 +55,7 @@ def plot_materials(materials: Sequence[Material], max_zenith: float = 80.0) -> F
             xlabel="relative azimuth φ [°] (180 = forward)",
             ylabel="BRDF [sr⁻¹]",
         )
-    axes[0, 0].legend(fontsize="small")
+    figure.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside right center", fontsize="small")
     figure.suptitle(
         "Torrance–Sparrow model with the fits of Meister et al. (2000), Table 1 (550 nm)"
     )
@@ -73,7 +74,9 @@ def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figur
     wavelengths : sequence of float, optional
         Band centres [nm] for the panel titles.
     max_panels : int, default 4
-        Number of bands shown, evenly spread over the spectrum.
+        Number of bands shown: with wavelengths those nearest the blue, green, red, NIR and SWIR
+        centres the image has (:func:`brdfcorr.plot._display.representative_bands`; not the noisy
+        edge bands of an imaging spectrometer), else bands evenly spread.
 
     Notes
     -----
@@ -83,7 +86,7 @@ def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figur
     """
     model = get_model(fit.model)
     n_bands = samples.brdf.shape[1]
-    bands = np.unique(np.linspace(0, n_bands - 1, min(max_panels, n_bands)).round().astype(int))
+    bands = representative_bands(wavelengths, n_bands, max_panels)
     signed = np.where(samples.phi > 90.0, samples.theta_r, -samples.theta_r)
     figure = Figure(figsize=(4.2 * len(bands), 3.8), layout="constrained")
     axes = np.atleast_1d(figure.subplots(1, len(bands), sharey=False))
@@ -98,9 +101,10 @@ def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figur
             xlabel="view zenith θr [°] (+ forward, − backward)",
             ylabel="reflectance factor [-]",
         )
-    axes[0].legend(fontsize="small", markerscale=4)
+    figure.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize="small",
+                  markerscale=4)
     figure.suptitle(
-        f"class {fit.class_id} ({fit.name}): {fit.status}, N = {fit.n_samples}, "
+        f"class {fit.class_id} ({display_name(fit.name)}): {fit.status}, N = {fit.n_samples}, "
         f"view zenith spread {fit.vza_spread:.0f}°"
     )
     return figure

@@ -12,7 +12,7 @@ into scenes and decides what happens to each (``run``, ``skip``, ``fail``; :mod:
    atomic writes, QA counts; optionally the uncertainty raster and tilted surfaces,
    :class:`brdfcorr.workflow.correction.Terrain`), assesses the view-angle signal left in it
    (``steps.assess``: :func:`brdfcorr.workflow.assessment.assess_files`, a JSON report and a figure)
-   and writes a before/after quicklook (:func:`brdfcorr.plot.quicklook.write_quicklook`);
+   and writes a before/after quicklook (:func:`brdfcorr.workflow.quicklook.write_quicklook`);
 3. writes the run report (JSON; :mod:`.report`): inputs, parameter table and its sources,
    versions, timings, per-scene QA counts and errors.
 
@@ -70,11 +70,11 @@ from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.writer import default_threads
 from brdfcorr.params import ParameterTable, merge_tables
 from brdfcorr.plot.assess import write_assessment_figures
-from brdfcorr.plot.quicklook import write_quicklook
 from brdfcorr.workflow.assessment import assess_files, write_json
 from brdfcorr.workflow.config import ChainConfig, EngineConfig
 from brdfcorr.workflow.correction import Terrain, correct_files
 from brdfcorr.workflow.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
+from brdfcorr.workflow.quicklook import write_quicklook
 from brdfcorr.workflow.report import RunReport, assessment_summary, earlier_findings, scene_result, versions
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file

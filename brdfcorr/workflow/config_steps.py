@@ -203,22 +203,24 @@ class QuicklookStep(StrictModel):
 
     Attributes
     ----------
-    bands : list of int
-        1-based bands shown as red, green, blue (three), or one band in grey.
+    bands : list of int, optional
+        1-based bands shown as red, green, blue (three), or one band in grey. Default: the bands
+        nearest 665, 560 and 490 nm where the image's wavelengths are known and cover them, else
+        bands 3, 2, 1 (band 1 of a one- or two-band image).
     percentiles : (float, float)
-        Contrast stretch of the *input* image, applied to both panels so they compare [%].
+        Contrast stretch of both images together, applied to both panels so they compare [%].
     max_size : int
         Longest side of the quicklook [pixels]; larger images are block-averaged.
     """
 
-    bands: list[PositiveInteger] = Field(default_factory=lambda: [3, 2, 1])
-    percentiles: tuple[Annotated[Number, Field(ge=0, le=100)], Annotated[Number, Field(ge=0, le=100)]] = (2.0, 98.0)
+    bands: list[PositiveInteger] | None = None
+    percentiles: tuple[Annotated[Number, Field(ge=0, le=100)], Annotated[Number, Field(ge=0, le=100)]] = (1.0, 99.9)
     max_size: Integer = Field(800, ge=16)
 
     @field_validator("bands")
     @classmethod
-    def _count(cls, value: list[int]) -> list[int]:
-        if len(value) not in (1, 3):
+    def _count(cls, value: list[int] | None) -> list[int] | None:
+        if value is not None and len(value) not in (1, 3):
             raise ValueError(f"give 1 or 3 bands, got {len(value)}")
         return value
 

@@ -249,7 +249,7 @@ def _check_quicklook_bands(config: ChainConfig, scenes: list[Scene]) -> None:
     bands means the setting is wrong, as a glob typo is. Images that are missing or unreadable are
     left to their scene (which fails on them)."""
     step = config.steps.quicklook
-    if step is None:
+    if step is None or step.bands is None:  # chosen by wavelength per image
         return
     needed = max(step.bands)
     short = []

@@ -1,0 +1,56 @@
+"""The chain's ``quicklook`` step: read an input and its corrected image small, draw them
+(:func:`brdfcorr.plot.quicklook.quicklook_figure`) and write the PNG atomically."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from brdfcorr.io.files import atomic_path
+from brdfcorr.io.overview import band_count_and_transform, read_small
+from brdfcorr.io.wavelengths import file_wavelengths
+from brdfcorr.plot._display import is_north_up, true_colour_bands
+from brdfcorr.plot.quicklook import band_label, quicklook_figure
+
+__all__ = ["write_quicklook"]
+
+
+def write_quicklook(image: str | os.PathLike, corrected: str | os.PathLike, target: str | os.PathLike, *,
+                    classes: str | os.PathLike | None = None, bands: Sequence[int] | None = None,
+                    percentiles=(1.0, 99.9), max_size: int = 800, title: str = "",
+                    class_names: Mapping[int, str] | None = None) -> Path:
+    """Write the before/after PNG of :func:`~brdfcorr.plot.quicklook.quicklook_figure`.
+
+    Parameters
+    ----------
+    image, corrected : path-like
+        Input and corrected rasters (same grid).
+    target : path-like
+        PNG to write (atomically).
+    classes : path-like, optional
+        Class map for per-class profiles (the most frequent classes, named by ``class_names``);
+        without it one profile of all valid pixels.
+    bands : sequence of int, optional
+        1-based bands for red, green, blue, or one band (grey). Default: by wavelength
+        (:func:`brdfcorr.plot._display.true_colour_bands`, from the corrected image's tags).
+    percentiles : (float, float)
+        Stretch [%] per band of both images together, applied to both panels.
+    max_size : int
+        Longest side of the panels [pixels].
+    title : str
+        Prefix of the panel titles.
+    """
+    count, transform = band_count_and_transform(corrected)
+    wavelengths = file_wavelengths(corrected)
+    bands = list(bands) if bands else true_colour_bands(wavelengths, count)
+    before = read_small(image, bands, max_size)
+    after = read_small(corrected, bands, max_size)
+    class_map = None if classes is None else read_small(classes, [1], max_size, average=False)[0]
+    figure = quicklook_figure(before, after, class_map=class_map, band_label=band_label(bands, wavelengths),
+                              percentiles=percentiles, title=title, class_names=class_names,
+                              north_up=is_north_up(transform))
+    target = Path(target)
+    with atomic_path(target) as temporary:
+        figure.savefig(temporary, dpi=90, format="png")
+    return target
