@@ -63,8 +63,9 @@ def _band_mean(image: xr.DataArray, span: Sequence[float], role: str) -> xr.Data
     if image.ndim != 3:
         raise InputError(f"the image must be (band, y, x); it has dims {image.dims}")
     if "wavelength" not in image.coords:
-        raise InputError("the image has no 'wavelength' coordinate [nm]; give its band centres "
-                         "(open_image(..., wavelengths=...))")
+        source = image.encoding.get("source") or image.attrs.get("source") or "the image"
+        raise InputError(f"{source}: no band centres [nm] in its tags, band descriptions or header; give them "
+                         "(--wavelengths on the command line, wavelengths= in Python)")
     low, high = (float(v) for v in span)
     wavelengths = np.asarray(image.coords["wavelength"].values, dtype=float)
     selected = np.flatnonzero((wavelengths >= low) & (wavelengths <= high))

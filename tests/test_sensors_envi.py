@@ -221,3 +221,13 @@ def test_angles_fit_the_correction_input_contract():
     angles = read_angles("envi_obs", TOPO_OBS, like=image)
     rio_io.check_same_grid({"image": image, **angles.data_vars})
     assert angles.sza.chunks == image.chunks[1:]
+
+
+def test_a_reflectance_cube_given_as_obs_file_is_one_short_line():
+    # The real 425-band AVIRIS-NG radiance cube given where an obs file belongs: the message names a
+    # few band names and the count, not all 425 (it was one "line" of about 10 kB).
+    with pytest.raises(SensorInputError) as caught:
+        read_envi_obs(CUBE_IMAGE)
+    message = str(caught.value)
+    assert "\n" not in message and len(message) < 400
+    assert "(425 bands)" in message and "obs/obs_ort file" in message

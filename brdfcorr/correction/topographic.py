@@ -419,7 +419,7 @@ def _c_lookup(c_table: pd.DataFrame, n_bands: int):
 def _warn_rejected(table: pd.DataFrame) -> None:
     rejected = table[~table["accepted"].astype(bool)]
     if len(rejected):
-        listed = "; ".join(f"class {r['class']} band {r['band']}: {r['reason']}"
+        listed = "; ".join(f"class {r['class']} band {r['band'] + 1}: {r['reason']}"  # bands from 1, as everywhere
                            for _, r in rejected.head(5).iterrows())
         more = f" (and {len(rejected) - 5} more)" if len(rejected) > 5 else ""
         warnings.warn(f"topographic C fit rejected for {len(rejected)} class/band(s), not corrected there: "

@@ -195,13 +195,19 @@ def _obs_band_index(path: Path, names: tuple, wanted: str, label: str) -> int:
     matches = [index for index, name in enumerate(names) if _normalize(name or "").startswith(wanted)]
     if len(matches) == 1:
         return matches[0]
-    listed = ", ".join(repr(name) for name in names)
     if not matches:
         raise SensorInputError(
-            f"{path}: no obs band for {label} (a band name starting with {wanted!r}); "
-            f"band names are: {listed}"
+            f"{path}: no obs band for {label} (a band name starting with {wanted!r}); {_some_names(names)}"
+            " (is this an obs/obs_ort file?)"
         )
-    raise SensorInputError(f"{path}: several obs bands match {label} ({wanted!r}): {listed}")
+    raise SensorInputError(f"{path}: several obs bands match {label} ({wanted!r}): "
+                           f"{', '.join(repr(names[i]) for i in matches)}")
+
+
+def _some_names(names: tuple, most: int = 6) -> str:
+    """``band names are: 'a', 'b', ... (425 bands)``, at most ``most`` names: a message stays one line."""
+    listed = ", ".join(repr(name) for name in names[:most])
+    return f"band names are: {listed}" + (f", ... ({len(names)} bands)" if len(names) > most else "")
 
 
 def wanted_bands(band_names: Mapping[str, str] | None, defaults: Mapping[str, str], what: str) -> dict[str, str]:
