@@ -13,7 +13,9 @@ the same pixel without noise at the reference geometry (scene-mean sun, nadir vi
 * **A, vegetation/soil**: a linear mixture ``v f_veg + (1 - v) f_soil`` with a smoothly varying
   vegetation fraction ``v``, both RTLSR with MODIS-like kernel weights per band (60 bands
   400-1000 nm, red edge). brdfcorr workflow: NDVI percentile strata (``ndvi_strata``, as
-  FlexBRDF) -> ``fit_classes`` with ``ross_thick_li_sparse`` per stratum -> ``normalize``.
+  FlexBRDF) -> ``fit_classes`` with ``ross_thick_li_sparse`` per stratum -> ``normalize``, once
+  with one model per stratum and once with the strata's coefficients interpolated in NDVI between
+  their centres (the table's ``ndvi_interpolation``, as FlexBRDF applies its bins).
   Goals: median error <= 0.7 %, worst stratum east/west difference <= 0.2 %.
 * **B, urban**: a true class map of roof tile and red concrete (Torrance-Sparrow, paper 003
   Table 1 materials, t0 and t1 scaled by an illustrative spectrum) and grass and bare soil
@@ -31,6 +33,21 @@ the worst class after the correction is held against the goals (what a user can 
 truth has an east/west difference of its own (texture and patches, few per third; for NDVI strata
 also a composition that depends on the view, as the strata are cut from the observed NDVI), and
 an image-based fit takes part of it for BRDF, so the residual ``after - truth`` is printed too.
+For scene A the east/west is also measured over five groups cut from the true vegetation fraction
+v (each holds the same mixture on both sides, unlike strata cut from the observed NDVI).
+
+Measured (issue 24, 400 x 600 x 60, 1 % noise): interpolating in NDVI takes the median error from
+0.325 % to 0.306 %, the worst stratum east/west from 0.95 % to 0.83 % and its residual from
+4.80 % to 4.46 %; by true-fraction group the residual east/west goes from 4.64 % to 4.36 %. The
+0.2 % goal stays out of reach because the fit, not the application, carries the bias: strata cut
+from the observed NDVI hold more vegetation on one side of the line, and a stratum's kernel weights
+take that for BRDF. Strata and interpolation by the true fraction still leave 2.2 %: the scene's
+spatially correlated albedo texture and patches make the fitted kernel weights uncertain (a fit
+of coefficients linear in the true fraction is exact on texture-free data, and off by up to 3 %
+in the factor with the texture). On a spatially white scene (``--diagnose``'s "spatially white")
+the true-fraction strata leave 0.16 % while observed-NDVI strata leave 3.5 % (continuous) to
+4.0 % (binned), and re-cutting the strata from the NDVI of the corrected image converges slowly
+(3.5, 3.0, 2.5, 2.1 % over four passes).
 ``--diagnose`` separates the sources for scene A (NDVI strata vs true-fraction strata, noise,
 one RTLSR per stratum without a fit, scene structure, number of strata, a second stratification
 pass).
@@ -334,14 +351,19 @@ def best_of(repeat: int, function, *args, **kwargs):
 
 
 # ------------------------------------------------------------------------------------ the runs
-def workflow_a(scene: dict):
-    """NDVI strata -> fit -> correct; (strata, fit result, corrected, seconds per phase)."""
+def workflow_a(scene: dict, continuous: bool = False):
+    """NDVI strata -> fit -> correct, with the strata's coefficients interpolated in NDVI when
+    ``continuous`` (FlexBRDF; the table's ``ndvi_interpolation``, centres measured on the scene);
+    (strata, fit result, corrected, seconds per phase)."""
     phases, start = {}, time.perf_counter()
     strata = ndvi_strata(scene["image"], percentiles=PERCENTILES).classes
     phases["strata"], start = time.perf_counter() - start, time.perf_counter()
     result = fit(scene, strata, "ross_thick_li_sparse")
     phases["fit"], start = time.perf_counter() - start, time.perf_counter()
-    corrected = correct(scene, strata, result.table)
+    table = result.table
+    if continuous:
+        table = table.with_ndvi_interpolation({"classes": list(table.class_ids)})
+    corrected = correct(scene, strata, table)
     phases["correct"] = time.perf_counter() - start
     return strata, result, corrected, phases
 
@@ -352,11 +374,35 @@ def phase_line(elapsed: float, phases: dict[str, float], baseline: float) -> str
             f"one cube * factor pass; {parts}")
 
 
+def fraction_groups(scene: dict) -> np.ndarray:
+    """Five groups of near-equal size by the true vegetation fraction v: each holds the same mixture
+    east and west, so their east/west difference after the correction is the correction's own."""
+    fraction = scene["fraction"]
+    return np.digitize(fraction, np.percentile(fraction, PERCENTILES)).astype(np.uint8) + 1
+
+
+def fraction_report(scene: dict, corrected: np.ndarray) -> None:
+    groups = fraction_groups(scene)
+    values = scores(scene, corrected, groups, range(1, len(PERCENTILES) + 2))
+    print(f"  worst east/west by true-fraction group after {values['after']:.2%} (goal <= 0.2%: "
+          f"{'met' if values['after'] <= 0.002 else 'MISSED'}); the truth's own {values['truth']:.2%}; "
+          f"residual after - truth {values['residual']:.2%}")
+
+
 def run_vegetation_soil(args, baseline: float) -> None:
     scene = scene_vegetation_soil(args.rows, args.columns, args.bands, args.noise)
+    for continuous in (False, True):
+        run_vegetation_soil_case(args, baseline, scene, continuous)
+    if args.diagnose:
+        strata = ndvi_strata(scene["image"], percentiles=PERCENTILES).classes
+        diagnose(args, scene, np.asarray(strata.values))
+
+
+def run_vegetation_soil_case(args, baseline: float, scene: dict, continuous: bool) -> None:
+    how = "coefficients interpolated in NDVI (ndvi_interpolation)" if continuous else "one model per stratum"
     print(f"\nA. vegetation/soil mixture, {args.bands} bands x {args.rows} x {args.columns}, "
-          f"noise {args.noise:.1%}: NDVI percentile strata {PERCENTILES} + ross_thick_li_sparse")
-    (strata, result, corrected, phases), elapsed = best_of(args.repeat, workflow_a, scene)
+          f"noise {args.noise:.1%}: NDVI percentile strata {PERCENTILES} + ross_thick_li_sparse; {how}")
+    (strata, result, corrected, phases), elapsed = best_of(args.repeat, workflow_a, scene, continuous)
     classes = np.asarray(strata.values)
     names = {}
     for entry in result.fits:
@@ -364,10 +410,9 @@ def run_vegetation_soil(args, baseline: float) -> None:
         names[entry.class_id] = f"stratum {entry.class_id} (v {low:.2f}-{high:.2f})"
     gradient_table(scene, corrected, classes, names)
     report(scores(scene, corrected, classes, names), 0.007, 0.002, args.noise, "stratum")
+    fraction_report(scene, corrected)
     whole_scene(scene, corrected, classes > 0)
     print(phase_line(elapsed, phases, baseline))
-    if args.diagnose:
-        diagnose(args, scene, classes)
 
 
 def mean_mixture_table(scene: dict, classes: np.ndarray) -> ParameterTable:

@@ -39,6 +39,14 @@ A class fitted by ``brdfcorr fit`` or ``fit-classes`` also carries a ``fit:`` bl
 fitted parameters, which :meth:`ParameterTable.for_bands` resolves to the bands with the parameters
 (:attr:`BandParameters.covariance`).
 
+A class may list ``bad_bands``, wavelength ranges [nm] where it has no parameters (the bands
+``fit-classes`` left out of its fit: water vapour, the ENVI header's ``bbl``); the correction
+passes image bands there through uncorrected (:attr:`BandParameters.no_parameters`).
+
+An optional ``ndvi_interpolation:`` block (:class:`NdviInterpolation`) names NDVI strata whose
+linear coefficients the correction interpolates in each pixel's NDVI between the strata's centres,
+as FlexBRDF does (:mod:`brdfcorr.correction.continuous`; ``docs/classmaps.md``).
+
 Errors in a table raise :class:`brdfcorr.errors.ParameterError` naming the class and the parameter
 (and the file, for :meth:`ParameterTable.load`).
 
@@ -72,6 +80,7 @@ from brdfcorr.params_bands import (
     band_covariance,
     band_values,
     bands_dataset,
+    check_bad_bands,
     material_caveat,
     resolve_entry,
 )
@@ -80,12 +89,14 @@ from brdfcorr.params_fit import Count as Count
 from brdfcorr.params_fit import Covariance as Covariance
 from brdfcorr.params_fit import FitRecord
 from brdfcorr.params_fit import Statistic as Statistic
+from brdfcorr.strata import NIR_RANGE, RED_RANGE
 
 __all__ = [
     "ReferenceGeometry",
     "ClassEntry",
     "FitRecord",
     "ParameterTable",
+    "NdviInterpolation",
     "BandParameters",
     "merge_tables",
 ]
@@ -127,6 +138,8 @@ class ReferenceGeometry(StrictModel):
 
 #: A parameter's value: a number or a list of numbers; a boolean (YAML's ``yes``, ``on``) is refused.
 ParameterValue = Annotated[float | list[Number], BeforeValidator(refuse_boolean)]
+#: A wavelength range [nm] ``[low, high]``, ends included (:attr:`ClassEntry.bad_bands`).
+BandRange = Annotated[list[Number], Field(min_length=2, max_length=2)]
 
 
 class ClassEntry(StrictModel):
@@ -155,6 +168,13 @@ class ClassEntry(StrictModel):
     fit : FitRecord, optional
         How the parameters were fitted and how well they are known (errors, covariance, chi-square
         per degree of freedom, N, R^2, source), written by ``brdfcorr fit`` and ``fit-classes``.
+    bad_bands : list of [float, float], optional
+        Wavelength ranges [nm], ends included, where the class has no parameters (bad bands: water
+        vapour absorption, bands the ENVI header's ``bbl`` marks bad), written by ``fit-classes``
+        for the bands it left out of the fit. An image band whose centre lies in one is passed
+        through uncorrected and flagged ``band_uncorrected`` (:class:`brdfcorr.correction.QA`);
+        the class's ``wavelengths`` lie outside them and are interpolated across them as usual
+        for the other bands (:func:`brdfcorr.params_bands.band_values`).
     """
 
     id: Integer = Field(ge=1)
@@ -164,6 +184,7 @@ class ClassEntry(StrictModel):
     wavelengths: list[Number] | None = None
     material: str | None = None
     fit: FitRecord | None = None
+    bad_bands: list[BandRange] | None = None
 
     @property
     def label(self) -> str:
@@ -247,6 +268,8 @@ class ClassEntry(StrictModel):
             raise ValueError(f"{self.label}: {error}") from None
         if self.fit is not None:
             self.fit.check_entry(self, model)
+        if self.bad_bands is not None:
+            check_bad_bands(self)
         return self
 
     def band_values(
@@ -290,6 +313,64 @@ class ClassEntry(StrictModel):
         return band_covariance(self, wavelengths, n_bands, extrapolate)
 
 
+class NdviInterpolation(StrictModel):
+    """A group of classes whose coefficients vary continuously with NDVI (FlexBRDF), the
+    ``ndvi_interpolation:`` block of a table.
+
+    The classes are NDVI strata fitted one by one (``brdfcorr classes ndvi``, ``fit-classes``). The
+    correction gives a pixel of any class of the group the parameters interpolated linearly in its
+    own NDVI between the classes' NDVI centres (:mod:`brdfcorr.correction.continuous`), so that the
+    strata's boundaries and a stratum's mixture changing across the scene stop biasing the
+    correction (Queally et al. 2022, FlexBRDF, JGR Biogeosciences 127, e2021JG006622, sect. 2.3).
+
+    Attributes
+    ----------
+    classes : list of int
+        Class ids of the group, at least two, in increasing NDVI; each is a class of the table.
+        They share one model with linear parameters (kernel-driven, Lambertian) and, band by band,
+        equal shape parameters: only the linear coefficients are interpolated.
+    centres : list of float, optional
+        The NDVI [1] of each class, strictly increasing, one per class. Default: the mean NDVI of
+        each class's pixels in the scene being corrected (one more read of its red and NIR bands).
+    red, nir : (float, float)
+        Wavelength ranges [nm] of the NDVI (:func:`brdfcorr.strata.ndvi`), ends included.
+    """
+
+    classes: list[Integer] = Field(min_length=2)
+    centres: list[Number] | None = None
+    red: tuple[Number, Number] = RED_RANGE
+    nir: tuple[Number, Number] = NIR_RANGE
+
+    @model_validator(mode="after")
+    def _check(self) -> NdviInterpolation:
+        if len(set(self.classes)) != len(self.classes):
+            raise ValueError(f"ndvi_interpolation: classes {self.classes} list an id more than once")
+        if self.centres is not None:
+            centres = np.asarray(self.centres, dtype=float)
+            if centres.size != len(self.classes):
+                raise ValueError(f"ndvi_interpolation: {centres.size} centres for {len(self.classes)} classes; "
+                                 "give one NDVI centre per class")
+            if not np.all(np.isfinite(centres)) or np.any(np.diff(centres) <= 0):
+                raise ValueError("ndvi_interpolation: centres must be finite and strictly increasing "
+                                 "(list the classes in increasing NDVI)")
+        for role, (low, high) in (("red", self.red), ("nir", self.nir)):
+            if not 0 < low <= high:
+                raise ValueError(f"ndvi_interpolation: {role} range {low:g}-{high:g} nm must be 0 < low <= high")
+        return self
+
+    def check_classes(self, table: ParameterTable) -> None:
+        """Raise ``ValueError`` unless every class of the group is in ``table``, with one model that
+        has linear parameters."""
+        missing = [class_id for class_id in self.classes if class_id not in table]
+        if missing:
+            raise ValueError(f"ndvi_interpolation: class(es) {', '.join(map(str, missing))} are not in the table")
+        models = sorted({table[class_id].model for class_id in self.classes})
+        if len(models) > 1:
+            raise ValueError(f"ndvi_interpolation: the classes must share one model, got {', '.join(models)}")
+        if not get_model(models[0]).linear:
+            raise ValueError(f"ndvi_interpolation: model {models[0]} has no linear parameters to interpolate")
+
+
 def check_distinct_ids(entries: Iterable[ClassEntry]) -> None:
     """Raise ``ValueError`` (in a pydantic validator) when two of ``entries`` share a class id."""
     duplicates = sorted(i for i, count in Counter(entry.id for entry in entries).items() if count > 1)
@@ -307,6 +388,7 @@ class ParameterTable(StrictModel):
 
     reference: ReferenceGeometry | None = None
     classes: list[ClassEntry] = Field(default_factory=list)
+    ndvi_interpolation: NdviInterpolation | None = None
 
     def __init__(self, source: str = "parameter table", /, **data):
         # ``source`` (positional only, so no key of a document can set it) names the document in
@@ -319,6 +401,8 @@ class ParameterTable(StrictModel):
     @model_validator(mode="after")
     def _unique_ids(self) -> ParameterTable:
         check_distinct_ids(self.classes)
+        if self.ndvi_interpolation is not None:
+            self.ndvi_interpolation.check_classes(self)
         return self
 
     # ----------------------------------------------------------------------------------- access
@@ -357,15 +441,31 @@ class ParameterTable(StrictModel):
         return self.model_copy(update={"classes": classes})
 
     def without_class(self, class_id: int) -> ParameterTable:
-        """A new table without class ``class_id``."""
+        """A new table without class ``class_id`` (also left out of its NDVI interpolation, which is
+        dropped when fewer than two classes remain)."""
         self[class_id]  # KeyError if absent
-        return self.model_copy(update={"classes": [c for c in self.classes if c.id != class_id]})
+        interpolation = self.ndvi_interpolation
+        if interpolation is not None and class_id in interpolation.classes:
+            keep = [k for k, value in enumerate(interpolation.classes) if value != class_id]
+            centres = interpolation.centres
+            interpolation = None if len(keep) < 2 else interpolation.model_copy(update={
+                "classes": [interpolation.classes[k] for k in keep],
+                "centres": None if centres is None else [centres[k] for k in keep]})
+        return self.model_copy(update={"classes": [c for c in self.classes if c.id != class_id],
+                                       "ndvi_interpolation": interpolation})
 
     def with_reference(self, reference: ReferenceGeometry | Mapping | None) -> ParameterTable:
         """A new table with another default reference geometry (None removes it)."""
         if reference is not None and not isinstance(reference, ReferenceGeometry):
             reference = ParameterTable(reference=reference).reference
         return self.model_copy(update={"reference": reference})
+
+    def with_ndvi_interpolation(self, interpolation: NdviInterpolation | Mapping | None) -> ParameterTable:
+        """A new table whose coefficients vary continuously with NDVI over a group of classes
+        (:class:`NdviInterpolation`, e.g. ``{"classes": [1, 2, 3, 4, 5]}``); None removes it."""
+        if interpolation is not None and not isinstance(interpolation, NdviInterpolation):
+            interpolation = ParameterTable(classes=self.classes, ndvi_interpolation=interpolation).ndvi_interpolation
+        return ParameterTable(reference=self.reference, classes=self.classes, ndvi_interpolation=interpolation)
 
     # ----------------------------------------------------------------------------- band values
     def for_bands(
@@ -445,6 +545,8 @@ class ParameterTable(StrictModel):
             entry.model_dump(exclude_none=True, exclude={"material"})
             for entry in sorted(self.classes, key=lambda c: c.id)
         ]
+        if self.ndvi_interpolation is not None:
+            document["ndvi_interpolation"] = self.ndvi_interpolation.model_dump(exclude_none=True)
         return document
 
     def to_yaml_text(self) -> str:
@@ -460,12 +562,16 @@ class ParameterTable(StrictModel):
 
 
 def merge_tables(tables: Iterable[ParameterTable]) -> ParameterTable:
-    """Combine tables; later tables replace classes of the same id, the last reference wins."""
+    """Combine tables; later tables replace classes of the same id, the last reference and the last
+    NDVI interpolation win."""
     classes: dict[int, ClassEntry] = {}
-    reference = None
+    reference = interpolation = None
     for table in tables:
         classes.update((entry.id, entry) for entry in table.classes)
         if table.reference is not None:
             reference = table.reference
-    return ParameterTable(reference=reference, classes=sorted(classes.values(), key=lambda c: c.id))
+        if table.ndvi_interpolation is not None:
+            interpolation = table.ndvi_interpolation
+    return ParameterTable(reference=reference, classes=sorted(classes.values(), key=lambda c: c.id),
+                          ndvi_interpolation=interpolation)
 

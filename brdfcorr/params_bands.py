@@ -3,7 +3,9 @@
 A class gives each parameter as a scalar, one value per band, or values at its own
 ``wavelengths`` [nm]; the functions here turn them, and the ``fit:`` covariance, into one value
 (one p x p matrix) per image band, interpolating linearly in wavelength, and gather a whole table
-into an xarray Dataset. They back :meth:`brdfcorr.params.ClassEntry.band_values`,
+into an xarray Dataset. A class's ``bad_bands`` (wavelength ranges [nm] without parameters) leave
+the image bands in them without values (NaN, :attr:`BandParameters.no_parameters`). They back
+:meth:`brdfcorr.params.ClassEntry.band_values`,
 :meth:`~brdfcorr.params.ClassEntry.band_covariance`,
 :meth:`~brdfcorr.params.ClassEntry.wavelength_caveat`,
 :meth:`brdfcorr.params.ParameterTable.for_bands` and
@@ -26,7 +28,7 @@ from brdfcorr.models.materials import load_material
 if TYPE_CHECKING:
     from brdfcorr.params import ClassEntry
 
-__all__ = ["BandParameters", "MATERIAL_WAVELENGTH_TOLERANCE"]
+__all__ = ["BandParameters", "MATERIAL_WAVELENGTH_TOLERANCE", "in_ranges"]
 
 #: Distance [nm] between a band centre and a library material's fit wavelength beyond which the
 #: correction warns (:meth:`ClassEntry.wavelength_caveat`).
@@ -51,6 +53,10 @@ class BandParameters:
         Parameters not in ``covariance_names`` were held fixed (zero variance).
     covariance_names : tuple of str
         The parameters of the covariance's rows and columns, in order (empty without a fit).
+    no_parameters : ndarray of bool or None
+        Per band, True where the band centre lies in one of the class's ``bad_bands``: the class
+        has no parameters there (``params`` and ``covariance`` are NaN in those bands) and the
+        correction passes the band through uncorrected. None when no band is bad.
     """
 
     id: int
@@ -59,6 +65,7 @@ class BandParameters:
     params: dict[str, np.ndarray]
     covariance: np.ndarray | None = None
     covariance_names: tuple[str, ...] = ()
+    no_parameters: np.ndarray | None = None
 
 
 def _band_count(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None) -> int:
@@ -69,21 +76,72 @@ def _band_count(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands:
     return n_bands
 
 
+def in_ranges(centres: Sequence[float], ranges: Sequence[Sequence[float]]) -> np.ndarray:
+    """Which of the band ``centres`` [nm] lie in any of ``ranges`` (``[low, high]`` [nm], ends
+    included): a bool array shaped like ``centres``."""
+    values = np.asarray(centres, dtype=float)
+    inside = np.zeros(values.shape, dtype=np.bool_)
+    for low, high in ranges:
+        inside = inside | ((values >= low) & (values <= high))
+    return inside
+
+
+def check_bad_bands(entry: ClassEntry) -> None:
+    """Raise ``ValueError`` (in a pydantic validator) unless each of ``entry.bad_bands`` is a finite
+    range ``0 < low <= high`` [nm] that holds none of the class's own ``wavelengths``."""
+    for low, high in entry.bad_bands or ():
+        if not (np.isfinite(low) and np.isfinite(high) and 0 < low <= high):
+            raise ValueError(f"{entry.label}: bad_bands range [{low:g}, {high:g}] nm must be finite with "
+                             "0 < low <= high")
+    if entry.wavelengths is not None:
+        inside = np.asarray(entry.wavelengths, dtype=float)[in_ranges(entry.wavelengths, entry.bad_bands or ())]
+        if inside.size:
+            raise ValueError(f"{entry.label}: wavelength {inside[0]:g} nm lies in bad_bands, where the class has "
+                             "no parameters; leave it out of wavelengths and params, or out of bad_bands")
+
+
+def no_parameter_bands(entry: ClassEntry, wavelengths: Sequence[float] | None) -> np.ndarray | None:
+    """Per image band, whether its centre lies in one of ``entry.bad_bands`` (None where none does)."""
+    if not entry.bad_bands:
+        return None
+    if wavelengths is None:
+        raise ParameterError(
+            f"{entry.label}: bad_bands are wavelength ranges [nm]; the image's band wavelengths are needed "
+            "(band descriptions, a 'wavelength' tag, or --wavelengths)"
+        )
+    bad = in_ranges(wavelengths, entry.bad_bands)
+    return bad if bad.any() else None
+
+
+def _with_gaps(good_values: np.ndarray, bad: np.ndarray | None) -> np.ndarray:
+    """Values at the good bands spread to every band, NaN at the ``bad`` ones."""
+    if bad is None:
+        return good_values
+    values = np.full(bad.shape + good_values.shape[1:], np.nan)
+    values[~bad] = good_values
+    return values
+
+
 def band_values(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None,
                 extrapolate: bool) -> dict[str, np.ndarray]:
-    """The parameters of ``entry`` at the image's bands (:meth:`ClassEntry.band_values`)."""
+    """The parameters of ``entry`` at the image's bands (:meth:`ClassEntry.band_values`); NaN in
+    the bands of its ``bad_bands``, which are not interpolated (nor checked against the range of
+    its wavelengths)."""
     n_bands = _band_count(entry, wavelengths, n_bands)
     if wavelengths is not None and len(wavelengths) != n_bands:
         raise ParameterError(
             f"{len(wavelengths)} band wavelengths given for an image of {n_bands} bands"
         )
+    bad = no_parameter_bands(entry, wavelengths)
+    good_centres = wavelengths if bad is None else np.asarray(wavelengths, dtype=float)[~bad]
     values: dict[str, np.ndarray] = {}
     for name in entry.brdf_model.parameter_names:
         value = entry.params[name]
         if not isinstance(value, list):
             values[name] = np.full(n_bands, float(value))
         elif entry.wavelengths is not None:
-            values[name] = interpolate(entry, name, np.asarray(value, float), wavelengths, extrapolate)
+            values[name] = _with_gaps(interpolate(entry, name, np.asarray(value, float), good_centres, extrapolate),
+                                      bad)
         elif len(value) != n_bands:
             raise ParameterError(
                 f"{entry.label}: parameter {name} has {len(value)} per-band values but the image "
@@ -91,8 +149,10 @@ def band_values(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands:
             )
         else:
             values[name] = np.asarray(value, dtype=float)
+    if bad is not None:  # no parameters in the bad bands: NaN, never a number to apply
+        values = {name: np.where(bad, np.nan, value) for name, value in values.items()}
     try:  # linear interpolation stays within the bounds, but check what the kernels will see
-        entry.brdf_model.validate(values)
+        entry.brdf_model.validate(values if bad is None else {name: value[~bad] for name, value in values.items()})
     except ParameterError as error:
         raise ParameterError(f"{entry.label}: {error}") from None
     return values
@@ -105,21 +165,26 @@ def band_covariance(entry: ClassEntry, wavelengths: Sequence[float] | None, n_ba
         return None
     n_bands = _band_count(entry, wavelengths, n_bands)
     matrices = entry.fit.matrices()
+    bad = no_parameter_bands(entry, wavelengths)
     if not entry.fit.per_wavelength:
-        return np.repeat(matrices, n_bands, axis=0)
-    if entry.wavelengths is None:
+        resolved = np.repeat(matrices, n_bands, axis=0)
+    elif entry.wavelengths is None:
         if matrices.shape[0] != n_bands:
             raise ParameterError(
                 f"{entry.label}: fit.covariance has {matrices.shape[0]} per-band matrices but the "
                 f"image has {n_bands} bands"
             )
-        return matrices.copy()
-    p = matrices.shape[1]
-    flat = matrices.reshape(matrices.shape[0], p * p)
-    columns = [interpolate(entry, "fit.covariance", flat[:, j], wavelengths, extrapolate)
-               for j in range(p * p)]
-    resolved = np.stack(columns, axis=-1).reshape(len(columns[0]), p, p)
-    return 0.5 * (resolved + np.swapaxes(resolved, 1, 2))  # symmetric to the last bit
+        resolved = matrices.copy()
+    else:
+        p = matrices.shape[1]
+        flat = matrices.reshape(matrices.shape[0], p * p)
+        centres = wavelengths if bad is None else np.asarray(wavelengths, dtype=float)[~bad]
+        columns = [interpolate(entry, "fit.covariance", flat[:, j], centres, extrapolate) for j in range(p * p)]
+        resolved = np.stack(columns, axis=-1).reshape(len(columns[0]), p, p)
+        resolved = _with_gaps(0.5 * (resolved + np.swapaxes(resolved, 1, 2)), bad)  # symmetric to the last bit
+    if bad is not None:
+        resolved[bad] = np.nan
+    return resolved
 
 
 def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Sequence[float] | None,
@@ -152,6 +217,7 @@ def resolve_entry(entry: ClassEntry, wavelengths: Sequence[float] | None, n_band
         band_values(entry, wavelengths, n_bands, extrapolate),
         band_covariance(entry, wavelengths, n_bands, extrapolate),
         tuple(entry.fit.parameters) if entry.fit is not None else (),
+        no_parameter_bands(entry, wavelengths),
     )
 
 

@@ -71,6 +71,13 @@ class FitRecord(StrictModel):
     errors : dict of str to float or list of float
         1-sigma errors of the fitted parameters, ``sqrt(diag(covariance))`` (checked to a relative
         :data:`ERROR_TOLERANCE`), in registry units; one value per matrix.
+    errors_reliable : bool, optional
+        Whether the fit judged its errors trustworthy (``fit-classes``: False with few spatial
+        blocks, a strongly non-linear fit, a parameter at the edge of its range or at a bound;
+        ``brdfcorr fit``: False when it warned; see ``docs/uncertainty.md``); absent where the fit
+        did not judge.
+    errors_reason : str, optional
+        Why they are not.
     """
 
     source: str = Field(min_length=1)
@@ -80,6 +87,8 @@ class FitRecord(StrictModel):
     r2: Statistic
     errors: dict[str, Statistic]
     covariance: Covariance
+    errors_reliable: bool | None = None
+    errors_reason: str | None = None
 
     @property
     def per_wavelength(self) -> bool:

@@ -204,8 +204,8 @@ CORRECT_CASES = {
         lambda s: _correct_args(s, **{"--wavelengths": "480,560,660"}),
         r"image\.tif: 3 wavelengths from the given wavelengths for 4 bands"),
     # --- options
-    "required option missing": (lambda s: _correct_args(s, **{"--classes": None}),
-                                r"^brdfcorr: error: correct: .*'--classes'.* \(see --help of correct\)$"),  # click's words between
+    "required option missing": (lambda s: _correct_args(s, **{"-o": None}),
+                                r"^brdfcorr: error: correct: .*'--output'.* \(see --help of correct\)$"),  # click's words between
     "option with a bad value": (lambda s: _correct_args(s, **{"--ref-sza": "noon"}),
                                 r"correct: .*'noon' is not a number, 'mean' or 'observed'"),
     "option of the wrong type": (lambda s: _correct_args(s, **{"--ref-vza": "ten"}),

@@ -38,7 +38,7 @@ def test_fit_prints_table_writes_parameter_table_and_figures(csv_path, tmp_path)
     table_path = tmp_path / "params.yaml"
     result = run(
         "fit", csv_path, "--fix", "k=0.25", "--min-phi", "90", "-o", table_path,
-        "--class-id", 3, "--name", "roof_tile", "--plot-dir", tmp_path / "plots",
+        "--class-id", 3, "--class-name", "roof_tile", "--plot-dir", tmp_path / "plots",
     )
     assert result.exit_code == 0, result.output
     assert "120 of 237 measurements (phi >= 90)" in result.output
@@ -79,14 +79,14 @@ def test_fit_appends_and_replaces_classes(csv_path, tmp_path):
     original = ParameterTable.load(table_path)[1]
 
     second = run("fit", csv_path, "--model", "torrance_sparrow_simplified", "--fix", "k=0.25",
-                 "--max-zenith", "60", "-o", table_path, "--name", "tile_simplified")
+                 "--max-zenith", "60", "-o", table_path, "--class-name", "tile_simplified")
     assert second.exit_code == 0, second.output
     table = ParameterTable.load(table_path)
     assert table.class_ids == (1, 2)  # appended with the next free id
     assert table[1] == original  # the existing class is not touched
     assert table[2].model == "torrance_sparrow_simplified"
 
-    third = run("fit", csv_path, "--fix", "k=0.25", "-o", table_path, "--class-id", 2, "--name", "again")
+    third = run("fit", csv_path, "--fix", "k=0.25", "-o", table_path, "--class-id", 2, "--class-name", "again")
     assert third.exit_code == 0, third.output
     assert "replaced class 2 (again)" in third.output
     table = ParameterTable.load(table_path)

@@ -9,10 +9,11 @@ from brdfcorr.params import ParameterTable
 
 def test_materials_are_added_to_a_table(tmp_path):
     table_path = tmp_path / "table.yaml"
-    for name in ("roof_tile", "red_concrete"):
-        result = CliRunner().invoke(main, ["materials", name, "-o", str(table_path)])
+    for name, overwrite in (("roof_tile", []), ("red_concrete", ["--overwrite"])):  # an existing table: --overwrite
+        result = CliRunner().invoke(main, ["materials", name, "-o", str(table_path), *overwrite])
         assert result.exit_code == 0, result.output
-    result = CliRunner().invoke(main, ["materials", "blue_concrete", "-o", str(table_path), "--class-id", "7"])
+    result = CliRunner().invoke(main, ["materials", "blue_concrete", "-o", str(table_path), "--class-id", "7",
+                                       "--overwrite"])
     assert result.exit_code == 0, result.output
     table = ParameterTable.load(table_path)
     assert table.class_ids == (1, 2, 7)

@@ -131,7 +131,7 @@ def test_result_keeps_dims_coords_attrs_and_georeference(scene):
     assert qa.dims == ("y", "x") and qa.dtype == np.uint8 and qa.rio.crs == reflectance.rio.crs
     assert qa.attrs["flag_meanings"].split() == [
         "nodata", "no_class", "unknown_class", "limited", "invalid_geometry", "facing_away",
-        "topography_uncorrected"]
+        "topography_uncorrected", "band_uncorrected"]
     assert "wavelength" not in qa.coords and "band" not in qa.coords
 
 

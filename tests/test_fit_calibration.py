@@ -1,9 +1,11 @@
 """Calibration of the imagery fit's errors (issue 17): the joint sandwich covariance of
 :func:`brdfcorr.fit.solver.fit_class_samples`.
 
-Two checks. (1) The covariance equals the sandwich ``H^-1 M H^-1`` computed independently, by brute
-force: the full Jacobian over every free parameter by finite differences of the model function,
-H = J^T W J, the meat from per-cluster score sums. (2) Over seeds, the pulls ``(fit - truth) /
+Two checks. (1) The plain (CR0) covariance equals the sandwich ``H^-1 M H^-1`` computed
+independently, by brute force: the full Jacobian over every free parameter by finite differences
+of the model function, H = J^T W J, the meat from per-cluster score sums (the small-sample
+corrections of issue 27, CR2 and the t-variance factor, are checked in
+``tests/test_small_sample_errors.py``). (2) Over seeds, the pulls ``(fit - truth) /
 error`` have a standard deviation near 1 for additive, multiplicative and block-correlated noise.
 The full 400-seed sweep, with the 0.9-1.1 band of issue 17, is ``benchmarks/bench_fit_calibration.py``
 (about a minute per noise kind); here 100 seeds of a smaller class keep the test fast, with the band
@@ -20,7 +22,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfcorr.fit.solver import fit_class_samples
+from brdfcorr.fit.sandwich import _joint_covariance
+from brdfcorr.fit.solver import _profile, fit_class_samples
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import get_model, torrance_sparrow
 
@@ -56,10 +59,8 @@ def _brute_force_sandwich(result, geometry, brdf, clusters):
     _, index = np.unique(clusters, return_inverse=True)
     summed = np.zeros((index.max() + 1, 6))
     np.add.at(summed, index, scores)
-    groups, n = summed.shape[0], brdf.shape[0]
-    factor = groups / (groups - 1) * (n - 1) / (n - 4)  # CR1 with the 4 parameters of a band
     inverse = np.linalg.inv(hessian)
-    return factor * inverse @ (summed.T @ summed) @ inverse
+    return inverse @ (summed.T @ summed) @ inverse  # CR0: no small-sample correction
 
 
 @pytest.mark.parametrize("kind", ["multiplicative", "block"])
@@ -68,13 +69,17 @@ def test_covariance_is_the_joint_sandwich(kind):
     result = fit_class_samples("torrance_sparrow", sza, vza, phi, brdf, clusters=blocks)
     expected = _brute_force_sandwich(result, (sza, vza, phi), brdf, blocks)
     assert result["free"] == ("t0", "t1", "w", "n")
+    profile = _profile(get_model("torrance_sparrow"), sza, vza, phi, brdf, {"k": 0.25})
+    shape = {name: result["params"][name][0] for name in ("w", "n")}
+    intensities = np.stack([result["params"]["t0"], result["params"]["t1"]])
+    plain = _joint_covariance(profile, shape, profile.design(shape), intensities, blocks, small_sample=False)
     for band in (0, 1):
-        rows = [2 + 2 * band, 3 + 2 * band, 0, 1]  # t0_b, t1_b, w, n in the brute-force order
+        rows = [0, 1, 2 + 2 * band, 3 + 2 * band]  # w, n, t0_b, t1_b in the brute-force order
         # Finite differences of the design in the solver (steps 1e-3) vs of the model here (1e-6),
         # and the solver's Schur-complement algebra: measured agreement 3e-6, allowed 1e-4.
         block = expected[np.ix_(rows, rows)]
         scale = np.sqrt(np.outer(np.diag(block), np.diag(block)))  # in units of sigma_i sigma_j
-        np.testing.assert_allclose(result["covariance"][band] / scale, block / scale, rtol=1e-4, atol=1e-4)
+        np.testing.assert_allclose(plain.covariance[band] / scale, block / scale, rtol=1e-4, atol=1e-4)
     np.testing.assert_allclose(result["errors"]["t1"], np.sqrt(result["covariance"][:, 1, 1]))
     np.testing.assert_array_equal(result["errors"]["k"], [0.0, 0.0])  # fixed
 
@@ -83,12 +88,15 @@ def test_without_clusters_every_sample_is_its_own():
     sza, vza, phi, brdf, _ = bench.synthetic_class(3, "multiplicative", n=600)
     alone = fit_class_samples("torrance_sparrow", sza, vza, phi, brdf)
     own = fit_class_samples("torrance_sparrow", sza, vza, phi, brdf, clusters=np.arange(600))
-    # Same meat; HC1 N/(N-P) vs CR1 G/(G-1) (N-1)/(N-P) with G = N: equal.
+    # HC2 (per-sample leverage) is CR2 with singleton clusters: equal, and so are the dof.
     np.testing.assert_allclose(alone["covariance"], own["covariance"], rtol=1e-9)
+    np.testing.assert_allclose(alone["error_dof"], own["error_dof"], rtol=1e-9)
 
 
 def test_kernel_model_covariance_is_the_linear_sandwich():
-    # No shape parameter: the intensities' HC1 sandwich (A^T A)^-1 A^T diag(r^2) A (A^T A)^-1 N/(N-3).
+    # No shape parameter: the intensities' HC2 sandwich (A^T A)^-1 A^T diag(r^2 / (1 - h)) A (A^T A)^-1
+    # (MacKinnon and White 1985), h the diagonal of the hat matrix, times the t-variance factor of
+    # its degrees of freedom (checked on their own in tests/test_small_sample_errors.py).
     rng = np.random.default_rng(1)
     n = 400
     sza, vza, phi = rng.uniform(20, 50, n), rng.uniform(0, 40, n), rng.uniform(0, 180, n)
@@ -99,9 +107,11 @@ def test_kernel_model_covariance_is_the_linear_sandwich():
     brdf = (design @ truth) * (1 + 0.05 * rng.standard_normal(n))
     result = fit_class_samples(model, sza, vza, phi, brdf[:, None])
     bread = np.linalg.inv(design.T @ design)
-    residuals = brdf - design @ bread @ design.T @ brdf
-    expected = bread @ (design.T * residuals**2) @ design @ bread * n / (n - 3)
-    np.testing.assert_allclose(result["covariance"][0], expected, rtol=1e-8)
+    hat = design @ bread @ design.T
+    residuals = brdf - hat @ brdf
+    expected = bread @ (design.T * residuals**2 / (1 - np.diag(hat))) @ design @ bread
+    factor = np.sqrt(result["error_dof"][0] / (result["error_dof"][0] - 2))
+    np.testing.assert_allclose(result["covariance"][0], expected * np.outer(factor, factor), rtol=1e-8)
 
 
 @pytest.mark.parametrize("kind", bench.NOISE_KINDS)

@@ -420,10 +420,11 @@ def test_fingerprint_is_recorded_with_its_digest(tmp_path, make_scenes, write_ch
     chain = write_chain(tmp_path)
     plan = plan_run(load_config(chain))
     assert run_chain(load_config(chain), plan=plan).ok
-    for name in ("line0_brdf.tif", "line0_qa.tif"):
-        tags = read(tmp_path / "out" / name)[1]
-        assert tags["brdf_fingerprint_content"] == plan.scenes[0].fingerprint
-        assert tags["brdf_fingerprint"] == hashlib.sha256(plan.scenes[0].fingerprint.encode()).hexdigest()
+    tags = read(tmp_path / "out" / "line0_brdf.tif")[1]
+    assert tags["brdf_fingerprint_content"] == plan.scenes[0].fingerprint
+    assert tags["brdf_fingerprint"] == hashlib.sha256(plan.scenes[0].fingerprint.encode()).hexdigest()
+    # Only in the output renamed last (issue 26): a QA file committed before it never vouches for it.
+    assert "brdf_fingerprint" not in read(tmp_path / "out" / "line0_qa.tif")[1]
 
 
 def test_resume_removes_partial_files_of_its_outputs_only(tmp_path, make_scenes, write_chain):

@@ -101,7 +101,7 @@ def test_per_band_lists_must_match_band_count():
         ),
         (
             "classes: [{id: 4, name: lawn, model: lambertian, params: {t0: 0.1}, colour: green}]",
-            r"class 4 \(lawn\): colour: unknown key; allowed keys: fit, id, material, model, name, params, wavelengths",
+            r"class 4 \(lawn\): colour: unknown key; allowed keys: bad_bands, fit, id, material, model, name, params, wavelengths",
         ),
         (
             "classes: [{id: 4, name: lawn, model: lambertian, params: {t0: [1, 2]}, "

@@ -234,7 +234,7 @@ def test_limits_and_nodata_are_flagged():
     assert result.qa.values[0, 0] & QA.NODATA and np.isnan(result.reflectance.values[0, 0, 0])
     # One flag set for every step (brdfcorr.correction.qa, the table in docs/conventions.md).
     assert result.qa.attrs["flag_meanings"] == ("nodata no_class unknown_class limited invalid_geometry facing_away "
-                                                "topography_uncorrected")
+                                                "topography_uncorrected band_uncorrected")
 
 
 def test_dask_is_lazy_and_equals_numpy(no_compute):

@@ -9,6 +9,7 @@ the global ``--debug`` option adds the traceback.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib
 import sys
@@ -71,6 +72,27 @@ class _ChunkSize(click.ParamType):
 
 #: The type of every command's ``--chunk``.
 CHUNK_SIZE = _ChunkSize()
+
+
+#: ``--progress/--no-progress`` of the commands that read whole images (correct, fit-classes, assess,
+#: classes ndvi): a bar on stderr, by default on a terminal only (:func:`progress_bars`).
+PROGRESS = click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
+
+
+@contextlib.contextmanager
+def progress_bars(progress: bool | None, description: str):
+    """A progress bar on stderr (tqdm's dask callback) over the chunks of every dask pass run in
+    the block, from the first (the checks that read a few chunks) to the write, where ``progress``
+    (None: where stderr is a terminal). Yields the callbacks entered (empty without a bar)."""
+    if progress is None:
+        progress = sys.stderr.isatty()
+    if not progress:
+        yield []
+        return
+    from tqdm.dask import TqdmCallback  # with dask: imported when a command runs, not for --help
+
+    with TqdmCallback(desc=description, leave=False, file=sys.stderr) as callback:
+        yield [callback]
 
 
 def _format_table(rows: list[dict[str, str]]) -> str:
@@ -163,6 +185,10 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
         "brdfcorr.cli.classes",
         'Make class maps: NDVI strata of an image, or a land-cover map brought onto its grid.',
     ),
+    "coefficients": (
+        "brdfcorr.cli.info",
+        "List the built-in BRDF coefficient sets, or show one set's weights per band.",
+    ),
     "correct": (
         "brdfcorr.cli.correct",
         'Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.',
@@ -186,6 +212,10 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
     "models": (
         "brdfcorr.cli.info",
         'List the BRDF models and their parameters (units, defaults, physical range).',
+    ),
+    "nbar": (
+        "brdfcorr.cli.nbar",
+        "NBAR of a Sentinel-2 L2A SAFE or Landsat Collection-2 L2 folder with built-in coefficients.",
     ),
     "run": (
         "brdfcorr.cli.chain",

@@ -11,12 +11,14 @@ import click
 from brdfcorr.cli._base import (
     CHUNK_SIZE,
     MODEL_CHOICE,
+    PROGRESS,
     _assignments,
     _format_table,
     _options,
     _pairs,
     handle_errors,
     main,
+    progress_bars,
 )
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, reference_sza, scale_options
 from brdfcorr.io.paths import check_outputs, refuse_existing
@@ -74,12 +76,14 @@ def _number(value: float | None) -> str:
 @click.option("--figures", "figures_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Directory for the PNG figures (assess_profiles.png, assess_overlap.png).")
 @click.option("--chunk", type=CHUNK_SIZE,
-              help="Chunk size [pixels], a multiple of 16 [default: 512, less for many bands].")
+              help="Chunk size [pixels], a multiple of 16 [default: a multiple of the input's tiles, about 16 MiB "
+                   "of all bands].")
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs [default: refuse].")
+@PROGRESS
 @handle_errors
 def assess_command(before, after, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                    offset, overlap, class_names, sign_by, heading, bin_width, min_vza, flip_view_azimuth,
-                   resampling, output, figures_dir, chunk, overwrite):
+                   resampling, output, figures_dir, chunk, overwrite, progress):
     """Did the BRDF correction work? View-angle slopes, side ratios, profiles and overlaps, before and after.
 
     Measures the view-angle signal in BEFORE (the input) and AFTER (the corrected image), per
@@ -105,15 +109,17 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     check_outputs({"-o": output, **{f"figure {path}": path for path in figures}}, inputs)
     if not overwrite:
         refuse_existing([output, *figures])
-    assessment = assess_files(
-        SceneSources(before, classes, angles, angles_kind=angles_kind,
-                     angle_options=_options("--angle-option", angle_option), scale=scale, offset=offset),
-        after, overlap=tuple(overlap) if overlap else None, resampling=resampling,
-        view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
-                                      bin_width=bin_width, min_vza=min_vza, flip_view_azimuth=flip_view_azimuth),
-        align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
-        engine=Engine(chunks=chunk),
-    )
+    with progress_bars(progress, "assess"):  # every pass, from the first (the angle check)
+        assessment = assess_files(
+            SceneSources(before, classes, angles, angles_kind=angles_kind,
+                         angle_options=_options("--angle-option", angle_option), scale=scale, offset=offset),
+            after, overlap=tuple(overlap) if overlap else None, resampling=resampling,
+            view_options=ViewAngleOptions(by=sign_by, heading=heading,
+                                          class_names=_pairs("--class-name", class_names), bin_width=bin_width,
+                                          min_vza=min_vza, flip_view_azimuth=flip_view_azimuth),
+            align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
+            engine=Engine(chunks=chunk),
+        )
     report = assessment.report()
     write_json(report, output)
     click.echo(_format_table(_summary_rows(report)))
@@ -171,7 +177,8 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="JSON report to write.")
 @click.option("--chunk", type=CHUNK_SIZE,
-              help="Chunk size [pixels], a multiple of 16 [default: 512, less for many bands].")
+              help="Chunk size [pixels], a multiple of 16 [default: a multiple of the input's tiles, about 16 MiB "
+                   "of all bands].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing report [default: refuse].")
 @handle_errors
 def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from brdfcorr.cli._base import _format_table, handle_errors, main
+from brdfcorr.cli._base import PROGRESS, _format_table, handle_errors, main, progress_bars
 from brdfcorr.cli._inputs import scale_options
 
 # brdfcorr.workflow.classmaps (rasterio, dask) is imported when a command runs, not when its options
@@ -39,9 +39,10 @@ def classes_group():
 @click.option("--wavelengths", help="Band centres [nm], comma-separated (overrides the image's).")
 @scale_options
 @click.option("--overwrite", is_flag=True, help="Replace an existing output.")
+@PROGRESS
 @handle_errors
 def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id, wavelengths, scale, offset,
-                         overwrite):
+                         overwrite, progress):
     """Classes of IMAGE by NDVI bins (strata for per-class kernel-model fits), water and shadow masked.
 
     IMAGE's stored values are read as reflectance factors with its GDAL scale/offset, or --scale
@@ -50,8 +51,9 @@ def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id,
     from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
 
     bins = NdviBins(edges=_numbers(edges), percentiles=_numbers(percentiles), water_id=water_id, shadow_id=shadow_id)
-    strata = ndvi_class_file(image, output, bins=bins, wavelengths=_numbers(wavelengths), scale=scale, offset=offset,
-                             overwrite=overwrite)
+    with progress_bars(progress, "classes ndvi"):  # the scale check, the percentiles, the write
+        strata = ndvi_class_file(image, output, bins=bins, wavelengths=_numbers(wavelengths), scale=scale,
+                                 offset=offset, overwrite=overwrite)
     click.echo(_format_table([{"class": str(ident), "stratum": name} for ident, name in sorted(strata.names.items())]))
     click.echo(f"wrote {output} (NDVI edges {', '.join(f'{edge:.3g}' for edge in strata.edges)})")
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import sys
 import time
 import warnings
 from pathlib import Path
@@ -12,7 +11,7 @@ from typing import TYPE_CHECKING
 import click
 import click.shell_completion
 
-from brdfcorr.cli._base import CHUNK_SIZE, _options, handle_errors, main
+from brdfcorr.cli._base import CHUNK_SIZE, _options, handle_errors, main, progress_bars
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, reference_sza, scale_options
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
@@ -73,6 +72,19 @@ def _cluster(address: str | None):
     return connect_cluster(address, setting="--scheduler")
 
 
+def _parameter_table(params_path: Path | None):
+    """The table of --params: a YAML file, or where no such file exists a built-in coefficient set
+    (:mod:`brdfcorr.models.coefficients`) as class 1, its weights interpolated to the band centres."""
+    from brdfcorr.models.coefficients import coefficient_names, load_coefficients
+    from brdfcorr.params import ClassEntry, ParameterTable
+
+    if params_path is None:
+        return ParameterTable()
+    if not params_path.exists() and str(params_path).lower() in coefficient_names():
+        return ParameterTable(classes=[ClassEntry(**load_coefficients(str(params_path)).table_entry(1))])
+    return ParameterTable.load(params_path)
+
+
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
     """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
     from brdfcorr.correction.topographic import C_METHODS
@@ -98,11 +110,13 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
 @click.option("--raa", type=click.Path(dir_okay=False, path_type=Path),
               help="Relative azimuth raster [deg], vaa - saa (0 at the hotspot), with --sza and --vza, for "
                    "products that give no absolute azimuths (MODIS, VIIRS).")
-@click.option("--classes", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Class map raster (ids of the parameter table; 0 = no class).")
+@click.option("--classes", type=click.Path(dir_okay=False, path_type=Path),
+              help="Class map raster (ids of the parameter table; 0 = no class) [default: none, the whole image "
+                   "is class 1].")
 @class_map_options
 @click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Parameter table (YAML); optional with --material.")
+              help="Parameter table (YAML), or a built-in coefficient set (brdfcorr coefficients: roy2016, "
+                   "roy2017) as class 1; optional with --material.")
 @click.option("--material", "materials", multiple=True, type=_ClassMaterial(),
               help="Class ID takes a built-in material (brdfcorr materials; a fit at 550 nm), over "
                    "--params' class of that id; repeatable, the last wins for an id.")
@@ -173,17 +187,14 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     table's class of that id); a material applied to bands more than 100 nm from its fit's
     wavelength (550 nm) is warned about once per class.
     """
-    from tqdm.dask import TqdmCallback
-
     from brdfcorr.io.scene import SceneSources
-    from brdfcorr.params import ParameterTable
     from brdfcorr.workflow.classmaps import read_lookup
     from brdfcorr.workflow.correction import correct_files
     from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
     if params_path is None and not materials:
         raise click.UsageError("give a parameter table (--params) or at least one --material")
-    table = ParameterTable.load(params_path) if params_path is not None else ParameterTable()
+    table = _parameter_table(params_path)
     for entry in materials:
         table = table.with_class(entry)
     reference = table.reference.model_dump() if table.reference else {}
@@ -196,9 +207,6 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
         except ValueError:
             raise click.BadParameter(f"{wavelengths!r} is not a comma-separated list of numbers",
                                      param_hint="--wavelengths") from None
-    if progress is None:
-        progress = sys.stderr.isatty()
-    callbacks = [TqdmCallback(desc="correct", leave=False)] if progress else []
     source = " ".join([str(params_path)] * (params_path is not None)
                       + [f"--material {entry.id}={entry.material}" for entry in materials])
     start = time.perf_counter()
@@ -210,15 +218,18 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                           overwrite=overwrite)
     terrain = _terrain(slope_aspect, dem, topographic, brdf_frame)
     lookup = read_lookup(class_lookup) if class_lookup else None
-    with _cluster(scheduler) as client, warnings.catch_warnings(record=True) as caught:
+    # The bar runs from the first pass (the angle and scale checks) to the write.
+    with _cluster(scheduler) as client, warnings.catch_warnings(record=True) as caught, \
+            progress_bars(progress, "correct"):
         warnings.simplefilter("always", BrdfcorrWarning)  # each class's caveat, however often run
         try:
             summary = correct_files(CorrectionRequest(
                 sources, table, outputs, reference=reference, limits=None if no_limits else limits,
                 extrapolate=extrapolate, unknown=unknown, flip_view_azimuth=flip_view_azimuth, terrain=terrain,
                 align_classes=align_classes, class_lookup=lookup,
-                engine=Engine(chunks=chunk, scheduler=client, callbacks=callbacks), table_source=source,
-                reads={"--params": params_path, "--class-lookup": class_lookup},  # never overwritten either
+                engine=Engine(chunks=chunk, scheduler=client), table_source=source,
+                reads={"--params": params_path if params_path is None or params_path.exists() else None,
+                       "--class-lookup": class_lookup},  # never overwritten either
             ))
         finally:  # shown also when the correction then fails
             _show_warnings(caught)

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 
 import click
 
 from brdfcorr.cli._base import (
     MODEL_CHOICE,
+    PROGRESS,
     _assignments,
     _format_table,
     _options,
@@ -16,15 +18,36 @@ from brdfcorr.cli._base import (
     _save_figure,
     handle_errors,
     main,
+    progress_bars,
 )
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
-from brdfcorr.errors import InputError
+from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.paths import check_outputs
 
 # The library (scipy, dask, rasterio, matplotlib) is imported when a command runs, not when its
 # options are parsed: --help and argument errors answer at once. --model is checked against the
 # registry's names in brdfcorr.defaults (MODEL_CHOICE), without importing the models.
+
+
+class _BandRange(click.ParamType):
+    """``--bad-bands``: a wavelength range ``LOW:HIGH`` [nm] with 0 < LOW <= HIGH, or ``none``
+    (None: leave no range out)."""
+
+    name = "LOW:HIGH"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple) or value is None:
+            return value
+        if value.strip().lower() == "none":
+            return None
+        try:
+            low, high = (float(part) for part in value.split(":"))
+        except ValueError:
+            self.fail(f"{value!r} is not LOW:HIGH in nm (e.g. 1340:1450) or none", param, ctx)
+        if not 0 < low <= high < float("inf"):
+            self.fail(f"{value!r}: the range must have 0 < LOW <= HIGH [nm]", param, ctx)
+        return (low, high)
 
 
 @main.command("fit-classes")
@@ -36,10 +59,13 @@ from brdfcorr.io.paths import check_outputs
 @click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map per image, in the images' order.")
 @class_map_options
-@click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
-              help="Model for every class (see `brdfcorr models`).")
+@click.option("--model", "model_name", type=MODEL_CHOICE,
+              help="Model for every class (see `brdfcorr models`) [default: ross_thick_li_sparse on an NDVI "
+                   "strata map (brdfcorr classes ndvi), else torrance_sparrow].")
 @click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
-@click.option("--name", "names", multiple=True, metavar="ID=NAME", help="Name of a class (repeatable).")
+@click.option("--class-name", "names", multiple=True, metavar="ID=NAME",
+              help="Name of a class (repeatable) [default: the class map's class_names tag, else class_ID].")
+@click.option("--name", "deprecated_names", multiple=True, hidden=True)  # brdfcorr <= 0.3; says so when used
 @click.option("--fix", multiple=True, metavar="NAME=VALUE",
               help="Hold a shape parameter fixed [default: k=0.25 for TS].")
 @click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
@@ -48,6 +74,13 @@ from brdfcorr.io.paths import check_outputs
 @click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
 @click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
               help="Guard rail: minimum 5-95 % view zenith spread [deg].")
+@click.option("--max-condition", type=click.FloatRange(min=1.0), default=1000.0, show_default=True,
+              help="Guard rail: maximum condition number of the linear design (above it the geometry does not "
+                   "separate the model's terms).")
+@click.option("--bad-bands", "bad_bands", multiple=True, type=_BandRange(),
+              help="Wavelength range [nm] left out of the fit (repeatable; `none`: no range); bands the ENVI "
+                   "header's bbl marks bad are left out too. They get no parameters and `correct` passes them "
+                   "through uncorrected [default: the water-vapour bands 1340:1450 and 1800:1960].")
 @click.option("--fallback",
               help="Built-in material for classes that fail the guard rails [default: leave uncorrected].")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
@@ -56,17 +89,19 @@ from brdfcorr.io.paths import check_outputs
               help="Fit report to write (JSON).")
 @click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Directory for one PNG per class (observed vs modelled against view zenith).")
+@PROGRESS
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
-                        model_name, class_model, names, fix, max_samples, seed,
-                        scale, offset, min_samples, min_vza_spread, fallback, output, report_path, plot_dir):
+                        model_name, class_model, names, deprecated_names, fix, max_samples, seed,
+                        scale, offset, min_samples, min_vza_spread, max_condition, bad_bands, fallback, output,
+                        report_path, plot_dir, progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
 
     The images' stored values are read as reflectance factors with their GDAL scale/offset, or
     --scale and --offset; an image that still looks like raw counts is refused unless --scale is
-    given.
+    given. Bad bands (water vapour, those the ENVI header's bbl marks) are left out of the fit.
     """
-    from brdfcorr.fit.classes import ClassModels, GuardRails, Sampling
+    from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
     from brdfcorr.models.materials import load_material
     from brdfcorr.plot.materials import plot_class_fit
     from brdfcorr.workflow.classmaps import read_lookup
@@ -85,21 +120,29 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         load_material(fallback)  # fail before the work if the name is wrong
     lookup = read_lookup(class_lookup) if class_lookup else None
     options = _options("--angle-option", angle_option)
-    fit = fit_class_files(
-        [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
-                    class_lookup=lookup, scale=scale, offset=offset)
-         for image, angle_source, class_map in zip(images, angles, classes)],
-        ClassModels(model_name, class_models=_pairs("--class-model", class_model),
-                    fixed=_assignments("--fix", fix) or None, fallback=fallback, names=_pairs("--name", names)),
-        sampling=Sampling(max_samples=max_samples, seed=seed),
-        guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread),
-    )
+    if deprecated_names:
+        click.echo("brdfcorr: warning: --name is deprecated; use --class-name ID=NAME", err=True)
+    class_names = {**_pairs("--name", deprecated_names), **_pairs("--class-name", names)}
+    ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
+    with progress_bars(progress, "fit-classes"):  # the checks and the class maps, angles and samples read
+        fit = fit_class_files(
+            [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
+                        class_lookup=lookup, scale=scale, offset=offset)
+             for image, angle_source, class_map in zip(images, angles, classes)],
+            ClassModels(model_name, class_models=_pairs("--class-model", class_model),
+                        fixed=_assignments("--fix", fix) or None, fallback=fallback, names=class_names),
+            sampling=Sampling(max_samples=max_samples, seed=seed),
+            guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
+            bad_bands=ranges,
+        )
     plots = {class_fit.class_id: plot_dir / f"class_{class_fit.class_id}_{class_fit.name}.png"
              for class_fit in fit.result.fits if class_fit.params} if plot_dir else {}
     check_outputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
     click.echo(_format_table([_class_row(class_fit) for class_fit in fit.result.fits]))
+    for note in fit.notes:
+        click.echo(note)
     if not fit.table.classes:  # a table that corrects nothing is never written as a result
         raise InputError(f"no class passed the guard rails (see the table above): nothing would be corrected; "
                          f"{output} not written")
@@ -107,7 +150,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     path = fit.table.save(output)
     click.echo(f"wrote {path}")
     if report_path:
-        _write_json(report_path, {"classes": fit.result.report()})
+        _write_json(report_path, {"classes": fit.result.report(), "bad_bands": fit.result.bad_bands,
+                                  "bands_left_out": fit.result.bands_left_out, "notes": fit.notes})
     if plot_dir:
         for class_fit in fit.result.fits:
             if class_fit.params:
@@ -131,11 +175,18 @@ def _class_row(fit) -> dict[str, str]:
             if k not in linear and fit.errors[k][0] > 0
         ) or "-",
         "better model": f"{fit.better_model} (R2 {fit.better_r2:.3f})" if fit.better_model else "-",
+        "errors": {None: "-", True: "reliable"}.get(  # the whole reason is in --report and the table's fit:
+            fit.errors_reliable, "UNRELIABLE: " + textwrap.shorten(fit.errors_reason, 60, placeholder="...")),
     }
 
 
 def _write_json(target: Path, content: dict) -> None:
-    target.parent.mkdir(parents=True, exist_ok=True)
+    """Write a JSON report atomically; a folder that cannot be made or a full disk is one
+    :class:`OutputError` (exit 2), nothing left at ``target``."""
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise OutputError(f"cannot write {target}: {error.strerror or error}") from None
     with atomic_path(target) as temporary:
         temporary.write_text(json.dumps(content, indent=2))
     click.echo(f"wrote {target}")
@@ -159,13 +210,14 @@ def _write_json(target: Path, content: dict) -> None:
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter table (YAML) to write, or to add the class to if it exists.")
 @click.option("--class-id", type=int, help="Class id in the table [default: 1 more than the largest].")
-@click.option("--name", "class_name", help="Class name in the table [default: the CSV file's stem].")
+@click.option("--class-name", "class_name", help="Class name in the table [default: the CSV file's stem].")
+@click.option("--name", "deprecated_name", hidden=True)  # brdfcorr <= 0.3; says so when used
 @click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write the principal-plane and azimuth figures (PNG) here.")
 @click.option("--log", "log_scale", is_flag=True, help="Logarithmic BRDF axes in the figures.")
 @handle_errors
 def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi, max_zenith,
-                wavelength, output, class_id, class_name, plot_dir, log_scale):
+                wavelength, output, class_id, class_name, deprecated_name, plot_dir, log_scale):
     """Fit a BRDF model to goniometer MEASUREMENTS (CSV: theta_i, theta_r, phi, brdf[, sigma,
     wavelength]).
 
@@ -184,7 +236,9 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     )
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
-    name = class_name or measurements.stem
+    if deprecated_name is not None:
+        click.echo("brdfcorr: warning: --name is deprecated; use --class-name NAME", err=True)
+    name = class_name or deprecated_name or measurements.stem
     if plot_dir is not None:  # the figures' names are known now: check them before writing anything
         plots = {f"--plot-dir file {path}": path for path in _measurement_plot_files(fit, name, plot_dir).values()}
         check_outputs({"-o": output, **plots}, {"MEASUREMENTS": measurements})

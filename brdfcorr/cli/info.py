@@ -1,4 +1,5 @@
-"""``brdfcorr models`` and ``brdfcorr materials``: the registry and the material library."""
+"""``brdfcorr models``, ``brdfcorr materials`` and ``brdfcorr coefficients``: the registry, the material
+library and the coefficient library."""
 
 from __future__ import annotations
 
@@ -23,24 +24,52 @@ def material_names() -> tuple[str, ...]:
     return materials.material_names()
 
 
+#: Width [columns] of the text of ``brdfcorr models``.
+MODELS_WIDTH = 100
+
+
 @main.command("models")
-def models_command():
-    """List the BRDF models and their parameters (units, defaults, physical range)."""
+@click.argument("name", required=False)
+@handle_errors
+def models_command(name):
+    """List the BRDF models and their parameters (units, defaults, physical range).
+
+    With NAME, show that model: what it is, its reference and what each parameter means.
+    """
+    import textwrap
+
     from brdfcorr import models
 
+    rows = models.parameter_table_rows()
+    if name is not None:
+        model = models.get_model(name)
+        click.echo(textwrap.fill(f"{model.name}: {model.description}", MODELS_WIDTH, subsequent_indent="  "))
+        click.echo(textwrap.fill(f"Reference: {model.reference}", MODELS_WIDTH, subsequent_indent="  "))
+        for row in (row for row in rows if row["model"] == model.name):
+            click.echo(f"\n{row['parameter']} [{row['units']}], default {row['default']}, range {row['range']}")
+            click.echo(textwrap.fill(row["description"], MODELS_WIDTH, initial_indent="  ", subsequent_indent="  "))
+        return
+    width = max(len(model_name) for model_name in models.REGISTRY)
     for model in models.REGISTRY.values():
-        click.echo(f"{model.name}: {model.description} [{model.reference}]")
+        click.echo(textwrap.fill(f"{model.name.ljust(width)}  {model.description}", MODELS_WIDTH,
+                                 subsequent_indent=" " * (width + 2)))
     click.echo()
-    click.echo(_format_table(models.parameter_table_rows()))
+    table = _format_table([{key: value for key, value in row.items() if key != "description"} for row in rows])
+    click.echo("\n".join(line.rstrip() for line in table.splitlines()))
+    click.echo("\nbrdfcorr models NAME: what each parameter of the model NAME means, and its reference")
 
 
 @main.command("materials")
 @click.argument("name", required=False)
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              help="Add the material NAME as a class to this parameter table (created if absent).")
+              help="Write the material NAME as a class of this parameter table (a new file; an existing "
+                   "table needs --overwrite).")
 @click.option("--class-id", type=int, help="Its class id [default: 1 more than the largest].")
+@click.option("--overwrite", is_flag=True,
+              help="Add the class to an existing table -o (rewritten: its comments and layout are not kept; "
+                   "a symbolic link stays a link, the file it points to is rewritten).")
 @handle_errors
-def materials_command(name, output, class_id):
+def materials_command(name, output, class_id, overwrite):
     """List the built-in materials, or show one material's parameters with errors.
 
     With -o, the material becomes a class of a parameter table. The library's fits are at one
@@ -52,10 +81,11 @@ def materials_command(name, output, class_id):
     if output is not None:
         if name is None:
             raise click.UsageError("-o needs a material NAME")
-        table = ParameterTable.load(output) if output.exists() else ParameterTable()
+        target = _table_output(output, overwrite)
+        table = ParameterTable.load(target) if target.exists() else ParameterTable()
         class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
         material = load_material(name)
-        table.with_class(material.table_entry(class_id)).save(output)
+        table.with_class(material.table_entry(class_id)).save(target)
         click.echo(f"wrote class {class_id} ({name}, {material.wavelength:g} nm fit) to {output}")
         return
 
@@ -70,5 +100,73 @@ def materials_command(name, output, class_id):
         rows.append(row)
     click.echo(_format_table(rows))
     click.echo(f"\nmodel {material.model.name}, {material.wavelength:g} nm. Source: {material.source}")
+    if name is None:
+        click.echo("Vegetation and soil per Landsat and Sentinel-2 band (Roy et al. 2016, 2017): brdfcorr coefficients")
 
 
+def _table_output(output: Path, overwrite: bool) -> Path:
+    """Where ``materials -o`` writes: the output rules of every command (a regular file; an existing
+    one only with ``--overwrite``), and a symbolic link's target (the link stays a link; a link to
+    nothing is refused)."""
+    from brdfcorr.errors import OutputError
+    from brdfcorr.io.paths import check_outputs, refuse_existing
+
+    check_outputs({"-o": output})
+    if not overwrite:
+        refuse_existing([output])
+    if not output.is_symlink():
+        return output
+    try:
+        return output.resolve(strict=True)
+    except (OSError, RuntimeError):
+        raise OutputError(f"-o {output} is a symbolic link to no file; give the table's own path") from None
+
+
+
+@main.command("coefficients")
+@click.argument("name", required=False)
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Add the coefficient set NAME as a class to this parameter table (created if absent).")
+@click.option("--class-id", type=int, help="Its class id [default: 1 more than the largest].")
+@handle_errors
+def coefficients_command(name, output, class_id):
+    """List the built-in BRDF coefficient sets, or show one set's weights per band.
+
+    The sets are published global RTLSR weights (model ross_thick_li_sparse) for Landsat and
+    Sentinel-2 bands, as used by HLS and sen2nbar. Weights are shown as published (reflectance
+    factors) and as brdfcorr parameters (divided by pi, sr^-1). With -o, the set becomes a class
+    of a parameter table, interpolated to an image's band centres.
+    """
+    import math
+
+    from brdfcorr.models.coefficients import coefficient_names, load_coefficients
+    from brdfcorr.params import ParameterTable
+
+    if output is not None:
+        if name is None:
+            raise click.UsageError("-o needs a coefficient set NAME")
+        table = ParameterTable.load(output) if output.exists() else ParameterTable()
+        class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
+        table.with_class(load_coefficients(name).table_entry(class_id)).save(output)
+        click.echo(f"wrote class {class_id} ({name}) to {output}")
+        return
+    if name is None:
+        sets = [load_coefficients(key) for key in coefficient_names()]
+        click.echo(_format_table([{"set": s.name, "model": s.model.name, "bands": ", ".join(s.published)}
+                                  for s in sets]))
+        click.echo()
+        for coefficients in sets:
+            click.echo(f"{coefficients.name}: {coefficients.source}")
+        return
+    coefficients = load_coefficients(name)
+    rows = []
+    for band, weights in coefficients.published.items():
+        low, high = coefficients.centres[band]
+        rows.append({"band": band, "centres [nm]": f"{low:g}-{high:g}",
+                     **{f"{key} (BRF)": f"{value:.4f}" for key, value in weights.items()},
+                     **{f"{key} [sr^-1]": f"{value / math.pi:.5f}" for key, value in weights.items()}})
+    click.echo(_format_table(rows))
+    for sensor, bands in coefficients.sensor_bands.items():
+        used = [f"{band}={spectral}" for band, spectral in bands.items() if spectral in coefficients.published]
+        click.echo(f"{sensor}: {' '.join(used)}")
+    click.echo(f"\nmodel {coefficients.model.name}. Source: {coefficients.source}")

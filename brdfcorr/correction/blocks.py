@@ -31,7 +31,9 @@ class ClassPlan:
     (:attr:`Model.linear`). ``shapes`` are the distinct sets of shape parameters; band ``b`` uses the
     basis of ``shapes[shape_of_band[b]]`` with the coefficients ``coefficients[b]``.
     ``row_of_band[b]`` numbers the distinct (shape, coefficients) rows, so bands with equal rows
-    share one factor.
+    share one factor; it is :data:`NO_PARAMETERS` for a band in which the class has no parameters
+    (its ``bad_bands``, :attr:`brdfcorr.params.BandParameters.no_parameters`): the correction passes
+    that band through uncorrected (factor 1) and flags ``band_uncorrected``.
     """
 
     id: int
@@ -40,6 +42,10 @@ class ClassPlan:
     shape_of_band: np.ndarray
     coefficients: np.ndarray
     row_of_band: np.ndarray
+
+    def band_coefficients(self, band: int) -> list[float]:
+        """The linear coefficients of ``band``, as Python floats (they keep the terms' dtype)."""
+        return [float(c) for c in self.coefficients[band]]
 
 
 def band_shapes(model: Model, params: Mapping[str, np.ndarray]):
@@ -55,10 +61,25 @@ def band_shapes(model: Model, params: Mapping[str, np.ndarray]):
     return shapes, shape_of_band.reshape(-1), coefficients
 
 
-def class_plan(class_id: int, model: Model, params: dict[str, np.ndarray]) -> ClassPlan:
+#: :attr:`ClassPlan.row_of_band` of a band without parameters (passed through, factor 1).
+NO_PARAMETERS = -2
+
+
+def class_plan(class_id: int, model: Model, params: dict[str, np.ndarray],
+               no_parameters: np.ndarray | None = None) -> ClassPlan:
+    """The :class:`ClassPlan` of a class's per-band ``params``; the bands ``no_parameters`` (NaN
+    there) get the row :data:`NO_PARAMETERS` and the shape of a band with parameters (or the
+    model's defaults), so that no basis is ever evaluated with NaN."""
+    if no_parameters is not None:
+        good = np.flatnonzero(~no_parameters)
+        params = {name: np.where(no_parameters, values[good[0]] if good.size else model.defaults[name], values)
+                  for name, values in params.items()}
     shapes, shape_of_band, coefficients = band_shapes(model, params)
     _, row_of_band = np.unique(np.column_stack([shape_of_band, coefficients]), axis=0, return_inverse=True)
-    return ClassPlan(class_id, model, shapes, shape_of_band, coefficients, row_of_band.reshape(-1))
+    row_of_band = row_of_band.reshape(-1)
+    if no_parameters is not None:
+        row_of_band = np.where(no_parameters, NO_PARAMETERS, row_of_band)
+    return ClassPlan(class_id, model, shapes, shape_of_band, coefficients, row_of_band)
 
 
 class Plans:

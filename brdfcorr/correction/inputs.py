@@ -160,6 +160,10 @@ def prepare_inputs(
     }
     if layers["classes"].dtype.kind not in "iuf":
         raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
+    complex_layers = [f"{name} ({layer.dtype})" for name, layer in {"reflectance": reflectance, **layers}.items()
+                      if layer.dtype.kind == "c"]
+    if complex_layers:  # the imaginary part would be lost, or carried into a complex "reflectance"
+        raise InputError(f"complex values in {', '.join(complex_layers)}; real numbers are expected")
     if wavelengths is None and "wavelength" in reflectance.coords:
         wavelengths = reflectance["wavelength"].values.tolist()
     resolved = params.for_bands(wavelengths, n_bands=reflectance.shape[0], extrapolate=extrapolate)

@@ -17,6 +17,11 @@ asked) and its chunks are those of the reflectance.
 
 The QA layer: :mod:`brdfcorr.correction.qa`.
 
+Bad bands: a class without parameters in some bands (``bad_bands`` of its table entry, written by
+``fit-classes`` for the water-vapour bands and those the ENVI header's ``bbl`` marks bad;
+:attr:`brdfcorr.params.BandParameters.no_parameters`) gets the factor 1 there: those bands of its
+pixels are the input, bit for bit, and the pixels are flagged ``band_uncorrected``.
+
 Tilted surfaces (``slope``/``aspect`` given, :mod:`brdfcorr.terrain`): the observed geometry is
 evaluated in the frame of the tilted surface (:func:`brdfcorr.terrain.local_angles`), the reference
 geometry in the horizontal frame (reference sza ``"observed"`` is the pixel's horizontal sza), so
@@ -36,13 +41,23 @@ geometry (0 / 0): the pixel is left unchanged (factor 1). The registry's paramet
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import xarray as xr
 
-from brdfcorr.correction.blocks import ClassPlan, PixelGeometry, Plans, class_plan, present_classes, split_pairs
+from brdfcorr.correction.blocks import (
+    NO_PARAMETERS,
+    ClassPlan,
+    PixelGeometry,
+    Plans,
+    class_plan,
+    present_classes,
+    split_pairs,
+)
+from brdfcorr.correction.continuous import group_states, ndvi_group, with_ndvi_layer
 from brdfcorr.correction.inputs import BlockSettings, prepare_inputs
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.reference import describe_limits
@@ -135,10 +150,15 @@ def normalize(
         raise InputError(f"unknown must be 'keep' or 'nan', got {unknown!r}")
     inputs = prepare_inputs(reflectance, classes, angles, params, reference, limits=limits, wavelengths=wavelengths,
                             extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
+    group = ndvi_group(params, inputs.resolved)  # coefficients continuous in NDVI (correction.continuous)
+    if group is not None:
+        inputs, group = with_ndvi_layer(inputs, group, wavelengths)
+        group = _passing_bad_bands(group, inputs.resolved)
     reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits
     band_dim = reflectance.dims[0]
-    plans = Plans({cid: class_plan(cid, entry.model, entry.params) for cid, entry in inputs.resolved.items()})
-    kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings, unknown_nan=unknown == "nan")
+    plans = Plans({cid: class_plan(cid, entry.model, entry.params, entry.no_parameters)
+                   for cid, entry in inputs.resolved.items()})
+    kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings, unknown_nan=unknown == "nan", group=group)
     if inputs.lazy:
         pairs = inputs.blockwise(_normalize_block, kwargs)
         corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, inputs.settings.out_dtype)
@@ -159,10 +179,25 @@ def normalize(
     return Normalized(corrected, qa)
 
 
+def _passing_bad_bands(group, resolved):
+    """The NDVI group with the bands in which one of its classes has no parameters (``bad_bands``)
+    passed through (:data:`NO_PARAMETERS`), as each class alone would be."""
+    if group is None:
+        return None
+    masks = [resolved[int(class_id)].no_parameters for class_id in group.ids]
+    masks = [mask for mask in masks if mask is not None]
+    if not masks:
+        return group
+    return dataclasses.replace(group, row_of_band=np.where(np.logical_or.reduce(masks), NO_PARAMETERS,
+                                                           group.row_of_band))
+
+
 def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Plans, settings: BlockSettings,
-                     unknown_nan: bool):
+                     unknown_nan: bool, group=None):
     """Normalize one (band, y, x) block; returns (corrected block, QA block of shape (1, y, x))."""
     n_bands, ny, nx = reflectance.shape
+    if group is not None:  # the NDVI layer comes last (correction.continuous.with_ndvi_layer)
+        layers, index_layer = layers[:-1], layers[-1]
     cube = reflectance.reshape(n_bands, ny * nx)
     reference, limits, out_dtype = settings.reference, settings.limits, settings.out_dtype
     pixels = PixelGeometry.of_block(layers, settings)
@@ -176,6 +211,8 @@ def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Pla
         base[unclassified] = np.nan
     states = []
     for class_id in present_classes(classes[usable & ~no_class]):
+        if group is not None and group.holds(class_id):
+            continue  # corrected with coefficients continuous in NDVI, below
         members = usable & (classes == class_id)
         plan = plans.get(int(class_id)) if float(class_id).is_integer() else None
         if plan is None:
@@ -198,15 +235,19 @@ def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Pla
                 for shape in plan.shapes
             ]
         states.append((plan, index, terms))
+    if group is not None:
+        states += group_states(group, pixels, index_layer, reference, reference_sza, out_dtype)
 
     out, flags = _apply_factors(cube, band_index, base, states, limits, out_dtype)
     if infinite is not None and infinite.any():  # +-inf is nodata like NaN: NaN in the output
         corrected = out[:, candidates]
         corrected[infinite] = np.nan
         out[:, candidates] = corrected
-    for index, limited, invalid in flags:
+    for index, limited, invalid, passed in flags:
         set_flags(qa, index[limited], QA.LIMITED)
         set_flags(qa, index[invalid], QA.NODATA)
+        if passed:  # a band of this block without parameters for the class: passed through
+            set_flags(qa, index, QA.BAND_UNCORRECTED)
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
 
 
@@ -228,21 +269,27 @@ def _cube_masks(cube, qa):
 
 def _apply_factors(cube, band_index, base, states, limits, out_dtype):
     """Multiply each band by its factor map; returns the output and, per class, its pixel indices,
-    which of them were limited in some band and which had no valid factor (NaN) in some band.
+    which of them were limited in some band, which had no valid factor (NaN) in some band, and
+    whether a band without parameters for the class (:data:`NO_PARAMETERS`) was passed through.
 
     One factor map serves the block, updated band by band only where a class's parameters change:
-    with band-independent parameters every band costs one multiplication.
+    with band-independent parameters every band costs one multiplication. A band without
+    parameters gets the factor 1: the output is the input, bit for bit.
     """
     factor = base
     current_row = {plan.id: -1 for plan, _, _ in states}
     limited = {plan.id: np.zeros(index.size, dtype=bool) for plan, index, _ in states}
     invalid = {plan.id: np.zeros(index.size, dtype=bool) for plan, index, _ in states}
+    passed = dict.fromkeys(current_row, False)
     out = np.empty(cube.shape, dtype=out_dtype)
     for position, band in enumerate(np.asarray(band_index).reshape(-1)):
         for plan, index, terms in states:
             if plan.row_of_band[band] == current_row[plan.id]:
                 continue
             current_row[plan.id] = plan.row_of_band[band]
+            if current_row[plan.id] == NO_PARAMETERS:
+                factor[index], passed[plan.id] = 1.0, True
+                continue
             ratio = _ratio(plan, band, *terms[plan.shape_of_band[band]])
             invalid[plan.id] |= np.isnan(ratio)
             if limits is not None:
@@ -251,7 +298,7 @@ def _apply_factors(cube, band_index, base, states, limits, out_dtype):
                 ratio = np.clip(ratio, *limits)
             factor[index] = ratio
         np.multiply(cube[position], factor, out=out[position], casting="unsafe")
-    return out, [(index, limited[plan.id], invalid[plan.id]) for plan, index, _ in states]
+    return out, [(index, limited[plan.id], invalid[plan.id], passed[plan.id]) for plan, index, _ in states]
 
 
 def _ratio(plan: ClassPlan, band: int, terms_observed: tuple, terms_reference: tuple) -> np.ndarray:
@@ -263,7 +310,7 @@ def _ratio(plan: ClassPlan, band: int, terms_observed: tuple, terms_reference: t
     underflowing to 0, a value or ratio beyond the terms' precision. Where the model predicts no
     signal at either geometry (0 / 0) the pixel is left unchanged (ratio 1).
     """
-    coefficients = [float(c) for c in plan.coefficients[band]]  # Python floats keep the terms' dtype
+    coefficients = plan.band_coefficients(band)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         f_observed = sum(c * term for c, term in zip(coefficients, terms_observed))
         f_reference = sum(c * term for c, term in zip(coefficients, terms_reference))

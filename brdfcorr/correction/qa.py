@@ -19,6 +19,10 @@ bit  name             meaning
      uncorrected      (:mod:`brdfcorr.correction.topographic`): the C fit of the pixel's
                       class was rejected in some band (or its C gives the pixel no finite
                       positive factor), which was not corrected for illumination
+128  band_            the pixel's class has no parameters in some band (its ``bad_bands`` in
+     uncorrected      the parameter table: water vapour, bands the ENVI ``bbl`` marks bad):
+                      that band was passed through uncorrected (factor 1, the input value);
+                      the other bands were corrected and the pixel counts as corrected
 ==== ================ ========================================================================
 
 The layer is a uint8 raster; its attrs carry the flags as CF ``flag_masks``/``flag_meanings``
@@ -46,6 +50,7 @@ class QA(enum.IntFlag):
     INVALID_GEOMETRY = 16
     FACING_AWAY = 32
     TOPOGRAPHY_UNCORRECTED = 64
+    BAND_UNCORRECTED = 128
 
 
 def set_flags(qa: np.ndarray, where, flags: QA) -> None:

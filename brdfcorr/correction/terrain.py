@@ -322,7 +322,8 @@ def check_slope_aspect(surface: SlopeAspect, source: str, *, scheduler: str | No
     outside [0, 90] ``invalid_geometry`` and writes nodata); layers that cannot be degrees are:
     every slope at most pi/2 with every aspect in [-pi, 2 pi] and spread over more than 1
     (radians), no slope in [0, 90] at all, or no aspect in [-360, 360] at all (scaled or other
-    units: every pixel would be nodata). Layers without a finite value are left to the correction.
+    units: every pixel would be nodata), or a layer without a single finite value (all NaN or inf:
+    every pixel would be nodata too).
 
     Parameters
     ----------
@@ -349,8 +350,10 @@ def check_slope_aspect(surface: SlopeAspect, source: str, *, scheduler: str | No
         per_block = _surface_statistics(np.asarray(slope), np.asarray(aspect))
     per_block = per_block.reshape(-1, 2, 4)
     finite, in_domain = per_block[..., 2].sum(axis=0), per_block[..., 3].sum(axis=0)
-    if not finite.all():
-        return
+    for index, name in enumerate(("slope", "aspect")):
+        if not finite[index]:
+            raise InputError(f"{source}: no finite {name} value (all NaN, inf or nodata): nothing could be "
+                             "corrected")
     low, high = np.nanmin(per_block[..., 0], axis=0), np.nanmax(per_block[..., 1], axis=0)
     found = f"slope {low[0]:.6g}..{high[0]:.6g}, aspect {low[1]:.6g}..{high[1]:.6g}"
     if high[0] <= np.pi / 2 + 0.03 and low[1] >= -np.pi - 0.03 and high[1] <= 2 * np.pi + 0.03 and high[1] - low[1] > 1:

@@ -36,11 +36,19 @@ The Jacobian (``docs/uncertainty.md``):
   second-order difference ``(-3 F(s) + 4 F(s + h) - F(s + 2 h)) / (2 h)`` (or its mirror) is used
   instead, so the model is never evaluated outside its range.
 
+A class taken from the built-in material library (``material:`` in the table, no ``fit:`` block)
+gets the diagonal covariance of the material's published 1-sigma errors (paper 003, Table 1, fits
+at 550 nm; the parameter the authors held fixed, k, is left out): the source gives no correlations,
+and its errors belong to a goniometer fit of one sample at 550 nm, not to the class in the image.
+A :class:`~brdfcorr.errors.BrdfcorrWarning` says so for every such class (:func:`material_covariance`).
+
 A pixel is nodata (NaN) in a band where there is nothing to propagate: its class has no covariance,
 it has no class or one absent from the table, its data or geometry is invalid (a non-finite value,
 a zenith outside [0, 90) deg), its factor is invalid (no finite positive F, including the 0 / 0 that
 ``normalize`` leaves unchanged), or its factor was clipped to the limits: a clipped factor is a
 bound chosen by the user, not the model's prediction, so the covariance says nothing about it.
+A band in which the pixel's class has no parameters (its ``bad_bands``) is passed through
+uncorrected by :func:`normalize`: the correction adds no uncertainty there (sigma 0).
 
 With ``slope`` and ``aspect`` (tilted surfaces, ``docs/terrain.md``) the observed geometry is taken in
 each surface's own frame and the reference in the horizontal one, as :func:`normalize` does; a
@@ -54,6 +62,8 @@ chunk once.
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -61,16 +71,21 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from brdfcorr.correction.blocks import PixelGeometry, Plans, band_shapes, present_classes
+from brdfcorr.correction.blocks import NO_PARAMETERS, PixelGeometry, Plans, class_plan, present_classes
 from brdfcorr.correction.inputs import BlockSettings, prepare_inputs
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
-from brdfcorr.errors import ParameterError
+from brdfcorr.errors import BrdfcorrWarning, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model
+from brdfcorr.models.materials import load_material
 from brdfcorr.params import BandParameters, ParameterTable, ReferenceGeometry
 
-__all__ = ["correction_uncertainty", "factor_jacobian", "difference_step"]
+__all__ = ["correction_uncertainty", "factor_jacobian", "difference_step", "material_covariance"]
+
+#: Parameters the source of the material library held fixed (paper 003 fixes k = 0.25; the "error"
+#: it prints for k is no uncertainty of a fitted value): they get no variance.
+MATERIAL_FIXED = ("k",)
 
 #: Relative step of the central differences, eps^(1/3) (eq. 5).
 RELATIVE_STEP = float(np.finfo(np.float64).eps) ** (1.0 / 3.0)
@@ -80,7 +95,8 @@ METHOD = (
     "first-order propagation of the fit's parameter covariance, sigma = observed * sqrt(J Sigma J^T), "
     "J = d(f(ref)/f(obs))/dp: exact for the linear (intensity) parameters, central differences with "
     "step eps^(1/3) * max(|s|, |default|) for shape parameters (one-sided at a range bound); NaN where "
-    "the class has no covariance, no class or an unknown one, invalid data or geometry (a surface "
+    "the class has no covariance (a library material gets its published errors, uncorrelated), no class or "
+    "an unknown one, invalid data or geometry (a surface "
     "facing away included), no valid factor, or a factor clipped to the limits"
 )
 
@@ -243,6 +259,45 @@ def _columns(model: Model, names: Sequence[str]) -> tuple[list[int], list[int]]:
     return linear, shape
 
 
+# ------------------------------------------------------------------------------------ materials
+def material_covariance(entry: BandParameters, material: str) -> BandParameters:
+    """A library material's class with the diagonal covariance of its published 1-sigma errors.
+
+    ``Sigma = diag(sigma_a^2)`` over the material's parameters with a published error, except those
+    the source held fixed (:data:`MATERIAL_FIXED`), the same at every band (paper 003, Table 1:
+    fits at 550 nm). The source gives no correlations (its fits' n and t1 trade off strongly), so
+    the propagated sigma is that of uncorrelated parameters: an approximation, said by a
+    :class:`BrdfcorrWarning`.
+
+    Parameters
+    ----------
+    entry : BandParameters
+        The class resolved to the image's bands, without a covariance.
+    material : str
+        Its library key (``ClassEntry.material``).
+    """
+    published = load_material(material)
+    names = tuple(name for name in entry.model.parameter_names
+                  if published.errors.get(name, 0.0) > 0 and name not in MATERIAL_FIXED)
+    n_bands = len(next(iter(entry.params.values())))
+    diagonal = np.diag([float(published.errors[name]) ** 2 for name in names])
+    warnings.warn(
+        f"class {entry.id} ({entry.name}): uncertainty from the published 1-sigma errors of material "
+        f"{published.name} ({', '.join(names)}; {published.wavelength:g} nm, uncorrelated: the source "
+        "gives no covariance), not from a fit to this image",
+        BrdfcorrWarning, stacklevel=3,
+    )
+    return dataclasses.replace(entry, covariance=np.repeat(diagonal[None], n_bands, axis=0), covariance_names=names)
+
+
+def _with_materials(resolved: Mapping[int, BandParameters], table: ParameterTable) -> dict[int, BandParameters]:
+    """The resolved classes, library materials without a fit given their published errors."""
+    materials = {entry.id: entry.material for entry in table.classes if entry.material and entry.fit is None}
+    return {class_id: material_covariance(entry, materials[class_id])
+            if entry.covariance is None and class_id in materials else entry
+            for class_id, entry in resolved.items()}
+
+
 # ---------------------------------------------------------------------------------- class plans
 @dataclass(frozen=True)
 class _ClassPlan:
@@ -278,11 +333,16 @@ def _plan(entry: BandParameters) -> _ClassPlan | None:
             f"class {entry.id} ({entry.name}): covariance parameters {', '.join(names)} must be distinct "
             f"parameters of {model.name} ({', '.join(model.parameter_names)})"
         )
+    bad = entry.no_parameters  # bands passed through uncorrected (NaN parameters): sigma 0 there
+    if bad is not None:
+        covariance = np.where(bad[:, None, None], 0.0, covariance)
     covariance = _checked_covariance(entry, covariance, names, n_bands)
-    shapes, shape_of_band, coefficients = band_shapes(model, params)
-    rows = np.column_stack([shape_of_band, coefficients, covariance.reshape(n_bands, -1)])
+    plan = class_plan(entry.id, model, params, bad)  # the shapes and coefficients, NaN-free
+    rows = np.column_stack([plan.shape_of_band, plan.coefficients, covariance.reshape(n_bands, -1)])
     _, row_of_band = np.unique(rows, axis=0, return_inverse=True)
-    return _ClassPlan(entry.id, model, names, shapes, shape_of_band, coefficients, covariance, row_of_band.reshape(-1))
+    row_of_band = row_of_band.reshape(-1) if bad is None else np.where(bad, NO_PARAMETERS, row_of_band.reshape(-1))
+    return _ClassPlan(entry.id, model, names, plan.shapes, plan.shape_of_band, plan.coefficients, covariance,
+                      row_of_band)
 
 
 def _checked_covariance(entry: BandParameters, covariance, names: tuple[str, ...], n_bands: int) -> np.ndarray:
@@ -341,6 +401,9 @@ def _class_sigma(plan: _ClassPlan, observed, reference, bands, n: int, limits) -
     sigma = np.empty((bands.size, n))
     for position, band in enumerate(bands):
         row = int(plan.row_of_band[band])
+        if row == NO_PARAMETERS:  # passed through uncorrected: no uncertainty added
+            sigma[position] = 0.0
+            continue
         if row not in by_row:
             shape = int(plan.shape_of_band[band])
             if shape not in terms:
@@ -408,7 +471,8 @@ def correction_uncertainty(
     -------
     xarray.DataArray (band, y, x)
         The 1-sigma [units of the reflectance] with the reflectance's dims, coords (``spatial_ref``
-        included) and chunks; NaN where the class has no covariance, the pixel has no class or an
+        included) and chunks; NaN where the class has no covariance (a library material has its
+        published errors, :func:`material_covariance`), the pixel has no class or an
         unknown one, invalid data or geometry, no valid factor, or a clipped one. Lazy if any input
         is dask-backed (one task per reflectance chunk). attrs: ``long_name``, ``units``,
         ``description`` (the method), ``brdf_reference``, ``brdf_limits``.
@@ -423,7 +487,8 @@ def correction_uncertainty(
     inputs = prepare_inputs(reflectance, classes, angles, params, reference, limits=limits, wavelengths=wavelengths,
                             extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
     reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits
-    plans = Plans({class_id: _plan(entry) for class_id, entry in inputs.resolved.items()})
+    resolved = _with_materials(inputs.resolved, params)
+    plans = Plans({class_id: _plan(entry) for class_id, entry in resolved.items()})
     kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings)
     sigma = inputs.blockwise(_uncertainty_block, kwargs) if inputs.lazy else inputs.apply(_uncertainty_block, kwargs)
     attrs = {

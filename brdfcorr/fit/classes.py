@@ -10,6 +10,10 @@ shape parameters inside their search ranges. A class that fails is left uncorrec
 built-in material; a class that fails or fits poorly is also fitted with the other surface models,
 and one that explains clearly more is suggested in its report (:attr:`ClassFit.better_model`).
 
+Bad bands (water vapour, :data:`WATER_VAPOUR_BANDS`, or ranges given) are left out of the fit: the
+table's classes list them as ``bad_bands`` (no parameters there), and the correction passes them
+through uncorrected with the QA flag ``band_uncorrected``.
+
 Imagery holds reflectance factors R (0-1, "BRF"/"HDRF"); brdfcorr's models are BRDFs in sr^-1.
 The fit uses f = R / pi (a Lambertian surface of reflectance R has BRDF R / pi), so the intensity
 parameters in the resulting table are in sr^-1 like the goniometer fits of paper 003.
@@ -25,9 +29,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from brdfcorr.errors import BrdfcorrWarning, ParameterError
+from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
-from brdfcorr.fit.settings import ClassModels, GuardRails, Sampling
+from brdfcorr.fit.settings import DEFAULT_MODEL, WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
 from brdfcorr.fit.solver import (
     DEFAULT_FIXED,
     SEARCH_RANGES,
@@ -40,6 +44,7 @@ from brdfcorr.fit.solver import (
 from brdfcorr.models import Model, get_model
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ClassEntry, ParameterTable
+from brdfcorr.params_bands import in_ranges
 
 __all__ = [
     "ClassFitResult",
@@ -56,6 +61,7 @@ __all__ = [
     "fit_class_samples",
     "DEFAULT_FIXED",
     "SEARCH_RANGES",
+    "WATER_VAPOUR_BANDS",
 ]
 
 #: A fitted class whose median R^2 is below this is "poor": the other models are tried as well.
@@ -122,6 +128,14 @@ class ClassFit:
         that explains clearly more of its data (see :data:`BETTER_GAIN`), if any.
     better_r2 : float or None
         That model's median R^2 (on the search subsample).
+    errors_reliable : bool or None
+        Whether the errors can be trusted (None before a fit): False with few spatial blocks
+        (effective degrees of freedom below :data:`brdfcorr.fit.identifiability.MIN_ERROR_DOF`), a
+        strongly non-linear fit (an error above half a parameter's distance to the end of its
+        range), a shape parameter at the edge of its search range or an intensity at its bound
+        (:func:`brdfcorr.fit.identifiability.error_reliability`).
+    errors_reason : str
+        Why they cannot (empty when they can).
     """
 
     class_id: int
@@ -146,6 +160,8 @@ class ClassFit:
     fallback: str | None = None
     better_model: str | None = None
     better_r2: float | None = None
+    errors_reliable: bool | None = None
+    errors_reason: str = ""
 
     @property
     def median_r2(self) -> float:
@@ -179,6 +195,8 @@ class ClassFit:
             "better_model_median_r2": self.better_r2,
             "params": {k: _compact(v) for k, v in self.params.items()},
             "errors": {k: _compact(v) for k, v in self.errors.items()},
+            "errors_reliable": self.errors_reliable,
+            "errors_reason": self.errors_reason,
         }
 
 
@@ -339,6 +357,7 @@ def fit_one_class(
         report.free, report.covariance, report.chi2_dof = result["free"], result["covariance"], result["chi2_dof"]
         report.r2, report.rmse, report.angular_r2 = result["r2"], result["rmse"], result["angular_r2"]
         report.condition, report.fixed = result["condition"], result["fixed"]
+        report.errors_reliable, report.errors_reason = result["errors_reliable"], result["errors_reason"]
         report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
         if report.reasons or not report.median_angular_r2 >= POOR_R2:
             _suggest_model(report, model, (theta_i, theta_r, phi, brdf))
@@ -369,11 +388,18 @@ class ClassFitResult:
         Per class: samples, angular spread, conditioning, R^2, RMS, errors, status and reasons.
     samples : dict of int to ClassSamples
         A subsample (at most :attr:`Sampling.keep_samples` per class) for plots.
+    bad_bands : list of [float, float]
+        The ranges [nm] of the bands left out of the fit (those that hold an image band), written
+        to every class of the table as its ``bad_bands``; empty when none was left out.
+    bands_left_out : list of float
+        The centres [nm] of the image bands left out, in the images' order.
     """
 
     table: object
     fits: list[ClassFit]
     samples: dict[int, ClassSamples]
+    bad_bands: list[list[float]] = field(default_factory=list)
+    bands_left_out: list[float] = field(default_factory=list)
 
     def report(self) -> list[dict[str, object]]:
         """JSON-friendly fit report, one entry per class."""
@@ -389,16 +415,17 @@ def _fit_record(fit: ClassFit, source: str, per_band: bool) -> dict | None:
     if covariance.size == 0 or not np.all(np.isfinite(covariance)) or np.any(variances < 0):
         return None
     errors = np.sqrt(variances)
+    flag = {"errors_reliable": fit.errors_reliable, "errors_reason": fit.errors_reason or None}
     if not per_band:
         return {"source": source, "parameters": list(fit.free), "n": fit.n_samples,
                 "chi2_dof": float(fit.chi2_dof[0]), "r2": float(fit.r2[0]),
                 "errors": {name: float(errors[0, j]) for j, name in enumerate(fit.free)},
-                "covariance": covariance[0].tolist()}
+                "covariance": covariance[0].tolist(), **flag}
     n_bands = covariance.shape[0]
     return {"source": source, "parameters": list(fit.free), "n": [fit.n_samples] * n_bands,
             "chi2_dof": np.asarray(fit.chi2_dof, float).tolist(), "r2": np.asarray(fit.r2, float).tolist(),
             "errors": {name: errors[:, j].tolist() for j, name in enumerate(fit.free)},
-            "covariance": covariance.tolist()}
+            "covariance": covariance.tolist(), **flag}
 
 
 def _in_wavelength_order(fit: ClassFit, wavelengths):
@@ -420,13 +447,14 @@ def _in_wavelength_order(fit: ClassFit, wavelengths):
     ), np.asarray(wavelengths, float)[order]
 
 
-def _entry(fit: ClassFit, wavelengths, source: str):
+def _entry(fit: ClassFit, wavelengths, source: str, bad_bands: list[list[float]] | None = None):
     fit, wavelengths = _in_wavelength_order(fit, wavelengths)
     if fit.status == "uncorrected":
         return None
     if fit.status == "fallback":
         material = load_material(fit.fallback)
-        return ClassEntry(id=fit.class_id, name=fit.name, model=material.model.name, params=material.params)
+        return ClassEntry(id=fit.class_id, name=fit.name, model=material.model.name, params=material.params,
+                          bad_bands=bad_bands)
     params = {name: _compact(values) for name, values in fit.params.items()}
     per_band = any(isinstance(value, list) for value in params.values())
     if not per_band and fit.covariance.shape[0] > 1 and np.any(fit.covariance != fit.covariance[:1]):
@@ -441,7 +469,37 @@ def _entry(fit: ClassFit, wavelengths, source: str):
         params=params,
         wavelengths=[float(w) for w in wavelengths] if per_band and wavelengths is not None else None,
         fit=_fit_record(fit, source, per_band),
+        bad_bands=bad_bands,
     )
+
+
+def _merged(ranges) -> list[list[float]]:
+    """Wavelength ranges [nm] sorted, overlapping ones merged."""
+    merged: list[list[float]] = []
+    for low, high in sorted((float(low), float(high)) for low, high in ranges):
+        if merged and low <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], high)
+        else:
+            merged.append([low, high])
+    return merged
+
+
+def _without_bad_bands(scenes: list, wavelengths, bad_bands) -> tuple[list, list | None, list, list]:
+    """The scenes without the bands whose centres [nm] lie in ``bad_bands``, the remaining
+    wavelengths, the ranges that held a band (merged) and the centres left out. Nothing is left
+    out without wavelengths; an InputError when every band would be."""
+    if wavelengths is None or not len(bad_bands):
+        return scenes, wavelengths, [], []
+    centres = np.asarray(wavelengths, dtype=float)
+    bad = in_ranges(centres, bad_bands)
+    if not bad.any():
+        return scenes, wavelengths, [], []
+    if bad.all():
+        raise InputError(f"every band ({centres.min():g}-{centres.max():g} nm) lies in the bad-band ranges "
+                         f"{', '.join(f'{low:g}-{high:g}' for low, high in bad_bands)} nm: nothing to fit")
+    used = [[low, high] for low, high in bad_bands if in_ranges(centres, [(low, high)]).any()]
+    kept = [scene.isel({scene.dims[0]: np.flatnonzero(~bad)}) for scene in scenes]
+    return kept, centres[~bad].tolist(), _merged(used), centres[bad].tolist()
 
 
 def fit_classes(
@@ -471,7 +529,7 @@ def fit_classes(
         table (left uncorrected, and flagged by the correction); either way a
         :class:`ClassFitWarning` says so.
     sampling : Sampling, default Sampling()
-        Samples per class, seed, reflectance scale and spatial block size of the sampler
+        Samples per class, seed, reflectance scale, bad bands and spatial block size of the sampler
         (:func:`sample_classes`; the errors are cluster-robust over the blocks), and the samples
         per class kept in the result for plots.
     wavelengths : sequence of float, optional
@@ -492,14 +550,26 @@ def fit_classes(
     Returns
     -------
     ClassFitResult
+
+    Notes
+    -----
+    The bands whose centres lie in ``sampling.bad_bands`` [nm] (default :data:`WATER_VAPOUR_BANDS`;
+    ``()``: none) are left out of the fit. Every class of the table lists those that held a band as
+    its ``bad_bands``: it has no parameters there, and the correction passes those bands through
+    uncorrected (QA flag ``band_uncorrected``). A fit with bad bands gives the other bands the
+    numbers of a fit of the image without them. Needs band wavelengths (without them nothing is
+    left out).
     """
     if not isinstance(models, ClassModels):
         models = ClassModels(models)
+    if models.model is None:
+        models = dataclasses.replace(models, model=DEFAULT_MODEL)
     scenes = _as_list(images)
     if wavelengths is None and "wavelength" in scenes[0].coords:
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
+    scenes, wavelengths, used_ranges, left_out = _without_bad_bands(scenes, wavelengths, sampling.bad_bands)
     pooled = sample_classes(
-        images, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
+        scenes, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
         seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
     )
     fits, entries, kept = [], [], {}
@@ -509,7 +579,7 @@ def fit_classes(
             fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id), grid_points=grid_points,
         )
         fits.append(fit)
-        entry = _entry(fit, wavelengths, source)
+        entry = _entry(fit, wavelengths, source, used_ranges or None)
         if entry is not None:
             entries.append(entry)
         step = max(1, samples.theta_i.size // sampling.keep_samples)
@@ -518,5 +588,6 @@ def fit_classes(
         )
         if progress is not None:
             progress(class_id)
-    return ClassFitResult(table=ParameterTable(classes=entries), fits=fits, samples=kept)
+    return ClassFitResult(table=ParameterTable(classes=entries), fits=fits, samples=kept, bad_bands=used_ranges,
+                          bands_left_out=left_out)
 

@@ -10,6 +10,9 @@ References
    least-squares fit from the linearized model, i.e. the inverse of J^T W J).
 .. [2] F. James, M. Roos (1975): MINUIT. Comput. Phys. Commun. 10, 343-367 (global correlation
    coefficients).
+.. [3] R. M. Bell, D. F. McCaffrey (2002): Bias reduction in standard errors for linear regression with
+   multi-stage samples. Survey Methodology 28, 169-181 (effective degrees of freedom of a
+   cluster-robust variance).
 """
 
 from __future__ import annotations
@@ -25,6 +28,9 @@ __all__ = [
     "correlation_matrix",
     "global_correlation",
     "identifiability_messages",
+    "MIN_ERROR_DOF",
+    "t_variance_factor",
+    "error_reliability",
 ]
 
 #: Global correlation coefficient (of one parameter with all others) above which the parameters
@@ -119,3 +125,76 @@ def identifiability_messages(model, free, values, covariance, condition_number, 
             f"{CONDITION_LIMIT:g}); some combination of {', '.join(free)} is barely constrained"
         )
     return messages
+
+
+#: Effective degrees of freedom (:func:`brdfcorr.fit.sandwich._satterthwaite_dof`) below which the
+#: errors of an imagery fit are flagged unreliable: the error of the error is then large (its
+#: relative SD ~ 1/sqrt(2 nu) = 25 % at nu = 8) and the calibration of the t-variance factor rests on
+#: an approximate nu. In the sweep of ``benchmarks/bench_small_scene_errors.py`` the fits above it
+#: have pull SDs within 0.85-1.15 (``docs/uncertainty.md``).
+MIN_ERROR_DOF = 8.0
+#: An error larger than this fraction of a parameter's distance to the end of its range (physical
+#: bound or search range) marks a strongly non-linear fit: the range ends within 2 errors.
+NONLINEAR_FRACTION = 0.5
+#: Leverage of one spatial block above which it alone determines a parameter combination.
+MAX_BLOCK_LEVERAGE = 0.99
+
+
+def t_variance_factor(dof):
+    """The variance of a t distribution with ``dof`` degrees of freedom, ``nu / (nu - 2)`` [-]: an
+    estimate divided by an error that is itself estimated with nu degrees of freedom has this
+    variance, so errors multiplied by its square root give pulls of unit SD. Held at 2 (its value
+    at nu = 4) below nu = 4, where the t variance grows without bound (such errors are flagged
+    unreliable, :data:`MIN_ERROR_DOF`)."""
+    dof = np.asarray(dof, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(dof > 4.0, 1.0 + 2.0 / (dof - 2.0), 2.0)  # written so that nu = inf gives 1
+
+
+def error_reliability(free, error_dof, n_clusters, max_leverage, at_edge=(), at_bound=(),
+                      margins=None) -> tuple[bool, str]:
+    """Whether the errors of an imagery fit can be trusted, and why not (empty when they can).
+
+    Parameters
+    ----------
+    free : sequence of str
+        The free parameters, the columns of ``error_dof``.
+    error_dof : array (B, p)
+        Effective degrees of freedom of each parameter's variance per band [-].
+    n_clusters : int
+        Spatial blocks (samples without blocks) the errors were estimated from.
+    max_leverage : float
+        Largest leverage eigenvalue of one block [-].
+    at_edge, at_bound : sequence of str
+        Shape parameters at the edge of their search range; descriptions of intensities held at a
+        bound (0) in some band. Their errors describe no sampling distribution (it is cut off).
+    margins : (mapping of str to array (B,), array (B, p)), optional
+        Each free parameter's distance to the nearest end of its range (physical bounds, search
+        range) and the 1-sigma errors (columns in ``free`` order). An error above
+        :data:`NONLINEAR_FRACTION` of that distance means the fit is strongly non-linear there:
+        the estimate's distribution is skewed and cut off within two errors (issue 27: t1 and n
+        of red concrete from few blocks reach errors of 60-90 % of t1, pull SDs 1.5-1.9).
+
+    Returns
+    -------
+    (bool, str)
+        ``errors_reliable`` and the reasons it is False, joined by "; ".
+    """
+    reasons = []
+    dof = np.min(np.atleast_2d(error_dof), axis=0)
+    low = [f"{name} {value:.1f}" for name, value in zip(free, dof) if not value >= MIN_ERROR_DOF]
+    if low:
+        reasons.append(f"errors from {n_clusters} spatial blocks: effective degrees of freedom "
+                       f"{', '.join(low)} < {MIN_ERROR_DOF:g} (more or smaller blocks, or a larger scene)")
+    if max_leverage > MAX_BLOCK_LEVERAGE:
+        reasons.append(f"one block alone determines a parameter combination (leverage {max_leverage:.3f})")
+    if margins is not None:
+        room, errors = margins
+        for column, name in enumerate(free):
+            ratio = np.max(np.asarray(errors)[:, column] / np.maximum(room[name], 1e-300))
+            if ratio > NONLINEAR_FRACTION:
+                reasons.append(f"{name}: error {ratio:.2g} times its distance to the end of its range "
+                               f"(> {NONLINEAR_FRACTION:g}: strongly non-linear)")
+    reasons += [f"{name} at the edge of its search range" for name in at_edge]
+    reasons += [f"{description} (at its bound)" for description in at_bound]
+    return not reasons, "; ".join(reasons)

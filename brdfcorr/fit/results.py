@@ -122,6 +122,19 @@ class FitResult:
             return {name: math.nan for name in self.free}
         return dict(zip(self.free, map(float, global_correlation(self.covariance))))
 
+    @property
+    def errors_reason(self) -> str:
+        """Why the errors cannot be trusted (empty when they can): a singular covariance, and the
+        fit's warnings (parameters the measurements do not separate, parameters that ended on a
+        bound, whose sampling distribution is cut off)."""
+        reasons = [] if np.all(np.isfinite(self.covariance)) else ["singular covariance"]
+        return "; ".join([*reasons, *self.warnings])
+
+    @property
+    def errors_reliable(self) -> bool:
+        """Whether the errors can be trusted (:attr:`errors_reason` is empty)."""
+        return not self.errors_reason
+
     def correlation_of(self, first: str, second: str) -> float:
         """Correlation coefficient of two free parameters."""
         return float(self.correlation[self.free.index(first), self.free.index(second)])
@@ -163,6 +176,8 @@ class FitResult:
             "r2": float(self.r2),
             "errors": dict(zip(self.free, np.sqrt(np.diag(covariance)).tolist())),
             "covariance": covariance.tolist(),
+            "errors_reliable": self.errors_reliable,
+            "errors_reason": self.errors_reason or None,
         }
 
     def summary(self) -> dict[str, str]:
@@ -250,5 +265,8 @@ def spectral_table_entry(
             **{key: [record[key] for record in records] for key in ("n", "chi2_dof", "r2")},
             "errors": {name: [record["errors"][name] for record in records] for name in first.free},
             "covariance": [record["covariance"] for record in records],
+            "errors_reliable": all(record["errors_reliable"] for record in records),
+            "errors_reason": "; ".join(f"{wavelength:g} nm: {record['errors_reason']}" for wavelength, record
+                                       in zip(wavelengths, records) if record["errors_reason"]) or None,
         }
     return entry

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from brdfcorr.errors import ParameterError
+from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.geometry import relative_azimuth
 
 __all__ = ["ClassSamples", "sample_classes"]
@@ -57,6 +57,20 @@ def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale:
             (block[0] * 10**9 + block[1] * blocks_x + block[2]).astype(np.int64))
 
 
+def _check_bands(brdf: np.ndarray, image, class_id: int) -> None:
+    """Refuse samples with a band that is not finite at any of them: every sample would be dropped
+    (a class of "0 samples"), and the message would not name the band."""
+    empty = np.flatnonzero(~np.isfinite(brdf).any(axis=0))
+    if empty.size == 0:
+        return
+    wavelengths = image.coords["wavelength"].values if "wavelength" in image.coords else None
+    names = [f"band {index + 1}" + (f" ({float(wavelengths[index]):g} nm)" if wavelengths is not None else "")
+             for index in empty[:5]]
+    more = f" and {empty.size - 5} more" if empty.size > 5 else ""
+    raise InputError(f"{', '.join(names)}{more}: no finite reflectance at any of the {brdf.shape[0]} sampled pixels "
+                     f"of class {class_id} (all NaN, inf or nodata); leave the band out of the image")
+
+
 def sample_classes(
     images,
     classes,
@@ -98,6 +112,12 @@ def sample_classes(
         BRDF = reflectance / pi [sr^-1]. Samples whose reflectance is not finite in some band are
         dropped after sampling, so a class may end up with fewer than ``max_samples``.
 
+    Raises
+    ------
+    InputError
+        A band without a finite value at any sampled pixel of a class (named by number and
+        wavelength): no sample would be left.
+
     Notes
     -----
     Only the class maps and the angle layers needed to find valid pixels are computed whole; the
@@ -137,6 +157,7 @@ def sample_classes(
             )
             continue
         theta_i, theta_r, phi, brdf, block = (np.concatenate(p) for p in zip(*parts))
+        _check_bands(brdf, images[0], class_id)
         keep = np.all(np.isfinite(brdf), axis=1)
         pooled[class_id] = ClassSamples(theta_i[keep], theta_r[keep], phi[keep], brdf[keep], block[keep])
     return pooled

@@ -1,6 +1,7 @@
 """The settings of an imagery fit, one frozen dataclass per concern: which model each class gets
 (:class:`ClassModels`), how the pixels are sampled (:class:`Sampling`) and the guard rails a fit
-must pass (:class:`GuardRails`)."""
+must pass (:class:`GuardRails`); and the bands an imagery fit leaves out by default
+(:data:`WATER_VAPOUR_BANDS`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,17 @@ from dataclasses import dataclass
 
 from brdfcorr.models import Model
 
-__all__ = ["GuardRails", "ClassModels", "Sampling"]
+__all__ = ["GuardRails", "ClassModels", "Sampling", "WATER_VAPOUR_BANDS", "DEFAULT_MODEL", "STRATA_MODEL"]
+
+#: Wavelength ranges [nm] of the strong water-vapour absorption bands (about 1.4 and 1.9 um), where
+#: an imaging spectrometer's surface reflectance is mostly noise: an imagery fit leaves image bands
+#: in them out (they get no parameters and are passed through uncorrected). The ranges of the bad
+#: bands of AVIRIS-NG L2 reflectance and of HyTools/FlexBRDF configurations (Queally et al. 2022).
+WATER_VAPOUR_BANDS: tuple[tuple[float, float], ...] = ((1340.0, 1450.0), (1800.0, 1960.0))
+#: The model of an imagery fit's classes when none is chosen ...
+DEFAULT_MODEL = "torrance_sparrow"
+#: ... and when the class maps are NDVI strata (vegetation and soil: a kernel-driven model).
+STRATA_MODEL = "ross_thick_li_sparse"
 
 
 @dataclass(frozen=True)
@@ -52,8 +63,11 @@ class ClassModels:
 
     Attributes
     ----------
-    model : str or Model, default "torrance_sparrow"
-        Surface model with intensity terms (:func:`intensity_terms`) for every class ...
+    model : str or Model or None, default "torrance_sparrow"
+        Surface model with intensity terms (:func:`intensity_terms`) for every class ... (None:
+        chosen from the class maps by :func:`brdfcorr.workflow.tasks.fit_class_files`,
+        :data:`STRATA_MODEL` for NDVI strata, else :data:`DEFAULT_MODEL`; "torrance_sparrow" for
+        :func:`brdfcorr.fit.fit_classes`) ...
     class_models : mapping of int to str, optional
         ... except these classes (class id to model name), which get their own model.
     fixed : mapping of str to float, optional
@@ -76,7 +90,7 @@ class ClassModels:
     ('torrance_sparrow', 'ross_thick_li_sparse', 'class_3')
     """
 
-    model: str | Model = "torrance_sparrow"
+    model: str | Model | None = DEFAULT_MODEL
     class_models: Mapping[int, str] | None = None
     fixed: Mapping[str, float] | None = None
     fallback: str | Mapping[int, str] | None = None
@@ -85,7 +99,7 @@ class ClassModels:
 
     def model_of(self, class_id: int) -> str | Model:
         """The surface model of class ``class_id``."""
-        return (self.class_models or {}).get(class_id, self.model)
+        return (self.class_models or {}).get(class_id, DEFAULT_MODEL if self.model is None else self.model)
 
     def name_of(self, class_id: int) -> str:
         """The name of class ``class_id`` (``class_<id>`` when it has none)."""
@@ -114,6 +128,9 @@ class Sampling:
         cluster-robust over these blocks.
     keep_samples : int, default 2000
         Samples per class kept in the result (:attr:`ClassFitResult.samples`) for plots.
+    bad_bands : sequence of (float, float), default :data:`WATER_VAPOUR_BANDS`
+        Wavelength ranges [nm], ends included, whose bands are not sampled nor fitted (their
+        classes list them as ``bad_bands`` in the table).
     """
 
     max_samples: int = 50_000
@@ -121,3 +138,4 @@ class Sampling:
     reflectance_scale: float = 1.0
     block_size: int = 32
     keep_samples: int = 2000
+    bad_bands: tuple[tuple[float, float], ...] = WATER_VAPOUR_BANDS

@@ -17,8 +17,9 @@ in one pass: one design matrix, one linear solve, no search. Bands are weighted 
 variance of their data so that bright near-infrared bands do not dominate the shape.
 
 Errors: one joint sandwich covariance over the free shape parameters and every band's intensities,
-cluster-robust over spatial blocks (:func:`brdfcorr.fit.sandwich._joint_covariance`, where its
-calibration is described).
+cluster-robust over spatial blocks with the small-sample corrections of issue 27 (CR2, effective
+degrees of freedom; :func:`brdfcorr.fit.sandwich._joint_covariance`), the t-variance factor and the
+``errors_reliable`` flag (:func:`_class_errors`; ``docs/uncertainty.md``).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import scipy.optimize
 import scipy.sparse
 
 from brdfcorr.errors import ParameterError
+from brdfcorr.fit.identifiability import error_reliability, t_variance_factor
 from brdfcorr.fit.sandwich import _joint_covariance
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import SURFACE_MODELS, Model, get_model
@@ -334,6 +336,28 @@ def _at_edge(profile: _LinearProfile, shape: Mapping[str, float]) -> list[str]:
     return edges
 
 
+def _room(profile: _LinearProfile, name: str, value: np.ndarray) -> np.ndarray:
+    """Distance of a fitted parameter (per band) to the nearest end of the range it was fitted in:
+    its physical bounds, narrowed for a shape parameter to its search range [its units]."""
+    parameter = profile.model.parameter(name)
+    low, high = parameter.lower, parameter.upper
+    if name in profile.ranges:
+        low, high = max(low, profile.ranges[name][0]), min(high, profile.ranges[name][1])
+    return np.minimum(value - low, high - value)
+
+
+def _at_bound(model: Model, intensities: np.ndarray) -> list[str]:
+    """The intensity terms held at their lower bound 0 by the non-negative solve, with the bands
+    (1-based) where they are: their errors describe no sampling distribution."""
+    held = []
+    for name, values, nonnegative in zip(model.linear, intensities, (model.parameter(t).lower == 0.0
+                                                                      for t in model.linear)):
+        bands = np.flatnonzero(np.asarray(values) == 0.0) if nonnegative else []
+        if len(bands):
+            held.append(f"{name} = 0 in band{'s' if len(bands) > 1 else ''} {', '.join(str(b + 1) for b in bands)}")
+    return held
+
+
 def _condition(design: np.ndarray) -> float:
     """Condition number of the design with unit-norm columns, from the eigenvalues of its Gram
     matrix (cond(A)^2 = cond(A^T A); accurate far beyond the guard rail's 1e3)."""
@@ -450,12 +474,15 @@ def fit_class_samples(
     dict
         ``params`` and ``errors`` (dicts of per-band arrays; errors 0 for fixed parameters),
         ``covariance`` (B, p, p): the joint sandwich covariance of the free parameters ``free``
-        (shape and intensities, model signature order; :func:`brdfcorr.fit.sandwich._joint_covariance`),
-        ``n`` (samples),
+        (shape and intensities, model signature order; CR2, with the t-variance factor of few
+        spatial blocks: :func:`_class_errors`), ``n`` (samples),
         ``chi2_dof`` (per band: sum of squared residuals / (N - p) [sr^-2]), ``r2``, ``rmse`` (per band),
         ``condition`` (of the column-normalized linear design), ``shape`` (the free shape values),
-        ``fixed`` (the fixed ones) and ``at_edge`` (free shape parameters at an end of their
-        search range, :func:`search_range`, that is not a closed physical bound).
+        ``fixed`` (the fixed ones), ``at_edge`` (free shape parameters at an end of their
+        search range, :func:`search_range`, that is not a closed physical bound), ``error_dof``
+        (B, p: effective degrees of freedom of each error), ``n_clusters`` (blocks, or samples
+        without them), ``errors_reliable`` (bool) and ``errors_reason`` (why not; empty when
+        reliable; :func:`brdfcorr.fit.identifiability.error_reliability`).
 
     Notes
     -----
@@ -474,14 +501,7 @@ def fit_class_samples(
     design = profile.design(shape)
     intensities, ssr = profile.solve(design)
     clusters = None if clusters is None else np.asarray(clusters).reshape(-1)
-    joint = _joint_covariance(profile, shape, design, intensities, clusters)  # (B, p, p)
-    # Rows and columns in the model's signature order.
-    joint_names = [*shape, *model.linear]
-    names = tuple(name for name in model.parameter_names if name in joint_names)
-    order = [joint_names.index(name) for name in names]
-    covariance = joint[:, order][:, :, order]
-    deviations = np.sqrt(np.maximum(np.diagonal(covariance, axis1=1, axis2=2), 0.0))  # (B, p)
-
+    names, covariance, deviations, diagnostics = _class_errors(profile, shape, design, intensities, clusters)
     n_bands = profile.data.shape[1]
     params = {name: np.full(n_bands, value) for name, value in {**fixed, **shape}.items()}
     params.update(dict(zip(model.linear, intensities)))
@@ -501,8 +521,38 @@ def fit_class_samples(
         "condition": _condition(design),
         "shape": shape,
         "fixed": fixed,
-        "at_edge": _at_edge(profile, shape),
+        **diagnostics,
     }
+
+
+def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, intensities, clusters):
+    """The free parameters (model signature order), their covariance (B, p, p) and 1-sigma errors
+    (B, p), and the diagnostics: ``at_edge``, ``error_dof``, ``n_clusters``, ``errors_reliable``,
+    ``errors_reason``.
+
+    The covariance is the CR2 sandwich (:func:`brdfcorr.fit.sandwich._joint_covariance`) with each
+    parameter's variance multiplied by the t-variance factor of its effective degrees of freedom
+    (:func:`brdfcorr.fit.identifiability.t_variance_factor`; correlations unchanged), so that the
+    pulls ``(fit - truth) / error`` have unit SD with few spatial blocks too; whether they can be
+    trusted is :func:`brdfcorr.fit.identifiability.error_reliability` (``docs/uncertainty.md``).
+    """
+    model = profile.model
+    sandwich = _joint_covariance(profile, shape, design, intensities, clusters)
+    joint_names = [*shape, *model.linear]
+    names = tuple(name for name in model.parameter_names if name in joint_names)
+    order = [joint_names.index(name) for name in names]
+    error_dof = sandwich.dof[:, order]
+    inflation = np.sqrt(t_variance_factor(error_dof))  # (B, p)
+    covariance = sandwich.covariance[:, order][:, :, order] * inflation[:, :, None] * inflation[:, None, :]
+    deviations = np.sqrt(np.maximum(np.diagonal(covariance, axis1=1, axis2=2), 0.0))  # (B, p)
+    at_edge = _at_edge(profile, shape)
+    values = {**shape, **dict(zip(model.linear, intensities))}
+    room = {name: _room(profile, name, np.asarray(values[name], dtype=float)) for name in names}
+    reliable, reason = error_reliability(names, error_dof, sandwich.n_clusters, sandwich.max_leverage,
+                                         at_edge, _at_bound(model, intensities), (room, deviations))
+    return names, covariance, deviations, {"at_edge": at_edge, "error_dof": error_dof,
+                                           "n_clusters": sandwich.n_clusters, "errors_reliable": reliable,
+                                           "errors_reason": reason}
 
 
 def median_r2(

@@ -18,9 +18,10 @@ import xarray as xr
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import describe_layer
 from brdfcorr.io.opening import chunk_spec, open_raster, reading
+from brdfcorr.io.sensors.grids import GRID_STATISTICS
 
-__all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY", "angle_band_name", "open_angles",
-           "from_relative_azimuth", "AngleStatistics", "check_angles"]
+__all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY",
+           "angle_band_name", "open_angles", "from_relative_azimuth", "AngleStatistics", "check_angles"]
 
 ANGLE_NAMES = ("sza", "saa", "vza", "vaa")
 
@@ -147,11 +148,15 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
                  num_workers: int | None = None) -> AngleStatistics:
     """Check that sun/view angle layers hold degrees; return their ranges and means [deg].
 
-    One pass over the (lazy) layers, which also gives the scene-mean sun zenith. Pixels with a
+    One pass over the (lazy) layers, which also gives the scene-mean sun zenith; a layer
+    interpolated from a coarse grid that recorded its statistics
+    (:data:`~brdfcorr.io.sensors.grids.GRID_STATISTICS`: exact for zeniths, from the coarse cells'
+    corner pixels for azimuths) needs none. Pixels with a
     zenith outside [0, 90) are not an error here: :func:`brdfcorr.correction.normalize` flags them
     (QA ``invalid_geometry``) and writes nodata. A layer set that cannot be degrees is an error:
     every zenith below 1.6 with every azimuth below 6.3 (radians: pi/2 and 2 pi), or no zenith of a
-    layer in [0, 90) at all (scaled or other units).
+    layer in [0, 90) at all (scaled or other units); so is a layer without a single finite value
+    (all NaN or inf: nothing could be corrected).
 
     Parameters
     ----------
@@ -170,20 +175,17 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
         (truncated, damaged), naming it and GDAL's reason.
     """
     names = [name for name in ANGLE_NAMES if name in layers]
-    arrays = [layers[name].data for name in names]
-    if any(isinstance(a, dask.array.Array) for a in arrays):
-        # One small task per chunk for all layers (not one graph per statistic and layer).
-        first = next(a for a in arrays if isinstance(a, dask.array.Array))
-        arrays = [dask.array.asarray(a).rechunk(first.chunks) for a in arrays]
-        files = [str(file) for file in dict.fromkeys(layers[n].encoding.get("source") for n in names) if file]
-        what = source or (f"angle file{'s' * (len(files) > 1)} {', '.join(files)}" if files else "angles")
-        with reading(what):  # a truncated file fails here, in its first pass
-            per_block = dask.array.map_blocks(
-                _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 5), dtype=np.float64,
-            ).compute(scheduler=scheduler, num_workers=num_workers)
-    else:
-        per_block = _angle_statistics(*(np.asarray(a) for a in arrays))
-    per_block = per_block.reshape(-1, len(names), 5)
+    known = {name: _grid_statistics(layers[name]) for name in names}
+    passed = [name for name in names if known[name] is None]  # the layers that need a pass
+    measured = _pixel_statistics(layers, passed, source, scheduler, num_workers) if passed else np.empty((1, 0, 5))
+    # A recorded layer is one block among the measured ones: its values, then no values (NaN range, 0 counts).
+    per_block = np.zeros((measured.shape[0], len(names), 5))
+    per_block[1:, :, :2] = np.nan
+    for index, name in enumerate(names):
+        if known[name] is None:
+            per_block[:, index] = measured[:, passed.index(name)]
+        else:
+            per_block[0, index] = known[name]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN layers: NaN range
         low, high = np.nanmin(per_block[..., 0], axis=0), np.nanmax(per_block[..., 1], axis=0)
@@ -191,25 +193,58 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
     ranges = {name: (float(low[i]), float(high[i])) for i, name in enumerate(names)}
     counts = {name: (int(totals[i, 0]), int(totals[i, 1])) for i, name in enumerate(names)}
     means = {name: totals[i, 2] / totals[i, 1] if totals[i, 1] else math.nan for i, name in enumerate(names)}
+    _check_values(ranges, counts, lambda name: source or describe_layer(name, layers[name]))
+    return AngleStatistics(ranges, means)
 
-    def where(name):
-        return source or describe_layer(name, layers[name])
 
-    zeniths = [name for name in ("sza", "vza") if name in ranges and counts[name][0]]
-    azimuths = [name for name in ("saa", "vaa") if name in ranges and counts[name][0]]
+def _grid_statistics(layer: xr.DataArray) -> np.ndarray | None:
+    """The statistics a coarse-grid reader recorded for ``layer`` (:data:`~brdfcorr.io.sensors.grids.GRID_STATISTICS`,
+    :func:`brdfcorr.io.sensors.grids.grid_statistics`) as one block's row, or None (also when the
+    layer no longer has the shape they were made for)."""
+    recorded = layer.encoding.get(GRID_STATISTICS)
+    if recorded is None or tuple(recorded[:2]) != (layer.sizes.get("y"), layer.sizes.get("x")):
+        return None
+    return np.asarray(recorded[2:], dtype=np.float64)
+
+
+def _pixel_statistics(layers: Mapping[str, xr.DataArray], names: list[str], source, scheduler,
+                      num_workers) -> np.ndarray:
+    """(blocks, layers, 5): :func:`_angle_statistics` of every block of the layers ``names``, in one
+    pass (one small task per chunk for all layers, not one graph per statistic and layer)."""
+    arrays = [layers[name].data for name in names]
+    if not any(isinstance(a, dask.array.Array) for a in arrays):
+        return _angle_statistics(*(np.asarray(a) for a in arrays)).reshape(-1, len(names), 5)
+    first = next(a for a in arrays if isinstance(a, dask.array.Array))
+    arrays = [dask.array.asarray(a).rechunk(first.chunks) for a in arrays]
+    files = [str(file) for file in dict.fromkeys(layers[n].encoding.get("source") for n in names) if file]
+    what = source or (f"angle file{'s' * (len(files) > 1)} {', '.join(files)}" if files else "angles")
+    with reading(what):  # a truncated file fails here, in its first pass
+        per_block = dask.array.map_blocks(
+            _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 5), dtype=np.float64,
+        ).compute(scheduler=scheduler, num_workers=num_workers)
+    return per_block.reshape(-1, len(names), 5)
+
+
+def _check_values(ranges: dict, counts: dict, where) -> None:
+    """The unit checks of :func:`check_angles` on the layers' ranges and (finite, in [0, 90))
+    counts; ``where(name)`` names a layer in messages."""
+    empty = [name for name in counts if counts[name][0] == 0]
+    if empty:  # every pixel would be nodata (a NaN sun zenith of a product, a layer of inf)
+        raise InputError(f"{where(empty[0])}: no finite {empty[0]} value (all NaN, inf or nodata): "
+                         "nothing could be corrected")
+    zeniths = [name for name in ("sza", "vza") if name in ranges]
+    azimuths = [name for name in ("saa", "vaa") if name in ranges]
     if zeniths and azimuths and all(ranges[n][1] < 1.6 for n in zeniths) and all(
             ranges[n][1] < 6.3 for n in azimuths):
         found = ", ".join(f"{n} {ranges[n][0]:.3g}..{ranges[n][1]:.3g}" for n in zeniths + azimuths)
         raise InputError(f"{where(zeniths[0])}: the angles look like radians ({found}); brdfcorr needs degrees")
     for name in zeniths:
-        finite, in_domain = counts[name]
-        if in_domain == 0:
+        if counts[name][1] == 0:
             lowest, highest = ranges[name]
             raise InputError(
                 f"{where(name)}: no {name} value in [0, 90) deg (found {lowest:.6g}..{highest:.6g}); "
                 "are the angles scaled or in other units?"
             )
-    return AngleStatistics(ranges, means)
 
 
 def _angle_statistics(*blocks: np.ndarray) -> np.ndarray:

@@ -10,6 +10,7 @@ Every problem is one error naming the source, never a hang, a gigabyte or a trac
 from __future__ import annotations
 
 import contextlib
+import errno
 import gc
 import os
 import stat
@@ -22,6 +23,8 @@ from yaml.constructor import ConstructorError, SafeConstructor
 from yaml.events import AliasEvent
 from yaml.nodes import MappingNode, ScalarNode
 from yaml.resolver import Resolver
+
+from brdfcorr.errors import OutputError
 
 try:  # libyaml's scanner and parser (C): 4x faster than PyYAML's on a large table
     from yaml._yaml import CParser as _Parser
@@ -40,7 +43,8 @@ except ImportError:  # pragma: no cover (PyYAML built without libyaml)
             Parser.__init__(self)
 
 
-__all__ = ["atomic_path", "read_document", "parse_yaml", "MAX_DOCUMENT_BYTES", "MAX_ALIAS_NODES", "MAX_DEPTH"]
+__all__ = ["atomic_path", "temporary_beside", "sync_file", "write_cause", "DISK_CAUSES",
+           "read_document", "parse_yaml", "MAX_DOCUMENT_BYTES", "MAX_ALIAS_NODES", "MAX_DEPTH"]
 
 #: Largest YAML document brdfcorr reads [bytes]. A table of 20 000 classes is about 2 MB; a bigger
 #: file is a mistake (an image given as a table) and would take minutes to parse.
@@ -55,25 +59,105 @@ MAX_DEPTH = 100
 _MERGE_TAG = "tag:yaml.org,2002:merge"
 
 
-@contextlib.contextmanager
-def atomic_path(target: str | os.PathLike):
-    """Yield a temporary path beside ``target``; rename it onto ``target`` only on success.
-
-    A crash or an exception inside the block leaves no file at ``target`` (and removes the
-    temporary one), so a partial output never looks complete.
-    """
+def temporary_beside(target: str | os.PathLike, suffix: str = ".partial") -> Path:
+    """Create an empty temporary file ``.NAME.XXXXXXXX{suffix}`` beside ``target`` (the names
+    :func:`brdfcorr.io.paths.remove_partials` knows), with the mode a plain ``open()`` would give
+    (``mkstemp`` makes it private, 0600)."""
     target = Path(target)
-    handle, temporary = tempfile.mkstemp(
-        prefix=f".{target.name}.", suffix=".partial", dir=target.parent or "."
-    )
+    handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=target.parent or ".")
     os.close(handle)
-    # mkstemp creates the file private (0600); give the output the mode a plain open() would.
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(temporary, 0o666 & ~umask)
+    return Path(temporary)
+
+
+def sync_file(path: str | os.PathLike) -> None:
+    """Flush a written file to its device (``fsync``): a full disk or a failing device that the
+    kernel reports only at write-back time is an ``OSError`` here, before the file is renamed."""
+    descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_CLOEXEC", 0))
     try:
-        yield Path(temporary)
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
+
+
+#: How :func:`write_cause` begins when the cause is the file size limit or a full device.
+DISK_CAUSES = ("File too large", "No space left on device")
+
+
+def write_cause(error: BaseException | None, paths=(), detail: str = "") -> str:
+    """Why a write failed, in words: the OS reason of an ``OSError`` (permissions, ...), but the file
+    size limit (``ulimit -f``, RLIMIT_FSIZE) when the error is EFBIG or, without an OS reason, a
+    file of ``paths`` reached it; a full device (with the bytes left) for ENOSPC/EDQUOT or, without
+    an OS reason, when less than 1 MiB is left where ``paths`` are; else ``detail`` (GDAL's message).
+
+    GDAL reports a failed write of a TIFF tile or an ENVI line without the OS reason, so the limit
+    and the free space are looked at here, before the temporary files are removed.
+    """
+    paths = [Path(path) for path in paths]
+    number = getattr(error, "errno", None)
+    if isinstance(error, OSError) and error.strerror and number not in (errno.EFBIG, errno.ENOSPC, errno.EDQUOT):
+        return error.strerror + (f": {error.filename}" if error.filename else "")  # the OS said why
+    limit = _file_size_limit()
+    if limit is not None and (number == errno.EFBIG or any(_size(path) >= limit for path in paths)):
+        return f"File too large: the file size limit (ulimit -f) of {limit} bytes was reached"
+    if number == errno.EFBIG:
+        return "File too large: larger than the file system allows"
+    free = min((_free_bytes(path.parent) for path in paths), default=None)
+    if number in (errno.ENOSPC, errno.EDQUOT) or (free is not None and free < 2**20):
+        where = f" ({free} bytes left on the device of {paths[0].parent})" if free is not None else ""
+        return f"No space left on device{where}"
+    return detail or (str(error) if error is not None else "unknown reason")
+
+
+def _file_size_limit() -> int | None:
+    try:
+        import resource  # POSIX only
+    except ImportError:  # pragma: no cover (Windows)
+        return None
+    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
+def _size(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return -1
+
+
+def _free_bytes(folder: Path) -> int | None:
+    try:
+        status = os.statvfs(folder)
+    except (OSError, AttributeError):  # no statvfs on Windows
+        return None
+    return status.f_bavail * status.f_frsize
+
+
+@contextlib.contextmanager
+def atomic_path(target: str | os.PathLike):
+    """Yield a temporary path beside ``target``; flush it and rename it onto ``target`` only on success.
+
+    A crash or an exception inside the block leaves no file at ``target`` (and removes the
+    temporary one), so a partial output never looks complete. An ``OSError`` while writing,
+    flushing or renaming (a full disk, the file size limit, permissions) becomes one
+    :class:`~brdfcorr.errors.OutputError` naming ``target`` and the cause (:func:`write_cause`).
+    """
+    target = Path(target)
+    try:
+        temporary = temporary_beside(target)
+    except OSError as error:
+        raise OutputError(f"cannot write {target}: {write_cause(error, [target])}") from None
+    try:
+        yield temporary
+        sync_file(temporary)
         os.replace(temporary, target)
+    except OutputError:  # already one message (an OSError too)
+        raise
+    except OSError as error:
+        cause = write_cause(error, [temporary])
+        raise OutputError(f"cannot write {target}: {cause}; nothing was written") from None
     finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(temporary)

@@ -18,7 +18,7 @@ import numpy as np
 import rioxarray  # noqa: F401  (registers the .rio accessor)
 import xarray as xr
 
-from brdfcorr.errors import GridMismatchError
+from brdfcorr.errors import GridMismatchError, InputError
 
 __all__ = ["TOLERANCE", "grid_difference", "check_same_grid", "describe_layer"]
 
@@ -63,6 +63,17 @@ def describe_layer(name: str, layer: xr.DataArray) -> str:
     return f"{name} ({source})" if source else name
 
 
+def _check_finite_transform(name: str, layer: xr.DataArray) -> None:
+    """A georeferenced layer whose transform holds NaN or inf has no grid at all: say so (it was
+    reported as "not on the grid" of the image)."""
+    if layer.rio.crs is None and not all(dim in layer.coords for dim in layer.dims[-2:]):
+        return
+    coefficients = tuple(layer.rio.transform())[:6]
+    if not np.all(np.isfinite(coefficients)):
+        shown = ", ".join(f"{value:g}" for value in coefficients)
+        raise InputError(f"{describe_layer(name, layer)}: its geotransform ({shown}) holds non-finite values")
+
+
 def check_same_grid(layers: Mapping[str, xr.DataArray], reference: str | None = None) -> None:
     """Raise :class:`GridMismatchError` unless all layers are on one grid (:func:`grid_difference`).
 
@@ -77,9 +88,13 @@ def check_same_grid(layers: Mapping[str, xr.DataArray], reference: str | None = 
     ------
     GridMismatchError
         ``{name} ({file}) is not on the grid of {reference} ({file}): {what differs}``.
+    InputError
+        A layer whose geotransform holds NaN or inf.
     """
     reference = reference or next(iter(layers))
     base = layers[reference]
+    for name, layer in layers.items():
+        _check_finite_transform(name, layer)
     for name, layer in layers.items():
         difference = None if name == reference else grid_difference(layer, base)
         if difference is not None:

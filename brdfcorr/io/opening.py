@@ -17,6 +17,7 @@ import xarray as xr
 from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
 from brdfcorr.errors import BrdfcorrError, InputError
+from brdfcorr.io.sensors.hdf5 import hdf5_open_failure
 from brdfcorr.io.sensors.products import hdf5_hint
 from brdfcorr.io.writer import DEFAULT_CHUNK, _GdalMessages
 
@@ -28,6 +29,7 @@ def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = Fa
     path = Path(path)
     if not path.exists():
         raise InputError(f"{role} file {path} does not exist")
+    _refuse_broken_hdf5(path, role)
     # GDAL's warnings while opening, through rasterio's logger (under an Env, never printed by GDAL
     # itself): a header tag it could not read means a file cut short, not a raster without a CRS.
     messages = _GdalMessages(logging.WARNING, thread=threading.get_ident())
@@ -45,8 +47,21 @@ def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = Fa
         raise InputError(f"cannot read {role} file {path}: {damaged[0]} (a truncated or damaged file?)")
     if isinstance(array, list):  # subdatasets: not a plain raster
         raise InputError(f"{role} file {path} holds several subdatasets; give one raster{hdf5_hint(path)}")
+    stored = str(array.encoding.get("rasterio_dtype", array.dtype))
+    if array.dtype.kind == "c" or stored.startswith("complex"):
+        raise InputError(f"{role} file {path} holds complex values ({stored}); brdfcorr reads real numbers "
+                         "(the imaginary part would be lost)")
     array.encoding["source"] = str(path)
     return array
+
+
+def _refuse_broken_hdf5(path, role: str) -> None:
+    """An HDF5 file that HDF5 cannot open is refused before GDAL tries it: GDAL's own HDF5 library
+    prints its error stack (tens of ``HDF5-DIAG`` lines) on stderr before GDAL's error."""
+    failure = hdf5_open_failure(path)
+    if failure is not None:
+        raise InputError(f"cannot read {role} file {path}: an HDF5 file that HDF5 cannot open ({failure}; "
+                         "a truncated or damaged file?)")
 
 
 def open_layer(path, role: str, chunks=None) -> xr.DataArray:
@@ -57,6 +72,7 @@ def open_layer(path, role: str, chunks=None) -> xr.DataArray:
 @contextlib.contextmanager
 def opened(path, role: str):
     """The rasterio dataset of ``path``; an unreadable file is an InputError naming ``role``."""
+    _refuse_broken_hdf5(path, role)
     try:
         with rasterio.open(path) as dataset:
             yield dataset

@@ -4,7 +4,12 @@ One rule for every brdfcorr command and chain (:func:`check_outputs`):
 
 1. an output is a regular file or absent: a directory, device, FIFO or socket is refused;
 2. an output is not the same file as any input: inputs are never overwritten;
-3. no two outputs are the same file (the second would replace the first).
+3. no two outputs are the same file (the second would replace the first);
+4. the files GDAL reads beside an input raster (:func:`sidecar_paths`: an ENVI header in both
+   namings ``NAME.hdr`` and ``NAME.ext.hdr``, ``.aux.xml``, ``.ovr``, ``.msk``) are inputs too, where
+   they exist: ``correct in.img -o in.img.bsq --format ENVI`` would write its header over the
+   input's ``in.img.hdr``. The sidecars an output writes are named by the caller (an ENVI output's
+   header and ``.aux.xml``, :func:`brdfcorr.io.writer.envi_sidecars`).
 
 "The same file" is decided by file identity where both paths exist (``os.stat``: device and inode,
 through symbolic links, so a link to an input or a hard link of it is that input), and by the
@@ -26,8 +31,8 @@ from pathlib import Path
 
 from brdfcorr.errors import InputError, OutputError
 
-__all__ = ["check_outputs", "same_file", "file_identity", "refuse_existing", "remove_partials", "InputOverwriteError",
-           "SameOutputError"]
+__all__ = ["check_outputs", "sidecar_paths", "same_file", "file_identity", "refuse_existing", "remove_partials",
+           "InputOverwriteError", "SameOutputError"]
 
 PathLike = str | os.PathLike
 Named = Mapping[str, PathLike | None] | Iterable[PathLike | tuple[str, PathLike | None] | None]
@@ -97,6 +102,25 @@ def _not_regular(path: Path) -> str | None:
     return next((kind for test, kind in _KINDS if test(mode)), "special file")
 
 
+def sidecar_paths(path: PathLike) -> list[Path]:
+    """The files GDAL may read or write beside a raster ``path``: ``NAME.hdr`` and ``NAME.ext.hdr``
+    (an ENVI header; GDAL looks for both), ``NAME.ext.aux.xml`` (PAM: tags, statistics, band
+    names), ``NAME.ext.ovr`` (overviews) and ``NAME.ext.msk`` (a mask)."""
+    path = Path(path)
+    found = [path.with_suffix(".hdr")] if path.suffix and path.suffix.lower() != ".hdr" else []
+    found += [Path(f"{path}{suffix}") for suffix in (".hdr", ".aux.xml", ".ovr", ".msk")]
+    return list(dict.fromkeys(found))
+
+
+def _with_sidecars(inputs: list[tuple[str, Path]]) -> list[tuple[str, Path]]:
+    """The inputs and the sidecars of each that exist (GDAL reads them with the input)."""
+    found = []
+    for name, path in inputs:
+        found.append((name, path))
+        found += [(f"{name} sidecar", sidecar) for sidecar in sidecar_paths(path) if os.path.lexists(sidecar)]
+    return found
+
+
 def check_outputs(outputs: Named, inputs: Named = ()) -> None:
     """Refuse outputs that are not regular files, that are an input, or that are another output.
 
@@ -106,7 +130,8 @@ def check_outputs(outputs: Named, inputs: Named = ()) -> None:
         What the command writes; the name is how messages call it (an option ``-o``, a config key
         ``outputs.report``; a name that shows the path is used as it is). None paths are skipped.
     inputs : mapping or iterable, as ``outputs``
-        What the command reads.
+        What the command reads; the sidecars of each that exist (:func:`sidecar_paths`) are
+        inputs too.
 
     Raises
     ------
@@ -117,7 +142,7 @@ def check_outputs(outputs: Named, inputs: Named = ()) -> None:
     SameOutputError
         Two outputs are the same file (an :class:`~brdfcorr.errors.OutputError`).
     """
-    read = [(name, path, file_identity(path)) for name, path in _named(inputs, "input")]
+    read = [(name, path, file_identity(path)) for name, path in _with_sidecars(_named(inputs, "input"))]
     written = []
     for name, path in _named(outputs, "output"):
         kind = _not_regular(path)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import dask
 import numpy as np
@@ -25,18 +26,28 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.opening import chunk_spec, open_raster, opened
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths
-from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, _GdalMessages, write_rasters
+from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, _GdalMessages, _threads, write_rasters
 
 __all__ = [
     "open_image",
     "open_classes",
     "check_reflectance_scale",
     "auto_chunk",
+    "choose_chunk",
+    "Layout",
+    "image_layout",
+    "cache_bytes",
     "gdal_cache_bytes",
+    "bounded_gdal_cache",
+    "peak_memory_terms",
     "write_rasters",
     "GeoTiffOutput",
     "DEFAULT_CHUNK",
 ]
+
+
+#: Bounds of GDAL's block cache [bytes] while brdfcorr reads and writes (:func:`gdal_cache_bytes`).
+MIN_GDAL_CACHE, MAX_GDAL_CACHE = 64 * 2**20, 512 * 2**20
 
 
 def _band_count(path) -> int:
@@ -50,30 +61,138 @@ def _band_count(path) -> int:
         return dataset.count
 
 
-def auto_chunk(path, target_bytes: int = 16 * 2**20) -> int:
-    """Spatial chunk (and tile) size [pixels] for an image: the largest of 512, 256, 128, 64 whose
-    chunk of all bands (as float32) holds at most ``target_bytes``, so memory stays flat for
-    hyperspectral cubes."""
-    count = _band_count(path)
-    for size in (512, 256, 128, 64):
-        if count * size * size * 4 <= target_bytes:
-            return size
-    return 64
+#: Bytes of one chunk of all bands (as float32) that :func:`auto_chunk` aims at [bytes].
+CHUNK_TARGET = 16 * 2**20
+#: Copies of its chunk (all bands, float32) a dask thread holds at the peak of the correction:
+#: the read, its masked copy, the corrected chunk, the encoded chunk being written (measured with
+#: tracemalloc on a 64-band cube; ``docs/scaling.md``, "Memory").
+CHUNK_COPIES = 4
+#: Output tiles (one chunk each) that GDAL holds per compression thread: the tile queued and the
+#: tile being compressed with its compressed buffer (``docs/scaling.md``, "Memory").
+TILES_PER_COMPRESSOR = 2
+#: What a correction holds beyond the imports, its threads, the cache and the compression, whatever
+#: the image's size [bytes]: the opened scene (graph, coordinates, the checks' samples), GDAL's
+#: drivers and glibc's per-thread arenas. Measured on the 1 GiB cube of ``benchmarks/bench_memory.py``
+#: (the other cubes' peaks then test the model).
+RUN_OVERHEAD = 200 * 2**20
+
+
+class Layout(NamedTuple):
+    """How an image is stored, as the chunk choice needs it: bands, size [pixels], GDAL's block
+    (tile or strip) size [pixels] and the bytes per stored value."""
+
+    bands: int
+    height: int
+    width: int
+    block_rows: int
+    block_columns: int
+    itemsize: int = 4
+
+
+def image_layout(path) -> Layout | None:
+    """The :class:`Layout` of an image file; None for a NEON or EMIT product (not read by GDAL)."""
+    if hdf5_product(path) is not None:
+        return None
+    with opened(path, "image") as dataset:
+        rows, columns = dataset.block_shapes[0]
+        return Layout(dataset.count, dataset.height, dataset.width, rows, columns,
+                      np.dtype(dataset.dtypes[0]).itemsize)
+
+
+def _chunk_bytes(bands: int, chunk: int) -> int:
+    return bands * chunk * chunk * 4
+
+
+def _budget_chunk(bands: int, target_bytes: int) -> int:
+    """The largest of 512, 256, 128, 64 whose chunk of all bands (float32) holds at most ``target_bytes``."""
+    return next((size for size in (512, 256, 128) if _chunk_bytes(bands, size) <= target_bytes), 64)
+
+
+def _alignment(layout: Layout) -> int:
+    """The smallest chunk size [pixels] that is a multiple of 16 (GeoTIFF tiles) and of the input's
+    block in y and x; a block spanning the whole image in a dimension (a strip's width) asks nothing there."""
+    rows = layout.block_rows if layout.block_rows < layout.height else 1
+    columns = layout.block_columns if layout.block_columns < layout.width else 1
+    return math.lcm(16, rows, columns)
+
+
+def choose_chunk(layout: Layout, target_bytes: int = CHUNK_TARGET) -> int:
+    """Spatial chunk (and output tile) size [pixels] for an image stored as ``layout``.
+
+    The largest multiple of the input's blocks (:func:`_alignment`: tiles in y and x, strips in y,
+    and 16) whose chunk of all bands (float32) holds at most ``target_bytes``: each input tile is
+    then decompressed once, by one dask thread, whatever the number of threads. Where one block of
+    all bands holds more (512-pixel tiles of 64 bands, 256-pixel tiles of 425 bands): the largest of
+    512, 256, 128, 64 within ``target_bytes`` (it divides a tile whose size is a power of two), and
+    :func:`cache_bytes` keeps the row of input blocks that a row of chunks touches in GDAL's cache,
+    so that each is decompressed once as long as that row fits (:data:`MAX_GDAL_CACHE`). Chunks of
+    one large tile would cost more: each dask thread and compression thread holds several chunks
+    (``docs/scaling.md``, "Memory": 1309 MiB against 830 MiB for 512-pixel tiles of 64 bands).
+    """
+    budget = _budget_chunk(layout.bands, target_bytes)
+    unit = _alignment(layout)
+    aligned = unit * max(1, budget // unit)
+    return aligned if _chunk_bytes(layout.bands, aligned) <= target_bytes else budget
+
+
+def auto_chunk(path, target_bytes: int = CHUNK_TARGET) -> int:
+    """Spatial chunk (and tile) size [pixels] for an image file (:func:`choose_chunk`): aligned to
+    its tiles, about ``target_bytes`` of all bands (as float32), so memory stays flat for
+    hyperspectral cubes. A NEON or EMIT product (HDF5, no GDAL tiles): the largest of 512, 256,
+    128, 64 within ``target_bytes``."""
+    layout = image_layout(path)
+    if layout is None:
+        return _budget_chunk(_band_count(path), target_bytes)
+    return choose_chunk(layout, target_bytes)
+
+
+def cache_bytes(layout: Layout, chunk: int) -> int:
+    """GDAL block cache [bytes] for reading an image stored as ``layout`` in chunks of ``chunk``
+    pixels (:func:`gdal_cache_bytes`).
+
+    Room for two decompressed input blocks (all bands: GDAL decompresses a pixel-interleaved tile
+    once for all its bands only if the cache holds them) and four chunks; where chunks are not
+    multiples of the blocks (strips, tiles larger than a chunk), room for the full-width rows of
+    blocks that one row of chunks touches, so that each block is decompressed once. Between
+    :data:`MIN_GDAL_CACHE` and :data:`MAX_GDAL_CACHE`.
+    """
+    rows, columns = min(layout.block_rows, layout.height), min(layout.block_columns, layout.width)
+    need = max(2 * layout.bands * rows * columns * layout.itemsize, 4 * _chunk_bytes(layout.bands, chunk))
+    if chunk % rows or chunk % columns:
+        band_rows = min(math.lcm(rows, chunk), layout.height)
+        need = max(need, band_rows * layout.width * layout.bands * layout.itemsize)
+    return int(np.clip(need, MIN_GDAL_CACHE, MAX_GDAL_CACHE))
 
 
 def gdal_cache_bytes(path, chunk: int) -> int:
-    """A GDAL block cache [bytes] for reading ``path`` in chunks of ``chunk`` pixels: room for two
-    decompressed input tiles (all bands) and four chunks, between 64 and 512 MiB. GDAL's default
-    (5 % of RAM) would let the cache, and so the peak memory, grow with the image. A NEON or EMIT
-    image is not read through GDAL: room for four chunks (the class map's reads) suffices."""
-    if hdf5_product(path) is not None:
-        return int(np.clip(4 * _band_count(path) * chunk * chunk * 4, 64 * 2**20, 512 * 2**20))
-    with opened(path, "image") as dataset:
-        count, itemsize = dataset.count, np.dtype(dataset.dtypes[0]).itemsize
-        tile_rows, tile_columns = dataset.block_shapes[0]
-    tile = count * min(tile_rows, 1024) * min(tile_columns, 4096) * itemsize
-    chunk_bytes = count * chunk * chunk * 4
-    return int(np.clip(max(2 * tile, 4 * chunk_bytes), 64 * 2**20, 512 * 2**20))
+    """A GDAL block cache [bytes] for reading ``path`` in chunks of ``chunk`` pixels
+    (:func:`cache_bytes`). GDAL's default (5 % of RAM) would let the cache, and so the peak memory,
+    grow with the image. A NEON or EMIT image is not read through GDAL: room for four chunks (the
+    class map's reads) suffices."""
+    layout = image_layout(path)
+    if layout is None:
+        return int(np.clip(4 * _chunk_bytes(_band_count(path), chunk), MIN_GDAL_CACHE, MAX_GDAL_CACHE))
+    return cache_bytes(layout, chunk)
+
+
+def bounded_gdal_cache(path, chunk: int) -> rasterio.Env:
+    """GDAL's block cache bounded to :func:`gdal_cache_bytes` while the returned environment is
+    active: for a whole run (the checks and passes that read before the write as well), since GDAL's
+    default (5 % of RAM) keeps every tile read in memory, and rioxarray keeps the files open."""
+    return rasterio.Env(GDAL_CACHEMAX=gdal_cache_bytes(path, chunk))
+
+
+def peak_memory_terms(layout: Layout, chunk: int, threads: int, cores: int) -> dict[str, int]:
+    """The peak-memory model of a correction of an image stored as ``layout`` beyond the imports
+    [bytes] (``docs/scaling.md``, "Memory"): per dask thread its file handle's decompressed input
+    block (all bands) and :data:`CHUNK_COPIES` chunks; GDAL's block cache (:func:`cache_bytes`);
+    per compression thread (one per core) :data:`TILES_PER_COMPRESSOR` output tiles of one chunk;
+    and :data:`RUN_OVERHEAD`."""
+    chunk_bytes = _chunk_bytes(layout.bands, chunk)
+    block = min(layout.block_rows, layout.height) * min(layout.block_columns, layout.width)
+    return {"threads": threads * (layout.bands * block * layout.itemsize + CHUNK_COPIES * chunk_bytes),
+            "cache": cache_bytes(layout, chunk), "compression": cores * TILES_PER_COMPRESSOR * chunk_bytes,
+            "overhead": RUN_OVERHEAD}
 
 
 def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *, scale: float | None = None,
@@ -216,10 +335,12 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
                          for n in data.numblocks[-2:])
         messages = _GdalMessages()  # GDAL's log lines of a failed read: into the one error
         try:
-            with messages:
+            with messages, _sample_cache(image):
+                # The writing pass's threads (io.writer): every dask thread keeps its own handle of
+                # the file, and with it a decompressed input tile, for the rest of the run.
                 parts = dask.compute(
                     *(dask.delayed(_valid_sample)(data.blocks[..., i, j]) for i in rows for j in columns),
-                    scheduler=scheduler, num_workers=num_workers,
+                    scheduler=scheduler, num_workers=_threads(scheduler, num_workers),
                 )
         except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
             reason = "; ".join(messages.messages[:2]) or str(error) or type(error).__name__
@@ -244,6 +365,18 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
             "are, e.g. radiance)"
         )
     return percentile
+
+
+def _sample_cache(image: xr.DataArray) -> rasterio.Env:
+    """GDAL's block cache bounded as for the writing pass (:func:`gdal_cache_bytes`) while a few
+    chunks of ``image`` are read: GDAL's default (5 % of RAM) keeps every tile read in memory,
+    and the file's handles (rioxarray's) stay open for the writing pass."""
+    source = image.encoding.get("source")
+    data = image.data
+    chunk = max(data.chunksize[-2:]) if isinstance(data, dask.array.Array) else DEFAULT_CHUNK
+    if source is not None and Path(source).is_file():
+        return bounded_gdal_cache(source, chunk)
+    return rasterio.Env(GDAL_CACHEMAX=MIN_GDAL_CACHE)
 
 
 def _valid_sample(block: np.ndarray, size: int = 20_000) -> np.ndarray:

@@ -27,7 +27,8 @@ class SceneSources:
     Attributes
     ----------
     image, classes : path-like
-        Reflectance raster and class map.
+        Reflectance raster and class map; ``classes=None``: one class, id 1, for the whole image
+        (a table with one class, e.g. the built-in coefficients of :mod:`brdfcorr.models.coefficients`).
     angles : path-like or str, optional
         The angle source: a 4-band raster (sza, saa, vza, vaa [deg]) or a 3-band raster (sza, vza,
         raa: products that give the relative azimuth only) for ``angles_kind="geotiff"`` (or give
@@ -41,7 +42,7 @@ class SceneSources:
     """
 
     image: PathLike
-    classes: PathLike
+    classes: PathLike | None
     angles: PathLike | None = None
     angles_kind: str = "geotiff"
     angle_options: Mapping[str, object] = field(default_factory=dict)
@@ -103,7 +104,13 @@ def open_scene(sources: SceneSources, *, chunks=None,
     """
     reflectance = open_image(sources.image, chunks=chunks, wavelengths=sources.wavelengths, scale=sources.scale,
                              offset=sources.offset)
-    class_map = open_classes(sources.classes, chunks=chunks)
+    if sources.classes is None:  # one class for the whole image, lazily on its grid
+        first = reflectance[0]
+        band_coords = [name for name in first.coords if name not in (*first.dims, "spatial_ref")]
+        class_map = xr.ones_like(first, dtype="uint8").drop_vars(band_coords).rename("classes")
+        class_map.attrs = {}
+    else:
+        class_map = open_classes(sources.classes, chunks=chunks)
     if prepare_classes is not None:
         class_map = prepare_classes(class_map, reflectance)
     if sources.angles_kind == "geotiff":

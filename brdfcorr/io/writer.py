@@ -1,8 +1,10 @@
 """Writing GeoTIFFs (tiled, compressed, optionally COG) or ENVI files, chunk by chunk, atomically.
 
 :func:`write_rasters` writes DataArrays to temporary names renamed when complete, computing any
-extra lazy results (QA counts) in the same dask pass; a failed write (disk full, permissions) is
-one :class:`~brdfcorr.errors.OutputError`. rioxarray creates each file (georeference, nodata,
+extra lazy results (QA counts) in the same dask pass; a failed write (disk full, file size limit,
+permissions), also one GDAL reports only in its log or at close, is one
+:class:`~brdfcorr.errors.OutputError`, and every output is verified before it is renamed
+(:mod:`brdfcorr.io.commit`). rioxarray creates each file (georeference, nodata,
 band descriptions, tags); the chunks then go
 
 - on one machine (dask's threaded or synchronous scheduler) through *one* open GDAL handle per
@@ -16,6 +18,8 @@ band descriptions, tags); the chunks then go
 An ENVI target (:class:`EnviOutput`) is written by GDAL's ENVI driver: the data file, its header
 (``.hdr``: map info, coordinate system, band names, data ignore value, wavelengths) and its
 ``.aux.xml`` (the tags) all under temporary names, renamed when complete, the data file last.
+What a header cannot hold is refused (:func:`check_envi_georeference`: a sheared geotransform, no
+CRS); its ``description`` names the output, and band names cannot add header fields.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ import dask
 import dask.threaded
 import numpy as np
 import rasterio
+import rasterio.enums
 import rasterio.shutil
 import rasterio.windows
 import rioxarray  # noqa: F401  (registers the .rio accessor the writer uses)
@@ -43,9 +48,11 @@ from xarray.conventions import encode_cf_variable
 
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
-from brdfcorr.io.files import atomic_path
+from brdfcorr.io.commit import GdalFailures, Target, io_failure, verify, write_error, written_files
+from brdfcorr.io.files import DISK_CAUSES, sync_file, temporary_beside, write_cause
 
 __all__ = ["write_rasters", "encode_integers", "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path",
+           "envi_sidecars", "check_envi_georeference",
            "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
@@ -135,8 +142,17 @@ def envi_header_path(path: str | os.PathLike) -> Path:
     return Path(path).with_suffix(".hdr")
 
 
+def _tile_size(blocksize: int, array: xr.DataArray) -> tuple[int, int]:
+    """The GeoTIFF tile (width, height) [pixels]: ``blocksize``, but no larger than the raster rounded
+    up to a multiple of 16 (GDAL allocates whole tiles: a tile of 100 000 pixels square and 4 bands
+    of float32 would be 160 GB, for any raster)."""
+    height, width = array.shape[-2:]
+    return tuple(min(blocksize, -(-size // 16) * 16) for size in (width, height))  # type: ignore[return-value]
+
+
 def _write_options(compress: str, blocksize: int, array: xr.DataArray) -> dict:
-    options = {"driver": "GTiff", "tiled": True, "blockxsize": blocksize, "blockysize": blocksize,
+    tile_width, tile_height = _tile_size(blocksize, array)
+    options = {"driver": "GTiff", "tiled": True, "blockxsize": tile_width, "blockysize": tile_height,
                "compress": compress, "BIGTIFF": "IF_SAFER"}
     if compress.lower() in ("deflate", "lzw", "zstd"):
         options["predictor"] = 3 if array.dtype.kind == "f" else 2
@@ -199,6 +215,7 @@ def write_rasters(
     *,
     geotiff: GeoTiffOutput = GeoTiffOutput(),
     tags: Mapping[str, str] | None = None,
+    commit_tags: Mapping[str, str] | None = None,
     compute_with: object = None,
     callbacks: Sequence = (),
     gdal_cache: int | None = None,
@@ -215,6 +232,12 @@ def write_rasters(
     Nothing appears at a target when anything fails; a failed write (disk full, file size limit,
     permissions) raises :class:`~brdfcorr.errors.OutputError` naming the targets and the reason.
 
+    Every output is committed once, after it was verified: GDAL's failures during the writes and
+    at close are collected (rasterio raises none for a failed flush), each file is reopened and
+    checked (size, bands, tags, every GeoTIFF tile present within the file, an ENVI data file of
+    its full length), flushed to the device (``fsync``), and only then are the files renamed, the
+    sidecars before their data file and the first target last.
+
     Parameters
     ----------
     rasters : mapping of path to DataArray
@@ -226,6 +249,9 @@ def write_rasters(
         (default: deflate, 512-pixel tiles, no COG).
     tags : mapping, optional
         Extra dataset tags for every file (provenance).
+    commit_tags : mapping, optional
+        Tags of the first target only, which is renamed into place last (a chain's fingerprint):
+        whoever finds them finds every output of the pass complete.
     compute_with : optional
         Lazy results to compute in the same pass; returned computed.
     callbacks : sequence of dask callbacks
@@ -262,14 +288,11 @@ def write_rasters(
     envi = {Path(target): layout for target, layout in (envi or {}).items()}
     if geotiff.cog and envi:
         raise InputError("Cloud-Optimized GeoTIFF (cog) and ENVI output exclude each other")
-    gdal_messages = _GdalMessages()
-    try:
-        with gdal_messages:
-            return _write(rasters, geotiff, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers, envi)
-    except BrdfcorrError:
-        raise
-    except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
-        raise _io_failure(error, list(rasters), gdal_messages.messages) from error
+    for target in envi:
+        if target in {Path(path) for path in rasters}:
+            check_envi_georeference(rasters[next(path for path in rasters if Path(path) == target)], target)
+    return _write(rasters, geotiff, tags, commit_tags, compute_with, callbacks, gdal_cache, scheduler, num_workers,
+                  envi)
 
 
 class _GdalMessages(logging.Handler):
@@ -296,70 +319,96 @@ class _GdalMessages(logging.Handler):
         return False
 
 
-def _io_failure(error: Exception, targets: list, messages: list[str]) -> BrdfcorrError:
-    """A failed read or write as one message: what failed, and why (the OS or GDAL reason)."""
-    reasons = []
-    cause = error
-    while cause is not None:  # rasterio's "Write failed. See previous exception" names GDAL's cause
-        if isinstance(cause, OSError) and cause.strerror:
-            reasons.append(f"{cause.strerror}" + (f": {cause.filename}" if cause.filename else ""))
-        elif str(cause):
-            reasons.append(str(cause))
-        cause = cause.__cause__ or cause.__context__
-    reasons = [r for r in dict.fromkeys(messages[-1:] + reasons) if "See previous exception" not in r]
-    reason = "; ".join(reasons[:2]) or type(error).__name__
-    if "Read failed" in str(error) or "IReadBlock" in reason:
-        return InputError(f"reading an input failed while writing {', '.join(map(str, targets))}: {reason}")
-    folders = ", ".join(dict.fromkeys(str(Path(target).parent) for target in targets))
-    return OutputError(
-        f"cannot write {', '.join(map(str, targets))}: {reason}; nothing was written (check the free "
-        f"space, file size limit and permissions of {folders})"
-    )
+def _write(rasters, geotiff: GeoTiffOutput, tags, commit_tags, compute_with, callbacks, gdal_cache, scheduler,
+           num_workers, envi):
+    """The writing pass of :func:`write_rasters`, its arguments checked (``geotiff.compress`` lower case):
+    write every target to temporaries, check GDAL's failures, verify and flush each, then commit
+    them (:meth:`Target.commit`), the first target last. Any failure removes every temporary."""
+    targets: list[Target] = []
+    # On a cluster the workers write the chunks; here, only this thread's own GDAL calls count.
+    failures = GdalFailures(threading.get_ident() if _distributed_client(scheduler) is not None else None)
+    settings = {"GDAL_CACHEMAX": int(gdal_cache)} if gdal_cache else {}
+    try:
+        with failures, rasterio.Env(**settings):
+            for target, array in rasters.items():
+                targets.append(_target(Path(target), array, envi.get(Path(target)), geotiff.cog))
+            extra = _compute(targets, geotiff, tags, commit_tags, compute_with, callbacks, scheduler, num_workers)
+        if failures.failures:
+            raise write_error(list(rasters), write_cause(None, written_files(targets), failures.cause()))
+        for index, target in enumerate(targets):
+            verify(target, _file_tags(tags, commit_tags, index), written_files(targets))
+            for path in target.kept():
+                if path.exists():
+                    sync_file(path)
+        for target in reversed(targets):  # the first target (with the commit tags) last
+            target.commit()
+    except BaseException as error:
+        problem = None
+        failed = isinstance(error, (OSError, rasterio.errors.RasterioError, CPLE_BaseError))
+        if failed and not isinstance(error, BrdfcorrError):
+            problem = io_failure(error, list(rasters), [failures.cause()] if failures.failures else [],
+                                 written_files(targets))
+        elif isinstance(error, SystemError):  # rasterio: GDAL failed and said nothing (a full disk at creation)
+            cause = write_cause(None, written_files(targets), "")
+            problem = write_error(list(rasters), cause) if cause.startswith(DISK_CAUSES) else None
+        for target in targets:
+            target.discard()
+        if problem is not None:
+            raise problem from error
+        raise
+    return extra
 
 
-def _write(rasters, geotiff: GeoTiffOutput, tags, compute_with, callbacks, gdal_cache, scheduler, num_workers, envi):
-    """The writing pass of :func:`write_rasters`, its arguments checked (``geotiff.compress`` lower case)."""
-    compress, blocksize = geotiff.compress, geotiff.blocksize
+def _file_tags(tags, commit_tags, index: int) -> dict:
+    """The tags of the ``index``-th target: ``tags``, and ``commit_tags`` on the first only."""
+    return {**(tags or {}), **((commit_tags or {}) if index == 0 else {})}
+
+
+def _target(final: Path, array: xr.DataArray, layout: EnviOutput | None, cog: bool) -> Target:
+    """A :class:`~brdfcorr.io.commit.Target` with its temporary files beside ``final`` (created here)."""
+    temporary = temporary_beside(final)
+    written = Path(f"{temporary}.gtiff") if cog else temporary
+    if layout is None:
+        return Target(final, array, None, temporary, written, [])
+    return Target(final, _envi_safe(array), layout, temporary, written, envi_sidecars(temporary, final))
+
+
+def _compute(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, compute_with, callbacks, scheduler,
+             num_workers):
+    """Create the files, compute everything in one dask pass, close them (a full disk often fails
+    here), copy the COGs and complete the ENVI headers; returns the computed ``compute_with``."""
     client = _distributed_client(scheduler)
-    with contextlib.ExitStack() as stack:
-        writes, copies, headers, handles = [], [], [], []
-        for target, array in rasters.items():
-            temporary = stack.enter_context(atomic_path(target))
-            layout = envi.get(Path(target))
-            if layout is not None:  # exits before atomic_path's: the sidecars are renamed first
-                stack.enter_context(_envi_sidecars(temporary, target))
-                headers.append((temporary, layout))
-                path, options = temporary, {"driver": "ENVI", "interleave": layout.interleave.upper(), "SUFFIX": "ADD"}
-            elif geotiff.cog:  # GDAL's COG driver only copies: write a tiled GeoTIFF first, beside the target
-                path = stack.enter_context(_scratch_path(temporary))
-                options = _write_options(compress, blocksize, array)
-                copies.append((path, temporary))
-            else:
-                path, options = temporary, _write_options(compress, blocksize, array)
-            writes.append(_store(array, path, options, dict(tags or {}), client, handles))
-        environment = rasterio.Env(GDAL_CACHEMAX=int(gdal_cache)) if gdal_cache else contextlib.nullcontext()
-        with environment:
-            with contextlib.ExitStack() as active:
-                for callback in callbacks:
-                    active.enter_context(callback)
-                # One pass for everything: shared inputs are read and normalized once.
-                try:
-                    *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler,
-                                             num_workers=_threads(scheduler, num_workers))
-                except BaseException:
-                    for handle in handles:  # the failure is the news; the files are discarded
-                        with contextlib.suppress(Exception):
-                            handle.close()
-                    raise
-            for handle in handles:  # waits for GDAL's last compressed tiles; a full disk fails here
-                handle.close()
-            for gtiff, temporary in copies:
-                rasterio.shutil.copy(
-                    gtiff, temporary, driver="COG", compress=compress.upper(), blocksize=blocksize,
-                    overview_resampling="average", BIGTIFF="IF_SAFER", **_cog_options(compress),
-                )
-            for temporary, layout in headers:
-                _write_envi_header(temporary, layout)
+    writes, handles = [], []
+    for index, target in enumerate(targets):
+        if isinstance(target.layout, EnviOutput):
+            options = {"driver": "ENVI", "interleave": target.layout.interleave.upper(), "SUFFIX": "ADD"}
+        else:
+            options = _write_options(geotiff.compress, geotiff.blocksize, target.array)
+        writes.append(_store(target.array, target.written, options, _file_tags(tags, commit_tags, index), client,
+                             handles))
+    with contextlib.ExitStack() as active:
+        for callback in callbacks:
+            active.enter_context(callback)
+        try:  # one pass for everything: shared inputs are read and normalized once
+            *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler,
+                                     num_workers=_threads(scheduler, num_workers))
+        except BaseException:
+            for handle in handles:  # the failure is the news; the files are discarded
+                with contextlib.suppress(Exception):
+                    handle.close()
+            raise
+    for handle in handles:  # waits for GDAL's last compressed tiles; a full disk fails here
+        handle.close()
+    for target in targets:
+        if target.written != target.temporary:
+            size = _tile_size(geotiff.blocksize, target.array)
+            rasterio.shutil.copy(
+                target.written, target.temporary, driver="COG", compress=geotiff.compress.upper(),
+                blocksize=max(size), overview_resampling="average", BIGTIFF="IF_SAFER",
+                **_cog_options(geotiff.compress),
+            )
+        if isinstance(target.layout, EnviOutput):
+            _write_envi_header(target.temporary, target.layout, target.final)
     return extra
 
 
@@ -432,7 +481,7 @@ class _OpenRaster:
         *bands, rows, columns = key
         window = rasterio.windows.Window.from_slices(rows, columns)
         indexes = list(range(bands[0].start + 1, bands[0].stop + 1)) if bands else 1
-        with self.lock:
+        with self.lock, rasterio.Env():  # GDAL's errors in this thread go to rasterio's log, not stderr
             if self.dataset is None:
                 self.dataset = rasterio.open(self.path, "r+", **self.options)
             self.dataset.write(chunk, window=window, indexes=indexes)
@@ -449,9 +498,11 @@ def _header_list(values: Sequence[float]) -> str:
     return "{" + ", ".join(f"{float(value):g}" for value in values) + "}"
 
 
-def _write_envi_header(path: Path, layout: EnviOutput) -> None:
+def _write_envi_header(path: Path, layout: EnviOutput, final: Path) -> None:
     """Add the spectral fields to the header GDAL wrote (GDAL rewrites it on close): items of the
-    dataset's ENVI metadata domain are header fields (GDAL's ENVI driver)."""
+    dataset's ENVI metadata domain are header fields (GDAL's ENVI driver). Then replace the
+    ``description`` GDAL fills with the file's (temporary) path by the final file's name, made safe
+    for a header (:func:`_header_text`)."""
     items = {}
     if layout.wavelength is not None:
         items.update(wavelength=_header_list(layout.wavelength), wavelength_units="Nanometers")
@@ -460,35 +511,55 @@ def _write_envi_header(path: Path, layout: EnviOutput) -> None:
     if items:
         with rasterio.open(path, "r+") as dataset:
             dataset.update_tags(ns="ENVI", **items)
+    header = Path(f"{path}.hdr")
+    text = header.read_text()
+    written = f"description = {{\n{path}}}\n"
+    if written not in text:
+        raise OutputError(f"cannot write {final}: GDAL's ENVI header {header} has no description of the file")
+    header.write_text(text.replace(written, f"description = {{\nbrdfcorr output {_header_text(final.name)}}}\n", 1))
 
 
-@contextlib.contextmanager
-def _envi_sidecars(temporary: Path, target: str | os.PathLike):
+def _header_text(text: str) -> str:
+    """Text that cannot end or add an ENVI header field: braces become parentheses, commas (which
+    separate a list's items) semicolons, line breaks spaces."""
+    table = str.maketrans({"{": "(", "}": ")", ",": ";", "\n": " ", "\r": " "})
+    return str(text).translate(table)
+
+
+def _envi_safe(array: xr.DataArray) -> xr.DataArray:
+    """The array with band descriptions (the header's ``band names``) that cannot inject header fields."""
+    names = array.attrs.get("long_name")
+    if not isinstance(names, (tuple, list)):
+        return array
+    safe = array.copy(deep=False)
+    safe.attrs = {**array.attrs, "long_name": tuple(_header_text(name) for name in names)}
+    return safe
+
+
+def check_envi_georeference(array: xr.DataArray, target: str | os.PathLike) -> None:
+    """Refuse what an ENVI header cannot say: its ``map info`` holds pixel sizes and one rotation,
+    so a sheared geotransform (columns not perpendicular to rows) would be written as a rotation
+    (tens of metres off at the far corner), and a raster with a geotransform but no CRS would get
+    ``map info = {Arbitrary, ...}``, read back as a local CRS ``LOCAL_CS["Arbitrary"]``.
+
+    Raises
+    ------
+    InputError
+        Naming the output, with the GeoTIFF format as the way out.
+    """
+    transform = array.rio.transform()
+    a, b, d, e = transform.a, transform.b, transform.d, transform.e
+    if abs(a * b + d * e) > 1e-9 * max(a * a + d * d, b * b + e * e):
+        raise InputError(f"ENVI output {target}: the image's geotransform is sheared ({tuple(transform)[:6]}); an "
+                         "ENVI header holds pixel sizes and a rotation only; write a GeoTIFF (--format GTiff)")
+    if array.rio.crs is None and not transform.is_identity:
+        raise InputError(f"ENVI output {target}: the image has no CRS; an ENVI header would say 'Arbitrary', read "
+                         "back as a local CRS; write a GeoTIFF (--format GTiff) or give the image a CRS")
+
+
+def envi_sidecars(temporary: str | os.PathLike, target: str | os.PathLike) -> list[tuple[Path, Path]]:
     """The header and ``.aux.xml`` GDAL writes beside an ENVI data file at ``temporary``
-    (``SUFFIX=ADD``: ``temporary.hdr``), renamed to those of ``target`` on success (a stale
-    ``.aux.xml`` of an earlier output is removed: GDAL would read its tags) and removed on failure."""
-    sidecars = [(Path(f"{temporary}.hdr"), envi_header_path(target)),
-                (Path(f"{temporary}.aux.xml"), Path(f"{target}.aux.xml"))]
-    try:
-        yield
-        for written, final in sidecars:
-            if written.exists():
-                os.replace(written, final)
-            else:
-                with contextlib.suppress(FileNotFoundError):
-                    os.unlink(final)
-    finally:
-        for written, _ in sidecars:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(written)
-
-
-@contextlib.contextmanager
-def _scratch_path(beside: Path):
-    """A temporary file name beside ``beside``, removed on exit whatever happens."""
-    path = Path(f"{beside}.gtiff")
-    try:
-        yield path
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(path)
+    (``SUFFIX=ADD``: ``temporary.hdr``) and the names they get beside ``target``: its header
+    ``NAME.hdr`` (:func:`envi_header_path`) and ``NAME.ext.aux.xml``."""
+    return [(Path(f"{temporary}.hdr"), envi_header_path(target)),
+            (Path(f"{temporary}.aux.xml"), Path(f"{target}.aux.xml"))]

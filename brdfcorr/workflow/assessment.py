@@ -150,7 +150,8 @@ def assess_files(
         draws it.
     """
     engine = replace(engine, chunks=rasters.auto_chunk(scene.image) if engine.chunks is None else int(engine.chunks))
-    with _active(engine.callbacks):
+    # GDAL's block cache bounded for every pass (issue 28; GDAL's default keeps every tile read).
+    with _active(engine.callbacks), rasters.bounded_gdal_cache(scene.image, engine.chunks):
         data = _open_scene_files(scene, engine, align_classes=align_classes, class_lookup=class_lookup)
         _check_signing(data, view_options)
         corrected = rasters.open_image(after, chunks=engine.chunks)

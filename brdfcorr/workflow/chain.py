@@ -58,13 +58,20 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from datetime import datetime, timezone
+from pathlib import Path
 from typing import Any
+
+try:  # advisory file locks (POSIX): one chain run per output directory
+    import fcntl
+except ImportError:  # pragma: no cover (Windows)
+    fcntl = None  # type: ignore[assignment]
 
 from dask.callbacks import Callback
 
 from brdfcorr.analysis.assess import ViewAngleOptions
-from brdfcorr.errors import InputError
+from brdfcorr.errors import InputError, OutputError
 from brdfcorr.fit.classes import ClassModels, GuardRails, Sampling
+from brdfcorr.io import cluster
 from brdfcorr.io.paths import remove_partials
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.writer import default_threads
@@ -91,6 +98,8 @@ __all__ = [
     "ChunkProgress",
     "write_quicklook",
     "versions",
+    "run_lock",
+    "LOCK_NAME",
 ]
 
 #: Seconds to wait for a dask scheduler at ``engine.address`` before the run is refused (exit 2).
@@ -258,6 +267,8 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
             raise InputError(scene.reason)
         for path in scene.outputs.values():
             path.parent.mkdir(parents=True, exist_ok=True)
+        if steps.correct is not None:
+            _remove_derived(scene)
         callbacks = [ChunkProgress(scene.name, progress)] if progress is not None else []
         for name, run in (("correct", lambda: _correct(scene, table, config, callbacks=callbacks, **compute)),
                           ("assess", lambda: _assess(scene, table, config, **compute)),
@@ -271,6 +282,23 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
         failure = error
     seconds["total"] = round(time.perf_counter() - start, 3)
     return scene_result(scene, "ok" if failure is None else "failed", found=found, error=failure, seconds=seconds)
+
+
+#: A scene's outputs made from its corrected image after that is in place (the assessment and
+#: the quicklook): removed before the scene is corrected again.
+DERIVED_OUTPUTS = ("assess", "assess_profiles", "quicklook")
+
+
+def _remove_derived(scene: Scene) -> None:
+    """Remove the :data:`DERIVED_OUTPUTS` of an earlier run of a scene about to be corrected again:
+    a run killed after the new corrected image was renamed into place, before they were redone,
+    then leaves them missing (a resumed run redoes the scene) instead of stale beside a corrected
+    image whose fingerprint says the scene is complete."""
+    for key in DERIVED_OUTPUTS:
+        path = scene.outputs.get(key)
+        if path is not None:
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
 
 
 def _terrain(scene: Scene, config: ChainConfig) -> Terrain | None:
@@ -374,39 +402,90 @@ def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executo
             yield scenes, {"scheduler": client}
 
 
-@contextlib.contextmanager
 def connect_cluster(address: str | None = None, *, workers: int = 1, threads_per_worker: int = 1,
                     setting: str | None = None):
-    """A :class:`distributed.Client` of the dask scheduler at ``address``, or of a local cluster of
-    ``workers`` processes with ``threads_per_worker`` threads each made here (and closed on exit).
-
-    ``setting`` names where the address came from in errors (``engine.address``, ``--scheduler``).
-    The client is not made dask's default: pass it as the ``scheduler`` of a computation (e.g.
-    of :func:`brdfcorr.workflow.correction.correct_files`), which then runs chunk by chunk on all the
-    cluster's workers.
+    """A :class:`distributed.Client` of the dask scheduler at ``address`` (with at least one
+    worker), or of a local cluster of ``workers`` processes with ``threads_per_worker`` threads each:
+    :func:`brdfcorr.io.cluster.connect_cluster` (a context manager; connect, handshake and workers
+    bounded in time) with :data:`CONNECT_TIMEOUT`. ``setting`` names where the address came from
+    in errors (``engine.address``, ``--scheduler``).
 
     Raises
     ------
     InputError
-        dask.distributed is not installed, or no scheduler answers at ``address`` within
-        :data:`CONNECT_TIMEOUT` seconds.
+        dask.distributed is not installed, or no dask scheduler with workers answers at ``address``.
     """
-    try:  # an optional dependency, for clusters only
-        from distributed import Client, LocalCluster
-    except ImportError:
-        raise InputError("a dask.distributed cluster needs the dask.distributed package "
-                         "(pip install 'dask[distributed]')") from None
-    with contextlib.ExitStack() as stack:
-        if address is None:
-            cluster = stack.enter_context(LocalCluster(
-                n_workers=workers, threads_per_worker=threads_per_worker, processes=True, dashboard_address=None))
-            address = cluster.scheduler_address
+    return cluster.connect_cluster(address, workers=workers, threads_per_worker=threads_per_worker,
+                                   setting=setting, timeout=CONNECT_TIMEOUT)
+
+
+#: The lock file of a chain run, in its output directory; it holds the running process's id.
+LOCK_NAME = ".brdfcorr-run.lock"
+_LOCK_ATTEMPTS = 5
+
+
+@contextlib.contextmanager
+def run_lock(directory: Path) -> Iterator[Path]:
+    """Hold ``directory`` (a chain's output directory, created if absent) for this run.
+
+    Two runs of one chain at once would delete each other's temporary files (the clean-up of an
+    interrupted run) and replace each other's outputs and report. The lock is an advisory
+    ``flock`` on :data:`LOCK_NAME` in ``directory``, which holds the holder's process id: a second
+    run is refused while the first lives; the lock of a run that died (kill -9) is released by the
+    system, and the next run takes it over. Removed when the run ends, with the directories made
+    for it if they are still empty (a run refused before writing leaves nothing). Without ``fcntl``
+    (Windows) runs are not locked.
+
+    Raises
+    ------
+    OutputError
+        Another process holds the lock (named with its pid).
+    """
+    directory = Path(directory)
+    made = [folder for folder in (directory, *directory.parents) if not folder.exists()]
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise OutputError(f"cannot create the output directory {directory}: {error.strerror or error}") from None
+    path = directory / LOCK_NAME
+    descriptor = _take_lock(path) if fcntl is not None else None
+    try:
+        if descriptor is not None:
+            os.ftruncate(descriptor, 0)
+            os.write(descriptor, f"{os.getpid()}\n".encode())
+        yield path
+    finally:
+        if descriptor is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+            os.close(descriptor)
+        for folder in made:  # deepest first; a folder with files in it stays
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+
+
+def _take_lock(path: Path) -> int:
+    """An open descriptor of ``path`` holding its ``flock``; the file still at ``path`` (not one
+    that the previous holder removed between our open and our lock)."""
+    for _ in range(_LOCK_ATTEMPTS):
         try:
-            client = stack.enter_context(Client(address, set_as_default=False, timeout=CONNECT_TIMEOUT))
-        except (OSError, TimeoutError) as error:
-            where = f"{setting}: " if setting else ""
-            raise InputError(f"{where}cannot reach the dask scheduler at {address}: {error}") from None
-        yield client
+            descriptor = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+        except OSError as error:
+            raise OutputError(f"cannot create the lock file {path}: {error.strerror or error}") from None
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.read(descriptor, 64).decode(errors="replace").strip() or "unknown"
+            os.close(descriptor)
+            raise OutputError(f"another brdfcorr run (pid {holder}) is writing to {path.parent} (lock file {path}); "
+                              "wait for it to end: two runs of one chain would replace each other's files") from None
+        try:
+            if os.stat(path).st_ino == os.fstat(descriptor).st_ino:
+                return descriptor
+        except FileNotFoundError:
+            pass
+        os.close(descriptor)  # the holder removed the file as we locked it: lock the new one
+    raise OutputError(f"cannot take the lock file {path}: it keeps being replaced by another run")
 
 
 def _run_scenes(scenes: list[Scene], table: ParameterTable, config: ChainConfig,
@@ -449,11 +528,20 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
     ------
     BrdfcorrError
         Before any scene runs: no inputs, a bad parameter table, a failed fit step, an unreachable
-        cluster. Failures of single scenes do not raise; they are in the report.
+        cluster, another run writing to the output directory (:func:`run_lock`). Failures of single
+        scenes do not raise; they are in the report. A report that cannot be written (a full
+        disk) is an :class:`~brdfcorr.errors.OutputError`.
     """
     started = datetime.now(timezone.utc).isoformat(timespec="seconds")
     clock = time.perf_counter()
     plan = plan if plan is not None else plan_run(config)
+    with run_lock(plan.output_dir):
+        return _run_plan(plan, progress, started, clock)
+
+
+def _run_plan(plan: RunPlan, progress: Progress | None, started: str, clock: float) -> RunReport:
+    """:func:`run_chain` once the output directory is this run's (:func:`run_lock`)."""
+    config = plan.config
     notify = progress or (lambda event, info: None)
     notify("plan", {"scenes": len(plan.scenes), "to_run": sum(scene.action != "skip" for scene in plan.scenes)})
     for target in plan.files_written():  # temporary files an interrupted earlier run left beside them

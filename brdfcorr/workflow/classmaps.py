@@ -116,16 +116,17 @@ def ndvi_class_file(
         The strata: ``edges`` and ``names`` (id -> label) to pair with a parameter table.
     """
     chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
-    reflectance = rasters.open_image(image, chunks=chunks, wavelengths=wavelengths, scale=scale, offset=offset)
-    if scale is None:
-        rasters.check_reflectance_scale(reflectance, str(image))
-    strata = ndvi_strata(reflectance, edges=bins.edges, percentiles=bins.percentiles, water_id=bins.water_id,
-                         shadow_id=bins.shadow_id)
-    names = ",".join(f"{ident}:{name}" for ident, name in sorted(strata.names.items()))
-    tags = {"brdf_class_map": f"NDVI strata of {Path(image).name}; edges "
-                              + ",".join(f"{edge:g}" for edge in strata.edges), "class_names": names}
-    _write_class_map(strata.classes, output, inputs=[("image", image)], overwrite=overwrite, chunks=chunks,
-                     tags=tags)
+    with rasters.bounded_gdal_cache(image, chunks):  # every pass: the check, the percentiles, the write
+        reflectance = rasters.open_image(image, chunks=chunks, wavelengths=wavelengths, scale=scale, offset=offset)
+        if scale is None:
+            rasters.check_reflectance_scale(reflectance, str(image))
+        strata = ndvi_strata(reflectance, edges=bins.edges, percentiles=bins.percentiles, water_id=bins.water_id,
+                             shadow_id=bins.shadow_id)
+        names = ",".join(f"{ident}:{name}" for ident, name in sorted(strata.names.items()))
+        tags = {"brdf_class_map": f"NDVI strata of {Path(image).name}; edges "
+                                  + ",".join(f"{edge:g}" for edge in strata.edges), "class_names": names}
+        _write_class_map(strata.classes, output, inputs=[("image", image)], overwrite=overwrite, chunks=chunks,
+                         tags=tags)
     return strata
 
 

@@ -6,6 +6,7 @@ It reads and writes files but prints nothing: the CLI shows the summary, chains 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -24,7 +25,7 @@ from brdfcorr.correction import QA, describe_limits, normalize, qa_counts, resol
 from brdfcorr.correction.terrain import SlopeAspect, check_slope_aspect, slope_aspect, slope_aspect_layers
 from brdfcorr.correction.topographic import frame_conflict, topographic_correction
 from brdfcorr.correction.uncertainty import correction_uncertainty
-from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
+from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import rasters, writer
 from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.grid import check_same_grid
@@ -144,6 +145,23 @@ def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:
     return (qa | (topographic_qa & passed_on)).assign_attrs(qa.attrs)
 
 
+def _bounded_gdal_cache(function):
+    """Run ``function(request)`` with GDAL's block cache bounded for the whole run
+    (:func:`brdfcorr.io.rasters.bounded_gdal_cache`): the angle and scale checks read before the
+    write, and GDAL's default cache (5 % of RAM) would keep their tiles (issue 28)."""
+    @functools.wraps(function)
+    def bounded(request: CorrectionRequest):
+        image, chunks = request.scene.image, request.engine.chunks
+        try:
+            cache = rasters.bounded_gdal_cache(image, rasters.auto_chunk(image) if chunks is None else int(chunks))
+        except BrdfcorrError:  # a missing or unreadable image: the run's own checks say so, in order
+            return function(request)
+        with cache:
+            return function(request)
+    return bounded
+
+
+@_bounded_gdal_cache
 def correct_files(request: CorrectionRequest) -> dict[str, object]:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
@@ -226,11 +244,12 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
         "brdf_limits": describe_limits(request.limits),
         "brdf_parameter_table": table_path or "(in memory)",
         "brdf_parameter_table_content": json.dumps(table.to_dict(), separators=(",", ":")),
-        **_scene_tags(scene, request.class_lookup, request.outputs.fingerprint),
+        **_scene_tags(scene, request.class_lookup),
     }
     counts = rasters.write_rasters(
         targets, geotiff=writer.GeoTiffOutput(compress=files.compress, blocksize=chunks, cog=files.cog), tags=tags,
-        compute_with=qa_counts(qa), callbacks=engine.callbacks,
+        commit_tags=_fingerprint_tags(request.outputs.fingerprint), compute_with=qa_counts(qa),
+        callbacks=engine.callbacks,
         gdal_cache=rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
         **compute,
     )
@@ -250,12 +269,10 @@ def _check_outputs(request: CorrectionRequest) -> None:
     """The output guard, formats and extensions, and existing outputs (``overwrite``)."""
     files, inputs = request.outputs, request.inputs
     outputs = {"output": files.corrected, "QA output": files.qa, "uncertainty output": files.uncertainty}
-    if files.format == "ENVI":  # never the header of an ENVI input (image.img and image.bsq share image.hdr)
-        outputs["output header"] = writer.envi_header_path(files.corrected)
-        named = [item if isinstance(item, tuple) else ("input", item) for item in inputs]
-        inputs = inputs + [(f"{name} header", writer.envi_header_path(path)) for name, path in named
-                           if path is not None and writer.envi_header_path(path).exists()]
-    check_outputs(outputs, inputs)
+    if files.format == "ENVI":  # its header and .aux.xml: never an input's (image.img and image.bsq share image.hdr)
+        header, aux = (final for _, final in writer.envi_sidecars(files.corrected, files.corrected))
+        outputs.update({f"output header {header}": header, f"output sidecar {aux}": aux})
+    check_outputs(outputs, inputs)  # the inputs' sidecars (ENVI headers in both namings, .aux.xml) included
     writer.check_format(files.corrected, files.format)
     for path, what in ((files.qa, "QA output"), (files.uncertainty, "uncertainty output")):
         if path is not None:
@@ -266,7 +283,8 @@ def _check_outputs(request: CorrectionRequest) -> None:
 
 def _load_table(request: CorrectionRequest) -> tuple[ParameterTable, str | None]:
     """The parameter table and where it came from (for the provenance tag and messages); a table
-    without classes, which would write an unchanged copy, is an InputError."""
+    without classes, which would write an unchanged copy, or a table of other classes than 1 without
+    a class map (the whole image is class 1), is an InputError."""
     if isinstance(request.table, ParameterTable):
         table, source = request.table, request.table_source
     else:
@@ -274,6 +292,10 @@ def _load_table(request: CorrectionRequest) -> tuple[ParameterTable, str | None]
     if not table.classes:
         raise InputError(f"{source or 'parameter table'}: the parameter table has no classes: nothing would be "
                          "corrected")
+    ids = sorted(entry.id for entry in table.classes)
+    if request.scene.classes is None and ids != [1]:  # the whole image is class 1: only a one-class table fits
+        raise InputError(f"{source or 'parameter table'}: classes {ids}, but no class map was given (the whole "
+                         "image would be class 1); give the class map (--classes)")
     return table, source
 
 
@@ -368,8 +390,18 @@ def _envi_outputs(request: CorrectionRequest, scene: SceneData) -> dict:
     )}
 
 
-def _scene_tags(scene: SceneData, class_lookup, fingerprint: str | None) -> dict[str, str]:
-    """The output's tags that describe the scene: input scaling, class map, fingerprint, wavelengths."""
+def _fingerprint_tags(fingerprint: str | None) -> dict[str, str]:
+    """The tags a resumed chain compares (:mod:`brdfcorr.workflow.plan`), written to the corrected
+    output only, which is renamed into place after the QA and uncertainty outputs: whoever finds
+    them finds every output of the correction complete."""
+    if fingerprint is None:
+        return {}
+    return {"brdf_fingerprint": hashlib.sha256(fingerprint.encode()).hexdigest(),
+            "brdf_fingerprint_content": fingerprint}
+
+
+def _scene_tags(scene: SceneData, class_lookup) -> dict[str, str]:
+    """The output's tags that describe the scene: input scaling, class map, wavelengths."""
     tags = {
         "brdf_input_scale": _describe_scaling(scene.reflectance.attrs["brdf_input_scale"]),
         "brdf_input_offset": _describe_scaling(scene.reflectance.attrs["brdf_input_offset"]),
@@ -378,9 +410,6 @@ def _scene_tags(scene: SceneData, class_lookup, fingerprint: str | None) -> dict
     class_map_note = describe_class_map(scene.classes, class_lookup)
     if class_map_note:
         tags["brdf_class_map"] = class_map_note
-    if fingerprint is not None:  # what a resumed chain compares (brdfcorr.workflow.plan)
-        tags["brdf_fingerprint"] = hashlib.sha256(fingerprint.encode()).hexdigest()
-        tags["brdf_fingerprint_content"] = fingerprint
     if "wavelength" in scene.reflectance.coords:
         tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
         tags["wavelength_units"] = "nm"
@@ -423,6 +452,8 @@ def _band_descriptions(reflectance: xr.DataArray) -> tuple[str, ...]:
     centres ("560 nm"), else "band 1" ... (not the array's name on every band)."""
     n_bands = reflectance.sizes[reflectance.dims[0]]
     described = reflectance.attrs.get("long_name")
+    if isinstance(described, str) and n_bands == 1:  # rioxarray gives one band's description as a string
+        described = (described,)
     if isinstance(described, (tuple, list)) and len(described) == n_bands and all(described):
         return tuple(str(text) for text in described)
     if "wavelength" in reflectance.coords:

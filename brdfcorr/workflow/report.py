@@ -174,7 +174,9 @@ class RunReport:
         }
 
     def write(self, path: Path) -> None:
-        """Write the report (JSON) to ``path``, atomically; sets :attr:`path`."""
+        """Write the report (JSON) to ``path``, atomically; sets :attr:`path`. A full disk or the
+        file size limit is one :class:`~brdfcorr.errors.OutputError` (:func:`brdfcorr.io.files.atomic_path`),
+        and nothing is left at ``path``."""
         with atomic_path(path) as temporary:
             temporary.write_text(json.dumps(self.to_dict(), indent=2, default=_json_default))
         self.path = path

@@ -24,9 +24,12 @@ from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, ClassModels, GuardRails, Sampling, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
+from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL, WATER_VAPOUR_BANDS
 from brdfcorr.io import rasters
-from brdfcorr.io.scene import SceneSources, open_scene
+from brdfcorr.io.scene import SceneData, SceneSources, open_scene
+from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable
+from brdfcorr.params_bands import in_ranges
 from brdfcorr.workflow.classmaps import class_preparation
 
 __all__ = [
@@ -157,24 +160,111 @@ class SceneFiles:
 
 @dataclass
 class ImageryFit:
-    """The result of :func:`fit_class_files`: the fit, the scenes used and those left out."""
+    """The result of :func:`fit_class_files`: the fit, the scenes used and those left out.
+
+    ``wavelengths`` [nm] are those of the fitted bands (the bad bands left out), in the images'
+    order; ``notes`` say, one line each, what was chosen for the user: the model taken from the
+    class maps (NDVI strata), class names read from their tags, bad bands left out of the fit.
+    """
 
     result: ClassFitResult
     scenes: list[SceneFiles]
     wavelengths: np.ndarray | None
     left_out: list[dict[str, str]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def table(self) -> ParameterTable:
         return self.result.table
 
     def report(self) -> dict:
-        """JSON-friendly: the classes' fits, scenes left out and warnings."""
+        """JSON-friendly: the classes' fits, scenes left out, bad bands, notes and warnings."""
         return {
             "source": "imagery", "scenes": len(self.scenes), "scenes_left_out": self.left_out,
-            "classes": self.result.report(), "warnings": list(self.warnings),
+            "classes": self.result.report(), "bad_bands": self.result.bad_bands,
+            "bands_left_out": self.result.bands_left_out, "notes": list(self.notes),
+            "warnings": list(self.warnings),
         }
+
+
+#: Tag values of the ``strata`` tag of an NDVI strata map (``brdfcorr classes ndvi``).
+_STRATA_TAGS = ("ndvi_edges", "ndvi_percentiles")
+
+
+def _is_strata(classes: xr.DataArray) -> bool:
+    """Whether a class map is NDVI strata (vegetation and soil), by the tags ``classes ndvi`` writes."""
+    return classes.attrs.get("strata") in _STRATA_TAGS or str(classes.attrs.get("brdf_class_map", "")).startswith(
+        "NDVI strata")
+
+
+def _tagged_class_names(classes: xr.DataArray) -> dict[int, str]:
+    """Class names from a class map's ``class_names`` tag (``"1:ndvi_-inf_0.10,2:..."``, as
+    ``brdfcorr classes ndvi`` writes it; ``ID=NAME;...`` too); items that are no ``ID:NAME`` are
+    skipped."""
+    text = str(classes.attrs.get("class_names", ""))
+    names = {}
+    for item in text.replace(";", ",").split(","):
+        key, _, name = item.replace("=", ":", 1).partition(":")
+        if key.strip().isdigit() and name.strip():
+            names[int(key)] = name.strip()
+    return names
+
+
+def _choices_from_maps(models: ClassModels, class_maps: Sequence[xr.DataArray]) -> tuple[ClassModels, list[str]]:
+    """``models`` with the model chosen from the class maps where none was given (NDVI strata:
+    :data:`STRATA_MODEL`, else :data:`DEFAULT_MODEL`) and the names in the maps' tags for the
+    classes without a given name; and a note for each choice."""
+    notes, update = [], {}
+    if models.model is None:
+        strata = all(_is_strata(classes) for classes in class_maps)
+        update["model"] = STRATA_MODEL if strata else DEFAULT_MODEL
+        if strata:
+            notes.append(f"model {STRATA_MODEL} for every class: the class map is NDVI strata (vegetation and soil, "
+                         "brdfcorr classes ndvi); --model chooses another")
+    tagged: dict[int, str] = {}
+    for classes in reversed(list(class_maps)):  # the first map's name of an id wins
+        tagged.update(_tagged_class_names(classes))
+    given = dict(models.names or {})
+    named = {key: value for key, value in tagged.items() if key not in given}
+    if named:
+        update["names"] = {**named, **given}
+        listed = ", ".join(f"{key}={value}" for key, value in sorted(named.items()))
+        notes.append(f"class names from the class map's tags: {listed}")
+    return replace(models, **update), notes
+
+
+def _bbl_ranges(scene: SceneFiles, data: SceneData) -> tuple[list[list[float]], int]:
+    """The wavelength ranges [nm] of the runs of bands (in wavelength order) that the ENVI header's
+    ``bbl`` of ``scene`` marks bad, and their count; none for other files. Bands marked bad in an
+    image without band wavelengths cannot be left out: an InputError says so."""
+    bad = envi_bad_bands(scene.image) if isinstance(scene.image, (str, os.PathLike)) else None
+    if bad is None or not bad.any():
+        return [], 0
+    if "wavelength" not in data.reflectance.coords:
+        raise InputError(f"{scene.image}: the header's bbl marks {int(bad.sum())} bands bad but the image has no "
+                         "band wavelengths to leave them out by; give --wavelengths")
+    centres = np.asarray(data.reflectance["wavelength"].values, dtype=float)
+    order = np.argsort(centres, kind="stable")
+    runs: list[list[float]] = []
+    previous_bad = False
+    for index in order:
+        if bad[index] and previous_bad:
+            runs[-1][1] = float(centres[index])
+        elif bad[index]:
+            runs.append([float(centres[index])] * 2)
+        previous_bad = bool(bad[index])
+    return runs, int(bad.sum())
+
+
+def _bad_band_note(result: ClassFitResult, from_bbl: int) -> list[str]:
+    """The summary line of the bands left out of the fit (none when none was)."""
+    if not result.bands_left_out:
+        return []
+    ranges = ", ".join(f"{low:g}-{high:g}" if low != high else f"{low:g}" for low, high in result.bad_bands)
+    source = f"; {from_bbl} marked bad by the ENVI header's bbl" if from_bbl else ""
+    return [f"{len(result.bands_left_out)} bad bands left out of the fit ({ranges} nm{source}): no parameters in "
+            "the table (bad_bands), brdfcorr correct passes them through uncorrected (QA flag band_uncorrected)"]
 
 
 def _imagery_source(scenes: Sequence[SceneFiles], choice: ClassModels) -> str:
@@ -190,9 +280,9 @@ def _imagery_source(scenes: Sequence[SceneFiles], choice: ClassModels) -> str:
 
 
 def fit_class_files(
-    scenes: Sequence[SceneFiles], models: ClassModels | str, *, sampling: Sampling = Sampling(),
+    scenes: Sequence[SceneFiles], models: ClassModels | str | None, *, sampling: Sampling = Sampling(),
     guard: GuardRails = GuardRails(), chunks: int | None = None, wavelengths: Sequence[float] | None = None,
-    skip_unreadable: bool = False,
+    skip_unreadable: bool = False, bad_bands: Sequence[Sequence[float]] = WATER_VAPOUR_BANDS,
 ) -> ImageryFit:
     """Fit per-class, per-band parameters from the pixels of one or many scenes.
 
@@ -206,9 +296,13 @@ def fit_class_files(
     Parameters
     ----------
     scenes : sequence of SceneFiles
-    models : ClassModels or str
+    models : ClassModels or str or None
         The classes, their names, models, fixed shape parameters and fallback materials, as for
-        :func:`brdfcorr.fit.fit_classes` (a model name alone: ``ClassModels(model)``).
+        :func:`brdfcorr.fit.fit_classes` (a model name alone: ``ClassModels(model)``). Without a
+        model (None, or ``ClassModels(None)``) the class maps choose it: ``ross_thick_li_sparse``
+        where every map is NDVI strata (its ``strata`` tag, written by ``brdfcorr classes ndvi``),
+        else ``torrance_sparrow``. Classes without a given name take the names of the maps'
+        ``class_names`` tag. Both choices are listed in ``notes``.
     sampling : Sampling, default Sampling()
         As for :func:`brdfcorr.fit.fit_classes`, except ``reflectance_scale``: kept for callers
         of brdfcorr 0.1, it is the scale of every scene's stored values, applied on read as a given
@@ -222,10 +316,39 @@ def fit_class_files(
     skip_unreadable : bool, default False
         Leave out a scene that cannot be opened (listed in ``left_out``) instead of raising; at
         least one scene must open (a chain's fit step uses this).
+    bad_bands : sequence of (float, float), default :data:`brdfcorr.fit.WATER_VAPOUR_BANDS`
+        Wavelength ranges [nm] whose bands are left out of the fit (``()``: none); the bands an
+        ENVI image's header marks bad (``bbl``) are left out too. The table's classes list them as
+        ``bad_bands`` (:func:`brdfcorr.fit.fit_classes`); ``notes`` says so.
     """
     if not isinstance(models, ClassModels):
         models = ClassModels(models)
-    reflectance_scale = sampling.reflectance_scale
+    opened, used, left_out = _opened_scenes(scenes, sampling.reflectance_scale, chunks, wavelengths,
+                                            skip_unreadable)
+    models, notes = _choices_from_maps(models, [data.classes for data in opened])
+    bbl = [_bbl_ranges(scene, data) for scene, data in zip(used, opened)]
+    ranges = [*bad_bands, *(run for runs, _ in bbl for run in runs)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ClassFitWarning)
+        result = fit_classes(
+            [s.reflectance for s in opened], [s.classes for s in opened],
+            [xr.Dataset(s.angles) for s in opened], models,
+            sampling=replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges))),
+            guard=guard, source=_imagery_source(used, models),
+        )
+    first = opened[0].reflectance
+    found = first.coords["wavelength"].values if "wavelength" in first.coords else None
+    if found is not None and result.bad_bands:  # the fitted bands' wavelengths, as the fits' arrays
+        found = found[~in_ranges(found, result.bad_bands)]
+    caught_notes = [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
+    notes += _bad_band_note(result, max((count for _, count in bbl), default=0))
+    return ImageryFit(result, used, found, left_out, caught_notes, notes)
+
+
+def _opened_scenes(scenes: Sequence[SceneFiles], reflectance_scale: float, chunks, wavelengths,
+                   skip_unreadable: bool) -> tuple[list[SceneData], list[SceneFiles], list[dict[str, str]]]:
+    """Open and check each scene (:func:`fit_class_files`): the scenes' data, their files and the
+    scenes left out (with ``skip_unreadable``)."""
     opened, used, left_out = [], [], []
     for scene in scenes:
         scale = scene.scale
@@ -252,14 +375,4 @@ def fit_class_files(
     if not opened:
         raise InputError("no scene could be opened for the imagery fit: "
                          + "; ".join(f"{s['scene']}: {s['reason']}" for s in left_out))
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ClassFitWarning)
-        result = fit_classes(
-            [s.reflectance for s in opened], [s.classes for s in opened],
-            [xr.Dataset(s.angles) for s in opened], models, sampling=replace(sampling, reflectance_scale=1.0),
-            guard=guard, source=_imagery_source(used, models),
-        )
-    first = opened[0].reflectance
-    found = first.coords["wavelength"].values if "wavelength" in first.coords else None
-    notes = [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
-    return ImageryFit(result, used, found, left_out, notes)
+    return opened, used, left_out

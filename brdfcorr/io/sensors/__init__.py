@@ -22,6 +22,10 @@ The NEON and EMIT reflectance cubes themselves are images (:func:`read_neon_imag
 :func:`read_emit_image`), which :func:`brdfcorr.io.rasters.open_image` opens by content.
 
 The one call for the correction and chain configs is ``read_angles(kind, path, like=image)``.
+
+Whole product folders (a Sentinel-2 L2A ``.SAFE``, a Landsat Collection-2 L2 folder: bands,
+scaling, cloud mask, angle source) are found by :func:`find_product` and stacked by
+:func:`write_stack` (:mod:`brdfcorr.io.sensors.folders`; ``brdfcorr nbar``).
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ from brdfcorr.errors import SensorInputError
 _MODULES = {
     "apply_glt": "emit", "read_emit_image": "emit", "read_emit_obs": "emit",
     "acquisition_time": "envi", "envi_wavelengths": "envi", "read_envi_image": "envi", "read_envi_obs": "envi",
+    "find_product": "folders", "write_stack": "folders",
     "grid_template": "grids", "to_grid": "grids",
     "parse_ang_txt": "landsat", "read_landsat_angles": "landsat",
     "read_neon_angles": "neon", "read_neon_image": "neon",
@@ -68,6 +73,7 @@ __all__ = [
     "acquisition_time",
     "apply_glt",
     "envi_wavelengths",
+    "find_product",
     "grid_template",
     "parse_ang_txt",
     "parse_mtd_tl",
@@ -84,6 +90,7 @@ __all__ = [
     "solar_angles",
     "solar_position",
     "to_grid",
+    "write_stack",
 ]
 
 

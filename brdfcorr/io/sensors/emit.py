@@ -22,7 +22,10 @@ Guide and the LP DAAC ``emit_tools`` document them::
 
 The swath (downtrack, crosstrack) is brought onto the GLT grid (y, x) by nearest-pixel lookup,
 :func:`apply_glt`: ``ortho[:, i, j] = swath[glt_y[i, j] - 1, glt_x[i, j] - 1, :]`` where both GLT
-values are > 0, NaN where either is 0. This is what EMIT's own ``apply_glt`` does; brdfcorr does it
+values are > 0, NaN where either is 0 (a float GLT only where all its values are integers;
+fractional, NaN or negative values, and a grid of more than :data:`GLT_CELLS_PER_PIXEL` cells per
+swath pixel, are refused; an obs granule must share the reflectance granule's GLT, not only its
+geotransform). This is what EMIT's own ``apply_glt`` does; brdfcorr does it
 lazily: the GLT (two small integer rasters) is read into memory, and each output chunk is one dask
 task that reads only the bounding box of the swath rows and columns its cells point to, then
 indexes it with numpy (vectorised, no loop over pixels).
@@ -39,6 +42,7 @@ Reading needs h5py and h5netcdf (``pip install 'brdfcorr[hdf5]'``).
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -54,7 +58,7 @@ from rasterio.errors import CRSError
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.sensors.envi import ANGLE_LONG_NAMES, OBS_BAND_NAMES, _obs_band_index, wanted_bands
 from brdfcorr.io.sensors.grids import wrap_azimuth
-from brdfcorr.io.sensors.hdf5 import on_grid, require_hdf5, spatial_chunks
+from brdfcorr.io.sensors.hdf5 import METADATA_LIMIT, as_number, check_transform, on_grid, require_hdf5, spatial_chunks
 
 __all__ = [
     "apply_glt",
@@ -67,6 +71,13 @@ __all__ = [
 
 #: _FillValue of EMIT's reflectance and obs variables when the variable does not state one.
 EMIT_FILL_VALUE = -9999.0
+#: Largest distance [index units] of a float GLT value from an integer that is still that integer.
+GLT_TOLERANCE = 1e-6
+#: Most cells of an orthorectified grid per swath pixel: the grid covers the swath's footprint (a
+#: swath rotated 45 deg fills about half of it); far more is a damaged or hostile granule.
+GLT_CELLS_PER_PIXEL = 64
+#: Most cells of a GLT grid at all (two int64 layers of 4 GiB).
+GLT_MAX_CELLS = 2**28
 
 
 def is_emit_reflectance(path: str | Path) -> bool:
@@ -117,20 +128,23 @@ def apply_glt(swath: np.ndarray, glt_x: np.ndarray, glt_y: np.ndarray, row0: int
 def read_glt(path: str | Path, swath_shape: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The GLT ``(glt_x, glt_y)`` of an EMIT granule as int64 arrays, checked.
 
+    A float GLT is taken only where every value is an integer within :data:`GLT_TOLERANCE` (then
+    rounded to it): truncating fractional indices would shift pixels.
+
     Raises
     ------
     SensorInputError
-        Missing ``location/glt_x``/``glt_y``, shapes that differ, negative values, or indices
-        beyond the swath (``swath_shape``: rows, columns).
+        Missing ``location/glt_x``/``glt_y``, shapes that differ, a grid larger than the swath
+        can fill (checked before it is read), NaN, inf or fractional values, negative values, or
+        indices beyond the swath (``swath_shape``: rows, columns).
     """
     h5py = require_hdf5(path)
     with h5py.File(path, "r") as h5file:
         if "location/glt_x" not in h5file or "location/glt_y" not in h5file:
             raise SensorInputError(f"{path}: no location/glt_x and location/glt_y (the geometry lookup table)")
-        glt_x = np.asarray(h5file["location/glt_x"][()], dtype=np.int64)
-        glt_y = np.asarray(h5file["location/glt_y"][()], dtype=np.int64)
-    if glt_x.shape != glt_y.shape or glt_x.ndim != 2:
-        raise SensorInputError(f"{path}: location/glt_x {glt_x.shape} and glt_y {glt_y.shape} must be one 2-D grid")
+        datasets = h5file["location/glt_x"], h5file["location/glt_y"]
+        _check_glt_shape(path, datasets[0].shape, datasets[1].shape, swath_shape)
+        glt_x, glt_y = (_glt_indices(path, dataset) for dataset in datasets)
     if (glt_x < 0).any() or (glt_y < 0).any():
         raise SensorInputError(f"{path}: negative values in location/glt_x or glt_y (1-based indices, 0 = no pixel)")
     if swath_shape is not None and (glt_y.max(initial=0) > swath_shape[0] or glt_x.max(initial=0) > swath_shape[1]):
@@ -141,13 +155,56 @@ def read_glt(path: str | Path, swath_shape: tuple[int, int] | None = None) -> tu
     return glt_x, glt_y
 
 
+def _check_glt_shape(path, shape_x, shape_y, swath_shape) -> None:
+    """Refuse, before reading, GLT grids that differ, are not 2-D, or have more cells than the swath
+    can fill (:data:`GLT_CELLS_PER_PIXEL`, :data:`GLT_MAX_CELLS`)."""
+    if shape_x != shape_y or len(shape_x) != 2:
+        raise SensorInputError(f"{path}: location/glt_x {shape_x} and glt_y {shape_y} must be one 2-D grid")
+    cells = shape_x[0] * shape_x[1]
+    limit = GLT_MAX_CELLS
+    if swath_shape is not None:
+        limit = min(limit, GLT_CELLS_PER_PIXEL * max(1, swath_shape[0] * swath_shape[1]))
+    if cells > limit:
+        swath = f" for a swath of {swath_shape[0]} x {swath_shape[1]} pixels" if swath_shape is not None else ""
+        raise SensorInputError(f"{path}: location/glt_x declares {shape_x[0]} x {shape_x[1]} cells{swath}; "
+                               f"an orthorectified grid of at most {limit} cells is expected")
+
+
+def _glt_indices(path, dataset) -> np.ndarray:
+    """One GLT layer as int64: integers as they are, floats only where all are integers (rounded)."""
+    name = dataset.name.lstrip("/")
+    values = np.asarray(dataset[()])
+    if values.dtype.kind in "iub":
+        return values.astype(np.int64)
+    if values.dtype.kind != "f":
+        raise SensorInputError(f"{path}: {name} holds {values.dtype} values; GLT indices are integers")
+    bad = ~np.isfinite(values)
+    if bad.any():
+        raise SensorInputError(f"{path}: {name} holds {int(bad.sum())} NaN or infinite values; GLT indices "
+                               "are integers (0 = no pixel)")
+    nearest = np.rint(values)
+    off = np.abs(values - nearest)
+    if off.max(initial=0.0) > GLT_TOLERANCE:
+        where = np.unravel_index(int(np.argmax(off)), values.shape)
+        raise SensorInputError(f"{path}: {name} holds fractional indices (e.g. {values[where]:.6g} at cell "
+                               f"{tuple(int(i) for i in where)}); GLT indices are integers (0 = no pixel)")
+    return nearest.astype(np.int64)
+
+
 def _grid(path: Path, attrs: Mapping) -> tuple[Affine, CRS | None]:
     """The GLT grid's transform and CRS from the global attrs ``geotransform`` and ``spatial_ref``."""
     if "geotransform" not in attrs:
         raise SensorInputError(f"{path}: no global attribute 'geotransform' (the GLT grid)")
-    values = np.asarray(attrs["geotransform"], dtype=float).ravel()
+    raw = np.asarray(attrs["geotransform"])
+    if raw.dtype.kind not in "iuf":
+        raise SensorInputError(f"{path}: geotransform {str(attrs['geotransform'])[:80]!r} is {raw.dtype.name} "
+                               "data, not 6 numbers (GDAL order)")
+    values = raw.astype(float).ravel()
     if values.size != 6:
         raise SensorInputError(f"{path}: geotransform has {values.size} values; it needs 6 (GDAL order)")
+    check_transform(values, str(path))
+    if values[1] == 0 or values[5] == 0:
+        raise SensorInputError(f"{path}: geotransform {tuple(values)} has a pixel size of 0")
     crs = None
     if "spatial_ref" in attrs:
         try:
@@ -155,6 +212,22 @@ def _grid(path: Path, attrs: Mapping) -> tuple[Affine, CRS | None]:
         except CRSError as error:
             raise SensorInputError(f"{path}: spatial_ref is no CRS ({error})") from None
     return Affine.from_gdal(*values), crs
+
+
+def _small_values(path: Path, variable: xr.DataArray, name: str) -> np.ndarray:
+    """The values of a metadata variable (wavelengths, band names), refused unread when it declares
+    more than :data:`~brdfcorr.io.sensors.hdf5.METADATA_LIMIT` entries."""
+    if variable.size > METADATA_LIMIT:
+        raise SensorInputError(f"{path}: {name} declares {variable.size} entries; a metadata item has at most "
+                               f"{METADATA_LIMIT}")
+    return np.asarray(variable.values)
+
+
+def glt_digest(glt_x: np.ndarray, glt_y: np.ndarray) -> str:
+    """A fingerprint of a GLT (both layers), to tell whether two granules share one."""
+    digest = hashlib.sha256(np.ascontiguousarray(glt_x, dtype=np.int64).tobytes())
+    digest.update(np.ascontiguousarray(glt_y, dtype=np.int64).tobytes())
+    return digest.hexdigest()[:16]
 
 
 def _open(path: Path, group: str | None = None) -> xr.Dataset:
@@ -200,18 +273,41 @@ def _swath_layers(path: Path, variable: xr.DataArray, bands: list[int], ortho: b
                   attrs: Mapping) -> xr.DataArray:
     """The chosen bands of a (downtrack, crosstrack, bands) variable as (band, y, x) float32 with the
     fill as NaN: on the GLT grid (georeferenced) with ``ortho``, else on the swath (no CRS)."""
-    fill = float(np.asarray(variable.attrs.get("_FillValue", EMIT_FILL_VALUE)).ravel()[0])
+    fill = as_number(variable.attrs.get("_FillValue", EMIT_FILL_VALUE), f"{path}: {variable.name} _FillValue")
+    if not np.isfinite(fill):  # NaN values are NaN anyway; EMIT's documented fill stays nodata too
+        fill = EMIT_FILL_VALUE
     if variable.ndim != 3:
         raise SensorInputError(f"{path}: {variable.name} has dims {variable.dims}; EMIT's are "
                                "(downtrack, crosstrack, bands)")
+    if variable.dtype.kind not in "iuf":  # complex: the imaginary part would be lost
+        raise SensorInputError(f"{path}: {variable.name} holds {variable.dtype} values; real numbers are expected")
     if not ortho:
         swath = variable.isel({variable.dims[2]: bands}).rename(dict(zip(variable.dims, ("y", "x", "band"))))
         swath = swath.chunk({"y": chunks[0], "x": chunks[1], "band": -1}).transpose("band", "y", "x")
         return swath.astype("float32").where(swath != fill)
-    glt_x, glt_y = read_glt(path, variable.shape[:2])
+    glt_x, glt_y = read_glt(path, (variable.shape[0], variable.shape[1]))
     transform, crs = _grid(path, attrs)
     data = _orthorectified(variable.variable, glt_x, glt_y, bands, fill, chunks, f"{path}:{variable.name}")
-    return on_grid(xr.DataArray(data, dims=("band", "y", "x")), transform, crs)
+    layers = on_grid(xr.DataArray(data, dims=("band", "y", "x")), transform, crs)
+    layers.encoding["emit_glt"] = glt_digest(glt_x, glt_y)
+    return layers
+
+
+def _band_parameters(path: Path, n_bands: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """``sensor_band_parameters/wavelengths`` and ``fwhm`` [nm] (None where absent), checked
+    against the band count."""
+    parameters = _open(path, "sensor_band_parameters")
+    if "wavelengths" not in parameters:
+        raise SensorInputError(f"{path}: no sensor_band_parameters/wavelengths")
+    try:
+        wavelength = _small_values(path, parameters["wavelengths"], "sensor_band_parameters/wavelengths").astype(float)
+        fwhm = (_small_values(path, parameters["fwhm"], "sensor_band_parameters/fwhm").astype(float)
+                if "fwhm" in parameters else None)
+    except (TypeError, ValueError):
+        raise SensorInputError(f"{path}: sensor_band_parameters/wavelengths and fwhm must be numbers [nm]") from None
+    if wavelength.size != n_bands or (fwhm is not None and fwhm.size != n_bands):
+        raise SensorInputError(f"{path}: {wavelength.size} wavelengths in sensor_band_parameters for {n_bands} bands")
+    return wavelength, fwhm
 
 
 def read_emit_image(path: str | Path, chunks=None, *, ortho: bool = True, scale: float | None = None,
@@ -247,16 +343,11 @@ def read_emit_image(path: str | Path, chunks=None, *, ortho: bool = True, scale:
     root = _open(path)
     if "reflectance" not in root:
         raise SensorInputError(f"{path}: no root variable 'reflectance' (an EMIT L2A RFL granule has one)")
-    parameters = _open(path, "sensor_band_parameters")
-    if "wavelengths" not in parameters:
-        raise SensorInputError(f"{path}: no sensor_band_parameters/wavelengths")
     variable = root["reflectance"]
     n_bands = variable.shape[-1]
-    wavelength = np.asarray(parameters["wavelengths"].values, dtype=float)
-    fwhm = np.asarray(parameters["fwhm"].values, dtype=float) if "fwhm" in parameters else None
-    if wavelength.size != n_bands or (fwhm is not None and fwhm.size != n_bands):
-        raise SensorInputError(f"{path}: {wavelength.size} wavelengths in sensor_band_parameters for {n_bands} bands")
+    wavelength, fwhm = _band_parameters(path, n_bands)
     image = _swath_layers(path, variable, list(range(n_bands)), ortho, spatial_chunks(chunks), root.attrs)
+    glt = image.encoding.get("emit_glt")  # arithmetic below drops the encoding
     if scale is not None:
         image = image * np.float32(scale)
     if offset:
@@ -270,8 +361,21 @@ def read_emit_image(path: str | Path, chunks=None, *, ortho: bool = True, scale:
     image.attrs = {"brdf_input_scale": float(1.0 if scale is None else scale),
                    "brdf_input_offset": float(offset or 0.0), "units": "1"}
     image.encoding.update({"source": str(path), "rasterio_dtype": str(variable.dtype)})
+    if glt is not None:
+        image.encoding["emit_glt"] = glt
     image.name = "reflectance"
     return image
+
+
+def _check_same_glt(path: Path, layers: xr.DataArray, like: xr.DataArray | None) -> None:
+    """Refuse an obs granule whose GLT is not the reflectance granule's (``like``, read by
+    :func:`read_emit_image`): both may share a geotransform, and the grid check would pass, yet
+    the cells would show other swath pixels (angles of another row or granule)."""
+    ours, theirs = layers.encoding.get("emit_glt"), None if like is None else like.encoding.get("emit_glt")
+    if ours is not None and theirs is not None and ours != theirs:
+        source = like.encoding.get("source", "the image")  # type: ignore[union-attr]
+        raise SensorInputError(f"{path}: its GLT (location/glt_x, glt_y) differs from that of {source}: "
+                               "the obs granule is not of the reflectance granule's scene")
 
 
 def read_emit_obs(path: str | Path, like: xr.DataArray | None = None, *, view_azimuth: str = "to_sensor",
@@ -310,12 +414,14 @@ def read_emit_obs(path: str | Path, like: xr.DataArray | None = None, *, view_az
         raise SensorInputError(f"{path}: no 'obs' variable and sensor_band_parameters/observation_bands "
                                "(an EMIT L1B OBS granule has both)")
     descriptions = tuple(str(name.decode() if isinstance(name, bytes) else name)
-                         for name in np.asarray(parameters["observation_bands"].values).ravel())
+                         for name in _small_values(path, parameters["observation_bands"],
+                                                   "sensor_band_parameters/observation_bands").ravel())
     if len(descriptions) != root["obs"].shape[-1]:
         raise SensorInputError(f"{path}: {len(descriptions)} observation_bands for {root['obs'].shape[-1]} obs bands")
     keys = list(names)
     indices = [_obs_band_index(path, descriptions, names[key], key) for key in keys]
     layers = _swath_layers(path, root["obs"], indices, ortho, spatial_chunks(chunks, like), root.attrs)
+    _check_same_glt(path, layers, like)
     variables = {}
     for position, key in enumerate(keys):
         angle = layers.isel(band=position, drop=True)

@@ -36,6 +36,7 @@ __all__ = [
     "OBS_BAND_NAMES",
     "OBS_TERRAIN_BAND_NAMES",
     "acquisition_time",
+    "envi_bad_bands",
     "envi_wavelengths",
     "read_envi_image",
     "read_envi_obs",
@@ -153,6 +154,34 @@ def envi_wavelengths(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
     else:
         scale = 1e3 if np.nanmax(wavelength) < 100.0 else 1.0
     return wavelength * scale, (fwhm * scale if fwhm.size else None)
+
+
+def envi_bad_bands(path: str | Path) -> np.ndarray | None:
+    """Which bands the ENVI header's bad band list marks bad (``bbl``: 1 good, 0 bad), one bool per
+    band; None for a file that is no ENVI image or whose header has no ``bbl``.
+
+    Raises
+    ------
+    SensorInputError
+        A ``bbl`` that is not numeric or whose count differs from the number of bands.
+    """
+    try:
+        with rasterio.open(path) as source:
+            if source.driver != "ENVI":
+                return None
+            tags, count = source.tags(ns="ENVI"), source.count
+    except rasterio.errors.RasterioIOError:
+        return None  # not a file GDAL opens (a product's path): no ENVI header
+    items = _header_list(tags.get("bbl"))
+    if not items:
+        return None
+    try:
+        flags = np.array(items, dtype="float64")
+    except ValueError:
+        raise SensorInputError(f"{path}: non-numeric bbl (bad band list) in the header") from None
+    if flags.size != count:
+        raise SensorInputError(f"{path}: {flags.size} bbl (bad band list) values in the header for {count} bands")
+    return flags == 0
 
 
 def read_envi_image(path: str | Path, chunks=None) -> xr.DataArray:

@@ -5,11 +5,17 @@ Landsat angle rasters resampled by third parties; any angle raster in another CR
 here build a dask-backed array on the image grid whose blocks are interpolated, one at a time, from
 the small coarse grid held in memory: the full-resolution angles are never materialized at once.
 
-Interpolation is bilinear between the coarse *pixel centres* (``scipy.ndimage.map_coordinates``,
-``order=1``), with the edge value held constant beyond the outermost centres (half a coarse pixel).
-When the image grid has another CRS, each block's pixel centres are transformed into the coarse
-grid's CRS with pyproj first. Azimuths are interpolated through their sine and cosine and recombined
-with ``arctan2``, so that 359 deg and 1 deg average to 0 deg, never to 180 deg.
+Interpolation is bilinear between the coarse *pixel centres*, with the edge value held constant
+beyond the outermost centres (half a coarse pixel). Where both grids share the CRS and neither is
+rotated (Sentinel-2 angle grids on their tile's image), rows and columns map to coarse positions
+independently and a block is two 1-D linear interpolations (the bilinear weights are products of
+1-D weights). Otherwise each block's pixel centres are transformed into the coarse grid's CRS with
+pyproj and looked up with ``scipy.ndimage.map_coordinates`` (``order=1``). Azimuths are
+interpolated through their sine and cosine and recombined with ``arctan2``, so that 359 deg and
+1 deg average to 0 deg, never to 180 deg.
+
+The angle check's statistics (:func:`brdfcorr.io.angles.check_angles`) of a separable grid come
+from the coarse grid (:func:`grid_statistics`): the pixels are interpolated once, when corrected.
 """
 
 from __future__ import annotations
@@ -24,8 +30,12 @@ from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
 
-__all__ = ["grid_template", "pixel_centres", "to_grid", "wrap_azimuth"]
+__all__ = ["GRID_STATISTICS", "grid_statistics", "grid_template", "pixel_centres", "to_grid", "wrap_azimuth"]
 
+#: Encoding key of a layer interpolated by :func:`to_grid` holding its shape (y, x) and the statistics
+#: of :func:`brdfcorr.io.angles.check_angles` (min, max, finite count, count in [0, 90) and their
+#: sum) from the coarse grid (:func:`grid_statistics`), which the check takes instead of a pass.
+GRID_STATISTICS = "brdfcorr_grid_statistics"
 #: Chunk size [pixels] of angle grids interpolated onto an image grid (a cheap computation: large chunks).
 GRID_CHUNK = 2048
 
@@ -72,6 +82,11 @@ def pixel_centres(transform: Affine, row_offset: int, col_offset: int, shape: tu
     return transform @ (cols, rows)
 
 
+def _axis_aligned(transform: Affine) -> bool:
+    """Whether a transform has no rotation or shear (rows along y, columns along x)."""
+    return transform.b == 0.0 and transform.d == 0.0
+
+
 def _grid_of(array: xr.DataArray, role: str):
     """(transform, crs, shape) of a (y, x) DataArray; a clear error when it has no grid."""
     if array.ndim != 2 or set(array.dims) != {"y", "x"}:
@@ -83,11 +98,65 @@ def _grid_of(array: xr.DataArray, role: str):
     return transform, array.rio.crs, (array.sizes["y"], array.sizes["x"])
 
 
+def _axis_weights(positions: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Linear interpolation along one axis between the centres of ``size`` coarse cells:
+    ``positions`` in coarse cell indices (centre of cell k at k); the lower and upper neighbour
+    indices and the weight of the upper one. Beyond the outermost centres both neighbours are the
+    edge cell (the edge value held, as ``map_coordinates(mode="nearest")`` does)."""
+    clamped = np.clip(positions, 0.0, size - 1.0)
+    lower = np.minimum(np.floor(clamped).astype(np.intp), size - 1)
+    upper = np.minimum(lower + 1, size - 1)
+    return lower, upper, clamped - lower
+
+
+def _weight_matrix(positions: np.ndarray, size: int) -> np.ndarray:
+    """(len(positions), size) matrix of the 1-D linear interpolation weights (:func:`_axis_weights`)."""
+    lower, upper, t = _axis_weights(positions, size)
+    weights = np.zeros((positions.size, size))
+    np.add.at(weights, (np.arange(positions.size), lower), 1.0 - t)
+    np.add.at(weights, (np.arange(positions.size), upper), t)
+    return weights
+
+
+def _separable(values: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation of ``values`` at the grid of coarse positions ``rows`` x ``cols``
+    (an axis-aligned target grid) as ``R @ values @ C.T``, R and C the 1-D linear interpolation
+    weights along rows and columns (the bilinear weights are their products). Finite ``values``
+    only: a product with a NaN node is NaN along its whole row and column."""
+    return _weight_matrix(rows, values.shape[0]) @ values @ _weight_matrix(cols, values.shape[1]).T
+
+
+def _coarse_positions(source_transform: Affine, target_transform: Affine, rows: np.ndarray, cols: np.ndarray):
+    """Positions, in coarse cell indices (centre of cell k at k), of the centres of the target
+    pixel rows ``rows`` and columns ``cols`` (axis-aligned grids of one CRS)."""
+    x = target_transform.c + target_transform.a * (cols + 0.5)
+    y = target_transform.f + target_transform.e * (rows + 0.5)
+    return (y - source_transform.f) / source_transform.e - 0.5, (x - source_transform.c) / source_transform.a - 0.5
+
+
+def _interpolate_separable(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, angle: bool) -> np.ndarray:
+    """:func:`_separable` at coarse positions; azimuths [deg] through their sine and cosine."""
+    if not angle:
+        return _separable(values, rows, cols)
+    radians = np.radians(values)
+    azimuth = np.degrees(np.arctan2(_separable(np.sin(radians), rows, cols), _separable(np.cos(radians), rows, cols)))
+    # arctan2 gives (-180, 180]: wrap_azimuth's x % 360 is x + 360 below 0 (in place, no modulo).
+    np.add(azimuth, 360.0, out=azimuth, where=azimuth < 0.0)
+    azimuth[azimuth >= 360.0] = 0.0  # -1e-15 + 360 rounds to 360
+    return azimuth
+
+
 def _interpolate_block(block_info, *, values, source_transform, target_transform, transformer,
-                       angle: bool):
+                       angle: bool, separable: bool = False):
     """Interpolate the in-memory coarse ``values`` at the pixel centres of one output block."""
     info = block_info[None]
     (row0, row1), (col0, col1) = info["array-location"]
+    if separable:
+        # Rows and columns map to coarse positions independently: two 1-D interpolations per
+        # block instead of a four-neighbour lookup per pixel (the same bilinear values).
+        rows, cols = _coarse_positions(source_transform, target_transform, np.arange(row0, row1),
+                                       np.arange(col0, col1))
+        return _interpolate_separable(values, rows, cols, angle)
     x, y = pixel_centres(target_transform, row0, col0, (row1 - row0, col1 - col0))
     if transformer is not None:
         x, y = transformer.transform(x, y)
@@ -100,6 +169,44 @@ def _interpolate_block(block_info, *, values, source_transform, target_transform
     sine = ndimage.map_coordinates(np.sin(radians), coordinates, order=1, mode="nearest")
     cosine = ndimage.map_coordinates(np.cos(radians), coordinates, order=1, mode="nearest")
     return wrap_azimuth(np.degrees(np.arctan2(sine, cosine)))
+
+
+def _breakpoints(positions: np.ndarray, size: int) -> np.ndarray:
+    """Indices of the first and last pixel between each pair of neighbouring coarse centres (and
+    in each clamped edge zone): along one axis the interpolant is linear between them."""
+    piece = np.clip(np.floor(positions), -1, size - 1)  # -1 before the first centre, size - 1 after the last
+    change = np.flatnonzero(np.diff(piece)) + 1
+    return np.unique(np.concatenate([[0, positions.size - 1], change, change - 1]))
+
+
+def grid_statistics(values: np.ndarray, source_transform: Affine, target_transform: Affine,
+                    shape: tuple[int, int], angle: bool) -> tuple[float, float, float, float, float] | None:
+    """The statistics of :func:`brdfcorr.io.angles.check_angles` of the interpolated grid, from
+    the coarse grid alone (no pass over the pixels): min, max, finite count, count in [0, 90) and
+    the sum of the values in [0, 90).
+
+    Along each axis the interpolant is linear between the pixels next to the coarse centres
+    (:func:`_breakpoints`), so a zenith's min and max over every pixel are those over the grid of
+    these rows and columns, and its sum is ``(1' R) values (C' 1)`` (R, C the interpolation
+    weights): exact. For an azimuth (sine and cosine interpolated) they are those of that grid
+    (the directions at the corners of each coarse cell's pixels), which the unit check needs.
+    None where the grids are not separable (:func:`to_grid`) or a zenith leaves [0, 90) (a pass
+    over the pixels counts those).
+    """
+    rows, cols = _coarse_positions(source_transform, target_transform, np.arange(shape[0]), np.arange(shape[1]))
+    sample = _interpolate_separable(values, rows[_breakpoints(rows, values.shape[0])],
+                                    cols[_breakpoints(cols, values.shape[1])], angle)
+    count = float(shape[0] * shape[1])
+    if angle:
+        in_domain = sample[(sample >= 0) & (sample < 90)]
+        return float(sample.min()), float(sample.max()), count, count * in_domain.size / sample.size, \
+            count * (in_domain.mean() if in_domain.size else 0.0)
+    low, high = float(sample.min()), float(sample.max())
+    if not (0.0 <= low and high < 90.0):
+        return None
+    row_weights, col_weights = (_weight_matrix(p, n).sum(axis=0) for p, n in zip((rows, cols), values.shape))
+    total = row_weights @ values @ col_weights
+    return low, high, count, count, float(total)
 
 
 def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, chunks=None,
@@ -146,15 +253,19 @@ def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, ch
         chunks = plane.data.chunks if isinstance(plane.data, da.Array) else GRID_CHUNK
     values = np.asarray(coarse.transpose("y", "x").values, dtype="float64")
     template = da.empty(shape, dtype="float64", chunks=chunks)
+    separable = (transformer is None and _axis_aligned(source_transform) and _axis_aligned(target_transform)
+                 and bool(np.isfinite(values).all()))
     data = da.map_blocks(
         _interpolate_block, dtype="float64", chunks=template.chunks, meta=np.empty((0, 0)),
         values=values, source_transform=source_transform, target_transform=target_transform,
-        transformer=transformer, angle=angle,
+        transformer=transformer, angle=angle, separable=separable,
     )
-    result = xr.DataArray(
-        data, dims=("y", "x"), coords={"y": plane["y"], "x": plane["x"]}, name=name,
-        attrs=dict(attrs or {}),
-    )
+    result = xr.DataArray(data, dims=("y", "x"), coords={"y": plane["y"], "x": plane["x"]}, name=name,
+                          attrs=dict(attrs or {}))
+    if separable:  # the statistics of the angle check, from the coarse grid (no pass)
+        statistics = grid_statistics(values, source_transform, target_transform, shape, angle)
+        if statistics is not None:
+            result.encoding[GRID_STATISTICS] = (*shape, *statistics)
     if target_crs is not None:
         result = result.rio.write_crs(target_crs)
     return result.rio.write_transform(target_transform)

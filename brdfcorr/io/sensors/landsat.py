@@ -49,6 +49,7 @@ __all__ = [
     "ang_mean_angles",
     "ang_scene_time",
     "find_angle_bands",
+    "find_ang_txt",
     "parse_ang_txt",
     "read_landsat_angles",
     "vector_angles",
@@ -302,6 +303,18 @@ def find_angle_bands(path: str | Path) -> dict[str, Path]:
     return found
 
 
+def find_ang_txt(path: str | Path) -> Path | None:
+    """The product's angle coefficient file: the one ``*_ANG.txt`` in the directory ``path`` (or,
+    for a file of the product, beside it with the same product id), else None (none, or several)."""
+    path = Path(path)
+    if path.is_dir():
+        candidates = list(path.glob("*_ANG.txt"))
+    else:
+        prefix = path.name.rsplit("_", 1)[0]
+        candidates = [p for p in path.parent.glob("*_ANG.txt") if p.name.startswith(prefix)]
+    return candidates[0] if len(candidates) == 1 else None
+
+
 def _read_angle_band(path: Path, key: str, like, chunks, flip: bool) -> xr.DataArray:
     band = rioxarray.open_rasterio(path, chunks=chunks or {"y": 2048, "x": 2048}, masked=True)
     if band.sizes.get("band", 1) != 1:
@@ -336,7 +349,8 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
         lazily. Required when angles have to be computed (see below).
     ang : str or Path, optional
         The product's ANG.txt. With it, missing solar bands are computed with pvlib at the scene
-        time of the ANG.txt and the pixel coordinates of ``like``.
+        time of the ANG.txt and the pixel coordinates of ``like``. Default: the product's own
+        ``*_ANG.txt`` where exactly one lies beside its bands (:func:`find_ang_txt`).
     view_from_ang : {None, "ephemeris", "mean"}
         With ``ang``, how to obtain missing view bands (Level-2 deliveries often lack them); a
         model rather than product data, so it must be asked for. "ephemeris": per pixel from the
@@ -364,6 +378,7 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
     if view_from_ang not in (None, "ephemeris", "mean"):
         raise SensorInputError(f"view_from_ang must be None, 'ephemeris' or 'mean', got {view_from_ang!r}")
     files = find_angle_bands(path)
+    ang = find_ang_txt(path) if ang is None else ang
     variables = {key: _read_angle_band(file, key, like, chunks, view_azimuth == "from_sensor")
                  for key, file in files.items()}
     missing = [key for key in ANGLE_SUFFIXES if key not in variables]

@@ -16,8 +16,14 @@ HyTools' ``open_neon``). One root group named after the site holds everything::
 
 (the ``Logs`` values are scalar datasets in NEON's files; attributes of the ``<HHMMSS>`` group are
 read too). NEON's ``Scale_Factor`` is a *divisor*: reflectance = stored / Scale_Factor, i.e. stored
-x scale with brdfcorr's scale = 1 / Scale_Factor (``brdf_input_scale``). Stored values equal to
-``Data_Ignore_Value`` are nodata (NaN).
+x scale with brdfcorr's scale = 1 / Scale_Factor (``brdf_input_scale``), which must be finite and
+> 0. Stored values equal to ``Data_Ignore_Value`` are nodata (NaN); an attribute that is NaN or inf
+(no fill an int16 cube can hold) means NEON's documented -9999 (:data:`NEON_FILL_VALUE`).
+
+Hostile metadata is refused, never read into a wrong number: attributes and scalars that are no
+real number, complex cubes, metadata items declaring more than
+:data:`~brdfcorr.io.sensors.hdf5.METADATA_LIMIT` entries (checked before reading), a non-finite map
+info, NaN sun angles in the logs, view rasters in radians.
 
 Angle conventions: the to-sensor azimuth is the azimuth of the direction *from the pixel towards
 the sensor*, clockwise from north (0-360 deg), as in the JPL obs files of the AVIRIS-NG design NEON's
@@ -37,6 +43,7 @@ cube and the angle rasters lazily, in dask chunks, through xarray's h5netcdf eng
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -49,7 +56,7 @@ from rasterio.errors import CRSError
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.sensors.grids import wrap_azimuth
-from brdfcorr.io.sensors.hdf5 import on_grid, require_hdf5, spatial_chunks
+from brdfcorr.io.sensors.hdf5 import as_number, check_transform, on_grid, read_small, require_hdf5, spatial_chunks
 
 __all__ = [
     "is_neon_reflectance",
@@ -58,6 +65,10 @@ __all__ = [
     "read_neon_angles",
     "read_neon_image",
 ]
+
+#: NEON's fill of reflectance and angle rasters (its ``Data_Ignore_Value``), used where a file's
+#: attribute is NaN or inf.
+NEON_FILL_VALUE = -9999.0
 
 ANGLE_LONG_NAMES = {
     "sza": "solar zenith angle",
@@ -102,7 +113,8 @@ def is_neon_reflectance(path: str | Path) -> bool:
 
 def _text(value) -> str:
     """A string from an HDF5 scalar (bytes, str, or a one-element array of either)."""
-    value = np.asarray(value).ravel()[0] if np.ndim(value) else value
+    values = np.asarray(value).ravel()
+    value = values[0] if values.size else ""
     return value.decode("utf-8") if isinstance(value, bytes) else str(value)
 
 
@@ -134,6 +146,7 @@ def parse_map_info(text: str, source: str = "Map_Info") -> Affine:
     rotation = next((item for item in items if item.lower().startswith("rotation")), None)
     if rotation is not None and float(re.sub(r"[^0-9.eE+-]", "", rotation.split("=")[-1]) or 0) != 0.0:
         raise SensorInputError(f"{source}: a rotated map info ({rotation}) is not supported")
+    check_transform((ref_x, ref_y, easting, northing, dx, dy), f"{source} {text!r}")
     if dx <= 0 or dy <= 0:
         raise SensorInputError(f"{source}: pixel sizes {dx}, {dy} in {text!r} must be > 0")
     return Affine(dx, 0.0, easting - (ref_x - 1.0) * dx, 0.0, -dy, northing + (ref_y - 1.0) * dy)
@@ -144,7 +157,7 @@ def _crs(coordinates, path: Path) -> CRS | None:
     for name, parse in (("EPSG Code", lambda text: CRS.from_epsg(int(float(text)))),
                         ("Coordinate_System_String", CRS.from_wkt), ("Proj4", CRS.from_proj4)):
         if name in coordinates:
-            text = _text(coordinates[name][()])
+            text = _text(read_small(coordinates[name], f"{path}: Coordinate_System/{name}"))
             try:
                 return parse(text)
             except (CRSError, ValueError) as error:
@@ -153,7 +166,8 @@ def _crs(coordinates, path: Path) -> CRS | None:
 
 
 def _metadata(path: Path, site: str | None) -> dict:
-    """Everything but the big arrays: site, shape, scaling, wavelengths, grid, logs."""
+    """Everything but the big arrays: site, shape, scaling, wavelengths, grid, logs. Every item is
+    checked before it is read (type, size: :func:`read_small`)."""
     h5py = require_hdf5(path)
     try:
         h5file = h5py.File(path, "r")
@@ -166,43 +180,70 @@ def _metadata(path: Path, site: str | None) -> dict:
         if data.ndim != 3:
             raise SensorInputError(f"{path}: Reflectance_Data has {data.ndim} dimensions; NEON's has 3 "
                                    "(rows, columns, bands)")
+        _check_real(data, f"{path}: Reflectance_Data")
         metadata = group.get("Metadata")
         if metadata is None:
             raise SensorInputError(f"{path}: no /{site}/Reflectance/Metadata group")
         missing = [name for name in ("Spectral_Data/Wavelength", "Coordinate_System/Map_Info") if name not in metadata]
         if missing:
             raise SensorInputError(f"{path}: no {', '.join(missing)} in /{site}/Reflectance/Metadata")
+        where = f"{path}: Metadata/"
         info = {
             "site": site, "shape": data.shape, "dtype": data.dtype,
-            "scale_factor": float(data.attrs.get("Scale_Factor", 1.0)),
-            "ignore": float(data.attrs["Data_Ignore_Value"]) if "Data_Ignore_Value" in data.attrs else None,
-            "wavelength": np.asarray(metadata["Spectral_Data/Wavelength"][()], dtype=float),
+            "scale_factor": as_number(data.attrs.get("Scale_Factor", 1.0), f"{path}: Reflectance_Data Scale_Factor"),
+            "ignore": _ignore_value(data.attrs, f"{path}: Reflectance_Data"),
+            "wavelength": _numbers(metadata["Spectral_Data/Wavelength"], f"{where}Spectral_Data/Wavelength"),
             "wavelength_units": _text(metadata["Spectral_Data/Wavelength"].attrs.get("Units", "nanometers")),
-            "fwhm": (np.asarray(metadata["Spectral_Data/FWHM"][()], dtype=float)
+            "fwhm": (_numbers(metadata["Spectral_Data/FWHM"], f"{where}Spectral_Data/FWHM")
                      if "Spectral_Data/FWHM" in metadata else None),
-            "transform": parse_map_info(_text(metadata["Coordinate_System/Map_Info"][()]), f"{path}: Map_Info"),
+            "transform": parse_map_info(_text(read_small(metadata["Coordinate_System/Map_Info"],
+                                                         f"{where}Coordinate_System/Map_Info")), f"{path}: Map_Info"),
             "crs": _crs(metadata["Coordinate_System"], path),
-            "logs": _logs(metadata.get("Logs")),
-            "angle_ignore": {name: float(metadata[name].attrs["Data_Ignore_Value"])
-                             for name in ("to-sensor_Azimuth_Angle", "to-sensor_Zenith_Angle")
-                             if name in metadata and "Data_Ignore_Value" in metadata[name].attrs},
+            "logs": _logs(metadata.get("Logs"), f"{where}Logs"),
             "angle_rasters": [name for name in ("to-sensor_Azimuth_Angle", "to-sensor_Zenith_Angle")
                               if name in metadata],
         }
+        info["angle_ignore"] = {name: _ignore_value(metadata[name].attrs, f"{where}{name}", info["ignore"])
+                                for name in info["angle_rasters"]}
+        for name in info["angle_rasters"]:
+            _check_real(metadata[name], f"{where}{name}")
     return info
 
 
-def _logs(logs) -> dict[str, dict[str, float]]:
+def _check_real(dataset, source: str) -> None:
+    """Refuse a dataset that holds no real numbers (complex: its imaginary part would be lost)."""
+    if dataset.dtype.kind not in "biuf":
+        raise SensorInputError(f"{source} holds {dataset.dtype} values; real numbers are expected")
+
+
+def _numbers(dataset, source: str) -> np.ndarray:
+    """A small dataset of real numbers (wavelengths, FWHM) as float64, checked before it is read."""
+    _check_real(dataset, source)
+    return np.asarray(read_small(dataset, source), dtype=float).ravel()
+
+
+def _ignore_value(attrs, source: str, default: float | None = None) -> float | None:
+    """``Data_Ignore_Value`` of a dataset (``default`` where it has none). NaN or inf is no fill
+    value an integer cube can hold: NEON's documented fill, :data:`NEON_FILL_VALUE`, is used
+    instead, so that stored -9999 values stay nodata (NaN taken as the fill made them reflectance -1)."""
+    if "Data_Ignore_Value" not in attrs:
+        return default
+    value = as_number(attrs["Data_Ignore_Value"], f"{source} Data_Ignore_Value")
+    return value if math.isfinite(value) else NEON_FILL_VALUE
+
+
+def _logs(logs, source: str) -> dict[str, dict[str, float]]:
     """``{flight line: {"Solar_Zenith_Angle": ..., "Solar_Azimuth_Angle": ...}}`` from the Logs
     group: scalar datasets, or attributes of the flight line's group."""
     found: dict[str, dict[str, float]] = {}
     for line, group in (logs or {}).items():
         values = {}
         for name in ("Solar_Zenith_Angle", "Solar_Azimuth_Angle"):
+            where = f"{source}/{line}/{name}"
             if name in getattr(group, "keys", lambda: ())():
-                values[name] = float(np.asarray(group[name][()]).ravel()[0])
+                values[name] = as_number(read_small(group[name], where, limit=1), where)
             elif name in getattr(group, "attrs", {}):
-                values[name] = float(np.asarray(group.attrs[name]).ravel()[0])
+                values[name] = as_number(group.attrs[name], where)
         if values:
             found[line] = values
     return found
@@ -259,8 +300,9 @@ def read_neon_image(path: str | Path, chunks=None, *, site: str | None = None, s
         )
     unit = info["wavelength_units"].strip().lower()
     factor = 1e3 if unit in ("micrometers", "micrometer", "microns", "micron", "um") else 1.0
-    if info["scale_factor"] <= 0 and scale is None:
-        raise SensorInputError(f"{path}: Reflectance_Data Scale_Factor {info['scale_factor']} must be > 0")
+    if scale is None and not (math.isfinite(info["scale_factor"]) and info["scale_factor"] > 0):
+        raise SensorInputError(f"{path}: Reflectance_Data Scale_Factor {info['scale_factor']} must be a finite "
+                               "number > 0 (reflectance = stored / Scale_Factor); give the scale to override it")
     stored = _open_lazy(path, f"/{info['site']}/Reflectance")["Reflectance_Data"]
     stored = stored.rename(dict(zip(stored.dims, ("y", "x", "band")))).transpose("band", "y", "x")
     rows, cols = spatial_chunks(chunks)
@@ -334,6 +376,7 @@ def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view
             f"/{info['site']}/Reflectance/Metadata"
         )
     sun = _flight_line_sun(path, info["logs"], flight_line)
+    _check_degrees(path, info)
     if chunks is None and like is not None and like.chunks:
         chunks = {"y": like.chunksizes["y"], "x": like.chunksizes["x"]}
     rows, cols = spatial_chunks(chunks)
@@ -381,4 +424,40 @@ def _flight_line_sun(path: Path, logs: dict, flight_line: str | None) -> dict:
     if flight_line not in complete:
         raise SensorInputError(f"{path}: no sun angles of flight line {flight_line!r} in Metadata/Logs "
                                f"(found: {', '.join(sorted(complete))})")
+    bad = {name: value for name, value in complete[flight_line].items() if not math.isfinite(value)}
+    if bad:  # a constant layer: every pixel would be nodata
+        shown = ", ".join(f"{name} {value}" for name, value in bad.items())
+        raise SensorInputError(f"{path}: Metadata/Logs/{flight_line}: {shown}; the sun angles must be "
+                               "finite numbers [deg]")
     return {**complete[flight_line], "line": flight_line}
+
+
+#: Samples per axis of the view rasters read to tell degrees from radians (:func:`_check_degrees`).
+_SAMPLES = 256
+
+
+def _check_degrees(path: Path, info: dict) -> None:
+    """Refuse view rasters in radians: ``to-sensor_Zenith_Angle`` below pi/2 and
+    ``to-sensor_Azimuth_Angle`` below 2 pi everywhere (NEON stores degrees; its spectrometer sees
+    up to about 17 deg off nadir on either side of the line, so degrees are never all that small).
+    Read on a sparse regular sample of at most :data:`_SAMPLES` x :data:`_SAMPLES` pixels, after
+    their shapes are checked against the cube's. (The sun angles of the logs are single numbers:
+    too few to tell their unit by.)"""
+    h5py = require_hdf5(path)
+    highest = {}
+    steps = [max(1, size // _SAMPLES) for size in info["shape"][:2]]
+    with h5py.File(path, "r") as h5file:
+        metadata = h5file[f"{info['site']}/Reflectance/Metadata"]
+        for name in ("to-sensor_Zenith_Angle", "to-sensor_Azimuth_Angle"):
+            if metadata[name].shape != info["shape"][:2]:
+                raise SensorInputError(f"{path}: {name} is {metadata[name].shape}, the reflectance {info['shape'][:2]}")
+            values = np.asarray(metadata[name][::steps[0], ::steps[1]], dtype=float)
+            ignore = info["angle_ignore"].get(name)
+            values = values[np.isfinite(values) & ((values != ignore) if ignore is not None else True)]
+            if values.size == 0:
+                return  # nothing to judge here: the angle check names a layer without values
+            highest[name] = float(values.max())
+    if highest["to-sensor_Zenith_Angle"] < 1.6 and highest["to-sensor_Azimuth_Angle"] < 6.3:
+        found = ", ".join(f"{name} up to {value:.3g}" for name, value in highest.items())
+        raise SensorInputError(f"{path}: the view angle rasters look like radians ({found}); brdfcorr needs "
+                               "degrees, as NEON stores them")

@@ -1,0 +1,264 @@
+"""Committing the outputs of a writing pass (:func:`brdfcorr.io.writer.write_rasters`): each output
+once, after it was verified.
+
+GDAL reports a tile it could not write, or a TIFF directory it could not rewrite at close, as a
+logged error and rasterio raises nothing for it (a full disk gave files that read as NaN, with
+exit 0). :class:`GdalFailures` collects those errors while outputs are written; :func:`verify`
+reopens each temporary file and checks what a full disk or a file size limit breaks;
+:meth:`Target.commit` renames the temporaries into place, the data file last. :func:`write_cause`
+(:mod:`brdfcorr.io.files`) names the cause: the file size limit, a full device, GDAL's message.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import functools
+import logging
+import os
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import rasterio
+import rasterio.enums
+import xarray as xr
+from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
+
+from brdfcorr.errors import BrdfcorrError, InputError, OutputError
+from brdfcorr.io.files import write_cause
+
+__all__ = ["GdalFailures", "Target", "verify", "io_failure", "write_error", "written_files"]
+
+
+def io_failure(error: Exception, targets: list, messages: list[str], written: list[Path]) -> BrdfcorrError:
+    """A failed read or write as one message: what failed, and why (the OS or GDAL reason; the file
+    size limit or a full disk where ``written``, the temporary files, show it: :func:`write_cause`)."""
+    reasons = []
+    cause = error
+    while cause is not None:  # rasterio's "Write failed. See previous exception" names GDAL's cause
+        if isinstance(cause, OSError) and cause.strerror:
+            reasons.append(f"{cause.strerror}" + (f": {cause.filename}" if cause.filename else ""))
+        elif str(cause):
+            reasons.append(str(cause))
+        cause = cause.__cause__ or cause.__context__
+    reasons = [r for r in dict.fromkeys(messages[-1:] + reasons) if "See previous exception" not in r]
+    reason = "; ".join(reasons[:2]) or type(error).__name__
+    if "Read failed" in str(error) or "IReadBlock" in reason:
+        return InputError(f"reading an input failed while writing {', '.join(map(str, targets))}: {reason}")
+    return write_error(targets, write_cause(error if isinstance(error, OSError) else None, written, reason))
+
+
+def write_error(targets: list, cause: str) -> OutputError:
+    """One :class:`OutputError` for failed outputs: the targets, the cause and what to check."""
+    folders = ", ".join(dict.fromkeys(str(Path(target).parent) for target in targets))
+    if cause.startswith(_OUT_OF_MEMORY):  # a tile too large for memory (--chunk), not the disk
+        hint = "nothing was written (a smaller tile size, --chunk, needs less memory)"
+    else:
+        hint = f"nothing was written (check the free space, file size limit and permissions of {folders})"
+    return OutputError(f"cannot write {', '.join(map(str, targets))}: {cause}; {hint}")
+
+
+_OUT_OF_MEMORY = "GDAL could not allocate memory"
+_CPLE_OUT_OF_MEMORY = 2  # GDAL's error number of a failed allocation
+
+
+class GdalFailures(logging.Handler):
+    """GDAL's failures (``CE_Failure``: a tile or line that was not written, a directory that could
+    not be rewritten) while outputs are written and closed. rasterio logs them at INFO level and
+    raises nothing for a failed flush or close, so they are collected here (the loggers' level is
+    lowered while any write is active) and the write fails if there is one. libtiff's own printing
+    of its errors is switched off (:func:`_quiet_libtiff`): nothing reaches stderr."""
+
+    _active = 0
+    _saved: dict[str, tuple[int, bool, int]] = {}  # name: (level, propagate, effective level before)
+    _guard = threading.Lock()
+    _NAMES = ("rasterio._env", "rasterio._err")
+
+    def __init__(self, thread: int | None = None):
+        super().__init__(logging.INFO)
+        self.failures: list[tuple[int, str]] = []
+        self.thread = thread  # only this thread's (a cluster's workers write; scenes run side by side here)
+
+    def emit(self, record: logging.LogRecord) -> None:
+        args = record.args if isinstance(record.args, tuple) else ()
+        if self.thread is not None and record.thread != self.thread:
+            return
+        if record.levelno >= logging.INFO and "err_no" in str(record.msg) and len(args) == 2:
+            failure = (int(args[0]), str(args[1]).strip())
+            if failure not in self.failures:
+                self.failures.append(failure)
+
+    def __enter__(self):
+        _quiet_libtiff()
+        with self._guard:
+            if GdalFailures._active == 0:
+                for name in self._NAMES:
+                    logger = logging.getLogger(name)
+                    GdalFailures._saved[name] = (logger.level, logger.propagate, logger.getEffectiveLevel())
+                    # INFO records reach the handlers here; the caller's handlers get what they got before.
+                    logger.setLevel(logging.INFO)
+                    logger.propagate = False
+                    logger.addHandler(_forward)
+            GdalFailures._active += 1
+            for name in self._NAMES:
+                logging.getLogger(name).addHandler(self)
+        return self
+
+    def __exit__(self, *exc):
+        with self._guard:
+            for name in self._NAMES:
+                logging.getLogger(name).removeHandler(self)
+            GdalFailures._active -= 1
+            if GdalFailures._active == 0:
+                for name, (level, propagate, _) in GdalFailures._saved.items():
+                    logger = logging.getLogger(name)
+                    logger.removeHandler(_forward)
+                    logger.setLevel(level)
+                    logger.propagate = propagate
+        return False
+
+    def cause(self) -> str:
+        """GDAL's last failure in words ("" if none)."""
+        if not self.failures:
+            return ""
+        number, message = self.failures[-1]
+        return f"{_OUT_OF_MEMORY}: {message}" if number == _CPLE_OUT_OF_MEMORY else f"GDAL: {message}"
+
+
+class _Forward(logging.Handler):
+    """While :class:`GdalFailures` lowers the level of rasterio's error loggers, passes on to their
+    parents the records the caller's logging would have had (at or above the level before)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        level, propagate, effective = GdalFailures._saved.get(record.name, (0, True, logging.NOTSET))
+        if propagate and record.levelno >= effective:
+            logger = logging.getLogger(record.name).parent
+            if logger is not None:
+                logger.handle(record)
+
+
+_forward = _Forward()
+
+
+@functools.cache
+def _quiet_libtiff() -> None:
+    """Switch off libtiff's printing of errors and warnings to stderr (its default handlers).
+
+    GDAL reads libtiff's messages through per-file handlers and passes them on as GDAL errors
+    (collected by :class:`GdalFailures`); a few, such as ``_tiffWriteProc: No space left on
+    device``, go only to libtiff's process-wide handlers, which print them. The libtiff that GDAL
+    uses is the one mapped into this process (Linux: ``/proc/self/maps``); elsewhere nothing changes.
+    """
+    try:
+        with open("/proc/self/maps") as maps:
+            found = {line.split()[-1] for line in maps if "/libtiff" in line and ".so" in line}
+        for path in found:
+            library = ctypes.CDLL(path)
+            for name in ("TIFFSetErrorHandler", "TIFFSetWarningHandler"):
+                function = getattr(library, name)
+                function.restype, function.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
+                function(None)
+    except (OSError, AttributeError):  # no /proc, or a libtiff without these functions
+        pass
+
+
+@dataclass
+class Target:
+    """One output of a writing pass: its final path, the temporary file GDAL writes (``written``:
+    the data file, or the GeoTIFF a COG is copied from), the temporary renamed onto ``final``, and
+    the temporary sidecars (ENVI header, ``.aux.xml``) with their final names."""
+
+    final: Path
+    array: xr.DataArray
+    layout: object | None
+    temporary: Path
+    written: Path
+    sidecars: list[tuple[Path, Path]]
+
+    def files(self) -> list[Path]:
+        """Every temporary file of this output."""
+        return list(dict.fromkeys([self.temporary, self.written, *(written for written, _ in self.sidecars)]))
+
+    def kept(self) -> list[Path]:
+        """The temporary files renamed into place (not a COG's intermediate GeoTIFF)."""
+        return [self.temporary, *(written for written, _ in self.sidecars)]
+
+    def discard(self) -> None:
+        for path in self.files():
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(path)
+
+    def commit(self) -> None:
+        """Rename the temporaries into place, the data file last: an ENVI output's old data file is
+        removed first, so a process killed in between leaves no data file beside new sidecars (a
+        resumed chain redoes it); a stale ``.aux.xml`` of an earlier output is removed."""
+        if self.layout is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.final)
+        for written, final in self.sidecars:
+            if written.exists():
+                os.replace(written, final)
+            else:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(final)
+        if self.layout is None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(f"{self.final}.aux.xml")
+        os.replace(self.temporary, self.final)
+        if self.written != self.temporary:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.written)
+
+
+
+def written_files(targets: list[Target]) -> list[Path]:
+    return [path for target in targets for path in target.files()]
+
+
+
+def verify(target: Target, tags: Mapping[str, str], written: list[Path]) -> None:
+    """Reopen a written temporary output and check what a full disk or a file size limit breaks:
+    the file opens, has the array's size and bands and the tags written, every tile of a GeoTIFF
+    lies within the file, an ENVI data file has its full length. Raises :class:`OutputError`."""
+    path, array = target.temporary, target.array
+    try:
+        with rasterio.open(path) as dataset:
+            problem = _mismatch(dataset, array, tags)
+            if problem is None and dataset.driver in ("GTiff", "COG"):
+                problem = _missing_tile(dataset, os.path.getsize(path))
+    except (rasterio.errors.RasterioError, CPLE_BaseError) as error:
+        problem = f"the file written does not read back ({error})"
+    if problem is not None:
+        cause = write_cause(None, written, "")
+        raise write_error([target.final], f"{cause} ({problem})" if cause != "unknown reason" else problem)
+
+
+def _mismatch(dataset, array: xr.DataArray, tags: Mapping[str, str]) -> str | None:
+    bands = array.shape[0] if array.ndim == 3 else 1
+    if (dataset.count, dataset.height, dataset.width) != (bands, *array.shape[-2:]):
+        return f"it reads back as {dataset.count} x {dataset.height} x {dataset.width}, not {array.shape}"
+    if dataset.driver == "ENVI":
+        expected = dataset.count * dataset.height * dataset.width * np.dtype(dataset.dtypes[0]).itemsize
+        size = os.path.getsize(dataset.name)
+        if size < expected:
+            return f"its data file holds {size} of {expected} bytes"
+    found = dataset.tags()
+    lost = [key for key, value in tags.items() if found.get(key) != str(value)]
+    return f"its tags {', '.join(lost[:3])} did not read back" if lost else None
+
+
+def _missing_tile(dataset, size: int) -> str | None:
+    """A GeoTIFF tile that was never written (offset or byte count 0) or lies beyond the file's end."""
+    bands = [1] if dataset.interleaving == rasterio.enums.Interleaving.pixel else list(dataset.indexes)
+    for band in bands:
+        for (row, column), _ in dataset.block_windows(band):
+            offset = dataset.get_tag_item(f"BLOCK_OFFSET_{column}_{row}", "TIFF", bidx=band)
+            count = dataset.get_tag_item(f"BLOCK_SIZE_{column}_{row}", "TIFF", bidx=band)
+            if not offset or not count or int(offset) == 0 or int(count) == 0:
+                return f"tile ({row}, {column}) of band {band} was not written"
+            if int(offset) + int(count) > size:
+                return f"tile ({row}, {column}) of band {band} ends beyond the file's {size} bytes"
+    return None

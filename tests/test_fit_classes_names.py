@@ -1,0 +1,103 @@
+"""`fit-classes` as a scientist expects it (issue 29, "Names and defaults"): one option spelling
+(`--class-name`, the old `--name` a hidden alias that warns), a kernel-driven default model and the
+class names of an NDVI strata map (its tags say what it is), the condition-number guard rail as
+an option, and `brdfcorr models` within 100 columns."""
+
+import re
+
+import pytest
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.params import ParameterTable
+from brdfcorr.testing import synthetic_scene, write_scene
+from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
+
+#: Soil (flat spectrum, NDVI about 0.06) and grass (NDVI 0.6) [sr^-1]: strata with edge 0.3 split them.
+TRUTH = ParameterTable(classes=[
+    {"id": 1, "name": "soil", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
+     "params": {"f_iso": [0.06, 0.07, 0.08, 0.09], "f_vol": 0.01, "f_geo": 0.012}},
+    {"id": 2, "name": "grass", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
+     "params": {"f_iso": [0.02, 0.04, 0.03, 0.12], "f_vol": [0.01, 0.02, 0.01, 0.06], "f_geo": 0.004}},
+])
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("names")
+    paths = write_scene(root, synthetic_scene(ny=48, nx=64, wavelengths=(480.0, 560.0, 660.0, 830.0), table=TRUTH))
+    ndvi_class_file(paths["image"], root / "strata.tif", bins=NdviBins(edges=(0.3,)))
+    return {**paths, "strata": root / "strata.tif", "root": root}
+
+
+def _fit(files, classes, *options, output="table.yaml"):
+    result = CliRunner().invoke(main, [
+        "fit-classes", str(files["image"]), "--angles", str(files["angles"]), "--classes", str(classes),
+        "--min-samples", "50", "-o", str(files["root"] / output), *map(str, options)])
+    return result, files["root"] / output
+
+
+def test_a_strata_map_gets_a_kernel_model_and_its_own_class_names_and_says_so(files):
+    result, output = _fit(files, files["strata"])
+    assert result.exit_code == 0, result.output
+    table = ParameterTable.load(output)
+    assert {entry.model for entry in table.classes} == {"ross_thick_li_sparse"}
+    # The names `classes ndvi` wrote in the map's class_names tag, not class_1, class_2.
+    assert [entry.name for entry in table.classes] == ["ndvi_-inf_0.30", "ndvi_0.30_inf"]
+    assert "model ross_thick_li_sparse for every class: the class map is NDVI strata" in result.output
+    assert "class names from the class map's tags: 1=ndvi_-inf_0.30, 2=ndvi_0.30_inf" in result.output
+
+
+def test_explicit_model_and_class_name_win_over_the_map(files):
+    result, output = _fit(files, files["strata"], "--model", "ross_thin_li_sparse", "--class-name", "2=grass",
+                          output="explicit.yaml")
+    assert result.exit_code == 0, result.output
+    table = ParameterTable.load(output)
+    assert {entry.model for entry in table.classes} == {"ross_thin_li_sparse"}
+    assert (table[1].name, table[2].name) == ("ndvi_-inf_0.30", "grass")
+    assert "for every class: the class map is NDVI strata" not in result.output
+    assert result.stderr == ""
+
+
+def test_a_plain_class_map_keeps_the_torrance_sparrow_default(files):
+    from brdfcorr.fit.classes import ClassModels, GuardRails
+    from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
+
+    fit = fit_class_files([SceneFiles(files["image"], files["classes"], files["angles"])], ClassModels(None),
+                          guard=GuardRails(min_samples=50))
+    assert {class_fit.model for class_fit in fit.result.fits} == {"torrance_sparrow"}
+    assert [class_fit.name for class_fit in fit.result.fits] == ["class_1", "class_2"]  # no names in its tags
+    assert fit.notes == []
+
+
+def test_the_old_name_option_still_works_hidden_and_warns(files):
+    result, output = _fit(files, files["strata"], "--name", "1=soil", output="old.yaml")
+    assert result.exit_code == 0, result.output
+    assert ParameterTable.load(output)[1].name == "soil"
+    assert result.stderr.splitlines()[0] == "brdfcorr: warning: --name is deprecated; use --class-name ID=NAME"
+    for command in (["fit-classes"], ["fit"], ["assess"]):
+        text = CliRunner().invoke(main, [*command, "--help"]).output
+        assert not re.search(r"(?<![\w-])--name\b", text), command
+        assert "--class-name" in text, command
+
+
+def test_the_condition_limit_is_an_option(files):
+    strict, output = _fit(files, files["strata"], "--max-condition", "1", output="strict.yaml")
+    # A condition number is >= 1 and the kernels' columns are not orthogonal: every class fails.
+    assert strict.exit_code == 2 and not output.exists()
+    assert "ill-conditioned (condition" in strict.output and "> 1)" in strict.output
+    assert "--max-condition" in CliRunner().invoke(main, ["fit-classes", "--help"]).output
+
+
+def test_models_fits_100_columns_and_details_one_model():
+    listing = CliRunner().invoke(main, ["models"])
+    assert listing.exit_code == 0
+    lines = listing.output.splitlines()
+    assert max(map(len, lines)) <= 100 and not any(line != line.rstrip() for line in lines)
+    assert any(line.startswith("ross_thick_li_sparse  ") for line in lines)
+    one = CliRunner().invoke(main, ["models", "ross_thick_li_sparse"])
+    assert one.exit_code == 0
+    assert "Lucht, Schaaf & Strahler (2000)" in one.output and "volume-scattering weight" in one.output
+    assert max(map(len, one.output.splitlines())) <= 100
+    unknown = CliRunner().invoke(main, ["models", "lambert"])
+    assert unknown.exit_code == 2 and "unknown BRDF model 'lambert'" in unknown.output
