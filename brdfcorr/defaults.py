@@ -31,7 +31,7 @@ def chunk_size_problem(value: object) -> str | None:
 
 #: Names of the registered BRDF models, in :data:`brdfcorr.models.REGISTRY`'s order: for the
 #: command line's ``--model`` choices and messages without importing the models (scipy).
-#: tests/test_registry.py keeps them equal to the registry.
+#: tests/models/test_registry.py keeps them equal to the registry.
 MODEL_NAMES: tuple[str, ...] = (
     "torrance_sparrow",
     "torrance_sparrow_simplified",

@@ -43,7 +43,7 @@ def no_compute():
 
 
 # ------------------------------------------------------------------- chains of synthetic scenes
-# make_scenes, write_chain, expected, read: chain runs of tests/test_pipeline.py and the tests that
+# make_scenes, write_chain, expected, read: chain runs of tests/workflow/test_pipeline.py and the tests that
 # run a chain of their own (band names, distributed, ENVI output, output guard).
 
 REFERENCE = {"sza": 35.0, "vza": 0.0, "raa": 0.0}
@@ -125,7 +125,7 @@ def read():
 
 
 # ------------------------------------------------------------------- overlapping flight lines
-# make_lines, make_cube, shifted: the assessment tests (tests/test_assess.py, tests/test_cli_assess_lines.py).
+# make_lines, make_cube, shifted: the assessment tests (tests/analysis/test_assess.py, tests/cli/test_cli_assess_lines.py).
 
 def _cube(*bands):
     return georeference(xr.DataArray(np.stack(bands).astype(np.float64), dims=("band", "y", "x"),
@@ -189,7 +189,7 @@ def make_lines():
 
 
 # ------------------------------------------------------------------- scaled integer images
-# store, nodata_pixels: tests/test_scaled_inputs.py and tests/test_output_type.py.
+# store, nodata_pixels: tests/io/test_scaled_inputs.py and tests/io/test_output_type.py.
 
 NODATA_PIXELS = (slice(None), 0, slice(0, 5))  # written as nodata in every stored image
 

@@ -153,7 +153,7 @@ def shadowing_impact(
     only near the forward principal plane (0 for phi >= 170 deg; the forward half phi >= 90 deg
     still gives 10.9 %, all azimuths 16.1 %). The 14 % is the model's value at (0, 65, 180) (13.7 %),
     not its maximum for zeniths <= 65 deg: 19.2 % over phi >= 90 deg, 24.4 % over all azimuths.
-    See ``tests/test_analysis.py`` for the comparison.
+    See ``tests/analysis/test_analysis.py`` for the comparison.
     """
     model = get_model("torrance_sparrow")
     t0, t1, w, n, k = model.validate(params).values()

@@ -166,7 +166,7 @@ def handle_errors(command):
 
 #: Command -> (module defining it, its one-line help). A command's module is imported only when the
 #: command runs, so `brdfcorr --help` and each command pay only for what they use (matplotlib,
-#: scipy.optimize and rasterio load in seconds). tests/test_cli_basic.py checks this table against
+#: scipy.optimize and rasterio load in seconds). tests/cli/test_cli_basic.py checks this table against
 #: the commands themselves.
 LAZY_COMMANDS: dict[str, tuple[str, str]] = {
     "analyze": (

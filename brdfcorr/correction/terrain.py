@@ -4,7 +4,7 @@ Conventions (``docs/conventions.md``, "Tilted surfaces"): all angles in degrees.
 angle between the surface normal and the vertical, in [0, 90]; ``aspect`` is the azimuth, clockwise
 from north, of the direction the surface faces (its downslope direction, the horizontal part of its
 normal), the convention documented for the AVIRIS-NG/-3 ``obs_ort`` "Slope" and "Aspect" bands.
-What was checked against real files (``docs/terrain.md``, ``tests/test_terrain.py``): the
+What was checked against real files (``docs/terrain.md``, ``tests/correction/test_terrain.py``): the
 "Cosine(i)" band of ang20170323t202244 equals :func:`cos_incidence` to 2.2e-16, but its Slope and
 Aspect are placeholders (90 deg, 0 deg) that cannot tell an aspect from its mirror; on the
 topoflux line the band matches no aspect convention (the file is inconsistent in itself). In the

@@ -11,7 +11,7 @@ function (Rahman et al. write ``-2 Theta cos(pi - g)``, the same), Theta < 0 mak
 scattering dominate and Theta > 0 forward scattering.
 
 The RAMI-IV benchmark's RPV tables [3]_ measure the relative azimuth the other way round
-(their 180 is brdfcorr's 0); ``tests/test_kernels.py`` reproduces them with that conversion.
+(their 180 is brdfcorr's 0); ``tests/models/test_kernels.py`` reproduces them with that conversion.
 
 References
 ----------

@@ -65,7 +65,7 @@ class Terrain:
         the illumination's cos i into account itself only with ``"cosine"`` (or ``"none"``) before
         it; the empirical C of ``"c"``/``"scs+c"`` absorbs part of the BRDF's slope dependence, so
         those go with ``"horizontal"`` (combining them corrects the illumination twice, 15 % off
-        between the sides of a synthetic hill in ``tests/test_terrain.py``).
+        between the sides of a synthetic hill in ``tests/correction/test_terrain.py``).
     """
 
     slope_aspect: str | os.PathLike | None = None

@@ -25,7 +25,7 @@ from brdfcorr.workflow.demo import demo_scene
 pytest.importorskip("h5py")
 pytest.importorskip("h5netcdf")
 
-ROOT = Path(__file__).parents[1]
+ROOT = Path(__file__).parents[2]
 SECTIONS = ("AVIRIS-NG and AVIRIS-3 (ENVI)", "NEON AOP (HDF5)", "EMIT (NetCDF)")
 
 

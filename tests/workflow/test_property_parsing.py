@@ -8,7 +8,7 @@ added) and any text, the parsers raise nothing but ``BrdfcorrError``; what they 
 table or config (re-validating its own dump gives the same object).
 
 The model properties the issue lists (finite, non-negative, reciprocal, 0 <= G <= 1) are in
-``tests/test_models.py`` (``test_g_bounded_and_reciprocal``, ``test_ts_finite_nonnegative_reciprocal``,
+``tests/models/test_models.py`` (``test_g_bounded_and_reciprocal``, ``test_ts_finite_nonnegative_reciprocal``,
 ``test_empirical_finite_nonnegative_reciprocal``, ``test_fresnel_is_a_reflectance``); only
 ``specular_peak`` (paper 000, eq. 3), checked there at fixed points, gets its property test here.
 """
@@ -31,7 +31,7 @@ from brdfcorr.params import ParameterTable
 from brdfcorr.workflow.chain import plan_run
 from brdfcorr.workflow.config import ChainConfig, apply_overrides, load_config
 
-# More examples for a long search: BRDFCORR_PROPERTY_EXAMPLES=5000 pytest tests/test_property_parsing.py
+# More examples for a long search: BRDFCORR_PROPERTY_EXAMPLES=5000 pytest tests/workflow/test_property_parsing.py
 PROPERTY = settings(max_examples=int(os.environ.get("BRDFCORR_PROPERTY_EXAMPLES", 150)), deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])
 

@@ -17,7 +17,7 @@ from brdfcorr.geometry import facet_inclination, local_incidence, relative_azimu
 from brdfcorr.io.sensors import read_angles
 from brdfcorr.io.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
 
-REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+REALDATA = Path(__file__).parents[4] / "shared" / "realdata"
 pytestmark = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")
 
 TOPOFLUX = REALDATA / "isofit_avirisng_topoflux"

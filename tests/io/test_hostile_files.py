@@ -512,7 +512,7 @@ def test_fifo_as_another_input(scene, command, pattern):
 
 
 def test_escape_beyond_unicode_is_a_yaml_error():
-    # Found by hypothesis in tests/test_property_parsing.py: libyaml refuses "\U00110000" and the
+    # Found by hypothesis in tests/workflow/test_property_parsing.py: libyaml refuses "\U00110000" and the
     # re-scan for PyYAML's message raised ValueError from chr() (an internal error).
     from brdfcorr.errors import ParameterError
     from brdfcorr.io.files import parse_yaml

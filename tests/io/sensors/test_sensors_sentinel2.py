@@ -16,7 +16,7 @@ from brdfcorr.geometry import relative_azimuth
 from brdfcorr.io.sensors import grid_template, read_angles
 from brdfcorr.io.sensors.sentinel2 import combine_detectors, fill_gaps, parse_mtd_tl, read_sentinel2_angles
 
-REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+REALDATA = Path(__file__).parents[4] / "shared" / "realdata"
 MTD = REALDATA / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml"
 needs_realdata = pytest.mark.skipif(not MTD.is_file(), reason=f"real Sentinel-2 metadata not found at {MTD}")
 

@@ -78,4 +78,4 @@ def test_sigint_during_a_write_exits_130_and_leaves_no_partial_file(tmp_path):
 
 
 def test_readme_lists_the_interrupt_exit_code():
-    assert "| 130 | interrupted" in (Path(__file__).parents[1] / "README.md").read_text()
+    assert "| 130 | interrupted" in (Path(__file__).parents[2] / "README.md").read_text()

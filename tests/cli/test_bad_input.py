@@ -122,7 +122,7 @@ CORRECT_CASES = {
     "classes missing": (lambda s: _correct_args(s, **{"--classes": s["dir"] / "nope_classes.tif"}),
                         r"class map file \S*nope_classes\.tif does not exist"),
     # --- angle rasters
-    # 3 bands are sza, vza, raa (MODIS/VIIRS, tests/test_relative_azimuth.py): 2 are no angle raster.
+    # 3 bands are sza, vza, raa (MODIS/VIIRS, tests/io/test_relative_azimuth.py): 2 are no angle raster.
     "angles with 2 bands": (
         lambda s: _correct_args(s, **{"--angles": _derived(s, "angles", "angles2.tif", lambda d: d[:2])}),
         r"angle file \S*angles2\.tif has 2 bands; it needs 4 \(sza, saa, vza, vaa\) or 3 \(sza, vza, raa\)"),

@@ -18,7 +18,7 @@ from brdfcorr.models import torrance_sparrow
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 
-REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
 LINE = REALDATA / "isofit_avirisng_topoflux"
 IMAGE = LINE / "ang20160910t185702_2rdn_img"
 OBS = LINE / "ang20160910t185702_obs_ortdem_mod"

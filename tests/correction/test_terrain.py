@@ -24,7 +24,7 @@ from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, georeference, synthetic_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
-REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")
 
 

@@ -18,7 +18,7 @@ from brdfcorr.io.sensors.envi import acquisition_time, read_envi_image, read_env
 from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl
 from brdfcorr.io.sensors.solar import solar_angles, solar_position
 
-REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+REALDATA = Path(__file__).parents[4] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")
 
 TOPOFLUX = REALDATA / "isofit_avirisng_topoflux"

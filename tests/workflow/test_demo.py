@@ -14,7 +14,7 @@ from brdfcorr.workflow.chain import build_table, plan_run
 from brdfcorr.workflow.config import load_config
 from brdfcorr.workflow.demo import DEMO_TIME, demo_angles, demo_scene, demo_table, run_demo
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_view_geometry_closed_form():

@@ -91,7 +91,7 @@ def test_chunks_of_the_issue_cubes():
     assert choose_chunk(hyper) == 64
     assert cache_bytes(hyper, 64) == 256 * 800 * 425 * 4
     # The small tiles of brdfcorr.testing.write_scene (16) ask nothing: the band-count rule (100
-    # bands: 128, as tests/test_pipeline.py expects of correct and of chains).
+    # bands: 128, as tests/workflow/test_pipeline.py expects of correct and of chains).
     assert choose_chunk(Layout(100, 160, 160, 16, 16)) == 128
 
 
