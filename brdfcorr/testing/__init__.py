@@ -22,34 +22,12 @@ import xarray as xr
 
 from brdfcorr.geometry import relative_azimuth
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing.products import (
-    observation_layers,
-    swath_glt,
-    write_emit_granules,
-    write_envi_line,
-    write_landsat_c2,
-    write_mtd_tl,
-    write_neon_reflectance,
-    write_sentinel2_safe,
-)
+from brdfcorr.testing import products
+from brdfcorr.testing.products import *  # noqa: F403 (the product writers, re-exported)
 
 __all__ = [
-    "example_table",
-    "file_digests",
-    "synthetic_angles",
-    "synthetic_classes",
-    "render",
-    "synthetic_scene",
-    "write_scene",
-    "georeference",
-    "write_mtd_tl",
-    "write_sentinel2_safe",
-    "write_landsat_c2",
-    "observation_layers",
-    "write_envi_line",
-    "write_neon_reflectance",
-    "swath_glt",
-    "write_emit_granules",
+    "example_table", "file_digests", "synthetic_angles", "synthetic_classes", "render", "synthetic_scene",
+    "write_scene", "georeference", *products.__all__,
 ]
 
 #: Grid used by the helpers: 10 m pixels of UTM zone 32N.
