@@ -19,6 +19,7 @@ from matplotlib.figure import Figure
 
 from brdfcorr.errors import InputError
 from brdfcorr.io.files import atomic_path
+from brdfcorr.plot._display import display_name
 
 if TYPE_CHECKING:  # the workflow's result type, for annotations only (plot sits below workflow)
     from brdfcorr.workflow.assessment import Assessment
@@ -71,7 +72,7 @@ def profile_figure(view: xr.Dataset, *, band: int | None = None, title: str = ""
     x_bands = view["wavelength"].values if spectral else view["band"].values
     for index in range(view.sizes["class"]):
         one = view.isel({"class": index})
-        name = str(one["class_name"].values)
+        name = display_name(str(one["class_name"].values))
         for stage, style in (("before", "--"), ("after", "-")):
             values = one.sel(stage=stage)
             relative = values["profile"].isel(band=band).values / float(values["mean"].isel(band=band))

@@ -196,7 +196,7 @@ def test_figures_are_drawn_and_written(geometry, class_map, tmp_path, make_cube,
     assert left.get_xlabel() == "signed view zenith [deg]"
     assert "560 nm" in left.get_title()  # the default band: nearest 660 nm (|560 - 660| < |860 - 660|)
     labels = [text.get_text() for text in figure.legends[0].get_texts()]
-    assert "roof_tile before" in labels and "grass after" in labels
+    assert "roof tile before" in labels and "grass after" in labels  # names as people read them
     overlap = assess_overlap(before, after, shifted(before, 10), shifted(after, 10))
     assert overlap_figure(overlap).axes[0].get_xlabel().endswith("[reflectance, 1]")
     written = write_assessment_figures(Assessment({}, view, overlap), tmp_path / "figures")
