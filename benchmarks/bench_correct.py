@@ -8,7 +8,9 @@ Prints ratios against baselines measured in the same run, never absolute targets
 2. in memory, per band: ``normalize`` on a numpy cube versus the bare ``cube * factor``, for a
    table with band-independent parameters and for a per-wavelength (spectral) table;
 3. peak RSS of the end-to-end run at the given scene size and at 4x the pixels (twice the side),
-   each in a fresh subprocess; target: growth < 25 % and well under 1 GiB for a 1 GiB scene.
+   each in a fresh subprocess; target: growth < 25 % and well under 1 GiB for a 1 GiB scene;
+4. integer output: the scene stored as int16 (scale 1e-4) corrected to its own type
+   (``--output-type input``) versus to float32, same run; target <= 1.1 (issue 28).
 
 How the end-to-end time scales with the cores, against GDAL's own multithreaded copy, and one
 scene on a dask.distributed cluster: ``benchmarks/bench_scaling.py``.
@@ -17,6 +19,8 @@ Usage::
 
     python benchmarks/bench_correct.py --size 2048 --bands 64      # the 1 GiB scene of the issue
     python benchmarks/bench_correct.py --size 512 --bands 16       # a quick run
+    python benchmarks/bench_correct.py --size 2048 --bands 64 --repeat 2 --skip in-memory end-to-end memory
+                                                                   # integer output only
 """
 
 from __future__ import annotations
@@ -94,15 +98,47 @@ def plain_copy(source: Path, target: Path, chunk: int) -> None:
                     dst.write(src.read(window=window), window=window)
 
 
-def run_correct(paths: dict, output: Path, chunk: int | None) -> dict:
+def run_correct(paths: dict, output: Path, chunk: int | None, data_type: str = "float") -> dict:
     from brdfcorr.io.scene import SceneSources
     from brdfcorr.workflow.correction import correct_files
     from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
     return correct_files(CorrectionRequest(
-        SceneSources(paths["image"], paths["classes"], paths["angles"]), paths["params"], OutputFiles(output),
+        SceneSources(paths["image"], paths["classes"], paths["angles"]), paths["params"],
+        OutputFiles(output, data_type=data_type, overwrite=True),
         reference={"sza": "mean", "vza": 0, "raa": 0}, engine=Engine(chunks=chunk),
     ))
+
+
+def stored_as_int16(source: Path, target: Path, scale: float = 1e-4, nodata: int = -9999) -> Path:
+    """The float image as int16 counts (``round(value / scale)``, NaN as ``nodata``) with its GDAL
+    scale, written block by block."""
+    with rasterio.open(source) as src:
+        profile = {**src.profile, "dtype": "int16", "nodata": nodata, "predictor": 2}
+        with rasterio.open(target, "w", **profile) as dst:
+            for _, window in src.block_windows(1):
+                values = src.read(window=window)
+                dst.write(np.where(np.isfinite(values), np.round(values / scale), nodata).astype("int16"),
+                          window=window)
+            dst.descriptions, dst.scales = src.descriptions, (scale,) * src.count
+    return target
+
+
+def integer_output(directory: Path, size: int, bands: int, chunk: int, repeat: int) -> None:
+    """``--output-type input`` against the float output of the same int16 scene (issue 28: the
+    integers are encoded in the writing pass, so the correction is computed once)."""
+    from brdfcorr.io.rasters import auto_chunk
+
+    paths = make_scene(directory, size, bands)
+    paths["params"] = spectral_table_path(directory)
+    paths["image"] = stored_as_int16(paths["image"], directory / "image_int16.tif")
+    chunk = chunk or auto_chunk(paths["image"])
+    floats = integers = np.inf
+    for _ in range(repeat):  # interleaved, best of each: the machine is shared
+        floats = min(floats, timed(run_correct, paths, directory / "float.tif", chunk, "float"))
+        integers = min(integers, timed(run_correct, paths, directory / "int16.tif", chunk, "input"))
+    print(f"[integer output] {bands} bands x {size}^2 int16, chunk {chunk}: float32 output {floats:.2f} s, "
+          f"int16 output (--output-type input) {integers:.2f} s, ratio {integers / floats:.2f} (target <= 1.1)")
 
 
 def timed(function, *args, repeat: int = 1) -> float:
@@ -213,7 +249,8 @@ def main() -> None:
     parser.add_argument("--chunk", type=int, help="chunk and output tile size (default: brdfcorr's auto_chunk)")
     parser.add_argument("--memory-size", type=int, default=1024, help="side of the in-memory cube")
     parser.add_argument("--repeat", type=int, default=1)
-    parser.add_argument("--skip", nargs="*", default=(), choices=("end-to-end", "in-memory", "memory"))
+    parser.add_argument("--skip", nargs="*", default=(),
+                        choices=("end-to-end", "in-memory", "memory", "integer-output"))
     parser.add_argument("--dir", help="working directory (default: a temporary one)")
     parser.add_argument("--child-rss", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -228,6 +265,8 @@ def main() -> None:
             end_to_end(directory / "e2e", args.size, args.bands, args.chunk, args.repeat)
         if "memory" not in args.skip:
             memory(directory, args.size, args.bands, args.chunk)
+        if "integer-output" not in args.skip:
+            integer_output(directory / "integer", args.size, args.bands, args.chunk, args.repeat)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,8 @@
 Commands parse arguments, call library functions, print tables and map errors to exit codes
 (:data:`EXIT_CODES`): 2 for bad input or an output that cannot be written (any
 :class:`brdfcorr.errors.BrdfcorrError`, and click's usage errors), 1 for internal failures (any
-other exception), 3 when ``run`` finished but some scenes failed. An error is one line on stderr;
+other exception), 3 when ``run`` finished but some scenes failed, 130 when interrupted, 141 when
+the reader of the output went away (``brdfcorr models | head``). An error is one line on stderr;
 the global ``--debug`` option adds the traceback. One module per group of commands; a command's
 module is imported when the command is first used (:data:`~brdfcorr.cli._base.LAZY_COMMANDS`),
 which registers it on :data:`main`.
@@ -11,6 +12,7 @@ which registers it on :data:`main`.
 
 from brdfcorr.cli._base import (
     EXIT_BAD_INPUT,
+    EXIT_BROKEN_PIPE,
     EXIT_CODES,
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
@@ -21,4 +23,5 @@ from brdfcorr.cli._base import (
 
 __all__ = [
     "main", "handle_errors", "EXIT_CODES", "EXIT_BAD_INPUT", "EXIT_INTERNAL", "EXIT_SCENES_FAILED", "EXIT_INTERRUPTED",
+    "EXIT_BROKEN_PIPE",
 ]

@@ -12,6 +12,8 @@ from __future__ import annotations
 import contextlib
 import functools
 import importlib
+import os
+import select
 import sys
 import traceback
 import warnings
@@ -113,10 +115,14 @@ EXIT_INTERNAL = 1
 EXIT_SCENES_FAILED = 3
 #: Exit code after Ctrl-C (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
+#: Exit code when the reader of the output went away (``brdfcorr models | head``): 128 + SIGPIPE, as
+#: shells report a Unix tool that a closed pipe stopped.
+EXIT_BROKEN_PIPE = 141
 EXIT_CODES = {0: "success", EXIT_INTERNAL: "internal error (a bug; --debug shows the traceback)",
               EXIT_BAD_INPUT: "bad input, config, parameter or option, or an output that cannot be written",
               EXIT_SCENES_FAILED: "run: the run finished but some scenes failed (see the report)",
-              EXIT_INTERRUPTED: "interrupted (Ctrl-C); partial outputs are removed"}
+              EXIT_INTERRUPTED: "interrupted (Ctrl-C); partial outputs are removed",
+              EXIT_BROKEN_PIPE: "the reader of the output went away (a pipe closed early); stopped quietly"}
 
 
 def _debug_enabled() -> bool:
@@ -136,6 +142,38 @@ def _fail(error: Exception):
     hint = "" if _debug_enabled() else " (rerun with --debug for the traceback)"
     click.echo(f"brdfcorr: internal error: {type(error).__name__}: {text}{hint}", err=True)
     sys.exit(EXIT_INTERNAL)
+
+
+def _closed_streams() -> list:
+    """stdout and stderr where their reader went away: a pipe whose read end is closed polls as
+    an error (``POLLERR``), a closed socket as hung up."""
+    closed = []
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            poller = select.poll()
+            poller.register(stream.fileno(), 0)  # errors and hang-ups are always reported
+            if any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0)):
+                closed.append(stream)
+        except (AttributeError, OSError, ValueError):  # no file descriptor (a test runner), no poll (Windows)
+            continue
+    return closed
+
+
+def _stop_quietly(error: BrokenPipeError):
+    """Exit quietly with :data:`EXIT_BROKEN_PIPE` when stdout or stderr lost its reader
+    (``brdfcorr models | head``), as Unix tools stopped by SIGPIPE do: the closed streams are
+    pointed at the null device, so that Python's final flush does not fail again (Python docs,
+    ``signal``, "Note on SIGPIPE"). SIGPIPE itself stays ignored (Python's default), since its
+    default action would also kill the process when a socket, e.g. to a dask scheduler, closes.
+    Another broken pipe (not of our output) is a failure like any other (:func:`_fail`)."""
+    closed = _closed_streams()
+    if not closed:
+        _fail(error)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for stream in closed:
+        os.dup2(devnull, stream.fileno())
+    os.close(devnull)
+    sys.exit(EXIT_BROKEN_PIPE)
 
 
 def handle_errors(command):
@@ -158,6 +196,8 @@ def handle_errors(command):
             sys.exit(EXIT_INTERRUPTED)
         except (click.exceptions.ClickException, click.exceptions.Exit):
             raise
+        except BrokenPipeError as error:
+            _stop_quietly(error)
         except Exception as error:  # noqa: BLE001 (the one place every failure is turned into an exit code)
             _fail(error)
 

@@ -65,14 +65,16 @@ def _overrides(items: tuple[str, ...]) -> dict:
 
 class _chain_progress:
     """Context manager giving a ``progress(event, info)`` callback that drives an overall tqdm bar
-    over the scenes and, below it, a bar over the dask tasks of the scene being corrected (the
-    ``chunks`` events of the threads and synchronous engines), on a terminal or when asked."""
+    over the scenes and, below it, a bar over the dask tasks of the scene being processed, from
+    its first pass (the ``chunks`` events of the threads and synchronous engines: counts that grow
+    pass by pass), on a terminal or when asked."""
 
     def __init__(self, enabled, description: str):
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.description = description
         self.bar = None
         self.chunks = None
+        self.scene = None
 
     def __enter__(self):
         return self.callback
@@ -92,16 +94,20 @@ class _chain_progress:
             self.bar.update(1)
 
     def _chunks(self, info: dict) -> None:
-        if self.chunks is None or self.chunks.total != info["total"]:  # a scene's (next) pass
+        if self.chunks is None or self.scene != info["scene"]:  # the scene's first pass
             self._close_chunks()
+            self.scene = info["scene"]
             self.chunks = tqdm(total=info["total"], desc=info["scene"], unit="task", leave=False,
                                position=1, file=sys.stderr)
+        elif self.chunks.total != info["total"]:  # its next pass: more tasks
+            self.chunks.total = info["total"]
         self.chunks.update(info["done"] - self.chunks.n)
 
     def _close_chunks(self) -> None:
         if self.chunks is not None:
             self.chunks.close()
             self.chunks = None
+        self.scene = None
 
     def __exit__(self, *exc):
         self._close_chunks()

@@ -149,7 +149,8 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
 @click.option("--compress", default="deflate", show_default=True, help="GDAL compression.")
 @click.option("--cog", is_flag=True, help="Write Cloud-Optimized GeoTIFFs.")
 @click.option("--chunk", type=CHUNK_SIZE,
-              help="Chunk and tile size [pixels], a multiple of 16 [default: 512, less for many bands].")
+              help="Chunk and tile size [pixels], a multiple of 16 [default: the largest multiple of the "
+                   "image's tiles with at most 16 MiB of all bands as float32, else 512, 256, 128 or 64].")
 @click.option("--progress/--no-progress", default=None, help="Progress bar [default: on a terminal].")
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
 @click.option("--scheduler", metavar="ADDRESS", envvar="DASK_SCHEDULER_ADDRESS", show_envvar=True,

@@ -23,7 +23,7 @@ from brdfcorr.cli._base import (
 from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.files import atomic_path
-from brdfcorr.io.paths import check_outputs
+from brdfcorr.io.paths import check_outputs, refuse_existing, update_target
 
 # The library (scipy, dask, rasterio, matplotlib) is imported when a command runs, not when its
 # options are parsed: --help and argument errors answer at once. --model is checked against the
@@ -89,12 +89,13 @@ class _BandRange(click.ParamType):
               help="Fit report to write (JSON).")
 @click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Directory for one PNG per class (observed vs modelled against view zenith).")
+@click.option("--overwrite", is_flag=True, help="Replace an existing table (-o) and report [default: refuse].")
 @PROGRESS
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
                         scale, offset, min_samples, min_vza_spread, max_condition, bad_bands, fallback, output,
-                        report_path, plot_dir, progress):
+                        report_path, plot_dir, overwrite, progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
 
     The images' stored values are read as reflectance factors with their GDAL scale/offset, or
@@ -116,6 +117,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     read = [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
             *(("--angles", path) for path in angles if angles_kind != "solar"), ("--class-lookup", class_lookup)]
     check_outputs(written, read)
+    if not overwrite:  # before the fit: its work is not wasted on an output that would be refused
+        refuse_existing(written.values())
     if fallback:
         load_material(fallback)  # fail before the work if the name is wrong
     lookup = read_lookup(class_lookup) if class_lookup else None
@@ -208,16 +211,20 @@ def _write_json(target: Path, content: dict) -> None:
               help="Fit only this wavelength [nm] of a table with a wavelength column "
                    "[default: every wavelength, written as a spectral class].")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              help="Parameter table (YAML) to write, or to add the class to if it exists.")
+              help="Write the fit as a class of this parameter table (YAML; a new file, an existing table needs "
+                   "--overwrite).")
 @click.option("--class-id", type=int, help="Class id in the table [default: 1 more than the largest].")
 @click.option("--class-name", "class_name", help="Class name in the table [default: the CSV file's stem].")
+@click.option("--overwrite", is_flag=True,
+              help="Add the class to an existing table -o, or replace its class --class-id (rewritten: comments and "
+                   "layout are not kept; a symbolic link stays a link, the file it points to is rewritten).")
 @click.option("--name", "deprecated_name", hidden=True)  # brdfcorr <= 0.3; says so when used
 @click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write the principal-plane and azimuth figures (PNG) here.")
 @click.option("--log", "log_scale", is_flag=True, help="Logarithmic BRDF axes in the figures.")
 @handle_errors
 def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi, max_zenith,
-                wavelength, output, class_id, class_name, deprecated_name, plot_dir, log_scale):
+                wavelength, output, class_id, class_name, overwrite, deprecated_name, plot_dir, log_scale):
     """Fit a BRDF model to goniometer MEASUREMENTS (CSV: theta_i, theta_r, phi, brdf[, sigma,
     wavelength]).
 
@@ -227,8 +234,8 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     from brdfcorr.params import ParameterTable
     from brdfcorr.workflow.tasks import fit_measurement_file
 
-    check_outputs({"-o": output}, {"MEASUREMENTS": measurements})
-    table = ParameterTable.load(output) if output is not None and output.exists() else None
+    target = update_target(output, overwrite, inputs={"MEASUREMENTS": measurements}) if output is not None else None
+    table = ParameterTable.load(target) if target is not None and target.exists() else None
     fit = fit_measurement_file(
         measurements, model_name, fixed=_assignments("--fix", fix), initial=_assignments("--init", initial),
         bounds=_assignments("--bound", bounds, ranges=True), min_phi=min_phi, max_phi=max_phi,
@@ -250,7 +257,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
         if class_id is None:
             class_id = max(table.class_ids, default=0) + 1
         replaced = class_id in table
-        table.with_class(fit.table_entry(class_id, name)).save(output)
+        table.with_class(fit.table_entry(class_id, name)).save(target)
         click.echo(f"{'replaced' if replaced else 'wrote'} class {class_id} ({name}) in {output}")
 
 

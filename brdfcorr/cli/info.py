@@ -27,6 +27,12 @@ def material_names() -> tuple[str, ...]:
 #: Width [columns] of the text of ``brdfcorr models``.
 MODELS_WIDTH = 100
 
+#: The ``--overwrite`` option of the commands that add a class to a parameter table ``-o``.
+OVERWRITE_TABLE = click.option(
+    "--overwrite", is_flag=True,
+    help="Add the class to an existing table -o (rewritten: its comments and layout are not kept; a symbolic "
+         "link stays a link, the file it points to is rewritten).")
+
 
 @main.command("models")
 @click.argument("name", required=False)
@@ -65,9 +71,7 @@ def models_command(name):
               help="Write the material NAME as a class of this parameter table (a new file; an existing "
                    "table needs --overwrite).")
 @click.option("--class-id", type=int, help="Its class id [default: 1 more than the largest].")
-@click.option("--overwrite", is_flag=True,
-              help="Add the class to an existing table -o (rewritten: its comments and layout are not kept; "
-                   "a symbolic link stays a link, the file it points to is rewritten).")
+@OVERWRITE_TABLE
 @handle_errors
 def materials_command(name, output, class_id, overwrite):
     """List the built-in materials, or show one material's parameters with errors.
@@ -75,13 +79,14 @@ def materials_command(name, output, class_id, overwrite):
     With -o, the material becomes a class of a parameter table. The library's fits are at one
     wavelength (paper 003: 550 nm) and apply to every band of an image.
     """
+    from brdfcorr.io.paths import update_target
     from brdfcorr.models.materials import load_material
     from brdfcorr.params import ParameterTable
 
     if output is not None:
         if name is None:
             raise click.UsageError("-o needs a material NAME")
-        target = _table_output(output, overwrite)
+        target = update_target(output, overwrite)
         table = ParameterTable.load(target) if target.exists() else ParameterTable()
         class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
         material = load_material(name)
@@ -104,32 +109,15 @@ def materials_command(name, output, class_id, overwrite):
         click.echo("Vegetation and soil per Landsat and Sentinel-2 band (Roy et al. 2016, 2017): brdfcorr coefficients")
 
 
-def _table_output(output: Path, overwrite: bool) -> Path:
-    """Where ``materials -o`` writes: the output rules of every command (a regular file; an existing
-    one only with ``--overwrite``), and a symbolic link's target (the link stays a link; a link to
-    nothing is refused)."""
-    from brdfcorr.errors import OutputError
-    from brdfcorr.io.paths import check_outputs, refuse_existing
-
-    check_outputs({"-o": output})
-    if not overwrite:
-        refuse_existing([output])
-    if not output.is_symlink():
-        return output
-    try:
-        return output.resolve(strict=True)
-    except (OSError, RuntimeError):
-        raise OutputError(f"-o {output} is a symbolic link to no file; give the table's own path") from None
-
-
-
 @main.command("coefficients")
 @click.argument("name", required=False)
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              help="Add the coefficient set NAME as a class to this parameter table (created if absent).")
+              help="Write the coefficient set NAME as a class of this parameter table (a new file; an existing "
+                   "table needs --overwrite).")
 @click.option("--class-id", type=int, help="Its class id [default: 1 more than the largest].")
+@OVERWRITE_TABLE
 @handle_errors
-def coefficients_command(name, output, class_id):
+def coefficients_command(name, output, class_id, overwrite):
     """List the built-in BRDF coefficient sets, or show one set's weights per band.
 
     The sets are published global RTLSR weights (model ross_thick_li_sparse) for Landsat and
@@ -139,15 +127,17 @@ def coefficients_command(name, output, class_id):
     """
     import math
 
+    from brdfcorr.io.paths import update_target
     from brdfcorr.models.coefficients import coefficient_names, load_coefficients
     from brdfcorr.params import ParameterTable
 
     if output is not None:
         if name is None:
             raise click.UsageError("-o needs a coefficient set NAME")
-        table = ParameterTable.load(output) if output.exists() else ParameterTable()
+        target = update_target(output, overwrite)
+        table = ParameterTable.load(target) if target.exists() else ParameterTable()
         class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
-        table.with_class(load_coefficients(name).table_entry(class_id)).save(output)
+        table.with_class(load_coefficients(name).table_entry(class_id)).save(target)
         click.echo(f"wrote class {class_id} ({name}) to {output}")
         return
     if name is None:

@@ -42,6 +42,7 @@ __all__ = [
     "LocalAngles",
     "SlopeAspect",
     "check_slope_aspect",
+    "check_dem_slope",
     "cos_incidence",
     "local_angles",
     "slope_aspect",
@@ -339,16 +340,7 @@ def check_slope_aspect(surface: SlopeAspect, source: str, *, scheduler: str | No
     InputError
         ``{source}: ...`` with the ranges found.
     """
-    slope = surface.slope.data
-    aspect = surface.aspect.data
-    if isinstance(slope, da.Array) or isinstance(aspect, da.Array):
-        slope = da.asarray(slope)
-        aspect = da.asarray(aspect).rechunk(slope.chunks)
-        per_block = da.map_blocks(_surface_statistics, slope, aspect, new_axis=[2, 3], chunks=(1, 1, 2, 4),
-                                  dtype=np.float64).compute(scheduler=scheduler, num_workers=num_workers)
-    else:
-        per_block = _surface_statistics(np.asarray(slope), np.asarray(aspect))
-    per_block = per_block.reshape(-1, 2, 4)
+    per_block = _block_statistics(surface, scheduler, num_workers)
     finite, in_domain = per_block[..., 2].sum(axis=0), per_block[..., 3].sum(axis=0)
     for index, name in enumerate(("slope", "aspect")):
         if not finite[index]:
@@ -362,6 +354,51 @@ def check_slope_aspect(surface: SlopeAspect, source: str, *, scheduler: str | No
         if not in_domain[index]:
             raise InputError(f"{source}: no {name} value in {domain} deg (found {found}); are slope and aspect "
                              "scaled or in other units? (Every pixel would be nodata.)")
+
+
+def check_dem_slope(surface: SlopeAspect, dem: str, *, scheduler: str | None = None,
+                    num_workers: int | None = None) -> None:
+    """Check that slope and aspect computed from a DEM (:func:`slope_aspect`) leave something to
+    correct, in one pass over the DEM: at least one pixel with a finite slope.
+
+    A pixel's slope is NaN where its 3x3 neighbourhood holds nodata (NaN) or an infinite elevation
+    (Horn's differences, :func:`slope_aspect`), so a DEM of nodata only, or one whose valid pixels
+    are all isolated, has no slope anywhere and :func:`brdfcorr.normalize` would write every pixel
+    as nodata. Their units need no check (degrees by construction), unlike those of
+    :func:`check_slope_aspect`.
+
+    Parameters
+    ----------
+    surface : SlopeAspect
+        ``(slope, aspect)`` [deg] (y, x) of :func:`slope_aspect`, numpy or dask backed.
+    dem : str
+        The DEM, for messages (``"DEM file dem.tif"``).
+    scheduler, num_workers : optional
+        dask scheduler of the pass and its number of workers (as for :func:`dask.compute`).
+
+    Raises
+    ------
+    InputError
+        ``{dem}: no pixel has a slope ...``.
+    """
+    per_block = _block_statistics(surface, scheduler, num_workers)
+    if not per_block[:, 0, 2].sum():
+        raise InputError(f"{dem}: no pixel has a slope: every 3x3 neighbourhood holds nodata, NaN or inf (a DEM of "
+                         "nodata only?); nothing could be corrected")
+
+
+def _block_statistics(surface: SlopeAspect, scheduler: str | None, num_workers: int | None) -> np.ndarray:
+    """(blocks, 2, 4): :func:`_surface_statistics` of each block of slope and aspect, in one pass."""
+    slope = surface.slope.data
+    aspect = surface.aspect.data
+    if isinstance(slope, da.Array) or isinstance(aspect, da.Array):
+        slope = da.asarray(slope)
+        aspect = da.asarray(aspect).rechunk(slope.chunks)
+        per_block = da.map_blocks(_surface_statistics, slope, aspect, new_axis=[2, 3], chunks=(1, 1, 2, 4),
+                                  dtype=np.float64).compute(scheduler=scheduler, num_workers=num_workers)
+    else:
+        per_block = _surface_statistics(np.asarray(slope), np.asarray(aspect))
+    return np.asarray(per_block).reshape(-1, 2, 4)
 
 
 def _surface_statistics(slope: np.ndarray, aspect: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ from rasterio.enums import Resampling
 from brdfcorr.errors import InputError
 from brdfcorr.io.opening import opened
 
-__all__ = ["read_small", "band_count_and_transform"]
+__all__ = ["read_small", "raster_summary"]
 
 
 def read_small(path: str | os.PathLike, bands: Sequence[int], max_size: int, average: bool = True) -> np.ndarray:
@@ -43,8 +43,8 @@ def read_small(path: str | os.PathLike, bands: Sequence[int], max_size: int, ave
     return np.ma.filled(data.astype(np.float64), np.nan)
 
 
-def band_count_and_transform(path: str | os.PathLike) -> tuple[int, tuple[float, ...]]:
-    """A raster's band count and affine transform ``(a, b, c, d, e, f)`` (GDAL's geotransform order
-    rearranged as :class:`affine.Affine` has it)."""
+def raster_summary(path: str | os.PathLike) -> tuple[int, tuple[float, ...], dict[str, str]]:
+    """A raster's band count, affine transform ``(a, b, c, d, e, f)`` (as :class:`affine.Affine`
+    orders it) and dataset-level tags."""
     with opened(path, "image") as dataset:
-        return dataset.count, tuple(dataset.transform)[:6]
+        return dataset.count, tuple(dataset.transform)[:6], dataset.tags()

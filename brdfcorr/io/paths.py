@@ -31,8 +31,8 @@ from pathlib import Path
 
 from brdfcorr.errors import InputError, OutputError
 
-__all__ = ["check_outputs", "sidecar_paths", "same_file", "file_identity", "refuse_existing", "remove_partials",
-           "InputOverwriteError", "SameOutputError"]
+__all__ = ["check_outputs", "sidecar_paths", "same_file", "file_identity", "refuse_existing", "update_target",
+           "remove_partials", "InputOverwriteError", "SameOutputError"]
 
 PathLike = str | os.PathLike
 Named = Mapping[str, PathLike | None] | Iterable[PathLike | tuple[str, PathLike | None] | None]
@@ -165,6 +165,33 @@ def refuse_existing(targets: Iterable[PathLike | None]) -> None:
     for target in targets:
         if target is not None and Path(target).exists():
             raise OutputError(f"output {target} exists; give --overwrite to replace it")
+
+
+def update_target(output: PathLike, overwrite: bool, *, name: str = "-o", inputs: Named = ()) -> Path:
+    """Where a command that adds to an existing file (a parameter table: ``fit -o``, ``materials
+    -o``, ``coefficients -o``) writes: the rules of every output (:func:`check_outputs` against
+    ``inputs``), an existing file only with ``overwrite`` (:func:`refuse_existing`), and a symbolic
+    link's target, so that the link stays a link (the file it points to is rewritten, atomically).
+
+    Raises
+    ------
+    OutputError
+        ``output`` exists and ``overwrite`` is false; it is a symbolic link to no file (or a loop),
+        or no regular file (:func:`check_outputs`).
+    InputOverwriteError
+        ``output`` is one of ``inputs`` (:func:`check_outputs`).
+    """
+    output = Path(output)
+    check_outputs({name: output}, inputs)
+    if not overwrite:
+        refuse_existing([output])
+    if not output.is_symlink():
+        return output
+    try:
+        return output.resolve(strict=True)
+    except (OSError, RuntimeError):  # a link to nothing, or a loop of links
+        raise OutputError(f"{_describe(name, output)} is a symbolic link to no file; give the file's own "
+                          "path") from None
 
 
 def remove_partials(target: PathLike) -> list[Path]:

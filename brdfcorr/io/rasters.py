@@ -26,7 +26,7 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.opening import chunk_spec, open_raster, opened
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths
-from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, _GdalMessages, _threads, write_rasters
+from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, _GdalMessages, pass_threads, write_rasters
 
 __all__ = [
     "open_image",
@@ -340,7 +340,7 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
                 # the file, and with it a decompressed input tile, for the rest of the run.
                 parts = dask.compute(
                     *(dask.delayed(_valid_sample)(data.blocks[..., i, j]) for i in rows for j in columns),
-                    scheduler=scheduler, num_workers=_threads(scheduler, num_workers),
+                    scheduler=scheduler, num_workers=pass_threads(scheduler, num_workers),
                 )
         except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
             reason = "; ".join(messages.messages[:2]) or str(error) or type(error).__name__

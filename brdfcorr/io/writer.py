@@ -51,8 +51,8 @@ from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
 from brdfcorr.io.commit import GdalFailures, Target, io_failure, verify, write_error, written_files
 from brdfcorr.io.files import DISK_CAUSES, sync_file, temporary_beside, write_cause
 
-__all__ = ["write_rasters", "encode_integers", "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path",
-           "envi_sidecars", "check_envi_georeference",
+__all__ = ["write_rasters", "encode_integers", "pass_threads", "default_threads", "GeoTiffOutput", "EnviOutput",
+           "check_format", "envi_header_path", "envi_sidecars", "check_envi_georeference",
            "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
@@ -78,6 +78,18 @@ def default_threads() -> int:
     :data:`CORES_PER_THREAD` of :func:`available_cores` (GDAL compresses on all of them). The one
     rule of ``brdfcorr correct`` (:func:`write_rasters`) and of a chain's ``threads`` engine."""
     return max(1, available_cores() // CORES_PER_THREAD)
+
+
+def pass_threads(scheduler, num_workers: int | None) -> int | None:
+    """The ``num_workers`` of a scene's dask pass (:func:`write_rasters` and the checks that read
+    before it, :func:`brdfcorr.io.rasters.check_reflectance_scale`): as given (or dask's
+    ``num_workers`` setting), else :func:`default_threads` on dask's threaded scheduler; None
+    leaves other schedulers be."""
+    if num_workers is not None or dask.config.get("num_workers", None) is not None:
+        return num_workers
+    if dask.base.get_scheduler(scheduler=scheduler) not in (None, dask.threaded.get):  # None: arrays' own, threads
+        return None
+    return default_threads()
 
 
 @dataclass(frozen=True)
@@ -201,13 +213,30 @@ def encode_integers(array: xr.DataArray, dtype, scale, offset, nodata: float | N
     per_band = {"dims": band, "coords": {band: array[band]}} if band in array.coords else {"dims": band}
     scales = xr.DataArray(np.broadcast_to(np.asarray(scale, float), array.shape[:1]), **per_band)
     offsets = xr.DataArray(np.broadcast_to(np.asarray(offset, float), array.shape[:1]), **per_band)
-    stored = np.round((array.astype(np.float64) - offsets) / scales)
-    outside = (stored < info.min) | (stored > info.max) | (stored == nodata)
-    out_of_range = outside.any(dim=band)
-    encoded = stored.where(~outside & stored.notnull(), nodata).astype(dtype)
+    # One task per chunk (lazy for dask input): the chunk is encoded as the write consumes it.
+    encoded = xr.apply_ufunc(_encode_block, array, scales, offsets, kwargs={"dtype": dtype, "nodata": nodata},
+                             dask="parallelized", output_dtypes=[dtype])
+    # Stored as nodata although valid: outside the type's range or on the nodata value.
+    out_of_range = ((encoded == nodata) & array.notnull()).any(dim=band)
     encoded.attrs = {**array.attrs, "scales": tuple(scales.values.tolist()), "offsets": tuple(offsets.values.tolist())}
     encoded.encoding = {}
     return encoded.rio.write_nodata(nodata, encoded=False), out_of_range
+
+
+def _encode_block(values: np.ndarray, scales: np.ndarray, offsets: np.ndarray, dtype: np.dtype,
+                  nodata: float) -> np.ndarray:
+    """One (band, y, x) chunk of :func:`encode_integers`: ``round((values - offsets) / scales)`` in
+    float64 (numpy's round half to even), ``nodata`` where that is NaN, outside ``dtype``'s range
+    or equal to ``nodata``. ``scales`` and ``offsets`` are (band, 1, 1); float64 temporaries are
+    made for one band at a time (a chunk of float64 values would be twice the float32 chunk)."""
+    info = np.iinfo(dtype)
+    encoded = np.full(values.shape, nodata, dtype=dtype)
+    for index in range(values.shape[0]):
+        stored = (values[index].astype(np.float64) - offsets[index]) / scales[index]
+        np.round(stored, out=stored)
+        fits = (stored >= info.min) & (stored <= info.max) & (stored != nodata)  # False for NaN
+        np.copyto(encoded[index], stored, casting="unsafe", where=fits)
+    return encoded
 
 
 def write_rasters(
@@ -391,7 +420,7 @@ def _compute(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, c
             active.enter_context(callback)
         try:  # one pass for everything: shared inputs are read and normalized once
             *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler,
-                                     num_workers=_threads(scheduler, num_workers))
+                                     num_workers=pass_threads(scheduler, num_workers))
         except BaseException:
             for handle in handles:  # the failure is the news; the files are discarded
                 with contextlib.suppress(Exception):
@@ -418,16 +447,6 @@ def _cog_options(compress: str) -> dict:
     if compress in ("deflate", "lzw", "zstd"):
         return {"predictor": "YES", "num_threads": "ALL_CPUS"}
     return {}
-
-
-def _threads(scheduler, num_workers: int | None) -> int | None:
-    """The dask threads of a writing pass: as given, else :func:`default_threads` on dask's threaded
-    scheduler; None leaves other schedulers be."""
-    if num_workers is not None or dask.config.get("num_workers", None) is not None:
-        return num_workers
-    if dask.base.get_scheduler(scheduler=scheduler) not in (None, dask.threaded.get):  # None: arrays' own, threads
-        return None
-    return default_threads()
 
 
 def _distributed_client(scheduler):

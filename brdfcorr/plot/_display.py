@@ -3,7 +3,8 @@ wavelength, and where east and west are."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -64,3 +65,15 @@ def is_north_up(transform: Sequence[float] | None) -> bool:
         return False
     a, b, _, d, e, _ = tuple(transform)[:6]
     return b == 0 and d == 0 and a > 0 and e < 0
+
+
+def scene_sun_azimuth(tags: Mapping[str, str]) -> float | None:
+    """The sun azimuth [deg] a corrected image records (its ``brdf_scene_sun`` tag), or None."""
+    match = re.search(r"azimuth (-?[0-9.]+)", tags.get("brdf_scene_sun", ""))
+    return float(match[1]) if match else None
+
+
+def sun_side(azimuth: float) -> str:
+    """The image side (of a north-up image: ``"east"`` or ``"west"``) the sun shines from, by
+    the east component of the direction towards the sun (azimuth clockwise from north [deg])."""
+    return "east" if np.sin(np.radians(azimuth)) >= 0 else "west"

@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from brdfcorr.plot._display import NODATA_COLOUR, NODATA_NAME, display_name
+from brdfcorr.plot._display import NODATA_COLOUR, NODATA_NAME, display_name, sun_side
 
 __all__ = ["quicklook_figure", "band_label"]
 
@@ -21,7 +21,7 @@ __all__ = ["quicklook_figure", "band_label"]
 def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.ndarray | None = None,
                      band_label: str = "", percentiles=(1.0, 99.9), title: str = "",
                      class_names: Mapping[int, str] | None = None, max_classes: int = 6,
-                     north_up: bool = False) -> Figure:
+                     north_up: bool = False, sun_azimuth: float | None = None) -> Figure:
     """Input and corrected image with the *same* contrast stretch, and the across-track profile
     (column means relative to the class mean) per class before and after.
 
@@ -44,6 +44,10 @@ def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.nda
         Most profiles drawn.
     north_up : bool
         Columns run west to east (the image's transform): the panels and the profile say so.
+    sun_azimuth : float, optional
+        Azimuth [deg, clockwise from north] towards the sun: on a north-up image an arrow points
+        to the sun, and the profile says which side looks into forward scattering (the sun's side:
+        the sensor looks away from the sun there) and which into backscatter (the hotspot side).
     """
     figure = Figure(figsize=(12, 8), layout="constrained")
     grid = figure.add_gridspec(2, 2, height_ratios=(3, 2))
@@ -56,10 +60,12 @@ def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.nda
         axis.set_yticks([])
         if north_up:
             axis.set_xlabel("west  ←  →  east")
+            if sun_azimuth is not None:
+                _sun_arrow(axis, sun_azimuth)
     axis = figure.add_subplot(grid[1, :])
     _draw_profiles(axis, np.nanmean(before, axis=0), np.nanmean(after, axis=0), class_map, class_names or {},
                    max_classes)
-    axis.set_xlabel("column (across track, west → east)" if north_up else "column (across track)")
+    axis.set_xlabel(_profile_label(north_up, sun_azimuth))
     axis.set_ylabel("column mean / class mean [-]")
     axis.set_title("across-track profile, mean of the bands shown (dashed: before, solid: after)", fontsize="medium")
     figure.legend(*axis.get_legend_handles_labels(), loc="outside lower center", ncols=6, fontsize="small")
@@ -67,6 +73,27 @@ def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.nda
     figure.suptitle("; ".join(notes + [f"nodata: {NODATA_NAME}", "same stretch in both images"]),
                     fontsize="small", color="0.3")
     return figure
+
+
+def _profile_label(north_up: bool, sun_azimuth: float | None) -> str:
+    if not north_up:
+        return "column (across track)"
+    if sun_azimuth is None:
+        return "column (across track, west → east)"
+    side = sun_side(sun_azimuth)
+    other = "west" if side == "east" else "east"
+    return (f"column (across track, west → east); sun from the {side} (azimuth {sun_azimuth:.0f}°): "
+            f"{side} side forward scattering, {other} side backscatter")
+
+
+def _sun_arrow(axis, azimuth: float) -> None:
+    """An arrow from the panel's top-left corner towards the sun (north up, east right)."""
+    east, north = np.sin(np.radians(azimuth)), np.cos(np.radians(azimuth))
+    start = (0.09, 0.88)
+    axis.annotate("", xy=(start[0] + 0.07 * east, start[1] + 0.07 * north), xytext=start,
+                  xycoords="axes fraction", arrowprops={"arrowstyle": "->", "color": "gold", "lw": 2})
+    axis.text(start[0], start[1] - 0.06, f"sun {azimuth:.0f}°", transform=axis.transAxes, color="gold",
+              ha="center", va="top", fontsize="small")
 
 
 def _draw_profiles(axis, before: np.ndarray, after: np.ndarray, class_map, names, most: int) -> None:

@@ -41,9 +41,12 @@ process-wide: scenes running side by side do not share a setting.
 
 Nothing here prints: progress goes to a callback ``progress(event, info)`` with events ``"plan"``
 (``{"scenes": n, "to_run": n_not_skipped}``), ``"fit"`` (``{"classes": [...]}``), ``"chunks"``
-(``{"scene": name, "done": n, "total": n}``: the dask tasks of a scene's correction pass, with the
-``threads`` and ``synchronous`` engines only, at most every :data:`CHUNK_EVENT_SECONDS` and at the
-end) and ``"scene"`` (the scene's result, :func:`~brdfcorr.workflow.report.scene_result`).
+(``{"scene": name, "done": n, "total": n}``: the dask tasks of a scene's passes, from its first
+(the checks of the angles and of the reflectance scale) to its last (the write, the assessment),
+counted together, so that ``done`` only grows and ``total`` grows as each pass starts; with the
+``threads`` and ``synchronous`` engines only, at the start of each pass, at most every
+:data:`CHUNK_EVENT_SECONDS` and at its end) and ``"scene"`` (the scene's result,
+:func:`~brdfcorr.workflow.report.scene_result`).
 """
 
 from __future__ import annotations
@@ -70,7 +73,6 @@ from dask.callbacks import Callback
 
 from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.errors import InputError, OutputError
-from brdfcorr.fit.classes import ClassModels, GuardRails, Sampling
 from brdfcorr.io import cluster
 from brdfcorr.io.paths import remove_partials
 from brdfcorr.io.scene import SceneSources
@@ -111,20 +113,24 @@ Progress = Callable[[str, dict], None]
 
 
 class ChunkProgress(Callback):
-    """A dask callback (local schedulers) that reports the tasks of a computation as
-    ``progress("chunks", {"scene": name, "done": n, "total": n})``: at the start, at most every
-    ``interval`` seconds, and when the computation ends."""
+    """A dask callback (local schedulers) that reports the tasks of a scene's computations as
+    ``progress("chunks", {"scene": name, "done": n, "total": n})``: at the start of each, at most
+    every ``interval`` seconds, and when it ends. The computations run while it is active are
+    counted together (the tasks of those that ended plus those of the running one), so the counts
+    only grow from the scene's first pass to its last."""
 
     def __init__(self, scene: str, progress: Progress, interval: float = CHUNK_EVENT_SECONDS):
         super().__init__()
         self.scene, self.progress, self.interval = scene, progress, interval
         self._state: dict | None = None
         self._last = 0.0
+        self._ended = 0  # tasks of the computations that ended
 
     def _counts(self) -> tuple[int, int]:
         state = self._state or {}
         done = len(state.get("finished", ()))
-        return done, done + sum(len(state.get(key, ())) for key in ("ready", "waiting", "running"))
+        total = done + sum(len(state.get(key, ())) for key in ("ready", "waiting", "running"))
+        return self._ended + done, self._ended + total
 
     def _emit(self) -> None:
         done, total = self._counts()
@@ -142,6 +148,7 @@ class ChunkProgress(Callback):
     def _finish(self, dsk, state, errored) -> None:
         if not errored:
             self._emit()
+        self._ended = self._counts()[1]
         self._state = None
 
 
@@ -162,16 +169,9 @@ def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
     if not candidates:
         raise InputError(f"steps.fit: no scene could be opened for the imagery fit{reasons}")
     names = {class_id: name for class_id, name in config.parameters.materials.items()}
-    names.update(step.names)
     try:
-        fit = fit_class_files(
-            candidates,
-            ClassModels(step.model, class_models=step.class_models, fixed=step.fixed, fallback=step.fallback,
-                        names=names),
-            sampling=Sampling(max_samples=step.max_samples, seed=step.seed, reflectance_scale=step.reflectance_scale),
-            guard=GuardRails(min_samples=step.min_samples, min_vza_spread=step.min_vza_spread),
-            chunks=config.engine.chunk, wavelengths=config.inputs.wavelengths, skip_unreadable=True,
-        )
+        fit = fit_class_files(candidates, **step.fit_settings(names), chunks=config.engine.chunk,
+                              wavelengths=config.inputs.wavelengths, skip_unreadable=True)
     except InputError as error:
         raise InputError(f"steps.fit: {error}{reasons}") from None
     report = fit.report()
@@ -243,8 +243,8 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
         Number of threads of the ``"threads"`` scheduler (inside process workers, the engine's
         ``threads_per_worker``).
     progress : callable, optional
-        ``progress("chunks", {...})`` during the correction pass (:class:`ChunkProgress`; dask's
-        local schedulers only, not a cluster's).
+        ``progress("chunks", {...})`` from the scene's first pass to its last (:class:`ChunkProgress`,
+        active while the scene's steps run; dask's local schedulers only, not a cluster's).
 
     Returns
     -------
@@ -269,15 +269,16 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
             path.parent.mkdir(parents=True, exist_ok=True)
         if steps.correct is not None:
             _remove_derived(scene)
-        callbacks = [ChunkProgress(scene.name, progress)] if progress is not None else []
-        for name, run in (("correct", lambda: _correct(scene, table, config, callbacks=callbacks, **compute)),
-                          ("assess", lambda: _assess(scene, table, config, **compute)),
-                          ("quicklook", lambda: _quicklook(scene, config, table))):
-            if getattr(steps, name) is None:
-                continue
-            tick = time.perf_counter()
-            found.update(run())
-            seconds[name] = round(time.perf_counter() - tick, 3)
+        # Active for every pass of the scene, from the first (the checks before the write), as for `correct`.
+        with ChunkProgress(scene.name, progress) if progress is not None else contextlib.nullcontext():
+            for name, run in (("correct", lambda: _correct(scene, table, config, **compute)),
+                              ("assess", lambda: _assess(scene, table, config, **compute)),
+                              ("quicklook", lambda: _quicklook(scene, config, table))):
+                if getattr(steps, name) is None:
+                    continue
+                tick = time.perf_counter()
+                found.update(run())
+                seconds[name] = round(time.perf_counter() - tick, 3)
     except Exception as error:  # noqa: BLE001 (isolation: a scene's failure must not stop the run)
         failure = error
     seconds["total"] = round(time.perf_counter() - start, 3)
@@ -310,7 +311,7 @@ def _terrain(scene: Scene, config: ChainConfig) -> Terrain | None:
 
 
 def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler,
-             num_workers: int | None, callbacks=()) -> dict:
+             num_workers: int | None) -> dict:
     """The correct step; returns what it found: ``reference``, ``qa`` and ``topographic``."""
     step, outputs = config.steps.correct, config.outputs
     inputs = config.inputs
@@ -326,7 +327,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
         sources, table, files, reference=config.reference, limits=step.limits, extrapolate=step.extrapolate,
         unknown=step.unknown, flip_view_azimuth=step.flip_view_azimuth, terrain=_terrain(scene, config),
         align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup),
-        engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers, callbacks=callbacks),
+        engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers),
         table_source=config.source,
     ))
     found = {"reference": summary.pop("reference").describe()}

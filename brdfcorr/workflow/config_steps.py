@@ -9,13 +9,16 @@ part of :class:`brdfcorr.workflow.config.ChainConfig`; import them from
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+import math
+from collections.abc import Mapping
+from typing import Annotated, Any, Literal, Union
 
 from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
 from brdfcorr.defaults import DEFAULT_LIMITS
+from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.workflow.config_inputs import check_material
 
@@ -81,18 +84,50 @@ class GoniometerFit(StrictModel):
 
 class ImageryFit(StrictModel):
     """Fit step from the imagery itself: per-class fits pooled over the run's scenes
-    (:func:`brdfcorr.fit.classes.fit_classes`)."""
+    (:func:`brdfcorr.workflow.tasks.fit_class_files`, as ``brdfcorr fit-classes``: the same
+    options and defaults).
+
+    Attributes
+    ----------
+    model : str, optional
+        Registered surface model of every class (``--model``). null (default): chosen from the
+        class maps, ``ross_thick_li_sparse`` where every map is NDVI strata (``brdfcorr classes
+        ndvi``), else ``torrance_sparrow``.
+    class_models : dict of int to str
+        Models of single classes (``--class-model``).
+    names : dict of int to str
+        Class names (``--class-name``); default: the ``parameters.materials`` names, then the class
+        maps' ``class_names`` tag, else ``class_<id>``.
+    fixed : dict of str to float, optional
+        Shape parameters held fixed (``--fix``; default k = 0.25 for the Torrance-Sparrow models).
+    max_samples, seed, reflectance_scale :
+        Pixels per class over all scenes, the sampler's seed, the stored values' scale [-].
+    min_samples, min_vza_spread, max_condition :
+        Guard rails (:class:`brdfcorr.fit.GuardRails`): samples per class, 5-95 % view zenith
+        spread [deg], condition number of the linear design [-].
+    bad_bands : list of [float, float]
+        Wavelength ranges [nm], ends included, left out of the fit (``--bad-bands``; ``[]``: none);
+        bands an ENVI header's ``bbl`` marks bad are left out too. Default: the water-vapour
+        bands (:data:`brdfcorr.fit.WATER_VAPOUR_BANDS`).
+    fallback : str, optional
+        Built-in material for classes that fail the guard rails.
+    output : str
+        The fitted table, in the output directory.
+    """
 
     source: Literal["imagery"]
-    model: SurfaceModel = "torrance_sparrow"
+    model: SurfaceModel | None = None
     class_models: dict[PositiveInteger, SurfaceModel] = Field(default_factory=dict)
     names: dict[PositiveInteger, str] = Field(default_factory=dict)
     fixed: dict[str, Number] | None = None
-    max_samples: Integer = Field(50_000, ge=10)
-    seed: Integer = 0
+    max_samples: Integer = Field(Sampling.max_samples, ge=10)
+    seed: Integer = Sampling.seed
     reflectance_scale: Number = Field(1.0, gt=0)
-    min_samples: Integer = Field(500, ge=1)
-    min_vza_spread: Number = Field(10.0, ge=0)
+    min_samples: Integer = Field(GuardRails.min_samples, ge=1)
+    min_vza_spread: Number = Field(GuardRails.min_vza_spread, ge=0)
+    max_condition: Number = Field(GuardRails.max_condition, ge=1, allow_inf_nan=False)
+    bad_bands: list[tuple[Number, Number]] = Field(
+        default_factory=lambda: [tuple(band_range) for band_range in WATER_VAPOUR_BANDS])
     fallback: str | None = None
     output: str = "fitted_params.yaml"
 
@@ -102,6 +137,28 @@ class ImageryFit(StrictModel):
         if value is not None:
             check_material(value)
         return value
+
+    @field_validator("bad_bands")
+    @classmethod
+    def _ranges(cls, value: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        for low, high in value:
+            if not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):
+                raise ValueError(f"range [{low:g}, {high:g}] nm must be finite with 0 < low <= high")
+        return value
+
+    def fit_settings(self, names: Mapping[int, str] | None = None) -> dict[str, Any]:
+        """The step as the keyword arguments ``models``, ``sampling``, ``guard`` and ``bad_bands`` of
+        :func:`brdfcorr.workflow.tasks.fit_class_files`; ``names`` are default class names (the
+        step's ``names`` win)."""
+        return {
+            "models": ClassModels(self.model, class_models=self.class_models, fixed=self.fixed,
+                                  fallback=self.fallback, names={**(names or {}), **self.names}),
+            "sampling": Sampling(max_samples=self.max_samples, seed=self.seed,
+                                 reflectance_scale=self.reflectance_scale),
+            "guard": GuardRails(min_samples=self.min_samples, min_vza_spread=self.min_vza_spread,
+                                max_condition=self.max_condition),
+            "bad_bands": tuple(tuple(band_range) for band_range in self.bad_bands),
+        }
 
 
 class TerrainStep(StrictModel):

@@ -22,7 +22,13 @@ import xarray as xr
 
 from brdfcorr import __version__
 from brdfcorr.correction import QA, describe_limits, normalize, qa_counts, resolve_reference
-from brdfcorr.correction.terrain import SlopeAspect, check_slope_aspect, slope_aspect, slope_aspect_layers
+from brdfcorr.correction.terrain import (
+    SlopeAspect,
+    check_dem_slope,
+    check_slope_aspect,
+    slope_aspect,
+    slope_aspect_layers,
+)
 from brdfcorr.correction.topographic import frame_conflict, topographic_correction
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, ParameterError
@@ -55,7 +61,10 @@ class Terrain:
     dem : path-like, optional
         Or a DEM/DSM [m] on the image grid in a projected CRS: slope and aspect by Horn's
         differences (:func:`brdfcorr.correction.terrain.slope_aspect`), the pixel size converted
-        from the CRS's linear unit to metres (EPSG:2263, US survey feet). Give one of the two.
+        from the CRS's linear unit to metres (EPSG:2263, US survey feet). A DEM that gives no
+        pixel a slope (nodata only: every 3x3 neighbourhood holds nodata) is an
+        :class:`~brdfcorr.errors.InputError` (:func:`brdfcorr.correction.terrain.check_dem_slope`).
+        Give one of the two.
     topographic : {"cosine", "c", "scs", "scs+c", "none"}, default "cosine"
         Illumination correction before the BRDF step (:func:`brdfcorr.correction.topographic.topographic_correction`;
         C fitted per class and band from the image for ``"c"`` and ``"scs+c"``).
@@ -87,7 +96,8 @@ class Terrain:
     def open(self, like: xr.DataArray, chunks: int, compute: Mapping | None = None) -> SlopeAspect:
         """Slope and aspect [deg] (y, x) on ``like``'s grid, lazily; layers read from a file are
         checked in one pass (:func:`brdfcorr.correction.terrain.check_slope_aspect`: degrees, and
-        the file read to its end), with the dask settings ``compute`` (``scheduler``, ``num_workers``)."""
+        the file read to its end), those of a DEM too (:func:`~brdfcorr.correction.terrain.check_dem_slope`:
+        a slope somewhere), with the dask settings ``compute`` (``scheduler``, ``num_workers``)."""
         if self.dem is not None:
             dem = open_layer(self.dem, "DEM", chunks)
             if dem.shape[0] != 1:
@@ -97,6 +107,8 @@ class Terrain:
             except InputError as error:  # "DEM: no CRS ...": name the file
                 raise InputError(f"DEM file {self.dem}: {str(error).removeprefix('DEM: ')}") from None
             check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
+            with reading(f"DEM file {self.dem}"):
+                check_dem_slope(surface, f"DEM file {self.dem}", **(compute or {}))
         else:
             if _is_envi(self.slope_aspect):
                 from brdfcorr.io.sensors.envi import read_envi_obs_terrain  # sensors import this module's layer
@@ -191,7 +203,10 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
     -------
     dict
         Pixel counts (:func:`brdfcorr.correction.qa_counts`) plus ``reference`` (the geometry used),
-        with a topographic step ``topographic`` (its method and the C fit per class and band), and
+        with an integer output (``outputs.data_type="input"``) ``out_of_range`` (the valid pixels
+        stored as nodata and flagged ``nodata`` since some band did not fit the type; counted in the
+        writing pass, and among ``nodata``), with a topographic step ``topographic`` (its method and
+        the C fit per class and band), and
         where most valid pixels were left uncorrected ``notes`` (:func:`uncorrected_note`; also a
         warning).
 
@@ -234,7 +249,7 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
     corrected, qa, sigma, topographic = _corrected_layers(request, scene, table, reference, chunks)
     if topographic is not None:
         qa = _merged_qa(qa, topographic.qa)
-    corrected, qa = _as_output(corrected, qa, scene, request)
+    corrected, qa, encoding = _as_output(corrected, qa, scene, request)
     files = request.outputs
     targets = {path: layer for path, layer in ((files.corrected, corrected), (files.qa, qa), (files.uncertainty, sigma))
                if path is not None}
@@ -248,7 +263,7 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
     }
     counts = rasters.write_rasters(
         targets, geotiff=writer.GeoTiffOutput(compress=files.compress, blocksize=chunks, cog=files.cog), tags=tags,
-        commit_tags=_fingerprint_tags(request.outputs.fingerprint), compute_with=qa_counts(qa),
+        commit_tags=_fingerprint_tags(request.outputs.fingerprint), compute_with={**qa_counts(qa), **encoding},
         callbacks=engine.callbacks,
         gdal_cache=rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
         **compute,
@@ -353,8 +368,11 @@ def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: Param
 
 def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, request: CorrectionRequest):
     """The corrected layer as it is written (physical values or the input's integers, band
-    descriptions, no input scaling or ENVI header fields), and the QA layer with values that do
-    not fit an integer output flagged ``nodata``."""
+    descriptions, no input scaling or ENVI header fields), the QA layer with values that do
+    not fit an integer output flagged ``nodata``, and the lazy counts of the encoding for the
+    writing pass (``out_of_range`` for an integer output; none for floats). The integers are
+    encoded chunk by chunk as the write consumes them (:func:`brdfcorr.io.writer.encode_integers`):
+    the correction is computed once."""
     corrected = corrected.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
     corrected.attrs["long_name"] = _band_descriptions(scene.reflectance)
     for name in ("scale_factor", "add_offset"):  # the output holds physical values
@@ -375,7 +393,8 @@ def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, requ
             scene.reflectance.encoding.get("_FillValue"),
         )
         qa = (qa | xr.where(out_of_range, QA.NODATA, 0).astype(np.uint8)).assign_attrs(qa.attrs)
-    return corrected, qa
+        return corrected, qa, {"out_of_range": out_of_range.sum().data}
+    return corrected, qa, {}
 
 
 def _envi_outputs(request: CorrectionRequest, scene: SceneData) -> dict:
@@ -413,7 +432,27 @@ def _scene_tags(scene: SceneData, class_lookup) -> dict[str, str]:
     if "wavelength" in scene.reflectance.coords:
         tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
         tags["wavelength_units"] = "nm"
+    sun = _centre_sun(scene.angles)
+    if sun is not None:
+        tags["brdf_scene_sun"] = f"zenith {sun[0]:.1f}, azimuth {sun[1]:.1f} (scene centre, deg)"
     return tags
+
+
+def _centre_sun(angles: Mapping[str, xr.DataArray], half: int = 16) -> tuple[float, float] | None:
+    """The sun zenith and azimuth [deg] at the scene centre (the mean of a window of up to
+    2 ``half`` pixels a side; the azimuth a circular mean), for figures that show where the sun
+    was; None where the source gives the relative azimuth only or the window holds no value."""
+    if angles["saa"].attrs.get(RELATIVE_ONLY):
+        return None
+    ny, nx = angles["sza"].sizes["y"], angles["sza"].sizes["x"]
+    window = {"y": slice(max(ny // 2 - half, 0), ny // 2 + half), "x": slice(max(nx // 2 - half, 0), nx // 2 + half)}
+    zenith = np.asarray(angles["sza"].isel(window), dtype=np.float64)
+    azimuth = np.radians(np.asarray(angles["saa"].isel(window), dtype=np.float64))
+    valid = np.isfinite(zenith) & np.isfinite(azimuth)
+    if not valid.any():
+        return None
+    mean_azimuth = np.degrees(np.arctan2(np.sin(azimuth[valid]).mean(), np.cos(azimuth[valid]).mean())) % 360.0
+    return float(zenith[valid].mean()), float(mean_azimuth)
 
 
 def _warn_wavelength_caveats(table: ParameterTable, reflectance: xr.DataArray) -> None:

@@ -41,6 +41,7 @@ import rasterio.errors
 
 from brdfcorr import __version__
 from brdfcorr.errors import InputError, OutputError
+from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
 from brdfcorr.io.paths import InputOverwriteError, check_outputs
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 from brdfcorr.plot.assess import figure_paths
@@ -382,7 +383,9 @@ def _parameter_sources(config: ChainConfig, output_dir: Path,
                 notes.append(f"steps.fit.measurements: {path} does not exist")
         sources.append(f"fit from goniometer measurements -> {fit_output}")
     else:
-        sources.append(f"fit from the imagery of the run's scenes -> {fit_output}")
+        model = f"model {step.model}" if step.model else (
+            f"model {STRATA_MODEL} on NDVI strata class maps, else {DEFAULT_MODEL}")
+        sources.append(f"fit from the imagery of the run's scenes ({model}) -> {fit_output}")
     return sources, fit_output, notes
 
 

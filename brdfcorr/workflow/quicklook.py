@@ -8,9 +8,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from brdfcorr.io.files import atomic_path
-from brdfcorr.io.overview import band_count_and_transform, read_small
+from brdfcorr.io.overview import raster_summary, read_small
 from brdfcorr.io.wavelengths import file_wavelengths
-from brdfcorr.plot._display import is_north_up, true_colour_bands
+from brdfcorr.plot._display import is_north_up, scene_sun_azimuth, true_colour_bands
 from brdfcorr.plot.quicklook import band_label, quicklook_figure
 
 __all__ = ["write_quicklook"]
@@ -41,7 +41,7 @@ def write_quicklook(image: str | os.PathLike, corrected: str | os.PathLike, targ
     title : str
         Prefix of the panel titles.
     """
-    count, transform = band_count_and_transform(corrected)
+    count, transform, tags = raster_summary(corrected)
     wavelengths = file_wavelengths(corrected)
     bands = list(bands) if bands else true_colour_bands(wavelengths, count)
     before = read_small(image, bands, max_size)
@@ -49,7 +49,7 @@ def write_quicklook(image: str | os.PathLike, corrected: str | os.PathLike, targ
     class_map = None if classes is None else read_small(classes, [1], max_size, average=False)[0]
     figure = quicklook_figure(before, after, class_map=class_map, band_label=band_label(bands, wavelengths),
                               percentiles=percentiles, title=title, class_names=class_names,
-                              north_up=is_north_up(transform))
+                              north_up=is_north_up(transform), sun_azimuth=scene_sun_azimuth(tags))
     target = Path(target)
     with atomic_path(target) as temporary:
         figure.savefig(temporary, dpi=90, format="png")

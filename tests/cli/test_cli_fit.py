@@ -79,14 +79,15 @@ def test_fit_appends_and_replaces_classes(csv_path, tmp_path):
     original = ParameterTable.load(table_path)[1]
 
     second = run("fit", csv_path, "--model", "torrance_sparrow_simplified", "--fix", "k=0.25",
-                 "--max-zenith", "60", "-o", table_path, "--class-name", "tile_simplified")
+                 "--max-zenith", "60", "-o", table_path, "--class-name", "tile_simplified", "--overwrite")
     assert second.exit_code == 0, second.output
     table = ParameterTable.load(table_path)
     assert table.class_ids == (1, 2)  # appended with the next free id
     assert table[1] == original  # the existing class is not touched
     assert table[2].model == "torrance_sparrow_simplified"
 
-    third = run("fit", csv_path, "--fix", "k=0.25", "-o", table_path, "--class-id", 2, "--class-name", "again")
+    third = run("fit", csv_path, "--fix", "k=0.25", "-o", table_path, "--class-id", 2, "--class-name", "again",
+                "--overwrite")
     assert third.exit_code == 0, third.output
     assert "replaced class 2 (again)" in third.output
     table = ParameterTable.load(table_path)
@@ -163,7 +164,7 @@ def test_missing_measurement_file(tmp_path):
 def test_bad_existing_parameter_table_is_reported_before_fitting(csv_path, tmp_path):
     table_path = tmp_path / "params.yaml"
     table_path.write_text("classes: [{id: 1, name: x, model: torrance_sparrow, params: {w: 1}}]\n")
-    result = run("fit", csv_path, "-o", table_path)
+    result = run("fit", csv_path, "-o", table_path, "--overwrite")
     assert result.exit_code == 2
     assert str(table_path) in result.stderr and len(result.stderr.splitlines()) == 1
     assert "missing parameter" in result.stderr
@@ -193,7 +194,7 @@ def test_spectral_table_fits_each_wavelength(tmp_path):
     assert len(entry.params["w"]) == 2 and entry.params["k"] == 0.25
 
     single = run("fit", path, "--fix", "k=0.25", "--min-phi", "90", "--wavelength", "850",
-                 "-o", table_path, "--class-id", 2)
+                 "-o", table_path, "--class-id", 2, "--overwrite")
     assert single.exit_code == 0, single.output
     expected = fit_measurements(
         "torrance_sparrow",

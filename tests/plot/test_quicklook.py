@@ -59,3 +59,29 @@ def test_a_north_up_image_names_west_and_east():
     labels = [axis.get_xlabel() for axis in quicklook_figure(cube, cube, north_up=True).axes]
     assert sum("west" in label and "east" in label for label in labels) == 3  # both images and the profile
     assert not any("east" in axis.get_xlabel() for axis in quicklook_figure(cube, cube).axes)
+
+
+@pytest.mark.parametrize(("azimuth", "side"), [(109.0, "east"), (250.0, "west")])
+def test_the_profile_names_the_sun_side_as_forward_scattering(azimuth, side):
+    # Sun in the east: pixels east of the track are seen from the west, the sensor looking away from
+    # the sun (relative azimuth near 180 deg: forward scattering, docs/conventions.md).
+    cube = np.random.default_rng(2).uniform(0.05, 0.3, (3, 10, 20))
+    figure = quicklook_figure(cube, cube, north_up=True, sun_azimuth=azimuth)
+    label = figure.axes[-1].get_xlabel()
+    assert f"sun from the {side}" in label and f"{side} side forward scattering" in label
+    assert sum(text.get_text().startswith("sun ") for axis in figure.axes[:2] for text in axis.texts) == 2
+
+
+def test_the_scene_sun_is_a_circular_mean_read_back_from_the_tag():
+    import xarray as xr
+
+    from brdfcorr.plot._display import scene_sun_azimuth
+    from brdfcorr.workflow.correction import _centre_sun
+
+    azimuth = np.where(np.arange(8)[None, :] % 2, 350.0, 10.0) * np.ones((8, 1))  # north: mean 0, not 180
+    angles = {name: xr.DataArray(values, dims=("y", "x")) for name, values in
+              (("sza", np.full((8, 8), 40.0)), ("saa", azimuth))}
+    zenith, mean_azimuth = _centre_sun(angles)
+    assert zenith == 40.0 and min(mean_azimuth, 360.0 - mean_azimuth) < 1e-9
+    assert scene_sun_azimuth({"brdf_scene_sun": "zenith 48.1, azimuth 108.7 (scene centre, deg)"}) == 108.7
+    assert scene_sun_azimuth({}) is None

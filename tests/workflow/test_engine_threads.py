@@ -32,7 +32,7 @@ def _chain_threads(engine: EngineConfig) -> int | None:
 @pytest.mark.parametrize("count", [1, 2, 3, 4, 8, 16, 64])
 def test_a_threads_chain_uses_the_threads_of_correct(cores, count):
     cores(count)
-    correct_threads = writer._threads(None, None)  # `brdfcorr correct`: no thread count, dask's default scheduler
+    correct_threads = writer.pass_threads(None, None)  # `brdfcorr correct`: no thread count, dask's default scheduler
     assert correct_threads == writer.default_threads() == max(1, count // writer.CORES_PER_THREAD)
     assert _chain_threads(EngineConfig(scheduler="threads")) == correct_threads
 

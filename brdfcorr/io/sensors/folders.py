@@ -1,8 +1,8 @@
 """Product folders as delivered: a Sentinel-2 L2A SAFE folder and a Landsat Collection-2 L2 folder.
 
 :func:`find_product` finds a product's reflectance bands, its quality mask, its scaling and its
-angle source; :func:`write_stack` writes the bands on one grid, masked, into one GeoTIFF that the
-correction reads (:func:`brdfcorr.workflow.nbar.nbar_files`).
+angle source; :func:`write_stack` writes the bands on one grid, masked, as one GDAL virtual raster
+(and its mask GeoTIFF) that the correction reads (:func:`brdfcorr.workflow.nbar.nbar_files`).
 
 Sentinel-2 L2A (ESA, S2 MSI Level-2A Product Format Specification; processing baseline 04.00
 note, COPE-SERCO-RP-21-1141): ``<name>.SAFE/MTD_MSIL2A.xml`` (``PROCESSING_BASELINE``,
@@ -24,6 +24,7 @@ recognized and refused in one line (:func:`hls_refusal`).
 
 from __future__ import annotations
 
+import contextlib
 import re
 import threading
 import xml.etree.ElementTree as ET
@@ -38,7 +39,9 @@ import xarray as xr
 from rasterio.enums import Resampling
 from rasterio.vrt import WarpedVRT
 
-from brdfcorr.errors import SensorInputError
+from brdfcorr.errors import OutputError, SensorInputError
+from brdfcorr.io.files import atomic_path, write_cause
+from brdfcorr.io.paths import check_outputs
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS
 from brdfcorr.io.sensors.landsat import find_angle_bands
 from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
@@ -368,10 +371,12 @@ def _write_mask(product: ProductFolder, grid: rasterio.DatasetReader, target: Pa
     return target
 
 
-def _source_xml(path: Path, grid: rasterio.DatasetReader, element: str = "ComplexSource") -> str:
+def _source_xml(path: Path, grid: rasterio.DatasetReader, element: str = "ComplexSource", *,
+                name: Path | None = None) -> str:
     """A VRT source placing band 1 of ``path`` on ``grid`` (same CRS, axis-aligned): its whole
     extent mapped onto the grid's pixels, by nearest neighbour from a coarser grid (each value
-    kept) and by averaging, without the no data value 0, from a finer one."""
+    kept) and by averaging, without the no data value 0, from a finer one. The VRT reads the file
+    ``name`` (default ``path``: a temporary file is read here under its final name)."""
     with rasterio.open(path) as source:
         transform, shape, crs = source.transform, source.shape, source.crs
     target = grid.transform
@@ -381,7 +386,7 @@ def _source_xml(path: Path, grid: rasterio.DatasetReader, element: str = "Comple
     width, height = shape[1] * transform.a / target.a, shape[0] * transform.e / target.e
     finer = abs(transform.a) < abs(target.a)
     return (f'<{element} resampling="{"average" if finer else "nearest"}">'
-            f'<SourceFilename relativeToVRT="0">{escape(str(Path(path).resolve()))}</SourceFilename>'
+            f'<SourceFilename relativeToVRT="0">{escape(str(Path(name or path).resolve()))}</SourceFilename>'
             f'<SourceBand>1</SourceBand><SrcRect xOff="0" yOff="0" xSize="{shape[1]}" ySize="{shape[0]}"/>'
             f'<DstRect xOff="{column!r}" yOff="{row!r}" xSize="{width!r}" ySize="{height!r}"/>'
             + ("<NODATA>0</NODATA>" if element == "ComplexSource" else "") + f"</{element}>")
@@ -393,35 +398,61 @@ def write_stack(product: ProductFolder, target: str | Path, chunks: int = 1024) 
     No band is copied: each band of the VRT reads its product file, resampled onto the grid of
     :attr:`ProductFolder.grid` (nearest neighbour from a coarser band, the mean of the valid pixels
     of a finer one) and, where :attr:`ProductFolder.masked` masks anything, multiplied by the
-    quality mask (GDAL's ``mul`` pixel function with a 0/1 uint8 GeoTIFF written beside ``target``,
-    :func:`_write_mask`): masked pixels become the product's no data, DN 0. The stored DNs are
-    kept (uint16, no data 0); each band carries its GDAL scale and offset (reflectance = DN x
-    scale + offset) and its name as description, the raster the ``wavelength`` tag (band centres
-    [nm]), so :func:`brdfcorr.io.rasters.open_image` reads reflectance factors with their
-    wavelengths.
+    quality mask (GDAL's ``mul`` pixel function with a 0/1 uint8 GeoTIFF ``<stem>_mask.tif``
+    written beside ``target``, :func:`_write_mask`): masked pixels become the product's no data,
+    DN 0. The stored DNs are kept (uint16, no data 0); each band carries its GDAL scale and offset
+    (reflectance = DN x scale + offset) and its name as description, the raster the
+    ``wavelength`` tag (band centres [nm]), so :func:`brdfcorr.io.rasters.open_image` reads
+    reflectance factors with their wavelengths.
+
+    Both files pass the output guard first (:func:`brdfcorr.io.paths.check_outputs`: regular
+    files or absent, none of the product's files) and are written to temporary names, renamed only
+    when both are complete (:func:`brdfcorr.io.files.atomic_path`), the mask before the VRT that
+    reads it: a failed or killed write leaves neither file (existing ones untouched). Whether an
+    existing file may be replaced is the caller's rule (:func:`brdfcorr.workflow.nbar.nbar_files`:
+    only with ``overwrite``).
+
+    Raises
+    ------
+    InputOverwriteError, OutputError
+        ``target`` or its mask is a product file, a directory or another special file; a write
+        failed (a full disk, the file size limit, permissions).
     """
     target = Path(target)
-    with rasterio.open(product.grid) as grid:
+    mask_path = target.with_name(f"{target.stem}_mask.tif") if product.masked else None
+    check_outputs({f"band stack {target}": target, f"band stack's mask {mask_path}": mask_path}, product.files)
+    with rasterio.open(product.grid) as grid, contextlib.ExitStack() as commits:
+        temporary = commits.enter_context(atomic_path(target))  # entered first: renamed last
         mask = None
-        if product.masked:
-            mask = _source_xml(_write_mask(product, grid, target.with_name(f"{target.stem}_mask.tif"), chunks),
-                               grid, "SimpleSource")
-        bands = []
-        for index, (name, path) in enumerate(product.bands.items()):
-            derived = ' subClass="VRTDerivedRasterBand"' if mask else ""
-            bands.append(
-                f'<VRTRasterBand dataType="UInt16" band="{index + 1}"{derived}><Description>{escape(name)}'
-                f"</Description><NoDataValue>0</NoDataValue><Offset>{product.offsets[index]!r}</Offset>"
-                f"<Scale>{product.scales[index]!r}</Scale>"
-                + ("<PixelFunctionType>mul</PixelFunctionType>" if mask else "")
-                + _source_xml(path, grid) + (mask or "") + "</VRTRasterBand>")
-        wavelengths = ",".join(f"{w:g}" for w in product.wavelengths)
-        target.write_text(
-            f'<VRTDataset rasterXSize="{grid.width}" rasterYSize="{grid.height}"><SRS>{escape(grid.crs.to_wkt())}'
+        if mask_path is not None:
+            mask_temporary = commits.enter_context(atomic_path(mask_path))
+            _write_mask(product, grid, mask_temporary, chunks)
+            mask = _source_xml(mask_temporary, grid, "SimpleSource", name=mask_path)
+        try:  # named here: inside the mask's commit, atomic_path would name the mask
+            temporary.write_text(_stack_xml(product, grid, mask))
+        except OSError as error:
+            cause = write_cause(error, [temporary])
+            raise OutputError(f"cannot write {target}: {cause}; nothing was written") from None
+    return target
+
+
+def _stack_xml(product: ProductFolder, grid: rasterio.DatasetReader, mask: str | None) -> str:
+    """The VRT document of :func:`write_stack`: one band per product band, multiplied by the mask
+    source ``mask`` where there is one."""
+    bands = []
+    for index, (name, path) in enumerate(product.bands.items()):
+        derived = ' subClass="VRTDerivedRasterBand"' if mask else ""
+        bands.append(
+            f'<VRTRasterBand dataType="UInt16" band="{index + 1}"{derived}><Description>{escape(name)}'
+            f"</Description><NoDataValue>0</NoDataValue><Offset>{product.offsets[index]!r}</Offset>"
+            f"<Scale>{product.scales[index]!r}</Scale>"
+            + ("<PixelFunctionType>mul</PixelFunctionType>" if mask else "")
+            + _source_xml(path, grid) + (mask or "") + "</VRTRasterBand>")
+    wavelengths = ",".join(f"{w:g}" for w in product.wavelengths)
+    return (f'<VRTDataset rasterXSize="{grid.width}" rasterYSize="{grid.height}"><SRS>{escape(grid.crs.to_wkt())}'
             f"</SRS><GeoTransform>{', '.join(repr(v) for v in grid.transform.to_gdal())}</GeoTransform>"
             f'<Metadata><MDI key="wavelength">{wavelengths}</MDI><MDI key="wavelength_units">nm</MDI></Metadata>'
             + "".join(bands) + "</VRTDataset>\n")
-    return target
 
 
 def band_stacks(stack: str | Path, directory: str | Path) -> list[Path]:

@@ -1,0 +1,142 @@
+"""A chain's imagery fit step is `brdfcorr fit-classes` (issues 26 and 29): the same options under
+the same names, the same defaults (the model chosen from an NDVI strata map, the class names of its
+tags, the water-vapour bad bands, the condition-number guard rail), documented in
+configs/full_reference.yaml with every key at its default."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from brdfcorr.cli.fitting import fit_classes_command
+from brdfcorr.errors import InputError
+from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, GuardRails, Sampling
+from brdfcorr.params import ParameterTable
+from brdfcorr.testing import synthetic_scene, write_scene
+from brdfcorr.workflow.chain import run_chain
+from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
+from brdfcorr.workflow.config import ChainConfig, ConfigError, load_config
+from brdfcorr.workflow.config_steps import ImageryFit
+from brdfcorr.workflow.plan import plan_run
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: Soil (flat spectrum, NDVI about 0.06) and grass (NDVI 0.6) [sr^-1]: strata with edge 0.3 split them.
+TRUTH = ParameterTable(classes=[
+    {"id": 1, "name": "soil", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
+     "params": {"f_iso": [0.06, 0.07, 0.08, 0.09], "f_vol": 0.01, "f_geo": 0.012}},
+    {"id": 2, "name": "grass", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
+     "params": {"f_iso": [0.02, 0.04, 0.03, 0.12], "f_vol": [0.01, 0.02, 0.01, 0.06], "f_geo": 0.004}},
+])
+
+
+@pytest.fixture(scope="module")
+def strata_scene(tmp_path_factory) -> Path:
+    """One scene rendered from TRUTH with its NDVI strata map (``classes ndvi``, edge 0.3) as
+    ``strata.tif``; returns the folder."""
+    root = tmp_path_factory.mktemp("strata_chain")
+    paths = write_scene(root / "scenes" / "line0", synthetic_scene(ny=48, nx=64, table=TRUTH))
+    ndvi_class_file(paths["image"], paths["image"].parent / "strata.tif", bins=NdviBins(edges=(0.3,)))
+    return root
+
+
+def _chain(root: Path, name: str, fit: dict) -> Path:
+    document = {
+        "inputs": {"images": ["scenes/*/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
+                   "classes": "{dir}/strata.tif"},
+        "steps": {"fit": {"source": "imagery", "min_samples": 50, **fit}, "correct": {"limits": None}},
+        "outputs": {"directory": f"out_{name}", "naming": "{parent}_brdf.tif", "qa_naming": "{parent}_qa.tif"},
+        "engine": {"scheduler": "synchronous", "chunk": 16},
+    }
+    path = root / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(document))
+    return path
+
+
+def _cli_defaults() -> dict:
+    """The values `fit-classes` gives its options when none is given, as click resolves them."""
+    arguments = ["image.tif", "--angles", "angles.tif", "--classes", "classes.tif", "-o", "table.yaml"]
+    with fit_classes_command.make_context("fit-classes", arguments) as context:
+        return dict(context.params)
+
+
+def test_the_step_defaults_are_those_of_fit_classes():
+    settings = ImageryFit(source="imagery").fit_settings()
+    cli = _cli_defaults()
+    # fit-classes: no --model (chosen from the class maps), the guard rails and sampling of its options.
+    assert settings["models"].model is None and cli["model_name"] is None
+    assert settings["guard"] == GuardRails(min_samples=cli["min_samples"], min_vza_spread=cli["min_vza_spread"],
+                                           max_condition=cli["max_condition"])
+    assert settings["sampling"] == Sampling(max_samples=cli["max_samples"], seed=cli["seed"])
+    assert settings["bad_bands"] == WATER_VAPOUR_BANDS and cli["bad_bands"] == ()  # no --bad-bands: the default
+    assert settings["guard"].max_condition == 1000.0
+
+
+def test_given_settings_reach_the_fit_and_names_of_the_step_win():
+    step = ImageryFit(source="imagery", model="lambertian", names={2: "grass"}, max_condition=50,
+                      bad_bands=[[650, 670]], min_samples=20)
+    settings = step.fit_settings({1: "roof_tile", 2: "tile"})
+    assert settings["models"].model == "lambertian"
+    assert dict(settings["models"].names) == {1: "roof_tile", 2: "grass"}
+    assert settings["guard"] == GuardRails(min_samples=20, max_condition=50.0)
+    assert settings["bad_bands"] == ((650.0, 670.0),)
+    assert ImageryFit(source="imagery", bad_bands=[]).fit_settings()["bad_bands"] == ()  # --bad-bands none
+
+
+@pytest.mark.parametrize("key, value, expected", [
+    ("bad_bands", [[1450, 1340]], "steps.fit.bad_bands: range [1450, 1340] nm must be finite with 0 < low <= high"),
+    ("bad_bands", [[0, 10]], "steps.fit.bad_bands: range [0, 10] nm"),
+    ("bad_bands", [[1340]], "steps.fit.bad_bands[0]"),
+    ("max_condition", 0.5, "steps.fit.max_condition: Input should be greater than or equal to 1"),
+    ("max_condition", ".inf", "steps.fit.max_condition: Input should be a finite number"),
+])
+def test_bad_values_are_one_line_naming_the_key(key, value, expected):
+    document = {"inputs": {"images": ["a.tif"], "angles": {"path": "a_angles.tif"}, "classes": "c.tif"},
+                "steps": {"fit": {"source": "imagery", key: yaml.safe_load(str(value)) if value == ".inf" else value}},
+                "outputs": {"directory": "out"}}
+    with pytest.raises(ConfigError) as caught:
+        ChainConfig.from_dict(document, "chain.yaml")
+    message = str(caught.value)
+    assert "\n" not in message and expected in message, message
+
+
+def test_full_reference_documents_every_key_of_the_imagery_fit_at_its_default():
+    path = REPO / "configs" / "full_reference.yaml"
+    step = load_config(path).steps.fit
+    assert isinstance(step, ImageryFit)
+    assert step == ImageryFit(source="imagery")  # every value written there is the default
+    written = yaml.safe_load(path.read_text())["steps"]["fit"]
+    assert set(written) == set(ImageryFit.model_fields)  # and every key is written
+
+
+def test_a_chain_on_strata_maps_gets_the_kernel_model_and_the_tag_names(strata_scene):
+    config = load_config(_chain(strata_scene, "defaults", {}))
+    plan = plan_run(config)
+    assert any("model ross_thick_li_sparse on NDVI strata class maps" in text for text in plan.table_sources)
+    report = run_chain(config)
+    assert report.ok, report.scenes
+    table = ParameterTable.load(strata_scene / "out_defaults" / "fitted_params.yaml")
+    # As fit-classes on the same map (tests/cli/test_fit_classes_names.py): the kernel model and
+    # the names `classes ndvi` wrote in the map's class_names tag, not torrance_sparrow, class_1.
+    assert {entry.model for entry in table.classes} == {"ross_thick_li_sparse"}
+    assert [entry.name for entry in table.classes] == ["ndvi_-inf_0.30", "ndvi_0.30_inf"]
+    notes = report.fit["notes"]
+    assert any(note.startswith("model ross_thick_li_sparse for every class: the class map is NDVI strata")
+               for note in notes)
+    assert "class names from the class map's tags: 1=ndvi_-inf_0.30, 2=ndvi_0.30_inf" in notes
+
+
+def test_a_chain_leaves_out_its_bad_bands_and_applies_its_condition_limit(strata_scene):
+    report = run_chain(load_config(_chain(strata_scene, "bands", {"bad_bands": [[650, 670]],
+                                                                    "names": {2: "grass"}})))
+    assert report.ok, report.scenes
+    table = ParameterTable.load(strata_scene / "out_bands" / "fitted_params.yaml")
+    assert [entry.bad_bands for entry in table.classes] == [[[650.0, 670.0]]] * 2  # the 660 nm band only
+    assert report.fit["bands_left_out"] == [660.0]
+    assert table[2].name == "grass" and table[1].name == "ndvi_-inf_0.30"  # a given name wins over the tag
+    # A condition number is >= 1 and the kernels' columns are not orthogonal: every class fails
+    # the limit 1, as `fit-classes --max-condition 1` does, and a run with no class is refused.
+    strict = load_config(_chain(strata_scene, "strict", {"max_condition": 1}))
+    with pytest.raises(InputError, match="the parameter table of the run has no class"):
+        run_chain(strict)
+    assert not (strata_scene / "out_strict" / "line0_brdf.tif").exists()
