@@ -65,6 +65,26 @@ def models_command(name):
     click.echo("\nbrdfcorr models NAME: what each parameter of the model NAME means, and its reference")
 
 
+def _named(name: str | None, what: str) -> str:
+    if name is None:
+        raise click.UsageError(f"-o needs {what}")
+    return name
+
+
+def _add_class(output: Path, overwrite: bool, class_id: int | None, entry) -> int:
+    """Add ``entry(class_id)`` to the table ``output`` (a new file, or an existing one with
+    ``overwrite``: :func:`brdfcorr.io.paths.update_target`); the id defaults to one more than the
+    table's largest. Returns the id."""
+    from brdfcorr.io.paths import update_target
+    from brdfcorr.params import ParameterTable
+
+    target = update_target(output, overwrite)
+    table = ParameterTable.load(target) if target.exists() else ParameterTable()
+    class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
+    table.with_class(entry(class_id)).save(target)
+    return class_id
+
+
 @main.command("materials")
 @click.argument("name", required=False)
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
@@ -79,18 +99,11 @@ def materials_command(name, output, class_id, overwrite):
     With -o, the material becomes a class of a parameter table. The library's fits are at one
     wavelength (paper 003: 550 nm) and apply to every band of an image.
     """
-    from brdfcorr.io.paths import update_target
     from brdfcorr.models.materials import load_material
-    from brdfcorr.params import ParameterTable
 
     if output is not None:
-        if name is None:
-            raise click.UsageError("-o needs a material NAME")
-        target = update_target(output, overwrite)
-        table = ParameterTable.load(target) if target.exists() else ParameterTable()
-        class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
-        material = load_material(name)
-        table.with_class(material.table_entry(class_id)).save(target)
+        material = load_material(_named(name, "a material NAME"))
+        class_id = _add_class(output, overwrite, class_id, material.table_entry)
         click.echo(f"wrote class {class_id} ({name}, {material.wavelength:g} nm fit) to {output}")
         return
 
@@ -127,17 +140,11 @@ def coefficients_command(name, output, class_id, overwrite):
     """
     import math
 
-    from brdfcorr.io.paths import update_target
     from brdfcorr.models.coefficients import coefficient_names, load_coefficients
-    from brdfcorr.params import ParameterTable
 
     if output is not None:
-        if name is None:
-            raise click.UsageError("-o needs a coefficient set NAME")
-        target = update_target(output, overwrite)
-        table = ParameterTable.load(target) if target.exists() else ParameterTable()
-        class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
-        table.with_class(load_coefficients(name).table_entry(class_id)).save(target)
+        class_id = _add_class(output, overwrite, class_id,
+                              load_coefficients(_named(name, "a coefficient set NAME")).table_entry)
         click.echo(f"wrote class {class_id} ({name}) to {output}")
         return
     if name is None:

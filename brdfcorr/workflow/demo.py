@@ -87,46 +87,38 @@ ROOF_TILE, CONCRETE, GRASS, TREES, SOIL = 1, 2, 3, 4, 5
 # in the range of MODIS MCD43A1 weights of such covers (per wavelength, interpolated to the bands).
 _KERNEL_WAVELENGTHS = [450.0, 550.0, 650.0, 700.0, 750.0, 900.0]
 
+
+def _kernel_class(class_id: int, name: str, **weights: list[float]) -> dict:
+    """A table entry of the RTLSR model with weights [sr^-1] at :data:`_KERNEL_WAVELENGTHS`."""
+    return {"id": class_id, "name": name, "model": "ross_thick_li_sparse", "wavelengths": _KERNEL_WAVELENGTHS,
+            "params": weights}
+
+
 #: Grass (lawn): R = pi f_iso of 3 % blue, 8 % green, 4 % red, 40-45 % near infrared; volume
 #: scattering f_vol / f_iso 0.6 (visible) to 0.8 (NIR), shadowing f_geo / f_iso 0.2 to 0.12.
-GRASS_ILLUSTRATIVE = {
-    "id": GRASS,
-    "name": "grass_illustrative",
-    "model": "ross_thick_li_sparse",
-    "wavelengths": _KERNEL_WAVELENGTHS,
-    "params": {
-        "f_iso": [0.0095, 0.0255, 0.0127, 0.0320, 0.1270, 0.1430],
-        "f_vol": [0.0057, 0.0153, 0.0076, 0.0208, 0.1016, 0.1144],
-        "f_geo": [0.0019, 0.0051, 0.0025, 0.0054, 0.0152, 0.0172],
-    },
-}
+GRASS_ILLUSTRATIVE = _kernel_class(
+    GRASS, "grass_illustrative",
+    f_iso=[0.0095, 0.0255, 0.0127, 0.0320, 0.1270, 0.1430],
+    f_vol=[0.0057, 0.0153, 0.0076, 0.0208, 0.1016, 0.1144],
+    f_geo=[0.0019, 0.0051, 0.0025, 0.0054, 0.0152, 0.0172],
+)
 #: Trees (deciduous crowns): darker than grass (2.5 % blue, 5.5 % green, 3 % red, 30-33 % NIR),
 #: less volume scattering (f_vol / f_iso 0.5 to 0.6) and more crown shadowing (f_geo / f_iso 0.25
 #: to 0.18).
-TREES_ILLUSTRATIVE = {
-    "id": TREES,
-    "name": "trees_illustrative",
-    "model": "ross_thick_li_sparse",
-    "wavelengths": _KERNEL_WAVELENGTHS,
-    "params": {
-        "f_iso": [0.0080, 0.0175, 0.0095, 0.0223, 0.0955, 0.1050],
-        "f_vol": [0.0040, 0.0088, 0.0048, 0.0123, 0.0573, 0.0630],
-        "f_geo": [0.0020, 0.0044, 0.0024, 0.0047, 0.0172, 0.0189],
-    },
-}
+TREES_ILLUSTRATIVE = _kernel_class(
+    TREES, "trees_illustrative",
+    f_iso=[0.0080, 0.0175, 0.0095, 0.0223, 0.0955, 0.1050],
+    f_vol=[0.0040, 0.0088, 0.0048, 0.0123, 0.0573, 0.0630],
+    f_geo=[0.0020, 0.0044, 0.0024, 0.0047, 0.0172, 0.0189],
+)
 #: Bare soil (dry loam): reflectance rising from 10 % (450 nm) to 26 % (900 nm), little volume
 #: scattering (f_vol / f_iso 0.1) and rough-surface shadowing (f_geo / f_iso 0.3).
-SOIL_ILLUSTRATIVE = {
-    "id": SOIL,
-    "name": "bare_soil_illustrative",
-    "model": "ross_thick_li_sparse",
-    "wavelengths": _KERNEL_WAVELENGTHS,
-    "params": {
-        "f_iso": [0.0318, 0.0446, 0.0573, 0.0637, 0.0700, 0.0828],
-        "f_vol": [0.0032, 0.0045, 0.0057, 0.0064, 0.0070, 0.0083],
-        "f_geo": [0.0095, 0.0134, 0.0172, 0.0191, 0.0210, 0.0248],
-    },
-}
+SOIL_ILLUSTRATIVE = _kernel_class(
+    SOIL, "bare_soil_illustrative",
+    f_iso=[0.0318, 0.0446, 0.0573, 0.0637, 0.0700, 0.0828],
+    f_vol=[0.0032, 0.0045, 0.0057, 0.0064, 0.0070, 0.0083],
+    f_geo=[0.0095, 0.0134, 0.0172, 0.0191, 0.0210, 0.0248],
+)
 #: The kernel-driven classes, in class-id order.
 KERNEL_CLASSES = (GRASS_ILLUSTRATIVE, TREES_ILLUSTRATIVE, SOIL_ILLUSTRATIVE)
 
