@@ -23,6 +23,7 @@ from brdfcorr.io.sensors.emit import apply_glt, read_emit_image, read_emit_obs
 from brdfcorr.models import torrance_sparrow
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
+from brdfcorr.testing.products import EMIT_OBS_BAND_NAMES
 
 pytest.importorskip("h5py")
 pytest.importorskip("h5netcdf")
@@ -33,19 +34,7 @@ FILL = -9999.0
 WAVELENGTH = np.array([452.3, 551.4, 660.1, 857.8, 1245.6])
 FWHM = np.array([8.4, 8.5, 8.5, 8.6, 8.8])
 GEOTRANSFORM = [-116.2, 0.000542232520256, 0.0, 36.4, 0.0, -0.000542232520256]
-OBS_BANDS = [
-    "Path length (sensor-to-ground in meters)",
-    "To-sensor azimuth (0 to 360 degrees CW from N)",
-    "To-sensor zenith (0 to 90 degrees from zenith)",
-    "To-sun azimuth (0 to 360 degrees CW from N)",
-    "To-sun zenith (0 to 90 degrees from zenith)",
-    "Solar phase (degrees between to-sensor and to-sun vectors in principal plane)",
-    "Slope (local surface slope as derived from DEM in degrees)",
-    "Aspect (local surface aspect 0 to 360 degrees clockwise from N)",
-    "Cosine(i) (apparent local illumination factor based on DEM slope and aspect and to sun vector)",
-    "UTC Time (decimal hours for mid-line pixels)",
-    "Earth-sun distance (AU)",
-]
+OBS_BANDS = list(EMIT_OBS_BAND_NAMES)  # the real granules' band names, in order
 
 
 def glt(seed: int = 3) -> tuple[np.ndarray, np.ndarray]:
