@@ -41,7 +41,7 @@ from brdfcorr.errors import BrdfcorrWarning
               help="Correct cloudy, shadowed and saturated pixels too (only the product's fill is no data).")
 @click.option("--compress", default="deflate", show_default=True, help="GDAL compression.")
 @click.option("--cog", is_flag=True, help="Write Cloud-Optimized GeoTIFFs.")
-@click.option("--chunk", type=CHUNK_SIZE, help="Chunk and tile size [pixels], a multiple of 16 [default: 1024].")
+@click.option("--chunk", type=CHUNK_SIZE, help="Chunk and tile size [pixels], a multiple of 16 [default: 512].")
 @PROGRESS
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
 @handle_errors

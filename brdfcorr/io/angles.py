@@ -18,10 +18,11 @@ import xarray as xr
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import describe_layer
 from brdfcorr.io.opening import chunk_spec, open_raster, reading
-from brdfcorr.io.sensors.grids import GRID_STATISTICS
+from brdfcorr.io.sensors.grids import GRID_STATISTICS, grid_window
 
 __all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY",
-           "angle_band_name", "open_angles", "from_relative_azimuth", "AngleStatistics", "check_angles"]
+           "angle_band_name", "open_angles", "from_relative_azimuth", "AngleStatistics", "check_angles",
+           "window_values"]
 
 ANGLE_NAMES = ("sza", "saa", "vza", "vaa")
 
@@ -257,3 +258,14 @@ def _angle_statistics(*blocks: np.ndarray) -> np.ndarray:
         result[0, 0, index, :2] = (values.min(), values.max()) if values.size else (np.nan, np.nan)
         result[0, 0, index, 2:] = values.size, in_domain.size, in_domain.sum(dtype=np.float64)
     return result
+
+
+def window_values(layer: xr.DataArray, rows: slice, cols: slice) -> np.ndarray:
+    """The (y, x) window ``rows`` x ``cols`` (slices with start and stop) of an angle layer as float64
+    [deg]: from a coarse grid's record where a reader made one
+    (:func:`brdfcorr.io.sensors.grids.grid_window`: a few pixels interpolated instead of a whole
+    chunk), else read from the layer."""
+    window = grid_window(layer, rows, cols)
+    if window is None:
+        window = np.asarray(layer.isel(y=rows, x=cols).transpose("y", "x"), dtype=np.float64)
+    return window

@@ -33,7 +33,7 @@ from brdfcorr.correction.topographic import frame_conflict, topographic_correcti
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import rasters, writer
-from brdfcorr.io.angles import RELATIVE_ONLY
+from brdfcorr.io.angles import RELATIVE_ONLY, window_values
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.opening import open_layer, reading
 from brdfcorr.io.paths import check_outputs, refuse_existing
@@ -445,9 +445,10 @@ def _centre_sun(angles: Mapping[str, xr.DataArray], half: int = 16) -> tuple[flo
     if angles["saa"].attrs.get(RELATIVE_ONLY):
         return None
     ny, nx = angles["sza"].sizes["y"], angles["sza"].sizes["x"]
-    window = {"y": slice(max(ny // 2 - half, 0), ny // 2 + half), "x": slice(max(nx // 2 - half, 0), nx // 2 + half)}
-    zenith = np.asarray(angles["sza"].isel(window), dtype=np.float64)
-    azimuth = np.radians(np.asarray(angles["saa"].isel(window), dtype=np.float64))
+    rows = slice(max(ny // 2 - half, 0), min(ny // 2 + half, ny))
+    cols = slice(max(nx // 2 - half, 0), min(nx // 2 + half, nx))
+    zenith = window_values(angles["sza"], rows, cols)  # from the coarse grid where there is one
+    azimuth = np.radians(window_values(angles["saa"], rows, cols))
     valid = np.isfinite(zenith) & np.isfinite(azimuth)
     if not valid.any():
         return None

@@ -39,10 +39,15 @@ from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.workflow.correction import correct_files
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
-__all__ = ["nbar_files", "nbar_table", "EACH_BAND"]
+__all__ = ["nbar_files", "nbar_table", "EACH_BAND", "NBAR_CHUNK"]
 
 #: ``view_band`` (``--view-band``) value that corrects each Sentinel-2 band with its own view grids.
 EACH_BAND = "each"
+#: Default chunk and output tile size [pixels]: a 1024 x 1024 window is then four chunks that the
+#: threads share (one 1024 chunk left a core idle: 0.78 s against 0.68 s for the benchmark's two
+#: runs on 2 cores, benchmarks/bench_sen2nbar.py); a full tile is 22 x 22 chunks. The numbers do not
+#: depend on the chunks (pixel by pixel computations).
+NBAR_CHUNK = 512
 
 
 def nbar_table(product: ProductFolder, coefficients: str = "roy2017") -> ParameterTable:
@@ -85,7 +90,7 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
         Keep the uncorrected, masked, scaled bands here: a GDAL virtual raster (``.vrt``) reading
         the product's files by absolute path (and ``<name>_mask.tif``), e.g. BEFORE of ``assess``.
     engine : Engine
-        Chunks, scheduler, progress.
+        Chunks (default :data:`NBAR_CHUNK`), scheduler, progress.
 
     Returns
     -------
@@ -102,7 +107,7 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     folder = find_product(product, resolution=resolution, bands=bands, masked=masked)
     angle_options = _angle_options(folder, view_band)
     _check_outputs(outputs, folder, keep_stack)
-    engine = replace(engine, chunks=engine.chunks or 1024)
+    engine = replace(engine, chunks=engine.chunks or NBAR_CHUNK)
     reference = {"sza": reference_sza, "vza": 0.0, "raa": 0.0}
     with _scratch(outputs) as scratch:
         stack = write_stack(folder, keep_stack or Path(scratch) / "stack.vrt", chunks=engine.chunks)

@@ -30,12 +30,16 @@ from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
 
-__all__ = ["GRID_STATISTICS", "grid_statistics", "grid_template", "pixel_centres", "to_grid", "wrap_azimuth"]
+__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "grid_statistics", "grid_window", "grid_template", "pixel_centres",
+           "to_grid", "wrap_azimuth"]
 
 #: Encoding key of a layer interpolated by :func:`to_grid` holding its shape (y, x) and the statistics
 #: of :func:`brdfcorr.io.angles.check_angles` (min, max, finite count, count in [0, 90) and their
 #: sum) from the coarse grid (:func:`grid_statistics`), which the check takes instead of a pass.
 GRID_STATISTICS = "brdfcorr_grid_statistics"
+#: Encoding key of a separable :func:`to_grid` output: its coarse grid and transforms, so that
+#: :func:`grid_window` interpolates a few pixels without computing a whole chunk.
+GRID_SOURCE = "brdfcorr_grid_source"
 #: Chunk size [pixels] of angle grids interpolated onto an image grid (a cheap computation: large chunks).
 GRID_CHUNK = 2048
 
@@ -263,9 +267,24 @@ def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, ch
     result = xr.DataArray(data, dims=("y", "x"), coords={"y": plane["y"], "x": plane["x"]}, name=name,
                           attrs=dict(attrs or {}))
     if separable:  # the statistics of the angle check, from the coarse grid (no pass)
+        result.encoding[GRID_SOURCE] = (shape, values, source_transform, target_transform, angle)
         statistics = grid_statistics(values, source_transform, target_transform, shape, angle)
         if statistics is not None:
             result.encoding[GRID_STATISTICS] = (*shape, *statistics)
     if target_crs is not None:
         result = result.rio.write_crs(target_crs)
     return result.rio.write_transform(target_transform)
+
+
+def grid_window(layer: xr.DataArray, rows: slice, cols: slice) -> np.ndarray | None:
+    """The pixels ``rows`` x ``cols`` (slices with start and stop) of a separable :func:`to_grid`
+    output interpolated from its coarse grid alone (:data:`GRID_SOURCE`; the same bilinear values
+    as the whole chunk's, without computing it); None where the layer has no such record or no
+    longer the shape it was made for."""
+    recorded = layer.encoding.get(GRID_SOURCE)
+    if recorded is None or tuple(recorded[0]) != (layer.sizes.get("y"), layer.sizes.get("x")):
+        return None
+    _, values, source_transform, target_transform, angle = recorded
+    positions = _coarse_positions(source_transform, target_transform, np.arange(rows.start, rows.stop),
+                                  np.arange(cols.start, cols.stop))
+    return _interpolate_separable(values, *positions, angle)
