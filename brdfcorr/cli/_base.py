@@ -97,6 +97,21 @@ def progress_bars(progress: bool | None, description: str):
         yield [callback]
 
 
+@contextlib.contextmanager
+def class_bar(progress: bool | None, description: str):
+    """A counting bar on stderr (where ``progress``; None: where stderr is a terminal); yields a
+    callable ``update(item)`` that advances it (a no-op without a bar)."""
+    if progress is None:
+        progress = sys.stderr.isatty()
+    if not progress:
+        yield lambda item: None
+        return
+    from tqdm import tqdm
+
+    with tqdm(desc=description, unit="class", leave=False, file=sys.stderr) as bar:
+        yield lambda item: bar.update()
+
+
 def _format_table(rows: list[dict[str, str]]) -> str:
     """Rows of equal keys as a plain aligned text table."""
     columns = list(rows[0])

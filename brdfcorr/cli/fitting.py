@@ -16,6 +16,7 @@ from brdfcorr.cli._base import (
     _options,
     _pairs,
     _save_figure,
+    class_bar,
     handle_errors,
     main,
     progress_bars,
@@ -127,16 +128,17 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         click.echo("brdfcorr: warning: --name is deprecated; use --class-name ID=NAME", err=True)
     class_names = {**_pairs("--name", deprecated_names), **_pairs("--class-name", names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
-    with progress_bars(progress, "fit-classes"):  # the checks and the class maps, angles and samples read
+    # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes fitted.
+    with progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
         fit = fit_class_files(
             [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
                         class_lookup=lookup, scale=scale, offset=offset)
              for image, angle_source, class_map in zip(images, angles, classes)],
             ClassModels(model_name, class_models=_pairs("--class-model", class_model),
                         fixed=_assignments("--fix", fix) or None, fallback=fallback, names=class_names),
-            sampling=Sampling(max_samples=max_samples, seed=seed),
+            sampling=Sampling(max_samples=max_samples, seed=seed, bad_bands=ranges),
             guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
-            bad_bands=ranges,
+            progress=fitted,
         )
     plots = {class_fit.class_id: plot_dir / f"class_{class_fit.class_id}_{class_fit.name}.png"
              for class_fit in fit.result.fits if class_fit.params} if plot_dir else {}

@@ -147,17 +147,17 @@ class ImageryFit(StrictModel):
         return value
 
     def fit_settings(self, names: Mapping[int, str] | None = None) -> dict[str, Any]:
-        """The step as the keyword arguments ``models``, ``sampling``, ``guard`` and ``bad_bands`` of
-        :func:`brdfcorr.workflow.tasks.fit_class_files`; ``names`` are default class names (the
-        step's ``names`` win)."""
+        """The step as the keyword arguments ``models``, ``sampling`` (with the bad bands) and
+        ``guard`` of :func:`brdfcorr.workflow.tasks.fit_class_files`; ``names`` are default class
+        names (the step's ``names`` win)."""
         return {
             "models": ClassModels(self.model, class_models=self.class_models, fixed=self.fixed,
                                   fallback=self.fallback, names={**(names or {}), **self.names}),
             "sampling": Sampling(max_samples=self.max_samples, seed=self.seed,
-                                 reflectance_scale=self.reflectance_scale),
+                                 reflectance_scale=self.reflectance_scale,
+                                 bad_bands=tuple(tuple(band_range) for band_range in self.bad_bands)),
             "guard": GuardRails(min_samples=self.min_samples, min_vza_spread=self.min_vza_spread,
                                 max_condition=self.max_condition),
-            "bad_bands": tuple(tuple(band_range) for band_range in self.bad_bands),
         }
 
 

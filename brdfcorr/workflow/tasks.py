@@ -24,7 +24,7 @@ from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, ClassModels, GuardRails, Sampling, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
-from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL, WATER_VAPOUR_BANDS
+from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
 from brdfcorr.io import rasters
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
@@ -282,7 +282,7 @@ def _imagery_source(scenes: Sequence[SceneFiles], choice: ClassModels) -> str:
 def fit_class_files(
     scenes: Sequence[SceneFiles], models: ClassModels | str | None, *, sampling: Sampling = Sampling(),
     guard: GuardRails = GuardRails(), chunks: int | None = None, wavelengths: Sequence[float] | None = None,
-    skip_unreadable: bool = False, bad_bands: Sequence[Sequence[float]] = WATER_VAPOUR_BANDS,
+    skip_unreadable: bool = False, progress=None,
 ) -> ImageryFit:
     """Fit per-class, per-band parameters from the pixels of one or many scenes.
 
@@ -316,10 +316,15 @@ def fit_class_files(
     skip_unreadable : bool, default False
         Leave out a scene that cannot be opened (listed in ``left_out``) instead of raising; at
         least one scene must open (a chain's fit step uses this).
-    bad_bands : sequence of (float, float), default :data:`brdfcorr.fit.WATER_VAPOUR_BANDS`
-        Wavelength ranges [nm] whose bands are left out of the fit (``()``: none); the bands an
-        ENVI image's header marks bad (``bbl``) are left out too. The table's classes list them as
-        ``bad_bands`` (:func:`brdfcorr.fit.fit_classes`); ``notes`` says so.
+    progress : callable, optional
+        Called as ``progress(class_id)`` after each class is fitted (a progress bar's update).
+
+    Notes
+    -----
+    Bad bands: the bands in ``sampling.bad_bands`` [nm] (default
+    :data:`brdfcorr.fit.WATER_VAPOUR_BANDS`; ``()``: none) and those an ENVI image's header marks
+    bad (``bbl``) are left out of the fit. The table's classes list them as ``bad_bands``
+    (:func:`brdfcorr.fit.fit_classes`); ``notes`` says so.
     """
     if not isinstance(models, ClassModels):
         models = ClassModels(models)
@@ -327,14 +332,14 @@ def fit_class_files(
                                             skip_unreadable)
     models, notes = _choices_from_maps(models, [data.classes for data in opened])
     bbl = [_bbl_ranges(scene, data) for scene, data in zip(used, opened)]
-    ranges = [*bad_bands, *(run for runs, _ in bbl for run in runs)]
+    ranges = [*sampling.bad_bands, *(run for runs, _ in bbl for run in runs)]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ClassFitWarning)
         result = fit_classes(
             [s.reflectance for s in opened], [s.classes for s in opened],
             [xr.Dataset(s.angles) for s in opened], models,
             sampling=replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges))),
-            guard=guard, source=_imagery_source(used, models),
+            guard=guard, source=_imagery_source(used, models), progress=progress,
         )
     first = opened[0].reflectance
     found = first.coords["wavelength"].values if "wavelength" in first.coords else None

@@ -190,3 +190,15 @@ def test_gdal_cache_is_bounded_while_the_scale_check_reads(files, monkeypatch):
     assert rasters.check_reflectance_scale(image, scheduler="synchronous") == pytest.approx(
         np.nanpercentile(image.values, 99), rel=0.05)
     assert seen and all(value == rasters.gdal_cache_bytes(files["image"], 16) for value in seen)
+
+
+def test_fit_classes_counts_the_classes_it_has_fitted(files, tmp_path):
+    # The fit itself (classes x bands, no dask) has its own bar: one step per class of the map.
+    from brdfcorr.io.rasters import open_classes
+
+    ids = np.unique(open_classes(files["classes"]).values)
+    n_classes = int(np.sum((ids > 0) & (ids != 255)))  # 0: no class, 255: the map's nodata
+    arguments = [str(a) for a in _commands(files, tmp_path)["fit-classes"]] + ["--progress"]
+    result = CliRunner().invoke(main, arguments)
+    assert result.exit_code == 0, result.output
+    assert f"fit classes: {n_classes}" in result.stderr.replace("\r", "\n"), result.stderr

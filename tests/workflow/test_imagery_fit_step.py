@@ -68,7 +68,7 @@ def test_the_step_defaults_are_those_of_fit_classes():
     assert settings["guard"] == GuardRails(min_samples=cli["min_samples"], min_vza_spread=cli["min_vza_spread"],
                                            max_condition=cli["max_condition"])
     assert settings["sampling"] == Sampling(max_samples=cli["max_samples"], seed=cli["seed"])
-    assert settings["bad_bands"] == WATER_VAPOUR_BANDS and cli["bad_bands"] == ()  # no --bad-bands: the default
+    assert settings["sampling"].bad_bands == WATER_VAPOUR_BANDS and cli["bad_bands"] == ()  # no --bad-bands: the default
     assert settings["guard"].max_condition == 1000.0
 
 
@@ -79,8 +79,8 @@ def test_given_settings_reach_the_fit_and_names_of_the_step_win():
     assert settings["models"].model == "lambertian"
     assert dict(settings["models"].names) == {1: "roof_tile", 2: "grass"}
     assert settings["guard"] == GuardRails(min_samples=20, max_condition=50.0)
-    assert settings["bad_bands"] == ((650.0, 670.0),)
-    assert ImageryFit(source="imagery", bad_bands=[]).fit_settings()["bad_bands"] == ()  # --bad-bands none
+    assert settings["sampling"].bad_bands == ((650.0, 670.0),)
+    assert ImageryFit(source="imagery", bad_bands=[]).fit_settings()["sampling"].bad_bands == ()  # --bad-bands none
 
 
 @pytest.mark.parametrize("key, value, expected", [
