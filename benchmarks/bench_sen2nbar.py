@@ -59,7 +59,7 @@ import numpy as np
 import rasterio
 
 from brdfcorr.testing import write_sentinel2_safe
-from brdfcorr.workflow.nbar import nbar_files
+from brdfcorr.workflow.nbar import NbarMethod, nbar_files
 from brdfcorr.workflow.request import OutputFiles
 
 BANDS = {10: ("B02", "B03", "B04", "B08"), 20: ("B05", "B06", "B07", "B11", "B12")}
@@ -77,10 +77,11 @@ SEN2NBAR_CODE = ("import sys, time; t0 = time.perf_counter(); from sen2nbar.nbar
                  "t = time.perf_counter(); nbar_SAFE(sys.argv[1], cog=False, quiet=True); "
                  "print(time.perf_counter() - t, time.perf_counter() - t0)")
 BRDFCORR_CODE = ("import sys, time; t0 = time.perf_counter(); from pathlib import Path; import distributed; "
-                 "from brdfcorr.workflow.nbar import nbar_files; from brdfcorr.workflow.request import OutputFiles; "
-                 "t = time.perf_counter(); "
+                 "from brdfcorr.workflow.nbar import NbarMethod, nbar_files; "
+                 "from brdfcorr.workflow.request import OutputFiles; t = time.perf_counter(); "
                  "[nbar_files(sys.argv[1], OutputFiles(Path(sys.argv[2]) / f'process_{r}m.tif', overwrite=True, "
-                 "compress=sys.argv[5]), resolution=r, bands=b.split(','), masked=(), reference_sza='observed') "
+                 "compress=sys.argv[5]), resolution=r, bands=b.split(','), masked=(), "
+                 "method=NbarMethod(reference_sza='observed', factor_at=sys.argv[6])) "
                  "for r, b in ((10, sys.argv[3]), (20, sys.argv[4]))]; "
                  "print(time.perf_counter() - t, time.perf_counter() - t0)")
 
@@ -95,11 +96,11 @@ def run_sen2nbar(python: str, safe: Path) -> tuple[float, float]:
     return inside, whole
 
 
-def run_brdfcorr_process(safe: Path, scratch: Path, compress: str) -> tuple[float, float]:
-    """brdfcorr's two default runs (10 m and 20 m bands) in a fresh process: wall time [s] without
-    and with the imports (dask's import of distributed at its first computation counted as one)."""
+def run_brdfcorr_process(safe: Path, scratch: Path, compress: str, factor_at: str) -> tuple[float, float]:
+    """brdfcorr's two runs (10 m and 20 m bands) in a fresh process: wall time [s] without and with
+    the imports (dask's import of distributed at its first computation counted as one)."""
     result = subprocess.run([sys.executable, "-c", BRDFCORR_CODE, str(safe), str(scratch), ",".join(BANDS[10]),
-                             ",".join(BANDS[20]), compress], capture_output=True, text=True)
+                             ",".join(BANDS[20]), compress, factor_at], capture_output=True, text=True)
     if result.returncode != 0:
         sys.exit(f"brdfcorr failed:\n{result.stderr}")
     inside, whole = (float(value) for value in result.stdout.strip().splitlines()[-1].split())
@@ -107,33 +108,38 @@ def run_brdfcorr_process(safe: Path, scratch: Path, compress: str) -> tuple[floa
 
 
 def timings(python: str, safe: Path, scratch: Path, repeat: int) -> None:
-    """Print the best of ``repeat`` fresh-process runs of sen2nbar and brdfcorr (default, and
-    written uncompressed as sen2nbar writes), taken in turn so that both see the same load."""
-    runs: dict[str, list[tuple[float, float]]] = {"sen2nbar": [], "deflate": [], "none": []}
+    """Print the best of ``repeat`` fresh-process runs of sen2nbar and brdfcorr (the factor at the
+    pixels, the default, and at the angle grid's nodes; written with the default deflate and
+    uncompressed as sen2nbar writes), taken in turn so that all see the same load."""
+    kinds = {("deflate", "pixels"): "the default (float32, deflate)", ("none", "pixels"): "float32, uncompressed",
+             ("deflate", "nodes"): "--factor-at nodes (float32, deflate)",
+             ("none", "nodes"): "--factor-at nodes, float32, uncompressed"}
+    runs: dict[object, list[tuple[float, float]]] = {"sen2nbar": [], **{kind: [] for kind in kinds}}
     for _ in range(repeat):
         runs["sen2nbar"].append(run_sen2nbar(python, safe))
-        for compress in ("deflate", "none"):
-            runs[compress].append(run_brdfcorr_process(safe, scratch, compress))
+        for compress, factor_at in kinds:
+            runs[compress, factor_at].append(run_brdfcorr_process(safe, scratch, compress, factor_at))
     best = {name: tuple(min(values) for values in zip(*found)) for name, found in runs.items()}
     theirs, theirs_whole = best["sen2nbar"]
     print(f"sen2nbar nbar_SAFE (float64, uncompressed): {theirs:.2f} s; with its imports {theirs_whole:.2f} s")
-    for name, what in (("deflate", "the default (float32, deflate)"), ("none", "float32, uncompressed")):
+    for name, what in kinds.items():
         ours, ours_whole = best[name]
         print(f"brdfcorr nbar, two runs, {what}: {ours:.2f} s = {ours / theirs:.2f} x sen2nbar's; with the imports "
               f"{ours_whole:.2f} s = {ours_whole / theirs_whole:.2f} x")
 
 
-def run_brdfcorr(safe: Path, scratch: Path, view_band: str | None,
+def run_brdfcorr(safe: Path, scratch: Path, view_band: str | None, factor_at: str = "pixels",
                  compress: str = "deflate") -> tuple[float, dict[str, tuple[Path, int]]]:
     """brdfcorr's NBAR of the 10 m and the 20 m bands, one run per resolution, with the view
     angles of ``view_band`` (None: the mean of all bands'; "each": every band its own, as
-    sen2nbar); wall time [s] and each band's output file and band number."""
+    sen2nbar) and the factor at ``factor_at``; wall time [s] and each band's output file and band
+    number."""
     outputs = {}
     start = time.perf_counter()
     for resolution, bands in BANDS.items():
-        path = scratch / f"brdfcorr_{view_band}_{resolution}m.tif"
+        path = scratch / f"brdfcorr_{view_band}_{factor_at}_{resolution}m.tif"
         nbar_files(safe, OutputFiles(path, overwrite=True, compress=compress), resolution=resolution, bands=bands,
-                   masked=(), reference_sza="observed", view_band=view_band)
+                   masked=(), method=NbarMethod(reference_sza="observed", view_band=view_band, factor_at=factor_at))
         outputs.update({band: (path, index + 1) for index, band in enumerate(bands)})
     return time.perf_counter() - start, outputs
 
@@ -178,13 +184,16 @@ def main() -> None:
         shifted = write_sentinel2_safe(scratch / "shifted", args.mtd_tl, size=args.size, offset=(37500.0, 37500.0))
         print(f"times: the best of {args.repeat} runs, each in a fresh process, imports excluded unless said")
         timings(args.sen2nbar_python, safe, scratch, args.repeat)
-        for source, view_band, what in (
-            (safe, None, "view angles averaged over the bands (the default)"),
-            (safe, "each", "each band's own view angles (--view-band each)"),
-            (shifted, None, "view angles averaged over the bands, on sen2nbar's node registration (2.5 km shift)"),
-            (shifted, "each", "each band's own view angles, on sen2nbar's node registration"),
+        for source, view_band, factor_at, what in (
+            (safe, None, "pixels", "view angles averaged over the bands (the default)"),
+            (safe, "each", "pixels", "each band's own view angles (--view-band each)"),
+            (shifted, None, "pixels",
+             "view angles averaged over the bands, on sen2nbar's node registration (2.5 km shift)"),
+            (shifted, "each", "pixels", "each band's own view angles, on sen2nbar's node registration"),
+            (shifted, "each", "nodes", "each band's own view angles, the factor at the nodes (--factor-at nodes), "
+             "on sen2nbar's node registration: sen2nbar's method"),
         ):
-            _, outputs = run_brdfcorr(source, scratch, view_band)
+            _, outputs = run_brdfcorr(source, scratch, view_band, factor_at)
             print(f"brdfcorr nbar, {what}:")
             worst = compare(safe, outputs)
             print(f"  largest relative difference: {100 * worst:.4f} %")

@@ -81,6 +81,7 @@ from brdfcorr.params_bands import (
     band_values,
     bands_dataset,
     check_bad_bands,
+    class_label,
     material_caveat,
     resolve_entry,
 )
@@ -189,8 +190,7 @@ class ClassEntry(StrictModel):
     @property
     def label(self) -> str:
         """``"class 2 (grass)"``, the prefix of every message about this class."""
-        name = self.name if len(self.name) <= 60 and self.name.isprintable() else short_repr(self.name, 60)
-        return f"class {self.id} ({name})"
+        return class_label(self)
 
     @property
     def brdf_model(self) -> Model:

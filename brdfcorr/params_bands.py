@@ -21,8 +21,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import xarray as xr
 
+from brdfcorr._validation import short_repr
 from brdfcorr.errors import ParameterError
-from brdfcorr.models import Model
+from brdfcorr.models import Model, get_model
 from brdfcorr.models.materials import load_material
 
 if TYPE_CHECKING:
@@ -68,10 +69,17 @@ class BandParameters:
     no_parameters: np.ndarray | None = None
 
 
+def class_label(entry: ClassEntry) -> str:
+    """``"class 2 (grass)"``, the prefix of every message about a class (a long or unprintable
+    name shortened)."""
+    name = entry.name if len(entry.name) <= 60 and entry.name.isprintable() else short_repr(entry.name, 60)
+    return f"class {entry.id} ({name})"
+
+
 def _band_count(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None) -> int:
     if n_bands is None:
         if wavelengths is None:
-            raise ParameterError(f"{entry.label}: give the image's wavelengths or number of bands")
+            raise ParameterError(f"{class_label(entry)}: give the image's wavelengths or number of bands")
         n_bands = len(wavelengths)
     return n_bands
 
@@ -91,13 +99,13 @@ def check_bad_bands(entry: ClassEntry) -> None:
     range ``0 < low <= high`` [nm] that holds none of the class's own ``wavelengths``."""
     for low, high in entry.bad_bands or ():
         if not (np.isfinite(low) and np.isfinite(high) and 0 < low <= high):
-            raise ValueError(f"{entry.label}: bad_bands range [{low:g}, {high:g}] nm must be finite with "
+            raise ValueError(f"{class_label(entry)}: bad_bands range [{low:g}, {high:g}] nm must be finite with "
                              "0 < low <= high")
     if entry.wavelengths is not None:
         inside = np.asarray(entry.wavelengths, dtype=float)[in_ranges(entry.wavelengths, entry.bad_bands or ())]
         if inside.size:
-            raise ValueError(f"{entry.label}: wavelength {inside[0]:g} nm lies in bad_bands, where the class has "
-                             "no parameters; leave it out of wavelengths and params, or out of bad_bands")
+            raise ValueError(f"{class_label(entry)}: wavelength {inside[0]:g} nm lies in bad_bands, where the "
+                             "class has no parameters; leave it out of wavelengths and params, or out of bad_bands")
 
 
 def no_parameter_bands(entry: ClassEntry, wavelengths: Sequence[float] | None) -> np.ndarray | None:
@@ -106,7 +114,7 @@ def no_parameter_bands(entry: ClassEntry, wavelengths: Sequence[float] | None) -
         return None
     if wavelengths is None:
         raise ParameterError(
-            f"{entry.label}: bad_bands are wavelength ranges [nm]; the image's band wavelengths are needed "
+            f"{class_label(entry)}: bad_bands are wavelength ranges [nm]; the image's band wavelengths are needed "
             "(band descriptions, a 'wavelength' tag, or --wavelengths)"
         )
     bad = in_ranges(wavelengths, entry.bad_bands)
@@ -135,7 +143,7 @@ def band_values(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands:
     bad = no_parameter_bands(entry, wavelengths)
     good_centres = wavelengths if bad is None else np.asarray(wavelengths, dtype=float)[~bad]
     values: dict[str, np.ndarray] = {}
-    for name in entry.brdf_model.parameter_names:
+    for name in get_model(entry.model).parameter_names:
         value = entry.params[name]
         if not isinstance(value, list):
             values[name] = np.full(n_bands, float(value))
@@ -144,7 +152,7 @@ def band_values(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands:
                                       bad)
         elif len(value) != n_bands:
             raise ParameterError(
-                f"{entry.label}: parameter {name} has {len(value)} per-band values but the image "
+                f"{class_label(entry)}: parameter {name} has {len(value)} per-band values but the image "
                 f"has {n_bands} bands"
             )
         else:
@@ -152,9 +160,10 @@ def band_values(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands:
     if bad is not None:  # no parameters in the bad bands: NaN, never a number to apply
         values = {name: np.where(bad, np.nan, value) for name, value in values.items()}
     try:  # linear interpolation stays within the bounds, but check what the kernels will see
-        entry.brdf_model.validate(values if bad is None else {name: value[~bad] for name, value in values.items()})
+        checked = values if bad is None else {name: value[~bad] for name, value in values.items()}
+        get_model(entry.model).validate(checked)
     except ParameterError as error:
-        raise ParameterError(f"{entry.label}: {error}") from None
+        raise ParameterError(f"{class_label(entry)}: {error}") from None
     return values
 
 
@@ -171,7 +180,7 @@ def band_covariance(entry: ClassEntry, wavelengths: Sequence[float] | None, n_ba
     elif entry.wavelengths is None:
         if matrices.shape[0] != n_bands:
             raise ParameterError(
-                f"{entry.label}: fit.covariance has {matrices.shape[0]} per-band matrices but the "
+                f"{class_label(entry)}: fit.covariance has {matrices.shape[0]} per-band matrices but the "
                 f"image has {n_bands} bands"
             )
         resolved = matrices.copy()
@@ -192,7 +201,7 @@ def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Se
     """``value`` (one number per wavelength of ``entry``) at the band centres ``wavelengths``."""
     if wavelengths is None:
         raise ParameterError(
-            f"{entry.label}: parameter {name} is given per wavelength; the image's band "
+            f"{class_label(entry)}: parameter {name} is given per wavelength; the image's band "
             "wavelengths are needed (band descriptions, a 'wavelength' tag, or --wavelengths)"
         )
     table = np.asarray(entry.wavelengths, dtype=float)
@@ -202,7 +211,7 @@ def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Se
     outside = (centres < table[0]) | (centres > table[-1])
     if np.any(outside) and not extrapolate:
         raise ParameterError(
-            f"{entry.label}: parameter {name}: band centre {centres[outside][0]:g} nm is outside "
+            f"{class_label(entry)}: parameter {name}: band centre {centres[outside][0]:g} nm is outside "
             f"the table's wavelengths [{table[0]:g}, {table[-1]:g}] nm; allow edge "
             "extrapolation to use the edge values"
         )
@@ -213,7 +222,7 @@ def resolve_entry(entry: ClassEntry, wavelengths: Sequence[float] | None, n_band
                   extrapolate: bool) -> BandParameters:
     """``entry``'s model, parameters and covariance at the image's bands."""
     return BandParameters(
-        entry.id, entry.name, entry.brdf_model,
+        entry.id, entry.name, get_model(entry.model),
         band_values(entry, wavelengths, n_bands, extrapolate),
         band_covariance(entry, wavelengths, n_bands, extrapolate),
         tuple(entry.fit.parameters) if entry.fit is not None else (),
@@ -231,7 +240,7 @@ def material_caveat(entry: ClassEntry, wavelengths: Sequence[float] | None) -> s
     if not np.nanmax(distance) > MATERIAL_WAVELENGTH_TOLERANCE:  # NaN band centres: nothing known
         return None
     return (
-        f"{entry.label}: material {entry.material} is a fit at {source:g} nm, applied unchanged to bands "
+        f"{class_label(entry)}: material {entry.material} is a fit at {source:g} nm, applied unchanged to bands "
         f"{np.nanmin(centres):g}-{np.nanmax(centres):g} nm (up to {np.nanmax(distance):g} nm away); "
         "a table fitted per band (brdfcorr fit-classes) suits such bands better"
     )

@@ -34,6 +34,9 @@ from brdfcorr.errors import BrdfcorrWarning
 @click.option("--view-band", help="Sentinel-2: the view angles of this band's grids (e.g. B04) for every band, or "
                                   "'each': every band its own (as sen2nbar; one correction per band, slower) "
                                   "[default: the mean of all bands' grids].")
+@click.option("--factor-at", type=click.Choice(["pixels", "nodes"]), default="pixels", show_default=True,
+              help="Sentinel-2: evaluate the c-factor at every pixel, or at the 5 km nodes of the angle grids and "
+                   "interpolate it to the pixels (sen2nbar's method: faster, within about 0.06 %).")
 @click.option("--keep-stack", type=click.Path(dir_okay=False, path_type=Path),
               help="Also keep the uncorrected bands as a small virtual raster (.vrt) reading the product's files, "
                    "masked and scaled: e.g. BEFORE for brdfcorr assess.")
@@ -45,8 +48,8 @@ from brdfcorr.errors import BrdfcorrWarning
 @PROGRESS
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
 @handle_errors
-def nbar_command(product, output, qa_path, resolution, bands, coefficients, ref_sza, view_band, keep_stack,
-                 keep_clouds, compress, cog, chunk, progress, overwrite):
+def nbar_command(product, output, qa_path, resolution, bands, coefficients, ref_sza, view_band, factor_at,
+                 keep_stack, keep_clouds, compress, cog, chunk, progress, overwrite):
     """NBAR of a Sentinel-2 L2A SAFE or Landsat Collection-2 L2 folder with built-in coefficients.
 
     PRODUCT is a Sentinel-2 L2A .SAFE folder (bands from IMG_DATA, angles from the granule's
@@ -56,7 +59,7 @@ def nbar_command(product, output, qa_path, resolution, bands, coefficients, ref_
     pixel is normalized to nadir view with the published global RTLSR coefficients of its band
     (Roy et al. 2016, 2017): the c-factor method of HLS and sen2nbar.
     """
-    from brdfcorr.workflow.nbar import nbar_files
+    from brdfcorr.workflow.nbar import NbarMethod, nbar_files
     from brdfcorr.workflow.request import Engine, OutputFiles
 
     band_list = [name.strip() for name in bands.split(",") if name.strip()] if bands else None
@@ -66,9 +69,9 @@ def nbar_command(product, output, qa_path, resolution, bands, coefficients, ref_
         warnings.simplefilter("always", BrdfcorrWarning)
         try:
             summary = nbar_files(product, outputs, resolution=int(resolution) if resolution else None,
-                                 bands=band_list, masked=() if keep_clouds else None, coefficients=coefficients,
-                                 reference_sza=reference_sza(ref_sza), view_band=view_band, keep_stack=keep_stack,
-                                 engine=Engine(chunks=chunk))
+                                 bands=band_list, masked=() if keep_clouds else None,
+                                 method=NbarMethod(coefficients, reference_sza(ref_sza), view_band, factor_at),
+                                 keep_stack=keep_stack, engine=Engine(chunks=chunk))
         finally:
             for warning in caught:
                 if issubclass(warning.category, BrdfcorrWarning):

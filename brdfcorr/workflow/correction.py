@@ -21,7 +21,7 @@ import rasterio
 import xarray as xr
 
 from brdfcorr import __version__
-from brdfcorr.correction import QA, describe_limits, normalize, qa_counts, resolve_reference
+from brdfcorr.correction import QA, describe_limits, normalize, normalize_at_nodes, qa_counts, resolve_reference
 from brdfcorr.correction.terrain import (
     SlopeAspect,
     check_dem_slope,
@@ -345,6 +345,8 @@ def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: Param
                       reference: ReferenceGeometry, chunks: int):
     """The corrected reflectance, its QA flags and 1-sigma (or None), and the topographic step's
     result (or None), all lazy."""
+    if request.factor_at == "nodes":
+        return (*_corrected_at_nodes(request, scene, table, reference), None, None)
     reflectance, surface, topographic = scene.reflectance, {}, None
     if request.terrain is not None:
         compute = {"scheduler": request.engine.scheduler, "num_workers": request.engine.num_workers}
@@ -364,6 +366,26 @@ def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: Param
         sigma = sigma.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
         sigma.attrs["long_name"] = _band_descriptions(scene.reflectance)
     return corrected, qa, sigma, topographic
+
+
+def _corrected_at_nodes(request: CorrectionRequest, scene: SceneData, table: ParameterTable,
+                        reference: ReferenceGeometry):
+    """The corrected reflectance and its QA flags with the factor at the angle grid's nodes
+    (:mod:`brdfcorr.correction.nodes`), for what that method suits: one class over the whole image."""
+    unsuited = [what for what, given in (("a class map", request.scene.classes is not None),
+                                         ("terrain", request.terrain is not None),
+                                         ("an uncertainty output", request.outputs.uncertainty is not None),
+                                         ("a table of more than one class", len(table.classes) > 1))
+                if given]
+    if unsuited:
+        raise InputError(f"cannot evaluate the factor at the angle grid's nodes with {', '.join(unsuited)}: it is "
+                         "one smooth correction of the whole image (evaluate it at the pixels)")
+    try:
+        return normalize_at_nodes(scene.reflectance, scene.angles, table, reference, limits=request.limits,
+                                  extrapolate=request.extrapolate)
+    except ParameterError as error:
+        raise ParameterError(f"{request.table_source or 'parameter table'}: {error} "
+                             f"(image {request.scene.image})") from None
 
 
 def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, request: CorrectionRequest):

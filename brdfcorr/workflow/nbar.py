@@ -20,8 +20,9 @@ import json
 import os
 import tempfile
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import rasterio
@@ -39,7 +40,7 @@ from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.workflow.correction import correct_files
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
-__all__ = ["nbar_files", "nbar_table", "EACH_BAND", "NBAR_CHUNK"]
+__all__ = ["nbar_files", "nbar_table", "NbarMethod", "EACH_BAND", "NBAR_CHUNK"]
 
 #: ``view_band`` (``--view-band``) value that corrects each Sentinel-2 band with its own view grids.
 EACH_BAND = "each"
@@ -48,6 +49,32 @@ EACH_BAND = "each"
 #: runs on 2 cores, benchmarks/bench_sen2nbar.py); a full tile is 22 x 22 chunks. The numbers do not
 #: depend on the chunks (pixel by pixel computations).
 NBAR_CHUNK = 512
+
+
+@dataclass(frozen=True)
+class NbarMethod:
+    """How the NBAR is computed.
+
+    Attributes
+    ----------
+    coefficients : {"roy2017", "roy2016"}
+        The coefficient set; roy2016 has no red-edge weights (pick ``bands`` without B05-B07).
+    reference_sza : float or {"mean", "observed"}
+        Reference sun zenith [deg]: a value, the scene mean (HLS), or each pixel's own (sen2nbar).
+    view_band : str, optional
+        Sentinel-2: this band's view grids (``"B04"``) for every band, or ``"each"``
+        (:data:`EACH_BAND`): every band its own, as sen2nbar (one correction per band). Default:
+        the mean of all bands' grids (they differ by up to about 0.5 deg: up to 0.3 % in a c-factor).
+    factor_at : {"pixels", "nodes"}
+        Sentinel-2: the c-factor at every pixel from the angles interpolated to it (default), or at
+        the 5 km nodes of the angle grids, interpolated to the pixels (sen2nbar's method, faster;
+        within 0.06 % of the pixels' on a real granule, :mod:`brdfcorr.correction.nodes`).
+    """
+
+    coefficients: str = "roy2017"
+    reference_sza: float | str = "mean"
+    view_band: str | None = None
+    factor_at: Literal["pixels", "nodes"] = "pixels"
 
 
 def nbar_table(product: ProductFolder, coefficients: str = "roy2017") -> ParameterTable:
@@ -61,8 +88,8 @@ def nbar_table(product: ProductFolder, coefficients: str = "roy2017") -> Paramet
 
 def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: int | None = None,
                bands: Sequence[str] | None = None, masked: Sequence[int] | None = None,
-               coefficients: str = "roy2017", reference_sza: float | str = "mean", view_band: str | None = None,
-               keep_stack: str | os.PathLike | None = None, engine: Engine = Engine()) -> dict[str, object]:
+               method: NbarMethod = NbarMethod(), keep_stack: str | os.PathLike | None = None,
+               engine: Engine = Engine()) -> dict[str, object]:
     """NBAR of a Sentinel-2 L2A SAFE folder or a Landsat Collection-2 L2 folder.
 
     Parameters
@@ -78,14 +105,8 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
         Band names (``B04``, ``SR_B4``) in output order (default: every band with coefficients).
     masked : sequence of int, optional
         SCL classes or QA_PIXEL bits made no data (default: clouds, shadows; ``()``: fill only).
-    coefficients : {"roy2017", "roy2016"}
-        The coefficient set; roy2016 has no red-edge weights (pick ``bands`` without B05-B07).
-    reference_sza : float or {"mean", "observed"}
-        Reference sun zenith [deg]: a value, the scene mean (HLS), or each pixel's own (sen2nbar).
-    view_band : str, optional
-        Sentinel-2: this band's view grids (``"B04"``) for every band, or ``"each"``
-        (:data:`EACH_BAND`): every band its own, as sen2nbar (one correction per band). Default:
-        the mean of all bands' grids (they differ by up to about 0.5 deg: up to 0.3 % in a c-factor).
+    method : NbarMethod
+        Coefficients, reference sun zenith, view grids, where the factor is evaluated.
     keep_stack : path-like, optional
         Keep the uncorrected, masked, scaled bands here: a GDAL virtual raster (``.vrt``) reading
         the product's files by absolute path (and ``<name>_mask.tif``), e.g. BEFORE of ``assess``.
@@ -105,20 +126,30 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
         An existing output without ``overwrite``; a kept stack not named ``.vrt``.
     """
     folder = find_product(product, resolution=resolution, bands=bands, masked=masked)
-    angle_options = _angle_options(folder, view_band)
+    angle_options = _angle_options(folder, method.view_band)
     _check_outputs(outputs, folder, keep_stack)
     engine = replace(engine, chunks=engine.chunks or NBAR_CHUNK)
-    reference = {"sza": reference_sza, "vza": 0.0, "raa": 0.0}
     with _scratch(outputs) as scratch:
         stack = write_stack(folder, keep_stack or Path(scratch) / "stack.vrt", chunks=engine.chunks)
-        if view_band == EACH_BAND:
-            summary = _band_by_band(folder, stack, Path(scratch), outputs, coefficients, reference, engine)
+        if method.view_band == EACH_BAND:
+            summary = _band_by_band(folder, stack, Path(scratch), outputs, method, engine)
         else:
-            summary = correct_files(CorrectionRequest(
-                SceneSources(stack, None, folder.angles, angles_kind=folder.angles_kind, angle_options=angle_options),
-                nbar_table(folder, coefficients), replace(outputs, fingerprint=None), reference=reference,
-                engine=engine, table_source=f"built-in coefficients {coefficients}", reads=folder.files))
+            summary = correct_files(_request(folder, SceneSources(stack, None, folder.angles), angle_options,
+                                             nbar_table(folder, method.coefficients),
+                                             replace(outputs, fingerprint=None), method, engine))
     return {**summary, "product": folder}
+
+
+def _request(folder: ProductFolder, scene: SceneSources, angle_options: dict, table: ParameterTable,
+             outputs: OutputFiles, method: NbarMethod, engine: Engine) -> CorrectionRequest:
+    """The correction of ``scene`` (a stack of the folder's bands) with the product's angles. The
+    product's scaling, where one for every band, is given, so no chunk is read to check it."""
+    scales, offsets = set(folder.scales), set(folder.offsets)
+    known = {"scale": scales.pop(), "offset": offsets.pop()} if len(scales) == len(offsets) == 1 else {}
+    scene = replace(scene, angles_kind=folder.angles_kind, angle_options=angle_options, **known)
+    return CorrectionRequest(scene, table, outputs, reference={"sza": method.reference_sza, "vza": 0.0, "raa": 0.0},
+                             engine=engine, table_source=f"built-in coefficients {method.coefficients}",
+                             reads=folder.files, factor_at=method.factor_at)
 
 
 def _scratch(outputs: OutputFiles) -> tempfile.TemporaryDirectory:
@@ -129,8 +160,8 @@ def _scratch(outputs: OutputFiles) -> tempfile.TemporaryDirectory:
         raise OutputError(f"cannot write the band stack beside output {outputs.corrected}: {error.strerror}") from None
 
 
-def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: OutputFiles, coefficients: str,
-                  reference: dict, engine: Engine) -> dict[str, object]:
+def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: OutputFiles, method: NbarMethod,
+                  engine: Engine) -> dict[str, object]:
     """Each band corrected with its own view angle grids (one :func:`correct_files` per band into
     uncompressed files in ``scratch``), then written as one output: the bands in order, the QA
     flags of every band combined (a flag of any band is the pixel's), the counts of those."""
@@ -138,12 +169,9 @@ def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: Ou
     for (name, _), band_stack in zip(folder.bands.items(), band_stacks(stack, scratch)):
         one = replace(folder, bands={name: folder.bands[name]})
         part = OutputFiles(scratch / f"nbar_{name}.tif", qa=scratch / f"qa_{name}.tif", compress="none")
-        summary = correct_files(CorrectionRequest(
-            SceneSources(band_stack, None, folder.angles, angles_kind=folder.angles_kind,
-                         angle_options={**folder.angle_options, "band": name}),
-            nbar_table(one, coefficients), part, reference=reference, engine=engine,
-            table_source=f"built-in coefficients {coefficients}", reads=folder.files,
-        ))
+        summary = correct_files(_request(one, SceneSources(band_stack, None, folder.angles),
+                                         {**folder.angle_options, "band": name},
+                                         nbar_table(one, method.coefficients), part, method, engine))
         parts.append(part)
     chunks = {"y": engine.chunks, "x": engine.chunks}
     corrected = xr.concat([rioxarray.open_rasterio(part.corrected, chunks=chunks, masked=True) for part in parts],
@@ -153,7 +181,7 @@ def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: Ou
     with rasterio.open(parts[0].corrected) as first:
         tags = first.tags()
     tags.update(wavelength=",".join(f"{w:g}" for w in folder.wavelengths),
-                brdf_parameter_table_content=json.dumps(nbar_table(folder, coefficients).to_dict(),
+                brdf_parameter_table_content=json.dumps(nbar_table(folder, method.coefficients).to_dict(),
                                                         separators=(",", ":")),
                 brdf_view_angles="each band its own view angle grids")
     corrected.attrs, qa.attrs = {"long_name": tuple(folder.bands)}, {"long_name": ("qa",)}

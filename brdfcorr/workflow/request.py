@@ -139,6 +139,11 @@ class CorrectionRequest:
         Where an in-memory ``table`` came from, for the provenance tag.
     reads : mapping of name to path, or sequence of paths
         Further files the caller read (a class lookup table): never overwritten either.
+    factor_at : {"pixels", "nodes"}, default "pixels"
+        Where the correction factor is evaluated: at every pixel, from the angles interpolated to
+        it, or at the nodes of the sensor's coarse angle grid and interpolated bilinearly to the
+        pixels (sen2nbar's method, :mod:`brdfcorr.correction.nodes`: faster; one class, no class
+        map, terrain or uncertainty layer).
     """
 
     scene: SceneSources
@@ -155,6 +160,7 @@ class CorrectionRequest:
     engine: Engine = Engine()
     table_source: str | None = None
     reads: Mapping[str, PathLike | None] | Sequence = ()
+    factor_at: Literal["pixels", "nodes"] = "pixels"
 
     @property
     def inputs(self) -> list:

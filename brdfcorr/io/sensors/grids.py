@@ -30,8 +30,8 @@ from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
 
-__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "grid_statistics", "grid_window", "grid_template", "pixel_centres",
-           "to_grid", "wrap_azimuth"]
+__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "grid_statistics", "grid_window", "grid_template", "interpolate_window",
+           "pixel_centres", "to_grid", "wrap_azimuth"]
 
 #: Encoding key of a layer interpolated by :func:`to_grid` holding its shape (y, x) and the statistics
 #: of :func:`brdfcorr.io.angles.check_angles` (min, max, finite count, count in [0, 90) and their
@@ -123,11 +123,11 @@ def _weight_matrix(positions: np.ndarray, size: int) -> np.ndarray:
 
 
 def _separable(values: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """Bilinear interpolation of ``values`` at the grid of coarse positions ``rows`` x ``cols``
-    (an axis-aligned target grid) as ``R @ values @ C.T``, R and C the 1-D linear interpolation
+    """Bilinear interpolation of ``values`` (..., y, x) at the grid of coarse positions ``rows`` x
+    ``cols`` (an axis-aligned target grid) as ``R @ values @ C.T``, R and C the 1-D linear interpolation
     weights along rows and columns (the bilinear weights are their products). Finite ``values``
     only: a product with a NaN node is NaN along its whole row and column."""
-    return _weight_matrix(rows, values.shape[0]) @ values @ _weight_matrix(cols, values.shape[1]).T
+    return _weight_matrix(rows, values.shape[-2]) @ values @ _weight_matrix(cols, values.shape[-1]).T
 
 
 def _coarse_positions(source_transform: Affine, target_transform: Affine, rows: np.ndarray, cols: np.ndarray):
@@ -285,6 +285,16 @@ def grid_window(layer: xr.DataArray, rows: slice, cols: slice) -> np.ndarray | N
     if recorded is None or tuple(recorded[0]) != (layer.sizes.get("y"), layer.sizes.get("x")):
         return None
     _, values, source_transform, target_transform, angle = recorded
+    return interpolate_window(values, source_transform, target_transform, rows, cols, angle=angle)
+
+
+def interpolate_window(values: np.ndarray, source_transform: Affine, target_transform: Affine, rows: slice,
+                       cols: slice, *, angle: bool = False) -> np.ndarray:
+    """Bilinear interpolation of coarse ``values`` (..., y, x), as the separable path of
+    :func:`to_grid` (the coarse grid's ``source_transform`` and the target grid's, both
+    axis-aligned in one CRS), at the target pixels ``rows`` x ``cols`` (slices with start and
+    stop); leading dimensions of ``values`` (bands) are kept. Azimuths [deg] with ``angle``
+    (a 2-D grid)."""
     positions = _coarse_positions(source_transform, target_transform, np.arange(rows.start, rows.stop),
                                   np.arange(cols.start, cols.stop))
     return _interpolate_separable(values, *positions, angle)
