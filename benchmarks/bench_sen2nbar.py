@@ -32,13 +32,19 @@ Where the methods differ:
 * sen2nbar computes the c-factor on the 5 km angle nodes and interpolates the c-factor linearly
   onto the pixels; brdfcorr interpolates the angles onto the pixels and computes the c-factor
   there (the c-factor is not linear in the angles; the difference is second order in the node
-  spacing).
+  spacing); ``factor_at="nodes"`` (``--factor-at nodes``) does as sen2nbar.
 * sen2nbar uses each band's own view angles; brdfcorr's Sentinel-2 reader averages the view
   grids of all 13 bands by default (they differ by up to about 0.5 deg, the focal-plane offsets;
   ``view_band="each"`` does as sen2nbar).
 * sen2nbar averages detector azimuths arithmetically, brdfcorr as directions (equal unless the
   azimuths straddle north); nodes no detector sees are filled with the nearest node's c-factor
   (sen2nbar) or angles (brdfcorr).
+
+Measured (issue 25, 2-core machine shared with other work): with sen2nbar's method (each band's
+own view grids, the factor at the nodes, sen2nbar's node registration) the two agree to float32
+rounding (0.0000 % on every band). At ``--size 2048`` (88 million band-pixels) sen2nbar took
+5.05 s; brdfcorr with the factor at the nodes 2.80 s uncompressed (0.56 x) and 6.77 s with deflate
+(1.34 x); with the factor at every pixel 9.94 s uncompressed (1.97 x) and 15.7 s with deflate.
 
 Usage::
 
