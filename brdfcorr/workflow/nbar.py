@@ -10,7 +10,8 @@ with the reference geometry of HLS (nadir view; sun zenith the scene mean by def
 or each pixel's own). The folder's bands are stacked on one grid and masked
 (:func:`brdfcorr.io.sensors.folders.write_stack`, a temporary virtual raster beside the output that
 reads the product's files), then corrected by :func:`brdfcorr.workflow.correction.correct_files`
-like any image; with ``view_band="each"`` band by band, each with its own view angles.
+like any image; with ``view_band="each"`` band by band, each with its own view angles. An HLS
+granule, NBAR already, is only moved to a fixed reference sun zenith (:mod:`brdfcorr.workflow.hls`).
 """
 
 from __future__ import annotations
@@ -34,10 +35,12 @@ from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.sensors.folders import ProductFolder, band_stacks, find_product, write_stack
+from brdfcorr.io.sensors.hls import find_hls_granule
 from brdfcorr.io.writer import GeoTiffOutput, write_rasters
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.workflow.correction import correct_files
+from brdfcorr.workflow.hls import hls_sun_zenith_files
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
 __all__ = ["nbar_files", "nbar_table", "NbarMethod", "EACH_BAND", "NBAR_CHUNK"]
@@ -90,12 +93,14 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
                bands: Sequence[str] | None = None, masked: Sequence[int] | None = None,
                method: NbarMethod = NbarMethod(), keep_stack: str | os.PathLike | None = None,
                engine: Engine = Engine()) -> dict[str, object]:
-    """NBAR of a Sentinel-2 L2A SAFE folder or a Landsat Collection-2 L2 folder.
+    """NBAR of a Sentinel-2 L2A SAFE folder or a Landsat Collection-2 L2 folder; an HLS v2.0
+    granule moved to a fixed reference sun zenith.
 
     Parameters
     ----------
     product : path-like
-        The product folder (:func:`brdfcorr.io.sensors.folders.find_product`).
+        The product folder (:func:`brdfcorr.io.sensors.folders.find_product`,
+        :func:`brdfcorr.io.sensors.hls.find_hls_granule`).
     outputs : OutputFiles
         The NBAR GeoTIFF (float32 reflectance factors, bands named in the product's order), QA
         flags; ``overwrite`` as for ``correct``.
@@ -121,10 +126,18 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     Raises
     ------
     SensorInputError
-        Not a product folder (an HLS granule: NBAR already), or a file missing (named).
+        Not a product folder, an HLS granule without a fixed reference sun zenith (NBAR already), or a
+        file missing (named).
     OutputError
         An existing output without ``overwrite``; a kept stack not named ``.vrt``.
     """
+    granule = find_hls_granule(product, bands=bands)
+    if granule is not None:  # NBAR already: at most moved to another sun zenith
+        if method.view_band is not None or method.factor_at != "pixels" or keep_stack is not None:
+            raise InputError(f"{product}: an HLS granule is NBAR already; view_band (--view-band), factor_at "
+                             "(--factor-at) and keep_stack (--keep-stack) are for Sentinel-2 and Landsat folders")
+        return hls_sun_zenith_files(granule, outputs, coefficients=method.coefficients,
+                                    reference_sza=method.reference_sza, masked=masked, engine=engine)
     folder = find_product(product, resolution=resolution, bands=bands, masked=masked)
     angle_options = _angle_options(folder, method.view_band)
     _check_outputs(outputs, folder, keep_stack)

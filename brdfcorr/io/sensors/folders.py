@@ -19,7 +19,8 @@ from the angle bands where delivered, else from the ANG.txt ephemeris
 (:func:`brdfcorr.io.sensors.landsat.read_landsat_angles`, ``view_from_ang="ephemeris"``).
 
 HLS v2.0 S30/L30 granules (``HLS.S30.<tile>.<time>.v2.0.B04.tif``) hold NBAR already: they are
-recognized and refused in one line (:func:`hls_refusal`).
+recognized and refused here in one line (:func:`brdfcorr.io.sensors.hls.hls_refusal`); see
+:mod:`brdfcorr.io.sensors.hls`.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from brdfcorr.errors import OutputError, SensorInputError
 from brdfcorr.io.files import atomic_path, write_cause
 from brdfcorr.io.paths import check_outputs
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS
+from brdfcorr.io.sensors.hls import find_hls_granule, hls_refusal
 from brdfcorr.io.sensors.landsat import find_angle_bands
 from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
 
@@ -155,34 +157,11 @@ def find_product(path: str | Path, *, resolution: int | None = None, bands: Sequ
         return find_landsat_c2_l2(path, bands=bands, masked=masked)
     if (path / "MTD_MSIL1C.xml").is_file():
         raise SensorInputError(f"{path}: a Sentinel-2 L1C product (top-of-atmosphere); NBAR needs L2A")
-    hls = sorted(p for p in path.iterdir() if _HLS_FILE.match(p.name))
-    if hls:
-        raise SensorInputError(hls_refusal(path, hls))
+    hls = find_hls_granule(path)
+    if hls is not None:
+        raise SensorInputError(hls_refusal(path, list(hls.bands.values())))
     raise SensorInputError(f"{path}: neither a Sentinel-2 L2A SAFE folder (MTD_MSIL2A.xml) nor a Landsat "
                            "Collection-2 L2 folder (*_SR_B<n>.TIF)")
-
-
-# --- HLS ----------------------------------------------------------------------------------------
-
-_HLS_FILE = re.compile(r"^HLS\.(S30|L30)\..*\.(B\w+|Fmask)\.tiff?$", re.IGNORECASE)
-
-
-def hls_refusal(path: Path, files: Sequence[Path]) -> str:
-    """Why ``brdfcorr nbar`` refuses an HLS v2.0 S30/L30 granule (NASA HLS v2.0 User Guide; HLS
-    BRDF normalization, hls.gsfc.nasa.gov/algorithms/brdf-adjustment): its surface reflectance is
-    already NBAR, made with the c-factor and the same global coefficients (Roy et al. 2016, 2017)
-    for a nadir view and one modelled sun zenith per granule (the band files' tag
-    ``NBAR_SOLAR_ZENITH``). A second normalization would apply the view correction twice."""
-    kind = "S30 (Sentinel-2)" if ".S30." in files[0].name.upper() else "L30 (Landsat)"
-    sza = None
-    try:
-        with rasterio.open(files[0]) as dataset:
-            sza = dataset.tags().get("NBAR_SOLAR_ZENITH")
-    except rasterio.errors.RasterioIOError:
-        pass
-    zenith = f"sun zenith {float(sza):.2f} deg" if sza else "the sun zenith in its NBAR_SOLAR_ZENITH tag"
-    return (f"{path}: an HLS v2.0 {kind} granule is already NBAR (c-factor with the Roy et al. coefficients: "
-            f"nadir view, {zenith}); brdfcorr nbar does not normalize it again")
 
 
 # --- Sentinel-2 L2A ----------------------------------------------------------------------------

@@ -1,0 +1,142 @@
+"""HLS v2.0 S30/L30 granules: found, and their NBAR sun zenith read (:func:`find_hls_granule`).
+
+The surface reflectance of a Harmonized Landsat Sentinel-2 granule (NASA HLS v2.0 User Guide;
+hls.gsfc.nasa.gov/algorithms/brdf-adjustment) is NBAR already: the c-factor with the global
+coefficients of Roy et al. (2016, 2017), nadir view, one modelled sun zenith per granule (the
+mean of the sun zeniths predicted for the Landsat and Sentinel-2 overpasses at the tile centre's
+latitude on that day), stored in each band file's ``NBAR_SOLAR_ZENITH`` tag. Normalizing it again
+would apply the view correction twice; moving it to another sun zenith is exact
+(:func:`brdfcorr.workflow.nbar.nbar_files` with a fixed reference sun zenith).
+
+Files: one COG per band, ``HLS.S30.T33UUP.2023166T101559.v2.0.B04.tif``, int16 reflectance x 10 000
+(no data -9999), and ``...Fmask.tif`` (bits 1 cloud, 2 adjacent to cloud or shadow, 3 cloud shadow,
+4 snow/ice, 5 water, 6-7 aerosol level).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import rasterio
+
+from brdfcorr.errors import SensorInputError
+from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS
+
+__all__ = ["HlsGranule", "find_hls_granule", "hls_refusal", "HLS_FMASK_MASKED"]
+
+_HLS_FILE = re.compile(r"^HLS\.(S30|L30)\..*\.(B\w+|Fmask)\.tiff?$", re.IGNORECASE)
+#: Fmask bits that make a pixel no data by default: cloud, adjacent to cloud or shadow, cloud shadow.
+HLS_FMASK_MASKED = (1, 2, 3)
+#: Per product: the coefficient library's sensor key and, per HLS band with published coefficients
+#: (Roy et al. 2016, 2017), its name there and its centre [nm].
+_BANDS = {
+    "S30": ("sentinel2", {name: (name, SENTINEL2_WAVELENGTHS[name])
+                          for name in ("B02", "B03", "B04", "B05", "B06", "B07", "B08", "B8A", "B11", "B12")}),
+    "L30": ("landsat_oli", {f"B0{n}": (f"SR_B{n}", LANDSAT_OLI_WAVELENGTHS[n]) for n in (2, 3, 4, 5, 6, 7)}),
+}
+
+
+@dataclass(frozen=True)
+class HlsGranule:
+    """An HLS v2.0 granule folder.
+
+    Attributes
+    ----------
+    path : Path
+        The folder.
+    product : {"S30", "L30"}
+        Sentinel-2 or Landsat based.
+    sensor : str
+        The coefficient library's sensor key (``sentinel2``, ``landsat_oli``).
+    bands : dict of str to Path
+        HLS band name (``B04``) -> file, in band order.
+    coefficient_bands : tuple of str
+        Each band's name in the coefficient library (``B04``, ``SR_B4``).
+    wavelengths : tuple of float
+        Band centres [nm].
+    nbar_sza : float
+        The sun zenith of the granule's NBAR [deg] (``NBAR_SOLAR_ZENITH``).
+    fmask : Path or None
+        The Fmask file.
+    """
+
+    path: Path
+    product: str
+    sensor: str
+    bands: dict[str, Path]
+    coefficient_bands: tuple[str, ...]
+    wavelengths: tuple[float, ...]
+    nbar_sza: float
+    fmask: Path | None
+
+    @property
+    def resolution(self) -> float:
+        """Pixel size [m]: HLS v2.0 is 30 m."""
+        return 30.0
+
+    @property
+    def files(self) -> list[tuple[str, Path]]:
+        """Every file read, by role (for the output guard)."""
+        return [*((f"band {name}", path) for name, path in self.bands.items()),
+                *((("Fmask", self.fmask),) if self.fmask is not None else ())]
+
+
+def _hls_files(path: Path) -> list[Path]:
+    return sorted(p for p in path.iterdir() if _HLS_FILE.match(p.name)) if path.is_dir() else []
+
+
+def _nbar_sza(path: Path) -> float | None:
+    try:
+        with rasterio.open(path) as dataset:
+            value = dataset.tags().get("NBAR_SOLAR_ZENITH")
+    except rasterio.errors.RasterioIOError:
+        return None
+    try:
+        return float(value) if value is not None else None
+    except ValueError:
+        return None
+
+
+def hls_refusal(path: Path, files: Sequence[Path]) -> str:
+    """Why a granule is not normalized again: its reflectance is NBAR already (module docstring)."""
+    kind = "S30 (Sentinel-2)" if ".S30." in files[0].name.upper() else "L30 (Landsat)"
+    sza = _nbar_sza(files[0])
+    zenith = f"sun zenith {sza:.2f} deg" if sza is not None else "the sun zenith in its NBAR_SOLAR_ZENITH tag"
+    return (f"{path}: an HLS v2.0 {kind} granule is already NBAR (c-factor with the Roy et al. coefficients: "
+            f"nadir view, {zenith}); brdfcorr nbar does not normalize it again, but moves it to another sun "
+            "zenith with --ref-sza DEG")
+
+
+def find_hls_granule(path: str | Path, bands: Sequence[str] | None = None) -> HlsGranule | None:
+    """The HLS granule in folder ``path``, or None where it holds no HLS file.
+
+    Raises
+    ------
+    SensorInputError
+        A band asked for is missing or has no published coefficients, or the band files carry no
+        readable ``NBAR_SOLAR_ZENITH`` tag.
+    """
+    path = Path(path)
+    files = _hls_files(path)
+    if not files:
+        return None
+    product = "S30" if ".S30." in files[0].name.upper() else "L30"
+    sensor, known = _BANDS[product]
+    found = {name: file for name in known for file in files if file.name.upper().endswith(f".{name}.TIF")
+             or file.name.upper().endswith(f".{name}.TIFF")}
+    names = list(bands) if bands is not None else list(found)
+    missing = [name for name in names if name not in found]
+    if missing or not names:
+        what = ", ".join(missing) if missing else "no band with coefficients"
+        raise SensorInputError(f"{path}: HLS {product} granule: {what} (bands with published coefficients: "
+                               f"{', '.join(known)})")
+    sza = _nbar_sza(found[names[0]])
+    if sza is None or not 0.0 <= sza < 90.0:
+        raise SensorInputError(f"{found[names[0]]}: no valid NBAR_SOLAR_ZENITH tag (the granule's NBAR sun "
+                               "zenith [deg]); is this an HLS v2.0 file?")
+    fmask = next((file for file in files if file.name.upper().endswith((".FMASK.TIF", ".FMASK.TIFF"))), None)
+    return HlsGranule(path, product, sensor, {name: found[name] for name in names},
+                      tuple(known[name][0] for name in names), tuple(known[name][1] for name in names), sza, fmask)

@@ -1,0 +1,109 @@
+"""An HLS v2.0 granule's NBAR moved to another sun zenith (``brdfcorr nbar GRANULE --ref-sza DEG``).
+
+An HLS granule is NBAR already (:mod:`brdfcorr.io.sensors.hls`): nadir view at the granule's sun
+zenith θ (``NBAR_SOLAR_ZENITH``), made with the c-factor and the coefficients of Roy et al.
+(2016, 2017). Moving it to a sun zenith θ′ with the same coefficients is exact, one factor per band
+for the whole granule:
+
+    NBAR(θ′) = NBAR(θ) · f(θ′, 0, 0) / f(θ, 0, 0)        (Roy et al. 2016, eq. 7, view at nadir)
+
+so HLS granules and brdfcorr's Sentinel-2 and Landsat NBAR can be brought to one sun zenith.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+
+import numpy as np
+import rioxarray
+import xarray as xr
+
+from brdfcorr.correction import QA, qa_attrs, qa_counts
+from brdfcorr.errors import SensorInputError
+from brdfcorr.io.paths import check_outputs, refuse_existing
+from brdfcorr.io.rasters import check_reflectance_scale
+from brdfcorr.io.sensors.hls import HLS_FMASK_MASKED, HlsGranule, hls_refusal
+from brdfcorr.io.writer import GeoTiffOutput, write_rasters
+from brdfcorr.models.coefficients import load_coefficients
+from brdfcorr.params import ReferenceGeometry
+from brdfcorr.workflow.request import Engine, OutputFiles
+
+__all__ = ["hls_sun_zenith_files", "hls_factors", "HLS_SCALE"]
+
+#: HLS v2.0 stores reflectance x 10 000 (int16) where a band file gives no scale of its own.
+HLS_SCALE = 1e-4
+#: The value of an Fmask pixel outside the granule's data.
+FMASK_FILL = 255
+
+
+def hls_factors(granule: HlsGranule, coefficients: str, sza: float) -> np.ndarray:
+    """Per band, f(sza, 0, 0) / f(nbar_sza, 0, 0) with the bands' coefficients [-] (module docstring)."""
+    library = load_coefficients(coefficients)
+    spectral = [library.sensor_band(granule.sensor, band) for band in granule.coefficient_bands]
+    return np.array([float(library.brdf(sza, 0.0, 0.0, name) / library.brdf(granule.nbar_sza, 0.0, 0.0, name))
+                     for name in spectral])
+
+
+def _reflectance(granule: HlsGranule, chunks: int) -> xr.DataArray:
+    """The bands (band, y, x) as reflectance factors [1], no data as NaN (lazy)."""
+    layers = []
+    for path in granule.bands.values():
+        band = rioxarray.open_rasterio(path, chunks={"y": chunks, "x": chunks}, masked=True, lock=False)
+        scale = band.attrs.get("scale_factor", 1.0)
+        layers.append(band.isel(band=0, drop=True) * (scale if scale != 1.0 else HLS_SCALE))
+    stack = xr.concat(layers, dim="band").assign_coords(band=np.arange(1, len(layers) + 1))
+    return stack.assign_coords(wavelength=("band", list(granule.wavelengths))).astype(np.float32)
+
+
+def _masked(granule: HlsGranule, like: xr.DataArray, bits: Sequence[int], chunks: int) -> xr.DataArray:
+    """Pixels the Fmask makes no data (any of ``bits``, or its fill); none without an Fmask."""
+    if granule.fmask is None:
+        return xr.zeros_like(like.isel(band=0, drop=True), dtype=bool)
+    fmask = rioxarray.open_rasterio(granule.fmask, chunks={"y": chunks, "x": chunks}, lock=False)
+    fmask = fmask.isel(band=0, drop=True)
+    if fmask.shape != like.shape[1:]:
+        raise SensorInputError(f"{granule.fmask}: {fmask.shape} pixels, the bands {like.shape[1:]}")
+    flags = sum(1 << bit for bit in bits)
+    return ((fmask & flags) != 0) | (fmask == FMASK_FILL)
+
+
+def hls_sun_zenith_files(granule: HlsGranule, outputs: OutputFiles, *, coefficients: str, reference_sza,
+                         masked: Sequence[int] | None = None, engine: Engine = Engine()) -> dict[str, object]:
+    """Write ``granule``'s NBAR moved to sun zenith ``reference_sza`` [deg] (module docstring).
+
+    Raises
+    ------
+    SensorInputError
+        ``reference_sza`` is ``"mean"`` or ``"observed"``: the granule is NBAR at its own sun zenith
+        already (:func:`brdfcorr.io.sensors.hls.hls_refusal`).
+    """
+    if isinstance(reference_sza, str):
+        raise SensorInputError(hls_refusal(granule.path, list(granule.bands.values())))
+    check_outputs({"output": outputs.corrected, "QA output": outputs.qa}, granule.files)
+    if not outputs.overwrite:
+        refuse_existing([outputs.corrected, outputs.qa])
+    chunks = engine.chunks or 512
+    reflectance = _reflectance(granule, chunks)
+    check_reflectance_scale(reflectance, str(granule.path), scheduler=engine.scheduler,
+                            num_workers=engine.num_workers)
+    invalid = _masked(granule, reflectance, HLS_FMASK_MASKED if masked is None else masked, chunks)
+    factors = xr.DataArray(hls_factors(granule, coefficients, float(reference_sza)).astype(np.float32), dims="band")
+    corrected = (reflectance * factors).where(~invalid)
+    nodata = (~np.isfinite(corrected)).any("band") | invalid
+    qa = xr.where(nodata, np.uint8(QA.NODATA), np.uint8(0)).astype(np.uint8).assign_attrs(qa_attrs("QA flags"))
+    reference = ReferenceGeometry(sza=float(reference_sza), vza=0.0, raa=0.0)
+    corrected.attrs = {"long_name": tuple(granule.bands)}
+    qa.attrs["long_name"] = ("qa",)
+    targets = {outputs.corrected: corrected.rio.write_nodata(np.nan, encoded=True)}
+    if outputs.qa is not None:
+        targets[outputs.qa] = qa
+    tags = {"wavelength": ",".join(f"{w:g}" for w in granule.wavelengths), "wavelength_units": "nm",
+            "brdf_reference": reference.describe(),
+            "brdf_hls_nbar_solar_zenith": f"{granule.nbar_sza:g}",
+            "brdf_coefficients": json.dumps({"set": coefficients, "bands": list(granule.coefficient_bands)}),
+            "brdf_method": "HLS NBAR x f(ref sza, 0, 0) / f(NBAR_SOLAR_ZENITH, 0, 0) per band (Roy et al. 2016)"}
+    counts = write_rasters(targets, geotiff=GeoTiffOutput(compress=outputs.compress, blocksize=chunks, cog=outputs.cog),
+                           tags=tags, compute_with=qa_counts(qa), callbacks=engine.callbacks,
+                           scheduler=engine.scheduler, num_workers=engine.num_workers)
+    return {**{key: int(value) for key, value in counts.items()}, "reference": reference, "product": granule}

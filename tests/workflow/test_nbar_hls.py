@@ -1,0 +1,102 @@
+"""``brdfcorr nbar`` on an HLS v2.0 granule: NBAR already, moved to another sun zenith on request.
+
+The granule is built here (the HLS v2.0 file layout: one int16 GeoTIFF per band, reflectance x
+10 000, no data -9999, the ``NBAR_SOLAR_ZENITH`` tag, an Fmask). The expected factor is computed
+here from the RTLSR kernels in closed form at nadir view (Lucht et al. 2000, IEEE TGRS 38, 977-998,
+eqs. for Ross-Thick and Li-Sparse-Reciprocal with b/r = 1, h/b = 2) and the red and NIR weights of
+Roy et al. (2016), Table 1, not with brdfcorr's kernel code.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import rasterio
+from affine import Affine
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.testing import file_digests
+
+NBAR_SZA = 38.4289484166757  # a real S30 granule's tag (T33UUP, 15 June 2023)
+ROY_2016 = {"B04": (0.1690, 0.0574, 0.0227), "B8A": (0.3093, 0.1535, 0.0330)}  # red, NIR: f_iso, f_vol, f_geo
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def nadir_brf(weights, sza: float) -> float:
+    """f_iso + f_vol K_vol + f_geo K_geo at view zenith 0: the phase angle is the sun zenith."""
+    theta = math.radians(sza)
+    k_vol = ((math.pi / 2 - theta) * math.cos(theta) + math.sin(theta)) / (math.cos(theta) + 1) - math.pi / 4
+    sec = 1 / math.cos(theta)
+    cos_t = min(2.0 * math.tan(theta) / (sec + 1), 1.0)  # h/b = 2, D = tan(theta)
+    t = math.acos(cos_t)
+    overlap = (t - math.sin(t) * cos_t) * (sec + 1) / math.pi
+    k_geo = overlap - sec - 1 + 0.5 * (1 + math.cos(theta)) * sec
+    f_iso, f_vol, f_geo = weights
+    return f_iso + f_vol * k_vol + f_geo * k_geo
+
+
+@pytest.fixture
+def granule(tmp_path):
+    folder = tmp_path / "HLS.S30.T33UUP.2023166T101559.v2.0"
+    folder.mkdir()
+    profile = dict(driver="GTiff", width=6, height=5, count=1, crs="EPSG:32633",
+                   transform=Affine(30.0, 0, 300000.0, 0, -30.0, 5000040.0))
+    for band, value in (("B04", 1200), ("B8A", 3100)):
+        data = np.full((5, 6), value, dtype="int16")
+        data[4, 5] = -9999
+        with rasterio.open(folder / f"HLS.S30.T33UUP.2023166T101559.v2.0.{band}.tif", "w", dtype="int16",
+                           nodata=-9999, **profile) as dataset:
+            dataset.write(data, 1)
+            dataset.update_tags(NBAR_SOLAR_ZENITH=str(NBAR_SZA))
+    fmask = np.zeros((5, 6), dtype="uint8")
+    fmask[0] = 1 << 1  # cloud
+    fmask[1, 0] = 1 << 5  # water: kept
+    with rasterio.open(folder / "HLS.S30.T33UUP.2023166T101559.v2.0.Fmask.tif", "w", dtype="uint8", nodata=255,
+                       **profile) as dataset:
+        dataset.write(fmask, 1)
+    return folder
+
+
+def test_the_nbar_is_moved_to_another_sun_zenith_exactly(granule, tmp_path):
+    before = file_digests(granule)
+    output, qa = tmp_path / "nbar45.tif", tmp_path / "qa.tif"
+    result = run("nbar", granule, "--bands", "B04,B8A", "--ref-sza", "45", "-o", output, "--qa", qa)
+    assert result.exit_code == 0, result.output
+    assert file_digests(granule) == before
+    with rasterio.open(output) as dataset:
+        nbar, tags = dataset.read(), dataset.tags()
+        assert dataset.descriptions == ("B04", "B8A")
+    for index, (band, dn) in enumerate((("B04", 1200), ("B8A", 3100))):
+        expected = dn * 1e-4 * nadir_brf(ROY_2016[band], 45.0) / nadir_brf(ROY_2016[band], NBAR_SZA)
+        np.testing.assert_allclose(nbar[index, 1:4], expected, rtol=1e-6, err_msg=band)
+    assert np.isnan(nbar[:, 0]).all() and np.isnan(nbar[:, 4, 5]).all()  # the cloud row, the band's no data
+    assert np.isfinite(nbar[:, 1, 0]).all()  # water is not masked by default
+    with rasterio.open(qa) as dataset:
+        flags = dataset.read(1)
+    assert (flags[0] == 1).all() and flags[4, 5] == 1 and (flags[1:4] == 0).all()
+    assert tags["brdf_hls_nbar_solar_zenith"] == f"{NBAR_SZA:g}" and tags["brdf_reference"].startswith("sza=45")
+
+
+def test_the_granules_own_sun_zenith_leaves_it_unchanged(granule, tmp_path):
+    """f(θ, 0, 0) / f(θ, 0, 0) = 1: the output is the stored reflectance."""
+    output = tmp_path / "same.tif"
+    assert run("nbar", granule, "--ref-sza", str(NBAR_SZA), "-o", output).exit_code == 0
+    with rasterio.open(output) as dataset:
+        np.testing.assert_allclose(dataset.read()[:, 1:4], [np.full((3, 6), 0.12), np.full((3, 6), 0.31)], rtol=1e-6)
+
+
+@pytest.mark.parametrize("options", [(), ("--ref-sza", "observed"), ("--ref-sza", "45", "--factor-at", "nodes"),
+                                     ("--ref-sza", "45", "--bands", "B01")])
+def test_what_an_hls_granule_cannot_do_is_one_line_and_exit_2(granule, tmp_path, options):
+    result = run("nbar", granule, "-o", tmp_path / "out.tif", *options)
+    assert result.exit_code == 2, result.output
+    assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "out.tif").exists()
+    if not options:
+        assert "already NBAR" in result.output and "sun zenith 38.43 deg" in result.output
+        assert "--ref-sza DEG" in result.output
