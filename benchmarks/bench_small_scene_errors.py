@@ -35,24 +35,9 @@ import time
 import numpy as np
 
 from brdfcorr.fit.solver import fit_class_samples
-from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
-from brdfcorr.models import get_model
-from brdfcorr.testing import synthetic_angles
+from brdfcorr.testing import SMALL_SCENE_TRUTHS as TRUTHS
+from brdfcorr.testing import pixel_blocks, small_scene_samples
 
-#: Paper 003, Table 1, red concrete (550 nm); band 2 has both intensities 1.6 times as large.
-RED_CONCRETE = {"t0": np.array([0.0192, 0.0307]), "t1": np.array([1.06, 1.70]), "w": 0.0804, "n": 1.48, "k": 0.25}
-#: The truth per model (two bands). Empirical: a specular lobe of c = 0.05 deg^-1 with the
-#: constant-Fresnel b = 1 rad^-4 (paper 003's simplified model). Ross-Thick/Li-Sparse: red and
-#: near-infrared weights of a vegetated surface of the order of MODIS BRDF products. RPV: the
-#: registry's typical k and Theta, a moderate hot spot rho_c = 0.3.
-TRUTHS = {
-    "torrance_sparrow": RED_CONCRETE,
-    "torrance_sparrow_simplified": RED_CONCRETE,
-    "empirical": {"a": np.array([0.3, 0.48]), "b": 1.0, "c": 0.05, "t0": np.array([0.02, 0.032])},
-    "ross_thick_li_sparse": {"f_iso": np.array([0.05, 0.3]), "f_vol": np.array([0.02, 0.15]),
-                             "f_geo": np.array([0.01, 0.03])},
-    "rpv": {"rho0": np.array([0.03, 0.3]), "k": 0.75, "theta": -0.1, "rho_c": 0.3},
-}
 SIZES = ("50x80", "80x120", "120x200", "200x300")
 #: Bounds of a calibrated pull SD (issue 27's goal).
 CALIBRATED = (0.85, 1.15)
@@ -63,16 +48,10 @@ MIN_SEEDS = 100
 
 def scene(model: str, ny: int, nx: int, block: int = 32):
     """Angles [deg] of every pixel of an ny x nx push-broom scene (view zenith 0-40 deg), the
-    noise-free BRDF (N, 2) [sr^-1] of ``model`` with its :data:`TRUTHS`, each pixel's spatial block
-    and its 8 x 8 texture patch."""
-    angles = synthetic_angles(ny, nx, vza_max=40.0, dtype=np.float64)
-    sza, vza = angles["sza"].ravel(), angles["vza"].ravel()
-    phi = relative_azimuth(angles["saa"], angles["vaa"]).ravel()
-    iy, ix = (index.ravel() for index in np.indices((ny, nx)))
-    blocks = (iy // block) * -(-nx // block) + ix // block
-    patches = (iy // 8) * -(-nx // 8) + ix // 8
-    clean = get_model(model).kernel(ScatteringGeometry(sza[:, None], vza[:, None], phi[:, None]), **TRUTHS[model])
-    return sza, vza, phi, np.asarray(clean, dtype=float), blocks, patches
+    noise-free BRDF (N, 2) [sr^-1] of ``model`` with its :data:`TRUTHS`
+    (:mod:`brdfcorr.testing.small_scenes`), each pixel's spatial block and its 8 x 8 texture patch."""
+    sza, vza, phi, clean = small_scene_samples(model, ny, nx)
+    return sza, vza, phi, clean, pixel_blocks(ny, nx, block), pixel_blocks(ny, nx, 8)
 
 
 def noisy(clean: np.ndarray, patches: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:

@@ -1,9 +1,11 @@
 """Shared test helpers: the real sensor files, a guard that lazy code computes nothing, and the
-builders that several test files use, as fixtures (a test file imports nothing from another):
-chains of synthetic scenes, overlapping flight lines, scaled integer images."""
+builders that several test files use, as fixtures (a test file imports nothing from another): the
+example scene on disk (the one scene factory), chains of synthetic scenes, refused command lines,
+overlapping flight lines, scaled integer images."""
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -13,11 +15,22 @@ import pytest
 import rasterio
 import xarray as xr
 import yaml
+from click.testing import CliRunner
 from hypothesis import settings
 
 from brdfcorr.analysis.assess import Line
+from brdfcorr.cli import main
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import example_table, georeference, render, synthetic_angles, synthetic_scene, write_scene
+from brdfcorr.testing import (
+    example_table,
+    file_digests,
+    georeference,
+    render,
+    synthetic_angles,
+    synthetic_scene,
+    write_scene,
+)
+from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
 
 # Property tests draw the same examples on every run (a CI run that passes here passes there); a
 # random exploration is `pytest --hypothesis-profile=explore`.
@@ -42,9 +55,48 @@ def no_compute():
         yield
 
 
+# ------------------------------------------------------------------- the example scene on disk
+def _write_example_scene(directory, scene, blocksize=16) -> dict[str, Path]:
+    """``scene`` (brdfcorr.testing.synthetic_scene) written to ``directory`` (write_scene) with the
+    example table as params.yaml: the paths by role, and ``dir``."""
+    paths = write_scene(directory, scene, blocksize=blocksize)
+    paths["params"] = example_table().save(Path(directory) / "params.yaml")
+    return {**paths, "dir": Path(directory)}
+
+
+@pytest.fixture(scope="session")
+def write_example_scene():
+    """``write_example_scene(directory, scene, blocksize=16)``: a synthetic scene's image, angles and
+    classes GeoTIFFs and the example table (params.yaml) in ``directory``; the paths by role
+    (image, angles, classes, params) and ``dir``. The one factory of the correctable scenes on disk."""
+    return _write_example_scene
+
+
+@pytest.fixture(scope="session")
+def template(tmp_path_factory) -> Path:
+    """The example scene of 32 x 32 pixels (write_example_scene) written once; a module that needs
+    another size has its own ``template``. Never modified: tests take a copy (``scene``)."""
+    directory = tmp_path_factory.mktemp("template") / "scene"
+    return _write_example_scene(directory, synthetic_scene(ny=32, nx=32))["dir"]
+
+
+@pytest.fixture
+def scene(template, tmp_path) -> dict[str, Path]:
+    """A fresh copy of the ``template`` scene directory (this one or the module's), and an empty
+    output directory: a test may damage its copy. Modules with their own ``scene`` fixture use
+    theirs."""
+    directory = tmp_path / "scene"
+    shutil.copytree(template, directory)
+    (tmp_path / "out").mkdir()
+    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
+            "classes": directory / "classes.tif", "params": directory / "params.yaml",
+            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}
+
+
 # ------------------------------------------------------------------- chains of synthetic scenes
-# make_scenes, write_chain, expected, read: chain runs of tests/workflow/test_pipeline.py and the tests that
-# run a chain of their own (band names, distributed, ENVI output, output guard).
+# make_scenes, write_chain, expected, read: chain runs of tests/workflow/test_pipeline.py and
+# tests/workflow/test_chain_steps.py, and the tests that run a chain of their own (band names,
+# distributed, ENVI output, output guard).
 
 REFERENCE = {"sza": 35.0, "vza": 0.0, "raa": 0.0}
 
@@ -58,7 +110,7 @@ def _make_scenes(root, count=3, ny=32, nx=48):
     return scenes
 
 
-def _write_chain(root, **changes):
+def _write_chain(root, table=None, **changes):
     document = {
         "inputs": {"images": ["scenes/*/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
                    "classes": "{dir}/classes.tif"},
@@ -66,7 +118,7 @@ def _write_chain(root, **changes):
         "reference": REFERENCE,
         "steps": {"correct": {"limits": None}},
         "outputs": {"directory": "out", "naming": "{parent}_brdf.tif", "qa_naming": "{parent}_qa.tif",
-                    "quicklook_naming": "{parent}.png"},
+                    "uncertainty_naming": "{parent}_sigma.tif", "quicklook_naming": "{parent}.png"},
         "engine": {"scheduler": "threads", "workers": 2, "chunk": 16},
     }
     for key, value in changes.items():
@@ -75,7 +127,7 @@ def _write_chain(root, **changes):
             document.setdefault(section, {})[name] = value
         else:
             document[section] = value
-    example_table().save(root / "params.yaml")
+    (table or example_table()).save(root / "params.yaml")
     path = root / "chain.yaml"
     path.write_text(yaml.safe_dump(document))
     return path
@@ -105,10 +157,16 @@ def make_scenes():
 
 @pytest.fixture(scope="session")
 def write_chain():
-    """``write_chain(root, **changes)``: the chain file of the scenes of ``make_scenes`` (and the
-    example table as params.yaml) under ``root``; a change replaces a section, ``section__name`` one
-    entry of it."""
+    """``write_chain(root, table=None, **changes)``: the chain file of the scenes of ``make_scenes``
+    (and ``table``, by default the example table, as params.yaml) under ``root``; a change replaces
+    a section, ``section__name`` one entry of it."""
     return _write_chain
+
+
+@pytest.fixture(scope="session")
+def chain_reference():
+    """The reference geometry of ``write_chain``'s chains [deg]."""
+    return dict(REFERENCE)
 
 
 @pytest.fixture(scope="session")
@@ -122,6 +180,97 @@ def expected():
 def read():
     """``read(path)``: a raster's values and tags."""
     return _read
+
+
+# ------------------------------------------------------------------- refused command lines
+# invoke, refused, correct_args: the hostile-input tests
+# (tests/cli/test_hostile_inputs_round3.py, tests/io/test_hostile_products.py, tests/io/test_hostile_files.py,
+# tests/cli/test_bad_input.py).
+
+def _invoke(args, env=None) -> tuple[int, str]:
+    """``brdfcorr ARGS`` in this process (click's runner): the exit code and stderr."""
+    result = CliRunner().invoke(main, [str(arg) for arg in args], env=env)
+    return result.exit_code, result.stderr
+
+
+def _error_line(stderr: str) -> str:
+    """stderr is exactly one line, ``brdfcorr: error: ...``, and no traceback: that line."""
+    lines = stderr.splitlines()
+    assert len(lines) == 1, stderr[:3000]
+    assert lines[0].startswith("brdfcorr: error: ") and "Traceback" not in stderr, lines[0]
+    return lines[0]
+
+
+def _refused(scene, args, pattern: str, run=None, env=None) -> str:
+    """Run the command line ``args`` on a ``scene`` (by ``run(args) -> (exit code, stderr)``, by
+    default in this process with the environment ``env``): exit 2, one ``brdfcorr: error:`` line
+    matching ``pattern``, nothing in the output directory (nor a chain's ``chain_out`` beside the
+    scene) and every file beside and in the scene directory byte-identical. Returns the line."""
+    before = file_digests(scene["dir"].parent)
+    code, stderr = run(args) if run is not None else _invoke(args, env)
+    assert code == 2, stderr[:3000]
+    line = _error_line(stderr)
+    assert re.search(pattern, line), line
+    assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
+    assert not (scene["dir"].parent / "chain_out").exists()
+    assert file_digests(scene["dir"].parent) == before, "inputs must be byte-identical"
+    return line
+
+
+def _correct_args(scene, *extra, image=None, angles: tuple = ()) -> list:
+    angles = angles or ("--angles", scene["angles"])
+    return ["correct", image or scene["image"], *angles, "--classes", scene["classes"], "--params",
+            scene["params"], "-o", scene["output"], "--qa", scene["out"] / "qa.tif", "--no-progress", *extra]
+
+
+@pytest.fixture(scope="session")
+def invoke():
+    """``invoke(args, env=None) -> (exit code, stderr)``: ``brdfcorr ARGS`` in this process."""
+    return _invoke
+
+
+@pytest.fixture(scope="session")
+def refused():
+    """``refused(scene, args, pattern, run=None, env=None)``: the command line on a ``scene``
+    fixture is refused (exit 2, one error line matching ``pattern``) and writes and changes nothing;
+    the line."""
+    return _refused
+
+
+@pytest.fixture(scope="session")
+def correct_args():
+    """``correct_args(scene, *extra, image=None, angles=())``: ``brdfcorr correct`` on a ``scene``
+    fixture (``--angles`` file, or the options ``angles``), with a QA output, no progress bar."""
+    return _correct_args
+
+
+# ------------------------------------------------------------------- an NDVI strata scene
+# write_strata_scene: the imagery fit of fit-classes and of a chain's fit step
+# (tests/cli/test_fit_classes_names.py, tests/workflow/test_imagery_fit_step.py).
+
+#: Soil (flat spectrum, NDVI about 0.06) and grass (NDVI 0.6) [sr^-1]: strata with edge 0.3 split them.
+STRATA_TRUTH = ParameterTable(classes=[
+    {"id": 1, "name": "soil", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
+     "params": {"f_iso": [0.06, 0.07, 0.08, 0.09], "f_vol": 0.01, "f_geo": 0.012}},
+    {"id": 2, "name": "grass", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
+     "params": {"f_iso": [0.02, 0.04, 0.03, 0.12], "f_vol": [0.01, 0.02, 0.01, 0.06], "f_geo": 0.004}},
+])
+
+
+def _write_strata_scene(directory) -> dict[str, Path]:
+    paths = write_scene(directory, synthetic_scene(ny=48, nx=64, wavelengths=(480.0, 560.0, 660.0, 830.0),
+                                                   table=STRATA_TRUTH))
+    paths["strata"] = paths["image"].parent / "strata.tif"
+    ndvi_class_file(paths["image"], paths["strata"], bins=NdviBins(edges=(0.3,)))
+    return paths
+
+
+@pytest.fixture(scope="session")
+def write_strata_scene():
+    """``write_strata_scene(directory)``: a 48 x 64 scene rendered from STRATA_TRUTH (write_scene)
+    with its NDVI strata map (``classes ndvi``, edge 0.3) as ``strata.tif`` beside it; the paths by
+    role and ``strata``."""
+    return _write_strata_scene
 
 
 # ------------------------------------------------------------------- overlapping flight lines
@@ -227,16 +376,3 @@ def store():
 def nodata_pixels():
     """The pixels (an index of the (band, y, x) values) that ``store`` writes as nodata."""
     return NODATA_PIXELS
-
-
-@pytest.fixture
-def scene(template, tmp_path) -> dict[str, Path]:
-    """A fresh copy of the module's ``template`` scene directory (image, angles, classes,
-    params.yaml), and an empty output directory: a test may damage its copy. Modules with their
-    own ``scene`` fixture use theirs."""
-    directory = tmp_path / "scene"
-    shutil.copytree(template, directory)
-    (tmp_path / "out").mkdir()
-    return {"dir": directory, "image": directory / "image.tif", "angles": directory / "angles.tif",
-            "classes": directory / "classes.tif", "params": directory / "params.yaml",
-            "out": tmp_path / "out", "output": tmp_path / "out" / "corrected.tif"}

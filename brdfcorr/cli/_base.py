@@ -108,7 +108,8 @@ def class_bar(progress: bool | None, description: str):
         return
     from tqdm import tqdm
 
-    with tqdm(desc=description, unit="class", leave=False, file=sys.stderr) as bar:
+    # Every class shown (a class takes seconds; tqdm's rate limit would skip the last ones).
+    with tqdm(desc=description, unit="class", leave=False, file=sys.stderr, mininterval=0, miniters=1) as bar:
         yield lambda item: bar.update()
 
 

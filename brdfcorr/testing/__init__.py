@@ -19,15 +19,17 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+import yaml
 
 from brdfcorr.geometry import relative_azimuth
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import products
+from brdfcorr.testing import products, small_scenes
 from brdfcorr.testing.products import *  # noqa: F403 (the product writers, re-exported)
+from brdfcorr.testing.small_scenes import *  # noqa: F403 (the fit's small scenes, re-exported)
 
 __all__ = [
     "example_table", "file_digests", "synthetic_angles", "synthetic_classes", "render", "synthetic_scene",
-    "write_scene", "georeference", *products.__all__,
+    "write_scene", "write_scene_chain", "georeference", *products.__all__, *small_scenes.__all__,
 ]
 
 #: Grid used by the helpers: 10 m pixels of UTM zone 32N.
@@ -163,6 +165,27 @@ def write_scene(directory: str | os.PathLike, scene: dict[str, xr.DataArray], bl
         classes = classes.rio.write_nodata(class_nodata)
     classes.rio.to_raster(paths["classes"], **options)
     return paths
+
+
+def write_scene_chain(directory: str | os.PathLike, text: str | None = None, **sections) -> Path:
+    """A chain config ``chain.yaml`` beside the scene ``directory`` of :func:`write_scene` (with the
+    parameter table ``params.yaml``): that one scene, outputs in ``chain_out`` beside it, one
+    synchronous worker in chunks of 16 pixels; ``sections`` replace whole sections of it, and
+    ``text`` is written as it is instead. Returns the path."""
+    directory = Path(directory)
+    path = directory.parent / "chain.yaml"
+    if text is None:
+        document = {
+            "inputs": {"images": [f"{directory.name}/image.tif"],
+                       "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"}, "classes": "{dir}/classes.tif"},
+            "parameters": {"table": f"{directory.name}/params.yaml"},
+            "outputs": {"directory": "chain_out"},
+            "engine": {"scheduler": "synchronous", "workers": 1, "chunk": 16},
+            **sections,
+        }
+        text = yaml.safe_dump(document, sort_keys=False)
+    path.write_text(text)
+    return path
 
 
 def file_digests(directory: str | os.PathLike) -> dict[str, str]:

@@ -24,23 +24,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rasterio
-import yaml
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import example_table, file_digests, synthetic_scene, write_scene
+from brdfcorr.testing import file_digests, synthetic_scene, write_scene_chain
 
 NY, NX = 32, 40
 
 
 @pytest.fixture(scope="module")
-def template(tmp_path_factory) -> Path:
+def template(tmp_path_factory, write_example_scene) -> Path:
     """A good scene written once; every test copies it (tests never share files they might damage)."""
-    directory = tmp_path_factory.mktemp("template")
-    write_scene(directory / "scene", synthetic_scene(ny=NY, nx=NX))
-    example_table().save(directory / "scene" / "params.yaml")
-    return directory / "scene"
+    return write_example_scene(tmp_path_factory.mktemp("template") / "scene", synthetic_scene(ny=NY, nx=NX))["dir"]
 
 
 # ------------------------------------------------------------------------------------- helpers
@@ -313,19 +309,9 @@ def test_fit_output_is_the_measurements(scene):
 
 
 # ------------------------------------------------------------------------------- brdfcorr run
-def _chain(scene, **sections) -> Path:
-    """A chain config over the scene directory (one scene), sections replaced by ``sections``."""
-    document = {
-        "inputs": {"images": ["scene/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
-                   "classes": "{dir}/classes.tif"},
-        "parameters": {"table": "scene/params.yaml"},
-        "outputs": {"directory": "chain_out"},
-        "engine": {"scheduler": "synchronous", "workers": 1, "chunk": 16},
-    }
-    document.update(sections)
-    path = scene["dir"].parent / "chain.yaml"
-    path.write_text(yaml.safe_dump(document, sort_keys=False))
-    return path
+def _chain(scene, text: str | None = None, **sections) -> Path:
+    """The chain config over the one scene of ``scene`` (brdfcorr.testing.write_scene_chain)."""
+    return write_scene_chain(scene["dir"], text, **sections)
 
 
 def _chain_text(scene, text: str) -> Path:

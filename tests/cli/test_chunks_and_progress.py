@@ -26,7 +26,7 @@ from brdfcorr.io.rasters import (
     choose_chunk,
     image_layout,
 )
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import synthetic_scene
 
 
 def _check_chunk(layout: Layout, chunk: int) -> None:
@@ -117,10 +117,9 @@ def test_auto_chunk_of_files_is_a_multiple_of_their_blocks(tmp_path, blocks):
 
 # ------------------------------------------------------------------------------------ progress
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
+def files(tmp_path_factory, write_example_scene):
     directory = tmp_path_factory.mktemp("progress")
-    paths = write_scene(directory, synthetic_scene(ny=32, nx=48))
-    paths["params"] = example_table().save(directory / "params.yaml")
+    paths = write_example_scene(directory, synthetic_scene(ny=32, nx=48))
     result = CliRunner().invoke(main, ["correct", str(paths["image"]), "--angles", str(paths["angles"]),
                                        "--classes", str(paths["classes"]), "--params", str(paths["params"]),
                                        "--ref-sza", "35", "-o", str(directory / "corrected.tif")])

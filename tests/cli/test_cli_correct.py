@@ -14,7 +14,7 @@ from brdfcorr.cli import main
 from brdfcorr.correction import QA
 from brdfcorr.errors import InputError
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import example_table, synthetic_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
 
@@ -28,11 +28,8 @@ def scene():
 
 
 @pytest.fixture(scope="module")
-def files(scene, tmp_path_factory):
-    directory = tmp_path_factory.mktemp("cli")
-    paths = write_scene(directory, scene)
-    paths["params"] = example_table().save(directory / "params.yaml")
-    return paths
+def files(scene, tmp_path_factory, write_example_scene):
+    return write_example_scene(tmp_path_factory.mktemp("cli"), scene)
 
 
 def _invoke(*args):

@@ -17,16 +17,14 @@ from brdfcorr.correction.terrain import slope_aspect
 from brdfcorr.correction.topographic import topographic_correction
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import PIXEL, example_table, georeference, synthetic_scene, write_scene
+from brdfcorr.testing import PIXEL, example_table, georeference, synthetic_scene
 
 
 @pytest.fixture
-def scene(tmp_path):
-    data = synthetic_scene(ny=32, nx=32)
-    paths = write_scene(tmp_path / "scene", data)
-    paths["params"] = example_table().save(tmp_path / "scene" / "params.yaml")
-    paths["data"] = data
-    return paths
+def scene(scene):
+    """A copy of the 32 x 32 template scene (tests/conftest.py) and its arrays as ``data`` (the same
+    synthetic_scene, which depends on its seed only)."""
+    return {**scene, "data": synthetic_scene(ny=32, nx=32)}
 
 
 def _dem(tmp_path, heights: np.ndarray):

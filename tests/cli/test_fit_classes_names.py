@@ -10,24 +10,13 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import synthetic_scene, write_scene
-from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
-
-#: Soil (flat spectrum, NDVI about 0.06) and grass (NDVI 0.6) [sr^-1]: strata with edge 0.3 split them.
-TRUTH = ParameterTable(classes=[
-    {"id": 1, "name": "soil", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
-     "params": {"f_iso": [0.06, 0.07, 0.08, 0.09], "f_vol": 0.01, "f_geo": 0.012}},
-    {"id": 2, "name": "grass", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
-     "params": {"f_iso": [0.02, 0.04, 0.03, 0.12], "f_vol": [0.01, 0.02, 0.01, 0.06], "f_geo": 0.004}},
-])
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
+def files(tmp_path_factory, write_strata_scene):
+    """The scene rendered from STRATA_TRUTH (soil and grass) with its NDVI strata map (tests/conftest.py)."""
     root = tmp_path_factory.mktemp("names")
-    paths = write_scene(root, synthetic_scene(ny=48, nx=64, wavelengths=(480.0, 560.0, 660.0, 830.0), table=TRUTH))
-    ndvi_class_file(paths["image"], root / "strata.tif", bins=NdviBins(edges=(0.3,)))
-    return {**paths, "strata": root / "strata.tif", "root": root}
+    return {**write_strata_scene(root), "root": root}
 
 
 def _fit(files, classes, *options, output="table.yaml"):

@@ -26,57 +26,23 @@ import pytest
 import rasterio
 import rioxarray
 import xarray as xr
-import yaml
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.correction.terrain import slope_aspect
 from brdfcorr.errors import InputError
 from brdfcorr.io.writer import encode_integers
-from brdfcorr.testing import PIXEL, example_table, file_digests, georeference, synthetic_scene, write_scene
+from brdfcorr.testing import PIXEL, georeference, synthetic_scene, write_scene_chain
 from brdfcorr.workflow.request import Engine
 
-NY, NX = 32, 32
+NY, NX = 32, 32  # the scene of the template fixture (tests/conftest.py)
 #: Metres per US survey foot (EPSG:9003).
 US_SURVEY_FOOT = 1200 / 3937
 
 
-@pytest.fixture(scope="module")
-def template(tmp_path_factory) -> Path:
-    directory = tmp_path_factory.mktemp("round3") / "scene"
-    write_scene(directory, synthetic_scene(ny=NY, nx=NX))
-    example_table().save(directory / "params.yaml")
-    return directory
-
-
 # ------------------------------------------------------------------------------------- helpers
-def _in_process(args) -> tuple[int, str]:
-    result = CliRunner().invoke(main, [str(a) for a in args])
-    return result.exit_code, result.stderr
-
-
-def _check(scene, args, pattern: str, run=_in_process) -> str:
-    """Run the command line ``args``: exit 2, one ``brdfcorr: error:`` line matching ``pattern``,
-    nothing in the output directory (nor a chain's), inputs byte-identical. Returns the line."""
-    before = file_digests(scene["dir"])
-    code, stderr = run(args)
-    assert code == 2, stderr[:2000]
-    lines = stderr.splitlines()
-    assert len(lines) == 1, stderr[:2000]
-    assert lines[0].startswith("brdfcorr: error: ") and "Traceback" not in stderr, lines[0]
-    assert re.search(pattern, lines[0]), lines[0]
-    assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
-    assert not (scene["dir"].parent / "chain_out").exists()
-    assert file_digests(scene["dir"]) == before, "inputs must be byte-identical"
-    return lines[0]
-
-
-def _correct_args(scene, *extra, image=None, angles: tuple = ()) -> list:
-    angles = angles or ("--angles", scene["angles"])
-    return ["correct", image or scene["image"], *angles, "--classes", scene["classes"], "--params",
-            scene["params"], "-o", scene["output"], "--qa", scene["out"] / "qa.tif", "--no-progress", *extra]
-
-
+# scene (a copy of the template), refused(scene, args, pattern, run=None) and correct_args(scene, ...):
+# tests/conftest.py.
 def _truncated(source: Path, target: Path) -> Path:
     """A copy of ``source`` cut to half its size: GDAL still opens it (the header and the tile index
     come first), and reading the tiles of its second half fails."""
@@ -118,40 +84,27 @@ def _assess_lines_args(scene, chunk: str) -> list:
     ("correct", "0"), ("correct", "-16"), ("correct", "17"), ("correct", "8208"),
     ("assess", "0"), ("assess-lines", "-16"),
 ])
-def test_chunk_sizes_are_refused_while_parsing(scene, command, chunk):
-    args = {"correct": lambda: _correct_args(scene, "--chunk", chunk),
+def test_chunk_sizes_are_refused_while_parsing(scene, command, chunk, refused, correct_args):
+    args = {"correct": lambda: correct_args(scene, "--chunk", chunk),
             "assess": lambda: _assess_args(scene, chunk),
             "assess-lines": lambda: _assess_lines_args(scene, chunk)}[command]()
-    line = _check(scene, args, CHUNK_MESSAGE.format(re.escape(chunk)))
+    line = refused(scene, args, CHUNK_MESSAGE.format(re.escape(chunk)))
     assert f"(see --help of {command})" in line
 
 
-def test_chunk_that_is_no_integer_is_refused(scene):
-    _check(scene, _correct_args(scene, "--chunk", "1e3"), r"Invalid value for '--chunk': '1e3' is not an integer")
-
-
-def _chain(scene, **engine) -> Path:
-    path = scene["dir"].parent / "chain.yaml"
-    document = {
-        "inputs": {"images": ["scene/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
-                   "classes": "{dir}/classes.tif"},
-        "parameters": {"table": "scene/params.yaml"},
-        "outputs": {"directory": "chain_out"},
-        "engine": {"scheduler": "synchronous", "workers": 1, "chunk": 16, **engine},
-    }
-    path.write_text(yaml.safe_dump(document, sort_keys=False))
-    return path
+def test_chunk_that_is_no_integer_is_refused(scene, refused, correct_args):
+    refused(scene, correct_args(scene, "--chunk", "1e3"), r"Invalid value for '--chunk': '1e3' is not an integer")
 
 
 @pytest.mark.parametrize("command, chunk, override", [
     ("run", 0, None), ("run", -16, None), ("validate", 0, None), ("run", 16, "engine.chunk=0"),
 ])
-def test_chain_engine_chunk_is_refused(scene, monkeypatch, command, chunk, override):
+def test_chain_engine_chunk_is_refused(scene, monkeypatch, command, chunk, override, refused):
     monkeypatch.chdir(scene["dir"].parent)
-    chain = _chain(scene, chunk=chunk)
+    chain = write_scene_chain(scene["dir"], engine={"scheduler": "synchronous", "workers": 1, "chunk": chunk})
     value = "0" if override else str(chunk)
-    _check(scene, [command, chain, *(["--set", override] if override else [])],
-           rf"chain\.yaml: engine\.chunk: chunk {value} must be a multiple of 16 from 16 to 8192")
+    refused(scene, [command, chain, *(["--set", override] if override else [])],
+            rf"chain\.yaml: engine\.chunk: chunk {value} must be a multiple of 16 from 16 to 8192")
 
 
 @pytest.mark.parametrize("chunks", [0, -16, 24])
@@ -161,8 +114,8 @@ def test_library_engine_refuses_the_same_chunks(chunks):
     assert Engine(chunks=np.int64(32)).chunks == 32 and Engine().chunks is None
 
 
-def test_a_good_chunk_still_corrects(scene):
-    result = CliRunner().invoke(main, [str(a) for a in _correct_args(scene, "--chunk", "32")])
+def test_a_good_chunk_still_corrects(scene, correct_args):
+    result = CliRunner().invoke(main, [str(a) for a in correct_args(scene, "--chunk", "32")])
     assert result.exit_code == 0, result.output
     assert scene["output"].is_file()
 
@@ -183,16 +136,16 @@ def _integer_image(scene, dtype: str, nodata) -> Path:
 @pytest.mark.parametrize("dtype, nodata", [
     ("uint64", None), ("uint64", 0), ("int64", None), ("int64", -9999), ("int64", -2**63),
 ])
-def test_output_type_input_refuses_64_bit_integers(scene, dtype, nodata):
+def test_output_type_input_refuses_64_bit_integers(scene, dtype, nodata, refused, correct_args):
     image = _integer_image(scene, dtype, nodata)
-    _check(scene, _correct_args(scene, "--output-type", "input", image=image),
-           rf"output type 'input' \(--output-type input\): image \S*{image.name} is stored as {dtype}, and a "
-           r"64-bit integer output cannot be written exactly .* write floats \(--output-type float\)")
+    refused(scene, correct_args(scene, "--output-type", "input", image=image),
+            rf"output type 'input' \(--output-type input\): image \S*{image.name} is stored as {dtype}, and a "
+            r"64-bit integer output cannot be written exactly .* write floats \(--output-type float\)")
 
 
-def test_a_64_bit_image_still_corrects_to_floats(scene):
+def test_a_64_bit_image_still_corrects_to_floats(scene, correct_args):
     image = _integer_image(scene, "uint64", None)
-    result = CliRunner().invoke(main, [str(a) for a in _correct_args(scene, "--output-type", "float", image=image)])
+    result = CliRunner().invoke(main, [str(a) for a in correct_args(scene, "--output-type", "float", image=image)])
     assert result.exit_code == 0, result.output
     with rasterio.open(scene["output"]) as dataset:
         assert dataset.dtypes[0] == "float32"
@@ -214,14 +167,14 @@ def _cli(args) -> tuple[int, str]:
     return result.returncode, result.stderr
 
 
-def test_truncated_angle_raster(scene):
+def test_truncated_angle_raster(scene, refused, correct_args):
     cut = _truncated(scene["angles"], scene["dir"] / "angles_cut.tif")
-    line = _check(scene, _correct_args(scene, angles=("--angles", cut)),
-                  r"cannot read angle file \S*angles_cut\.tif: angles_cut\.tif, band \d+: ", run=_cli)
+    line = refused(scene, correct_args(scene, angles=("--angles", cut)),
+                   r"cannot read angle file \S*angles_cut\.tif: angles_cut\.tif, band \d+: ", run=_cli)
     assert "(a truncated or damaged file?)" in line
 
 
-def test_truncated_single_angle_file(scene):
+def test_truncated_single_angle_file(scene, refused, correct_args):
     with rasterio.open(scene["angles"]) as dataset:
         data, profile = dataset.read(), {**dataset.profile, "count": 1}
     files = {}
@@ -233,31 +186,28 @@ def test_truncated_single_angle_file(scene):
     angles = tuple(item for name, path in files.items() for item in (f"--{name}", path))
     # Cut within its header (GDAL writes the georeference tags last): refused when opened, not taken
     # for a raster without a CRS; cut within its tiles: refused in the pass over the angles.
-    line = _check(scene, _correct_args(scene, angles=angles), r"cannot read (vza )?angle files? .*vza_cut\.tif: "
-                  r".*vza_cut\.tif", run=_cli)
+    line = refused(scene, correct_args(scene, angles=angles), r"cannot read (vza )?angle files? .*vza_cut\.tif: "
+                   r".*vza_cut\.tif", run=_cli)
     assert "(a truncated or damaged file?)" in line
 
 
-def test_truncated_slope_aspect_raster(scene):
+def test_truncated_slope_aspect_raster(scene, refused, correct_args):
     good = _slope_aspect_raster(scene["dir"] / "slope_aspect.tif", *_random_surface())
     cut = _truncated(good, scene["dir"] / "slope_aspect_cut.tif")
-    _check(scene, _correct_args(scene, "--slope-aspect", cut),
-           r"cannot read slope/aspect file \S*slope_aspect_cut\.tif: slope_aspect_cut\.tif, band \d")
+    refused(scene, correct_args(scene, "--slope-aspect", cut),
+            r"cannot read slope/aspect file \S*slope_aspect_cut\.tif: slope_aspect_cut\.tif, band \d")
 
 
 # ------------------------------------------------------------------ 4. DEM units (US survey feet)
-def _feet_scene(directory: Path) -> dict[str, Path]:
+def _feet_scene() -> dict:
     """The helpers' scene on a grid of 10 US survey feet (EPSG:2263, New York Long Island)."""
-    data = {name: layer.rio.write_crs("EPSG:2263") for name, layer in synthetic_scene(ny=NY, nx=NX).items()}
-    paths = write_scene(directory, data)
-    paths["params"] = example_table().save(directory / "params.yaml")
-    return paths
+    return {name: layer.rio.write_crs("EPSG:2263") for name, layer in synthetic_scene(ny=NY, nx=NX).items()}
 
 
-def test_dem_in_us_survey_feet_gives_slopes_in_metres(tmp_path):
+def test_dem_in_us_survey_feet_gives_slopes_in_metres(tmp_path, write_example_scene):
     # Elevations in metres rising 0.1 m per metre northwards (rows go south): 5.71 deg facing south,
     # where the pixel size in feet read as metres gave 1.75 deg.
-    paths = _feet_scene(tmp_path / "scene")
+    paths = write_example_scene(tmp_path / "scene", _feet_scene())
     rows = np.arange(NY)[:, None] * np.ones((1, NX))
     heights = 100.0 - 0.1 * PIXEL * US_SURVEY_FOOT * rows
     dem = georeference(xr.DataArray(heights[None].astype(np.float64), dims=("band", "y", "x")), crs="EPSG:2263")
@@ -297,9 +247,9 @@ def test_dem_pixel_size_in_metres_is_unchanged():
     ("slope_negative", lambda s, a: (-s, a), r"no slope value in \[0, 90\] deg \(found slope -"),
     ("aspect_scaled", lambda s, a: (s, a * 100.0 + 400.0), r"no aspect value in \[-360, 360\] deg"),
 ])
-def test_implausible_slope_aspect_raster(scene, case, transform, pattern):
+def test_implausible_slope_aspect_raster(scene, case, transform, pattern, refused, correct_args):
     path = _slope_aspect_raster(scene["dir"] / f"{case}.tif", *transform(*_random_surface()))
-    line = _check(scene, _correct_args(scene, "--slope-aspect", path), pattern)
+    line = refused(scene, correct_args(scene, "--slope-aspect", path), pattern)
     if "no " in pattern:
         assert "every pixel would be nodata" in line.lower()
 
@@ -316,17 +266,17 @@ def _obs_file(scene, slope, aspect) -> Path:
     return path
 
 
-def test_obs_file_slope_aspect_in_radians(scene):
+def test_obs_file_slope_aspect_in_radians(scene, refused, correct_args):
     slope, aspect = _random_surface()
     path = _obs_file(scene, np.radians(slope), np.radians(aspect))
-    _check(scene, _correct_args(scene, "--slope-aspect", path),
-           r"obs file \S*ang_obs_ort: slope and aspect look like radians")
+    refused(scene, correct_args(scene, "--slope-aspect", path),
+            r"obs file \S*ang_obs_ort: slope and aspect look like radians")
 
 
-def test_obs_file_slope_outside_its_domain(scene):
+def test_obs_file_slope_outside_its_domain(scene, refused, correct_args):
     slope, aspect = _random_surface()
     path = _obs_file(scene, 100.0 * slope, aspect)
-    _check(scene, _correct_args(scene, "--slope-aspect", path), r"obs file \S*ang_obs_ort: no slope value in \[0, 90\]")
+    refused(scene, correct_args(scene, "--slope-aspect", path), r"obs file \S*ang_obs_ort: no slope value in \[0, 90\]")
 
 
 @pytest.mark.parametrize("slope, aspect", [
@@ -334,9 +284,9 @@ def test_obs_file_slope_outside_its_domain(scene):
     (1.2, 200.0),  # gentle slopes facing one way
     (None, None),  # a real spread of slopes and aspects in degrees
 ])
-def test_plausible_slope_aspect_rasters_still_correct(scene, slope, aspect):
+def test_plausible_slope_aspect_rasters_still_correct(scene, slope, aspect, correct_args):
     values = _random_surface() if slope is None else (np.full((NY, NX), slope), np.full((NY, NX), aspect))
     path = _slope_aspect_raster(scene["dir"] / "surface.tif", *values)
-    result = CliRunner().invoke(main, [str(a) for a in _correct_args(scene, "--slope-aspect", path)])
+    result = CliRunner().invoke(main, [str(a) for a in correct_args(scene, "--slope-aspect", path)])
     assert result.exit_code == 0, result.output
     assert scene["output"].is_file()

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from brdfcorr.cli import main
 from brdfcorr.correction.terrain import check_dem_slope, slope_aspect
 from brdfcorr.errors import InputError
-from brdfcorr.testing import example_table, file_digests, georeference, synthetic_scene, write_scene
+from brdfcorr.testing import file_digests, georeference, synthetic_scene
 
 #: A plane rising 1 m per 10 m pixel eastwards: slope atan(0.1) = 5.71 deg wherever it is defined.
 PLANE = np.tile(np.arange(16, dtype=float), (16, 1))
@@ -49,9 +49,9 @@ def test_one_pixel_with_a_slope_is_enough(lazy):
     check_dem_slope(surface, "DEM file dem.tif")  # no error
 
 
-def test_correct_with_a_nodata_dem_exits_2_naming_it(tmp_path):
-    paths = write_scene(tmp_path / "scene", synthetic_scene(ny=32, nx=32))
-    params = example_table().save(tmp_path / "scene" / "params.yaml")
+def test_correct_with_a_nodata_dem_exits_2_naming_it(tmp_path, write_example_scene):
+    paths = write_example_scene(tmp_path / "scene", synthetic_scene(ny=32, nx=32))
+    params = paths["params"]
     dem = georeference(xr.DataArray(np.full((1, 32, 32), -9999.0, dtype=np.float32), dims=("band", "y", "x")))
     dem_path = tmp_path / "scene" / "dem.tif"
     dem.rio.write_nodata(-9999.0).rio.to_raster(dem_path)

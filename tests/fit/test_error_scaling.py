@@ -25,32 +25,15 @@ import pytest
 
 from brdfcorr.fit.identifiability import MIN_ERROR_DOF
 from brdfcorr.fit.solver import fit_class_samples
-from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
-from brdfcorr.models import get_model
-from brdfcorr.testing import synthetic_angles
-
-#: One truth per model family (two bands): paper 003 Table 1's red concrete for both Torrance-
-#: Sparrow models, a specular empirical lobe, MODIS-like Ross-Thick/Li-Sparse weights, RPV with the
-#: registry's typical k and Theta (as in the benchmark).
-RED_CONCRETE = {"t0": np.array([0.0192, 0.0307]), "t1": np.array([1.06, 1.70]), "w": 0.0804, "n": 1.48, "k": 0.25}
-TRUTHS = {
-    "torrance_sparrow": RED_CONCRETE,
-    "torrance_sparrow_simplified": RED_CONCRETE,
-    "empirical": {"a": np.array([0.3, 0.48]), "b": 1.0, "c": 0.05, "t0": np.array([0.02, 0.032])},
-    "ross_thick_li_sparse": {"f_iso": np.array([0.05, 0.3]), "f_vol": np.array([0.02, 0.15]),
-                             "f_geo": np.array([0.01, 0.03])},
-    "rpv": {"rho0": np.array([0.03, 0.3]), "k": 0.75, "theta": -0.1, "rho_c": 0.3},
-}
+from brdfcorr.testing import SMALL_SCENE_TRUTHS as TRUTHS
+from brdfcorr.testing import small_scene_samples
 
 
-def _scene(model, ny, nx, repeat=1, seed=0):
-    """A push-broom scene (view zenith 0-40 deg) of ``model``'s truth, its samples repeated
-    ``repeat`` times, with 3 % independent multiplicative noise; angles (N,) [deg], BRDF (N, 2)."""
-    angles = synthetic_angles(ny, nx, vza_max=40.0, dtype=np.float64)
-    sza, vza = np.tile(angles["sza"].ravel(), repeat), np.tile(angles["vza"].ravel(), repeat)
-    phi = np.tile(relative_azimuth(angles["saa"], angles["vaa"]).ravel(), repeat)
-    clean = np.asarray(get_model(model).kernel(ScatteringGeometry(sza[:, None], vza[:, None], phi[:, None]),
-                                               **TRUTHS[model]))
+def _scene(model, ny, nx, seed=0):
+    """A push-broom scene (view zenith 0-40 deg) of ``model``'s truth (one per model family, as in
+    the benchmark: brdfcorr.testing.small_scenes) with 3 % independent multiplicative noise; angles
+    (N,) [deg], BRDF (N, 2)."""
+    sza, vza, phi, clean = small_scene_samples(model, ny, nx)
     noise = np.random.default_rng(seed).standard_normal(clean.shape)
     return sza, vza, phi, clean * (1 + 0.03 * noise)
 

@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from brdfcorr import io
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import synthetic_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
 
@@ -23,11 +23,8 @@ def scene():
 
 
 @pytest.fixture(scope="module")
-def files(scene, tmp_path_factory):
-    directory = tmp_path_factory.mktemp("names")
-    paths = write_scene(directory, scene)
-    paths["params"] = example_table().save(directory / "params.yaml")
-    return paths
+def files(scene, tmp_path_factory, write_example_scene):
+    return write_example_scene(tmp_path_factory.mktemp("names"), scene)
 
 
 def write_angles(path, scene, order, descriptions):
@@ -175,21 +172,15 @@ def test_ambiguous_band_names_give_no_wavelengths(tmp_path, descriptions):
     assert "wavelength" not in io.open_image(path).coords
 
 
-def test_output_bands_are_described_by_wavelength_when_the_input_has_no_descriptions(tmp_path):
+def test_output_bands_are_described_by_wavelength_when_the_input_has_no_descriptions(tmp_path,
+                                                                                   write_example_scene):
     # rioxarray writes the array's name on every band without descriptions: "reflectance" x N.
-    import rasterio
-    from click.testing import CliRunner
-
-    from brdfcorr.cli import main
-    from brdfcorr.testing import example_table, synthetic_scene, write_scene
-
-    paths = write_scene(tmp_path, synthetic_scene(ny=16, nx=16))
+    paths = write_example_scene(tmp_path, synthetic_scene(ny=16, nx=16))
     with rasterio.open(paths["image"], "r+") as dataset:
         for band in range(1, dataset.count + 1):
             dataset.set_band_description(band, "")
-    table = example_table().save(tmp_path / "params.yaml")
     result = CliRunner().invoke(main, ["correct", str(paths["image"]), "--angles", str(paths["angles"]),
-                                       "--classes", str(paths["classes"]), "--params", str(table),
+                                       "--classes", str(paths["classes"]), "--params", str(paths["params"]),
                                        "--wavelengths", "480,560,660,830", "-o", str(tmp_path / "out.tif")])
     assert result.exit_code == 0, result.output
     with rasterio.open(tmp_path / "out.tif") as dataset:

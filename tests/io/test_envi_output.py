@@ -13,17 +13,14 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.io import band_wavelengths, open_image
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import synthetic_scene
 
 WAVELENGTHS = [480.0, 560.0, 660.0, 830.0]  # synthetic_scene's default band centres [nm]
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
-    directory = tmp_path_factory.mktemp("envi")
-    paths = write_scene(directory, synthetic_scene(ny=40, nx=48, wavelengths=WAVELENGTHS))
-    paths["params"] = example_table().save(directory / "params.yaml")
-    return paths
+def files(tmp_path_factory, write_example_scene):
+    return write_example_scene(tmp_path_factory.mktemp("envi"), synthetic_scene(ny=40, nx=48, wavelengths=WAVELENGTHS))
 
 
 def _correct(files, output, *extra, image=None):

@@ -18,25 +18,22 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import re
 import subprocess
 import sys
 import tracemalloc
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
-from click.testing import CliRunner
 
-from brdfcorr.cli import main
 from brdfcorr.correction import QA, normalize, qa_counts
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.io.files import MAX_ALIAS_NODES, MAX_DOCUMENT_BYTES, parse_yaml
 from brdfcorr.models import SURFACE_MODELS, get_model
 from brdfcorr.params import ParameterTable, merge_tables
-from brdfcorr.testing import example_table, file_digests, synthetic_scene, write_scene
+from brdfcorr.testing import example_table, synthetic_scene, write_scene_chain
 
 NY, NX = 16, 20
 #: A command that could block is killed after this many seconds [s]: a guard against a hang, far
@@ -55,73 +52,28 @@ def _bomb(leaf: str = "0.1") -> str:
 
 
 @pytest.fixture(scope="module")
-def template(tmp_path_factory) -> Path:
-    directory = tmp_path_factory.mktemp("template") / "scene"
-    write_scene(directory, synthetic_scene(ny=NY, nx=NX))
-    example_table().save(directory / "params.yaml")
-    return directory
+def template(tmp_path_factory, write_example_scene) -> Path:
+    return write_example_scene(tmp_path_factory.mktemp("template") / "scene", synthetic_scene(ny=NY, nx=NX))["dir"]
 
 
 # ------------------------------------------------------------------------------------- helpers
-def _one_error_line(stderr: str) -> str:
-    lines = stderr.splitlines()
-    assert len(lines) == 1, stderr[:2000]
-    assert lines[0].startswith("brdfcorr: error: "), lines[0]
-    assert "Traceback" not in stderr
-    return lines[0]
-
-
+# refused(scene, args, pattern, run=None): tests/conftest.py.
 def _correct_args(scene, params: Path | str) -> list[str]:
     return ["correct", str(scene["image"]), "--angles", str(scene["angles"]), "--classes",
             str(scene["classes"]), "--params", str(params), "-o", str(scene["output"]), "--chunk", "16"]
 
 
 def _chain(scene, text: str | None = None, **sections) -> Path:
-    """A chain config over the scene (one scene, output ``chain_out``), or ``text`` as it is."""
-    path = scene["dir"].parent / "chain.yaml"
-    if text is None:
-        document = {
-            "inputs": {"images": ["scene/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
-                       "classes": "{dir}/classes.tif"},
-            "parameters": {"table": "scene/params.yaml"},
-            "outputs": {"directory": "chain_out"},
-            "engine": {"scheduler": "synchronous", "workers": 1, "chunk": 16},
-            **sections,
-        }
-        text = yaml.safe_dump(document, sort_keys=False)
-    path.write_text(text)
-    return path
+    """The chain config over the one scene of ``scene`` (brdfcorr.testing.write_scene_chain)."""
+    return write_scene_chain(scene["dir"], text, **sections)
 
 
-def _check(scene, run, pattern: str) -> str:
-    """Run ``run() -> (exit code, stderr)``; check exit 2, one line matching ``pattern``, no output
-    and unchanged inputs. Returns the line."""
-    before = file_digests(scene["dir"].parent)
-    code, stderr = run()
-    assert code == 2, stderr[:2000]
-    line = _one_error_line(stderr)
-    assert re.search(pattern, line), line
-    assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
-    assert not (scene["dir"].parent / "chain_out").exists()
-    assert file_digests(scene["dir"].parent) == before, "inputs must be byte-identical"
-    return line
-
-
-def _in_process(args: list[str]):
-    def run():
-        result = CliRunner().invoke(main, args)
-        return result.exit_code, result.stderr
-    return run
-
-
-def _subprocess(args: list[str], cwd: Path | None = None):
+def _subprocess(args: list, cwd: Path | None = None) -> tuple[int, str]:
     """The command line in its own process, killed after :data:`HANG_GUARD` (a FIFO cannot hang
-    the test run)."""
-    def run():
-        result = subprocess.run([sys.executable, "-c", "from brdfcorr.cli import main; main()", *args],
-                                capture_output=True, text=True, timeout=HANG_GUARD, cwd=cwd)
-        return result.returncode, result.stderr
-    return run
+    the test run): the exit code and stderr."""
+    result = subprocess.run([sys.executable, "-c", "from brdfcorr.cli import main; main()", *map(str, args)],
+                            capture_output=True, text=True, timeout=HANG_GUARD, cwd=cwd)
+    return result.returncode, result.stderr
 
 
 # ------------------------------------------------------------------------ parameter tables (correct)
@@ -196,10 +148,10 @@ def _write_bytes(scene, name: str, data: bytes) -> Path:
 
 
 @pytest.mark.parametrize("case", list(TABLE_CASES))
-def test_hostile_parameter_table(scene, case):
+def test_hostile_parameter_table(scene, case, refused):
     build, pattern = TABLE_CASES[case]
     table = build(scene)
-    line = _check(scene, _in_process(_correct_args(scene, table)), pattern)
+    line = refused(scene, _correct_args(scene, table), pattern)
     assert len(line) < 1000, "a message never repeats a huge input"
 
 
@@ -251,17 +203,17 @@ def test_a_long_list_of_problems_is_one_short_line():
 
 # --------------------------------------------------------- files that block: FIFO, /dev/urandom
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
-def test_fifo_as_a_table(scene):
+def test_fifo_as_a_table(scene, refused):
     fifo = scene["dir"] / "fifo.yaml"
     os.mkfifo(fifo)
-    _check(scene, _subprocess(_correct_args(scene, fifo)),
-           r"cannot read parameter table \S*fifo\.yaml: not a regular file \(a FIFO \(named pipe\)\)")
+    refused(scene, _correct_args(scene, fifo),
+            r"cannot read parameter table \S*fifo\.yaml: not a regular file \(a FIFO \(named pipe\)\)", run=_subprocess)
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/urandom"), reason="needs /dev/urandom")
-def test_dev_urandom_as_a_table(scene):
-    _check(scene, _subprocess(_correct_args(scene, "/dev/urandom")),
-           r"cannot read parameter table /dev/urandom: not a regular file \(a character device\)")
+def test_dev_urandom_as_a_table(scene, refused):
+    refused(scene, _correct_args(scene, "/dev/urandom"),
+            r"cannot read parameter table /dev/urandom: not a regular file \(a character device\)", run=_subprocess)
 
 
 def test_directory_as_a_table(scene):
@@ -272,19 +224,19 @@ def test_directory_as_a_table(scene):
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
-def test_fifo_as_a_chain_config(scene):
+def test_fifo_as_a_chain_config(scene, refused):
     fifo = scene["dir"].parent / "fifo_chain.yaml"
     os.mkfifo(fifo)
-    _check(scene, _subprocess(["run", str(fifo)], cwd=scene["dir"].parent),
-           r"cannot read chain config \S*fifo_chain\.yaml: not a regular file \(a FIFO")
+    refused(scene, ["run", fifo], r"cannot read chain config \S*fifo_chain\.yaml: not a regular file \(a FIFO",
+            run=partial(_subprocess, cwd=scene["dir"].parent))
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
-def test_fifo_as_the_table_of_a_chain(scene):
+def test_fifo_as_the_table_of_a_chain(scene, refused):
     os.mkfifo(scene["dir"] / "fifo.yaml")
     chain = _chain(scene, parameters={"table": "scene/fifo.yaml"})
-    _check(scene, _subprocess(["run", str(chain)], cwd=scene["dir"].parent),
-           r"cannot read parameter table \S*fifo\.yaml: not a regular file \(a FIFO")
+    refused(scene, ["run", chain], r"cannot read parameter table \S*fifo\.yaml: not a regular file \(a FIFO",
+            run=partial(_subprocess, cwd=scene["dir"].parent))
 
 
 # ------------------------------------------------------------------------- chain configs (run)
@@ -320,18 +272,18 @@ CHAIN_CASES = {
 
 
 @pytest.mark.parametrize("case", list(CHAIN_CASES))
-def test_hostile_chain_config(scene, case, monkeypatch):
+def test_hostile_chain_config(scene, case, monkeypatch, refused):
     build, pattern = CHAIN_CASES[case]
     monkeypatch.chdir(scene["dir"].parent)
     build(scene)
-    _check(scene, _in_process(["run", str(scene["dir"].parent / "chain.yaml")]), pattern)
+    refused(scene, ["run", scene["dir"].parent / "chain.yaml"], pattern)
 
 
-def test_yes_as_an_override_value(scene, monkeypatch):
+def test_yes_as_an_override_value(scene, monkeypatch, refused):
     monkeypatch.chdir(scene["dir"].parent)
     chain = _chain(scene)
-    _check(scene, _in_process(["run", str(chain), "--set", "engine.chunk=yes"]),
-           r"engine\.chunk: expected a number, got the boolean true")
+    refused(scene, ["run", chain, "--set", "engine.chunk=yes"],
+            r"engine\.chunk: expected a number, got the boolean true")
 
 
 # ------------------------------------------------------------------------- big valid tables
@@ -502,11 +454,11 @@ def test_a_model_beyond_float32_is_nodata_in_float32_and_finite_in_float64():
                       "--params", str(s["params"]), "--class-lookup", str(fifo), "-o", str(s["out"] / "x.tif")],
      r"cannot read lookup table \S*fifo: not a regular file"),
 ], ids=["measurements", "validate", "lookup table"])
-def test_fifo_as_another_input(scene, command, pattern):
+def test_fifo_as_another_input(scene, command, pattern, refused):
     fifo = scene["dir"] / "fifo"
     os.mkfifo(fifo)
     try:
-        _check(scene, _subprocess(command(scene, fifo)), pattern)
+        refused(scene, command(scene, fifo), pattern, run=_subprocess)
     finally:
         fifo.unlink()
 

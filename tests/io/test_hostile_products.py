@@ -31,13 +31,11 @@ import pytest
 import rasterio
 import xarray as xr
 from affine import Affine
-from click.testing import CliRunner
 
-from brdfcorr.cli import main
 from brdfcorr.io import cluster
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import example_table, file_digests, synthetic_scene, write_scene
+from brdfcorr.testing import example_table, synthetic_scene
 from brdfcorr.workflow import chain
 
 try:  # the "hdf5" extra
@@ -57,39 +55,12 @@ NY, NX = 16, 16
 
 
 @pytest.fixture(scope="module")
-def template(tmp_path_factory) -> Path:
-    directory = tmp_path_factory.mktemp("hostile_products") / "scene"
-    write_scene(directory, synthetic_scene(ny=NY, nx=NX))
-    example_table().save(directory / "params.yaml")
-    return directory
+def template(tmp_path_factory, write_example_scene) -> Path:
+    return write_example_scene(tmp_path_factory.mktemp("hostile_products") / "scene",
+                               synthetic_scene(ny=NY, nx=NX))["dir"]
 
 
-def _run(args, env=None) -> tuple[int, str]:
-    result = CliRunner().invoke(main, [str(a) for a in args], env=env)
-    return result.exit_code, result.stderr
-
-
-def _check(scene, args, pattern: str, env=None) -> str:
-    """Run ``args``: exit 2, one ``brdfcorr: error:`` line matching ``pattern``, nothing in the
-    output directory, inputs byte-identical. Returns the line."""
-    before = file_digests(scene["dir"])
-    code, stderr = _run(args, env)
-    assert code == 2, stderr[:3000]
-    lines = stderr.splitlines()
-    assert len(lines) == 1, stderr[:3000]
-    assert lines[0].startswith("brdfcorr: error: ") and "Traceback" not in stderr, lines[0]
-    assert re.search(pattern, lines[0]), lines[0]
-    assert list(scene["out"].iterdir()) == [], "nothing, not even a temporary file, in the output directory"
-    assert file_digests(scene["dir"]) == before, "inputs must be byte-identical"
-    return lines[0]
-
-
-def _correct_args(scene, *extra, image=None, angles: tuple = ()) -> list:
-    angles = angles or ("--angles", scene["angles"])
-    return ["correct", image or scene["image"], *angles, "--classes", scene["classes"], "--params",
-            scene["params"], "-o", scene["output"], "--qa", scene["out"] / "qa.tif", "--no-progress", *extra]
-
-
+# refused(scene, args, pattern, env=None) and correct_args(scene, ...): tests/conftest.py.
 # ----------------------------------------------------------------------- 12, 13. schedulers
 @pytest.fixture
 def short_timeouts(monkeypatch):
@@ -144,31 +115,31 @@ def http_server():
     ("notanaddress", r"--scheduler: 'notanaddress' is no dask scheduler address"),
     ("tcp://[::1", r"--scheduler: 'tcp://\[::1' is no dask scheduler address"),
 ])
-def test_scheduler_address_that_is_none(scene, short_timeouts, address, pattern):
-    _check(scene, _correct_args(scene, "--scheduler", address), pattern)
+def test_scheduler_address_that_is_none(scene, short_timeouts, address, pattern, refused, correct_args):
+    refused(scene, correct_args(scene, "--scheduler", address), pattern)
 
 
 @needs_distributed
-def test_garbage_dask_scheduler_address_variable(scene, short_timeouts):
-    _check(scene, _correct_args(scene), r"--scheduler: '\?\?garbage\?\?' is no dask scheduler address",
-           env={"DASK_SCHEDULER_ADDRESS": "??garbage??"})
+def test_garbage_dask_scheduler_address_variable(scene, short_timeouts, refused, correct_args):
+    refused(scene, correct_args(scene), r"--scheduler: '\?\?garbage\?\?' is no dask scheduler address",
+            env={"DASK_SCHEDULER_ADDRESS": "??garbage??"})
 
 
 @needs_distributed
 @pytest.mark.parametrize("server", ["silent_server", "http_server"])
-def test_scheduler_port_where_no_scheduler_listens(scene, short_timeouts, server, request):
+def test_scheduler_port_where_no_scheduler_listens(scene, short_timeouts, server, request, refused, correct_args):
     address = request.getfixturevalue(server)
-    _check(scene, _correct_args(scene, "--scheduler", address),
-           rf"--scheduler: cannot reach the dask scheduler at {re.escape(address)}: "
-           r"(no answer within 1 s|something answers there, but not as a dask scheduler)")
+    refused(scene, correct_args(scene, "--scheduler", address),
+            rf"--scheduler: cannot reach the dask scheduler at {re.escape(address)}: "
+            r"(no answer within 1 s|something answers there, but not as a dask scheduler)")
 
 
 @needs_distributed
-def test_scheduler_without_workers(scene, short_timeouts):
+def test_scheduler_without_workers(scene, short_timeouts, refused, correct_args):
     with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None) as local:
         address = local.scheduler_address
-        _check(scene, _correct_args(scene, "--scheduler", address),
-               rf"--scheduler: the dask scheduler at {re.escape(address)} has no workers \(none joined within 1 s\)")
+        refused(scene, correct_args(scene, "--scheduler", address),
+                rf"--scheduler: the dask scheduler at {re.escape(address)} has no workers \(none joined within 1 s\)")
 
 
 @needs_distributed
@@ -310,24 +281,24 @@ def _replace(name: str, **create):
                  r"reflectance\.h5 \(neon\): no finite vza value \(all NaN, inf or nodata\): nothing could be corrected",
                  id="view-zenith-all-inf"),
 ])
-def test_neon_metadata_that_leaves_nothing_or_a_wrong_number(neon, edit, pattern):
+def test_neon_metadata_that_leaves_nothing_or_a_wrong_number(neon, edit, pattern, refused):
     scene, args = neon(edit)
-    _check(scene, args, pattern)
+    refused(scene, args, pattern)
 
 
 @needs_hdf5
 @pytest.mark.parametrize("value", [np.nan, np.inf])
-def test_neon_ignore_value_that_is_no_number_falls_back_to_neons_fill(neon, value):
+def test_neon_ignore_value_that_is_no_number_falls_back_to_neons_fill(neon, value, invoke):
     """NEON documents -9999 as its fill: with a NaN (or inf) Data_Ignore_Value the stored -9999
     pixels are still nodata (they were reflectance -1), the output equal to that of the file as
     NEON writes it."""
     scene, args = neon()
-    assert _run(args)[0] == 0
+    assert invoke(args)[0] == 0
     with rasterio.open(scene["output"]) as output:
         expected = output.read()
     scene["output"].unlink()
     _, args = neon(_set_attr("Reflectance_Data", "Data_Ignore_Value", value), name="ignore_nan.h5")
-    code, stderr = _run(args)
+    code, stderr = invoke(args)
     assert code == 0, stderr
     with rasterio.open(scene["output"]) as output:
         corrected = output.read()
@@ -338,13 +309,13 @@ def test_neon_ignore_value_that_is_no_number_falls_back_to_neons_fill(neon, valu
 
 
 @needs_hdf5
-def test_truncated_neon_file_is_one_line_without_hdf5_diagnostics(neon):
+def test_truncated_neon_file_is_one_line_without_hdf5_diagnostics(neon, refused):
     """GDAL's HDF5 library printed 22 lines of HDF5-DIAG per attempt before the error."""
     scene, args = neon()
     path = Path(args[1])
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
-    _check(scene, args, r"cannot read image file \S+reflectance\.h5: an HDF5 file that HDF5 cannot open "
+    refused(scene, args, r"cannot read image file \S+reflectance\.h5: an HDF5 file that HDF5 cannot open "
                         r"\(.*truncated.*\)")
 
 
@@ -453,21 +424,21 @@ def _nan_glt():
                                       r"8 x 6 pixels; an orthorectified grid of at most 3072 cells is expected"),
 ], ids=["sza-all-nan", "vza-all-inf", "glt-fractional", "glt-nan", "obs-other-glt", "geotransform-text",
         "geotransform-nan", "glt-60000"])
-def test_emit_granules_that_leave_nothing_or_a_wrong_number(emit, case, pattern):
+def test_emit_granules_that_leave_nothing_or_a_wrong_number(emit, case, pattern, refused):
     scene, args = emit(**case)
-    _check(scene, args, pattern)
+    refused(scene, args, pattern)
 
 
 @needs_hdf5
-def test_emit_float_glt_of_integers_is_taken_as_integers(emit):
+def test_emit_float_glt_of_integers_is_taken_as_integers(emit, invoke):
     """A GLT stored as floats that are all integers is EMIT's GLT: the same output as int32's."""
     scene, args = emit()
-    assert _run(args)[0] == 0
+    assert invoke(args)[0] == 0
     with rasterio.open(scene["output"]) as output:
         expected = output.read()
     scene["output"].unlink()
     scene, args = emit(glt=tuple(layer.astype("float64") for layer in _glt()), granule="20230612T201034_2316313_006")
-    code, stderr = _run(args)
+    code, stderr = invoke(args)
     assert code == 0, stderr
     with rasterio.open(scene["output"]) as output:
         corrected = output.read()
@@ -497,39 +468,39 @@ def _with_band(values: np.ndarray, band: int, value: float) -> np.ndarray:
 
 
 @pytest.mark.parametrize("layer, band, value", [("sza", 0, np.nan), ("vza", 2, np.inf), ("saa", 1, -np.inf)])
-def test_angle_layer_without_a_finite_value(scene, layer, band, value):
+def test_angle_layer_without_a_finite_value(scene, layer, band, value, refused, correct_args):
     """A constant sza of 95 deg was exit 2 while an all-NaN one gave 100 % nodata with exit 0."""
     angles = _rewrite(scene["angles"], scene["dir"] / "angles_empty.tif", lambda v: _with_band(v, band, value))
-    _check(scene, _correct_args(scene, angles=("--angles", angles)),
-           rf"angles_empty\.tif.*: no finite {layer} value \(all NaN, inf or nodata\): nothing could be corrected")
+    refused(scene, correct_args(scene, angles=("--angles", angles)),
+            rf"angles_empty\.tif.*: no finite {layer} value \(all NaN, inf or nodata\): nothing could be corrected")
 
 
 @pytest.mark.parametrize("role", ["image", "angles"])
-def test_complex_raster_is_refused(scene, role):
+def test_complex_raster_is_refused(scene, role, refused, correct_args):
     source = scene[role]
     complex_file = _rewrite(source, scene["dir"] / f"{role}_complex.tif", lambda v: v + 0.5j, dtype="complex64",
                             nodata=None)
-    args = _correct_args(scene, image=complex_file) if role == "image" else \
-        _correct_args(scene, angles=("--angles", complex_file))
-    _check(scene, args, rf"{role}_complex\.tif holds complex values \(complex64\); brdfcorr reads real numbers")
+    args = correct_args(scene, image=complex_file) if role == "image" else \
+        correct_args(scene, angles=("--angles", complex_file))
+    refused(scene, args, rf"{role}_complex\.tif holds complex values \(complex64\); brdfcorr reads real numbers")
 
 
-def test_nan_geotransform_is_named_as_such(scene):
+def test_nan_geotransform_is_named_as_such(scene, refused, correct_args):
     with rasterio.open(scene["angles"]) as dataset:
         transform = dataset.transform
     angles = _rewrite(scene["angles"], scene["dir"] / "angles_nan_origin.tif", lambda v: v,
                       transform=Affine(transform.a, 0.0, float("nan"), 0.0, transform.e, transform.f))
-    _check(scene, _correct_args(scene, angles=("--angles", angles)),
-           r"angles_nan_origin\.tif\)?: its geotransform \(10, 0, nan, 0, -10, 5\.4e\+06\) holds non-finite values")
+    refused(scene, correct_args(scene, angles=("--angles", angles)),
+            r"angles_nan_origin\.tif\)?: its geotransform \(10, 0, nan, 0, -10, 5\.4e\+06\) holds non-finite values")
 
 
-def test_fit_classes_names_a_band_without_finite_values(scene):
+def test_fit_classes_names_a_band_without_finite_values(scene, refused):
     """It was "class 1: 0 samples < 50, view zenith spread 0.0 deg" without the band."""
     image = _rewrite(scene["image"], scene["dir"] / "image_nan_band.tif", lambda v: _with_band(v, 2, np.nan))
-    _check(scene, ["fit-classes", image, "--angles", scene["angles"], "--classes", scene["classes"],
+    refused(scene, ["fit-classes", image, "--angles", scene["angles"], "--classes", scene["classes"],
                    "-o", scene["out"] / "fitted.yaml"],
-           r"band 3 \(660 nm\): no finite reflectance at any of the \d+ sampled pixels of class \d+ "
-           r"\(all NaN, inf or nodata\)")
+            r"band 3 \(660 nm\): no finite reflectance at any of the \d+ sampled pixels of class \d+ "
+            r"\(all NaN, inf or nodata\)")
 
 
 def test_normalize_refuses_complex_arrays():
@@ -546,10 +517,10 @@ def test_normalize_refuses_complex_arrays():
 
 
 @pytest.mark.parametrize("layer", ["slope", "aspect"])
-def test_slope_aspect_layer_without_a_finite_value(scene, layer):
+def test_slope_aspect_layer_without_a_finite_value(scene, layer, refused, correct_args):
     """Such a layer was left to the correction: 100 % nodata with exit 0."""
     surface = np.stack([np.full((NY, NX), 5.0), np.full((NY, NX), 180.0)])
     surface[0 if layer == "slope" else 1] = np.nan
     path = _rewrite(scene["angles"], scene["dir"] / "slope_aspect.tif", lambda v: surface)
-    _check(scene, _correct_args(scene, "--slope-aspect", path),
-           rf"slope/aspect file \S+slope_aspect\.tif: no finite {layer} value \(all NaN, inf or nodata\)")
+    refused(scene, correct_args(scene, "--slope-aspect", path),
+            rf"slope/aspect file \S+slope_aspect\.tif: no finite {layer} value \(all NaN, inf or nodata\)")

@@ -15,7 +15,7 @@ from dask.callbacks import Callback
 
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.writer import encode_integers
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import synthetic_scene
 from brdfcorr.workflow.correction import correct_files
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
@@ -84,12 +84,11 @@ class _Passes(Callback):
 
 
 @pytest.fixture(scope="module")
-def int_scene(tmp_path_factory):
+def int_scene(tmp_path_factory, write_example_scene):
     """A synthetic scene stored as uint8 at 0.004 per count (nodata 255): bright enough that some
     corrected values exceed the type."""
     directory = tmp_path_factory.mktemp("encoding")
-    paths = write_scene(directory, synthetic_scene(ny=32, nx=48))
-    paths["params"] = example_table().save(directory / "params.yaml")
+    paths = write_example_scene(directory, synthetic_scene(ny=32, nx=48))
     with rasterio.open(paths["image"]) as dataset:
         profile, values, descriptions = dataset.profile, dataset.read(), dataset.descriptions
     rng = np.random.default_rng(5)

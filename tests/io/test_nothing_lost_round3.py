@@ -47,21 +47,13 @@ from brdfcorr.io import commit
 from brdfcorr.io.paths import InputOverwriteError, check_outputs
 from brdfcorr.io.writer import GeoTiffOutput, write_rasters
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import example_table, file_digests, georeference, synthetic_scene, write_scene
+from brdfcorr.testing import file_digests, georeference
 from brdfcorr.workflow import chain as chain_module
 from brdfcorr.workflow.chain import LOCK_NAME, run_lock
 from brdfcorr.workflow.config import load_config
 from brdfcorr.workflow.plan import plan_run
 
-NY, NX = 32, 32  # 4 bands of float32: 16 384 bytes of data
-
-
-@pytest.fixture(scope="module")
-def template(tmp_path_factory) -> Path:
-    directory = tmp_path_factory.mktemp("round3w") / "scene"
-    write_scene(directory, synthetic_scene(ny=NY, nx=NX))
-    example_table().save(directory / "params.yaml")
-    return directory
+# The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
 
 
 def _correct_args(scene, output, *extra) -> list[str]:

@@ -27,7 +27,6 @@ from hypothesis import strategies as st
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.paths import InputOverwriteError, SameOutputError, check_outputs, remove_partials
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
 from brdfcorr.workflow.chain import run_chain
 from brdfcorr.workflow.config import load_config
 from brdfcorr.workflow.demo import run_demo
@@ -146,14 +145,12 @@ def test_chain_output_that_is_a_directory(tmp_path, make_scenes, write_chain):
 
 # ------------------------------------------------------------------------ brdfcorr correct
 @pytest.fixture
-def scene(tmp_path) -> dict[str, Path]:
-    directory = tmp_path / "scene"
-    paths = write_scene(directory, synthetic_scene(ny=32, nx=32))
-    paths["params"] = example_table().save(directory / "params.yaml")
-    paths["lookup"] = directory / "lookup.yaml"
-    paths["lookup"].write_text("1: 1\n2: 2\n3: 3\n4: 4\n")
-    (tmp_path / "out").mkdir()
-    return {**paths, "root": tmp_path, "out": tmp_path / "out"}
+def scene(scene) -> dict[str, Path]:
+    """The copy of the 32 x 32 template scene (tests/conftest.py) with a class lookup table beside it,
+    and the folder holding both the scene and the output folder as ``root``."""
+    lookup = scene["dir"] / "lookup.yaml"
+    lookup.write_text("1: 1\n2: 2\n3: 3\n4: 4\n")
+    return {**scene, "lookup": lookup, "root": scene["dir"].parent}
 
 
 def _correct(scene, output, *extra) -> list:

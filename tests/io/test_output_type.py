@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.correction import QA
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import synthetic_scene
 
 
 def _correct(paths, image, output, *extra):
@@ -23,11 +23,8 @@ def _correct(paths, image, output, *extra):
 
 
 @pytest.fixture(scope="module")
-def paths(tmp_path_factory):
-    directory = tmp_path_factory.mktemp("output_type")
-    paths = write_scene(directory, synthetic_scene(ny=40, nx=48))
-    paths["params"] = example_table().save(directory / "params.yaml")
-    return paths
+def paths(tmp_path_factory, write_example_scene):
+    return write_example_scene(tmp_path_factory.mktemp("output_type"), synthetic_scene(ny=40, nx=48))
 
 
 def test_int16_output_keeps_the_input_storage(paths, tmp_path, store):

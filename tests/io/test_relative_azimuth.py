@@ -11,14 +11,13 @@ import rasterio
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import synthetic_scene
 
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory):
+def scene(tmp_path_factory, write_example_scene):
     directory = tmp_path_factory.mktemp("relative_azimuth")
-    files = write_scene(directory, synthetic_scene(ny=24, nx=32))
-    files["params"] = example_table().save(directory / "params.yaml")
+    files = write_example_scene(directory, synthetic_scene(ny=24, nx=32))
     with rasterio.open(files["angles"]) as angles:
         profile = {**angles.profile, "count": 1}
         sza, saa, vza, vaa = angles.read()

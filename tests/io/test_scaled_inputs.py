@@ -32,10 +32,9 @@ STORAGE = {
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory, store):
+def files(tmp_path_factory, store, write_example_scene):
     directory = tmp_path_factory.mktemp("scaled")
-    paths = write_scene(directory, synthetic_scene(ny=40, nx=48))
-    paths["params"] = example_table().save(directory / "params.yaml")
+    paths = write_example_scene(directory, synthetic_scene(ny=40, nx=48))
     for name, storage in STORAGE.items():
         paths[name] = store(paths["image"], directory / f"{name}.tif", *storage)
         paths[f"{name}_untagged"] = store(paths["image"], directory / f"{name}_untagged.tif", *storage, tag=False)

@@ -5,7 +5,6 @@ import math
 import warnings
 from decimal import Decimal, getcontext, localcontext
 
-import dask.array as da
 import numpy as np
 import pytest
 import xarray as xr
@@ -641,30 +640,8 @@ def _functions():
 
 
 @pytest.mark.parametrize("function", _functions())
-def test_numpy_dask_xarray_and_scalar_inputs_agree(function, angles, no_compute):
-    ti, tv, phi = angles
-    expected = function(ti, tv, phi)
-    assert isinstance(expected, np.ndarray) and expected.shape == ti.shape
-
-    lazy = [da.from_array(a, chunks=(20, 25)) for a in (ti, tv, phi)]
-    result = function(*lazy)  # no_compute: lazy in, lazy out
-    assert isinstance(result, da.Array)
-    np.testing.assert_allclose(result.compute(scheduler="sync"), expected, rtol=1e-14)
-
-    coords = {"y": np.arange(40), "x": np.arange(50) * 10.0}
-    labelled = [xr.DataArray(a, dims=("y", "x"), coords=coords) for a in (ti, tv, phi)]
-    result = function(*labelled)
-    assert isinstance(result, xr.DataArray) and result.dims == ("y", "x")
-    np.testing.assert_array_equal(result.x, coords["x"])
-    np.testing.assert_allclose(result.values, expected, rtol=1e-14)
-    assert "units" in result.attrs
-
-    lazy_labelled = [a.chunk({"y": 20}) for a in labelled]
-    result = function(*lazy_labelled)  # no_compute: lazy in, lazy out
-    assert isinstance(result.data, da.Array)
-    np.testing.assert_allclose(result.compute(scheduler="sync").values, expected, rtol=1e-14)
-
-    assert np.ndim(function(ti[0, 0], tv[0, 0], phi[0, 0])) == 0
+def test_numpy_dask_xarray_and_scalar_inputs_agree(function, angles, no_compute, array_kinds_agree):
+    array_kinds_agree(function, angles, rtol=1e-14)
 
 
 def test_xarray_weights_per_band_share_the_geometry():

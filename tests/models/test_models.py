@@ -1,6 +1,5 @@
 """BRDF models: paper values, closed forms, properties over the domain, array kinds, bad params."""
 
-import dask.array as da
 import numpy as np
 import pytest
 import xarray as xr
@@ -311,30 +310,8 @@ def _models():
 
 
 @pytest.mark.parametrize("function", _models())
-def test_numpy_dask_xarray_and_scalar_inputs_agree(function, angles, no_compute):
-    ti, tr, phi = angles
-    expected = function(ti, tr, phi)
-    assert isinstance(expected, np.ndarray) and expected.shape == ti.shape
-
-    lazy = [da.from_array(a, chunks=(20, 25)) for a in (ti, tr, phi)]
-    result = function(*lazy)  # no_compute: lazy in, lazy out
-    assert isinstance(result, da.Array)
-    np.testing.assert_array_equal(result.compute(scheduler="sync"), expected)
-
-    coords = {"y": np.arange(40), "x": np.arange(50) * 10.0}
-    labelled = [xr.DataArray(a, dims=("y", "x"), coords=coords) for a in (ti, tr, phi)]
-    result = function(*labelled)
-    assert isinstance(result, xr.DataArray) and result.dims == ("y", "x")
-    np.testing.assert_array_equal(result.x, coords["x"])
-    np.testing.assert_array_equal(result.values, expected)
-    assert "units" in result.attrs
-
-    lazy_labelled = [a.chunk({"y": 20}) for a in labelled]
-    result = function(*lazy_labelled)  # no_compute: lazy in, lazy out
-    assert isinstance(result.data, da.Array)
-    np.testing.assert_array_equal(result.compute(scheduler="sync").values, expected)
-
-    assert np.ndim(function(ti[0, 0], tr[0, 0], phi[0, 0])) == 0
+def test_numpy_dask_xarray_and_scalar_inputs_agree(function, angles, no_compute, array_kinds_agree):
+    array_kinds_agree(function, angles)
 
 
 def test_xarray_broadcasts_angles_against_per_band_parameters():

@@ -9,62 +9,31 @@ import numpy as np
 import pytest
 import rasterio
 import xarray as xr
-import yaml
 
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import PIXEL, example_table, georeference, synthetic_scene, write_scene
+from brdfcorr.testing import PIXEL, example_table, georeference
 from brdfcorr.workflow.chain import plan_run, run_chain
 from brdfcorr.workflow.config import load_config
 from brdfcorr.workflow.correction import Terrain, correct_files
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
-REFERENCE = {"sza": 35.0, "vza": 0.0, "raa": 0.0}
-NY, NX = 32, 48
+NY, NX = 32, 48  # the scenes of make_scenes (tests/conftest.py)
 
 
-def make_scene(root, name="line0", seed=0):
-    scene = synthetic_scene(NY, NX, seed=seed)
-    return scene, write_scene(root / "scenes" / name, scene)
-
-
-def write_chain(root, table=None, **sections):
-    """A chain over scenes/*/image.tif with {parent} output names; ``sections`` replace or extend
-    the default sections (a dict value of an existing section is merged into it)."""
-    document = {
-        "inputs": {"images": ["scenes/*/image.tif"], "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"},
-                   "classes": "{dir}/classes.tif"},
-        "parameters": {"table": "params.yaml"},
-        "reference": REFERENCE,
-        "steps": {"correct": {"limits": None}},
-        "outputs": {"directory": "out", "naming": "{parent}_brdf.tif", "qa_naming": "{parent}_qa.tif",
-                    "uncertainty_naming": "{parent}_sigma.tif"},
-        "engine": {"scheduler": "threads", "workers": 2, "chunk": 16},
-    }
-    for key, value in sections.items():
-        document[key] = {**document[key], **value} if isinstance(value, dict) and key in document else value
-    (table or example_table()).save(root / "params.yaml")
-    path = root / "chain.yaml"
-    path.write_text(yaml.safe_dump(document))
-    return path
-
-
-def read(path):
-    with rasterio.open(path) as dataset:
-        return dataset.read(), dataset.tags()
-
-
-def direct(paths, output, table, uncertainty=None, **options):
-    """The call of correct_files the chain's correct step makes for a scene of write_chain."""
+# make_scenes, write_chain, read and chain_reference: tests/conftest.py.
+def direct(paths, output, table, reference, uncertainty=None, **options):
+    """The call of correct_files the chain's correct step makes for a scene of write_chain (its
+    ``reference``: chain_reference)."""
     return correct_files(CorrectionRequest(
         SceneSources(paths["image"], paths["classes"], paths["angles"]), table,
-        OutputFiles(output, uncertainty=uncertainty), reference=REFERENCE, limits=None, engine=Engine(chunks=16),
+        OutputFiles(output, uncertainty=uncertainty), reference=reference, limits=None, engine=Engine(chunks=16),
         **options))
 
 
 # ------------------------------------------------------------------------------------- assess
-def test_assess_step_writes_report_figure_and_summary(tmp_path):
-    scene, paths = make_scene(tmp_path)
+def test_assess_step_writes_report_figure_and_summary(tmp_path, make_scenes, write_chain):
+    scene, paths = make_scenes(tmp_path, count=1)["line0"]
     chain = write_chain(tmp_path, steps={"correct": {"limits": None}, "assess": {"bin_width": 5.0}})
     report = run_chain(load_config(chain))
     assert report.ok, report.scenes
@@ -119,10 +88,10 @@ def table_with_fits() -> ParameterTable:
     return ParameterTable.from_dict(document)
 
 
-def test_uncertainty_output(tmp_path):
-    scene, paths = make_scene(tmp_path)
+def test_uncertainty_output(tmp_path, make_scenes, write_chain, read, chain_reference):
+    scene, paths = make_scenes(tmp_path, count=1)["line0"]
     table = table_with_fits()
-    chain = write_chain(tmp_path, table=table, outputs={"uncertainty": True})
+    chain = write_chain(tmp_path, table=table, outputs__uncertainty=True)
     report = run_chain(load_config(chain))
     assert report.ok, report.scenes
     sigma, _ = read(tmp_path / "out" / "line0_sigma.tif")
@@ -132,7 +101,7 @@ def test_uncertainty_output(tmp_path):
     assert np.isfinite(sigma[:, classes == 1]).all() and (sigma[:, classes == 1] > 0).all()
     assert np.isnan(sigma[:, (classes == 2) | (classes == 3)]).all()  # no fit: block, nothing known
     # The chain writes what the library call writes.
-    direct(paths, tmp_path / "direct.tif", table, uncertainty=tmp_path / "direct_sigma.tif")
+    direct(paths, tmp_path / "direct.tif", table, chain_reference, uncertainty=tmp_path / "direct_sigma.tif")
     np.testing.assert_array_equal(sigma, read(tmp_path / "direct_sigma.tif")[0])
     # The plan says beforehand which classes will be NaN.
     assert plan_run(load_config(chain)).warnings == (
@@ -140,8 +109,8 @@ def test_uncertainty_output(tmp_path):
         "parameter table; their pixels are NaN in the uncertainty raster",)
 
 
-def test_uncertainty_output_counts_for_resume(tmp_path):
-    make_scene(tmp_path)
+def test_uncertainty_output_counts_for_resume(tmp_path, make_scenes, write_chain):
+    make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path, table=table_with_fits())
     assert run_chain(load_config(chain)).ok
     with_sigma = load_config(chain, {"outputs.uncertainty": True})
@@ -162,34 +131,35 @@ def write_slope_aspect(path, slope, aspect):
     return path
 
 
-def terrain_chain(tmp_path, **terrain):
-    return write_chain(tmp_path, inputs={"slope_aspect": "{dir}/slope_aspect.tif"},
+def terrain_chain(write_chain, tmp_path, **terrain):
+    return write_chain(tmp_path, inputs__slope_aspect="{dir}/slope_aspect.tif",
                        steps={"correct": {"limits": None, "terrain": terrain}})
 
 
-def test_flat_terrain_gives_the_flat_correction(tmp_path):
+def test_flat_terrain_gives_the_flat_correction(tmp_path, make_scenes, write_chain, read):
     # A zero slope is a horizontal surface: cos i = cos(sza) (cosine factor 1) and the surface frame
     # is the horizontal one, so the terrain correction must equal the plain one.
-    make_scene(tmp_path)
+    make_scenes(tmp_path, count=1)
     write_slope_aspect(tmp_path / "scenes" / "line0" / "slope_aspect.tif", 0.0, 0.0)
     flat = run_chain(load_config(write_chain(tmp_path), {"outputs.directory": "flat"}))
-    tilted = run_chain(load_config(terrain_chain(tmp_path)))
+    tilted = run_chain(load_config(terrain_chain(write_chain, tmp_path)))
     assert flat.ok and tilted.ok, tilted.scenes
     np.testing.assert_allclose(read(tmp_path / "out" / "line0_brdf.tif")[0], read(tmp_path / "flat" / "line0_brdf.tif")[0],
                                rtol=1e-5)
     assert tilted.scenes[0]["topographic"]["method"] == "cosine"
 
 
-def test_terrain_inputs_reach_correct_files_and_the_fingerprint(tmp_path):
-    _, paths = make_scene(tmp_path)
+def test_terrain_inputs_reach_correct_files_and_the_fingerprint(tmp_path, make_scenes, write_chain, read,
+                                                               chain_reference):
+    _, paths = make_scenes(tmp_path, count=1)["line0"]
     slope_file = write_slope_aspect(tmp_path / "scenes" / "line0" / "slope_aspect.tif",
                                     np.linspace(0.0, 20.0, NX), 150.0)  # facets towards the sun (saa 150)
-    chain = terrain_chain(tmp_path, topographic="scs", brdf_frame="horizontal")
+    chain = terrain_chain(write_chain, tmp_path, topographic="scs", brdf_frame="horizontal")
     config = load_config(chain)
     scene = plan_run(config).scenes[0]
     assert ("slope/aspect", slope_file) in scene.inputs()
     assert run_chain(config).ok
-    direct(paths, tmp_path / "direct.tif", example_table(),
+    direct(paths, tmp_path / "direct.tif", example_table(), chain_reference,
            terrain=Terrain(slope_aspect=slope_file, topographic="scs", brdf_frame="horizontal"))
     np.testing.assert_array_equal(read(tmp_path / "out" / "line0_brdf.tif")[0], read(tmp_path / "direct.tif")[0])
 
@@ -208,27 +178,28 @@ def test_terrain_inputs_reach_correct_files_and_the_fingerprint(tmp_path):
     assert missing.action == "fail" and missing.reason == f"missing input: slope/aspect {slope_file}"
 
 
-def test_dem_pattern(tmp_path):
+def test_dem_pattern(tmp_path, make_scenes, write_chain, read, chain_reference):
     # A plane z = 0.1 x rises 1 m per 10 m pixel eastwards: slope atan(0.1) = 5.71 deg facing west
     # (aspect 270). Chain with the DEM == library call with the same DEM.
-    _, paths = make_scene(tmp_path)
+    _, paths = make_scenes(tmp_path, count=1)["line0"]
     heights = np.broadcast_to(0.1 * PIXEL * np.arange(NX, dtype=np.float32), (NY, NX))
     dem = georeference(xr.DataArray(heights, dims=("y", "x")))
     dem_file = tmp_path / "scenes" / "line0" / "dem.tif"
     dem.rio.to_raster(dem_file)
-    chain = write_chain(tmp_path, inputs={"dem": "{dir}/dem.tif"}, steps={"correct": {"limits": None, "terrain": {}}})
+    chain = write_chain(tmp_path, inputs__dem="{dir}/dem.tif", steps={"correct": {"limits": None, "terrain": {}}})
     report = run_chain(load_config(chain))
     assert report.ok, report.scenes
-    direct(paths, tmp_path / "direct.tif", example_table(), terrain=Terrain(dem=dem_file))
+    direct(paths, tmp_path / "direct.tif", example_table(), chain_reference, terrain=Terrain(dem=dem_file))
     np.testing.assert_array_equal(read(tmp_path / "out" / "line0_brdf.tif")[0], read(tmp_path / "direct.tif")[0])
     assert json.loads(report.path.read_text())["inputs"][0]["dem"] == str(dem_file)
 
 
 # --------------------------------------------------------------------------------- interleave
-def test_envi_interleave(tmp_path):
-    make_scene(tmp_path)
+def test_envi_interleave(tmp_path, make_scenes, write_chain, read):
+    make_scenes(tmp_path, count=1)
     plain = run_chain(load_config(write_chain(tmp_path), {"outputs.directory": "tif"}))
-    chain = write_chain(tmp_path, outputs={"format": "ENVI", "interleave": "bil", "naming": "{parent}_brdf.bil"})
+    chain = write_chain(tmp_path, outputs__format="ENVI", outputs__interleave="bil",
+                        outputs__naming="{parent}_brdf.bil")
     envi = run_chain(load_config(chain))
     assert plain.ok and envi.ok, envi.scenes
     output = tmp_path / "out" / "line0_brdf.bil"
@@ -250,8 +221,8 @@ def test_envi_interleave(tmp_path):
 
 
 # ----------------------------------------------------------------------------------- progress
-def test_chunk_events_only_inline(tmp_path):
-    make_scene(tmp_path)
+def test_chunk_events_only_inline(tmp_path, make_scenes, write_chain):
+    make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path)
     events = []
     run_chain(load_config(chain, {"engine.scheduler": "synchronous"}),

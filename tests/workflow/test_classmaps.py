@@ -10,17 +10,12 @@ import rioxarray
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import synthetic_scene
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
-    scene = synthetic_scene(ny=32, nx=48)
-    directory = tmp_path_factory.mktemp("classmaps")
-    paths = write_scene(directory, scene)
-    paths["params"] = example_table().save(directory / "params.yaml")
-    paths["dir"] = directory
-    return paths
+def files(tmp_path_factory, write_example_scene):
+    return write_example_scene(tmp_path_factory.mktemp("classmaps"), synthetic_scene(ny=32, nx=48))
 
 
 def _invoke(*args):

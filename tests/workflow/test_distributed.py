@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.io import writer
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import synthetic_scene
 from brdfcorr.workflow import chain
 from brdfcorr.workflow.chain import run_chain
 from brdfcorr.workflow.config import load_config
@@ -73,11 +73,8 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch, make_scen
 
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory) -> dict:
-    directory = tmp_path_factory.mktemp("scene")
-    paths = write_scene(directory, synthetic_scene(ny=96, nx=128), blocksize=32)
-    paths["params"] = example_table().save(directory / "params.yaml")
-    return paths
+def scene(tmp_path_factory, write_example_scene) -> dict:
+    return write_example_scene(tmp_path_factory.mktemp("scene"), synthetic_scene(ny=96, nx=128), blocksize=32)
 
 
 def _correct(scene, output, *extra, env=None):

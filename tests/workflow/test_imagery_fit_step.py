@@ -12,31 +12,19 @@ from brdfcorr.cli.fitting import fit_classes_command
 from brdfcorr.errors import InputError
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, GuardRails, Sampling
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import synthetic_scene, write_scene
 from brdfcorr.workflow.chain import run_chain
-from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
 from brdfcorr.workflow.config import ChainConfig, ConfigError, load_config
 from brdfcorr.workflow.config_steps import ImageryFit
 from brdfcorr.workflow.plan import plan_run
 
 REPO = Path(__file__).resolve().parents[2]
 
-#: Soil (flat spectrum, NDVI about 0.06) and grass (NDVI 0.6) [sr^-1]: strata with edge 0.3 split them.
-TRUTH = ParameterTable(classes=[
-    {"id": 1, "name": "soil", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
-     "params": {"f_iso": [0.06, 0.07, 0.08, 0.09], "f_vol": 0.01, "f_geo": 0.012}},
-    {"id": 2, "name": "grass", "model": "ross_thick_li_sparse", "wavelengths": [480, 560, 660, 830],
-     "params": {"f_iso": [0.02, 0.04, 0.03, 0.12], "f_vol": [0.01, 0.02, 0.01, 0.06], "f_geo": 0.004}},
-])
-
-
 @pytest.fixture(scope="module")
-def strata_scene(tmp_path_factory) -> Path:
-    """One scene rendered from TRUTH with its NDVI strata map (``classes ndvi``, edge 0.3) as
-    ``strata.tif``; returns the folder."""
+def strata_scene(tmp_path_factory, write_strata_scene) -> Path:
+    """One scene rendered from STRATA_TRUTH with its NDVI strata map (``classes ndvi``, edge 0.3) as
+    ``strata.tif`` (tests/conftest.py); returns the folder."""
     root = tmp_path_factory.mktemp("strata_chain")
-    paths = write_scene(root / "scenes" / "line0", synthetic_scene(ny=48, nx=64, table=TRUTH))
-    ndvi_class_file(paths["image"], paths["image"].parent / "strata.tif", bins=NdviBins(edges=(0.3,)))
+    write_strata_scene(root / "scenes" / "line0")
     return root
 
 

@@ -26,7 +26,7 @@ from click.testing import CliRunner
 
 from brdfcorr import normalize
 from brdfcorr.cli import main
-from brdfcorr.testing import example_table, synthetic_scene, write_scene
+from brdfcorr.testing import example_table, synthetic_scene
 
 NY = NX = 512  # 512 x 512 x 4 bands: a few seconds to correct in chunks of 32 pixels
 CHUNK = 32
@@ -34,12 +34,9 @@ PARTIAL = re.compile(r"^\.corrected\.tif\.[^/]+\.partial$")
 
 
 @pytest.fixture(scope="module")
-def big(tmp_path_factory) -> dict:
-    directory = tmp_path_factory.mktemp("big")
+def big(tmp_path_factory, write_example_scene) -> dict:
     scene = synthetic_scene(ny=NY, nx=NX)
-    paths = write_scene(directory / "scene", scene, blocksize=64)
-    paths["params"] = example_table().save(directory / "scene" / "params.yaml")
-    return {"scene": scene, **paths}
+    return {"scene": scene, **write_example_scene(tmp_path_factory.mktemp("big") / "scene", scene, blocksize=64)}
 
 
 def _command(big, output: Path, *extra, chunk: int = CHUNK) -> list[str]:
@@ -114,11 +111,9 @@ def test_file_size_limit_mid_write_exits_2_and_leaves_nothing(big, tmp_path):
 
 
 @pytest.fixture
-def small(tmp_path) -> dict:
-    paths = write_scene(tmp_path / "scene", synthetic_scene(ny=64, nx=64))
-    paths["params"] = example_table().save(tmp_path / "scene" / "params.yaml")
+def small(tmp_path, write_example_scene) -> dict:
     (tmp_path / "out").mkdir()
-    return paths
+    return write_example_scene(tmp_path / "scene", synthetic_scene(ny=64, nx=64))
 
 
 @pytest.mark.parametrize("cog", [False, True])

@@ -47,6 +47,17 @@ def expected_nbar(dn: np.ndarray, scale: float, offset: float, angles, coefficie
     return (dn * scale + offset) * c
 
 
+def assert_landsat_nbar(nbar: np.ndarray, descriptions, folder: Path, angles, coefficients, ref_sza: float):
+    """Every band of ``nbar`` but its first row (the product's fill) is :func:`expected_nbar` of
+    the Landsat Collection 2 band file named by its description in ``folder`` (DN x 2.75e-5 - 0.2),
+    with the TM/ETM+ band's ``coefficients`` [relative, rtol 2e-6]."""
+    for index, band in enumerate(descriptions):
+        dn = rioxarray.open_rasterio(next(folder.glob(f"*_{band}.TIF"))).values[0]
+        expected = expected_nbar(dn, 2.75e-5, -0.2, angles, coefficients, coefficients.sensor_band("landsat_tm_etm", band),
+                                 ref_sza)
+        np.testing.assert_allclose(nbar[index, 1:], expected[1:], rtol=2e-6, err_msg=band)
+
+
 def reference_sza(path: Path) -> float:
     with rasterio.open(path) as dataset:
         return float(dataset.tags()["brdf_reference"].split()[0].removeprefix("sza="))
@@ -141,11 +152,7 @@ def test_landsat_c2_folder_with_ephemeris_view_angles(tmp_path):
     # The product's own ANG.txt is found beside its bands (no ang= given).
     angles = read_angles("landsat", folder, like=like, view_from_ang="ephemeris").compute()
     assert 0.0 < float(angles.vza.min()) and float(angles.vza.max()) < 8.0  # within the ETM+ swath
-    roy = load_coefficients("roy2016")
-    for index, band in enumerate(descriptions):
-        dn = rioxarray.open_rasterio(next(folder.glob(f"*_{band}.TIF"))).values[0]
-        expected = expected_nbar(dn, 2.75e-5, -0.2, angles, roy, roy.sensor_band("landsat_tm_etm", band), 40.0)
-        np.testing.assert_allclose(nbar[index, 1:], expected[1:], rtol=2e-6, err_msg=band)
+    assert_landsat_nbar(nbar, descriptions, folder, angles, load_coefficients("roy2016"), 40.0)
 
 
 def test_bad_folders_are_one_line_and_exit_2(tmp_path):
@@ -314,25 +321,4 @@ def test_landsat_c2_folder_with_angle_bands_and_no_ang_txt(tmp_path):
     band = {name: rioxarray.open_rasterio(next(folder.glob(f"*_{name}.TIF"))).values[0] * 0.01
             for name in ("SZA", "SAA", "VZA", "VAA")}
     angles = xr.Dataset({key: (("y", "x"), band[key.upper()]) for key in ("sza", "saa", "vza", "vaa")})
-    roy = load_coefficients("roy2017")
-    for index, name in enumerate(descriptions):
-        dn = rioxarray.open_rasterio(next(folder.glob(f"*_{name}.TIF"))).values[0]
-        expected = expected_nbar(dn, 2.75e-5, -0.2, angles, roy, roy.sensor_band("landsat_tm_etm", name), 45.0)
-        np.testing.assert_allclose(nbar[index, 1:], expected[1:], rtol=2e-6, err_msg=name)
-
-
-def test_hls_granule_is_refused_as_nbar_already(tmp_path):
-    from affine import Affine
-
-    granule = tmp_path / "HLS.S30.T33UUP.2023166T101559.v2.0"
-    granule.mkdir()
-    for band in ("B04", "B8A", "Fmask"):
-        with rasterio.open(granule / f"HLS.S30.T33UUP.2023166T101559.v2.0.{band}.tif", "w", driver="GTiff",
-                           width=4, height=4, count=1, dtype="int16", crs="EPSG:32633",
-                           transform=Affine(30.0, 0, 300000.0, 0, -30.0, 5000040.0), nodata=-9999) as dataset:
-            dataset.write(np.full((4, 4), 1200, dtype="int16"), 1)
-            dataset.update_tags(NBAR_SOLAR_ZENITH="38.4289484166757")
-    result = run("nbar", granule, "-o", tmp_path / "out.tif", "--ref-sza", "30")
-    assert result.exit_code == 2
-    assert "already NBAR" in result.output and "sun zenith 38.43 deg" in result.output
-    assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "out.tif").exists()
+    assert_landsat_nbar(nbar, descriptions, folder, angles, load_coefficients("roy2017"), 45.0)
