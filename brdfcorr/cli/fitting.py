@@ -83,7 +83,8 @@ class _BandRange(click.ParamType):
                    "header's bbl marks bad are left out too. They get no parameters and `correct` passes them "
                    "through uncorrected [default: the water-vapour bands 1340:1450 and 1800:1960].")
 @click.option("--fallback",
-              help="Built-in material for classes that fail the guard rails [default: leave uncorrected].")
+              help="Built-in material (brdfcorr materials) or coefficient set (brdfcorr coefficients: roy2016, "
+                   "roy2017) for classes that fail the guard rails [default: leave uncorrected].")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter table to write (YAML).")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
@@ -104,7 +105,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     given. Bad bands (water vapour, those the ENVI header's bbl marks) are left out of the fit.
     """
     from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
-    from brdfcorr.models.materials import load_material
+    from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.plot.materials import plot_class_fit
     from brdfcorr.workflow.classmaps import read_lookup
     from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
@@ -121,7 +122,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     if not overwrite:  # before the fit: its work is not wasted on an output that would be refused
         refuse_existing(written.values())
     if fallback:
-        load_material(fallback)  # fail before the work if the name is wrong
+        fallback_entry(fallback, 1, "check")  # fail before the work if the name is wrong
     lookup = read_lookup(class_lookup) if class_lookup else None
     options = _options("--angle-option", angle_option)
     if deprecated_names:

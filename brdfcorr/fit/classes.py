@@ -31,7 +31,14 @@ import numpy as np
 
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
-from brdfcorr.fit.settings import DEFAULT_MODEL, WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
+from brdfcorr.fit.settings import (
+    DEFAULT_MODEL,
+    WATER_VAPOUR_BANDS,
+    ClassModels,
+    GuardRails,
+    Sampling,
+    fallback_entry,
+)
 from brdfcorr.fit.solver import (
     DEFAULT_FIXED,
     SEARCH_RANGES,
@@ -42,7 +49,6 @@ from brdfcorr.fit.solver import (
     search_range,
 )
 from brdfcorr.models import Model, get_model
-from brdfcorr.models.materials import load_material
 from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.params_bands import in_ranges
 
@@ -329,7 +335,8 @@ def fit_one_class(
     guard : GuardRails
         Minimum requirements for the fit to be used.
     fallback : str, optional
-        Built-in material used when the fit fails its guard rails (None: left uncorrected).
+        Built-in material or coefficient set used when the fit fails its guard rails
+        (:func:`brdfcorr.fit.settings.fallback_entry`; None: left uncorrected).
     grid_points : int, default 9
         Coarse-grid points per free shape parameter.
 
@@ -363,7 +370,10 @@ def fit_one_class(
             _suggest_model(report, model, (theta_i, theta_r, phi, brdf))
     if report.reasons:
         report.status = "fallback" if fallback else "uncorrected"
-        action = f"using built-in material {fallback!r}" if fallback else "left uncorrected"
+        action = "left uncorrected"
+        if fallback:  # a coefficient set's entry is given per wavelength, a material's is not
+            kind = "coefficient set" if "wavelengths" in fallback_entry(fallback, class_id, name) else "material"
+            action = f"using built-in {kind} {fallback!r}"
         hint = (
             f" ({report.better_model} explains more: median R^2 {report.better_r2:.2f})"
             if report.better_model else ""
@@ -452,9 +462,7 @@ def _entry(fit: ClassFit, wavelengths, source: str, bad_bands: list[list[float]]
     if fit.status == "uncorrected":
         return None
     if fit.status == "fallback":
-        material = load_material(fit.fallback)
-        return ClassEntry(id=fit.class_id, name=fit.name, model=material.model.name, params=material.params,
-                          bad_bands=bad_bands)
+        return ClassEntry(**fallback_entry(fit.fallback, fit.class_id, fit.name), bad_bands=bad_bands)
     params = {name: _compact(values) for name, values in fit.params.items()}
     per_band = any(isinstance(value, list) for value in params.values())
     if not per_band and fit.covariance.shape[0] > 1 and np.any(fit.covariance != fit.covariance[:1]):

@@ -8,9 +8,13 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from brdfcorr.errors import UnknownNameError
 from brdfcorr.models import Model
+from brdfcorr.models.coefficients import coefficient_names, load_coefficients
+from brdfcorr.models.materials import load_material, material_names
 
-__all__ = ["GuardRails", "ClassModels", "Sampling", "WATER_VAPOUR_BANDS", "DEFAULT_MODEL", "STRATA_MODEL"]
+__all__ = ["GuardRails", "ClassModels", "Sampling", "WATER_VAPOUR_BANDS", "DEFAULT_MODEL", "STRATA_MODEL",
+           "fallback_entry"]
 
 #: Wavelength ranges [nm] of the strong water-vapour absorption bands (about 1.4 and 1.9 um), where
 #: an imaging spectrometer's surface reflectance is mostly noise: an imagery fit leaves image bands
@@ -74,7 +78,7 @@ class ClassModels:
         Shape parameters held fixed in every class whose model has them (default: k = 0.25 for
         the Torrance-Sparrow models, :data:`DEFAULT_FIXED`).
     fallback : str or mapping of int to str, optional
-        Built-in material (:func:`brdfcorr.models.materials.load_material`) used for a class that
+        Built-in material or coefficient set (:func:`fallback_entry`) used for a class that
         fails its guard rails, one for all classes or one per class id; without one the class is
         left out of the table (left uncorrected, and flagged by the correction).
     names : mapping of int to str, optional
@@ -139,3 +143,30 @@ class Sampling:
     block_size: int = 32
     keep_samples: int = 2000
     bad_bands: tuple[tuple[float, float], ...] = WATER_VAPOUR_BANDS
+
+
+def fallback_entry(name: str, class_id: int, class_name: str) -> dict:
+    """The parameter-table entry (:class:`brdfcorr.params.ClassEntry` fields) a class gets when
+    its fit fails the guard rails and its fallback is ``name``: a built-in material
+    (:func:`brdfcorr.models.materials.load_material`, band-independent parameters) or a built-in
+    coefficient set (:func:`brdfcorr.models.coefficients.load_coefficients`: ``roy2016`` or
+    ``roy2017``, the global RTLSR weights at their bands' centres, interpolated in wavelength to
+    the image's bands by the table).
+
+    Raises
+    ------
+    UnknownNameError
+        ``name`` is neither; the message lists both kinds.
+    """
+    try:
+        material = load_material(name)
+    except UnknownNameError:
+        pass
+    else:
+        return {"id": class_id, "name": class_name, "model": material.model.name, "params": material.params}
+    try:
+        return load_coefficients(name).table_entry(class_id, name=class_name)
+    except UnknownNameError:
+        raise UnknownNameError(f"unknown fallback {name!r}: neither a built-in material "
+                               f"({', '.join(material_names())}) nor a built-in coefficient set "
+                               f"({', '.join(coefficient_names())})") from None

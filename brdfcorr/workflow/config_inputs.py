@@ -142,7 +142,7 @@ class InputsConfig(StrictModel):
 
 def check_material(name: str) -> str:
     """``name`` if it is a built-in material, else a ``ValueError`` (for a pydantic validator)
-    listing them; also checks the fit step's ``fallback``."""
+    listing them."""
     try:
         load_material(name)
     except UnknownNameError:

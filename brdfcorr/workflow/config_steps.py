@@ -18,9 +18,9 @@ from pydantic import Field, field_validator, model_validator
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
 from brdfcorr.defaults import DEFAULT_LIMITS
-from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
+from brdfcorr.errors import UnknownNameError
+from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
-from brdfcorr.workflow.config_inputs import check_material
 
 __all__ = [
     "MeasurementSet",
@@ -110,7 +110,7 @@ class ImageryFit(StrictModel):
         bands an ENVI header's ``bbl`` marks bad are left out too. Default: the water-vapour
         bands (:data:`brdfcorr.fit.WATER_VAPOUR_BANDS`).
     fallback : str, optional
-        Built-in material for classes that fail the guard rails.
+        Built-in material or coefficient set for classes that fail the guard rails.
     output : str
         The fitted table, in the output directory.
     """
@@ -135,7 +135,10 @@ class ImageryFit(StrictModel):
     @classmethod
     def _fallback(cls, value: str | None) -> str | None:
         if value is not None:
-            check_material(value)
+            try:
+                fallback_entry(value, 1, "check")
+            except UnknownNameError as error:
+                raise ValueError(error.args[0]) from None
         return value
 
     @field_validator("bad_bands")
