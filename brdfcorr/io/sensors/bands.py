@@ -1,11 +1,13 @@
 """Band names as sensors write them, and their centre wavelengths: Sentinel-2 MSI (``B02``,
-``B8A``) and Landsat 8/9 OLI (``SR_B4``)."""
+``B8A``) and Landsat 8/9 OLI (``SR_B4``); the bands of a product on disk (:class:`ProductBands`)."""
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
+from pathlib import Path
 
-__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "named_band_wavelengths"]
+__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "named_band_wavelengths", "ProductBands"]
 
 #: Central wavelengths [nm] of the Sentinel-2A MSI bands (ESA, Sentinel-2 spectral response
 #: functions, COPE-GSEG-EOPG-TN-15-0007). Sentinel-2B's centres differ by 3 nm or less in B01 to
@@ -55,3 +57,17 @@ def named_band_wavelengths(descriptions, tags) -> tuple[list[float] | None, str]
     if all(name is not None for name in names):
         return [SENTINEL2_WAVELENGTHS[name] for name in names], "Sentinel-2 band names"
     return None, ""
+
+
+@dataclass(frozen=True)
+class ProductBands:
+    """The bands of a product on disk: the product's folder ``path``, its ``kind``
+    (``sentinel2_l2a``, ``landsat_c2_l2``, ``hls_s30``, ``hls_l30``), the coefficient library's
+    ``sensor`` key (:mod:`brdfcorr.models.coefficients`), the ``bands`` (band name -> file, in band
+    order) and their nominal centres [nm] (``wavelengths``)."""
+
+    path: Path
+    kind: str
+    sensor: str
+    bands: dict[str, Path]
+    wavelengths: tuple[float, ...]

@@ -43,7 +43,7 @@ from rasterio.vrt import WarpedVRT
 from brdfcorr.errors import OutputError, SensorInputError
 from brdfcorr.io.files import atomic_path, write_cause
 from brdfcorr.io.paths import check_outputs
-from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS
+from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands
 from brdfcorr.io.sensors.hls import find_hls_granule, hls_refusal
 from brdfcorr.io.sensors.landsat import find_angle_bands
 from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
@@ -80,21 +80,13 @@ LANDSAT_SENSORS = {
 
 
 @dataclass(frozen=True)
-class ProductFolder:
-    """One product folder: its bands, scaling, quality mask and angle source.
+class ProductFolder(ProductBands):
+    """One product folder (:class:`~brdfcorr.io.sensors.bands.ProductBands`: its path, kind
+    ``sentinel2_l2a`` or ``landsat_c2_l2``, sensor, bands and their centres), with its scaling,
+    quality mask and angle source.
 
     Attributes
     ----------
-    path : Path
-        The folder.
-    kind : {"sentinel2_l2a", "landsat_c2_l2"}
-        The product family.
-    sensor : str
-        The sensor key of the coefficient library (``sentinel2``, ``landsat_oli``, ``landsat_tm_etm``).
-    bands : dict of str to Path
-        Band name -> file, in the product's band order.
-    wavelengths : tuple of float
-        Nominal band centres [nm], in band order.
     scales, offsets : tuple of float
         Reflectance factor per DN and of DN 0, per band (reflectance = DN x scale + offset).
     resolution : float
@@ -107,11 +99,6 @@ class ProductFolder:
         What was assumed (e.g. the baseline offset), for the output's provenance.
     """
 
-    path: Path
-    kind: str
-    sensor: str
-    bands: dict[str, Path]
-    wavelengths: tuple[float, ...]
     scales: tuple[float, ...]
     offsets: tuple[float, ...]
     resolution: float

@@ -23,7 +23,7 @@ from pathlib import Path
 import rasterio
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS
+from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands
 
 __all__ = ["HlsGranule", "find_hls_granule", "hls_refusal", "HLS_FMASK_MASKED"]
 
@@ -40,35 +40,14 @@ _BANDS = {
 
 
 @dataclass(frozen=True)
-class HlsGranule:
-    """An HLS v2.0 granule folder.
+class HlsGranule(ProductBands):
+    """An HLS v2.0 granule folder (:class:`~brdfcorr.io.sensors.bands.ProductBands`: kind
+    ``hls_s30``, Sentinel-2 based, or ``hls_l30``, Landsat based; the coefficient library's sensor
+    ``sentinel2`` or ``landsat_oli``), with each band's name in the library
+    (``coefficient_bands``: ``B04``, ``SR_B4``), the sun zenith of the granule's NBAR ``nbar_sza``
+    [deg] (``NBAR_SOLAR_ZENITH``) and its Fmask file ``fmask`` (None where there is none)."""
 
-    Attributes
-    ----------
-    path : Path
-        The folder.
-    product : {"S30", "L30"}
-        Sentinel-2 or Landsat based.
-    sensor : str
-        The coefficient library's sensor key (``sentinel2``, ``landsat_oli``).
-    bands : dict of str to Path
-        HLS band name (``B04``) -> file, in band order.
-    coefficient_bands : tuple of str
-        Each band's name in the coefficient library (``B04``, ``SR_B4``).
-    wavelengths : tuple of float
-        Band centres [nm].
-    nbar_sza : float
-        The sun zenith of the granule's NBAR [deg] (``NBAR_SOLAR_ZENITH``).
-    fmask : Path or None
-        The Fmask file.
-    """
-
-    path: Path
-    product: str
-    sensor: str
-    bands: dict[str, Path]
     coefficient_bands: tuple[str, ...]
-    wavelengths: tuple[float, ...]
     nbar_sza: float
     fmask: Path | None
 
@@ -138,5 +117,5 @@ def find_hls_granule(path: str | Path, bands: Sequence[str] | None = None) -> Hl
         raise SensorInputError(f"{found[names[0]]}: no valid NBAR_SOLAR_ZENITH tag (the granule's NBAR sun "
                                "zenith [deg]); is this an HLS v2.0 file?")
     fmask = next((file for file in files if file.name.upper().endswith((".FMASK.TIF", ".FMASK.TIFF"))), None)
-    return HlsGranule(path, product, sensor, {name: found[name] for name in names},
-                      tuple(known[name][0] for name in names), tuple(known[name][1] for name in names), sza, fmask)
+    return HlsGranule(path, f"hls_{product.lower()}", sensor, {name: found[name] for name in names},
+                      tuple(known[name][1] for name in names), tuple(known[name][0] for name in names), sza, fmask)
