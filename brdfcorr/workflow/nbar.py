@@ -133,9 +133,11 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     """
     granule = find_hls_granule(product, bands=bands)
     if granule is not None:  # NBAR already: at most moved to another sun zenith
-        if method.view_band is not None or method.factor_at != "pixels" or keep_stack is not None:
-            raise InputError(f"{product}: an HLS granule is NBAR already; view_band (--view-band), factor_at "
-                             "(--factor-at) and keep_stack (--keep-stack) are for Sentinel-2 and Landsat folders")
+        if (method.view_band is not None or method.factor_at != "pixels" or keep_stack is not None
+                or resolution not in (None, 30)):
+            raise InputError(f"{product}: an HLS granule is NBAR already, at 30 m; resolution (--resolution), "
+                             "view_band (--view-band), factor_at (--factor-at) and keep_stack (--keep-stack) are "
+                             "for Sentinel-2 and Landsat folders")
         return hls_sun_zenith_files(granule, outputs, coefficients=method.coefficients,
                                     reference_sza=method.reference_sza, masked=masked, engine=engine)
     folder = find_product(product, resolution=resolution, bands=bands, masked=masked)

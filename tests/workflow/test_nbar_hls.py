@@ -92,7 +92,8 @@ def test_the_granules_own_sun_zenith_leaves_it_unchanged(granule, tmp_path):
 
 
 @pytest.mark.parametrize("options", [(), ("--ref-sza", "observed"), ("--ref-sza", "45", "--factor-at", "nodes"),
-                                     ("--ref-sza", "45", "--bands", "B01")])
+                                     ("--ref-sza", "45", "--bands", "B01"),
+                                     ("--ref-sza", "45", "--resolution", "10")])
 def test_what_an_hls_granule_cannot_do_is_one_line_and_exit_2(granule, tmp_path, options):
     result = run("nbar", granule, "-o", tmp_path / "out.tif", *options)
     assert result.exit_code == 2, result.output
