@@ -201,7 +201,7 @@ def test_ndvi_strata_and_rtlsr_remove_the_gradient_of_a_mixture():
     # the fit takes part of that for BRDF: corrected / truth keeps a small across-track gradient,
     # largest in the red and blue where the minority soil dominates a vegetated pixel's signal
     # (measured 1-3.3 % in the red and 0.3-1.5 % in the NIR over seeds; one RTLSR per stratum with
-    # the stratum's mean true weights leaves 0.1 %: benchmarks/bench_kernels.py --diagnose).
+    # the stratum's mean true weights leaves 0.1 %: benchmarks/bench_ndvi_strata.py).
     residual = east_west(corrected / truth, classes > 0)
     nir = np.asarray(WAVELENGTHS) >= 720
     np.testing.assert_array_less(np.abs(residual[nir]), 0.02)
