@@ -102,7 +102,7 @@ __all__ = [
     "merge_tables",
 ]
 
-SunZenith = Annotated[float | Literal["mean", "observed"], BeforeValidator(refuse_boolean)]
+SunZenith = Annotated[float | Literal["mean", "observed", "hls"], BeforeValidator(refuse_boolean)]
 
 
 class ReferenceGeometry(StrictModel):
@@ -110,9 +110,11 @@ class ReferenceGeometry(StrictModel):
 
     Attributes
     ----------
-    sza : float or "mean" or "observed"
+    sza : float or "mean" or "observed" or "hls"
         Reference solar zenith [deg] in [0, 90); ``"mean"`` for the scene mean of the observed solar
-        zenith, ``"observed"`` to keep each pixel's own solar zenith (only the view is normalized).
+        zenith, ``"observed"`` to keep each pixel's own solar zenith (only the view is normalized),
+        ``"hls"`` for HLS v1.4's sun zenith of the scene centre's latitude
+        (:func:`brdfcorr.correction.reference.hls_sza`).
     vza : float
         Reference view zenith [deg] in [0, 90); 0 (nadir) by default.
     raa : float

@@ -51,10 +51,10 @@ scale_options = _stack(
 
 
 def reference_sza(value: str | None):
-    """--ref-sza: a zenith [deg] or 'mean' / 'observed' (validated by ReferenceGeometry)."""
-    if value is None or value in ("mean", "observed"):
+    """--ref-sza: a zenith [deg] or 'mean' / 'observed' / 'hls' (validated by ReferenceGeometry)."""
+    if value is None or value in ("mean", "observed", "hls"):
         return value
     try:
         return float(value)
     except ValueError:
-        raise click.BadParameter(f"{value!r} is not a number, 'mean' or 'observed'") from None
+        raise click.BadParameter(f"{value!r} is not a number, 'mean', 'observed' or 'hls'") from None

@@ -167,7 +167,7 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @click.option("--max-samples", type=int, default=50_000, show_default=True,
               help="Samples per class, over the training lines.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
-@click.option("--ref-sza", help="Reference sun zenith [deg], 'mean' or 'observed' [default: mean]; the view is "
+@click.option("--ref-sza", help="Reference sun zenith [deg], 'mean', 'observed' or 'hls' [default: mean]; the view is "
                                 "normalized to nadir.")
 @click.option("--sign-by", type=click.Choice(["sun", "track"]), default="sun", show_default=True,
               help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "

@@ -131,7 +131,8 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
                    "are nodata and flagged).")
 @click.option("--interleave", type=click.Choice(["bsq", "bil"], case_sensitive=False), default="bsq",
               show_default=True, help="Interleave of an ENVI output.")
-@click.option("--ref-sza", help="Reference sun zenith [deg], 'mean' or 'observed' [default: table, else observed].")
+@click.option("--ref-sza", help="Reference sun zenith [deg], 'mean', 'observed' or 'hls' (HLS v1.4's for the "
+                                "scene's latitude) [default: table, else observed].")
 @click.option("--ref-vza", type=float, help="Reference view zenith [deg] [default: table, else 0].")
 @click.option("--ref-raa", type=float, help="Reference relative azimuth [deg] [default: table, else 0].")
 @click.option("--limits", nargs=2, type=float, default=DEFAULT_LIMITS, show_default=True,

@@ -29,8 +29,8 @@ from brdfcorr.errors import BrdfcorrWarning
 @click.option("--coefficients", default="roy2017", show_default=True,
               help="Built-in coefficient set (brdfcorr coefficients): roy2017, or roy2016 (no red-edge bands).")
 @click.option("--ref-sza", default="mean", show_default=True,
-              help="Reference sun zenith [deg], 'mean' (the scene's, as HLS) or 'observed' (each pixel's, as "
-                   "sen2nbar). The reference view is nadir.")
+              help="Reference sun zenith [deg], 'mean' (the scene's), 'hls' (HLS v1.4's for the scene centre's "
+                   "latitude) or 'observed' (each pixel's, as sen2nbar). The reference view is nadir.")
 @click.option("--view-band", help="Sentinel-2: the view angles of this band's grids (e.g. B04) for every band, or "
                                   "'each': every band its own (as sen2nbar; one correction per band, slower) "
                                   "[default: the mean of all bands' grids].")

@@ -12,7 +12,7 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
-from brdfcorr.correction.reference import fixed_sza, resolve_reference, scene_mean_sza
+from brdfcorr.correction.reference import fixed_sza, resolve_reference, scene_mean_sza, with_hls_sza
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.params import ParameterTable, ReferenceGeometry
@@ -164,6 +164,7 @@ def prepare_inputs(
                       if layer.dtype.kind == "c"]
     if complex_layers:  # the imaginary part would be lost, or carried into a complex "reflectance"
         raise InputError(f"complex values in {', '.join(complex_layers)}; real numbers are expected")
+    reference = with_hls_sza(reference, reflectance)
     if wavelengths is None and "wavelength" in reflectance.coords:
         wavelengths = reflectance["wavelength"].values.tolist()
     resolved = params.for_bands(wavelengths, n_bands=reflectance.shape[0], extrapolate=extrapolate)

@@ -22,6 +22,7 @@ import xarray as xr
 
 from brdfcorr import __version__
 from brdfcorr.correction import QA, describe_limits, normalize, normalize_at_nodes, qa_counts, resolve_reference
+from brdfcorr.correction.reference import with_hls_sza
 from brdfcorr.correction.terrain import (
     SlopeAspect,
     check_dem_slope,
@@ -329,9 +330,12 @@ def uncorrected_note(counts: dict[str, int]) -> str | None:
 
 
 def _scene_reference(reference, table: ParameterTable, scene: SceneData) -> tuple[ReferenceGeometry, str]:
-    """The reference geometry, a ``"mean"`` sun zenith replaced by the scene's mean, and how its
-    sun zenith was chosen: ``"fixed"``, ``"mean"`` or ``"observed"``."""
+    """The reference geometry, a ``"mean"`` sun zenith replaced by the scene's mean (``"hls"`` by
+    HLS v1.4's at the scene centre's latitude), and how its sun zenith was chosen: ``"fixed"``,
+    ``"mean"``, ``"hls"`` or ``"observed"``."""
     resolved = resolve_reference(reference, table)
+    if resolved.sza == "hls":
+        return with_hls_sza(resolved, scene.reflectance), "hls"
     if resolved.sza != "mean":
         return resolved, resolved.sza if isinstance(resolved.sza, str) else "fixed"
     mean = scene.statistics.means["sza"]

@@ -20,6 +20,7 @@ import rioxarray
 import xarray as xr
 
 from brdfcorr.correction import QA, qa_attrs, qa_counts
+from brdfcorr.correction.reference import centre_latitude, hls_sza
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.rasters import check_reflectance_scale
@@ -70,7 +71,8 @@ def _masked(granule: HlsGranule, like: xr.DataArray, bits: Sequence[int], chunks
 
 def hls_sun_zenith_files(granule: HlsGranule, outputs: OutputFiles, *, coefficients: str, reference_sza,
                          masked: Sequence[int] | None = None, engine: Engine = Engine()) -> dict[str, object]:
-    """Write ``granule``'s NBAR moved to sun zenith ``reference_sza`` [deg] (module docstring).
+    """Write ``granule``'s NBAR moved to sun zenith ``reference_sza`` [deg], or ``"hls"``: HLS
+    v1.4's for the granule centre's latitude (module docstring).
 
     Raises
     ------
@@ -78,7 +80,7 @@ def hls_sun_zenith_files(granule: HlsGranule, outputs: OutputFiles, *, coefficie
         ``reference_sza`` is ``"mean"`` or ``"observed"``: the granule is NBAR at its own sun zenith
         already (:func:`brdfcorr.io.sensors.hls.hls_refusal`).
     """
-    if isinstance(reference_sza, str):
+    if reference_sza in ("mean", "observed"):
         raise SensorInputError(hls_refusal(granule.path, list(granule.bands.values())))
     check_outputs({"output": outputs.corrected, "QA output": outputs.qa}, granule.files)
     if not outputs.overwrite:
@@ -88,11 +90,12 @@ def hls_sun_zenith_files(granule: HlsGranule, outputs: OutputFiles, *, coefficie
     check_reflectance_scale(reflectance, str(granule.path), scheduler=engine.scheduler,
                             num_workers=engine.num_workers)
     invalid = _masked(granule, reflectance, HLS_FMASK_MASKED if masked is None else masked, chunks)
-    factors = xr.DataArray(hls_factors(granule, coefficients, float(reference_sza)).astype(np.float32), dims="band")
+    sza = hls_sza(centre_latitude(reflectance)) if reference_sza == "hls" else float(reference_sza)
+    factors = xr.DataArray(hls_factors(granule, coefficients, sza).astype(np.float32), dims="band")
     corrected = (reflectance * factors).where(~invalid)
     nodata = (~np.isfinite(corrected)).any("band") | invalid
     qa = xr.where(nodata, np.uint8(QA.NODATA), np.uint8(0)).astype(np.uint8).assign_attrs(qa_attrs("QA flags"))
-    reference = ReferenceGeometry(sza=float(reference_sza), vza=0.0, raa=0.0)
+    reference = ReferenceGeometry(sza=sza, vza=0.0, raa=0.0)
     corrected.attrs = {"long_name": tuple(granule.bands)}
     qa.attrs["long_name"] = ("qa",)
     targets = {outputs.corrected: corrected.rio.write_nodata(np.nan, encoded=True)}

@@ -62,8 +62,9 @@ class NbarMethod:
     ----------
     coefficients : {"roy2017", "roy2016"}
         The coefficient set; roy2016 has no red-edge weights (pick ``bands`` without B05-B07).
-    reference_sza : float or {"mean", "observed"}
-        Reference sun zenith [deg]: a value, the scene mean (HLS), or each pixel's own (sen2nbar).
+    reference_sza : float or {"mean", "observed", "hls"}
+        Reference sun zenith [deg]: a value, the scene mean, each pixel's own (sen2nbar), or HLS
+        v1.4's for the scene centre's latitude (:func:`brdfcorr.correction.reference.hls_sza`).
     view_band : str, optional
         Sentinel-2: this band's view grids (``"B04"``) for every band, or ``"each"``
         (:data:`EACH_BAND`): every band its own, as sen2nbar (one correction per band). Default:

@@ -101,3 +101,20 @@ def test_what_an_hls_granule_cannot_do_is_one_line_and_exit_2(granule, tmp_path,
     if not options:
         assert "already NBAR" in result.output and "sun zenith 38.43 deg" in result.output
         assert "--ref-sza DEG" in result.output
+
+
+def test_hls_moves_the_granule_to_hls_v14s_sun_zenith_for_its_latitude(granule, tmp_path):
+    """``--ref-sza hls``: the HLS v1.4 polynomial (User Guide p. 13) at the granule centre's latitude."""
+    from pyproj import Transformer
+
+    output = tmp_path / "hls14.tif"
+    assert run("nbar", granule, "--bands", "B04", "--ref-sza", "hls", "-o", output).exit_code == 0
+    with rasterio.open(output) as dataset:
+        nbar, tags = dataset.read(1), dataset.tags()
+        x, y = dataset.transform * (dataset.width / 2, dataset.height / 2)
+        latitude = Transformer.from_crs(dataset.crs, "EPSG:4326", always_xy=True).transform(x, y)[1]
+    coefficients = (31.0076, -0.1272, 0.01187, 2.40e-05, -9.48e-07, -1.95e-09, 6.15e-11)
+    sza = sum(k * latitude**power for power, k in enumerate(coefficients))
+    assert float(tags["brdf_reference"].split()[0].removeprefix("sza=")) == pytest.approx(sza, abs=1e-4)
+    expected = 0.12 * nadir_brf(ROY_2016["B04"], sza) / nadir_brf(ROY_2016["B04"], NBAR_SZA)
+    np.testing.assert_allclose(nbar[1:4], expected, rtol=1e-5)
