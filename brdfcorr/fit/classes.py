@@ -7,7 +7,7 @@ class with intensity terms per band (:mod:`brdfcorr.fit.solver`), and checks eac
 :class:`GuardRails` before it goes into the parameter table: enough samples, a spread of view
 zeniths, a well-conditioned design, a model that explains the angular signal (median R^2), and
 shape parameters inside their search ranges. A class that fails is left uncorrected or gets a
-built-in material; a class that fails or fits poorly is also fitted with the other surface models,
+built-in material or coefficient set; a class that fails or fits poorly is also fitted with the other surface models,
 and one that explains clearly more is suggested in its report (:attr:`ClassFit.better_model`).
 
 Bad bands (water vapour, :data:`WATER_VAPOUR_BANDS`, or ranges given) are left out of the fit: the
@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
+from brdfcorr.fit.entries import class_entry, compact
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
 from brdfcorr.fit.settings import (
     DEFAULT_MODEL,
@@ -49,7 +50,7 @@ from brdfcorr.fit.solver import (
     search_range,
 )
 from brdfcorr.models import Model, get_model
-from brdfcorr.params import ClassEntry, ParameterTable
+from brdfcorr.params import ParameterTable
 from brdfcorr.params_bands import in_ranges
 
 __all__ = [
@@ -199,8 +200,8 @@ class ClassFit:
             "median_rmse": median(self.rmse),
             "better_model": self.better_model,
             "better_model_median_r2": self.better_r2,
-            "params": {k: _compact(v) for k, v in self.params.items()},
-            "errors": {k: _compact(v) for k, v in self.errors.items()},
+            "params": {k: compact(v) for k, v in self.params.items()},
+            "errors": {k: compact(v) for k, v in self.errors.items()},
             "errors_reliable": self.errors_reliable,
             "errors_reason": self.errors_reason,
         }
@@ -209,14 +210,6 @@ class ClassFit:
 def _finite_median(values) -> float:
     finite = np.asarray(values, dtype=float)[np.isfinite(values)]
     return float(np.median(finite)) if finite.size else math.nan
-
-
-def _compact(values: np.ndarray):
-    """A scalar when all bands share the value, else a list."""
-    values = np.asarray(values, dtype=float)
-    if values.size and np.all(values == values.flat[0]):
-        return float(values.flat[0])
-    return values.tolist()
 
 
 def _spread(values: np.ndarray) -> float:
@@ -416,71 +409,6 @@ class ClassFitResult:
         return [fit.summary() for fit in self.fits]
 
 
-def _fit_record(fit: ClassFit, source: str, per_band: bool) -> dict | None:
-    """The table's ``fit:`` block (:class:`brdfcorr.params.FitRecord`) of a fitted class: one
-    matrix per band, or a single one when the parameters are band-independent. None when the
-    covariance is not finite or has a negative variance (a table holds numbers only)."""
-    covariance = 0.5 * (fit.covariance + np.swapaxes(fit.covariance, 1, 2))
-    variances = np.diagonal(covariance, axis1=1, axis2=2)
-    if covariance.size == 0 or not np.all(np.isfinite(covariance)) or np.any(variances < 0):
-        return None
-    errors = np.sqrt(variances)
-    flag = {"errors_reliable": fit.errors_reliable, "errors_reason": fit.errors_reason or None}
-    if not per_band:
-        return {"source": source, "parameters": list(fit.free), "n": fit.n_samples,
-                "chi2_dof": float(fit.chi2_dof[0]), "r2": float(fit.r2[0]),
-                "errors": {name: float(errors[0, j]) for j, name in enumerate(fit.free)},
-                "covariance": covariance[0].tolist(), **flag}
-    n_bands = covariance.shape[0]
-    return {"source": source, "parameters": list(fit.free), "n": [fit.n_samples] * n_bands,
-            "chi2_dof": np.asarray(fit.chi2_dof, float).tolist(), "r2": np.asarray(fit.r2, float).tolist(),
-            "errors": {name: errors[:, j].tolist() for j, name in enumerate(fit.free)},
-            "covariance": covariance.tolist(), **flag}
-
-
-def _in_wavelength_order(fit: ClassFit, wavelengths):
-    """The fit and the band wavelengths with the bands sorted by wavelength: a table lists its
-    wavelengths increasing, an image may hold its bands in the sensor's order (MODIS: 645, 858,
-    469, 2130 nm). Arrays with one entry per band are permuted alike."""
-    if wavelengths is None or np.all(np.diff(np.asarray(wavelengths, float)) > 0):
-        return fit, wavelengths
-    order = np.argsort(np.asarray(wavelengths, float), kind="stable")
-
-    def sort(values):
-        values = np.asarray(values)
-        return values[order] if values.ndim and values.shape[0] == order.size else values
-
-    return dataclasses.replace(
-        fit, params={name: sort(values) for name, values in fit.params.items()},
-        errors={name: sort(values) for name, values in fit.errors.items()}, covariance=sort(fit.covariance),
-        chi2_dof=sort(fit.chi2_dof), r2=sort(fit.r2), rmse=sort(fit.rmse), angular_r2=sort(fit.angular_r2),
-    ), np.asarray(wavelengths, float)[order]
-
-
-def _entry(fit: ClassFit, wavelengths, source: str, bad_bands: list[list[float]] | None = None):
-    fit, wavelengths = _in_wavelength_order(fit, wavelengths)
-    if fit.status == "uncorrected":
-        return None
-    if fit.status == "fallback":
-        return ClassEntry(**fallback_entry(fit.fallback, fit.class_id, fit.name), bad_bands=bad_bands)
-    params = {name: _compact(values) for name, values in fit.params.items()}
-    per_band = any(isinstance(value, list) for value in params.values())
-    if not per_band and fit.covariance.shape[0] > 1 and np.any(fit.covariance != fit.covariance[:1]):
-        # Equal values in every band but not equal errors: the table keeps one value per band.
-        params = {name: np.asarray(values, float).tolist() if name in fit.free else params[name]
-                  for name, values in fit.params.items()}
-        per_band = True
-    return ClassEntry(
-        id=fit.class_id,
-        name=fit.name,
-        model=fit.model,
-        params=params,
-        wavelengths=[float(w) for w in wavelengths] if per_band and wavelengths is not None else None,
-        fit=_fit_record(fit, source, per_band),
-        bad_bands=bad_bands,
-    )
-
-
 def _merged(ranges) -> list[list[float]]:
     """Wavelength ranges [nm] sorted, overlapping ones merged."""
     merged: list[list[float]] = []
@@ -587,7 +515,7 @@ def fit_classes(
             fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id), grid_points=grid_points,
         )
         fits.append(fit)
-        entry = _entry(fit, wavelengths, source, used_ranges or None)
+        entry = class_entry(fit, wavelengths, source, used_ranges or None)
         if entry is not None:
             entries.append(entry)
         step = max(1, samples.theta_i.size // sampling.keep_samples)
