@@ -123,7 +123,7 @@ def test_per_band_lists_must_match_band_count():
             r"class id\(s\) 3 appear more than once",
         ),
         ("reference: {sza: 95}", r"reference\.sza: reference sza = 95 deg must be in \[0, 90\)"),
-        ("reference: {sza: noon}", r"reference\.sza: 'noon' is not allowed; allowed: a number, 'mean' or 'observed'"),
+        ("reference: {sza: noon}", r"reference\.sza: 'noon' is not allowed; allowed: a number, 'mean', 'observed' or 'hls'"),
         ("reference: {vza: 10, raz: 3}", r"reference\.raz: unknown key; allowed keys: raa, sza, vza"),
         ("- 1\n- 2", r"expected a mapping"),
         ("classes: [", r"not valid YAML \(line \d+, column \d+\)"),  # where depends on the parser

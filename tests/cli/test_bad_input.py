@@ -203,7 +203,7 @@ CORRECT_CASES = {
     "required option missing": (lambda s: _correct_args(s, **{"-o": None}),
                                 r"^brdfcorr: error: correct: .*'--output'.* \(see --help of correct\)$"),  # click's words between
     "option with a bad value": (lambda s: _correct_args(s, **{"--ref-sza": "noon"}),
-                                r"correct: .*'noon' is not a number, 'mean' or 'observed'"),
+                                r"correct: .*'noon' is not a number, 'mean', 'observed' or 'hls'"),
     "option of the wrong type": (lambda s: _correct_args(s, **{"--ref-vza": "ten"}),
                                  r"correct: .*'--ref-vza'.*'ten'"),
     # --- outputs

@@ -53,7 +53,7 @@ def test_defaults_and_base_dir(tmp_path):
      "chain.yaml: outputs.compres: unknown key; allowed keys: cog, compress, directory, existing, "
      "format, interleave, naming, qa_naming, quicklook_naming, report, uncertainty, uncertainty_naming"),
     ("reference", {"sza": "meen"},
-     "chain.yaml: reference.sza: 'meen' is not allowed; allowed: a number, 'mean' or 'observed'"),
+     "chain.yaml: reference.sza: 'meen' is not allowed; allowed: a number, 'mean', 'observed' or 'hls'"),
     ("steps", {"fit": {"source": "imag"}},
      "chain.yaml: steps.fit: source 'imag' is not allowed; allowed: 'imagery', 'goniometer'"),
     ("engine", {"chunk": 100}, "chain.yaml: engine.chunk: chunk 100 must be a multiple of 16"),
