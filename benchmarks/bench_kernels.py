@@ -491,12 +491,18 @@ def cube_pass(rows: int, columns: int, bands: int) -> float:
     return best_of(3, np.multiply, cube, factor)[1]
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def scene_parser(description: str) -> argparse.ArgumentParser:
+    """The options of the scenes' size and noise (shared with bench_ndvi_strata.py)."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--rows", type=int, default=400)
     parser.add_argument("--columns", type=int, default=600)
     parser.add_argument("--bands", type=int, default=60)
     parser.add_argument("--noise", type=float, default=0.01, help="relative sensor noise (1 sigma)")
+    return parser
+
+
+def main() -> None:
+    parser = scene_parser(__doc__.splitlines()[0])
     parser.add_argument("--small", action="store_true", help="120 x 180 x 20: a quick check")
     parser.add_argument("--repeat", type=int, default=2, help="timed runs, best kept (the machine is shared)")
     args = parser.parse_args()

@@ -30,7 +30,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import math
 
 import numpy as np
@@ -44,6 +43,7 @@ from bench_kernels import (
     east_west,
     fit,
     fraction_groups,
+    scene_parser,
     scene_vegetation_soil,
     scores,
 )
@@ -185,11 +185,7 @@ def diagnose(args, scene: dict, flown: dict) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rows", type=int, default=400)
-    parser.add_argument("--columns", type=int, default=600)
-    parser.add_argument("--bands", type=int, default=60)
-    parser.add_argument("--noise", type=float, default=0.01, help="relative sensor noise (1 sigma)")
+    parser = scene_parser(__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0, help="seed of the scene's fields and noise")
     args = parser.parse_args()
     flown, mirrored = (scene_vegetation_soil(args.rows, args.columns, args.bands, args.noise, args.seed, mirror=mirror)
