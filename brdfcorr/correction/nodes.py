@@ -12,7 +12,8 @@ The factor is not linear in the angles, so the two methods differ by a second-or
 node spacing: on a real Sentinel-2 granule's grids (T23LLF) by at most 0.06 % with the
 coefficients of Roy et al. (2017) (``benchmarks/bench_sen2nbar.py``), far below the uncertainty
 of global coefficients. It suits one smooth correction over the whole image: one class, no class
-map, no terrain and no uncertainty layer (:func:`check_node_request`).
+map, no terrain and no uncertainty layer (``CorrectionRequest(factor_at="nodes")`` refuses the
+others).
 
 QA flags: ``nodata`` where the reflectance is not finite in some band or the interpolated factor
 is not (a node without a valid geometry), ``limited`` where one of the nodes a pixel's factor

@@ -39,8 +39,6 @@ def describe_limits(limits) -> str:
     return "none" if limits is None else f"{limits[0]:g},{limits[1]:g}"
 
 
-
-
 #: HLS v1.4's NBAR sun zenith [deg] as a 6th-order polynomial in latitude [deg], lowest power first
 #: (NASA HLS v1.4 User Guide, Claverie et al. 2018, section on the BRDF normalization, p. 13).
 HLS_SZA_POLYNOMIAL = (31.0076, -0.1272, 0.01187, 2.40e-05, -9.48e-07, -1.95e-09, 6.15e-11)

@@ -7,8 +7,9 @@ class with intensity terms per band (:mod:`brdfcorr.fit.solver`), and checks eac
 :class:`GuardRails` before it goes into the parameter table: enough samples, a spread of view
 zeniths, a well-conditioned design, a model that explains the angular signal (median R^2), and
 shape parameters inside their search ranges. A class that fails is left uncorrected or gets a
-built-in material or coefficient set; a class that fails or fits poorly is also fitted with the other surface models,
-and one that explains clearly more is suggested in its report (:attr:`ClassFit.better_model`).
+built-in material or coefficient set (its fallback); a class that fails or fits poorly is also
+fitted with the other surface models, and one that explains clearly more is suggested in its report
+(:attr:`ClassFit.better_model`).
 
 Bad bands (water vapour, :data:`WATER_VAPOUR_BANDS`, or ranges given) are left out of the fit: the
 table's classes list them as ``bad_bands`` (no parameters there), and the correction passes them
