@@ -145,6 +145,10 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
 @click.option("--extrapolate", is_flag=True, help="Allow band centres outside a class's table wavelengths.")
 @click.option("--flip-view-azimuth", is_flag=True,
               help="View azimuths are stored as seen from the sensor: add 180 deg.")
+@click.option("--factor-at", type=click.Choice(["pixels", "nodes"]), default="pixels", show_default=True,
+              help="Evaluate the factor at every pixel, or at the nodes of the sensor's coarse angle grid "
+                   "(--angles-kind sentinel2) and interpolate it to the pixels: sen2nbar's method, faster; one "
+                   "class, no --classes, --dem, --slope-aspect or --uncertainty.")
 @click.option("--qa", "qa_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Also write the QA flags (uint8) to this GeoTIFF.")
 @click.option("--compress", default="deflate", show_default=True, help="GDAL compression.")
@@ -176,7 +180,7 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
 def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, raa, classes, align_classes,
                     class_lookup, params_path, materials, output, ref_sza, ref_vza,
                     ref_raa, limits, no_limits, unknown, wavelengths, scale, offset, extrapolate,
-                    flip_view_azimuth, qa_path, compress, cog, chunk, progress, overwrite, output_format,
+                    flip_view_azimuth, factor_at, qa_path, compress, cog, chunk, progress, overwrite, output_format,
                     interleave, output_type, scheduler, uncertainty_path, slope_aspect, dem, topographic, brdf_frame):
     """Normalize IMAGE to a reference sun/view geometry with per-class BRDF models.
 
@@ -228,6 +232,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
             summary = correct_files(CorrectionRequest(
                 sources, table, outputs, reference=reference, limits=None if no_limits else limits,
                 extrapolate=extrapolate, unknown=unknown, flip_view_azimuth=flip_view_azimuth, terrain=terrain,
+                factor_at=factor_at,
                 align_classes=align_classes, class_lookup=lookup,
                 engine=Engine(chunks=chunk, scheduler=client), table_source=source,
                 reads={"--params": params_path if params_path is None or params_path.exists() else None,

@@ -70,3 +70,21 @@ def test_a_class_map_and_an_uncertainty_output_refuse_the_factor_at_the_nodes(tm
     with pytest.raises(InputError, match="nodes with a class map, an uncertainty output"):
         correct_files(request)
     assert not (tmp_path / "out.tif").exists() and not (tmp_path / "sigma.tif").exists()
+
+
+@pytest.mark.skipif(not MTD.is_file(), reason=f"real Sentinel-2 metadata not found at {MTD}")
+def test_correct_takes_the_factor_at_the_nodes_too(tmp_path):
+    """``correct STACK --angles MTD_TL.xml --angles-kind sentinel2 --params roy2017 --factor-at nodes``
+    is the same correction as ``nbar --factor-at nodes`` (the coefficients interpolated in wavelength
+    give every Sentinel-2 band exactly its own weights)."""
+    safe = write_sentinel2_safe(tmp_path / "in", MTD, size=32)
+    nbar, stack = tmp_path / "nbar.tif", tmp_path / "stack.vrt"
+    assert run("nbar", safe, "-o", nbar, "--factor-at", "nodes", "--ref-sza", "observed",
+               "--keep-stack", stack).exit_code == 0
+    corrected = tmp_path / "corrected.tif"
+    result = run("correct", stack, "--angles", next(safe.glob("GRANULE/*/MTD_TL.xml")), "--angles-kind", "sentinel2",
+                 "--params", "roy2017", "--ref-sza", "observed", "--factor-at", "nodes", "-o", corrected)
+    assert result.exit_code == 0, result.output
+    with rasterio.open(nbar) as one, rasterio.open(corrected) as other:
+        np.testing.assert_allclose(other.read(), one.read(), rtol=1e-6)
+        assert "nodes of the angle grid" in other.tags()["brdf_factor_at"]
