@@ -326,6 +326,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
     summary = correct_files(CorrectionRequest(
         sources, table, files, reference=config.reference, limits=step.limits, extrapolate=step.extrapolate,
         unknown=step.unknown, flip_view_azimuth=step.flip_view_azimuth, terrain=_terrain(scene, config),
+        factor_at=step.factor_at,
         align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup),
         engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers),
         table_source=config.source,

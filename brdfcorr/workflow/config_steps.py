@@ -203,6 +203,10 @@ class CorrectStep(StrictModel):
         Let band centres outside a class's table wavelengths take the edge values.
     flip_view_azimuth : bool
         View azimuths are stored as seen from the sensor: add 180 deg.
+    factor_at : {"pixels", "nodes"}
+        Where the factor is evaluated: at every pixel, or at the nodes of a sensor's coarse angle
+        grid (``angles_kind: sentinel2``) and interpolated to the pixels (one class, no class map,
+        terrain or uncertainty; :mod:`brdfcorr.correction.nodes`).
     qa : bool
         Also write the QA flag raster.
     terrain : TerrainStep, optional
@@ -214,6 +218,7 @@ class CorrectStep(StrictModel):
     unknown: Literal["keep", "nan"] = "keep"
     extrapolate: bool = False
     flip_view_azimuth: bool = False
+    factor_at: Literal["pixels", "nodes"] = "pixels"
     qa: bool = True
     terrain: TerrainStep | None = None
 

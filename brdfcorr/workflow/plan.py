@@ -495,8 +495,11 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     if scene.angles_kind == "solar":
         inputs["angles"] = {"time": scene.angles}
     correct = None if config.steps.correct is None else config.steps.correct.model_dump(mode="json", exclude={"qa"})
-    if correct is not None and correct["terrain"] is None:  # a flat correction records what it did before terrain
-        del correct["terrain"]
+    if correct is not None:  # the defaults of later options are not recorded: older outputs stay current
+        if correct["terrain"] is None:  # a flat correction records what it did before terrain
+            del correct["terrain"]
+        if correct["factor_at"] == "pixels":
+            del correct["factor_at"]
     document = {
         "brdfcorr": __version__,
         "inputs": inputs,
