@@ -376,10 +376,10 @@ def _corrected_at_nodes(request: CorrectionRequest, scene: SceneData, table: Par
                         reference: ReferenceGeometry):
     """The corrected reflectance and its QA flags with the factor at the angle grid's nodes
     (:mod:`brdfcorr.correction.nodes`), for what that method suits: one class over the whole image."""
+    # Without a class map the table holds class 1 alone (_load_table): one class for every pixel.
     unsuited = [what for what, given in (("a class map", request.scene.classes is not None),
                                          ("terrain", request.terrain is not None),
-                                         ("an uncertainty output", request.outputs.uncertainty is not None),
-                                         ("a table of more than one class", len(table.classes) > 1))
+                                         ("an uncertainty output", request.outputs.uncertainty is not None))
                 if given]
     if unsuited:
         raise InputError(f"cannot evaluate the factor at the angle grid's nodes with {', '.join(unsuited)}: it is "

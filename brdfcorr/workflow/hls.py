@@ -14,23 +14,22 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 import rioxarray
 import xarray as xr
 
-from brdfcorr.correction import QA, qa_attrs, qa_counts
+from brdfcorr.correction import QA, qa_attrs
 from brdfcorr.correction.reference import centre_latitude, hls_sza
 from brdfcorr.errors import SensorInputError
-from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.rasters import check_reflectance_scale
-from brdfcorr.io.sensors.hls import HLS_FMASK_MASKED, HlsGranule, hls_refusal
-from brdfcorr.io.writer import GeoTiffOutput, write_rasters
+from brdfcorr.io.sensors.hls import HLS_FMASK_MASKED, HlsGranule
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ReferenceGeometry
-from brdfcorr.workflow.request import Engine, OutputFiles
+from brdfcorr.workflow.request import Engine
 
-__all__ = ["hls_sun_zenith_files", "hls_factors", "HLS_SCALE"]
+__all__ = ["hls_sun_zenith_layers", "hls_factors", "HLS_SCALE"]
 
 #: HLS v2.0 stores reflectance x 10 000 (int16) where a band file gives no scale of its own.
 HLS_SCALE = 1e-4
@@ -69,22 +68,19 @@ def _masked(granule: HlsGranule, like: xr.DataArray, bits: Sequence[int], chunks
     return ((fmask & flags) != 0) | (fmask == FMASK_FILL)
 
 
-def hls_sun_zenith_files(granule: HlsGranule, outputs: OutputFiles, *, coefficients: str, reference_sza,
-                         masked: Sequence[int] | None = None, engine: Engine = Engine()) -> dict[str, object]:
-    """Write ``granule``'s NBAR moved to sun zenith ``reference_sza`` [deg], or ``"hls"``: HLS
-    v1.4's for the granule centre's latitude (module docstring).
+def hls_sun_zenith_layers(granule: HlsGranule, *, coefficients: str, reference_sza: float | Literal["hls"],
+                          masked: Sequence[int] | None = None, engine: Engine = Engine()):
+    """``granule``'s NBAR moved to sun zenith ``reference_sza`` [deg], or ``"hls"``: HLS v1.4's for
+    the granule centre's latitude (module docstring), lazily. (``"mean"`` and ``"observed"`` leave
+    a granule as it is: :func:`brdfcorr.workflow.nbar.nbar_files` refuses them with
+    :func:`brdfcorr.io.sensors.hls.hls_refusal`.)
 
-    Raises
-    ------
-    SensorInputError
-        ``reference_sza`` is ``"mean"`` or ``"observed"``: the granule is NBAR at its own sun zenith
-        already (:func:`brdfcorr.io.sensors.hls.hls_refusal`).
+    Returns
+    -------
+    tuple
+        The corrected bands (band, y, x), float32 reflectance factors, NaN where masked; their QA
+        flags (y, x; ``nodata``); the output's tags; the reference (:class:`ReferenceGeometry`).
     """
-    if reference_sza in ("mean", "observed"):
-        raise SensorInputError(hls_refusal(granule.path, list(granule.bands.values())))
-    check_outputs({"output": outputs.corrected, "QA output": outputs.qa}, granule.files)
-    if not outputs.overwrite:
-        refuse_existing([outputs.corrected, outputs.qa])
     chunks = engine.chunks or 512
     reflectance = _reflectance(granule, chunks)
     check_reflectance_scale(reflectance, str(granule.path), scheduler=engine.scheduler,
@@ -96,17 +92,9 @@ def hls_sun_zenith_files(granule: HlsGranule, outputs: OutputFiles, *, coefficie
     nodata = (~np.isfinite(corrected)).any("band") | invalid
     qa = xr.where(nodata, np.uint8(QA.NODATA), np.uint8(0)).astype(np.uint8).assign_attrs(qa_attrs("QA flags"))
     reference = ReferenceGeometry(sza=sza, vza=0.0, raa=0.0)
-    corrected.attrs = {"long_name": tuple(granule.bands)}
-    qa.attrs["long_name"] = ("qa",)
-    targets = {outputs.corrected: corrected.rio.write_nodata(np.nan, encoded=True)}
-    if outputs.qa is not None:
-        targets[outputs.qa] = qa
     tags = {"wavelength": ",".join(f"{w:g}" for w in granule.wavelengths), "wavelength_units": "nm",
             "brdf_reference": reference.describe(),
             "brdf_hls_nbar_solar_zenith": f"{granule.nbar_sza:g}",
             "brdf_coefficients": json.dumps({"set": coefficients, "bands": list(granule.coefficient_bands)}),
             "brdf_method": "HLS NBAR x f(ref sza, 0, 0) / f(NBAR_SOLAR_ZENITH, 0, 0) per band (Roy et al. 2016)"}
-    counts = write_rasters(targets, geotiff=GeoTiffOutput(compress=outputs.compress, blocksize=chunks, cog=outputs.cog),
-                           tags=tags, compute_with=qa_counts(qa), callbacks=engine.callbacks,
-                           scheduler=engine.scheduler, num_workers=engine.num_workers)
-    return {**{key: int(value) for key, value in counts.items()}, "reference": reference, "product": granule}
+    return corrected, qa, tags, reference

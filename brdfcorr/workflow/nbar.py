@@ -31,16 +31,16 @@ import rioxarray
 import xarray as xr
 
 from brdfcorr.correction import qa_counts
-from brdfcorr.errors import InputError, OutputError
+from brdfcorr.errors import InputError, OutputError, SensorInputError
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.sensors.folders import ProductFolder, band_stacks, find_product, write_stack
-from brdfcorr.io.sensors.hls import find_hls_granule
+from brdfcorr.io.sensors.hls import HlsGranule, find_hls_granule, hls_refusal
 from brdfcorr.io.writer import GeoTiffOutput, write_rasters
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.workflow.correction import correct_files
-from brdfcorr.workflow.hls import hls_sun_zenith_files
+from brdfcorr.workflow.hls import hls_sun_zenith_layers
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
 __all__ = ["nbar_files", "nbar_table", "NbarMethod", "EACH_BAND", "NBAR_CHUNK"]
@@ -139,8 +139,14 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
             raise InputError(f"{product}: an HLS granule is NBAR already, at 30 m; resolution (--resolution), "
                              "view_band (--view-band), factor_at (--factor-at) and keep_stack (--keep-stack) are "
                              "for Sentinel-2 and Landsat folders")
-        return hls_sun_zenith_files(granule, outputs, coefficients=method.coefficients,
-                                    reference_sza=method.reference_sza, masked=masked, engine=engine)
+        if method.reference_sza in ("mean", "observed"):
+            raise SensorInputError(hls_refusal(granule))
+        _check_outputs(outputs, granule, None)
+        corrected, qa, tags, reference = hls_sun_zenith_layers(
+            granule, coefficients=method.coefficients, reference_sza=method.reference_sza, masked=masked,
+            engine=replace(engine, chunks=engine.chunks or NBAR_CHUNK))
+        return {**_write_bands(corrected, qa, tuple(granule.bands), outputs, tags, engine), "reference": reference,
+                "product": granule}
     folder = find_product(product, resolution=resolution, bands=bands, masked=masked)
     angle_options = _angle_options(folder, method.view_band)
     _check_outputs(outputs, folder, keep_stack)
@@ -200,15 +206,23 @@ def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: Ou
                 brdf_parameter_table_content=json.dumps(nbar_table(folder, method.coefficients).to_dict(),
                                                         separators=(",", ":")),
                 brdf_view_angles="each band its own view angle grids")
-    corrected.attrs, qa.attrs = {"long_name": tuple(folder.bands)}, {"long_name": ("qa",)}
+    return {**_write_bands(corrected, qa, tuple(folder.bands), outputs, tags, engine),
+            "reference": summary["reference"]}
+
+
+def _write_bands(corrected: xr.DataArray, qa: xr.DataArray, names: tuple[str, ...], outputs: OutputFiles,
+                 tags: dict, engine: Engine) -> dict[str, int]:
+    """Write the corrected bands (described by ``names``) and, if asked, their QA flags in one pass
+    (:func:`brdfcorr.io.writer.write_rasters`); the counts of the flags."""
+    corrected.attrs, qa.attrs = {"long_name": names}, {**qa.attrs, "long_name": ("qa",)}
     targets = {outputs.corrected: corrected.rio.write_nodata(np.nan, encoded=True)}
     if outputs.qa is not None:
         targets[outputs.qa] = qa
-    counts = write_rasters(targets, geotiff=GeoTiffOutput(compress=outputs.compress, blocksize=engine.chunks,
-                                                          cog=outputs.cog),
+    counts = write_rasters(targets, geotiff=GeoTiffOutput(compress=outputs.compress,
+                                                          blocksize=engine.chunks or NBAR_CHUNK, cog=outputs.cog),
                            tags=tags, compute_with=qa_counts(qa), callbacks=engine.callbacks,
                            scheduler=engine.scheduler, num_workers=engine.num_workers)
-    return {**{key: int(value) for key, value in counts.items()}, "reference": summary["reference"]}
+    return {key: int(value) for key, value in counts.items()}
 
 
 def _angle_options(folder: ProductFolder, view_band: str | None) -> dict:
@@ -222,7 +236,7 @@ def _angle_options(folder: ProductFolder, view_band: str | None) -> dict:
     return options
 
 
-def _check_outputs(outputs: OutputFiles, folder: ProductFolder, keep_stack) -> None:
+def _check_outputs(outputs: OutputFiles, folder: ProductFolder | HlsGranule, keep_stack) -> None:
     """Before anything is stacked: outputs that are no product file, in an existing folder, and
     (without ``overwrite``) not there yet; a kept stack named ``.vrt``."""
     kept = {}

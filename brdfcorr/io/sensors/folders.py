@@ -146,7 +146,7 @@ def find_product(path: str | Path, *, resolution: int | None = None, bands: Sequ
         raise SensorInputError(f"{path}: a Sentinel-2 L1C product (top-of-atmosphere); NBAR needs L2A")
     hls = find_hls_granule(path)
     if hls is not None:
-        raise SensorInputError(hls_refusal(path, list(hls.bands.values())))
+        raise SensorInputError(hls_refusal(hls))
     raise SensorInputError(f"{path}: neither a Sentinel-2 L2A SAFE folder (MTD_MSIL2A.xml) nor a Landsat "
                            "Collection-2 L2 folder (*_SR_B<n>.TIF)")
 

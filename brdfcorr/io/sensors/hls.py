@@ -79,14 +79,12 @@ def _nbar_sza(path: Path) -> float | None:
         return None
 
 
-def hls_refusal(path: Path, files: Sequence[Path]) -> str:
+def hls_refusal(granule: HlsGranule) -> str:
     """Why a granule is not normalized again: its reflectance is NBAR already (module docstring)."""
-    kind = "S30 (Sentinel-2)" if ".S30." in files[0].name.upper() else "L30 (Landsat)"
-    sza = _nbar_sza(files[0])
-    zenith = f"sun zenith {sza:.2f} deg" if sza is not None else "the sun zenith in its NBAR_SOLAR_ZENITH tag"
-    return (f"{path}: an HLS v2.0 {kind} granule is already NBAR (c-factor with the Roy et al. coefficients: "
-            f"nadir view, {zenith}); brdfcorr nbar does not normalize it again, but moves it to another sun "
-            "zenith with --ref-sza DEG")
+    kind = "S30 (Sentinel-2)" if granule.kind == "hls_s30" else "L30 (Landsat)"
+    return (f"{granule.path}: an HLS v2.0 {kind} granule is already NBAR (c-factor with the Roy et al. "
+            f"coefficients: nadir view, sun zenith {granule.nbar_sza:.2f} deg); brdfcorr nbar does not normalize "
+            "it again, but moves it to another sun zenith with --ref-sza DEG")
 
 
 def find_hls_granule(path: str | Path, bands: Sequence[str] | None = None) -> HlsGranule | None:
