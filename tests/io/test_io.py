@@ -217,3 +217,55 @@ def test_a_band_tag_is_not_a_dataset_tag(tmp_path):
         dataset.update_tags(1, wavelength="999")  # band 1 only: not the dataset's wavelength list
         dataset.descriptions = ("450 nm", "550 nm", "650 nm")
     np.testing.assert_allclose(io.open_image(path)["wavelength"], [450, 550, 650])
+
+
+def _open_masked(path):
+    """The image as rioxarray's masked, scaled read gives it (what open_image did for every file)."""
+    from brdfcorr.io import rasters
+
+    original = rasters._read_as_stored
+    rasters._read_as_stored = lambda path: False
+    try:
+        return rasters.open_image(path, chunks=16)
+    finally:
+        rasters._read_as_stored = original
+
+
+@pytest.mark.parametrize("nodata", [float("nan"), None])
+def test_a_float_image_read_as_stored_equals_the_masked_read(tmp_path, nodata):
+    # Float bands with NaN nodata (or none), no mask band, no scale: the unmasked read (issue 28,
+    # a fifth less read time) gives the same values, attrs and nodata as the masked read.
+    from brdfcorr.io import rasters
+
+    data = np.random.default_rng(1).uniform(0, 0.6, (3, 40, 48)).astype("float32")
+    data[:, :5, :7] = np.nan
+    path = _write(tmp_path / "image.tif", data, nodata=nodata)
+    plain, masked = rasters.open_image(path, chunks=16), _open_masked(path)
+    assert rasters._read_as_stored(path)
+    np.testing.assert_array_equal(plain.values, masked.values)
+    assert plain.attrs == masked.attrs and plain.dtype == masked.dtype
+    assert str(plain.rio.encoded_nodata) == str(masked.rio.encoded_nodata)
+
+
+@pytest.mark.parametrize("kind", ["nodata", "mask band", "scale"])
+def test_an_image_needing_the_masked_read_keeps_it(tmp_path, kind):
+    # A numeric nodata, GDAL's mask band (masked pixels hold ordinary values) or a scale tag:
+    # only the masked, scaled read gives reflectance factors with NaN where nothing was measured.
+    from brdfcorr.io import rasters
+
+    data = np.full((2, 32, 32), 0.25, "float32")
+    data[:, :4, :4] = -9999.0
+    path = _write(tmp_path / "image.tif", data, nodata=-9999.0 if kind == "nodata" else None)
+    with rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True), rasterio.open(path, "r+") as dataset:
+        if kind == "mask band":
+            mask = np.full((32, 32), 255, "uint8")
+            mask[:4, :4] = 0
+            dataset.write_mask(mask)
+        if kind == "scale":
+            dataset.scales, dataset.offsets = (2.0, 2.0), (0.0, 0.0)
+    assert not rasters._read_as_stored(path)
+    image = rasters.open_image(path, chunks=16).values
+    if kind == "scale":
+        assert image[0, 10, 10] == pytest.approx(0.5)
+    else:
+        assert np.isnan(image[:, :4, :4]).all() and np.all(image[:, 4:, 4:] == 0.25)

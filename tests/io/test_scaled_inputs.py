@@ -277,3 +277,32 @@ def test_chain_inputs_scale_and_offset(files, tmp_path):
     with rasterio.open(tmp_path / "out" / "landsat_c2_untagged_brdf.tif") as dataset:
         np.testing.assert_allclose(dataset.read(), reference, rtol=1e-6, equal_nan=True)
         assert dataset.tags()["brdf_input_offset"] == "-0.2"
+
+
+def _reflectance_cube(values, chunks):
+    """A lazily chunked (band, y, x) image as :func:`rasters.open_image` gives one."""
+    import dask.array
+    import xarray as xr
+
+    return xr.DataArray(dask.array.from_array(values, chunks=(values.shape[0], chunks, chunks)),
+                        dims=("band", "y", "x"))
+
+
+def test_scale_check_reads_only_the_central_chunk_when_it_holds_enough(monkeypatch):
+    # Each chunk read decompresses its input tiles (a sixth of a 1 GiB cube's correction time for
+    # nine chunks, issue 28): one chunk of 4 x 80 x 80 valid values is enough to judge by.
+    read = []
+    sample = rasters._valid_sample
+    monkeypatch.setattr(rasters, "_valid_sample", lambda block, *a, **k: read.append(block.shape) or sample(block))
+    values = np.random.default_rng(0).uniform(0.0, 0.5, (4, 400, 400)).astype("float32")
+    assert rasters.check_reflectance_scale(_reflectance_cube(values, 80), scheduler="synchronous") <= 0.5
+    assert read == [(4, 80, 80)]
+
+
+def test_scale_check_looks_beyond_an_empty_centre():
+    # Reflectance x 10 000 stored as floats, the centre of the scene without data (a flight line's
+    # footprint, a partly covered tile): the spread chunks still find the values and refuse them.
+    values = np.random.default_rng(0).uniform(0.0, 5000.0, (4, 400, 400)).astype("float32")
+    values[:, 160:240, 160:240] = np.nan
+    with pytest.raises(InputError, match="--scale"):
+        rasters.check_reflectance_scale(_reflectance_cube(values, 80), scheduler="synchronous")
