@@ -6,8 +6,8 @@ For each cube of ``--sizes`` (``1g``: 64 bands x 2048^2 float32; ``4g``: 64 band
 Torrance-Sparrow classes and one empirical; ``kernel``: three Ross-Thick/Li-Sparse classes), the
 scene is written to a temporary directory (tiled deflate GeoTIFF with the float predictor, input
 tiles of ``--tile`` pixels, pixel-interleaved as GDAL writes multi-band GeoTIFFs by default), then
-``brdfcorr correct`` runs in a fresh process and its peak RSS is taken from the kernel
-(``os.wait4``'s resource usage of that one child, ``ru_maxrss``). Printed beside it: the model's
+``brdfcorr correct`` runs in a fresh process, which reports its own peak RSS (``VmHWM``, the
+kernel's high-water mark of that process's memory; :data:`CHILD`). Printed beside it: the model's
 prediction (:func:`predicted_mib`, the terms of ``docs/scaling.md``) and the goal of issue 28
 (``0.6 x cube + 250 MiB``).
 
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 import subprocess
 import sys
 import tempfile
@@ -96,26 +95,38 @@ def make_scene(directory: Path, bands: int, side: int, tile: int) -> dict[str, P
     return paths
 
 
+#: A fresh process that runs the CLI and, at exit, writes its own peak RSS [KiB] (``VmHWM``) to the
+#: file named by its first argument. Not ``ru_maxrss`` from ``wait4``: Linux carries the parent's
+#: memory at the fork into a child's ``ru_maxrss``, and the parent held the cube it had just written
+#: (1160 MiB for every run of the 4 GiB cube, 1899 MiB for the hyperspectral one).
+CHILD = ("import atexit, pathlib, sys; report = pathlib.Path(sys.argv.pop(1)); "
+         "atexit.register(lambda: report.write_text(next(line.split()[1] for line in "
+         "open('/proc/self/status') if line.startswith('VmHWM:')))); "
+         "from brdfcorr.cli import main; main()")
+
+
 def run_correct(paths: dict[str, Path], table: Path, output: Path) -> tuple[float, float]:
     """``brdfcorr correct`` in a fresh process: (seconds, peak RSS [MiB]) of that process."""
-    command = [sys.executable, "-c", "from brdfcorr.cli import main; main()", "correct", str(paths["image"]),
+    report = output.with_suffix(".vmhwm")
+    command = [sys.executable, "-c", CHILD, str(report), "correct", str(paths["image"]),
                "--angles", str(paths["angles"]), "--classes", str(paths["classes"]), "--params", str(table),
                "-o", str(output), "--overwrite", "--ref-sza", "mean", "--no-progress"]
     start = time.perf_counter()
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(process.pid, 0)
+    process = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, check=False)
     seconds = time.perf_counter() - start
-    if os.waitstatus_to_exitcode(status) != 0:
-        sys.exit(f"brdfcorr correct failed: {process.stderr.read().decode() if process.stderr else ''}")
-    return seconds, usage.ru_maxrss / 1024  # ru_maxrss: KiB on Linux
+    if process.returncode != 0:
+        sys.exit(f"brdfcorr correct failed: {process.stderr.decode()}")
+    peak = int(report.read_text()) / 1024  # KiB
+    report.unlink()
+    return seconds, peak
 
 
 def base_mib() -> float:
     """Peak RSS [MiB] of a process that only imports what ``correct`` imports (the model's base)."""
-    code = ("import brdfcorr.workflow.correction, brdfcorr.cli.correct, resource;"
-            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)")
-    return float(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
-                                text=True).stdout.split()[-1])
+    code = ("import brdfcorr.workflow.correction, brdfcorr.cli.correct;"
+            "print(next(line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM:')))")
+    return int(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                              text=True).stdout.split()[-1]) / 1024  # KiB
 
 
 def predicted_mib(image: Path, base: float) -> dict[str, float]:
