@@ -19,8 +19,11 @@ from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import UnknownNameError
+from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD, with_shape_prior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
+from brdfcorr.models.coefficients import load_coefficients
+from brdfcorr.params import ParameterTable
 
 __all__ = [
     "MeasurementSet",
@@ -111,6 +114,12 @@ class ImageryFit(StrictModel):
         bands (:data:`brdfcorr.fit.WATER_VAPOUR_BANDS`).
     fallback : str, optional
         Built-in material or coefficient set for classes that fail the guard rails.
+    prior : str, optional
+        Built-in coefficient set whose kernel shape is a prior of the fitted RTLSR classes
+        (``--prior``, :func:`brdfcorr.fit.prior.with_shape_prior`).
+    prior_spread : float, optional
+        The prior's 1-sigma of the ratios f_vol/f_iso and f_geo/f_iso (``--prior-spread``; default
+        :data:`brdfcorr.fit.prior.DEFAULT_PRIOR_SPREAD`); only with ``prior``.
     output : str
         The fitted table, in the output directory.
     """
@@ -129,7 +138,32 @@ class ImageryFit(StrictModel):
     bad_bands: list[tuple[Number, Number]] = Field(
         default_factory=lambda: [tuple(band_range) for band_range in WATER_VAPOUR_BANDS])
     fallback: str | None = None
+    prior: str | None = None
+    prior_spread: Number | None = Field(None, gt=0, allow_inf_nan=False)
     output: str = "fitted_params.yaml"
+
+    @field_validator("prior")
+    @classmethod
+    def _prior(cls, value: str | None) -> str | None:
+        if value is not None:
+            try:
+                load_coefficients(value)
+            except UnknownNameError as error:
+                raise ValueError(error.args[0]) from None
+        return value
+
+    @model_validator(mode="after")
+    def _spread_needs_prior(self) -> ImageryFit:
+        if self.prior_spread is not None and self.prior is None:
+            raise ValueError("prior_spread needs prior")
+        return self
+
+    def with_prior(self, table: ParameterTable) -> ParameterTable:
+        """``table`` (the fit's) under the step's shape prior, or as it is without one."""
+        if self.prior is None:
+            return table
+        spread = DEFAULT_PRIOR_SPREAD if self.prior_spread is None else self.prior_spread
+        return with_shape_prior(table, self.prior, spread)
 
     @field_validator("fallback")
     @classmethod

@@ -77,6 +77,8 @@ def test_given_settings_reach_the_fit_and_names_of_the_step_win():
     ("bad_bands", [[1340]], "steps.fit.bad_bands[0]"),
     ("max_condition", 0.5, "steps.fit.max_condition: Input should be greater than or equal to 1"),
     ("max_condition", ".inf", "steps.fit.max_condition: Input should be a finite number"),
+    ("prior", "roy2015", "steps.fit.prior: "),
+    ("prior_spread", 0, "steps.fit.prior_spread: Input should be greater than 0"),
 ])
 def test_bad_values_are_one_line_naming_the_key(key, value, expected):
     document = {"inputs": {"images": ["a.tif"], "angles": {"path": "a_angles.tif"}, "classes": "c.tif"},
@@ -128,3 +130,18 @@ def test_a_chain_leaves_out_its_bad_bands_and_applies_its_condition_limit(strata
     with pytest.raises(InputError, match="the parameter table of the run has no class"):
         run_chain(strict)
     assert not (strata_scene / "out_strict" / "line0_brdf.tif").exists()
+
+
+def test_a_prior_of_the_step_is_that_of_fit_classes(strata_scene):
+    # steps.fit.prior/prior_spread as fit-classes --prior/--prior-spread: the fitted table under
+    # the coefficient set's kernel shape (brdfcorr.fit.prior.with_shape_prior).
+    from brdfcorr.fit.prior import with_shape_prior
+
+    assert run_chain(load_config(_chain(strata_scene, "plain", {}))).ok
+    config = load_config(_chain(strata_scene, "prior", {"prior": "roy2016", "prior_spread": 0.1}))
+    assert run_chain(config).ok
+    plain = ParameterTable.load(strata_scene / "out_plain" / "fitted_params.yaml")
+    assert ParameterTable.load(strata_scene / "out_prior" / "fitted_params.yaml") == with_shape_prior(
+        plain, "roy2016", 0.1)
+    with pytest.raises(ValueError, match="prior_spread needs prior"):
+        ImageryFit(source="imagery", prior_spread=0.1)

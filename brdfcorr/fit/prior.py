@@ -1,0 +1,106 @@
+"""A coefficient set's kernel shape as a prior of an imagery fit (``fit-classes --prior``).
+
+A scene fit of the RTLSR weights per class and band is unbiased but noisy where a class has few
+pixels or a narrow range of view angles; a global coefficient set (Roy et al. 2016) is precise but
+the same for every land cover. :func:`with_shape_prior` combines the two, band by band, as the
+maximum a posteriori estimate of a linear Gaussian model. The prior is on the kernel *shape*, the
+ratios ``f_vol / f_iso`` and ``f_geo / f_iso``, not on the weights themselves: a scene's albedo is
+its own, and only the shape enters the correction factor.
+
+For a band with fitted weights ``w = (f_iso, f_vol, f_geo)`` and their covariance ``C`` (the fit
+record's), and the prior's ratios ``r_vol``, ``r_geo`` at the band's centre, the prior reads
+
+    f_vol - r_vol f_iso ~ N(0, (s f_iso)^2),    f_geo - r_geo f_iso ~ N(0, (s f_iso)^2)
+
+with ``s`` the spread (the prior's 1-sigma of either ratio, dimensionless) and ``f_iso`` the fit's.
+With ``A = [[-r_vol, 1, 0], [-r_geo, 0, 1]]`` and ``t = s f_iso`` the posterior is
+
+    Q = C^-1 + A^T A / t^2,    w' = Q^-1 C^-1 w,    C' = Q^-1
+
+(the fit's likelihood approximated by its Gaussian, exact for the linear kernel model). ``s`` to
+infinity gives the fit back, ``s`` to 0 the prior's ratios with the fit's brightness.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from brdfcorr.errors import InputError
+from brdfcorr.models.coefficients import load_coefficients
+from brdfcorr.params import ParameterTable
+
+__all__ = ["DEFAULT_PRIOR_SPREAD", "KERNEL_WEIGHTS", "prior_ratios", "shape_posterior", "with_shape_prior"]
+
+#: The RTLSR weights, in the order of a fit record's covariance.
+KERNEL_WEIGHTS = ("f_iso", "f_vol", "f_geo")
+
+#: ``fit-classes --prior``'s default spread: of 0.05, 0.1, 0.2 and 0.5, the one that left the
+#: smallest held-out residual on the real MODIS subset (``benchmarks/bench_real.py --prior-spread``).
+DEFAULT_PRIOR_SPREAD = 0.2
+
+
+def prior_ratios(coefficients: str, wavelengths) -> np.ndarray:
+    """(n, 2): ``f_vol / f_iso`` and ``f_geo / f_iso`` of the coefficient set ``coefficients``
+    (:func:`brdfcorr.models.coefficients.load_coefficients`) at ``wavelengths`` [nm], linear in
+    wavelength between its bands' centres and held at the end bands' values beyond them."""
+    nodes, weights = load_coefficients(coefficients).wavelength_nodes()
+    iso = np.asarray(weights["f_iso"], float)
+    return np.column_stack([np.interp(np.asarray(wavelengths, float), nodes, np.asarray(weights[name], float) / iso)
+                            for name in ("f_vol", "f_geo")])
+
+
+def shape_posterior(weights: np.ndarray, covariance: np.ndarray, ratios: np.ndarray,
+                    spread: float) -> tuple[np.ndarray, np.ndarray]:
+    """The posterior weights (n, 3) and covariance (n, 3, 3) of fitted RTLSR ``weights`` (n, 3:
+    f_iso, f_vol, f_geo per band) with ``covariance`` (n, 3, 3) under the shape prior of
+    ``ratios`` (n, 2) with 1-sigma ``spread`` (module docstring); weights clipped at 0, the
+    model's bound."""
+    weights, covariance, ratios = (np.asarray(a, float) for a in (weights, covariance, ratios))
+    n = weights.shape[0]
+    design = np.zeros((n, 2, 3))
+    design[:, :, 0] = -ratios
+    design[:, 0, 1] = design[:, 1, 2] = 1.0
+    width = spread * np.maximum(weights[:, 0], np.finfo(float).tiny)
+    fit_precision = np.linalg.inv(covariance)
+    precision = fit_precision + np.swapaxes(design, 1, 2) @ design / width[:, None, None] ** 2
+    posterior = np.linalg.inv(precision)
+    estimate = posterior @ (fit_precision @ weights[:, :, None])
+    return np.maximum(estimate[:, :, 0], 0.0), 0.5 * (posterior + np.swapaxes(posterior, 1, 2))
+
+
+def with_shape_prior(table: ParameterTable, coefficients: str, spread: float) -> ParameterTable:
+    """``table`` with the fitted ``ross_thick_li_sparse`` classes moved to their posterior under
+    the kernel shape of ``coefficients`` (:func:`shape_posterior`; :func:`prior_ratios` at each
+    class's wavelengths): parameters, covariance and errors; the record's source names the prior.
+    Classes of other models, without a fit record (a fallback) or with weights held fixed are
+    left as they are.
+
+    Raises
+    ------
+    InputError
+        ``spread`` is not a positive number.
+    """
+    if not spread > 0 or not np.isfinite(spread):
+        raise InputError(f"the prior's spread {spread} must be a positive number")
+    result = table
+    for entry in table.classes:
+        fit = entry.fit
+        if (entry.model != "ross_thick_li_sparse" or fit is None or entry.wavelengths is None
+                or tuple(fit.parameters) != KERNEL_WEIGHTS):
+            continue
+        wavelengths = np.asarray(entry.wavelengths, float)
+        weights = np.column_stack([np.broadcast_to(np.asarray(entry.params[name], float), wavelengths.shape)
+                                   for name in KERNEL_WEIGHTS])
+        matrices = np.broadcast_to(fit.matrices(), (wavelengths.size, 3, 3))
+        posterior, covariance = shape_posterior(weights, matrices, prior_ratios(coefficients, wavelengths), spread)
+        errors = np.sqrt(np.diagonal(covariance, axis1=1, axis2=2))
+        record = fit.model_dump() | {
+            "source": f"{fit.source} + shape prior {coefficients} (spread {spread:g})",
+            "covariance": covariance.tolist(),
+            "errors": {name: errors[:, j].tolist() for j, name in enumerate(KERNEL_WEIGHTS)},
+        }
+        for name, kind in (("n", int), ("chi2_dof", float), ("r2", float)):  # one per band, as the covariance
+            record[name] = [kind(value) for value in np.broadcast_to(np.asarray(record[name]), wavelengths.shape)]
+        result = result.with_class(entry.model_dump() | {
+            "params": {name: posterior[:, j].tolist() for j, name in enumerate(KERNEL_WEIGHTS)}, "fit": record})
+    return result

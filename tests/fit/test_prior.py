@@ -1,0 +1,124 @@
+"""A coefficient set's kernel shape as a prior of an imagery fit (brdfcorr.fit.prior,
+``fit-classes --prior``): the posterior against an independent augmented least-squares solution,
+its limits, the published ratios, and what the table and the command keep."""
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.errors import InputError
+from brdfcorr.fit.prior import prior_ratios, shape_posterior, with_shape_prior
+from brdfcorr.params import ParameterTable
+
+#: Roy et al. (2016), RSE 176, Table 1, red (BRF weights): f_iso, f_vol, f_geo.
+ROY_RED = (0.1690, 0.0574, 0.0227)
+
+
+def _kernel_fit(seed: int = 0, n: int = 200, noise: float = 0.004):
+    """An ordinary least-squares fit of (f_iso, f_vol, f_geo) to noisy reflectances: the design
+    (n, 3), the data, the estimate and its covariance sigma^2 (X^T X)^-1."""
+    rng = np.random.default_rng(seed)
+    design = np.column_stack([np.ones(n), rng.uniform(-0.2, 0.6, n), rng.uniform(-1.5, 0.0, n)])
+    data = design @ np.array([0.05, 0.03, 0.004]) + rng.normal(0, noise, n)
+    estimate = np.linalg.lstsq(design, data, rcond=None)[0]
+    return design, data, estimate, noise**2 * np.linalg.inv(design.T @ design)
+
+
+def test_the_posterior_is_the_augmented_least_squares_solution():
+    # The fit's Gaussian likelihood is exact for a linear model: the posterior equals least squares
+    # on the observations and the prior's two pseudo-observations, each weighted by its 1-sigma.
+    design, data, estimate, covariance = _kernel_fit()
+    ratios, spread, noise = np.array([0.4, 0.1]), 0.2, 0.004
+    width = spread * estimate[0]
+    prior_rows = np.array([[-ratios[0], 1.0, 0.0], [-ratios[1], 0.0, 1.0]]) / width
+    augmented = np.vstack([design / noise, prior_rows])
+    expected = np.linalg.lstsq(augmented, np.concatenate([data / noise, [0.0, 0.0]]), rcond=None)[0]
+    weights, posterior = shape_posterior(estimate[None], covariance[None], ratios[None], spread)
+    np.testing.assert_allclose(weights[0], expected, rtol=1e-9)
+    np.testing.assert_allclose(posterior[0], np.linalg.inv(augmented.T @ augmented), rtol=1e-9)
+
+
+def test_a_wide_prior_keeps_the_fit_and_a_narrow_one_takes_its_shape():
+    _, _, estimate, covariance = _kernel_fit(seed=1)
+    ratios = np.array([[0.4, 0.1]])
+    wide, _ = shape_posterior(estimate[None], covariance[None], ratios, 1e6)
+    np.testing.assert_allclose(wide[0], estimate, rtol=1e-6)
+    narrow, narrow_covariance = shape_posterior(estimate[None], covariance[None], ratios, 1e-6)
+    np.testing.assert_allclose(narrow[0, 1:] / narrow[0, 0], ratios[0], rtol=1e-5)
+    # The prior adds information: no parameter is less certain than in the fit.
+    assert np.all(np.diagonal(narrow_covariance[0]) <= np.diagonal(covariance) * (1 + 1e-9))
+
+
+def test_prior_ratios_are_the_published_ones_at_a_band_centre():
+    ratios = prior_ratios("roy2016", [660.0])  # between the red nodes (654.6 and 664.9 nm)
+    np.testing.assert_allclose(ratios[0], [ROY_RED[1] / ROY_RED[0], ROY_RED[2] / ROY_RED[0]], rtol=1e-12)
+
+
+def _table():
+    """A fitted RTLSR class (per band, with its covariance), a class without a fit (a fallback's
+    coefficients) and a Torrance-Sparrow class."""
+    _, _, estimate, covariance = _kernel_fit(seed=2)
+    weights = {"f_iso": [estimate[0]] * 2, "f_vol": [estimate[1]] * 2, "f_geo": [estimate[2]] * 2}
+    errors = np.sqrt(np.diag(covariance))
+    record = {"source": "imagery", "parameters": ["f_iso", "f_vol", "f_geo"], "n": [200, 200],
+              "chi2_dof": [1.0, 1.0], "r2": [0.9, 0.9],
+              "errors": {name: [float(errors[j])] * 2 for j, name in enumerate(weights)},
+              "covariance": [covariance.tolist()] * 2}
+    return ParameterTable(classes=[
+        {"id": 1, "name": "grass", "model": "ross_thick_li_sparse", "wavelengths": [650.0, 860.0],
+         "params": weights, "fit": record},
+        {"id": 2, "name": "soil", "model": "ross_thick_li_sparse", "wavelengths": [650.0, 860.0],
+         "params": weights},
+        {"id": 3, "name": "roof", "model": "torrance_sparrow",
+         "params": {"t0": 0.0245, "t1": 0.2, "w": 0.0362, "n": 1.77, "k": 0.25}},
+    ])
+
+
+def test_only_fitted_kernel_classes_move_and_the_table_stays_valid(tmp_path):
+    table = _table()
+    moved = with_shape_prior(table, "roy2016", 0.2)
+    grass = moved[1]
+    assert grass.fit.source == "imagery + shape prior roy2016 (spread 0.2)"
+    assert grass.params != table[1].params
+    assert moved[2] == table[2] and moved[3] == table[3]
+    errors = np.asarray(grass.fit.errors["f_vol"])
+    assert np.all(errors <= np.asarray(table[1].fit.errors["f_vol"]))
+    assert ParameterTable.load(moved.save(tmp_path / "table.yaml")) == moved
+
+
+def test_the_spread_must_be_positive():
+    with pytest.raises(InputError, match="spread"):
+        with_shape_prior(_table(), "roy2016", 0.0)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory, write_strata_scene):
+    root = tmp_path_factory.mktemp("prior")
+    return {**write_strata_scene(root), "root": root}
+
+
+def _fit_classes(files, *extra):
+    return CliRunner().invoke(main, [str(a) for a in ("fit-classes", files["image"], "--angles", files["angles"],
+                                                      "--classes", files["strata"], *extra)])
+
+
+def test_fit_classes_with_a_prior_writes_the_posterior(files):
+    plain, prior = files["root"] / "plain.yaml", files["root"] / "prior.yaml"
+    assert _fit_classes(files, "-o", plain).exit_code == 0
+    result = _fit_classes(files, "--prior", "roy2016", "--prior-spread", "0.1", "-o", prior)
+    assert result.exit_code == 0, result.output
+    assert "shape prior roy2016 (spread 0.1): 2 fitted class(es) moved" in result.output
+    expected = with_shape_prior(ParameterTable.load(plain), "roy2016", 0.1)
+    assert ParameterTable.load(prior) == expected
+
+
+@pytest.mark.parametrize("extra, message", [
+    (("--prior-spread", "0.1"), "--prior-spread needs --prior"),
+    (("--prior", "roy2015"), "roy2015"),
+])
+def test_a_prior_option_error_is_one_line_before_the_fit(files, extra, message):
+    target = files["root"] / "never.yaml"
+    result = _fit_classes(files, *extra, "-o", target)
+    assert result.exit_code == 2 and message in result.output
+    assert not target.exists()
