@@ -17,8 +17,9 @@ With ``A = [[-r_vol, 1, 0], [-r_geo, 0, 1]]`` and ``t = s f_iso`` the posterior 
 
     Q = C^-1 + A^T A / t^2,    w' = Q^-1 C^-1 w,    C' = Q^-1
 
-(the fit's likelihood approximated by its Gaussian, exact for the linear kernel model). ``s`` to
-infinity gives the fit back, ``s`` to 0 the prior's ratios with the fit's brightness.
+(the fit's likelihood approximated by its Gaussian, exact for the linear kernel model), computed
+in the equal form ``w' = w - C A^T (A C A^T + t^2 I)^-1 A w`` that needs no inverse of ``C``.
+``s`` to infinity gives the fit back, ``s`` to 0 the prior's ratios with the fit's brightness.
 """
 
 from __future__ import annotations
@@ -61,11 +62,14 @@ def shape_posterior(weights: np.ndarray, covariance: np.ndarray, ratios: np.ndar
     design[:, :, 0] = -ratios
     design[:, 0, 1] = design[:, 1, 2] = 1.0
     width = spread * np.maximum(weights[:, 0], np.finfo(float).tiny)
-    fit_precision = np.linalg.inv(covariance)
-    precision = fit_precision + np.swapaxes(design, 1, 2) @ design / width[:, None, None] ** 2
-    posterior = np.linalg.inv(precision)
-    estimate = posterior @ (fit_precision @ weights[:, :, None])
-    return np.maximum(estimate[:, :, 0], 0.0), 0.5 * (posterior + np.swapaxes(posterior, 1, 2))
+    # The update form of the posterior (equal to the module's): no inverse of C, which a fit
+    # without noise leaves singular; the 2 x 2 system is positive definite whatever C.
+    gain = covariance @ np.swapaxes(design, 1, 2)  # C A^T, (n, 3, 2)
+    system = design @ gain + width[:, None, None] ** 2 * np.eye(2)
+    residual = design @ weights[:, :, None]  # A w: the fit's departure from the prior's shape
+    estimate = weights - (gain @ np.linalg.solve(system, residual))[:, :, 0]
+    posterior = covariance - gain @ np.linalg.solve(system, np.swapaxes(gain, 1, 2))
+    return np.maximum(estimate, 0.0), 0.5 * (posterior + np.swapaxes(posterior, 1, 2))
 
 
 def with_shape_prior(table: ParameterTable, coefficients: str, spread: float) -> ParameterTable:

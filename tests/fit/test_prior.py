@@ -122,3 +122,11 @@ def test_a_prior_option_error_is_one_line_before_the_fit(files, extra, message):
     result = _fit_classes(files, *extra, "-o", target)
     assert result.exit_code == 2 and message in result.output
     assert not target.exists()
+
+
+def test_a_fit_without_noise_keeps_its_weights():
+    # A noise-free fit has a zero covariance: the data decide alone, and nothing is inverted.
+    weights, covariance = shape_posterior(np.array([[0.05, 0.03, 0.004]]), np.zeros((1, 3, 3)),
+                                          np.array([[0.4, 0.1]]), 0.2)
+    np.testing.assert_array_equal(weights, [[0.05, 0.03, 0.004]])
+    np.testing.assert_array_equal(covariance, np.zeros((1, 3, 3)))
