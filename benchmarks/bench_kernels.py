@@ -62,7 +62,10 @@ least squares, each pixel's fraction from all its bands at its own geometry, its
 percentiles held at 0 and 1): 5.03 % after 4 rounds, 2.52 % after 12 on A'; on A the residual
 grows (2.30 %, then 8.44 %): the albedo texture, which the end members' fit ignores, and the
 fractions' noise let the alternation drift. Without the held percentiles it drifts as well (A':
-2.27, 1.91, 2.39 % after 4, 12, 30 rounds; A: 2.43, 6.13, 16.6 %). Not kept.
+2.27, 1.91, 2.39 % after 4, 12, 30 rounds; A: 2.43, 6.13, 16.6 %). Not kept. (e) Strata of the
+observed NDVI less its least-squares trend in the kernels over the scene: 0.92 / 0.77 % on A'
+(near the nadir NDVI's 0.63 %), but 15.4 / 14.7 % on A, where the cover differs between the sides
+and the trend removes real differences. Not kept.
 
 Timing: fit + correct (and for A the strata) of the default 400 x 600 x 60 float32 line; goal
 < 6 s on the 2-core reference machine. As a machine-independent figure the time is also given

@@ -18,6 +18,7 @@ seconds taken (``bench_kernels.py``'s docstring defines the scenes and metrics).
   and noise draw), fitted together: strata cut per line, or from the two lines' mean NDVI (each
   point seen from both sides);
 * strata from a view-independent NDVI (of the nadir image: e.g. an NBAR product's);
+* (e) strata of the observed NDVI less its least-squares trend in the kernels, on A' and A;
 * (d) no strata: a two-end-member kernel mixture, ``rho / pi = a P(g) + b Q(g)`` per pixel, fitted
   by alternating least squares (the end members' weights from the fractions t = b / (a + b), then
   each pixel's t from all its bands at its own geometry, which the view does not bias), on A' and A;
@@ -174,6 +175,19 @@ def unmixing_correction(scene: dict, iterations: int = 4) -> np.ndarray:
     return weights_linear_correction(scene, t)
 
 
+def detrended_ndvi(scene: dict) -> np.ndarray:
+    """(e) The observed NDVI less its least-squares trend in the RTLSR kernels over the whole
+    scene, relative to the reference geometry: view-independent where the cover is uncorrelated
+    with the kernels across the line (A'), not where it differs between the sides (A)."""
+    index = ndvi_of(scene, scene["image"].values).ravel()
+    observed = RTLSR.terms(_flat_geometry(scene), {})
+    reference = RTLSR.terms(ScatteringGeometry(*_reference_angles(scene["angles"], scene["reference_sza"])), {})
+    trend = np.column_stack([np.broadcast_to(np.asarray(k, float) - np.asarray(r, float), index.shape)
+                             for k, r in zip(observed[1:], reference[1:])])  # the volume and geometric kernels
+    coefficients = np.linalg.lstsq(np.column_stack([np.ones_like(index), trend]), index, rcond=None)[0]
+    return (index - trend @ coefficients[1:]).reshape(scene["image"].shape[1:])
+
+
 def recut_passes(scene: dict, passes: int) -> np.ndarray:
     """(b) 5 strata cut from the NDVI of the image corrected with the previous pass's interpolated strata."""
     cube = np.asarray(scene["image"].values)
@@ -207,6 +221,8 @@ def diagnose(args, scene: dict, flown: dict) -> None:
         ("2 lines pooled, strata of their mean NDVI", scene, strata_of(both), [(afternoon, strata_of(both))]),
         ("5 strata of a view-independent NDVI (nadir)", scene, strata_of(nadir), ()),
         ("10 strata of a view-independent NDVI (nadir)", scene, strata_of(nadir, tuple(range(10, 100, 10))), ()),
+        ("(e) 5 strata of the NDVI less its kernel trend", scene, strata_of(detrended_ndvi(scene)), ()),
+        ("A (as flown), (e) 5 strata of the NDVI less its kernel trend", flown, strata_of(detrended_ndvi(flown)), ()),
     ]
     cases = [(f"{label}, {'interpolated' if continuous else 'binned'}", strata_correction,
               (case, classes, continuous, pooled)) for label, case, classes, pooled in strata_cases
