@@ -80,6 +80,9 @@ class HoldoutFit:
         sun zenith, nadir view: ``{"sza": "mean", "vza": 0.0}``).
     limits : (float, float) or None, default DEFAULT_LIMITS
         Limits of the correction factor [-] (:data:`brdfcorr.defaults.DEFAULT_LIMITS`; None: none).
+    prior : (str, float), optional
+        A coefficient set and spread whose kernel shape is the prior of each fit
+        (:func:`brdfcorr.fit.prior.with_shape_prior`; None: the fits alone).
     """
 
     model: str = "torrance_sparrow"
@@ -89,6 +92,7 @@ class HoldoutFit:
     seed: int = 0
     reference: Mapping[str, object] | None = None
     limits: tuple[float, float] | None = DEFAULT_LIMITS
+    prior: tuple[str, float] | None = None
 
 
 def leave_one_line_out(
@@ -120,6 +124,7 @@ def leave_one_line_out(
     """
     from brdfcorr.correction import normalize
     from brdfcorr.fit import ClassModels, Sampling, fit_classes
+    from brdfcorr.fit.prior import with_shape_prior
 
     if len(lines) < 2:
         raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(lines)}")
@@ -134,8 +139,9 @@ def leave_one_line_out(
                              [xr.Dataset(dict(t.angles)) for t in training],
                              ClassModels(model, class_models=class_models, fixed=fixed, names=names),
                              sampling=Sampling(max_samples=max_samples, seed=seed))
+        table = fitted.table if fit.prior is None else with_shape_prior(fitted.table, *fit.prior)
 
-        def corrected(target: Line, table=fitted.table) -> xr.DataArray:
+        def corrected(target: Line, table=table) -> xr.DataArray:
             return normalize(target.reflectance, target.classes, target.angles, table, reference, limits=limits,
                              flip_view_azimuth=flip_view_azimuth).reflectance
 
@@ -148,7 +154,7 @@ def leave_one_line_out(
                 if _overlaps(line.reflectance, other.reflectance):
                     overlaps[other.name] = assess_overlap(line.reflectance, after, other.reflectance,
                                                           corrected(other))
-        results.append(HeldOutLine(line.name, fitted.table, view, overlaps, fitted.report()))
+        results.append(HeldOutLine(line.name, table, view, overlaps, fitted.report()))
     return results
 
 

@@ -1,5 +1,6 @@
-"""Options that say how a scene's inputs are read, shared by ``correct`` and ``fit-classes``:
-the angle source, the class map's grid and codes, and the image's scale and offset."""
+"""Options shared by the commands that read scenes (``correct``, ``fit-classes``, ``assess-lines``):
+the angle source, the class map's grid and codes, the image's scale and offset, and the prior of
+an imagery fit."""
 
 from __future__ import annotations
 
@@ -48,6 +49,31 @@ scale_options = _stack(
                  help="Reflectance factor of a stored 0, e.g. -0.2 for Landsat C2 L2 [default: the "
                       "image's GDAL offset, else 0]."),
 )
+
+
+#: ``--prior`` and ``--prior-spread``: a coefficient set's kernel shape as the prior of a fit.
+prior_options = _stack(
+    click.option("--prior", metavar="SET",
+                 help="Built-in coefficient set (brdfcorr coefficients: roy2016, roy2017) whose kernel shape "
+                      "(f_vol/f_iso, f_geo/f_iso) is a prior of the fitted ross_thick_li_sparse classes: each "
+                      "band's weights become their posterior (docs/parameter-tables.md) [default: none]."),
+    click.option("--prior-spread", type=click.FloatRange(min=0.0, min_open=True),
+                 help="With --prior: its 1-sigma of either ratio; smaller trusts the prior more [default: 0.2]."),
+)
+
+
+def prior_setting(prior: str | None, spread: float | None) -> tuple[str, float] | None:
+    """``--prior`` and ``--prior-spread`` as (set, spread), or None without a prior; an unknown set
+    or a spread without a prior is an error before any work."""
+    if spread is not None and prior is None:
+        raise click.UsageError("--prior-spread needs --prior")
+    if prior is None:
+        return None
+    from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD
+    from brdfcorr.models.coefficients import load_coefficients
+
+    load_coefficients(prior)  # an unknown name fails here, not after the fit
+    return prior, DEFAULT_PRIOR_SPREAD if spread is None else spread
 
 
 def reference_sza(value: str | None):

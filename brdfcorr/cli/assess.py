@@ -20,7 +20,14 @@ from brdfcorr.cli._base import (
     main,
     progress_bars,
 )
-from brdfcorr.cli._inputs import angle_source_options, class_map_options, reference_sza, scale_options
+from brdfcorr.cli._inputs import (
+    angle_source_options,
+    class_map_options,
+    prior_options,
+    prior_setting,
+    reference_sza,
+    scale_options,
+)
 from brdfcorr.io.paths import check_outputs, refuse_existing
 
 
@@ -164,6 +171,7 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME",
               help="Name of a class in the fit and the report (repeatable), e.g. 1=roof_tile.")
 @click.option("--fix", multiple=True, metavar="NAME=VALUE", help="Hold a shape parameter fixed in the fits.")
+@prior_options
 @click.option("--max-samples", type=int, default=50_000, show_default=True,
               help="Samples per class, over the training lines.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
@@ -182,8 +190,8 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @click.option("--overwrite", is_flag=True, help="Replace an existing report [default: refuse].")
 @handle_errors
 def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
-                         offset, model_name, class_model, class_names, fix, max_samples, seed, ref_sza, sign_by,
-                         heading, flip_view_azimuth, output, chunk, overwrite):
+                         offset, model_name, class_model, class_names, fix, prior, prior_spread, max_samples, seed,
+                         ref_sza, sign_by, heading, flip_view_azimuth, output, chunk, overwrite):
     """Leave-one-line-out: fit on the other flight lines, correct and assess each held-out line.
 
     For each of IMAGES (at least 2 flight lines, each with its --classes and --angles, in the same
@@ -199,6 +207,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
+    shape_prior = prior_setting(prior, prior_spread)
     check_line_files(images, classes, angles)
     check_outputs({"-o": output}, [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
                                    *(("--angles", path) for path in angles if angles_kind != "solar"),
@@ -212,7 +221,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
                       offset=offset) for image, class_map, angle_source in zip(images, classes, angles)],
         HoldoutFit(model_name, class_models=_pairs("--class-model", class_model),
                    fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed,
-                   reference={"sza": "mean" if sza is None else sza, "vza": 0.0}),
+                   reference={"sza": "mean" if sza is None else sza, "vza": 0.0}, prior=shape_prior),
         view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
                                       flip_view_azimuth=flip_view_azimuth),
         align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None, chunks=chunk,

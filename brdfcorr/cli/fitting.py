@@ -21,7 +21,13 @@ from brdfcorr.cli._base import (
     main,
     progress_bars,
 )
-from brdfcorr.cli._inputs import angle_source_options, class_map_options, scale_options
+from brdfcorr.cli._inputs import (
+    angle_source_options,
+    class_map_options,
+    prior_options,
+    prior_setting,
+    scale_options,
+)
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.paths import check_outputs, refuse_existing, update_target
@@ -85,12 +91,7 @@ class _BandRange(click.ParamType):
 @click.option("--fallback",
               help="Built-in material (brdfcorr materials) or coefficient set (brdfcorr coefficients: roy2016, "
                    "roy2017) for classes that fail the guard rails [default: leave uncorrected].")
-@click.option("--prior", metavar="SET",
-              help="Built-in coefficient set (brdfcorr coefficients: roy2016, roy2017) whose kernel shape "
-                   "(f_vol/f_iso, f_geo/f_iso) is a prior of the fitted ross_thick_li_sparse classes: each band's "
-                   "weights become their posterior (docs/parameter-tables.md) [default: none].")
-@click.option("--prior-spread", type=click.FloatRange(min=0.0, min_open=True),
-              help="With --prior: its 1-sigma of either ratio; smaller trusts the prior more [default: 0.2].")
+@prior_options
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter table to write (YAML).")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
@@ -111,9 +112,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     given. Bad bands (water vapour, those the ENVI header's bbl marks) are left out of the fit.
     """
     from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
-    from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD, with_shape_prior
+    from brdfcorr.fit.prior import with_shape_prior
     from brdfcorr.fit.settings import fallback_entry
-    from brdfcorr.models.coefficients import load_coefficients
     from brdfcorr.plot.materials import plot_class_fit
     from brdfcorr.workflow.classmaps import read_lookup
     from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
@@ -131,10 +131,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         refuse_existing(written.values())
     if fallback:
         fallback_entry(fallback, 1, "check")  # fail before the work if the name is wrong
-    if prior_spread is not None and prior is None:
-        raise click.UsageError("--prior-spread needs --prior")
-    if prior:
-        load_coefficients(prior)  # fail before the work if the name is wrong
+    shape_prior = prior_setting(prior, prior_spread)
     lookup = read_lookup(class_lookup) if class_lookup else None
     options = _options("--angle-option", angle_option)
     if deprecated_names:
@@ -165,11 +162,11 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         raise InputError(f"no class passed the guard rails (see the table above): nothing would be corrected; "
                          f"{output} not written")
     table = fit.table
-    if prior:
-        spread = DEFAULT_PRIOR_SPREAD if prior_spread is None else prior_spread
-        table = with_shape_prior(table, prior, spread)
+    if shape_prior is not None:
+        table = with_shape_prior(table, *shape_prior)
         moved = sum(entry.fit is not None and "shape prior" in entry.fit.source for entry in table.classes)
-        click.echo(f"shape prior {prior} (spread {spread:g}): {moved} fitted class(es) moved to their posterior")
+        click.echo(f"shape prior {shape_prior[0]} (spread {shape_prior[1]:g}): {moved} fitted class(es) moved "
+                   "to their posterior")
     output.parent.mkdir(parents=True, exist_ok=True)
     path = table.save(output)
     click.echo(f"wrote {path}")

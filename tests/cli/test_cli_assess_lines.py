@@ -129,3 +129,24 @@ def test_bad_input_is_one_line_and_exit_2(files, tmp_path):
         leave_one_line_out_files(_scenes(files, count=1))
     with pytest.raises(InputError, match="given twice"):
         leave_one_line_out_files(_scenes(files, images=files["images"][:1] * 2))
+
+
+def test_a_prior_reaches_every_held_out_fit(lines, files, tmp_path):
+    # --prior as for fit-classes: each held-out line is corrected with the posterior of the fit on
+    # the other lines (brdfcorr.fit.prior.with_shape_prior), and the CLI is the library call.
+    from brdfcorr.fit.prior import with_shape_prior
+
+    options = {"view_options": ViewAngleOptions(class_names=NAMES)}
+    plain = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE), **options)
+    prior = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE,
+                                                 prior=("roy2016", 0.1)), **options)
+    for without, with_prior in zip(plain, prior):
+        assert with_prior.table == with_shape_prior(without.table, "roy2016", 0.1)
+    output = tmp_path / "prior.json"
+    result = _invoke("assess-lines", *_arguments(files), "--model", "ross_thick_li_sparse", "--class-name", "1=grass",
+                     "--class-name", "2=soil", "--ref-sza", "35", "--prior", "roy2016", "--prior-spread", "0.1",
+                     "-o", output)
+    assert result.exit_code == 0, result.output
+    library = leave_one_line_out_files(_scenes(files), HoldoutFit("ross_thick_li_sparse", reference=REFERENCE,
+                                                                  prior=("roy2016", 0.1)), **options)
+    assert json.loads(output.read_text()) == library.report()
