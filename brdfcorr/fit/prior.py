@@ -35,6 +35,10 @@ __all__ = ["DEFAULT_PRIOR_SPREAD", "KERNEL_WEIGHTS", "prior_ratios", "shape_post
 #: The RTLSR weights, in the order of a fit record's covariance.
 KERNEL_WEIGHTS = ("f_iso", "f_vol", "f_geo")
 
+#: The smallest f_iso [sr^-1] the prior's width is scaled by: a fit at the bound f_iso = 0 keeps a
+#: width whose square is a number (``tiny`` squared would be 0, and the 2 x 2 system singular).
+MIN_ISO = 1e-12
+
 #: ``fit-classes --prior``'s default spread: of 0.05, 0.1, 0.2 and 0.5, the one that left the
 #: smallest held-out residual on the real MODIS subset (``benchmarks/bench_real.py --prior-spread``).
 DEFAULT_PRIOR_SPREAD = 0.2
@@ -61,7 +65,7 @@ def shape_posterior(weights: np.ndarray, covariance: np.ndarray, ratios: np.ndar
     design = np.zeros((n, 2, 3))
     design[:, :, 0] = -ratios
     design[:, 0, 1] = design[:, 1, 2] = 1.0
-    width = spread * np.maximum(weights[:, 0], np.finfo(float).tiny)
+    width = spread * np.maximum(weights[:, 0], MIN_ISO)
     # The update form of the posterior (equal to the module's): no inverse of C, which a fit
     # without noise leaves singular; the 2 x 2 system is positive definite whatever C.
     gain = covariance @ np.swapaxes(design, 1, 2)  # C A^T, (n, 3, 2)

@@ -126,7 +126,7 @@ def test_a_prior_option_error_is_one_line_before_the_fit(files, extra, message):
 
 def test_a_fit_without_noise_keeps_its_weights():
     # A noise-free fit has a zero covariance: the data decide alone, and nothing is inverted.
-    weights, covariance = shape_posterior(np.array([[0.05, 0.03, 0.004]]), np.zeros((1, 3, 3)),
-                                          np.array([[0.4, 0.1]]), 0.2)
-    np.testing.assert_array_equal(weights, [[0.05, 0.03, 0.004]])
-    np.testing.assert_array_equal(covariance, np.zeros((1, 3, 3)))
+    fitted = np.array([[0.05, 0.03, 0.004], [0.0, 0.03, 0.004]])  # the second at the bound f_iso = 0
+    weights, covariance = shape_posterior(fitted, np.zeros((2, 3, 3)), np.array([[0.4, 0.1]] * 2), 0.2)
+    np.testing.assert_array_equal(weights, fitted)
+    np.testing.assert_array_equal(covariance, np.zeros((2, 3, 3)))
