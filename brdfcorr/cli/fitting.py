@@ -164,7 +164,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     table = fit.table
     if shape_prior is not None:
         table = with_shape_prior(table, *shape_prior)
-        moved = sum(entry.fit is not None and "shape prior" in entry.fit.source for entry in table.classes)
+        moved = sum(new != old for new, old in zip(table.classes, fit.table.classes))  # both in id order
         click.echo(f"shape prior {shape_prior[0]} (spread {shape_prior[1]:g}): {moved} fitted class(es) moved "
                    "to their posterior")
     output.parent.mkdir(parents=True, exist_ok=True)

@@ -292,7 +292,7 @@ def _read_as_stored(path) -> bool:
                     and all(value is None or math.isnan(value) for value in dataset.nodatavals)
                     and all(flags in ([MaskFlags.all_valid], [MaskFlags.nodata]) for flags in dataset.mask_flag_enums)
                     and all(value == 1 for value in dataset.scales) and all(value == 0 for value in dataset.offsets))
-    except InputError:
+    except (InputError, rasterio.errors.RasterioError, CPLE_BaseError):
         return False
 
 
