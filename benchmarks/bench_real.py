@@ -49,8 +49,8 @@ import rasterio
 import rioxarray
 
 from brdfcorr.analysis.assess import ViewAngleOptions, assess_view_angles, signed_view_zenith
-from brdfcorr.fit import Sampling
-from brdfcorr.fit.prior import with_shape_prior
+from brdfcorr.fit import ClassModels, Sampling
+from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.io.angles import open_angles
 from brdfcorr.io.rasters import open_image
 from brdfcorr.io.scene import SceneSources
@@ -86,10 +86,10 @@ def fit_table(data: Path, classes: Path, max_samples: int = 50_000,
     """``fit-classes`` on the subset with the class map ``classes`` (its classes' default model on
     NDVI strata, ross_thick_li_sparse), with ``--prior roy2016 --prior-spread prior_spread`` where
     given: the table and the report entries of the classes the guard rails left out."""
-    fit = fit_class_files([SceneFiles(data / "reflectance.tif", classes, data / "angles.tif")], None,
-                          sampling=Sampling(max_samples=max_samples))
-    table = fit.table if prior_spread is None else with_shape_prior(fit.table, "roy2016", prior_spread)
-    return table, [entry for entry in fit.report()["classes"] if entry.get("status") != "fitted"]
+    prior = None if prior_spread is None else ShapePrior("roy2016", prior_spread)
+    fit = fit_class_files([SceneFiles(data / "reflectance.tif", classes, data / "angles.tif")],
+                          ClassModels(None, prior=prior), sampling=Sampling(max_samples=max_samples))
+    return fit.table, [entry for entry in fit.report()["classes"] if entry.get("status") != "fitted"]
 
 
 def correct(data: Path, classes: Path | None, table: ParameterTable, target: Path, extrapolate: bool = False) -> Path:

@@ -376,3 +376,24 @@ def store():
 def nodata_pixels():
     """The pixels (an index of the (band, y, x) values) that ``store`` writes as nodata."""
     return NODATA_PIXELS
+
+
+def _tables_close(got, expected, rtol: float = 1e-9) -> None:
+    """Two parameter tables with the same classes, models, names and fit sources, and parameters
+    and covariances equal to ``rtol`` (the same posterior reached from a fit's arrays or from its
+    table, whose covariance is symmetrized and whose numbers are rounded to float)."""
+    assert [(c.id, c.name, c.model, c.wavelengths) for c in got.classes] == \
+        [(c.id, c.name, c.model, c.wavelengths) for c in expected.classes]
+    for mine, theirs in zip(got.classes, expected.classes):
+        assert mine.params.keys() == theirs.params.keys()
+        for name in mine.params:
+            np.testing.assert_allclose(mine.params[name], theirs.params[name], rtol=rtol, atol=1e-15)
+        assert (mine.fit is None) == (theirs.fit is None)
+        if mine.fit is not None:
+            assert mine.fit.source == theirs.fit.source
+            np.testing.assert_allclose(mine.fit.matrices(), theirs.fit.matrices(), rtol=rtol, atol=1e-20)
+
+
+@pytest.fixture(scope="session")
+def tables_close():
+    return _tables_close

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import xarray as xr
 
@@ -19,6 +19,9 @@ from brdfcorr.analysis.overlap import _overlaps, assess_overlap, overlap_report
 from brdfcorr.analysis.view_angles import ViewAngleOptions, assess_view_angles, view_angle_report
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
+
+if TYPE_CHECKING:
+    from brdfcorr.fit.prior import ShapePrior
 
 __all__ = ["Line", "HeldOutLine", "HoldoutFit", "leave_one_line_out", "leave_one_line_out_report"]
 
@@ -80,9 +83,9 @@ class HoldoutFit:
         sun zenith, nadir view: ``{"sza": "mean", "vza": 0.0}``).
     limits : (float, float) or None, default DEFAULT_LIMITS
         Limits of the correction factor [-] (:data:`brdfcorr.defaults.DEFAULT_LIMITS`; None: none).
-    prior : (str, float), optional
-        A coefficient set and spread whose kernel shape is the prior of each fit
-        (:func:`brdfcorr.fit.prior.with_shape_prior`; None: the fits alone).
+    prior : ShapePrior, optional
+        A coefficient set's kernel shape as the prior of each fit (:class:`brdfcorr.fit.ClassModels`'
+        ``prior``; None: the fits alone).
     """
 
     model: str = "torrance_sparrow"
@@ -92,7 +95,7 @@ class HoldoutFit:
     seed: int = 0
     reference: Mapping[str, object] | None = None
     limits: tuple[float, float] | None = DEFAULT_LIMITS
-    prior: tuple[str, float] | None = None
+    prior: ShapePrior | None = None
 
 
 def leave_one_line_out(
@@ -124,7 +127,6 @@ def leave_one_line_out(
     """
     from brdfcorr.correction import normalize
     from brdfcorr.fit import ClassModels, Sampling, fit_classes
-    from brdfcorr.fit.prior import with_shape_prior
 
     if len(lines) < 2:
         raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(lines)}")
@@ -137,11 +139,10 @@ def leave_one_line_out(
         training = [other for index, other in enumerate(lines) if index != held]
         fitted = fit_classes([t.reflectance for t in training], [t.classes for t in training],
                              [xr.Dataset(dict(t.angles)) for t in training],
-                             ClassModels(model, class_models=class_models, fixed=fixed, names=names),
+                             ClassModels(model, class_models=class_models, fixed=fixed, names=names, prior=fit.prior),
                              sampling=Sampling(max_samples=max_samples, seed=seed))
-        table = fitted.table if fit.prior is None else with_shape_prior(fitted.table, *fit.prior)
 
-        def corrected(target: Line, table=table) -> xr.DataArray:
+        def corrected(target: Line, table=fitted.table) -> xr.DataArray:
             return normalize(target.reflectance, target.classes, target.angles, table, reference, limits=limits,
                              flip_view_azimuth=flip_view_azimuth).reflectance
 
@@ -154,7 +155,7 @@ def leave_one_line_out(
                 if _overlaps(line.reflectance, other.reflectance):
                     overlaps[other.name] = assess_overlap(line.reflectance, after, other.reflectance,
                                                           corrected(other))
-        results.append(HeldOutLine(line.name, table, view, overlaps, fitted.report()))
+        results.append(HeldOutLine(line.name, fitted.table, view, overlaps, fitted.report()))
     return results
 
 

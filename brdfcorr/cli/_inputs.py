@@ -62,18 +62,16 @@ prior_options = _stack(
 )
 
 
-def prior_setting(prior: str | None, spread: float | None) -> tuple[str, float] | None:
-    """``--prior`` and ``--prior-spread`` as (set, spread), or None without a prior; an unknown set
-    or a spread without a prior is an error before any work."""
+def prior_setting(prior: str | None, spread: float | None):
+    """``--prior`` and ``--prior-spread`` as a :class:`brdfcorr.fit.prior.ShapePrior`, or None
+    without a prior; an unknown set or a spread without a prior is an error before any work."""
     if spread is not None and prior is None:
         raise click.UsageError("--prior-spread needs --prior")
     if prior is None:
         return None
-    from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD
-    from brdfcorr.models.coefficients import load_coefficients
+    from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD, ShapePrior
 
-    load_coefficients(prior)  # an unknown name fails here, not after the fit
-    return prior, DEFAULT_PRIOR_SPREAD if spread is None else spread
+    return ShapePrior(prior, DEFAULT_PRIOR_SPREAD if spread is None else spread)
 
 
 def reference_sza(value: str | None):

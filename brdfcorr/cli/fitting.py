@@ -112,7 +112,6 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     given. Bad bands (water vapour, those the ENVI header's bbl marks) are left out of the fit.
     """
     from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
-    from brdfcorr.fit.prior import with_shape_prior
     from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.plot.materials import plot_class_fit
     from brdfcorr.workflow.classmaps import read_lookup
@@ -145,7 +144,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
                         class_lookup=lookup, scale=scale, offset=offset)
              for image, angle_source, class_map in zip(images, angles, classes)],
             ClassModels(model_name, class_models=_pairs("--class-model", class_model),
-                        fixed=_assignments("--fix", fix) or None, fallback=fallback, names=class_names),
+                        fixed=_assignments("--fix", fix) or None, fallback=fallback, names=class_names,
+                        prior=shape_prior),
             sampling=Sampling(max_samples=max_samples, seed=seed, bad_bands=ranges),
             guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
             progress=fitted,
@@ -161,14 +161,11 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     if not fit.table.classes:  # a table that corrects nothing is never written as a result
         raise InputError(f"no class passed the guard rails (see the table above): nothing would be corrected; "
                          f"{output} not written")
-    table = fit.table
     if shape_prior is not None:
-        table = with_shape_prior(table, *shape_prior)
-        moved = sum(new != old for new, old in zip(table.classes, fit.table.classes))  # both in id order
-        click.echo(f"shape prior {shape_prior[0]} (spread {shape_prior[1]:g}): {moved} fitted class(es) moved "
-                   "to their posterior")
+        moved = sum(class_fit.prior is not None and class_fit.status == "fitted" for class_fit in fit.result.fits)
+        click.echo(f"shape prior {shape_prior.label}: {moved} fitted class(es) at their posterior")
     output.parent.mkdir(parents=True, exist_ok=True)
-    path = table.save(output)
+    path = fit.table.save(output)
     click.echo(f"wrote {path}")
     if report_path:
         _write_json(report_path, {"classes": fit.result.report(), "bad_bands": fit.result.bad_bands,

@@ -32,6 +32,7 @@ import numpy as np
 
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.fit.entries import class_entry, compact
+from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
 from brdfcorr.fit.settings import (
     DEFAULT_MODEL,
@@ -144,6 +145,9 @@ class ClassFit:
         (:func:`brdfcorr.fit.identifiability.error_reliability`).
     errors_reason : str
         Why they cannot (empty when they can).
+    prior : str or None
+        The shape prior the weights and covariance are the posterior of (``roy2016 (spread 0.2)``),
+        if any (:mod:`brdfcorr.fit.prior`).
     """
 
     class_id: int
@@ -170,6 +174,7 @@ class ClassFit:
     better_r2: float | None = None
     errors_reliable: bool | None = None
     errors_reason: str = ""
+    prior: str | None = None
 
     @property
     def median_r2(self) -> float:
@@ -205,6 +210,7 @@ class ClassFit:
             "errors": {k: compact(v) for k, v in self.errors.items()},
             "errors_reliable": self.errors_reliable,
             "errors_reason": self.errors_reason,
+            "prior": self.prior,
         }
 
 
@@ -259,6 +265,16 @@ def _fit_reasons(report: ClassFit, model: Model, at_edge: Sequence[str], guard: 
     return reasons
 
 
+def _apply_prior(report: ClassFit, prior: ShapePrior, ratios: np.ndarray) -> None:
+    """The fitted RTLSR weights, covariance and errors of ``report`` replaced by their posterior
+    under ``prior`` (:func:`brdfcorr.fit.prior.shape_posterior`)."""
+    weights = np.column_stack([report.params[name] for name in KERNEL_WEIGHTS])
+    posterior, covariance = shape_posterior(weights, report.covariance, ratios, prior.spread)
+    report.params = {**report.params, **{name: posterior[:, j] for j, name in enumerate(KERNEL_WEIGHTS)}}
+    report.errors = {**report.errors, **{name: np.sqrt(covariance[:, j, j]) for j, name in enumerate(KERNEL_WEIGHTS)}}
+    report.covariance, report.prior = covariance, prior.label
+
+
 def _suggestion_samples(theta_i, theta_r, phi, brdf) -> tuple:
     """A seeded subsample of the samples and bands (:data:`SUGGEST_SAMPLES`, :data:`SUGGEST_BANDS`)."""
     n = np.size(theta_i)
@@ -305,6 +321,7 @@ def fit_one_class(
     guard: GuardRails = GuardRails(),
     fallback: str | None = None,
     grid_points: int = 9,
+    prior: tuple[ShapePrior, np.ndarray] | None = None,
 ) -> ClassFit:
     """Fit one class's samples and apply the guard rails (see :func:`fit_class_samples`).
 
@@ -333,6 +350,11 @@ def fit_one_class(
         (:func:`brdfcorr.fit.settings.fallback_entry`; None: left uncorrected).
     grid_points : int, default 9
         Coarse-grid points per free shape parameter.
+    prior : (ShapePrior, ndarray), optional
+        A shape prior and its ratios f_vol/f_iso, f_geo/f_iso per band (n_bands, 2;
+        :func:`brdfcorr.fit.prior.prior_ratios`) for a ``ross_thick_li_sparse`` class: its
+        weights become the posterior's (:func:`brdfcorr.fit.prior.shape_posterior`), and the
+        condition-number rail does not apply. Ignored for other models.
 
     Returns
     -------
@@ -359,6 +381,9 @@ def fit_one_class(
         report.r2, report.rmse, report.angular_r2 = result["r2"], result["rmse"], result["angular_r2"]
         report.condition, report.fixed = result["condition"], result["fixed"]
         report.errors_reliable, report.errors_reason = result["errors_reliable"], result["errors_reason"]
+        if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
+            _apply_prior(report, *prior)
+            guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
         report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
         if report.reasons or not report.median_angular_r2 >= POOR_R2:
             _suggest_model(report, model, (theta_i, theta_r, phi, brdf))
@@ -509,11 +534,18 @@ def fit_classes(
         scenes, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
         seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
     )
+    prior = None
+    if models.prior is not None:
+        if wavelengths is None:
+            raise InputError(f"the prior {models.prior.coefficients} needs the bands' wavelengths (band "
+                             "descriptions or a wavelength tag; a chain's inputs.wavelengths)")
+        prior = (models.prior, prior_ratios(models.prior.coefficients, wavelengths))
     fits, entries, kept = [], [], {}
     for class_id, samples in pooled.items():
         fit = fit_one_class(
             class_id, models.name_of(class_id), models.model_of(class_id), samples,
             fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id), grid_points=grid_points,
+            prior=prior,
         )
         fits.append(fit)
         entry = class_entry(fit, wavelengths, source, used_ranges or None)

@@ -30,6 +30,8 @@ def _fit_record(fit: ClassFit, source: str, per_band: bool) -> dict | None:
     """The table's ``fit:`` block (:class:`brdfcorr.params.FitRecord`) of a fitted class: one
     matrix per band, or a single one when the parameters are band-independent. None when the
     covariance is not finite or has a negative variance (a table holds numbers only)."""
+    if fit.prior is not None:
+        source = f"{source} + shape prior {fit.prior}"
     covariance = 0.5 * (fit.covariance + np.swapaxes(fit.covariance, 1, 2))
     variances = np.diagonal(covariance, axis1=1, axis2=2)
     if covariance.size == 0 or not np.all(np.isfinite(covariance)) or np.any(variances < 0):

@@ -24,15 +24,19 @@ in the equal form ``w' = w - C A^T (A C A^T + t^2 I)^-1 A w`` that needs no inve
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from brdfcorr.errors import InputError
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ParameterTable
 
-__all__ = ["DEFAULT_PRIOR_SPREAD", "KERNEL_WEIGHTS", "prior_ratios", "shape_posterior", "with_shape_prior"]
+__all__ = ["DEFAULT_PRIOR_SPREAD", "KERNEL_WEIGHTS", "PRIOR_MODEL", "ShapePrior", "prior_ratios", "shape_posterior",
+           "with_shape_prior"]
 
-#: The RTLSR weights, in the order of a fit record's covariance.
+#: The model whose classes a prior applies to, and its weights in the order of a fit's covariance.
+PRIOR_MODEL = "ross_thick_li_sparse"
 KERNEL_WEIGHTS = ("f_iso", "f_vol", "f_geo")
 
 #: The smallest f_iso [sr^-1] the prior's width is scaled by: a fit at the bound f_iso = 0 keeps a
@@ -42,6 +46,39 @@ MIN_ISO = 1e-12
 #: ``fit-classes --prior``'s default spread: of 0.05, 0.1, 0.2 and 0.5, the one that left the
 #: smallest held-out residual on the real MODIS subset (``benchmarks/bench_real.py --prior-spread``).
 DEFAULT_PRIOR_SPREAD = 0.2
+
+
+@dataclass(frozen=True)
+class ShapePrior:
+    """A coefficient set's kernel shape as the prior of an imagery fit (``--prior``).
+
+    Attributes
+    ----------
+    coefficients : str
+        Built-in coefficient set (:func:`brdfcorr.models.coefficients.load_coefficients`).
+    spread : float, default DEFAULT_PRIOR_SPREAD
+        The prior's 1-sigma of the ratios f_vol/f_iso and f_geo/f_iso [-] (> 0).
+
+    Raises
+    ------
+    InputError
+        ``spread`` is not a positive number.
+    UnknownNameError
+        ``coefficients`` names no built-in set.
+    """
+
+    coefficients: str
+    spread: float = DEFAULT_PRIOR_SPREAD
+
+    def __post_init__(self) -> None:
+        if not (self.spread > 0 and np.isfinite(self.spread)):
+            raise InputError(f"the prior's spread {self.spread} must be a positive number")
+        load_coefficients(self.coefficients)
+
+    @property
+    def label(self) -> str:
+        """``roy2016 (spread 0.2)``: how a fit record's source names it."""
+        return f"{self.coefficients} (spread {self.spread:g})"
 
 
 def prior_ratios(coefficients: str, wavelengths) -> np.ndarray:
@@ -76,34 +113,29 @@ def shape_posterior(weights: np.ndarray, covariance: np.ndarray, ratios: np.ndar
     return np.maximum(estimate, 0.0), 0.5 * (posterior + np.swapaxes(posterior, 1, 2))
 
 
-def with_shape_prior(table: ParameterTable, coefficients: str, spread: float) -> ParameterTable:
-    """``table`` with the fitted ``ross_thick_li_sparse`` classes moved to their posterior under
-    the kernel shape of ``coefficients`` (:func:`shape_posterior`; :func:`prior_ratios` at each
-    class's wavelengths): parameters, covariance and errors; the record's source names the prior.
-    Classes of other models, without a fit record (a fallback) or with weights held fixed are
-    left as they are.
-
-    Raises
-    ------
-    InputError
-        ``spread`` is not a positive number.
+def with_shape_prior(table: ParameterTable, prior: ShapePrior) -> ParameterTable:
+    """``table`` with its fitted ``ross_thick_li_sparse`` classes moved to their posterior under
+    ``prior`` (:func:`shape_posterior`; :func:`prior_ratios` at each class's wavelengths):
+    parameters, covariance and errors; the record's source names the prior. Classes of other
+    models, without a fit record (a fallback) or with weights held fixed are left as they are.
+    For a table fitted before; ``fit-classes --prior`` applies the prior within the fit
+    (:class:`brdfcorr.fit.ClassModels`), before the guard rails.
     """
-    if not spread > 0 or not np.isfinite(spread):
-        raise InputError(f"the prior's spread {spread} must be a positive number")
     result = table
     for entry in table.classes:
         fit = entry.fit
-        if (entry.model != "ross_thick_li_sparse" or fit is None or entry.wavelengths is None
+        if (entry.model != PRIOR_MODEL or fit is None or entry.wavelengths is None
                 or tuple(fit.parameters) != KERNEL_WEIGHTS):
             continue
         wavelengths = np.asarray(entry.wavelengths, float)
         weights = np.column_stack([np.broadcast_to(np.asarray(entry.params[name], float), wavelengths.shape)
                                    for name in KERNEL_WEIGHTS])
         matrices = np.broadcast_to(fit.matrices(), (wavelengths.size, 3, 3))
-        posterior, covariance = shape_posterior(weights, matrices, prior_ratios(coefficients, wavelengths), spread)
+        posterior, covariance = shape_posterior(weights, matrices, prior_ratios(prior.coefficients, wavelengths),
+                                                prior.spread)
         errors = np.sqrt(np.diagonal(covariance, axis1=1, axis2=2))
         record = fit.model_dump() | {
-            "source": f"{fit.source} + shape prior {coefficients} (spread {spread:g})",
+            "source": f"{fit.source} + shape prior {prior.label}",
             "covariance": covariance.tolist(),
             "errors": {name: errors[:, j].tolist() for j, name in enumerate(KERNEL_WEIGHTS)},
         }

@@ -9,6 +9,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from brdfcorr.errors import UnknownNameError
+from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.models import Model
 from brdfcorr.models.coefficients import coefficient_names, load_coefficients
 from brdfcorr.models.materials import load_material, material_names
@@ -85,6 +86,11 @@ class ClassModels:
         Class names (default ``class_<id>``).
     class_ids : sequence of int, optional
         Classes to fit (default: every positive id in the class maps).
+    prior : ShapePrior, optional
+        A coefficient set's kernel shape as the prior of every ``ross_thick_li_sparse`` class
+        (:mod:`brdfcorr.fit.prior`): each band's weights and covariance are the posterior's, and
+        the condition-number guard rail does not apply to those classes (the prior determines the
+        shape the geometry cannot separate). Needs the bands' wavelengths.
 
     Examples
     --------
@@ -100,6 +106,7 @@ class ClassModels:
     fallback: str | Mapping[int, str] | None = None
     names: Mapping[int, str] | None = None
     class_ids: Sequence[int] | None = None
+    prior: ShapePrior | None = None
 
     def model_of(self, class_id: int) -> str | Model:
         """The surface model of class ``class_id``."""

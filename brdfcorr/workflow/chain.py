@@ -176,7 +176,7 @@ def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
         raise InputError(f"steps.fit: {error}{reasons}") from None
     report = fit.report()
     report["scenes_left_out"] = failed + report["scenes_left_out"]
-    return step.with_prior(fit.table), report
+    return fit.table, report
 
 
 def _fit_goniometer(plan: RunPlan) -> tuple[ParameterTable, dict]:

@@ -19,11 +19,10 @@ from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import UnknownNameError
-from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD, with_shape_prior
+from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD, ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.coefficients import load_coefficients
-from brdfcorr.params import ParameterTable
 
 __all__ = [
     "MeasurementSet",
@@ -158,12 +157,6 @@ class ImageryFit(StrictModel):
             raise ValueError("prior_spread needs prior")
         return self
 
-    def with_prior(self, table: ParameterTable) -> ParameterTable:
-        """``table`` (the fit's) under the step's shape prior, or as it is without one."""
-        if self.prior is None:
-            return table
-        spread = DEFAULT_PRIOR_SPREAD if self.prior_spread is None else self.prior_spread
-        return with_shape_prior(table, self.prior, spread)
 
     @field_validator("fallback")
     @classmethod
@@ -189,7 +182,10 @@ class ImageryFit(StrictModel):
         names (the step's ``names`` win)."""
         return {
             "models": ClassModels(self.model, class_models=self.class_models, fixed=self.fixed,
-                                  fallback=self.fallback, names={**(names or {}), **self.names}),
+                                  fallback=self.fallback, names={**(names or {}), **self.names},
+                                  prior=None if self.prior is None else ShapePrior(
+                                      self.prior, DEFAULT_PRIOR_SPREAD if self.prior_spread is None
+                                      else self.prior_spread)),
             "sampling": Sampling(max_samples=self.max_samples, seed=self.seed,
                                  reflectance_scale=self.reflectance_scale,
                                  bad_bands=tuple(tuple(band_range) for band_range in self.bad_bands)),

@@ -5,9 +5,11 @@ written as GeoTIFFs; the CLI's JSON equals the library's numbers, the held-out s
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
+import rasterio
 from click.testing import CliRunner
 
 from brdfcorr.analysis.assess import HoldoutFit, ViewAngleOptions, leave_one_line_out, leave_one_line_out_report
@@ -131,22 +133,30 @@ def test_bad_input_is_one_line_and_exit_2(files, tmp_path):
         leave_one_line_out_files(_scenes(files, images=files["images"][:1] * 2))
 
 
-def test_a_prior_reaches_every_held_out_fit(lines, files, tmp_path):
+def test_a_prior_reaches_every_held_out_fit(lines, files, tmp_path, tables_close):
     # --prior as for fit-classes: each held-out line is corrected with the posterior of the fit on
-    # the other lines (brdfcorr.fit.prior.with_shape_prior), and the CLI is the library call.
-    from brdfcorr.fit.prior import with_shape_prior
+    # the other lines (brdfcorr.fit.prior), and the CLI is the library call.
+    from brdfcorr.fit.prior import ShapePrior, with_shape_prior
 
     options = {"view_options": ViewAngleOptions(class_names=NAMES)}
     plain = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE), **options)
     prior = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE,
-                                                 prior=("roy2016", 0.1)), **options)
+                                                 prior=ShapePrior("roy2016", 0.1)), **options)
     for without, with_prior in zip(plain, prior):
-        assert with_prior.table == with_shape_prior(without.table, "roy2016", 0.1)
-    output = tmp_path / "prior.json"
-    result = _invoke("assess-lines", *_arguments(files), "--model", "ross_thick_li_sparse", "--class-name", "1=grass",
-                     "--class-name", "2=soil", "--ref-sza", "35", "--prior", "roy2016", "--prior-spread", "0.1",
-                     "-o", output)
+        tables_close(with_prior.table, with_shape_prior(without.table, ShapePrior("roy2016", 0.1)))
+    arguments = ["--model", "ross_thick_li_sparse", "--class-name", "1=grass", "--class-name", "2=soil",
+                 "--ref-sza", "35", "--prior", "roy2016", "--prior-spread", "0.1", "-o", tmp_path / "prior.json"]
+    # The files' bands have no wavelengths: the prior cannot be placed, and says so (exit 2).
+    result = _invoke("assess-lines", *_arguments(files), *arguments)
+    assert result.exit_code == 2 and "needs the bands' wavelengths" in result.output
+    # With their band centres in the band descriptions, the CLI is the library call.
+    images = []
+    for line, image in zip(lines, files["images"]):
+        images.append(shutil.copy(image, tmp_path / image.name))
+        with rasterio.open(images[-1], "r+") as dataset:
+            dataset.descriptions = tuple(f"{value:g} nm" for value in line.reflectance["wavelength"].values)
+    result = _invoke("assess-lines", *_arguments(files, images=images), *arguments)
     assert result.exit_code == 0, result.output
-    library = leave_one_line_out_files(_scenes(files), HoldoutFit("ross_thick_li_sparse", reference=REFERENCE,
-                                                                  prior=("roy2016", 0.1)), **options)
-    assert json.loads(output.read_text()) == library.report()
+    library = leave_one_line_out_files(_scenes(files, images=images), HoldoutFit(
+        "ross_thick_li_sparse", reference=REFERENCE, prior=ShapePrior("roy2016", 0.1)), **options)
+    assert json.loads((tmp_path / "prior.json").read_text()) == library.report()

@@ -7,8 +7,8 @@ import pytest
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.errors import InputError
-from brdfcorr.fit.prior import prior_ratios, shape_posterior, with_shape_prior
+from brdfcorr.errors import InputError, UnknownNameError
+from brdfcorr.fit.prior import ShapePrior, prior_ratios, shape_posterior, with_shape_prior
 from brdfcorr.params import ParameterTable
 
 #: Roy et al. (2016), RSE 176, Table 1, red (BRF weights): f_iso, f_vol, f_geo.
@@ -77,7 +77,7 @@ def _table():
 
 def test_only_fitted_kernel_classes_move_and_the_table_stays_valid(tmp_path):
     table = _table()
-    moved = with_shape_prior(table, "roy2016", 0.2)
+    moved = with_shape_prior(table, ShapePrior("roy2016", 0.2))
     grass = moved[1]
     assert grass.fit.source == "imagery + shape prior roy2016 (spread 0.2)"
     assert grass.params != table[1].params
@@ -87,9 +87,11 @@ def test_only_fitted_kernel_classes_move_and_the_table_stays_valid(tmp_path):
     assert ParameterTable.load(moved.save(tmp_path / "table.yaml")) == moved
 
 
-def test_the_spread_must_be_positive():
+def test_the_spread_must_be_positive_and_the_set_known():
     with pytest.raises(InputError, match="spread"):
-        with_shape_prior(_table(), "roy2016", 0.0)
+        ShapePrior("roy2016", 0.0)
+    with pytest.raises(UnknownNameError, match="roy2015"):
+        ShapePrior("roy2015")
 
 
 @pytest.fixture(scope="module")
@@ -103,14 +105,27 @@ def _fit_classes(files, *extra):
                                                       "--classes", files["strata"], *extra)])
 
 
-def test_fit_classes_with_a_prior_writes_the_posterior(files):
+def test_fit_classes_with_a_prior_writes_the_posterior(files, tables_close):
+    # Within the fit or on the fitted table: the same posterior (to the table's rounding).
     plain, prior = files["root"] / "plain.yaml", files["root"] / "prior.yaml"
     assert _fit_classes(files, "-o", plain).exit_code == 0
     result = _fit_classes(files, "--prior", "roy2016", "--prior-spread", "0.1", "-o", prior)
     assert result.exit_code == 0, result.output
-    assert "shape prior roy2016 (spread 0.1): 2 fitted class(es) moved" in result.output
-    expected = with_shape_prior(ParameterTable.load(plain), "roy2016", 0.1)
-    assert ParameterTable.load(prior) == expected
+    assert "shape prior roy2016 (spread 0.1): 2 fitted class(es) at their posterior" in result.output
+    tables_close(ParameterTable.load(prior), with_shape_prior(ParameterTable.load(plain), ShapePrior("roy2016", 0.1)))
+
+
+def test_a_prior_fits_the_classes_the_geometry_cannot_separate(files, tables_close):
+    # With a condition limit no design meets, every stratum fails as ill-conditioned; with the
+    # prior the shape is determined and the rail does not apply: the same posterior as above.
+    result = _fit_classes(files, "--max-condition", "1", "-o", files["root"] / "never.yaml")
+    assert result.exit_code == 2 and "ill-conditioned" in result.output
+    rescued, plain = files["root"] / "rescued.yaml", files["root"] / "plain_again.yaml"
+    result = _fit_classes(files, "--max-condition", "1", "--prior", "roy2016", "-o", rescued)
+    assert result.exit_code == 0, result.output
+    assert "ill-conditioned" not in result.output
+    assert _fit_classes(files, "-o", plain).exit_code == 0
+    tables_close(ParameterTable.load(rescued), with_shape_prior(ParameterTable.load(plain), ShapePrior("roy2016")))
 
 
 @pytest.mark.parametrize("extra, message", [
