@@ -69,9 +69,9 @@ def prior_setting(prior: str | None, spread: float | None):
         raise click.UsageError("--prior-spread needs --prior")
     if prior is None:
         return None
-    from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD, ShapePrior
+    from brdfcorr.fit.prior import ShapePrior
 
-    return ShapePrior(prior, DEFAULT_PRIOR_SPREAD if spread is None else spread)
+    return ShapePrior.given(prior, spread)
 
 
 def reference_sza(value: str | None):

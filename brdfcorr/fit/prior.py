@@ -75,6 +75,11 @@ class ShapePrior:
             raise InputError(f"the prior's spread {self.spread} must be a positive number")
         load_coefficients(self.coefficients)
 
+    @classmethod
+    def given(cls, coefficients: str, spread: float | None = None) -> ShapePrior:
+        """The prior of an option or a config key pair: ``spread`` None is the default spread."""
+        return cls(coefficients) if spread is None else cls(coefficients, spread)
+
     @property
     def label(self) -> str:
         """``roy2016 (spread 0.2)``: how a fit record's source names it."""

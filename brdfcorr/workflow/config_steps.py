@@ -19,7 +19,7 @@ from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import UnknownNameError
-from brdfcorr.fit.prior import DEFAULT_PRIOR_SPREAD, ShapePrior
+from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.coefficients import load_coefficients
@@ -115,7 +115,7 @@ class ImageryFit(StrictModel):
         Built-in material or coefficient set for classes that fail the guard rails.
     prior : str, optional
         Built-in coefficient set whose kernel shape is a prior of the fitted RTLSR classes
-        (``--prior``, :func:`brdfcorr.fit.prior.with_shape_prior`).
+        (``--prior``, :class:`brdfcorr.fit.ClassModels`' ``prior``).
     prior_spread : float, optional
         The prior's 1-sigma of the ratios f_vol/f_iso and f_geo/f_iso (``--prior-spread``; default
         :data:`brdfcorr.fit.prior.DEFAULT_PRIOR_SPREAD`); only with ``prior``.
@@ -157,7 +157,6 @@ class ImageryFit(StrictModel):
             raise ValueError("prior_spread needs prior")
         return self
 
-
     @field_validator("fallback")
     @classmethod
     def _fallback(cls, value: str | None) -> str | None:
@@ -183,9 +182,8 @@ class ImageryFit(StrictModel):
         return {
             "models": ClassModels(self.model, class_models=self.class_models, fixed=self.fixed,
                                   fallback=self.fallback, names={**(names or {}), **self.names},
-                                  prior=None if self.prior is None else ShapePrior(
-                                      self.prior, DEFAULT_PRIOR_SPREAD if self.prior_spread is None
-                                      else self.prior_spread)),
+                                  prior=None if self.prior is None
+                                  else ShapePrior.given(self.prior, self.prior_spread)),
             "sampling": Sampling(max_samples=self.max_samples, seed=self.seed,
                                  reflectance_scale=self.reflectance_scale,
                                  bad_bands=tuple(tuple(band_range) for band_range in self.bad_bands)),
