@@ -46,6 +46,7 @@ from brdfcorr.fit.solver import (
     DEFAULT_FIXED,
     SEARCH_RANGES,
     fit_class_samples,
+    fit_quality,
     imagery_models,
     intensity_terms,
     median_r2,
@@ -265,14 +266,18 @@ def _fit_reasons(report: ClassFit, model: Model, at_edge: Sequence[str], guard: 
     return reasons
 
 
-def _apply_prior(report: ClassFit, prior: ShapePrior, ratios: np.ndarray) -> None:
+def _apply_prior(report: ClassFit, prior: ShapePrior, ratios: np.ndarray, samples: ClassSamples) -> None:
     """The fitted RTLSR weights, covariance and errors of ``report`` replaced by their posterior
-    under ``prior`` (:func:`brdfcorr.fit.prior.shape_posterior`)."""
+    under ``prior`` (:func:`brdfcorr.fit.prior.shape_posterior`), and its R^2, angular R^2, RMS
+    and chi^2/dof by the posterior's on ``samples``: the guard rails judge the weights delivered."""
     weights = np.column_stack([report.params[name] for name in KERNEL_WEIGHTS])
     posterior, covariance = shape_posterior(weights, report.covariance, ratios, prior.spread)
     report.params = {**report.params, **{name: posterior[:, j] for j, name in enumerate(KERNEL_WEIGHTS)}}
     report.errors = {**report.errors, **{name: np.sqrt(covariance[:, j, j]) for j, name in enumerate(KERNEL_WEIGHTS)}}
     report.covariance, report.prior = covariance, prior.label
+    quality = fit_quality(PRIOR_MODEL, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, posterior.T)
+    report.r2, report.rmse, report.angular_r2, report.chi2_dof = (
+        quality[name] for name in ("r2", "rmse", "angular_r2", "chi2_dof"))
 
 
 def _suggestion_samples(theta_i, theta_r, phi, brdf) -> tuple:
@@ -382,7 +387,7 @@ def fit_one_class(
         report.condition, report.fixed = result["condition"], result["fixed"]
         report.errors_reliable, report.errors_reason = result["errors_reliable"], result["errors_reason"]
         if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
-            _apply_prior(report, *prior)
+            _apply_prior(report, *prior, samples)
             guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
         report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
         if report.reasons or not report.median_angular_r2 >= POOR_R2:

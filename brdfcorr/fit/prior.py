@@ -123,8 +123,9 @@ def with_shape_prior(table: ParameterTable, prior: ShapePrior) -> ParameterTable
     ``prior`` (:func:`shape_posterior`; :func:`prior_ratios` at each class's wavelengths):
     parameters, covariance and errors; the record's source names the prior. Classes of other
     models, without a fit record (a fallback) or with weights held fixed are left as they are.
-    For a table fitted before; ``fit-classes --prior`` applies the prior within the fit
-    (:class:`brdfcorr.fit.ClassModels`), before the guard rails.
+    For a table fitted before (the record keeps the fit's R^2 and chi^2: the samples are not at
+    hand); ``fit-classes --prior`` applies the prior within the fit (:class:`brdfcorr.fit.ClassModels`),
+    before the guard rails, which then judge the posterior.
     """
     result = table
     for entry in table.classes:

@@ -42,6 +42,7 @@ __all__ = [
     "DEFAULT_FIXED",
     "SEARCH_RANGES",
     "fit_class_samples",
+    "fit_quality",
     "MODEL_SEARCH_RANGES",
     "imagery_models",
     "intensity_terms",
@@ -507,22 +508,73 @@ def fit_class_samples(
     params.update(dict(zip(model.linear, intensities)))
     errors = {name: np.zeros(n_bands) for name in fixed}
     errors.update({name: deviations[:, column] for column, name in enumerate(names)})
-    dof = profile.n - len(names)
     return {
         "params": {name: params[name] for name in model.parameter_names},
         "errors": {name: errors[name] for name in model.parameter_names},
         "covariance": covariance,
         "free": names,
         "n": profile.n,
-        "chi2_dof": ssr / dof if dof > 0 else np.full(n_bands, np.nan),
-        "r2": profile.r2(ssr),
-        "angular_r2": profile.angular_r2(design, intensities),
-        "rmse": np.sqrt(ssr / profile.n),
+        **_quality(profile, design, intensities, ssr, len(names)),
         "condition": _condition(design),
         "shape": shape,
         "fixed": fixed,
         **diagnostics,
     }
+
+
+def _quality(profile: _LinearProfile, design: np.ndarray, intensities: np.ndarray, ssr: np.ndarray,
+             n_free: int) -> dict[str, np.ndarray]:
+    """``chi2_dof``, ``r2``, ``angular_r2`` and ``rmse`` per band of the linear coefficients
+    ``intensities`` (m, B) with the sums of squared residuals ``ssr`` (B,) and ``n_free`` free
+    parameters."""
+    dof = profile.n - n_free
+    return {
+        "chi2_dof": ssr / dof if dof > 0 else np.full(ssr.shape, np.nan),
+        "r2": profile.r2(ssr),
+        "angular_r2": profile.angular_r2(design, intensities),
+        "rmse": np.sqrt(ssr / profile.n),
+    }
+
+
+def fit_quality(model: str | Model, theta_i, theta_r, phi, brdf, intensities, *,
+                shape: Mapping[str, float] | None = None, fixed: Mapping[str, float] | None = None,
+                n_free: int | None = None) -> dict[str, np.ndarray]:
+    """How well given intensities explain the samples: what :func:`fit_class_samples` reports of
+    its own solution (``chi2_dof``, ``r2``, ``angular_r2``, ``rmse`` per band), for any other,
+    e.g. the posterior of a shape prior (:mod:`brdfcorr.fit.prior`).
+
+    Parameters
+    ----------
+    model : str or Model
+        A surface model of the registry with intensity terms (:func:`intensity_terms`).
+    theta_i, theta_r, phi : array-like, shape (N,)
+        Solar zenith, view zenith and relative azimuth of each sample [deg].
+    brdf : array-like, shape (N, B)
+        BRDF of each sample in each band [sr^-1].
+    intensities : array-like, shape (m, B)
+        The model's linear terms (:attr:`Model.linear` order) per band [sr^-1].
+    shape : mapping, optional
+        Values of the free shape parameters (none for the kernel-driven models).
+    fixed : mapping, optional
+        Shape parameters held fixed, as for :func:`fit_class_samples`.
+    n_free : int, optional
+        Free parameters of the estimate, for ``chi2_dof`` (default: the linear terms and the free
+        shape parameters, as a fit).
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``chi2_dof`` [sr^-2], ``r2`` [-], ``angular_r2`` [-], ``rmse`` [sr^-1], each (B,).
+    """
+    model, fixed, free = _resolve(model, fixed)
+    profile = _profile(model, theta_i, theta_r, phi, brdf, fixed)
+    design = profile.design(dict(shape or {}))
+    coefficients = np.asarray(intensities, float).reshape(design.shape[1], -1)
+    gram, cross = profile.products(design)
+    ssr = profile.sum_yy - 2 * np.einsum("kb,kb->b", coefficients, cross) + np.einsum(
+        "kb,kl,lb->b", coefficients, gram, coefficients)
+    n_free = len(model.linear) + len(free) if n_free is None else n_free
+    return _quality(profile, design, coefficients, np.maximum(ssr, 0.0), n_free)
 
 
 def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, intensities, clusters):

@@ -375,7 +375,7 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
         scale, offset = image.attrs.get("brdf_input_scale", 1.0), image.attrs.get("brdf_input_offset", 0.0)
         divisor = max(np.atleast_1d(scale)) > 1
         guess = ("the file's scale tag looks like a divisor (as MODIS HDF files store it), not GDAL's "
-                 "multiplier" if divisor else "raw counts? Or reflectance x 10000 stored as floats?")
+                 "multiplier." if divisor else "raw counts? Or reflectance x 10000 stored as floats?")
         raise InputError(
             f"{where}: the values do not look like reflectance factors: 99th percentile {percentile:.5g} "
             f"of a sample of valid pixels (scale {scale}, offset {offset} applied); {guess} Give the "

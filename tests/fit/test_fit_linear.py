@@ -161,3 +161,27 @@ def test_terms_without_a_lower_bound_may_be_negative():
     profile = solver._LinearProfile(bounded, profile.geometry, profile.data, {})
     coefficients, _ = profile.solve(profile.design({}))
     assert coefficients[1, 0] == 0.0 and coefficients[0, 0] == pytest.approx(profile.data.mean())
+
+
+def test_fit_quality_of_any_weights_is_their_r2_against_a_direct_evaluation():
+    # For weights other than the fit's (here the truth's halved volume weight), R^2 and RMS
+    # computed from the model's own values at every sample, independently of the solver's sums.
+    rng = np.random.default_rng(4)
+    angles = airborne_lines(3000, seed=4)
+    brdf = render(angles) * (1 + 0.05 * rng.standard_normal((3000, 1))) + 0.0005 * rng.standard_normal((3000, 4))
+    weights = {**TRUTH, "f_vol": TRUTH["f_vol"] / 2}
+    predicted = render(angles, weights)
+    residual = ((brdf - predicted) ** 2).sum(axis=0)
+    total = ((brdf - brdf.mean(axis=0)) ** 2).sum(axis=0)
+    intensities = np.stack([weights[name] for name in RTLSR.linear])
+    quality = solver.fit_quality(RTLSR, *angles, brdf, intensities)
+    np.testing.assert_allclose(quality["r2"], 1 - residual / total, rtol=1e-9)
+    np.testing.assert_allclose(quality["rmse"], np.sqrt(residual / 3000), rtol=1e-9)
+    np.testing.assert_allclose(quality["chi2_dof"], residual / (3000 - 3), rtol=1e-9)
+    # At the fit's own solution, it is what the fit reported; the least-squares solution has the
+    # highest R^2 of any weights.
+    fit = fit_class_samples(RTLSR, *angles, brdf)
+    own = solver.fit_quality(RTLSR, *angles, brdf, np.stack([fit["params"][name] for name in RTLSR.linear]))
+    for name in ("r2", "rmse", "chi2_dof", "angular_r2"):
+        np.testing.assert_allclose(own[name], fit[name], rtol=1e-9)
+    assert np.all(quality["r2"] < fit["r2"]) and np.all(quality["angular_r2"] < fit["angular_r2"])

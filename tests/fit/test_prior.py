@@ -145,3 +145,36 @@ def test_a_fit_without_noise_keeps_its_weights():
     weights, covariance = shape_posterior(fitted, np.zeros((2, 3, 3)), np.array([[0.4, 0.1]] * 2), 0.2)
     np.testing.assert_array_equal(weights, fitted)
     np.testing.assert_array_equal(covariance, np.zeros((2, 3, 3)))
+
+
+def test_the_guard_rails_judge_the_posterior_not_the_fit():
+    # A vegetated class (volume-dominated shape, f_vol/f_iso 0.5) under a narrow prior of the
+    # opposite shape (no volume, strong geometric kernel): the posterior takes that shape, so it
+    # explains less of the angular signal than the fit; its recorded R^2 is the posterior's own
+    # (solver.fit_quality), and the angular rail refuses it.
+    from brdfcorr.fit.classes import ClassFitWarning, ClassSamples, GuardRails, fit_one_class
+    from brdfcorr.fit.solver import fit_quality
+    from brdfcorr.geometry import relative_azimuth
+    from brdfcorr.models import get_model
+
+    rtlsr = get_model("ross_thick_li_sparse")
+    rng = np.random.default_rng(5)
+    n = 4000
+    across = rng.uniform(-1, 1, n)
+    angles = (rng.uniform(30, 50, n), 40.0 * np.abs(across),
+              relative_azimuth(np.zeros(n), np.where(across < 0, 275.0, 95.0)))
+    brdf = rtlsr(*(a[:, None] for a in angles), f_iso=np.array([0.02, 0.1]), f_vol=np.array([0.01, 0.05]),
+                 f_geo=np.array([0.002, 0.01]))
+    samples = ClassSamples(*angles, brdf * (1 + 0.02 * rng.standard_normal((n, 2))))
+    guard = GuardRails(min_r2=0.9)
+    plain = fit_one_class(1, "grass", rtlsr, samples, guard=guard)
+    assert plain.status == "fitted"
+    with pytest.warns(ClassFitWarning, match="angular R\\^2"):
+        pulled = fit_one_class(1, "grass", rtlsr, samples, guard=guard,
+                               prior=(ShapePrior("roy2016", 0.01), np.array([[0.0, 1.0]] * 2)))
+    assert pulled.status == "uncorrected" and pulled.prior == "roy2016 (spread 0.01)"
+    posterior = np.stack([pulled.params[name] for name in rtlsr.linear])
+    expected = fit_quality(rtlsr, *angles, samples.brdf, posterior)
+    np.testing.assert_allclose(pulled.angular_r2, expected["angular_r2"], rtol=1e-12)
+    np.testing.assert_allclose(pulled.r2, expected["r2"], rtol=1e-12)
+    assert np.all(pulled.angular_r2 < 0.9) and np.all(plain.angular_r2 > 0.95)
