@@ -19,6 +19,8 @@ seconds taken (``bench_kernels.py``'s docstring defines the scenes and metrics).
   point seen from both sides);
 * strata from a view-independent NDVI (of the nadir image: e.g. an NBAR product's);
 * (e) strata of the observed NDVI less its least-squares trend in the kernels, on A' and A;
+* (f) strata of the self-consistent NDVI ((b) taken to its fixed point by the secant method), on A'
+  and A;
 * (d) no strata: a two-end-member kernel mixture, ``rho / pi = a P(g) + b Q(g)`` per pixel, fitted
   by alternating least squares (the end members' weights from the fractions t = b / (a + b), then
   each pixel's t from all its bands at its own geometry, which the view does not bias), on A' and A;
@@ -196,6 +198,32 @@ def recut_passes(scene: dict, passes: int) -> np.ndarray:
     return strata_of(ndvi_of(scene, cube))
 
 
+def east_west_mean(field: np.ndarray) -> float:
+    """Mean of the eastern third of the swath less the western third's."""
+    third = field.shape[1] // 3
+    return float(field[:, -third:].mean() - field[:, :third].mean())
+
+
+def self_consistent_ndvi(scene: dict, rounds: int = 3) -> np.ndarray:
+    """(f) Strata of the NDVI that the correction they give leaves unchanged between the sides:
+    ``NDVI + lam * d``, with d the change of the NDVI by the first pass's correction ((b)'s) and lam
+    solved by the secant method so that the east/west mean of (NDVI of the corrected image - the
+    NDVI cut) vanishes: (b) iterated to its fixed point, which it approaches by about 12 % a pass."""
+    observed = ndvi_of(scene, scene["image"].values)
+
+    def mismatch(index: np.ndarray) -> float:
+        corrected = strata_correction(scene, strata_of(index), continuous=True)
+        return east_west_mean(ndvi_of(scene, corrected) - index)
+
+    change = ndvi_of(scene, strata_correction(scene, strata_of(observed), continuous=True)) - observed
+    steps = [(0.0, east_west_mean(change)), (1.0, mismatch(observed + change))]
+    for _ in range(rounds):
+        (lam0, r0), (lam1, r1) = steps[-2:]
+        lam = lam1 - r1 * (lam1 - lam0) / (r1 - r0)
+        steps.append((lam, mismatch(observed + lam * change)))
+    return strata_of(observed + steps[-1][0] * change)
+
+
 def diagnose(args, scene: dict, flown: dict) -> None:
     """Scene A' (its truth the same on both sides): where the east/west bias of strata cut from the
     observed NDVI comes from, and what reduces it: (a) a joint fit linear in NDVI, (b) strata re-cut
@@ -223,6 +251,8 @@ def diagnose(args, scene: dict, flown: dict) -> None:
         ("10 strata of a view-independent NDVI (nadir)", scene, strata_of(nadir, tuple(range(10, 100, 10))), ()),
         ("(e) 5 strata of the NDVI less its kernel trend", scene, strata_of(detrended_ndvi(scene)), ()),
         ("A (as flown), (e) 5 strata of the NDVI less its kernel trend", flown, strata_of(detrended_ndvi(flown)), ()),
+        ("(f) 5 strata of the self-consistent NDVI", scene, self_consistent_ndvi(scene), ()),
+        ("A (as flown), (f) 5 strata of the self-consistent NDVI", flown, self_consistent_ndvi(flown), ()),
     ]
     cases = [(f"{label}, {'interpolated' if continuous else 'binned'}", strata_correction,
               (case, classes, continuous, pooled)) for label, case, classes, pooled in strata_cases

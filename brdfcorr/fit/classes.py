@@ -33,6 +33,7 @@ import numpy as np
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.fit.entries import class_entry, compact
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
+from brdfcorr.fit.quality import fit_quality, median_r2
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
 from brdfcorr.fit.settings import (
     DEFAULT_MODEL,
@@ -46,10 +47,8 @@ from brdfcorr.fit.solver import (
     DEFAULT_FIXED,
     SEARCH_RANGES,
     fit_class_samples,
-    fit_quality,
     imagery_models,
     intensity_terms,
-    median_r2,
     search_range,
 )
 from brdfcorr.models import Model, get_model

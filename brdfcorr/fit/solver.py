@@ -42,11 +42,9 @@ __all__ = [
     "DEFAULT_FIXED",
     "SEARCH_RANGES",
     "fit_class_samples",
-    "fit_quality",
     "MODEL_SEARCH_RANGES",
     "imagery_models",
     "intensity_terms",
-    "median_r2",
     "search_range",
 ]
 
@@ -536,47 +534,6 @@ def _quality(profile: _LinearProfile, design: np.ndarray, intensities: np.ndarra
     }
 
 
-def fit_quality(model: str | Model, theta_i, theta_r, phi, brdf, intensities, *,
-                shape: Mapping[str, float] | None = None, fixed: Mapping[str, float] | None = None,
-                n_free: int | None = None) -> dict[str, np.ndarray]:
-    """How well given intensities explain the samples: what :func:`fit_class_samples` reports of
-    its own solution (``chi2_dof``, ``r2``, ``angular_r2``, ``rmse`` per band), for any other,
-    e.g. the posterior of a shape prior (:mod:`brdfcorr.fit.prior`).
-
-    Parameters
-    ----------
-    model : str or Model
-        A surface model of the registry with intensity terms (:func:`intensity_terms`).
-    theta_i, theta_r, phi : array-like, shape (N,)
-        Solar zenith, view zenith and relative azimuth of each sample [deg].
-    brdf : array-like, shape (N, B)
-        BRDF of each sample in each band [sr^-1].
-    intensities : array-like, shape (m, B)
-        The model's linear terms (:attr:`Model.linear` order) per band [sr^-1].
-    shape : mapping, optional
-        Values of the free shape parameters (none for the kernel-driven models).
-    fixed : mapping, optional
-        Shape parameters held fixed, as for :func:`fit_class_samples`.
-    n_free : int, optional
-        Free parameters of the estimate, for ``chi2_dof`` (default: the linear terms and the free
-        shape parameters, as a fit).
-
-    Returns
-    -------
-    dict of str to ndarray
-        ``chi2_dof`` [sr^-2], ``r2`` [-], ``angular_r2`` [-], ``rmse`` [sr^-1], each (B,).
-    """
-    model, fixed, free = _resolve(model, fixed)
-    profile = _profile(model, theta_i, theta_r, phi, brdf, fixed)
-    design = profile.design(dict(shape or {}))
-    coefficients = np.asarray(intensities, float).reshape(design.shape[1], -1)
-    gram, cross = profile.products(design)
-    ssr = profile.sum_yy - 2 * np.einsum("kb,kb->b", coefficients, cross) + np.einsum(
-        "kb,kl,lb->b", coefficients, gram, coefficients)
-    n_free = len(model.linear) + len(free) if n_free is None else n_free
-    return _quality(profile, design, coefficients, np.maximum(ssr, 0.0), n_free)
-
-
 def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, intensities, clusters):
     """The free parameters (model signature order), their covariance (B, p, p) and 1-sigma errors
     (B, p), and the diagnostics: ``at_edge``, ``error_dof``, ``n_clusters``, ``errors_reliable``,
@@ -605,32 +562,3 @@ def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, inte
     return names, covariance, deviations, {"at_edge": at_edge, "error_dof": error_dof,
                                            "n_clusters": sandwich.n_clusters, "errors_reliable": reliable,
                                            "errors_reason": reason}
-
-
-def median_r2(
-    model: str | Model, samples: Sequence, *, fixed: Mapping[str, float] | None = None, grid_points: int = 9,
-    search_samples: int = 20_000,
-) -> float:
-    """How much of the data's variation a model explains: the median over bands of R^2 at the
-    best shape, found on a seeded subsample of ``search_samples`` by the coarse grid and
-    Nelder-Mead only (no Newton steps, no errors: cheap).
-
-    Parameters
-    ----------
-    model : str or Model
-        A surface model with intensity terms, as for :func:`fit_class_samples`.
-    samples : sequence of 4 array-likes
-        ``(theta_i, theta_r, phi, brdf)``: solar zenith, view zenith and relative azimuth (N,)
-        [deg] and BRDF (N, B) [sr^-1] of the class's samples.
-    fixed, grid_points, search_samples :
-        As for :func:`fit_class_samples`.
-
-    Returns
-    -------
-    float
-        Median R^2 over the bands [-]; NaN when no band has one (constant bands).
-    """
-    model, fixed, free = _resolve(model, fixed)
-    profile, shape = _coarse_shape(model, fixed, free, tuple(samples), search_samples, grid_points)
-    r2 = profile.r2(profile.solve(profile.design(shape))[1])
-    return float(np.nanmedian(r2)) if np.any(np.isfinite(r2)) else math.nan

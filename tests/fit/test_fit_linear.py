@@ -9,6 +9,7 @@ import pytest
 
 from brdfcorr.fit import solver
 from brdfcorr.fit.classes import ClassFitWarning, ClassSamples, GuardRails, fit_one_class
+from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.solver import fit_class_samples
 from brdfcorr.geometry import ScatteringGeometry, relative_azimuth
 from brdfcorr.models import Model, Parameter, get_model, torrance_sparrow
@@ -174,14 +175,14 @@ def test_fit_quality_of_any_weights_is_their_r2_against_a_direct_evaluation():
     residual = ((brdf - predicted) ** 2).sum(axis=0)
     total = ((brdf - brdf.mean(axis=0)) ** 2).sum(axis=0)
     intensities = np.stack([weights[name] for name in RTLSR.linear])
-    quality = solver.fit_quality(RTLSR, *angles, brdf, intensities)
+    quality = fit_quality(RTLSR, *angles, brdf, intensities)
     np.testing.assert_allclose(quality["r2"], 1 - residual / total, rtol=1e-9)
     np.testing.assert_allclose(quality["rmse"], np.sqrt(residual / 3000), rtol=1e-9)
     np.testing.assert_allclose(quality["chi2_dof"], residual / (3000 - 3), rtol=1e-9)
     # At the fit's own solution, it is what the fit reported; the least-squares solution has the
     # highest R^2 of any weights.
     fit = fit_class_samples(RTLSR, *angles, brdf)
-    own = solver.fit_quality(RTLSR, *angles, brdf, np.stack([fit["params"][name] for name in RTLSR.linear]))
+    own = fit_quality(RTLSR, *angles, brdf, np.stack([fit["params"][name] for name in RTLSR.linear]))
     for name in ("r2", "rmse", "chi2_dof", "angular_r2"):
         np.testing.assert_allclose(own[name], fit[name], rtol=1e-9)
     assert np.all(quality["r2"] < fit["r2"]) and np.all(quality["angular_r2"] < fit["angular_r2"])

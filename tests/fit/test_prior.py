@@ -151,9 +151,9 @@ def test_the_guard_rails_judge_the_posterior_not_the_fit():
     # A vegetated class (volume-dominated shape, f_vol/f_iso 0.5) under a narrow prior of the
     # opposite shape (no volume, strong geometric kernel): the posterior takes that shape, so it
     # explains less of the angular signal than the fit; its recorded R^2 is the posterior's own
-    # (solver.fit_quality), and the angular rail refuses it.
+    # (brdfcorr.fit.quality.fit_quality), and the angular rail refuses it.
     from brdfcorr.fit.classes import ClassFitWarning, ClassSamples, GuardRails, fit_one_class
-    from brdfcorr.fit.solver import fit_quality
+    from brdfcorr.fit.quality import fit_quality
     from brdfcorr.geometry import relative_azimuth
     from brdfcorr.models import get_model
 
