@@ -9,8 +9,10 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 
 import importlib  # noqa: E402
 
-from brdfcorr import accessor  # noqa: E402, F401  (registers the .brdf xarray accessor; needs xarray only)
+from brdfcorr._accessor_hook import register_accessor  # noqa: E402
 from brdfcorr.errors import BrdfcorrError, ParameterError, UnknownNameError  # noqa: E402
+
+register_accessor()  # the .brdf xarray accessor: now, or when xarray is imported (not by this import)
 
 #: Names imported at first use (PEP 562), so that `import brdfcorr` and the command line's
 #: `--help` and argument errors do not pay for dask and scipy.

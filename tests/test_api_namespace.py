@@ -17,12 +17,29 @@ def test_top_level_names_are_the_library_objects():
     assert {"ParameterTable", "run_chain", "normalize"} <= set(brdfcorr.__all__)
 
 
-def test_import_brdfcorr_stays_light():
-    code = ("import sys, brdfcorr; print(sorted(m for m in ('brdfcorr.params', 'brdfcorr.workflow', 'dask', 'scipy') "
-            "if m in sys.modules))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+def _last_line(code: str) -> str:
+    """The last line printed by ``code`` in a fresh interpreter (this session imported everything)."""
+    result = subprocess.run([sys.executable, "-W", "error", "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip().splitlines()[-1] == "[]"
+    return result.stdout.strip().splitlines()[-1]
+
+
+def test_import_brdfcorr_stays_light():
+    assert _last_line("import sys, brdfcorr; print(sorted(m for m in ('brdfcorr.params', 'brdfcorr.workflow', "
+                      "'dask', 'scipy', 'xarray', 'numpy') if m in sys.modules))") == "[]"
+
+
+@pytest.mark.parametrize("imports", [
+    "import brdfcorr; import xarray as xr",  # xarray after brdfcorr: registered when it is imported
+    "import xarray as xr; import brdfcorr",  # before: registered at once
+    "import brdfcorr; import rioxarray; import xarray as xr",  # by a library that imports xarray
+])
+def test_import_brdfcorr_registers_the_accessor_whenever_xarray_comes(imports):
+    # xarray's loader is its own again after the import (its resources serve the HTML repr).
+    code = (f"{imports}\nfrom brdfcorr.accessor import BrdfAccessor\n"
+            "print(xr.DataArray.brdf is BrdfAccessor, 'exec_module' in vars(xr.__spec__.loader), "
+            "'xarray' in xr.DataArray([1.0])._repr_html_())")
+    assert _last_line(code) == "True False True"
 
 
 def test_run_chain_takes_a_path_or_a_loaded_config(tmp_path, make_scenes, write_chain):

@@ -7,7 +7,6 @@ import warnings
 from pathlib import Path
 
 import click
-import numpy as np
 
 from brdfcorr.cli._base import (
     _format_table,
@@ -125,6 +124,8 @@ def analyze_albedo_command(name, zeniths, simplified, resolution):
 @handle_errors
 def analyze_figure2_command(output, view_step, step_fraction):
     """Figure 2 of paper 000: TS model, V-cavity simulation and empirical model, normalized."""
+    import numpy as np
+
     from brdfcorr.analysis.simulate import FacetGrid
     from brdfcorr.plot.analysis import plot_figure2
 

@@ -32,10 +32,12 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-
-import xarray as xr
+from typing import TYPE_CHECKING
 
 from brdfcorr.errors import SensorInputError
+
+if TYPE_CHECKING:  # xarray is imported by the readers: the command line's start needs this module only
+    import xarray as xr
 
 #: Where each public name lives. The readers are imported at first use (PEP 562): they pull in
 #: pandas, pvlib, h5py and rasterio, which the command line's start and argument errors need not.
@@ -120,6 +122,8 @@ def read_solar_angles(time, like: xr.DataArray, *, view_zenith: float | None = N
             "angle source kind 'solar' gives only sun angles: set view_zenith and view_azimuth "
             "(degrees; e.g. view_zenith=0 for a nadir view) explicitly"
         )
+    import xarray as xr
+
     from brdfcorr.io.sensors.solar import solar_angles  # pvlib: only for this kind
 
     angles = solar_angles(time, like, **options)
