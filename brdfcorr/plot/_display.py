@@ -20,9 +20,21 @@ TRUE_COLOUR = (665.0, 560.0, 490.0)
 REPRESENTATIVE = (490.0, 560.0, 665.0, 865.0, 1610.0, 2200.0)
 
 
+#: An NDVI stratum's name as ``brdfcorr classes ndvi`` writes it: ``ndvi_-inf_0.10``, ``ndvi_0.10_0.30``.
+_STRATUM = re.compile(r"ndvi_(-inf|-?[0-9.]+)_(inf|-?[0-9.]+)")
+
+
 def display_name(name: str) -> str:
-    """A class name as a legend shows it: ``roof_tile`` -> ``roof tile``, ``class_2`` -> ``class 2``."""
-    return str(name).replace("_", " ")
+    """A class name as a legend shows it: ``roof_tile`` -> ``roof tile``, ``class_2`` -> ``class 2``,
+    an NDVI stratum ``ndvi_0.10_0.30`` -> ``NDVI 0.10–0.30`` (``ndvi_-inf_0.10`` -> ``NDVI < 0.10``,
+    ``ndvi_0.70_inf`` -> ``NDVI ≥ 0.70``)."""
+    stratum = _STRATUM.fullmatch(str(name))
+    if stratum is None:
+        return str(name).replace("_", " ")
+    low, high = stratum.groups()
+    if low == "-inf":
+        return f"NDVI < {high}"
+    return f"NDVI ≥ {low}" if high == "inf" else f"NDVI {low}–{high}"
 
 
 def nearest_bands(wavelengths: Sequence[float] | None, targets: Sequence[float], tolerance: float = 60.0) -> list[int]:

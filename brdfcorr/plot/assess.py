@@ -76,7 +76,8 @@ def profile_figure(view: xr.Dataset, *, band: int | None = None, title: str = ""
         for stage, style in (("before", "--"), ("after", "-")):
             values = one.sel(stage=stage)
             relative = values["profile"].isel(band=band).values / float(values["mean"].isel(band=band))
-            left.plot(centres, relative, style, color=f"C{index}", label=f"{name} {stage}")
+            # Markers: a bin between empty ones (a composite's few orbits) is a point, not a gap.
+            left.plot(centres, relative, style, marker=".", markersize=4, color=f"C{index}", label=f"{name} {stage}")
             right.plot(x_bands, values["relative_slope"].values, style, marker=".", color=f"C{index}",
                        label=f"{name} {stage}")
     positive, negative = view.attrs.get("positive_side", ""), view.attrs.get("negative_side", "")

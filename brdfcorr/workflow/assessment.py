@@ -39,7 +39,7 @@ from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
-from brdfcorr.workflow.classmaps import class_preparation
+from brdfcorr.workflow.classmaps import class_preparation, tagged_class_names
 from brdfcorr.workflow.request import Engine
 
 __all__ = ["Assessment", "assess_files", "LinesAssessment", "check_line_files", "leave_one_line_out_files",
@@ -103,6 +103,13 @@ def _check_signing(data: SceneData, view_options: ViewAngleOptions) -> None:
                          "relative azimuth (raa): sign by the sun")
 
 
+def _named(options: ViewAngleOptions, class_maps: Sequence[xr.DataArray]) -> ViewAngleOptions:
+    """``options`` with the names in the class maps' tags (:func:`tagged_class_names`) for the
+    classes it does not name."""
+    tagged = tagged_class_names(*class_maps)
+    return replace(options, class_names={**tagged, **(options.class_names or {})}) if tagged else options
+
+
 @contextlib.contextmanager
 def _active(callbacks: Sequence) -> Iterator[None]:
     """The engine's dask callbacks (a progress bar) active while the block computes."""
@@ -154,6 +161,7 @@ def assess_files(
     with _active(engine.callbacks), rasters.bounded_gdal_cache(scene.image, engine.chunks):
         data = _open_scene_files(scene, engine, align_classes=align_classes, class_lookup=class_lookup)
         _check_signing(data, view_options)
+        view_options = _named(view_options, [data.classes])
         corrected = rasters.open_image(after, chunks=engine.chunks)
         check_same_grid({"before": data.reflectance, "after": corrected})
         if corrected.shape != data.reflectance.shape:
@@ -255,5 +263,6 @@ def leave_one_line_out_files(
         lines.append(Line(name, data.reflectance, data.classes, data.angles))
         inputs.append({"name": name, "image": str(scene.image), "classes": str(scene.classes),
                        "angles": str(scene.angles)})
-    results = leave_one_line_out(lines, fit, view_options=view_options, overlap=overlap)
+    results = leave_one_line_out(lines, fit, view_options=_named(view_options, [line.classes for line in lines]),
+                                 overlap=overlap)
     return LinesAssessment(inputs, results)

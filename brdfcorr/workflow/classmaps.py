@@ -20,7 +20,8 @@ from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata, remap_classes
 
-__all__ = ["ndvi_class_file", "NdviBins", "align_class_file", "read_lookup", "class_preparation", "describe_class_map"]
+__all__ = ["ndvi_class_file", "NdviBins", "align_class_file", "read_lookup", "class_preparation", "describe_class_map",
+           "tagged_class_names"]
 
 
 def class_preparation(align: bool = False, lookup: Mapping[int, int] | None = None):
@@ -46,6 +47,20 @@ def describe_class_map(classes: xr.DataArray, lookup: Mapping[int, int] | None) 
     if lookup:
         parts.append("codes remapped " + ",".join(f"{code}:{ident}" for code, ident in sorted(lookup.items())))
     return "; ".join(parts)
+
+
+def tagged_class_names(*class_maps: xr.DataArray) -> dict[int, str]:
+    """Class names from the class maps' ``class_names`` tags (``"1:ndvi_-inf_0.10,2:..."``, as
+    ``brdfcorr classes ndvi`` writes it; ``ID=NAME;...`` too), the first map's name of an id
+    first; items that are no ``ID:NAME`` are skipped. A map remapped by a lookup has no such tag."""
+    names: dict[int, str] = {}
+    for classes in class_maps:
+        text = str(classes.attrs.get("class_names", ""))
+        for item in text.replace(";", ",").split(","):
+            key, _, name = item.replace("=", ":", 1).partition(":")
+            if key.strip().isdigit() and name.strip():
+                names.setdefault(int(key), name.strip())
+    return names
 
 
 def read_lookup(path: str | os.PathLike) -> dict[int, int]:

@@ -30,7 +30,7 @@ from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable
 from brdfcorr.params_bands import in_ranges
-from brdfcorr.workflow.classmaps import class_preparation
+from brdfcorr.workflow.classmaps import class_preparation, tagged_class_names
 
 __all__ = [
     "fit_measurement_file",
@@ -198,19 +198,6 @@ def _is_strata(classes: xr.DataArray) -> bool:
         "NDVI strata")
 
 
-def _tagged_class_names(classes: xr.DataArray) -> dict[int, str]:
-    """Class names from a class map's ``class_names`` tag (``"1:ndvi_-inf_0.10,2:..."``, as
-    ``brdfcorr classes ndvi`` writes it; ``ID=NAME;...`` too); items that are no ``ID:NAME`` are
-    skipped."""
-    text = str(classes.attrs.get("class_names", ""))
-    names = {}
-    for item in text.replace(";", ",").split(","):
-        key, _, name = item.replace("=", ":", 1).partition(":")
-        if key.strip().isdigit() and name.strip():
-            names[int(key)] = name.strip()
-    return names
-
-
 def _choices_from_maps(models: ClassModels, class_maps: Sequence[xr.DataArray]) -> tuple[ClassModels, list[str]]:
     """``models`` with the model chosen from the class maps where none was given (NDVI strata:
     :data:`STRATA_MODEL`, else :data:`DEFAULT_MODEL`) and the names in the maps' tags for the
@@ -222,9 +209,7 @@ def _choices_from_maps(models: ClassModels, class_maps: Sequence[xr.DataArray]) 
         if strata:
             notes.append(f"model {STRATA_MODEL} for every class: the class map is NDVI strata (vegetation and soil, "
                          "brdfcorr classes ndvi); --model chooses another")
-    tagged: dict[int, str] = {}
-    for classes in reversed(list(class_maps)):  # the first map's name of an id wins
-        tagged.update(_tagged_class_names(classes))
+    tagged = tagged_class_names(*class_maps)
     given = dict(models.names or {})
     named = {key: value for key, value in tagged.items() if key not in given}
     if named:

@@ -90,3 +90,20 @@ def test_models_fits_100_columns_and_details_one_model():
     assert max(map(len, one.output.splitlines())) <= 100
     unknown = CliRunner().invoke(main, ["models", "lambert"])
     assert unknown.exit_code == 2 and "unknown BRDF model 'lambert'" in unknown.output
+
+
+def test_assess_names_the_strata_as_fit_classes_does(files):
+    # The names of the map's tags in the report (and the legends), a --class-name still winning.
+    import json
+
+    result, table = _fit(files, files["strata"], output="assess_table.yaml")
+    assert result.exit_code == 0, result.output
+    corrected, report = files["root"] / "assess_corrected.tif", files["root"] / "assess.json"
+    common = ["--angles", str(files["angles"]), "--classes", str(files["strata"])]
+    assert CliRunner().invoke(main, ["correct", str(files["image"]), *common, "--params", str(table),
+                                     "-o", str(corrected)]).exit_code == 0
+    result = CliRunner().invoke(main, ["assess", str(files["image"]), str(corrected), *common, "--class-name",
+                                       "2=grass", "-o", str(report)])
+    assert result.exit_code == 0, result.output
+    classes = json.loads(report.read_text())["view_angles"]["classes"]
+    assert [entry["name"] for entry in classes] == ["ndvi_-inf_0.30", "grass"]
