@@ -3,7 +3,8 @@
 A cheap version of ``benchmarks/bench_real.py`` (issue 24): NDVI strata (quartiles of the raw NDVI)
 -> ``fit-classes`` -> ``correct``, and the fixed c-factor (``correct --params roy2016``), run with
 the CLI's runner on the stored subset; the view-angle slope per NDVI group and band measured with
-:func:`brdfcorr.analysis.assess.assess_view_angles`. Only what must hold is asserted:
+``brdfcorr assess`` (:func:`brdfcorr.analysis.assess.assess_view_angles`), as docs/real_imagery.md
+runs them. Only what must hold is asserted:
 
 - the subset is what its README says (grid, bands, angles in the product's documented ranges);
 - vegetation is brighter towards backscatter (the hotspot; Ross-Li kernels, Lucht et al. 2000,
@@ -19,18 +20,15 @@ the CLI's runner on the stored subset; the view-angle slope per NDVI group and b
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 import rasterio
-import rioxarray
 from click.testing import CliRunner
 
-from brdfcorr.analysis.assess import ViewAngleOptions, assess_view_angles
 from brdfcorr.cli import main
-from brdfcorr.io.angles import open_angles
-from brdfcorr.io.rasters import open_image
 from brdfcorr.testing import file_digests
 
 DATA = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "modis_mod09a1_h18v04"
@@ -38,6 +36,8 @@ IMAGE, ANGLES = DATA / "reflectance.tif", DATA / "angles.tif"
 #: Band centres [nm], sorted (MOD09 user's guide, collection 6, table 1: bands 3, 4, 1, 2, 5, 6, 7).
 CENTRES = [469.0, 555.0, 645.0, 858.5, 1240.0, 1640.0, 2130.0]
 RED, NIR = CENTRES.index(645.0), CENTRES.index(858.5)
+#: The NDVI groups: quartiles of the raw NDVI (0.747, 0.816, 0.859), named by ``classes ndvi``.
+GROUPS = ("ndvi_-inf_0.75", "ndvi_0.75_0.82", "ndvi_0.82_0.86", "ndvi_0.86_inf")
 
 
 def _run(arguments: list[str]) -> None:
@@ -47,7 +47,8 @@ def _run(arguments: list[str]) -> None:
 
 @pytest.fixture(scope="module")
 def slopes(tmp_path_factory) -> dict[str, np.ndarray]:
-    """Relative slopes [%/10 deg] (group, band: red, NIR) raw, after brdfcorr and after the c-factor."""
+    """Relative slopes [%/10 deg] (group, band: red, NIR) raw, after brdfcorr and after the c-factor,
+    from ``brdfcorr assess`` as docs/real_imagery.md runs it (its figures too)."""
     out = tmp_path_factory.mktemp("real")
     before = file_digests(DATA)
     strata, table = out / "strata.tif", out / "table.yaml"
@@ -57,17 +58,16 @@ def slopes(tmp_path_factory) -> dict[str, np.ndarray]:
           "-o", str(out / "brdfcorr.tif")])
     _run(["correct", str(IMAGE), "--angles", str(ANGLES), "--params", "roy2016", "--extrapolate",
           "-o", str(out / "cfactor.tif")])
-    assert file_digests(DATA) == before
-    raw, angles = open_image(IMAGE).compute(), open_angles(ANGLES)
-    groups = rioxarray.open_rasterio(strata).squeeze("band", drop=True).compute()
     result = {}
     for name in ("brdfcorr", "cfactor"):
-        assessed = assess_view_angles(raw, open_image(out / f"{name}.tif").compute(), groups,
-                                      angles["vza"].compute(), angles["vaa"].compute(), angles["saa"].compute(),
-                                      options=ViewAngleOptions(by="sun"))
-        relative = assessed["relative_slope"].isel(band=[RED, NIR])
-        result["raw"] = relative.sel(stage="before").values.T
-        result[name] = relative.sel(stage="after").values.T
+        _run(["assess", str(IMAGE), str(out / f"{name}.tif"), "--angles", str(ANGLES), "--classes", str(strata),
+              "-o", str(out / f"{name}.json"), "--figures", str(out / name)])
+        assert (out / name / "assess_profiles.png").stat().st_size > 0
+        groups = json.loads((out / f"{name}.json").read_text())["view_angles"]["classes"]
+        assert [group["name"] for group in groups] == list(GROUPS)  # the strata's names, from their tags
+        for stage, key in (("before", "raw"), ("after", name)):
+            result[key] = np.array([[group[stage]["relative_slope"][band] for band in (RED, NIR)] for group in groups])
+    assert file_digests(DATA) == before
     return result
 
 
