@@ -77,6 +77,9 @@ class _BandRange(click.ParamType):
               help="Hold a shape parameter fixed [default: k=0.25 for TS].")
 @click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
+@click.option("--block-size", type=click.IntRange(min=1), default=32, show_default=True,
+              help="Side [pixels] of the spatial blocks the fit's errors are cluster-robust over: smaller for "
+                   "coarse pixels or small images (errors from few blocks are flagged UNRELIABLE).")
 @scale_options
 @click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
 @click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
@@ -103,8 +106,8 @@ class _BandRange(click.ParamType):
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
-                        scale, offset, min_samples, min_vza_spread, max_condition, bad_bands, fallback, prior,
-                        prior_spread, output, report_path, plot_dir, overwrite, progress):
+                        block_size, scale, offset, min_samples, min_vza_spread, max_condition, bad_bands, fallback,
+                        prior, prior_spread, output, report_path, plot_dir, overwrite, progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
 
     The images' stored values are read as reflectance factors with their GDAL scale/offset, or
@@ -146,7 +149,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
             ClassModels(model_name, class_models=_pairs("--class-model", class_model),
                         fixed=_assignments("--fix", fix) or None, fallback=fallback, names=class_names,
                         prior=shape_prior),
-            sampling=Sampling(max_samples=max_samples, seed=seed, bad_bands=ranges),
+            sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges),
             guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
             progress=fitted,
         )

@@ -187,13 +187,16 @@ def error_reliability(free, error_dof, n_clusters, max_leverage, at_edge=(), at_
     low = [f"{name} {value:.1f}" for name, value in zip(free, dof) if not value >= MIN_ERROR_DOF]
     if low:
         reasons.append(f"errors from {n_clusters} spatial blocks: effective degrees of freedom "
-                       f"{', '.join(low)} < {MIN_ERROR_DOF:g} (more or smaller blocks, or a larger scene)")
+                       f"{', '.join(low)} < {MIN_ERROR_DOF:g} (smaller blocks: fit-classes --block-size; or a "
+                       "larger scene)")
     if max_leverage > MAX_BLOCK_LEVERAGE:
         reasons.append(f"one block alone determines a parameter combination (leverage {max_leverage:.3f})")
     if margins is not None:
         room, errors = margins
         for column, name in enumerate(free):
-            ratio = np.max(np.asarray(errors)[:, column] / np.maximum(room[name], 1e-300))
+            spare = np.asarray(room[name], dtype=float)
+            # A band where the parameter sits at the end of its range is told by at_edge / at_bound.
+            ratio = np.max(np.where(spare > 0, np.asarray(errors)[:, column] / np.where(spare > 0, spare, 1.0), 0.0))
             if ratio > NONLINEAR_FRACTION:
                 reasons.append(f"{name}: error {ratio:.2g} times its distance to the end of its range "
                                f"(> {NONLINEAR_FRACTION:g}: strongly non-linear)")

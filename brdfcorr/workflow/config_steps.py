@@ -104,6 +104,8 @@ class ImageryFit(StrictModel):
         Shape parameters held fixed (``--fix``; default k = 0.25 for the Torrance-Sparrow models).
     max_samples, seed, reflectance_scale :
         Pixels per class over all scenes, the sampler's seed, the stored values' scale [-].
+    block_size : int
+        Side [pixels] of the spatial blocks the errors are cluster-robust over (``--block-size``).
     min_samples, min_vza_spread, max_condition :
         Guard rails (:class:`brdfcorr.fit.GuardRails`): samples per class, 5-95 % view zenith
         spread [deg], condition number of the linear design [-].
@@ -130,6 +132,7 @@ class ImageryFit(StrictModel):
     fixed: dict[str, Number] | None = None
     max_samples: Integer = Field(Sampling.max_samples, ge=10)
     seed: Integer = Sampling.seed
+    block_size: Integer = Field(Sampling.block_size, ge=1)
     reflectance_scale: Number = Field(1.0, gt=0)
     min_samples: Integer = Field(GuardRails.min_samples, ge=1)
     min_vza_spread: Number = Field(GuardRails.min_vza_spread, ge=0)
@@ -184,7 +187,7 @@ class ImageryFit(StrictModel):
                                   fallback=self.fallback, names={**(names or {}), **self.names},
                                   prior=None if self.prior is None
                                   else ShapePrior.given(self.prior, self.prior_spread)),
-            "sampling": Sampling(max_samples=self.max_samples, seed=self.seed,
+            "sampling": Sampling(max_samples=self.max_samples, seed=self.seed, block_size=self.block_size,
                                  reflectance_scale=self.reflectance_scale,
                                  bad_bands=tuple(tuple(band_range) for band_range in self.bad_bands)),
             "guard": GuardRails(min_samples=self.min_samples, min_vza_spread=self.min_vza_spread,

@@ -107,3 +107,16 @@ def test_assess_names_the_strata_as_fit_classes_does(files):
     assert result.exit_code == 0, result.output
     classes = json.loads(report.read_text())["view_angles"]["classes"]
     assert [entry["name"] for entry in classes] == ["ndvi_-inf_0.30", "grass"]
+
+
+@pytest.mark.parametrize("size, blocks", [(64, 1), (32, 4)])
+def test_the_block_size_is_an_option(files, size, blocks):
+    # The 48 x 64 scene in squares of `size` pixels: the errors of each class (both span the scene)
+    # come from that many blocks, too few, which the report says.
+    import json
+
+    report = files["root"] / f"blocks_{size}.json"
+    result, _ = _fit(files, files["strata"], "--block-size", size, "--report", report, output=f"blocks_{size}.yaml")
+    assert result.exit_code == 0, result.output
+    reasons = [entry["errors_reason"] for entry in json.loads(report.read_text())["classes"]]
+    assert all(f"errors from {blocks} spatial blocks" in reason and "--block-size" in reason for reason in reasons)

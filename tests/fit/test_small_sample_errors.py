@@ -104,6 +104,11 @@ def test_reliability_rules():
     assert not reliable and reason.startswith("t1: error 0.51 times") and "non-linear" in reason
     assert error_reliability(free, dof, 40, 0.1, at_edge=["w"])[1] == "w at the edge of its search range"
     assert error_reliability(free, dof, 40, 0.1, at_bound=["t0 = 0 in band 2"])[1] == "t0 = 0 in band 2 (at its bound)"
+    # A parameter at its bound in one band (no room there) is told once, as at its bound: not as an
+    # error infinitely many times its distance to the bound.
+    at_zero = {"w": room["w"], "t1": np.array([0.0, 2.0])}
+    reason = error_reliability(free, dof, 40, 0.1, at_bound=["t1 = 0 in band 1"], margins=(at_zero, errors))[1]
+    assert reason == "t1 = 0 in band 1 (at its bound)"
 
 
 def _scene(n, seed=0):
