@@ -290,6 +290,19 @@ def material_covariance(entry: BandParameters, material: str) -> BandParameters:
     return dataclasses.replace(entry, covariance=np.repeat(diagonal[None], n_bands, axis=0), covariance_names=names)
 
 
+def _warn_unreliable(table: ParameterTable) -> None:
+    """A :class:`BrdfcorrWarning` naming the fitted classes whose fit flagged its own errors
+    unreliable (the ``fit:`` block's ``errors_reliable: false``; ``docs/uncertainty.md``): their
+    1-sigma is propagated all the same, and is rough."""
+    flagged = [entry for entry in table.classes if entry.fit is not None and entry.fit.errors_reliable is False]
+    if flagged:
+        warnings.warn(
+            f"the fit flagged the errors of {', '.join(entry.label for entry in flagged)} unreliable (the reason is the "
+            "fit: block's errors_reason): their uncertainty is rough",
+            BrdfcorrWarning, stacklevel=3,
+        )
+
+
 def _with_materials(resolved: Mapping[int, BandParameters], table: ParameterTable) -> dict[int, BandParameters]:
     """The resolved classes, library materials without a fit given their published errors."""
     materials = {entry.id: entry.material for entry in table.classes if entry.material and entry.fit is None}
@@ -488,6 +501,7 @@ def correction_uncertainty(
                             extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
     reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits
     resolved = _with_materials(inputs.resolved, params)
+    _warn_unreliable(params)
     plans = Plans({class_id: _plan(entry) for class_id, entry in resolved.items()})
     kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings)
     sigma = inputs.blockwise(_uncertainty_block, kwargs) if inputs.lazy else inputs.apply(_uncertainty_block, kwargs)

@@ -8,6 +8,8 @@ numpy = dask).
 
 from __future__ import annotations
 
+import warnings
+
 import dask
 import dask.array as da
 import numpy as np
@@ -16,7 +18,7 @@ import xarray as xr
 
 from brdfcorr.correction import normalize
 from brdfcorr.correction.uncertainty import correction_uncertainty, difference_step, factor_jacobian
-from brdfcorr.errors import InputError, ParameterError
+from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import REGISTRY, SURFACE_MODELS, kernel_driven, torrance_sparrow
 from brdfcorr.params import ParameterTable
@@ -408,3 +410,17 @@ def test_a_covariance_that_is_not_positive_semi_definite_is_refused():
     table = _table(_class(1, "torrance_sparrow", ROOF, ("t0", "t1"), [[1e-4, 2e-4], [2e-4, 1e-4]]))
     with pytest.raises(ParameterError, match="not positive semi-definite"):
         _sigma(layers, table)
+
+
+def test_errors_the_fit_flagged_unreliable_are_propagated_with_a_warning():
+    # The same sigma either way (the covariance is what it is); the flag is said once, per class.
+    sd, layers = 0.002, _pixels(SZA, SAA, VZA, VAA)
+    trusted = _class(1, "ross_thick_li_sparse", LAWN, ("f_iso",), [[sd**2]])
+    flagged = {**trusted, "fit": {**trusted["fit"], "errors_reliable": False, "errors_reason": "errors from 3 blocks"}}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        reference = _sigma(layers, _table(trusted), reference=REFERENCE, limits=None).values
+    assert not [w for w in caught if "unreliable" in str(w.message)]
+    with pytest.warns(BrdfcorrWarning, match=r"errors of class 1 \(class1\) unreliable"):
+        rough = _sigma(layers, _table(flagged), reference=REFERENCE, limits=None).values
+    np.testing.assert_array_equal(rough, reference)
