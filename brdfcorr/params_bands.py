@@ -212,8 +212,8 @@ def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Se
     if np.any(outside) and not extrapolate:
         raise ParameterError(
             f"{class_label(entry)}: parameter {name}: band centre {centres[outside][0]:g} nm is outside "
-            f"the table's wavelengths [{table[0]:g}, {table[-1]:g}] nm; allow edge "
-            "extrapolation to use the edge values"
+            f"the table's wavelengths [{table[0]:g}, {table[-1]:g}] nm ({int(np.sum(outside))} band(s)); "
+            "--extrapolate (extrapolate=True; a chain's steps.correct.extrapolate) gives them the edge values"
         )
     return np.interp(centres, table, value)  # holds the edge values outside the range
 
