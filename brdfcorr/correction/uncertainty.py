@@ -297,8 +297,8 @@ def _warn_unreliable(table: ParameterTable) -> None:
     flagged = [entry for entry in table.classes if entry.fit is not None and entry.fit.errors_reliable is False]
     if flagged:
         warnings.warn(
-            f"the fit flagged the errors of {', '.join(entry.label for entry in flagged)} unreliable (the reason is the "
-            "fit: block's errors_reason): their uncertainty is rough",
+            f"the fit flagged the errors of {', '.join(entry.label for entry in flagged)} unreliable (the reason is "
+            "the fit: block's errors_reason): their uncertainty is rough",
             BrdfcorrWarning, stacklevel=3,
         )
 
