@@ -19,8 +19,8 @@ __all__ = ["fit_quality", "median_r2"]
 
 
 def fit_quality(model: str | Model, theta_i, theta_r, phi, brdf, intensities, *,
-                shape: Mapping[str, float] | None = None, fixed: Mapping[str, float] | None = None,
-                n_free: int | None = None) -> dict[str, np.ndarray]:
+                shape: Mapping[str, float] | None = None,
+                fixed: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
     """How well given intensities explain the samples: what
     :func:`brdfcorr.fit.solver.fit_class_samples` reports of its own solution (``chi2_dof``,
     ``r2``, ``angular_r2``, ``rmse`` per band), for any other, e.g. the posterior of a shape prior
@@ -36,14 +36,12 @@ def fit_quality(model: str | Model, theta_i, theta_r, phi, brdf, intensities, *,
         Values of the free shape parameters (none for the kernel-driven models).
     fixed : mapping, optional
         Shape parameters held fixed, as for :func:`brdfcorr.fit.solver.fit_class_samples`.
-    n_free : int, optional
-        Free parameters of the estimate, for ``chi2_dof`` (default: the linear terms and the free
-        shape parameters, as a fit).
 
     Returns
     -------
     dict of str to ndarray
-        ``chi2_dof`` [sr^-2], ``r2`` [-], ``angular_r2`` [-], ``rmse`` [sr^-1], each (B,).
+        ``chi2_dof`` [sr^-2] (over N minus the linear terms and free shape parameters, as a fit's),
+        ``r2`` [-], ``angular_r2`` [-], ``rmse`` [sr^-1], each (B,).
     """
     model, fixed, free = _resolve(model, fixed)
     profile = _profile(model, theta_i, theta_r, phi, brdf, fixed)
@@ -52,8 +50,7 @@ def fit_quality(model: str | Model, theta_i, theta_r, phi, brdf, intensities, *,
     gram, cross = profile.products(design)
     ssr = profile.sum_yy - 2 * np.einsum("kb,kb->b", coefficients, cross) + np.einsum(
         "kb,kl,lb->b", coefficients, gram, coefficients)
-    n_free = len(model.linear) + len(free) if n_free is None else n_free
-    return _quality(profile, design, coefficients, np.maximum(ssr, 0.0), n_free)
+    return _quality(profile, design, coefficients, np.maximum(ssr, 0.0), len(model.linear) + len(free))
 
 
 def median_r2(
