@@ -100,6 +100,8 @@ class _Sums:
     bin_r: np.ndarray   # (2, B, K, M)
     side_n: np.ndarray  # (K, 2)
     side_r: np.ndarray  # (2, B, K, 2)
+    blocks: np.ndarray  # (K,) spatial blocks holding pixels of the class
+    moments: np.ndarray  # (2, B, K, 5, 5) sum over blocks of v v^T, v = (n, Σθ, Σθ², ΣR, ΣθR) of a block
 
     def __add__(self, other: _Sums) -> _Sums:
         return _Sums(*(getattr(self, name) + getattr(other, name) for name in self.__dataclass_fields__))
@@ -128,6 +130,8 @@ class _SumOptions:
         The smallest |signed view zenith| [deg] that counts for a side of nadir.
     flip_view_azimuth : bool
         ``vaa`` is stored as seen from the sensor: add 180 deg.
+    block_size : int
+        Side [pixels] of the spatial blocks of the slope's cluster-robust error (within a chunk).
     """
 
     ids: np.ndarray
@@ -136,6 +140,19 @@ class _SumOptions:
     heading: float | None
     min_vza: float
     flip_view_azimuth: bool
+    block_size: int
+
+
+def _spatial_blocks(valid: np.ndarray, k: np.ndarray, n_classes: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each valid pixel's (class, spatial block of ``size`` pixels) group, numbered 0..G-1 in
+    order, and the one-hot (G, K) matrix of the groups' classes."""
+    rows, columns = np.nonzero(valid)  # the order of boolean indexing
+    per_row = -(-valid.shape[1] // size)
+    cells = per_row * -(-valid.shape[0] // size)
+    labels, member = np.unique(k * cells + (rows // size) * per_row + columns // size, return_inverse=True)
+    owner = np.zeros((labels.size, n_classes))
+    owner[np.arange(labels.size), labels // cells] = 1.0
+    return member.reshape(-1), owner
 
 
 def _block_sums(before, after, classes, vza, vaa, saa, options: _SumOptions) -> _Sums:
@@ -155,20 +172,25 @@ def _block_sums(before, after, classes, vza, vaa, saa, options: _SumOptions) -> 
     groups = k * n_bins + bins
     outer = np.abs(s) >= max(min_vza, np.finfo(float).tiny)  # 0 (nadir, or perpendicular) is on neither side
     sides = k[outer] * 2 + (s[outer] > 0)
+    # Sums per (class, spatial block) first: the class sums are theirs added, and their outer
+    # products give the slope's cluster-robust error (_cluster_error).
+    member, owner = _spatial_blocks(valid, k, n_classes, options.block_size)
+    geometry = [np.bincount(member, weights=w, minlength=owner.shape[0]) for w in (None, s, s * s)]
     sums = _Sums(
-        n=np.bincount(k, minlength=n_classes).astype(np.float64),
-        s=np.bincount(k, weights=s, minlength=n_classes),
-        ss=np.bincount(k, weights=s * s, minlength=n_classes),
+        *(values @ owner for values in geometry),
         r=np.zeros((2, n_bands, n_classes)), sr=np.zeros((2, n_bands, n_classes)),
         bin_n=np.bincount(groups, minlength=n_classes * n_bins).astype(np.float64).reshape(n_classes, n_bins),
         bin_r=np.zeros((2, n_bands, n_classes, n_bins)),
         side_n=np.bincount(sides, minlength=n_classes * 2).astype(np.float64).reshape(n_classes, 2),
         side_r=np.zeros((2, n_bands, n_classes, 2)),
+        blocks=owner.sum(axis=0), moments=np.zeros((2, n_bands, n_classes, 5, 5)),
     )
     for stage, cube in enumerate(cubes):
         for band, values in enumerate(cube):
-            sums.r[stage, band] = np.bincount(k, weights=values, minlength=n_classes)
-            sums.sr[stage, band] = np.bincount(k, weights=s * values, minlength=n_classes)
+            block = [np.bincount(member, weights=w, minlength=owner.shape[0]) for w in (values, s * values)]
+            sums.r[stage, band], sums.sr[stage, band] = block[0] @ owner, block[1] @ owner
+            v = np.stack([*geometry, *block])  # (5, G): n, Σθ, Σθ², ΣR, ΣθR per block
+            sums.moments[stage, band] = ((v[:, None] * v[None]).reshape(25, -1) @ owner).T.reshape(-1, 5, 5)
             sums.bin_r[stage, band] = np.bincount(groups, weights=values,
                                                   minlength=n_classes * n_bins).reshape(n_classes, n_bins)
             sums.side_r[stage, band] = np.bincount(sides, weights=values[outer],
@@ -264,6 +286,10 @@ class ViewAngleOptions:
         The side ratio compares pixels with ``|signed vza| >= min_vza`` [deg] (and never 0).
     flip_view_azimuth : bool, default False
         ``vaa`` is stored as seen from the sensor: add 180°.
+    block_size : int, default 32
+        Side [pixels] of the spatial blocks over which the slope's standard error is cluster-robust:
+        pixels of one block may share their errors (a field, a roof, one day of a composite),
+        pixels of different blocks are taken as independent.
     """
 
     by: Literal["sun", "track"] = "sun"
@@ -273,6 +299,7 @@ class ViewAngleOptions:
     bin_width: float = 2.0
     min_vza: float = 0.0
     flip_view_azimuth: bool = False
+    block_size: int = 32
 
 
 def assess_view_angles(
@@ -333,6 +360,8 @@ def assess_view_angles(
         raise InputError(f"bin width {bin_width} deg must be in (0, 90]")
     if not (math.isfinite(min_vza) and 0 <= min_vza < 90):
         raise InputError(f"min_vza {min_vza} deg must be in [0, 90)")
+    if not (isinstance(options.block_size, int) and options.block_size >= 1):
+        raise InputError(f"block size {options.block_size} must be a whole number of pixels >= 1")
     shape = before.shape[1:]
     layers = [_layer(value, name, shape) for name, value in
               (("the class map", classes), ("vza", vza), ("vaa", vaa), ("saa", saa))]
@@ -345,7 +374,7 @@ def assess_view_angles(
     half = math.ceil(90.0 / bin_width)
     edges = bin_width * np.arange(-half, half + 1, dtype=np.float64)
     summing = _SumOptions(ids=ids, edges=edges, by=by, heading=options.heading, min_vza=float(min_vza),
-                          flip_view_azimuth=options.flip_view_azimuth)
+                          flip_view_azimuth=options.flip_view_azimuth, block_size=options.block_size)
     compute = {key: value for key, value in (("scheduler", scheduler), ("num_workers", num_workers)) if value}
     sums = _scene_sums([before.data, after.data, *layers], summing, compute)
     return _statistics(sums, ids, edges, before, options.class_names or {},
@@ -361,6 +390,7 @@ def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataAr
     variance = _divide(sums.ss, n) - mean_s**2
     covariance = _divide(sums.sr, n) - mean_s * mean
     slope = _divide(covariance, np.where(variance > 1e-12 * np.maximum(_divide(sums.ss, n), 1.0), variance, 0.0))
+    slope_error = _cluster_error(sums, slope, mean, mean_s, n * variance)
     occupied = np.flatnonzero(sums.bin_n.sum(axis=0) > 0)
     keep = slice(occupied[0], occupied[-1] + 1) if occupied.size else slice(0, 0)
     bin_n = sums.bin_n[:, keep]
@@ -373,6 +403,11 @@ def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataAr
                   {"long_name": "least-squares slope of reflectance against signed view zenith", "units": "1/degree"}),
         "relative_slope": (("stage", "band", "class"), 1000.0 * _divide(slope, mean),
                            {"long_name": "slope relative to the class mean", "units": "%/10 degree"}),
+        "relative_slope_error": (("stage", "band", "class"), 1000.0 * _divide(slope_error, np.abs(mean)),
+                                 {"long_name": "1-sigma of the relative slope, cluster-robust over spatial blocks",
+                                  "units": "%/10 degree"}),
+        "blocks": (("class",), sums.blocks.astype(np.int64), {"long_name": "spatial blocks with pixels of the class",
+                                                                "units": "1"}),
         "side_ratio": (("stage", "band", "class"), _divide(side_mean[..., 1], side_mean[..., 0]),
                        {"long_name": "mean reflectance, positive over negative side of nadir", "units": "1"}),
         "side_pixels": (("class", "side"), sums.side_n.astype(np.int64), {"units": "1"}),
@@ -393,6 +428,22 @@ def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataAr
     attrs = {**{k: v for k, v in settings.items() if v is not None}, "positive_side": positive,
              "negative_side": negative}
     return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _cluster_error(sums: _Sums, slope, mean, mean_s, sxx) -> np.ndarray:
+    """1-sigma of the least-squares slope [1/deg], cluster-robust over the spatial blocks (CR1,
+    Liang and Zeger 1986; Cameron and Miller 2015, J. Hum. Resour. 50, 317-372, eq. 11):
+    Var b = G/(G-1) Σ_g u_g² / Sxx², with u_g = Σ_{i in g} (θ_i − θ̄) e_i and the residuals
+    e = R − a − bθ. u_g is linear in the block's sums v_g = (n, Σθ, Σθ², ΣR, ΣθR):
+    u_g = c·v_g with c = (aθ̄, bθ̄ − a, −b, −θ̄, 1), so Σ_g u_g² = cᵀ (Σ_g v_g v_gᵀ) c. NaN with
+    fewer than 2 blocks."""
+    intercept = mean - slope * mean_s
+    c = np.stack(np.broadcast_arrays(intercept * mean_s, slope * mean_s - intercept, -slope, -mean_s,
+                                     np.ones_like(slope)), axis=-1)
+    scores = np.maximum(np.einsum("...i,...ij,...j->...", c, sums.moments, c), 0.0)
+    blocks = sums.blocks
+    factor = _divide(blocks, np.where(blocks > 1, blocks - 1, 0.0))
+    return _divide(np.sqrt(factor * scores), sxx)
 
 
 def _stage_summary(values: xr.DataArray) -> dict[str, object]:
@@ -418,11 +469,11 @@ def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
     for index, class_id in enumerate(dataset["class"].values):
         one = dataset.isel({"class": index})
         entry: dict[str, object] = {"id": int(class_id), "name": str(one["class_name"].values),
-                                    "pixels": int(one["pixels"])}
+                                    "pixels": int(one["pixels"]), "blocks": int(one["blocks"])}
         for stage in STAGES:
             values = one.sel(stage=stage)
             entry[stage] = {name: _json_numbers(values[name].values)
-                            for name in ("mean", "slope", "relative_slope", "side_ratio")}
+                            for name in ("mean", "slope", "relative_slope", "relative_slope_error", "side_ratio")}
         entry["side_pixels"] = {"negative": int(one["side_pixels"].values[0]),
                                 "positive": int(one["side_pixels"].values[1])}
         entry["profile"] = {
@@ -434,7 +485,8 @@ def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
     return {
         "sign": {key: dataset.attrs[key] for key in ("sign_convention", "positive_side", "negative_side", "heading",
                                                       "min_vza") if key in dataset.attrs},
-        "units": {"mean": "1", "slope": "1/degree", "relative_slope": "%/10 degree", "side_ratio": "1"},
+        "units": {"mean": "1", "slope": "1/degree", "relative_slope": "%/10 degree",
+                  "relative_slope_error": "%/10 degree", "side_ratio": "1"},
         "bands": _band_list(dataset),
         "classes": classes,
         "summary": {"abs_relative_slope_percent_per_10deg": _stage_summary(dataset["relative_slope"]),

@@ -32,7 +32,8 @@ from brdfcorr.io.paths import check_outputs, refuse_existing
 
 
 def _summary_rows(report: dict) -> list[dict[str, str]]:
-    """One row per class: pixels, median |relative slope| over bands and median side ratio."""
+    """One row per class: pixels, median |relative slope| over bands ± the median of its 1-sigma,
+    and median side ratio."""
     import numpy as np
 
     rows = []
@@ -40,8 +41,11 @@ def _summary_rows(report: dict) -> list[dict[str, str]]:
         row = {"class": str(entry["id"]), "name": entry["name"], "pixels": str(entry["pixels"])}
         for stage in ("before", "after"):
             slopes = np.abs(np.array(entry[stage]["relative_slope"], dtype=float))
+            errors = np.array(entry[stage]["relative_slope_error"], dtype=float)
             ratios = np.array(entry[stage]["side_ratio"], dtype=float)
-            row[f"|slope| {stage} [%/10deg]"] = f"{np.nanmedian(slopes):.2f}" if np.isfinite(slopes).any() else "-"
+            error = f" ± {np.nanmedian(errors):.2f}" if np.isfinite(errors).any() else ""
+            row[f"|slope| {stage} [%/10deg]"] = (f"{np.nanmedian(slopes):.2f}{error}" if np.isfinite(slopes).any()
+                                                 else "-")
             row[f"ratio {stage}"] = f"{np.nanmedian(ratios):.3f}" if np.isfinite(ratios).any() else "-"
         rows.append(row)
     return rows
@@ -76,6 +80,9 @@ def _number(value: float | None) -> str:
 @click.option("--min-vza", type=click.FloatRange(min=0, max=90, max_open=True), default=0.0, show_default=True,
               help="The side ratio compares pixels at least this far from nadir [deg].")
 @click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
+@click.option("--block-size", type=click.IntRange(min=1), default=32, show_default=True,
+              help="Side [pixels] of the spatial blocks the slopes' 1-sigma is cluster-robust over (pixels of a "
+                   "block may share their errors: a field, a roof, one day of a composite).")
 @click.option("--resampling", default="nearest", show_default=True,
               help="Resampling of the other line onto this line's grid (rasterio name).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
@@ -90,13 +97,13 @@ def _number(value: float | None) -> str:
 @handle_errors
 def assess_command(before, after, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                    offset, overlap, class_names, sign_by, heading, bin_width, min_vza, flip_view_azimuth,
-                   resampling, output, figures_dir, chunk, overwrite, progress):
+                   block_size, resampling, output, figures_dir, chunk, overwrite, progress):
     """Did the BRDF correction work? View-angle slopes, side ratios, profiles and overlaps, before and after.
 
     Measures the view-angle signal in BEFORE (the input) and AFTER (the corrected image), per
-    class and band: the slope of reflectance against the signed view zenith [%/10 deg], the ratio of the
-    two sides of nadir (forward/backward scattering) and the across-track profiles, before and
-    after; with --overlap, the RMSE, mean absolute difference and bias of two lines where they
+    class and band: the slope of reflectance against the signed view zenith [%/10 deg] with its
+    1-sigma, the ratio of the two sides of nadir (forward/backward scattering) and the across-track
+    profiles, before and after; with --overlap, the RMSE, mean absolute difference and bias of two lines where they
     overlap. Writes a JSON report (-o) and PNG figures (--figures).
     """
     from brdfcorr.analysis.assess import ViewAngleOptions
@@ -123,7 +130,8 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
             after, overlap=tuple(overlap) if overlap else None, resampling=resampling,
             view_options=ViewAngleOptions(by=sign_by, heading=heading,
                                           class_names=_pairs("--class-name", class_names), bin_width=bin_width,
-                                          min_vza=min_vza, flip_view_azimuth=flip_view_azimuth),
+                                          min_vza=min_vza, flip_view_azimuth=flip_view_azimuth,
+                                          block_size=block_size),
             align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
             engine=Engine(chunks=chunk),
         )

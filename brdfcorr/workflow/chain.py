@@ -349,6 +349,7 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
     view_options = ViewAngleOptions(
         by=step.sign_by, heading=step.heading, class_names={entry.id: entry.name for entry in table.classes},
         bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.steps.correct.flip_view_azimuth,
+        block_size=step.block_size,
     )
     assessment = assess_files(
         sources, scene.outputs["corrected"], view_options=view_options, align_classes=inputs.align_classes,

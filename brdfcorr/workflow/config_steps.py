@@ -278,12 +278,15 @@ class AssessStep(StrictModel):
         Width of the bins of signed view zenith of the across-track profiles [deg].
     min_vza : float
         The side ratio compares pixels with ``|signed vza| >= min_vza`` [deg] (and never 0).
+    block_size : int
+        Side [pixels] of the spatial blocks the slopes' 1-sigma is cluster-robust over.
     """
 
     sign_by: Literal["sun", "track"] = "sun"
     heading: Number | None = Field(None, ge=0, lt=360, allow_inf_nan=False)
     bin_width: Number = Field(2.0, gt=0, le=45)
     min_vza: Number = Field(0.0, ge=0, lt=90)
+    block_size: Integer = Field(32, ge=1)
 
     @model_validator(mode="after")
     def _heading(self) -> AssessStep:

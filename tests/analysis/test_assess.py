@@ -110,6 +110,54 @@ def test_dask_equals_numpy_and_pixels_invalid_in_either_stage_are_left_out(geome
     assert float(eager["mean"].sel(stage="before").values[2, 0]) == pytest.approx(before[2][valid].mean(), rel=1e-12)
 
 
+def _cluster_robust_slope_error(theta, values, blocks):
+    """CR1 1-sigma of the least-squares slope of ``values`` on ``theta``, written out pixel by pixel
+    and block by block (Cameron and Miller 2015, eq. 11): an independent computation."""
+    x = theta - theta.mean()
+    slope = (x * values).sum() / (x * x).sum()
+    residuals = values - values.mean() - slope * x
+    scores = np.array([(x[blocks == g] * residuals[blocks == g]).sum() for g in np.unique(blocks)])
+    count = scores.size
+    return np.sqrt(count / (count - 1) * (scores**2).sum()) / (x * x).sum()
+
+
+def test_the_slope_error_is_cluster_robust_over_spatial_blocks(geometry, class_map):
+    # Against the pixel-by-pixel CR1 on the same blocks (5 x 5 pixels here), numpy and dask (chunks
+    # of whole blocks) alike; a block shared offset (correlated noise) shows in it.
+    rng = np.random.default_rng(7)
+    shared = np.kron(rng.normal(0, 0.02, (NY // 5, NX // 5)), np.ones((5, 5)))
+    before = (0.3 + 0.001 * signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"]) + shared
+              + rng.normal(0, 0.01, (NY, NX)))[None]
+    options = ViewAngleOptions(block_size=5)
+    eager = assess_view_angles(before, before, class_map, geometry["vza"], geometry["vaa"], geometry["saa"],
+                               options=options)
+    lazy = assess_view_angles(da.from_array(before, chunks=(1, 10, 20)), before, class_map, geometry["vza"],
+                              geometry["vaa"], geometry["saa"], options=options)
+    theta = signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"])
+    rows, columns = np.indices((NY, NX))
+    blocks = (rows // 5) * NX + columns // 5
+    for index, class_id in enumerate((1, 2)):
+        pick = class_map == class_id
+        expected = _cluster_robust_slope_error(theta[pick], before[0][pick], blocks[pick])
+        relative = 1000 * expected / before[0][pick].mean()
+        for result in (eager, lazy):
+            assert int(result["blocks"].values[index]) == len(np.unique(blocks[pick]))
+            np.testing.assert_allclose(result["relative_slope_error"].values[:, 0, index], relative, rtol=1e-9)
+
+
+def test_the_slope_error_of_independent_pixels_is_the_classical_one():
+    # White noise, blocks of 4 x 4 pixels (2500 of them): the cluster-robust 1-sigma of the
+    # relative slope is within 10 % of the textbook sigma / sqrt(Sxx) (1000 / mean; sigma known).
+    ny, nx, sigma = 200, 200, 0.01
+    angles = synthetic_angles(ny, nx, vza_max=30.0, saa=90.0, dtype=np.float64)
+    theta = signed_view_zenith(angles["vza"], angles["vaa"], angles["saa"])
+    values = 0.3 + np.random.default_rng(3).normal(0, sigma, (1, ny, nx))
+    result = assess_view_angles(values, values, np.ones((ny, nx), np.int64), angles["vza"], angles["vaa"],
+                                angles["saa"], options=ViewAngleOptions(block_size=4))
+    textbook = 1000 * sigma / np.sqrt(((theta - theta.mean()) ** 2).sum()) / 0.3
+    assert result["relative_slope_error"].values[0, 0, 0] == pytest.approx(textbook, rel=0.1)
+
+
 def test_view_angle_report_is_valid_json_with_null_for_nan(geometry, class_map, tmp_path):
     before = np.full((1, NY, NX), 0.3)
     classes = class_map.copy()
