@@ -457,13 +457,22 @@ def _stage_summary(values: xr.DataArray) -> dict[str, object]:
     return summary
 
 
+def _within_two_sigma(dataset: xr.Dataset) -> dict[str, int]:
+    """How many class-band slopes lie within 2 sigma of 0, per stage, of how many have a sigma."""
+    measured = np.isfinite(dataset["relative_slope"]) & np.isfinite(dataset["relative_slope_error"])
+    inside = measured & (np.abs(dataset["relative_slope"]) <= 2.0 * dataset["relative_slope_error"])
+    return {**{stage: int(inside.sel(stage=stage).sum()) for stage in STAGES},
+            "of": int(measured.sel(stage="after").sum())}
+
+
 def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
     """The result of :func:`assess_view_angles` as a JSON-serialisable dict.
 
     Per class (id, name, pixels) and stage: per band lists of ``mean`` [1], ``slope`` [1/deg],
     ``relative_slope`` [%/10 deg] and ``side_ratio`` [-]; the profile (bin edges [deg], pixels,
     mean per band and bin). ``summary``: median and largest |relative slope| and |side ratio − 1|
-    [%] over classes and bands, before and after.
+    [%] over classes and bands, before and after, and how many class-band slopes lie within 2
+    sigma of 0 (``slopes_within_2_sigma``: ``before``, ``after``, ``of``).
     """
     classes = []
     for index, class_id in enumerate(dataset["class"].values):
@@ -490,5 +499,6 @@ def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
         "bands": _band_list(dataset),
         "classes": classes,
         "summary": {"abs_relative_slope_percent_per_10deg": _stage_summary(dataset["relative_slope"]),
+                    "slopes_within_2_sigma": _within_two_sigma(dataset),
                     "abs_side_ratio_minus_1_percent": _stage_summary(100.0 * (dataset["side_ratio"] - 1.0))},
     }

@@ -62,6 +62,13 @@ prior_options = _stack(
 )
 
 
+#: ``--block-size`` of ``assess`` and ``assess-lines``: the blocks of the slopes' 1-sigma.
+slope_block_option = click.option(
+    "--block-size", type=click.IntRange(min=1), default=32, show_default=True,
+    help="Side [pixels] of the spatial blocks the slopes' 1-sigma is cluster-robust over (pixels of a block may "
+         "share their errors: a field, a roof, one day of a composite).")
+
+
 def prior_setting(prior: str | None, spread: float | None):
     """``--prior`` and ``--prior-spread`` as a :class:`brdfcorr.fit.prior.ShapePrior`, or None
     without a prior; an unknown set or a spread without a prior is an error before any work."""

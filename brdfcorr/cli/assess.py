@@ -27,6 +27,7 @@ from brdfcorr.cli._inputs import (
     prior_setting,
     reference_sza,
     scale_options,
+    slope_block_option,
 )
 from brdfcorr.io.paths import check_outputs, refuse_existing
 
@@ -80,9 +81,7 @@ def _number(value: float | None) -> str:
 @click.option("--min-vza", type=click.FloatRange(min=0, max=90, max_open=True), default=0.0, show_default=True,
               help="The side ratio compares pixels at least this far from nadir [deg].")
 @click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
-@click.option("--block-size", type=click.IntRange(min=1), default=32, show_default=True,
-              help="Side [pixels] of the spatial blocks the slopes' 1-sigma is cluster-robust over (pixels of a "
-                   "block may share their errors: a field, a roof, one day of a composite).")
+@slope_block_option
 @click.option("--resampling", default="nearest", show_default=True,
               help="Resampling of the other line onto this line's grid (rasterio name).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
@@ -138,6 +137,9 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     report = assessment.report()
     write_json(report, output)
     click.echo(_format_table(_summary_rows(report)))
+    within = report["view_angles"]["summary"]["slopes_within_2_sigma"]
+    click.echo(f"slopes within 2 sigma of 0 (class x band): {within['before']} of {within['of']} before, "
+               f"{within['after']} of {within['of']} after")
     if report["overlap"] is not None:
         summary = report["overlap"]["summary"]
         before_rmse, after_rmse = (summary[f"median_relative_rmse_percent_{stage}"] for stage in ("before", "after"))
@@ -151,10 +153,14 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
 
 def _held_out_rows(line: dict) -> list[dict[str, str]]:
     """One held-out line of the leave-one-line-out report as rows: the largest |relative slope|
-    over classes and bands, then the median relative overlap RMSE over bands with each neighbour."""
+    over classes and bands and how many slopes lie within 2 sigma of 0, then the median relative
+    overlap RMSE over bands with each neighbour."""
     slope = line["view_angles"]["summary"]["abs_relative_slope_percent_per_10deg"]
+    within = line["view_angles"]["summary"]["slopes_within_2_sigma"]
     rows = [{"measure": "largest |relative slope| [%/10deg]", "before": _number(slope["before"]["max"]),
-             "after": _number(slope["after"]["max"])}]
+             "after": _number(slope["after"]["max"])},
+            {"measure": f"slopes within 2 sigma of 0 (of {within['of']})",
+             **{stage: str(within[stage]) for stage in ("before", "after")}}]
     for neighbour, overlap in line["overlaps"].items():
         summary = overlap["summary"]
         rows.append({"measure": f"overlap with {neighbour} ({overlap['pixels']} px): relative RMSE [%]",
@@ -190,6 +196,7 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
                    "(track, with --heading).")
 @click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
 @click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
+@slope_block_option
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="JSON report to write.")
 @click.option("--chunk", type=CHUNK_SIZE,
@@ -199,7 +206,7 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @handle_errors
 def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                          offset, model_name, class_model, class_names, fix, prior, prior_spread, max_samples, seed,
-                         ref_sza, sign_by, heading, flip_view_azimuth, output, chunk, overwrite):
+                         ref_sza, sign_by, heading, flip_view_azimuth, block_size, output, chunk, overwrite):
     """Leave-one-line-out: fit on the other flight lines, correct and assess each held-out line.
 
     For each of IMAGES (at least 2 flight lines, each with its --classes and --angles, in the same
@@ -231,7 +238,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
                    fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed,
                    reference={"sza": "mean" if sza is None else sza, "vza": 0.0}, prior=shape_prior),
         view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
-                                      flip_view_azimuth=flip_view_azimuth),
+                                      flip_view_azimuth=flip_view_azimuth, block_size=block_size),
         align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None, chunks=chunk,
     )
     report = assessment.report()

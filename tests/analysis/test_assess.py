@@ -152,10 +152,15 @@ def test_the_slope_error_of_independent_pixels_is_the_classical_one():
     angles = synthetic_angles(ny, nx, vza_max=30.0, saa=90.0, dtype=np.float64)
     theta = signed_view_zenith(angles["vza"], angles["vaa"], angles["saa"])
     values = 0.3 + np.random.default_rng(3).normal(0, sigma, (1, ny, nx))
-    result = assess_view_angles(values, values, np.ones((ny, nx), np.int64), angles["vza"], angles["vaa"],
+    tilted = values + 0.001 * theta  # before: a slope of 3.3 %/10 deg
+    result = assess_view_angles(tilted, values, np.ones((ny, nx), np.int64), angles["vza"], angles["vaa"],
                                 angles["saa"], options=ViewAngleOptions(block_size=4))
     textbook = 1000 * sigma / np.sqrt(((theta - theta.mean()) ** 2).sum()) / 0.3
-    assert result["relative_slope_error"].values[0, 0, 0] == pytest.approx(textbook, rel=0.1)
+    assert result["relative_slope_error"].values[1, 0, 0] == pytest.approx(textbook, rel=0.1)
+    # The noise's own slope (this draw: -1.2 sigma) is within 2 sigma of 0, the tilt (348 sigma) is not.
+    after = result["relative_slope"].values[1, 0, 0] / result["relative_slope_error"].values[1, 0, 0]
+    assert abs(after) < 2
+    assert view_angle_report(result)["summary"]["slopes_within_2_sigma"] == {"before": 0, "after": 1, "of": 1}
 
 
 def test_view_angle_report_is_valid_json_with_null_for_nan(geometry, class_map, tmp_path):

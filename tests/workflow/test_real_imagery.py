@@ -64,10 +64,13 @@ def slopes(tmp_path_factory) -> dict[str, np.ndarray]:
     result = {}
     for name in ("brdfcorr", "cfactor"):
         _run(["assess", str(IMAGE), str(out / f"{name}.tif"), "--angles", str(ANGLES), "--classes", str(strata),
-              "-o", str(out / f"{name}.json"), "--figures", str(out / name)])
+              "--block-size", "8", "-o", str(out / f"{name}.json"), "--figures", str(out / name)])
         assert (out / name / "assess_profiles.png").stat().st_size > 0
-        groups = json.loads((out / f"{name}.json").read_text())["view_angles"]["classes"]
+        view = json.loads((out / f"{name}.json").read_text())["view_angles"]
+        groups = view["classes"]
         assert [group["name"] for group in groups] == list(GROUPS)  # the strata's names, from their tags
+        within = view["summary"]["slopes_within_2_sigma"]  # every group and band has a sigma (63-81 blocks)
+        assert within["of"] == len(GROUPS) * len(CENTRES) and 0 <= within["after"] <= within["of"]
         for stage, key in (("before", "raw"), ("after", name)):
             result[key] = np.array([[group[stage]["relative_slope"][band] for band in (RED, NIR)] for group in groups])
     assert file_digests(DATA) == before
