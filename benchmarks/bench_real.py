@@ -276,6 +276,16 @@ def _rows(slopes: dict, methods: Sequence[str], groups: Sequence[str], pixels: S
             cells = [f"{slopes[m][band][g]:.2f}" + (f"±{errors[m][band][g]:.2f}" if errors else "") for m in methods]
             print(f"{group:<16}{n:>7}{band:>6}" + "".join(f"{cell:>17}" for cell in cells))
     print("worst |slope| over groups x red/NIR: " + ", ".join(f"{m} {worst(slopes[m]):.2f}" for m in methods))
+    if errors:
+        print("within 2 sigma of 0 (of groups x red/NIR): " + ", ".join(
+            f"{m} {within_two_sigma(slopes[m], errors[m])}" for m in methods))
+
+
+def within_two_sigma(slopes: dict[str, list[float]], errors: dict[str, list[float]]) -> str:
+    """``k/n``: how many of the n slopes with a 1-sigma lie within 2 sigma of 0."""
+    values, sigmas = (np.concatenate([np.asarray(d[band], float) for band in REPORTED]) for d in (slopes, errors))
+    measured = np.isfinite(values) & np.isfinite(sigmas)
+    return f"{int(np.sum(np.abs(values[measured]) <= 2 * sigmas[measured]))}/{int(measured.sum())}"
 
 
 def print_report(result: dict[str, object], folds: Sequence[dict] = ()) -> None:
