@@ -64,6 +64,10 @@ def test_assess_step_writes_report_figure_and_summary(tmp_path, make_scenes, wri
         for stage in ("before", "after"):
             expected = np.median(np.abs([v for v in entry[stage]["relative_slope"] if v is not None]))
             assert row["median_abs_relative_slope_percent_per_10deg"][stage] == pytest.approx(expected)
+            # and the bands whose slope lies within 2 sigma of 0, counted from the report's lists
+            slopes, errors = (np.array(entry[stage][key], dtype=float) for key in ("relative_slope",
+                                                                                  "relative_slope_error"))
+            assert row["bands_within_2_sigma"][stage] == int(np.sum(np.abs(slopes) <= 2 * errors))
     assert assessed["view_angles"]["classes"][0]["profile"]["vza_bin_edges_deg"][0][1] - \
         assessed["view_angles"]["classes"][0]["profile"]["vza_bin_edges_deg"][0][0] == pytest.approx(5.0)
 
