@@ -336,6 +336,9 @@ def assess_view_angles(
         - ``slope`` (stage, band, class): least-squares slope b of R against the signed view
           zenith θ [1/deg] (Notes);
         - ``relative_slope`` (stage, band, class): 1000 · b / R̄ [%/10 deg];
+        - ``relative_slope_error`` (stage, band, class): its 1-sigma [%/10 deg], cluster-robust
+          over square blocks of ``options.block_size`` pixels (:func:`_cluster_error`);
+          ``blocks`` (class): the blocks holding the class's pixels;
         - ``side_ratio`` (stage, band, class): mean R on the positive side over that on the negative
           side [-] (forward/backward with ``by="sun"``, right/left with ``by="track"``), 1 when
           the sides agree; ``side_pixels`` (class, side);
@@ -468,11 +471,12 @@ def _within_two_sigma(dataset: xr.Dataset) -> dict[str, int]:
 def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
     """The result of :func:`assess_view_angles` as a JSON-serialisable dict.
 
-    Per class (id, name, pixels) and stage: per band lists of ``mean`` [1], ``slope`` [1/deg],
-    ``relative_slope`` [%/10 deg] and ``side_ratio`` [-]; the profile (bin edges [deg], pixels,
-    mean per band and bin). ``summary``: median and largest |relative slope| and |side ratio − 1|
-    [%] over classes and bands, before and after, and how many class-band slopes lie within 2
-    sigma of 0 (``slopes_within_2_sigma``: ``before``, ``after``, ``of``).
+    Per class (id, name, pixels, blocks) and stage: per band lists of ``mean`` [1], ``slope``
+    [1/deg], ``relative_slope`` and ``relative_slope_error`` [%/10 deg] and ``side_ratio`` [-]; the
+    profile (bin edges [deg], pixels, mean per band and bin). ``summary``: median and largest
+    |relative slope| and |side ratio − 1| [%] over classes and bands, before and after, and how
+    many class-band slopes lie within 2 sigma of 0 (``slopes_within_2_sigma``: ``before``,
+    ``after``, ``of``).
     """
     classes = []
     for index, class_id in enumerate(dataset["class"].values):
