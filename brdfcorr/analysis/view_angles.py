@@ -461,7 +461,8 @@ def _stage_summary(values: xr.DataArray) -> dict[str, object]:
 
 
 def _within_two_sigma(dataset: xr.Dataset) -> dict[str, int]:
-    """How many class-band slopes lie within 2 sigma of 0, per stage, of how many have a sigma."""
+    """How many slopes of ``dataset`` (all its bands and classes) lie within 2 sigma of 0, per
+    stage, of how many have a sigma."""
     measured = np.isfinite(dataset["relative_slope"]) & np.isfinite(dataset["relative_slope_error"])
     inside = measured & (np.abs(dataset["relative_slope"]) <= 2.0 * dataset["relative_slope_error"])
     return {**{stage: int(inside.sel(stage=stage).sum()) for stage in STAGES},
@@ -471,12 +472,13 @@ def _within_two_sigma(dataset: xr.Dataset) -> dict[str, int]:
 def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
     """The result of :func:`assess_view_angles` as a JSON-serialisable dict.
 
-    Per class (id, name, pixels, blocks) and stage: per band lists of ``mean`` [1], ``slope``
-    [1/deg], ``relative_slope`` and ``relative_slope_error`` [%/10 deg] and ``side_ratio`` [-]; the
-    profile (bin edges [deg], pixels, mean per band and bin). ``summary``: median and largest
-    |relative slope| and |side ratio − 1| [%] over classes and bands, before and after, and how
-    many class-band slopes lie within 2 sigma of 0 (``slopes_within_2_sigma``: ``before``,
-    ``after``, ``of``).
+    Per class: id, name, pixels, blocks, ``bands_within_2_sigma`` (how many of its bands' slopes
+    lie within 2 sigma of 0: ``before``, ``after``, ``of``) and per stage the per band lists of
+    ``mean`` [1], ``slope`` [1/deg], ``relative_slope`` and ``relative_slope_error`` [%/10 deg]
+    and ``side_ratio`` [-]; the profile (bin edges [deg], pixels, mean per band and bin).
+    ``summary``: median and largest |relative slope| and |side ratio − 1| [%] over classes and
+    bands, before and after, and how many class-band slopes lie within 2 sigma of 0
+    (``slopes_within_2_sigma``: ``before``, ``after``, ``of``).
     """
     classes = []
     for index, class_id in enumerate(dataset["class"].values):
@@ -487,6 +489,7 @@ def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
             values = one.sel(stage=stage)
             entry[stage] = {name: _json_numbers(values[name].values)
                             for name in ("mean", "slope", "relative_slope", "relative_slope_error", "side_ratio")}
+        entry["bands_within_2_sigma"] = _within_two_sigma(one)
         entry["side_pixels"] = {"negative": int(one["side_pixels"].values[0]),
                                 "positive": int(one["side_pixels"].values[1])}
         entry["profile"] = {
