@@ -43,9 +43,16 @@ MODEL_NAMES: tuple[str, ...] = (
     "ross_thick_li_dense",
     "ross_thin_li_dense",
     "rpv",
+    "ross_li_ts",
+    "ross_li_peak",
+    "rpv_peak",
 )
 
 #: Models that describe a whole surface (diffuse + specular) and so may be paired with a class in
 #: a parameter table (:data:`brdfcorr.models.SURFACE_MODELS`); ``specular_peak`` is a facet BRDF
 #: used by the V-cavity simulation.
 SURFACE_MODEL_NAMES: tuple[str, ...] = tuple(name for name in MODEL_NAMES if name != "specular_peak")
+
+#: The model "name" of the fits (``fit``, ``fit-classes``, chains) that asks for the surface model
+#: with the lowest held-out error (:mod:`brdfcorr.fit.selection`).
+AUTO_MODEL = "auto"

@@ -23,7 +23,7 @@ import click
 import click.shell_completion
 
 from brdfcorr import __version__
-from brdfcorr.defaults import MODEL_NAMES, SURFACE_MODEL_NAMES, chunk_size_problem
+from brdfcorr.defaults import AUTO_MODEL, MODEL_NAMES, SURFACE_MODEL_NAMES, chunk_size_problem
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, ParameterError
 from brdfcorr.io.files import atomic_path, parse_yaml
 
@@ -34,14 +34,18 @@ class _ModelName(click.ParamType):
 
     name = "model"
 
+    def __init__(self, auto: bool = False):
+        # A fit may also ask for the model with the lowest held-out error (brdfcorr.fit.selection).
+        self.names = SURFACE_MODEL_NAMES + ((AUTO_MODEL,) if auto else ())
+
     def get_metavar(self, param, ctx=None) -> str:
-        return "[" + "|".join(SURFACE_MODEL_NAMES) + "]"
+        return "[" + "|".join(self.names) + "]"
 
     def shell_complete(self, ctx, param, incomplete):
-        return [click.shell_completion.CompletionItem(n) for n in SURFACE_MODEL_NAMES if n.startswith(incomplete)]
+        return [click.shell_completion.CompletionItem(n) for n in self.names if n.startswith(incomplete)]
 
     def convert(self, value, param, ctx):
-        if value in SURFACE_MODEL_NAMES:
+        if value in self.names:
             return value
         if value not in MODEL_NAMES:  # get_model's message
             self.fail(f"unknown BRDF model {value!r}; known models: {', '.join(MODEL_NAMES)}", param, ctx)
@@ -49,6 +53,8 @@ class _ModelName(click.ParamType):
 
 
 MODEL_CHOICE = _ModelName()
+#: ``--model`` of the fits: a surface model or ``auto``.
+FIT_MODEL_CHOICE = _ModelName(auto=True)
 
 
 class _ChunkSize(click.ParamType):

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import (
-    MODEL_CHOICE,
+    FIT_MODEL_CHOICE,
     PROGRESS,
     _assignments,
     _format_table,
@@ -34,7 +34,7 @@ from brdfcorr.io.paths import check_outputs, refuse_existing, update_target
 
 # The library (scipy, dask, rasterio, matplotlib) is imported when a command runs, not when its
 # options are parsed: --help and argument errors answer at once. --model is checked against the
-# registry's names in brdfcorr.defaults (MODEL_CHOICE), without importing the models.
+# registry's names in brdfcorr.defaults (FIT_MODEL_CHOICE), without importing the models.
 
 
 class _BandRange(click.ParamType):
@@ -66,10 +66,11 @@ class _BandRange(click.ParamType):
 @click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Class map per image, in the images' order.")
 @class_map_options
-@click.option("--model", "model_name", type=MODEL_CHOICE,
-              help="Model for every class (see `brdfcorr models`) [default: ross_thick_li_sparse on an NDVI "
-                   "strata map (brdfcorr classes ndvi), else torrance_sparrow].")
-@click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
+@click.option("--model", "model_name", type=FIT_MODEL_CHOICE,
+              help="Model for every class (see `brdfcorr models`), or auto: per class the candidate with the lowest "
+                   "held-out error over spatial blocks [default: ross_thick_li_sparse on an NDVI strata map "
+                   "(brdfcorr classes ndvi), else torrance_sparrow].")
+@click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class, or auto (repeatable).")
 @click.option("--class-name", "names", multiple=True, metavar="ID=NAME",
               help="Name of a class (repeatable) [default: the class map's class_names tag, else class_ID].")
 @click.option("--name", "deprecated_names", multiple=True, hidden=True)  # brdfcorr <= 0.3; says so when used
@@ -158,6 +159,9 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     check_outputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
+    for class_fit in fit.result.fits:
+        if class_fit.model_choice is not None:
+            click.echo(f"class {class_fit.class_id} ({class_fit.name}): {class_fit.model_choice.table()}")
     click.echo(_format_table([_class_row(class_fit) for class_fit in fit.result.fits]))
     for note in fit.notes:
         click.echo(note)
@@ -215,8 +219,10 @@ def _write_json(target: Path, content: dict) -> None:
 
 @main.command("fit")
 @click.argument("measurements", type=click.Path(path_type=Path))
-@click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
-              help="Registered surface model to fit (see `brdfcorr models`).")
+@click.option("--model", "model_name", type=FIT_MODEL_CHOICE, default="torrance_sparrow", show_default=True,
+              help="Registered surface model to fit (see `brdfcorr models`), or auto: the candidate with the lowest "
+                   "5-fold cross-validated error over the geometries (a more complex one only where it wins by more "
+                   "than the folds' spread).")
 @click.option("--fix", multiple=True, metavar="NAME=VALUE",
               help="Hold a parameter fixed (repeatable); paper 003 uses --fix k=0.25.")
 @click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", help="Starting value of a parameter.")
@@ -267,6 +273,8 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     if plot_dir is not None:  # the figures' names are known now: check them before writing anything
         plots = {f"--plot-dir file {path}": path for path in _measurement_plot_files(fit, name, plot_dir).values()}
         check_outputs({"-o": output, **plots}, {"MEASUREMENTS": measurements})
+    for band, choice in fit.choices.items():
+        click.echo(("" if band is None else f"{band:g} nm: ") + choice.table())
     _echo_measurement_fit(fit, name)
     if plot_dir is not None:
         _plot_measurement_fit(fit, name, plot_dir, "log" if log_scale else "linear")

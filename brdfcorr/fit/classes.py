@@ -30,11 +30,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
+from brdfcorr.defaults import AUTO_MODEL
+from brdfcorr.errors import BrdfcorrWarning, FitError, InputError
 from brdfcorr.fit.entries import class_entry, compact
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
-from brdfcorr.fit.quality import fit_quality, median_r2
+from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
+from brdfcorr.fit.selection import IMAGERY_CANDIDATES, ModelChoice, choose_class_model
 from brdfcorr.fit.settings import (
     DEFAULT_MODEL,
     WATER_VAPOUR_BANDS,
@@ -47,7 +49,6 @@ from brdfcorr.fit.solver import (
     DEFAULT_FIXED,
     SEARCH_RANGES,
     fit_class_samples,
-    imagery_models,
     intensity_terms,
     search_range,
 )
@@ -79,10 +80,8 @@ POOR_R2 = 0.5
 #: ``BETTER_GAIN`` and is at least ``BETTER_FACTOR`` times it.
 BETTER_GAIN = 0.1
 BETTER_FACTOR = 2.0
-#: The cost of trying the other models is bounded: a seeded subsample of this many samples, at
-#: most ``SUGGEST_BANDS`` evenly spaced bands, and ``SUGGEST_GRID`` grid points per shape parameter.
-SUGGEST_SAMPLES = 20_000
-SUGGEST_BANDS = 16
+#: The cost of trying the other models is bounded: ``SUGGEST_GRID`` grid points per shape
+#: parameter, on the subsample of the held-out choice (:data:`brdfcorr.fit.selection.SELECT_SAMPLES`).
 SUGGEST_GRID = 5
 
 
@@ -136,7 +135,7 @@ class ClassFit:
         For a class that failed or fits poorly (median R^2 < :data:`POOR_R2`): another surface model
         that explains clearly more of its data (see :data:`BETTER_GAIN`), if any.
     better_r2 : float or None
-        That model's median R^2 (on the search subsample).
+        That model's held-out median R^2 (cross-validated over spatial blocks, on a subsample).
     errors_reliable : bool or None
         Whether the errors can be trusted (None before a fit): False with few spatial blocks
         (effective degrees of freedom below :data:`brdfcorr.fit.identifiability.MIN_ERROR_DOF`), a
@@ -148,6 +147,9 @@ class ClassFit:
     prior : str or None
         The shape prior the weights and covariance are the posterior of (``roy2016 (spread 0.2)``),
         if any (:mod:`brdfcorr.fit.prior`).
+    model_choice : ModelChoice or None
+        For a class fitted with ``model="auto"``: every candidate's held-out error and the model
+        chosen (:func:`brdfcorr.fit.selection.choose_class_model`).
     """
 
     class_id: int
@@ -175,6 +177,7 @@ class ClassFit:
     errors_reliable: bool | None = None
     errors_reason: str = ""
     prior: str | None = None
+    model_choice: ModelChoice | None = None
 
     @property
     def median_r2(self) -> float:
@@ -211,6 +214,7 @@ class ClassFit:
             "errors_reliable": self.errors_reliable,
             "errors_reason": self.errors_reason,
             "prior": self.prior,
+            "model_choice": None if self.model_choice is None else self.model_choice.summary(),
         }
 
 
@@ -279,40 +283,24 @@ def _apply_prior(report: ClassFit, prior: ShapePrior, ratios: np.ndarray, sample
         quality[name] for name in ("r2", "rmse", "angular_r2", "chi2_dof"))
 
 
-def _suggestion_samples(theta_i, theta_r, phi, brdf) -> tuple:
-    """A seeded subsample of the samples and bands (:data:`SUGGEST_SAMPLES`, :data:`SUGGEST_BANDS`)."""
-    n = np.size(theta_i)
-    rows = np.random.default_rng(0).choice(n, min(n, SUGGEST_SAMPLES), replace=False)
-    data = np.asarray(brdf, dtype=float).reshape(n, -1)
-    bands = np.unique(np.linspace(0, data.shape[1] - 1, min(data.shape[1], SUGGEST_BANDS)).round().astype(int))
-    angles = (np.asarray(a, dtype=float).reshape(-1)[rows] for a in (theta_i, theta_r, phi))
-    return (*angles, data[np.ix_(rows, bands)])
-
-
-def _suggest_model(report: ClassFit, model: Model, samples: tuple) -> None:
-    """Fit the other imagery-fittable models and record one that explains clearly more than the
-    class's model: median R^2 higher by :data:`BETTER_GAIN` and at least :data:`BETTER_FACTOR`
-    times as high. Every model, the class's own included, is scored on the same subsample."""
-    samples = _suggestion_samples(*samples)
-    scores = {}
-    for name in imagery_models():
-        candidate = get_model(name)
-        if not _angular(candidate) and name != model.name:
-            continue
-        fixed = report.fixed if name == model.name else None
-        try:
-            with np.errstate(all="ignore"):
-                scores[name] = median_r2(candidate, samples, fixed=fixed, grid_points=SUGGEST_GRID)
-        except (ParameterError, np.linalg.LinAlgError, ValueError):
-            continue  # a candidate that cannot be fitted here is no suggestion
-    own = scores.pop(model.name, report.median_r2)
-    own = own if math.isfinite(own) else 0.0
-    scores = {name: value for name, value in scores.items() if math.isfinite(value)}
-    if not scores:
+def _suggest_model(report: ClassFit, model: Model, samples: ClassSamples) -> None:
+    """Record another surface model that predicts the class's held-out blocks clearly better than
+    its own: the choice by held-out error (:func:`brdfcorr.fit.selection.choose_class_model`) among
+    the class's model and :data:`~brdfcorr.fit.selection.IMAGERY_CANDIDATES`, when its held-out
+    median R^2 is higher by :data:`BETTER_GAIN` and at least :data:`BETTER_FACTOR` times as high.
+    Out of sample, a model with more terms wins only where the data show them."""
+    candidates = tuple(dict.fromkeys((model.name, *IMAGERY_CANDIDATES)))
+    try:
+        choice = choose_class_model(samples, candidates=candidates, grid_points=SUGGEST_GRID)
+    except FitError:
+        return  # one spatial block: nothing held out to judge by
+    if choice.chosen == model.name:
         return
-    best = max(scores, key=scores.get)
-    if scores[best] >= own + BETTER_GAIN and scores[best] >= BETTER_FACTOR * own:
-        report.better_model, report.better_r2 = best, scores[best]
+    own = choice.score_of(model.name).heldout_r2
+    own = own if math.isfinite(own) else 0.0
+    better = choice.score_of(choice.chosen).heldout_r2
+    if better >= own + BETTER_GAIN and better >= BETTER_FACTOR * own:
+        report.better_model, report.better_r2 = choice.chosen, better
 
 
 def fit_one_class(
@@ -340,7 +328,10 @@ def fit_one_class(
     name : str
         Class name.
     model : str or Model
-        Surface model with intensity terms (:func:`intensity_terms`).
+        Surface model with intensity terms (:func:`intensity_terms`), or ``"auto"``: the candidate
+        with the lowest held-out error over spatial blocks
+        (:func:`brdfcorr.fit.selection.choose_class_model`; its scores are the report's
+        ``model_choice``).
     samples : ClassSamples
         The class's samples: sun zenith, view zenith and relative azimuth [deg], BRDF per band
         [sr^-1], shape (N, B), and optionally the spatial block of each sample (``block``), over
@@ -364,7 +355,17 @@ def fit_one_class(
     -------
     ClassFit
     """
+    choice, notes = None, []
+    if model == AUTO_MODEL:
+        try:
+            choice = choose_class_model(samples, fixed=fixed, grid_points=grid_points)
+            model = choice.chosen
+        except FitError as error:
+            model = IMAGERY_CANDIDATES[0]
+            notes.append(f"no held-out choice of the model ({error}); fitted {model}")
     model = get_model(model)
+    if fixed is not None and (choice is not None or notes):  # auto: only those the chosen model has
+        fixed = {key: value for key, value in fixed.items() if key in model.parameter_names}
     theta_i, theta_r, phi, brdf = samples.theta_i, samples.theta_r, samples.phi, samples.brdf
     report = ClassFit(
         class_id=class_id,
@@ -374,6 +375,8 @@ def fit_one_class(
         vza_spread=_spread(np.asarray(theta_r)),
         phi_spread=_spread(np.asarray(phi)),
         fallback=fallback,
+        notes=notes,
+        model_choice=choice,
     )
     report.reasons = _sample_reasons(report, guard)
     if report.n_samples >= max(len(model.parameters) + 1, 3):
@@ -389,8 +392,8 @@ def fit_one_class(
             _apply_prior(report, *prior, samples)
             guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
         report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
-        if report.reasons or not report.median_angular_r2 >= POOR_R2:
-            _suggest_model(report, model, (theta_i, theta_r, phi, brdf))
+        if choice is None and (report.reasons or not report.median_angular_r2 >= POOR_R2):
+            _suggest_model(report, model, samples)
     if report.reasons:
         report.status = "fallback" if fallback else "uncorrected"
         action = "left uncorrected"

@@ -53,6 +53,7 @@ __all__ = [
 DEFAULT_FIXED: dict[str, dict[str, float]] = {
     "torrance_sparrow": {"k": 0.25},
     "torrance_sparrow_simplified": {"k": 0.25},
+    "ross_li_ts": {"k": 0.25},
 }
 
 #: Search ranges of the shape parameters (a subset of the physical bounds where BRDFs of natural
@@ -71,6 +72,7 @@ SEARCH_RANGES: dict[str, tuple[float, float, bool]] = {
 #: degenerate limit of the Henyey-Greenstein term).
 MODEL_SEARCH_RANGES: dict[str, dict[str, tuple[float, float, bool]]] = {
     "rpv": {"k": (0.2, 2.0, False), "theta": (-0.9, 0.9, False), "rho_c": (0.0, 1.0, False)},
+    "rpv_peak": {"k": (0.2, 2.0, False), "theta": (-0.9, 0.9, False), "rho_c": (0.0, 1.0, False)},
 }
 
 #: A shape parameter within this fraction of its search range (of log range for w, c) from either
@@ -237,9 +239,16 @@ def _grid(search: tuple[float, float, bool], points: int) -> np.ndarray:
     return np.geomspace(low, high, points) if logarithmic else np.linspace(low, high, points)
 
 
+#: The coarse grid holds at most this many points: a model with more than three free shape
+#: parameters (``rpv_peak``) gets fewer per parameter (3 each for five), so its search stays cheap.
+MAX_GRID_POINTS = 9**3
+
+
 def _grid_start(profile: _LinearProfile, free: Sequence[str], grid_points: int) -> dict[str, float]:
-    """The best point of a coarse grid over the free shape parameters."""
-    grids = np.meshgrid(*(_grid(profile.ranges[name], grid_points) for name in free), indexing="ij")
+    """The best point of a coarse grid over the free shape parameters (at most
+    :data:`MAX_GRID_POINTS` points in all)."""
+    points = max(2, min(grid_points, int(MAX_GRID_POINTS ** (1.0 / len(free)) + 1e-9)))
+    grids = np.meshgrid(*(_grid(profile.ranges[name], points) for name in free), indexing="ij")
     candidates = np.stack([g.ravel() for g in grids], axis=-1)
     values = [profile.objective(dict(zip(free, point))) for point in candidates]
     return dict(zip(free, candidates[int(np.nanargmin(values))]))

@@ -18,6 +18,7 @@ from brdfcorr.models.kernels import (
 )
 from brdfcorr.models.rpv import RPV
 from brdfcorr.models.torrance_sparrow import TORRANCE_SPARROW, TORRANCE_SPARROW_SIMPLIFIED
+from brdfcorr.models.two_lobe import ROSS_LI_PEAK, ROSS_LI_TS, RPV_PEAK
 
 REGISTRY: dict[str, Model] = {
     model.name: model
@@ -32,6 +33,9 @@ REGISTRY: dict[str, Model] = {
         ROSS_THICK_LI_DENSE,
         ROSS_THIN_LI_DENSE,
         RPV,
+        ROSS_LI_TS,
+        ROSS_LI_PEAK,
+        RPV_PEAK,
     )
 }
 

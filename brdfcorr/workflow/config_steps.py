@@ -17,7 +17,7 @@ from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
-from brdfcorr.defaults import DEFAULT_LIMITS
+from brdfcorr.defaults import AUTO_MODEL, DEFAULT_LIMITS
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
@@ -37,6 +37,8 @@ __all__ = [
 
 #: A surface model of the registry (its names are the allowed values).
 SurfaceModel = Literal[SURFACE_MODELS]  # type: ignore[valid-type]
+#: ... or ``auto``, the model with the lowest held-out error, where a step fits one.
+FitModel = Literal[(*SURFACE_MODELS, AUTO_MODEL)]  # type: ignore[valid-type]
 
 
 class MeasurementSet(StrictModel):
@@ -61,7 +63,7 @@ class MeasurementSet(StrictModel):
     file: str = Field(min_length=1)
     class_id: Integer = Field(ge=1)
     name: str = Field(min_length=1)
-    model: SurfaceModel = "torrance_sparrow"
+    model: FitModel = "torrance_sparrow"
     fixed: dict[str, Number] = Field(default_factory=dict)
     initial: dict[str, Number] = Field(default_factory=dict)
     min_phi: Number | None = Field(None, ge=0, le=180)
@@ -126,8 +128,8 @@ class ImageryFit(StrictModel):
     """
 
     source: Literal["imagery"]
-    model: SurfaceModel | None = None
-    class_models: dict[PositiveInteger, SurfaceModel] = Field(default_factory=dict)
+    model: FitModel | None = None
+    class_models: dict[PositiveInteger, FitModel] = Field(default_factory=dict)
     names: dict[PositiveInteger, str] = Field(default_factory=dict)
     fixed: dict[str, Number] | None = None
     max_samples: Integer = Field(Sampling.max_samples, ge=10)

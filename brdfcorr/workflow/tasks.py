@@ -20,14 +20,18 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, ClassModels, GuardRails, Sampling, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
+from brdfcorr.fit.selection import ModelChoice, choose_model
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
+from brdfcorr.fit.solver import DEFAULT_FIXED
 from brdfcorr.io import rasters
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
+from brdfcorr.models import get_model
 from brdfcorr.params import ParameterTable
 from brdfcorr.params_bands import in_ranges
 from brdfcorr.workflow.classmaps import class_preparation, tagged_class_names
@@ -61,6 +65,8 @@ class MeasurementFit:
     warnings : list of str
         Identifiability and convergence warnings, prefixed with the wavelength where there are
         several.
+    choices : dict of float or None to ModelChoice
+        With ``model="auto"``: each wavelength's choice by held-out error (empty otherwise).
     """
 
     path: Path
@@ -70,6 +76,7 @@ class MeasurementFit:
     selection: str
     results: dict[float | None, FitResult]
     warnings: list[str] = field(default_factory=list)
+    choices: dict[float | None, ModelChoice] = field(default_factory=dict)
 
     @property
     def source(self) -> str:
@@ -77,6 +84,9 @@ class MeasurementFit:
         fixed k=0.25; phi >= 90)"``."""
         first = next(iter(self.results.values()))
         details = [first.model.name]
+        if self.choices:
+            choice = next(iter(self.choices.values()))
+            details[0] += f" chosen by {choice.folds}-fold cross-validation over {choice.grouping}"
         if first.fixed:
             details.append("fixed " + ", ".join(f"{key}={value:g}" for key, value in first.fixed.items()))
         if self.selection:
@@ -113,9 +123,13 @@ def fit_measurement_file(
         CSV with columns ``theta_i, theta_r, phi, brdf[, sigma, wavelength]`` [deg, sr^-1]
         (:func:`brdfcorr.fit.measurements.read_measurements`).
     model : str
-        Registered surface model.
+        Registered surface model, or ``"auto"``: the candidate with the lowest held-out error
+        (:func:`brdfcorr.fit.selection.choose_model`, each wavelength; where the wavelengths choose
+        differently, the model most of them chose, fitted at every wavelength).
     fixed, initial, bounds :
-        As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25).
+        As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25); with ``"auto"`` the
+        fixed values apply to the candidates that have them, and initial values and bounds to the
+        chosen model.
     min_phi, max_phi, max_zenith : float, optional
         Fit only these measurements [deg] (paper 003: ``min_phi=90``).
     wavelength : float, optional
@@ -129,7 +143,17 @@ def fit_measurement_file(
     keep, selection = selection_mask(everything, **limits)
     options = {"fixed": fixed or None, "initial": initial or None, "bounds": bounds or None}
     bands = fitted.wavelengths or [None]
-    results, notes = {}, []
+    results, notes, choices = {}, [], {}
+    if model == AUTO_MODEL:
+        for band in bands:
+            subset = fitted if band is None else fitted.at_wavelength(band)
+            choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
+                                         fixed=fixed)
+        chosen = [choice.chosen for choice in choices.values()]
+        model = max(chosen, key=chosen.count)  # the first of the most frequent
+        fixed = {**DEFAULT_FIXED.get(model, {}),
+                 **{key: value for key, value in dict(fixed or {}).items() if key in get_model(model).parameter_names}}
+        options["fixed"] = fixed or None
     for band in bands:
         subset = fitted if band is None else fitted.at_wavelength(band)
         with warnings.catch_warnings(record=True) as caught:
@@ -137,7 +161,7 @@ def fit_measurement_file(
             results[band] = fit_measurements(model, subset, **options)
         where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
         notes += [f"{where}{w.message}" for w in caught if issubclass(w.category, FitWarning)]
-    return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes)
+    return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes, choices)
 
 
 # ------------------------------------------------------------------------------ imagery fit

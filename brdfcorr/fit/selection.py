@@ -1,0 +1,348 @@
+"""Choosing a surface model by its held-out error (``--model auto``).
+
+A model with more parameters always fits the data it was fitted on at least as well; whether it
+describes the surface better shows only on data it has not seen. :func:`choose_model` (goniometer
+measurements) and :func:`choose_class_model` (a class's pixels from imagery) fit every candidate
+model on k - 1 folds of the data and score it on the fold left out, for each of k folds:
+
+- goniometer measurements: folds of geometries, drawn at random with a fixed seed;
+- imagery: folds of spatial blocks (:attr:`brdfcorr.fit.sampling.ClassSamples.block`, unique over
+  scenes, so overlapping lines and dates are held out block by block): a block's pixels, which share
+  their texture and cover, are never on both sides.
+
+The score of a fold is the held-out mean squared error (weighted by 1/sigma^2 where the
+measurements have errors; by the bands' inverse variances for imagery, as the fit weights them).
+The rule is the one-standard-error rule of Hastie, Tibshirani & Friedman [1]_ (section 7.10) on
+paired folds: the candidate with the lowest mean error is the best; the chosen model is the one with
+the fewest free parameters whose mean excess error over the best, fold by fold, is within one
+standard error of that excess (its standard deviation over the folds / sqrt(k)). So a more complex
+model wins only where it beats the simpler ones by more than the folds' spread.
+
+References
+----------
+.. [1] T. Hastie, R. Tibshirani, J. Friedman (2009): The Elements of Statistical Learning, 2nd ed.,
+   Springer, section 7.10 (cross-validation, the one-standard-error rule).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from brdfcorr.errors import BrdfcorrError, FitError
+from brdfcorr.fit.goniometer import fit_brdf
+from brdfcorr.fit.solver import DEFAULT_FIXED, _free_shape, _profile, _search
+from brdfcorr.models import get_model
+
+__all__ = [
+    "AUTO",
+    "GONIOMETER_CANDIDATES",
+    "IMAGERY_CANDIDATES",
+    "CandidateScore",
+    "ModelChoice",
+    "choose_model",
+    "choose_class_model",
+]
+
+#: The model name that asks for the choice by held-out error (CLI ``--model auto``, tables, chains).
+AUTO = "auto"
+#: Candidates for goniometer measurements: one lobe (specular: Torrance-Sparrow; backscatter: the
+#: MODIS kernels, RPV) and two lobes (:mod:`brdfcorr.models.two_lobe`).
+GONIOMETER_CANDIDATES: tuple[str, ...] = (
+    "torrance_sparrow", "ross_thick_li_sparse", "rpv", "ross_li_ts", "ross_li_peak", "rpv_peak",
+)
+#: Candidates for imagery: those whose shape search stays cheap on many pixels and bands (at most
+#: three free shape parameters).
+IMAGERY_CANDIDATES: tuple[str, ...] = ("ross_thick_li_sparse", "torrance_sparrow", "rpv", "ross_li_ts")
+#: Folds of the cross-validation, and the seed of their random assignment.
+FOLDS = 5
+SEED = 0
+#: The imagery choice is made on a seeded subsample of the class: this many pixels and at most
+#: ``SELECT_BANDS`` evenly spaced bands (the full fit of the chosen model then uses every sample).
+SELECT_SAMPLES = 10_000
+SELECT_BANDS = 8
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """One candidate model's cross-validation.
+
+    Attributes
+    ----------
+    model : str
+        Registry name.
+    n_free : int
+        Free parameters of the fit (intensities times bands plus free shape parameters).
+    fold_errors : tuple of float
+        Held-out mean squared error of each fold (weighted; [sr^-2] for unweighted measurements);
+        empty when the candidate could not be fitted.
+    heldout_r2 : float
+        ``1 - PRESS / SS_total`` [-] over every held-out value (median over bands for imagery).
+    problem : str
+        Why the candidate could not be fitted (empty when it was).
+    """
+
+    model: str
+    n_free: int
+    fold_errors: tuple[float, ...]
+    heldout_r2: float
+    problem: str = ""
+
+    @property
+    def mean_error(self) -> float:
+        return float(np.mean(self.fold_errors)) if self.fold_errors else math.inf
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """The outcome of a choice by held-out error.
+
+    Attributes
+    ----------
+    chosen : str
+        The model chosen by the one-standard-error rule.
+    best : str
+        The candidate with the lowest mean held-out error.
+    scores : tuple of CandidateScore
+        Every candidate, in the order tried.
+    folds : int
+        Number of folds.
+    grouping : str
+        What the folds are made of (``"geometries"``, ``"spatial blocks"``, ``"samples"``).
+    """
+
+    chosen: str
+    best: str
+    scores: tuple[CandidateScore, ...]
+    folds: int
+    grouping: str
+
+    def score_of(self, model: str) -> CandidateScore:
+        return next(score for score in self.scores if score.model == model)
+
+    def rows(self) -> list[dict[str, object]]:
+        """One JSON-friendly row per candidate: model, free parameters, held-out R^2, mean error and
+        its spread over the folds, whether chosen, and why it could not be fitted."""
+        return [
+            {
+                "model": score.model,
+                "n_free": score.n_free,
+                "heldout_r2": None if not math.isfinite(score.heldout_r2) else round(score.heldout_r2, 4),
+                "mean_error": None if not score.fold_errors else score.mean_error,
+                "fold_sd": None if len(score.fold_errors) < 2 else float(np.std(score.fold_errors, ddof=1)),
+                "chosen": score.model == self.chosen,
+                "problem": score.problem,
+            }
+            for score in self.scores
+        ]
+
+    def summary(self) -> dict[str, object]:
+        """JSON-friendly: the chosen and best model, the folds and every candidate's row."""
+        return {"chosen": self.chosen, "best": self.best, "folds": self.folds, "grouping": self.grouping,
+                "rule": "one standard error (paired folds)", "candidates": self.rows()}
+
+    def table(self) -> str:
+        """The candidates as a plain-text table for the console."""
+        lines = [f"model choice by {self.folds}-fold cross-validation over {self.grouping}:",
+                 f"  {'model':<22} {'free':>5} {'held-out R2':>12}  {'error (mean +- sd)':<24}"]
+        for row in self.rows():
+            r2 = "-" if row["heldout_r2"] is None else f"{row['heldout_r2']:.3f}"
+            if row["mean_error"] is None:
+                error = f"not fitted: {row['problem']}"
+            else:
+                error = f"{row['mean_error']:.3g} +- {row['fold_sd'] or 0:.2g}"
+            mark = "  <- chosen" if row["chosen"] else ""
+            lines.append(f"  {row['model']:<22} {row['n_free']:>5} {r2:>12}  {error}{mark}")
+        return "\n".join(lines)
+
+
+def _one_se_choice(scores: Sequence[CandidateScore]) -> tuple[str, str]:
+    """(chosen, best) by the paired one-standard-error rule (module docstring)."""
+    fitted = [score for score in scores if score.fold_errors]
+    if not fitted:
+        problems = "; ".join(f"{score.model}: {score.problem}" for score in scores)
+        raise FitError(f"no candidate model could be fitted ({problems})")
+    best = min(fitted, key=lambda score: score.mean_error)
+    for score in sorted(fitted, key=lambda score: score.n_free):  # stable: ties keep the given order
+        excess = np.subtract(score.fold_errors, best.fold_errors)
+        spread = np.std(excess, ddof=1) / math.sqrt(excess.size) if excess.size > 1 else 0.0
+        if excess.mean() <= spread:
+            return score.model, best.model
+    return best.model, best.model  # unreachable: the best's own excess is 0
+
+
+def _folds(groups: np.ndarray, folds: int, seed: int) -> np.ndarray:
+    """A fold number per sample: the distinct groups shuffled (seeded) and dealt round-robin."""
+    distinct, inverse = np.unique(groups, return_inverse=True)
+    order = np.random.default_rng(seed).permutation(distinct.size)
+    fold_of_group = np.empty(distinct.size, dtype=np.int64)
+    fold_of_group[order] = np.arange(distinct.size) % folds
+    return fold_of_group[inverse.reshape(-1)]
+
+
+def _candidate_fixed(name: str, fixed: Mapping[str, float] | None) -> dict[str, float]:
+    """The model's default fixed shape parameters with the caller's that it has."""
+    model = get_model(name)
+    given = {key: value for key, value in dict(fixed or {}).items() if key in model.parameter_names}
+    return {**DEFAULT_FIXED.get(name, {}), **given}
+
+
+def _cross_validate(name: str, fold: np.ndarray, n_free: int, fit_and_predict: Callable,
+                    data: np.ndarray, weights: np.ndarray) -> CandidateScore:
+    """Held-out errors of one candidate: ``fit_and_predict(train, test)`` returns the predictions
+    at the test rows (n_test, B) from a fit on the train rows (boolean masks)."""
+    predictions = np.full(data.shape, np.nan)
+    errors = []
+    try:
+        for number in range(int(fold.max()) + 1):
+            test = fold == number
+            with warnings.catch_warnings(), np.errstate(all="ignore"):
+                warnings.simplefilter("ignore")  # a fold's warnings say nothing about the choice
+                predictions[test] = fit_and_predict(~test, test)
+            errors.append(float(np.mean((predictions[test] - data[test]) ** 2 * weights[test])))
+    except (BrdfcorrError, ValueError, np.linalg.LinAlgError) as error:
+        return CandidateScore(name, n_free, (), math.nan, str(error))
+    if not np.all(np.isfinite(errors)):
+        return CandidateScore(name, n_free, (), math.nan, "non-finite predictions")
+    press = np.sum((predictions - data) ** 2, axis=0)
+    total = np.sum((data - data.mean(axis=0)) ** 2, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r2 = np.where(total > 0, 1.0 - press / total, np.nan)
+    return CandidateScore(name, n_free, tuple(errors), float(np.nanmedian(r2)) if np.any(np.isfinite(r2)) else math.nan)
+
+
+def choose_model(
+    theta_i, theta_r, phi, brdf, sigma=None, *,
+    candidates: Sequence[str] = GONIOMETER_CANDIDATES,
+    fixed: Mapping[str, float] | None = None,
+    folds: int = FOLDS,
+    seed: int = SEED,
+) -> ModelChoice:
+    """Choose the model of goniometer measurements by k-fold cross-validation over geometries.
+
+    Parameters
+    ----------
+    theta_i, theta_r, phi : array-like
+        Illumination zenith, view zenith and relative azimuth of the measurements [deg].
+    brdf : array-like
+        Measured BRDF [sr^-1].
+    sigma : array-like, optional
+        1-sigma errors [sr^-1]: the held-out errors are then weighted by 1/sigma^2.
+    candidates : sequence of str, default :data:`GONIOMETER_CANDIDATES`
+        Registered models to try.
+    fixed : mapping, optional
+        Parameters held fixed in every candidate that has them (besides each model's defaults,
+        k = 0.25 for the Torrance-Sparrow lobes).
+    folds : int, default 5
+        Folds (at most the number of measurements).
+    seed : int, default 0
+        Seed of the random assignment of geometries to folds.
+
+    Returns
+    -------
+    ModelChoice
+        Fit the chosen model on all the measurements with :func:`brdfcorr.fit.goniometer.fit_brdf`.
+
+    Raises
+    ------
+    brdfcorr.errors.FitError
+        When no candidate can be fitted, or there are fewer than 2 measurements per fold.
+    """
+    angles = [np.asarray(value, dtype=float).reshape(-1) for value in (theta_i, theta_r, phi)]
+    data = np.asarray(brdf, dtype=float).reshape(-1, 1)
+    errors = None if sigma is None else np.asarray(sigma, dtype=float).reshape(-1)
+    if data.shape[0] < 2 * folds:
+        raise FitError(f"{data.shape[0]} measurements are too few for a {folds}-fold choice of the model "
+                       f"(at least {2 * folds}); name a model")
+    weights = np.ones_like(data) if errors is None else (1.0 / errors**2)[:, None]
+    fold = _folds(np.arange(data.shape[0]), folds, seed)
+    scores = []
+    for name in candidates:
+        model_fixed = _candidate_fixed(name, fixed)
+        n_free = len(get_model(name).parameters) - len(model_fixed)
+
+        def fit_and_predict(train, test, name=name, model_fixed=model_fixed):
+            result = fit_brdf(name, *(a[train] for a in angles), data[train, 0],
+                              None if errors is None else errors[train], fixed=model_fixed)
+            return np.asarray(result.predict(*(a[test] for a in angles)), dtype=float)[:, None]
+
+        scores.append(_cross_validate(name, fold, n_free, fit_and_predict, data, weights))
+    chosen, best = _one_se_choice(scores)
+    return ModelChoice(chosen, best, tuple(scores), folds, "geometries")
+
+
+def _subsample(samples, max_samples: int, max_bands: int):
+    """A seeded subsample of a class's samples and evenly spaced bands: angles, brdf, blocks."""
+    n = np.size(samples.theta_i)
+    rows = np.sort(np.random.default_rng(SEED).choice(n, min(n, max_samples), replace=False))
+    data = np.asarray(samples.brdf, dtype=float).reshape(n, -1)
+    bands = np.unique(np.linspace(0, data.shape[1] - 1, min(data.shape[1], max_bands)).round().astype(int))
+    angles = [np.asarray(a, dtype=float).reshape(-1)[rows] for a in (samples.theta_i, samples.theta_r, samples.phi)]
+    blocks = None if samples.block is None else np.asarray(samples.block).reshape(-1)[rows]
+    return angles, data[np.ix_(rows, bands)], blocks
+
+
+def choose_class_model(
+    samples, *,
+    candidates: Sequence[str] = IMAGERY_CANDIDATES,
+    fixed: Mapping[str, float] | None = None,
+    folds: int = FOLDS,
+    grid_points: int = 9,
+) -> ModelChoice:
+    """Choose the model of one class's pixels by k-fold cross-validation over spatial blocks.
+
+    Parameters
+    ----------
+    samples : ClassSamples
+        The class's samples (:class:`brdfcorr.fit.sampling.ClassSamples`); their ``block`` ids
+        group the folds (without blocks, single samples are).
+    candidates : sequence of str, default :data:`IMAGERY_CANDIDATES`
+        Registered surface models to try.
+    fixed : mapping, optional
+        Shape parameters held fixed in every candidate that has them.
+    folds : int, default 5
+        Folds; fewer when there are fewer blocks (at least 2 are needed).
+    grid_points : int, default 9
+        Coarse-grid points per free shape parameter of each fold's search.
+
+    Returns
+    -------
+    ModelChoice
+
+    Notes
+    -----
+    Each fold's fit is the solver's shape search (grid and Nelder-Mead, variable projection) on a
+    seeded subsample (:data:`SELECT_SAMPLES` pixels, :data:`SELECT_BANDS` bands) with the per-band
+    intensities solved by non-negative least squares; the held-out error of a band is weighted by
+    its inverse variance, as the fit weights the bands.
+    """
+    angles, data, blocks = _subsample(samples, SELECT_SAMPLES, SELECT_BANDS)
+    groups, grouping = (blocks, "spatial blocks") if blocks is not None else (np.arange(data.shape[0]), "samples")
+    folds = min(folds, np.unique(groups).size)
+    if folds < 2:
+        raise FitError("the class's samples lie in one spatial block: no held-out choice of the model is "
+                       "possible; name a model (or use a smaller block size)")
+    fold = _folds(groups, folds, SEED)
+    variance = data.var(axis=0)
+    weights = np.broadcast_to(np.where(variance > 0, 1.0 / np.where(variance > 0, variance, 1.0), 0.0), data.shape)
+    scores = []
+    for name in candidates:
+        model = get_model(name)
+        model_fixed = _candidate_fixed(name, fixed)
+        free = _free_shape(model, model_fixed)
+        n_free = len(model.linear) * data.shape[1] + len(free)
+
+        def fit_and_predict(train, test, model=model, model_fixed=model_fixed, free=free):
+            profile = _profile(model, *(a[train] for a in angles), data[train], model_fixed)
+            shape = _search(profile, free, grid_points) if free else {}
+            intensities, _ = profile.solve(profile.design(shape))
+            held_out = _profile(model, *(a[test] for a in angles), data[test], model_fixed)
+            return held_out.design(shape) @ intensities
+
+        scores.append(_cross_validate(name, fold, n_free, fit_and_predict, data, weights))
+    chosen, best = _one_se_choice(scores)
+    return ModelChoice(chosen, best, tuple(scores), folds, grouping)
