@@ -132,6 +132,9 @@ EVERY_MODEL = {
     "ross_thick_li_dense": LAWN,
     "ross_thin_li_dense": LAWN,
     "rpv": {"rho0": 0.03, "k": 0.75, "theta": -0.1, "rho_c": 0.5},
+    "ross_li_ts": {**LAWN, "t1": 0.2, "w": 0.0362, "n": 1.77, "k": 0.25},
+    "ross_li_peak": {**LAWN, "a": 0.02, "b": 1.5, "c": 0.03},
+    "rpv_peak": {"rho0": 0.03, "k": 0.75, "theta": -0.1, "rho_c": 0.5, "a": 0.02, "b": 1.5, "c": 0.03},
 }
 
 

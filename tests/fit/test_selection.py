@@ -1,0 +1,111 @@
+"""The choice of a surface model by held-out error (--model auto)."""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.errors import FitError
+from brdfcorr.fit.classes import ClassFitWarning, fit_one_class
+from brdfcorr.fit.sampling import ClassSamples
+from brdfcorr.fit.selection import CandidateScore, _folds, _one_se_choice, choose_class_model, choose_model
+from brdfcorr.models import get_model
+
+TWO_LOBE = {"f_iso": 0.03, "f_vol": 0.02, "f_geo": 0.004, "t1": 0.2, "w": 0.0362, "n": 1.77, "k": 0.25}
+KERNELS = {"f_iso": 0.05, "f_vol": 0.03, "f_geo": 0.01}
+
+
+def _geometries():
+    """Both halves of the azimuth circle, zeniths <= 60 deg (75 geometries)."""
+    grid = np.meshgrid([10, 25, 40, 55], [0, 15, 30, 45, 60], [0, 45, 90, 135, 180], indexing="ij")
+    return tuple(np.asarray(a, dtype=float).ravel() for a in grid)
+
+
+def test_the_one_standard_error_rule_keeps_the_simpler_model_unless_the_complex_one_wins_clearly():
+    simple = CandidateScore("simple", 3, (1.00, 1.10, 0.90, 1.05, 0.95), 0.9)
+    # Fold by fold the complex model is better by 0.05, -0.04, 0.03, -0.02, 0.01: mean 0.006, paired
+    # standard error 0.036 / sqrt(5) = 0.016: it does not win by more than the folds' spread.
+    close = CandidateScore("complex", 6, (0.95, 1.14, 0.87, 1.07, 0.94), 0.91)
+    assert _one_se_choice([simple, close]) == ("simple", "complex")
+    clear = CandidateScore("complex", 6, (0.50, 0.60, 0.45, 0.55, 0.50), 0.95)  # wins in every fold
+    assert _one_se_choice([simple, clear]) == ("complex", "complex")
+    broken = CandidateScore("broken", 2, (), float("nan"), "did not converge")
+    assert _one_se_choice([broken, simple]) == ("simple", "simple")
+    with pytest.raises(FitError, match="broken: did not converge"):
+        _one_se_choice([broken])
+
+
+def test_folds_keep_each_group_whole_and_are_balanced():
+    groups = np.repeat(np.arange(23), 7)
+    fold = _folds(groups, 5, seed=0)
+    for group in np.unique(groups):
+        assert np.unique(fold[groups == group]).size == 1
+    counts = np.bincount(fold)
+    assert counts.size == 5 and counts.max() - counts.min() <= 7
+
+
+def test_a_two_lobe_surface_chooses_the_two_lobe_model_and_a_kernel_surface_the_kernels():
+    ti, tr, phi = _geometries()
+    noise = 1 + 0.02 * np.random.default_rng(5).standard_normal(ti.size)
+    candidates = ("torrance_sparrow", "ross_thick_li_sparse", "ross_li_ts")
+    two_lobe = choose_model(ti, tr, phi, get_model("ross_li_ts")(ti, tr, phi, **TWO_LOBE) * noise,
+                            candidates=candidates)
+    assert two_lobe.chosen == "ross_li_ts" and two_lobe.score_of("ross_li_ts").heldout_r2 > 0.95
+    assert max(two_lobe.score_of(name).heldout_r2 for name in candidates[:2]) < 0.9
+    kernels = choose_model(ti, tr, phi, get_model("ross_thick_li_sparse")(ti, tr, phi, **KERNELS) * noise,
+                           candidates=candidates)
+    # The two-lobe model nests the kernels: it cannot win by more than the folds' spread.
+    assert kernels.chosen == "ross_thick_li_sparse"
+    assert [row["chosen"] for row in kernels.rows()] == [False, True, False]
+
+
+def test_too_few_measurements_for_the_folds_are_refused():
+    with pytest.raises(FitError, match="too few"):
+        choose_model([10, 20], [10, 20], [0, 180], [0.1, 0.2])
+
+
+def _class_samples(params, model="ross_li_ts", n=6000, seed=1):
+    rng = np.random.default_rng(seed)
+    ti, tr = rng.uniform(25, 45, n), rng.uniform(0, 40, n)
+    phi = np.where(rng.random(n) < 0.5, rng.uniform(0, 20, n), rng.uniform(160, 180, n))
+    brdf = np.column_stack([get_model(model)(ti, tr, phi, **{**params, "f_iso": params["f_iso"] * scale})
+                            for scale in (1.0, 2.0)])
+    brdf = brdf * (1 + 0.01 * rng.standard_normal(brdf.shape))
+    return ClassSamples(ti, tr, phi, brdf, block=rng.integers(0, 40, n))
+
+
+def test_a_class_fitted_with_auto_gets_the_held_out_choice_and_reports_it():
+    samples = _class_samples(TWO_LOBE)
+    choice = choose_class_model(samples)
+    assert choice.grouping == "spatial blocks" and choice.chosen == "ross_li_ts"
+    fit = fit_one_class(3, "glazed_tile", "auto", samples)
+    assert fit.model == "ross_li_ts" and fit.status == "fitted"
+    assert fit.params["w"][0] == pytest.approx(0.0362, rel=0.05)
+    summary = json.loads(json.dumps(fit.summary()))
+    assert summary["model_choice"]["chosen"] == "ross_li_ts"
+    assert {row["model"] for row in summary["model_choice"]["candidates"]} >= {"torrance_sparrow", "ross_li_ts"}
+
+
+def test_a_class_in_one_block_cannot_be_chosen_for_and_says_so():
+    samples = _class_samples(TWO_LOBE, n=2000)
+    samples.block[:] = 7
+    with pytest.warns(ClassFitWarning):  # the kernels fitted instead explain none of this tile's peak
+        fit = fit_one_class(3, "tile", "auto", samples)
+    assert fit.model_choice is None and any("no held-out choice" in note for note in fit.notes)
+
+
+def test_cli_fit_auto_prints_the_candidates_and_writes_the_chosen_model(tmp_path):
+    ti, tr, phi = _geometries()
+    brdf = get_model("ross_li_ts")(ti, tr, phi, **TWO_LOBE) * (1 + 0.02 * np.random.default_rng(2).standard_normal(ti.size))
+    csv = tmp_path / "tile.csv"
+    csv.write_text("theta_i,theta_r,phi,brdf\n" + "".join(f"{a},{b},{c},{d}\n" for a, b, c, d in zip(ti, tr, phi, brdf)))
+    result = CliRunner().invoke(main, ["fit", str(csv), "--model", "auto", "-o", str(tmp_path / "t.yaml")])
+    assert result.exit_code == 0, result.output
+    assert "model choice by 5-fold cross-validation over geometries" in result.output
+    assert "ross_li_ts" in result.output and "<- chosen" in result.output
+    table = (tmp_path / "t.yaml").read_text()
+    assert "model: ross_li_ts" in table and "chosen by 5-fold cross-validation" in table
+    refused = CliRunner().invoke(main, ["fit", str(csv), "--model", "best"])
+    assert refused.exit_code == 2 and "unknown BRDF model 'best'" in refused.output
