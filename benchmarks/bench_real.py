@@ -82,13 +82,14 @@ def roy2016_table() -> ParameterTable:
 
 
 def fit_table(data: Path, classes: Path, max_samples: int = 50_000,
-              prior_spread: float | None = None) -> tuple[ParameterTable, list[dict]]:
+              prior_spread: float | None = None, model: str | None = None) -> tuple[ParameterTable, list[dict]]:
     """``fit-classes`` on the subset with the class map ``classes`` (its classes' default model on
     NDVI strata, ross_thick_li_sparse), with ``--prior roy2016 --prior-spread prior_spread`` where
-    given: the table and the report entries of the classes the guard rails left out."""
+    given, or every class with ``model`` (``auto``: the held-out choice): the table and the report
+    entries of the classes the guard rails left out."""
     prior = None if prior_spread is None else ShapePrior("roy2016", prior_spread)
     fit = fit_class_files([SceneFiles(data / "reflectance.tif", classes, data / "angles.tif")],
-                          ClassModels(None, prior=prior), sampling=Sampling(max_samples=max_samples))
+                          ClassModels(model, prior=prior), sampling=Sampling(max_samples=max_samples))
     return fit.table, [entry for entry in fit.report()["classes"] if entry.get("status") != "fitted"]
 
 
@@ -101,7 +102,8 @@ def correct(data: Path, classes: Path | None, table: ParameterTable, target: Pat
 
 
 def correct_subset(directory: Path, data: Path = DATA, strata_percentiles: Sequence[float] = PERCENTILES,
-                   max_samples: int = 50_000, prior_spread: float | None = None) -> dict[str, object]:
+                   max_samples: int = 50_000, prior_spread: float | None = None,
+                   model: str | None = None) -> dict[str, object]:
     """Strata, fit and the three corrections of the subset in ``data``, written to ``directory``.
 
     The fit's strata are cut at ``strata_percentiles`` of the raw NDVI [%]. Returns the paths
@@ -111,13 +113,13 @@ def correct_subset(directory: Path, data: Path = DATA, strata_percentiles: Seque
     """
     strata = directory / "strata.tif"
     ndvi_class_file(data / "reflectance.tif", strata, bins=NdviBins(percentiles=list(strata_percentiles)))
-    table, left_out = fit_table(data, strata, max_samples, prior_spread)
+    table, left_out = fit_table(data, strata, max_samples, prior_spread, model)
     outputs: dict[str, object] = {"strata": strata, "left_out": left_out}
     outputs["c-factor"] = correct(data, None, roy2016_table(), directory / "c-factor.tif", extrapolate=True)
     fitted = sorted(entry.id for entry in table.classes)
     if fitted:
         outputs["brdfcorr"] = correct(data, strata, table, directory / "brdfcorr.tif")
-    if len(fitted) >= 2:
+    if len(fitted) >= 2 and len({entry.model for entry in table.classes}) == 1:  # one model to interpolate
         interpolated = table.with_ndvi_interpolation({"classes": fitted})
         outputs["brdfcorr interp"] = correct(data, strata, interpolated, directory / "brdfcorr_interp.tif")
     return outputs
@@ -200,14 +202,15 @@ def _nan_slopes(like: dict[str, list[float]]) -> dict[str, list[float]]:
 
 
 def slope_table(directory: Path, data: Path = DATA, strata_percentiles: Sequence[float] = PERCENTILES,
-                max_samples: int = 50_000, prior_spread: float | None = None) -> dict[str, object]:
+                max_samples: int = 50_000, prior_spread: float | None = None,
+                model: str | None = None) -> dict[str, object]:
     """Relative slopes [%/10 deg] per method (``raw`` and :data:`METHODS`; NaN for a method that did
     not run), band (:data:`REPORTED`) and NDVI group (quartiles of the raw NDVI,
     :data:`PERCENTILES`), the groups' names and pixels, the fit's classes left out; the corrected
     files in ``outputs``."""
     groups = directory / "groups.tif"
     names = ndvi_class_file(data / "reflectance.tif", groups, bins=NdviBins(percentiles=list(PERCENTILES))).names
-    outputs = correct_subset(directory, data, strata_percentiles, max_samples, prior_spread)
+    outputs = correct_subset(directory, data, strata_percentiles, max_samples, prior_spread, model)
     slopes: dict[str, dict[str, list[float]]] = {}
     errors = {"raw": standard_errors(data, data / "reflectance.tif", groups)}
     for method in METHODS:
@@ -234,7 +237,7 @@ def masked_copy(classes: Path, keep: np.ndarray, target: Path) -> Path:
 
 
 def holdout(directory: Path, result: dict[str, object], data: Path = DATA, block: int = HOLDOUT_BLOCK,
-            prior_spread: float | None = None) -> list[dict]:
+            prior_spread: float | None = None, model: str | None = None) -> list[dict]:
     """Two-fold cross-check on a checkerboard of ``block`` x ``block`` pixel squares: fit the
     strata on the pixels of one colour, correct the subset, assess on the NDVI groups' pixels of
     the other colour; the raw slopes and the c-factor's on the same pixels beside. Per fold:
@@ -247,7 +250,7 @@ def holdout(directory: Path, result: dict[str, object], data: Path = DATA, block
     for fold, fit_on in enumerate((black, ~black)):
         fit_map = masked_copy(outputs["strata"], fit_on, directory / f"fold{fold}_strata.tif")
         groups = masked_copy(result["groups_file"], ~fit_on, directory / f"fold{fold}_groups.tif")
-        table, left_out = fit_table(data, fit_map, prior_spread=prior_spread)
+        table, left_out = fit_table(data, fit_map, prior_spread=prior_spread, model=model)
         cfactor = relative_slopes(data, outputs["c-factor"], groups, result["names"])
         entry = {"left_out": left_out, "raw": cfactor["raw"], "c-factor": cfactor["after"], "pixels": cfactor["pixels"],
                  "errors": {"raw": standard_errors(data, data / "reflectance.tif", groups),
@@ -317,12 +320,14 @@ def main(argv: Sequence[str] | None = None) -> None:
                         help="percentiles of the raw NDVI [%%] cutting the fit's strata (default: quartiles)")
     parser.add_argument("--prior-spread", type=float, help="fit with the kernel shape of roy2016 as a prior of "
                                                            "this spread (fit-classes --prior roy2016 --prior-spread)")
+    parser.add_argument("--model", help="fit every stratum with this model (auto: the held-out choice) "
+                                        "[default: ross_thick_li_sparse, the strata's]")
     parser.add_argument("--json", type=Path, help="also write the numbers to this JSON file")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as scratch:
         result = slope_table(Path(scratch), args.data, [float(p) for p in args.strata.split(",")],
-                             prior_spread=args.prior_spread)
-        folds = holdout(Path(scratch), result, args.data, prior_spread=args.prior_spread)
+                             prior_spread=args.prior_spread, model=args.model)
+        folds = holdout(Path(scratch), result, args.data, prior_spread=args.prior_spread, model=args.model)
     print_report(result, folds)
     if args.json:
         numbers = {key: result[key] for key in ("slopes", "errors", "groups", "pixels", "left_out")}
