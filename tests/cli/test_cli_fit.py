@@ -98,7 +98,8 @@ def test_free_k_prints_a_warning_line(csv_path):
     result = run("fit", csv_path, "--min-phi", "90")
     assert result.exit_code == 0
     warnings = [line for line in result.stderr.splitlines() if line]
-    assert len(warnings) == 1
+    # One line per warning; with k free the optimum may also end on k's bound (k = 0), said on its own line.
+    assert warnings and all(line.startswith("brdfcorr: warning: torrance_sparrow: ") for line in warnings)
     assert warnings[0].startswith("brdfcorr: warning: torrance_sparrow: parameters not identifiable")
 
 
