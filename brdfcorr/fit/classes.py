@@ -36,7 +36,7 @@ from brdfcorr.fit.entries import class_entry, compact
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
 from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
-from brdfcorr.fit.selection import IMAGERY_CANDIDATES, ModelChoice, choose_class_model
+from brdfcorr.fit.selection import IMAGERY_CANDIDATES, ModelChoice, choose_class_model, fixed_for
 from brdfcorr.fit.settings import (
     DEFAULT_MODEL,
     WATER_VAPOUR_BANDS,
@@ -365,7 +365,7 @@ def fit_one_class(
             notes.append(f"no held-out choice of the model ({error}); fitted {model}")
     model = get_model(model)
     if fixed is not None and (choice is not None or notes):  # auto: only those the chosen model has
-        fixed = {key: value for key, value in fixed.items() if key in model.parameter_names}
+        fixed = fixed_for(model.name, fixed)
     theta_i, theta_r, phi, brdf = samples.theta_i, samples.theta_r, samples.phi, samples.brdf
     report = ClassFit(
         class_id=class_id,

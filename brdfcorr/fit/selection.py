@@ -46,6 +46,7 @@ __all__ = [
     "ModelChoice",
     "choose_model",
     "choose_class_model",
+    "fixed_for",
 ]
 
 #: The model name that asks for the choice by held-out error (CLI ``--model auto``, tables, chains).
@@ -184,8 +185,9 @@ def _folds(groups: np.ndarray, folds: int, seed: int) -> np.ndarray:
     return fold_of_group[inverse.reshape(-1)]
 
 
-def _candidate_fixed(name: str, fixed: Mapping[str, float] | None) -> dict[str, float]:
-    """The model's default fixed shape parameters with the caller's that it has."""
+def fixed_for(name: str, fixed: Mapping[str, float] | None) -> dict[str, float]:
+    """The parameters model ``name`` holds fixed: its defaults (:data:`DEFAULT_FIXED`) with those
+    of ``fixed`` that it has (the values a fit over several candidate models gives each one)."""
     model = get_model(name)
     given = {key: value for key, value in dict(fixed or {}).items() if key in model.parameter_names}
     return {**DEFAULT_FIXED.get(name, {}), **given}
@@ -262,7 +264,7 @@ def choose_model(
     fold = _folds(np.arange(data.shape[0]), folds, seed)
     scores = []
     for name in candidates:
-        model_fixed = _candidate_fixed(name, fixed)
+        model_fixed = fixed_for(name, fixed)
         n_free = len(get_model(name).parameters) - len(model_fixed)
 
         def fit_and_predict(train, test, name=name, model_fixed=model_fixed):
@@ -332,7 +334,7 @@ def choose_class_model(
     scores = []
     for name in candidates:
         model = get_model(name)
-        model_fixed = _candidate_fixed(name, fixed)
+        model_fixed = fixed_for(name, fixed)
         free = _free_shape(model, model_fixed)
         n_free = len(model.linear) * data.shape[1] + len(free)
 

@@ -25,13 +25,11 @@ from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, ClassModels, GuardRails, Sampling, fit_classes
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
-from brdfcorr.fit.selection import ModelChoice, choose_model
+from brdfcorr.fit.selection import ModelChoice, choose_model, fixed_for
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
-from brdfcorr.fit.solver import DEFAULT_FIXED
 from brdfcorr.io import rasters
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
-from brdfcorr.models import get_model
 from brdfcorr.params import ParameterTable
 from brdfcorr.params_bands import in_ranges
 from brdfcorr.workflow.classmaps import class_preparation, tagged_class_names
@@ -151,9 +149,7 @@ def fit_measurement_file(
                                          fixed=fixed)
         chosen = [choice.chosen for choice in choices.values()]
         model = max(chosen, key=chosen.count)  # the first of the most frequent
-        fixed = {**DEFAULT_FIXED.get(model, {}),
-                 **{key: value for key, value in dict(fixed or {}).items() if key in get_model(model).parameter_names}}
-        options["fixed"] = fixed or None
+        options["fixed"] = fixed_for(model, fixed) or None
     for band in bands:
         subset = fitted if band is None else fitted.at_wavelength(band)
         with warnings.catch_warnings(record=True) as caught:
