@@ -95,7 +95,7 @@ import xarray as xr
 from scipy.ndimage import gaussian_filter
 
 from brdfcorr import normalize
-from brdfcorr.fit import ClassModels, fit_classes
+from brdfcorr.fit import ClassModels, Sampling, fit_classes
 from brdfcorr.geometry import relative_azimuth
 from brdfcorr.models import get_model
 from brdfcorr.models.materials import load_material
@@ -281,14 +281,15 @@ def class_map(scene: dict, values: np.ndarray) -> xr.DataArray:
     return xr.DataArray(values, dims=("y", "x"), coords={"y": image["y"].values, "x": image["x"].values})
 
 
-def fit(scene: dict, classes: xr.DataArray, models: ClassModels | str, pooled=()):
+def fit(scene: dict, classes: xr.DataArray, models: ClassModels | str, pooled=(), levels: str = "auto"):
     """fit_classes on ``classes`` with ``models`` (and the ``pooled`` (scene, classes) of more lines
-    in the same fit); its warnings are printed (not raised)."""
+    in the same fit; ``levels``: whose brightness levels are free, :class:`Sampling`); its warnings
+    are printed (not raised)."""
     lines = [(scene, classes), *pooled]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = fit_classes([line["image"] for line, _ in lines], [layer for _, layer in lines],
-                             [line["angles"] for line, _ in lines], models)
+                             [line["angles"] for line, _ in lines], models, sampling=Sampling(levels=levels))
     for message in dict.fromkeys(str(warning.message) for warning in caught):
         if message not in _SHOWN:  # once per run, not once per timed repeat
             _SHOWN.add(message)

@@ -16,7 +16,8 @@ seconds taken (``bench_kernels.py``'s docstring defines the scenes and metrics).
   on A' and on A (as flown); (c) 3 and 10 strata instead of 5;
 * two lines over the same ground, the second under an afternoon sun (from the west; the same fields
   and noise draw), fitted together: strata cut per line, or from the two lines' mean NDVI (each
-  point seen from both sides);
+  point seen from both sides); pooled (one level per stratum), or with each pixel's level free
+  (``fit_classes``' ``levels="pixel"``, issue 37: the shape fitted to each pixel's two views);
 * strata from a view-independent NDVI (of the nadir image: e.g. an NBAR product's);
 * (e) strata of the observed NDVI less its least-squares trend in the kernels, on A' and A;
 * (f) strata of the self-consistent NDVI ((b) taken to its fixed point by the secant method), on A'
@@ -74,11 +75,14 @@ def mean_mixture_table(scene: dict, classes: np.ndarray) -> ParameterTable:
     return ParameterTable(classes=entries)
 
 
-def strata_correction(scene: dict, strata: np.ndarray, continuous: bool, pooled=()) -> np.ndarray:
-    """Fit one RTLSR per stratum of ``strata`` (pooled with the (scene, strata) of more lines over the
-    same ground) and correct ``scene``, binned or interpolated in NDVI."""
+def strata_correction(scene: dict, strata: np.ndarray, continuous: bool, pooled=(),
+                      levels: str = "pooled") -> np.ndarray:
+    """Fit one RTLSR per stratum of ``strata`` (with the (scene, strata) of more lines over the same
+    ground; ``levels="pixel"``: each pixel's level free, the shape fitted to its own views) and
+    correct ``scene``, binned or interpolated in NDVI."""
     layer = class_map(scene, strata)
-    table = fit(scene, layer, "ross_thick_li_sparse", [(line, class_map(line, s)) for line, s in pooled]).table
+    table = fit(scene, layer, "ross_thick_li_sparse", [(line, class_map(line, s)) for line, s in pooled],
+                levels=levels).table
     if continuous:
         table = table.with_ndvi_interpolation({"classes": list(table.class_ids)})
     return correct(scene, layer, table)
@@ -247,6 +251,10 @@ def diagnose(args, scene: dict, flown: dict) -> None:
         ("no sensor noise", clean, strata, ()), ("spatially white v and texture", white, recut_passes(white, 0), ()),
         ("2 lines pooled (sun east, west), strata per line", scene, strata, [(afternoon, recut_passes(afternoon, 0))]),
         ("2 lines pooled, strata of their mean NDVI", scene, strata_of(both), [(afternoon, strata_of(both))]),
+        ("2 lines, each pixel's level free, strata per line", scene, strata,
+         [(afternoon, recut_passes(afternoon, 0))], "pixel"),
+        ("2 lines, each pixel's level free, strata of their mean NDVI", scene, strata_of(both),
+         [(afternoon, strata_of(both))], "pixel"),
         ("5 strata of a view-independent NDVI (nadir)", scene, strata_of(nadir), ()),
         ("10 strata of a view-independent NDVI (nadir)", scene, strata_of(nadir, tuple(range(10, 100, 10))), ()),
         ("(e) 5 strata of the NDVI less its kernel trend", scene, strata_of(detrended_ndvi(scene)), ()),
@@ -255,7 +263,7 @@ def diagnose(args, scene: dict, flown: dict) -> None:
         ("A (as flown), (f) 5 strata of the self-consistent NDVI", flown, self_consistent_ndvi(flown), ()),
     ]
     cases = [(f"{label}, {'interpolated' if continuous else 'binned'}", strata_correction,
-              (case, classes, continuous, pooled)) for label, case, classes, pooled in strata_cases
+              (case, classes, continuous, *rest)) for label, case, classes, *rest in strata_cases
              for continuous in (False, True)]
     cases += [("(a) joint fit linear in NDVI (2 interpolated strata)", ndvi_linear_correction, (scene,)),
               ("no fit: each stratum's mean true weights, binned",

@@ -74,6 +74,8 @@ METHODS = ("brdfcorr", "brdfcorr interp", "c-factor")
 HOLDOUT_BLOCK = 8
 #: Replicates and square side [pixels] of the block bootstrap of the slopes' standard errors.
 BOOTSTRAP_REPLICATES, BOOTSTRAP_BLOCK = 400, 8
+#: Side [pixels] of the patches of ``--levels patch``.
+PATCH = 8
 
 
 def roy2016_table() -> ParameterTable:
@@ -82,14 +84,17 @@ def roy2016_table() -> ParameterTable:
 
 
 def fit_table(data: Path, classes: Path, max_samples: int = 50_000,
-              prior_spread: float | None = None, model: str | None = None) -> tuple[ParameterTable, list[dict]]:
+              prior_spread: float | None = None, model: str | None = None,
+              levels: str = "pooled") -> tuple[ParameterTable, list[dict]]:
     """``fit-classes`` on the subset with the class map ``classes`` (its classes' default model on
     NDVI strata, ross_thick_li_sparse), with ``--prior roy2016 --prior-spread prior_spread`` where
-    given, or every class with ``model`` (``auto``: the held-out choice): the table and the report
-    entries of the classes the guard rails left out."""
+    given, or every class with ``model`` (``auto``: the held-out choice), and ``--levels levels``
+    (``patch``: each 8-pixel square's own level, :data:`PATCH`): the table and the report entries
+    of the classes the guard rails left out."""
     prior = None if prior_spread is None else ShapePrior("roy2016", prior_spread)
     fit = fit_class_files([SceneFiles(data / "reflectance.tif", classes, data / "angles.tif")],
-                          ClassModels(model, prior=prior), sampling=Sampling(max_samples=max_samples))
+                          ClassModels(model, prior=prior),
+                          sampling=Sampling(max_samples=max_samples, levels=levels, patch_size=PATCH))
     return fit.table, [entry for entry in fit.report()["classes"] if entry.get("status") != "fitted"]
 
 
@@ -103,7 +108,7 @@ def correct(data: Path, classes: Path | None, table: ParameterTable, target: Pat
 
 def correct_subset(directory: Path, data: Path = DATA, strata_percentiles: Sequence[float] = PERCENTILES,
                    max_samples: int = 50_000, prior_spread: float | None = None,
-                   model: str | None = None) -> dict[str, object]:
+                   model: str | None = None, levels: str = "pooled") -> dict[str, object]:
     """Strata, fit and the three corrections of the subset in ``data``, written to ``directory``.
 
     The fit's strata are cut at ``strata_percentiles`` of the raw NDVI [%]. Returns the paths
@@ -113,7 +118,7 @@ def correct_subset(directory: Path, data: Path = DATA, strata_percentiles: Seque
     """
     strata = directory / "strata.tif"
     ndvi_class_file(data / "reflectance.tif", strata, bins=NdviBins(percentiles=list(strata_percentiles)))
-    table, left_out = fit_table(data, strata, max_samples, prior_spread, model)
+    table, left_out = fit_table(data, strata, max_samples, prior_spread, model, levels)
     outputs: dict[str, object] = {"strata": strata, "left_out": left_out}
     outputs["c-factor"] = correct(data, None, roy2016_table(), directory / "c-factor.tif", extrapolate=True)
     fitted = sorted(entry.id for entry in table.classes)
@@ -203,14 +208,14 @@ def _nan_slopes(like: dict[str, list[float]]) -> dict[str, list[float]]:
 
 def slope_table(directory: Path, data: Path = DATA, strata_percentiles: Sequence[float] = PERCENTILES,
                 max_samples: int = 50_000, prior_spread: float | None = None,
-                model: str | None = None) -> dict[str, object]:
+                model: str | None = None, levels: str = "pooled") -> dict[str, object]:
     """Relative slopes [%/10 deg] per method (``raw`` and :data:`METHODS`; NaN for a method that did
     not run), band (:data:`REPORTED`) and NDVI group (quartiles of the raw NDVI,
     :data:`PERCENTILES`), the groups' names and pixels, the fit's classes left out; the corrected
     files in ``outputs``."""
     groups = directory / "groups.tif"
     names = ndvi_class_file(data / "reflectance.tif", groups, bins=NdviBins(percentiles=list(PERCENTILES))).names
-    outputs = correct_subset(directory, data, strata_percentiles, max_samples, prior_spread, model)
+    outputs = correct_subset(directory, data, strata_percentiles, max_samples, prior_spread, model, levels)
     slopes: dict[str, dict[str, list[float]]] = {}
     errors = {"raw": standard_errors(data, data / "reflectance.tif", groups)}
     for method in METHODS:
@@ -237,7 +242,7 @@ def masked_copy(classes: Path, keep: np.ndarray, target: Path) -> Path:
 
 
 def holdout(directory: Path, result: dict[str, object], data: Path = DATA, block: int = HOLDOUT_BLOCK,
-            prior_spread: float | None = None, model: str | None = None) -> list[dict]:
+            prior_spread: float | None = None, model: str | None = None, levels: str = "pooled") -> list[dict]:
     """Two-fold cross-check on a checkerboard of ``block`` x ``block`` pixel squares: fit the
     strata on the pixels of one colour, correct the subset, assess on the NDVI groups' pixels of
     the other colour; the raw slopes and the c-factor's on the same pixels beside. Per fold:
@@ -250,7 +255,7 @@ def holdout(directory: Path, result: dict[str, object], data: Path = DATA, block
     for fold, fit_on in enumerate((black, ~black)):
         fit_map = masked_copy(outputs["strata"], fit_on, directory / f"fold{fold}_strata.tif")
         groups = masked_copy(result["groups_file"], ~fit_on, directory / f"fold{fold}_groups.tif")
-        table, left_out = fit_table(data, fit_map, prior_spread=prior_spread, model=model)
+        table, left_out = fit_table(data, fit_map, prior_spread=prior_spread, model=model, levels=levels)
         cfactor = relative_slopes(data, outputs["c-factor"], groups, result["names"])
         entry = {"left_out": left_out, "raw": cfactor["raw"], "c-factor": cfactor["after"], "pixels": cfactor["pixels"],
                  "errors": {"raw": standard_errors(data, data / "reflectance.tif", groups),
@@ -322,12 +327,15 @@ def main(argv: Sequence[str] | None = None) -> None:
                                                            "this spread (fit-classes --prior roy2016 --prior-spread)")
     parser.add_argument("--model", help="fit every stratum with this model (auto: the held-out choice) "
                                         "[default: ross_thick_li_sparse, the strata's]")
+    parser.add_argument("--levels", choices=("pooled", "patch"), default="pooled",
+                        help=f"fit-classes --levels: pooled, or each {PATCH}-pixel square's own level")
     parser.add_argument("--json", type=Path, help="also write the numbers to this JSON file")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as scratch:
         result = slope_table(Path(scratch), args.data, [float(p) for p in args.strata.split(",")],
-                             prior_spread=args.prior_spread, model=args.model)
-        folds = holdout(Path(scratch), result, args.data, prior_spread=args.prior_spread, model=args.model)
+                             prior_spread=args.prior_spread, model=args.model, levels=args.levels)
+        folds = holdout(Path(scratch), result, args.data, prior_spread=args.prior_spread, model=args.model,
+                        levels=args.levels)
     print_report(result, folds)
     if args.json:
         numbers = {key: result[key] for key in ("slopes", "errors", "groups", "pixels", "left_out")}

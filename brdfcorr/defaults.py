@@ -56,3 +56,10 @@ SURFACE_MODEL_NAMES: tuple[str, ...] = tuple(name for name in MODEL_NAMES if nam
 #: The model "name" of the fits (``fit``, ``fit-classes``, chains) that asks for the surface model
 #: with the lowest held-out error (:mod:`brdfcorr.fit.selection`).
 AUTO_MODEL = "auto"
+
+#: Whose brightness level an imagery fit leaves free (:func:`brdfcorr.fit.sampling.sample_classes`,
+#: :mod:`brdfcorr.fit.within`): one for the class (``pooled``); one per pixel seen in several
+#: scenes on one grid (``pixel``); one per square patch of pixels (``patch``: a composite's
+#: neighbours come from other orbits); ``auto``: ``pixel`` where several scenes share one grid,
+#: else ``pooled``.
+LEVELS = ("auto", "pooled", "pixel", "patch")

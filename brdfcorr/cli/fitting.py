@@ -28,6 +28,7 @@ from brdfcorr.cli._inputs import (
     prior_setting,
     scale_options,
 )
+from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.paths import check_outputs, refuse_existing, update_target
@@ -81,10 +82,18 @@ class _BandRange(click.ParamType):
 @click.option("--block-size", type=click.IntRange(min=1), default=32, show_default=True,
               help="Side [pixels] of the spatial blocks the fit's errors are cluster-robust over: smaller for "
                    "coarse pixels or small images (errors from few blocks are flagged UNRELIABLE).")
+@click.option("--levels", type=click.Choice(LEVELS), default="auto", show_default=True,
+              help="Whose brightness level is free: auto frees each pixel's where several images share one grid "
+                   "(the shape is fitted to each pixel's own views, so land-cover differences between pixels never "
+                   "enter it) and pools a single image; patch frees each --patch-size square's (a composite, "
+                   "whose neighbours were seen from other orbits); pooled: one level per class.")
+@click.option("--patch-size", type=click.IntRange(min=1), default=8, show_default=True,
+              help="Side [pixels] of the patches of --levels patch (a divisor of --block-size).")
 @scale_options
 @click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
 @click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
-              help="Guard rail: minimum 5-95 % view zenith spread [deg].")
+              help="Guard rail: minimum 5-95 % view zenith spread [deg] (with free levels: the spread of the "
+                   "geometry within each pixel or patch).")
 @click.option("--max-condition", type=click.FloatRange(min=1.0), default=1000.0, show_default=True,
               help="Guard rail: maximum condition number of the linear design (above it the geometry does not "
                    "separate the model's terms).")
@@ -107,8 +116,8 @@ class _BandRange(click.ParamType):
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
-                        block_size, scale, offset, min_samples, min_vza_spread, max_condition, bad_bands, fallback,
-                        prior, prior_spread, output, report_path, plot_dir, overwrite, progress):
+                        block_size, levels, patch_size, scale, offset, min_samples, min_vza_spread, max_condition,
+                        bad_bands, fallback, prior, prior_spread, output, report_path, plot_dir, overwrite, progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
 
     The images' stored values are read as reflectance factors with their GDAL scale/offset, or
@@ -150,7 +159,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
             ClassModels(model_name, class_models=_pairs("--class-model", class_model),
                         fixed=_assignments("--fix", fix) or None, fallback=fallback, names=class_names,
                         prior=shape_prior),
-            sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges),
+            sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
+                              levels=levels, patch_size=patch_size),
             guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
             progress=fitted,
         )
@@ -163,6 +173,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         if class_fit.model_choice is not None:
             click.echo(f"class {class_fit.class_id} ({class_fit.name}): {class_fit.model_choice.table()}")
     click.echo(_format_table([_class_row(class_fit) for class_fit in fit.result.fits]))
+    _echo_levels(fit.result.fits)
     for note in fit.notes:
         click.echo(note)
     if not fit.table.classes:  # a table that corrects nothing is never written as a result
@@ -183,6 +194,15 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
                 figure = plot_class_fit(class_fit, fit.result.samples[class_fit.class_id], fit.wavelengths)
                 _save_figure(figure, plots[class_fit.class_id], echo=False)
         click.echo(f"wrote plots to {plot_dir}")
+
+
+def _echo_levels(fits) -> None:
+    """One line saying that the fits left each pixel's or patch's level free, if they did."""
+    within = [class_fit for class_fit in fits if class_fit.levels != "pooled"]
+    if within:
+        kind, groups = within[0].levels, sum(class_fit.n_groups or 0 for class_fit in within)
+        click.echo(f"free levels per {kind}: the shapes are fitted to the differences between the views of each "
+                   f"{kind} ({groups} seen two or more times); R2 and the spread are within them")
 
 
 def _class_row(fit) -> dict[str, str]:

@@ -52,6 +52,7 @@ from brdfcorr.fit.solver import (
     intensity_terms,
     search_range,
 )
+from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model, get_model
 from brdfcorr.params import ParameterTable
 from brdfcorr.params_bands import in_ranges
@@ -103,6 +104,8 @@ class ClassFit:
         Number of pixels fitted.
     vza_spread, phi_spread : float
         5th-95th percentile range of view zenith and relative azimuth among the samples [deg].
+        With free levels, ``vza_spread`` is the geometry's spread within groups instead
+        (:func:`_within_spread`): how differently each pixel or patch was seen.
     condition : float
         Condition number of the column-normalized linear design at the fitted shape.
     params : dict of str to ndarray
@@ -150,6 +153,12 @@ class ClassFit:
     model_choice : ModelChoice or None
         For a class fitted with ``model="auto"``: every candidate's held-out error and the model
         chosen (:func:`brdfcorr.fit.selection.choose_class_model`).
+    levels : str
+        Whose brightness levels were free (:data:`brdfcorr.fit.sampling.LEVELS`): ``pooled`` (one
+        for the class), ``pixel`` or ``patch`` (the shape fitted to each group's own views; R^2,
+        angular R^2, RMS and chi^2/dof are then those of the differences within groups).
+    n_groups : int or None
+        Pixels or patches with two or more views that the fit used (None when pooled).
     """
 
     class_id: int
@@ -178,6 +187,8 @@ class ClassFit:
     errors_reason: str = ""
     prior: str | None = None
     model_choice: ModelChoice | None = None
+    levels: str = "pooled"
+    n_groups: int | None = None
 
     @property
     def median_r2(self) -> float:
@@ -215,6 +226,8 @@ class ClassFit:
             "errors_reason": self.errors_reason,
             "prior": self.prior,
             "model_choice": None if self.model_choice is None else self.model_choice.summary(),
+            "levels": self.levels,
+            "n_groups": self.n_groups,
         }
 
 
@@ -236,12 +249,28 @@ def _angular(model: Model) -> bool:
     return len(model.linear) > 1 or bool(model.shape_names)
 
 
+def _within_spread(samples: ClassSamples) -> float:
+    """How differently the groups of free levels were seen [deg]: twice the 95th percentile of
+    each sample's distance from its group's mean geometry, in (sun zenith, view zenith x cos and
+    x sin of the relative azimuth), the polar plot of the view about the sun's azimuth. Two lines
+    seeing a pixel at 20 deg from opposite sides give 40 deg; the pixels of a patch of one flight
+    line, about their view zenith step."""
+    if samples.group is None or np.size(samples.theta_i) == 0:
+        return 0.0
+    levels = Levels.from_labels(samples.group)
+    azimuth = np.radians(samples.phi)
+    geometry = np.column_stack([samples.theta_i, samples.theta_r * np.cos(azimuth), samples.theta_r * np.sin(azimuth)])
+    distance = np.linalg.norm(levels.demean(geometry), axis=1)[levels.counts[0][levels.factors[0]] >= 2]
+    return 2.0 * float(np.percentile(distance, 95)) if distance.size else 0.0
+
+
 def _sample_reasons(report: ClassFit, guard: GuardRails) -> list[str]:
     reasons = []
     if report.n_samples < guard.min_samples:
         reasons.append(f"{report.n_samples} samples < {guard.min_samples}")
     if report.vza_spread < guard.min_vza_spread:
-        reasons.append(f"view zenith spread {report.vza_spread:.1f} deg < {guard.min_vza_spread:g} deg")
+        what = "view zenith spread" if report.levels == "pooled" else f"geometry spread within each {report.levels}"
+        reasons.append(f"{what} {report.vza_spread:.1f} deg < {guard.min_vza_spread:g} deg")
     return reasons
 
 
@@ -372,21 +401,24 @@ def fit_one_class(
         name=name,
         model=model.name,
         n_samples=int(np.size(theta_i)),
-        vza_spread=_spread(np.asarray(theta_r)),
+        vza_spread=_spread(np.asarray(theta_r)) if samples.group is None else _within_spread(samples),
         phi_spread=_spread(np.asarray(phi)),
         fallback=fallback,
         notes=notes,
         model_choice=choice,
+        levels=samples.levels,
     )
     report.reasons = _sample_reasons(report, guard)
     if report.n_samples >= max(len(model.parameters) + 1, 3):
         result = fit_class_samples(
-            model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points, clusters=samples.block
+            model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points, clusters=samples.block,
+            levels=None if samples.group is None else Levels.from_labels(samples.group, samples.scene),
         )
         report.params, report.errors = result["params"], result["errors"]
         report.free, report.covariance, report.chi2_dof = result["free"], result["covariance"], result["chi2_dof"]
         report.r2, report.rmse, report.angular_r2 = result["r2"], result["rmse"], result["angular_r2"]
         report.condition, report.fixed = result["condition"], result["fixed"]
+        report.n_groups = result["n_groups"]
         report.errors_reliable, report.errors_reason = result["errors_reliable"], result["errors_reason"]
         if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
             _apply_prior(report, *prior, samples)
@@ -540,6 +572,7 @@ def fit_classes(
     pooled = sample_classes(
         scenes, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
         seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
+        levels=sampling.levels, patch_size=sampling.patch_size,
     )
     prior = None
     if models.prior is not None:

@@ -9,10 +9,11 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
+from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.geometry import relative_azimuth
 
-__all__ = ["ClassSamples", "sample_classes"]
+__all__ = ["LEVELS", "ClassSamples", "resolve_levels", "sample_classes"]
 
 
 @dataclass
@@ -24,6 +25,9 @@ class ClassSamples:
     phi: np.ndarray
     brdf: np.ndarray  # (N, B)
     block: np.ndarray | None = None  # spatial block id of each sample (cluster for the errors)
+    group: np.ndarray | None = None  # the pixel or patch whose level is free (LEVELS), if any
+    scene: np.ndarray | None = None  # the scene each sample comes from (its level is free too)
+    levels: str = "pooled"  # whose levels are free (LEVELS, resolved)
 
 
 def _class_values(class_map: xr.DataArray) -> np.ndarray:
@@ -37,11 +41,13 @@ def _as_list(value) -> list:
     return list(value) if isinstance(value, (list, tuple)) else [value]
 
 
-def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int) -> tuple:
+def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int,
+                   shared_grid: bool = False) -> tuple:
     """The samples of one scene (number ``scene``) at the flat pixel indices ``flat`` of its class
     map (of ``shape`` (y, x)): sun zenith, view zenith and relative azimuth [deg], BRDF (N, B)
     [sr^-1], and the id of each sample's spatial block of ``block_size`` pixels (unique over the
-    scenes). Stored values times ``reflectance_scale`` are reflectance factors."""
+    scenes; on a ``shared_grid`` the same in every scene, so that a block holds every view of its
+    ground). Stored values times ``reflectance_scale`` are reflectance factors."""
     iy, ix = np.unravel_index(flat, shape)
     where = {"y": xr.DataArray(iy, dims="sample"), "x": xr.DataArray(ix, dims="sample")}
 
@@ -52,7 +58,7 @@ def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale:
     reflectance = pick(image.transpose("band", "y", "x")).T * reflectance_scale
     saa, vaa = pick(angle_set["saa"]), pick(angle_set["vaa"])
     blocks_x = -(-shape[1] // block_size)
-    block = (scene, iy // block_size, ix // block_size)
+    block = (0 if shared_grid else scene, iy // block_size, ix // block_size)
     return (pick(angle_set["sza"]), pick(angle_set["vza"]), relative_azimuth(saa, vaa), reflectance / math.pi,
             (block[0] * 10**9 + block[1] * blocks_x + block[2]).astype(np.int64))
 
@@ -81,6 +87,8 @@ def sample_classes(
     seed: int = 0,
     reflectance_scale: float = 1.0,
     block_size: int = 32,
+    levels: str = "pooled",
+    patch_size: int = 8,
 ) -> dict[int, ClassSamples]:
     """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
 
@@ -104,7 +112,16 @@ def sample_classes(
     block_size : int, default 32
         Side [pixels] of the square spatial blocks whose ids label the samples
         (``ClassSamples.block``), so that the fit's errors allow for albedo and texture that are
-        correlated between neighbouring pixels.
+        correlated between neighbouring pixels. On scenes that share one grid a block is the same
+        ground in every scene.
+    levels : {"pooled", "pixel", "patch", "auto"}, default "pooled"
+        Whose level the fit leaves free (:data:`LEVELS`, :mod:`brdfcorr.fit.within`): with
+        ``pixel`` or ``patch`` whole groups (a pixel's views in every scene; a patch's pixels) are
+        sampled, groups with a single view left out, and every sample carries its group and scene
+        (``ClassSamples.group``, ``.scene``). ``pixel`` needs several scenes on one grid.
+    patch_size : int, default 8
+        Side [pixels] of the patches of ``levels="patch"``; it must divide ``block_size`` (a
+        block holds whole patches).
 
     Returns
     -------
@@ -136,28 +153,99 @@ def sample_classes(
     ]
     if class_ids is None:
         class_ids = sorted({int(c) for m in maps for c in np.unique(m) if c > 0})
+    shared = _shared_grid(images, maps)
+    levels = resolve_levels(levels, len(images), shared, patch_size, block_size)
+    patch = 1 if levels == "pixel" else patch_size
     rng = np.random.default_rng(seed)
     pooled: dict[int, ClassSamples] = {}
     for class_id in class_ids:
         candidates = [np.flatnonzero((m == class_id) & ok) for m, ok in zip(maps, valid_angles)]
-        counts = np.array([c.size for c in candidates])
-        offsets = np.concatenate([[0], np.cumsum(counts)])
-        chosen = np.sort(rng.choice(offsets[-1], size=min(max_samples, offsets[-1]), replace=False))
-        scene_of = np.searchsorted(offsets, chosen, side="right") - 1
+        groups: list[np.ndarray | None] = [None] * len(images)
+        if levels == "pooled":
+            chosen = _pooled_choice(candidates, max_samples, rng)
+        else:
+            groups = [_group_of(flat, m.shape, patch, None if shared else scene)
+                      for scene, (flat, m) in enumerate(zip(candidates, maps))]
+            chosen = _grouped_choice(groups, max_samples, rng)
         parts = []
         for scene, (image, angle_set) in enumerate(zip(images, angles)):
-            flat = candidates[scene][chosen[scene_of == scene] - offsets[scene]]
+            flat, group = candidates[scene][chosen[scene]], groups[scene]
             if flat.size:
-                parts.append(_scene_samples(scene, image, angle_set, maps[scene].shape, flat, reflectance_scale,
-                                            block_size))
-        if not parts:
-            n_bands = images[0].sizes["band"]
-            pooled[class_id] = ClassSamples(
-                *(np.empty(0) for _ in range(3)), np.empty((0, n_bands)), np.empty(0, np.int64)
-            )
-            continue
-        theta_i, theta_r, phi, brdf, block = (np.concatenate(p) for p in zip(*parts))
-        _check_bands(brdf, images[0], class_id)
-        keep = np.all(np.isfinite(brdf), axis=1)
-        pooled[class_id] = ClassSamples(theta_i[keep], theta_r[keep], phi[keep], brdf[keep], block[keep])
+                values = _scene_samples(scene, image, angle_set, maps[scene].shape, flat, reflectance_scale,
+                                        block_size, shared)
+                labels = () if group is None else (group[chosen[scene]], np.full(flat.size, scene))
+                parts.append((*values, *labels))
+        pooled[class_id] = _class_samples(parts, images[0], class_id, levels)
     return pooled
+
+
+def _class_samples(parts: list[tuple], image, class_id: int, levels: str) -> ClassSamples:
+    """One class's samples from the scenes' parts (angles, BRDF, block[, group, scene]), without
+    the samples that are not finite in some band."""
+    grouped = levels != "pooled"
+    if not parts:
+        empty = np.empty(0, np.int64)
+        arrays = [*(np.empty(0) for _ in range(3)), np.empty((0, image.sizes["band"])), empty,
+                  *((empty, empty) if grouped else (None, None))]
+        return ClassSamples(*arrays, levels=levels)
+    arrays = [np.concatenate(p) for p in zip(*parts)]
+    _check_bands(arrays[3], image, class_id)
+    keep = np.all(np.isfinite(arrays[3]), axis=1)
+    kept = [a[keep] for a in arrays]
+    return ClassSamples(*kept, *((None, None) if not grouped else ()), levels=levels)
+
+
+def _shared_grid(images, maps) -> bool:
+    """Whether every scene lies on one grid: class maps of one shape and, where the images have
+    them, the same x and y coordinates."""
+    if len({m.shape for m in maps}) != 1:
+        return False
+    for name in ("x", "y"):
+        coords = [np.asarray(image[name].values) for image in images if name in image.coords]
+        if coords and not all(c.shape == coords[0].shape and np.allclose(c, coords[0]) for c in coords):
+            return False
+    return True
+
+
+def resolve_levels(levels: str, n_scenes: int, shared: bool, patch_size: int, block_size: int) -> str:
+    """The levels a fit uses (:data:`LEVELS`; ``auto`` resolved), or a ParameterError saying why
+    they cannot be."""
+    if levels not in LEVELS:
+        raise ParameterError(f"levels {levels!r}: use one of {', '.join(LEVELS)}")
+    if levels == "auto":
+        return "pixel" if shared and n_scenes > 1 else "pooled"
+    if levels == "pixel" and not (shared and n_scenes > 1):
+        raise ParameterError("free levels per pixel need several scenes on one grid (the same ground seen more "
+                             "than once): resample them onto one grid (rioxarray's reproject_match), or use "
+                             "levels per patch")
+    if levels == "patch" and (patch_size < 1 or block_size % patch_size):
+        raise ParameterError(f"patch size {patch_size}: it must be a positive divisor of the block size "
+                             f"{block_size} (a block holds whole patches)")
+    return levels
+
+
+def _group_of(flat: np.ndarray, shape, patch: int, scene: int | None) -> np.ndarray:
+    """The group (patch of ``patch`` x ``patch`` pixels) of each flat pixel index of a grid of
+    ``shape``; unique to the scene unless ``scene`` is None (one grid shared by the scenes)."""
+    iy, ix = np.unravel_index(flat, shape)
+    per_row = -(-shape[1] // patch)
+    label = (iy // patch) * per_row + ix // patch
+    return label if scene is None else label + scene * per_row * -(-shape[0] // patch)
+
+
+def _pooled_choice(candidates: list[np.ndarray], max_samples: int, rng) -> list[np.ndarray]:
+    """Per scene, the positions (sorted) in its candidates of at most ``max_samples`` candidates
+    drawn without replacement over all scenes together."""
+    offsets = np.concatenate([[0], np.cumsum([c.size for c in candidates])])
+    chosen = np.sort(rng.choice(offsets[-1], size=min(max_samples, offsets[-1]), replace=False))
+    return [chosen[(chosen >= low) & (chosen < high)] - low for low, high in zip(offsets[:-1], offsets[1:])]
+
+
+def _grouped_choice(groups: list, max_samples: int, rng) -> list[np.ndarray]:
+    """Per scene, the positions of the candidates in whole groups drawn at random among those
+    with two or more candidates over all scenes, until ``max_samples`` are reached."""
+    labels, counts = np.unique(np.concatenate(groups), return_counts=True)
+    labels, counts = labels[counts >= 2], counts[counts >= 2]
+    order = rng.permutation(labels.size)
+    taken = labels[order[:np.searchsorted(np.cumsum(counts[order]), max_samples, side="right")]]
+    return [np.flatnonzero(np.isin(group, taken)) for group in groups]

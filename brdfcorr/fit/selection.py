@@ -6,9 +6,11 @@ measurements) and :func:`choose_class_model` (a class's pixels from imagery) fit
 model on k - 1 folds of the data and score it on the fold left out, for each of k folds:
 
 - goniometer measurements: folds of geometries, drawn at random with a fixed seed;
-- imagery: folds of spatial blocks (:attr:`brdfcorr.fit.sampling.ClassSamples.block`, unique over
-  scenes, so overlapping lines and dates are held out block by block): a block's pixels, which share
-  their texture and cover, are never on both sides.
+- imagery: folds of spatial blocks (:attr:`brdfcorr.fit.sampling.ClassSamples.block`; on scenes
+  that share one grid a block is the same ground in every scene, so all its dates are held out
+  together; elsewhere unique to its scene): a block's pixels, which share their texture and cover,
+  are never on both sides. Where the fit leaves each pixel's or patch's level free
+  (:mod:`brdfcorr.fit.within`), the differences within groups are what is predicted.
 
 The score of a fold is the held-out mean squared error (weighted by 1/sigma^2 where the
 measurements have errors; by the bands' inverse variances for imagery, as the fit weights them).
@@ -35,7 +37,8 @@ import numpy as np
 
 from brdfcorr.errors import BrdfcorrError, FitError
 from brdfcorr.fit.goniometer import fit_brdf
-from brdfcorr.fit.solver import DEFAULT_FIXED, _free_shape, _profile, _search
+from brdfcorr.fit.solver import DEFAULT_FIXED, _free_shape, _profile, _search, _search_subset
+from brdfcorr.fit.within import Levels
 from brdfcorr.models import get_model
 
 __all__ = [
@@ -278,14 +281,22 @@ def choose_model(
 
 
 def _subsample(samples, max_samples: int, max_bands: int):
-    """A seeded subsample of a class's samples and evenly spaced bands: angles, brdf, blocks."""
+    """A seeded subsample of a class's samples and evenly spaced bands: angles, brdf, blocks, and
+    the free levels (:mod:`brdfcorr.fit.within`) of the samples' groups, whole groups drawn, if
+    they have groups."""
     n = np.size(samples.theta_i)
-    rows = np.sort(np.random.default_rng(SEED).choice(n, min(n, max_samples), replace=False))
+    levels = None if samples.group is None else Levels.from_labels(samples.group)
+    if levels is None:
+        rows = np.sort(np.random.default_rng(SEED).choice(n, min(n, max_samples), replace=False))
+    else:
+        subset = _search_subset(n, max_samples, levels)
+        rows = np.arange(n) if subset is None else subset
+        levels = levels.subset(rows)
     data = np.asarray(samples.brdf, dtype=float).reshape(n, -1)
     bands = np.unique(np.linspace(0, data.shape[1] - 1, min(data.shape[1], max_bands)).round().astype(int))
     angles = [np.asarray(a, dtype=float).reshape(-1)[rows] for a in (samples.theta_i, samples.theta_r, samples.phi)]
     blocks = None if samples.block is None else np.asarray(samples.block).reshape(-1)[rows]
-    return angles, data[np.ix_(rows, bands)], blocks
+    return angles, data[np.ix_(rows, bands)], blocks, levels
 
 
 def choose_class_model(
@@ -322,7 +333,13 @@ def choose_class_model(
     intensities solved by non-negative least squares; the held-out error of a band is weighted by
     its inverse variance, as the fit weights the bands.
     """
-    angles, data, blocks = _subsample(samples, SELECT_SAMPLES, SELECT_BANDS)
+    angles, raw, blocks, levels = _subsample(samples, SELECT_SAMPLES, SELECT_BANDS)
+    data = raw  # what is predicted: with free levels, each group's views relative to it, within groups
+    if levels is not None:
+        usable = levels.usable(raw)
+        angles, raw, levels = [a[usable] for a in angles], raw[usable], levels.subset(usable)
+        blocks = None if blocks is None else blocks[usable]
+        data = levels.demean(levels.relative(raw)[0])
     groups, grouping = (blocks, "spatial blocks") if blocks is not None else (np.arange(data.shape[0]), "samples")
     folds = min(folds, np.unique(groups).size)
     if folds < 2:
@@ -339,10 +356,11 @@ def choose_class_model(
         n_free = len(model.linear) * data.shape[1] + len(free)
 
         def fit_and_predict(train, test, model=model, model_fixed=model_fixed, free=free):
-            profile = _profile(model, *(a[train] for a in angles), data[train], model_fixed)
+            part = lambda rows: None if levels is None else levels.subset(rows)  # noqa: E731
+            profile = _profile(model, *(a[train] for a in angles), raw[train], model_fixed, levels=part(train))
             shape = _search(profile, free, grid_points) if free else {}
             intensities, _ = profile.solve(profile.design(shape))
-            held_out = _profile(model, *(a[test] for a in angles), data[test], model_fixed)
+            held_out = _profile(model, *(a[test] for a in angles), raw[test], model_fixed, levels=part(test))
             return held_out.design(shape) @ intensities
 
         scores.append(_cross_validate(name, fold, n_free, fit_and_predict, data, weights))

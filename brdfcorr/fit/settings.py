@@ -142,6 +142,12 @@ class Sampling:
     bad_bands : sequence of (float, float), default :data:`WATER_VAPOUR_BANDS`
         Wavelength ranges [nm], ends included, whose bands are not sampled nor fitted (their
         classes list them as ``bad_bands`` in the table).
+    levels : {"auto", "pooled", "pixel", "patch"}, default "auto"
+        Whose brightness level the fit leaves free (:data:`brdfcorr.fit.sampling.LEVELS`,
+        :mod:`brdfcorr.fit.within`): ``auto`` frees every pixel's where several scenes share one
+        grid (the shape is then fitted to each pixel's own views only) and pools a single scene.
+    patch_size : int, default 8
+        Side [pixels] of the patches of ``levels="patch"`` (a divisor of ``block_size``).
     """
 
     max_samples: int = 50_000
@@ -150,6 +156,8 @@ class Sampling:
     block_size: int = 32
     keep_samples: int = 2000
     bad_bands: tuple[tuple[float, float], ...] = WATER_VAPOUR_BANDS
+    levels: str = "auto"
+    patch_size: int = 8
 
 
 def fallback_entry(name: str, class_id: int, class_name: str) -> dict:

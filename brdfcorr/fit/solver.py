@@ -35,6 +35,7 @@ import scipy.sparse
 from brdfcorr.errors import ParameterError
 from brdfcorr.fit.identifiability import error_reliability, t_variance_factor
 from brdfcorr.fit.sandwich import _joint_covariance
+from brdfcorr.fit.within import Levels, cluster_mean_variance, restored_constant, with_constant, with_level_variance
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import SURFACE_MODELS, Model, get_model
 
@@ -111,30 +112,84 @@ def imagery_models() -> tuple[str, ...]:
 
 
 class _LinearProfile:
-    """Sums of the data that the per-band linear solve needs, computed once per class."""
+    """Sums of the data that the per-band linear solve needs, computed once per class.
 
-    def __init__(self, model: Model, geometry: ScatteringGeometry, data: np.ndarray, fixed: dict):
+    With ``levels`` (:class:`brdfcorr.fit.within.Levels`) every group has a free level: the data
+    are taken relative to their group's mean, times the model's level at the group's geometry
+    (``group_model``, (N, B) [sr^-1]; default the class's mean level ``scale`` everywhere), and
+    like the design within groups (less their group means); the model's constant term
+    (``constant``; t0, f_iso) drops out of the design (``terms`` are the others) and is restored
+    by :meth:`full_intensities`.
+    """
+
+    def __init__(self, model: Model, geometry: ScatteringGeometry, data: np.ndarray, fixed: dict,
+                 levels: Levels | None = None, group_model: np.ndarray | None = None):
         self.model = model
         self.geometry = geometry
-        self.data = data  # (N, B) BRDF [sr^-1]
         self.fixed = fixed
-        self.terms = intensity_terms(model)
+        self.levels = levels
         self.ranges = {name: search_range(model, name) for name in _free_shape(model, fixed)}
-        lower = [model.parameter(name).lower for name in self.terms]
+        lower = [model.parameter(name).lower for name in intensity_terms(model)]
         if any(bound not in (0.0, -math.inf) for bound in lower):
             raise ParameterError(f"{model.name}: linear parameters need a lower bound of 0 or none")
-        self.nonnegative = np.array([bound == 0.0 for bound in lower])
+        self.raw_data, self.level, self.scale = data, None, None  # (N, B) BRDF [sr^-1]
+        if levels is not None:  # relative to each group's level (N, B), and the class's mean level (B,)
+            relative, self.level = levels.relative(data)
+            self.scale = self.level.mean(axis=0)
+            self.raw_data = relative * (self.scale if group_model is None else group_model)
+        self.constant = self._constant_terms() if levels is not None else ()
+        self.terms = tuple(name for name in intensity_terms(model) if name not in self.constant)
+        self.data = data if levels is None else levels.demean(self.raw_data)
+        self.nonnegative = np.array([bound == 0.0 for name, bound in zip(intensity_terms(model), lower)
+                                     if name in self.terms])
         self.n = data.shape[0]
-        self.sum_y = data.sum(axis=0)
-        self.sum_yy = np.einsum("nb,nb->b", data, data)
+        self.sum_y = self.data.sum(axis=0)
+        self.sum_yy = np.einsum("nb,nb->b", self.data, self.data)
         variance = self.sum_yy / self.n - (self.sum_y / self.n) ** 2
         # Inverse-variance band weights; a constant band carries no shape information.
         self.weights = np.where(variance > 0, 1.0 / np.where(variance > 0, variance, 1.0), 0.0)
 
-    def design(self, shape: Mapping[str, float]) -> np.ndarray:
-        """The (N, m) design matrix: one column per linear term, at a trial shape."""
+    def raw_design(self, shape: Mapping[str, float]) -> np.ndarray:
+        """The (N, m) design matrix of every linear term of the model at a trial shape."""
         terms = self.model.terms(self.geometry, {**self.fixed, **shape})
-        return np.column_stack([np.broadcast_to(np.asarray(t, dtype=float), (self.n,)) for t in terms])
+        n = self.geometry.theta_i.size
+        return np.column_stack([np.broadcast_to(np.asarray(t, dtype=float), (n,)) for t in terms])
+
+    def design(self, shape: Mapping[str, float]) -> np.ndarray:
+        """The (N, m) design matrix: one column per linear term of :attr:`terms`, at a trial
+        shape (within groups where the levels are free)."""
+        design = self.raw_design(shape)
+        if self.levels is None:
+            return design
+        kept = [j for j, name in enumerate(intensity_terms(self.model)) if name in self.terms]
+        return self.levels.demean(design[:, kept])
+
+    def _constant_terms(self) -> tuple[str, ...]:
+        """The linear terms whose column is the same at every sample (the level: t0, f_iso), at
+        the middle of the shape's search ranges."""
+        middle = {name: (math.sqrt(low * high) if logarithmic else 0.5 * (low + high))
+                  for name, (low, high, logarithmic) in self.ranges.items()}
+        design = self.raw_design(middle)
+        return tuple(name for name, column in zip(intensity_terms(self.model), design.T)
+                     if np.ptp(column) == 0 and column[0] != 0)
+
+    def full_intensities(self, shape: Mapping[str, float], coefficients: np.ndarray) -> np.ndarray:
+        """Every linear term's intensities (model order; (m_all, B)) from those of :attr:`terms`
+        (m, B): with free levels the constant term restored from the data's mean
+        (:func:`brdfcorr.fit.within.restored_constant`; kept >= 0 if its lower bound is 0; one
+        constant at most)."""
+        if not self.constant:
+            return coefficients
+        names = intensity_terms(self.model)
+        raw_means = self.raw_design(shape).mean(axis=0)
+        kept = [j for j, name in enumerate(names) if name in self.terms]
+        (index,) = [names.index(name) for name in self.constant]
+        constant = restored_constant(self.raw_data.mean(axis=0), raw_means[kept], coefficients, raw_means[index])
+        if self.model.parameter(names[index]).lower == 0.0:
+            constant = np.maximum(constant, 0.0)
+        full = np.empty((len(names), coefficients.shape[1]))
+        full[kept], full[index] = coefficients, constant
+        return full
 
     def products(self, design: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``design.T @ design`` (m, m) and ``design.T @ data`` (m, B): the one pass over the data.
@@ -396,21 +451,34 @@ def _check_model(model: Model, fixed: Mapping[str, float] | None) -> dict[str, f
     return fixed
 
 
-def _profile(model, theta_i, theta_r, phi, brdf, fixed, subset=None) -> _LinearProfile:
+#: With free levels, the fit is repeated this many times with each group's views at the level of
+#: the previous fit at its geometry (:mod:`brdfcorr.fit.within`).
+LEVEL_ITERATIONS = 3
+
+
+def _profile(model, theta_i, theta_r, phi, brdf, fixed, subset=None, levels: Levels | None = None,
+             group_model: np.ndarray | None = None) -> _LinearProfile:
     angles = [np.asarray(a, dtype=float).reshape(-1) for a in (theta_i, theta_r, phi)]
     data = np.asarray(brdf, dtype=float)
     if data.ndim == 1:
         data = data[:, None]
     if subset is not None:
         angles, data = [a[subset] for a in angles], data[subset]
-    return _LinearProfile(model, ScatteringGeometry(*angles), data, fixed)
+        levels = None if levels is None else levels.subset(subset)
+    return _LinearProfile(model, ScatteringGeometry(*angles), data, fixed, levels, group_model)
 
 
-def _search_subset(n: int, search_samples: int) -> np.ndarray | None:
-    """A seeded subsample of ``search_samples`` indices (None: use all ``n``)."""
+def _search_subset(n: int, search_samples: int, levels: Levels | None = None) -> np.ndarray | None:
+    """A seeded subsample of about ``search_samples`` indices (None: use all ``n``); with free
+    levels, whole groups of the main factor (a group's views are fitted together or not at all)."""
     if n <= search_samples:
         return None
-    return np.random.default_rng(0).choice(n, search_samples, replace=False)
+    rng = np.random.default_rng(0)
+    if levels is None:
+        return rng.choice(n, search_samples, replace=False)
+    groups = levels.n_groups
+    chosen = rng.choice(groups, max(2, groups * search_samples // n), replace=False)
+    return np.flatnonzero(np.isin(levels.factors[0], chosen))
 
 
 def _resolve(model: str | Model, fixed: Mapping[str, float] | None) -> tuple[Model, dict[str, float], list[str]]:
@@ -437,8 +505,9 @@ def _coarse_shape(
     ``full``, the profile of all the samples if the caller has it, is searched itself when there
     are no more than ``search_samples``.
     """
-    subset = _search_subset(np.shape(samples[0])[0] if full is None else full.n, search_samples)
-    profile = full if subset is None and full is not None else _profile(model, *samples, fixed, subset)
+    levels = None if full is None else full.levels
+    subset = _search_subset(np.shape(samples[0])[0] if full is None else full.n, search_samples, levels)
+    profile = full if subset is None and full is not None else _profile(model, *samples, fixed, subset, levels)
     return profile, (_search(profile, free, grid_points) if free else {})
 
 
@@ -453,6 +522,7 @@ def fit_class_samples(
     grid_points: int = 9,
     search_samples: int = 20_000,
     clusters=None,
+    levels: Levels | None = None,
 ) -> dict:
     """Fit one class: shape parameters shared by all bands, intensity terms per band.
 
@@ -475,7 +545,16 @@ def fit_class_samples(
     clusters : array-like of int, shape (N,), optional
         A cluster id per sample (e.g. its spatial block). Errors are then cluster-robust: samples
         of one cluster may share their errors (spatially correlated albedo, texture). Without
-        clusters the samples are taken as independent.
+        clusters the samples are taken as independent (with ``levels``: the samples of a group
+        are one cluster).
+    levels : Levels, optional
+        Groups of samples (pixels or patches seen several times; :mod:`brdfcorr.fit.within`)
+        that each get a free level: the shape and the geometry-dependent intensities are fitted to
+        the differences between the views of a group relative to its level, the constant term
+        (t0, f_iso) is restored from the class's mean. Samples alone in their group, or in one
+        without a positive mean, are left out. R^2, angular R^2, RMS
+        and chi^2/dof are then those of the within-group differences. Clusters must hold whole
+        groups.
 
     Returns
     -------
@@ -490,7 +569,8 @@ def fit_class_samples(
         search range, :func:`search_range`, that is not a closed physical bound), ``error_dof``
         (B, p: effective degrees of freedom of each error), ``n_clusters`` (blocks, or samples
         without them), ``errors_reliable`` (bool) and ``errors_reason`` (why not; empty when
-        reliable; :func:`brdfcorr.fit.identifiability.error_reliability`).
+        reliable; :func:`brdfcorr.fit.identifiability.error_reliability`), ``n_groups`` (groups
+        with free levels that hold two or more samples; None without ``levels``).
 
     Notes
     -----
@@ -498,18 +578,33 @@ def fit_class_samples(
     linear least-squares solve: no search, no Newton steps.
     """
     model, fixed, free = _resolve(model, fixed)
-    profile = _profile(model, theta_i, theta_r, phi, brdf, fixed)
+    samples = (theta_i, theta_r, phi, brdf)
+    clusters = None if clusters is None else np.asarray(clusters).reshape(-1)
+    if levels is not None:
+        repeated = levels.usable(np.asarray(brdf, dtype=float).reshape(len(levels.factors[0]), -1))
+        samples = tuple(np.asarray(values)[repeated] for values in samples)
+        clusters = levels.factors[0][repeated] if clusters is None else clusters[repeated]
+        levels = levels.subset(repeated)
+    profile = _profile(model, *samples, fixed, levels=levels)
     shape: dict[str, float] = {}
     if free:
         # Search on a subsample (the shape needs far fewer samples than the errors), then polish
         # on all samples from there: a large class costs a few full-size evaluations only.
-        samples = (theta_i, theta_r, phi, brdf)
         _, coarse = _coarse_shape(model, fixed, free, samples, search_samples, grid_points, full=profile)
         shape = _newton_polish(profile, coarse)
     design = profile.design(shape)
-    intensities, ssr = profile.solve(design)
-    clusters = None if clusters is None else np.asarray(clusters).reshape(-1)
-    names, covariance, deviations, diagnostics = _class_errors(profile, shape, design, intensities, clusters)
+    coefficients, ssr = profile.solve(design)
+    intensities = profile.full_intensities(shape, coefficients)
+    for _ in range(LEVEL_ITERATIONS if levels is not None else 0):
+        # Each group's views back at the model's level at its own geometry (brdfcorr.fit.within).
+        group_model = levels.group_means(profile.raw_design(shape) @ intensities)
+        profile = _profile(model, *samples, fixed, levels=levels, group_model=np.maximum(group_model, 1e-12))
+        shape = _newton_polish(profile, shape) if free else {}
+        design = profile.design(shape)
+        coefficients, ssr = profile.solve(design)
+        intensities = profile.full_intensities(shape, coefficients)
+    names, covariance, deviations, diagnostics = _class_errors(profile, shape, design, coefficients, intensities,
+                                                               clusters)
     n_bands = profile.data.shape[1]
     params = {name: np.full(n_bands, value) for name, value in {**fixed, **shape}.items()}
     params.update(dict(zip(model.linear, intensities)))
@@ -521,7 +616,8 @@ def fit_class_samples(
         "covariance": covariance,
         "free": names,
         "n": profile.n,
-        **_quality(profile, design, intensities, ssr, len(names)),
+        "n_groups": None if profile.levels is None else profile.levels.n_groups,
+        **_quality(profile, design, coefficients, ssr, len(names) + _absorbed(profile.levels)),
         "condition": _condition(design),
         "shape": shape,
         "fixed": fixed,
@@ -533,7 +629,8 @@ def _quality(profile: _LinearProfile, design: np.ndarray, intensities: np.ndarra
              n_free: int) -> dict[str, np.ndarray]:
     """``chi2_dof``, ``r2``, ``angular_r2`` and ``rmse`` per band of the linear coefficients
     ``intensities`` (m, B) with the sums of squared residuals ``ssr`` (B,) and ``n_free`` free
-    parameters."""
+    parameters (with free levels: of the views within groups, each at the model's level of its
+    group)."""
     dof = profile.n - n_free
     return {
         "chi2_dof": ssr / dof if dof > 0 else np.full(ssr.shape, np.nan),
@@ -543,10 +640,54 @@ def _quality(profile: _LinearProfile, design: np.ndarray, intensities: np.ndarra
     }
 
 
-def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, intensities, clusters):
+def _absorbed(levels: Levels | None) -> int:
+    """Degrees of freedom taken by the free levels (one per group of each factor, less the mean
+    of the second that the first holds already)."""
+    return 0 if levels is None else sum(int(count.size) for count in levels.counts) - len(levels.counts)
+
+
+def _with_levels(profile: _LinearProfile, shape: dict[str, float], coefficients, intensities, covariance, clusters):
+    """The joint covariance of a fit with free levels (over the shape and
+    :attr:`_LinearProfile.terms`) with the restored constant appended (:func:`_with_level`) and
+    the uncertainty of the class's mean level, cluster-robust over ``clusters``
+    (:func:`brdfcorr.fit.within.with_level_variance`)."""
+    clusters = profile.levels.factors[0] if clusters is None else clusters
+    if profile.constant:
+        covariance = _with_level(profile, shape, coefficients, covariance, clusters)
+    names = intensity_terms(profile.model)
+    joint = [names.index(name) for name in (*profile.terms, *profile.constant)]
+    relative_variance = cluster_mean_variance(profile.level, clusters) / profile.scale**2
+    return with_level_variance(covariance, intensities[joint].T, relative_variance)
+
+
+def _with_level(profile: _LinearProfile, shape: dict[str, float], coefficients, covariance, clusters):
+    """The joint covariance with the restored constant term appended (last;
+    :func:`brdfcorr.fit.within.with_constant`): its Jacobian through the means of the raw design
+    columns (central differences over the shape), and the variance of the mean relative level,
+    cluster-robust over ``clusters`` (:func:`brdfcorr.fit.within.cluster_mean_variance`)."""
+    names = intensity_terms(profile.model)
+    kept = [j for j, name in enumerate(names) if name in profile.terms]
+    (index,) = [names.index(name) for name in profile.constant]
+    raw = profile.raw_design(shape)
+    means = raw.mean(axis=0)
+    jacobian = []
+    for name, value in shape.items():
+        step = 1e-3 * max(abs(value), 1e-2)
+        plus = profile.raw_design({**shape, name: value + step}).mean(axis=0)
+        minus = profile.raw_design({**shape, name: value - step}).mean(axis=0)
+        derivative = (plus - minus) / (2 * step)
+        jacobian.append(-(derivative[kept] @ coefficients) / means[index])
+    jacobian += [np.full(coefficients.shape[1], -means[j] / means[index]) for j in kept]
+    levels = profile.raw_data - raw[:, kept] @ coefficients  # (N, B): each sample's level
+    variance = cluster_mean_variance(levels, clusters)
+    return with_constant(covariance, np.stack(jacobian, axis=1), variance / means[index] ** 2)
+
+
+def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, coefficients, intensities, clusters):
     """The free parameters (model signature order), their covariance (B, p, p) and 1-sigma errors
     (B, p), and the diagnostics: ``at_edge``, ``error_dof``, ``n_clusters``, ``errors_reliable``,
-    ``errors_reason``.
+    ``errors_reason``. ``coefficients`` are the intensities of the profile's terms (the design's
+    columns), ``intensities`` every linear term's (with a restored constant, :func:`_with_level`).
 
     The covariance is the CR2 sandwich (:func:`brdfcorr.fit.sandwich._joint_covariance`) with each
     parameter's variance multiplied by the t-variance factor of its effective degrees of freedom
@@ -555,13 +696,19 @@ def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, inte
     trusted is :func:`brdfcorr.fit.identifiability.error_reliability` (``docs/uncertainty.md``).
     """
     model = profile.model
-    sandwich = _joint_covariance(profile, shape, design, intensities, clusters)
-    joint_names = [*shape, *model.linear]
+    sandwich = _joint_covariance(profile, shape, design, coefficients, clusters)
+    joint_names = [*shape, *profile.terms]
+    joint, dof = sandwich.covariance, sandwich.dof
+    if profile.levels is not None:
+        joint = _with_levels(profile, shape, coefficients, intensities, joint, clusters)
+    if profile.constant:
+        dof = np.column_stack([dof, np.full(dof.shape[0], max(sandwich.n_clusters - 1, 1.0))])
+        joint_names += list(profile.constant)
     names = tuple(name for name in model.parameter_names if name in joint_names)
     order = [joint_names.index(name) for name in names]
-    error_dof = sandwich.dof[:, order]
+    error_dof = dof[:, order]
     inflation = np.sqrt(t_variance_factor(error_dof))  # (B, p)
-    covariance = sandwich.covariance[:, order][:, :, order] * inflation[:, :, None] * inflation[:, None, :]
+    covariance = joint[:, order][:, :, order] * inflation[:, :, None] * inflation[:, None, :]
     deviations = np.sqrt(np.maximum(np.diagonal(covariance, axis1=1, axis2=2), 0.0))  # (B, p)
     at_edge = _at_edge(profile, shape)
     values = {**shape, **dict(zip(model.linear, intensities))}

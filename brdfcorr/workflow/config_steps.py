@@ -17,7 +17,7 @@ from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
-from brdfcorr.defaults import AUTO_MODEL, DEFAULT_LIMITS
+from brdfcorr.defaults import AUTO_MODEL, DEFAULT_LIMITS, LEVELS
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
@@ -39,6 +39,8 @@ __all__ = [
 SurfaceModel = Literal[SURFACE_MODELS]  # type: ignore[valid-type]
 #: ... or ``auto``, the model with the lowest held-out error, where a step fits one.
 FitModel = Literal[(*SURFACE_MODELS, AUTO_MODEL)]  # type: ignore[valid-type]
+#: Whose brightness level an imagery fit leaves free (:data:`brdfcorr.defaults.LEVELS`).
+FitLevels = Literal[LEVELS]  # type: ignore[valid-type]
 
 
 class MeasurementSet(StrictModel):
@@ -108,6 +110,10 @@ class ImageryFit(StrictModel):
         Pixels per class over all scenes, the sampler's seed, the stored values' scale [-].
     block_size : int
         Side [pixels] of the spatial blocks the errors are cluster-robust over (``--block-size``).
+    levels : {"auto", "pooled", "pixel", "patch"}
+        Whose brightness level is free (``--levels``; :class:`brdfcorr.fit.Sampling`).
+    patch_size : int
+        Side [pixels] of the patches of ``levels: patch`` (``--patch-size``).
     min_samples, min_vza_spread, max_condition :
         Guard rails (:class:`brdfcorr.fit.GuardRails`): samples per class, 5-95 % view zenith
         spread [deg], condition number of the linear design [-].
@@ -135,6 +141,8 @@ class ImageryFit(StrictModel):
     max_samples: Integer = Field(Sampling.max_samples, ge=10)
     seed: Integer = Sampling.seed
     block_size: Integer = Field(Sampling.block_size, ge=1)
+    levels: FitLevels = "auto"
+    patch_size: Integer = Field(Sampling.patch_size, ge=1)
     reflectance_scale: Number = Field(1.0, gt=0)
     min_samples: Integer = Field(GuardRails.min_samples, ge=1)
     min_vza_spread: Number = Field(GuardRails.min_vza_spread, ge=0)
@@ -190,7 +198,8 @@ class ImageryFit(StrictModel):
                                   prior=None if self.prior is None
                                   else ShapePrior.given(self.prior, self.prior_spread)),
             "sampling": Sampling(max_samples=self.max_samples, seed=self.seed, block_size=self.block_size,
-                                 reflectance_scale=self.reflectance_scale,
+                                 reflectance_scale=self.reflectance_scale, levels=self.levels,
+                                 patch_size=self.patch_size,
                                  bad_bands=tuple(tuple(band_range) for band_range in self.bad_bands)),
             "guard": GuardRails(min_samples=self.min_samples, min_vza_spread=self.min_vza_spread,
                                 max_condition=self.max_condition),

@@ -1,0 +1,185 @@
+"""Free levels (fixed effects): the within transformation, the restored constant, the fit that
+tells BRDF from land cover where the same ground is seen more than once (issue 37)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from brdfcorr.errors import ParameterError
+from brdfcorr.fit import ClassModels, Sampling, fit_classes
+from brdfcorr.fit.sampling import sample_classes
+from brdfcorr.fit.solver import fit_class_samples
+from brdfcorr.fit.within import Levels, cluster_mean_variance, restored_constant
+from brdfcorr.geometry import relative_azimuth
+from brdfcorr.models import get_model
+
+RTLSR = get_model("ross_thick_li_sparse")
+TRUTH = {"f_iso": 0.1, "f_vol": 0.06, "f_geo": 0.015}
+
+
+def test_one_factor_demeaning_leaves_every_group_mean_zero():
+    rng = np.random.default_rng(0)
+    codes = rng.integers(0, 7, 200)
+    values = rng.normal(size=(200, 3))
+    within = Levels.from_labels(codes).demean(values)
+    for group in np.unique(codes):
+        np.testing.assert_allclose(within[codes == group].mean(axis=0), 0.0, atol=1e-12)
+    # The deviations from the group means themselves (an independent computation).
+    means = np.array([values[codes == c].mean(axis=0) for c in range(7)])
+    np.testing.assert_allclose(within, values - means[codes], atol=1e-12)
+
+
+def test_two_factor_demeaning_equals_least_squares_with_dummies():
+    """Two-way within transformation = residuals of a regression on both factors' dummies
+    (Frisch-Waugh-Lovell), here on an unbalanced panel where one sweep is not enough."""
+    rng = np.random.default_rng(1)
+    pixel, scene = rng.integers(0, 12, 150), rng.integers(0, 4, 150)
+    values = rng.normal(size=150)
+    dummies = np.column_stack([pixel == p for p in range(12)] + [scene == s for s in range(1, 4)]).astype(float)
+    coefficients, *_ = np.linalg.lstsq(dummies, values, rcond=None)
+    within = Levels.from_labels(pixel, scene).demean(values[:, None])[:, 0]
+    np.testing.assert_allclose(within, values - dummies @ coefficients, atol=1e-8)
+
+
+def test_restored_constant_gives_the_fit_the_data_mean():
+    # f = t0 + sum p_j B_j at the means: t0 = (mean f - sum p_j mean B_j) / mean B_0.
+    value = restored_constant(np.array([0.3]), np.array([0.5, 2.0]), np.array([[0.1], [0.05]]), 1.0)
+    assert value == pytest.approx(0.3 - 0.05 - 0.1)
+
+
+def test_cluster_mean_variance_is_the_cr1_formula():
+    values = np.array([[1.0], [3.0], [2.0], [6.0]])
+    clusters = np.array([0, 0, 1, 1])
+    # cluster sums of deviations from the mean 3: (-2 + 0) and (-1 + 3); G / (G - 1) = 2.
+    assert cluster_mean_variance(values, clusters)[0] == pytest.approx(2 * (4 + 4) / 16)
+
+
+def _confounded_views(rng, pixels=2000, views=5, noise=0.01):
+    """Pixels seen ``views`` times, whose brightness (cover) follows their first view zenith: a
+    pooled fit over one view reads the cover as BRDF."""
+    sza = rng.uniform(25, 45, (pixels, views))
+    vza = rng.uniform(0, 40, (pixels, views))
+    phi = rng.uniform(0, 180, (pixels, views))
+    cover = 1 + 0.5 * (vza[:, :1] / 40 - 0.5) + 0.1 * rng.standard_normal((pixels, 1))
+    brdf = RTLSR(sza, vza, phi, **TRUTH) * cover * (1 + noise * rng.standard_normal((pixels, views)))
+    return sza, vza, phi, brdf, np.repeat(np.arange(pixels)[:, None], views, axis=1), float(cover.mean())
+
+
+def test_free_levels_recover_the_shape_a_pooled_fit_reads_from_the_cover():
+    sza, vza, phi, brdf, pixel, mean_cover = _confounded_views(np.random.default_rng(2))
+    pooled = fit_class_samples(RTLSR, sza[:, 0], vza[:, 0], phi[:, 0], brdf[:, :1])
+    within = fit_class_samples(RTLSR, sza.ravel(), vza.ravel(), phi.ravel(), brdf.reshape(-1, 1),
+                               levels=Levels.from_labels(pixel.ravel()))
+    for name, truth in TRUTH.items():
+        truth *= mean_cover  # the class's mean pixel
+        value, error = within["params"][name][0], within["errors"][name][0]
+        assert abs(value - truth) < 4 * error, name
+    # The pooled fit of one view takes the cover's trend for volume scattering.
+    ratio = pooled["params"]["f_vol"][0] / pooled["params"]["f_iso"][0]
+    assert abs(ratio - 0.6) > 20 * within["errors"]["f_vol"][0] / within["params"]["f_iso"][0]
+    assert within["n_groups"] == 2000
+
+
+def test_free_levels_errors_follow_the_scatter_over_seeds():
+    """Pulls (fit - truth) / error over 60 seeds of the restored f_iso and of the ratios
+    f_vol / f_iso and f_geo / f_iso (what a correction uses; their errors propagated from the
+    joint covariance): standard deviation near 1 and mean near 0."""
+    pulls = []
+    for seed in range(60):
+        sza, vza, phi, brdf, pixel, _ = _confounded_views(np.random.default_rng(100 + seed), pixels=150, views=3,
+                                                           noise=0.03)
+        result = fit_class_samples(RTLSR, sza.ravel(), vza.ravel(), phi.ravel(), brdf.reshape(-1, 1),
+                                   levels=Levels.from_labels(pixel.ravel()))
+        params, covariance, names = result["params"], result["covariance"][0], list(result["free"])
+        iso = params["f_iso"][0]
+        row = [(iso - TRUTH["f_iso"]) / result["errors"]["f_iso"][0]]  # the expected cover is 1
+        for name in ("f_vol", "f_geo"):
+            ratio = params[name][0] / iso
+            gradient = np.zeros(len(names))
+            gradient[names.index(name)], gradient[names.index("f_iso")] = 1 / iso, -ratio / iso
+            row.append((ratio - TRUTH[name] / TRUTH["f_iso"]) / np.sqrt(gradient @ covariance @ gradient))
+        pulls.append(row)
+    spread, mean = np.std(pulls, axis=0), np.mean(pulls, axis=0)
+    assert np.all((spread > 0.75) & (spread < 1.3)), spread
+    assert np.all(np.abs(mean) < 0.35), mean
+
+
+def test_free_levels_are_exact_for_a_multiplicative_level_without_noise():
+    """f = s_n g: the shape and the ratios come out exact however the levels follow the view
+    (the within fit at the model's level of each group, brdfcorr.fit.within)."""
+    ts = get_model("torrance_sparrow")
+    rng = np.random.default_rng(3)
+    sza, vza, phi = rng.uniform(25, 45, (1000, 4)), rng.uniform(0, 40, (1000, 4)), rng.uniform(0, 180, (1000, 4))
+    level = 1 + 0.5 * (vza[:, :1] / 40 - 0.5)
+    truth = {"t0": 0.05, "t1": 0.3, "w": 0.08, "n": 1.6, "k": 0.25}
+    brdf = ts(sza, vza, phi, **truth) * level
+    pixel = np.repeat(np.arange(1000)[:, None], 4, axis=1)
+    result = fit_class_samples(ts, sza.ravel(), vza.ravel(), phi.ravel(), brdf.reshape(-1, 1),
+                               levels=Levels.from_labels(pixel.ravel()))
+    assert result["params"]["w"][0] == pytest.approx(0.08, rel=1e-3)
+    assert result["params"]["n"][0] == pytest.approx(1.6, rel=1e-3)
+    ratio = result["params"]["t1"][0] / result["params"]["t0"][0]
+    assert ratio == pytest.approx(6.0, rel=1e-3)
+
+
+def _stack(dates: int, shape=(40, 64), seed=0):
+    """Images of one grid seen on ``dates`` dates from alternating sides, with a cover gradient
+    east-west that a pooled fit over one date confounds with the view."""
+    rng = np.random.default_rng(seed)
+    ny, nx = shape
+    coords = {"y": np.arange(ny), "x": np.arange(nx)}
+    cover = (1 + 0.3 * np.linspace(-1, 1, nx))[None, :] * np.ones((ny, 1))
+    images, angles, maps = [], [], []
+    for date in range(dates):
+        vza = np.abs(np.linspace(-30, 30, nx))[None, :] * np.ones((ny, 1))
+        vaa = np.where((np.arange(nx) < nx // 2) ^ (date % 2 == 1), 270.0, 90.0)[None, :] * np.ones((ny, 1))
+        sza, saa = np.full(shape, 30.0 + 4 * date), np.full(shape, 100.0)
+        brdf = RTLSR(sza, vza, relative_azimuth(saa, vaa), **TRUTH) * cover
+        reflectance = np.pi * brdf * (1 + 0.01 * rng.standard_normal(shape))
+        images.append(xr.DataArray(reflectance[None], dims=("band", "y", "x"), coords=coords))
+        angles.append(xr.Dataset({k: (("y", "x"), v) for k, v in {"sza": sza, "saa": saa, "vza": vza,
+                                                                   "vaa": vaa}.items()}, coords=coords))
+        maps.append(xr.DataArray(np.ones(shape, np.int32), dims=("y", "x"), coords=coords))
+    return images, maps, angles
+
+
+def test_pixel_levels_sample_whole_pixels_on_one_grid():
+    images, maps, angles = _stack(3)
+    samples = sample_classes(images, maps, angles, levels="pixel", max_samples=900)[1]
+    assert samples.levels == "pixel"
+    assert samples.theta_i.size <= 900
+    labels, counts = np.unique(samples.group, return_counts=True)
+    assert np.all(counts == 3)  # every date of each sampled pixel
+    for label in labels[:20]:  # a pixel's views lie in one block and come from three scenes
+        views = samples.group == label
+        assert np.unique(samples.block[views]).size == 1
+        assert sorted(samples.scene[views]) == [0, 1, 2]
+
+
+def test_levels_auto_frees_pixels_of_a_stack_and_pools_a_single_scene():
+    images, maps, angles = _stack(2)
+    stack = fit_classes(images, maps, angles, ClassModels("ross_thick_li_sparse"), wavelengths=[650.0])
+    single = fit_classes(images[:1], maps[:1], angles[:1], ClassModels("ross_thick_li_sparse"), wavelengths=[650.0])
+    assert stack.fits[0].levels == "pixel" and stack.fits[0].n_groups > 0
+    assert single.fits[0].levels == "pooled" and single.fits[0].n_groups is None
+    assert stack.report()[0]["levels"] == "pixel"
+
+
+def test_pixel_levels_refused_without_a_shared_grid():
+    images, maps, angles = _stack(1)
+    with pytest.raises(ParameterError, match="several scenes on one grid"):
+        sample_classes(images, maps, angles, levels="pixel")
+    with pytest.raises(ParameterError, match="divisor of the block size"):
+        sample_classes(images, maps, angles, levels="patch", patch_size=5, block_size=32)
+
+
+def test_patches_of_one_flight_line_fail_the_spread_guard_rail():
+    """Neighbouring pixels of one line differ in view zenith by a fraction of a degree: their
+    differences carry no BRDF, and the guard rail says so in its own words."""
+    images, maps, angles = _stack(1)
+    with pytest.warns(UserWarning, match="geometry spread within each patch"):
+        result = fit_classes(images, maps, angles, ClassModels("ross_thick_li_sparse"), wavelengths=[650.0],
+                             sampling=Sampling(levels="patch", patch_size=4, block_size=8))
+    assert result.fits[0].status == "uncorrected"
