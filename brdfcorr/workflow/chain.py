@@ -71,6 +71,7 @@ except ImportError:  # pragma: no cover (Windows)
 
 from dask.callbacks import Callback
 
+from brdfcorr._entry import entered
 from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io import cluster
@@ -270,7 +271,9 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
         if steps.correct is not None:
             _remove_derived(scene)
         # Active for every pass of the scene, from the first (the checks before the write), as for `correct`.
-        with ChunkProgress(scene.name, progress) if progress is not None else contextlib.nullcontext():
+        # Messages name chain keys (brdfcorr._entry), also in process workers.
+        chunks = ChunkProgress(scene.name, progress) if progress is not None else contextlib.nullcontext()
+        with entered("chain"), chunks:
             for name, run in (("correct", lambda: _correct(scene, table, config, **compute)),
                               ("assess", lambda: _assess(scene, table, config, **compute)),
                               ("quicklook", lambda: _quicklook(scene, config, table))):
@@ -537,8 +540,9 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
     """
     started = datetime.now(timezone.utc).isoformat(timespec="seconds")
     clock = time.perf_counter()
-    plan = plan if plan is not None else plan_run(config)
-    with run_lock(plan.output_dir):
+    with entered("chain"):  # messages name chain keys (brdfcorr._entry)
+        plan = plan if plan is not None else plan_run(config)
+    with run_lock(plan.output_dir), entered("chain"):
         return _run_plan(plan, progress, started, clock)
 
 

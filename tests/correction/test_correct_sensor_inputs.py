@@ -49,7 +49,7 @@ def test_correct_aviris_ng_line_with_obs_angles(tmp_path):
     # user's word (--scale 1), never silently.
     refused = CliRunner().invoke(main, arguments)
     assert refused.exit_code == 2 and "do not look like reflectance factors" in refused.stderr
-    assert "--scale 1: use them as they are" in refused.stderr and not (tmp_path / "out.tif").exists()
+    assert "--scale/--offset" in refused.stderr and "scale 1: use them as they are" in refused.stderr and not (tmp_path / "out.tif").exists()
     result = CliRunner().invoke(main, [*arguments, "--scale", "1"])
     assert result.exit_code == 0, result.output
     assert IMAGE.read_bytes() == before
