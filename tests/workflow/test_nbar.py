@@ -164,6 +164,13 @@ def test_bad_folders_are_one_line_and_exit_2(tmp_path):
     result = run("nbar", tmp_path / "l1c", "-o", tmp_path / "out.tif")
     assert result.exit_code == 2 and "L1C product" in result.output
     assert not (tmp_path / "out.tif").exists()
+    # A product still in its download archive: refused naming the unpacking, not "Directory ... is a file".
+    archive = tmp_path / "S2A_MSIL2A_20240101T000000_N0510_R001_T32TQM_20240101T000000.SAFE.zip"
+    archive.write_bytes(b"PK\x05\x06" + bytes(18))  # an empty zip archive
+    result = run("nbar", archive, "-o", tmp_path / "out.tif")
+    assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1
+    assert f"is an archive; brdfcorr reads the unpacked product folder: unpack it (unzip {archive.name}) and give " \
+           f"{archive.name.removesuffix('.zip')}" in result.stderr
 
 
 @needs_s2
