@@ -121,7 +121,41 @@ def _scenes(count: int) -> str:
     return f"{count} scene" if count == 1 else f"{count} scenes"
 
 
+def _number(value, digits: int = 3) -> str:
+    return "-" if value is None else f"{value:.{digits}g}"
+
+
+def _echo_fit(fit: dict | None) -> None:
+    """The fit step's classes: model, status, samples, median R^2 and, for a class that failed the
+    guard rails, why (the run report has the parameters)."""
+    classes = (fit or {}).get("classes") or []
+    if not classes or not isinstance(classes[0], dict) or "status" not in classes[0]:
+        return
+    click.echo("fit:")
+    click.echo(_format_table([{
+        "class": str(entry["class_id"]), "name": str(entry["name"]), "model": str(entry["model"]),
+        "status": str(entry["status"]), "samples": str(entry.get("n_samples", "-")),
+        "median R2": _number(entry.get("median_r2")), "reasons": "; ".join(entry.get("reasons") or []),
+    } for entry in classes]))
+
+
+def _echo_assessment(report) -> None:
+    """Each assessed scene's classes: median |relative slope| [%/10 deg] before and after."""
+    rows = []
+    for result in report.scenes:
+        for entry in result.get("assess") or []:
+            medians = entry["median_abs_relative_slope_percent_per_10deg"]
+            rows.append({"scene": result["scene"], "class": f"{entry['id']} ({entry['name']})",
+                         "pixels": str(entry["pixels"]), "|slope| before": _number(medians["before"]),
+                         "|slope| after": _number(medians["after"])})
+    if rows:
+        click.echo("assessment (median |relative slope| over bands, %/10 deg):")
+        click.echo(_format_table(rows))
+
+
 def _echo_run(report) -> None:
+    _echo_fit(report.fit)
+    _echo_assessment(report)
     rows = []
     for result in report.scenes:
         qa = result.get("qa", {})

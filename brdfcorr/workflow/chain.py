@@ -85,7 +85,15 @@ from brdfcorr.workflow.config import ChainConfig, EngineConfig
 from brdfcorr.workflow.correction import Terrain, correct_files
 from brdfcorr.workflow.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
 from brdfcorr.workflow.quicklook import write_quicklook
-from brdfcorr.workflow.report import RunReport, assessment_summary, earlier_findings, scene_result, versions
+from brdfcorr.workflow.report import (
+    RunReport,
+    assessment_summary,
+    earlier_findings,
+    failed_for_uncorrected,
+    scene_result,
+    uncorrected_classes,
+    versions,
+)
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file
 
@@ -567,7 +575,11 @@ def _run_plan(plan: RunPlan, progress: Progress | None, started: str, clock: flo
                                               found=earlier.get(str(scene.image))))
             notify("scene", report.scenes[-1])
     tick = time.perf_counter()
+    step = config.steps.fit
+    left_uncorrected = [] if step is None or getattr(step, "allow_uncorrected", True) else \
+        uncorrected_classes(fit_report)
     for result in _run_scenes([scene for scene in plan.scenes if scene.action != "skip"], table, config, progress):
+        result = failed_for_uncorrected(result, left_uncorrected)
         report.scenes.append(result)
         notify("scene", result)
     timings["scenes"] = round(time.perf_counter() - tick, 3)
