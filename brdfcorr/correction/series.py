@@ -9,7 +9,7 @@ A date is corrected exactly as the same image alone (``brdfcorr correct``, ``brd
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Hashable, Mapping
 
 import dask.array as da
 import numpy as np
@@ -51,7 +51,7 @@ def over_dates(normalize_one: Callable, reflectance, classes, angles, params, re
     return type(results[0])(corrected.transpose(dim, *cube.dims[1:]), qa.transpose(dim, *cube.dims[2:]))
 
 
-def _at_date(layer, dim: str, index: int, name: str):
+def _at_date(layer, dim: Hashable, index: int, name: str):
     """The (y, x) layer of date ``index``: the layer itself where it has no time dimension."""
     if layer is None:
         return None
@@ -64,7 +64,7 @@ def _at_date(layer, dim: str, index: int, name: str):
     return layer
 
 
-def _angles_at_date(angles, dim: str, index: int):
+def _angles_at_date(angles, dim: Hashable, index: int):
     """The angle layers of date ``index`` (a Dataset or a mapping, as :func:`normalize` takes)."""
     if isinstance(angles, xr.Dataset):
         return angles.isel({dim: index}) if dim in angles.dims else angles
