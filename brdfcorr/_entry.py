@@ -32,6 +32,12 @@ _OPTIONS: dict[str, dict[Entry, str]] = {
     "scale": {"cli": "--scale/--offset", "chain": "inputs.scale/inputs.offset",
               "python": "reflectance * scale + offset before the call (or scale=/offset= of "
                         "brdfcorr.io.rasters.open_image)"},
+    "scale_example": {"cli": "--scale 0.0001 for reflectance stored as 0-10000 (--scale 1: use them as they are, "
+                             "e.g. radiance)",
+                      "chain": "scale: 0.0001 for reflectance stored as 0-10000 (scale: 1: use them as they are, "
+                               "e.g. radiance)",
+                      "python": "a scale of 0.0001 for reflectance stored as 0-10000 (a scale of 1: use them as they "
+                                "are, e.g. radiance)"},
     "extrapolate": {"cli": "--extrapolate", "chain": "steps.correct.extrapolate", "python": "extrapolate=True"},
     "align_classes": {"cli": "--align-classes", "chain": "inputs.align_classes: true",
                       "python": "brdfcorr.strata.align_class_map(classes, reflectance)"},

@@ -380,8 +380,7 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
         raise InputError(
             f"{where}: the values do not look like reflectance factors: 99th percentile {percentile:.5g} "
             f"of a sample of valid pixels (scale {scale}, offset {offset} applied); {guess} Give the "
-            f"scale (and offset) of the stored values: {option('scale')}, e.g. scale 0.0001 for "
-            "reflectance stored as 0-10000 (scale 1: use them as they are, e.g. radiance)"
+            f"scale (and offset) of the stored values: {option('scale')}, e.g. {option('scale_example')}"
         )
     return percentile
 
