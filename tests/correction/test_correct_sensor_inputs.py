@@ -7,7 +7,6 @@ header names and the Torrance-Sparrow factor is evaluated with the public model 
 from pathlib import Path
 
 import numpy as np
-import pytest
 import rasterio
 import rioxarray
 from click.testing import CliRunner
@@ -18,11 +17,10 @@ from brdfcorr.models import torrance_sparrow
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 
-REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
+REALDATA = Path(__file__).resolve().parents[1] / "data"  # real files and their licences (README.md there)
 LINE = REALDATA / "isofit_avirisng_topoflux"
 IMAGE = LINE / "ang20160910t185702_2rdn_img"
 OBS = LINE / "ang20160910t185702_obs_ortdem_mod"
-pytestmark = pytest.mark.skipif(not LINE.is_dir(), reason=f"real sensor data not found at {LINE}")
 
 
 def _obs_band(name: str) -> np.ndarray:
