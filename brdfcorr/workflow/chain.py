@@ -369,7 +369,8 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
     )
     report = assessment.report()
     write_json(report, scene.outputs["assess"])
-    write_assessment_figures(assessment, scene.outputs["assess_profiles"].parent, prefix=f"{scene.name}_assess")
+    write_assessment_figures(assessment, scene.outputs["assess_profiles"].parent, prefix=f"{scene.name}_assess",
+                             title=scene.name)
     return {"assess": assessment_summary(report)}
 
 
