@@ -28,6 +28,11 @@ def __getattr__(name: str):
     globals()[name] = value
     return value
 
+def __dir__() -> list[str]:
+    """The module's names with the lazy ones (:data:`_LAZY`), which ``dir()`` would miss until used."""
+    return sorted({*globals(), *_LAZY})
+
+
 __all__ = [
     "__version__", "geometry", "models", "normalize", "ParameterTable", "run_chain",
     "BrdfcorrError", "ParameterError", "UnknownNameError",

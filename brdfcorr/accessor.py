@@ -2,6 +2,7 @@
 
 >>> import brdfcorr  # registers the accessor
 >>> corrected, qa = cube.brdf.normalize(classes, angles, table)  # doctest: +SKIP
+>>> nbar, qa = stack.brdf.normalize(None, angles, "roy2017")  # (time, band, y, x)  # doctest: +SKIP
 
 The accessor holds no state and no science: metadata lives in coords/attrs of the arrays.
 """
@@ -21,14 +22,18 @@ __all__ = ["BrdfAccessor"]
 
 @xr.register_dataarray_accessor("brdf")
 class BrdfAccessor:
-    """``DataArray.brdf``: BRDF operations on a reflectance cube (band, y, x)."""
+    """``DataArray.brdf``: BRDF operations on a reflectance cube (band, y, x) or a time series of
+    them (time, band, y, x)."""
 
     def __init__(self, reflectance: xr.DataArray):
         self._reflectance = reflectance
 
     def normalize(self, classes, angles, params, reference=None, **options) -> Normalized:
-        """:func:`brdfcorr.normalize` with this array as the reflectance (same options); ``angles``
-        is a Dataset (or mapping) with ``sza``, ``saa``, ``vza``, ``vaa`` [deg]."""
+        """:func:`brdfcorr.normalize` with this array as the reflectance (same arguments and checks):
+        ``classes`` a class map or None (class 1 everywhere), ``angles`` a Dataset (or mapping)
+        with ``sza``, ``saa``, ``vza``, ``vaa`` [deg], ``params`` a table, a table file or a
+        built-in coefficient set's name (``"roy2017"``). A (time, band, y, x) cube is normalized
+        date by date, lazily for dask."""
         from brdfcorr import correction  # at first use: `import brdfcorr` (and the CLI) need no dask
 
         return correction.normalize(self._reflectance, classes, angles, params, reference, **options)

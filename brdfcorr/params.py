@@ -100,9 +100,15 @@ __all__ = [
     "NdviInterpolation",
     "BandParameters",
     "merge_tables",
+    "as_parameter_table",
 ]
 
 SunZenith = Annotated[float | Literal["mean", "observed", "hls"], BeforeValidator(refuse_boolean)]
+
+
+#: A reference sun zenith in (0, this) [deg] is refused as radians (pi/2 = 1.571): no one normalizes
+#: to a sun within 1.6 deg of the zenith, while 0.78 (45 deg in radians) is a common slip.
+RADIANS_BELOW = 1.6
 
 
 class ReferenceGeometry(StrictModel):
@@ -131,6 +137,9 @@ class ReferenceGeometry(StrictModel):
     def _check_sza(cls, value):
         if isinstance(value, float) and not 0.0 <= value < 90.0:
             raise ValueError(f"reference sza = {value:g} deg must be in [0, 90)")
+        if isinstance(value, float) and 0.0 < value < RADIANS_BELOW:  # a sun 1.6 deg from the zenith: radians
+            raise ValueError(f"reference sza = {value:g} looks like radians ({np.degrees(value):.4g} deg); "
+                             "the reference angles are degrees")
         return value
 
     def describe(self) -> str:
@@ -577,3 +586,28 @@ def merge_tables(tables: Iterable[ParameterTable]) -> ParameterTable:
     return ParameterTable(reference=reference, classes=sorted(classes.values(), key=lambda c: c.id),
                           ndvi_interpolation=interpolation)
 
+
+
+def as_parameter_table(params: ParameterTable | str | os.PathLike, argument: str = "params") -> ParameterTable:
+    """The table a caller means by ``params``: a :class:`ParameterTable` as it is, a YAML file, or
+    (where no such file exists) a built-in coefficient set by name (``"roy2017"``,
+    :mod:`brdfcorr.models.coefficients`) as class 1, its weights interpolated to the band centres:
+    what ``brdfcorr correct --params`` takes, for Python callers too.
+
+    Raises
+    ------
+    InputError
+        Neither a table nor a path or name (the message names ``argument``); a file that is missing
+        or no parameter table (the message names it).
+    """
+    from brdfcorr.models.coefficients import coefficient_names, load_coefficients
+
+    if isinstance(params, ParameterTable):
+        return params
+    if not isinstance(params, (str, os.PathLike)):
+        raise InputError(f"{argument} must be a ParameterTable, a parameter table file or a coefficient set name "
+                         f"({', '.join(coefficient_names())}), got {type(params).__name__}")
+    path = Path(params)
+    if not path.exists() and str(params).strip().lower() in coefficient_names():
+        return ParameterTable(classes=[ClassEntry(**load_coefficients(str(params)).table_entry(1))])
+    return ParameterTable.load(path)  # a missing file: the error names it

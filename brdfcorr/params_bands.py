@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import xarray as xr
 
+from brdfcorr._entry import option
 from brdfcorr._validation import short_repr
 from brdfcorr.errors import ParameterError
 from brdfcorr.models import Model, get_model
@@ -115,7 +116,7 @@ def no_parameter_bands(entry: ClassEntry, wavelengths: Sequence[float] | None) -
     if wavelengths is None:
         raise ParameterError(
             f"{class_label(entry)}: bad_bands are wavelength ranges [nm]; the image's band wavelengths are needed "
-            "(band descriptions, a 'wavelength' tag, or --wavelengths)"
+            f"(band descriptions, a 'wavelength' tag, or {option('wavelengths')})"
         )
     bad = in_ranges(wavelengths, entry.bad_bands)
     return bad if bad.any() else None
@@ -202,7 +203,7 @@ def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Se
     if wavelengths is None:
         raise ParameterError(
             f"{class_label(entry)}: parameter {name} is given per wavelength; the image's band "
-            "wavelengths are needed (band descriptions, a 'wavelength' tag, or --wavelengths)"
+            f"wavelengths are needed (band descriptions, a 'wavelength' tag, or {option('wavelengths')})"
         )
     table = np.asarray(entry.wavelengths, dtype=float)
     centres = np.asarray(wavelengths, dtype=float)
@@ -213,7 +214,7 @@ def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Se
         raise ParameterError(
             f"{class_label(entry)}: parameter {name}: band centre {centres[outside][0]:g} nm is outside "
             f"the table's wavelengths [{table[0]:g}, {table[-1]:g}] nm ({int(np.sum(outside))} band(s)); "
-            "--extrapolate (extrapolate=True; a chain's steps.correct.extrapolate) gives them the edge values"
+            f"{option('extrapolate')} gives them the edge values"
         )
     return np.interp(centres, table, value)  # holds the edge values outside the range
 

@@ -28,6 +28,7 @@ from rasterio.transform import array_bounds
 from rasterio.warp import transform_bounds
 
 from brdfcorr._arrays import is_lazy
+from brdfcorr._entry import option
 from brdfcorr.errors import InputError
 
 __all__ = [
@@ -65,7 +66,7 @@ def _band_mean(image: xr.DataArray, span: Sequence[float], role: str) -> xr.Data
     if "wavelength" not in image.coords:
         source = image.encoding.get("source") or image.attrs.get("source") or "the image"
         raise InputError(f"{source}: no band centres [nm] in its tags, band descriptions or header; give them "
-                         "(--wavelengths on the command line, wavelengths= in Python)")
+                         f"({option('wavelengths')})")
     low, high = (float(v) for v in span)
     wavelengths = np.asarray(image.coords["wavelength"].values, dtype=float)
     selected = np.flatnonzero((wavelengths >= low) & (wavelengths <= high))

@@ -22,12 +22,18 @@ view; six bands 450-860 nm, where a real product has hundreds of bands and thous
 that the examples run in seconds:
 
     python examples/make_sensor_products.py products
+
+The NEON and EMIT products are HDF5/NetCDF-4 files: writing them needs h5py and h5netcdf (the hdf5
+extra, ``pip install 'brdfcorr[hdf5]'``; ``make test``'s environment has them, ``make demo``'s does
+not); ``--sensor aviris-ng`` writes the ENVI lines alone.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
+from importlib.util import find_spec
 from pathlib import Path
 
 from brdfcorr.testing import write_emit_granules, write_envi_line, write_neon_reflectance
@@ -52,6 +58,18 @@ def scene(sensor: str, rows: int, time: str):
     return demo_scene(rows=rows, pixel=PIXEL, altitude=altitude, fov=FOV[sensor], time=f"2026-06-15T{time}:00+00:00")
 
 
+def missing_hdf5(sensors: list[str]) -> str | None:
+    """What to install when ``sensors`` include HDF5/NetCDF-4 products (NEON, EMIT) and h5py or
+    h5netcdf is not installed; None when nothing is missing."""
+    hdf5 = [sensor.upper() for sensor in sensors if sensor in ("neon", "emit")]
+    missing = [name for name in ("h5py", "h5netcdf") if find_spec(name) is None]
+    if not hdf5 or not missing:
+        return None
+    return (f"the {' and '.join(hdf5)} products need {' and '.join(missing)} (not installed here): "
+            "pip install 'brdfcorr[hdf5]' (in a clone made with `make demo`: .venv/bin/pip install h5py "
+            "h5netcdf), or write the AVIRIS-NG lines alone with --sensor aviris-ng")
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("output", type=Path, help="directory to write the products into")
@@ -60,6 +78,9 @@ def main(argv=None) -> None:
                         help="write only this sensor's products (repeatable) [default: all]")
     args = parser.parse_args(argv)
     sensors = args.sensor or sorted(FOV)
+    missing = missing_hdf5(sensors)
+    if missing:  # before anything is written
+        sys.exit(f"make_sensor_products.py: error: {missing}")
     written: list[Path] = []
     if "aviris-ng" in sensors:
         for time in LINES["aviris-ng"]:

@@ -38,12 +38,6 @@ settings.register_profile("default", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile("default")
 
-#: Small real sensor files (AVIRIS-NG, Sentinel-2, Landsat) beside the repository; tests that need
-#: them are skipped where they are absent.
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
-needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")
-
-
 def _raising_scheduler(*args, **kwargs):
     raise AssertionError("a lazy function computed its dask input")
 

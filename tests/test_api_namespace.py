@@ -53,3 +53,20 @@ def test_run_chain_takes_a_path_or_a_loaded_config(tmp_path, make_scenes, write_
     assert again.ok and again.n_skipped == 1
     with pytest.raises(TypeError, match="overrides"):
         brdfcorr.run_chain(load_config(chain), overrides={"engine.workers": 1})
+
+
+def test_dir_lists_the_lazy_public_names_and_the_package_is_typed():
+    from pathlib import Path
+
+    assert {"normalize", "ParameterTable", "run_chain", "geometry", "models"} <= set(dir(brdfcorr))
+    assert (Path(brdfcorr.__file__).parent / "py.typed").is_file()  # PEP 561: mypy reads the annotations
+
+
+def test_workflow_all_names_its_modules():
+    import importlib
+
+    import brdfcorr.workflow as workflow
+
+    for name in workflow.__all__:
+        importlib.import_module(f"brdfcorr.workflow.{name}")
+    assert {"chain", "api", "nbar"} <= set(workflow.__all__)

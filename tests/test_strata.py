@@ -78,7 +78,11 @@ def test_ndvi_averages_the_bands_in_each_range():
 
 def test_ndvi_errors_name_the_problem():
     image = _image([0.1], [0.4])
-    with pytest.raises(InputError, match="no band centres .*--wavelengths on the command line"):
+    with pytest.raises(InputError, match=r"no band centres .*give them \(wavelengths=\)"):
+        ndvi(image.drop_vars("wavelength"))
+    from brdfcorr._entry import entered
+
+    with entered("cli"), pytest.raises(InputError, match=r"no band centres .*give them \(--wavelengths\)"):
         ndvi(image.drop_vars("wavelength"))
     with pytest.raises(InputError, match=r"red range 700-710 nm \(its bands span 480-850 nm\)"):
         ndvi(image, red=(700, 710))

@@ -23,6 +23,7 @@ import click
 import click.shell_completion
 
 from brdfcorr import __version__
+from brdfcorr._entry import entered
 from brdfcorr.defaults import AUTO_MODEL, MODEL_NAMES, SURFACE_MODEL_NAMES, chunk_size_problem
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, ParameterError
 from brdfcorr.io.files import atomic_path, parse_yaml
@@ -205,7 +206,8 @@ def handle_errors(command):
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
         try:
-            return command(*args, **kwargs)
+            with entered("cli"):  # messages name the fixes as options (--wavelengths), brdfcorr._entry
+                return command(*args, **kwargs)
         except click.UsageError as error:  # one line like every other error; the usage is in --help
             context = error.ctx or click.get_current_context(silent=True)  # raised in a command
             where = " ".join(context.command_path.split()[1:]) if context is not None else ""

@@ -147,7 +147,7 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
                    f"{_number(before_rmse)} % before, {_number(after_rmse)} % after")
     click.echo(f"wrote {output}")
     if figures_dir is not None:
-        for path in write_assessment_figures(assessment, figures_dir):
+        for path in write_assessment_figures(assessment, figures_dir, title=Path(before).stem):
             click.echo(f"wrote {path}")
 
 

@@ -9,6 +9,7 @@ import click
 from tqdm import tqdm
 
 from brdfcorr.cli._base import (
+    EXIT_BAD_INPUT,
     EXIT_SCENES_FAILED,
     _format_table,
     handle_errors,
@@ -121,7 +122,41 @@ def _scenes(count: int) -> str:
     return f"{count} scene" if count == 1 else f"{count} scenes"
 
 
+def _number(value, digits: int = 3) -> str:
+    return "-" if value is None else f"{value:.{digits}g}"
+
+
+def _echo_fit(fit: dict | None) -> None:
+    """The fit step's classes: model, status, samples, median R^2 and, for a class that failed the
+    guard rails, why (the run report has the parameters)."""
+    classes = (fit or {}).get("classes") or []
+    if not classes or not isinstance(classes[0], dict) or "status" not in classes[0]:
+        return
+    click.echo("fit:")
+    click.echo(_format_table([{
+        "class": str(entry["class_id"]), "name": str(entry["name"]), "model": str(entry["model"]),
+        "status": str(entry["status"]), "samples": str(entry.get("n_samples", "-")),
+        "median R2": _number(entry.get("median_r2")), "reasons": "; ".join(entry.get("reasons") or []),
+    } for entry in classes]))
+
+
+def _echo_assessment(report) -> None:
+    """Each assessed scene's classes: median |relative slope| [%/10 deg] before and after."""
+    rows = []
+    for result in report.scenes:
+        for entry in result.get("assess") or []:
+            medians = entry["median_abs_relative_slope_percent_per_10deg"]
+            rows.append({"scene": result["scene"], "class": f"{entry['id']} ({entry['name']})",
+                         "pixels": str(entry["pixels"]), "|slope| before": _number(medians["before"]),
+                         "|slope| after": _number(medians["after"])})
+    if rows:
+        click.echo("assessment (median |relative slope| over bands, %/10 deg):")
+        click.echo(_format_table(rows))
+
+
 def _echo_run(report) -> None:
+    _echo_fit(report.fit)
+    _echo_assessment(report)
     rows = []
     for result in report.scenes:
         qa = result.get("qa", {})
@@ -204,17 +239,24 @@ def _echo_plan(plan) -> None:
 @main.command("validate")
 @click.argument("chains", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE", help="Override a config key (as for run).")
+@click.option("--strict", is_flag=True,
+              help="Inputs that do not exist (images, class maps, angles, table, measurements) are errors "
+                   "(exit 2), as for run; without it a chain checked before its data exist is told apart "
+                   "by its summary line.")
 @handle_errors
-def validate_command(chains, settings):
+def validate_command(chains, settings, strict):
     """Check chain configs without running them: keys, values, names, patterns, parameter table.
 
     The checks are those of `run` (its plan): what `run` refuses is an error here too (exit code
     2), e.g. a malformed config (naming the key path and the allowed values), an image glob
-    matching no file in an existing folder, quicklook bands beyond an image's band count. Files
-    that do not exist yet (inputs in a folder not made yet, tables) are warnings. A parameter
-    table file (a document with `classes` but no `inputs`) is checked as a table.
+    matching no file in an existing folder, quicklook bands beyond an image's band count. Inputs
+    that do not exist yet (a folder not made yet, a class map, a table) are warnings, and the
+    chain's line says it is not ready to run, naming the first missing input, instead of "valid"
+    (a template, such as the example chains in configs/); with --strict they are errors (exit 2).
+    A parameter table file (a document with `classes` but no `inputs`) is checked as a table.
     """
     overrides = _overrides(settings)
+    not_ready = []
     for chain in chains:
         # Parsed before the library is imported: a malformed document is refused at once.
         document = parse_yaml(read_document(chain, "chain config", ConfigError), str(chain), ConfigError)
@@ -230,13 +272,19 @@ def validate_command(chains, settings):
         from brdfcorr.workflow.config import config_from_document
 
         plan = plan_run(config_from_document(document, chain, overrides), require_inputs=False)
-        for warning in plan.warnings:
-            click.echo(f"brdfcorr: warning: {chain}: {warning}", err=True)
-        missing = [scene for scene in plan.scenes if scene.action == "fail"]
-        for scene in missing:
-            click.echo(f"brdfcorr: warning: {chain}: scene {scene.name}: {scene.reason}", err=True)
-        incomplete = f" ({len(missing)} with missing inputs)" if missing else ""
-        click.echo(f"{chain}: valid; {_scenes(len(plan.scenes))} found{incomplete}, "
-                   f"steps {', '.join(plan.steps) or '(none)'}")
+        missing = plan.missing_inputs()
+        kind = "error" if strict else "warning"
+        for warning in [*missing, *(w for w in plan.warnings if w not in plan.missing)]:
+            click.echo(f"brdfcorr: {kind if warning in missing else 'warning'}: {chain}: {warning}", err=True)
+        steps = f"steps {', '.join(plan.steps) or '(none)'}"
+        if not missing:
+            click.echo(f"{chain}: valid; {_scenes(len(plan.scenes))} found, {steps}")
+            continue
+        more = f" (and {len(missing) - 1} more, above)" if len(missing) > 1 else ""
+        click.echo(f"{chain}: not ready to run, an input is missing: {missing[0]}{more}; "
+                   f"its keys and values are valid ({_scenes(len(plan.scenes))} found, {steps})")
+        not_ready.append(chain)
+    if strict and not_ready:
+        sys.exit(EXIT_BAD_INPUT)
 
 

@@ -74,15 +74,12 @@ def _cluster(address: str | None):
 
 def _parameter_table(params_path: Path | None):
     """The table of --params: a YAML file, or where no such file exists a built-in coefficient set
-    (:mod:`brdfcorr.models.coefficients`) as class 1, its weights interpolated to the band centres."""
-    from brdfcorr.models.coefficients import coefficient_names, load_coefficients
-    from brdfcorr.params import ClassEntry, ParameterTable
+    (:mod:`brdfcorr.models.coefficients`) as class 1 (:func:`brdfcorr.params.as_parameter_table`)."""
+    from brdfcorr.params import ParameterTable, as_parameter_table
 
     if params_path is None:
         return ParameterTable()
-    if not params_path.exists() and str(params_path).lower() in coefficient_names():
-        return ParameterTable(classes=[ClassEntry(**load_coefficients(str(params_path)).table_entry(1))])
-    return ParameterTable.load(params_path)
+    return as_parameter_table(params_path, argument="--params")
 
 
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:

@@ -17,7 +17,7 @@ from brdfcorr.errors import BrdfcorrWarning
 
 
 @main.command("nbar")
-@click.argument("product", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("product", type=click.Path(path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Output GeoTIFF: NBAR reflectance factors (float32), the product's bands in its order.")
 @click.option("--qa", "qa_path", type=click.Path(dir_okay=False, path_type=Path),

@@ -29,6 +29,7 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
+from brdfcorr._entry import option
 from brdfcorr.correction.blocks import PixelGeometry, band_shapes
 from brdfcorr.correction.inputs import CorrectionInputs
 from brdfcorr.errors import ParameterError
@@ -196,7 +197,7 @@ def with_ndvi_layer(inputs: CorrectionInputs, group: NdviGroup,
         wavelengths = reflectance["wavelength"].values.tolist()
     if wavelengths is None:
         raise ParameterError("ndvi_interpolation needs the image's band wavelengths (band descriptions, "
-                             "a 'wavelength' tag, or --wavelengths) to compute the NDVI")
+                             f"a 'wavelength' tag, or {option('wavelengths')}) to compute the NDVI")
     image = xr.DataArray(inputs.arrays[0], dims=("band", "y", "x"),
                          coords={"wavelength": ("band", np.asarray(wavelengths, dtype=float))})
     index = ndvi(image, group.red, group.nir).data

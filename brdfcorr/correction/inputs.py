@@ -12,10 +12,12 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
+from brdfcorr.correction.checks import check_layout, guard_angles, reflectance_factors
 from brdfcorr.correction.reference import fixed_sza, resolve_reference, scene_mean_sza, with_hls_sza
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import check_same_grid
-from brdfcorr.params import ParameterTable, ReferenceGeometry
+from brdfcorr.io.scene import check_class_grid
+from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
 
 
 def as_dataarray(value, name: str, dims: Sequence[str]) -> xr.DataArray:
@@ -36,8 +38,21 @@ def check_grid(reflectance: xr.DataArray, name: str, layer: xr.DataArray) -> xr.
         raise InputError(f"{name} must be 2-D (y, x), got dims {layer.dims}")
     if layer.dims != spatial:
         layer = layer.rename(dict(zip(layer.dims, spatial)))
+    if name == "classes":  # a land-cover map on another grid: the message names the alignment
+        check_class_grid(reflectance, layer, "reflectance")
     check_same_grid({"reflectance": reflectance, name: layer})
     return layer
+
+
+def one_class(reflectance: xr.DataArray) -> xr.DataArray:
+    """The class map of ``classes=None``: class 1 everywhere on the reflectance's grid (lazily for
+    dask), as the command line makes it without ``--classes`` (a table of one class, e.g. a
+    built-in coefficient set, corrects every pixel)."""
+    first = reflectance.isel({reflectance.dims[0]: 0}, drop=True)
+    band_coords = [name for name in first.coords if name not in (*first.dims, "spatial_ref")]
+    classes = xr.ones_like(first, dtype=np.uint8).drop_vars(band_coords).rename("classes")
+    classes.attrs = {}
+    return classes
 
 
 def layer_nodata(layer: xr.DataArray):
@@ -143,8 +158,7 @@ def prepare_inputs(
     Raises InputError, GridMismatchError or ParameterError as documented in
     :func:`~brdfcorr.correction.normalize`.
     """
-    if not isinstance(params, ParameterTable):
-        raise InputError(f"params must be a ParameterTable, got {type(params).__name__}")
+    params = as_parameter_table(params)
     if limits is not None:
         limits = (float(limits[0]), float(limits[1]))
         if not (0 < limits[0] <= 1 <= limits[1] < np.inf):
@@ -152,12 +166,16 @@ def prepare_inputs(
     reference = resolve_reference(reference, params)
     reflectance = as_dataarray(reflectance, "reflectance", ("band", "y", "x"))
     if reflectance.ndim != 3:
-        raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
-    named = {"classes": classes, **angle_layers(angles)}
+        raise InputError(f"reflectance must be 3-D (band, y, x) or 4-D (time, band, y, x), got dims "
+                         f"{reflectance.dims}")
+    named = {"classes": one_class(reflectance) if classes is None else classes, **angle_layers(angles)}
+    check_layout(reflectance, [np.shape(layer) for layer in named.values()])
+    reflectance = reflectance_factors(reflectance)
     layers = {
         name: check_grid(reflectance, name, as_dataarray(layer, name, reflectance.dims[1:]))
         for name, layer in named.items()
     }
+    layers.update(guard_angles({name: layers[name] for name in ANGLE_LAYERS}))
     if layers["classes"].dtype.kind not in "iuf":
         raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
     complex_layers = [f"{name} ({layer.dtype})" for name, layer in {"reflectance": reflectance, **layers}.items()

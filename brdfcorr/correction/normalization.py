@@ -42,6 +42,7 @@ geometry (0 / 0): the pixel is left unchanged (factor 1). The registry's paramet
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Sequence
 from typing import Any, Literal, NamedTuple
 
@@ -61,9 +62,10 @@ from brdfcorr.correction.continuous import group_states, ndvi_group, with_ndvi_l
 from brdfcorr.correction.inputs import BlockSettings, prepare_inputs
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.reference import describe_limits
+from brdfcorr.correction.series import is_series, over_dates
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
-from brdfcorr.params import ParameterTable, ReferenceGeometry
+from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
 
 __all__ = ["normalize", "Normalized"]
 
@@ -79,7 +81,7 @@ def normalize(
     reflectance,
     classes,
     angles,
-    params: ParameterTable,
+    params: ParameterTable | str | os.PathLike,
     reference: ReferenceGeometry | dict | None = None,
     *,
     limits: tuple[float, float] | None = DEFAULT_LIMITS,
@@ -92,12 +94,19 @@ def normalize(
 
     Parameters
     ----------
-    reflectance : xarray.DataArray (band, y, x)
-        Reflectance (any units; they are kept). NaN and +-inf are nodata (NaN in the output).
-        numpy or dask backed.
-    classes : xarray.DataArray (y, x)
+    reflectance : xarray.DataArray (band, y, x) or (time, band, y, x)
+        Reflectance (floats in any units; they are kept). NaN and +-inf are nodata (NaN in the
+        output). numpy or dask backed. Integer counts need their ``scale_factor`` (and
+        ``add_offset``) in attrs or encoding, as rioxarray reads them without ``mask_and_scale``:
+        they are corrected as ``counts * scale_factor + add_offset`` (refused without). A cube with
+        a time dimension first is normalized date by date (:mod:`brdfcorr.correction.series`),
+        lazily for dask; its class map and angle layers are (y, x) or (time, y, x). Bands last,
+        (y, x, band), is refused with the transpose that fixes it.
+    classes : xarray.DataArray (y, x), or None
         Class map: ids of ``params``; 0, NaN and the map's nodata (``classes.rio.nodata``, else its
-        ``_FillValue``) mean "no class".
+        ``_FillValue``) mean "no class". None: class 1 everywhere (for a one-class table, e.g. a
+        built-in coefficient set). A map on another grid is refused
+        (:func:`brdfcorr.strata.align_class_map` brings it onto the reflectance's).
     angles : xarray.Dataset or mapping of str to xarray.DataArray (y, x)
         ``sza``, ``saa``, ``vza``, ``vaa``: solar zenith, solar azimuth, view zenith, view azimuth
         per pixel [deg] (``docs/conventions.md`` conventions: azimuths of the directions from the
@@ -107,9 +116,12 @@ def normalize(
         :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`): the observed geometry is then
         evaluated in each surface's own frame, the reference in the horizontal frame (module
         docstring, "Tilted surfaces"); pixels whose sun or sensor is behind the surface are nodata,
-        flagged ``facing_away``. Slope 0 gives exactly the result without them.
-    params : ParameterTable
-        Model and parameters per class.
+        flagged ``facing_away``. Slope 0 gives exactly the result without them. Layers that can
+        only be radians (every zenith below 1.6, every azimuth below 6.3) are refused (for dask
+        input when the chunks are computed).
+    params : ParameterTable, path-like or str
+        Model and parameters per class: a table, a YAML file of one, or the name of a built-in
+        coefficient set (``"roy2017"``, :mod:`brdfcorr.models.coefficients`) as class 1.
     reference : ReferenceGeometry or dict, optional
         Target geometry: ``sza`` [deg] or ``"mean"`` (scene mean of the valid ``sza``) or
         ``"observed"``, ``vza`` [deg] and ``raa`` [deg]. Defaults to the table's reference, else
@@ -132,6 +144,7 @@ def normalize(
     Normalized
         ``(reflectance, qa)``: the corrected cube with the input's dims, coords (including the
         ``spatial_ref`` georeference), attrs and chunks, and the QA layer (y, x) of uint8 flags
+        ((time, y, x) for a cube with time)
         (module docstring). Lazy if any input is dask-backed.
 
     Raises
@@ -139,7 +152,8 @@ def normalize(
     ParameterError
         The table cannot be resolved to the bands (names the class and parameter).
     GridMismatchError, InputError
-        A layer is not on the reflectance's grid, or has the wrong dimensions.
+        A layer is not on the reflectance's grid, or has the wrong dimensions; the reflectance has
+        its bands last or holds integer counts without a scale; the angles look like radians.
 
     Notes
     -----
@@ -148,6 +162,11 @@ def normalize(
     """
     if unknown not in ("keep", "nan"):
         raise InputError(f"unknown must be 'keep' or 'nan', got {unknown!r}")
+    params = as_parameter_table(params)
+    if is_series(reflectance):  # (time, band, y, x): date by date (correction.series)
+        return over_dates(normalize, reflectance, classes, angles, params, reference,
+                          limits=limits, wavelengths=wavelengths, extrapolate=extrapolate, unknown=unknown,
+                          flip_view_azimuth=flip_view_azimuth)
     inputs = prepare_inputs(reflectance, classes, angles, params, reference, limits=limits, wavelengths=wavelengths,
                             extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
     group = ndvi_group(params, inputs.resolved)  # coefficients continuous in NDVI (correction.continuous)

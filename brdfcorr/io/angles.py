@@ -15,12 +15,13 @@ import dask.array
 import numpy as np
 import xarray as xr
 
+from brdfcorr._entry import option
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import describe_layer
 from brdfcorr.io.opening import chunk_spec, open_raster, reading
 from brdfcorr.io.sensors.grids import GRID_STATISTICS, grid_window
 
-__all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY",
+__all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY", "POSITIONAL",
            "angle_band_name", "open_angles", "from_relative_azimuth", "AngleStatistics", "check_angles",
            "window_values"]
 
@@ -41,6 +42,14 @@ RELATIVE_ANGLE_NAMES = ("sza", "vza", "raa")
 #: Attribute of the ``saa`` layer made up for such a source (0 deg, with ``vaa`` = raa): the
 #: correction needs only the relative azimuth, a tilted surface or a heading the true ones.
 RELATIVE_ONLY = "relative_azimuth_only"
+#: Attribute of a layer taken from an angle raster by its band's position (no band description
+#: names the angles): its 1-based band. :func:`check_angles` then checks that the values fit that
+#: order (:func:`_check_order`), since nothing else says which band is which.
+POSITIONAL = "brdf_positional_band"
+#: Statistics per layer of :func:`_angle_statistics`: min, max, finite count, count in [0, 90),
+#: sum in [0, 90), min and max of the values mod 360 and of the values turned by 180 deg (mod 360):
+#: an azimuth's spread, whatever its convention ([0, 360), (-180, 180]) and across north.
+N_STATISTICS = 9
 
 
 def angle_band_name(description: str | None) -> str | None:
@@ -57,9 +66,9 @@ def angle_band_name(description: str | None) -> str | None:
     return next((angle for angle, names in ANGLE_BAND_NAMES.items() if key in names), None)
 
 
-def _angle_band_order(path, descriptions, names: tuple[str, ...] = ANGLE_NAMES) -> dict[str, int]:
-    """Band index of each angle of an angle raster of the layers ``names``: by band descriptions
-    that name the angles, else the documented order of ``names``."""
+def _angle_band_order(path, descriptions, names: tuple[str, ...] = ANGLE_NAMES) -> dict[str, int] | None:
+    """Band index of each angle of an angle raster of the layers ``names`` by band descriptions
+    that name the angles; None where none do (the documented order of ``names`` applies)."""
     if isinstance(descriptions, str):  # rioxarray keeps one description as a string
         descriptions = (descriptions,)
     descriptions = tuple(descriptions or ())
@@ -67,7 +76,7 @@ def _angle_band_order(path, descriptions, names: tuple[str, ...] = ANGLE_NAMES) 
     # No descriptions, none naming an angle ("Band 1"), or one on every band (rioxarray describes
     # every band by the array's name: a stack of layers named "sza" says "sza" four times): positional.
     if not any(named) or len(set(descriptions)) == 1:
-        return {name: index for index, name in enumerate(names)}
+        return None
     if len(named) != len(names) or sorted(map(str, named)) != sorted(names):
         shown = ", ".join(repr(text) if text else "(none)" for text in descriptions)
         listed = ", ".join(names)
@@ -113,10 +122,14 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, raa=None,
         count = stack.sizes[stack.dims[0]]
         if count not in (3, 4):
             raise InputError(f"angle file {path} has {count} bands; it needs 4 (sza, saa, vza, vaa) or 3 "
-                             "(sza, vza, raa)")
+                             f"(sza, vza, raa){_sensor_hint(stack)}")
         names = ANGLE_NAMES if count == 4 else RELATIVE_ANGLE_NAMES
         order = _angle_band_order(path, stack.attrs.get("long_name"), names)
+        positional = order is None
+        order = order or {name: index for index, name in enumerate(names)}
         layers = {name: stack.isel({stack.dims[0]: order[name]}, drop=True).rename(name) for name in names}
+        if positional:
+            layers = {name: layer.assign_attrs({POSITIONAL: order[name] + 1}) for name, layer in layers.items()}
         return layers if count == 4 else from_relative_azimuth(**layers)
     names = RELATIVE_ANGLE_NAMES if raa is not None else ANGLE_NAMES
     missing = [name for name in names if separate[name] is None]
@@ -133,6 +146,17 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, raa=None,
             raise InputError(f"{name} angle file {separate[name]} has {layer.sizes[layer.dims[0]]} bands; it needs 1")
         angles[name] = layer.isel({layer.dims[0]: 0}, drop=True).rename(name)
     return angles if raa is None else from_relative_azimuth(**angles)
+
+
+def _sensor_hint(stack: xr.DataArray) -> str:
+    """For an angle raster with the wrong band count: the angle kind that reads it, where its band
+    descriptions or count say it is a sensor product (an ENVI obs/obs_ort file: 10 or 11 bands,
+    "path length", "to-sensor azimuth", ...)."""
+    descriptions = stack.attrs.get("long_name") or ()
+    text = " ".join([descriptions] if isinstance(descriptions, str) else descriptions).lower()
+    if "to-sensor" in text or "path length" in text or stack.sizes[stack.dims[0]] in (10, 11):
+        return f"; an ENVI obs/obs_ort file? Read it with {option('angles_kind_envi')}"
+    return ""
 
 
 class AngleStatistics(NamedTuple):
@@ -178,24 +202,40 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
     names = [name for name in ANGLE_NAMES if name in layers]
     known = {name: _grid_statistics(layers[name]) for name in names}
     passed = [name for name in names if known[name] is None]  # the layers that need a pass
-    measured = _pixel_statistics(layers, passed, source, scheduler, num_workers) if passed else np.empty((1, 0, 5))
+    measured = (_pixel_statistics(layers, passed, source, scheduler, num_workers) if passed
+                else np.empty((1, 0, N_STATISTICS)))
     # A recorded layer is one block among the measured ones: its values, then no values (NaN range, 0 counts).
-    per_block = np.zeros((measured.shape[0], len(names), 5))
-    per_block[1:, :, :2] = np.nan
+    per_block = np.zeros((measured.shape[0], len(names), N_STATISTICS))
+    per_block[1:, :, :2] = per_block[:, :, 5:] = np.nan  # a recorded layer has no azimuth spread
     for index, name in enumerate(names):
         if known[name] is None:
             per_block[:, index] = measured[:, passed.index(name)]
         else:
-            per_block[0, index] = known[name]
+            per_block[0, index, :5] = known[name]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN layers: NaN range
-        low, high = np.nanmin(per_block[..., 0], axis=0), np.nanmax(per_block[..., 1], axis=0)
-    totals = per_block[..., 2:].sum(axis=0)
-    ranges = {name: (float(low[i]), float(high[i])) for i, name in enumerate(names)}
+        low, high = np.nanmin(per_block[..., [0, 5, 7]], axis=0), np.nanmax(per_block[..., [1, 6, 8]], axis=0)
+    totals = per_block[..., 2:5].sum(axis=0)
+    ranges = {name: (float(low[i, 0]), float(high[i, 0])) for i, name in enumerate(names)}
     counts = {name: (int(totals[i, 0]), int(totals[i, 1])) for i, name in enumerate(names)}
     means = {name: totals[i, 2] / totals[i, 1] if totals[i, 1] else math.nan for i, name in enumerate(names)}
-    _check_values(ranges, counts, lambda name: source or describe_layer(name, layers[name]))
+    def where(name: str) -> str:
+        return source or describe_layer(name, layers[name])
+
+    positional = {name: layers[name].attrs.get(POSITIONAL) for name in names}
+    _check_values(ranges, counts, where, positional)
+    if all(positional.values()) and len(names) == len(ANGLE_NAMES):
+        _check_order(ranges, _spreads(names, low, high), where)
     return AngleStatistics(ranges, means)
+
+
+def _spreads(names: list[str], low: np.ndarray, high: np.ndarray) -> dict[str, float]:
+    """Each layer's spread [deg]: a zenith's range; an azimuth's the range of its values mod 360,
+    or of them turned by 180 deg where that is smaller (values across north). ``low``/``high``:
+    (layers, 3) minima and maxima of the values, mod 360, turned (:func:`_angle_statistics`)."""
+    width = high - low
+    return {name: float(width[i, 0] if name not in ("saa", "vaa") else np.fmin(width[i, 1], width[i, 2]))
+            for i, name in enumerate(names)}
 
 
 def _grid_statistics(layer: xr.DataArray) -> np.ndarray | None:
@@ -214,49 +254,106 @@ def _pixel_statistics(layers: Mapping[str, xr.DataArray], names: list[str], sour
     pass (one small task per chunk for all layers, not one graph per statistic and layer)."""
     arrays = [layers[name].data for name in names]
     if not any(isinstance(a, dask.array.Array) for a in arrays):
-        return _angle_statistics(*(np.asarray(a) for a in arrays)).reshape(-1, len(names), 5)
+        return _angle_statistics(*(np.asarray(a) for a in arrays)).reshape(-1, len(names), N_STATISTICS)
     first = next(a for a in arrays if isinstance(a, dask.array.Array))
     arrays = [dask.array.asarray(a).rechunk(first.chunks) for a in arrays]
     files = [str(file) for file in dict.fromkeys(layers[n].encoding.get("source") for n in names) if file]
     what = source or (f"angle file{'s' * (len(files) > 1)} {', '.join(files)}" if files else "angles")
     with reading(what):  # a truncated file fails here, in its first pass
         per_block = dask.array.map_blocks(
-            _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), 5), dtype=np.float64,
+            _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), N_STATISTICS), dtype=np.float64,
         ).compute(scheduler=scheduler, num_workers=num_workers)
-    return per_block.reshape(-1, len(names), 5)
+    return per_block.reshape(-1, len(names), N_STATISTICS)
 
 
-def _check_values(ranges: dict, counts: dict, where) -> None:
+#: Fewest finite values of each layer from which :func:`looks_like_radians` judges the units: a few
+#: pixels (one geometry of a test, a goniometer's) may be any angles in degrees.
+MIN_VALUES_FOR_UNITS = 16
+
+
+def looks_like_radians(ranges: Mapping[str, tuple[float, float]], counts: Mapping[str, int]) -> bool:
+    """Whether angle layers' (min, max) [deg] can only be radians: every zenith below 1.6 (pi/2) and
+    every azimuth below 6.3 (2 pi), with at least one zenith and one azimuth, each of at least
+    :data:`MIN_VALUES_FOR_UNITS` finite values (``counts``; NaN ranges: False)."""
+    zeniths = [name for name in ("sza", "vza") if name in ranges]
+    azimuths = [name for name in ("saa", "vaa") if name in ranges]
+    enough = all(counts[n] >= MIN_VALUES_FOR_UNITS for n in zeniths + azimuths)
+    return bool(zeniths and azimuths and enough and all(ranges[n][1] < 1.6 for n in zeniths)
+                and all(ranges[n][1] < 6.3 for n in azimuths))
+
+
+def _order_hint(positional: Mapping[str, int | None]) -> str:
+    """For layers taken by band position: the order assumed, and how to say another."""
+    if not all(positional.values()):
+        return ""
+    order = ", ".join(sorted(positional, key=lambda name: positional[name] or 0))
+    return (f"; the bands have no descriptions, so they were taken as {order}: if they are in another order, "
+            f"describe them ({order}, or solar_zenith, ...)")
+
+
+def _check_order(ranges: dict, spreads: dict, where) -> None:
+    """Refuse a 4-band raster read by position whose sun layers vary far more than its view layers.
+
+    Within one scene the sun's zenith and azimuth change by about 1 deg per 100 km, the view's by
+    far more (a swath seen from a few hundred km, or an aircraft's field of view, whose azimuth
+    jumps by 180 deg at nadir). Bands 1-2 that vary more than twice as much as bands 3-4 in both
+    the zenith and the azimuth (and by more than 1 deg) are the view angles: the order is not
+    sza, saa, vza, vaa (e.g. vza, vaa, sza, saa, which the reciprocal models would take silently).
+    """
+    def wider(sun: str, view: str) -> bool:
+        return spreads[sun] > max(2.0 * spreads[view], 1.0)
+
+    if wider("sza", "vza") and wider("saa", "vaa"):
+        found = ", ".join(f"{n} {ranges[n][0]:.4g}..{ranges[n][1]:.4g}" for n in ANGLE_NAMES)
+        raise InputError(
+            f"{where('sza')}: the bands have no descriptions, so they were taken as sza, saa, vza, vaa, but "
+            f"bands 1-2 vary far more than bands 3-4 ({found}), as view angles do and the sun's within one "
+            "scene do not: is the order vza, vaa, sza, saa? Describe the bands (sza, saa, vza, vaa, or "
+            "solar_zenith, ...) or write them in the order sza, saa, vza, vaa"
+        )
+
+
+def _check_values(ranges: dict, counts: dict, where, positional: Mapping[str, int | None] | None = None) -> None:
     """The unit checks of :func:`check_angles` on the layers' ranges and (finite, in [0, 90))
-    counts; ``where(name)`` names a layer in messages."""
+    counts; ``where(name)`` names a layer in messages; ``positional`` the band of each layer taken
+    by position (:data:`POSITIONAL`), for a hint at the band order."""
     empty = [name for name in counts if counts[name][0] == 0]
     if empty:  # every pixel would be nodata (a NaN sun zenith of a product, a layer of inf)
         raise InputError(f"{where(empty[0])}: no finite {empty[0]} value (all NaN, inf or nodata): "
                          "nothing could be corrected")
     zeniths = [name for name in ("sza", "vza") if name in ranges]
-    azimuths = [name for name in ("saa", "vaa") if name in ranges]
-    if zeniths and azimuths and all(ranges[n][1] < 1.6 for n in zeniths) and all(
-            ranges[n][1] < 6.3 for n in azimuths):
-        found = ", ".join(f"{n} {ranges[n][0]:.3g}..{ranges[n][1]:.3g}" for n in zeniths + azimuths)
-        raise InputError(f"{where(zeniths[0])}: the angles look like radians ({found}); brdfcorr needs degrees")
+    if looks_like_radians(ranges, {name: count[0] for name, count in counts.items()}):
+        raise InputError(radians_message(ranges, where(zeniths[0])))
     for name in zeniths:
         if counts[name][1] == 0:
             lowest, highest = ranges[name]
             raise InputError(
                 f"{where(name)}: no {name} value in [0, 90) deg (found {lowest:.6g}..{highest:.6g}); "
-                "are the angles scaled or in other units?"
+                f"are the angles scaled or in other units?{_order_hint(positional or {})}"
             )
 
 
+def radians_message(ranges: Mapping[str, tuple[float, float]], where: str) -> str:
+    """The one line refusing angle layers that look like radians (:func:`looks_like_radians`)."""
+    found = ", ".join(f"{n} {ranges[n][0]:.3g}..{ranges[n][1]:.3g}" for n in ANGLE_NAMES if n in ranges)
+    return f"{where}: the angles look like radians ({found}); brdfcorr needs degrees{option('degrees')}"
+
+
 def _angle_statistics(*blocks: np.ndarray) -> np.ndarray:
-    """(1, 1, n_layers, 5): min, max, finite count, count in [0, 90) and the sum of the values in
-    [0, 90) of each (y, x) block."""
-    result = np.empty((1, 1, len(blocks), 5))
+    """(1, 1, n_layers, 9): min, max, finite count, count in [0, 90), the sum of the values in
+    [0, 90), min and max of the values mod 360 and of the values turned by 180 deg (mod 360) of
+    each (y, x) block."""
+    result = np.empty((1, 1, len(blocks), N_STATISTICS))
     for index, block in enumerate(blocks):
         values = block[np.isfinite(block)]
         in_domain = values[(values >= 0) & (values < 90)]
-        result[0, 0, index, :2] = (values.min(), values.max()) if values.size else (np.nan, np.nan)
-        result[0, 0, index, 2:] = values.size, in_domain.size, in_domain.sum(dtype=np.float64)
+        result[0, 0, index, 2:5] = values.size, in_domain.size, in_domain.sum(dtype=np.float64)
+        result[0, 0, index, [0, 1, 5, 6, 7, 8]] = np.nan
+        if values.size:
+            circular = np.mod(values.astype(np.float64), 360.0)
+            turned = np.mod(circular + 180.0, 360.0)
+            result[0, 0, index, [0, 1, 5, 6, 7, 8]] = (values.min(), values.max(), circular.min(), circular.max(),
+                                                       turned.min(), turned.max())
     return result
 
 

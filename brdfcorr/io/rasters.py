@@ -23,6 +23,7 @@ import xarray as xr
 from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 from rasterio.enums import MaskFlags
 
+from brdfcorr._entry import option
 from brdfcorr.errors import InputError
 from brdfcorr.io.opening import chunk_spec, open_raster, opened
 from brdfcorr.io.sensors.products import hdf5_product, open_product
@@ -379,9 +380,7 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
         raise InputError(
             f"{where}: the values do not look like reflectance factors: 99th percentile {percentile:.5g} "
             f"of a sample of valid pixels (scale {scale}, offset {offset} applied); {guess} Give the "
-            "scale (and offset) of the stored values: --scale/--offset (inputs.scale/inputs.offset in a "
-            "chain), e.g. --scale 0.0001 for reflectance stored as 0-10000 (--scale 1: use them as they "
-            "are, e.g. radiance)"
+            f"scale (and offset) of the stored values: {option('scale')}, e.g. {option('scale_example')}"
         )
     return percentile
 

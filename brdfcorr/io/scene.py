@@ -10,12 +10,13 @@ from typing import NamedTuple
 
 import xarray as xr
 
-from brdfcorr.errors import InputError
+from brdfcorr._entry import option
+from brdfcorr.errors import GridMismatchError, InputError
 from brdfcorr.io.angles import ANGLE_NAMES, AngleStatistics, check_angles, open_angles
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.rasters import open_classes, open_image
 
-__all__ = ["SceneSources", "SceneData", "open_scene"]
+__all__ = ["SceneSources", "SceneData", "open_scene", "check_class_grid"]
 
 PathLike = str | os.PathLike
 
@@ -127,6 +128,19 @@ def open_scene(sources: SceneSources, *, chunks=None,
             raise InputError(f"angle source {where} gives no {', '.join(missing)}")
         layers = {name: dataset[name] for name in ANGLE_NAMES}
         source = where
+    if prepare_classes is None and sources.classes is not None:
+        check_class_grid(reflectance, class_map)
     check_same_grid({"image": reflectance, "classes": class_map, **layers})
     statistics = check_angles(layers, source=source, scheduler=scheduler, num_workers=num_workers)
     return SceneData(reflectance, class_map, layers, statistics)
+
+
+def check_class_grid(image: xr.DataArray, class_map: xr.DataArray, image_name: str = "image") -> None:
+    """:func:`~brdfcorr.io.grid.check_same_grid` of a class map and its image, whose message names
+    the fix: the class map brought onto the image's grid (``--align-classes`` on the command line;
+    :func:`brdfcorr.strata.align_class_map` in Python, in the caller's words, :mod:`brdfcorr._entry`)."""
+    try:
+        check_same_grid({image_name: image, "classes": class_map})
+    except GridMismatchError as error:
+        raise GridMismatchError(f"{error}; a land-cover map on another grid is brought onto the {image_name}'s with "
+                                f"{option('align_classes')}") from None

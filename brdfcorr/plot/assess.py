@@ -78,8 +78,10 @@ def profile_figure(view: xr.Dataset, *, band: int | None = None, title: str = ""
             relative = values["profile"].isel(band=band).values / float(values["mean"].isel(band=band))
             # Markers: a bin between empty ones (a composite's few orbits) is a point, not a gap.
             left.plot(centres, relative, style, marker=".", markersize=4, color=f"C{index}", label=f"{name} {stage}")
-            right.plot(x_bands, values["relative_slope"].values, style, marker=".", color=f"C{index}",
-                       label=f"{name} {stage}")
+            # The slope's 1-sigma (cluster-robust, as the report and the table print it) as bars.
+            sigma = values["relative_slope_error"].values if "relative_slope_error" in values else None
+            right.errorbar(x_bands, values["relative_slope"].values, yerr=sigma, linestyle=style, marker=".",
+                           color=f"C{index}", capsize=2, elinewidth=0.8, label=f"{name} {stage}")
     positive, negative = view.attrs.get("positive_side", ""), view.attrs.get("negative_side", "")
     left.axhline(1.0, color="0.6", linewidth=0.8)
     left.axvline(0.0, color="0.8", linewidth=0.8)
@@ -94,7 +96,8 @@ def profile_figure(view: xr.Dataset, *, band: int | None = None, title: str = ""
     right.axhline(0.0, color="0.6", linewidth=0.8)
     right.set_xlabel("wavelength [nm]" if spectral else "band")
     right.set_ylabel("slope / class mean [%/10 deg]")
-    right.set_title(f"{title} view-angle slope per class and band".strip(), fontsize="medium")
+    bars = "; bars: ±1σ" if "relative_slope_error" in view else ""
+    right.set_title(f"{title} view-angle slope per class and band{bars}".strip(), fontsize="medium")
     return figure
 
 
@@ -144,14 +147,15 @@ def figure_paths(directory: str | os.PathLike, *, prefix: str = "assess", overla
 
 
 def write_assessment_figures(assessment: Assessment, directory: str | os.PathLike, *, prefix: str = "assess",
-                             band: int | None = None, dpi: int = 100) -> list[Path]:
+                             band: int | None = None, dpi: int = 100, title: str = "") -> list[Path]:
     """Write ``{prefix}_profiles.png`` (:func:`profile_figure`) and, with an overlap,
     ``{prefix}_overlap.png`` (:func:`overlap_figure`) into ``directory`` (created), each
-    atomically. Returns the paths written."""
+    atomically; ``title`` (the scene name) heads their panels, so that a figure read alone says
+    which scene it shows. Returns the paths written."""
     Path(directory).mkdir(parents=True, exist_ok=True)
-    figures = [profile_figure(assessment.view, band=band)]
+    figures = [profile_figure(assessment.view, band=band, title=title)]
     if assessment.overlap is not None:
-        figures.append(overlap_figure(assessment.overlap))
+        figures.append(overlap_figure(assessment.overlap, title=title))
     targets = figure_paths(directory, prefix=prefix, overlap=assessment.overlap is not None)
     written = []
     for target, figure in zip(targets, figures, strict=True):

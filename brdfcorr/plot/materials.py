@@ -62,6 +62,24 @@ def plot_materials(materials: Sequence[Material], max_zenith: float = 80.0) -> F
     return figure
 
 
+def sun_zenith_groups(theta_i, gap: float = 1.0, max_groups: int = 6) -> list[tuple[np.ndarray, str]]:
+    """The samples of each sun zenith, for a figure: (indices, label suffix) per group of sun
+    zeniths [deg] separated by more than ``gap`` degrees (a line's sun varies less along it; two
+    lines flown at other times are two groups). One group, with an empty suffix, where all share a
+    sun or there are more than ``max_groups`` (a composite of many orbits)."""
+    theta_i = np.asarray(theta_i, dtype=float)
+    order = np.argsort(theta_i, kind="stable")
+    breaks = np.flatnonzero(np.diff(theta_i[order]) > gap) + 1
+    if breaks.size == 0 or breaks.size >= max_groups:
+        return [(np.arange(theta_i.size), "")]
+    groups = []
+    for members in np.split(order, breaks):
+        low, high = theta_i[members].min(), theta_i[members].max()
+        sun = f"{low:.0f}°" if round(low) == round(high) else f"{low:.0f}–{high:.0f}°"
+        groups.append((np.sort(members), f", sun zenith {sun}"))
+    return groups
+
+
 def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figure:
     """Observed and modelled reflectance of one class against signed view zenith.
 
@@ -82,7 +100,9 @@ def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figur
     -----
     The view zenith is signed by the side of the sun: positive for forward scattering
     (relative azimuth > 90 deg), negative for backward scattering, so that the across-track
-    brightness gradient of a wide field-of-view line reads left to right.
+    brightness gradient of a wide field-of-view line reads left to right. Samples of lines flown
+    under different suns (:func:`sun_zenith_groups`) are drawn in one colour per sun, with the
+    model's values labelled per line.
     """
     model = get_model(fit.model)
     n_bands = samples.brdf.shape[1]
@@ -90,19 +110,25 @@ def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figur
     signed = np.where(samples.phi > 90.0, samples.theta_r, -samples.theta_r)
     figure = Figure(figsize=(4.2 * len(bands), 3.8), layout="constrained")
     axes = np.atleast_1d(figure.subplots(1, len(bands), sharey=False))
+    groups = sun_zenith_groups(samples.theta_i)
     for axis, band in zip(axes, bands):
         params = {name: values[band] for name, values in fit.params.items()}
         modelled = np.pi * model(samples.theta_i, samples.theta_r, samples.phi, **params)
-        axis.plot(signed, np.pi * samples.brdf[:, band], ".", ms=2, color="0.6", label="observed")
-        axis.plot(signed, modelled, ".", ms=2, color="C3", label=f"{fit.model} fit")
+        # One colour per sun zenith (a line, or lines flown at the same time of day): each line's
+        # model is its own curve, and its observations are drawn in its colour, lighter.
+        for number, (members, sun) in enumerate(groups):
+            color = f"C{number}" if len(groups) > 1 else "C3"
+            axis.plot(signed[members], np.pi * samples.brdf[members, band], ".", ms=2, color=color, alpha=0.3,
+                      label=f"observed{sun}")
+            axis.plot(signed[members], modelled[members], ".", ms=2, color=color, label=f"{fit.model} fit{sun}")
         label = f"{wavelengths[band]:g} nm" if wavelengths is not None else f"band {band + 1}"
         axis.set(
             title=f"{label}: R² = {fit.r2[band]:.2f}",
             xlabel="view zenith θr [°] (+ forward, − backward)",
             ylabel="reflectance factor [-]",
         )
-    figure.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize="small",
-                  markerscale=4)
+    figure.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=min(6, 2 * len(groups)),
+                  fontsize="small", markerscale=4)
     figure.suptitle(
         f"class {fit.class_id} ({display_name(fit.name)}): {fit.status}, N = {fit.n_samples}, "
         f"view zenith spread {fit.vza_spread:.0f}°"

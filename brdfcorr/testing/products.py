@@ -80,7 +80,7 @@ def write_sentinel2_safe(directory: str | os.PathLike, mtd_tl: str | os.PathLike
 
     from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl
 
-    name = "T23LLF"  # the tile of the real metadata in shared/realdata (file names only)
+    name = "T23LLF"  # the tile of the real metadata in tests/data (file names only)
     safe = Path(directory) / f"S2A_MSIL2A_20190425T132241_N{baseline.replace('.', '')}_R038_{name}_20190425T164208.SAFE"
     granule = safe / "GRANULE" / f"L2A_{name}_A020055_20190425T132236"
     granule.mkdir(parents=True)

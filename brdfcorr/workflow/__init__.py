@@ -9,3 +9,8 @@
   :mod:`~brdfcorr.workflow.report`: plan, run and report a chain;
 - :mod:`~brdfcorr.workflow.demo`: the demo scene and its run.
 """
+
+#: The task modules, imported at first use as ``brdfcorr.workflow.<name>`` (importing this package
+#: loads none of them: the command line pays only for the task it runs).
+__all__ = ["api", "assessment", "chain", "classmaps", "config", "correction", "demo", "nbar", "patterns", "plan",
+           "report", "request", "tasks"]

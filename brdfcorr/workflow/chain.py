@@ -71,6 +71,7 @@ except ImportError:  # pragma: no cover (Windows)
 
 from dask.callbacks import Callback
 
+from brdfcorr._entry import entered
 from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io import cluster
@@ -84,7 +85,15 @@ from brdfcorr.workflow.config import ChainConfig, EngineConfig
 from brdfcorr.workflow.correction import Terrain, correct_files
 from brdfcorr.workflow.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
 from brdfcorr.workflow.quicklook import write_quicklook
-from brdfcorr.workflow.report import RunReport, assessment_summary, earlier_findings, scene_result, versions
+from brdfcorr.workflow.report import (
+    RunReport,
+    assessment_summary,
+    earlier_findings,
+    failed_for_uncorrected,
+    scene_result,
+    uncorrected_classes,
+    versions,
+)
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file
 
@@ -270,7 +279,9 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
         if steps.correct is not None:
             _remove_derived(scene)
         # Active for every pass of the scene, from the first (the checks before the write), as for `correct`.
-        with ChunkProgress(scene.name, progress) if progress is not None else contextlib.nullcontext():
+        # Messages name chain keys (brdfcorr._entry), also in process workers.
+        chunks = ChunkProgress(scene.name, progress) if progress is not None else contextlib.nullcontext()
+        with entered("chain"), chunks:
             for name, run in (("correct", lambda: _correct(scene, table, config, **compute)),
                               ("assess", lambda: _assess(scene, table, config, **compute)),
                               ("quicklook", lambda: _quicklook(scene, config, table))):
@@ -358,7 +369,8 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
     )
     report = assessment.report()
     write_json(report, scene.outputs["assess"])
-    write_assessment_figures(assessment, scene.outputs["assess_profiles"].parent, prefix=f"{scene.name}_assess")
+    write_assessment_figures(assessment, scene.outputs["assess_profiles"].parent, prefix=f"{scene.name}_assess",
+                             title=scene.name)
     return {"assess": assessment_summary(report)}
 
 
@@ -537,8 +549,9 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
     """
     started = datetime.now(timezone.utc).isoformat(timespec="seconds")
     clock = time.perf_counter()
-    plan = plan if plan is not None else plan_run(config)
-    with run_lock(plan.output_dir):
+    with entered("chain"):  # messages name chain keys (brdfcorr._entry)
+        plan = plan if plan is not None else plan_run(config)
+    with run_lock(plan.output_dir), entered("chain"):
         return _run_plan(plan, progress, started, clock)
 
 
@@ -563,7 +576,11 @@ def _run_plan(plan: RunPlan, progress: Progress | None, started: str, clock: flo
                                               found=earlier.get(str(scene.image))))
             notify("scene", report.scenes[-1])
     tick = time.perf_counter()
+    step = config.steps.fit
+    left_uncorrected = [] if step is None or getattr(step, "allow_uncorrected", True) else \
+        uncorrected_classes(fit_report)
     for result in _run_scenes([scene for scene in plan.scenes if scene.action != "skip"], table, config, progress):
+        result = failed_for_uncorrected(result, left_uncorrected)
         report.scenes.append(result)
         notify("scene", result)
     timings["scenes"] = round(time.perf_counter() - tick, 3)

@@ -123,6 +123,10 @@ class ImageryFit(StrictModel):
         bands (:data:`brdfcorr.fit.WATER_VAPOUR_BANDS`).
     fallback : str, optional
         Built-in material or coefficient set for classes that fail the guard rails.
+    allow_uncorrected : bool, default False
+        Whether classes that fail the guard rails (without a ``fallback``) may stay uncorrected:
+        by default a scene with pixels of such a class is a failed scene (``brdfcorr run`` exits
+        with 3, naming the class).
     prior : str, optional
         Built-in coefficient set whose kernel shape is a prior of the fitted RTLSR classes
         (``--prior``, :class:`brdfcorr.fit.ClassModels`' ``prior``).
@@ -150,6 +154,7 @@ class ImageryFit(StrictModel):
     bad_bands: list[tuple[Number, Number]] = Field(
         default_factory=lambda: [tuple(band_range) for band_range in WATER_VAPOUR_BANDS])
     fallback: str | None = None
+    allow_uncorrected: bool = False
     prior: str | None = None
     prior_spread: Number | None = Field(None, gt=0, allow_inf_nan=False)
     output: str = "fitted_params.yaml"

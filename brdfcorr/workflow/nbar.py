@@ -132,6 +132,7 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     OutputError
         An existing output without ``overwrite``; a kept stack not named ``.vrt``.
     """
+    refuse_archive(product)
     granule = find_hls_granule(product, bands=bands)
     if granule is not None:  # NBAR already: at most moved to another sun zenith
         if (method.view_band is not None or method.factor_at != "pixels" or keep_stack is not None
@@ -160,6 +161,22 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
                                              nbar_table(folder, method.coefficients),
                                              replace(outputs, fingerprint=None), method, engine))
     return {**summary, "product": folder}
+
+
+#: Archive suffixes products are downloaded as (Copernicus: ``….SAFE.zip``; USGS: ``….tar``).
+ARCHIVE_SUFFIXES = (".zip", ".tar", ".tar.gz", ".tgz")
+
+
+def refuse_archive(product: str | os.PathLike) -> None:
+    """An :class:`~brdfcorr.errors.InputError` for a product still in its download archive: the
+    readers take the unpacked folder, and the archive's name says which one to make."""
+    path = Path(product)
+    suffix = next((s for s in ARCHIVE_SUFFIXES if path.name.lower().endswith(s)), None)
+    if suffix is not None and path.is_file():
+        folder = path.with_name(path.name[: -len(suffix)])
+        tool = "unzip" if suffix == ".zip" else "tar -xf"
+        raise InputError(f"{path} is an archive; brdfcorr reads the unpacked product folder: unpack it "
+                         f"({tool} {path.name}) and give {folder.name}")
 
 
 def _request(folder: ProductFolder, scene: SceneSources, angle_options: dict, table: ParameterTable,

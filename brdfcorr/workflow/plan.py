@@ -131,6 +131,17 @@ class RunPlan:
     fit_output: Path | None
     table_sources: tuple[str, ...]
     warnings: tuple[str, ...] = ()
+    #: The warnings that name an input the run needs and cannot find (planned with
+    #: ``require_inputs=False``): an image pattern, the parameter table, a measurement file. Scenes
+    #: with a missing class map or angle file are those whose action is ``fail`` (:meth:`missing_inputs`).
+    missing: tuple[str, ...] = ()
+
+    def missing_inputs(self) -> list[str]:
+        """Every input the run would miss, in words: :attr:`missing`, then each scene failing for a
+        missing input (``scene NAME: missing input: ...``). Empty when the chain can run."""
+        scenes = [f"scene {scene.name}: {scene.reason}" for scene in self.scenes
+                  if scene.action == "fail" and scene.reason.startswith("missing input")]
+        return [*self.missing, *scenes]
 
     @property
     def steps(self) -> list[str]:
@@ -190,10 +201,11 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     report = output_dir / config.outputs.report
     _check_outputs(config, scenes, report, fit_output)
     scenes = _redo_stale(config, scenes, fit_output)
+    missing = tuple(notes + parameter_notes)  # before the uncertainty notes: files not found
     if not parameter_notes:  # the table's files exist
         notes += _uncertainty_notes(config, fit_output)
     return RunPlan(config, tuple(scenes), output_dir, report, fit_output, tuple(sources),
-                   tuple(notes + parameter_notes))
+                   tuple(notes + parameter_notes), missing)
 
 
 def _uncertainty_notes(config: ChainConfig, fit_output: Path | None) -> list[str]:

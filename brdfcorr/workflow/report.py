@@ -78,6 +78,27 @@ def scene_result(scene: Scene, status: str, *, reason: str = "", found: Mapping 
     return result
 
 
+def uncorrected_classes(fit_report: Mapping | None) -> list[str]:
+    """The classes a fit step left out of the table (its guard rails refused them and no fallback
+    replaced them), as ``"4 (shingle): fewer than 50 samples"`` (empty without a fit step)."""
+    classes = (fit_report or {}).get("classes") or []
+    return [f"{entry['class_id']} ({entry['name']}): {'; '.join(entry.get('reasons') or []) or 'not fitted'}"
+            for entry in classes if entry.get("status") == "uncorrected"]
+
+
+def failed_for_uncorrected(result: dict, classes: list[str]) -> dict:
+    """A scene result that is ``failed`` where the scene holds pixels of classes left uncorrected
+    (``classes``: :func:`uncorrected_classes`; the QA count ``unknown_class`` says it holds pixels
+    of classes absent from the table): a run whose scenes came out partly uncorrected did not
+    do what it was asked (unless the chain allows it: ``steps.fit.allow_uncorrected``)."""
+    if result.get("status") != "ok" or not classes or not result.get("qa", {}).get("unknown_class"):
+        return result
+    return {**result, "status": "failed", "error_type": "UncorrectedClasses",
+            "error": f"{result['qa']['unknown_class']} pixels of classes the fit left uncorrected: "
+                     f"class {'; class '.join(classes)} (set steps.fit.allow_uncorrected: true if that is expected, "
+                     "or steps.fit.fallback)"}
+
+
 def assessment_summary(report: Mapping) -> list[dict]:
     """Per class of an assessment report (:meth:`brdfcorr.workflow.assessment.Assessment.report`): id,
     name, pixels, the median over bands of |relative slope| [%/10 deg] before and after the

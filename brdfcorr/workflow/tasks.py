@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from brdfcorr._entry import option
 from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, ClassModels, GuardRails, Sampling, fit_classes
@@ -248,7 +249,7 @@ def _bbl_ranges(scene: SceneFiles, data: SceneData) -> tuple[list[list[float]], 
         return [], 0
     if "wavelength" not in data.reflectance.coords:
         raise InputError(f"{scene.image}: the header's bbl marks {int(bad.sum())} bands bad but the image has no "
-                         "band wavelengths to leave them out by; give --wavelengths")
+                         f"band wavelengths to leave them out by; give {option('wavelengths')}")
     centres = np.asarray(data.reflectance["wavelength"].values, dtype=float)
     order = np.argsort(centres, kind="stable")
     runs: list[list[float]] = []

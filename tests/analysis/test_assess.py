@@ -250,6 +250,17 @@ def test_figures_are_drawn_and_written(geometry, class_map, tmp_path, make_cube,
     assert "560 nm" in left.get_title()  # the default band: nearest 660 nm (|560 - 660| < |860 - 660|)
     labels = [text.get_text() for text in figure.legends[0].get_texts()]
     assert "roof tile before" in labels and "grass after" in labels  # names as people read them
+    # The slope panel: each class and stage a line with its 1-sigma as bars, as the report gives them.
+    right = profile_figure(view, title="line_09").axes[1]
+    assert right.get_title().startswith("line_09 view-angle slope") and "±1σ" in right.get_title()
+    assert len(right.containers) == 2 * view.sizes["class"]
+    for container, (index, stage) in zip(right.containers, [(i, s) for i in range(2) for s in ("before", "after")],
+                                         strict=True):
+        values = view.isel({"class": index}).sel(stage=stage)
+        segments = np.array(container.lines[2][0].get_segments())  # (band, [low, high], [x, y])
+        np.testing.assert_allclose(segments[:, 0, 1], values["relative_slope"] - values["relative_slope_error"])
+        np.testing.assert_allclose(segments[:, 1, 1], values["relative_slope"] + values["relative_slope_error"])
+        assert values["relative_slope_error"].min() > 0
     overlap = assess_overlap(before, after, shifted(before, 10), shifted(after, 10))
     assert overlap_figure(overlap).axes[0].get_xlabel().endswith("[reflectance, 1]")
     written = write_assessment_figures(Assessment({}, view, overlap), tmp_path / "figures")

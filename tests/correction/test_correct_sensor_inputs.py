@@ -7,7 +7,6 @@ header names and the Torrance-Sparrow factor is evaluated with the public model 
 from pathlib import Path
 
 import numpy as np
-import pytest
 import rasterio
 import rioxarray
 from click.testing import CliRunner
@@ -18,11 +17,10 @@ from brdfcorr.models import torrance_sparrow
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 
-REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
+REALDATA = Path(__file__).resolve().parents[1] / "data"  # real files and their licences (README.md there)
 LINE = REALDATA / "isofit_avirisng_topoflux"
 IMAGE = LINE / "ang20160910t185702_2rdn_img"
 OBS = LINE / "ang20160910t185702_obs_ortdem_mod"
-pytestmark = pytest.mark.skipif(not LINE.is_dir(), reason=f"real sensor data not found at {LINE}")
 
 
 def _obs_band(name: str) -> np.ndarray:
@@ -49,7 +47,7 @@ def test_correct_aviris_ng_line_with_obs_angles(tmp_path):
     # user's word (--scale 1), never silently.
     refused = CliRunner().invoke(main, arguments)
     assert refused.exit_code == 2 and "do not look like reflectance factors" in refused.stderr
-    assert "--scale 1: use them as they are" in refused.stderr and not (tmp_path / "out.tif").exists()
+    assert "--scale/--offset" in refused.stderr and "scale 1: use them as they are" in refused.stderr and not (tmp_path / "out.tif").exists()
     result = CliRunner().invoke(main, [*arguments, "--scale", "1"])
     assert result.exit_code == 0, result.output
     assert IMAGE.read_bytes() == before

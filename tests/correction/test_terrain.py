@@ -24,8 +24,7 @@ from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, georeference, synthetic_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
-REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
-needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")
+REALDATA = Path(__file__).resolve().parents[1] / "data"  # real files and their licences (README.md there)
 
 
 def _unit(zenith, azimuth):
@@ -288,7 +287,6 @@ def test_slope_without_aspect_is_an_error(scene):
 
 # --- the obs_ort reader -------------------------------------------------------------------------
 
-@needs_realdata
 @pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")
 def test_obs_slope_aspect_reproduce_the_obs_cosine_i():
     # The obs file's own "Cosine(i)" band is Teillet's cos i of its slope, aspect and sun angles.
@@ -313,7 +311,6 @@ def _obs_bands(path):
         ("slope", "Slope"), ("aspect", "Aspect"), ("cosine_i", "Cosine(i)"))}
 
 
-@needs_realdata
 @pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")
 def test_what_the_obs_cosine_i_checks_and_what_it_does_not():
     # docs/terrain.md: the profiling cube's match (previous test) is with placeholder Slope 90 and
@@ -337,7 +334,6 @@ def test_what_the_obs_cosine_i_checks_and_what_it_does_not():
     assert excess.max() == pytest.approx(0.12, abs=0.005)
 
 
-@needs_realdata
 def test_obs_terrain_band_names_can_be_overridden_and_are_checked():
     path = REALDATA / "isofit_avirisng_topoflux" / "ang20160910t185702_obs_ortdem_mod"
     from brdfcorr.errors import SensorInputError

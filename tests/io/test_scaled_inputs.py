@@ -304,5 +304,5 @@ def test_scale_check_looks_beyond_an_empty_centre():
     # footprint, a partly covered tile): the spread chunks still find the values and refuse them.
     values = np.random.default_rng(0).uniform(0.0, 5000.0, (4, 400, 400)).astype("float32")
     values[:, 160:240, 160:240] = np.nan
-    with pytest.raises(InputError, match="--scale"):
+    with pytest.raises(InputError, match=r"reflectance \* scale \+ offset before the call \(or scale=/offset="):
         rasters.check_reflectance_scale(_reflectance_cube(values, 80), scheduler="synchronous")

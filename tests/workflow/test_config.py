@@ -174,12 +174,50 @@ def test_yaml_errors_name_line(tmp_path):
 
 
 def test_every_example_config_validates():
+    """The example chains are templates: their keys and values are valid, and each one's line says
+    it is not ready to run, naming the input that is missing, instead of "valid; 0 scenes found"."""
     assert len(CHAINS) >= 3, "configs/ should hold several example chains"
     assert REPO / "configs" / "demo.yaml" in CHAINS
     result = CliRunner().invoke(main, ["validate", *map(str, EXAMPLES)])
     assert result.exit_code == 0, result.output
-    assert result.output.count(": valid;") == len(CHAINS)
+    lines = {line.split(": ", 1)[0]: line for line in result.stdout.splitlines()}
+    assert len(lines) == len(EXAMPLES)
+    for chain in CHAINS:
+        images = yaml.safe_load(chain.read_text())["inputs"]["images"]
+        line = lines[str(chain)]
+        assert ": not ready to run, an input is missing: inputs.images" in line and images[0] in line, line
+        assert "its keys and values are valid" in line and ": valid;" not in line
     assert result.output.count(": valid parameter table;") == len(EXAMPLES) - len(CHAINS)
+
+
+def test_validate_strict_refuses_the_templates_naming_what_is_missing():
+    chain = REPO / "configs" / "goniometer_fit.yaml"
+    result = CliRunner().invoke(main, ["validate", "--strict", str(chain)])
+    assert result.exit_code == 2, result.output
+    errors = [line for line in result.stderr.splitlines() if line.startswith("brdfcorr: error: ")]
+    assert any("inputs.images matches no file (../data/lines/*.tif)" in line for line in errors), errors
+    assert any("roof_tile.csv does not exist" in line for line in errors), errors
+    assert "(and 2 more, above)" in result.stdout
+
+
+def test_validate_names_each_missing_input_of_a_chain(tmp_path, make_scenes, write_chain):
+    make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path)
+    for strict in ([], ["--strict"]):
+        result = CliRunner().invoke(main, ["validate", *strict, str(chain)])
+        assert result.exit_code == 0 and "valid; 2 scenes found" in result.stdout, result.output
+    classes = tmp_path / "scenes" / "line1" / "classes.tif"
+    classes.unlink()
+    (tmp_path / "params.yaml").unlink()
+    result = CliRunner().invoke(main, ["validate", str(chain)])
+    assert result.exit_code == 0, result.output
+    assert "not ready to run, an input is missing: parameters.table: " in result.stdout
+    assert "(and 1 more, above)" in result.stdout and "2 scenes found" in result.stdout
+    assert f"warning: {chain}: scene line1_image: missing input: class map {classes}" in result.stderr
+    strict = CliRunner().invoke(main, ["validate", "--strict", str(chain)])
+    assert strict.exit_code == 2
+    assert f"error: {chain}: parameters.table: {tmp_path / 'params.yaml'} does not exist" in strict.stderr
+    assert f"error: {chain}: scene line1_image: missing input: class map {classes}" in strict.stderr
 
 
 def test_validate_cli_rejects_bad_config(tmp_path):

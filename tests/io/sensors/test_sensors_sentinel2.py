@@ -1,4 +1,4 @@
-"""Sentinel-2 MTD_TL.xml angle grids (shared/realdata, tile T23LLF, 2019-04-25)."""
+"""Sentinel-2 MTD_TL.xml angle grids (tests/data, tile T23LLF, 2019-04-25)."""
 
 from __future__ import annotations
 
@@ -16,9 +16,8 @@ from brdfcorr.geometry import relative_azimuth
 from brdfcorr.io.sensors import grid_template, read_angles
 from brdfcorr.io.sensors.sentinel2 import combine_detectors, fill_gaps, parse_mtd_tl, read_sentinel2_angles
 
-REALDATA = Path(__file__).parents[4] / "shared" / "realdata"
+REALDATA = Path(__file__).resolve().parents[2] / "data"  # real files and their licences (README.md there)
 MTD = REALDATA / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml"
-needs_realdata = pytest.mark.skipif(not MTD.is_file(), reason=f"real Sentinel-2 metadata not found at {MTD}")
 
 
 def xml_grid(text: str, start_tag: str, which: str) -> np.ndarray:
@@ -39,7 +38,6 @@ def text():
     return MTD.read_text()
 
 
-@needs_realdata
 def test_grids_sizes_and_geoposition(tile, text):
     np.testing.assert_array_equal(tile.sun_zenith, xml_grid(text, "<Sun_Angles_Grid>", "Zenith"))
     np.testing.assert_array_equal(tile.sun_azimuth, xml_grid(text, "<Sun_Angles_Grid>", "Azimuth"))
@@ -55,7 +53,6 @@ def test_grids_sizes_and_geoposition(tile, text):
     assert str(tile.sensing_time) == "2019-04-25 13:26:00.865611+00:00"
 
 
-@needs_realdata
 def test_detectors_combined(tile):
     zenith, azimuth = tile.view_zenith["B04"], tile.view_azimuth["B04"]
     stack = np.stack([zenith[d] for d in sorted(zenith)])
@@ -80,7 +77,6 @@ def test_fill_gaps_takes_the_nearest_node():
         fill_gaps(np.full((2, 2), np.nan))
 
 
-@needs_realdata
 def test_angles_on_the_60m_grid_match_independent_interpolation(tile):
     angles = read_sentinel2_angles(MTD, resolution=60, band="B04", chunks=512)
     assert {name: angles[name].dims for name in angles.data_vars} == dict.fromkeys(("sza", "saa", "vza", "vaa"), ("y", "x"))
@@ -104,7 +100,6 @@ def test_angles_on_the_60m_grid_match_independent_interpolation(tile):
     assert float(angles.vza.mean()) == pytest.approx(3.68075161027702, abs=0.05)
 
 
-@needs_realdata
 def test_10m_grid_is_lazy_and_a_window_computes_alone():
     angles = read_sentinel2_angles(MTD)  # all bands averaged, full tile at 10 m
     assert angles.sza.shape == (10980, 10980) and angles.sza.data.npartitions == 36
@@ -118,7 +113,6 @@ def test_10m_grid_is_lazy_and_a_window_computes_alone():
     assert float(window.vza.mean()) > 6.0  # x = 301 km: the west edge, far from the track (east)
 
 
-@needs_realdata
 def test_view_azimuth_points_towards_the_satellite(tile):
     """The view zenith grows away from the satellite ground track, so it decreases towards the
     satellite: the azimuth of -grad(vza) must be close to the stored view azimuth (up to the
@@ -136,7 +130,6 @@ def test_view_azimuth_points_towards_the_satellite(tile):
     np.testing.assert_allclose(difference.values, 180.0, atol=1e-9)
 
 
-@needs_realdata
 def test_specular_direction_of_the_real_sun_is_phi_180(tile):
     saa = tile.sun_azimuth
     np.testing.assert_allclose(relative_azimuth(saa, (saa + 180.0) % 360.0), 180.0)
@@ -148,7 +141,6 @@ def test_specular_direction_of_the_real_sun_is_phi_180(tile):
     assert 30.0 < np.median(phi) < 90.0
 
 
-@needs_realdata
 def test_on_a_like_grid_and_via_the_dispatcher():
     like = grid_template(Affine(20.0, 0, 350000.0, 0, -20.0, 8550000.0), (64, 48), "EPSG:32723", chunks=32)
     angles = read_angles("sentinel2", MTD, like=like, band="B8A")
@@ -160,7 +152,6 @@ def test_on_a_like_grid_and_via_the_dispatcher():
         np.testing.assert_allclose(angles[name].values, subset[name].values, atol=1e-9)
 
 
-@needs_realdata
 def test_errors_name_band_and_element(tmp_path, text):
     with pytest.raises(SensorInputError, match="no viewing angle grids for band 'B13'"):
         read_sentinel2_angles(MTD, band="B13")

@@ -18,14 +18,12 @@ from brdfcorr.io.sensors.envi import acquisition_time, read_envi_image, read_env
 from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl
 from brdfcorr.io.sensors.solar import solar_angles, solar_position
 
-REALDATA = Path(__file__).parents[4] / "shared" / "realdata"
-needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason=f"real sensor data not found at {REALDATA}")
+REALDATA = Path(__file__).resolve().parents[2] / "data"  # real files and their licences (README.md there)
 
 TOPOFLUX = REALDATA / "isofit_avirisng_topoflux"
 CUBE = REALDATA / "isofit_avirisng_profiling_cube"
 
 
-@needs_realdata
 def test_avirisng_orthorectified_line_sun_angles_at_line_start_time():
     """The obs to-sun bands of ang20160910t185702 are the sun position at the line time in its
     name: pvlib at each pixel centre (UTM 11N -> WGS 84) agrees to 0.005 deg."""
@@ -38,7 +36,6 @@ def test_avirisng_orthorectified_line_sun_angles_at_line_start_time():
     assert sun.rio.crs.to_epsg() == 32611
 
 
-@needs_realdata
 def test_avirisng_raw_line_sun_angles_from_loc_file():
     """The profiling cube has no map grid; its loc file gives each pixel's longitude, latitude and
     elevation. pvlib at those positions and the line-name time matches the obs to-sun bands."""
@@ -53,7 +50,6 @@ def test_avirisng_raw_line_sun_angles_from_loc_file():
     np.testing.assert_allclose(azimuth, sun_azimuth, atol=5e-3)
 
 
-@needs_realdata
 def test_sentinel2_sun_grid_against_pvlib():
     """The 23 x 23 sun grid of the granule vs pvlib at the node positions and SENSING_TIME."""
     tile = parse_mtd_tl(REALDATA / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml")

@@ -1,0 +1,108 @@
+"""The checks the command line makes on its files, made on the arrays a Python caller gives
+(:func:`brdfcorr.correction.normalize`, the ``.brdf`` accessor), so that no entry point takes an
+input the others refuse (issue 38):
+
+- :func:`check_layout`: a cube with its bands last, (y, x, band), is refused with the transpose
+  that fixes it, instead of a grid error between its spatial and band axes;
+- :func:`reflectance_factors`: integer counts are scaled with the scale and offset they carry
+  (rioxarray's ``scale_factor``/``add_offset``, as :func:`brdfcorr.io.rasters.open_image` applies
+  a file's), and refused without them: an offset (Sentinel-2 L2A from baseline 04.00: -0.1) left
+  out changes the corrected values, not only their units;
+- :func:`guard_angles`: angle layers that can only be radians
+  (:func:`brdfcorr.io.angles.looks_like_radians`, the rule the command line applies to its angle
+  files) are refused, lazily for dask input: the check runs with each chunk's correction.
+
+Messages name the fix in the caller's words (:mod:`brdfcorr._entry`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import dask.array as da
+import numpy as np
+import xarray as xr
+
+from brdfcorr._entry import option
+from brdfcorr.errors import InputError
+from brdfcorr.io.angles import looks_like_radians, radians_message
+
+__all__ = ["check_layout", "reflectance_factors", "guard_angles", "BAND_DIMS"]
+
+#: Dimension names that hold bands (a cube whose last dimension has one of them is (y, x, band)).
+BAND_DIMS = ("band", "bands", "wavelength", "channel", "spectral")
+
+
+def check_layout(reflectance: xr.DataArray, layer_shapes: list[tuple[int, ...]]) -> None:
+    """Refuse a (y, x, band) cube: its last dimension is named like bands, or the (y, x) layers
+    (class map, angles) have the shape of its first two axes and not of its last two."""
+    if reflectance.ndim != 3:
+        return
+    named_last = reflectance.dims[-1] in BAND_DIMS and reflectance.dims[0] not in BAND_DIMS
+    shapes = {shape for shape in layer_shapes if len(shape) == 2}
+    leading = bool(shapes) and all(shape == reflectance.shape[:2] != reflectance.shape[1:] for shape in shapes)
+    if named_last or leading:
+        numbered = all(str(dim).startswith("dim_") or dim in ("band", "y", "x") for dim in reflectance.dims)
+        first, second, last = reflectance.dims
+        fix = ("np.moveaxis(reflectance, -1, 0)" if numbered and not named_last
+               else f"reflectance.transpose({last!r}, {first!r}, {second!r})")
+        raise InputError(f"reflectance of shape {reflectance.shape} (dims {reflectance.dims}) has its bands last, "
+                         f"(y, x, band); transpose to (band, y, x): {fix}")
+
+
+def reflectance_factors(reflectance: xr.DataArray) -> xr.DataArray:
+    """Integer counts as reflectance factors with the scale and offset they carry (attrs or encoding
+    ``scale_factor``/``add_offset``, their ``_FillValue`` or rioxarray nodata as NaN); other arrays
+    as they are. Integer counts without a scale are an :class:`InputError`."""
+    if reflectance.dtype.kind not in "iu":
+        return reflectance
+    metadata = {**reflectance.encoding, **reflectance.attrs}
+    if "scale_factor" not in metadata:
+        raise InputError(
+            f"reflectance holds integer counts ({reflectance.dtype}) without a scale_factor: give reflectance "
+            f"factors, {option('scale')} (e.g. Sentinel-2 L2A from baseline 04.00: counts * 0.0001 - 0.1)"
+        )
+    scale, offset = float(metadata["scale_factor"]), float(metadata.get("add_offset", 0.0))
+    nodata = _nodata(reflectance, metadata)
+    values = reflectance if nodata is None else reflectance.where(reflectance != nodata)
+    scaled = (values.astype(np.float32) * np.float32(scale) + np.float32(offset)).astype(np.float32)
+    attrs = {k: v for k, v in reflectance.attrs.items() if k not in ("scale_factor", "add_offset", "_FillValue")}
+    return scaled.assign_attrs(attrs, brdf_input_scale=scale, brdf_input_offset=offset).rename(reflectance.name)
+
+
+def _nodata(array: xr.DataArray, metadata: Mapping) -> float | None:
+    """The stored nodata value of integer counts: rioxarray's, else ``_FillValue``."""
+    try:
+        import rioxarray  # noqa: F401  (registers the .rio accessor)
+
+        nodata = array.rio.nodata
+    except Exception:  # noqa: BLE001 (an array rioxarray cannot describe declares no nodata)
+        nodata = None
+    return nodata if nodata is not None else metadata.get("_FillValue")
+
+
+def guard_angles(layers: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
+    """The angle layers, refused where they look like radians: at once for numpy layers, for dask
+    layers by each chunk (the ``sza`` layer's chunks carry the check, so it runs with the
+    correction and costs no pass of its own)."""
+    names = ("sza", "saa", "vza", "vaa")
+    arrays = [layers[name].data for name in names]
+    if not any(isinstance(array, da.Array) for array in arrays):
+        _refuse_radians(*(np.asarray(array) for array in arrays))
+        return dict(layers)
+    first = next(array for array in arrays if isinstance(array, da.Array))
+    chunked = [da.asarray(array).rechunk(first.chunks) for array in arrays]
+    checked = da.map_blocks(_refuse_radians, *chunked, dtype=first.dtype, meta=np.empty((0, 0), first.dtype))
+    return {**layers, "sza": layers["sza"].copy(data=checked)}
+
+
+def _refuse_radians(sza, saa, vza, vaa) -> np.ndarray:
+    """``sza`` unchanged, or an :class:`InputError` where the layers can only be radians."""
+    ranges, counts = {}, {}
+    for name, values in zip(("sza", "saa", "vza", "vaa"), (sza, saa, vza, vaa)):
+        finite = np.asarray(values)[np.isfinite(values)]
+        ranges[name] = (float(finite.min()), float(finite.max())) if finite.size else (np.nan, np.nan)
+        counts[name] = finite.size
+    if looks_like_radians(ranges, counts):
+        raise InputError(radians_message(ranges, "angles"))
+    return sza

@@ -1,0 +1,73 @@
+"""Cubes with a time dimension, (time, band, y, x) as STAC loaders (stackstac, odc-stac) give them:
+each date normalized on its own (:func:`over_dates`), with its own angles and, where the class map
+or the angles have the time dimension too, its own class map; lazily for dask input, one graph per
+date joined along the time dimension.
+
+A date is corrected exactly as the same image alone (``brdfcorr correct``, ``brdfcorr nbar``): a
+``"mean"`` reference sun zenith is each date's own scene mean.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Hashable, Mapping
+
+import dask.array as da
+import numpy as np
+import xarray as xr
+
+from brdfcorr.correction.checks import BAND_DIMS
+from brdfcorr.errors import InputError
+
+__all__ = ["is_series", "over_dates"]
+
+
+def is_series(reflectance) -> bool:
+    """Whether ``reflectance`` is a 4-D cube, (time, band, y, x)."""
+    return np.ndim(reflectance) == 4
+
+
+def over_dates(normalize_one: Callable, reflectance, classes, angles, params, reference=None, **options):
+    """``normalize_one`` (:func:`brdfcorr.correction.normalize`) date by date over a (time, band, y,
+    x) cube; returns its result type with the corrected cube (time, band, y, x) and the QA layer
+    (time, y, x).
+
+    ``classes`` and each angle layer are (y, x), the same for every date, or have the cube's time
+    dimension (a DataArray with that dim, or an array with one more axis than (y, x)).
+    """
+    cube = reflectance if isinstance(reflectance, xr.DataArray) else xr.DataArray(
+        reflectance if isinstance(reflectance, da.Array) else np.asarray(reflectance),
+        dims=("time", "band", "y", "x"), name="reflectance")
+    dim = cube.dims[0]
+    if dim in BAND_DIMS:
+        raise InputError(f"reflectance has dims {cube.dims}; a 4-D cube is (time, band, y, x): "
+                         f"transpose it, e.g. reflectance.transpose({cube.dims[1]!r}, {dim!r}, ...)")
+    results = [
+        normalize_one(cube.isel({dim: index}), _at_date(classes, dim, index, "classes"),
+                      _angles_at_date(angles, dim, index), params, reference, **options)
+        for index in range(cube.sizes[dim])
+    ]
+    corrected = xr.concat([result.reflectance for result in results], dim=dim)
+    qa = xr.concat([result.qa for result in results], dim=dim)
+    return type(results[0])(corrected.transpose(dim, *cube.dims[1:]), qa.transpose(dim, *cube.dims[2:]))
+
+
+def _at_date(layer, dim: Hashable, index: int, name: str):
+    """The (y, x) layer of date ``index``: the layer itself where it has no time dimension."""
+    if layer is None:
+        return None
+    if isinstance(layer, xr.DataArray):
+        return layer.isel({dim: index}) if dim in layer.dims else layer
+    if np.ndim(layer) == 3:
+        return layer[index]
+    if np.ndim(layer) != 2:
+        raise InputError(f"{name} must be (y, x) or ({dim}, y, x), got shape {np.shape(layer)}")
+    return layer
+
+
+def _angles_at_date(angles, dim: Hashable, index: int):
+    """The angle layers of date ``index`` (a Dataset or a mapping, as :func:`normalize` takes)."""
+    if isinstance(angles, xr.Dataset):
+        return angles.isel({dim: index}) if dim in angles.dims else angles
+    if isinstance(angles, Mapping):
+        return {name: _at_date(layer, dim, index, name) for name, layer in angles.items()}
+    return angles  # normalize says what is wrong with it

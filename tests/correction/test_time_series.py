@@ -1,0 +1,55 @@
+"""A (time, band, y, x) cube through the ``.brdf`` accessor (issue 38): date by date, lazily, each
+date exactly as the same image alone; class maps and angles with or without the time dimension."""
+
+from __future__ import annotations
+
+import dask.array
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+
+import brdfcorr  # noqa: F401  (registers the .brdf accessor)
+from brdfcorr.correction import normalize
+from brdfcorr.testing import example_table, synthetic_angles, synthetic_scene
+
+ANGLES = ("sza", "saa", "vza", "vaa")
+DATES = pd.date_range("2024-05-01", periods=3, freq="5D")
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    return [synthetic_scene(ny=16, nx=20, seed=i, angles=synthetic_angles(16, 20, sza=(20.0 + 8 * i, 30.0 + 8 * i)))
+            for i in range(len(DATES))]
+
+
+def _stack(layers):
+    return xr.concat(layers, dim=pd.Index(DATES, name="time"))
+
+
+@pytest.mark.parametrize("reference", [{"sza": "mean"}, {"sza": 40.0, "vza": 0.0}])
+def test_a_cube_with_time_is_normalized_date_by_date_lazily(scenes, reference):
+    cube = _stack([s["reflectance"] for s in scenes]).chunk({"y": 8})
+    angles = xr.Dataset({name: _stack([s[name] for s in scenes]) for name in ANGLES}).chunk({"y": 8})
+    classes = _stack([s["classes"] for s in scenes])
+    corrected, qa = cube.brdf.normalize(classes, angles, example_table(), reference=reference)
+    assert isinstance(corrected.data, dask.array.Array) and isinstance(qa.data, dask.array.Array)
+    assert corrected.dims == ("time", "band", "y", "x") and qa.dims == ("time", "y", "x")
+    assert list(corrected["time"].values) == list(DATES.values)
+    for index, scene in enumerate(scenes):
+        alone = normalize(scene["reflectance"], scene["classes"], {n: scene[n] for n in ANGLES}, example_table(),
+                          reference=reference)
+        np.testing.assert_array_equal(corrected.isel(time=index).values, alone.reflectance.values)
+        np.testing.assert_array_equal(qa.isel(time=index).values, alone.qa.values)
+
+
+def test_a_coefficient_set_without_a_class_map_and_one_class_map_for_all_dates(scenes):
+    cube = _stack([s["reflectance"] for s in scenes])
+    angles = {name: _stack([s[name] for s in scenes]).values for name in ANGLES}  # numpy (time, y, x)
+    nbar, qa = cube.brdf.normalize(None, angles, "roy2017", reference={"sza": 45.0})
+    assert (qa.values == 0).all()
+    one_map = cube.brdf.normalize(xr.ones_like(scenes[0]["classes"]), angles, "roy2017", reference={"sza": 45.0})
+    np.testing.assert_array_equal(nbar.values, one_map.reflectance.values)
+    first = normalize(scenes[0]["reflectance"], None, {n: scenes[0][n] for n in ANGLES}, "roy2017",
+                      reference={"sza": 45.0})
+    np.testing.assert_array_equal(nbar.isel(time=0).values, first.reflectance.values)
