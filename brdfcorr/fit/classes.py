@@ -35,7 +35,7 @@ from brdfcorr.errors import BrdfcorrWarning, FitError, InputError
 from brdfcorr.fit.entries import class_entry, compact
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
 from brdfcorr.fit.quality import fit_quality
-from brdfcorr.fit.sampling import ClassSamples, _as_list, sample_classes
+from brdfcorr.fit.sampling import ClassSamples, sample_classes, scene_lists
 from brdfcorr.fit.selection import IMAGERY_CANDIDATES, ModelChoice, choose_class_model, fixed_for
 from brdfcorr.fit.settings import (
     DEFAULT_MODEL,
@@ -521,7 +521,9 @@ def fit_classes(
     Parameters
     ----------
     images, classes, angles :
-        One or many scenes; see :func:`sample_classes`.
+        One or many scenes, or a cube with a ``time`` dimension (one scene per date, fitted
+        together: with the default ``sampling`` each pixel's level is free); see
+        :func:`sample_classes`.
     models : ClassModels or str or Model, default ClassModels()
         The classes to fit, their names, surface models (by default "torrance_sparrow" for every
         class), fixed shape parameters (by default k = 0.25 for the Torrance-Sparrow models) and
@@ -565,7 +567,7 @@ def fit_classes(
         models = ClassModels(models)
     if models.model is None:
         models = dataclasses.replace(models, model=DEFAULT_MODEL)
-    scenes = _as_list(images)
+    scenes, classes, angles = scene_lists(images, classes, angles)
     if wavelengths is None and "wavelength" in scenes[0].coords:
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
     scenes, wavelengths, used_ranges, left_out = _without_bad_bands(scenes, wavelengths, sampling.bad_bands)

@@ -13,7 +13,7 @@ from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.geometry import relative_azimuth
 
-__all__ = ["LEVELS", "ClassSamples", "resolve_levels", "sample_classes"]
+__all__ = ["LEVELS", "ClassSamples", "resolve_levels", "sample_classes", "scene_lists"]
 
 
 @dataclass
@@ -39,6 +39,26 @@ def _class_values(class_map: xr.DataArray) -> np.ndarray:
 
 def _as_list(value) -> list:
     return list(value) if isinstance(value, (list, tuple)) else [value]
+
+
+def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list, list]:
+    """One image, class map and angle set per scene: lists as given, or a cube with a ``dim``
+    dimension (a time series) as one scene per date, its class map and angles per date where they
+    have that dimension and the same for every date where they have not."""
+    if not isinstance(images, xr.DataArray) or dim not in images.dims:
+        return _as_list(images), _as_list(classes), _as_list(angles)
+    count = images.sizes[dim]
+
+    def per_date(value) -> list:
+        if isinstance(value, (xr.DataArray, xr.Dataset)) and dim in value.dims:
+            if value.sizes[dim] != count:
+                raise ParameterError(f"the image has {count} dates along {dim!r} and its "
+                                     f"{'angles' if isinstance(value, xr.Dataset) else 'class map'} "
+                                     f"{value.sizes[dim]}: give one per date, or one for every date")
+            return [value.isel({dim: index}, drop=True) for index in range(count)]
+        return [value] * count
+
+    return per_date(images), per_date(classes), per_date(angles)
 
 
 def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int,
@@ -95,7 +115,9 @@ def sample_classes(
     Parameters
     ----------
     images : DataArray or list of DataArray, dims (band, y, x)
-        Reflectance factors (numpy- or dask-backed); the band count must agree across scenes.
+        Reflectance factors (numpy- or dask-backed); the band count must agree across scenes. A
+        cube with a ``time`` dimension (time, band, y, x) is one scene per date
+        (:func:`scene_lists`).
     classes : DataArray or list of DataArray, dims (y, x)
         Integer class maps on the images' grids; 0, negative values and the map's nodata
         (``.rio.nodata``) mean "no class".
@@ -140,7 +162,7 @@ def sample_classes(
     Only the class maps and the angle layers needed to find valid pixels are computed whole; the
     reflectance is read at the sampled pixels only (pointwise indexing stays lazy on dask).
     """
-    images, classes, angles = _as_list(images), _as_list(classes), _as_list(angles)
+    images, classes, angles = scene_lists(images, classes, angles)
     if not len(images) == len(classes) == len(angles):
         raise ParameterError(
             f"{len(images)} images, {len(classes)} class maps and {len(angles)} angle sets: "

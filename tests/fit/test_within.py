@@ -183,3 +183,37 @@ def test_patches_of_one_flight_line_fail_the_spread_guard_rail():
         result = fit_classes(images, maps, angles, ClassModels("ross_thick_li_sparse"), wavelengths=[650.0],
                              sampling=Sampling(levels="patch", patch_size=4, block_size=8))
     assert result.fits[0].status == "uncorrected"
+
+
+def test_a_time_cube_is_fitted_as_its_dates():
+    import brdfcorr  # noqa: F401  (registers the .brdf accessor)
+
+    images, maps, angles = _stack(3)
+    by_list = fit_classes(images, maps, angles, ClassModels("ross_thick_li_sparse"), wavelengths=[650.0])
+    cube, angle_cube = xr.concat(images, dim="time"), xr.concat(angles, dim="time")
+    by_cube = cube.brdf.fit_classes(maps[0], angle_cube, wavelengths=[650.0])
+    assert by_cube.fits[0].levels == "pixel"
+    for name, values in by_list.fits[0].params.items():
+        np.testing.assert_allclose(by_cube.fits[0].params[name], values)
+
+
+def test_cli_fits_a_stack_of_dates_with_each_pixels_level_free(tmp_path):
+    from click.testing import CliRunner
+
+    from brdfcorr.cli import main
+
+    images, maps, angles = _stack(2, shape=(48, 64))
+    arguments = []
+    for date, (image, class_map, angle_set) in enumerate(zip(images, maps, angles)):
+        transform = {"crs": "EPSG:32632"}
+        paths = [tmp_path / f"{stem}{date}.tif" for stem in ("image", "classes", "angles")]
+        image.rio.write_crs(transform["crs"]).rio.to_raster(paths[0])
+        class_map.rio.write_crs(transform["crs"]).rio.to_raster(paths[1])
+        stacked = angle_set[["sza", "saa", "vza", "vaa"]].to_array("band").rio.write_crs(transform["crs"])
+        stacked.attrs["long_name"] = ("sza", "saa", "vza", "vaa")
+        stacked.rio.to_raster(paths[2])
+        arguments += [str(paths[0]), "--classes", str(paths[1]), "--angles", str(paths[2])]
+    result = CliRunner().invoke(main, ["fit-classes", *arguments, "--model", "ross_thick_li_sparse",
+                                       "--block-size", "8", "-o", str(tmp_path / "table.yaml")])
+    assert result.exit_code == 0, result.output
+    assert "free levels per pixel" in result.output
