@@ -126,7 +126,6 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     """
     from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
     from brdfcorr.fit.settings import fallback_entry
-    from brdfcorr.plot.materials import plot_class_fit
     from brdfcorr.workflow.classmaps import read_lookup
     from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
 
@@ -164,8 +163,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
             guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
             progress=fitted,
         )
-    plots = {class_fit.class_id: plot_dir / f"class_{class_fit.class_id}_{class_fit.name}.png"
-             for class_fit in fit.result.fits if class_fit.params} if plot_dir else {}
+    plots = _class_plot_files(fit.result.fits, plot_dir) if plot_dir else {}
     check_outputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
@@ -189,11 +187,35 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         _write_json(report_path, {"classes": fit.result.report(), "bad_bands": fit.result.bad_bands,
                                   "bands_left_out": fit.result.bands_left_out, "notes": fit.notes})
     if plot_dir:
-        for class_fit in fit.result.fits:
-            if class_fit.params:
-                figure = plot_class_fit(class_fit, fit.result.samples[class_fit.class_id], fit.wavelengths)
-                _save_figure(figure, plots[class_fit.class_id], echo=False)
+        _plot_class_fits(fit, plots)
         click.echo(f"wrote plots to {plot_dir}")
+
+
+def _class_plot_files(fits, plot_dir: Path) -> dict[tuple[int, str], Path]:
+    """The figures of :func:`_plot_class_fits`: {(class id, "fit" or "model_choice"): path}."""
+    files = {}
+    for class_fit in fits:
+        stem = f"class_{class_fit.class_id}_{class_fit.name}"
+        if class_fit.params:
+            files[(class_fit.class_id, "fit")] = plot_dir / f"{stem}.png"
+        if class_fit.model_choice is not None:
+            files[(class_fit.class_id, "model_choice")] = plot_dir / f"{stem}_model_choice.png"
+    return files
+
+
+def _plot_class_fits(fit, files: dict[tuple[int, str], Path]) -> None:
+    """Per class: observed and modelled against view zenith; the held-out error of each candidate
+    model where ``auto`` chose it."""
+    from brdfcorr.plot.materials import plot_class_fit
+    from brdfcorr.plot.model_choice import plot_model_choice
+
+    for class_fit in fit.result.fits:
+        if (class_fit.class_id, "fit") in files:
+            figure = plot_class_fit(class_fit, fit.result.samples[class_fit.class_id], fit.wavelengths)
+            _save_figure(figure, files[(class_fit.class_id, "fit")], echo=False)
+        if (class_fit.class_id, "model_choice") in files:
+            figure = plot_model_choice(class_fit.model_choice, f"class {class_fit.class_id} ({class_fit.name})")
+            _save_figure(figure, files[(class_fit.class_id, "model_choice")], echo=False)
 
 
 def _echo_levels(fits) -> None:
@@ -342,14 +364,18 @@ def _echo_measurement_fit(fit, name: str) -> None:
 
 
 def _measurement_plot_files(fit, name: str, plot_dir: Path) -> dict[tuple, Path]:
-    """The figure files of :func:`_plot_measurement_fit`: {(wavelength, kind): path}."""
+    """The figure files of :func:`_plot_measurement_fit`: {(wavelength, kind): path}, with the
+    model choice's where ``--model auto`` chose one."""
+    kinds = {band: ("principal_plane", "azimuth", *(("model_choice",) if band in fit.choices else ()))
+             for band in fit.results}
     return {(band, kind): plot_dir / f"{name if band is None else f'{name}_{band:g}nm'}_{kind}.png"
-            for band in fit.results for kind in ("principal_plane", "azimuth")}
+            for band in fit.results for kind in kinds[band]}
 
 
 def _plot_measurement_fit(fit, name: str, plot_dir: Path, scale: str) -> None:
     """Principal-plane and azimuth figures (paper 003, figs. 2 and 3) per wavelength."""
     from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
+    from brdfcorr.plot.model_choice import plot_model_choice
 
     others_all = fit.everything.select(~fit.keep, "not fitted") if not fit.keep.all() else None
     files = _measurement_plot_files(fit, name, plot_dir)
@@ -360,3 +386,6 @@ def _plot_measurement_fit(fit, name: str, plot_dir: Path, scale: str) -> None:
             others = others.at_wavelength(band) if others is not None and band in others.wavelengths else None
         for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
             _save_figure(plot(result, fitted, others, yscale=scale), files[(band, suffix)], dpi=120)
+        if band in fit.choices:
+            title = name if band is None else f"{name}, {band:g} nm"
+            _save_figure(plot_model_choice(fit.choices[band], title), files[(band, "model_choice")], dpi=120)

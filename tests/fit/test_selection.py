@@ -1,6 +1,7 @@
 """The choice of a surface model by held-out error (--model auto)."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -101,11 +102,32 @@ def test_cli_fit_auto_prints_the_candidates_and_writes_the_chosen_model(tmp_path
     brdf = get_model("ross_li_ts")(ti, tr, phi, **TWO_LOBE) * (1 + 0.02 * np.random.default_rng(2).standard_normal(ti.size))
     csv = tmp_path / "tile.csv"
     csv.write_text("theta_i,theta_r,phi,brdf\n" + "".join(f"{a},{b},{c},{d}\n" for a, b, c, d in zip(ti, tr, phi, brdf)))
-    result = CliRunner().invoke(main, ["fit", str(csv), "--model", "auto", "-o", str(tmp_path / "t.yaml")])
+    result = CliRunner().invoke(main, ["fit", str(csv), "--model", "auto", "-o", str(tmp_path / "t.yaml"),
+                                       "--plot-dir", str(tmp_path / "plots")])
     assert result.exit_code == 0, result.output
+    figure = tmp_path / "plots" / "tile_model_choice.png"  # every candidate's held-out error, a figure
+    assert figure.read_bytes().startswith(b"\x89PNG")
     assert "model choice by 5-fold cross-validation over geometries" in result.output
     assert "ross_li_ts" in result.output and "<- chosen" in result.output
     table = (tmp_path / "t.yaml").read_text()
     assert "model: ross_li_ts" in table and "chosen by 5-fold cross-validation" in table
     refused = CliRunner().invoke(main, ["fit", str(csv), "--model", "best"])
     assert refused.exit_code == 2 and "unknown BRDF model 'best'" in refused.output
+
+
+def test_the_model_choice_figure_has_one_bar_per_candidate_and_names_the_chosen():
+    from brdfcorr.fit.selection import CandidateScore, ModelChoice
+    from brdfcorr.plot.model_choice import plot_model_choice
+
+    choice = ModelChoice("ross_li_ts", "ross_li_ts", (
+        CandidateScore("torrance_sparrow", 4, (2.0, 3.0), 0.3),
+        CandidateScore("ross_li_ts", 7, (0.1, 0.2), 0.97),
+        CandidateScore("rpv", 4, (), math.nan, "did not converge"),
+    ), 2, "geometries")
+    figure = plot_model_choice(choice, "tile")
+    left, right = figure.axes
+    assert [label.get_text() for label in left.get_yticklabels()] == [
+        "torrance_sparrow (4)", "ross_li_ts (7)", "rpv (4)"]
+    widths = [patch.get_width() for patch in left.patches]
+    assert widths == pytest.approx([2.5, 0.15, 0.0])  # mean fold errors; none for the unfitted
+    assert "ross_li_ts chosen" in figure.texts[0].get_text()
