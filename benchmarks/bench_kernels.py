@@ -245,11 +245,20 @@ def scene_urban(rows: int, columns: int, bands: int, noise: float, seed: int = 1
     weights = rtlsr_weights(wavelengths)
     models = {ROOF: (TS, ts_params("roof_tile", wavelengths)), CONCRETE: (TS, ts_params("red_concrete", wavelengths)),
               GRASS: (RTLSR, weights["vegetation"]), SOIL: (RTLSR, weights["soil"])}
+    return render_classes(models, classes, texture, angles, wavelengths, rng, noise)
+
+
+def render_classes(models: dict, classes: np.ndarray, texture: np.ndarray, angles: dict, wavelengths, rng,
+                   noise: float) -> dict:
+    """A scene whose class ``c`` of ``classes`` follows ``models[c]`` = (model, per-band
+    parameters) times the albedo ``texture``, observed at ``angles`` and true at the reference
+    (scene-mean sun, nadir view), packaged with noise (:func:`_package`)."""
+    bands, size = len(wavelengths), classes.size
     reference_sza = float(angles["sza"].mean())
     flat = {name: value.ravel().astype(float) for name, value in angles.items()}
     phi = relative_azimuth(flat["saa"], flat["vaa"])
     at_ref = _reference_angles(angles, reference_sza)
-    observed, truth = np.empty((bands, rows * columns)), np.empty((bands, rows * columns))
+    observed, truth = np.empty((bands, size)), np.empty((bands, size))
     for class_id, (model, params) in models.items():
         mask = classes.ravel() == class_id
         scale = math.pi * texture.ravel()[mask]

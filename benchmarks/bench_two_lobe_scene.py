@@ -28,7 +28,6 @@ truth's own is 0). Goals: median <= 0.5 %, worst class east/west <= 0.3 %.
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -39,16 +38,14 @@ from bench_kernels import (
     RTLSR,
     SOIL,
     URBAN_NAMES,
-    _package,
-    _reference_angles,
     class_map,
     correct,
     endmember_spectra,
-    evaluate,
     fit,
     gradient_table,
     line_geometry,
     mirrored,
+    render_classes,
     rtlsr_weights,
     scene_parser,
     scores,
@@ -58,7 +55,6 @@ from bench_kernels import (
 )
 
 from brdfcorr.fit import ClassModels
-from brdfcorr.geometry import relative_azimuth
 from brdfcorr.models import get_model, load_material
 from brdfcorr.models.coefficients import load_coefficients
 
@@ -98,17 +94,7 @@ def scene_two_lobe(rows: int, columns: int, bands: int, noise: float, seed: int 
     models = {ROOF: (TWO_LOBE, two_lobe_params("red", "roof_tile", brick)),
               CONCRETE: (TWO_LOBE, two_lobe_params("nir", "red_concrete", grey)),
               GRASS: (RTLSR, weights["vegetation"]), SOIL: (RTLSR, weights["soil"])}
-    flat = {name: value.ravel().astype(float) for name, value in angles.items()}
-    phi = relative_azimuth(flat["saa"], flat["vaa"])
-    reference_sza = float(angles["sza"].mean())
-    at_ref = _reference_angles(angles, reference_sza)
-    observed, truth = np.empty((bands, rows * columns)), np.empty((bands, rows * columns))
-    for class_id, (model, params) in models.items():
-        mask = classes.ravel() == class_id
-        scale = math.pi * texture.ravel()[mask]
-        observed[:, mask] = evaluate(model, params, flat["sza"][mask], flat["vza"][mask], phi[mask]) * scale
-        truth[:, mask] = evaluate(model, params, *(a[mask] for a in at_ref)) * scale
-    return _package(observed, truth, angles, wavelengths, rng, noise, reference_sza, classes=classes)
+    return render_classes(models, classes, texture, angles, wavelengths, rng, noise)
 
 
 def main() -> None:
