@@ -36,7 +36,7 @@ from brdfcorr.fit.entries import class_entry, compact
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
 from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.sampling import ClassSamples, sample_classes, scene_lists
-from brdfcorr.fit.selection import IMAGERY_CANDIDATES, ModelChoice, choose_class_model, fixed_for
+from brdfcorr.fit.selection import IMAGERY_CANDIDATES, SELECT_GRID, ModelChoice, choose_class_model, fixed_for
 from brdfcorr.fit.settings import (
     DEFAULT_MODEL,
     WATER_VAPOUR_BANDS,
@@ -387,7 +387,7 @@ def fit_one_class(
     choice, notes = None, []
     if model == AUTO_MODEL:
         try:
-            choice = choose_class_model(samples, fixed=fixed, grid_points=grid_points)
+            choice = choose_class_model(samples, fixed=fixed, grid_points=min(grid_points, SELECT_GRID))
             model = choice.chosen
         except FitError as error:
             model = IMAGERY_CANDIDATES[0]

@@ -69,6 +69,10 @@ SEED = 0
 #: ``SELECT_BANDS`` evenly spaced bands (the full fit of the chosen model then uses every sample).
 SELECT_SAMPLES = 10_000
 SELECT_BANDS = 8
+#: ... and each fold's shape search starts from a grid of this many points per free shape
+#: parameter (the Nelder-Mead refinement follows): RPV's three free shape parameters make 125
+#: grid points instead of 729, and ``fit-classes --model auto`` costs a few single fits.
+SELECT_GRID = 5
 
 
 @dataclass(frozen=True)
@@ -304,7 +308,7 @@ def choose_class_model(
     candidates: Sequence[str] = IMAGERY_CANDIDATES,
     fixed: Mapping[str, float] | None = None,
     folds: int = FOLDS,
-    grid_points: int = 9,
+    grid_points: int = SELECT_GRID,
 ) -> ModelChoice:
     """Choose the model of one class's pixels by k-fold cross-validation over spatial blocks.
 
@@ -319,7 +323,7 @@ def choose_class_model(
         Shape parameters held fixed in every candidate that has them.
     folds : int, default 5
         Folds; fewer when there are fewer blocks (at least 2 are needed).
-    grid_points : int, default 9
+    grid_points : int, default :data:`SELECT_GRID`
         Coarse-grid points per free shape parameter of each fold's search.
 
     Returns
