@@ -122,7 +122,7 @@ def _active(callbacks: Sequence) -> Iterator[None]:
 def assess_files(
     scene: SceneSources, after: str | os.PathLike, *, view_options: ViewAngleOptions = ViewAngleOptions(),
     overlap: tuple[str | os.PathLike, str | os.PathLike] | None = None, resampling: str = "nearest",
-    align_classes: bool = False, class_lookup: Mapping[int, int] | None = None, engine: Engine = Engine(),
+    clusters: tuple[str | os.PathLike, int] | None = None, align_classes: bool = False, class_lookup: Mapping[int, int] | None = None, engine: Engine = Engine(),
 ) -> Assessment:
     """Assess a corrected image file against its input: view-angle signal per class and band, and
     optionally the difference in the overlap with another line.
@@ -143,6 +143,10 @@ def assess_files(
         other input is read with the scene's ``scale`` and ``offset``.
     resampling : str, default "nearest"
         As for :func:`assess_overlap`.
+    clusters : (path-like, int), optional
+        A raster on the input's grid and its band (from 1) of integer ids of the units whose pixels
+        share their errors (a composite's day-of-year band, a flight-line id): the slopes' 1-sigma
+        is cluster-robust over these instead of square blocks (:func:`assess_view_angles`).
     align_classes, class_lookup :
         As for :class:`brdfcorr.workflow.request.CorrectionRequest`.
     engine : Engine
@@ -167,13 +171,19 @@ def assess_files(
         if corrected.shape != data.reflectance.shape:
             raise InputError(f"{after} has {corrected.shape[0]} bands, {scene.image} has {data.reflectance.shape[0]}")
         layers = data.angles
+        cluster_layer = None
+        if clusters is not None:
+            cluster_layer = rasters.open_clusters(clusters[0], chunks=engine.chunks, band=clusters[1])
+            check_same_grid({"image": data.reflectance, "cluster layer": cluster_layer})
         view = assess_view_angles(data.reflectance, corrected, data.classes, layers["vza"], layers["vaa"],
-                                  layers["saa"], options=view_options, scheduler=engine.scheduler,
-                                  num_workers=engine.num_workers)
+                                  layers["saa"], clusters=cluster_layer, options=view_options,
+                                  scheduler=engine.scheduler, num_workers=engine.num_workers)
         inputs = {"before": str(scene.image), "after": str(after), "classes": str(scene.classes),
                   "angles": str(scene.angles)}
         inputs.update({name: str(path) for name in ("sza", "saa", "vza", "vaa")
                        if (path := getattr(scene, name)) is not None})
+        if clusters is not None:
+            inputs["clusters"] = f"{clusters[0]} band {clusters[1]}"
         result = Assessment(inputs, view)
         if overlap is not None:
             other_before = rasters.open_image(overlap[0], chunks=engine.chunks, scale=scene.scale, offset=scene.offset)

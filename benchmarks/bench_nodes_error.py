@@ -1,0 +1,141 @@
+"""Benchmark: the true error of ``--factor-at nodes`` over a whole real Sentinel-2 tile (run by hand;
+not part of the test suite).
+
+The c-factor of Roy et al. (2017) evaluated at the 23 x 23 nodes of the 5 km angle grids and
+interpolated bilinearly to the pixels (:func:`brdfcorr.correction.nodes.normalize_at_nodes`,
+sen2nbar's method) against the c-factor at every pixel from the angles interpolated to it
+(:func:`brdfcorr.correction.normalize`, the default), both on a cube of ones, so that each output
+is the factor itself. The grids are the real granule's (``MTD_TL.xml`` of T23LLF, 2019-04-25,
+``shared/realdata``; ``--mtd-tl``), the whole 109.8 km tile at ``--resolution`` (default 60 m,
+1830 x 1830 pixels: 83 pixels between nodes, enough to follow the error's shape between them), for
+the nine bands with Roy 2017 weights, with the view grids averaged over the bands (the default)
+and each band's own (``--view-band each``), the reference sun zenith each pixel's own
+(``observed``, sen2nbar's) and a fixed one (``--fixed-sza``, default 40 deg).
+
+Printed per configuration: the maximum and the 50th, 99th and 99.9th percentiles of
+|nodes factor / per-pixel factor - 1| over every band and pixel, the share of pixels above 0.1 %,
+where the maximum lies (pixel row and column, km from the tile's upper-left corner) and the largest
+view azimuth step between the four nodes of its grid cell; then the same maximum split by that
+step (cells whose nodes' view azimuths span more than ``--jump`` degrees, default 10, against the
+rest). That split is the measured "cheap fix": evaluate the factor per pixel (interpolate the
+angles, not the factor) only in the cells with a jump: its error is the maximum over the other
+cells, its cost the share of pixels in the jump cells.
+
+Measured (issue 40, this machine): see ``docs/sensors.md`` ("Where the c-factor is evaluated").
+
+Usage::
+
+    python benchmarks/bench_nodes_error.py [--mtd-tl MTD_TL.xml] [--resolution 60] [--fixed-sza 40] [--jump 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from brdfcorr.correction import normalize
+from brdfcorr.correction.nodes import node_angles, normalize_at_nodes
+from brdfcorr.io.sensors.grids import GRID_SOURCE
+from brdfcorr.io.sensors.sentinel2 import read_sentinel2_angles
+from brdfcorr.models.coefficients import load_coefficients
+from brdfcorr.params import ClassEntry, ParameterTable, ReferenceGeometry
+
+MTD = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml"
+#: The Sentinel-2 bands with Roy et al. (2017) weights.
+BANDS = ("B02", "B03", "B04", "B05", "B06", "B07", "B08", "B11", "B12")
+CHUNK = 610
+
+
+def roy2017_table(bands) -> ParameterTable:
+    """One class (id 1) with the Roy 2017 weights of ``bands`` (Sentinel-2 names), in their order."""
+    entry = load_coefficients("roy2017").table_entry(1, sensor="sentinel2", bands=list(bands))
+    return ParameterTable(classes=[ClassEntry(**entry)])
+
+
+def factors(angles: xr.Dataset, bands, reference: ReferenceGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """The c-factor of ``bands`` (band, y, x) at every pixel and at the nodes, interpolated."""
+    ones = xr.ones_like(angles["sza"], dtype=np.float64).expand_dims(band=np.arange(1, len(bands) + 1))
+    ones = ones.rio.write_transform(angles["sza"].rio.transform()).rio.write_crs(angles["sza"].rio.crs)
+    classes = xr.ones_like(angles["sza"], dtype=np.uint8)
+    table = roy2017_table(bands)
+    layers = {name: angles[name] for name in ("sza", "saa", "vza", "vaa")}
+    pixels = normalize(ones, classes, layers, table, reference, limits=None).reflectance.values
+    nodes = normalize_at_nodes(ones, layers, table, reference, limits=None).reflectance.values
+    return pixels, nodes
+
+
+def azimuth_span(vaa_nodes: np.ndarray) -> np.ndarray:
+    """(rows - 1, cols - 1): per grid cell the largest angle [deg] between the view azimuths of
+    its four nodes (each pair's difference folded into [0, 180])."""
+    corners = [vaa_nodes[:-1, :-1], vaa_nodes[:-1, 1:], vaa_nodes[1:, :-1], vaa_nodes[1:, 1:]]
+    span = np.zeros(corners[0].shape)
+    for i, first in enumerate(corners):
+        for second in corners[i + 1:]:
+            difference = np.abs(first - second) % 360.0
+            span = np.maximum(span, np.minimum(difference, 360.0 - difference))
+    return span
+
+
+def pixel_cells(layer: xr.DataArray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel row and column, the index of the grid cell (between node k and k + 1) it lies in,
+    clamped to the outermost cells (beyond the outermost nodes the edge values are held)."""
+    shape, values, source, target, _ = layer.encoding[GRID_SOURCE]
+    rows = (target.f + target.e * (np.arange(shape[0]) + 0.5) - source.f) / source.e - 0.5
+    cols = (target.c + target.a * (np.arange(shape[1]) + 0.5) - source.c) / source.a - 0.5
+    clamp = (lambda p, n: np.clip(np.floor(p), 0, n - 2).astype(int))
+    return clamp(rows, values.shape[0]), clamp(cols, values.shape[1])
+
+
+def report(what: str, error: np.ndarray, span_per_pixel: np.ndarray, resolution: int, jump: float) -> None:
+    """Print the statistics of ``error`` (band, y, x) described in the module docstring."""
+    flat = error[np.isfinite(error)]
+    band, row, col = np.unravel_index(np.nanargmax(error), error.shape)
+    p50, p99, p999 = np.percentile(flat, [50, 99, 99.9])
+    print(f"{what}:\n  max {100 * flat.max():.3f} %, median {100 * p50:.4f} %, 99th {100 * p99:.3f} %, "
+          f"99.9th {100 * p999:.3f} %; {100 * np.mean(flat > 1e-3):.1f} % of band-pixels above 0.1 %")
+    print(f"  the maximum: band {BANDS[band] if error.shape[0] == len(BANDS) else band}, "
+          f"{row * resolution / 1000:.1f} km down, {col * resolution / 1000:.1f} km right; its cell's nodes' "
+          f"view azimuths span {span_per_pixel[row, col]:.0f} deg")
+    jumps = np.broadcast_to(span_per_pixel > jump, error.shape)
+    calm = error[~jumps & np.isfinite(error)]
+    print(f"  cells whose view azimuths span > {jump:g} deg: {100 * jumps[0].mean():.1f} % of the pixels, "
+          f"max {100 * np.nanmax(error[jumps]):.3f} %; the other cells: max {100 * calm.max():.4f} %, "
+          f"{100 * np.mean(calm > 1e-3):.2f} % above 0.1 %")
+
+
+def run(mtd: Path, resolution: int, view_band: str | None, reference: ReferenceGeometry, jump: float) -> None:
+    """One configuration: the view grids of ``view_band`` (None: averaged; "each": per band)."""
+    per_band = BANDS if view_band == "each" else (None,)
+    errors, spans = [], None
+    for band in per_band:
+        angles = read_sentinel2_angles(mtd, resolution=resolution, band=band, chunks=CHUNK)
+        pixels, nodes = factors(angles, BANDS if band is None else (band,), reference)
+        errors.append(np.abs(nodes / pixels - 1.0))
+        vaa = node_angles({name: angles[name] for name in ("sza", "saa", "vza", "vaa")})["vaa"].values
+        rows, cols = pixel_cells(angles["vaa"])
+        span = azimuth_span(vaa)[rows[:, None], cols[None, :]]
+        spans = span if spans is None else np.maximum(spans, span)
+    what = "each band's own view grids" if view_band == "each" else "view grids averaged over the bands"
+    report(f"{what}, reference sun zenith {reference.sza}", np.concatenate(errors), spans, resolution, jump)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mtd-tl", type=Path, default=MTD, help="a granule's MTD_TL.xml [default: T23LLF]")
+    parser.add_argument("--resolution", type=int, default=60, choices=(10, 20, 60), help="pixel size [m]")
+    parser.add_argument("--fixed-sza", type=float, default=40.0, help="the fixed reference sun zenith [deg]")
+    parser.add_argument("--jump", type=float, default=10.0,
+                        help="a cell's view azimuth span [deg] that counts as a jump [default: 10]")
+    args = parser.parse_args()
+    print(f"{args.mtd_tl}: the whole tile at {args.resolution} m; |nodes factor / per-pixel factor - 1|, "
+          f"bands {', '.join(BANDS)} (Roy 2017 weights)")
+    for view_band in (None, "each"):
+        for sza in ("observed", args.fixed_sza):
+            run(args.mtd_tl, args.resolution, view_band, ReferenceGeometry(sza=sza, vza=0.0, raa=0.0), args.jump)
+
+
+if __name__ == "__main__":
+    main()
