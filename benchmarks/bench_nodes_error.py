@@ -35,11 +35,12 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from affine import Affine
 
 from brdfcorr.correction import normalize
 from brdfcorr.correction.nodes import node_angles, normalize_at_nodes
-from brdfcorr.io.sensors.grids import GRID_SOURCE
-from brdfcorr.io.sensors.sentinel2 import read_sentinel2_angles
+from brdfcorr.io.sensors.grids import GRID_SOURCE, grid_template
+from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable, ReferenceGeometry
 
@@ -85,11 +86,28 @@ def pixel_cells(layer: xr.DataArray) -> tuple[np.ndarray, np.ndarray]:
     shape, values, source, target, _ = layer.encoding[GRID_SOURCE]
     rows = (target.f + target.e * (np.arange(shape[0]) + 0.5) - source.f) / source.e - 0.5
     cols = (target.c + target.a * (np.arange(shape[1]) + 0.5) - source.c) / source.a - 0.5
-    clamp = (lambda p, n: np.clip(np.floor(p), 0, n - 2).astype(int))
-    return clamp(rows, values.shape[0]), clamp(cols, values.shape[1])
+    return _cell_index(rows, values.shape[0]), _cell_index(cols, values.shape[1])
 
 
-def report(what: str, error: np.ndarray, span_per_pixel: np.ndarray, resolution: int, jump: float) -> None:
+def _cell_index(positions: np.ndarray, nodes: int) -> np.ndarray:
+    return np.clip(np.floor(positions), 0, nodes - 2).astype(int)
+
+
+def read_angles(mtd: Path, resolution: int, band: str | None, window: tuple[float, float, float] | None):
+    """The granule's angles at ``resolution`` [m] on the whole tile, or on ``window`` (km right of
+    and below the tile's upper-left corner, and its side [km])."""
+    if window is None:
+        return read_sentinel2_angles(mtd, resolution=resolution, band=band, chunks=CHUNK)
+    tile = parse_mtd_tl(mtd)
+    corner = tile.geopositions[resolution]
+    right, down, side = (1000.0 * value for value in window)
+    transform = Affine(corner.a, 0.0, corner.c + right, 0.0, corner.e, corner.f - down)
+    size = int(round(side / resolution))
+    like = grid_template(transform, (size, size), tile.crs, chunks=CHUNK)
+    return read_sentinel2_angles(mtd, like, band=band, chunks=CHUNK)
+
+
+def report(what: str, error: np.ndarray, span_per_pixel: np.ndarray, resolution: int, jumps: list[float]) -> None:
     """Print the statistics of ``error`` (band, y, x) described in the module docstring."""
     flat = error[np.isfinite(error)]
     band, row, col = np.unravel_index(np.nanargmax(error), error.shape)
@@ -99,19 +117,22 @@ def report(what: str, error: np.ndarray, span_per_pixel: np.ndarray, resolution:
     print(f"  the maximum: band {BANDS[band] if error.shape[0] == len(BANDS) else band}, "
           f"{row * resolution / 1000:.1f} km down, {col * resolution / 1000:.1f} km right; its cell's nodes' "
           f"view azimuths span {span_per_pixel[row, col]:.0f} deg")
-    jumps = np.broadcast_to(span_per_pixel > jump, error.shape)
-    calm = error[~jumps & np.isfinite(error)]
-    print(f"  cells whose view azimuths span > {jump:g} deg: {100 * jumps[0].mean():.1f} % of the pixels, "
-          f"max {100 * np.nanmax(error[jumps]):.3f} %; the other cells: max {100 * calm.max():.4f} %, "
-          f"{100 * np.mean(calm > 1e-3):.2f} % above 0.1 %")
+    for jump in jumps:
+        jumping = np.broadcast_to(span_per_pixel > jump, error.shape)
+        calm = error[~jumping & np.isfinite(error)]
+        rest = (f"max {100 * calm.max():.4f} %, {100 * np.mean(calm > 1e-3):.2f} % above 0.1 %" if calm.size
+                else "none")
+        print(f"  cells whose view azimuths span > {jump:g} deg: {100 * jumping[0].mean():.1f} % of the pixels; "
+              f"the other cells: {rest}")
 
 
-def run(mtd: Path, resolution: int, view_band: str | None, reference: ReferenceGeometry, jump: float) -> None:
+def run(mtd: Path, resolution: int, view_band: str | None, reference: ReferenceGeometry, jumps: list[float],
+        window=None) -> None:
     """One configuration: the view grids of ``view_band`` (None: averaged; "each": per band)."""
     per_band = BANDS if view_band == "each" else (None,)
     errors, spans = [], None
     for band in per_band:
-        angles = read_sentinel2_angles(mtd, resolution=resolution, band=band, chunks=CHUNK)
+        angles = read_angles(mtd, resolution, band, window)
         pixels, nodes = factors(angles, BANDS if band is None else (band,), reference)
         errors.append(np.abs(nodes / pixels - 1.0))
         vaa = node_angles({name: angles[name] for name in ("sza", "saa", "vza", "vaa")})["vaa"].values
@@ -119,7 +140,7 @@ def run(mtd: Path, resolution: int, view_band: str | None, reference: ReferenceG
         span = azimuth_span(vaa)[rows[:, None], cols[None, :]]
         spans = span if spans is None else np.maximum(spans, span)
     what = "each band's own view grids" if view_band == "each" else "view grids averaged over the bands"
-    report(f"{what}, reference sun zenith {reference.sza}", np.concatenate(errors), spans, resolution, jump)
+    report(f"{what}, reference sun zenith {reference.sza}", np.concatenate(errors), spans, resolution, jumps)
 
 
 def main() -> None:
@@ -127,14 +148,19 @@ def main() -> None:
     parser.add_argument("--mtd-tl", type=Path, default=MTD, help="a granule's MTD_TL.xml [default: T23LLF]")
     parser.add_argument("--resolution", type=int, default=60, choices=(10, 20, 60), help="pixel size [m]")
     parser.add_argument("--fixed-sza", type=float, default=40.0, help="the fixed reference sun zenith [deg]")
-    parser.add_argument("--jump", type=float, default=10.0,
-                        help="a cell's view azimuth span [deg] that counts as a jump [default: 10]")
+    parser.add_argument("--jump", type=float, nargs="+", default=[10.0, 30.0, 60.0, 90.0],
+                        help="cells' view azimuth spans [deg] that count as a jump [default: 10 30 60 90]")
+    parser.add_argument("--window", type=float, nargs=3, metavar=("RIGHT_KM", "DOWN_KM", "SIDE_KM"),
+                        help="a square window of the tile instead of the whole tile")
     args = parser.parse_args()
-    print(f"{args.mtd_tl}: the whole tile at {args.resolution} m; |nodes factor / per-pixel factor - 1|, "
+    where = "the whole tile" if args.window is None else "the window {} km right, {} km down, {} km wide".format(
+        *args.window)
+    print(f"{args.mtd_tl}: {where} at {args.resolution} m; |nodes factor / per-pixel factor - 1|, "
           f"bands {', '.join(BANDS)} (Roy 2017 weights)")
     for view_band in (None, "each"):
         for sza in ("observed", args.fixed_sza):
-            run(args.mtd_tl, args.resolution, view_band, ReferenceGeometry(sza=sza, vza=0.0, raa=0.0), args.jump)
+            run(args.mtd_tl, args.resolution, view_band, ReferenceGeometry(sza=sza, vza=0.0, raa=0.0), args.jump,
+                args.window)
 
 
 if __name__ == "__main__":

@@ -122,7 +122,8 @@ def _active(callbacks: Sequence) -> Iterator[None]:
 def assess_files(
     scene: SceneSources, after: str | os.PathLike, *, view_options: ViewAngleOptions = ViewAngleOptions(),
     overlap: tuple[str | os.PathLike, str | os.PathLike] | None = None, resampling: str = "nearest",
-    clusters: tuple[str | os.PathLike, int] | None = None, align_classes: bool = False, class_lookup: Mapping[int, int] | None = None, engine: Engine = Engine(),
+    clusters: tuple[str | os.PathLike, int] | None = None, align_classes: bool = False,
+    class_lookup: Mapping[int, int] | None = None, engine: Engine = Engine(),
 ) -> Assessment:
     """Assess a corrected image file against its input: view-angle signal per class and band, and
     optionally the difference in the overlap with another line.
