@@ -17,20 +17,25 @@ Printed per configuration: the maximum and the 50th, 99th and 99.9th percentiles
 where the maximum lies (pixel row and column, km from the tile's upper-left corner) and the largest
 view azimuth step between the four nodes of its grid cell; then the same maximum split by that
 step (cells whose nodes' view azimuths span more than ``--jump`` degrees, default 10, against the
-rest). That split is the measured "cheap fix": evaluate the factor per pixel (interpolate the
-angles, not the factor) only in the cells with a jump: its error is the maximum over the other
-cells, its cost the share of pixels in the jump cells.
+rest): what evaluating the factor per pixel (interpolating the angles, not the factor) only in
+the cells with a jump leaves, at the cost of the share of pixels in those cells. Then the error
+of :func:`normalize_at_nodes` as it is (the per-pixel factor in the cells spanning more than
+:data:`~brdfcorr.correction.nodes.JUMP`) and the seconds of the three methods (this process, a
+cube of ones, the angle grids' interpolation included; ``bench_sen2nbar.py`` times whole runs
+with files).
 
-Measured (issue 40, this machine): see ``docs/sensors.md`` ("Where the c-factor is evaluated").
+Measured (issue 40, 2 shared cores): ``docs/sensors.md`` ("Where the c-factor is evaluated").
 
 Usage::
 
-    python benchmarks/bench_nodes_error.py [--mtd-tl MTD_TL.xml] [--resolution 60] [--fixed-sza 40] [--jump 10]
+    python benchmarks/bench_nodes_error.py [--mtd-tl MTD_TL.xml] [--resolution 60] [--fixed-sza 40]
+        [--jump 10 30 60 90] [--repeat 1] [--window RIGHT_KM DOWN_KM SIDE_KM]
 """
 
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +43,7 @@ import xarray as xr
 from affine import Affine
 
 from brdfcorr.correction import normalize
-from brdfcorr.correction.nodes import node_angles, normalize_at_nodes
+from brdfcorr.correction.nodes import JUMP, node_angles, normalize_at_nodes
 from brdfcorr.io.sensors.grids import GRID_SOURCE, grid_template
 from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
 from brdfcorr.models.coefficients import load_coefficients
@@ -56,16 +61,26 @@ def roy2017_table(bands) -> ParameterTable:
     return ParameterTable(classes=[ClassEntry(**entry)])
 
 
-def factors(angles: xr.Dataset, bands, reference: ReferenceGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """The c-factor of ``bands`` (band, y, x) at every pixel and at the nodes, interpolated."""
+def factors(angles: xr.Dataset, bands, reference: ReferenceGeometry, repeat: int = 1) -> tuple[np.ndarray, ...]:
+    """The c-factor of ``bands`` (band, y, x) at every pixel, at the nodes interpolated everywhere
+    (``jump=None``) and with the per-pixel factor in the cells with an azimuth jump (the default),
+    and the seconds each took (the best of ``repeat`` runs)."""
     ones = xr.ones_like(angles["sza"], dtype=np.float64).expand_dims(band=np.arange(1, len(bands) + 1))
     ones = ones.rio.write_transform(angles["sza"].rio.transform()).rio.write_crs(angles["sza"].rio.crs)
     classes = xr.ones_like(angles["sza"], dtype=np.uint8)
     table = roy2017_table(bands)
     layers = {name: angles[name] for name in ("sza", "saa", "vza", "vaa")}
-    pixels = normalize(ones, classes, layers, table, reference, limits=None).reflectance.values
-    nodes = normalize_at_nodes(ones, layers, table, reference, limits=None).reflectance.values
-    return pixels, nodes
+    methods = (lambda: normalize(ones, classes, layers, table, reference, limits=None),
+               lambda: normalize_at_nodes(ones, layers, table, reference, limits=None, jump=None),
+               lambda: normalize_at_nodes(ones, layers, table, reference, limits=None))
+    seconds, results = np.full(3, np.inf), []
+    for _ in range(repeat):
+        results = []
+        for index, method in enumerate(methods):
+            start = time.perf_counter()
+            results.append(method().reflectance.values)
+            seconds[index] = min(seconds[index], time.perf_counter() - start)
+    return (*results, seconds)
 
 
 def azimuth_span(vaa_nodes: np.ndarray) -> np.ndarray:
@@ -127,20 +142,27 @@ def report(what: str, error: np.ndarray, span_per_pixel: np.ndarray, resolution:
 
 
 def run(mtd: Path, resolution: int, view_band: str | None, reference: ReferenceGeometry, jumps: list[float],
-        window=None) -> None:
+        window=None, repeat: int = 1) -> None:
     """One configuration: the view grids of ``view_band`` (None: averaged; "each": per band)."""
     per_band = BANDS if view_band == "each" else (None,)
-    errors, spans = [], None
+    errors, mixed_errors, spans, seconds = [], [], None, np.zeros(3)
     for band in per_band:
         angles = read_angles(mtd, resolution, band, window)
-        pixels, nodes = factors(angles, BANDS if band is None else (band,), reference)
+        pixels, nodes, mixed, taken = factors(angles, BANDS if band is None else (band,), reference, repeat)
         errors.append(np.abs(nodes / pixels - 1.0))
+        mixed_errors.append(np.abs(mixed / pixels - 1.0))
+        seconds += taken
         vaa = node_angles({name: angles[name] for name in ("sza", "saa", "vza", "vaa")})["vaa"].values
         rows, cols = pixel_cells(angles["vaa"])
         span = azimuth_span(vaa)[rows[:, None], cols[None, :]]
         spans = span if spans is None else np.maximum(spans, span)
     what = "each band's own view grids" if view_band == "each" else "view grids averaged over the bands"
     report(f"{what}, reference sun zenith {reference.sza}", np.concatenate(errors), spans, resolution, jumps)
+    mixed = np.concatenate(mixed_errors)
+    print(f"  with the per-pixel factor in the cells spanning > {JUMP:g} deg (the default): max "
+          f"{100 * np.nanmax(mixed):.4f} %, {100 * np.nanmean(mixed > 1e-3):.2f} % of band-pixels above 0.1 %; "
+          f"seconds (factor at the pixels, at the nodes, nodes with per-pixel jump cells; one process, "
+          f"a cube of ones): {seconds[0]:.1f}, {seconds[1]:.1f}, {seconds[2]:.1f}")
 
 
 def main() -> None:
@@ -150,6 +172,7 @@ def main() -> None:
     parser.add_argument("--fixed-sza", type=float, default=40.0, help="the fixed reference sun zenith [deg]")
     parser.add_argument("--jump", type=float, nargs="+", default=[10.0, 30.0, 60.0, 90.0],
                         help="cells' view azimuth spans [deg] that count as a jump [default: 10 30 60 90]")
+    parser.add_argument("--repeat", type=int, default=1, help="timed runs of each method, the best kept")
     parser.add_argument("--window", type=float, nargs=3, metavar=("RIGHT_KM", "DOWN_KM", "SIDE_KM"),
                         help="a square window of the tile instead of the whole tile")
     args = parser.parse_args()
@@ -160,7 +183,7 @@ def main() -> None:
     for view_band in (None, "each"):
         for sza in ("observed", args.fixed_sza):
             run(args.mtd_tl, args.resolution, view_band, ReferenceGeometry(sza=sza, vza=0.0, raa=0.0), args.jump,
-                args.window)
+                args.window, args.repeat)
 
 
 if __name__ == "__main__":
