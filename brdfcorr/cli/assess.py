@@ -205,6 +205,11 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
 @click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
 @slope_block_option
+@click.option("--clusters", "cluster_layers", multiple=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Per image, in the images' order: a raster of integer ids of the units whose pixels share their "
+                   "errors (detectors, acquisition days); the slopes' 1-sigma is cluster-robust over these.")
+@click.option("--cluster-band", type=click.IntRange(min=1), default=1, show_default=True,
+              help="The band of each --clusters raster that holds the ids.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="JSON report to write.")
 @click.option("--chunk", type=CHUNK_SIZE,
@@ -214,7 +219,8 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @handle_errors
 def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                          offset, model_name, class_model, class_names, fix, prior, prior_spread, max_samples, seed,
-                         ref_sza, sign_by, heading, flip_view_azimuth, block_size, output, chunk, overwrite):
+                         ref_sza, sign_by, heading, flip_view_azimuth, block_size, cluster_layers, cluster_band, output,
+                         chunk, overwrite):
     """Leave-one-line-out: fit on the other flight lines, correct and assess each held-out line.
 
     For each of IMAGES (at least 2 flight lines, each with its --classes and --angles, in the same
@@ -234,6 +240,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     check_line_files(images, classes, angles)
     check_outputs({"-o": output}, [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
                                    *(("--angles", path) for path in angles if angles_kind != "solar"),
+                                   *(("--clusters", path) for path in cluster_layers),
                                    ("--class-lookup", class_lookup)])
     if not overwrite:
         refuse_existing([output])
@@ -248,6 +255,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
         view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
                                       flip_view_azimuth=flip_view_azimuth, block_size=block_size),
         align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None, chunks=chunk,
+        clusters=[(path, cluster_band) for path in cluster_layers] or None,
     )
     report = assessment.report()
     write_json(report, output)

@@ -238,6 +238,7 @@ def leave_one_line_out_files(
     scenes: Sequence[SceneSources], fit: HoldoutFit = HoldoutFit(), *,
     view_options: ViewAngleOptions = ViewAngleOptions(), overlap: bool = True, align_classes: bool = False,
     class_lookup: Mapping[int, int] | None = None, chunks: int | None = None,
+    clusters: Sequence[tuple[str | os.PathLike, int]] | None = None,
 ) -> LinesAssessment:
     """Leave-one-line-out on files: fit on N − 1 flight lines, correct the held-out one, assess
     it (:func:`leave_one_line_out`), for each of N lines.
@@ -258,6 +259,8 @@ def leave_one_line_out_files(
     chunks : int, optional
         Chunk size [pixels] of every line (default :func:`brdfcorr.io.rasters.auto_chunk` of each
         image).
+    clusters : sequence of (path-like, int), optional
+        Per line, in order, a cluster layer on its grid and its band (as for :func:`assess_files`).
 
     Returns
     -------
@@ -267,13 +270,22 @@ def leave_one_line_out_files(
     if len(scenes) < 2:
         raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(scenes)}")
     line_names = _line_names([scene.image for scene in scenes])
+    if clusters is not None and len(clusters) != len(scenes):
+        raise InputError(f"{len(scenes)} line(s) and {len(clusters)} cluster layer(s): give one per line, in order")
     lines, inputs = [], []
-    for name, scene in zip(line_names, scenes):
+    for index, (name, scene) in enumerate(zip(line_names, scenes)):
         data = _open_scene_files(scene, Engine(chunks=chunks), align_classes=align_classes,
                                  class_lookup=class_lookup)
-        lines.append(Line(name, data.reflectance, data.classes, data.angles))
-        inputs.append({"name": name, "image": str(scene.image), "classes": str(scene.classes),
-                       "angles": str(scene.angles)})
+        entry = {"name": name, "image": str(scene.image), "classes": str(scene.classes), "angles": str(scene.angles)}
+        layer = None
+        if clusters is not None:
+            path, band = clusters[index]
+            size = rasters.auto_chunk(scene.image) if chunks is None else int(chunks)
+            layer = rasters.open_clusters(path, chunks=size, band=band)
+            check_same_grid({"image": data.reflectance, "cluster layer": layer})
+            entry["clusters"] = f"{path} band {band}"
+        lines.append(Line(name, data.reflectance, data.classes, data.angles, layer))
+        inputs.append(entry)
     results = leave_one_line_out(lines, fit, view_options=_named(view_options, [line.classes for line in lines]),
                                  overlap=overlap)
     return LinesAssessment(inputs, results)
