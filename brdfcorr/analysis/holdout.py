@@ -28,12 +28,15 @@ __all__ = ["Line", "HeldOutLine", "HoldoutFit", "leave_one_line_out", "leave_one
 
 class Line(NamedTuple):
     """One flight line in memory: reflectance (band, y, x) [1], class map (y, x) and the angles
-    ``sza``, ``saa``, ``vza``, ``vaa`` (y, x) [deg] on its grid (georeferenced for overlaps)."""
+    ``sza``, ``saa``, ``vza``, ``vaa`` (y, x) [deg] on its grid (georeferenced for overlaps);
+    optionally a cluster layer (y, x) of integer ids for the slopes' 1-sigma
+    (:func:`brdfcorr.analysis.view_angles.assess_view_angles`: detectors, acquisition days)."""
 
     name: str
     reflectance: xr.DataArray
     classes: xr.DataArray
     angles: Mapping[str, xr.DataArray]
+    clusters: xr.DataArray | None = None
 
 
 @dataclass
@@ -148,7 +151,7 @@ def leave_one_line_out(
 
         after = corrected(line)
         view = assess_view_angles(line.reflectance, after, line.classes, line.angles["vza"], line.angles["vaa"],
-                                  line.angles["saa"], options=view_options)
+                                  line.angles["saa"], clusters=line.clusters, options=view_options)
         overlaps = {}
         if overlap:
             for other in training:

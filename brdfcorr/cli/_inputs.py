@@ -65,8 +65,9 @@ prior_options = _stack(
 #: ``--block-size`` of ``assess`` and ``assess-lines``: the blocks of the slopes' 1-sigma.
 slope_block_option = click.option(
     "--block-size", type=click.IntRange(min=1), default=32, show_default=True,
-    help="Side [pixels] of the spatial blocks the slopes' 1-sigma is cluster-robust over (pixels of a block may "
-         "share their errors: a field, a roof, one day of a composite).")
+    help="Side [pixels] of the square blocks the slopes' 1-sigma is cluster-robust over (pixels of a block may "
+         "share their errors: a field, a roof); the 1-sigma over blocks twice as large is reported too, with a "
+         "warning where it is more than 1.25x larger (errors correlated beyond the blocks).")
 
 
 def prior_setting(prior: str | None, spread: float | None):

@@ -82,6 +82,12 @@ def _number(value: float | None) -> str:
               help="The side ratio compares pixels at least this far from nadir [deg].")
 @click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
 @slope_block_option
+@click.option("--clusters", "cluster_layer", type=click.Path(dir_okay=False, path_type=Path),
+              help="Raster on BEFORE's grid of integer ids of the units whose pixels share their errors (a "
+                   "composite's day-of-year band, a flight-line id): the slopes' 1-sigma is cluster-robust over "
+                   "these instead of square blocks.")
+@click.option("--cluster-band", type=click.IntRange(min=1), default=1, show_default=True,
+              help="The band of --clusters that holds the ids.")
 @click.option("--resampling", default="nearest", show_default=True,
               help="Resampling of the other line onto this line's grid (rasterio name).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
@@ -96,7 +102,8 @@ def _number(value: float | None) -> str:
 @handle_errors
 def assess_command(before, after, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                    offset, overlap, class_names, sign_by, heading, bin_width, min_vza, flip_view_azimuth,
-                   block_size, resampling, output, figures_dir, chunk, overwrite, progress):
+                   block_size, cluster_layer, cluster_band, resampling, output, figures_dir, chunk, overwrite,
+                   progress):
     """Did the BRDF correction work? View-angle slopes, side ratios, profiles and overlaps, before and after.
 
     Measures the view-angle signal in BEFORE (the input) and AFTER (the corrected image), per
@@ -116,7 +123,7 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
     figures = figure_paths(figures_dir, overlap=bool(overlap)) if figures_dir is not None else []
     inputs = {"BEFORE": before, "AFTER": after, "--classes": classes, "--class-lookup": class_lookup,
-              "--angles": None if angles_kind == "solar" else angles}
+              "--angles": None if angles_kind == "solar" else angles, "--clusters": cluster_layer}
     if overlap:
         inputs.update({"OTHER_BEFORE": overlap[0], "OTHER_AFTER": overlap[1]})
     check_outputs({"-o": output, **{f"figure {path}": path for path in figures}}, inputs)
@@ -127,6 +134,7 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
             SceneSources(before, classes, angles, angles_kind=angles_kind,
                          angle_options=_options("--angle-option", angle_option), scale=scale, offset=offset),
             after, overlap=tuple(overlap) if overlap else None, resampling=resampling,
+            clusters=None if cluster_layer is None else (cluster_layer, cluster_band),
             view_options=ViewAngleOptions(by=sign_by, heading=heading,
                                           class_names=_pairs("--class-name", class_names), bin_width=bin_width,
                                           min_vza=min_vza, flip_view_azimuth=flip_view_azimuth,
@@ -197,6 +205,11 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
 @click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
 @slope_block_option
+@click.option("--clusters", "cluster_layers", multiple=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Per image, in the images' order: a raster of integer ids of the units whose pixels share their "
+                   "errors (detectors, acquisition days); the slopes' 1-sigma is cluster-robust over these.")
+@click.option("--cluster-band", type=click.IntRange(min=1), default=1, show_default=True,
+              help="The band of each --clusters raster that holds the ids.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="JSON report to write.")
 @click.option("--chunk", type=CHUNK_SIZE,
@@ -206,7 +219,8 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @handle_errors
 def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                          offset, model_name, class_model, class_names, fix, prior, prior_spread, max_samples, seed,
-                         ref_sza, sign_by, heading, flip_view_azimuth, block_size, output, chunk, overwrite):
+                         ref_sza, sign_by, heading, flip_view_azimuth, block_size, cluster_layers, cluster_band, output,
+                         chunk, overwrite):
     """Leave-one-line-out: fit on the other flight lines, correct and assess each held-out line.
 
     For each of IMAGES (at least 2 flight lines, each with its --classes and --angles, in the same
@@ -226,6 +240,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     check_line_files(images, classes, angles)
     check_outputs({"-o": output}, [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
                                    *(("--angles", path) for path in angles if angles_kind != "solar"),
+                                   *(("--clusters", path) for path in cluster_layers),
                                    ("--class-lookup", class_lookup)])
     if not overwrite:
         refuse_existing([output])
@@ -240,6 +255,7 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
         view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
                                       flip_view_azimuth=flip_view_azimuth, block_size=block_size),
         align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None, chunks=chunk,
+        clusters=[(path, cluster_band) for path in cluster_layers] or None,
     )
     report = assessment.report()
     write_json(report, output)

@@ -36,7 +36,8 @@ from brdfcorr.errors import BrdfcorrWarning
                                   "[default: the mean of all bands' grids].")
 @click.option("--factor-at", type=click.Choice(["pixels", "nodes"]), default="pixels", show_default=True,
               help="Sentinel-2: evaluate the c-factor at every pixel, or at the 5 km nodes of the angle grids and "
-                   "interpolate it to the pixels (sen2nbar's method: faster, within about 0.06 %).")
+                   "interpolate it to the pixels (sen2nbar's method, faster), except where the view azimuth jumps "
+                   "between nodes (within 0.15 %).")
 @click.option("--keep-stack", type=click.Path(dir_okay=False, path_type=Path),
               help="Also keep the uncorrected bands as a small virtual raster (.vrt) reading the product's files, "
                    "masked and scaled: e.g. BEFORE for brdfcorr assess.")

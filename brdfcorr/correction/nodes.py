@@ -8,10 +8,18 @@ pixels, as sen2nbar does for Sentinel-2 (Montero et al. 2023). Per pixel only on
 interpolation and one product per band remain, so the correction costs about what reading and
 writing the image costs.
 
-The factor is not linear in the angles, so the two methods differ by a second-order term in the
-node spacing: on a real Sentinel-2 granule's grids (T23LLF) by at most 0.06 % with the
-coefficients of Roy et al. (2017) (``benchmarks/bench_sen2nbar.py``), far below the uncertainty
-of global coefficients. It suits one smooth correction over the whole image: one class, no class
+The factor is not linear in the angles, so the two methods differ. Interpolated everywhere
+(``jump=None``, sen2nbar's method), over a whole real Sentinel-2 tile (T23LLF, the coefficients
+of Roy et al. 2017; ``benchmarks/bench_nodes_error.py``) by up to 0.91 % (view grids averaged
+over the bands) or 0.97 % (each band's own), 0.002 % in the median; the errors above 0.1 %
+(5-6 % of the tile) nearly all lie in grid cells whose nodes' view azimuths differ by more than 60 deg:
+along the nadir line, where the view azimuth turns by up to 180 deg between neighbouring nodes
+(the sensor on one side, then on the other), and at the detector seams, where it steps. There
+interpolating the factor is not interpolating the geometry, so in those cells (:data:`JUMP`; 11 %
+of that tile) the factor is evaluated at each pixel from its interpolated angles, as
+:func:`normalize` does, and interpolated elsewhere: tile-wide then within 0.11 % (averaged view
+grids) or 0.15 % (each band's own) of the per-pixel factor, for about twice the time of the
+interpolation alone. It suits one smooth correction over the whole image: one class, no class
 map, no terrain and no uncertainty layer (``CorrectionRequest(factor_at="nodes")`` refuses the
 others).
 
@@ -22,7 +30,8 @@ comes from was clipped to the limits.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from functools import partial
 
 import dask.array as da
 import numpy as np
@@ -37,9 +46,25 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.sensors.grids import GRID_SOURCE, interpolate_window
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
-__all__ = ["normalize_at_nodes", "node_angles"]
+__all__ = ["normalize_at_nodes", "node_angles", "azimuth_span", "JUMP"]
 
 ANGLES = ("sza", "saa", "vza", "vaa")
+#: A grid cell whose four nodes' view azimuths span more than this [deg] gets the factor of each
+#: pixel from its own interpolated angles (module docstring): on the real T23LLF tile 11 % of the
+#: pixels; the largest error left 0.11-0.15 % (``benchmarks/bench_nodes_error.py``).
+JUMP = 60.0
+
+
+def azimuth_span(azimuth: np.ndarray) -> np.ndarray:
+    """(rows - 1, cols - 1): per cell of a grid of azimuths [deg] the largest angle between two of
+    its four nodes' azimuths, each difference folded into [0, 180] [deg]."""
+    corners = [azimuth[:-1, :-1], azimuth[:-1, 1:], azimuth[1:, :-1], azimuth[1:, 1:]]
+    span = np.zeros(corners[0].shape)
+    for index, first in enumerate(corners):
+        for second in corners[index + 1:]:
+            difference = np.abs(first - second) % 360.0
+            span = np.maximum(span, np.minimum(difference, 360.0 - difference))
+    return span
 
 
 def node_angles(angles: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
@@ -71,7 +96,7 @@ def node_angles(angles: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
 
 def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataArray], params: ParameterTable,
                        reference: ReferenceGeometry, *, limits: tuple[float, float] | None = DEFAULT_LIMITS,
-                       extrapolate: bool = False) -> Normalized:
+                       extrapolate: bool = False, jump: float | None = JUMP) -> Normalized:
     """Normalize ``reflectance`` with the factor evaluated at the angle grid's nodes (module
     docstring) and interpolated bilinearly to the pixels.
 
@@ -89,6 +114,10 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
         relative azimuth [deg].
     limits, extrapolate :
         As for :func:`brdfcorr.correction.normalize`.
+    jump : float or None, default :data:`JUMP`
+        In grid cells whose four nodes' view azimuths span more than this [deg]
+        (:func:`azimuth_span`), the factor of each pixel from its own interpolated angles; None:
+        the factor interpolated everywhere (sen2nbar's method).
 
     Returns
     -------
@@ -108,8 +137,13 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
     factor, node_qa = normalize(ones, classes, nodes, params, reference, limits=limits, extrapolate=extrapolate)
     _, _, source, target, _ = angles["sza"].encoding[GRID_SOURCE]
     node_values = np.concatenate([factor.values, ((node_qa.values & QA.LIMITED) > 0)[np.newaxis]]).astype(np.float64)
+    jumps = azimuth_span(nodes["vaa"].values) > (np.inf if jump is None else jump)
+    per_pixel = partial(_pixel_factors, nodes={name: nodes[name].values for name in ANGLES}, jumps=jumps,
+                        source=source, target=target,
+                        like=ones.isel(y=slice(0, 1), x=slice(0, 1)), params=params, reference=reference,
+                        limits=limits, extrapolate=extrapolate)
     pairs = da.map_blocks(_corrected_block, reflectance.data, dtype=reflectance.dtype, meta=np.empty((0, 0, 0)),
-                          node_values=node_values, source=source, target=target)
+                          node_values=node_values, source=source, target=target, per_pixel=per_pixel)
     corrected_data, qa_data = split_pairs(pairs, reflectance.data.chunks, reflectance.dtype)
     corrected = xr.DataArray(corrected_data, dims=reflectance.dims, coords=reflectance.coords, name=reflectance.name)
     spatial = {name: coord for name, coord in reflectance.coords.items() if band_dim not in coord.dims}
@@ -121,13 +155,46 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
     return Normalized(corrected, qa)
 
 
-def _corrected_block(reflectance: np.ndarray, *, node_values: np.ndarray, source, target, block_info=None):
+def _cells(positions: np.ndarray, nodes: int) -> np.ndarray:
+    """The grid cell (between nodes k and k + 1) of each position in node indices, the outermost
+    cells beyond the outermost nodes."""
+    return np.clip(np.floor(positions), 0, nodes - 2).astype(np.intp)
+
+
+def _pixel_factors(rows: slice, cols: slice, *, nodes: Mapping[str, np.ndarray], jumps: np.ndarray, source, target,
+                   like: xr.DataArray, params: ParameterTable, reference: ReferenceGeometry, limits,
+                   extrapolate: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pixels ``rows`` x ``cols`` in grid cells with an azimuth jump (``jumps``, per cell):
+    their mask (y, x), the factor of every band (band, n) from their own interpolated angles, as
+    :func:`normalize` evaluates it, and their limited flags (n,)."""
+    rows_at = (target.f + target.e * (np.arange(rows.start, rows.stop) + 0.5) - source.f) / source.e - 0.5
+    cols_at = (target.c + target.a * (np.arange(cols.start, cols.stop) + 0.5) - source.c) / source.a - 0.5
+    mask = jumps[_cells(rows_at, jumps.shape[0] + 1)[:, None], _cells(cols_at, jumps.shape[1] + 1)[None, :]]
+    if not mask.any():
+        return mask, np.empty((like.shape[0], 0)), np.empty(0, bool)
+    angles = {name: xr.DataArray(interpolate_window(values, source, target, rows, cols,
+                                                    angle=name in ("saa", "vaa"))[mask][np.newaxis], dims=("y", "x"))
+              for name, values in nodes.items()}
+    ones = xr.DataArray(np.ones((like.shape[0], 1, int(mask.sum()))), dims=like.dims,
+                        coords={name: coord for name, coord in like.coords.items() if coord.dims == like.dims[:1]})
+    factor, qa = normalize(ones, xr.ones_like(angles["sza"], dtype=np.uint8), angles, params, reference,
+                           limits=limits, extrapolate=extrapolate)
+    return mask, np.asarray(factor.values)[:, 0], (np.asarray(qa.values)[0] & QA.LIMITED) > 0
+
+
+def _corrected_block(reflectance: np.ndarray, *, node_values: np.ndarray, source, target, per_pixel: Callable,
+                     block_info=None):
     """One (band, y, x) block: the reflectance times the factor of its bands interpolated from the
-    nodes (``node_values``: the factor per band, then the nodes' limited flags), and its QA flags
-    (1, y, x); both as one pair (:func:`brdfcorr.correction.blocks.split_pairs`)."""
+    nodes (``node_values``: the factor per band, then the nodes' limited flags), or in the grid
+    cells with an azimuth jump the factor from each pixel's own angles (``per_pixel``:
+    :func:`_pixel_factors`), and its QA flags (1, y, x); both as one pair
+    (:func:`brdfcorr.correction.blocks.split_pairs`)."""
     (band0, band1), (row0, row1), (col0, col1) = block_info[0]["array-location"]
     window = interpolate_window(node_values[[*range(band0, band1), -1]], source, target, slice(row0, row1),
                                 slice(col0, col1))
+    mask, factors, limited = per_pixel(slice(row0, row1), slice(col0, col1))
+    window[:-1, mask] = factors[band0:band1]
+    window[-1, mask] = limited
     corrected = (reflectance * window[:-1]).astype(reflectance.dtype)
     qa = np.zeros((1, *reflectance.shape[1:]), dtype=np.uint8)
     nodata = ~np.isfinite(corrected).all(axis=0)

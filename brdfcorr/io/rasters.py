@@ -317,6 +317,22 @@ def open_classes(path, chunks=None) -> xr.DataArray:
     return classes.rio.write_nodata(nodata) if nodata is not None else classes
 
 
+def open_clusters(path, chunks=None, band: int = 1) -> xr.DataArray:
+    """Open band ``band`` of a cluster layer (y, x) lazily: integer ids of the units whose pixels
+    share their errors (a composite's day-of-year band, a flight-line id), with its nodata."""
+    layer = open_raster(path, "cluster layer", chunk_spec(chunks), masked=False)
+    count = layer.sizes[layer.dims[0]]
+    if not 1 <= band <= count:
+        raise InputError(f"cluster layer {path} has {count} band(s); band {band} does not exist")
+    if layer.dtype.kind not in "iu":
+        raise InputError(f"cluster layer {path} has data type {layer.dtype}; it needs integer ids "
+                         "(a day-of-year band, a flight-line id)")
+    nodata = layer.rio.nodata
+    layer = layer.isel({layer.dims[0]: band - 1}, drop=True)
+    layer.name = "clusters"
+    return layer.rio.write_nodata(nodata) if nodata is not None else layer
+
+
 def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, limit: float = 2.0,
                             blocks: int = 3, scheduler: str | None = None,
                             num_workers: int | None = None) -> float | None:

@@ -122,7 +122,8 @@ def _active(callbacks: Sequence) -> Iterator[None]:
 def assess_files(
     scene: SceneSources, after: str | os.PathLike, *, view_options: ViewAngleOptions = ViewAngleOptions(),
     overlap: tuple[str | os.PathLike, str | os.PathLike] | None = None, resampling: str = "nearest",
-    align_classes: bool = False, class_lookup: Mapping[int, int] | None = None, engine: Engine = Engine(),
+    clusters: tuple[str | os.PathLike, int] | None = None, align_classes: bool = False,
+    class_lookup: Mapping[int, int] | None = None, engine: Engine = Engine(),
 ) -> Assessment:
     """Assess a corrected image file against its input: view-angle signal per class and band, and
     optionally the difference in the overlap with another line.
@@ -143,6 +144,10 @@ def assess_files(
         other input is read with the scene's ``scale`` and ``offset``.
     resampling : str, default "nearest"
         As for :func:`assess_overlap`.
+    clusters : (path-like, int), optional
+        A raster on the input's grid and its band (from 1) of integer ids of the units whose pixels
+        share their errors (a composite's day-of-year band, a flight-line id): the slopes' 1-sigma
+        is cluster-robust over these instead of square blocks (:func:`assess_view_angles`).
     align_classes, class_lookup :
         As for :class:`brdfcorr.workflow.request.CorrectionRequest`.
     engine : Engine
@@ -167,13 +172,19 @@ def assess_files(
         if corrected.shape != data.reflectance.shape:
             raise InputError(f"{after} has {corrected.shape[0]} bands, {scene.image} has {data.reflectance.shape[0]}")
         layers = data.angles
+        cluster_layer = None
+        if clusters is not None:
+            cluster_layer = rasters.open_clusters(clusters[0], chunks=engine.chunks, band=clusters[1])
+            check_same_grid({"image": data.reflectance, "cluster layer": cluster_layer})
         view = assess_view_angles(data.reflectance, corrected, data.classes, layers["vza"], layers["vaa"],
-                                  layers["saa"], options=view_options, scheduler=engine.scheduler,
-                                  num_workers=engine.num_workers)
+                                  layers["saa"], clusters=cluster_layer, options=view_options,
+                                  scheduler=engine.scheduler, num_workers=engine.num_workers)
         inputs = {"before": str(scene.image), "after": str(after), "classes": str(scene.classes),
                   "angles": str(scene.angles)}
         inputs.update({name: str(path) for name in ("sza", "saa", "vza", "vaa")
                        if (path := getattr(scene, name)) is not None})
+        if clusters is not None:
+            inputs["clusters"] = f"{clusters[0]} band {clusters[1]}"
         result = Assessment(inputs, view)
         if overlap is not None:
             other_before = rasters.open_image(overlap[0], chunks=engine.chunks, scale=scene.scale, offset=scene.offset)
@@ -227,6 +238,7 @@ def leave_one_line_out_files(
     scenes: Sequence[SceneSources], fit: HoldoutFit = HoldoutFit(), *,
     view_options: ViewAngleOptions = ViewAngleOptions(), overlap: bool = True, align_classes: bool = False,
     class_lookup: Mapping[int, int] | None = None, chunks: int | None = None,
+    clusters: Sequence[tuple[str | os.PathLike, int]] | None = None,
 ) -> LinesAssessment:
     """Leave-one-line-out on files: fit on N − 1 flight lines, correct the held-out one, assess
     it (:func:`leave_one_line_out`), for each of N lines.
@@ -247,6 +259,8 @@ def leave_one_line_out_files(
     chunks : int, optional
         Chunk size [pixels] of every line (default :func:`brdfcorr.io.rasters.auto_chunk` of each
         image).
+    clusters : sequence of (path-like, int), optional
+        Per line, in order, a cluster layer on its grid and its band (as for :func:`assess_files`).
 
     Returns
     -------
@@ -256,13 +270,22 @@ def leave_one_line_out_files(
     if len(scenes) < 2:
         raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(scenes)}")
     line_names = _line_names([scene.image for scene in scenes])
+    if clusters is not None and len(clusters) != len(scenes):
+        raise InputError(f"{len(scenes)} line(s) and {len(clusters)} cluster layer(s): give one per line, in order")
     lines, inputs = [], []
-    for name, scene in zip(line_names, scenes):
+    for index, (name, scene) in enumerate(zip(line_names, scenes)):
         data = _open_scene_files(scene, Engine(chunks=chunks), align_classes=align_classes,
                                  class_lookup=class_lookup)
-        lines.append(Line(name, data.reflectance, data.classes, data.angles))
-        inputs.append({"name": name, "image": str(scene.image), "classes": str(scene.classes),
-                       "angles": str(scene.angles)})
+        entry = {"name": name, "image": str(scene.image), "classes": str(scene.classes), "angles": str(scene.angles)}
+        layer = None
+        if clusters is not None:
+            path, band = clusters[index]
+            size = rasters.auto_chunk(scene.image) if chunks is None else int(chunks)
+            layer = rasters.open_clusters(path, chunks=size, band=band)
+            check_same_grid({"image": data.reflectance, "cluster layer": layer})
+            entry["clusters"] = f"{path} band {band}"
+        lines.append(Line(name, data.reflectance, data.classes, data.angles, layer))
+        inputs.append(entry)
     results = leave_one_line_out(lines, fit, view_options=_named(view_options, [line.classes for line in lines]),
                                  overlap=overlap)
     return LinesAssessment(inputs, results)

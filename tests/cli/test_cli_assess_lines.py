@@ -160,3 +160,29 @@ def test_a_prior_reaches_every_held_out_fit(lines, files, tmp_path, tables_close
     library = leave_one_line_out_files(_scenes(files, images=images), HoldoutFit(
         "ross_thick_li_sparse", reference=REFERENCE, prior=ShapePrior("roy2016", 0.1)), **options)
     assert json.loads((tmp_path / "prior.json").read_text()) == library.report()
+
+
+def test_each_line_takes_its_cluster_layer(files, tmp_path):
+    """``--clusters`` once per line (issue 40): each held-out line's slopes' 1-sigma is over its
+    layer's ids (stripes of 4 columns here); a count that is not one per line is refused in one line."""
+    import rioxarray
+
+    layers = []
+    for image in files["images"]:
+        like = rioxarray.open_rasterio(image).isel(band=0, drop=True)
+        stripes = like.copy(data=(np.arange(like.sizes["x"]) // 4 * np.ones((like.sizes["y"], 1))).astype(np.int16))
+        stripes.attrs = {}
+        layers.append(tmp_path / f"stripes_{image.stem}.tif")
+        stripes.rio.to_raster(layers[-1])
+    output = tmp_path / "lines.json"
+    clusters = [argument for layer in layers for argument in ("--clusters", layer)]
+    result = _invoke("assess-lines", *_arguments(files), "--model", "ross_thick_li_sparse", *clusters, "-o", output)
+    assert result.exit_code == 0, result.output
+    report = json.loads(output.read_text())
+    assert [entry["clusters"] for entry in report["inputs"]] == [f"{layer} band 1" for layer in layers]
+    for line in report["lines"]:
+        assert "cluster layer" in line["view_angles"]["errors"]["clusters"]
+    refused = CliRunner().invoke(main, [str(a) for a in ("assess-lines", *_arguments(files), *clusters[:4], "-o",
+                                                         tmp_path / "two.json")])
+    assert refused.exit_code == 2 and "give one per line" in refused.output
+    assert len(refused.output.strip().splitlines()) == 1
