@@ -103,6 +103,21 @@ DEMO_CASES = {
         ["--set", "outputs.report={demo}/scene/line01_image.tif"],
         r"outputs\.report \S*scene/line01_image\.tif would overwrite an input \(the same file as the image "
         r"of scene line01"),
+    # An output folder the run has not made yet, left again by "..": the path names the input
+    # as soon as the folder exists (issue 39: the image became the run report, exit 0).
+    "report through an output folder not made yet is the image": (
+        ["--set", "outputs.directory=new/deeper", "--set", "outputs.report=../../scene/line01_image.tif"],
+        r"demo\.yaml: outputs\.report \S*new/deeper/\.\./\.\./scene/line01_image\.tif would overwrite an "
+        r"input \(the same file as the image of scene line01 \S*scene/line01_image\.tif\)$"),
+    "report through an output folder not made yet is the chain config": (
+        ["--set", "outputs.directory=new/deeper", "--set", "outputs.report=../../demo.yaml"],
+        r"demo\.yaml: outputs\.report \S*new/deeper/\.\./\.\./demo\.yaml would overwrite an input "
+        r"\(the same file as the chain config \S*demo\.yaml\)$"),
+    "fitted table through an output folder not made yet is the class map": (
+        ["--set", "outputs.directory=new/deeper", "--set", "steps.fit.source=imagery",
+         "--set", "steps.fit.output=../../scene/line01_classes.tif", "--overwrite"],
+        r"demo\.yaml: steps\.fit\.output \S*line01_classes\.tif would overwrite an input \(the same file as "
+        r"the class map of scene line01 \S*scene/line01_classes\.tif\)$"),
     "QA naming equal to the corrected naming": (
         ["--set", "outputs.qa_naming='{scene}_brdf.tif'"],
         r"demo\.yaml: outputs: corrected output \S*corrected/line01_brdf\.tif of scene line01 and outputs: qa "
@@ -336,6 +351,24 @@ def test_guard_on_devices_and_missing_paths(tmp_path):
     check_outputs([("a", tmp_path / "x.tif")], [tmp_path / "y.tif", None])
     with pytest.raises(InputError, match=r"output \S*x\.tif is also an input"):
         check_outputs({"output": tmp_path / "x.tif"}, [tmp_path / "x.tif"])
+
+
+def test_guard_follows_dot_dot_through_folders_not_made_yet(tmp_path):
+    """An output whose path runs through a folder that does not exist yet and leaves it by ``..``
+    is the file it names once the folder is made: an input, another output, or a directory."""
+    image = tmp_path / "in" / "image.tif"
+    image.parent.mkdir()
+    image.write_bytes(b"input")
+    (tmp_path / "link").symlink_to(tmp_path / "in", target_is_directory=True)
+    through = tmp_path / "out" / "new" / ".." / ".." / "in" / "image.tif"
+    with pytest.raises(InputOverwriteError, match=r"report \S*out/new/\.\./\.\./in/image\.tif is also an input"):
+        check_outputs({"report": through}, {"image": image})
+    with pytest.raises(InputOverwriteError):  # a link on the way, then a folder not made yet
+        check_outputs({"report": tmp_path / "link" / "new" / ".." / "image.tif"}, {"image": image})
+    with pytest.raises(OutputError, match="is a directory"):
+        check_outputs({"report": tmp_path / "out" / "new" / ".." / ".." / "in"}, [])
+    check_outputs({"report": tmp_path / "out" / "new" / ".." / "report.json"}, {"image": image})
+    assert not (tmp_path / "out").exists()
 
 
 # --------------------------------------------------------------------------- paths as given
