@@ -44,7 +44,7 @@ except ImportError:  # pragma: no cover (PyYAML built without libyaml)
 
 
 __all__ = ["atomic_path", "temporary_beside", "sync_file", "write_cause", "DISK_CAUSES",
-           "read_document", "parse_yaml", "MAX_DOCUMENT_BYTES", "MAX_ALIAS_NODES", "MAX_DEPTH"]
+           "read_document", "read_regular", "parse_yaml", "MAX_DOCUMENT_BYTES", "MAX_ALIAS_NODES", "MAX_DEPTH"]
 
 #: Largest YAML document brdfcorr reads [bytes]. A table of 20 000 classes is about 2 MB; a bigger
 #: file is a mistake (an image given as a table) and would take minutes to parse.
@@ -172,11 +172,26 @@ def read_document(
 ) -> str:
     """The text of a YAML document file: a regular file of at most ``max_bytes``, UTF-8.
 
-    A FIFO or a device (``/dev/urandom``) would block or never end, a directory or a binary, Latin-1
-    or UTF-16 file is no document: each is one ``error`` (a
+    Read by :func:`read_regular` (a FIFO or a device is refused, never waited on); a binary,
+    Latin-1 or UTF-16 file is no document: each is one ``error`` (a
     :class:`~brdfcorr.errors.BrdfcorrError` subclass), ``cannot read {what} {path}: {reason}``.
-    The file is opened without blocking and checked with ``fstat`` on the open descriptor, so
-    nothing can swap it between the check and the read. A UTF-8 byte-order mark is dropped.
+    A UTF-8 byte-order mark is dropped.
+    """
+    path = Path(path)
+    data = read_regular(path, what, error, max_bytes=max_bytes)
+    return _decode(data, lambda reason: error(f"cannot read {what} {path}: {reason}"))
+
+
+def read_regular(
+    path: str | os.PathLike, what: str, error: type[Exception], *, max_bytes: int = MAX_DOCUMENT_BYTES,
+) -> bytes:
+    """The bytes of a small metadata file (a YAML document, a product's XML or text metadata): a
+    regular file of at most ``max_bytes``.
+
+    A FIFO or a device (``/dev/urandom``) would block or never end, a directory is no file: each is
+    one ``error`` (a :class:`~brdfcorr.errors.BrdfcorrError` subclass), ``cannot read {what} {path}:
+    {reason}``. The file is opened without blocking and checked with ``fstat`` on the open
+    descriptor, so nothing can swap it between the check and the read.
     """
     path = Path(path)
 
@@ -209,7 +224,7 @@ def read_document(
             raise refuse(problem.strerror or str(problem)) from None
     if len(data) > max_bytes:
         raise too_big
-    return _decode(data, refuse)
+    return data
 
 
 def _decode(data: bytes, refuse) -> str:

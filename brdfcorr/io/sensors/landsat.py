@@ -32,12 +32,14 @@ from pathlib import Path
 import dask.array as da
 import numpy as np
 import pandas as pd
+import rasterio
 import rioxarray
 import xarray as xr
 from pyproj import CRS, Transformer
 from scipy.interpolate import CubicSpline
 
 from brdfcorr.errors import SensorInputError
+from brdfcorr.io.files import read_regular
 from brdfcorr.io.grid import grid_difference
 from brdfcorr.io.sensors.grids import GRID_CHUNK, _grid_of, pixel_centres, to_grid, wrap_azimuth
 from brdfcorr.io.sensors.solar import solar_angles
@@ -45,6 +47,8 @@ from brdfcorr.io.sensors.solar import solar_angles
 __all__ = [
     "ANGLE_SCALE",
     "ANGLE_SUFFIXES",
+    "HUNDREDTHS",
+    "check_hundredths",
     "ang_angles",
     "ang_mean_angles",
     "ang_scene_time",
@@ -57,6 +61,9 @@ __all__ = [
 
 #: Angle bands store hundredths of a degree (USGS C2 Level-1 DFCB).
 ANGLE_SCALE = 0.01
+#: The range of each angle band [hundredths of a degree]: zeniths in [0, 90] deg, azimuths in
+#: [-180, 180] deg (USGS) or [0, 360) deg.
+HUNDREDTHS = {"sza": (0, 9000), "vza": (0, 9000), "saa": (-18000, 36000), "vaa": (-18000, 36000)}
 #: File-name suffixes of the four angle bands.
 ANGLE_SUFFIXES = {"sza": "_SZA", "saa": "_SAA", "vza": "_VZA", "vaa": "_VAA"}
 
@@ -86,10 +93,8 @@ def parse_ang_txt(path: str | Path) -> dict[str, dict]:
     """Parse an ANG.txt (ODL: ``GROUP = name`` ... ``END_GROUP``, ``KEY = value``) into
     ``{group: {key: value}}``; tuples, possibly continued over lines, become tuples of floats."""
     path = Path(path)
-    try:
-        lines = path.read_text().splitlines()
-    except OSError as error:
-        raise SensorInputError(f"{path}: cannot read the angle coefficient file ({error})") from error
+    # A regular file only (a FIFO would block); ODL is ASCII: a stray byte is shown, not fatal.
+    lines = read_regular(path, "the angle coefficient file", SensorInputError).decode("utf-8", "replace").splitlines()
     groups: dict[str, dict] = {}
     current: dict | None = None
     pending = ""
@@ -315,10 +320,40 @@ def find_ang_txt(path: str | Path) -> Path | None:
     return candidates[0] if len(candidates) == 1 else None
 
 
+def _sample_range(path: Path) -> tuple[float, float] | None:
+    """(min, max) of a decimated read (at most 256 x 256, cheap on any size) of a band's valid
+    values; None where it has none."""
+    with rasterio.open(path) as dataset:
+        sample = dataset.read(1, out_shape=(min(dataset.height, 256), min(dataset.width, 256)), masked=True)
+    values = np.ma.masked_invalid(sample.astype("float64")).compressed()
+    return (float(values.min()), float(values.max())) if values.size else None
+
+
+def check_hundredths(path: Path, key: str) -> None:
+    """Refuse an angle band whose values are no hundredths of a degree (:data:`HUNDREDTHS`).
+
+    A sun zenith band of values all at most 90 would be a sun within 0.9 deg of the zenith, which
+    no Landsat overpass has (morning orbit): it holds degrees, and read as hundredths the sun would
+    be put at the zenith (NBAR 15 % off). The other bands' degrees fall inside their hundredths
+    range; they come with the sun band of the same product.
+    """
+    found = _sample_range(path)
+    if found is None:
+        return
+    (low, high), (least, most) = found, HUNDREDTHS[key]
+    if low < least or high > most:
+        raise SensorInputError(f"{path}: {ANGLE_SUFFIXES[key][1:]} values {low:g} to {high:g} are outside {least} to "
+                               f"{most}, the hundredths of a degree of a Landsat angle band")
+    if key == "sza" and high <= 90.0:
+        raise SensorInputError(f"{path}: SZA values {low:g} to {high:g} are degrees, not the hundredths of a degree "
+                               "of a Landsat angle band (a sun within 0.9 deg of the zenith); store them x 100")
+
+
 def _read_angle_band(path: Path, key: str, like, chunks, flip: bool) -> xr.DataArray:
     band = rioxarray.open_rasterio(path, chunks=chunks or {"y": 2048, "x": 2048}, masked=True)
     if band.sizes.get("band", 1) != 1:
         raise SensorInputError(f"{path}: an angle band must have one band, it has {band.sizes['band']}")
+    check_hundredths(path, key)
     band = band.isel(band=0, drop=True) * ANGLE_SCALE
     if key == "vaa" and flip:
         band = band + 180.0
@@ -328,7 +363,7 @@ def _read_angle_band(path: Path, key: str, like, chunks, flip: bool) -> xr.DataA
     attrs = {"units": "degree", "long_name": LONG_NAMES[key], "source": str(path)}
     if like is not None and grid_difference(band, like) is not None:
         # A coarser or reprojected angle raster: interpolate lazily onto the image grid.
-        return to_grid(band, like, angle=azimuth, name=key, attrs=attrs)
+        return to_grid(band, like, angle=azimuth, name=key, attrs=attrs, source=f"{path}: the {key} angle band")
     band.attrs = attrs
     if like is not None and like.chunks and chunks is None:  # align blocks with the image's
         band = band.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
