@@ -194,7 +194,8 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
     ranges = {name: (float(low[i]), float(high[i])) for i, name in enumerate(names)}
     counts = {name: (int(totals[i, 0]), int(totals[i, 1])) for i, name in enumerate(names)}
     means = {name: totals[i, 2] / totals[i, 1] if totals[i, 1] else math.nan for i, name in enumerate(names)}
-    _check_values(ranges, counts, lambda name: source or describe_layer(name, layers[name]))
+    relative = "saa" in layers and bool(layers["saa"].attrs.get(RELATIVE_ONLY))
+    _check_values(ranges, counts, lambda name: source or describe_layer(name, layers[name]), relative=relative)
     return AngleStatistics(ranges, means)
 
 
@@ -226,9 +227,11 @@ def _pixel_statistics(layers: Mapping[str, xr.DataArray], names: list[str], sour
     return per_block.reshape(-1, len(names), 5)
 
 
-def _check_values(ranges: dict, counts: dict, where) -> None:
+def _check_values(ranges: dict, counts: dict, where, *, relative: bool = False) -> None:
     """The unit checks of :func:`check_angles` on the layers' ranges and (finite, in [0, 90))
-    counts; ``where(name)`` names a layer in messages."""
+    counts; ``where(name)`` names a layer in messages. With ``relative`` (a source of the relative
+    azimuth only, :func:`from_relative_azimuth`: ``vaa`` is the raa) a raa within +-6.3 that is not
+    all 0 is radians (+-2 pi): degrees would put every pixel within 6.3 deg of the hotspot."""
     empty = [name for name in counts if counts[name][0] == 0]
     if empty:  # every pixel would be nodata (a NaN sun zenith of a product, a layer of inf)
         raise InputError(f"{where(empty[0])}: no finite {empty[0]} value (all NaN, inf or nodata): "
@@ -239,6 +242,10 @@ def _check_values(ranges: dict, counts: dict, where) -> None:
             ranges[n][1] < 6.3 for n in azimuths):
         found = ", ".join(f"{n} {ranges[n][0]:.3g}..{ranges[n][1]:.3g}" for n in zeniths + azimuths)
         raise InputError(f"{where(zeniths[0])}: the angles look like radians ({found}); brdfcorr needs degrees")
+    if relative and "vaa" in ranges and 0.0 < max(map(abs, ranges["vaa"])) < 6.3:
+        low, high = ranges["vaa"]
+        raise InputError(f"{where('vaa')}: the relative azimuth (raa) {low:.3g}..{high:.3g} looks like radians; "
+                         "brdfcorr needs degrees")
     for name in zeniths:
         if counts[name][1] == 0:
             lowest, highest = ranges[name]
