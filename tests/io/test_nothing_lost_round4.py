@@ -203,3 +203,28 @@ def test_fifo_as_the_angle_coefficient_file(landsat, refused):
     os.mkfifo(ang)
     refused(landsat, ["nbar", landsat["folder"], "-o", landsat["out"] / "nbar.tif", "--no-progress"],
             r"cannot read the angle coefficient file \S*_ANG\.txt: not a regular file \(a FIFO", run=_subprocess)
+
+
+# ------------------------------------------------------------------------- resume: content digest
+def test_content_digest_of_a_large_file_sees_its_header_end_and_samples(tmp_path, monkeypatch):
+    """Above FULL_HASH_BYTES the digest reads the first and last EDGE_BYTES and SAMPLES pieces
+    between: an edit there changes it, the file's size and time alike."""
+    from brdfcorr.io import files
+
+    monkeypatch.setattr(files, "FULL_HASH_BYTES", 1000)
+    monkeypatch.setattr(files, "EDGE_BYTES", 100)
+    monkeypatch.setattr(files, "SAMPLES", 4)
+    monkeypatch.setattr(files, "SAMPLE_BYTES", 10)
+    path = tmp_path / "big.bin"
+    data = bytearray(np.random.default_rng(0).integers(0, 256, 10_000, dtype="uint8").tobytes())
+    path.write_bytes(data)
+    original = files.content_digest(path)
+    for offset in (0, 99, 100, 100 + 2450, 9_999):  # header, header end, first and second sample, end
+        edited = bytearray(data)
+        edited[offset] ^= 0xFF
+        path.write_bytes(edited)
+        assert files.content_digest(path) != original, offset
+    edited = bytearray(data)
+    edited[200] ^= 0xFF  # between samples: not read (a large file is sampled)
+    path.write_bytes(edited)
+    assert files.content_digest(path) == original

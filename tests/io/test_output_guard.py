@@ -445,6 +445,47 @@ def test_resume_redoes_what_changed_and_skips_the_rest(tmp_path, make_scenes, wr
     assert planned == {"line0_image": "run", "line1_image": "run"} and "steps.correct.limits changed" in output
 
 
+def test_resume_redoes_an_input_edited_in_place_with_its_size_and_time(tmp_path, make_scenes, write_chain):
+    """The fingerprint held path, size and mtime only: an edit that kept both kept a stale output
+    (issue 39). It holds the content's digest too."""
+    scenes = make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path)
+    image = scenes["line0"][1]["image"]
+    with rasterio.open(image) as dataset:  # uncompressed: an edit of a pixel keeps the file's size
+        profile, data, tags, descriptions = dataset.profile, dataset.read(), dataset.tags(), dataset.descriptions
+    with rasterio.open(image, "w", **{**profile, "compress": None}) as dataset:
+        dataset.write(data)
+        dataset.update_tags(**tags)
+        dataset.descriptions = descriptions
+    assert run_chain(load_config(chain)).ok
+    status = image.stat()
+    with rasterio.open(image, "r+") as dataset:  # one pixel of the first band, in place
+        band = dataset.read(1)
+        band[3, 3] += 0.01
+        dataset.write(band, 1)
+    os.utime(image, ns=(status.st_atime_ns, status.st_mtime_ns))
+    assert (image.stat().st_size, image.stat().st_mtime_ns) == (status.st_size, status.st_mtime_ns)
+    planned, _, output = _actions(chain)
+    assert planned == {"line0_image": "run", "line1_image": "skip"}
+    assert f"image {image} changed since it was written" in output
+
+
+@pytest.mark.parametrize("role", ["brdf", "qa"])
+def test_resume_redoes_an_output_cut_short(tmp_path, make_scenes, write_chain, role):
+    """An output cut to half its size after the run was "skipped, complete outputs exist" with exit
+    0, and unreadable (issue 39): a skipped output is reopened and checked as a fresh write is."""
+    make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path)
+    assert run_chain(load_config(chain)).ok
+    damaged = tmp_path / "out" / f"line0_{role}.tif"
+    os.truncate(damaged, damaged.stat().st_size // 2)
+    planned, _, output = _actions(chain)
+    assert planned == {"line0_image": "run", "line1_image": "skip"}
+    assert re.search(rf"line0_{role}\.tif is damaged \(tile \(\d+, \d+\) of band \d+ ends beyond the file", output), output
+    with rasterio.open(damaged) as dataset:  # whole again
+        assert np.isfinite(dataset.read()).any()
+
+
 def test_fingerprint_is_recorded_with_its_digest(tmp_path, make_scenes, write_chain, read):
     make_scenes(tmp_path, count=1)
     chain = write_chain(tmp_path)
