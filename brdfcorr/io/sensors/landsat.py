@@ -129,12 +129,15 @@ def _item(ang: dict, group: str, key: str, path="ANG.txt"):
         raise SensorInputError(f"{path}: no {key} in group {group}") from None
 
 
-def ang_scene_time(ang: dict) -> pd.Timestamp:
+def ang_scene_time(ang: dict, source: str | Path = "ANG.txt") -> pd.Timestamp:
     """Scene-centre UTC time from an ANG.txt: the middle of the solar-vector sample times."""
-    year = int(_item(ang, "SOLAR_VECTOR", "SOLAR_EPOCH_YEAR"))
-    day = int(_item(ang, "SOLAR_VECTOR", "SOLAR_EPOCH_DAY"))
-    seconds = float(np.mean(_item(ang, "SOLAR_VECTOR", "SAMPLE_TIME")))
-    return pd.Timestamp(year=year, month=1, day=1, tz="UTC") + pd.Timedelta(days=day - 1, seconds=seconds)
+    year, day = (_samples(ang, "SOLAR_VECTOR", key, source) for key in ("SOLAR_EPOCH_YEAR", "SOLAR_EPOCH_DAY"))
+    seconds = _samples(ang, "SOLAR_VECTOR", "SAMPLE_TIME", source)
+    if year.size != 1 or day.size != 1 or not 1 <= day[0] <= 366 or not 1900 <= year[0] <= 2200:
+        raise SensorInputError(f"{source}: SOLAR_VECTOR SOLAR_EPOCH_YEAR {year.tolist()} and SOLAR_EPOCH_DAY "
+                               f"{day.tolist()} are no year and day of the year")
+    return pd.Timestamp(year=int(year[0]), month=1, day=1, tz="UTC") + pd.Timedelta(days=int(day[0]) - 1,
+                                                                                     seconds=float(np.mean(seconds)))
 
 
 def vector_angles(east, north, up):
@@ -215,7 +218,35 @@ def _ang_block(block_info, *, transform, to_lonlat, to_ecef, model, altitude):
     return np.where(valid.reshape(shape), stacked, np.nan)
 
 
-def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=None) -> xr.Dataset:
+def _samples(ang: dict, group: str, key: str, source) -> np.ndarray:
+    """A tuple of numbers of the ANG.txt as float64, else one error naming the group and key."""
+    value = _item(ang, group, key, source)
+    values = value if isinstance(value, tuple) else (value,)
+    if not all(isinstance(item, float) and np.isfinite(item) for item in values):
+        raise SensorInputError(f"{source}: {group} {key} holds {str(value)[:60]!r}, not a list of finite numbers")
+    return np.asarray(values, dtype="float64")
+
+
+def _spline(ang: dict, group: str, time_key: str, prefix: str, source) -> tuple[np.ndarray, CubicSpline]:
+    """The sample times of a group of the ANG.txt (at least 2, strictly increasing) and the cubic
+    spline through its ECEF X, Y, Z samples (one per time)."""
+    times = _samples(ang, group, time_key, source)
+    if times.size < 2 or np.any(np.diff(times) <= 0):
+        shown = ", ".join(f"{t:g}" for t in times[:4]) + (", ..." if times.size > 4 else "")
+        raise SensorInputError(f"{source}: {group} {time_key} must be at least 2 strictly increasing times, got "
+                               f"{times.size} ({shown})")
+    axes = []
+    for axis in "XYZ":
+        values = _samples(ang, group, f"{prefix}{axis}", source)
+        if values.size != times.size:
+            raise SensorInputError(f"{source}: {group} {prefix}{axis} has {values.size} values for {times.size} "
+                                   f"times ({time_key})")
+        axes.append(values)
+    return times, CubicSpline(times, np.stack(axes, axis=-1))
+
+
+def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=None,
+               source: str | Path = "ANG.txt") -> xr.Dataset:
     """Per-pixel sun and view angles from the ANG.txt ephemeris and solar vectors, lazily.
 
     Parameters
@@ -228,11 +259,19 @@ def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=N
         Terrain height above the ellipsoid [m] used for every pixel.
     chunks :
         Output chunks; default ``like``'s, else 2048.
+    source : str or Path
+        The ANG.txt, in messages.
 
     Returns
     -------
     xarray.Dataset
         ``sza``, ``saa``, ``vza``, ``vaa`` [deg]; NaN for pixels the ephemeris does not cover.
+
+    Raises
+    ------
+    SensorInputError
+        A group or key missing, samples that are no numbers, fewer than 2 or unsorted times, or
+        samples of unequal count (named with ``source``).
 
     Notes
     -----
@@ -246,16 +285,10 @@ def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=N
     and the mean sun vector of the ANG.txt; the view part reproduces the ANG.txt scene-mean
     satellite vector (see the tests). Band-to-band focal-plane offsets (below 0.1 deg) are ignored.
     """
-    ephemeris, solar = ang.get("EPHEMERIS", {}), ang.get("SOLAR_VECTOR", {})
-    try:
-        times = np.asarray(ephemeris["EPHEMERIS_TIME"], dtype="float64")
-        position = CubicSpline(times, np.stack([ephemeris[f"EPHEMERIS_ECEF_{c}"] for c in "XYZ"], axis=-1))
-        sun_times = np.asarray(solar["SAMPLE_TIME"], dtype="float64")
-        sun = CubicSpline(sun_times, np.stack([solar[f"SOLAR_ECEF_{c}"] for c in "XYZ"], axis=-1))
-    except KeyError as error:
-        raise SensorInputError(f"ANG.txt: no {error.args[0]} (EPHEMERIS/SOLAR_VECTOR group)") from None
-    if float(ephemeris.get("EPHEMERIS_EPOCH_DAY", -1)) != float(solar.get("SOLAR_EPOCH_DAY", -2)):
-        raise SensorInputError("ANG.txt: ephemeris and solar vectors have different epoch days")
+    times, position = _spline(ang, "EPHEMERIS", "EPHEMERIS_TIME", "EPHEMERIS_ECEF_", source)
+    _, sun = _spline(ang, "SOLAR_VECTOR", "SAMPLE_TIME", "SOLAR_ECEF_", source)
+    if ang["EPHEMERIS"].get("EPHEMERIS_EPOCH_DAY", -1) != ang["SOLAR_VECTOR"].get("SOLAR_EPOCH_DAY", -2):
+        raise SensorInputError(f"{source}: ephemeris and solar vectors have different epoch days")
     omega = np.array([0.0, 0.0, EARTH_ROTATION])
 
     def inertial_velocity(t, derivative=0):
@@ -423,12 +456,12 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
         if grid is None:
             raise SensorInputError(f"{path}: no angle band and no image grid (like) to compute angles on")
         if {"sza", "saa"} & set(missing):
-            time = ang_scene_time(coefficients)
+            time = ang_scene_time(coefficients, ang)
             sun = solar_angles(time, grid, chunks=chunks)
             for key in {"sza", "saa"} & set(missing):
                 variables[key] = sun[key].assign_attrs(source=f"pvlib SPA at {time} ({ang})")
         if view_from_ang == "ephemeris" and {"vza", "vaa"} & set(missing):
-            view = ang_angles(coefficients, grid, chunks=chunks)
+            view = ang_angles(coefficients, grid, chunks=chunks, source=ang)
             for key in {"vza", "vaa"} & set(missing):
                 variables[key] = view[key].assign_attrs(source=f"ephemeris model ({ang})")
         if view_from_ang == "mean" and {"vza", "vaa"} & set(missing):

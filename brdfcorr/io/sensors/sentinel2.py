@@ -240,24 +240,25 @@ def _circular_nan_mean(stack_deg: np.ndarray) -> np.ndarray:
     return wrap_azimuth(np.degrees(np.arctan2(_nan_mean(np.sin(radians)), _nan_mean(np.cos(radians)))))
 
 
-def fill_gaps(grid: np.ndarray, angle: bool = False) -> np.ndarray:
+def fill_gaps(grid: np.ndarray, angle: bool = False, what: str = "an angle grid") -> np.ndarray:
     """Fill NaN nodes with the value of the nearest finite node (Euclidean distance in nodes).
 
     Nodes outside every detector's footprint lie at the tile edges, beyond the image data; the
     nearest value keeps the interpolation between the last valid node and the edge sensible. For
-    ``angle=True`` the filled values are azimuths and stay in [0, 360). An all-NaN grid raises.
+    ``angle=True`` the filled values are azimuths and stay in [0, 360). An all-NaN grid raises,
+    naming it as ``what`` (its file and layer).
     """
     missing = ~np.isfinite(grid)
     if not missing.any():
         return grid
     if missing.all():
-        raise SensorInputError("an angle grid has no finite value at all")
+        raise SensorInputError(f"{what} has no finite value at all")
     nearest = ndimage.distance_transform_edt(missing, return_distances=False, return_indices=True)
     filled = grid[tuple(nearest)]
     return wrap_azimuth(filled) if angle else filled
 
 
-def combine_detectors(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarray]):
+def combine_detectors(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarray], what: str = "the view"):
     """One view zenith and azimuth grid per band from its per-detector grids.
 
     Where two detectors see the same node (the overlap of adjacent detectors), their zeniths are
@@ -272,7 +273,8 @@ def combine_detectors(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarr
     detectors = sorted(zenith)
     view_zenith = _nan_mean(np.stack([zenith[d] for d in detectors]))
     view_azimuth = _circular_nan_mean(np.stack([azimuth[d] for d in detectors]))
-    return fill_gaps(view_zenith), fill_gaps(view_azimuth, angle=True)
+    return (fill_gaps(view_zenith, what=f"{what} zenith grid"),
+            fill_gaps(view_azimuth, angle=True, what=f"{what} azimuth grid"))
 
 
 def _node_array(tile: TileAngles, values: np.ndarray, name: str) -> xr.DataArray:
@@ -321,7 +323,8 @@ def read_sentinel2_angles(path: str | Path, like: xr.DataArray | None = None, *,
         raise SensorInputError(
             f"{tile.path}: no viewing angle grids for band {band!r}; it has {sorted(tile.view_zenith)}"
         )
-    combined = [combine_detectors(tile.view_zenith[b], tile.view_azimuth[b]) for b in bands]
+    combined = [combine_detectors(tile.view_zenith[b], tile.view_azimuth[b], f"{tile.path}: the {b} view")
+                for b in bands]
     vza = np.mean([zenith for zenith, _ in combined], axis=0)
     vaa = _circular_nan_mean(np.stack([azimuth for _, azimuth in combined]))
     if view_azimuth == "from_sensor":
@@ -335,8 +338,8 @@ def read_sentinel2_angles(path: str | Path, like: xr.DataArray | None = None, *,
         like = grid_template(tile.geopositions[resolution], tile.sizes[resolution], tile.crs,
                              chunks=chunks or 2048)
     grids = {
-        "sza": (fill_gaps(tile.sun_zenith), False, "solar zenith angle"),
-        "saa": (fill_gaps(tile.sun_azimuth, angle=True), True,
+        "sza": (fill_gaps(tile.sun_zenith, what=f"{tile.path}: the sun zenith grid"), False, "solar zenith angle"),
+        "saa": (fill_gaps(tile.sun_azimuth, angle=True, what=f"{tile.path}: the sun azimuth grid"), True,
                 "solar azimuth angle (pixel to sun, clockwise from north)"),
         "vza": (vza, False, "view zenith angle"),
         "vaa": (vaa, True, "view azimuth angle (pixel to sensor, clockwise from north)"),
