@@ -63,6 +63,7 @@ from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
+from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
 __all__ = ["normalize", "Normalized"]
@@ -156,8 +157,11 @@ def normalize(
         group = _passing_bad_bands(group, inputs.resolved)
     reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits
     band_dim = reflectance.dims[0]
-    plans = Plans({cid: class_plan(cid, entry.model, entry.params, entry.no_parameters)
-                   for cid, entry in inputs.resolved.items()})
+    plans = {cid: class_plan(cid, entry.model, entry.params, entry.no_parameters)
+             for cid, entry in inputs.resolved.items()}
+    if group is None:  # coefficients continuous in NDVI: the reference value depends on the pixel
+        check_reference_signal(plans, reference)
+    plans = Plans(plans)
     kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings, unknown_nan=unknown == "nan", group=group)
     if inputs.lazy:
         pairs = inputs.blockwise(_normalize_block, kwargs)
@@ -177,6 +181,41 @@ def normalize(
         attrs=qa_attrs("BRDF normalization quality flags"),
     )
     return Normalized(corrected, qa)
+
+
+def check_reference_signal(plans: dict[int, ClassPlan | None], reference: ReferenceGeometry) -> None:
+    """Refuse a fixed reference geometry at which no class's model predicts a positive reflectance
+    in any band: every factor f(ref) / f(obs) would be invalid and every pixel nodata (an all-NaN
+    output with exit 0 before; a kernel model at a sun zenith near 90 deg goes negative). One class
+    and band with a positive value ends the search (the first, as a rule): cheap for any table.
+
+    Raises
+    ------
+    InputError
+        Naming the reference geometry and the value of the first class and band.
+    """
+    if isinstance(reference.sza, str):  # "observed": the reference is each pixel's own sun
+        return
+    where = ScatteringGeometry(np.float64(reference.sza), np.float64(reference.vza), np.float64(reference.raa))
+    first = None
+    for class_id, plan in plans.items():
+        values = [] if plan is None else _reference_values(plan, where)
+        if not values or any(np.isfinite(value) and value > 0 for value in values):
+            return
+        first = first or (class_id, values[0])
+    if first is not None:
+        raise InputError(f"reference geometry {reference.describe()}: no class's model predicts a positive reflectance "
+                         f"there in any band (class {first[0]}: f = {first[1]:.4g} sr^-1), so no pixel could be "
+                         "corrected; choose a reference geometry nearer the observations")
+
+
+def _reference_values(plan: ClassPlan, where: ScatteringGeometry) -> list[float]:
+    """f at ``where`` [sr^-1] in each band in which ``plan``'s class has parameters."""
+    with np.errstate(all="ignore"):
+        terms = [np.array([float(np.asarray(term)) for term in plan.model.terms(where, shape)])
+                 for shape in plan.shapes]
+        return [float(np.dot(plan.coefficients[band], terms[plan.shape_of_band[band]]))
+                for band in range(len(plan.row_of_band)) if plan.row_of_band[band] != NO_PARAMETERS]
 
 
 def _passing_bad_bands(group, resolved):

@@ -318,3 +318,12 @@ def test_angle_coefficient_file_with_a_bad_ephemeris(tmp_path, case, refused):
         _edit(ang, old, new)
     refused({"dir": tmp_path / "in", "out": tmp_path / "out"},
             ["nbar", folder, "-o", tmp_path / "out" / "nbar.tif", "--no-progress"], pattern)
+
+
+# --------------------------------------------------- a reference geometry that corrects nothing
+def test_a_reference_sun_zenith_where_the_model_has_no_signal(safe, refused):
+    """--ref-sza 89.99: the kernel model is negative there, every factor invalid; exit 0 with
+    "0 pixels corrected" and an all-NaN file before (issue 39)."""
+    refused(safe, [*_nbar(safe), "--ref-sza", "89.99"],
+            r"reference geometry sza=89\.99 vza=0 raa=0: no class's model predicts a positive reflectance there in "
+            r"any band \(class 1: f = -\d\S* sr\^-1\), so no pixel could be corrected")
