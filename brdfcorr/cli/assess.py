@@ -29,6 +29,7 @@ from brdfcorr.cli._inputs import (
     scale_options,
     slope_block_option,
 )
+from brdfcorr.defaults import MIN_BIN_WIDTH
 from brdfcorr.io.paths import check_outputs, refuse_existing
 
 
@@ -76,7 +77,7 @@ def _number(value: float | None) -> str:
               help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
                    "(track, with --heading).")
 @click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
-@click.option("--bin-width", type=click.FloatRange(min=0, min_open=True, max=90), default=2.0, show_default=True,
+@click.option("--bin-width", type=click.FloatRange(min=MIN_BIN_WIDTH, max=90), default=2.0, show_default=True,
               help="Bin width of the across-track profiles [deg of signed view zenith].")
 @click.option("--min-vza", type=click.FloatRange(min=0, max=90, max_open=True), default=0.0, show_default=True,
               help="The side ratio compares pixels at least this far from nadir [deg].")
