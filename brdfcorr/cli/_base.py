@@ -166,6 +166,10 @@ def _fail(error: Exception):
     if isinstance(error, BrdfcorrError):
         click.echo(f"brdfcorr: error: {text}", err=True)
         sys.exit(EXIT_BAD_INPUT)
+    if isinstance(error, MemoryError):  # a resource limit (ulimit -v, a small machine), not a bug
+        click.echo(f"brdfcorr: error: out of memory{': ' + text if text else ''}; a smaller tile size (--chunk) "
+                   "or a higher memory limit (ulimit -v) helps", err=True)
+        sys.exit(EXIT_BAD_INPUT)
     hint = "" if _debug_enabled() else " (rerun with --debug for the traceback)"
     click.echo(f"brdfcorr: internal error: {type(error).__name__}: {text}{hint}", err=True)
     sys.exit(EXIT_INTERNAL)
