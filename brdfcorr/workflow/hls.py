@@ -60,9 +60,14 @@ def band_scale(band: xr.DataArray) -> float:
 def _reflectance(granule: HlsGranule, chunks: int) -> xr.DataArray:
     """The bands (band, y, x) as reflectance factors [1], no data as NaN (lazy)."""
     layers = []
-    for path in granule.bands.values():
+    for name, path in granule.bands.items():
         band = rioxarray.open_rasterio(path, chunks={"y": chunks, "x": chunks}, masked=True, lock=False)
-        layers.append(band.isel(band=0, drop=True) * band_scale(band))
+        layer = band.isel(band=0, drop=True)
+        difference = grid_difference(layer, layers[0]) if layers else None  # the one grid check (io.grid)
+        if difference is not None:
+            first, where = next(iter(granule.bands.items()))
+            raise SensorInputError(f"{path}: band {name} is not on the grid of band {first} {where}: {difference}")
+        layers.append(layer * band_scale(band))
     stack = xr.concat(layers, dim="band").assign_coords(band=np.arange(1, len(layers) + 1))
     return stack.assign_coords(wavelength=("band", list(granule.wavelengths))).astype(np.float32)
 

@@ -178,3 +178,16 @@ def test_an_fmask_on_a_shifted_grid_is_one_line_naming_it(granule, tmp_path):
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and not output.exists(), result.stderr
     assert re.search(r"Fmask\.tif: the Fmask is not on the grid of band B04 \S+B04\.tif: ", lines[0]), lines[0]
+
+
+def test_a_band_on_a_shifted_grid_is_named_not_the_fmask(granule, tmp_path):
+    """A band shifted against the others was blamed on the Fmask (issue 39)."""
+    band = next(granule.glob("*.B8A.tif"))
+    with rasterio.open(band, "r+") as dataset:
+        dataset.transform = dataset.transform * Affine.translation(1, 0)
+    output = tmp_path / "out.tif"
+    result = run("nbar", granule, "--ref-sza", "45", "-o", output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and not output.exists(), result.stderr
+    assert re.search(r"B8A\.tif: band B8A is not on the grid of band B04 \S+B04\.tif: ", lines[0]), lines[0]
