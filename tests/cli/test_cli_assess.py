@@ -121,3 +121,20 @@ def test_the_library_refuses_the_same_sizes(files, options, pattern):
     with pytest.raises(InputError, match=pattern):
         assess_view_angles(scene["reflectance"], scene["reflectance"], scene["classes"], scene["vza"], scene["vaa"],
                            scene["saa"], options=ViewAngleOptions(**options))
+
+
+def test_an_after_image_of_nodata_only_is_one_line_not_an_empty_report(files, tmp_path):
+    """An all-NaN AFTER gave an assessment of 0 pixels everywhere with exit 0 (issue 39)."""
+    import rasterio
+
+    after = tmp_path / "nan_after.tif"
+    with rasterio.open(files["after"]) as dataset:
+        profile, shape = dataset.profile, (dataset.count, dataset.height, dataset.width)
+    with rasterio.open(after, "w", **profile) as dataset:
+        dataset.write(np.full(shape, np.nan, dtype=profile["dtype"]))
+    output = tmp_path / "r.json"
+    result = _invoke("assess", files["image"], after, "--classes", files["classes"], "--angles", files["angles"],
+                     "-o", output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and "nan_after.tif: nothing to assess" in lines[0] and not output.exists(), result.stderr
