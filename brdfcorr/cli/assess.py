@@ -136,7 +136,15 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
             engine=Engine(chunks=chunk),
         )
     report = assessment.report()
-    write_json(report, output)
+    # The figures first, the report last: a figure that fails leaves no report that looks complete,
+    # and a report that fails takes the figures of this run with it.
+    written = write_assessment_figures(assessment, figures_dir) if figures_dir is not None else []
+    try:
+        write_json(report, output)
+    except BaseException:
+        for path in written:
+            Path(path).unlink(missing_ok=True)
+        raise
     click.echo(_format_table(_summary_rows(report)))
     within = report["view_angles"]["summary"]["slopes_within_2_sigma"]
     click.echo(f"slopes within 2 sigma of 0 (class x band): {within['before']} of {within['of']} before, "
@@ -147,9 +155,8 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
         click.echo(f"overlap ({report['overlap']['pixels']} pixels): median relative RMSE "
                    f"{_number(before_rmse)} % before, {_number(after_rmse)} % after")
     click.echo(f"wrote {output}")
-    if figures_dir is not None:
-        for path in write_assessment_figures(assessment, figures_dir):
-            click.echo(f"wrote {path}")
+    for path in written:
+        click.echo(f"wrote {path}")
 
 
 def _held_out_rows(line: dict) -> list[dict[str, str]]:

@@ -138,3 +138,19 @@ def test_an_after_image_of_nodata_only_is_one_line_not_an_empty_report(files, tm
     assert result.exit_code == 2, result.output
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and "nan_after.tif: nothing to assess" in lines[0] and not output.exists(), result.stderr
+
+
+def test_a_figure_that_fails_leaves_no_report(files, tmp_path, monkeypatch):
+    """The JSON report was written before the figures: a figure that failed left it behind, looking
+    complete (issue 39). The report is now written last."""
+    import brdfcorr.plot.assess
+    from brdfcorr.errors import OutputError
+
+    def failing(*args, **kwargs):
+        raise OutputError("cannot write figure assess_profiles.png: No space left on device")
+
+    monkeypatch.setattr(brdfcorr.plot.assess, "write_assessment_figures", failing)
+    output = tmp_path / "r.json"
+    result = _invoke("assess", *_common(files), "-o", output, "--figures", tmp_path / "figures")
+    assert result.exit_code == 2, result.output
+    assert "cannot write figure" in result.stderr and not output.exists()
