@@ -327,3 +327,15 @@ def test_a_reference_sun_zenith_where_the_model_has_no_signal(safe, refused):
     refused(safe, [*_nbar(safe), "--ref-sza", "89.99"],
             r"reference geometry sza=89\.99 vza=0 raa=0: no class's model predicts a positive reflectance there in "
             r"any band \(class 1: f = -\d\S* sr\^-1\), so no pixel could be corrected")
+
+
+def test_landsat_quality_mask_smaller_than_the_bands(landsat, refused):
+    """A QA_PIXEL cropped by 4 rows left those pixels unmasked (a warped VRT's fill 0 is "clear"),
+    with no word (issue 39)."""
+    qa = next(landsat["folder"].glob("*_QA_PIXEL.TIF"))
+    with rasterio.open(qa) as dataset:
+        profile, data = dataset.profile, dataset.read()
+    with rasterio.open(qa, "w", **{**profile, "height": profile["height"] - 4}) as dataset:
+        dataset.write(data[:, :-4])
+    refused(landsat, ["nbar", landsat["folder"], "-o", landsat["out"] / "nbar.tif", "--no-progress"],
+            r"_QA_PIXEL\.TIF: the quality mask \(.*\) does not cover the image \(.*\): it reaches 105 beyond")

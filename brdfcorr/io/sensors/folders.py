@@ -39,6 +39,7 @@ from xml.sax.saxutils import escape
 import rasterio
 import rioxarray
 import xarray as xr
+from pyproj import Transformer
 from rasterio.enums import Resampling
 from rasterio.vrt import WarpedVRT
 
@@ -46,6 +47,7 @@ from brdfcorr.errors import OutputError, SensorInputError
 from brdfcorr.io.files import atomic_path, read_regular, write_cause
 from brdfcorr.io.paths import check_outputs
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands
+from brdfcorr.io.sensors.grids import check_covers
 from brdfcorr.io.sensors.hls import find_hls_granule, hls_refusal
 from brdfcorr.io.sensors.landsat import find_angle_bands
 from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
@@ -367,6 +369,10 @@ def _on_grid(path: Path, grid: rasterio.DatasetReader, chunks: int) -> xr.DataAr
     with rasterio.open(path) as source:
         same = (source.crs == grid.crs and source.transform == grid.transform
                 and source.shape == (grid.height, grid.width))
+        if not same:  # outside the mask every pixel would read as its fill: QA_PIXEL 0 is "clear"
+            transformer = None if source.crs == grid.crs else Transformer.from_crs(grid.crs, source.crs, always_xy=True)
+            check_covers(source.transform, source.shape, grid.transform, (grid.height, grid.width), transformer,
+                         source=f"{path}: the quality mask", margin=0.5)
     if same:
         band = rioxarray.open_rasterio(path, chunks={"y": chunks, "x": chunks}, lock=False)
     else:

@@ -222,13 +222,14 @@ def _footprint(transform: Affine, shape: tuple[int, int]) -> tuple[float, float,
 
 def check_covers(source_transform: Affine, source_shape: tuple[int, int], target_transform: Affine,
                  target_shape: tuple[int, int], transformer: Transformer | None = None,
-                 source: str = "the coarse grid") -> None:
-    """Refuse an image grid that reaches beyond a coarse grid by more than one coarse pixel.
+                 source: str = "the coarse grid", margin: float = 1.0) -> None:
+    """Refuse an image grid that reaches beyond a coarse grid by more than ``margin`` coarse pixels.
 
     :func:`to_grid` holds the edge value constant beyond the outermost pixel centres: an image
     that lies elsewhere (a tile's metadata with a wrong corner, another tile's, another CRS) would
     get the edge's angles at any distance, silently. One coarse pixel of margin keeps images on the
-    tile's edge. ``transformer`` maps the image's CRS to the coarse grid's.
+    tile's edge. ``transformer`` maps the image's CRS to the coarse grid's. A quality mask, which
+    must cover every pixel, takes ``margin=0.5`` (the rounding of grids that agree).
 
     Raises
     ------
@@ -239,14 +240,14 @@ def check_covers(source_transform: Affine, source_shape: tuple[int, int], target
     if transformer is not None:
         left, bottom, right, top = transformer.transform_bounds(left, bottom, right, top, densify_pts=21)
     west, south, east, north = _footprint(source_transform, source_shape)
-    pad_x = abs(source_transform.a) + abs(source_transform.b)
-    pad_y = abs(source_transform.d) + abs(source_transform.e)
+    pad_x = margin * (abs(source_transform.a) + abs(source_transform.b))
+    pad_y = margin * (abs(source_transform.d) + abs(source_transform.e))
     beyond = max(west - left - pad_x, right - east - pad_x, south - bottom - pad_y, top - north - pad_y)
     if not beyond <= 0:  # NaN or inf (a point the CRS cannot map) is outside too
         raise SensorInputError(
             f"{source} ({west:.6g}, {south:.6g}) to ({east:.6g}, {north:.6g}) does not cover the image "
             f"({left:.6g}, {bottom:.6g}) to ({right:.6g}, {top:.6g}): it reaches {beyond:.6g} beyond, more than "
-            "one grid step; are these the image's angles (its corner, its CRS)?")
+            f"{margin:g} grid step; is it the image's own (its corner, its CRS)?")
 
 
 def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, chunks=None,
