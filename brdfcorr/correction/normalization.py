@@ -42,6 +42,7 @@ geometry (0 / 0): the pixel is left unchanged (factor 1). The registry's paramet
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Sequence
 from typing import Any, Literal, NamedTuple
 
@@ -62,7 +63,7 @@ from brdfcorr.correction.inputs import BlockSettings, prepare_inputs
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
-from brdfcorr.errors import InputError
+from brdfcorr.errors import BrdfcorrWarning, InputError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
@@ -188,12 +189,20 @@ def check_reference_signal(plans: dict[int, ClassPlan | None], reference: Refere
     in any band: every factor f(ref) / f(obs) would be invalid and every pixel nodata (an all-NaN
     output with exit 0 before; a kernel model at a sun zenith near 90 deg goes negative). One class
     and band with a positive value ends the search (the first, as a rule): cheap for any table.
+    A table whose ``bad_bands`` leave no band with parameters in any class corrects nothing: a
+    :class:`~brdfcorr.errors.BrdfcorrWarning` says so (the output is the input).
 
     Raises
     ------
     InputError
         Naming the reference geometry and the value of the first class and band.
     """
+    if all(plan is None or (plan.row_of_band == NO_PARAMETERS).all() for plan in plans.values()):
+        if plans:  # a table that corrects no band: the image passes through as it is
+            warnings.warn(f"the bad_bands of every class ({', '.join(map(str, list(plans)[:5]))}"
+                          f"{', ...' if len(plans) > 5 else ''}) cover every band of the image: no band is "
+                          "corrected, the output is the input", BrdfcorrWarning, stacklevel=3)
+        return
     if isinstance(reference.sza, str):  # "observed": the reference is each pixel's own sun
         return
     where = ScatteringGeometry(np.float64(reference.sza), np.float64(reference.vza), np.float64(reference.raa))
