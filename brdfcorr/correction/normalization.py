@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
@@ -158,12 +158,12 @@ def normalize(
         group = _passing_bad_bands(group, inputs.resolved)
     reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits
     band_dim = reflectance.dims[0]
-    plans = {cid: class_plan(cid, entry.model, entry.params, entry.no_parameters)
-             for cid, entry in inputs.resolved.items()}
+    class_plans = {cid: class_plan(cid, entry.model, entry.params, entry.no_parameters)
+                   for cid, entry in inputs.resolved.items()}
     if group is None:  # coefficients continuous in NDVI: the reference value depends on the pixel
-        check_reference_signal(plans, reference)
-    plans = Plans(plans)
-    kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings, unknown_nan=unknown == "nan", group=group)
+        check_reference_signal(class_plans, reference)
+    kwargs: dict[str, Any] = dict(plans=Plans(class_plans), settings=inputs.settings, unknown_nan=unknown == "nan",
+                                  group=group)
     if inputs.lazy:
         pairs = inputs.blockwise(_normalize_block, kwargs)
         corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, inputs.settings.out_dtype)
@@ -184,7 +184,7 @@ def normalize(
     return Normalized(corrected, qa)
 
 
-def check_reference_signal(plans: dict[int, ClassPlan | None], reference: ReferenceGeometry) -> None:
+def check_reference_signal(plans: Mapping[int, ClassPlan | None], reference: ReferenceGeometry) -> None:
     """Refuse a fixed reference geometry at which no class's model predicts a positive reflectance
     in any band: every factor f(ref) / f(obs) would be invalid and every pixel nodata (an all-NaN
     output with exit 0 before; a kernel model at a sun zenith near 90 deg goes negative). One class
