@@ -47,6 +47,7 @@ from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
 from brdfcorr.io.commit import check_complete
 from brdfcorr.io.files import content_digest
 from brdfcorr.io.paths import InputOverwriteError, check_outputs
+from brdfcorr.io.writer import envi_sidecars
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 from brdfcorr.plot.assess import figure_paths
 from brdfcorr.workflow.config import ChainConfig, format_pattern
@@ -399,6 +400,10 @@ def _check_outputs(config: ChainConfig, scenes: list[Scene], report: Path, fit_o
     parameter table, measurement files) and against each other, whatever each scene's action."""
     written = [(f"outputs: {key} output {path} of scene {scene.name}", path)
                for scene in scenes for key, path in scene.outputs.items()]
+    if config.outputs.format == "ENVI":  # the header and .aux.xml beside each corrected data file
+        written += [(f"outputs: corrected output's sidecar {final} of scene {scene.name}", final)
+                    for scene in scenes if "corrected" in scene.outputs
+                    for _, final in envi_sidecars(scene.outputs["corrected"], scene.outputs["corrected"])]
     written.append((f"outputs.report {report}", report))
     if fit_output is not None:
         written.append((f"steps.fit.output {fit_output}", fit_output))

@@ -118,6 +118,12 @@ DEMO_CASES = {
          "--set", "steps.fit.output=../../scene/line01_classes.tif", "--overwrite"],
         r"demo\.yaml: steps\.fit\.output \S*line01_classes\.tif would overwrite an input \(the same file as "
         r"the class map of scene line01 \S*scene/line01_classes\.tif\)$"),
+    # An ENVI output's header is an output too: the report written over it left the image headerless.
+    "report is the ENVI header of the corrected image": (
+        ["--set", "outputs.format=ENVI", "--set", "outputs.naming='{scene}_brdf.img'", "--set",
+         "outputs.report=line01_brdf.hdr"],
+        r"demo\.yaml: outputs: corrected output's sidecar \S*corrected/line01_brdf\.hdr of scene line01 and "
+        r"outputs\.report \S*corrected/line01_brdf\.hdr are the same file"),
     "QA naming equal to the corrected naming": (
         ["--set", "outputs.qa_naming='{scene}_brdf.tif'"],
         r"demo\.yaml: outputs: corrected output \S*corrected/line01_brdf\.tif of scene line01 and outputs: qa "
