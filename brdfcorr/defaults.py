@@ -14,6 +14,14 @@ DEFAULT_LIMITS: tuple[float, float] = (0.2, 5.0)
 CHUNK_RANGE: tuple[int, int] = (16, 8192)
 
 
+#: Narrowest bin of the across-track profiles of ``assess`` [deg] (``--bin-width``): 2 x 90 / 0.01 =
+#: 18 000 bins at most (a width of 1e-9 asked for 1.3 TiB of bin edges).
+MIN_BIN_WIDTH = 0.01
+#: Largest side of the blocks the slopes' 1-sigma is cluster-robust over [pixels] (``--block-size``):
+#: larger than any image, so one block; beyond it block indices overflow 64-bit integers.
+MAX_BLOCK_SIZE = 2**20
+
+
 def chunk_size_problem(value: object) -> str | None:
     """What is wrong with ``value`` as a chunk and tile size (``"must be a multiple of 16 ..."``),
     or None for a good one: an integer, a multiple of 16 in :data:`CHUNK_RANGE`."""

@@ -26,6 +26,7 @@ import xarray as xr
 
 from brdfcorr._arrays import cosd, sind
 from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
+from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import BrdfcorrWarning, InputError
 
 __all__ = ["SIGN_CONVENTIONS", "GROWTH_LIMIT", "signed_view_zenith", "ViewAngleOptions", "assess_view_angles",
@@ -439,12 +440,12 @@ def assess_view_angles(
     by, bin_width, min_vza = options.by, options.bin_width, options.min_vza
     if by not in SIGN_CONVENTIONS:
         raise InputError(f"sign convention {by!r} is not one of {', '.join(SIGN_CONVENTIONS)}")
-    if not (math.isfinite(bin_width) and 0 < bin_width <= 90):
-        raise InputError(f"bin width {bin_width} deg must be in (0, 90]")
+    if not (math.isfinite(bin_width) and MIN_BIN_WIDTH <= bin_width <= 90):
+        raise InputError(f"bin width {bin_width} deg must be in [{MIN_BIN_WIDTH}, 90]")
     if not (math.isfinite(min_vza) and 0 <= min_vza < 90):
         raise InputError(f"min_vza {min_vza} deg must be in [0, 90)")
-    if not (isinstance(options.block_size, int) and options.block_size >= 1):
-        raise InputError(f"block size {options.block_size} must be a whole number of pixels >= 1")
+    if not (isinstance(options.block_size, int) and 1 <= options.block_size <= MAX_BLOCK_SIZE):
+        raise InputError(f"block size {options.block_size} must be a whole number of pixels from 1 to {MAX_BLOCK_SIZE}")
     shape = before.shape[1:]
     layers = [_layer(value, name, shape) for name, value in
               (("the class map", classes), ("vza", vza), ("vaa", vaa), ("saa", saa), ("the cluster layer", clusters))]

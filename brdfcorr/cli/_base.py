@@ -14,7 +14,9 @@ import functools
 import importlib
 import os
 import select
+import signal
 import sys
+import threading
 import traceback
 import warnings
 from pathlib import Path
@@ -138,6 +140,8 @@ EXIT_INTERNAL = 1
 EXIT_SCENES_FAILED = 3
 #: Exit code after Ctrl-C (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
+#: Exit code after SIGTERM (128 + SIGTERM, as shells report it): stopped as after Ctrl-C.
+EXIT_TERMINATED = 143
 #: Exit code when the reader of the output went away (``brdfcorr models | head``): 128 + SIGPIPE, as
 #: shells report a Unix tool that a closed pipe stopped.
 EXIT_BROKEN_PIPE = 141
@@ -145,6 +149,7 @@ EXIT_CODES = {0: "success", EXIT_INTERNAL: "internal error (a bug; --debug shows
               EXIT_BAD_INPUT: "bad input, config, parameter or option, or an output that cannot be written",
               EXIT_SCENES_FAILED: "run: the run finished but some scenes failed (see the report)",
               EXIT_INTERRUPTED: "interrupted (Ctrl-C); partial outputs are removed",
+              EXIT_TERMINATED: "terminated (SIGTERM); partial outputs and scratch folders are removed",
               EXIT_BROKEN_PIPE: "the reader of the output went away (a pipe closed early); stopped quietly"}
 
 
@@ -161,6 +166,10 @@ def _fail(error: Exception):
     text = " ".join(str(error).split("\n")).strip()
     if isinstance(error, BrdfcorrError):
         click.echo(f"brdfcorr: error: {text}", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    if isinstance(error, MemoryError):  # a resource limit (ulimit -v, a small machine), not a bug
+        click.echo(f"brdfcorr: error: out of memory{': ' + text if text else ''}; a smaller tile size (--chunk) "
+                   "or a higher memory limit (ulimit -v) helps", err=True)
         sys.exit(EXIT_BAD_INPUT)
     hint = "" if _debug_enabled() else " (rerun with --debug for the traceback)"
     click.echo(f"brdfcorr: internal error: {type(error).__name__}: {text}{hint}", err=True)
@@ -199,6 +208,31 @@ def _stop_quietly(error: BrokenPipeError):
     sys.exit(EXIT_BROKEN_PIPE)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread as Ctrl-C raises :class:`KeyboardInterrupt`, so that
+    what is being written and the scratch folders of a command are removed on the way out (the
+    default action of SIGTERM ends the process where it stands)."""
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt():
+    """While a command runs, SIGTERM raises :class:`Terminated` in the main thread; the previous
+    handler is restored after. Outside the main thread (where no handler can be set) nothing
+    changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminated(signum, frame):
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
+
+
 def handle_errors(command):
     """Map exceptions to exit codes: :class:`BrdfcorrError` and click's usage errors -> one line
     and 2, any other exception -> one "internal error" line and 1; click's exit and abort pass."""
@@ -214,6 +248,9 @@ def handle_errors(command):
             hint = f" (see --help of {where})" if where else ""
             click.echo(f"brdfcorr: error: {where + ': ' if where else ''}{error.format_message()}{hint}", err=True)
             sys.exit(error.exit_code)
+        except Terminated:
+            click.echo("brdfcorr: terminated", err=True)
+            sys.exit(EXIT_TERMINATED)
         except (KeyboardInterrupt, click.exceptions.Abort):
             # Ctrl-C: partial outputs are removed on the way out (atomic_path); 128 + SIGINT.
             click.echo("brdfcorr: interrupted", err=True)
@@ -324,7 +361,8 @@ class _Group(click.Group):
                 warnings.simplefilter("ignore")
                 warnings.simplefilter("default", BrdfcorrWarning)
             warnings.showwarning = _warning_lines(warnings.showwarning)
-            return handle_errors(super().invoke)(ctx)
+            with terminate_as_interrupt():
+                return handle_errors(super().invoke)(ctx)
 
 
 def _warning_lines(fallback):
@@ -345,7 +383,7 @@ def _warning_lines(fallback):
              epilog="Exit codes: 0 success; 2 bad input, config, parameter or option, or an output "
                     "that cannot be written (one line on stderr naming the file, key, band or class); "
                     "1 internal error (a bug; --debug shows the traceback); 3 run: some scenes failed; "
-                    "130 interrupted.")
+                    "130 interrupted; 143 terminated.")
 @click.option("--debug", is_flag=True, help="Show the traceback of an error, and third-party warnings.")
 @click.version_option(__version__, prog_name="brdfcorr")
 def main(debug):

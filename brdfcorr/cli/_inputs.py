@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from brdfcorr.defaults import MAX_BLOCK_SIZE
 from brdfcorr.io.sensors import ANGLE_KINDS
 
 
@@ -64,7 +65,7 @@ prior_options = _stack(
 
 #: ``--block-size`` of ``assess`` and ``assess-lines``: the blocks of the slopes' 1-sigma.
 slope_block_option = click.option(
-    "--block-size", type=click.IntRange(min=1), default=32, show_default=True,
+    "--block-size", type=click.IntRange(min=1, max=MAX_BLOCK_SIZE), default=32, show_default=True,
     help="Side [pixels] of the square blocks the slopes' 1-sigma is cluster-robust over (pixels of a block may "
          "share their errors: a field, a roof); the 1-sigma over blocks twice as large is reported too, with a "
          "warning where it is more than 1.25x larger (errors correlated beyond the blocks).")

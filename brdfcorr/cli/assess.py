@@ -29,6 +29,7 @@ from brdfcorr.cli._inputs import (
     scale_options,
     slope_block_option,
 )
+from brdfcorr.defaults import MIN_BIN_WIDTH
 from brdfcorr.io.paths import check_outputs, refuse_existing
 
 
@@ -76,7 +77,7 @@ def _number(value: float | None) -> str:
               help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
                    "(track, with --heading).")
 @click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
-@click.option("--bin-width", type=click.FloatRange(min=0, min_open=True, max=90), default=2.0, show_default=True,
+@click.option("--bin-width", type=click.FloatRange(min=MIN_BIN_WIDTH, max=90), default=2.0, show_default=True,
               help="Bin width of the across-track profiles [deg of signed view zenith].")
 @click.option("--min-vza", type=click.FloatRange(min=0, max=90, max_open=True), default=0.0, show_default=True,
               help="The side ratio compares pixels at least this far from nadir [deg].")
@@ -143,7 +144,16 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
             engine=Engine(chunks=chunk),
         )
     report = assessment.report()
-    write_json(report, output)
+    # The figures first, the report last: a figure that fails leaves no report that looks complete,
+    # and a report that fails takes the figures of this run with it.
+    written = (write_assessment_figures(assessment, figures_dir, title=Path(before).stem)
+               if figures_dir is not None else [])
+    try:
+        write_json(report, output)
+    except BaseException:
+        for path in written:
+            Path(path).unlink(missing_ok=True)
+        raise
     click.echo(_format_table(_summary_rows(report)))
     within = report["view_angles"]["summary"]["slopes_within_2_sigma"]
     click.echo(f"slopes within 2 sigma of 0 (class x band): {within['before']} of {within['of']} before, "
@@ -154,9 +164,8 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
         click.echo(f"overlap ({report['overlap']['pixels']} pixels): median relative RMSE "
                    f"{_number(before_rmse)} % before, {_number(after_rmse)} % after")
     click.echo(f"wrote {output}")
-    if figures_dir is not None:
-        for path in write_assessment_figures(assessment, figures_dir, title=Path(before).stem):
-            click.echo(f"wrote {path}")
+    for path in written:
+        click.echo(f"wrote {path}")
 
 
 def _held_out_rows(line: dict) -> list[dict[str, str]]:

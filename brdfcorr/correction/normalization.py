@@ -43,7 +43,8 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Sequence
+import warnings
+from collections.abc import Mapping, Sequence
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
@@ -64,7 +65,8 @@ from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.correction.series import is_series, over_dates
 from brdfcorr.defaults import DEFAULT_LIMITS
-from brdfcorr.errors import InputError
+from brdfcorr.errors import BrdfcorrWarning, InputError
+from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
 
 __all__ = ["normalize", "Normalized"]
@@ -175,9 +177,12 @@ def normalize(
         group = _passing_bad_bands(group, inputs.resolved)
     reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits
     band_dim = reflectance.dims[0]
-    plans = Plans({cid: class_plan(cid, entry.model, entry.params, entry.no_parameters)
-                   for cid, entry in inputs.resolved.items()})
-    kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings, unknown_nan=unknown == "nan", group=group)
+    class_plans = {cid: class_plan(cid, entry.model, entry.params, entry.no_parameters)
+                   for cid, entry in inputs.resolved.items()}
+    if group is None:  # coefficients continuous in NDVI: the reference value depends on the pixel
+        check_reference_signal(class_plans, reference)
+    kwargs: dict[str, Any] = dict(plans=Plans(class_plans), settings=inputs.settings, unknown_nan=unknown == "nan",
+                                  group=group)
     if inputs.lazy:
         pairs = inputs.blockwise(_normalize_block, kwargs)
         corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, inputs.settings.out_dtype)
@@ -196,6 +201,49 @@ def normalize(
         attrs=qa_attrs("BRDF normalization quality flags"),
     )
     return Normalized(corrected, qa)
+
+
+def check_reference_signal(plans: Mapping[int, ClassPlan | None], reference: ReferenceGeometry) -> None:
+    """Refuse a fixed reference geometry at which no class's model predicts a positive reflectance
+    in any band: every factor f(ref) / f(obs) would be invalid and every pixel nodata (an all-NaN
+    output with exit 0 before; a kernel model at a sun zenith near 90 deg goes negative). One class
+    and band with a positive value ends the search (the first, as a rule): cheap for any table.
+    A table whose ``bad_bands`` leave no band with parameters in any class corrects nothing: a
+    :class:`~brdfcorr.errors.BrdfcorrWarning` says so (the output is the input).
+
+    Raises
+    ------
+    InputError
+        Naming the reference geometry and the value of the first class and band.
+    """
+    if all(plan is None or (plan.row_of_band == NO_PARAMETERS).all() for plan in plans.values()):
+        if plans:  # a table that corrects no band: the image passes through as it is
+            warnings.warn(f"the bad_bands of every class ({', '.join(map(str, list(plans)[:5]))}"
+                          f"{', ...' if len(plans) > 5 else ''}) cover every band of the image: no band is "
+                          "corrected, the output is the input", BrdfcorrWarning, stacklevel=3)
+        return
+    if isinstance(reference.sza, str):  # "observed": the reference is each pixel's own sun
+        return
+    where = ScatteringGeometry(np.float64(reference.sza), np.float64(reference.vza), np.float64(reference.raa))
+    first = None
+    for class_id, plan in plans.items():
+        values = [] if plan is None else _reference_values(plan, where)
+        if not values or any(np.isfinite(value) and value > 0 for value in values):
+            return
+        first = first or (class_id, values[0])
+    if first is not None:
+        raise InputError(f"reference geometry {reference.describe()}: no class's model predicts a positive reflectance "
+                         f"there in any band (class {first[0]}: f = {first[1]:.4g} sr^-1), so no pixel could be "
+                         "corrected; choose a reference geometry nearer the observations")
+
+
+def _reference_values(plan: ClassPlan, where: ScatteringGeometry) -> list[float]:
+    """f at ``where`` [sr^-1] in each band in which ``plan``'s class has parameters."""
+    with np.errstate(all="ignore"):
+        terms = [np.array([float(np.asarray(term)) for term in plan.model.terms(where, shape)])
+                 for shape in plan.shapes]
+        return [float(np.dot(plan.coefficients[band], terms[plan.shape_of_band[band]]))
+                for band in range(len(plan.row_of_band)) if plan.row_of_band[band] != NO_PARAMETERS]
 
 
 def _passing_bad_bands(group, resolved):

@@ -223,7 +223,8 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
         return source or describe_layer(name, layers[name])
 
     positional = {name: layers[name].attrs.get(POSITIONAL) for name in names}
-    _check_values(ranges, counts, where, positional)
+    relative = "saa" in layers and bool(layers["saa"].attrs.get(RELATIVE_ONLY))
+    _check_values(ranges, counts, where, positional, relative=relative)
     if all(positional.values()) and len(names) == len(ANGLE_NAMES):
         _check_order(ranges, _spreads(names, low, high), where)
     return AngleStatistics(ranges, means)
@@ -313,10 +314,14 @@ def _check_order(ranges: dict, spreads: dict, where) -> None:
         )
 
 
-def _check_values(ranges: dict, counts: dict, where, positional: Mapping[str, int | None] | None = None) -> None:
+def _check_values(ranges: dict, counts: dict, where, positional: Mapping[str, int | None] | None = None, *,
+                  relative: bool = False) -> None:
     """The unit checks of :func:`check_angles` on the layers' ranges and (finite, in [0, 90))
     counts; ``where(name)`` names a layer in messages; ``positional`` the band of each layer taken
-    by position (:data:`POSITIONAL`), for a hint at the band order."""
+    by position (:data:`POSITIONAL`), for a hint at the band order. With ``relative`` (a source of
+    the relative azimuth only, :func:`from_relative_azimuth`: ``vaa`` is the raa) a raa within
+    +-6.3 that is not all 0 is radians (+-2 pi): degrees would put every pixel within 6.3 deg of
+    the hotspot."""
     empty = [name for name in counts if counts[name][0] == 0]
     if empty:  # every pixel would be nodata (a NaN sun zenith of a product, a layer of inf)
         raise InputError(f"{where(empty[0])}: no finite {empty[0]} value (all NaN, inf or nodata): "
@@ -324,6 +329,10 @@ def _check_values(ranges: dict, counts: dict, where, positional: Mapping[str, in
     zeniths = [name for name in ("sza", "vza") if name in ranges]
     if looks_like_radians(ranges, {name: count[0] for name, count in counts.items()}):
         raise InputError(radians_message(ranges, where(zeniths[0])))
+    if relative and "vaa" in ranges and 0.0 < max(map(abs, ranges["vaa"])) < 6.3:
+        low, high = ranges["vaa"]
+        raise InputError(f"{where('vaa')}: the relative azimuth (raa) {low:.3g}..{high:.3g} looks like radians; "
+                         "brdfcorr needs degrees")
     for name in zeniths:
         if counts[name][1] == 0:
             lowest, highest = ranges[name]

@@ -30,7 +30,7 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io.files import write_cause
 
-__all__ = ["GdalFailures", "Target", "verify", "io_failure", "write_error", "written_files"]
+__all__ = ["GdalFailures", "Target", "check_complete", "verify", "io_failure", "write_error", "written_files"]
 
 
 def io_failure(error: Exception, targets: list, messages: list[str], written: list[Path]) -> BrdfcorrError:
@@ -236,15 +236,38 @@ def verify(target: Target, tags: Mapping[str, str], written: list[Path]) -> None
         raise write_error([target.final], f"{cause} ({problem})" if cause != "unknown reason" else problem)
 
 
+def check_complete(path: str | os.PathLike) -> str | None:
+    """What is wrong with an existing output raster, or None where it is whole: the checks of
+    :func:`verify` that need no array (it opens; every GeoTIFF tile lies within the file; an ENVI
+    data file has its full length). A resumed run (:mod:`brdfcorr.workflow.plan`) reopens what it
+    would skip: a file cut short or damaged after it was written is redone, not reported complete.
+    Reads the header and the tile index only."""
+    try:
+        with rasterio.open(path) as dataset:
+            problem = _short_envi(dataset)
+            if problem is None and dataset.driver in ("GTiff", "COG"):
+                problem = _missing_tile(dataset, os.path.getsize(path))
+    except (rasterio.errors.RasterioError, CPLE_BaseError, OSError) as error:
+        problem = f"it does not read ({error})"
+    return problem
+
+
+def _short_envi(dataset) -> str | None:
+    """An ENVI data file shorter than its bands, rows and columns need."""
+    if dataset.driver != "ENVI":
+        return None
+    expected = dataset.count * dataset.height * dataset.width * np.dtype(dataset.dtypes[0]).itemsize
+    size = os.path.getsize(dataset.name)
+    return f"its data file holds {size} of {expected} bytes" if size < expected else None
+
+
 def _mismatch(dataset, array: xr.DataArray, tags: Mapping[str, str]) -> str | None:
     bands = array.shape[0] if array.ndim == 3 else 1
     if (dataset.count, dataset.height, dataset.width) != (bands, *array.shape[-2:]):
         return f"it reads back as {dataset.count} x {dataset.height} x {dataset.width}, not {array.shape}"
-    if dataset.driver == "ENVI":
-        expected = dataset.count * dataset.height * dataset.width * np.dtype(dataset.dtypes[0]).itemsize
-        size = os.path.getsize(dataset.name)
-        if size < expected:
-            return f"its data file holds {size} of {expected} bytes"
+    short = _short_envi(dataset)
+    if short is not None:
+        return short
     found = dataset.tags()
     lost = [key for key, value in tags.items() if found.get(key) != str(value)]
     return f"its tags {', '.join(lost[:3])} did not read back" if lost else None

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import gc
+import hashlib
 import os
 import stat
 import tempfile
@@ -43,8 +44,8 @@ except ImportError:  # pragma: no cover (PyYAML built without libyaml)
             Parser.__init__(self)
 
 
-__all__ = ["atomic_path", "temporary_beside", "sync_file", "write_cause", "DISK_CAUSES",
-           "read_document", "parse_yaml", "MAX_DOCUMENT_BYTES", "MAX_ALIAS_NODES", "MAX_DEPTH"]
+__all__ = ["atomic_path", "temporary_beside", "content_digest", "sync_file", "write_cause", "DISK_CAUSES",
+           "read_document", "read_regular", "parse_yaml", "MAX_DOCUMENT_BYTES", "MAX_ALIAS_NODES", "MAX_DEPTH"]
 
 #: Largest YAML document brdfcorr reads [bytes]. A table of 20 000 classes is about 2 MB; a bigger
 #: file is a mistake (an image given as a table) and would take minutes to parse.
@@ -167,16 +168,62 @@ _FILE_KINDS = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character d
                stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket"}
 
 
+#: Files up to this size are hashed whole by :func:`content_digest` [bytes] (about 0.1 s).
+FULL_HASH_BYTES = 64 * 2**20
+#: Larger files: their first and last :data:`EDGE_BYTES` (headers, TIFF directories, ENVI
+#: trailers) and :data:`SAMPLES` pieces of :data:`SAMPLE_BYTES` spread evenly between.
+EDGE_BYTES, SAMPLES, SAMPLE_BYTES = 2**20, 64, 64 * 2**10
+
+
+def content_digest(path: str | os.PathLike) -> str:
+    """A SHA-256 of a file's content: the whole file up to :data:`FULL_HASH_BYTES`, else its header,
+    its end and an even sample of its data (about 6 MB, read in milliseconds from any size).
+
+    What a resumed run compares besides a file's size and modification time: a file edited in place
+    that kept both (``touch -r``, a copy with ``cp -p``) is caught where the edit lies in what is
+    hashed, always for a small file and for any header of a large one.
+    """
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        size = os.fstat(handle.fileno()).st_size
+        if size <= FULL_HASH_BYTES:
+            for piece in iter(lambda: handle.read(2**20), b""):
+                digest.update(piece)
+            return digest.hexdigest()
+        step = (size - 2 * EDGE_BYTES) // SAMPLES
+        offsets = [(0, EDGE_BYTES), *((EDGE_BYTES + index * step, SAMPLE_BYTES) for index in range(SAMPLES)),
+                   (size - EDGE_BYTES, EDGE_BYTES)]
+        for offset, length in offsets:
+            handle.seek(offset)
+            digest.update(handle.read(length))
+    return digest.hexdigest()
+
+
 def read_document(
     path: str | os.PathLike, what: str, error: type[Exception], *, max_bytes: int = MAX_DOCUMENT_BYTES,
 ) -> str:
     """The text of a YAML document file: a regular file of at most ``max_bytes``, UTF-8.
 
-    A FIFO or a device (``/dev/urandom``) would block or never end, a directory or a binary, Latin-1
-    or UTF-16 file is no document: each is one ``error`` (a
+    Read by :func:`read_regular` (a FIFO or a device is refused, never waited on); a binary,
+    Latin-1 or UTF-16 file is no document: each is one ``error`` (a
     :class:`~brdfcorr.errors.BrdfcorrError` subclass), ``cannot read {what} {path}: {reason}``.
-    The file is opened without blocking and checked with ``fstat`` on the open descriptor, so
-    nothing can swap it between the check and the read. A UTF-8 byte-order mark is dropped.
+    A UTF-8 byte-order mark is dropped.
+    """
+    path = Path(path)
+    data = read_regular(path, what, error, max_bytes=max_bytes)
+    return _decode(data, lambda reason: error(f"cannot read {what} {path}: {reason}"))
+
+
+def read_regular(
+    path: str | os.PathLike, what: str, error: type[Exception], *, max_bytes: int = MAX_DOCUMENT_BYTES,
+) -> bytes:
+    """The bytes of a small metadata file (a YAML document, a product's XML or text metadata): a
+    regular file of at most ``max_bytes``.
+
+    A FIFO or a device (``/dev/urandom``) would block or never end, a directory is no file: each is
+    one ``error`` (a :class:`~brdfcorr.errors.BrdfcorrError` subclass), ``cannot read {what} {path}:
+    {reason}``. The file is opened without blocking and checked with ``fstat`` on the open
+    descriptor, so nothing can swap it between the check and the read.
     """
     path = Path(path)
 
@@ -209,7 +256,7 @@ def read_document(
             raise refuse(problem.strerror or str(problem)) from None
     if len(data) > max_bytes:
         raise too_big
-    return _decode(data, refuse)
+    return data
 
 
 def _decode(data: bytes, refuse) -> str:

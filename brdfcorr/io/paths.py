@@ -70,15 +70,33 @@ def _named(items: Named, default: str) -> list[tuple[str, Path]]:
     return [(name, Path(path)) for name, path in pairs if path is not None and str(path) != ""]
 
 
+def _status(path: PathLike) -> os.stat_result | None:
+    """``os.stat`` of the file a path names, or None where there is none (yet).
+
+    A path that does not exist as spelled may still name an existing file once its folders are
+    made: ``out/new/../../in/image.tif`` with ``out/new`` not there yet is ``in/image.tif`` as soon
+    as a run creates ``out/new``. Its resolved path (links followed, ``..`` taken against the folders
+    as they will be) is looked up too. Other errors (no permission to look) propagate."""
+    try:
+        return os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        pass
+    try:
+        return os.stat(Path(path).resolve())
+    except (FileNotFoundError, NotADirectoryError, RuntimeError):  # RuntimeError: a loop of links
+        return None
+
+
 def file_identity(path: PathLike) -> tuple:
     """What makes a file the same file: ``("inode", st_dev, st_ino)`` of an existing file (through
-    symbolic links), else ``("path", resolved path)``."""
+    symbolic links, and through folders a run has not made yet, :func:`_status`), else
+    ``("path", resolved path)``."""
     try:
-        status = os.stat(path)
-    except (FileNotFoundError, NotADirectoryError):
-        return ("path", Path(path).resolve())
+        status = _status(path)
     except OSError:  # no permission to look: the spelling is all there is
         return ("path", Path(os.path.abspath(path)))
+    if status is None:
+        return ("path", Path(path).resolve())
     return ("inode", status.st_dev, status.st_ino)
 
 
@@ -94,12 +112,12 @@ _KINDS = ((stat.S_ISDIR, "directory"), (stat.S_ISCHR, "character device"), (stat
 def _not_regular(path: Path) -> str | None:
     """What an existing path is when it is no regular file ("directory", ...); None otherwise."""
     try:
-        mode = os.stat(path).st_mode
+        status = _status(path)
     except OSError:
         return None
-    if stat.S_ISREG(mode):
+    if status is None or stat.S_ISREG(status.st_mode):
         return None
-    return next((kind for test, kind in _KINDS if test(mode)), "special file")
+    return next((kind for test, kind in _KINDS if test(status.st_mode)), "special file")
 
 
 def sidecar_paths(path: PathLike) -> list[Path]:

@@ -179,6 +179,9 @@ def assess_files(
         view = assess_view_angles(data.reflectance, corrected, data.classes, layers["vza"], layers["vaa"],
                                   layers["saa"], clusters=cluster_layer, options=view_options,
                                   scheduler=engine.scheduler, num_workers=engine.num_workers)
+        if int(view["pixels"].sum()) == 0:  # an all-NaN AFTER (or BEFORE, or no class): an empty report
+            raise InputError(f"no pixel of a class is valid (finite) in every band of both {scene.image} and {after}: "
+                             "nothing to assess (is one of them all nodata?)")
         inputs = {"before": str(scene.image), "after": str(after), "classes": str(scene.classes),
                   "angles": str(scene.angles)}
         inputs.update({name: str(path) for name in ("sza", "saa", "vza", "vaa")

@@ -17,7 +17,7 @@ from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
-from brdfcorr.defaults import AUTO_MODEL, DEFAULT_LIMITS, LEVELS
+from brdfcorr.defaults import AUTO_MODEL, DEFAULT_LIMITS, LEVELS, MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
@@ -300,9 +300,9 @@ class AssessStep(StrictModel):
 
     sign_by: Literal["sun", "track"] = "sun"
     heading: Number | None = Field(None, ge=0, lt=360, allow_inf_nan=False)
-    bin_width: Number = Field(2.0, gt=0, le=45)
+    bin_width: Number = Field(2.0, ge=MIN_BIN_WIDTH, le=45)
     min_vza: Number = Field(0.0, ge=0, lt=90)
-    block_size: Integer = Field(32, ge=1)
+    block_size: Integer = Field(32, ge=1, le=MAX_BLOCK_SIZE)
 
     @model_validator(mode="after")
     def _heading(self) -> AssessStep:

@@ -21,15 +21,16 @@ import rioxarray
 import xarray as xr
 
 from brdfcorr.correction import QA, qa_attrs
-from brdfcorr.correction.reference import centre_latitude, hls_sza
+from brdfcorr.correction.reference import resolve_reference, with_hls_sza
 from brdfcorr.errors import SensorInputError
+from brdfcorr.io.grid import grid_difference
 from brdfcorr.io.rasters import check_reflectance_scale
 from brdfcorr.io.sensors.hls import HLS_FMASK_MASKED, HlsGranule
 from brdfcorr.models.coefficients import load_coefficients
-from brdfcorr.params import ReferenceGeometry
+from brdfcorr.params import ParameterTable
 from brdfcorr.workflow.request import Engine
 
-__all__ = ["hls_sun_zenith_layers", "hls_factors", "HLS_SCALE"]
+__all__ = ["hls_sun_zenith_layers", "hls_factors", "band_scale", "HLS_SCALE"]
 
 #: HLS v2.0 stores reflectance x 10 000 (int16) where a band file gives no scale of its own.
 HLS_SCALE = 1e-4
@@ -41,17 +42,32 @@ def hls_factors(granule: HlsGranule, coefficients: str, sza: float) -> np.ndarra
     """Per band, f(sza, 0, 0) / f(nbar_sza, 0, 0) with the bands' coefficients [-] (module docstring)."""
     library = load_coefficients(coefficients)
     spectral = [library.sensor_band(granule.sensor, band) for band in granule.coefficient_bands]
-    return np.array([float(library.brdf(sza, 0.0, 0.0, name) / library.brdf(granule.nbar_sza, 0.0, 0.0, name))
-                     for name in spectral])
+    return np.array([float(library.brdf(sza, 0.0, 0.0, name) / library.brdf(own, 0.0, 0.0, name))
+                     for name, own in zip(spectral, granule.nbar_sza, strict=True)])
+
+
+def band_scale(band: xr.DataArray) -> float:
+    """Reflectance per stored value of a band file: its own scale where it gives one, else
+    :data:`HLS_SCALE` for integers (HLS v2.0) and 1 for floats (reflectance already, as a
+    reprocessed granule holds it)."""
+    scale = float(band.attrs.get("scale_factor", 1.0))
+    if scale != 1.0:
+        return scale
+    stored = np.dtype(band.encoding.get("rasterio_dtype", band.encoding.get("dtype", band.dtype)))
+    return HLS_SCALE if np.issubdtype(stored, np.integer) else 1.0
 
 
 def _reflectance(granule: HlsGranule, chunks: int) -> xr.DataArray:
     """The bands (band, y, x) as reflectance factors [1], no data as NaN (lazy)."""
     layers = []
-    for path in granule.bands.values():
+    for name, path in granule.bands.items():
         band = rioxarray.open_rasterio(path, chunks={"y": chunks, "x": chunks}, masked=True, lock=False)
-        scale = band.attrs.get("scale_factor", 1.0)
-        layers.append(band.isel(band=0, drop=True) * (scale if scale != 1.0 else HLS_SCALE))
+        layer = band.isel(band=0, drop=True)
+        difference = grid_difference(layer, layers[0]) if layers else None  # the one grid check (io.grid)
+        if difference is not None:
+            first, where = next(iter(granule.bands.items()))
+            raise SensorInputError(f"{path}: band {name} is not on the grid of band {first} {where}: {difference}")
+        layers.append(layer * band_scale(band))
     stack = xr.concat(layers, dim="band").assign_coords(band=np.arange(1, len(layers) + 1))
     return stack.assign_coords(wavelength=("band", list(granule.wavelengths))).astype(np.float32)
 
@@ -62,8 +78,10 @@ def _masked(granule: HlsGranule, like: xr.DataArray, bits: Sequence[int], chunks
         return xr.zeros_like(like.isel(band=0, drop=True), dtype=bool)
     fmask = rioxarray.open_rasterio(granule.fmask, chunks={"y": chunks, "x": chunks}, lock=False)
     fmask = fmask.isel(band=0, drop=True)
-    if fmask.shape != like.shape[1:]:
-        raise SensorInputError(f"{granule.fmask}: {fmask.shape} pixels, the bands {like.shape[1:]}")
+    difference = grid_difference(fmask, like.isel(band=0, drop=True))  # the one grid check (io.grid)
+    if difference is not None:
+        raise SensorInputError(f"{granule.fmask}: the Fmask is not on the grid of band {next(iter(granule.bands))} "
+                               f"{next(iter(granule.bands.values()))}: {difference}")
     flags = sum(1 << bit for bit in bits)
     return ((fmask & flags) != 0) | (fmask == FMASK_FILL)
 
@@ -86,15 +104,18 @@ def hls_sun_zenith_layers(granule: HlsGranule, *, coefficients: str, reference_s
     check_reflectance_scale(reflectance, str(granule.path), scheduler=engine.scheduler,
                             num_workers=engine.num_workers)
     invalid = _masked(granule, reflectance, HLS_FMASK_MASKED if masked is None else masked, chunks)
-    sza = hls_sza(centre_latitude(reflectance)) if reference_sza == "hls" else float(reference_sza)
+    # Validated as every reference geometry is (a finite sun zenith in [0, 90), one line naming it).
+    reference = with_hls_sza(resolve_reference({"sza": reference_sza, "vza": 0.0, "raa": 0.0}, ParameterTable()),
+                             reflectance)
+    sza = float(reference.sza)
     factors = xr.DataArray(hls_factors(granule, coefficients, sza).astype(np.float32), dims="band")
     corrected = (reflectance * factors).where(~invalid)
     nodata = (~np.isfinite(corrected)).any("band") | invalid
     qa = xr.where(nodata, np.uint8(QA.NODATA), np.uint8(0)).astype(np.uint8).assign_attrs(qa_attrs("QA flags"))
-    reference = ReferenceGeometry(sza=sza, vza=0.0, raa=0.0)
     tags = {"wavelength": ",".join(f"{w:g}" for w in granule.wavelengths), "wavelength_units": "nm",
             "brdf_reference": reference.describe(),
-            "brdf_hls_nbar_solar_zenith": f"{granule.nbar_sza:g}",
+            "brdf_hls_nbar_solar_zenith": ",".join(dict.fromkeys(f"{value:g}" for value in granule.nbar_sza))
+            if len(set(granule.nbar_sza)) == 1 else ",".join(f"{value:g}" for value in granule.nbar_sza),
             "brdf_coefficients": json.dumps({"set": coefficients, "bands": list(granule.coefficient_bands)}),
             "brdf_method": "HLS NBAR x f(ref sza, 0, 0) / f(NBAR_SOLAR_ZENITH, 0, 0) per band (Roy et al. 2016)"}
     return corrected, qa, tags, reference

@@ -16,9 +16,12 @@ granule, NBAR already, is only moved to a fixed reference sun zenith (:mod:`brdf
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import os
+import re
+import shutil
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -43,7 +46,7 @@ from brdfcorr.workflow.correction import correct_files
 from brdfcorr.workflow.hls import hls_sun_zenith_layers
 from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
-__all__ = ["nbar_files", "nbar_table", "NbarMethod", "EACH_BAND", "NBAR_CHUNK"]
+__all__ = ["nbar_files", "nbar_table", "NbarMethod", "EACH_BAND", "NBAR_CHUNK", "remove_stale_scratch"]
 
 #: ``view_band`` (``--view-band``) value that corrects each Sentinel-2 band with its own view grids.
 EACH_BAND = "each"
@@ -192,12 +195,44 @@ def _request(folder: ProductFolder, scene: SceneSources, angle_options: dict, ta
                              reads=folder.files, factor_at=method.factor_at)
 
 
+#: A scratch folder's name: ``.nbar-<process id>-<random>`` (:func:`_scratch`).
+_SCRATCH = re.compile(r"\.nbar-(\d+)-\w+")
+
+
 def _scratch(outputs: OutputFiles) -> tempfile.TemporaryDirectory:
-    """A temporary folder beside the output (on its file system) for the band stack."""
+    """A temporary folder beside the output (on its file system) for the band stack, named with
+    this process's id; the folders a killed process left there (SIGKILL, a power cut: no cleanup
+    ran) are removed first (:func:`remove_stale_scratch`)."""
+    folder = Path(outputs.corrected).parent
+    remove_stale_scratch(folder)
     try:
-        return tempfile.TemporaryDirectory(prefix=".nbar-", dir=Path(outputs.corrected).parent)
+        return tempfile.TemporaryDirectory(prefix=f".nbar-{os.getpid()}-", dir=folder)
     except OSError as error:
         raise OutputError(f"cannot write the band stack beside output {outputs.corrected}: {error.strerror}") from None
+
+
+def remove_stale_scratch(folder: Path) -> list[Path]:
+    """Remove the scratch folders (``.nbar-<pid>-...``) in ``folder`` whose process is gone; those of
+    running processes (another ``nbar`` writing beside its output here) stay. Returns the removed."""
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(folder):
+            match = _SCRATCH.fullmatch(entry.name)
+            if match and entry.is_dir(follow_symlinks=False) and not _alive(int(match.group(1))):
+                shutil.rmtree(entry.path, ignore_errors=True)
+                removed.append(Path(entry.path))
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` runs (one of another user counts as running)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return pid > 0
+    return True
 
 
 def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: OutputFiles, method: NbarMethod,

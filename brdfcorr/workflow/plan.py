@@ -10,11 +10,12 @@ class map and output names for every input image) and decides each scene's actio
 
 The plan is the one place that decides: ``brdfcorr run --dry-run`` shows it and
 :func:`brdfcorr.workflow.chain.run_chain` follows it, so both say the same about every scene.
-Outputs appear complete or not at all, so a scene whose outputs all exist is complete; it is still
+Outputs appear complete or not at all, and a skipped scene's outputs are reopened and checked as a
+fresh write is (:func:`brdfcorr.io.commit.check_complete`: one cut short after the run is redone); it is still
 redone when its corrected image records (provenance tag ``brdf_parameter_table_content``) another
 parameter table than the one this run will use (:func:`planned_table`), or another fingerprint
 (tags ``brdf_fingerprint``, ``brdf_fingerprint_content``) than the one this run would write
-(:func:`scene_fingerprint`: the input files' path, size and modification time, the reference
+(:func:`scene_fingerprint`: the input files' path, size, modification time and content digest, the reference
 geometry, limits and other settings, the brdfcorr version). When the fit step makes a new table,
 that table is not known before the run, and such scenes are redone.
 
@@ -33,6 +34,7 @@ import hashlib
 import json
 import os
 import re
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,7 +44,10 @@ import rasterio.errors
 from brdfcorr import __version__
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
+from brdfcorr.io.commit import check_complete
+from brdfcorr.io.files import content_digest
 from brdfcorr.io.paths import InputOverwriteError, check_outputs
+from brdfcorr.io.writer import envi_sidecars
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 from brdfcorr.plot.assess import figure_paths
 from brdfcorr.workflow.config import ChainConfig, format_pattern
@@ -407,6 +412,10 @@ def _check_outputs(config: ChainConfig, scenes: list[Scene], report: Path, fit_o
     parameter table, measurement files) and against each other, whatever each scene's action."""
     written = [(f"outputs: {key} output {path} of scene {scene.name}", path)
                for scene in scenes for key, path in scene.outputs.items()]
+    if config.outputs.format == "ENVI":  # the header and .aux.xml beside each corrected data file
+        written += [(f"outputs: corrected output's sidecar {final} of scene {scene.name}", final)
+                    for scene in scenes if "corrected" in scene.outputs
+                    for _, final in envi_sidecars(scene.outputs["corrected"], scene.outputs["corrected"])]
     written.append((f"outputs.report {report}", report))
     if fit_output is not None:
         written.append((f"steps.fit.output {fit_output}", fit_output))
@@ -472,6 +481,9 @@ def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
     with another fingerprint than ``scene.fingerprint`` (tag ``brdf_fingerprint``)."""
     if scene.action != "skip" or "corrected" not in scene.outputs:
         return scene
+    damaged = _damaged(scene)
+    if damaged:
+        return dataclasses.replace(scene, action="run", reason=f"{damaged}: redone")
     if table is None:
         return dataclasses.replace(scene, action="run", reason="the fit step makes a new parameter table")
     try:
@@ -487,6 +499,34 @@ def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
     return scene
 
 
+#: The outputs of a scene that are rasters (checked as a fresh write is before a resume skips them).
+_RASTERS = ("corrected", "qa", "uncertainty")
+
+
+def _damaged(scene: Scene) -> str | None:
+    """The first of a skipped scene's outputs that is no longer whole, in words: a raster cut short
+    or unreadable (:func:`brdfcorr.io.commit.check_complete`, as a fresh write is checked), an
+    assessment that is no JSON. None when all are whole."""
+    for role, path in scene.outputs.items():
+        if role in _RASTERS:
+            problem = check_complete(path)
+        elif path.suffix == ".json":
+            problem = _json_problem(path)
+        else:
+            continue
+        if problem is not None:
+            return f"{role} output {path} is damaged ({problem})"
+    return None
+
+
+def _json_problem(path: Path) -> str | None:
+    try:
+        json.loads(path.read_bytes())
+    except (OSError, ValueError) as error:
+        return f"it is no JSON document: {error}"
+    return None
+
+
 # ----------------------------------------------------------------------------------- fingerprints
 def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     """Everything a scene's corrected output depends on besides the parameter table, as canonical
@@ -494,8 +534,9 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     (tags ``brdf_fingerprint``, its SHA-256, and ``brdf_fingerprint_content``) and a resumed run
     compares.
 
-    It holds the input files' (image, class map, angles, terrain source) path (as given), size and
-    modification time [ns] (the acquisition time of a ``solar`` angle source), the angle source's
+    It holds the input files' (image, class map, angles, terrain source) path (as given), size,
+    modification time [ns] and content digest (:func:`brdfcorr.io.files.content_digest`; the
+    acquisition time of a ``solar`` angle source), the angle source's
     kind and options, the other ``inputs`` settings (wavelengths, class lookup, ...), the reference
     geometry, the correct step's options (limits, terrain, ...; not ``qa``: the QA and uncertainty
     rasters are extra outputs of the same pass, their presence is checked as a file's), the output
@@ -527,12 +568,15 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
 
 
 def _file_state(path: Path) -> dict:
-    """A file's identity in a fingerprint: path (as given), size [bytes], modification time [ns]."""
+    """A file's identity in a fingerprint: path (as given), size [bytes], modification time [ns] and
+    content (:func:`brdfcorr.io.files.content_digest`: an edit in place that kept the size and the
+    time changes it). Only regular files are read (a FIFO would block)."""
     try:
         status = os.stat(path)
+        digest = content_digest(path) if stat.S_ISREG(status.st_mode) else None
     except OSError:
         return {"path": str(path)}
-    return {"path": str(path), "size": status.st_size, "mtime_ns": status.st_mtime_ns}
+    return {"path": str(path), "size": status.st_size, "mtime_ns": status.st_mtime_ns, "content": digest}
 
 
 #: How a reason names a part of a fingerprint.

@@ -96,3 +96,61 @@ def test_sign_by_track_mirrors_sun_for_this_scene(files, tmp_path):
     assert _invoke("assess", *_common(files), "-o", paths[1], "--sign-by", "track", "--heading", "0").exit_code == 0
     sun, track = (json.loads(p.read_text())["view_angles"]["classes"] for p in paths)
     assert [c["before"]["slope"] for c in sun] == [c["before"]["slope"] for c in track]
+
+
+@pytest.mark.parametrize("option, value", [("--block-size", str(2**63)), ("--block-size", str(2**20 + 1)),
+                                           ("--bin-width", "1e-9")])
+def test_sizes_that_would_overflow_or_exhaust_memory_are_one_line(files, tmp_path, option, value):
+    """--block-size 2^63 overflowed a C long, --bin-width 1e-9 asked for 1.3 TiB of bin edges: both
+    internal errors (issue 39). The library refuses them too."""
+    output = tmp_path / "r.json"
+    result = _invoke("assess", *_common(files), "-o", output, option, value)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("brdfcorr: error: ") and option in lines[0], result.stderr
+    assert not output.exists()
+
+
+@pytest.mark.parametrize("options, pattern", [({"block_size": 2**63}, "block size .* from 1 to 1048576"),
+                                              ({"bin_width": 1e-9}, r"bin width 1e-09 deg must be in \[0\.01, 90\]")])
+def test_the_library_refuses_the_same_sizes(files, options, pattern):
+    from brdfcorr.analysis.view_angles import assess_view_angles
+    from brdfcorr.errors import InputError
+
+    scene = files["scene"]
+    with pytest.raises(InputError, match=pattern):
+        assess_view_angles(scene["reflectance"], scene["reflectance"], scene["classes"], scene["vza"], scene["vaa"],
+                           scene["saa"], options=ViewAngleOptions(**options))
+
+
+def test_an_after_image_of_nodata_only_is_one_line_not_an_empty_report(files, tmp_path):
+    """An all-NaN AFTER gave an assessment of 0 pixels everywhere with exit 0 (issue 39)."""
+    import rasterio
+
+    after = tmp_path / "nan_after.tif"
+    with rasterio.open(files["after"]) as dataset:
+        profile, shape = dataset.profile, (dataset.count, dataset.height, dataset.width)
+    with rasterio.open(after, "w", **profile) as dataset:
+        dataset.write(np.full(shape, np.nan, dtype=profile["dtype"]))
+    output = tmp_path / "r.json"
+    result = _invoke("assess", files["image"], after, "--classes", files["classes"], "--angles", files["angles"],
+                     "-o", output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and "nan_after.tif: nothing to assess" in lines[0] and not output.exists(), result.stderr
+
+
+def test_a_figure_that_fails_leaves_no_report(files, tmp_path, monkeypatch):
+    """The JSON report was written before the figures: a figure that failed left it behind, looking
+    complete (issue 39). The report is now written last."""
+    import brdfcorr.plot.assess
+    from brdfcorr.errors import OutputError
+
+    def failing(*args, **kwargs):
+        raise OutputError("cannot write figure assess_profiles.png: No space left on device")
+
+    monkeypatch.setattr(brdfcorr.plot.assess, "write_assessment_figures", failing)
+    output = tmp_path / "r.json"
+    result = _invoke("assess", *_common(files), "-o", output, "--figures", tmp_path / "figures")
+    assert result.exit_code == 2, result.output
+    assert "cannot write figure" in result.stderr and not output.exists()

@@ -79,3 +79,18 @@ def test_sigint_during_a_write_exits_130_and_leaves_no_partial_file(tmp_path):
 
 def test_readme_lists_the_interrupt_exit_code():
     assert "| 130 | interrupted" in (Path(__file__).parents[2] / "README.md").read_text()
+
+
+def test_running_out_of_memory_is_one_line_and_exit_2(monkeypatch):
+    """A MemoryError (``ulimit -v`` 400 MB) was an internal error, exit 1 (issue 39): it is a
+    resource limit, named as one."""
+    import brdfcorr.cli.info
+
+    def exhausted(*args, **kwargs):
+        raise MemoryError("Unable to allocate 1.31 TiB for an array")
+
+    monkeypatch.setattr(brdfcorr.cli.info, "material_names", exhausted)
+    result = CliRunner().invoke(main, ["materials"])
+    assert result.exit_code == 2
+    assert result.stderr.splitlines() == ["brdfcorr: error: out of memory: Unable to allocate 1.31 TiB for an array; "
+                                          "a smaller tile size (--chunk) or a higher memory limit (ulimit -v) helps"]

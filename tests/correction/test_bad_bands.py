@@ -7,6 +7,7 @@ bit for bit, the result of the same step on the image without the bad bands.
 """
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.correction import QA, normalize, qa_counts
-from brdfcorr.errors import ParameterError
+from brdfcorr.errors import BrdfcorrWarning, ParameterError
 from brdfcorr.fit import fit_classes
 from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, Sampling
 from brdfcorr.params import ParameterTable
@@ -196,3 +197,18 @@ def test_help_names_the_default_ranges():
     refused = CliRunner().invoke(main, ["fit-classes", "x.tif", "--angles", "a", "--classes", "c", "-o", "t.yaml",
                                         "--bad-bands", "1450:1340"])
     assert refused.exit_code == 2 and "0 < LOW <= HIGH" in refused.output
+
+
+def test_bad_bands_of_every_class_over_every_band_warn(scene):
+    """A table whose bad_bands cover every band corrects nothing: the output was the input with
+    "57550 pixels corrected" and no word (issue 39)."""
+    everything = {**SPECTRAL, "wavelengths": [350.0, 2450.0], "bad_bands": [[400, 2400]],
+                  "params": {"f_iso": [0.02, 0.05], "f_vol": [0.01, 0.02], "f_geo": 0.004}}  # no image band left
+    table = ParameterTable(classes=[everything, {**everything, "id": 2, "name": "soil"}])
+    with pytest.warns(BrdfcorrWarning, match=r"the bad_bands of every class \(1, 2\) cover every band of the image"):
+        result = normalize(scene["reflectance"], scene["classes"], _angles(scene), table)
+    assert np.array_equal(result.reflectance.values, scene["reflectance"].values)
+    partly = ParameterTable(classes=[everything, {**SPECTRAL, "id": 2, "name": "soil"}])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BrdfcorrWarning)
+        normalize(scene["reflectance"], scene["classes"], _angles(scene), partly)

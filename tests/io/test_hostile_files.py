@@ -411,17 +411,24 @@ def test_negative_model_values_are_nodata_not_limited_nor_corrected():
 
 def test_a_peak_vanishing_at_the_reference_is_nodata_not_clipped():
     # A narrow pure peak (t0 = 0) underflows to 0 at the nadir reference: the factor is 0, not a
-    # number to clip to the lower limit.
-    table = ParameterTable(classes=[{"id": 1, "name": "mirror", "model": "empirical",
-                                     "params": {"a": 1.0, "b": 1.0, "c": 5.0, "t0": 0.0}}])
+    # number to clip to the lower limit. Beside a class that has a signal there (class 2); a
+    # reference at which no class has one is refused as a whole (issue 39: not an all-NaN output).
+    mirror = {"id": 1, "name": "mirror", "model": "empirical", "params": {"a": 1.0, "b": 1.0, "c": 5.0, "t0": 0.0}}
+    table = ParameterTable(classes=[mirror, {"id": 2, "name": "flat", "model": "lambertian", "params": {"t0": 0.1}}])
     sza = vza = np.full((1, 3), 30.0)
     saa, vaa = np.zeros((1, 3)), np.full((1, 3), 180.0)  # the specular direction: the observed peak
-    result = normalize(np.full((2, 1, 3), 0.3), np.ones((1, 3), np.uint8),
-                       {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa}, table,
-                       reference={"sza": 30.0, "vza": 0.0})
-    assert np.isnan(result.reflectance.values).all()
-    assert ((result.qa.values & QA.NODATA) > 0).all() and not (result.qa.values & QA.LIMITED).any()
-    assert int(qa_counts(result.qa)["corrected"]) == 0
+    angles = {"sza": sza, "saa": saa, "vza": vza, "vaa": vaa}
+    classes = np.array([[1, 1, 2]], np.uint8)
+    result = normalize(np.full((2, 1, 3), 0.3), classes, angles, table, reference={"sza": 30.0, "vza": 0.0})
+    assert np.isnan(result.reflectance.values[:, :, :2]).all()
+    np.testing.assert_allclose(result.reflectance.values[:, :, 2], 0.3)
+    qa = result.qa.values[:, :2]
+    assert ((qa & QA.NODATA) > 0).all() and not (qa & QA.LIMITED).any()
+    assert int(qa_counts(result.qa)["corrected"]) == 1
+    with pytest.raises(InputError, match=r"reference geometry sza=30 vza=0 raa=0: no class's model predicts a "
+                                         r"positive reflectance there"):
+        normalize(np.full((2, 1, 3), 0.3), np.ones((1, 3), np.uint8), angles, ParameterTable(classes=[mirror]),
+                  reference={"sza": 30.0, "vza": 0.0})
 
 
 def test_a_model_beyond_float32_is_nodata_in_float32_and_finite_in_float64():

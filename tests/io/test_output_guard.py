@@ -103,6 +103,27 @@ DEMO_CASES = {
         ["--set", "outputs.report={demo}/scene/line01_image.tif"],
         r"outputs\.report \S*scene/line01_image\.tif would overwrite an input \(the same file as the image "
         r"of scene line01"),
+    # An output folder the run has not made yet, left again by "..": the path names the input
+    # as soon as the folder exists (issue 39: the image became the run report, exit 0).
+    "report through an output folder not made yet is the image": (
+        ["--set", "outputs.directory=new/deeper", "--set", "outputs.report=../../scene/line01_image.tif"],
+        r"demo\.yaml: outputs\.report \S*new/deeper/\.\./\.\./scene/line01_image\.tif would overwrite an "
+        r"input \(the same file as the image of scene line01 \S*scene/line01_image\.tif\)$"),
+    "report through an output folder not made yet is the chain config": (
+        ["--set", "outputs.directory=new/deeper", "--set", "outputs.report=../../demo.yaml"],
+        r"demo\.yaml: outputs\.report \S*new/deeper/\.\./\.\./demo\.yaml would overwrite an input "
+        r"\(the same file as the chain config \S*demo\.yaml\)$"),
+    "fitted table through an output folder not made yet is the class map": (
+        ["--set", "outputs.directory=new/deeper", "--set", "steps.fit.source=imagery",
+         "--set", "steps.fit.output=../../scene/line01_classes.tif", "--overwrite"],
+        r"demo\.yaml: steps\.fit\.output \S*line01_classes\.tif would overwrite an input \(the same file as "
+        r"the class map of scene line01 \S*scene/line01_classes\.tif\)$"),
+    # An ENVI output's header is an output too: the report written over it left the image headerless.
+    "report is the ENVI header of the corrected image": (
+        ["--set", "outputs.format=ENVI", "--set", "outputs.naming='{scene}_brdf.img'", "--set",
+         "outputs.report=line01_brdf.hdr"],
+        r"demo\.yaml: outputs: corrected output's sidecar \S*corrected/line01_brdf\.hdr of scene line01 and "
+        r"outputs\.report \S*corrected/line01_brdf\.hdr are the same file"),
     "QA naming equal to the corrected naming": (
         ["--set", "outputs.qa_naming='{scene}_brdf.tif'"],
         r"demo\.yaml: outputs: corrected output \S*corrected/line01_brdf\.tif of scene line01 and outputs: qa "
@@ -338,6 +359,24 @@ def test_guard_on_devices_and_missing_paths(tmp_path):
         check_outputs({"output": tmp_path / "x.tif"}, [tmp_path / "x.tif"])
 
 
+def test_guard_follows_dot_dot_through_folders_not_made_yet(tmp_path):
+    """An output whose path runs through a folder that does not exist yet and leaves it by ``..``
+    is the file it names once the folder is made: an input, another output, or a directory."""
+    image = tmp_path / "in" / "image.tif"
+    image.parent.mkdir()
+    image.write_bytes(b"input")
+    (tmp_path / "link").symlink_to(tmp_path / "in", target_is_directory=True)
+    through = tmp_path / "out" / "new" / ".." / ".." / "in" / "image.tif"
+    with pytest.raises(InputOverwriteError, match=r"report \S*out/new/\.\./\.\./in/image\.tif is also an input"):
+        check_outputs({"report": through}, {"image": image})
+    with pytest.raises(InputOverwriteError):  # a link on the way, then a folder not made yet
+        check_outputs({"report": tmp_path / "link" / "new" / ".." / "image.tif"}, {"image": image})
+    with pytest.raises(OutputError, match="is a directory"):
+        check_outputs({"report": tmp_path / "out" / "new" / ".." / ".." / "in"}, [])
+    check_outputs({"report": tmp_path / "out" / "new" / ".." / "report.json"}, {"image": image})
+    assert not (tmp_path / "out").exists()
+
+
 # --------------------------------------------------------------------------- paths as given
 def test_scene_given_as_a_link_reads_the_files_beside_the_link(tmp_path, make_scenes, write_chain, read):
     """``{dir}`` of an image given as a symbolic link is the link's directory: its class map and
@@ -410,6 +449,47 @@ def test_resume_redoes_what_changed_and_skips_the_rest(tmp_path, make_scenes, wr
     # Other limits: redone, naming the setting.
     planned, _, output = _actions(chain, "--set", "reference.sza=40", "--set", "steps.correct.limits=[0.5, 2]")
     assert planned == {"line0_image": "run", "line1_image": "run"} and "steps.correct.limits changed" in output
+
+
+def test_resume_redoes_an_input_edited_in_place_with_its_size_and_time(tmp_path, make_scenes, write_chain):
+    """The fingerprint held path, size and mtime only: an edit that kept both kept a stale output
+    (issue 39). It holds the content's digest too."""
+    scenes = make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path)
+    image = scenes["line0"][1]["image"]
+    with rasterio.open(image) as dataset:  # uncompressed: an edit of a pixel keeps the file's size
+        profile, data, tags, descriptions = dataset.profile, dataset.read(), dataset.tags(), dataset.descriptions
+    with rasterio.open(image, "w", **{**profile, "compress": None}) as dataset:
+        dataset.write(data)
+        dataset.update_tags(**tags)
+        dataset.descriptions = descriptions
+    assert run_chain(load_config(chain)).ok
+    status = image.stat()
+    with rasterio.open(image, "r+") as dataset:  # one pixel of the first band, in place
+        band = dataset.read(1)
+        band[3, 3] += 0.01
+        dataset.write(band, 1)
+    os.utime(image, ns=(status.st_atime_ns, status.st_mtime_ns))
+    assert (image.stat().st_size, image.stat().st_mtime_ns) == (status.st_size, status.st_mtime_ns)
+    planned, _, output = _actions(chain)
+    assert planned == {"line0_image": "run", "line1_image": "skip"}
+    assert f"image {image} changed since it was written" in output
+
+
+@pytest.mark.parametrize("role", ["brdf", "qa"])
+def test_resume_redoes_an_output_cut_short(tmp_path, make_scenes, write_chain, role):
+    """An output cut to half its size after the run was "skipped, complete outputs exist" with exit
+    0, and unreadable (issue 39): a skipped output is reopened and checked as a fresh write is."""
+    make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path)
+    assert run_chain(load_config(chain)).ok
+    damaged = tmp_path / "out" / f"line0_{role}.tif"
+    os.truncate(damaged, damaged.stat().st_size // 2)
+    planned, _, output = _actions(chain)
+    assert planned == {"line0_image": "run", "line1_image": "skip"}
+    assert re.search(rf"line0_{role}\.tif is damaged \(tile \(\d+, \d+\) of band \d+ ends beyond the file", output), output
+    with rasterio.open(damaged) as dataset:  # whole again
+        assert np.isfinite(dataset.read()).any()
 
 
 def test_fingerprint_is_recorded_with_its_digest(tmp_path, make_scenes, write_chain, read):

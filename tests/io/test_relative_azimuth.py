@@ -5,6 +5,8 @@ absolute azimuths (a tilted surface, signing by the flight track) is refused in 
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import rasterio
@@ -79,3 +81,25 @@ def test_an_incomplete_set_of_files_is_one_error(scene, tmp_path):
     result = _correct(scene, tmp_path / "out.tif", "--sza", scene["sza_only"], "--raa", scene["raa_only"])
     assert result.exit_code == 2
     assert "missing angle file(s): vza" in result.stderr.splitlines()[-1]
+
+
+@pytest.mark.parametrize("stacked", [False, True])
+def test_relative_azimuth_in_radians_is_refused(scene, tmp_path, stacked):
+    """A --raa file or the 3-band raster's raa in radians was taken as degrees near the hotspot
+    (up to 119 % off, exit 0) while the zeniths were degrees: issue 39."""
+    with rasterio.open(scene["relative"]) as relative:
+        profile, layers, descriptions = relative.profile, relative.read(), relative.descriptions
+    layers[1] = np.radians(layers[1])
+    path = tmp_path / ("relative_radians.tif" if stacked else "raa_radians.tif")
+    with rasterio.open(path, "w", **{**profile, "count": 3 if stacked else 1}) as target:
+        target.write(layers if stacked else layers[1:2])
+        if stacked:
+            target.descriptions = descriptions
+    angles = ("--angles", path) if stacked else ("--sza", scene["sza_only"], "--vza", scene["vza_only"], "--raa", path)
+    output = tmp_path / "out.tif"
+    result = _correct(scene, output, *angles)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and not output.exists(), result.stderr
+    assert re.search(rf"{path.name}\)?: the relative azimuth \(raa\) \S+ looks like radians; brdfcorr needs degrees",
+                     lines[0]), lines[0]

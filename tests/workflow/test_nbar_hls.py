@@ -10,6 +10,8 @@ Roy et al. (2016), Table 1, not with brdfcorr's kernel code.
 from __future__ import annotations
 
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -118,3 +120,74 @@ def test_hls_moves_the_granule_to_hls_v14s_sun_zenith_for_its_latitude(granule, 
     assert float(tags["brdf_reference"].split()[0].removeprefix("sza=")) == pytest.approx(sza, abs=1e-4)
     expected = 0.12 * nadir_brf(ROY_2016["B04"], sza) / nadir_brf(ROY_2016["B04"], NBAR_SZA)
     np.testing.assert_allclose(nbar[1:4], expected, rtol=1e-5)
+
+
+def _retag(path: Path, **tags) -> None:
+    with rasterio.open(path, "r+") as dataset:
+        dataset.update_tags(**tags)
+
+
+def test_each_band_moves_from_its_own_nbar_sun_zenith(granule, tmp_path):
+    """Bands with different NBAR_SOLAR_ZENITH tags all took the first's (issue 39)."""
+    _retag(next(granule.glob("*.B8A.tif")), NBAR_SOLAR_ZENITH="30")
+    output = tmp_path / "nbar45.tif"
+    assert run("nbar", granule, "--bands", "B04,B8A", "--ref-sza", "45", "-o", output).exit_code == 0
+    with rasterio.open(output) as dataset:
+        nbar, tags = dataset.read(), dataset.tags()
+    for index, (band, dn, own) in enumerate((("B04", 1200, NBAR_SZA), ("B8A", 3100, 30.0))):
+        expected = dn * 1e-4 * nadir_brf(ROY_2016[band], 45.0) / nadir_brf(ROY_2016[band], own)
+        np.testing.assert_allclose(nbar[index, 1:4], expected, rtol=1e-6, err_msg=band)
+    assert tags["brdf_hls_nbar_solar_zenith"] == f"{NBAR_SZA:g},30"
+
+
+def test_a_float_reflectance_band_is_not_scaled_again(granule, tmp_path):
+    """A band of float reflectance was multiplied by 1e-4 like the stored integers (issue 39)."""
+    path = next(granule.glob("*.B04.tif"))
+    with rasterio.open(path) as dataset:
+        profile, data, tags = dataset.profile, dataset.read(), dataset.tags()
+    reflectance = np.where(data == -9999, -9999.0, data * 1e-4).astype("float32")
+    with rasterio.open(path, "w", **{**profile, "dtype": "float32"}) as dataset:
+        dataset.write(reflectance)
+        dataset.update_tags(**tags)
+    output = tmp_path / "nbar45.tif"
+    assert run("nbar", granule, "--bands", "B04,B8A", "--ref-sza", "45", "-o", output).exit_code == 0
+    with rasterio.open(output) as dataset:
+        nbar = dataset.read(1)
+    expected = 0.12 * nadir_brf(ROY_2016["B04"], 45.0) / nadir_brf(ROY_2016["B04"], NBAR_SZA)
+    np.testing.assert_allclose(nbar[1:4], expected, rtol=1e-6)
+
+
+@pytest.mark.parametrize("sza", ["nan", "inf", "95", "-10"])
+def test_a_reference_sun_zenith_outside_its_domain_is_one_line(granule, tmp_path, sza):
+    """A raw pydantic ValidationError (exit 1) before (issue 39); Sentinel-2 gave exit 2 already."""
+    output = tmp_path / "out.tif"
+    result = run("nbar", granule, "--ref-sza", sza, "-o", output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("brdfcorr: error: ") and "sza" in lines[0], result.stderr
+    assert "ValidationError" not in result.output and not output.exists()
+
+
+def test_an_fmask_on_a_shifted_grid_is_one_line_naming_it(granule, tmp_path):
+    fmask = next(granule.glob("*.Fmask.tif"))
+    with rasterio.open(fmask, "r+") as dataset:
+        dataset.transform = dataset.transform * Affine.translation(2, 0)  # two pixels east
+    output = tmp_path / "out.tif"
+    result = run("nbar", granule, "--ref-sza", "45", "-o", output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and not output.exists(), result.stderr
+    assert re.search(r"Fmask\.tif: the Fmask is not on the grid of band B04 \S+B04\.tif: ", lines[0]), lines[0]
+
+
+def test_a_band_on_a_shifted_grid_is_named_not_the_fmask(granule, tmp_path):
+    """A band shifted against the others was blamed on the Fmask (issue 39)."""
+    band = next(granule.glob("*.B8A.tif"))
+    with rasterio.open(band, "r+") as dataset:
+        dataset.transform = dataset.transform * Affine.translation(1, 0)
+    output = tmp_path / "out.tif"
+    result = run("nbar", granule, "--ref-sza", "45", "-o", output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and not output.exists(), result.stderr
+    assert re.search(r"B8A\.tif: band B8A is not on the grid of band B04 \S+B04\.tif: ", lines[0]), lines[0]

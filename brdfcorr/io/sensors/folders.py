@@ -26,6 +26,8 @@ recognized and refused here in one line (:func:`brdfcorr.io.sensors.hls.hls_refu
 from __future__ import annotations
 
 import contextlib
+import math
+import os
 import re
 import threading
 import xml.etree.ElementTree as ET
@@ -37,19 +39,22 @@ from xml.sax.saxutils import escape
 import rasterio
 import rioxarray
 import xarray as xr
+from pyproj import Transformer
 from rasterio.enums import Resampling
 from rasterio.vrt import WarpedVRT
 
 from brdfcorr.errors import OutputError, SensorInputError
-from brdfcorr.io.files import atomic_path, write_cause
+from brdfcorr.io.files import atomic_path, read_regular, write_cause
 from brdfcorr.io.paths import check_outputs
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands
+from brdfcorr.io.sensors.grids import check_covers
 from brdfcorr.io.sensors.hls import find_hls_granule, hls_refusal
 from brdfcorr.io.sensors.landsat import find_angle_bands
 from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
 
 __all__ = ["ProductFolder", "find_product", "find_sentinel2_l2a", "find_landsat_c2_l2", "write_stack", "band_stacks",
-           "hls_refusal", "SCL_MASKED", "QA_PIXEL_MASKED", "LANDSAT_SCALE", "LANDSAT_OFFSET"]
+           "hls_refusal", "SCL_MASKED", "QA_PIXEL_MASKED", "LANDSAT_SCALE", "LANDSAT_OFFSET", "QUANTIFICATION_RANGE",
+           "OFFSET_RANGE"]
 
 #: Scene classification (SCL) values masked by default: 0 no data, 1 saturated or defective,
 #: 3 cloud shadow, 8 cloud (medium probability), 9 cloud (high probability), 10 thin cirrus.
@@ -136,7 +141,7 @@ def find_product(path: str | Path, *, resolution: int | None = None, bands: Sequ
     path = Path(path)
     if not path.is_dir():
         raise SensorInputError(f"product {path} is not a folder (a Sentinel-2 .SAFE or Landsat C2 L2 folder)")
-    if (path / "MTD_MSIL2A.xml").is_file():
+    if os.path.lexists(path / "MTD_MSIL2A.xml"):  # read as a regular file only (a FIFO is refused, not waited on)
         return find_sentinel2_l2a(path, resolution=resolution or 20, bands=bands, masked=masked)
     if any(_SR_BAND.search(p.name) for p in path.iterdir()):
         if resolution not in (None, 30):
@@ -157,33 +162,88 @@ def _local(tag: str) -> str:
     return tag.rsplit("}", 1)[-1]
 
 
-def _product_scaling(path: Path) -> tuple[float, float, dict[str, float], list[str]]:
-    """Processing baseline, quantification value, BOA offsets by band name, notes (MTD_MSIL2A.xml)."""
-    try:
-        root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as error:
-        raise SensorInputError(f"{path}: cannot read the product metadata ({error})") from error
+#: BOA_QUANTIFICATION_VALUE accepted (ESA: 10000): DN / value is a reflectance factor, so a value
+#: outside this range puts a bright pixel's DN of 5000 at 5 or 0.05 (a slip of the metadata).
+QUANTIFICATION_RANGE = (1000.0, 100000.0)
+#: BOA_ADD_OFFSET accepted, as a reflectance (offset / quantification; ESA from baseline 04.00:
+#: -1000 / 10000 = -0.1, before it 0): a larger shift is no radiometric offset.
+OFFSET_RANGE = (-0.2, 0.2)
+
+
+def _product_scaling(path: Path, names: Sequence[str]) -> tuple[float, float, dict[str, float], list[str]]:
+    """Processing baseline, quantification value, BOA offsets of the bands ``names``, notes
+    (MTD_MSIL2A.xml), each checked against its physical range (:data:`QUANTIFICATION_RANGE`,
+    :data:`OFFSET_RANGE`): a product listing offsets lists exactly one for every band read."""
+    root = _product_root(path)
     elements = {_local(e.tag): e for e in root.iter()}
+    baseline = _metadata_number(elements, "PROCESSING_BASELINE", path)
+    quantification = _metadata_number(elements, "BOA_QUANTIFICATION_VALUE", path)
+    low, high = QUANTIFICATION_RANGE
+    if not low <= quantification <= high:
+        raise SensorInputError(f"{path}: BOA_QUANTIFICATION_VALUE {quantification:g} is outside {low:g} to {high:g} "
+                               "(ESA: 10000, DN per reflectance factor 1)")
+    offsets, notes = _boa_offsets(root, path), []
+    if not offsets:
+        value = -1000.0 if baseline >= 4.0 else 0.0
+        if baseline >= 4.0:
+            notes.append(f"processing baseline {baseline:05.2f} lists no BOA_ADD_OFFSET: -1000 (ESA, baseline 04.00)")
+        return baseline, quantification, dict.fromkeys(names, value), notes
+    missing = [name for name in names if name not in offsets]
+    if missing:
+        raise SensorInputError(f"{path}: no BOA_ADD_OFFSET for band {', '.join(missing)} (band_id "
+                               f"{', '.join(str(BAND_NAMES.index(name)) for name in missing)}); the product lists "
+                               f"offsets for {', '.join(offsets)}")
+    for name in names:
+        if not OFFSET_RANGE[0] <= offsets[name] / quantification <= OFFSET_RANGE[1]:
+            raise SensorInputError(
+                f"{path}: BOA_ADD_OFFSET {offsets[name]:g} of band {name} (band_id {BAND_NAMES.index(name)}) is "
+                f"{offsets[name] / quantification:g} in reflectance, outside {OFFSET_RANGE[0]:g} to "
+                f"{OFFSET_RANGE[1]:g} (ESA: -1000 of quantification 10000)")
+    return baseline, quantification, {name: offsets[name] for name in names}, notes
+
+
+def _product_root(path: Path):
+    """The root element of ``MTD_MSIL2A.xml`` (a regular file only: a FIFO would block)."""
+    data = read_regular(path, "the product metadata", SensorInputError)
     try:
-        baseline = float(elements["PROCESSING_BASELINE"].text)
-        quantification = float(elements["BOA_QUANTIFICATION_VALUE"].text)
-    except KeyError as error:
-        raise SensorInputError(f"{path}: no <{error.args[0]}> element in the product metadata") from None
-    except (TypeError, ValueError) as error:
-        raise SensorInputError(f"{path}: malformed baseline or quantification value ({error})") from None
-    if quantification <= 0:
-        raise SensorInputError(f"{path}: BOA_QUANTIFICATION_VALUE {quantification:g} must be > 0")
-    offsets, notes = {}, []
+        return ET.fromstring(data)
+    except ET.ParseError as error:
+        raise SensorInputError(f"{path}: cannot read the product metadata ({error})") from error
+
+
+def _metadata_number(elements: Mapping[str, ET.Element], tag: str, path: Path) -> float:
+    """The finite number of a product metadata element, else one error naming it and its text."""
+    if tag not in elements:
+        raise SensorInputError(f"{path}: no <{tag}> element in the product metadata")
+    return _finite(elements[tag].text, f"<{tag}>", path)
+
+
+def _finite(text: str | None, what: str, path: Path) -> float:
+    try:
+        value = float(str(text).strip())
+    except ValueError:
+        value = float("nan")
+    if not math.isfinite(value):
+        raise SensorInputError(f"{path}: {what} {text!r} is not a finite number")
+    return value
+
+
+def _boa_offsets(root: ET.Element, path: Path) -> dict[str, float]:
+    """The ``BOA_ADD_OFFSET`` of each band by name: a band id of 0 to 12, one element per band."""
+    offsets: dict[str, float] = {}
     for element in root.iter():
-        if _local(element.tag) == "BOA_ADD_OFFSET":
-            try:
-                offsets[BAND_NAMES[int(element.get("band_id"))]] = float(element.text)
-            except (TypeError, ValueError, IndexError) as error:
-                raise SensorInputError(f"{path}: malformed BOA_ADD_OFFSET ({error})") from None
-    if not offsets and baseline >= 4.0:
-        offsets = dict.fromkeys(BAND_NAMES, -1000.0)
-        notes.append(f"processing baseline {baseline:05.2f} lists no BOA_ADD_OFFSET: -1000 (ESA, baseline 04.00)")
-    return baseline, quantification, offsets, notes
+        if _local(element.tag) != "BOA_ADD_OFFSET":
+            continue
+        band_id = element.get("band_id")
+        if band_id is None or not band_id.strip().isdigit() or int(band_id) >= len(BAND_NAMES):
+            raise SensorInputError(f"{path}: BOA_ADD_OFFSET band_id {band_id!r} is no Sentinel-2 band id "
+                                   f"(0 to {len(BAND_NAMES) - 1})")
+        name = BAND_NAMES[int(band_id)]
+        if name in offsets:
+            raise SensorInputError(f"{path}: BOA_ADD_OFFSET band_id {band_id!r} ({name}) is given twice; a product "
+                                   "lists one offset per band")
+        offsets[name] = _finite(element.text, f"BOA_ADD_OFFSET of band_id {band_id!r}", path)
+    return offsets
 
 
 def _granule_file(safe: Path, pattern: str, what: str) -> Path:
@@ -225,7 +285,7 @@ def find_sentinel2_l2a(path: str | Path, *, resolution: int = 20, bands: Sequenc
     unknown = [name for name in names if name not in BAND_NAMES]
     if unknown or not names:
         raise SensorInputError(f"{safe}: unknown Sentinel-2 band(s) {unknown}; bands are {', '.join(BAND_NAMES)}")
-    baseline, quantification, offsets, notes = _product_scaling(safe / "MTD_MSIL2A.xml")
+    baseline, quantification, offsets, notes = _product_scaling(safe / "MTD_MSIL2A.xml", names)
     files = {name: _band_file(safe, name, resolution) for name in names}
     grid = next((f for f in files.values() if f.parent.name == f"R{resolution}m"), None)
     if grid is None:
@@ -234,7 +294,7 @@ def find_sentinel2_l2a(path: str | Path, *, resolution: int = 20, bands: Sequenc
         path=safe, kind="sentinel2_l2a", sensor="sentinel2", bands=files,
         wavelengths=tuple(SENTINEL2_WAVELENGTHS[name] for name in names),
         scales=(1.0 / quantification,) * len(names),
-        offsets=tuple(offsets.get(name, 0.0) / quantification for name in names),
+        offsets=tuple(offsets[name] / quantification for name in names),
         resolution=float(resolution), grid=grid, mask=_band_file(safe, "SCL", 20),
         masked=tuple(SCL_MASKED if masked is None else masked),
         angles=_granule_file(safe, "MTD_TL.xml", "granule metadata"), angles_kind="sentinel2",
@@ -309,6 +369,10 @@ def _on_grid(path: Path, grid: rasterio.DatasetReader, chunks: int) -> xr.DataAr
     with rasterio.open(path) as source:
         same = (source.crs == grid.crs and source.transform == grid.transform
                 and source.shape == (grid.height, grid.width))
+        if not same:  # outside the mask every pixel would read as its fill: QA_PIXEL 0 is "clear"
+            transformer = None if source.crs == grid.crs else Transformer.from_crs(grid.crs, source.crs, always_xy=True)
+            check_covers(source.transform, source.shape, grid.transform, (grid.height, grid.width), transformer,
+                         source=f"{path}: the quality mask", margin=0.5)
     if same:
         band = rioxarray.open_rasterio(path, chunks={"y": chunks, "x": chunks}, lock=False)
     else:

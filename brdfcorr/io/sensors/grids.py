@@ -30,8 +30,8 @@ from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
 
-__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "grid_statistics", "grid_window", "grid_template", "interpolate_window",
-           "pixel_centres", "to_grid", "wrap_azimuth"]
+__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "check_covers", "grid_statistics", "grid_window", "grid_template",
+           "interpolate_window", "pixel_centres", "to_grid", "wrap_azimuth"]
 
 #: Encoding key of a layer interpolated by :func:`to_grid` holding its shape (y, x) and the statistics
 #: of :func:`brdfcorr.io.angles.check_angles` (min, max, finite count, count in [0, 90) and their
@@ -213,8 +213,45 @@ def grid_statistics(values: np.ndarray, source_transform: Affine, target_transfo
     return low, high, count, count, float(total)
 
 
+def _footprint(transform: Affine, shape: tuple[int, int]) -> tuple[float, float, float, float]:
+    """(left, bottom, right, top) of a grid's pixels, through its four corners (rotation allowed)."""
+    rows, cols = shape
+    xs, ys = transform * (np.array([0, cols, cols, 0]), np.array([0, 0, rows, rows]))
+    return float(xs.min()), float(ys.min()), float(xs.max()), float(ys.max())
+
+
+def check_covers(source_transform: Affine, source_shape: tuple[int, int], target_transform: Affine,
+                 target_shape: tuple[int, int], transformer: Transformer | None = None,
+                 source: str = "the coarse grid", margin: float = 1.0) -> None:
+    """Refuse an image grid that reaches beyond a coarse grid by more than ``margin`` coarse pixels.
+
+    :func:`to_grid` holds the edge value constant beyond the outermost pixel centres: an image
+    that lies elsewhere (a tile's metadata with a wrong corner, another tile's, another CRS) would
+    get the edge's angles at any distance, silently. One coarse pixel of margin keeps images on the
+    tile's edge. ``transformer`` maps the image's CRS to the coarse grid's. A quality mask, which
+    must cover every pixel, takes ``margin=0.5`` (the rounding of grids that agree).
+
+    Raises
+    ------
+    SensorInputError
+        Naming ``source``, both extents and the distance [coarse grid CRS units].
+    """
+    left, bottom, right, top = _footprint(target_transform, target_shape)
+    if transformer is not None:
+        left, bottom, right, top = transformer.transform_bounds(left, bottom, right, top, densify_pts=21)
+    west, south, east, north = _footprint(source_transform, source_shape)
+    pad_x = margin * (abs(source_transform.a) + abs(source_transform.b))
+    pad_y = margin * (abs(source_transform.d) + abs(source_transform.e))
+    beyond = max(west - left - pad_x, right - east - pad_x, south - bottom - pad_y, top - north - pad_y)
+    if not beyond <= 0:  # NaN or inf (a point the CRS cannot map) is outside too
+        raise SensorInputError(
+            f"{source} ({west:.6g}, {south:.6g}) to ({east:.6g}, {north:.6g}) does not cover the image "
+            f"({left:.6g}, {bottom:.6g}) to ({right:.6g}, {top:.6g}): it reaches {beyond:.6g} beyond, more than "
+            f"{margin:g} grid step; is it the image's own (its corner, its CRS)?")
+
+
 def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, chunks=None,
-            name: str | None = None, attrs: dict | None = None) -> xr.DataArray:
+            name: str | None = None, attrs: dict | None = None, source: str = "the coarse grid") -> xr.DataArray:
     """Interpolate a coarse (y, x) grid onto the grid of ``like``, lazily.
 
     Parameters
@@ -231,6 +268,8 @@ def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, ch
         Output chunks; default: ``like``'s (y, x) chunks if it is dask-backed, else 2048.
     name, attrs :
         Name and attrs of the output (``attrs`` replaces ``coarse``'s; units must be set here).
+    source : str
+        What the coarse grid is, in messages (a file and layer).
 
     Returns
     -------
@@ -253,9 +292,10 @@ def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, ch
             "cannot place the coarse grid on the image grid: only one of them has a CRS "
             f"(coarse: {source_crs}, image: {target_crs})"
         )
+    values = np.asarray(coarse.transpose("y", "x").values, dtype="float64")
+    check_covers(source_transform, values.shape, target_transform, shape, transformer, source)
     if chunks is None:
         chunks = plane.data.chunks if isinstance(plane.data, da.Array) else GRID_CHUNK
-    values = np.asarray(coarse.transpose("y", "x").values, dtype="float64")
     template = da.empty(shape, dtype="float64", chunks=chunks)
     separable = (transformer is None and _axis_aligned(source_transform) and _axis_aligned(target_transform)
                  and bool(np.isfinite(values).all()))

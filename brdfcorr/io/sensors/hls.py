@@ -45,11 +45,18 @@ class HlsGranule(ProductBands):
     ``hls_s30``, Sentinel-2 based, or ``hls_l30``, Landsat based; the coefficient library's sensor
     ``sentinel2`` or ``landsat_oli``), with each band's name in the library
     (``coefficient_bands``: ``B04``, ``SR_B4``), the sun zenith of the granule's NBAR ``nbar_sza``
-    [deg] (``NBAR_SOLAR_ZENITH``) and its Fmask file ``fmask`` (None where there is none)."""
+    [deg] (``NBAR_SOLAR_ZENITH``, each band's own) and its Fmask file ``fmask`` (None where there is
+    none)."""
 
     coefficient_bands: tuple[str, ...]
-    nbar_sza: float
+    nbar_sza: tuple[float, ...]
     fmask: Path | None
+
+    def describe_sza(self) -> str:
+        """The bands' NBAR sun zenith [deg] in words: one value, or each band's."""
+        if len(set(self.nbar_sza)) == 1:
+            return f"{self.nbar_sza[0]:.2f}"
+        return ", ".join(f"{name} {sza:.2f}" for name, sza in zip(self.bands, self.nbar_sza, strict=True))
 
     @property
     def resolution(self) -> float:
@@ -79,11 +86,20 @@ def _nbar_sza(path: Path) -> float | None:
         return None
 
 
+def _band_sza(path: Path) -> float:
+    """A band file's ``NBAR_SOLAR_ZENITH`` [deg, in [0, 90)]."""
+    sza = _nbar_sza(path)
+    if sza is None or not 0.0 <= sza < 90.0:
+        raise SensorInputError(f"{path}: no valid NBAR_SOLAR_ZENITH tag (the granule's NBAR sun zenith [deg]); is "
+                               "this an HLS v2.0 file?")
+    return sza
+
+
 def hls_refusal(granule: HlsGranule) -> str:
     """Why a granule is not normalized again: its reflectance is NBAR already (module docstring)."""
     kind = "S30 (Sentinel-2)" if granule.kind == "hls_s30" else "L30 (Landsat)"
     return (f"{granule.path}: an HLS v2.0 {kind} granule is already NBAR (c-factor with the Roy et al. "
-            f"coefficients: nadir view, sun zenith {granule.nbar_sza:.2f} deg); brdfcorr nbar does not normalize "
+            f"coefficients: nadir view, sun zenith {granule.describe_sza()} deg); brdfcorr nbar does not normalize "
             "it again, but moves it to another sun zenith with --ref-sza DEG")
 
 
@@ -110,10 +126,7 @@ def find_hls_granule(path: str | Path, bands: Sequence[str] | None = None) -> Hl
         what = ", ".join(missing) if missing else "no band with coefficients"
         raise SensorInputError(f"{path}: HLS {product} granule: {what} (bands with published coefficients: "
                                f"{', '.join(known)})")
-    sza = _nbar_sza(found[names[0]])
-    if sza is None or not 0.0 <= sza < 90.0:
-        raise SensorInputError(f"{found[names[0]]}: no valid NBAR_SOLAR_ZENITH tag (the granule's NBAR sun "
-                               "zenith [deg]); is this an HLS v2.0 file?")
+    sza = tuple(_band_sza(found[name]) for name in names)  # each band's own: they may differ
     fmask = next((file for file in files if file.name.upper().endswith((".FMASK.TIF", ".FMASK.TIFF"))), None)
     return HlsGranule(path, f"hls_{product.lower()}", sensor, {name: found[name] for name in names},
                       tuple(known[name][1] for name in names), tuple(known[name][0] for name in names), sza, fmask)

@@ -32,12 +32,14 @@ from pathlib import Path
 import dask.array as da
 import numpy as np
 import pandas as pd
+import rasterio
 import rioxarray
 import xarray as xr
 from pyproj import CRS, Transformer
 from scipy.interpolate import CubicSpline
 
 from brdfcorr.errors import SensorInputError
+from brdfcorr.io.files import read_regular
 from brdfcorr.io.grid import grid_difference
 from brdfcorr.io.sensors.grids import GRID_CHUNK, _grid_of, pixel_centres, to_grid, wrap_azimuth
 from brdfcorr.io.sensors.solar import solar_angles
@@ -45,6 +47,8 @@ from brdfcorr.io.sensors.solar import solar_angles
 __all__ = [
     "ANGLE_SCALE",
     "ANGLE_SUFFIXES",
+    "HUNDREDTHS",
+    "check_hundredths",
     "ang_angles",
     "ang_mean_angles",
     "ang_scene_time",
@@ -57,6 +61,9 @@ __all__ = [
 
 #: Angle bands store hundredths of a degree (USGS C2 Level-1 DFCB).
 ANGLE_SCALE = 0.01
+#: The range of each angle band [hundredths of a degree]: zeniths in [0, 90] deg, azimuths in
+#: [-180, 180] deg (USGS) or [0, 360) deg.
+HUNDREDTHS = {"sza": (0, 9000), "vza": (0, 9000), "saa": (-18000, 36000), "vaa": (-18000, 36000)}
 #: File-name suffixes of the four angle bands.
 ANGLE_SUFFIXES = {"sza": "_SZA", "saa": "_SAA", "vza": "_VZA", "vaa": "_VAA"}
 
@@ -86,10 +93,8 @@ def parse_ang_txt(path: str | Path) -> dict[str, dict]:
     """Parse an ANG.txt (ODL: ``GROUP = name`` ... ``END_GROUP``, ``KEY = value``) into
     ``{group: {key: value}}``; tuples, possibly continued over lines, become tuples of floats."""
     path = Path(path)
-    try:
-        lines = path.read_text().splitlines()
-    except OSError as error:
-        raise SensorInputError(f"{path}: cannot read the angle coefficient file ({error})") from error
+    # A regular file only (a FIFO would block); ODL is ASCII: a stray byte is shown, not fatal.
+    lines = read_regular(path, "the angle coefficient file", SensorInputError).decode("utf-8", "replace").splitlines()
     groups: dict[str, dict] = {}
     current: dict | None = None
     pending = ""
@@ -124,12 +129,15 @@ def _item(ang: dict, group: str, key: str, path="ANG.txt"):
         raise SensorInputError(f"{path}: no {key} in group {group}") from None
 
 
-def ang_scene_time(ang: dict) -> pd.Timestamp:
+def ang_scene_time(ang: dict, source: str | Path = "ANG.txt") -> pd.Timestamp:
     """Scene-centre UTC time from an ANG.txt: the middle of the solar-vector sample times."""
-    year = int(_item(ang, "SOLAR_VECTOR", "SOLAR_EPOCH_YEAR"))
-    day = int(_item(ang, "SOLAR_VECTOR", "SOLAR_EPOCH_DAY"))
-    seconds = float(np.mean(_item(ang, "SOLAR_VECTOR", "SAMPLE_TIME")))
-    return pd.Timestamp(year=year, month=1, day=1, tz="UTC") + pd.Timedelta(days=day - 1, seconds=seconds)
+    year, day = (_samples(ang, "SOLAR_VECTOR", key, source) for key in ("SOLAR_EPOCH_YEAR", "SOLAR_EPOCH_DAY"))
+    seconds = _samples(ang, "SOLAR_VECTOR", "SAMPLE_TIME", source)
+    if year.size != 1 or day.size != 1 or not 1 <= day[0] <= 366 or not 1900 <= year[0] <= 2200:
+        raise SensorInputError(f"{source}: SOLAR_VECTOR SOLAR_EPOCH_YEAR {year.tolist()} and SOLAR_EPOCH_DAY "
+                               f"{day.tolist()} are no year and day of the year")
+    return pd.Timestamp(year=int(year[0]), month=1, day=1, tz="UTC") + pd.Timedelta(days=int(day[0]) - 1,
+                                                                                     seconds=float(np.mean(seconds)))
 
 
 def vector_angles(east, north, up):
@@ -210,7 +218,35 @@ def _ang_block(block_info, *, transform, to_lonlat, to_ecef, model, altitude):
     return np.where(valid.reshape(shape), stacked, np.nan)
 
 
-def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=None) -> xr.Dataset:
+def _samples(ang: dict, group: str, key: str, source) -> np.ndarray:
+    """A tuple of numbers of the ANG.txt as float64, else one error naming the group and key."""
+    value = _item(ang, group, key, source)
+    values = value if isinstance(value, tuple) else (value,)
+    if not all(isinstance(item, float) and np.isfinite(item) for item in values):
+        raise SensorInputError(f"{source}: {group} {key} holds {str(value)[:60]!r}, not a list of finite numbers")
+    return np.asarray(values, dtype="float64")
+
+
+def _spline(ang: dict, group: str, time_key: str, prefix: str, source) -> tuple[np.ndarray, CubicSpline]:
+    """The sample times of a group of the ANG.txt (at least 2, strictly increasing) and the cubic
+    spline through its ECEF X, Y, Z samples (one per time)."""
+    times = _samples(ang, group, time_key, source)
+    if times.size < 2 or np.any(np.diff(times) <= 0):
+        shown = ", ".join(f"{t:g}" for t in times[:4]) + (", ..." if times.size > 4 else "")
+        raise SensorInputError(f"{source}: {group} {time_key} must be at least 2 strictly increasing times, got "
+                               f"{times.size} ({shown})")
+    axes = []
+    for axis in "XYZ":
+        values = _samples(ang, group, f"{prefix}{axis}", source)
+        if values.size != times.size:
+            raise SensorInputError(f"{source}: {group} {prefix}{axis} has {values.size} values for {times.size} "
+                                   f"times ({time_key})")
+        axes.append(values)
+    return times, CubicSpline(times, np.stack(axes, axis=-1))
+
+
+def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=None,
+               source: str | Path = "ANG.txt") -> xr.Dataset:
     """Per-pixel sun and view angles from the ANG.txt ephemeris and solar vectors, lazily.
 
     Parameters
@@ -223,11 +259,19 @@ def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=N
         Terrain height above the ellipsoid [m] used for every pixel.
     chunks :
         Output chunks; default ``like``'s, else 2048.
+    source : str or Path
+        The ANG.txt, in messages.
 
     Returns
     -------
     xarray.Dataset
         ``sza``, ``saa``, ``vza``, ``vaa`` [deg]; NaN for pixels the ephemeris does not cover.
+
+    Raises
+    ------
+    SensorInputError
+        A group or key missing, samples that are no numbers, fewer than 2 or unsorted times, or
+        samples of unequal count (named with ``source``).
 
     Notes
     -----
@@ -241,16 +285,10 @@ def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=N
     and the mean sun vector of the ANG.txt; the view part reproduces the ANG.txt scene-mean
     satellite vector (see the tests). Band-to-band focal-plane offsets (below 0.1 deg) are ignored.
     """
-    ephemeris, solar = ang.get("EPHEMERIS", {}), ang.get("SOLAR_VECTOR", {})
-    try:
-        times = np.asarray(ephemeris["EPHEMERIS_TIME"], dtype="float64")
-        position = CubicSpline(times, np.stack([ephemeris[f"EPHEMERIS_ECEF_{c}"] for c in "XYZ"], axis=-1))
-        sun_times = np.asarray(solar["SAMPLE_TIME"], dtype="float64")
-        sun = CubicSpline(sun_times, np.stack([solar[f"SOLAR_ECEF_{c}"] for c in "XYZ"], axis=-1))
-    except KeyError as error:
-        raise SensorInputError(f"ANG.txt: no {error.args[0]} (EPHEMERIS/SOLAR_VECTOR group)") from None
-    if float(ephemeris.get("EPHEMERIS_EPOCH_DAY", -1)) != float(solar.get("SOLAR_EPOCH_DAY", -2)):
-        raise SensorInputError("ANG.txt: ephemeris and solar vectors have different epoch days")
+    times, position = _spline(ang, "EPHEMERIS", "EPHEMERIS_TIME", "EPHEMERIS_ECEF_", source)
+    _, sun = _spline(ang, "SOLAR_VECTOR", "SAMPLE_TIME", "SOLAR_ECEF_", source)
+    if ang["EPHEMERIS"].get("EPHEMERIS_EPOCH_DAY", -1) != ang["SOLAR_VECTOR"].get("SOLAR_EPOCH_DAY", -2):
+        raise SensorInputError(f"{source}: ephemeris and solar vectors have different epoch days")
     omega = np.array([0.0, 0.0, EARTH_ROTATION])
 
     def inertial_velocity(t, derivative=0):
@@ -315,10 +353,40 @@ def find_ang_txt(path: str | Path) -> Path | None:
     return candidates[0] if len(candidates) == 1 else None
 
 
+def _sample_range(path: Path) -> tuple[float, float] | None:
+    """(min, max) of a decimated read (at most 256 x 256, cheap on any size) of a band's valid
+    values; None where it has none."""
+    with rasterio.open(path) as dataset:
+        sample = dataset.read(1, out_shape=(min(dataset.height, 256), min(dataset.width, 256)), masked=True)
+    values = np.ma.masked_invalid(sample.astype("float64")).compressed()
+    return (float(values.min()), float(values.max())) if values.size else None
+
+
+def check_hundredths(path: Path, key: str) -> None:
+    """Refuse an angle band whose values are no hundredths of a degree (:data:`HUNDREDTHS`).
+
+    A sun zenith band of values all at most 90 would be a sun within 0.9 deg of the zenith, which
+    no Landsat overpass has (morning orbit): it holds degrees, and read as hundredths the sun would
+    be put at the zenith (NBAR 15 % off). The other bands' degrees fall inside their hundredths
+    range; they come with the sun band of the same product.
+    """
+    found = _sample_range(path)
+    if found is None:
+        return
+    (low, high), (least, most) = found, HUNDREDTHS[key]
+    if low < least or high > most:
+        raise SensorInputError(f"{path}: {ANGLE_SUFFIXES[key][1:]} values {low:g} to {high:g} are outside {least} to "
+                               f"{most}, the hundredths of a degree of a Landsat angle band")
+    if key == "sza" and high <= 90.0:
+        raise SensorInputError(f"{path}: SZA values {low:g} to {high:g} are degrees, not the hundredths of a degree "
+                               "of a Landsat angle band (a sun within 0.9 deg of the zenith); store them x 100")
+
+
 def _read_angle_band(path: Path, key: str, like, chunks, flip: bool) -> xr.DataArray:
     band = rioxarray.open_rasterio(path, chunks=chunks or {"y": 2048, "x": 2048}, masked=True)
     if band.sizes.get("band", 1) != 1:
         raise SensorInputError(f"{path}: an angle band must have one band, it has {band.sizes['band']}")
+    check_hundredths(path, key)
     band = band.isel(band=0, drop=True) * ANGLE_SCALE
     if key == "vaa" and flip:
         band = band + 180.0
@@ -328,7 +396,7 @@ def _read_angle_band(path: Path, key: str, like, chunks, flip: bool) -> xr.DataA
     attrs = {"units": "degree", "long_name": LONG_NAMES[key], "source": str(path)}
     if like is not None and grid_difference(band, like) is not None:
         # A coarser or reprojected angle raster: interpolate lazily onto the image grid.
-        return to_grid(band, like, angle=azimuth, name=key, attrs=attrs)
+        return to_grid(band, like, angle=azimuth, name=key, attrs=attrs, source=f"{path}: the {key} angle band")
     band.attrs = attrs
     if like is not None and like.chunks and chunks is None:  # align blocks with the image's
         band = band.chunk({"y": like.chunksizes["y"], "x": like.chunksizes["x"]})
@@ -388,12 +456,12 @@ def read_landsat_angles(path: str | Path, like: xr.DataArray | None = None, *,
         if grid is None:
             raise SensorInputError(f"{path}: no angle band and no image grid (like) to compute angles on")
         if {"sza", "saa"} & set(missing):
-            time = ang_scene_time(coefficients)
+            time = ang_scene_time(coefficients, ang)
             sun = solar_angles(time, grid, chunks=chunks)
             for key in {"sza", "saa"} & set(missing):
                 variables[key] = sun[key].assign_attrs(source=f"pvlib SPA at {time} ({ang})")
         if view_from_ang == "ephemeris" and {"vza", "vaa"} & set(missing):
-            view = ang_angles(coefficients, grid, chunks=chunks)
+            view = ang_angles(coefficients, grid, chunks=chunks, source=ang)
             for key in {"vza", "vaa"} & set(missing):
                 variables[key] = view[key].assign_attrs(source=f"ephemeris model ({ang})")
         if view_from_ang == "mean" and {"vza", "vaa"} & set(missing):

@@ -30,9 +30,12 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 from affine import Affine
+from rasterio.crs import CRS
+from rasterio.errors import CRSError
 from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
+from brdfcorr.io.files import read_regular
 from brdfcorr.io.sensors.grids import grid_template, to_grid, wrap_azimuth
 
 __all__ = [
@@ -71,62 +74,156 @@ def _find(element, path: str, source: Path):
     return found
 
 
-def _values_list(element, source: Path, what: str) -> tuple[np.ndarray, float, float]:
-    """A ``Values_List`` grid (NaN kept) and its column and row steps [m]."""
+def _text(element, tag: str, source: Path) -> str:
+    """The stripped text of ``tag`` under ``element``; an empty one is an error naming the tag."""
+    text = (_find(element, tag, source).text or "").strip()
+    if not text:
+        raise SensorInputError(f"{source}: <{tag}> is empty in the granule metadata")
+    return text
+
+
+def _number(text: str | None, what: str, source: Path, kind: type = float):
+    """``text`` as a finite number of ``kind`` (float or int), else an error naming ``what``."""
+    if text is None:
+        raise SensorInputError(f"{source}: no {what} in the granule metadata")
     try:
-        rows = [[float(value) for value in row.text.split()] for row in element.iter("VALUES")]
+        value = kind(str(text).strip())
+    except ValueError:
+        raise SensorInputError(f"{source}: {what} {text!r} is not {'an integer' if kind is int else 'a number'}"
+                               ) from None
+    if not np.isfinite(value):
+        raise SensorInputError(f"{source}: {what} {text!r} is not a finite number")
+    return value
+
+
+def _crs(text: str, source: Path) -> str:
+    """The tile's ``HORIZONTAL_CS_CODE`` as given, once rasterio knows it (``EPSG:32632``)."""
+    try:
+        CRS.from_user_input(text)
+    except CRSError:
+        raise SensorInputError(f"{source}: <HORIZONTAL_CS_CODE> {text!r} is not a known CRS") from None
+    return text
+
+
+def _band_name(value: str | None, source: Path) -> str:
+    """The band of a view grid's ``bandId`` (0 to 12 in the order of :data:`BAND_NAMES`)."""
+    index = _number(value, "Viewing_Incidence_Angles_Grids bandId", source, int)
+    if not 0 <= index < len(BAND_NAMES):
+        raise SensorInputError(f"{source}: Viewing_Incidence_Angles_Grids bandId {value!r} is no Sentinel-2 "
+                               f"band id (0 to {len(BAND_NAMES) - 1})")
+    return BAND_NAMES[index]
+
+
+def _sensing_time(root, source: Path) -> pd.Timestamp:
+    text = _text(root, ".//SENSING_TIME", source)
+    try:
+        time = pd.Timestamp(text)
+    except ValueError:
+        time = pd.NaT
+    if pd.isna(time):
+        raise SensorInputError(f"{source}: <SENSING_TIME> {text!r} is not a date and time")
+    return time
+
+
+def _values_list(element, source: Path, what: str) -> tuple[np.ndarray, float, float]:
+    """A ``Values_List`` grid (NaN kept) and its column and row steps [m], both > 0."""
+    try:
+        rows = [[float(value) for value in (row.text or "").split()] for row in element.iter("VALUES")]
         grid = np.array(rows, dtype="float64")
-        col_step = float(_find(element, "COL_STEP", source).text)
-        row_step = float(_find(element, "ROW_STEP", source).text)
-    except (ValueError, AttributeError) as error:
+    except ValueError as error:
         raise SensorInputError(f"{source}: malformed {what} grid ({error})") from error
     if grid.ndim != 2 or grid.size == 0:
         raise SensorInputError(f"{source}: {what} grid rows have unequal lengths or are empty")
-    return grid, col_step, row_step
+    steps = []
+    for tag in ("COL_STEP", "ROW_STEP"):
+        step = _number(_text(element, tag, source), f"{what} <{tag}>", source)
+        if step <= 0:
+            raise SensorInputError(f"{source}: {what} <{tag}> {step:g} must be > 0 (metres between nodes)")
+        steps.append(step)
+    return grid, steps[0], steps[1]
+
+
+def _geocoding(root, path: Path) -> tuple[str, dict[int, tuple[int, int]], dict[int, Affine]]:
+    """The tile's CRS, image sizes and pixel-corner transforms by resolution [m] (``Tile_Geocoding``)."""
+    geocoding = _find(root, ".//Tile_Geocoding", path)
+    crs = _crs(_text(geocoding, "HORIZONTAL_CS_CODE", path), path)
+    sizes, geopositions = {}, {}
+    for size in geocoding.findall("Size"):
+        resolution = _number(size.get("resolution"), "Size resolution", path, int)
+        shape = tuple(_number(_text(size, tag, path), f"<{tag}> of resolution {resolution}", path, int)
+                      for tag in ("NROWS", "NCOLS"))
+        if min(shape) < 1:
+            raise SensorInputError(f"{path}: <Size> of resolution {resolution} has {shape[0]} x {shape[1]} pixels")
+        sizes[resolution] = shape
+    for position in geocoding.findall("Geoposition"):
+        resolution = _number(position.get("resolution"), "Geoposition resolution", path, int)
+        ulx, uly, xdim, ydim = (_number(_text(position, tag, path), f"<{tag}> of resolution {resolution}", path)
+                                for tag in ("ULX", "ULY", "XDIM", "YDIM"))
+        if xdim <= 0 or ydim >= 0:
+            raise SensorInputError(f"{path}: <XDIM> {xdim:g} and <YDIM> {ydim:g} of resolution {resolution} must "
+                                   "be > 0 and < 0 (north-up pixels)")
+        geopositions[resolution] = Affine(xdim, 0.0, ulx, 0.0, ydim, uly)
+    if not geopositions:
+        raise SensorInputError(f"{path}: no <Geoposition> element in the granule metadata")
+    return crs, sizes, geopositions
+
+
+def _view_grids(angles, tile: TileAngles) -> None:
+    """Add the per-band, per-detector view grids of ``Tile_Angles`` to ``tile``; each on the sun
+    grid's nodes."""
+    path = tile.path
+    for grids in angles.findall("Viewing_Incidence_Angles_Grids"):
+        band = _band_name(grids.get("bandId"), path)
+        detector = _number(grids.get("detectorId"), f"{band} Viewing_Incidence_Angles_Grids detectorId", path, int)
+        zenith, *_ = _values_list(_find(grids, "Zenith", path), path, f"{band} detector {detector} view zenith")
+        azimuth, *_ = _values_list(_find(grids, "Azimuth", path), path, f"{band} detector {detector} view azimuth")
+        for what, grid in (("zenith", zenith), ("azimuth", azimuth)):
+            if grid.shape != tile.sun_zenith.shape:
+                raise SensorInputError(f"{path}: {band} detector {detector} view {what} grid has {grid.shape[0]} x "
+                                       f"{grid.shape[1]} nodes, the sun grid {tile.sun_zenith.shape[0]} x "
+                                       f"{tile.sun_zenith.shape[1]}")
+        tile.view_zenith.setdefault(band, {})[detector] = zenith
+        tile.view_azimuth.setdefault(band, {})[detector] = azimuth
+    if not tile.view_zenith:
+        raise SensorInputError(f"{path}: no <Viewing_Incidence_Angles_Grids> in the granule metadata")
 
 
 def parse_mtd_tl(path: str | Path) -> TileAngles:
     """Parse the sun and viewing angle grids, image sizes and geoposition of a granule.
 
+    Every field is checked before it is used: a known CRS, integer sizes, numeric corners, node
+    steps > 0, band ids 0 to 12, integer detector ids, a date and time, grids of one shape.
+
     Raises
     ------
     SensorInputError
-        Unreadable XML or a missing element (named in the message).
+        Unreadable XML, a missing, empty or malformed element (named in the message, with its value).
     """
     path = Path(path)
-    try:
-        root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as error:
-        raise SensorInputError(f"{path}: cannot read the granule metadata ({error})") from error
-    geocoding = _find(root, ".//Tile_Geocoding", path)
-    crs = _find(geocoding, "HORIZONTAL_CS_CODE", path).text.strip()
-    sizes, geopositions = {}, {}
-    for size in geocoding.findall("Size"):
-        sizes[int(size.get("resolution"))] = (int(_find(size, "NROWS", path).text),
-                                              int(_find(size, "NCOLS", path).text))
-    for position in geocoding.findall("Geoposition"):
-        ulx, uly, xdim, ydim = (float(_find(position, tag, path).text) for tag in ("ULX", "ULY", "XDIM", "YDIM"))
-        geopositions[int(position.get("resolution"))] = Affine(xdim, 0.0, ulx, 0.0, ydim, uly)
-    if not geopositions:
-        raise SensorInputError(f"{path}: no <Geoposition> element in the granule metadata")
+    root = _parse(path)
+    crs, sizes, geopositions = _geocoding(root, path)
     angles = _find(root, ".//Tile_Angles", path)
     sun = _find(angles, "Sun_Angles_Grid", path)
     sun_zenith, col_step, row_step = _values_list(_find(sun, "Zenith", path), path, "sun zenith")
     sun_azimuth, *_ = _values_list(_find(sun, "Azimuth", path), path, "sun azimuth")
+    if sun_azimuth.shape != sun_zenith.shape:
+        raise SensorInputError(f"{path}: the sun azimuth grid has {sun_azimuth.shape[0]} x {sun_azimuth.shape[1]} "
+                               f"nodes, the sun zenith grid {sun_zenith.shape[0]} x {sun_zenith.shape[1]}")
     corner = next(iter(geopositions.values()))
     node_transform = Affine(col_step, 0.0, corner.c - col_step / 2, 0.0, -row_step, corner.f + row_step / 2)
-    time = pd.Timestamp(_find(root, ".//SENSING_TIME", path).text.strip())
-    tile = TileAngles(path, crs, time, sizes, geopositions, node_transform, sun_zenith, sun_azimuth)
-    for grids in angles.findall("Viewing_Incidence_Angles_Grids"):
-        band = BAND_NAMES[int(grids.get("bandId"))]
-        detector = int(grids.get("detectorId"))
-        zenith, *_ = _values_list(_find(grids, "Zenith", path), path, f"{band} detector {detector} view zenith")
-        azimuth, *_ = _values_list(_find(grids, "Azimuth", path), path, f"{band} detector {detector} view azimuth")
-        tile.view_zenith.setdefault(band, {})[detector] = zenith
-        tile.view_azimuth.setdefault(band, {})[detector] = azimuth
-    if not tile.view_zenith:
-        raise SensorInputError(f"{path}: no <Viewing_Incidence_Angles_Grids> in the granule metadata")
+    tile = TileAngles(path, crs, _sensing_time(root, path), sizes, geopositions, node_transform, sun_zenith,
+                      sun_azimuth)
+    _view_grids(angles, tile)
     return tile
+
+
+def _parse(path: Path):
+    """The root element of a granule metadata file (a regular file only: a FIFO would block)."""
+    data = read_regular(path, "the granule metadata", SensorInputError)
+    try:
+        return ET.fromstring(data)
+    except ET.ParseError as error:
+        raise SensorInputError(f"{path}: cannot read the granule metadata ({error})") from error
 
 
 def _nan_mean(stack: np.ndarray) -> np.ndarray:
@@ -143,24 +240,25 @@ def _circular_nan_mean(stack_deg: np.ndarray) -> np.ndarray:
     return wrap_azimuth(np.degrees(np.arctan2(_nan_mean(np.sin(radians)), _nan_mean(np.cos(radians)))))
 
 
-def fill_gaps(grid: np.ndarray, angle: bool = False) -> np.ndarray:
+def fill_gaps(grid: np.ndarray, angle: bool = False, what: str = "an angle grid") -> np.ndarray:
     """Fill NaN nodes with the value of the nearest finite node (Euclidean distance in nodes).
 
     Nodes outside every detector's footprint lie at the tile edges, beyond the image data; the
     nearest value keeps the interpolation between the last valid node and the edge sensible. For
-    ``angle=True`` the filled values are azimuths and stay in [0, 360). An all-NaN grid raises.
+    ``angle=True`` the filled values are azimuths and stay in [0, 360). An all-NaN grid raises,
+    naming it as ``what`` (its file and layer).
     """
     missing = ~np.isfinite(grid)
     if not missing.any():
         return grid
     if missing.all():
-        raise SensorInputError("an angle grid has no finite value at all")
+        raise SensorInputError(f"{what} has no finite value at all")
     nearest = ndimage.distance_transform_edt(missing, return_distances=False, return_indices=True)
     filled = grid[tuple(nearest)]
     return wrap_azimuth(filled) if angle else filled
 
 
-def combine_detectors(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarray]):
+def combine_detectors(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarray], what: str = "the view"):
     """One view zenith and azimuth grid per band from its per-detector grids.
 
     Where two detectors see the same node (the overlap of adjacent detectors), their zeniths are
@@ -175,7 +273,8 @@ def combine_detectors(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarr
     detectors = sorted(zenith)
     view_zenith = _nan_mean(np.stack([zenith[d] for d in detectors]))
     view_azimuth = _circular_nan_mean(np.stack([azimuth[d] for d in detectors]))
-    return fill_gaps(view_zenith), fill_gaps(view_azimuth, angle=True)
+    return (fill_gaps(view_zenith, what=f"{what} zenith grid"),
+            fill_gaps(view_azimuth, angle=True, what=f"{what} azimuth grid"))
 
 
 def _node_array(tile: TileAngles, values: np.ndarray, name: str) -> xr.DataArray:
@@ -224,7 +323,8 @@ def read_sentinel2_angles(path: str | Path, like: xr.DataArray | None = None, *,
         raise SensorInputError(
             f"{tile.path}: no viewing angle grids for band {band!r}; it has {sorted(tile.view_zenith)}"
         )
-    combined = [combine_detectors(tile.view_zenith[b], tile.view_azimuth[b]) for b in bands]
+    combined = [combine_detectors(tile.view_zenith[b], tile.view_azimuth[b], f"{tile.path}: the {b} view")
+                for b in bands]
     vza = np.mean([zenith for zenith, _ in combined], axis=0)
     vaa = _circular_nan_mean(np.stack([azimuth for _, azimuth in combined]))
     if view_azimuth == "from_sensor":
@@ -238,14 +338,15 @@ def read_sentinel2_angles(path: str | Path, like: xr.DataArray | None = None, *,
         like = grid_template(tile.geopositions[resolution], tile.sizes[resolution], tile.crs,
                              chunks=chunks or 2048)
     grids = {
-        "sza": (fill_gaps(tile.sun_zenith), False, "solar zenith angle"),
-        "saa": (fill_gaps(tile.sun_azimuth, angle=True), True,
+        "sza": (fill_gaps(tile.sun_zenith, what=f"{tile.path}: the sun zenith grid"), False, "solar zenith angle"),
+        "saa": (fill_gaps(tile.sun_azimuth, angle=True, what=f"{tile.path}: the sun azimuth grid"), True,
                 "solar azimuth angle (pixel to sun, clockwise from north)"),
         "vza": (vza, False, "view zenith angle"),
         "vaa": (vaa, True, "view azimuth angle (pixel to sensor, clockwise from north)"),
     }
     variables = {
         key: to_grid(_node_array(tile, values, key), like, angle=angle, chunks=chunks, name=key,
+                     source=f"{tile.path}: the {key} angle grid",
                      attrs={"units": "degree", "long_name": long_name})
         for key, (values, angle, long_name) in grids.items()
     }

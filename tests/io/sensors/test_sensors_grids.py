@@ -63,7 +63,7 @@ def test_azimuth_interpolated_through_sine_and_cosine():
 @settings(max_examples=25, deadline=None)
 @given(azimuth=st.floats(0, 359.999), zenith=st.floats(0, 89))
 def test_constant_grids_stay_constant(azimuth, zenith):
-    like = grid_template(Affine(7.0, 0, 3.0, 0, -7.0, 400.0), (9, 11), "EPSG:32611", chunks=4)
+    like = grid_template(Affine(7.0, 0, 1003.0, 0, -7.0, 4900.0), (9, 11), "EPSG:32611", chunks=4)  # on the grid
     for value, angle in ((azimuth, True), (zenith, False)):
         out = to_grid(coarse_grid(np.full((3, 4), value)), like, angle=angle).values
         difference = (out - value + 180.0) % 360.0 - 180.0 if angle else out - value
