@@ -43,7 +43,7 @@ import xarray as xr
 from affine import Affine
 
 from brdfcorr.correction import normalize
-from brdfcorr.correction.nodes import JUMP, node_angles, normalize_at_nodes
+from brdfcorr.correction.nodes import JUMP, azimuth_span, node_angles, normalize_at_nodes
 from brdfcorr.io.sensors.grids import GRID_SOURCE, grid_template
 from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
 from brdfcorr.models.coefficients import load_coefficients
@@ -81,18 +81,6 @@ def factors(angles: xr.Dataset, bands, reference: ReferenceGeometry, repeat: int
             results.append(method().reflectance.values)
             seconds[index] = min(seconds[index], time.perf_counter() - start)
     return (*results, seconds)
-
-
-def azimuth_span(vaa_nodes: np.ndarray) -> np.ndarray:
-    """(rows - 1, cols - 1): per grid cell the largest angle [deg] between the view azimuths of
-    its four nodes (each pair's difference folded into [0, 180])."""
-    corners = [vaa_nodes[:-1, :-1], vaa_nodes[:-1, 1:], vaa_nodes[1:, :-1], vaa_nodes[1:, 1:]]
-    span = np.zeros(corners[0].shape)
-    for i, first in enumerate(corners):
-        for second in corners[i + 1:]:
-            difference = np.abs(first - second) % 360.0
-            span = np.maximum(span, np.minimum(difference, 360.0 - difference))
-    return span
 
 
 def pixel_cells(layer: xr.DataArray) -> tuple[np.ndarray, np.ndarray]:

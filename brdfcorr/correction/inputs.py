@@ -175,13 +175,13 @@ def prepare_inputs(
         name: check_grid(reflectance, name, as_dataarray(layer, name, reflectance.dims[1:]))
         for name, layer in named.items()
     }
-    layers.update(guard_angles({name: layers[name] for name in ANGLE_LAYERS}))
-    if layers["classes"].dtype.kind not in "iuf":
-        raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
     complex_layers = [f"{name} ({layer.dtype})" for name, layer in {"reflectance": reflectance, **layers}.items()
                       if layer.dtype.kind == "c"]
     if complex_layers:  # the imaginary part would be lost, or carried into a complex "reflectance"
         raise InputError(f"complex values in {', '.join(complex_layers)}; real numbers are expected")
+    layers.update(guard_angles({name: layers[name] for name in ANGLE_LAYERS}))
+    if layers["classes"].dtype.kind not in "iuf":
+        raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
     reference = with_hls_sza(reference, reflectance)
     if wavelengths is None and "wavelength" in reflectance.coords:
         wavelengths = reflectance["wavelength"].values.tolist()

@@ -16,6 +16,7 @@ import hashlib
 import os
 import stat
 import tempfile
+import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
 import yaml
@@ -212,6 +213,17 @@ def read_document(
     path = Path(path)
     data = read_regular(path, what, error, max_bytes=max_bytes)
     return _decode(data, lambda reason: error(f"cannot read {what} {path}: {reason}"))
+
+
+def read_xml(path: str | os.PathLike, what: str, error: type[Exception]):
+    """The root element of a product's XML metadata (:func:`read_regular`: a regular file only,
+    a FIFO would block); a file that is no XML is one ``error``, ``{path}: cannot read {what}
+    ({reason})``."""
+    data = read_regular(path, what, error)
+    try:
+        return ElementTree.fromstring(data)
+    except ElementTree.ParseError as problem:
+        raise error(f"{path}: cannot read {what} ({problem})") from problem
 
 
 def read_regular(

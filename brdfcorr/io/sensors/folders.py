@@ -44,7 +44,7 @@ from rasterio.enums import Resampling
 from rasterio.vrt import WarpedVRT
 
 from brdfcorr.errors import OutputError, SensorInputError
-from brdfcorr.io.files import atomic_path, read_regular, write_cause
+from brdfcorr.io.files import atomic_path, read_xml, write_cause
 from brdfcorr.io.paths import check_outputs
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands
 from brdfcorr.io.sensors.grids import check_covers
@@ -174,7 +174,7 @@ def _product_scaling(path: Path, names: Sequence[str]) -> tuple[float, float, di
     """Processing baseline, quantification value, BOA offsets of the bands ``names``, notes
     (MTD_MSIL2A.xml), each checked against its physical range (:data:`QUANTIFICATION_RANGE`,
     :data:`OFFSET_RANGE`): a product listing offsets lists exactly one for every band read."""
-    root = _product_root(path)
+    root = read_xml(path, "the product metadata", SensorInputError)
     elements = {_local(e.tag): e for e in root.iter()}
     baseline = _metadata_number(elements, "PROCESSING_BASELINE", path)
     quantification = _metadata_number(elements, "BOA_QUANTIFICATION_VALUE", path)
@@ -202,13 +202,6 @@ def _product_scaling(path: Path, names: Sequence[str]) -> tuple[float, float, di
     return baseline, quantification, {name: offsets[name] for name in names}, notes
 
 
-def _product_root(path: Path):
-    """The root element of ``MTD_MSIL2A.xml`` (a regular file only: a FIFO would block)."""
-    data = read_regular(path, "the product metadata", SensorInputError)
-    try:
-        return ET.fromstring(data)
-    except ET.ParseError as error:
-        raise SensorInputError(f"{path}: cannot read the product metadata ({error})") from error
 
 
 def _metadata_number(elements: Mapping[str, ET.Element], tag: str, path: Path) -> float:

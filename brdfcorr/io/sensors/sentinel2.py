@@ -22,7 +22,6 @@ differs.
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,7 +34,7 @@ from rasterio.errors import CRSError
 from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.io.files import read_regular
+from brdfcorr.io.files import read_xml
 from brdfcorr.io.sensors.grids import grid_template, to_grid, wrap_azimuth
 
 __all__ = [
@@ -200,7 +199,7 @@ def parse_mtd_tl(path: str | Path) -> TileAngles:
         Unreadable XML, a missing, empty or malformed element (named in the message, with its value).
     """
     path = Path(path)
-    root = _parse(path)
+    root = read_xml(path, "the granule metadata", SensorInputError)
     crs, sizes, geopositions = _geocoding(root, path)
     angles = _find(root, ".//Tile_Angles", path)
     sun = _find(angles, "Sun_Angles_Grid", path)
@@ -217,13 +216,6 @@ def parse_mtd_tl(path: str | Path) -> TileAngles:
     return tile
 
 
-def _parse(path: Path):
-    """The root element of a granule metadata file (a regular file only: a FIFO would block)."""
-    data = read_regular(path, "the granule metadata", SensorInputError)
-    try:
-        return ET.fromstring(data)
-    except ET.ParseError as error:
-        raise SensorInputError(f"{path}: cannot read the granule metadata ({error})") from error
 
 
 def _nan_mean(stack: np.ndarray) -> np.ndarray:
