@@ -343,6 +343,7 @@ def fit_one_class(
     fallback: str | None = None,
     grid_points: int = 9,
     prior: tuple[ShapePrior, np.ndarray] | None = None,
+    pool_if_alike: bool = False,
 ) -> ClassFit:
     """Fit one class's samples and apply the guard rails (see :func:`fit_class_samples`).
 
@@ -379,12 +380,22 @@ def fit_one_class(
         :func:`brdfcorr.fit.prior.prior_ratios`) for a ``ross_thick_li_sparse`` class: its
         weights become the posterior's (:func:`brdfcorr.fit.prior.shape_posterior`), and the
         condition-number rail does not apply. Ignored for other models.
+    pool_if_alike : bool, default False
+        For samples with free levels (``samples.group``) chosen by ``levels="auto"``: where the
+        views of each group differ by less than the guard rail's spread (:func:`_within_spread`,
+        e.g. dates from one orbit at one time of day), fit them pooled instead, with a note.
 
     Returns
     -------
     ClassFit
     """
     choice, notes = None, []
+    if pool_if_alike and samples.group is not None:
+        spread = _within_spread(samples)
+        if spread < guard.min_vza_spread:
+            samples = dataclasses.replace(samples, group=None, scene=None, levels="pooled")
+            notes.append(f"the views of each pixel differ by {spread:.1f} deg < {guard.min_vza_spread:g} deg: "
+                         "fitted pooled (one level for the class)")
     if model == AUTO_MODEL:
         try:
             choice = choose_class_model(samples, fixed=fixed, grid_points=min(grid_points, SELECT_GRID))
@@ -587,7 +598,7 @@ def fit_classes(
         fit = fit_one_class(
             class_id, models.name_of(class_id), models.model_of(class_id), samples,
             fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id), grid_points=grid_points,
-            prior=prior,
+            prior=prior, pool_if_alike=sampling.levels == "auto",
         )
         fits.append(fit)
         entry = class_entry(fit, wavelengths, source, used_ranges or None)

@@ -586,6 +586,8 @@ def fit_class_samples(
         clusters = levels.factors[0][repeated] if clusters is None else clusters[repeated]
         levels = levels.subset(repeated)
     profile = _profile(model, *samples, fixed, levels=levels)
+    if levels is not None and not profile.terms and not free:  # the level alone (Lambertian): nothing within
+        levels, profile = None, _profile(model, *samples, fixed)
     shape: dict[str, float] = {}
     if free:
         # Search on a subsample (the shape needs far fewer samples than the errors), then polish

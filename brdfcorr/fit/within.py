@@ -93,6 +93,8 @@ class Levels:
 
     def _demean_once(self, values: np.ndarray, codes: np.ndarray, count: np.ndarray) -> np.ndarray:
         flat = values.reshape(values.shape[0], -1)
+        if flat.shape[1] == 0:  # no column (a model whose only term is the level: Lambertian)
+            return values
         means = np.stack([np.bincount(codes, weights=column, minlength=count.size) for column in flat.T], axis=1)
         means /= count[:, None]
         return (flat - means[codes]).reshape(values.shape)
@@ -116,6 +118,8 @@ class Levels:
     def group_means(self, values: np.ndarray) -> np.ndarray:
         """Each sample's group mean (main factor) of ``values`` (N, B), shape (N, B)."""
         codes, count = self.factors[0], self.counts[0]
+        if values.shape[1] == 0:
+            return np.empty_like(values, dtype=float)
         sums = np.stack([np.bincount(codes, weights=column, minlength=count.size) for column in values.T], axis=1)
         return (sums / count[:, None])[codes]
 

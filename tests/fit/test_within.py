@@ -217,3 +217,13 @@ def test_cli_fits_a_stack_of_dates_with_each_pixels_level_free(tmp_path):
                                        "--block-size", "8", "-o", str(tmp_path / "table.yaml")])
     assert result.exit_code == 0, result.output
     assert "free levels per pixel" in result.output
+
+
+def test_auto_pools_dates_whose_views_of_each_pixel_are_alike():
+    """Two dates on one grid seen from the same geometry (one orbit, one time of day): nothing
+    differs within a pixel, so auto fits the class pooled and says so."""
+    images, maps, angles = _stack(1)
+    result = fit_classes(images * 2, maps * 2, angles * 2, ClassModels("ross_thick_li_sparse"), wavelengths=[650.0])
+    fit = result.fits[0]
+    assert fit.levels == "pooled" and fit.status == "fitted"
+    assert any("fitted pooled" in note for note in fit.notes)
