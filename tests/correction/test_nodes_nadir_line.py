@@ -1,5 +1,5 @@
 """``--factor-at nodes`` where it errs most: a 10 km window of the real T23LLF granule's grids
-(shared/realdata) across the nadir line, where the view azimuth turns by up to 180 deg between
+(tests/data) across the nadir line, where the view azimuth turns by up to 180 deg between
 neighbouring nodes (issue 40). The documented bound (docs/sensors.md, "Where the c-factor is
 evaluated", from benchmarks/bench_nodes_error.py): with the factor interpolated everywhere
 (sen2nbar's method) at most 0.91 % with the view grids averaged over the bands, 0.97 % with each
@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
 import xarray as xr
 from affine import Affine
 
@@ -22,7 +21,7 @@ from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl, read_sentinel2_angles
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable, ReferenceGeometry
 
-REALDATA = Path(__file__).parents[3] / "shared" / "realdata"
+REALDATA = Path(__file__).parents[1] / "data"
 MTD = REALDATA / "s2_MTD_TL_sensor_harmonization" / "MTD_TL.xml"
 BANDS = ("B02", "B03", "B04", "B05", "B06", "B07", "B08", "B11", "B12")
 
@@ -47,7 +46,6 @@ def _error(band: str | None, resolution: int = 60, jump: float | None = None) ->
     return np.abs(nodes.reflectance.values / pixels.reflectance.values - 1.0)
 
 
-@pytest.mark.skipif(not MTD.is_file(), reason=f"real Sentinel-2 metadata not found at {MTD}")
 def test_across_the_nadir_line_the_interpolated_factor_stays_within_the_documented_bound():
     averaged = _error(None)
     # The window holds the tile's largest error (0.91 %, band B03) and is not calm: about half
@@ -58,7 +56,6 @@ def test_across_the_nadir_line_the_interpolated_factor_stays_within_the_document
     assert 0.0085 < each.max() <= 0.00975
 
 
-@pytest.mark.skipif(not MTD.is_file(), reason=f"real Sentinel-2 metadata not found at {MTD}")
 def test_the_per_pixel_factor_in_the_jump_cells_removes_the_large_errors():
     # The default (the factor per pixel in the cells whose nodes' view azimuths span > JUMP):
     # within the documented tile-wide bound everywhere, here far within it.

