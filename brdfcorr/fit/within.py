@@ -26,7 +26,7 @@ the two-way within transformation.
 
 The constant term of the model (``t0``, ``f_iso``: the level itself) is not identified within
 groups; it is restored afterwards from the class's mean (:func:`restored_constant`), so the table
-describes the class's mean pixel and a correction by it (a ratio of the model at two geometries)
+describes the class's typical pixel and a correction by it (a ratio of the model at two geometries)
 uses the shape fitted within groups.
 
 References
@@ -93,11 +93,7 @@ class Levels:
 
     def _demean_once(self, values: np.ndarray, codes: np.ndarray, count: np.ndarray) -> np.ndarray:
         flat = values.reshape(values.shape[0], -1)
-        if flat.shape[1] == 0:  # no column (a model whose only term is the level: Lambertian)
-            return values
-        means = np.stack([np.bincount(codes, weights=column, minlength=count.size) for column in flat.T], axis=1)
-        means /= count[:, None]
-        return (flat - means[codes]).reshape(values.shape)
+        return (flat - _means(flat, codes, count)).reshape(values.shape)
 
     def demean(self, values: np.ndarray) -> np.ndarray:
         """``values`` (N, ...) less their group means: the within transformation (one factor:
@@ -117,11 +113,7 @@ class Levels:
 
     def group_means(self, values: np.ndarray) -> np.ndarray:
         """Each sample's group mean (main factor) of ``values`` (N, B), shape (N, B)."""
-        codes, count = self.factors[0], self.counts[0]
-        if values.shape[1] == 0:
-            return np.empty_like(values, dtype=float)
-        sums = np.stack([np.bincount(codes, weights=column, minlength=count.size) for column in values.T], axis=1)
-        return (sums / count[:, None])[codes]
+        return _means(values, self.factors[0], self.counts[0])
 
     def usable(self, values: np.ndarray) -> np.ndarray:
         """Mask of the samples whose group (main factor) holds at least two, with a positive mean
@@ -135,6 +127,15 @@ class Levels:
         roof) weighs in the shape as much as any other (the level is multiplicative)."""
         means = self.group_means(values)
         return values / means, means
+
+
+def _means(values: np.ndarray, codes: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """Each sample's group mean of ``values`` (N, k) for group ``codes`` of ``count`` samples
+    (zero columns: a model whose only term is the level, Lambertian)."""
+    if values.shape[1] == 0:
+        return np.zeros(values.shape)
+    sums = np.stack([np.bincount(codes, weights=column, minlength=count.size) for column in values.T], axis=1)
+    return (sums / count[:, None])[codes]
 
 
 def restored_constant(mean_data: np.ndarray, mean_terms: np.ndarray, coefficients: np.ndarray,
