@@ -365,7 +365,9 @@ def choose_class_model(
             shape = _search(profile, free, grid_points) if free else {}
             intensities, _ = profile.solve(profile.design(shape))
             held_out = _profile(model, *(a[test] for a in angles), raw[test], model_fixed, levels=part(test))
-            return held_out.design(shape) @ intensities
+            prediction = held_out.design(shape) @ intensities
+            # With free levels the fit is in BRDF units at its class mean level; the target is relative.
+            return prediction if levels is None else prediction / profile.scale
 
         scores.append(_cross_validate(name, fold, n_free, fit_and_predict, data, weights))
     chosen, best = _one_se_choice(scores)

@@ -227,3 +227,12 @@ def test_auto_pools_dates_whose_views_of_each_pixel_are_alike():
     fit = result.fits[0]
     assert fit.levels == "pooled" and fit.status == "fitted"
     assert any("fitted pooled" in note for note in fit.notes)
+
+
+def test_auto_with_free_levels_scores_the_true_model_on_held_out_differences():
+    """The held-out predictions of each pixel's relative views are compared in the same units as
+    the target: the true model (RTLSR) explains nearly all of them."""
+    images, maps, angles = _stack(4)
+    fit = fit_classes(images, maps, angles, ClassModels("auto"), wavelengths=[650.0]).fits[0]
+    assert fit.levels == "pixel"
+    assert fit.model_choice.score_of("ross_thick_li_sparse").heldout_r2 > 0.95
