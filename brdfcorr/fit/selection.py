@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import BrdfcorrError, FitError
 from brdfcorr.fit.goniometer import fit_brdf
 from brdfcorr.fit.solver import DEFAULT_FIXED, _free_shape, _profile, _search, _search_subset
@@ -53,7 +54,7 @@ __all__ = [
 ]
 
 #: The model name that asks for the choice by held-out error (CLI ``--model auto``, tables, chains).
-AUTO = "auto"
+AUTO = AUTO_MODEL
 #: Candidates for goniometer measurements: one lobe (specular: Torrance-Sparrow; backscatter: the
 #: MODIS kernels, RPV) and two lobes (:mod:`brdfcorr.models.two_lobe`).
 GONIOMETER_CANDIDATES: tuple[str, ...] = (

@@ -139,6 +139,9 @@ class _LinearProfile:
             self.raw_data = relative * (self.scale if group_model is None else group_model)
         self.constant = self._constant_terms() if levels is not None else ()
         self.terms = tuple(name for name in intensity_terms(model) if name not in self.constant)
+        # Columns of the raw design: those of ``terms``, and of the constant (with free levels).
+        self.kept = [j for j, name in enumerate(intensity_terms(model)) if name in self.terms]
+        self.constant_index = intensity_terms(model).index(self.constant[0]) if self.constant else None
         self.data = data if levels is None else levels.demean(self.raw_data)
         self.nonnegative = np.array([bound == 0.0 for name, bound in zip(intensity_terms(model), lower)
                                      if name in self.terms])
@@ -161,8 +164,7 @@ class _LinearProfile:
         design = self.raw_design(shape)
         if self.levels is None:
             return design
-        kept = [j for j, name in enumerate(intensity_terms(self.model)) if name in self.terms]
-        return self.levels.demean(design[:, kept])
+        return self.levels.demean(design[:, self.kept])
 
     def _constant_terms(self) -> tuple[str, ...]:
         """The linear terms whose column is the same at every sample (the level: t0, f_iso), at
@@ -178,16 +180,14 @@ class _LinearProfile:
         (m, B): with free levels the constant term restored from the data's mean
         (:func:`brdfcorr.fit.within.restored_constant`; kept >= 0 if its lower bound is 0; one
         constant at most)."""
-        if not self.constant:
+        if self.constant_index is None:
             return coefficients
-        names = intensity_terms(self.model)
+        index, kept = self.constant_index, self.kept
         raw_means = self.raw_design(shape).mean(axis=0)
-        kept = [j for j, name in enumerate(names) if name in self.terms]
-        (index,) = [names.index(name) for name in self.constant]
         constant = restored_constant(self.raw_data.mean(axis=0), raw_means[kept], coefficients, raw_means[index])
-        if self.model.parameter(names[index]).lower == 0.0:
+        if self.model.parameter(self.constant[0]).lower == 0.0:
             constant = np.maximum(constant, 0.0)
-        full = np.empty((len(names), coefficients.shape[1]))
+        full = np.empty((len(raw_means), coefficients.shape[1]))
         full[kept], full[index] = coefficients, constant
         return full
 
@@ -653,11 +653,9 @@ def _with_levels(profile: _LinearProfile, shape: dict[str, float], coefficients,
     :attr:`_LinearProfile.terms`) with the restored constant appended (:func:`_with_level`) and
     the uncertainty of the class's mean level, cluster-robust over ``clusters``
     (:func:`brdfcorr.fit.within.with_level_variance`)."""
-    clusters = profile.levels.factors[0] if clusters is None else clusters
     if profile.constant:
         covariance = _with_level(profile, shape, coefficients, covariance, clusters)
-    names = intensity_terms(profile.model)
-    joint = [names.index(name) for name in (*profile.terms, *profile.constant)]
+    joint = [*profile.kept, *([] if profile.constant_index is None else [profile.constant_index])]
     relative_variance = cluster_mean_variance(profile.level, clusters) / profile.scale**2
     return with_level_variance(covariance, intensities[joint].T, relative_variance)
 
@@ -667,9 +665,7 @@ def _with_level(profile: _LinearProfile, shape: dict[str, float], coefficients, 
     :func:`brdfcorr.fit.within.with_constant`): its Jacobian through the means of the raw design
     columns (central differences over the shape), and the variance of the mean relative level,
     cluster-robust over ``clusters`` (:func:`brdfcorr.fit.within.cluster_mean_variance`)."""
-    names = intensity_terms(profile.model)
-    kept = [j for j, name in enumerate(names) if name in profile.terms]
-    (index,) = [names.index(name) for name in profile.constant]
+    kept, index = profile.kept, profile.constant_index
     raw = profile.raw_design(shape)
     means = raw.mean(axis=0)
     jacobian = []
