@@ -390,12 +390,12 @@ def fit_one_class(
     ClassFit
     """
     choice, notes = None, []
-    if pool_if_alike and samples.group is not None:
-        spread = _within_spread(samples)
-        if spread < guard.min_vza_spread:
-            samples = dataclasses.replace(samples, group=None, scene=None, levels="pooled")
-            notes.append(f"the views of each pixel differ by {spread:.1f} deg < {guard.min_vza_spread:g} deg: "
-                         "fitted pooled (one level for the class)")
+    within = None if samples.group is None else _within_spread(samples)
+    if pool_if_alike and within is not None and within < guard.min_vza_spread:
+        samples = dataclasses.replace(samples, group=None, scene=None, levels="pooled")
+        notes.append(f"the views of each pixel differ by {within:.1f} deg < {guard.min_vza_spread:g} deg: "
+                     "fitted pooled (one level for the class)")
+        within = None
     if model == AUTO_MODEL:
         try:
             choice = choose_class_model(samples, fixed=fixed, grid_points=min(grid_points, SELECT_GRID))
@@ -412,7 +412,7 @@ def fit_one_class(
         name=name,
         model=model.name,
         n_samples=int(np.size(theta_i)),
-        vza_spread=_spread(np.asarray(theta_r)) if samples.group is None else _within_spread(samples),
+        vza_spread=_spread(np.asarray(theta_r)) if within is None else within,
         phi_spread=_spread(np.asarray(phi)),
         fallback=fallback,
         notes=notes,
