@@ -168,26 +168,25 @@ def test_a_reference_sun_zenith_outside_its_domain_is_one_line(granule, tmp_path
     assert "ValidationError" not in result.output and not output.exists()
 
 
-def test_an_fmask_on_a_shifted_grid_is_one_line_naming_it(granule, tmp_path):
-    fmask = next(granule.glob("*.Fmask.tif"))
-    with rasterio.open(fmask, "r+") as dataset:
-        dataset.transform = dataset.transform * Affine.translation(2, 0)  # two pixels east
+def _refusal_of_a_shifted_file(granule, tmp_path, pattern: str, pixels: int) -> str:
+    """``nbar`` on the granule with its file ``pattern`` moved ``pixels`` east: exit 2, no output,
+    and the one line it prints."""
+    with rasterio.open(next(granule.glob(pattern)), "r+") as dataset:
+        dataset.transform = dataset.transform * Affine.translation(pixels, 0)
     output = tmp_path / "out.tif"
     result = run("nbar", granule, "--ref-sza", "45", "-o", output)
     assert result.exit_code == 2, result.output
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and not output.exists(), result.stderr
-    assert re.search(r"Fmask\.tif: the Fmask is not on the grid of band B04 \S+B04\.tif: ", lines[0]), lines[0]
+    return lines[0]
+
+
+def test_an_fmask_on_a_shifted_grid_is_one_line_naming_it(granule, tmp_path):
+    line = _refusal_of_a_shifted_file(granule, tmp_path, "*.Fmask.tif", 2)
+    assert re.search(r"Fmask\.tif: the Fmask is not on the grid of band B04 \S+B04\.tif: ", line), line
 
 
 def test_a_band_on_a_shifted_grid_is_named_not_the_fmask(granule, tmp_path):
     """A band shifted against the others was blamed on the Fmask (issue 39)."""
-    band = next(granule.glob("*.B8A.tif"))
-    with rasterio.open(band, "r+") as dataset:
-        dataset.transform = dataset.transform * Affine.translation(1, 0)
-    output = tmp_path / "out.tif"
-    result = run("nbar", granule, "--ref-sza", "45", "-o", output)
-    assert result.exit_code == 2, result.output
-    lines = result.stderr.splitlines()
-    assert len(lines) == 1 and not output.exists(), result.stderr
-    assert re.search(r"B8A\.tif: band B8A is not on the grid of band B04 \S+B04\.tif: ", lines[0]), lines[0]
+    line = _refusal_of_a_shifted_file(granule, tmp_path, "*.B8A.tif", 1)
+    assert re.search(r"B8A\.tif: band B8A is not on the grid of band B04 \S+B04\.tif: ", line), line
