@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import gc
 import importlib
 import os
 import select
@@ -233,6 +234,14 @@ def terminate_as_interrupt():
         signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
 
 
+def _silence_half_built_objects():
+    """After a signal stopped a command, drop what the objects it interrupted in their
+    ``__init__`` say when they are destroyed (a file manager of xarray stopped half-built: "Exception
+    ignored in ... has no attribute '_local'"), so that the command's one line is the last it prints."""
+    sys.unraisablehook = lambda unraisable: None
+    gc.collect()
+
+
 def handle_errors(command):
     """Map exceptions to exit codes: :class:`BrdfcorrError` and click's usage errors -> one line
     and 2, any other exception -> one "internal error" line and 1; click's exit and abort pass."""
@@ -249,10 +258,12 @@ def handle_errors(command):
             click.echo(f"brdfcorr: error: {where + ': ' if where else ''}{error.format_message()}{hint}", err=True)
             sys.exit(error.exit_code)
         except Terminated:
+            _silence_half_built_objects()
             click.echo("brdfcorr: terminated", err=True)
             sys.exit(EXIT_TERMINATED)
         except (KeyboardInterrupt, click.exceptions.Abort):
             # Ctrl-C: partial outputs are removed on the way out (atomic_path); 128 + SIGINT.
+            _silence_half_built_objects()
             click.echo("brdfcorr: interrupted", err=True)
             sys.exit(EXIT_INTERRUPTED)
         except (click.exceptions.ClickException, click.exceptions.Exit):

@@ -102,3 +102,31 @@ def test_help_texts_have_no_doubled_percent():
         assert result.exit_code == 0 and "%%" not in result.output, (path, result.output)
     result = runner.invoke(main, ["fit-classes", "--help"])
     assert "5-95 % view zenith spread" in " ".join(result.output.split())
+
+
+def test_a_signal_mid_construction_leaves_the_one_line_last():
+    """SIGTERM can arrive inside an object's ``__init__`` (xarray's file manager, CI of stop 44);
+    its ``__del__`` then failed at shutdown and printed a traceback after "brdfcorr: terminated"."""
+    import subprocess
+    import sys
+
+    script = """
+import sys
+from brdfcorr.cli._base import Terminated, handle_errors
+
+class HalfBuilt:
+    def __init__(self):
+        self.cycle = self
+        raise Terminated
+    def __del__(self):
+        self._local.close()
+
+@handle_errors
+def command():
+    HalfBuilt()
+
+command()
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 143
+    assert done.stderr.splitlines() == ["brdfcorr: terminated"]
