@@ -2,7 +2,7 @@
 
 Prints ratios against baselines measured in the same run, never absolute targets:
 
-1. end to end, GeoTIFF in -> GeoTIFF out (``brdfcorr.workflow.correction.correct_files``, as the CLI runs it)
+1. end to end, GeoTIFF in -> GeoTIFF out (``brdfcorr.tasks.correct.correct_files``, as the CLI runs it)
    versus a plain chunked rasterio read + write of the same image with the same output options
    (tiles, deflate + predictor); target <= 1.5;
 2. in memory, per band: ``normalize`` on a numpy cube versus the bare ``cube * factor``, for a
@@ -100,8 +100,8 @@ def plain_copy(source: Path, target: Path, chunk: int) -> None:
 
 def run_correct(paths: dict, output: Path, chunk: int | None, data_type: str = "float") -> dict:
     from brdfcorr.io.scene import SceneSources
-    from brdfcorr.workflow.correction import correct_files
-    from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
+    from brdfcorr.tasks.correct import correct_files
+    from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
     return correct_files(CorrectionRequest(
         SceneSources(paths["image"], paths["classes"], paths["angles"]), paths["params"],

@@ -123,7 +123,7 @@ def run_correct(paths: dict[str, Path], table: Path, output: Path) -> tuple[floa
 
 def base_mib() -> float:
     """Peak RSS [MiB] of a process that only imports what ``correct`` imports (the model's base)."""
-    code = ("import brdfcorr.workflow.correction, brdfcorr.cli.correct;"
+    code = ("import brdfcorr.tasks.correct, brdfcorr.cli.correct;"
             "print(next(line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM:')))")
     return int(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                               text=True).stdout.split()[-1]) / 1024  # KiB

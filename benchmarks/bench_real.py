@@ -11,9 +11,9 @@ Three corrections of the subset, each to nadir view at the observed sun zenith (
 default reference):
 
 - ``brdfcorr``: ``brdfcorr classes ndvi`` strata (quartiles of the raw NDVI,
-  :func:`brdfcorr.workflow.classmaps.ndvi_class_file`), ``fit-classes`` on the subset itself
-  (ross_thick_li_sparse, the default on NDVI strata, :func:`brdfcorr.workflow.tasks.fit_class_files`),
-  ``correct`` (:func:`brdfcorr.workflow.correction.correct_files`);
+  :func:`brdfcorr.tasks.classmaps.ndvi_class_file`), ``fit-classes`` on the subset itself
+  (ross_thick_li_sparse, the default on NDVI strata, :func:`brdfcorr.tasks.fit.fit_class_files`),
+  ``correct`` (:func:`brdfcorr.tasks.correct.correct_files`);
 - ``brdfcorr interp``: the same table with an ``ndvi_interpolation`` block over the strata (the
   coefficients interpolated in each pixel's NDVI, FlexBRDF's way; ``docs/classmaps.md``);
 - ``c-factor``: the fixed global RTLSR coefficients of Roy et al. (2016), RSE 176, 255-271,
@@ -56,10 +56,10 @@ from brdfcorr.io.rasters import open_image
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable
-from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
-from brdfcorr.workflow.correction import correct_files
-from brdfcorr.workflow.request import CorrectionRequest, OutputFiles
-from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
+from brdfcorr.tasks.classmaps import NdviBins, ndvi_class_file
+from brdfcorr.tasks.correct import correct_files
+from brdfcorr.tasks.fit import SceneFiles, fit_class_files
+from brdfcorr.tasks.request import CorrectionRequest, OutputFiles
 
 DATA = Path(__file__).resolve().parent / "data" / "modis_mod09a1_h18v04"
 #: The NDVI groups: quartiles of the raw NDVI [%].

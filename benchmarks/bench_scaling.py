@@ -96,8 +96,8 @@ def gdal_copy(paths: dict[str, Path], output: Path) -> None:
 
 def brdfcorr_correct(paths: dict[str, Path], output: Path, scheduler=None) -> None:
     from brdfcorr.io.scene import SceneSources
-    from brdfcorr.workflow.correction import correct_files
-    from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
+    from brdfcorr.tasks.correct import correct_files
+    from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
     correct_files(CorrectionRequest(SceneSources(paths["image"], paths["classes"], paths["angles"]), paths["params"],
                                     OutputFiles(output), reference={"sza": "mean", "vza": 0, "raa": 0},
@@ -108,7 +108,7 @@ def child(args: argparse.Namespace) -> None:
     """Run one job, print its time [s] and this process's peak RSS [MiB] as JSON."""
     paths = scene_paths(Path(args.dir))
     output = Path(args.dir) / f"{args.child}.tif"
-    import brdfcorr.workflow.correction  # noqa: F401  (imports are no part of the timing)
+    import brdfcorr.tasks.correct  # noqa: F401  (imports are no part of the timing)
 
     start = time.perf_counter()
     (gdal_copy if args.child == "gdal" else brdfcorr_correct)(paths, output)

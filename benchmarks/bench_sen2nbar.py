@@ -7,7 +7,7 @@ pixels (twice as many at 10 m), with a real granule's ``MTD_TL.xml`` (``--mtd-tl
 synthetic metadata of :func:`brdfcorr.testing.write_mtd_tl`). sen2nbar (PyPI, a separate
 environment: ``python3 -m venv /tmp/venv-s2n && /tmp/venv-s2n/bin/pip install sen2nbar``) runs
 ``nbar_SAFE(path, cog=False)`` in that environment (``--sen2nbar-python``); brdfcorr runs
-:func:`brdfcorr.workflow.nbar.nbar_files` twice, as sen2nbar works: the 10 m bands (B02, B03, B04,
+:func:`brdfcorr.tasks.nbar.nbar_files` twice, as sen2nbar works: the 10 m bands (B02, B03, B04,
 B08) at 10 m and the 20 m bands (B05, B06, B07, B11, B12) at 20 m, each pixel normalized to nadir
 view at its own sun zenith (``reference_sza="observed"``, sen2nbar's reference), without the SCL
 mask (sen2nbar applies none).
@@ -64,9 +64,9 @@ from pathlib import Path
 import numpy as np
 import rasterio
 
+from brdfcorr.tasks.nbar import NbarMethod, nbar_files
+from brdfcorr.tasks.request import OutputFiles
 from brdfcorr.testing import write_sentinel2_safe
-from brdfcorr.workflow.nbar import NbarMethod, nbar_files
-from brdfcorr.workflow.request import OutputFiles
 
 BANDS = {10: ("B02", "B03", "B04", "B08"), 20: ("B05", "B06", "B07", "B11", "B12")}
 DEFAULT_PYTHON = os.environ.get("SEN2NBAR_PYTHON", "/tmp/venv-s2n/bin/python")
@@ -83,8 +83,8 @@ SEN2NBAR_CODE = ("import sys, time; t0 = time.perf_counter(); from sen2nbar.nbar
                  "t = time.perf_counter(); nbar_SAFE(sys.argv[1], cog=False, quiet=True); "
                  "print(time.perf_counter() - t, time.perf_counter() - t0)")
 BRDFCORR_CODE = ("import sys, time; t0 = time.perf_counter(); from pathlib import Path; import distributed; "
-                 "from brdfcorr.workflow.nbar import NbarMethod, nbar_files; "
-                 "from brdfcorr.workflow.request import OutputFiles; t = time.perf_counter(); "
+                 "from brdfcorr.tasks.nbar import NbarMethod, nbar_files; "
+                 "from brdfcorr.tasks.request import OutputFiles; t = time.perf_counter(); "
                  "[nbar_files(sys.argv[1], OutputFiles(Path(sys.argv[2]) / f'process_{r}m.tif', overwrite=True, "
                  "compress=sys.argv[5]), resolution=r, bands=b.split(','), masked=(), "
                  "method=NbarMethod(reference_sza='observed', factor_at=sys.argv[6])) "

@@ -35,7 +35,7 @@ export PYTHONUNBUFFERED=1
 
 $PY -P - <<'EOF' 2>&1 | tee -a "$LOG" || exit 1
 import dask, numpy, pandas, pydantic, pyproj, rasterio, rioxarray, scipy, xarray
-import brdfcorr, brdfcorr.workflow.correction  # noqa: F401
+import brdfcorr, brdfcorr.tasks.correct  # noqa: F401
 print("brdfcorr from", brdfcorr.__file__)
 print("versions:", {m.__name__: m.__version__ for m in (numpy, scipy, pandas, xarray, dask, rasterio, rioxarray,
                                                          pydantic, pyproj)}, "GDAL", rasterio.__gdal_version__)

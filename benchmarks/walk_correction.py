@@ -1,7 +1,7 @@
 """Structure benchmark: the walk of one GeoTIFF correction through brdfcorr's modules (run by hand).
 
 Follows ``brdfcorr correct`` on a small synthetic scene from
-:func:`brdfcorr.workflow.correction.correct_files` to the numbers (the dask scheduler synchronous,
+:func:`brdfcorr.tasks.correct.correct_files` to the numbers (the dask scheduler synchronous,
 so every block function runs in this thread) and records, as a reader following the code would,
 each brdfcorr function at its first call (a loop over classes or bands is read once) and the module
 it belongs to. Consecutive functions in one module are one *stay*; a *climb* is a call from a
@@ -16,7 +16,7 @@ of calls, from ``correct_files`` to the model's arithmetic: the modules a reader
 see how a pixel's number is made).
 
 Measured (issue 23, second pass): by module 111 stays in 32 modules, by layer 55, path to the
-numbers 6 stays (workflow.correction -> io.writer -> correction.normalization -> models._base ->
+numbers 6 stays (tasks.correct -> io.writer -> correction.normalization -> models._base ->
 models.torrance_sparrow -> geometry); 2 climbs, both dask computing the correction's block functions
 from the writer (io) that stores them. The climbs counted before this pass (7) were mostly returns
 read as climbs from the order of first calls, and one real callback (``params_bands`` calling the
@@ -36,12 +36,12 @@ from pathlib import Path
 import dask
 
 from brdfcorr.io.scene import SceneSources
+from brdfcorr.tasks.correct import correct_files
+from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
-from brdfcorr.workflow.correction import correct_files
-from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
 #: The layers, top first (pyproject.toml, [tool.importlinter]); modules outside them have none.
-LAYERS = [["brdfcorr.cli"], ["brdfcorr.workflow"], ["brdfcorr.plot"], ["brdfcorr.analysis"], ["brdfcorr.fit"],
+LAYERS = [["brdfcorr.cli"], ["brdfcorr.chain"], ["brdfcorr.tasks"], ["brdfcorr.plot"], ["brdfcorr.analysis"], ["brdfcorr.fit"],
           ["brdfcorr.correction"], ["brdfcorr.params"], ["brdfcorr.params_bands", "brdfcorr.params_fit"],
           ["brdfcorr.models"], ["brdfcorr.geometry"], ["brdfcorr.io"]]
 

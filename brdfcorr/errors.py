@@ -30,7 +30,7 @@ class InputError(BrdfcorrError, ValueError):
 
 class ConfigError(BrdfcorrError, ValueError):
     """A chain config is malformed; the message names the file, the key path and what is allowed.
-    (Also importable as ``brdfcorr.workflow.config.ConfigError``.)"""
+    (Also importable as ``brdfcorr.chain.config.ConfigError``.)"""
 
 
 class GridMismatchError(BrdfcorrError, ValueError):

@@ -1,7 +1,7 @@
 """Write small AVIRIS-NG, NEON and EMIT products with a known BRDF, to try the worked examples of docs/sensors.md.
 
 Each product holds the demo's town (roof tile, concrete, grass, trees, bare soil and a pond;
-``brdfcorr.workflow.demo``: rendered with brdfcorr's model functions, Torrance-Sparrow for roofs and
+``brdfcorr.chain.demo``: rendered with brdfcorr's model functions, Torrance-Sparrow for roofs and
 concrete, the kernel-driven RTLSR model with illustrative weights for the rest) seen by a line
 scanner flown north on 15 June 2026 with the sensor's field of view, written in the product's own
 layout (``brdfcorr.testing``):
@@ -37,7 +37,7 @@ from importlib.util import find_spec
 from pathlib import Path
 
 from brdfcorr.testing import write_emit_granules, write_envi_line, write_neon_reflectance
-from brdfcorr.workflow.demo import demo_scene
+from brdfcorr.chain.demo import demo_scene
 
 #: Ground pixel [m] of every scene (the town's streets and houses are drawn in metres).
 PIXEL = 5.0

@@ -21,6 +21,7 @@ from hypothesis import settings
 from brdfcorr.analysis.assess import Line
 from brdfcorr.cli import main
 from brdfcorr.params import ParameterTable
+from brdfcorr.tasks.classmaps import NdviBins, ndvi_class_file
 from brdfcorr.testing import (
     example_table,
     file_digests,
@@ -30,7 +31,6 @@ from brdfcorr.testing import (
     synthetic_scene,
     write_scene,
 )
-from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
 
 # Property tests draw the same examples on every run (a CI run that passes here passes there); a
 # random exploration is `pytest --hypothesis-profile=explore`.

@@ -26,7 +26,7 @@ This module gathers them; they live in :mod:`brdfcorr.analysis.view_angles`,
 the dataset and report conventions they share in :mod:`brdfcorr.analysis._assess_common`.
 
 The files' versions (``brdfcorr assess``, ``brdfcorr assess-lines``, the chains' assess step) are
-in :mod:`brdfcorr.workflow.assessment`.
+in :mod:`brdfcorr.tasks.assess`.
 
 The results are :class:`xarray.Dataset` objects with labelled dims (``stage``: before/after,
 ``band``, ``class``, ``vza_bin``) and units in their attrs; :func:`view_angle_report` and

@@ -328,7 +328,7 @@ def _layer(value, name: str, shape: tuple[int, ...]):
 class ViewAngleOptions:
     """How the view-angle signal is measured (:func:`assess_view_angles`); shared by
     :func:`brdfcorr.analysis.holdout.leave_one_line_out`, the files' assessments
-    (:mod:`brdfcorr.workflow.assessment`) and the chains' assess step.
+    (:mod:`brdfcorr.tasks.assess`) and the chains' assess step.
 
     Attributes
     ----------

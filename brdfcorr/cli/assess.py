@@ -1,6 +1,6 @@
-"""``brdfcorr assess``: did the correction work? (library: :func:`brdfcorr.workflow.assessment.assess_files`);
+"""``brdfcorr assess``: did the correction work? (library: :func:`brdfcorr.tasks.assess.assess_files`);
 ``brdfcorr assess-lines``: leave-one-line-out over flight lines
-(:func:`brdfcorr.workflow.assessment.leave_one_line_out_files`)."""
+(:func:`brdfcorr.tasks.assess.leave_one_line_out_files`)."""
 
 from __future__ import annotations
 
@@ -116,9 +116,9 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     from brdfcorr.analysis.assess import ViewAngleOptions
     from brdfcorr.io.scene import SceneSources
     from brdfcorr.plot.assess import figure_paths, write_assessment_figures
-    from brdfcorr.workflow.assessment import assess_files, write_json
-    from brdfcorr.workflow.classmaps import read_lookup
-    from brdfcorr.workflow.request import Engine
+    from brdfcorr.tasks.assess import assess_files, write_json
+    from brdfcorr.tasks.classmaps import read_lookup
+    from brdfcorr.tasks.request import Engine
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")
@@ -240,8 +240,8 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     """
     from brdfcorr.analysis.assess import HoldoutFit, ViewAngleOptions
     from brdfcorr.io.scene import SceneSources
-    from brdfcorr.workflow.assessment import check_line_files, leave_one_line_out_files, write_json
-    from brdfcorr.workflow.classmaps import read_lookup
+    from brdfcorr.tasks.assess import check_line_files, leave_one_line_out_files, write_json
+    from brdfcorr.tasks.classmaps import read_lookup
 
     if sign_by == "track" and heading is None:
         raise click.UsageError("--sign-by track needs --heading (the flight direction in degrees from north)")

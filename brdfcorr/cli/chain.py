@@ -1,4 +1,4 @@
-"""``brdfcorr demo``, ``run`` and ``validate``: processing chains (library: brdfcorr.workflow.chain)."""
+"""``brdfcorr demo``, ``run`` and ``validate``: processing chains (library: brdfcorr.chain.run)."""
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def demo_command(output_dir: Path, config_path, progress):
     QA, assessment report and profile figure, before/after quicklook, run report),
     OUTPUT_DIR/demo.yaml (the chain, rerun with `brdfcorr run`) and OUTPUT_DIR/materials_brdf.png.
     """
-    from brdfcorr.workflow.demo import run_demo
+    from brdfcorr.chain.demo import run_demo
 
     with _chain_progress(progress, "demo") as callback:
         result = run_demo(output_dir, config_path, progress=callback)
@@ -50,7 +50,7 @@ def demo_command(output_dir: Path, config_path, progress):
 
 
 # ------------------------------------------------------------------------------------------------
-# brdfcorr run / validate: chain configs (library: brdfcorr.workflow.config, brdfcorr.workflow.chain)
+# brdfcorr run / validate: chain configs (library: brdfcorr.chain.config, brdfcorr.chain.run)
 # ------------------------------------------------------------------------------------------------
 
 def _overrides(items: tuple[str, ...]) -> dict:
@@ -188,8 +188,8 @@ def run_command(chain, dry_run, resume, overwrite, settings, progress):
     (listed, with the reason, in the table and the report); 2 a bad config or input before any
     scene ran (nothing is written); 1 an internal error.
     """
-    from brdfcorr.workflow.chain import plan_run, run_chain
-    from brdfcorr.workflow.config import load_config
+    from brdfcorr.chain.config import load_config
+    from brdfcorr.chain.run import plan_run, run_chain
 
     if resume and overwrite:
         raise InputError("--resume and --overwrite exclude each other")
@@ -268,8 +268,8 @@ def validate_command(chains, settings, strict):
                 raise InputError(f"{chain}: the parameter table has no classes: nothing would be corrected")
             click.echo(f"{chain}: valid parameter table; classes {', '.join(map(str, table.class_ids))}")
             continue
-        from brdfcorr.workflow.chain import plan_run
-        from brdfcorr.workflow.config import config_from_document
+        from brdfcorr.chain.config import config_from_document
+        from brdfcorr.chain.run import plan_run
 
         plan = plan_run(config_from_document(document, chain, overrides), require_inputs=False)
         missing = plan.missing_inputs()

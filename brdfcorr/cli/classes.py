@@ -1,5 +1,5 @@
 """``brdfcorr classes ndvi`` / ``brdfcorr classes align``: class maps when the user has none, or
-has one on another grid (library: :mod:`brdfcorr.workflow.classmaps`)."""
+has one on another grid (library: :mod:`brdfcorr.tasks.classmaps`)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import click
 from brdfcorr.cli._base import PROGRESS, _format_table, handle_errors, main, progress_bars
 from brdfcorr.cli._inputs import scale_options
 
-# brdfcorr.workflow.classmaps (rasterio, dask) is imported when a command runs, not when its options
+# brdfcorr.tasks.classmaps (rasterio, dask) is imported when a command runs, not when its options
 # are parsed: --help and argument errors answer at once.
 
 
@@ -48,7 +48,7 @@ def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id,
     IMAGE's stored values are read as reflectance factors with its GDAL scale/offset, or --scale
     and --offset (an offset changes NDVI); an image that does not look like reflectance factors
     is refused unless --scale is given."""
-    from brdfcorr.workflow.classmaps import NdviBins, ndvi_class_file
+    from brdfcorr.tasks.classmaps import NdviBins, ndvi_class_file
 
     bins = NdviBins(edges=_numbers(edges), percentiles=_numbers(percentiles), water_id=water_id, shadow_id=shadow_id)
     with progress_bars(progress, "classes ndvi"):  # the scale check, the percentiles, the write
@@ -70,7 +70,7 @@ def classes_ndvi_command(image, output, edges, percentiles, water_id, shadow_id,
 @handle_errors
 def classes_align_command(landcover, image, lookup, output, overwrite):
     """Bring LANDCOVER (any grid and CRS) onto the grid of an image by nearest neighbour."""
-    from brdfcorr.workflow.classmaps import align_class_file, read_lookup
+    from brdfcorr.tasks.classmaps import align_class_file, read_lookup
 
     aligned = align_class_file(landcover, image, output, lookup=read_lookup(lookup) if lookup else None,
                                overwrite=overwrite, reads={"--lookup": lookup})

@@ -1,4 +1,4 @@
-"""``brdfcorr correct``: normalize one image (library: :func:`brdfcorr.workflow.correction.correct_files`)."""
+"""``brdfcorr correct``: normalize one image (library: :func:`brdfcorr.tasks.correct.correct_files`)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from brdfcorr.errors import BrdfcorrWarning, UnknownNameError
 from brdfcorr.io import FORMATS
 
 if TYPE_CHECKING:
-    from brdfcorr.workflow.correction import Terrain
+    from brdfcorr.tasks.correct import Terrain
 
 # The library (dask, rasterio, scipy) is imported when the command runs, not when its options are
 # parsed: --help and argument errors answer at once.
@@ -67,7 +67,7 @@ def _cluster(address: str | None):
     """The client of the dask.distributed scheduler at ``address`` (None: this machine's threads)."""
     if not address:
         return contextlib.nullcontext(None)
-    from brdfcorr.workflow.chain import connect_cluster  # imported only for a cluster
+    from brdfcorr.chain.run import connect_cluster  # imported only for a cluster
 
     return connect_cluster(address, setting="--scheduler")
 
@@ -85,7 +85,7 @@ def _parameter_table(params_path: Path | None):
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
     """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
     from brdfcorr.correction.topographic import C_METHODS
-    from brdfcorr.workflow.correction import Terrain
+    from brdfcorr.tasks.correct import Terrain
     if slope_aspect is None and dem is None:
         if topographic is not None or brdf_frame is not None:
             raise click.UsageError("--topographic and --brdf-frame need --slope-aspect or --dem")
@@ -191,9 +191,9 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     wavelength (550 nm) is warned about once per class.
     """
     from brdfcorr.io.scene import SceneSources
-    from brdfcorr.workflow.classmaps import read_lookup
-    from brdfcorr.workflow.correction import correct_files
-    from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
+    from brdfcorr.tasks.classmaps import read_lookup
+    from brdfcorr.tasks.correct import correct_files
+    from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
     if params_path is None and not materials:
         raise click.UsageError("give a parameter table (--params) or at least one --material")

@@ -126,8 +126,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     """
     from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
     from brdfcorr.fit.settings import fallback_entry
-    from brdfcorr.workflow.classmaps import read_lookup
-    from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
+    from brdfcorr.tasks.classmaps import read_lookup
+    from brdfcorr.tasks.fit import SceneFiles, fit_class_files
 
     if not len(images) == len(angles) == len(classes):
         raise InputError(
@@ -298,7 +298,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     parameter correlations; with -o writes the fit as a class of a parameter table.
     """
     from brdfcorr.params import ParameterTable
-    from brdfcorr.workflow.tasks import fit_measurement_file
+    from brdfcorr.tasks.fit import fit_measurement_file
 
     target = update_target(output, overwrite, inputs={"MEASUREMENTS": measurements}) if output is not None else None
     table = ParameterTable.load(target) if target is not None and target.exists() else None

@@ -1,4 +1,4 @@
-"""``brdfcorr nbar``: NBAR of a product folder (library: :func:`brdfcorr.workflow.nbar.nbar_files`)."""
+"""``brdfcorr nbar``: NBAR of a product folder (library: :func:`brdfcorr.tasks.nbar.nbar_files`)."""
 
 from __future__ import annotations
 
@@ -60,8 +60,8 @@ def nbar_command(product, output, qa_path, resolution, bands, coefficients, ref_
     pixel is normalized to nadir view with the published global RTLSR coefficients of its band
     (Roy et al. 2016, 2017): the c-factor method of HLS and sen2nbar.
     """
-    from brdfcorr.workflow.nbar import NbarMethod, nbar_files
-    from brdfcorr.workflow.request import Engine, OutputFiles
+    from brdfcorr.tasks.nbar import NbarMethod, nbar_files
+    from brdfcorr.tasks.request import Engine, OutputFiles
 
     band_list = [name.strip() for name in bands.split(",") if name.strip()] if bands else None
     outputs = OutputFiles(output, qa=qa_path, compress=compress, cog=cog, overwrite=overwrite)

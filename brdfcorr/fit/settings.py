@@ -70,7 +70,7 @@ class ClassModels:
     ----------
     model : str or Model or None, default "torrance_sparrow"
         Surface model with intensity terms (:func:`intensity_terms`) for every class ... (None:
-        chosen from the class maps by :func:`brdfcorr.workflow.tasks.fit_class_files`,
+        chosen from the class maps by :func:`brdfcorr.tasks.fit.fit_class_files`,
         :data:`STRATA_MODEL` for NDVI strata, else :data:`DEFAULT_MODEL`; "torrance_sparrow" for
         :func:`brdfcorr.fit.fit_classes`) ...
     class_models : mapping of int to str, optional

@@ -239,7 +239,7 @@ def verify(target: Target, tags: Mapping[str, str], written: list[Path]) -> None
 def check_complete(path: str | os.PathLike) -> str | None:
     """What is wrong with an existing output raster, or None where it is whole: the checks of
     :func:`verify` that need no array (it opens; every GeoTIFF tile lies within the file; an ENVI
-    data file has its full length). A resumed run (:mod:`brdfcorr.workflow.plan`) reopens what it
+    data file has its full length). A resumed run (:mod:`brdfcorr.chain.plan`) reopens what it
     would skip: a file cut short or damaged after it was written is redone, not reported complete.
     Reads the header and the tile index only."""
     try:

@@ -22,7 +22,7 @@ from brdfcorr.io.files import atomic_path
 from brdfcorr.plot._display import display_name
 
 if TYPE_CHECKING:  # the workflow's result type, for annotations only (plot sits below workflow)
-    from brdfcorr.workflow.assessment import Assessment
+    from brdfcorr.tasks.assess import Assessment
 
 __all__ = ["profile_figure", "overlap_figure", "figure_paths", "write_assessment_figures", "default_band"]
 

@@ -171,7 +171,7 @@ def write_landsat_c2(directory: str | os.PathLike, ang: str | os.PathLike | None
 
 
 # --- Imaging-spectrometer products (AVIRIS-NG ENVI, NEON AOP HDF5, EMIT NetCDF) of a scene ----------
-# The writers below take a scene as :func:`brdfcorr.workflow.demo.demo_scene` returns it (an
+# The writers below take a scene as :func:`brdfcorr.chain.demo.demo_scene` returns it (an
 # xarray.Dataset with ``reflectance`` (band, y, x) and its ``wavelength`` coordinate [nm], the four
 # angles sza, saa, vza, vaa [deg] on (y, x), north-up, with CRS and transform) and write it in a
 # product's own layout, as its reader in :mod:`brdfcorr.io.sensors` documents it.

@@ -20,8 +20,8 @@ from brdfcorr.analysis.assess import (
 )
 from brdfcorr.errors import InputError
 from brdfcorr.plot.assess import overlap_figure, profile_figure, write_assessment_figures
+from brdfcorr.tasks.assess import Assessment, write_json
 from brdfcorr.testing import synthetic_angles
-from brdfcorr.workflow.assessment import Assessment, write_json
 
 NY, NX = 20, 40
 

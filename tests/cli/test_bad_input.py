@@ -387,12 +387,12 @@ def test_bad_override_value(scene):
 # ---------------------------------------------------------------------- internal errors, --debug
 def test_internal_error_is_one_line_exit_1_and_traceback_only_with_debug(scene, monkeypatch):
     """A bug (any exception that is not a BrdfcorrError) is exit 1, not 2: the input may be fine."""
-    import brdfcorr.workflow.correction
+    import brdfcorr.tasks.correct
 
     def broken(*args, **kwargs):
         raise ZeroDivisionError("simulated bug")
 
-    monkeypatch.setattr(brdfcorr.workflow.correction, "normalize", broken)
+    monkeypatch.setattr(brdfcorr.tasks.correct, "normalize", broken)
     result = CliRunner().invoke(main, _correct_args(scene))
     assert result.exit_code == 1
     assert result.stderr.splitlines() == [

@@ -7,9 +7,9 @@ from __future__ import annotations
 from click.testing import CliRunner
 from dask.callbacks import Callback
 
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.run import run_chain
 from brdfcorr.cli import main
-from brdfcorr.workflow.chain import run_chain
-from brdfcorr.workflow.config import load_config
 
 
 class _PassStarts(Callback):

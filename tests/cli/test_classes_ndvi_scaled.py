@@ -9,8 +9,8 @@ import pytest
 import rasterio
 from click.testing import CliRunner
 
+from brdfcorr.chain.demo import demo_scene, write_demo_scene
 from brdfcorr.cli import main
-from brdfcorr.workflow.demo import demo_scene, write_demo_scene
 
 #: Landsat Collection 2 level 2: reflectance = stored * 2.75e-5 - 0.2 (uint16).
 SCALE, OFFSET = 2.75e-5, -0.2

@@ -12,10 +12,10 @@ from click.testing import CliRunner
 from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.cli import main
 from brdfcorr.io.scene import SceneSources
+from brdfcorr.tasks.assess import assess_files
+from brdfcorr.tasks.correct import correct_files
+from brdfcorr.tasks.request import CorrectionRequest, OutputFiles
 from brdfcorr.testing import example_table, render, synthetic_scene, write_scene
-from brdfcorr.workflow.assessment import assess_files
-from brdfcorr.workflow.correction import correct_files
-from brdfcorr.workflow.request import CorrectionRequest, OutputFiles
 
 
 @pytest.fixture(scope="module")

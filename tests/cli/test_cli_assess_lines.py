@@ -1,4 +1,4 @@
-"""Tests of ``brdfcorr assess-lines`` and :func:`brdfcorr.workflow.assessment.leave_one_line_out_files`:
+"""Tests of ``brdfcorr assess-lines`` and :func:`brdfcorr.tasks.assess.leave_one_line_out_files`:
 three overlapping lines rendered with a known kernel model (``make_lines`` of tests/conftest.py),
 written as GeoTIFFs; the CLI's JSON equals the library's numbers, the held-out slopes fall."""
 
@@ -16,8 +16,8 @@ from brdfcorr.analysis.assess import HoldoutFit, ViewAngleOptions, leave_one_lin
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError
 from brdfcorr.io.scene import SceneSources
+from brdfcorr.tasks.assess import leave_one_line_out_files
 from brdfcorr.testing import write_scene
-from brdfcorr.workflow.assessment import leave_one_line_out_files
 
 NAMES = {1: "grass", 2: "soil"}
 REFERENCE = {"sza": 35.0, "vza": 0.0}

@@ -160,8 +160,8 @@ def test_correct_files_reads_sensor_angle_sources(files, scene, tmp_path, monkey
 
     import brdfcorr.io.sensors
     from brdfcorr.io.scene import SceneSources
-    from brdfcorr.workflow.correction import correct_files
-    from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
+    from brdfcorr.tasks.correct import correct_files
+    from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
     def stand_in(source, like, scale=1.0):
         assert source == "obs.bin" and like.sizes["x"] == 48

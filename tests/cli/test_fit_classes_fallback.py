@@ -9,9 +9,9 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
+from brdfcorr.chain.config_steps import ImageryFit
 from brdfcorr.cli import main
 from brdfcorr.params import ParameterTable
-from brdfcorr.workflow.config_steps import ImageryFit
 
 
 @pytest.fixture(scope="module")

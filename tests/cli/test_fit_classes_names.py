@@ -50,7 +50,7 @@ def test_explicit_model_and_class_name_win_over_the_map(files):
 
 def test_a_plain_class_map_keeps_the_torrance_sparrow_default(files):
     from brdfcorr.fit.classes import ClassModels, GuardRails
-    from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
+    from brdfcorr.tasks.fit import SceneFiles, fit_class_files
 
     fit = fit_class_files([SceneFiles(files["image"], files["classes"], files["angles"])], ClassModels(None),
                           guard=GuardRails(min_samples=50))

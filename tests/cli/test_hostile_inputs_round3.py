@@ -32,8 +32,8 @@ from brdfcorr.cli import main
 from brdfcorr.correction.terrain import slope_aspect
 from brdfcorr.errors import InputError
 from brdfcorr.io.writer import encode_integers
+from brdfcorr.tasks.request import Engine
 from brdfcorr.testing import PIXEL, georeference, synthetic_scene, write_scene_chain
-from brdfcorr.workflow.request import Engine
 
 NY, NX = 32, 32  # the scene of the template fixture (tests/conftest.py)
 #: Metres per US survey foot (EPSG:9003).

@@ -180,7 +180,7 @@ def _goniometer_csv(directory, wavelengths=(None,)):
 
 
 def test_goniometer_fit_writes_its_fit_block(tmp_path):
-    from brdfcorr.workflow.tasks import fit_measurement_file
+    from brdfcorr.tasks.fit import fit_measurement_file
 
     fit = fit_measurement_file(_goniometer_csv(tmp_path), "torrance_sparrow", fixed={"k": 0.25}, min_phi=90)
     result = fit.results[None]
@@ -202,7 +202,7 @@ def test_goniometer_fit_writes_its_fit_block(tmp_path):
 
 
 def test_spectral_goniometer_fit_has_one_matrix_per_wavelength(tmp_path):
-    from brdfcorr.workflow.tasks import fit_measurement_file
+    from brdfcorr.tasks.fit import fit_measurement_file
 
     fit = fit_measurement_file(_goniometer_csv(tmp_path, (450.0, 850.0)), "torrance_sparrow",
                                fixed={"k": 0.25}, min_phi=90)
@@ -269,8 +269,8 @@ def test_imagery_fit_writes_its_fit_block(tmp_path):
 
 
 def test_fit_class_files_names_its_inputs(tmp_path):
+    from brdfcorr.tasks.fit import SceneFiles, fit_class_files
     from brdfcorr.testing import georeference, write_scene
-    from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
 
     image, classes, angles = _scene()
     image.attrs["long_name"] = tuple(f"{w:g} nm" for w in image.wavelength.values)

@@ -12,8 +12,8 @@ import rasterio
 import yaml
 from click.testing import CliRunner
 
+from brdfcorr.chain.demo import demo_scene, write_demo_scene
 from brdfcorr.cli import main
-from brdfcorr.workflow.demo import demo_scene, write_demo_scene
 
 #: The demo's bands (450, 500, 560, 660, 740, 860 nm) in an order like a sensor's numbering.
 ORDER = [3, 5, 0, 1, 2, 4]

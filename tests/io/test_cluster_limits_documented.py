@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from brdfcorr.chain import run as chain
 from brdfcorr.errors import InputError
 from brdfcorr.io import cluster
-from brdfcorr.workflow import chain
 
 SCALING = Path(__file__).resolve().parents[2] / "docs" / "scaling.md"
 

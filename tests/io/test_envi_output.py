@@ -112,8 +112,8 @@ def test_chain_writes_envi_outputs(tmp_path, make_scenes, write_chain):
 
 
 def test_chain_envi_default_naming_and_mismatch(tmp_path):
+    from brdfcorr.chain.config import OutputsConfig
     from brdfcorr.errors import ConfigError
-    from brdfcorr.workflow.config import OutputsConfig
 
     assert OutputsConfig(directory="out", format="ENVI").naming == "{scene}_brdf.img"
     for bad in ({"format": "ENVI", "naming": "{scene}.tif"}, {"naming": "{scene}.img"},

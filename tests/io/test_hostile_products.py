@@ -32,11 +32,11 @@ import rasterio
 import xarray as xr
 from affine import Affine
 
+from brdfcorr.chain import run as chain
 from brdfcorr.io import cluster
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, synthetic_scene
-from brdfcorr.workflow import chain
 
 try:  # the "hdf5" extra
     import h5netcdf  # noqa: F401

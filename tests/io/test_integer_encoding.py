@@ -15,9 +15,9 @@ from dask.callbacks import Callback
 
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.writer import encode_integers
+from brdfcorr.tasks.correct import correct_files
+from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 from brdfcorr.testing import synthetic_scene
-from brdfcorr.workflow.correction import correct_files
-from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
 
 def _expected(values: np.ndarray, dtype, scales, offsets, nodata):

@@ -41,6 +41,10 @@ import xarray as xr
 from affine import Affine
 from click.testing import CliRunner
 
+from brdfcorr.chain import run as chain_module
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.plan import plan_run
+from brdfcorr.chain.run import LOCK_NAME, run_lock
 from brdfcorr.cli import main
 from brdfcorr.errors import OutputError
 from brdfcorr.io import commit
@@ -48,10 +52,6 @@ from brdfcorr.io.paths import InputOverwriteError, check_outputs
 from brdfcorr.io.writer import GeoTiffOutput, write_rasters
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import file_digests, georeference
-from brdfcorr.workflow import chain as chain_module
-from brdfcorr.workflow.chain import LOCK_NAME, run_lock
-from brdfcorr.workflow.config import load_config
-from brdfcorr.workflow.plan import plan_run
 
 # The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
 

@@ -24,13 +24,13 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.demo import run_demo
+from brdfcorr.chain.plan import plan_run
+from brdfcorr.chain.run import run_chain
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.paths import InputOverwriteError, SameOutputError, check_outputs, remove_partials
-from brdfcorr.workflow.chain import run_chain
-from brdfcorr.workflow.config import load_config
-from brdfcorr.workflow.demo import run_demo
-from brdfcorr.workflow.plan import plan_run
 
 
 # ------------------------------------------------------------------------------------- helpers

@@ -21,8 +21,8 @@ from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import Sampling
 from brdfcorr.io import rasters
 from brdfcorr.params import ParameterTable
+from brdfcorr.tasks.fit import SceneFiles, fit_class_files
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
-from brdfcorr.workflow.tasks import SceneFiles, fit_class_files
 
 #: name -> (dtype, scale, offset, nodata): reflectance x 10000 in int16, Landsat Collection 2 level 2.
 STORAGE = {

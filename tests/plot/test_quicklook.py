@@ -76,7 +76,7 @@ def test_the_scene_sun_is_a_circular_mean_read_back_from_the_tag():
     import xarray as xr
 
     from brdfcorr.plot._display import scene_sun_azimuth
-    from brdfcorr.workflow.correction import _centre_sun
+    from brdfcorr.tasks.correct import _centre_sun
 
     azimuth = np.where(np.arange(8)[None, :] % 2, 350.0, 10.0) * np.ones((8, 1))  # north: mean 0, not 180
     angles = {name: xr.DataArray(values, dims=("y", "x")) for name, values in

@@ -8,9 +8,9 @@ import json
 
 import pytest
 
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.run import plan_run, run_chain
 from brdfcorr.errors import ConfigError
-from brdfcorr.workflow.chain import plan_run, run_chain
-from brdfcorr.workflow.config import load_config
 
 
 def test_the_default_is_not_in_the_fingerprint_and_nodes_is(tmp_path, make_scenes, write_chain):

@@ -11,8 +11,8 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
+from brdfcorr.chain.demo import demo_scene, write_demo_scene
 from brdfcorr.cli import main
-from brdfcorr.workflow.demo import demo_scene, write_demo_scene
 
 #: The demo line of 60 rows has 572 pixels of class 1 and 696 of class 5, more of classes 2-4:
 #: this guard leaves classes 1 and 5 unfitted.

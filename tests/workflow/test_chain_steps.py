@@ -10,13 +10,13 @@ import pytest
 import rasterio
 import xarray as xr
 
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.run import plan_run, run_chain
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.params import ParameterTable
+from brdfcorr.tasks.correct import Terrain, correct_files
+from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 from brdfcorr.testing import PIXEL, example_table, georeference
-from brdfcorr.workflow.chain import plan_run, run_chain
-from brdfcorr.workflow.config import load_config
-from brdfcorr.workflow.correction import Terrain, correct_files
-from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
 
 NY, NX = 32, 48  # the scenes of make_scenes (tests/conftest.py)
 

@@ -6,8 +6,8 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
+from brdfcorr.chain.config import ChainConfig, ConfigError, apply_overrides, format_pattern, load_config
 from brdfcorr.cli import main
-from brdfcorr.workflow.config import ChainConfig, ConfigError, apply_overrides, format_pattern, load_config
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((REPO / "configs").glob("*.yaml"))
@@ -140,7 +140,7 @@ def test_terrain_assess_uncertainty_and_interleave_defaults():
         steps={"correct": {"terrain": {}}, "assess": {}},
         outputs={"directory": "o", "format": "ENVI", "interleave": "bil", "uncertainty": True}))
     terrain, assess = config.steps.correct.terrain, config.steps.assess
-    # the defaults of brdfcorr.workflow.correction.Terrain and brdfcorr.analysis.view_angles.ViewAngleOptions
+    # the defaults of brdfcorr.tasks.correct.Terrain and brdfcorr.analysis.view_angles.ViewAngleOptions
     assert (terrain.topographic, terrain.brdf_frame) == ("cosine", "surface")
     assert (assess.sign_by, assess.heading, assess.bin_width, assess.min_vza) == ("sun", None, 2.0, 0.0)
     assert config.outputs.uncertainty_naming == "{scene}_uncertainty.tif"

@@ -9,10 +9,10 @@ import pytest
 import rasterio
 from click.testing import CliRunner
 
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.demo import DEMO_TIME, demo_angles, demo_scene, demo_table, run_demo
+from brdfcorr.chain.run import build_table, plan_run
 from brdfcorr.cli import main
-from brdfcorr.workflow.chain import build_table, plan_run
-from brdfcorr.workflow.config import load_config
-from brdfcorr.workflow.demo import DEMO_TIME, demo_angles, demo_scene, demo_table, run_demo
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -126,7 +126,7 @@ def test_demo_config_is_package_data():
     # a copy of the documented configs/demo.yaml that must not drift from it.
     from importlib.resources import files
 
-    from brdfcorr.workflow.demo import default_config
+    from brdfcorr.chain.demo import default_config
 
     packaged = files("brdfcorr").joinpath("data/demo.yaml")
     assert packaged.is_file()

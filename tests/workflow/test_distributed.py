@@ -13,12 +13,12 @@ import pytest
 import rasterio
 from click.testing import CliRunner
 
+from brdfcorr.chain import run as chain
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.run import run_chain
 from brdfcorr.cli import main
 from brdfcorr.io import writer
 from brdfcorr.testing import synthetic_scene
-from brdfcorr.workflow import chain
-from brdfcorr.workflow.chain import run_chain
-from brdfcorr.workflow.config import load_config
 
 distributed = pytest.importorskip("distributed")
 

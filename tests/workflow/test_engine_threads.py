@@ -8,10 +8,10 @@ import os
 
 import pytest
 
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.config_outputs import EngineConfig
+from brdfcorr.chain.run import _executor
 from brdfcorr.io import writer
-from brdfcorr.workflow.chain import _executor
-from brdfcorr.workflow.config import load_config
-from brdfcorr.workflow.config_outputs import EngineConfig
 
 
 @pytest.fixture

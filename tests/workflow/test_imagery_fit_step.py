@@ -8,14 +8,14 @@ from pathlib import Path
 import pytest
 import yaml
 
+from brdfcorr.chain.config import ChainConfig, ConfigError, load_config
+from brdfcorr.chain.config_steps import ImageryFit
+from brdfcorr.chain.plan import plan_run
+from brdfcorr.chain.run import run_chain
 from brdfcorr.cli.fitting import fit_classes_command
 from brdfcorr.errors import InputError
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, GuardRails, Sampling
 from brdfcorr.params import ParameterTable
-from brdfcorr.workflow.chain import run_chain
-from brdfcorr.workflow.config import ChainConfig, ConfigError, load_config
-from brdfcorr.workflow.config_steps import ImageryFit
-from brdfcorr.workflow.plan import plan_run
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -57,9 +57,9 @@ def test_a_class_map_and_an_uncertainty_output_refuse_the_factor_at_the_nodes(tm
     per-pixel classes or a per-pixel 1-sigma is refused before anything is written."""
     from brdfcorr.errors import InputError
     from brdfcorr.io.scene import SceneSources
+    from brdfcorr.tasks.correct import correct_files
+    from brdfcorr.tasks.request import CorrectionRequest, OutputFiles
     from brdfcorr.testing import example_table, synthetic_scene, write_scene
-    from brdfcorr.workflow.correction import correct_files
-    from brdfcorr.workflow.request import CorrectionRequest, OutputFiles
 
     paths = write_scene(tmp_path, synthetic_scene(ny=16, nx=16))
     request = CorrectionRequest(SceneSources(paths["image"], paths["classes"], paths["angles"]), example_table(),

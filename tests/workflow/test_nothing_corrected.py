@@ -12,11 +12,11 @@ import rasterio
 import yaml
 from click.testing import CliRunner
 
+from brdfcorr.chain.demo import demo_scene, write_demo_scene
+from brdfcorr.chain.report import assessment_summary
 from brdfcorr.cli import main
 from brdfcorr.io.scene import SceneSources
-from brdfcorr.workflow.assessment import assess_files
-from brdfcorr.workflow.demo import demo_scene, write_demo_scene
-from brdfcorr.workflow.report import assessment_summary
+from brdfcorr.tasks.assess import assess_files
 
 ROOT = Path(__file__).parents[2]
 

@@ -11,10 +11,10 @@ import rasterio
 import yaml
 from click.testing import CliRunner
 
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.run import build_table, plan_run, run_chain
 from brdfcorr.cli import EXIT_SCENES_FAILED, main
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
-from brdfcorr.workflow.chain import build_table, plan_run, run_chain
-from brdfcorr.workflow.config import load_config
 
 
 def test_run_writes_closed_form_outputs_and_report(tmp_path, make_scenes, write_chain, expected, read):
@@ -376,7 +376,7 @@ def test_scene_workers_end_with_the_run(tmp_path):
     script = tmp_path / "parent.py"
     script.write_text(textwrap.dedent("""
         import concurrent.futures, multiprocessing, os, sys, time
-        from brdfcorr.workflow.chain import _die_with_parent
+        from brdfcorr.chain.run import _die_with_parent
 
         def sleep():
             time.sleep(120)

@@ -25,11 +25,11 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
+from brdfcorr.chain.config import ChainConfig, apply_overrides, load_config
+from brdfcorr.chain.run import plan_run
 from brdfcorr.errors import BrdfcorrError
 from brdfcorr.models import specular_peak
 from brdfcorr.params import ParameterTable
-from brdfcorr.workflow.chain import plan_run
-from brdfcorr.workflow.config import ChainConfig, apply_overrides, load_config
 
 # More examples for a long search: BRDFCORR_PROPERTY_EXAMPLES=5000 pytest tests/workflow/test_property_parsing.py
 PROPERTY = settings(max_examples=int(os.environ.get("BRDFCORR_PROPERTY_EXAMPLES", 150)), deadline=None,

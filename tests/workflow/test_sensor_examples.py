@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from brdfcorr.chain.demo import demo_scene
 from brdfcorr.cli import main
 from brdfcorr.testing import write_emit_granules, write_envi_line, write_neon_reflectance
-from brdfcorr.workflow.demo import demo_scene
 
 pytest.importorskip("h5py")
 pytest.importorskip("h5netcdf")

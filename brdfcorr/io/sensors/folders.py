@@ -2,7 +2,7 @@
 
 :func:`find_product` finds a product's reflectance bands, its quality mask, its scaling and its
 angle source; :func:`write_stack` writes the bands on one grid, masked, as one GDAL virtual raster
-(and its mask GeoTIFF) that the correction reads (:func:`brdfcorr.workflow.nbar.nbar_files`).
+(and its mask GeoTIFF) that the correction reads (:func:`brdfcorr.tasks.nbar.nbar_files`).
 
 Sentinel-2 L2A (ESA, S2 MSI Level-2A Product Format Specification; processing baseline 04.00
 note, COPE-SERCO-RP-21-1141): ``<name>.SAFE/MTD_MSIL2A.xml`` (``PROCESSING_BASELINE``,
@@ -432,7 +432,7 @@ def write_stack(product: ProductFolder, target: str | Path, chunks: int = 1024) 
     files or absent, none of the product's files) and are written to temporary names, renamed only
     when both are complete (:func:`brdfcorr.io.files.atomic_path`), the mask before the VRT that
     reads it: a failed or killed write leaves neither file (existing ones untouched). Whether an
-    existing file may be replaced is the caller's rule (:func:`brdfcorr.workflow.nbar.nbar_files`:
+    existing file may be replaced is the caller's rule (:func:`brdfcorr.tasks.nbar.nbar_files`:
     only with ``overwrite``).
 
     Raises

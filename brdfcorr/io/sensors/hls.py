@@ -6,7 +6,7 @@ coefficients of Roy et al. (2016, 2017), nadir view, one modelled sun zenith per
 mean of the sun zeniths predicted for the Landsat and Sentinel-2 overpasses at the tile centre's
 latitude on that day), stored in each band file's ``NBAR_SOLAR_ZENITH`` tag. Normalizing it again
 would apply the view correction twice; moving it to another sun zenith is exact
-(:func:`brdfcorr.workflow.nbar.nbar_files` with a fixed reference sun zenith).
+(:func:`brdfcorr.tasks.nbar.nbar_files` with a fixed reference sun zenith).
 
 Files: one COG per band, ``HLS.S30.T33UUP.2023166T101559.v2.0.B04.tif``, int16 reflectance x 10 000
 (no data -9999), and ``...Fmask.tif`` (bits 1 cloud, 2 adjacent to cloud or shadow, 3 cloud shadow,

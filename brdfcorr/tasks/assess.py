@@ -39,8 +39,8 @@ from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
-from brdfcorr.workflow.classmaps import class_preparation, tagged_class_names
-from brdfcorr.workflow.request import Engine
+from brdfcorr.tasks.classmaps import class_preparation, tagged_class_names
+from brdfcorr.tasks.request import Engine
 
 __all__ = ["Assessment", "assess_files", "LinesAssessment", "check_line_files", "leave_one_line_out_files",
            "write_json"]
@@ -89,7 +89,7 @@ def _open_scene_files(sources: SceneSources, engine: Engine, *, align_classes: b
                       class_lookup: Mapping[int, int] | None) -> SceneData:
     """One scene's files opened lazily and checked (:func:`brdfcorr.io.scene.open_scene`) with the
     engine's chunks (default :func:`brdfcorr.io.rasters.auto_chunk`), scheduler and workers, the
-    class map aligned or remapped as for the correction (:func:`brdfcorr.workflow.classmaps.class_preparation`)."""
+    class map aligned or remapped as for the correction (:func:`brdfcorr.tasks.classmaps.class_preparation`)."""
     chunks = rasters.auto_chunk(sources.image) if engine.chunks is None else int(engine.chunks)
     return open_scene(sources, chunks=chunks, prepare_classes=class_preparation(align_classes, class_lookup),
                       scheduler=engine.scheduler, num_workers=engine.num_workers)
@@ -149,7 +149,7 @@ def assess_files(
         share their errors (a composite's day-of-year band, a flight-line id): the slopes' 1-sigma
         is cluster-robust over these instead of square blocks (:func:`assess_view_angles`).
     align_classes, class_lookup :
-        As for :class:`brdfcorr.workflow.request.CorrectionRequest`.
+        As for :class:`brdfcorr.tasks.request.CorrectionRequest`.
     engine : Engine
         Chunk size [pixels] (default :func:`brdfcorr.io.rasters.auto_chunk` of the input), dask
         scheduler and workers of the angle check and of the view-angle pass, and dask callbacks

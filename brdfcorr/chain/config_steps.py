@@ -3,8 +3,8 @@
 :class:`StepsConfig` holds one optional model per step: :class:`ImageryFit` or
 :class:`GoniometerFit` (with its :class:`MeasurementSet` tables), :class:`CorrectStep` (with
 :class:`TerrainStep`), :class:`AssessStep` and :class:`QuicklookStep`. Pydantic models, validated as
-part of :class:`brdfcorr.workflow.config.ChainConfig`; import them from
-:mod:`brdfcorr.workflow.config`.
+part of :class:`brdfcorr.chain.config.ChainConfig`; import them from
+:mod:`brdfcorr.chain.config`.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ class GoniometerFit(StrictModel):
 
 class ImageryFit(StrictModel):
     """Fit step from the imagery itself: per-class fits pooled over the run's scenes
-    (:func:`brdfcorr.workflow.tasks.fit_class_files`, as ``brdfcorr fit-classes``: the same
+    (:func:`brdfcorr.tasks.fit.fit_class_files`, as ``brdfcorr fit-classes``: the same
     options and defaults).
 
     Attributes
@@ -195,7 +195,7 @@ class ImageryFit(StrictModel):
 
     def fit_settings(self, names: Mapping[int, str] | None = None) -> dict[str, Any]:
         """The step as the keyword arguments ``models``, ``sampling`` (with the bad bands) and
-        ``guard`` of :func:`brdfcorr.workflow.tasks.fit_class_files`; ``names`` are default class
+        ``guard`` of :func:`brdfcorr.tasks.fit.fit_class_files`; ``names`` are default class
         names (the step's ``names`` win)."""
         return {
             "models": ClassModels(self.model, class_models=self.class_models, fixed=self.fixed,
@@ -212,7 +212,7 @@ class ImageryFit(StrictModel):
 
 
 class TerrainStep(StrictModel):
-    """Tilted surfaces in the correct step (:class:`brdfcorr.workflow.correction.Terrain`,
+    """Tilted surfaces in the correct step (:class:`brdfcorr.tasks.correct.Terrain`,
     ``docs/terrain.md``); slope and aspect come from ``inputs.slope_aspect`` or ``inputs.dem``.
 
     Attributes
@@ -279,7 +279,7 @@ class CorrectStep(StrictModel):
 
 class AssessStep(StrictModel):
     """The view-angle signal left in every scene, before and after the correction
-    (:func:`brdfcorr.workflow.assessment.assess_files`): ``{scene}_assess.json`` and the figure
+    (:func:`brdfcorr.tasks.assess.assess_files`): ``{scene}_assess.json`` and the figure
     ``{scene}_assess_profiles.png`` (:func:`brdfcorr.plot.assess.write_assessment_figures`) in
     the output directory.
 

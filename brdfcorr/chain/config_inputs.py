@@ -2,8 +2,8 @@
 
 :class:`InputsConfig` (with :class:`AngleSource`) names the scenes and their per-scene sources,
 :class:`ParametersConfig` the parameter table the run starts from. Pydantic models, validated as
-part of :class:`brdfcorr.workflow.config.ChainConfig`; import them from
-:mod:`brdfcorr.workflow.config`.
+part of :class:`brdfcorr.chain.config.ChainConfig`; import them from
+:mod:`brdfcorr.chain.config`.
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel, short_repr
+from brdfcorr.chain.patterns import check_pattern
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.io.sensors import ANGLE_KINDS
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, check_distinct_ids
-from brdfcorr.workflow.patterns import check_pattern
 
 __all__ = ["AngleSource", "InputsConfig", "ParametersConfig", "check_material"]
 
@@ -80,7 +80,7 @@ class InputsConfig(StrictModel):
         Class-map code -> table class id (e.g. ESA WorldCover 10 -> 3); codes not listed: no class.
     slope_aspect, dem : str, optional
         Name patterns of the per-scene terrain source of ``steps.correct.terrain``
-        (:class:`brdfcorr.workflow.correction.Terrain`): a 2-band slope/aspect raster [deg] (or an ENVI
+        (:class:`brdfcorr.tasks.correct.Terrain`): a 2-band slope/aspect raster [deg] (or an ENVI
         ``obs_ort`` file), or a DEM [m] in a projected CRS, on the image grid; give one of them.
     wavelengths : list of float, optional
         Band centres [nm] for every image, overriding what the files say.

@@ -1,6 +1,6 @@
 """What a chain run will do: its scenes, their files, and what happens to each (:func:`plan_run`).
 
-A plan expands a :class:`~brdfcorr.workflow.config.ChainConfig` into scenes (image, angle source,
+A plan expands a :class:`~brdfcorr.chain.config.ChainConfig` into scenes (image, angle source,
 class map and output names for every input image) and decides each scene's action:
 
 ``run``   the scene is corrected;
@@ -9,7 +9,7 @@ class map and output names for every input image) and decides each scene's actio
 ``fail``  an input is missing, or its outputs exist under ``outputs.existing: error``.
 
 The plan is the one place that decides: ``brdfcorr run --dry-run`` shows it and
-:func:`brdfcorr.workflow.chain.run_chain` follows it, so both say the same about every scene.
+:func:`brdfcorr.chain.run.run_chain` follows it, so both say the same about every scene.
 Outputs appear complete or not at all, and a skipped scene's outputs are reopened and checked as a
 fresh write is (:func:`brdfcorr.io.commit.check_complete`: one cut short after the run is redone); it is still
 redone when its corrected image records (provenance tag ``brdf_parameter_table_content``) another
@@ -42,6 +42,7 @@ import rasterio
 import rasterio.errors
 
 from brdfcorr import __version__
+from brdfcorr.chain.config import ChainConfig, format_pattern
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
 from brdfcorr.io.commit import check_complete
@@ -50,7 +51,6 @@ from brdfcorr.io.paths import InputOverwriteError, check_outputs
 from brdfcorr.io.writer import envi_sidecars
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 from brdfcorr.plot.assess import figure_paths
-from brdfcorr.workflow.config import ChainConfig, format_pattern
 
 __all__ = ["Scene", "RunPlan", "plan_run", "configured_table", "reuses_fit", "planned_table", "scene_fingerprint"]
 
@@ -477,7 +477,7 @@ def _redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | Non
 def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
     """The scene, turned from ``skip`` to ``run`` if its corrected output was written with another
     parameter table than ``table`` (provenance tag ``brdf_parameter_table_content`` of
-    :func:`brdfcorr.workflow.correction.correct_files`) or ``table`` is not known before the run, or
+    :func:`brdfcorr.tasks.correct.correct_files`) or ``table`` is not known before the run, or
     with another fingerprint than ``scene.fingerprint`` (tag ``brdf_fingerprint``)."""
     if scene.action != "skip" or "corrected" not in scene.outputs:
         return scene
@@ -530,7 +530,7 @@ def _json_problem(path: Path) -> str | None:
 # ----------------------------------------------------------------------------------- fingerprints
 def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     """Everything a scene's corrected output depends on besides the parameter table, as canonical
-    JSON (sorted keys, no spaces): what :func:`brdfcorr.workflow.correction.correct_files` records
+    JSON (sorted keys, no spaces): what :func:`brdfcorr.tasks.correct.correct_files` records
     (tags ``brdf_fingerprint``, its SHA-256, and ``brdf_fingerprint_content``) and a resumed run
     compares.
 

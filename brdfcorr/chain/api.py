@@ -1,6 +1,6 @@
 """The chain entry of the top-level namespace: ``brdfcorr.run_chain(path)``.
 
-:func:`brdfcorr.workflow.chain.run_chain` takes a loaded :class:`~brdfcorr.workflow.config.ChainConfig`;
+:func:`brdfcorr.chain.run.run_chain` takes a loaded :class:`~brdfcorr.chain.config.ChainConfig`;
 this one also takes the config file, as ``brdfcorr run CHAIN.yaml`` does.
 """
 
@@ -9,9 +9,9 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 
-from brdfcorr.workflow import chain as _chain
-from brdfcorr.workflow.config import ChainConfig, load_config
-from brdfcorr.workflow.report import RunReport
+from brdfcorr.chain import run as _chain
+from brdfcorr.chain.config import ChainConfig, load_config
+from brdfcorr.chain.report import RunReport
 
 __all__ = ["run_chain"]
 
@@ -24,12 +24,12 @@ def run_chain(config: ChainConfig | str | os.PathLike, *, overrides: Mapping[str
     ----------
     config : path-like or ChainConfig
         The chain config file (YAML; relative paths are relative to it), or a config loaded with
-        :func:`brdfcorr.workflow.config.load_config`.
+        :func:`brdfcorr.chain.config.load_config`.
     overrides : mapping of str to object, optional
         Dotted keys to replace (``{"engine.workers": 2}``), as ``brdfcorr run --set``; only with a
         path (pass them to ``load_config`` otherwise).
     progress : callable, optional
-        ``progress(event, info)`` (:mod:`brdfcorr.workflow.chain`).
+        ``progress(event, info)`` (:mod:`brdfcorr.chain.run`).
 
     Returns
     -------

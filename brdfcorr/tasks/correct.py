@@ -1,5 +1,5 @@
 """The correction of one image file (``brdfcorr correct``, a chain's correct step):
-:func:`correct_files` runs a :class:`~brdfcorr.workflow.request.CorrectionRequest`.
+:func:`correct_files` runs a :class:`~brdfcorr.tasks.request.CorrectionRequest`.
 
 It reads and writes files but prints nothing: the CLI shows the summary, chains report it.
 """
@@ -40,8 +40,8 @@ from brdfcorr.io.opening import open_layer, reading
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.scene import SceneData, open_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
-from brdfcorr.workflow.classmaps import class_preparation, describe_class_map
-from brdfcorr.workflow.request import CorrectionRequest
+from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
+from brdfcorr.tasks.request import CorrectionRequest
 
 __all__ = ["correct_files", "Terrain", "uncorrected_note", "MOSTLY_UNCORRECTED"]
 
@@ -198,7 +198,7 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
     ----------
     request : CorrectionRequest
         The inputs, the table, the reference, the outputs and the engine
-        (:mod:`brdfcorr.workflow.request`).
+        (:mod:`brdfcorr.tasks.request`).
 
     Returns
     -------
@@ -436,7 +436,7 @@ def _envi_outputs(request: CorrectionRequest, scene: SceneData) -> dict:
 
 
 def _fingerprint_tags(fingerprint: str | None) -> dict[str, str]:
-    """The tags a resumed chain compares (:mod:`brdfcorr.workflow.plan`), written to the corrected
+    """The tags a resumed chain compares (:mod:`brdfcorr.chain.plan`), written to the corrected
     output only, which is renamed into place after the QA and uncertainty outputs: whoever finds
     them finds every output of the correction complete."""
     if fingerprint is None:

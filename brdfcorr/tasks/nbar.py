@@ -9,9 +9,9 @@ published global ones of its band (:mod:`brdfcorr.models.coefficients`), and
 with the reference geometry of HLS (nadir view; sun zenith the scene mean by default, or a value
 or each pixel's own). The folder's bands are stacked on one grid and masked
 (:func:`brdfcorr.io.sensors.folders.write_stack`, a temporary virtual raster beside the output that
-reads the product's files), then corrected by :func:`brdfcorr.workflow.correction.correct_files`
+reads the product's files), then corrected by :func:`brdfcorr.tasks.correct.correct_files`
 like any image; with ``view_band="each"`` band by band, each with its own view angles. An HLS
-granule, NBAR already, is only moved to a fixed reference sun zenith (:mod:`brdfcorr.workflow.hls`).
+granule, NBAR already, is only moved to a fixed reference sun zenith (:mod:`brdfcorr.tasks.hls`).
 """
 
 from __future__ import annotations
@@ -42,9 +42,9 @@ from brdfcorr.io.sensors.hls import HlsGranule, find_hls_granule, hls_refusal
 from brdfcorr.io.writer import GeoTiffOutput, write_rasters
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable
-from brdfcorr.workflow.correction import correct_files
-from brdfcorr.workflow.hls import hls_sun_zenith_layers
-from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
+from brdfcorr.tasks.correct import correct_files
+from brdfcorr.tasks.hls import hls_sun_zenith_layers
+from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
 __all__ = ["nbar_files", "nbar_table", "NbarMethod", "EACH_BAND", "NBAR_CHUNK", "remove_stale_scratch"]
 
@@ -126,7 +126,7 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     Returns
     -------
     dict
-        :func:`~brdfcorr.workflow.correction.correct_files`' summary, and ``product``.
+        :func:`~brdfcorr.tasks.correct.correct_files`' summary, and ``product``.
 
     Raises
     ------

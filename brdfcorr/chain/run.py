@@ -1,18 +1,18 @@
 """One chain run: sources -> fit? -> normalize -> sinks, for many scenes, with a run report.
 
-:func:`~brdfcorr.workflow.plan.plan_run` expands a :class:`~brdfcorr.workflow.config.ChainConfig`
+:func:`~brdfcorr.chain.plan.plan_run` expands a :class:`~brdfcorr.chain.config.ChainConfig`
 into scenes and decides what happens to each (``run``, ``skip``, ``fail``; :mod:`.plan`).
 :func:`run_chain` follows that plan:
 
 1. builds the parameter table: built-in materials, the table file, the ``fit`` step (from
-   goniometer CSVs with :func:`brdfcorr.workflow.tasks.fit_measurement_file` or from the imagery
-   with :func:`brdfcorr.workflow.tasks.fit_class_files`), merged in that order (later wins for a
+   goniometer CSVs with :func:`brdfcorr.tasks.fit.fit_measurement_file` or from the imagery
+   with :func:`brdfcorr.tasks.fit.fit_class_files`), merged in that order (later wins for a
    class id);
-2. normalizes every scene to run with :func:`brdfcorr.workflow.correction.correct_files` (lazy, chunked,
+2. normalizes every scene to run with :func:`brdfcorr.tasks.correct.correct_files` (lazy, chunked,
    atomic writes, QA counts; optionally the uncertainty raster and tilted surfaces,
-   :class:`brdfcorr.workflow.correction.Terrain`), assesses the view-angle signal left in it
-   (``steps.assess``: :func:`brdfcorr.workflow.assessment.assess_files`, a JSON report and a figure)
-   and writes a before/after quicklook (:func:`brdfcorr.workflow.quicklook.write_quicklook`);
+   :class:`brdfcorr.tasks.correct.Terrain`), assesses the view-angle signal left in it
+   (``steps.assess``: :func:`brdfcorr.tasks.assess.assess_files`, a JSON report and a figure)
+   and writes a before/after quicklook (:func:`brdfcorr.chain.quicklook.write_quicklook`);
 3. writes the run report (JSON; :mod:`.report`): inputs, parameter table and its sources,
    versions, timings, per-scene QA counts and errors.
 
@@ -20,7 +20,7 @@ A failing scene is recorded (message and error type) and the others go on. Befor
 temporary files an interrupted earlier run left beside the run's outputs are removed
 (:func:`brdfcorr.io.paths.remove_partials`); the plan has already checked that no output is an
 input or another output, and each corrected output records the plan's fingerprint of its inputs
-and settings (:func:`brdfcorr.workflow.plan.scene_fingerprint`) for the next resume.
+and settings (:func:`brdfcorr.chain.plan.scene_fingerprint`) for the next resume.
 
 Execution engines (``engine.scheduler``):
 
@@ -46,7 +46,7 @@ Nothing here prints: progress goes to a callback ``progress(event, info)`` with 
 counted together, so that ``done`` only grows and ``total`` grows as each pass starts; with the
 ``threads`` and ``synchronous`` engines only, at the start of each pass, at most every
 :data:`CHUNK_EVENT_SECONDS` and at its end) and ``"scene"`` (the scene's result,
-:func:`~brdfcorr.workflow.report.scene_result`).
+:func:`~brdfcorr.chain.report.scene_result`).
 """
 
 from __future__ import annotations
@@ -73,19 +73,10 @@ from dask.callbacks import Callback
 
 from brdfcorr._entry import entered
 from brdfcorr.analysis.assess import ViewAngleOptions
-from brdfcorr.errors import InputError, OutputError
-from brdfcorr.io import cluster
-from brdfcorr.io.paths import remove_partials
-from brdfcorr.io.scene import SceneSources
-from brdfcorr.io.writer import default_threads
-from brdfcorr.params import ParameterTable, merge_tables
-from brdfcorr.plot.assess import write_assessment_figures
-from brdfcorr.workflow.assessment import assess_files, write_json
-from brdfcorr.workflow.config import ChainConfig, EngineConfig
-from brdfcorr.workflow.correction import Terrain, correct_files
-from brdfcorr.workflow.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
-from brdfcorr.workflow.quicklook import write_quicklook
-from brdfcorr.workflow.report import (
+from brdfcorr.chain.config import ChainConfig, EngineConfig
+from brdfcorr.chain.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
+from brdfcorr.chain.quicklook import write_quicklook
+from brdfcorr.chain.report import (
     RunReport,
     assessment_summary,
     earlier_findings,
@@ -94,8 +85,17 @@ from brdfcorr.workflow.report import (
     uncorrected_classes,
     versions,
 )
-from brdfcorr.workflow.request import CorrectionRequest, Engine, OutputFiles
-from brdfcorr.workflow.tasks import SceneFiles, fit_class_files, fit_measurement_file
+from brdfcorr.errors import InputError, OutputError
+from brdfcorr.io import cluster
+from brdfcorr.io.paths import remove_partials
+from brdfcorr.io.scene import SceneSources
+from brdfcorr.io.writer import default_threads
+from brdfcorr.params import ParameterTable, merge_tables
+from brdfcorr.plot.assess import write_assessment_figures
+from brdfcorr.tasks.assess import assess_files, write_json
+from brdfcorr.tasks.correct import Terrain, correct_files
+from brdfcorr.tasks.fit import SceneFiles, fit_class_files, fit_measurement_file
+from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
 __all__ = [
     "connect_cluster",
@@ -258,10 +258,10 @@ def process_scene(scene: Scene, table: ParameterTable, config: ChainConfig, *, s
     Returns
     -------
     dict
-        :func:`~brdfcorr.workflow.report.scene_result`: ``scene``, ``status`` (``ok``,
+        :func:`~brdfcorr.chain.report.scene_result`: ``scene``, ``status`` (``ok``,
         ``failed``), ``outputs``, ``qa`` (pixel counts of :func:`brdfcorr.correction.qa_counts`),
         ``reference``, ``topographic`` (with ``steps.correct.terrain``), ``assess`` (with
-        ``steps.assess``, :func:`~brdfcorr.workflow.report.assessment_summary`), ``seconds`` (per
+        ``steps.assess``, :func:`~brdfcorr.chain.report.assessment_summary`), ``seconds`` (per
         step) and, on failure, ``error`` and ``error_type``.
     """
     scheduler = scheduler or ("threads" if threads else None)
@@ -332,7 +332,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
     files = OutputFiles(
         scene.outputs["corrected"], qa=scene.outputs.get("qa"), uncertainty=scene.outputs.get("uncertainty"),
         format=outputs.format, interleave=outputs.interleave or "bsq", compress=outputs.compress, cog=outputs.cog,
-        fingerprint=scene.fingerprint or None,  # what a resumed run compares (brdfcorr.workflow.plan)
+        fingerprint=scene.fingerprint or None,  # what a resumed run compares (brdfcorr.chain.plan)
     )
     summary = correct_files(CorrectionRequest(
         sources, table, files, reference=config.reference, limits=step.limits, extrapolate=step.extrapolate,
@@ -353,7 +353,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
 
 def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, scheduler, num_workers: int | None) -> dict:
     """The assess step: the JSON report and the profile figure; returns ``assess``, the per-class
-    summary (:func:`~brdfcorr.workflow.report.assessment_summary`)."""
+    summary (:func:`~brdfcorr.chain.report.assessment_summary`)."""
     step, inputs = config.steps.assess, config.inputs
     sources = SceneSources(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
                            angle_options=dict(scene.angle_options), scale=inputs.scale, offset=inputs.offset)

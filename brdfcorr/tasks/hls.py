@@ -28,7 +28,7 @@ from brdfcorr.io.rasters import check_reflectance_scale
 from brdfcorr.io.sensors.hls import HLS_FMASK_MASKED, HlsGranule
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ParameterTable
-from brdfcorr.workflow.request import Engine
+from brdfcorr.tasks.request import Engine
 
 __all__ = ["hls_sun_zenith_layers", "hls_factors", "band_scale", "HLS_SCALE"]
 
@@ -90,7 +90,7 @@ def hls_sun_zenith_layers(granule: HlsGranule, *, coefficients: str, reference_s
                           masked: Sequence[int] | None = None, engine: Engine = Engine()):
     """``granule``'s NBAR moved to sun zenith ``reference_sza`` [deg], or ``"hls"``: HLS v1.4's for
     the granule centre's latitude (module docstring), lazily. (``"mean"`` and ``"observed"`` leave
-    a granule as it is: :func:`brdfcorr.workflow.nbar.nbar_files` refuses them with
+    a granule as it is: :func:`brdfcorr.tasks.nbar.nbar_files` refuses them with
     :func:`brdfcorr.io.sensors.hls.hls_refusal`.)
 
     Returns

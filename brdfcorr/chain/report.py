@@ -19,10 +19,10 @@ import rioxarray
 import xarray
 
 from brdfcorr import __version__
+from brdfcorr.chain.plan import RunPlan, Scene
 from brdfcorr.errors import BrdfcorrError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.params import ParameterTable
-from brdfcorr.workflow.plan import RunPlan, Scene
 
 __all__ = ["RunReport", "scene_result", "assessment_summary", "earlier_findings", "versions"]
 
@@ -100,7 +100,7 @@ def failed_for_uncorrected(result: dict, classes: list[str]) -> dict:
 
 
 def assessment_summary(report: Mapping) -> list[dict]:
-    """Per class of an assessment report (:meth:`brdfcorr.workflow.assessment.Assessment.report`): id,
+    """Per class of an assessment report (:meth:`brdfcorr.tasks.assess.Assessment.report`): id,
     name, pixels, the median over bands of |relative slope| [%/10 deg] before and after the
     correction (None where no band has a finite slope), and how many bands' slopes lie within 2
     sigma of 0 before and after, of how many have a sigma (``bands_within_2_sigma``, the report's).
@@ -137,7 +137,7 @@ def earlier_findings(report: Path) -> dict[str, dict]:
 
 @dataclass
 class RunReport:
-    """The outcome of :func:`~brdfcorr.workflow.chain.run_chain`; :meth:`to_dict` is what the
+    """The outcome of :func:`~brdfcorr.chain.run.run_chain`; :meth:`to_dict` is what the
     report file holds."""
 
     plan: RunPlan

@@ -1,11 +1,11 @@
 """One correction of one image file, described once: :class:`CorrectionRequest`.
 
 The CLI (``brdfcorr correct``) and chains (the correct step) build a request from their options and
-hand it to :func:`brdfcorr.workflow.correction.correct_files`; from Python::
+hand it to :func:`brdfcorr.tasks.correct.correct_files`; from Python::
 
     from brdfcorr.io.scene import SceneSources
-    from brdfcorr.workflow.correction import correct_files
-    from brdfcorr.workflow.request import CorrectionRequest, OutputFiles
+    from brdfcorr.tasks.correct import correct_files
+    from brdfcorr.tasks.request import CorrectionRequest, OutputFiles
 
     correct_files(CorrectionRequest(
         SceneSources("image.tif", "classes.tif", "angles.tif"), "params.yaml",
@@ -27,7 +27,7 @@ from brdfcorr.params import ParameterTable, ReferenceGeometry
 if TYPE_CHECKING:
     import distributed
 
-    from brdfcorr.workflow.correction import Terrain
+    from brdfcorr.tasks.correct import Terrain
 
 __all__ = ["CorrectionRequest", "OutputFiles", "Engine", "SceneSources"]
 
@@ -66,7 +66,7 @@ class OutputFiles:
         (the CLI's default). An input is never overwritten.
     fingerprint : str, optional
         Canonical JSON of everything the output depends on
-        (:func:`brdfcorr.workflow.plan.scene_fingerprint`), written in the tags ``brdf_fingerprint``
+        (:func:`brdfcorr.chain.plan.scene_fingerprint`), written in the tags ``brdf_fingerprint``
         (its SHA-256) and ``brdf_fingerprint_content``: a resumed chain redoes a stale output.
     """
 

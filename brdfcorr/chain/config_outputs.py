@@ -3,7 +3,7 @@
 
 :class:`OutputsConfig` names the output directory, the file-name patterns and the raster format;
 :class:`EngineConfig` the scheduler and its workers. Pydantic models, validated as part of
-:class:`brdfcorr.workflow.config.ChainConfig`; import them from :mod:`brdfcorr.workflow.config`.
+:class:`brdfcorr.chain.config.ChainConfig`; import them from :mod:`brdfcorr.chain.config`.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, StrictModel, short_repr
+from brdfcorr.chain.patterns import check_pattern
 from brdfcorr.defaults import chunk_size_problem
 from brdfcorr.errors import InputError
 from brdfcorr.io.writer import check_format
-from brdfcorr.workflow.patterns import check_pattern
 
 __all__ = ["OutputsConfig", "EngineConfig"]
 

@@ -8,14 +8,14 @@ enumerations and unknown keys, the allowed values::
     chain.yaml: outputs.compres: unknown key; allowed keys: directory, naming, ...
 
 Relative paths and patterns in a config are relative to the directory of the config file. Per-scene
-sources (angles, class map) and outputs are *name patterns* (:mod:`brdfcorr.workflow.patterns`).
+sources (angles, class map) and outputs are *name patterns* (:mod:`brdfcorr.chain.patterns`).
 A commented example of every key is in ``configs/`` (``configs/demo.yaml`` is the chain
 ``brdfcorr demo`` runs).
 
 This module holds the whole config (:class:`ChainConfig`), its loading and the dotted-key
-overrides; the models of its sections are in :mod:`brdfcorr.workflow.config_inputs` (``inputs``,
-``parameters``), :mod:`brdfcorr.workflow.config_steps` (``steps``) and
-:mod:`brdfcorr.workflow.config_outputs` (``outputs``, ``engine``). Import every name from here.
+overrides; the models of its sections are in :mod:`brdfcorr.chain.config_inputs` (``inputs``,
+``parameters``), :mod:`brdfcorr.chain.config_steps` (``steps``) and
+:mod:`brdfcorr.chain.config_outputs` (``outputs``, ``engine``). Import every name from here.
 
 Example
 -------
@@ -40,13 +40,10 @@ from pathlib import Path
 from pydantic import Field, ValidationError, model_validator
 
 from brdfcorr._validation import StrictModel, describe_errors
-from brdfcorr.errors import ConfigError
-from brdfcorr.io.files import parse_yaml, read_document
-from brdfcorr.params import ReferenceGeometry
-from brdfcorr.workflow.config_inputs import AngleKind as AngleKind
-from brdfcorr.workflow.config_inputs import AngleSource, InputsConfig, ParametersConfig
-from brdfcorr.workflow.config_outputs import EngineConfig, OutputsConfig
-from brdfcorr.workflow.config_steps import (
+from brdfcorr.chain.config_inputs import AngleKind as AngleKind
+from brdfcorr.chain.config_inputs import AngleSource, InputsConfig, ParametersConfig
+from brdfcorr.chain.config_outputs import EngineConfig, OutputsConfig
+from brdfcorr.chain.config_steps import (
     AssessStep,
     CorrectStep,
     GoniometerFit,
@@ -56,8 +53,11 @@ from brdfcorr.workflow.config_steps import (
     StepsConfig,
     TerrainStep,
 )
-from brdfcorr.workflow.config_steps import SurfaceModel as SurfaceModel
-from brdfcorr.workflow.patterns import PATTERN_FIELDS, format_pattern
+from brdfcorr.chain.config_steps import SurfaceModel as SurfaceModel
+from brdfcorr.chain.patterns import PATTERN_FIELDS, format_pattern
+from brdfcorr.errors import ConfigError
+from brdfcorr.io.files import parse_yaml, read_document
+from brdfcorr.params import ReferenceGeometry
 
 __all__ = [
     "ChainConfig",

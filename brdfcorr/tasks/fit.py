@@ -6,7 +6,7 @@
 
 They read and write files but print nothing: the CLI shows their results, chains report them.
 Warnings of the fits are collected into the results (``warnings``), one line each. The correction
-of an image file is :func:`brdfcorr.workflow.correction.correct_files`.
+of an image file is :func:`brdfcorr.tasks.correct.correct_files`.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable
 from brdfcorr.params_bands import in_ranges
-from brdfcorr.workflow.classmaps import class_preparation, tagged_class_names
+from brdfcorr.tasks.classmaps import class_preparation, tagged_class_names
 
 __all__ = [
     "fit_measurement_file",

@@ -42,6 +42,8 @@ import rioxarray  # noqa: F401  (registers .rio)
 import xarray as xr
 from scipy.ndimage import gaussian_filter
 
+from brdfcorr.chain.config import load_config
+from brdfcorr.chain.run import run_chain
 from brdfcorr.errors import InputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.sensors.solar import solar_angles
@@ -49,8 +51,6 @@ from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.plot.materials import plot_materials
 from brdfcorr.testing import render
-from brdfcorr.workflow.chain import run_chain
-from brdfcorr.workflow.config import load_config
 
 __all__ = [
     "DEMO_TIME",
@@ -313,7 +313,7 @@ class DemoResult:
 
     inputs: dict[str, Path]
     config: Path
-    report: object  # brdfcorr.workflow.chain.RunReport
+    report: object  # brdfcorr.chain.run.RunReport
     figures: list[Path]
 
 
@@ -337,9 +337,9 @@ def run_demo(output_dir: str | os.PathLike = "demo_output", config: str | os.Pat
     materials_figure : bool
         Also write ``materials_brdf.png``, the BRDFs of the material library.
     progress : callable, optional
-        Passed to :func:`brdfcorr.workflow.chain.run_chain`.
+        Passed to :func:`brdfcorr.chain.run.run_chain`.
     overrides : dict, optional
-        Dotted config keys to override (:func:`brdfcorr.workflow.config.apply_overrides`).
+        Dotted config keys to override (:func:`brdfcorr.chain.config.apply_overrides`).
     """
 
     output_dir = Path(output_dir)
