@@ -26,7 +26,8 @@ LEFT_TO_THE_LINTER = ("brdfcorr.tasks", "brdfcorr.chain")
 
 @functools.cache
 def _graph() -> grimp.ImportGraph:
-    return grimp.build_graph("brdfcorr", include_external_packages=False, exclude_type_checking_imports=False)
+    return grimp.build_graph("brdfcorr", include_external_packages=False, exclude_type_checking_imports=False,
+                             cache_dir=None)
 
 
 def _packages(graph: grimp.ImportGraph) -> list[str]:

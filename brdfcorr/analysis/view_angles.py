@@ -38,6 +38,21 @@ __all__ = ["SIGN_CONVENTIONS", "GROWTH_LIMIT", "signed_view_zenith", "ViewAngleO
 GROWTH_LIMIT = 1.25
 
 
+def _check_options(options: ViewAngleOptions) -> None:
+    """Raise :class:`InputError` for an unknown sign convention, a bin width [deg] outside
+    [:data:`MIN_BIN_WIDTH`, 90], a smallest view zenith [deg] outside [0, 90) or a block size that is
+    not a whole number of pixels from 1 to :data:`MAX_BLOCK_SIZE`."""
+    by, bin_width, min_vza = options.by, options.bin_width, options.min_vza
+    if by not in SIGN_CONVENTIONS:
+        raise InputError(f"sign convention {by!r} is not one of {', '.join(SIGN_CONVENTIONS)}")
+    if not (math.isfinite(bin_width) and MIN_BIN_WIDTH <= bin_width <= 90):
+        raise InputError(f"bin width {bin_width} deg must be in [{MIN_BIN_WIDTH}, 90]")
+    if not (math.isfinite(min_vza) and 0 <= min_vza < 90):
+        raise InputError(f"min_vza {min_vza} deg must be in [0, 90)")
+    if not (isinstance(options.block_size, int) and 1 <= options.block_size <= MAX_BLOCK_SIZE):
+        raise InputError(f"block size {options.block_size} must be a whole number of pixels from 1 to {MAX_BLOCK_SIZE}")
+
+
 def _present_ids(classes, nodata) -> np.ndarray:
     """The positive class ids of a class map (its nodata value excepted)."""
     data = classes.data if isinstance(classes, xr.DataArray) else classes
@@ -189,15 +204,8 @@ def assess_view_angles(
     correction that worked leaves b ≈ 0 and a side ratio ≈ 1 in every class and band.
     """
     before, after = _check_cubes(before, after)
+    _check_options(options)
     by, bin_width, min_vza = options.by, options.bin_width, options.min_vza
-    if by not in SIGN_CONVENTIONS:
-        raise InputError(f"sign convention {by!r} is not one of {', '.join(SIGN_CONVENTIONS)}")
-    if not (math.isfinite(bin_width) and MIN_BIN_WIDTH <= bin_width <= 90):
-        raise InputError(f"bin width {bin_width} deg must be in [{MIN_BIN_WIDTH}, 90]")
-    if not (math.isfinite(min_vza) and 0 <= min_vza < 90):
-        raise InputError(f"min_vza {min_vza} deg must be in [0, 90)")
-    if not (isinstance(options.block_size, int) and 1 <= options.block_size <= MAX_BLOCK_SIZE):
-        raise InputError(f"block size {options.block_size} must be a whole number of pixels from 1 to {MAX_BLOCK_SIZE}")
     shape = before.shape[1:]
     layers = [_layer(value, name, shape) for name, value in
               (("the class map", classes), ("vza", vza), ("vaa", vaa), ("saa", saa), ("the cluster layer", clusters))]
