@@ -168,6 +168,60 @@ def _check_extra_ids(water_id: int, shadow_id: int, n_bins: int) -> None:
         raise InputError(f"water_id and shadow_id are both {water_id}; give them different ids or 0")
 
 
+def _masks(image: xr.DataArray, index, red_mean, nir_mean, water: Sequence[tuple[float, float]],
+           shadow_reflectance: float | None) -> tuple:
+    """The valid pixels (every band finite, NDVI defined), and among them water (any of the
+    ``water`` tests (NDVI below, NIR reflectance below) passed) and shadow (not water, (red + NIR) / 2
+    [1] below ``shadow_reflectance``; None: no shadow test)."""
+    band_dim = image.coords["wavelength"].dims[0]
+    valid = np.isfinite(image).all(band_dim) & np.isfinite(index)
+    water_pairs = np.reshape(np.asarray(water, dtype=float), (-1, 2))  # one pair or a sequence of pairs
+    water_test = xr.zeros_like(valid)
+    for ndvi_below, nir_below in water_pairs:
+        water_test = water_test | ((index < ndvi_below) & (nir_mean < nir_below))
+    is_water = valid & water_test
+    dark = -np.inf if shadow_reflectance is None else shadow_reflectance  # -inf: no shadow test
+    return valid, is_water, valid & ~is_water & ((red_mean + nir_mean) / 2 < dark)
+
+
+def _classified(index, edges: Sequence[float], masks: tuple, water_id: int, shadow_id: int) -> xr.DataArray:
+    """The uint8 class map: the NDVI bin + 1 (left-closed bins, ``np.digitize``) of the binned pixels,
+    ``water_id`` and ``shadow_id`` for water and shadow, 0 elsewhere (``masks``: binned, water, shadow)."""
+    binned, is_water, is_shadow = masks
+    bins = xr.apply_ufunc(np.digitize, index, kwargs={"bins": np.asarray(edges)}, dask="parallelized",
+                          output_dtypes=[np.intp])
+    # DataArray.where, not xr.where: xr.where(cond, scalar, array) drops the spatial_ref attrs.
+    return (bins + 1).where(binned, 0).where(~is_water, water_id).where(~is_shadow, shadow_id).astype(np.uint8)
+
+
+def _strata_attrs(edges: Sequence[float], percentiles: Sequence[float] | None, ranges: tuple, names: dict[int, str],
+                  tests: dict[str, object]) -> dict[str, object]:
+    """The attributes of :func:`ndvi_strata`'s class map (output tags): the binning, the red and NIR
+    ranges [nm] (``ranges``), the water and shadow ``tests`` (:func:`_test_attrs`) and the class names."""
+    red, nir = ranges
+    attrs = {
+        "long_name": "NDVI stratum (class id)", "ndvi_edges": ",".join(f"{edge:.6g}" for edge in edges),
+        "strata": "ndvi_percentiles" if percentiles is not None else "ndvi_edges",
+        "ndvi_bins": "left-closed: class k holds edges[k-2] <= ndvi < edges[k-1]",
+        "red_range_nm": f"{red[0]:g}-{red[1]:g}", "nir_range_nm": f"{nir[0]:g}-{nir[1]:g}",
+        **tests,
+        "class_names": ";".join(f"{key}={value}" for key, value in sorted(names.items())),
+    }
+    if percentiles is not None:
+        attrs["ndvi_percentiles"] = ",".join(f"{p:g}" for p in percentiles)
+    return attrs
+
+
+def _test_attrs(water: Sequence[tuple[float, float]], shadow_reflectance: float | None, water_id: int,
+                shadow_id: int) -> dict[str, object]:
+    """The water and shadow tests and ids of :func:`ndvi_strata`, as attributes of its class map."""
+    return {
+        "water_test": " or ".join(f"(ndvi < {a:g} and nir < {b:g})" for a, b in water) or "none",
+        "shadow_test": "none" if shadow_reflectance is None else f"(red + nir) / 2 < {shadow_reflectance:g}",
+        "water_id": int(water_id), "shadow_id": int(shadow_id),
+    }
+
+
 def ndvi_strata(image: xr.DataArray, *, edges: Sequence[float] | None = None,
                 percentiles: Sequence[float] | None = None, red: Sequence[float] = RED_RANGE,
                 nir: Sequence[float] = NIR_RANGE, water: Sequence[tuple[float, float]] = WATER_TESTS,
@@ -180,12 +234,12 @@ def ndvi_strata(image: xr.DataArray, *, edges: Sequence[float] | None = None,
     image : xarray.DataArray (band, y, x)
         Reflectance [1] with a ``wavelength`` coordinate [nm] (:func:`brdfcorr.io.open_image`).
     edges : sequence of float, optional
-        Fixed NDVI edges [1], strictly increasing: n edges give classes 1..n+1. Default
-        :data:`DEFAULT_EDGES` unless ``percentiles`` is given.
+        Fixed NDVI edges [1], strictly increasing: n edges give classes 1..n+1. Default :data:`DEFAULT_EDGES`
+        unless ``percentiles`` is given.
     percentiles : sequence of float, optional
-        Percentiles [%] of the scene's NDVI to use as edges instead (e.g. ``(20, 40, 60, 80)`` for
-        five near-equal classes), over the pixels that are binned (not nodata, water or shadow).
-        Finding them reads the image once.
+        Percentiles [%] of the scene's NDVI to use as edges instead (e.g. ``(20, 40, 60, 80)`` for five
+        near-equal classes), over the pixels that are binned (not nodata, water or shadow). Finding them
+        reads the image once.
     red, nir : (float, float)
         Wavelength ranges [nm] of :func:`ndvi`.
     water : sequence of (float, float)
@@ -204,50 +258,27 @@ def ndvi_strata(image: xr.DataArray, *, edges: Sequence[float] | None = None,
 
     Notes
     -----
-    Order of the tests: nodata (a non-finite value in any band, or an undefined NDVI) -> 0; water
-    -> ``water_id``; shadow -> ``shadow_id``; else the NDVI bin. Bins are left-closed: class k
-    holds ``edges[k-2] <= NDVI < edges[k-1]`` (``np.digitize``), class 1 everything below the
-    first edge and class n+1 everything from the last edge up. FlexBRDF (HyTools) bins by
-    percentiles as well, with right-closed bins ``(start, end]``.
+    Order of the tests: nodata (a non-finite value in any band, or an undefined NDVI) -> 0; water ->
+    ``water_id``; shadow -> ``shadow_id``; else the NDVI bin. Bins are left-closed: class k holds
+    ``edges[k-2] <= NDVI < edges[k-1]`` (``np.digitize``), class 1 everything below the first edge and
+    class n+1 everything from the last edge up. FlexBRDF (HyTools) bins by percentiles as well, with
+    right-closed bins ``(start, end]``.
     """
     if edges is not None and percentiles is not None:
         raise InputError("give NDVI edges or percentiles, not both")
     red_mean, nir_mean = _band_mean(image, red, "red"), _band_mean(image, nir, "NIR")
     index = _normalized_difference(red_mean, nir_mean, red, nir)
-    band_dim = image.coords["wavelength"].dims[0]
-    valid = np.isfinite(image).all(band_dim) & np.isfinite(index)
-    water_pairs = np.reshape(np.asarray(water, dtype=float), (-1, 2))  # one pair or a sequence of pairs
-    water_test = xr.zeros_like(valid)
-    for ndvi_below, nir_below in water_pairs:
-        water_test = water_test | ((index < ndvi_below) & (nir_mean < nir_below))
-    is_water = valid & water_test
-    dark = -np.inf if shadow_reflectance is None else shadow_reflectance  # -inf: no shadow test
-    is_shadow = valid & ~is_water & ((red_mean + nir_mean) / 2 < dark)
+    valid, is_water, is_shadow = _masks(image, index, red_mean, nir_mean, water, shadow_reflectance)
     binned = valid & ~is_water & ~is_shadow
-    if percentiles is not None:
-        edges = _percentile_edges(index, binned, percentiles)
-    else:
-        edges = tuple(float(edge) for edge in _increasing(DEFAULT_EDGES if edges is None else edges, "NDVI edges"))
+    edges = _percentile_edges(index, binned, percentiles) if percentiles is not None else tuple(
+        float(edge) for edge in _increasing(DEFAULT_EDGES if edges is None else edges, "NDVI edges"))
     _check_extra_ids(water_id, shadow_id, len(edges) + 1)
-    bins = xr.apply_ufunc(np.digitize, index, kwargs={"bins": np.asarray(edges)}, dask="parallelized",
-                          output_dtypes=[np.intp])
-    # DataArray.where, not xr.where: xr.where(cond, scalar, array) drops the spatial_ref attrs.
-    classes = (bins + 1).where(binned, 0).where(~is_water, water_id).where(~is_shadow, shadow_id).astype(np.uint8)
+    classes = _classified(index, edges, (binned, is_water, is_shadow), water_id, shadow_id)
     names = _bin_names(edges)
     names.update({value: role for role, value in (("water", water_id), ("shadow", shadow_id)) if value})
     classes.name = "classes"
-    classes.attrs = {
-        "long_name": "NDVI stratum (class id)", "ndvi_edges": ",".join(f"{edge:.6g}" for edge in edges),
-        "strata": "ndvi_percentiles" if percentiles is not None else "ndvi_edges",
-        "ndvi_bins": "left-closed: class k holds edges[k-2] <= ndvi < edges[k-1]",
-        "red_range_nm": f"{red[0]:g}-{red[1]:g}", "nir_range_nm": f"{nir[0]:g}-{nir[1]:g}",
-        "water_test": " or ".join(f"(ndvi < {a:g} and nir < {b:g})" for a, b in water) or "none",
-        "shadow_test": "none" if shadow_reflectance is None else f"(red + nir) / 2 < {shadow_reflectance:g}",
-        "water_id": int(water_id), "shadow_id": int(shadow_id),
-        "class_names": ";".join(f"{key}={value}" for key, value in sorted(names.items())),
-    }
-    if percentiles is not None:
-        classes.attrs["ndvi_percentiles"] = ",".join(f"{p:g}" for p in percentiles)
+    classes.attrs = _strata_attrs(edges, percentiles, (red, nir), names,
+                                  _test_attrs(water, shadow_reflectance, water_id, shadow_id))
     return NdviStrata(classes.rio.write_nodata(0), tuple(edges), names)
 
 

@@ -59,6 +59,44 @@ def _coarse_map(values: np.ndarray, size: int) -> np.ndarray:
         return np.nanmean(blocks, axis=(1, 3))
 
 
+def _checked_options(before: xr.DataArray, after: xr.DataArray, other_before: xr.DataArray,
+                     other_after: xr.DataArray, resampling: str, histogram_bins: int, map_size: int) -> Resampling:
+    """The rasterio resampling method named ``resampling``, after checking the options and that the
+    lines' before and after cubes agree in shape and the two lines in band count (else InputError)."""
+    try:
+        method = Resampling[resampling]
+    except KeyError:
+        raise InputError(f"resampling {resampling!r} is not a rasterio resampling method, e.g. nearest, "
+                         "bilinear") from None
+    if histogram_bins < 2 or map_size < 1:
+        raise InputError("histogram_bins must be >= 2 and map_size >= 1")
+    for name, pair in (("this", (before, after)), ("the other", (other_before, other_after))):
+        if pair[0].shape != pair[1].shape:
+            raise InputError(f"{name} line's before and after reflectance differ in shape: {pair[0].shape}, "
+                             f"{pair[1].shape}")
+    if before.shape[0] != other_before.shape[0]:
+        raise InputError(f"the lines have different band counts: {before.shape[0]} and {other_before.shape[0]}")
+    return method
+
+
+def _overlap_cubes(before: xr.DataArray, after: xr.DataArray, other_before: xr.DataArray, other_after: xr.DataArray,
+                   box: tuple, method: Resampling) -> list[np.ndarray]:
+    """This line's before and after cut to the overlap ``box`` (read once), then the other line's
+    cut to it and brought onto this line's grid (``reproject_match``): four (band, y, x) float64 arrays."""
+    this = list(dask.compute(*[line.rio.clip_box(*box) for line in (before, after)]))  # the overlap, read once
+    other = [line.rio.clip_box(*box, crs=before.rio.crs).rio.reproject_match(this[0], resampling=method)
+             for line in (other_before, other_after)]
+    return [np.asarray(line.values, dtype=np.float64) for line in (*this, *other)]
+
+
+def _histogram_edges(band_means: list[np.ndarray], bins: int) -> np.ndarray:
+    """``bins`` + 1 edges [1] symmetric about 0 over the 99.5th percentile of the band-mean
+    differences' magnitude (both stages), so that before and after share the bins."""
+    reach = max((np.nanpercentile(np.abs(m), 99.5) for m in band_means if np.isfinite(m).any()), default=1.0)
+    reach = reach if reach > 0 else 1e-6  # identical lines: a narrow histogram around 0
+    return np.linspace(-reach, reach, bins + 1)
+
+
 def assess_overlap(
     before: xr.DataArray, after: xr.DataArray, other_before: xr.DataArray, other_after: xr.DataArray, *,
     resampling: str = "nearest", histogram_bins: int = 81, map_size: int = 300,
@@ -93,37 +131,20 @@ def assess_overlap(
         ``difference_bin_edges``; ``difference_map`` (stage, map_y, map_x) of the band-mean
         difference [1], NaN outside the compared pixels.
     """
-    try:
-        method = Resampling[resampling]
-    except KeyError:
-        raise InputError(f"resampling {resampling!r} is not a rasterio resampling method, e.g. nearest, "
-                         "bilinear") from None
-    if histogram_bins < 2 or map_size < 1:
-        raise InputError("histogram_bins must be >= 2 and map_size >= 1")
-    for name, pair in (("this", (before, after)), ("the other", (other_before, other_after))):
-        if pair[0].shape != pair[1].shape:
-            raise InputError(f"{name} line's before and after reflectance differ in shape: {pair[0].shape}, "
-                             f"{pair[1].shape}")
-    if before.shape[0] != other_before.shape[0]:
-        raise InputError(f"the lines have different band counts: {before.shape[0]} and {other_before.shape[0]}")
+    method = _checked_options(before, after, other_before, other_after, resampling, histogram_bins, map_size)
     box = _overlap_box(before, other_before)
-    this = list(dask.compute(*[line.rio.clip_box(*box) for line in (before, after)]))  # the overlap, read once
-    other = [line.rio.clip_box(*box, crs=before.rio.crs).rio.reproject_match(this[0], resampling=method)
-             for line in (other_before, other_after)]
-    cubes = [np.asarray(line.values, dtype=np.float64) for line in (*this, *other)]
+    cubes = _overlap_cubes(before, after, other_before, other_after, box, method)
     valid = np.logical_and.reduce([np.isfinite(cube).all(axis=0) for cube in cubes])
     differences = [cubes[2] - cubes[0], cubes[3] - cubes[1]]
     statistics = [_difference_statistics(d[:, valid], (c[:, valid] + o[:, valid]) / 2)
                   for d, c, o in ((differences[0], cubes[0], cubes[2]), (differences[1], cubes[1], cubes[3]))]
     band_means = [np.where(valid, d.mean(axis=0), np.nan) for d in differences]
-    reach = max((np.nanpercentile(np.abs(m), 99.5) for m in band_means if np.isfinite(m).any()), default=1.0)
-    reach = reach if reach > 0 else 1e-6  # identical lines: a narrow histogram around 0
-    edges = np.linspace(-reach, reach, histogram_bins + 1)
+    edges = _histogram_edges(band_means, histogram_bins)
     histograms = [np.histogram(np.clip(m[valid], edges[0], edges[-1]), edges)[0] for m in band_means]
     maps = [_coarse_map(m, map_size) for m in band_means]
     stat = {name: (("stage", "band"), np.stack([s[name] for s in statistics]),
                    {"units": "%" if name == "relative_rmse" else "1"}) for name in statistics[0]}
-    dataset = xr.Dataset(
+    return xr.Dataset(
         {**stat,
          "pixels": ((), int(valid.sum()), {"units": "1"}),
          "histogram": (("stage", "difference_bin"), np.stack(histograms), {"units": "1"}),
@@ -135,7 +156,6 @@ def assess_overlap(
         attrs={"difference": "other line - this line, on this line's grid", "resampling": resampling,
                "crs": str(before.rio.crs), "overlap_bounds": list(box)},
     )
-    return dataset
 
 
 def overlap_report(dataset: xr.Dataset) -> dict[str, object]:

@@ -116,13 +116,8 @@ def _grid(start, stop, step):
     return np.linspace(start, stop, max(count, 2))
 
 
-def shadowing_impact(
-    params: Mapping[str, float],
-    *,
-    max_zenith: float = 70.0,
-    phi_range: tuple[float, float] = (0.0, 180.0),
-    step: float = 0.5,
-) -> ShadowingImpact:
+def shadowing_impact(params: Mapping[str, float], *, max_zenith: float = 70.0,
+                     phi_range: tuple[float, float] = (0.0, 180.0), step: float = 0.5) -> ShadowingImpact:
     """Maximum relative and absolute difference between the simplified and the full TS model.
 
     Parameters
@@ -168,28 +163,28 @@ def shadowing_impact(
     # Per slab of theta_i: the largest relative and absolute difference and their geometry.
     best = {"relative": (-1.0, None), "absolute": (-1.0, None)}
     for theta_i in zeniths:  # one slab at a time keeps memory at len(zeniths) * len(phis)
-        geometry = ScatteringGeometry(theta_i, theta_r, phi)
-        specular = (
-            t1 * _fresnel(geometry.cos_local, n, k) * np.exp(-((w * geometry.alpha) ** 2))
-            / (geometry.cos_i * geometry.cos_r)
-        )
-        attenuation = geometry.attenuation
-        gain = specular * (1.0 - attenuation)  # f(G = 1) - f
-        for key, values in (("relative", gain / (t0 + specular * attenuation)), ("absolute", gain)):
+        relative, gain = _shadowing_gain(ScatteringGeometry(theta_i, theta_r, phi), t0, t1, w, n, k)
+        for key, values in (("relative", relative), ("absolute", gain)):
             index = np.unravel_index(np.argmax(values), values.shape)
             if values[index] > best[key][0]:
                 where = (float(theta_i), float(theta_r[index]), float(phi[index]))
                 best[key] = (float(values[index]), where)
-    best_rel, best_abs = best["relative"], best["absolute"]
-    return ShadowingImpact(
-        max_relative=best_rel[0],
-        where_relative=best_rel[1],
-        max_absolute=best_abs[0],
-        where_absolute=best_abs[1],
-        max_zenith=float(max_zenith),
-        phi_range=(float(phi_min), float(phi_max)),
-        step=float(step),
+    (max_relative, where_relative), (max_absolute, where_absolute) = best["relative"], best["absolute"]
+    return ShadowingImpact(max_relative=max_relative, where_relative=where_relative, max_absolute=max_absolute,
+                           where_absolute=where_absolute, max_zenith=float(max_zenith),
+                           phi_range=(float(phi_min), float(phi_max)), step=float(step))
+
+
+def _shadowing_gain(geometry: ScatteringGeometry, t0, t1, w, n, k) -> tuple[np.ndarray, np.ndarray]:
+    """The simplified TS model's excess over the full one (paper 003, eq. 1 without and with G),
+    relative [1] and absolute ``t1 F (1 - G) exp(-w^2 alpha^2) / (cos ti cos tr)`` [sr^-1]."""
+    specular = (
+        t1 * _fresnel(geometry.cos_local, n, k) * np.exp(-((w * geometry.alpha) ** 2))
+        / (geometry.cos_i * geometry.cos_r)
     )
+    attenuation = geometry.attenuation
+    gain = specular * (1.0 - attenuation)  # f(G = 1) - f
+    return gain / (t0 + specular * attenuation), gain
 
 
 # --------------------------------------------------------------------------------------------
@@ -307,15 +302,8 @@ def _hemispherical_integral(brdf, theta_i, resolution, order):
     return 2.0 * math.radians(1.0) ** 2 * float(kernel @ values @ weight_phi)
 
 
-def albedo(
-    model,
-    theta_i,
-    params: Mapping[str, float],
-    *,
-    resolution: float = 2.0,
-    order: int = 8,
-    rtol: float = 1e-4,
-):
+def albedo(model, theta_i, params: Mapping[str, float], *, resolution: float = 2.0, order: int = 8,
+           rtol: float = 1e-4):
     """Directional-hemispherical reflectance of a BRDF model by quadrature over the view hemisphere.
 
     Parameters
@@ -357,36 +345,34 @@ def albedo(
     model = get_model(model)
     params = model.validate(params)
     if model.name == "torrance_sparrow_simplified":
-        warnings.warn(
-            "albedo of the simplified Torrance-Sparrow model (G = 1): paper 003 (section 5) says "
-            "not to use it for albedo; zeniths above 70 deg dominate there. Use torrance_sparrow.",
-            SimplifiedModelWarning,
-            stacklevel=2,
-        )
+        warnings.warn("albedo of the simplified Torrance-Sparrow model (G = 1): paper 003 (section 5) says "
+                      "not to use it for albedo; zeniths above 70 deg dominate there. Use torrance_sparrow.",
+                      SimplifiedModelWarning, stacklevel=2)
     if not (resolution > 0 and int(order) >= 1):
         raise ParameterError(f"albedo: resolution [deg] must be > 0 and order >= 1, got {resolution}, {order}")
     theta_i = np.asarray(theta_i, dtype=float)
     if np.any((theta_i < 0) | (theta_i >= 90)) or not np.all(np.isfinite(theta_i)):
         raise ParameterError("albedo: theta_i must be in [0, 90) deg")
+    brdf = lambda ti, tr, ph: np.asarray(model(ti, tr, ph, **params), dtype=float)  # noqa: E731
+    results, worst = _albedo_with_error(brdf, theta_i, resolution, int(order))
+    if worst > rtol:
+        warnings.warn(f"albedo of {model.name}: panels of {resolution:g} and {2 * resolution:g} deg differ by "
+                      f"{worst:.1e} (relative) > rtol = {rtol:g}; use a smaller resolution",
+                      IntegrationAccuracyWarning, stacklevel=2)
+    return results[()] if results.ndim == 0 else results
 
-    def brdf(ti, tr, ph):
-        return np.asarray(model(ti, tr, ph, **params), dtype=float)
 
+def _albedo_with_error(brdf, theta_i: np.ndarray, resolution: float, order: int) -> tuple[np.ndarray, float]:
+    """The albedo [-] at each ``theta_i`` [deg] with panels of ``resolution`` [deg], and the largest
+    relative difference from panels twice as wide (the quadrature's error estimate)."""
     results = np.empty(theta_i.shape)
     worst = 0.0
     for index, value in np.ndenumerate(theta_i):
-        fine = _hemispherical_integral(brdf, float(value), resolution, int(order))
-        coarse = _hemispherical_integral(brdf, float(value), 2.0 * resolution, int(order))
+        fine = _hemispherical_integral(brdf, float(value), resolution, order)
+        coarse = _hemispherical_integral(brdf, float(value), 2.0 * resolution, order)
         worst = max(worst, abs(fine - coarse) / max(abs(fine), 1e-300))
         results[index] = fine
-    if worst > rtol:
-        warnings.warn(
-            f"albedo of {model.name}: panels of {resolution:g} and {2 * resolution:g} deg differ by "
-            f"{worst:.1e} (relative) > rtol = {rtol:g}; use a smaller resolution",
-            IntegrationAccuracyWarning,
-            stacklevel=2,
-        )
-    return results[()] if results.ndim == 0 else results
+    return results, worst
 
 
 def specular_albedo_bound(t1: float, w: float, fresnel_max: float = 1.0) -> float:

@@ -276,18 +276,24 @@ def _simulate_one(theta_i, theta_r, phi, w, sigma, step, cutoff, n, k, pole):
     return flux / (incident[2] * view[2] * facet_albedo)
 
 
-def simulate_vcavity(
-    theta_i,
-    theta_r,
-    phi,
-    w,
-    *,
-    sigma=None,
-    grid: FacetGrid = FacetGrid(),
-    n=None,
-    k=0.0,
-    normalize=False,
-):
+def _checked_settings(w, sigma, grid: FacetGrid, n, k) -> float:
+    """The peak's sigma [deg] (:func:`paper_sigma` of ``w`` by default), after checking that ``w``
+    [deg^-1], sigma and the grid's step fraction and cutoff are finite and > 0, and n, k
+    (unless n is None) valid refractive indices (:class:`ParameterError` otherwise)."""
+    for name, value in (("w", w), ("step_fraction", grid.step_fraction), ("cutoff", grid.cutoff)):
+        if not (np.isfinite(value) and value > 0):
+            raise ParameterError(f"simulate_vcavity: {name} = {value!r} must be finite and > 0")
+    sigma = paper_sigma(w) if sigma is None else sigma
+    if not (np.isfinite(sigma) and sigma > 0):
+        raise ParameterError(f"simulate_vcavity: sigma = {sigma!r} [deg] must be finite and > 0")
+    if n is not None:
+        get_model("torrance_sparrow").parameter("n").check(n, "simulate_vcavity")
+        get_model("torrance_sparrow").parameter("k").check(k, "simulate_vcavity")
+    return sigma
+
+
+def simulate_vcavity(theta_i, theta_r, phi, w, *, sigma=None, grid: FacetGrid = FacetGrid(), n=None, k=0.0,
+                     normalize=False):
     """Simulated specular BRDF of a surface of symmetric V-cavities (paper 000).
 
     Parameters
@@ -329,15 +335,7 @@ def simulate_vcavity(
     of w.
     """
     step_fraction, cutoff, pole = grid.step_fraction, grid.cutoff, grid.pole
-    for name, value in (("w", w), ("step_fraction", step_fraction), ("cutoff", cutoff)):
-        if not (np.isfinite(value) and value > 0):
-            raise ParameterError(f"simulate_vcavity: {name} = {value!r} must be finite and > 0")
-    sigma = paper_sigma(w) if sigma is None else sigma
-    if not (np.isfinite(sigma) and sigma > 0):
-        raise ParameterError(f"simulate_vcavity: sigma = {sigma!r} [deg] must be finite and > 0")
-    if n is not None:
-        get_model("torrance_sparrow").parameter("n").check(n, "simulate_vcavity")
-        get_model("torrance_sparrow").parameter("k").check(k, "simulate_vcavity")
+    sigma = _checked_settings(w, sigma, grid, n, k)
     theta_i, theta_r, phi = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (theta_i, theta_r, phi)))
     if np.any((theta_i < 0) | (theta_i >= 90) | (theta_r < 0) | (theta_r >= 90)):
         raise ParameterError("simulate_vcavity: zenith angles must be in [0, 90) deg")

@@ -35,7 +35,7 @@ from brdfcorr.correction.inputs import CorrectionInputs
 from brdfcorr.errors import ParameterError
 from brdfcorr.models import Model
 from brdfcorr.params import NdviInterpolation, ParameterTable, ReferenceGeometry
-from brdfcorr.params_bands import BandParameters
+from brdfcorr.params.bands import BandParameters
 from brdfcorr.strata import ndvi
 
 __all__ = ["NdviGroup", "interpolation_weights", "interpolated_coefficients", "ndvi_group", "with_ndvi_layer"]

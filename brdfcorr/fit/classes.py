@@ -32,7 +32,8 @@ import numpy as np
 
 from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import BrdfcorrWarning, FitError, InputError
-from brdfcorr.fit.entries import class_entry, compact
+from brdfcorr.fit.class_fit import ClassFit
+from brdfcorr.fit.entries import class_entry
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
 from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.sampling import ClassSamples, sample_classes, scene_lists
@@ -45,17 +46,12 @@ from brdfcorr.fit.settings import (
     Sampling,
     fallback_entry,
 )
-from brdfcorr.fit.solver import (
-    DEFAULT_FIXED,
-    SEARCH_RANGES,
-    fit_class_samples,
-    intensity_terms,
-    search_range,
-)
+from brdfcorr.fit.shapes import DEFAULT_FIXED, SEARCH_RANGES, intensity_terms, search_range
+from brdfcorr.fit.solver import fit_class_samples
 from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model, get_model
 from brdfcorr.params import ParameterTable
-from brdfcorr.params_bands import in_ranges
+from brdfcorr.params.bands import in_ranges
 
 __all__ = [
     "ClassFitResult",
@@ -88,152 +84,6 @@ SUGGEST_GRID = 5
 
 class ClassFitWarning(BrdfcorrWarning):
     """A class failed a guard rail and fell back to a built-in material or to no correction."""
-
-
-@dataclass
-class ClassFit:
-    """The fit of one class, with its diagnostics.
-
-    Attributes
-    ----------
-    class_id, name : int, str
-        Class id and name.
-    model : str
-        Registered model name.
-    n_samples : int
-        Number of pixels fitted.
-    vza_spread, phi_spread : float
-        5th-95th percentile range of view zenith and relative azimuth among the samples [deg].
-        With free levels, ``vza_spread`` is the geometry's spread within groups instead
-        (:func:`_within_spread`): how differently each pixel or patch was seen.
-    condition : float
-        Condition number of the column-normalized linear design at the fitted shape.
-    params : dict of str to ndarray
-        Every model parameter, one value per band (shape parameters repeated).
-    errors : dict of str to ndarray
-        1-sigma errors of the free parameters, per band (0 for fixed ones).
-    free : tuple of str
-        The free parameters (shape and intensities), in the model's signature order.
-    covariance : ndarray
-        Joint sandwich covariance of ``free`` per band, shape (n_bands, p, p)
-        (:func:`brdfcorr.fit.solver.fit_class_samples`).
-    chi2_dof : ndarray
-        Per band: sum of squared residuals / (N - p) [sr^-2].
-    r2, rmse : ndarray
-        Per band: coefficient of determination, and residual RMS of the BRDF [sr^-1].
-    angular_r2 : ndarray
-        Per band: R^2 of the fit against the data's means in bins of geometry (texture averaged
-        out): how much of the angular signal the model explains.
-    fixed : dict
-        The shape parameters held fixed.
-    status : str
-        ``"fitted"``, ``"fallback"`` (a built-in material replaces the fit) or ``"uncorrected"``.
-    reasons : list of str
-        Why the class failed its guard rails (empty when fitted).
-    notes : list of str
-        What is worth knowing about a fit that passed (a poorly determined shape parameter).
-    fallback : str or None
-        The built-in material used instead, if any.
-    better_model : str or None
-        For a class that failed or fits poorly (median R^2 < :data:`POOR_R2`): another surface model
-        that explains clearly more of its data (see :data:`BETTER_GAIN`), if any.
-    better_r2 : float or None
-        That model's held-out median R^2 (cross-validated over spatial blocks, on a subsample).
-    errors_reliable : bool or None
-        Whether the errors can be trusted (None before a fit): False with few spatial blocks
-        (effective degrees of freedom below :data:`brdfcorr.fit.identifiability.MIN_ERROR_DOF`), a
-        strongly non-linear fit (an error above half a parameter's distance to the end of its
-        range), a shape parameter at the edge of its search range or an intensity at its bound
-        (:func:`brdfcorr.fit.identifiability.error_reliability`).
-    errors_reason : str
-        Why they cannot (empty when they can).
-    prior : str or None
-        The shape prior the weights and covariance are the posterior of (``roy2016 (spread 0.2)``),
-        if any (:mod:`brdfcorr.fit.prior`).
-    model_choice : ModelChoice or None
-        For a class fitted with ``model="auto"``: every candidate's held-out error and the model
-        chosen (:func:`brdfcorr.fit.selection.choose_class_model`).
-    levels : str
-        Whose brightness levels were free (:data:`brdfcorr.fit.sampling.LEVELS`): ``pooled`` (one
-        for the class), ``pixel`` or ``patch`` (the shape fitted to each group's own views; R^2,
-        angular R^2, RMS and chi^2/dof are then those of the differences within groups).
-    n_groups : int or None
-        Pixels or patches with two or more views that the fit used (None when pooled).
-    """
-
-    class_id: int
-    name: str
-    model: str
-    n_samples: int
-    vza_spread: float
-    phi_spread: float
-    condition: float = math.nan
-    params: dict[str, np.ndarray] = field(default_factory=dict)
-    errors: dict[str, np.ndarray] = field(default_factory=dict)
-    free: tuple[str, ...] = ()
-    covariance: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))
-    chi2_dof: np.ndarray = field(default_factory=lambda: np.array([]))
-    r2: np.ndarray = field(default_factory=lambda: np.array([]))
-    rmse: np.ndarray = field(default_factory=lambda: np.array([]))
-    angular_r2: np.ndarray = field(default_factory=lambda: np.array([]))
-    fixed: dict[str, float] = field(default_factory=dict)
-    status: str = "fitted"
-    reasons: list[str] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
-    fallback: str | None = None
-    better_model: str | None = None
-    better_r2: float | None = None
-    errors_reliable: bool | None = None
-    errors_reason: str = ""
-    prior: str | None = None
-    model_choice: ModelChoice | None = None
-    levels: str = "pooled"
-    n_groups: int | None = None
-
-    @property
-    def median_r2(self) -> float:
-        """Median over bands of R^2 (NaN before a fit)."""
-        return _finite_median(self.r2)
-
-    @property
-    def median_angular_r2(self) -> float:
-        """Median over bands of the angular R^2 (NaN before a fit)."""
-        return _finite_median(self.angular_r2)
-
-    def summary(self) -> dict[str, object]:
-        """JSON-friendly summary (medians over bands for per-band quantities)."""
-        median = lambda values: float(np.median(values)) if np.size(values) else None  # noqa: E731
-        return {
-            "class_id": self.class_id,
-            "name": self.name,
-            "model": self.model,
-            "status": self.status,
-            "reasons": list(self.reasons),
-            "fallback": self.fallback,
-            "n_samples": self.n_samples,
-            "vza_spread_deg": round(self.vza_spread, 3),
-            "phi_spread_deg": round(self.phi_spread, 3),
-            "condition": None if math.isnan(self.condition) else float(self.condition),
-            "median_r2": median(self.r2),
-            "median_angular_r2": None if math.isnan(self.median_angular_r2) else self.median_angular_r2,
-            "notes": list(self.notes),
-            "median_rmse": median(self.rmse),
-            "better_model": self.better_model,
-            "better_model_median_r2": self.better_r2,
-            "params": {k: compact(v) for k, v in self.params.items()},
-            "errors": {k: compact(v) for k, v in self.errors.items()},
-            "errors_reliable": self.errors_reliable,
-            "errors_reason": self.errors_reason,
-            "prior": self.prior,
-            "model_choice": None if self.model_choice is None else self.model_choice.summary(),
-            "levels": self.levels,
-            "n_groups": self.n_groups,
-        }
-
-
-def _finite_median(values) -> float:
-    finite = np.asarray(values, dtype=float)[np.isfinite(values)]
-    return float(np.median(finite)) if finite.size else math.nan
 
 
 def _spread(values: np.ndarray) -> float:
@@ -332,40 +182,28 @@ def _suggest_model(report: ClassFit, model: Model, samples: ClassSamples) -> Non
         report.better_model, report.better_r2 = choice.chosen, better
 
 
-def fit_one_class(
-    class_id: int,
-    name: str,
-    model: str | Model,
-    samples: ClassSamples,
-    *,
-    fixed: Mapping[str, float] | None = None,
-    guard: GuardRails = GuardRails(),
-    fallback: str | None = None,
-    grid_points: int = 9,
-    prior: tuple[ShapePrior, np.ndarray] | None = None,
-    pool_if_alike: bool = False,
-) -> ClassFit:
+def fit_one_class(class_id: int, name: str, model: str | Model, samples: ClassSamples, *,
+                  fixed: Mapping[str, float] | None = None, guard: GuardRails = GuardRails(),
+                  fallback: str | None = None, grid_points: int = 9, prior: tuple[ShapePrior, np.ndarray] | None = None,
+                  pool_if_alike: bool = False) -> ClassFit:
     """Fit one class's samples and apply the guard rails (see :func:`fit_class_samples`).
 
-    A class that fails a guard rail, or fits poorly (median R^2 < :data:`POOR_R2`), is also
-    fitted with the other surface models that can be fitted from imagery, on a subsample; one that
-    explains clearly more is recorded in :attr:`ClassFit.better_model`.
+    A class that fails a guard rail, or fits poorly (median R^2 < :data:`POOR_R2`), is also fitted with
+    the other surface models that can be fitted from imagery, on a subsample; one that explains clearly
+    more is recorded in :attr:`ClassFit.better_model`.
 
     Parameters
     ----------
-    class_id : int
-        Class id.
-    name : str
-        Class name.
+    class_id, name : int, str
+        Class id and name.
     model : str or Model
-        Surface model with intensity terms (:func:`intensity_terms`), or ``"auto"``: the candidate
-        with the lowest held-out error over spatial blocks
-        (:func:`brdfcorr.fit.selection.choose_class_model`; its scores are the report's
-        ``model_choice``).
+        Surface model with intensity terms (:func:`intensity_terms`), or ``"auto"``: the candidate with
+        the lowest held-out error over spatial blocks (:func:`brdfcorr.fit.selection.choose_class_model`;
+        its scores are the report's ``model_choice``).
     samples : ClassSamples
-        The class's samples: sun zenith, view zenith and relative azimuth [deg], BRDF per band
-        [sr^-1], shape (N, B), and optionally the spatial block of each sample (``block``), over
-        which the errors are cluster-robust (None: every sample is its own cluster).
+        The class's samples: sun zenith, view zenith and relative azimuth [deg], BRDF per band [sr^-1],
+        shape (N, B), and optionally the spatial block of each sample (``block``), over which the errors
+        are cluster-robust (None: every sample is its own cluster).
     fixed : mapping of str to float, optional
         Shape parameters held fixed (default k = 0.25 for the Torrance-Sparrow models).
     guard : GuardRails
@@ -377,25 +215,71 @@ def fit_one_class(
         Coarse-grid points per free shape parameter.
     prior : (ShapePrior, ndarray), optional
         A shape prior and its ratios f_vol/f_iso, f_geo/f_iso per band (n_bands, 2;
-        :func:`brdfcorr.fit.prior.prior_ratios`) for a ``ross_thick_li_sparse`` class: its
-        weights become the posterior's (:func:`brdfcorr.fit.prior.shape_posterior`), and the
-        condition-number rail does not apply. Ignored for other models.
+        :func:`brdfcorr.fit.prior.prior_ratios`) for a ``ross_thick_li_sparse`` class: its weights
+        become the posterior's (:func:`brdfcorr.fit.prior.shape_posterior`), and the condition-number
+        rail does not apply. Ignored for other models.
     pool_if_alike : bool, default False
-        For samples with free levels (``samples.group``) chosen by ``levels="auto"``: where the
-        views of each group differ by less than the guard rail's spread (:func:`_within_spread`,
-        e.g. dates from one orbit at one time of day), fit them pooled instead, with a note.
+        For samples with free levels (``samples.group``) chosen by ``levels="auto"``: where the views of
+        each group differ by less than the guard rail's spread (:func:`_within_spread`, e.g. dates from
+        one orbit at one time of day), fit them pooled instead, with a note.
 
     Returns
     -------
     ClassFit
     """
-    choice, notes = None, []
+    notes: list[str] = []
+    samples, within = _pooled_if_alike(samples, guard, pool_if_alike, notes)
+    model, fixed, choice = _class_model(model, samples, fixed, grid_points, notes)
+    report = ClassFit(
+        class_id=class_id, name=name, model=model.name, n_samples=int(np.size(samples.theta_i)),
+        vza_spread=_spread(np.asarray(samples.theta_r)) if within is None else within,
+        phi_spread=_spread(np.asarray(samples.phi)), fallback=fallback, notes=notes, model_choice=choice,
+        levels=samples.levels,
+    )
+    report.reasons = _sample_reasons(report, guard)
+    if report.n_samples >= max(len(model.parameters) + 1, 3):
+        _fit_samples(report, model, samples, fixed, grid_points, prior, guard)
+    if report.reasons:
+        _fail(report)
+    return report
+
+
+def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: Mapping[str, float] | None,
+                 grid_points: int, prior: tuple[ShapePrior, np.ndarray] | None, guard: GuardRails) -> None:
+    """Fit the class (:func:`fit_class_samples`) into its ``report``, with the shape ``prior`` where it
+    applies, the guard rails' reasons against the fit, and another model suggested where the class
+    fails or fits poorly (unless its model was chosen by held-out error)."""
+    levels = None if samples.group is None else Levels.from_labels(samples.group, samples.scene)
+    result = fit_class_samples(model, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, fixed=fixed,
+                               grid_points=grid_points, clusters=samples.block, levels=levels)
+    _record(report, result)
+    if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
+        _apply_prior(report, *prior, samples)
+        guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
+    report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
+    if report.model_choice is None and (report.reasons or not report.median_angular_r2 >= POOR_R2):
+        _suggest_model(report, model, samples)
+
+
+def _pooled_if_alike(samples: ClassSamples, guard: GuardRails, pool_if_alike: bool,
+                     notes: list[str]) -> tuple[ClassSamples, float | None]:
+    """The samples, pooled (one level for the class, with a note) when ``pool_if_alike`` and the
+    views of each group differ by less than the guard rail's view-zenith spread; and the spread
+    within groups [deg] (:func:`_within_spread`), or None for pooled samples."""
     within = None if samples.group is None else _within_spread(samples)
     if pool_if_alike and within is not None and within < guard.min_vza_spread:
-        samples = dataclasses.replace(samples, group=None, scene=None, levels="pooled")
         notes.append(f"the views of each pixel differ by {within:.1f} deg < {guard.min_vza_spread:g} deg: "
                      "fitted pooled (one level for the class)")
-        within = None
+        return dataclasses.replace(samples, group=None, scene=None, levels="pooled"), None
+    return samples, within
+
+
+def _class_model(model: str | Model, samples: ClassSamples, fixed: Mapping[str, float] | None, grid_points: int,
+                 notes: list[str]) -> tuple[Model, Mapping[str, float] | None, ModelChoice | None]:
+    """The registry model of a class, ``"auto"`` chosen by held-out error
+    (:func:`brdfcorr.fit.selection.choose_class_model`; the first candidate, with a note, where no
+    choice is possible); the fixed shape parameters the model has; and the choice, if any."""
+    choice = None
     if model == AUTO_MODEL:
         try:
             choice = choose_class_model(samples, fixed=fixed, grid_points=min(grid_points, SELECT_GRID))
@@ -406,53 +290,31 @@ def fit_one_class(
     model = get_model(model)
     if fixed is not None and (choice is not None or notes):  # auto: only those the chosen model has
         fixed = fixed_for(model.name, fixed)
-    theta_i, theta_r, phi, brdf = samples.theta_i, samples.theta_r, samples.phi, samples.brdf
-    report = ClassFit(
-        class_id=class_id,
-        name=name,
-        model=model.name,
-        n_samples=int(np.size(theta_i)),
-        vza_spread=_spread(np.asarray(theta_r)) if within is None else within,
-        phi_spread=_spread(np.asarray(phi)),
-        fallback=fallback,
-        notes=notes,
-        model_choice=choice,
-        levels=samples.levels,
-    )
-    report.reasons = _sample_reasons(report, guard)
-    if report.n_samples >= max(len(model.parameters) + 1, 3):
-        result = fit_class_samples(
-            model, theta_i, theta_r, phi, brdf, fixed=fixed, grid_points=grid_points, clusters=samples.block,
-            levels=None if samples.group is None else Levels.from_labels(samples.group, samples.scene),
-        )
-        report.params, report.errors = result["params"], result["errors"]
-        report.free, report.covariance, report.chi2_dof = result["free"], result["covariance"], result["chi2_dof"]
-        report.r2, report.rmse, report.angular_r2 = result["r2"], result["rmse"], result["angular_r2"]
-        report.condition, report.fixed = result["condition"], result["fixed"]
-        report.n_groups = result["n_groups"]
-        report.errors_reliable, report.errors_reason = result["errors_reliable"], result["errors_reason"]
-        if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
-            _apply_prior(report, *prior, samples)
-            guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
-        report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
-        if choice is None and (report.reasons or not report.median_angular_r2 >= POOR_R2):
-            _suggest_model(report, model, samples)
-    if report.reasons:
-        report.status = "fallback" if fallback else "uncorrected"
-        action = "left uncorrected"
-        if fallback:  # a coefficient set's entry is given per wavelength, a material's is not
-            kind = "coefficient set" if "wavelengths" in fallback_entry(fallback, class_id, name) else "material"
-            action = f"using built-in {kind} {fallback!r}"
-        hint = (
-            f" ({report.better_model} explains more: median R^2 {report.better_r2:.2f})"
-            if report.better_model else ""
-        )
-        warnings.warn(
-            f"class {class_id} ({name}): {'; '.join(report.reasons)}; {action}{hint}",
-            ClassFitWarning,
-            stacklevel=2,
-        )
-    return report
+    return model, fixed, choice
+
+
+def _record(report: ClassFit, result: dict) -> None:
+    """Copy the solution of :func:`fit_class_samples` into the class's report."""
+    report.params, report.errors = result["params"], result["errors"]
+    report.free, report.covariance, report.chi2_dof = result["free"], result["covariance"], result["chi2_dof"]
+    report.r2, report.rmse, report.angular_r2 = result["r2"], result["rmse"], result["angular_r2"]
+    report.condition, report.fixed = result["condition"], result["fixed"]
+    report.n_groups = result["n_groups"]
+    report.errors_reliable, report.errors_reason = result["errors_reliable"], result["errors_reason"]
+
+
+def _fail(report: ClassFit) -> None:
+    """Mark a class that failed its guard rails as falling back or uncorrected, and warn
+    (:class:`ClassFitWarning`, at the caller of :func:`fit_one_class`)."""
+    class_id, name, fallback = report.class_id, report.name, report.fallback
+    report.status = "fallback" if fallback else "uncorrected"
+    action = "left uncorrected"
+    if fallback:  # a coefficient set's entry is given per wavelength, a material's is not
+        kind = "coefficient set" if "wavelengths" in fallback_entry(fallback, class_id, name) else "material"
+        action = f"using built-in {kind} {fallback!r}"
+    hint = f" ({report.better_model} explains more: median R^2 {report.better_r2:.2f})" if report.better_model else ""
+    warnings.warn(f"class {class_id} ({name}): {'; '.join(report.reasons)}; {action}{hint}", ClassFitWarning,
+                  stacklevel=3)
 
 
 @dataclass
@@ -514,19 +376,35 @@ def _without_bad_bands(scenes: list, wavelengths, bad_bands) -> tuple[list, list
     return kept, centres[~bad].tolist(), _merged(used), centres[bad].tolist()
 
 
-def fit_classes(
-    images,
-    classes,
-    angles,
-    models: ClassModels | str | Model = ClassModels(),
-    *,
-    sampling: Sampling = Sampling(),
-    wavelengths: Sequence[float] | None = None,
-    guard: GuardRails = GuardRails(),
-    grid_points: int = 9,
-    progress=None,
-    source: str = "brdfcorr.fit.fit_classes",
-) -> ClassFitResult:
+def _with_default_model(models: ClassModels | str | Model) -> ClassModels:
+    """``models`` as :class:`ClassModels` (a model or its name stands for ``ClassModels(model)``),
+    with :data:`DEFAULT_MODEL` where it names none."""
+    if not isinstance(models, ClassModels):
+        models = ClassModels(models)
+    return dataclasses.replace(models, model=DEFAULT_MODEL) if models.model is None else models
+
+
+def _prior(models: ClassModels, wavelengths: Sequence[float] | None) -> tuple[ShapePrior, np.ndarray] | None:
+    """The shape prior of ``models`` with its ratios at the band centres ``wavelengths`` [nm]
+    (:func:`brdfcorr.fit.prior.prior_ratios`), or None without a prior."""
+    if models.prior is None:
+        return None
+    if wavelengths is None:
+        raise InputError(f"the prior {models.prior.coefficients} needs the bands' wavelengths (band "
+                         "descriptions or a wavelength tag; a chain's inputs.wavelengths)")
+    return models.prior, prior_ratios(models.prior.coefficients, wavelengths)
+
+
+def _thinned(samples: ClassSamples, keep: int) -> ClassSamples:
+    """About ``keep`` of a class's samples, evenly spaced, for plots (angles and BRDF only)."""
+    step = max(1, samples.theta_i.size // keep)
+    return ClassSamples(samples.theta_i[::step], samples.theta_r[::step], samples.phi[::step], samples.brdf[::step])
+
+
+def fit_classes(images, classes, angles, models: ClassModels | str | Model = ClassModels(), *,
+                sampling: Sampling = Sampling(), wavelengths: Sequence[float] | None = None,
+                guard: GuardRails = GuardRails(), grid_points: int = 9, progress=None,
+                source: str = "brdfcorr.fit.fit_classes") -> ClassFitResult:
     """Fit a BRDF model per class (shape per class, intensities per band) from imagery.
 
     Parameters
@@ -574,10 +452,7 @@ def fit_classes(
     numbers of a fit of the image without them. Needs band wavelengths (without them nothing is
     left out).
     """
-    if not isinstance(models, ClassModels):
-        models = ClassModels(models)
-    if models.model is None:
-        models = dataclasses.replace(models, model=DEFAULT_MODEL)
+    models = _with_default_model(models)
     scenes, classes, angles = scene_lists(images, classes, angles)
     if wavelengths is None and "wavelength" in scenes[0].coords:
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
@@ -587,12 +462,7 @@ def fit_classes(
         seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
         levels=sampling.levels, patch_size=sampling.patch_size,
     )
-    prior = None
-    if models.prior is not None:
-        if wavelengths is None:
-            raise InputError(f"the prior {models.prior.coefficients} needs the bands' wavelengths (band "
-                             "descriptions or a wavelength tag; a chain's inputs.wavelengths)")
-        prior = (models.prior, prior_ratios(models.prior.coefficients, wavelengths))
+    prior = _prior(models, wavelengths)
     fits, entries, kept = [], [], {}
     for class_id, samples in pooled.items():
         fit = fit_one_class(
@@ -602,12 +472,8 @@ def fit_classes(
         )
         fits.append(fit)
         entry = class_entry(fit, wavelengths, source, used_ranges or None)
-        if entry is not None:
-            entries.append(entry)
-        step = max(1, samples.theta_i.size // sampling.keep_samples)
-        kept[class_id] = ClassSamples(
-            samples.theta_i[::step], samples.theta_r[::step], samples.phi[::step], samples.brdf[::step]
-        )
+        entries += [] if entry is None else [entry]
+        kept[class_id] = _thinned(samples, sampling.keep_samples)
         if progress is not None:
             progress(class_id)
     return ClassFitResult(table=ParameterTable(classes=entries), fits=fits, samples=kept, bad_bands=used_ranges,

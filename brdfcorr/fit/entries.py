@@ -5,25 +5,14 @@ covariance (:class:`brdfcorr.params.FitRecord`), or its fallback's entry."""
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from brdfcorr.fit.class_fit import ClassFit, compact
 from brdfcorr.fit.settings import fallback_entry
 from brdfcorr.params import ClassEntry
 
-if TYPE_CHECKING:
-    from brdfcorr.fit.classes import ClassFit
-
 __all__ = ["class_entry", "compact"]
-
-
-def compact(values: np.ndarray):
-    """A scalar when all bands share the value, else a list."""
-    values = np.asarray(values, dtype=float)
-    if values.size and np.all(values == values.flat[0]):
-        return float(values.flat[0])
-    return values.tolist()
 
 
 def _fit_record(fit: ClassFit, source: str, per_band: bool) -> dict | None:

@@ -266,19 +266,9 @@ def _starting_points(problem: _Problem, initial: Mapping[str, float]) -> list[np
     return starts
 
 
-def fit_brdf(
-    model,
-    theta_i,
-    theta_r,
-    phi,
-    brdf,
-    sigma=None,
-    fixed: Mapping[str, float] | None = None,
-    initial: Mapping[str, float] | None = None,
-    bounds: Mapping[str, tuple[float, float]] | None = None,
-    *,
-    error_analysis: ErrorAnalysis = ErrorAnalysis(),
-) -> FitResult:
+def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str, float] | None = None,
+             initial: Mapping[str, float] | None = None, bounds: Mapping[str, tuple[float, float]] | None = None, *,
+             error_analysis: ErrorAnalysis = ErrorAnalysis()) -> FitResult:
     """Fit a BRDF model to measurements by weighted least squares (paper 003, section 4).
 
     Parameters
@@ -353,36 +343,17 @@ def fit_brdf(
     chi2, r2 = _goodness(data, residuals, problem.weights)
     dof = data.size - len(free)
     covariance, condition_number = jacobian_covariance(best.jac)
-    scale_errors = error_analysis.scale_errors
-    if scale_errors is None:
-        scale_errors = sigma is None
+    scale_errors = sigma is None if error_analysis.scale_errors is None else error_analysis.scale_errors
     if scale_errors:
         covariance = covariance * (chi2 / dof)
-    correlation = correlation_matrix(covariance)
-    deviations = np.sqrt(np.diag(covariance))
-
     messages, at_bounds = _fit_warnings(problem, values, best.active_mask, covariance, condition_number,
                                         error_analysis.correlation_limit)
-    all_values, errors = _parameter_values(problem, values, deviations)
+    all_values, errors = _parameter_values(problem, values, np.sqrt(np.diag(covariance)))
     return FitResult(
-        model=model,
-        params=all_values,
-        errors=errors,
-        free=free,
-        fixed=problem.fixed,
-        covariance=covariance,
-        correlation=correlation,
-        chi2=chi2,
-        dof=dof,
-        residuals=residuals,
-        sigma=sigma,
-        errors_scaled=bool(scale_errors),
-        condition_number=condition_number,
-        at_bounds=at_bounds,
-        n_starts=len(starts),
-        n_converged=n_converged,
-        warnings=tuple(messages),
-        r2=r2,
+        model=model, params=all_values, errors=errors, free=free, fixed=problem.fixed, covariance=covariance,
+        correlation=correlation_matrix(covariance), chi2=chi2, dof=dof, residuals=residuals, sigma=sigma,
+        errors_scaled=bool(scale_errors), condition_number=condition_number, at_bounds=at_bounds,
+        n_starts=len(starts), n_converged=n_converged, warnings=tuple(messages), r2=r2,
     )
 
 

@@ -231,26 +231,33 @@ def check_measurements(
     if labels is None:
         labels = [f"index {index}" for index in range(size)]
 
-    problems = []
-    for name, array in values.items():
-        finite = np.isfinite(array)
-        if not finite.all():
-            problems.append(f"{name} is NaN or infinite at {_list_rows(labels, ~finite)}")
-        with np.errstate(invalid="ignore"):
-            if name in ("theta_i", "theta_r"):
-                invalid, rule = (array < 0) | (array >= 90), "outside [0, 90) deg"
-            elif name == "phi":
-                invalid, rule = (array < 0) | (array > 180), "outside [0, 180] deg"
-            elif name == "brdf":
-                invalid, rule = array < 0, "negative"
-            else:
-                invalid, rule = array <= 0, "not positive"
-        invalid &= finite
-        if invalid.any():
-            problems.append(f"{name} {rule} at {_list_rows(labels, invalid)}")
+    problems = [problem for name, array in values.items() for problem in _column_problems(name, array, labels)]
     if problems:
         raise MeasurementError(f"{source}: " + "; ".join(problems))
     return tuple(values.get(name) for name in ("theta_i", "theta_r", "phi", "brdf", "sigma"))
+
+
+def _column_problems(name: str, array: np.ndarray, labels) -> list[str]:
+    """What is wrong with one measurement column, naming the rows: NaN or infinite values, angles
+    outside their domain [deg] (zeniths [0, 90), azimuth [0, 180]), a negative BRDF or a
+    non-positive sigma [sr^-1]."""
+    problems = []
+    finite = np.isfinite(array)
+    if not finite.all():
+        problems.append(f"{name} is NaN or infinite at {_list_rows(labels, ~finite)}")
+    with np.errstate(invalid="ignore"):
+        if name in ("theta_i", "theta_r"):
+            invalid, rule = (array < 0) | (array >= 90), "outside [0, 90) deg"
+        elif name == "phi":
+            invalid, rule = (array < 0) | (array > 180), "outside [0, 180] deg"
+        elif name == "brdf":
+            invalid, rule = array < 0, "negative"
+        else:
+            invalid, rule = array <= 0, "not positive"
+    invalid &= finite
+    if invalid.any():
+        problems.append(f"{name} {rule} at {_list_rows(labels, invalid)}")
+    return problems
 
 
 def _is_numeric(value) -> bool:
@@ -280,6 +287,39 @@ def _read_text(path: Path) -> str:
     except OSError as error:
         raise MeasurementError(f"{path}: cannot read: {error.strerror}") from None
     return text
+
+
+def _checked_header(cells: list[str], path: Path, line: int) -> list[str]:
+    """The column names of the header cells (units in brackets dropped, lower case); MeasurementError
+    for a duplicated or missing required column (``line``: the header's line number)."""
+    header = [_column_name(cell) for cell in cells]
+    duplicated = sorted({name for name in header if name and header.count(name) > 1})
+    if duplicated:
+        raise MeasurementError(f"{path}: duplicated column(s) {', '.join(duplicated)}")
+    missing = [name for name in REQUIRED_COLUMNS if name not in header]
+    if missing:
+        raise MeasurementError(
+            f"{path}: missing column(s) {', '.join(missing)} (line {line} has "
+            f"{', '.join(header) or 'no names'}; required: {', '.join(REQUIRED_COLUMNS)}"
+            f"[, {', '.join(OPTIONAL_COLUMNS)}])"
+        )
+    return header
+
+
+def _parsed_column(name: str, cells: list[str], labels: list[str]) -> tuple[np.ndarray, str | None]:
+    """A column's cells as floats (unparsable ones left unset), and what is wrong with them (the rows
+    that are not numbers, with the first such cell) or None."""
+    values = np.empty(len(cells))
+    unparsable = np.zeros(len(cells), dtype=bool)
+    for index, cell in enumerate(cells):
+        try:
+            values[index] = float(cell)
+        except ValueError:
+            unparsable[index] = True
+    if not unparsable.any():
+        return values, None
+    first = cells[int(np.flatnonzero(unparsable)[0])]
+    return values, f"column {name} is not a number at {_list_rows(labels, unparsable)} (e.g. {first!r})"
 
 
 def read_measurements(path: str | os.PathLike) -> Measurements:
@@ -315,17 +355,7 @@ def read_measurements(path: str | os.PathLike) -> Measurements:
     if not numbered:
         raise MeasurementError(f"{path}: empty file; expected a header {','.join(REQUIRED_COLUMNS)}")
     records = list(csv.reader(line for _, line in numbered))
-    header = [_column_name(cell) for cell in records[0]]
-    duplicated = sorted({name for name in header if name and header.count(name) > 1})
-    if duplicated:
-        raise MeasurementError(f"{path}: duplicated column(s) {', '.join(duplicated)}")
-    missing = [name for name in REQUIRED_COLUMNS if name not in header]
-    if missing:
-        raise MeasurementError(
-            f"{path}: missing column(s) {', '.join(missing)} (line {numbered[0][0]} has "
-            f"{', '.join(header) or 'no names'}; required: {', '.join(REQUIRED_COLUMNS)}"
-            f"[, {', '.join(OPTIONAL_COLUMNS)}])"
-        )
+    header = _checked_header(records[0], path, numbered[0][0])
     body, numbers = records[1:], [number for number, _ in numbered[1:]]
     if not body:
         raise MeasurementError(f"{path}: no measurements after the header")
@@ -339,21 +369,8 @@ def read_measurements(path: str | os.PathLike) -> Measurements:
     wanted = [name for name in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if name in header]
     columns, problems = {}, []
     for name in wanted:
-        cells = [record[header.index(name)].strip() for record in body]
-        values = np.empty(len(cells))
-        unparsable = np.zeros(len(cells), dtype=bool)
-        for index, cell in enumerate(cells):
-            try:
-                values[index] = float(cell)
-            except ValueError:
-                unparsable[index] = True
-        if unparsable.any():
-            first = cells[int(np.flatnonzero(unparsable)[0])]
-            problems.append(
-                f"column {name} is not a number at {_list_rows(labels, unparsable)} "
-                f"(e.g. {first!r})"
-            )
-        columns[name] = values
+        columns[name], problem = _parsed_column(name, [record[header.index(name)].strip() for record in body], labels)
+        problems += [problem] if problem else []
     if problems:
         raise MeasurementError(f"{path}: " + "; ".join(problems))
     return Measurements(**columns, rows=np.array(numbers), source=str(path))

@@ -10,7 +10,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from brdfcorr.fit.solver import _profile, _quality, _resolve
+from brdfcorr.fit.profile import _profile
+from brdfcorr.fit.shapes import _resolve
+from brdfcorr.fit.solver import _quality
 from brdfcorr.models import Model
 
 __all__ = ["fit_quality"]

@@ -97,19 +97,9 @@ def _check_bands(brdf: np.ndarray, image, class_id: int) -> None:
                      f"of class {class_id} (all NaN, inf or nodata); leave the band out of the image")
 
 
-def sample_classes(
-    images,
-    classes,
-    angles,
-    *,
-    class_ids: Sequence[int] | None = None,
-    max_samples: int = 50_000,
-    seed: int = 0,
-    reflectance_scale: float = 1.0,
-    block_size: int = 32,
-    levels: str = "pooled",
-    patch_size: int = 8,
-) -> dict[int, ClassSamples]:
+def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None, max_samples: int = 50_000,
+                   seed: int = 0, reflectance_scale: float = 1.0, block_size: int = 32, levels: str = "pooled",
+                   patch_size: int = 8) -> dict[int, ClassSamples]:
     """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
 
     Parameters
@@ -189,16 +179,26 @@ def sample_classes(
             groups = [_group_of(flat, m.shape, patch, None if shared else scene)
                       for scene, (flat, m) in enumerate(zip(candidates, maps))]
             chosen = _grouped_choice(groups, max_samples, rng)
-        parts = []
-        for scene, (image, angle_set) in enumerate(zip(images, angles)):
-            flat, group = candidates[scene][chosen[scene]], groups[scene]
-            if flat.size:
-                values = _scene_samples(scene, image, angle_set, maps[scene].shape, flat, reflectance_scale,
-                                        block_size, shared)
-                labels = () if group is None else (group[chosen[scene]], np.full(flat.size, scene))
-                parts.append((*values, *labels))
+        selected = [(candidates[scene][chosen[scene]], None if groups[scene] is None else groups[scene][chosen[scene]])
+                    for scene in range(len(images))]
+        parts = _scene_parts(images, angles, maps, selected, reflectance_scale, block_size, shared)
         pooled[class_id] = _class_samples(parts, images[0], class_id, levels)
     return pooled
+
+
+def _scene_parts(images: list, angles: list, maps: list[np.ndarray], selected: list[tuple],
+                 reflectance_scale: float, block_size: int, shared: bool) -> list[tuple]:
+    """Each scene's part of one class's samples (:func:`_scene_samples`: angles [deg], BRDF [sr^-1],
+    block; with groups also the group and the scene of each sample) at its ``selected`` pixels
+    (flat indices into the scene's grid, and their groups or None); scenes without any are skipped."""
+    parts = []
+    for scene, ((flat, group), image, angle_set) in enumerate(zip(selected, images, angles)):
+        if flat.size:
+            values = _scene_samples(scene, image, angle_set, maps[scene].shape, flat, reflectance_scale,
+                                    block_size, shared)
+            labels = () if group is None else (group, np.full(flat.size, scene))
+            parts.append((*values, *labels))
+    return parts
 
 
 def _class_samples(parts: list[tuple], image, class_id: int, levels: str) -> ClassSamples:

@@ -54,7 +54,7 @@ import numpy as np
 import scipy.sparse
 
 if TYPE_CHECKING:
-    from brdfcorr.fit.solver import _LinearProfile
+    from brdfcorr.fit.profile import _LinearProfile
 
 #: Largest leverage eigenvalue used in the CR2 adjustment: a cluster that alone determines a
 #: parameter combination (leverage 1) has no residual to estimate its variance from.
@@ -278,6 +278,18 @@ def _combined_dof(shape_dof: np.ndarray, linear_dof: np.ndarray, propagated, own
         return 1.0 / inverse_root**2
 
 
+def _joint_matrix(shape_block: np.ndarray, shape_intensity: np.ndarray, intensities_block: np.ndarray) -> np.ndarray:
+    """The joint covariance per band, (B, k + m, k + m), from its blocks: the shape's (k, k), shared
+    by the bands, the shape-intensity cross terms (B, k, m) and the intensities' (B, m, m)."""
+    n_bands, k, m = shape_intensity.shape
+    covariance = np.empty((n_bands, k + m, k + m))
+    covariance[:, :k, :k] = shape_block
+    covariance[:, :k, k:] = shape_intensity
+    covariance[:, k:, :k] = np.swapaxes(shape_intensity, 1, 2)
+    covariance[:, k:, k:] = intensities_block
+    return covariance
+
+
 def _joint_covariance(profile: _LinearProfile, shape, design, intensities, clusters=None,
                       small_sample: bool = True) -> Sandwich:
     """Joint sandwich covariance of (free shape, band intensities) per band, (B, k + m, k + m),
@@ -296,10 +308,9 @@ def _joint_covariance(profile: _LinearProfile, shape, design, intensities, clust
     H is block-arrow shaped (the intensity blocks ``w_b A^T A`` are diagonal across bands), so the
     influence ``psi_p = H^-1 s_p`` is solved by the Schur complement of the intensities,
     ``S = sum_b w_b G_b^T (I - A (A^T A)^-1 A^T) G_b`` (G_b the shape columns of the band's
-    Jacobian): ``psi_theta = S^-1 e_p`` with the efficient scores e (:func:`_efficient_scores`),
-    and ``psi_c_b = (A^T A)^-1 a_p r_pb - J_b psi_theta``, ``J_b = (A^T A)^-1 A^T G_b``. Every band's
-    block of ``sum_c psi_c psi_c^T`` follows from cluster sums of size (C, k) and (C, m) per band.
-    The band weights cancel in the intensity blocks.
+    Jacobian): ``psi_theta = S^-1 e_p`` with the efficient scores e (:func:`_efficient_scores`), and
+    ``psi_c_b = (A^T A)^-1 a_p r_pb - J_b psi_theta``, ``J_b = (A^T A)^-1 A^T G_b``. Every band's block of
+    ``sum_c psi_c psi_c^T`` follows from cluster sums (C, k) and (C, m) per band; band weights cancel in its blocks.
     """
     coefficients = np.asarray(intensities)  # (m, B)
     n, n_bands = profile.data.shape
@@ -332,11 +343,7 @@ def _joint_covariance(profile: _LinearProfile, shape, design, intensities, clust
     propagated = np.einsum("bmk,kl,bnl->bmn", j, shape_block, j)
     intensities_block = intensity_block - bread_x_jt - np.swapaxes(bread_x_jt, 1, 2) + propagated
     shape_intensity = np.einsum("bmk,ml->bkl", x, bread) - np.einsum("kl,bml->bkm", shape_block, j)
-    covariance = np.empty((n_bands, k + m, k + m))
-    covariance[:, :k, :k] = shape_block
-    covariance[:, :k, k:] = shape_intensity
-    covariance[:, k:, :k] = np.swapaxes(shape_intensity, 1, 2)
-    covariance[:, k:, k:] = intensities_block
+    covariance = _joint_matrix(shape_block, shape_intensity, intensities_block)
     shape_dof = _satterthwaite_dof(shape_leverage, np.eye(k))
     dof = np.concatenate([np.broadcast_to(shape_dof, (n_bands, k)), _combined_dof(
         shape_dof, linear_dof, np.diagonal(propagated, axis1=1, axis2=2),

@@ -38,7 +38,9 @@ import numpy as np
 from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import BrdfcorrError, FitError
 from brdfcorr.fit.goniometer import fit_brdf
-from brdfcorr.fit.solver import DEFAULT_FIXED, _free_shape, _profile, _search, _search_subset
+from brdfcorr.fit.profile import _profile
+from brdfcorr.fit.shape_search import _search, _search_subset
+from brdfcorr.fit.shapes import DEFAULT_FIXED, _free_shape
 from brdfcorr.fit.within import Levels
 from brdfcorr.models import get_model
 
@@ -304,6 +306,28 @@ def _subsample(samples, max_samples: int, max_bands: int):
     return angles, data[np.ix_(rows, bands)], blocks, levels
 
 
+def _choice_data(samples) -> tuple[list[np.ndarray], np.ndarray, np.ndarray | None, Levels | None, np.ndarray]:
+    """The seeded subsample of the choice (:func:`_subsample`): angles [deg], BRDF (n, b) [sr^-1],
+    blocks and levels, with free levels only the groups that can be fitted within, and the data
+    predicted: the BRDF, or with free levels each group's views relative to it, within groups."""
+    angles, raw, blocks, levels = _subsample(samples, SELECT_SAMPLES, SELECT_BANDS)
+    if levels is None:
+        return angles, raw, blocks, None, raw
+    usable = levels.usable(raw)
+    angles, raw, levels = [a[usable] for a in angles], raw[usable], levels.subset(usable)
+    blocks = None if blocks is None else blocks[usable]
+    return angles, raw, blocks, levels, levels.demean(levels.relative(raw)[0])
+
+
+def _fold_count(groups: np.ndarray, folds: int) -> int:
+    """``folds``, or fewer where there are fewer ``groups``; at least 2 (else :class:`FitError`)."""
+    folds = min(folds, np.unique(groups).size)
+    if folds < 2:
+        raise FitError("the class's samples lie in one spatial block: no held-out choice of the model is "
+                       "possible; name a model (or use a smaller block size)")
+    return folds
+
+
 def choose_class_model(
     samples, *,
     candidates: Sequence[str] = IMAGERY_CANDIDATES,
@@ -338,18 +362,9 @@ def choose_class_model(
     intensities solved by non-negative least squares; the held-out error of a band is weighted by
     its inverse variance, as the fit weights the bands.
     """
-    angles, raw, blocks, levels = _subsample(samples, SELECT_SAMPLES, SELECT_BANDS)
-    data = raw  # what is predicted: with free levels, each group's views relative to it, within groups
-    if levels is not None:
-        usable = levels.usable(raw)
-        angles, raw, levels = [a[usable] for a in angles], raw[usable], levels.subset(usable)
-        blocks = None if blocks is None else blocks[usable]
-        data = levels.demean(levels.relative(raw)[0])
+    angles, raw, blocks, levels, data = _choice_data(samples)
     groups, grouping = (blocks, "spatial blocks") if blocks is not None else (np.arange(data.shape[0]), "samples")
-    folds = min(folds, np.unique(groups).size)
-    if folds < 2:
-        raise FitError("the class's samples lie in one spatial block: no held-out choice of the model is "
-                       "possible; name a model (or use a smaller block size)")
+    folds = _fold_count(groups, folds)
     fold = _folds(groups, folds, SEED)
     variance = data.var(axis=0)
     weights = np.broadcast_to(np.where(variance > 0, 1.0 / np.where(variance > 0, variance, 1.0), 0.0), data.shape)

@@ -42,7 +42,7 @@ class GuardRails:
         Maximum condition number of the column-normalized linear design (one column per intensity
         term); above it the terms (e.g. the constant and the specular term) cannot be told apart.
     min_r2 : float
-        Minimum median (over bands) *angular* R^2 (:meth:`~brdfcorr.fit.solver._LinearProfile.angular_r2`:
+        Minimum median (over bands) *angular* R^2 (:meth:`~brdfcorr.fit.profile._LinearProfile.angular_r2`:
         the fit against the data's means in bins of geometry, so that albedo texture does not count
         against it): below it the model explains (almost) none of the angular signal. Not applied
         to a model without angular variation (Lambertian).

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import xarray as xr
@@ -21,10 +21,20 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.plot._display import display_name
 
-if TYPE_CHECKING:  # the workflow's result type, for annotations only (plot sits below workflow)
-    from brdfcorr.tasks.assess import Assessment
-
 __all__ = ["profile_figure", "overlap_figure", "figure_paths", "write_assessment_figures", "default_band"]
+
+
+class Assessment(Protocol):
+    """What the figures read of an assessment (:class:`brdfcorr.tasks.assess.Assessment` has it; plot
+    sits below tasks and does not import it)."""
+
+    @property
+    def view(self) -> xr.Dataset:
+        """:func:`brdfcorr.analysis.view_angles.assess_view_angles` of the scene."""
+
+    @property
+    def overlap(self) -> xr.Dataset | None:
+        """:func:`brdfcorr.analysis.overlap.assess_overlap` with the other line, or None."""
 
 
 def default_band(dataset: xr.Dataset) -> int:

@@ -32,7 +32,7 @@ from brdfcorr.io import rasters
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable
-from brdfcorr.params_bands import in_ranges
+from brdfcorr.params.bands import in_ranges
 from brdfcorr.tasks.classmaps import class_preparation, tagged_class_names
 
 __all__ = [

@@ -22,8 +22,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from brdfcorr.fit.profile import _profile
 from brdfcorr.fit.sandwich import _joint_covariance
-from brdfcorr.fit.solver import _profile, fit_class_samples
+from brdfcorr.fit.solver import fit_class_samples
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import get_model, torrance_sparrow
 

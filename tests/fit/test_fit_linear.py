@@ -7,7 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from brdfcorr.fit import solver
+from brdfcorr.fit import profile as profiles
+from brdfcorr.fit import shape_search, solver
 from brdfcorr.fit.classes import ClassFitWarning, ClassSamples, GuardRails, fit_one_class
 from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.solver import fit_class_samples
@@ -43,15 +44,17 @@ def one_pass_only(monkeypatch):
     """Count the design evaluations and linear solves; fail on any search or Newton step."""
     calls = {"design": 0, "solve": 0}
     for name in ("design", "solve"):
-        original = getattr(solver._LinearProfile, name)
+        original = getattr(profiles._LinearProfile, name)
 
         def counted(self, *args, _original=original, _name=name):
             calls[_name] += 1
             return _original(self, *args)
 
-        monkeypatch.setattr(solver._LinearProfile, name, counted)
-    for name in ("_search", "_refine", "_newton_polish", "_grid_start"):
-        monkeypatch.setattr(solver, name, lambda *args, _name=name, **kwargs: pytest.fail(f"{_name} called"))
+        monkeypatch.setattr(profiles._LinearProfile, name, counted)
+    for name in ("_search", "_refine", "_newton_polish", "_grid_start", "_coarse_shape"):
+        for module in (shape_search, solver):  # the search's module, and the solver that imports its steps
+            if hasattr(module, name):
+                monkeypatch.setattr(module, name, lambda *args, _name=name, **kwargs: pytest.fail(f"{_name} called"))
     return calls
 
 
@@ -149,7 +152,7 @@ def test_terms_without_a_lower_bound_may_be_negative():
         linear=("c0", "c1"), basis=basis,
     )
     angles = airborne_lines(500, seed=6)
-    profile = solver._LinearProfile(free, ScatteringGeometry(*angles), free.kernel(
+    profile = profiles._LinearProfile(free, ScatteringGeometry(*angles), free.kernel(
         ScatteringGeometry(*angles), c0=0.05, c1=-0.02)[:, None], {})
     coefficients, ssr = profile.solve(profile.design({}))
     np.testing.assert_allclose(coefficients[:, 0], [0.05, -0.02], rtol=1e-10)
@@ -159,7 +162,7 @@ def test_terms_without_a_lower_bound_may_be_negative():
         parameters=(Parameter("c0", "sr^-1", 0.1, 0.0), Parameter("c1", "sr^-1", 0.0, 0.0)),
         kernel=free.kernel, linear=("c0", "c1"), basis=basis,
     )
-    profile = solver._LinearProfile(bounded, profile.geometry, profile.data, {})
+    profile = profiles._LinearProfile(bounded, profile.geometry, profile.data, {})
     coefficients, _ = profile.solve(profile.design({}))
     assert coefficients[1, 0] == 0.0 and coefficients[0, 0] == pytest.approx(profile.data.mean())
 

@@ -17,8 +17,9 @@ import xarray as xr
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrWarning
 from brdfcorr.fit.identifiability import MIN_ERROR_DOF, NONLINEAR_FRACTION, error_reliability, t_variance_factor
+from brdfcorr.fit.profile import _profile
 from brdfcorr.fit.sandwich import _joint_covariance
-from brdfcorr.fit.solver import _profile, fit_class_samples
+from brdfcorr.fit.solver import fit_class_samples
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import get_model, torrance_sparrow
 from brdfcorr.models.materials import load_material

@@ -6,12 +6,17 @@ covariance of the fitted parameters. This module holds the record, the field typ
 and its checks: the covariance's shape, symmetry and diagonal, the errors against
 ``sqrt(diag(covariance))``, and the agreement with the class's model and parameters
 (:meth:`FitRecord.check_entry`). Import it from :mod:`brdfcorr.params`.
+
+The record reads a class through :class:`EntryFields`, the few attributes of
+:class:`brdfcorr.params.ClassEntry` it checks, so that this module sits below the table's modules
+and imports none of them.
 """
 
 from __future__ import annotations
 
 from collections import Counter
-from typing import TYPE_CHECKING, Annotated
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Annotated, Protocol
 
 import numpy as np
 from pydantic import BeforeValidator, Field, model_validator
@@ -20,9 +25,24 @@ from brdfcorr._validation import Integer, Number, StrictModel, refuse_boolean, s
 
 if TYPE_CHECKING:
     from brdfcorr.models import Model
-    from brdfcorr.params import ClassEntry
 
-__all__ = ["FitRecord", "ERROR_TOLERANCE", "Covariance", "Statistic", "Count"]
+__all__ = ["FitRecord", "ERROR_TOLERANCE", "Covariance", "Statistic", "Count", "EntryFields"]
+
+
+class EntryFields(Protocol):
+    """What :meth:`FitRecord.check_entry` reads of a table class (:class:`brdfcorr.params.ClassEntry`)."""
+
+    @property
+    def label(self) -> str:
+        """``"class 2 (grass)"``, the prefix of every message about the class."""
+
+    @property
+    def params(self) -> Mapping[str, float | list[float]]:
+        """The parameters, in the model's registry units: a number, or one value per band or wavelength."""
+
+    @property
+    def wavelengths(self) -> Sequence[float] | None:
+        """Wavelengths [nm] of list-valued parameters, or None."""
 
 
 #: A covariance as written in a table: one p x p matrix (nested lists) or one per wavelength.
@@ -158,7 +178,7 @@ class FitRecord(StrictModel):
                 )
 
 
-    def check_entry(self, entry: ClassEntry, model: Model) -> None:
+    def check_entry(self, entry: EntryFields, model: Model) -> None:
         """The record agrees with the class ``entry`` (of surface model ``model``): its parameters
         are the model's, and it has one matrix per wavelength (band) exactly where ``params`` vary."""
         unknown = [name for name in self.parameters if name not in model.parameter_names]

@@ -1,59 +1,9 @@
-"""Per-class BRDF parameter tables: the YAML format, validation, interpolation to band centres.
+"""A parameter table (:class:`ParameterTable`): classes by id, an optional default reference
+geometry (:class:`ReferenceGeometry`) and NDVI interpolation (:class:`NdviInterpolation`), and its
+YAML file format (``docs/parameter-tables.md``).
 
-A table pairs each land-cover class id of a class map with a registered surface model
-(:data:`brdfcorr.models.SURFACE_MODELS`) and its parameters. A parameter is a scalar (every band),
-a list with one value per image band, or, with ``wavelengths`` [nm], a list interpolated linearly to
-the image's band centres. The file format is described in ``docs/parameter-tables.md``::
-
-    reference: {sza: 30.0, vza: 0.0, raa: 0.0}      # optional default reference geometry
-    classes:
-      - id: 1
-        name: roof_tile
-        model: torrance_sparrow
-        params: {t0: 0.0245, t1: 0.20, w: 0.0362, n: 1.77, k: 0.25}
-      - id: 2
-        name: grass
-        model: empirical
-        wavelengths: [450, 550, 650, 850]
-        params: {a: [0.01, 0.02, 0.015, 0.05], b: 1.0, c: 0.02, t0: [0.02, 0.05, 0.03, 0.30]}
-
-Example
--------
->>> from brdfcorr.params import ClassEntry, ParameterTable
->>> table = ParameterTable(classes=[
-...     ClassEntry(id=2, name="grass", model="empirical", wavelengths=[450, 850],
-...                params={"a": [0.01, 0.05], "b": 1.0, "c": 0.02, "t0": 0.03}),
-... ])
->>> table = table.with_class(ClassEntry(id=1, name="roof_tile", model="torrance_sparrow",
-...     params={"t0": 0.0245, "t1": 0.20, "w": 0.0362, "n": 1.77, "k": 0.25}))
->>> table.class_ids
-(1, 2)
->>> bands = table.for_bands(wavelengths=[550, 650])
->>> [round(float(a), 3) for a in bands[2].params["a"]]
-[0.02, 0.03]
->>> table.to_xarray(wavelengths=[550, 650])["a"].sel({"class": 2}).values.round(3).tolist()
-[0.02, 0.03]
-
-A class fitted by ``brdfcorr fit`` or ``fit-classes`` also carries a ``fit:`` block
-(:class:`FitRecord`): the source, N, chi^2/dof, R^2, the 1-sigma errors and the covariance of the
-fitted parameters, which :meth:`ParameterTable.for_bands` resolves to the bands with the parameters
-(:attr:`BandParameters.covariance`).
-
-A class may list ``bad_bands``, wavelength ranges [nm] where it has no parameters (the bands
-``fit-classes`` left out of its fit: water vapour, the ENVI header's ``bbl``); the correction
-passes image bands there through uncorrected (:attr:`BandParameters.no_parameters`).
-
-An optional ``ndvi_interpolation:`` block (:class:`NdviInterpolation`) names NDVI strata whose
-linear coefficients the correction interpolates in each pixel's NDVI between the strata's centres,
-as FlexBRDF does (:mod:`brdfcorr.correction.continuous`; ``docs/classmaps.md``).
-
-Errors in a table raise :class:`brdfcorr.errors.ParameterError` naming the class and the parameter
-(and the file, for :meth:`ParameterTable.load`).
-
-This module holds the table, its classes and the file format; the ``fit:`` record and its checks
-are in :mod:`brdfcorr.params_fit`, the resolution of a class to an image's bands
-(:class:`BandParameters`, interpolation in wavelength) in :mod:`brdfcorr.params_bands`. Import
-every name from here.
+The classes themselves are :class:`brdfcorr.params.entry.ClassEntry`. Import the names from
+:mod:`brdfcorr.params`.
 """
 
 from __future__ import annotations
@@ -69,38 +19,21 @@ import xarray as xr
 import yaml
 from pydantic import BeforeValidator, Field, ValidationError, field_validator, model_validator
 
-from brdfcorr._validation import Integer, Number, StrictModel, describe_errors, refuse_boolean, short_repr
-from brdfcorr.errors import InputError, ParameterError, UnknownNameError
+from brdfcorr._validation import Integer, Number, StrictModel, describe_errors, refuse_boolean
+from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.io.files import atomic_path, parse_yaml, read_document
-from brdfcorr.models import SURFACE_MODELS, Model, get_model
-from brdfcorr.models.materials import load_material, material_names
-from brdfcorr.params_bands import MATERIAL_WAVELENGTH_TOLERANCE as MATERIAL_WAVELENGTH_TOLERANCE
-from brdfcorr.params_bands import (
-    BandParameters,
-    band_covariance,
-    band_values,
-    bands_dataset,
-    check_bad_bands,
-    class_label,
-    material_caveat,
-    resolve_entry,
-)
-from brdfcorr.params_fit import ERROR_TOLERANCE as ERROR_TOLERANCE
-from brdfcorr.params_fit import Count as Count
-from brdfcorr.params_fit import Covariance as Covariance
-from brdfcorr.params_fit import FitRecord
-from brdfcorr.params_fit import Statistic as Statistic
+from brdfcorr.models import get_model
+from brdfcorr.params.bands import BandParameters, bands_dataset, resolve_entry
+from brdfcorr.params.entry import ClassEntry
 from brdfcorr.strata import NIR_RANGE, RED_RANGE
 
 __all__ = [
     "ReferenceGeometry",
-    "ClassEntry",
-    "FitRecord",
     "ParameterTable",
     "NdviInterpolation",
-    "BandParameters",
     "merge_tables",
     "as_parameter_table",
+    "check_distinct_ids",
 ]
 
 SunZenith = Annotated[float | Literal["mean", "observed", "hls"], BeforeValidator(refuse_boolean)]
@@ -146,182 +79,6 @@ class ReferenceGeometry(StrictModel):
         """One line for provenance tags and summaries, e.g. ``"sza=30 vza=0 raa=0"``."""
         sza = self.sza if isinstance(self.sza, str) else f"{self.sza:g}"
         return f"sza={sza} vza={self.vza:g} raa={self.raa:g}"
-
-
-#: A parameter's value: a number or a list of numbers; a boolean (YAML's ``yes``, ``on``) is refused.
-ParameterValue = Annotated[float | list[Number], BeforeValidator(refuse_boolean)]
-#: A wavelength range [nm] ``[low, high]``, ends included (:attr:`ClassEntry.bad_bands`).
-BandRange = Annotated[list[Number], Field(min_length=2, max_length=2)]
-
-
-class ClassEntry(StrictModel):
-    """One class of a parameter table: its id in the class map, its model and parameters.
-
-    Attributes
-    ----------
-    id : int
-        Class id in the class map, >= 1 (0 means "no class").
-    name : str
-        Human-readable class name (``"roof_tile"``).
-    model : str
-        Registered surface model name (:data:`brdfcorr.models.SURFACE_MODELS`).
-    params : dict of str to float or list of float
-        Every parameter of the model, in its registry units. A list has one entry per image band or,
-        with ``wavelengths``, one entry per wavelength.
-    wavelengths : list of float, optional
-        Strictly increasing wavelengths [nm] at which list-valued parameters are given.
-    material : str, optional
-        A built-in material (:mod:`brdfcorr.models.materials`) given instead of ``model`` and
-        ``params``: ``{id: 1, material: roof_tile}`` takes the material's model and its
-        band-independent parameters, and ``name`` defaults to the material's name. Kept on the
-        entry (library key) so that the correction can warn when the material's single-wavelength
-        fit is applied to far-away bands; a saved table writes the resolved ``model`` and ``params``
-        instead (:meth:`ParameterTable.to_dict`).
-    fit : FitRecord, optional
-        How the parameters were fitted and how well they are known (errors, covariance, chi-square
-        per degree of freedom, N, R^2, source), written by ``brdfcorr fit`` and ``fit-classes``.
-    bad_bands : list of [float, float], optional
-        Wavelength ranges [nm], ends included, where the class has no parameters (bad bands: water
-        vapour absorption, bands the ENVI header's ``bbl`` marks bad), written by ``fit-classes``
-        for the bands it left out of the fit. An image band whose centre lies in one is passed
-        through uncorrected and flagged ``band_uncorrected`` (:class:`brdfcorr.correction.QA`);
-        the class's ``wavelengths`` lie outside them and are interpolated across them as usual
-        for the other bands (:func:`brdfcorr.params_bands.band_values`).
-    """
-
-    id: Integer = Field(ge=1)
-    name: str = Field(min_length=1)
-    model: str
-    params: dict[str, ParameterValue]
-    wavelengths: list[Number] | None = None
-    material: str | None = None
-    fit: FitRecord | None = None
-    bad_bands: list[BandRange] | None = None
-
-    @property
-    def label(self) -> str:
-        """``"class 2 (grass)"``, the prefix of every message about this class."""
-        return class_label(self)
-
-    @property
-    def brdf_model(self) -> Model:
-        """The registered :class:`~brdfcorr.models.Model`."""
-        return get_model(self.model)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _resolve_material(cls, data: object) -> object:
-        # ``material: NAME`` stands for the material's model and parameters (and default name).
-        if not isinstance(data, Mapping) or data.get("material") is None:
-            return data
-        name = data["material"]
-        shown = data.get("name") or name
-        printable = isinstance(shown, str) and len(shown) <= 60 and shown.isprintable()
-        label = f"class {data.get('id', '?')} ({shown if printable else short_repr(shown, 60)})"
-        given = [key for key in ("model", "params", "wavelengths") if key in data]
-        if given:
-            raise ValueError(
-                f"{label}: 'material' replaces {', '.join(map(repr, given))}; give either 'material' "
-                "or 'model' and 'params'"
-            )
-        if not isinstance(name, str):
-            raise ValueError(f"{label}: material must be a name; built-in materials: {', '.join(material_names())}")
-        try:
-            material = load_material(name)
-        except UnknownNameError:
-            raise ValueError(
-                f"{label}: unknown material {short_repr(name)}; built-in materials: {', '.join(material_names())}"
-            ) from None
-        return {**data, "name": data.get("name") or material.name, "material": material.name,
-                "model": material.model.name, "params": dict(material.params)}
-
-    def wavelength_caveat(self, wavelengths: Sequence[float] | None) -> str | None:
-        """Why this class may not fit the image's bands, or None.
-
-        A library ``material`` is a fit at one wavelength (paper 003: 550 nm) applied unchanged to
-        every band; this says so when a band centre is more than
-        :data:`MATERIAL_WAVELENGTH_TOLERANCE` [nm] from it. None for other classes and for unknown
-        band wavelengths.
-        """
-        return material_caveat(self, wavelengths)
-
-    @model_validator(mode="after")
-    def _check(self) -> ClassEntry:
-        if self.model not in SURFACE_MODELS:
-            raise ValueError(
-                f"{self.label}: unknown surface model {short_repr(self.model)}; known: {', '.join(SURFACE_MODELS)}"
-            )
-        model = get_model(self.model)
-        if self.wavelengths is not None:
-            wavelengths = np.asarray(self.wavelengths, dtype=float)
-            if wavelengths.size == 0 or not np.all(np.isfinite(wavelengths)) or np.any(wavelengths <= 0):
-                raise ValueError(f"{self.label}: wavelengths must be finite and > 0 [nm]")
-            if np.any(np.diff(wavelengths) <= 0):
-                raise ValueError(f"{self.label}: wavelengths must be strictly increasing")
-        for name, value in self.params.items():
-            if isinstance(value, list):
-                if not value:
-                    raise ValueError(f"{self.label}: parameter {name} is an empty list")
-                if self.wavelengths is not None and len(value) != len(self.wavelengths):
-                    raise ValueError(
-                        f"{self.label}: parameter {name} has {len(value)} values but "
-                        f"{len(self.wavelengths)} wavelengths"
-                    )
-        lengths = {len(v) for v in self.params.values() if isinstance(v, list)}
-        if self.wavelengths is None and len(lengths) > 1:
-            raise ValueError(
-                f"{self.label}: per-band parameter lists differ in length ({sorted(lengths)}); "
-                "give one value per band for each, or add 'wavelengths'"
-            )
-        try:
-            model.validate({k: np.asarray(v, dtype=float) for k, v in self.params.items()})
-        except ParameterError as error:
-            raise ValueError(f"{self.label}: {error}") from None
-        if self.fit is not None:
-            self.fit.check_entry(self, model)
-        if self.bad_bands is not None:
-            check_bad_bands(self)
-        return self
-
-    def band_values(
-        self,
-        wavelengths: Sequence[float] | None = None,
-        n_bands: int | None = None,
-        extrapolate: bool = False,
-    ) -> dict[str, np.ndarray]:
-        """The parameters at the image's bands, one float64 array of shape (n_bands,) each.
-
-        Parameters
-        ----------
-        wavelengths : sequence of float, optional
-            Band-centre wavelengths of the image [nm]; needed when the entry has ``wavelengths``.
-        n_bands : int, optional
-            Number of image bands; defaults to ``len(wavelengths)``.
-        extrapolate : bool, default False
-            Allow band centres outside the entry's wavelength range; they take the edge value.
-
-        Raises
-        ------
-        ParameterError
-            Naming the class and parameter, when the values cannot be mapped to the bands.
-        """
-        return band_values(self, wavelengths, n_bands, extrapolate)
-
-    def band_covariance(
-        self,
-        wavelengths: Sequence[float] | None = None,
-        n_bands: int | None = None,
-        extrapolate: bool = False,
-    ) -> np.ndarray | None:
-        """The fit's covariance at the image's bands, shape (n_bands, p, p), or None without a fit.
-
-        Resolved as :meth:`band_values` resolves the parameters: matrices given per wavelength are
-        interpolated element-wise, linearly in wavelength (a convex combination of covariance
-        matrices, so still positive semi-definite), with the same edge-extrapolation rule; matrices
-        given per band are taken as they are; a single matrix applies to every band. Rows and
-        columns follow ``fit.parameters``.
-        """
-        return band_covariance(self, wavelengths, n_bands, extrapolate)
 
 
 class NdviInterpolation(StrictModel):

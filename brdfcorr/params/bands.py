@@ -10,13 +10,15 @@ the image bands in them without values (NaN, :attr:`BandParameters.no_parameters
 :meth:`~brdfcorr.params.ClassEntry.wavelength_caveat`,
 :meth:`brdfcorr.params.ParameterTable.for_bands` and
 :meth:`~brdfcorr.params.ParameterTable.to_xarray`; import the names from :mod:`brdfcorr.params`.
+They read a class through :class:`ClassFields`, the attributes of
+:class:`brdfcorr.params.ClassEntry` they use, so that this module imports no module above it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 import xarray as xr
@@ -26,11 +28,37 @@ from brdfcorr._validation import short_repr
 from brdfcorr.errors import ParameterError
 from brdfcorr.models import Model, get_model
 from brdfcorr.models.materials import load_material
+from brdfcorr.params.fit_record import EntryFields, FitRecord
 
-if TYPE_CHECKING:
-    from brdfcorr.params import ClassEntry
+__all__ = ["BandParameters", "ClassFields", "MATERIAL_WAVELENGTH_TOLERANCE", "in_ranges"]
 
-__all__ = ["BandParameters", "MATERIAL_WAVELENGTH_TOLERANCE", "in_ranges"]
+
+class ClassFields(EntryFields, Protocol):
+    """What the band resolution reads of a table class (:class:`brdfcorr.params.ClassEntry` has it)."""
+
+    @property
+    def id(self) -> int:
+        """Class id in the class map, >= 1."""
+
+    @property
+    def name(self) -> str:
+        """Human-readable class name."""
+
+    @property
+    def model(self) -> str:
+        """Registered surface model name."""
+
+    @property
+    def material(self) -> str | None:
+        """The built-in material the class was given as, or None."""
+
+    @property
+    def fit(self) -> FitRecord | None:
+        """The ``fit:`` record, or None."""
+
+    @property
+    def bad_bands(self) -> Sequence[Sequence[float]] | None:
+        """Wavelength ranges [nm], ends included, without parameters, or None."""
 
 #: Distance [nm] between a band centre and a library material's fit wavelength beyond which the
 #: correction warns (:meth:`ClassEntry.wavelength_caveat`).
@@ -70,14 +98,14 @@ class BandParameters:
     no_parameters: np.ndarray | None = None
 
 
-def class_label(entry: ClassEntry) -> str:
+def class_label(entry: ClassFields) -> str:
     """``"class 2 (grass)"``, the prefix of every message about a class (a long or unprintable
     name shortened)."""
     name = entry.name if len(entry.name) <= 60 and entry.name.isprintable() else short_repr(entry.name, 60)
     return f"class {entry.id} ({name})"
 
 
-def _band_count(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None) -> int:
+def _band_count(entry: ClassFields, wavelengths: Sequence[float] | None, n_bands: int | None) -> int:
     if n_bands is None:
         if wavelengths is None:
             raise ParameterError(f"{class_label(entry)}: give the image's wavelengths or number of bands")
@@ -95,7 +123,7 @@ def in_ranges(centres: Sequence[float], ranges: Sequence[Sequence[float]]) -> np
     return inside
 
 
-def check_bad_bands(entry: ClassEntry) -> None:
+def check_bad_bands(entry: ClassFields) -> None:
     """Raise ``ValueError`` (in a pydantic validator) unless each of ``entry.bad_bands`` is a finite
     range ``0 < low <= high`` [nm] that holds none of the class's own ``wavelengths``."""
     for low, high in entry.bad_bands or ():
@@ -109,7 +137,7 @@ def check_bad_bands(entry: ClassEntry) -> None:
                              "class has no parameters; leave it out of wavelengths and params, or out of bad_bands")
 
 
-def no_parameter_bands(entry: ClassEntry, wavelengths: Sequence[float] | None) -> np.ndarray | None:
+def no_parameter_bands(entry: ClassFields, wavelengths: Sequence[float] | None) -> np.ndarray | None:
     """Per image band, whether its centre lies in one of ``entry.bad_bands`` (None where none does)."""
     if not entry.bad_bands:
         return None
@@ -131,7 +159,7 @@ def _with_gaps(good_values: np.ndarray, bad: np.ndarray | None) -> np.ndarray:
     return values
 
 
-def band_values(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None,
+def band_values(entry: ClassFields, wavelengths: Sequence[float] | None, n_bands: int | None,
                 extrapolate: bool) -> dict[str, np.ndarray]:
     """The parameters of ``entry`` at the image's bands (:meth:`ClassEntry.band_values`); NaN in
     the bands of its ``bad_bands``, which are not interpolated (nor checked against the range of
@@ -168,7 +196,7 @@ def band_values(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands:
     return values
 
 
-def band_covariance(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None,
+def band_covariance(entry: ClassFields, wavelengths: Sequence[float] | None, n_bands: int | None,
                     extrapolate: bool) -> np.ndarray | None:
     """The ``fit:`` covariance of ``entry`` at the image's bands (:meth:`ClassEntry.band_covariance`)."""
     if entry.fit is None:
@@ -197,7 +225,7 @@ def band_covariance(entry: ClassEntry, wavelengths: Sequence[float] | None, n_ba
     return resolved
 
 
-def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Sequence[float] | None,
+def interpolate(entry: ClassFields, name: str, value: np.ndarray, wavelengths: Sequence[float] | None,
                 extrapolate: bool) -> np.ndarray:
     """``value`` (one number per wavelength of ``entry``) at the band centres ``wavelengths``."""
     if wavelengths is None:
@@ -219,7 +247,7 @@ def interpolate(entry: ClassEntry, name: str, value: np.ndarray, wavelengths: Se
     return np.interp(centres, table, value)  # holds the edge values outside the range
 
 
-def resolve_entry(entry: ClassEntry, wavelengths: Sequence[float] | None, n_bands: int | None,
+def resolve_entry(entry: ClassFields, wavelengths: Sequence[float] | None, n_bands: int | None,
                   extrapolate: bool) -> BandParameters:
     """``entry``'s model, parameters and covariance at the image's bands."""
     return BandParameters(
@@ -231,7 +259,7 @@ def resolve_entry(entry: ClassEntry, wavelengths: Sequence[float] | None, n_band
     )
 
 
-def material_caveat(entry: ClassEntry, wavelengths: Sequence[float] | None) -> str | None:
+def material_caveat(entry: ClassFields, wavelengths: Sequence[float] | None) -> str | None:
     """Why ``entry`` may not fit the image's bands, or None (:meth:`ClassEntry.wavelength_caveat`)."""
     if entry.material is None or wavelengths is None or len(wavelengths) == 0:
         return None

@@ -1,0 +1,211 @@
+"""The chunk-wise sums behind :func:`brdfcorr.analysis.view_angles.assess_view_angles`: per block
+of the before and after cubes, the sums of reflectance, signed view zenith and their products per
+class and band (:class:`_Sums`), by bin of view zenith, by side of nadir and by spatial block
+(:class:`_ClusterSums`, for the cluster-robust errors); dask adds the blocks' sums in a tree and
+computes them in one pass (:func:`_scene_sums`).
+"""
+
+from __future__ import annotations
+
+import operator
+from dataclasses import dataclass
+from typing import Literal
+
+import dask
+import dask.array as da
+import numpy as np
+
+from brdfcorr.analysis.signed_view import signed_view_zenith
+
+__all__: list[str] = []
+
+
+@dataclass
+class _Sums:
+    """Sums over valid pixels from which every statistic follows: K classes, B bands, 2 stages,
+    M bins of signed view zenith, 2 sides (negative, positive)."""
+
+    n: np.ndarray       # (K,) pixels
+    s: np.ndarray       # (K,) sum of the signed zenith [deg]
+    ss: np.ndarray      # (K,) sum of its square [deg^2]
+    r: np.ndarray       # (2, B, K) sum of reflectance
+    sr: np.ndarray      # (2, B, K) sum of signed zenith times reflectance
+    bin_n: np.ndarray   # (K, M)
+    bin_r: np.ndarray   # (2, B, K, M)
+    side_n: np.ndarray  # (K, 2)
+    side_r: np.ndarray  # (2, B, K, 2)
+    blocks: np.ndarray  # (K,) spatial blocks holding pixels of the class
+    moments: np.ndarray  # (2, B, K, 5, 5) sum over blocks of v v^T, v = (n, Σθ, Σθ², ΣR, ΣθR) of a block
+    blocks2: np.ndarray  # (K,) the same for blocks of twice the size
+    moments2: np.ndarray  # (2, B, K, 5, 5)
+    clusters: _ClusterSums  # v per (class, cluster id) of the cluster layer, added over the whole scene
+
+    def __add__(self, other: _Sums) -> _Sums:
+        return _Sums(*(getattr(self, name) + getattr(other, name) for name in self.__dataclass_fields__))
+
+
+@dataclass
+class _ClusterSums:
+    """Per (class index, cluster id) of a cluster layer (``keys``, (L, 2)) the sums v = (n, Σθ,
+    Σθ², ΣR, ΣθR) of each stage and band (``vectors``, (L, 2, B, 5)). A cluster may span dask
+    blocks, so the sums are added over the scene before their outer products are taken."""
+
+    keys: np.ndarray
+    vectors: np.ndarray
+
+    def __add__(self, other: _ClusterSums) -> _ClusterSums:
+        keys, member = np.unique(np.concatenate([self.keys, other.keys]), axis=0, return_inverse=True)
+        vectors = np.zeros((keys.shape[0], *self.vectors.shape[1:]))
+        np.add.at(vectors, member.reshape(-1), np.concatenate([self.vectors, other.vectors]))
+        return _ClusterSums(keys, vectors)
+
+
+def _class_index(classes: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Index of each pixel's class in ``ids`` (sorted), -1 for other values (0, nodata, NaN)."""
+    position = np.clip(np.searchsorted(ids, classes), 0, max(len(ids) - 1, 0))
+    found = (ids[position] == classes) if len(ids) else np.zeros(classes.shape, bool)
+    return np.where(found, position, -1)
+
+
+@dataclass(frozen=True, eq=False)
+class _SumOptions:
+    """How :func:`_block_sums` sums a block.
+
+    Attributes
+    ----------
+    ids : numpy.ndarray
+        The class ids assessed, sorted.
+    edges : numpy.ndarray
+        Edges of the bins of signed view zenith [deg], increasing.
+    by, heading :
+        The sign convention and the flight direction [deg] (:func:`signed_view_zenith`).
+    min_vza : float
+        The smallest |signed view zenith| [deg] that counts for a side of nadir.
+    flip_view_azimuth : bool
+        ``vaa`` is stored as seen from the sensor: add 180 deg.
+    block_size : int
+        Side [pixels] of the spatial blocks of the slope's cluster-robust error (within a chunk);
+        the sums are also taken over blocks of twice the size.
+    cluster_nodata : float, optional
+        The cluster layer's nodata value: pixels holding it (or a non-finite id) are left out.
+    """
+
+    ids: np.ndarray
+    edges: np.ndarray
+    by: Literal["sun", "track"]
+    heading: float | None
+    min_vza: float
+    flip_view_azimuth: bool
+    block_size: int
+    cluster_nodata: float | None = None
+
+
+def _spatial_blocks(valid: np.ndarray, k: np.ndarray, n_classes: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each valid pixel's (class, spatial block of ``size`` pixels) group, numbered 0..G-1 in
+    order, and the one-hot (G, K) matrix of the groups' classes."""
+    rows, columns = np.nonzero(valid)  # the order of boolean indexing
+    per_row = -(-valid.shape[1] // size)
+    cells = per_row * -(-valid.shape[0] // size)
+    labels, member = np.unique(k * cells + (rows // size) * per_row + columns // size, return_inverse=True)
+    owner = np.zeros((labels.size, n_classes))
+    owner[np.arange(labels.size), labels // cells] = 1.0
+    return member.reshape(-1), owner
+
+
+def _group_vectors(member: np.ndarray, size: int, s: np.ndarray, cubes) -> np.ndarray:
+    """(G, 2, B, 5): per group of ``member`` (0..size-1 per valid pixel) the sums v = (n, Σθ, Σθ²,
+    ΣR, ΣθR) of each stage's cube (B, valid pixels) and band."""
+    vectors = np.empty((size, 2, cubes[0].shape[0], 5))
+    for position, weights in enumerate((None, s, s * s)):
+        vectors[..., position] = np.bincount(member, weights=weights, minlength=size)[:, None, None]
+    for stage, cube in enumerate(cubes):
+        for band, values in enumerate(cube):
+            vectors[:, stage, band, 3] = np.bincount(member, weights=values, minlength=size)
+            vectors[:, stage, band, 4] = np.bincount(member, weights=s * values, minlength=size)
+    return vectors
+
+
+def _moments(vectors: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """(2, B, K, 5, 5): per class (``owner``, (G, K) one-hot) the sum over its groups of v vᵀ."""
+    return np.einsum("gk,gsbi,gsbj->sbkij", owner, vectors, vectors)
+
+
+def _cluster_sums(clusters: np.ndarray | None, k: np.ndarray, s: np.ndarray, cubes) -> _ClusterSums:
+    """:class:`_ClusterSums` of the valid pixels' cluster ids (empty without a layer)."""
+    if clusters is None:
+        return _ClusterSums(np.zeros((0, 2), np.int64), np.zeros((0, 2, cubes[0].shape[0], 5)))
+    keys, member = np.unique(np.stack([k, clusters.astype(np.int64)], axis=1), axis=0, return_inverse=True)
+    return _ClusterSums(keys, _group_vectors(member.reshape(-1), keys.shape[0], s, cubes))
+
+
+def _block_sums(before, after, classes, vza, vaa, saa, clusters, options: _SumOptions) -> _Sums:
+    """:class:`_Sums` of one block: cubes (band, y, x), layers (y, x), numpy."""
+    ids, edges, min_vza = options.ids, options.edges, options.min_vza
+    n_bands, n_classes, n_bins = before.shape[0], len(ids), len(edges) - 1
+    vaa = vaa + 180.0 if options.flip_view_azimuth else vaa
+    with np.errstate(invalid="ignore"):
+        signed = signed_view_zenith(vza.astype(np.float64), vaa, saa, by=options.by, heading=options.heading)
+        valid = (vza >= 0) & (vza < 90) & np.isfinite(signed)
+    valid &= np.isfinite(before).all(axis=0) & np.isfinite(after).all(axis=0)
+    if clusters is not None:
+        valid &= np.isfinite(clusters)
+        if options.cluster_nodata is not None:
+            valid &= clusters != options.cluster_nodata
+    index = _class_index(classes, ids)
+    valid &= index >= 0
+    k, s = index[valid], signed[valid]
+    cubes = (before[:, valid].astype(np.float64), after[:, valid].astype(np.float64))
+    bins = np.clip(np.searchsorted(edges, s, side="right") - 1, 0, n_bins - 1)  # the last edge closes the last bin
+    groups = k * n_bins + bins
+    outer = np.abs(s) >= max(min_vza, np.finfo(float).tiny)  # 0 (nadir, or perpendicular) is on neither side
+    sides = k[outer] * 2 + (s[outer] > 0)
+    # Sums per (class, spatial block) first: the class sums are theirs added, and their outer
+    # products give the slope's cluster-robust error (_cluster_error), at two block sizes.
+    member, owner = _spatial_blocks(valid, k, n_classes, options.block_size)
+    vectors = _group_vectors(member, owner.shape[0], s, cubes)
+    member2, owner2 = _spatial_blocks(valid, k, n_classes, 2 * options.block_size)
+    class_sums = np.einsum("gk,gsbi->sbki", owner, vectors)  # (2, B, K, 5)
+    sums = _Sums(
+        *(class_sums[0, 0, :, position] for position in range(3)), r=class_sums[..., 3], sr=class_sums[..., 4],
+        bin_n=np.bincount(groups, minlength=n_classes * n_bins).astype(np.float64).reshape(n_classes, n_bins),
+        bin_r=np.zeros((2, n_bands, n_classes, n_bins)),
+        side_n=np.bincount(sides, minlength=n_classes * 2).astype(np.float64).reshape(n_classes, 2),
+        side_r=np.zeros((2, n_bands, n_classes, 2)),
+        blocks=owner.sum(axis=0), moments=_moments(vectors, owner),
+        blocks2=owner2.sum(axis=0), moments2=_moments(_group_vectors(member2, owner2.shape[0], s, cubes), owner2),
+        clusters=_cluster_sums(None if clusters is None else clusters[valid], k, s, cubes),
+    )
+    for stage, cube in enumerate(cubes):
+        for band, values in enumerate(cube):
+            sums.bin_r[stage, band] = np.bincount(groups, weights=values,
+                                                  minlength=n_classes * n_bins).reshape(n_classes, n_bins)
+            sums.side_r[stage, band] = np.bincount(sides, weights=values[outer],
+                                                   minlength=n_classes * 2).reshape(n_classes, 2)
+    return sums
+
+
+def _tree_sum(parts: list):
+    """Add delayed partial sums pairwise (a tree: few partial results alive at once)."""
+    while len(parts) > 1:
+        parts = [dask.delayed(operator.add)(*parts[i:i + 2]) if i + 1 < len(parts) else parts[i]
+                 for i in range(0, len(parts), 2)]
+    return parts[0]
+
+
+def _scene_sums(arrays: list, options: _SumOptions, compute: dict) -> _Sums:
+    """:class:`_Sums` of whole arrays (before, after, classes, vza, vaa, saa, clusters): directly for numpy,
+    per dask block and added in a tree otherwise (one compute; every block read once)."""
+    if not any(isinstance(a, da.Array) for a in arrays):
+        return _block_sums(*(None if a is None else np.asarray(a) for a in arrays), options)
+    cube = next(a for a in arrays[:2] if isinstance(a, da.Array))
+    spatial = cube.chunks[1:]
+    cubes = [da.asarray(a).rechunk((-1, *spatial)).to_delayed()[0] for a in arrays[:2]]
+    layers = [None if a is None else da.asarray(a).rechunk(spatial).to_delayed() for a in arrays[2:]]
+    block = dask.delayed(_block_sums, pure=True)
+    parts = [
+        block(cubes[0][i, j], cubes[1][i, j], *(None if layer is None else layer[i, j] for layer in layers),
+              options)
+        for i in range(len(spatial[0])) for j in range(len(spatial[1]))
+    ]
+    (total,) = dask.compute(_tree_sum(parts), **compute)
+    return total
