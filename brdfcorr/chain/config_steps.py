@@ -17,12 +17,13 @@ from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
-from brdfcorr.defaults import AUTO_MODEL, DEFAULT_LIMITS, LEVELS, MAX_BLOCK_SIZE, MIN_BIN_WIDTH
+from brdfcorr.defaults import AUTO_MODEL, LEVELS, MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.coefficients import load_coefficients
+from brdfcorr.tasks.options import CORRECT, BrdfFrame, FactorAt, Topographic, Unknown
 
 __all__ = [
     "MeasurementSet",
@@ -212,7 +213,7 @@ class ImageryFit(StrictModel):
 
 
 class TerrainStep(StrictModel):
-    """Tilted surfaces in the correct step (:class:`brdfcorr.tasks.correct.Terrain`,
+    """Tilted surfaces in the correct step (:class:`brdfcorr.tasks.request.Terrain`,
     ``docs/terrain.md``); slope and aspect come from ``inputs.slope_aspect`` or ``inputs.dem``.
 
     Attributes
@@ -226,8 +227,8 @@ class TerrainStep(StrictModel):
         slope dependence).
     """
 
-    topographic: Literal["cosine", "c", "scs", "scs+c", "none"] = "cosine"
-    brdf_frame: Literal["surface", "horizontal"] = "surface"
+    topographic: Topographic = CORRECT.default("topographic")
+    brdf_frame: BrdfFrame = CORRECT.default("brdf_frame")
 
     @model_validator(mode="after")
     def _frame(self) -> TerrainStep:
@@ -238,7 +239,8 @@ class TerrainStep(StrictModel):
 
 
 class CorrectStep(StrictModel):
-    """The normalization step (:func:`brdfcorr.correction.correct_files` options).
+    """The normalization step (:func:`brdfcorr.tasks.correct.correct_files`); the words and defaults
+    are those of ``brdfcorr correct`` (:data:`brdfcorr.tasks.options.CORRECT`).
 
     Attributes
     ----------
@@ -261,11 +263,11 @@ class CorrectStep(StrictModel):
         surface.
     """
 
-    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = DEFAULT_LIMITS
-    unknown: Literal["keep", "nan"] = "keep"
-    extrapolate: bool = False
-    flip_view_azimuth: bool = False
-    factor_at: Literal["pixels", "nodes"] = "pixels"
+    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = CORRECT.default("limits")
+    unknown: Unknown = CORRECT.default("unknown")
+    extrapolate: bool = CORRECT.default("extrapolate")
+    flip_view_azimuth: bool = CORRECT.default("flip_view_azimuth")
+    factor_at: FactorAt = CORRECT.default("factor_at")
     qa: bool = True
     terrain: TerrainStep | None = None
 

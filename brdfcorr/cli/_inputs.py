@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from brdfcorr.cli._base import READER_OPTION
 from brdfcorr.defaults import MAX_BLOCK_SIZE
 from brdfcorr.io.sensors import ANGLE_KINDS
 
@@ -28,7 +29,7 @@ angle_source_options = _stack(
                  help="What --angles is: a 4-band GeoTIFF, an ENVI obs file (AVIRIS-NG/-3), a Sentinel-2 "
                       "MTD_TL.xml, a Landsat C2 angle band (…_SZA.TIF), a NEON AOP reflectance .h5, an "
                       "EMIT L1B OBS .nc or, for 'solar', a UTC time."),
-    click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE",
+    click.option("--angle-option", "angle_option", multiple=True, metavar="KEY=VALUE", type=READER_OPTION,
                  help="Option of the angle reader (repeatable), e.g. band=B04, resolution=20, "
                       "ang=LC08_..._ANG.txt."),
 )

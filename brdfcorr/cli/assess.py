@@ -10,12 +10,12 @@ import click
 
 from brdfcorr.cli._base import (
     CHUNK_SIZE,
+    CLASS_MODEL,
+    CLASS_NAME,
     MODEL_CHOICE,
+    NAME_VALUE,
     PROGRESS,
-    _assignments,
     _format_table,
-    _options,
-    _pairs,
     handle_errors,
     main,
     progress_bars,
@@ -71,7 +71,7 @@ def _number(value: float | None) -> str:
 @click.option("--overlap", nargs=2, type=click.Path(dir_okay=False, path_type=Path),
               metavar="OTHER_BEFORE OTHER_AFTER",
               help="Another line's input and corrected image: compare the two lines where they overlap.")
-@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME",
+@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME", type=CLASS_NAME,
               help="Name of a class in the report and figures (repeatable), e.g. 1=roof_tile.")
 @click.option("--sign-by", type=click.Choice(["sun", "track"]), default="sun", show_default=True,
               help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
@@ -133,11 +133,11 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     with progress_bars(progress, "assess"):  # every pass, from the first (the angle check)
         assessment = assess_files(
             SceneSources(before, classes, angles, angles_kind=angles_kind,
-                         angle_options=_options("--angle-option", angle_option), scale=scale, offset=offset),
+                         angle_options=dict(angle_option), scale=scale, offset=offset),
             after, overlap=tuple(overlap) if overlap else None, resampling=resampling,
             clusters=None if cluster_layer is None else (cluster_layer, cluster_band),
             view_options=ViewAngleOptions(by=sign_by, heading=heading,
-                                          class_names=_pairs("--class-name", class_names), bin_width=bin_width,
+                                          class_names=dict(class_names), bin_width=bin_width,
                                           min_vza=min_vza, flip_view_azimuth=flip_view_azimuth,
                                           block_size=block_size),
             align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
@@ -198,10 +198,12 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @scale_options
 @click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
               help="Model fitted for every class (see `brdfcorr models`).")
-@click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
-@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME",
+@click.option("--class-model", multiple=True, metavar="ID=MODEL", type=CLASS_MODEL,
+              help="Model of one class (repeatable).")
+@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME", type=CLASS_NAME,
               help="Name of a class in the fit and the report (repeatable), e.g. 1=roof_tile.")
-@click.option("--fix", multiple=True, metavar="NAME=VALUE", help="Hold a shape parameter fixed in the fits.")
+@click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
+              help="Hold a shape parameter fixed in the fits.")
 @prior_options
 @click.option("--max-samples", type=int, default=50_000, show_default=True,
               help="Samples per class, over the training lines.")
@@ -254,14 +256,14 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     if not overwrite:
         refuse_existing([output])
     sza = reference_sza(ref_sza)
-    options = _options("--angle-option", angle_option)
+    options = dict(angle_option)
     assessment = leave_one_line_out_files(
         [SceneSources(image, class_map, angle_source, angles_kind=angles_kind, angle_options=options, scale=scale,
                       offset=offset) for image, class_map, angle_source in zip(images, classes, angles)],
-        HoldoutFit(model_name, class_models=_pairs("--class-model", class_model),
-                   fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed,
+        HoldoutFit(model_name, class_models=dict(class_model),
+                   fixed=dict(fix) or None, max_samples=max_samples, seed=seed,
                    reference={"sza": "mean" if sza is None else sza, "vza": 0.0}, prior=shape_prior),
-        view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
+        view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=dict(class_names),
                                       flip_view_azimuth=flip_view_azimuth, block_size=block_size),
         align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None, chunks=chunk,
         clusters=[(path, cluster_band) for path in cluster_layers] or None,

@@ -9,12 +9,13 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import (
+    CLASS_MODEL,
+    CLASS_NAME,
     FIT_MODEL_CHOICE,
+    NAME_RANGE,
+    NAME_VALUE,
     PROGRESS,
-    _assignments,
     _format_table,
-    _options,
-    _pairs,
     _save_figure,
     class_bar,
     handle_errors,
@@ -71,11 +72,13 @@ class _BandRange(click.ParamType):
               help="Model for every class (see `brdfcorr models`), or auto: per class the candidate with the lowest "
                    "held-out error over spatial blocks [default: ross_thick_li_sparse on an NDVI strata map "
                    "(brdfcorr classes ndvi), else torrance_sparrow].")
-@click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class, or auto (repeatable).")
-@click.option("--class-name", "names", multiple=True, metavar="ID=NAME",
+@click.option("--class-model", multiple=True, metavar="ID=MODEL", type=CLASS_MODEL,
+              help="Model of one class, or auto (repeatable).")
+@click.option("--class-name", "names", multiple=True, metavar="ID=NAME", type=CLASS_NAME,
               help="Name of a class (repeatable) [default: the class map's class_names tag, else class_ID].")
-@click.option("--name", "deprecated_names", multiple=True, hidden=True)  # brdfcorr <= 0.3; says so when used
-@click.option("--fix", multiple=True, metavar="NAME=VALUE",
+# --name: brdfcorr <= 0.3; says so when used
+@click.option("--name", "deprecated_names", multiple=True, hidden=True, type=CLASS_NAME)
+@click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
               help="Hold a shape parameter fixed [default: k=0.25 for TS].")
 @click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
@@ -144,10 +147,10 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         fallback_entry(fallback, 1, "check")  # fail before the work if the name is wrong
     shape_prior = prior_setting(prior, prior_spread)
     lookup = read_lookup(class_lookup) if class_lookup else None
-    options = _options("--angle-option", angle_option)
+    options = dict(angle_option)
     if deprecated_names:
         click.echo("brdfcorr: warning: --name is deprecated; use --class-name ID=NAME", err=True)
-    class_names = {**_pairs("--name", deprecated_names), **_pairs("--class-name", names)}
+    class_names = {**dict(deprecated_names), **dict(names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
     # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes fitted.
     with progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
@@ -155,8 +158,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
             [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
                         class_lookup=lookup, scale=scale, offset=offset)
              for image, angle_source, class_map in zip(images, angles, classes)],
-            ClassModels(model_name, class_models=_pairs("--class-model", class_model),
-                        fixed=_assignments("--fix", fix) or None, fallback=fallback, names=class_names,
+            ClassModels(model_name, class_models=dict(class_model),
+                        fixed=dict(fix) or None, fallback=fallback, names=class_names,
                         prior=shape_prior),
             sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
                               levels=levels, patch_size=patch_size),
@@ -265,10 +268,11 @@ def _write_json(target: Path, content: dict) -> None:
               help="Registered surface model to fit (see `brdfcorr models`), or auto: the candidate with the lowest "
                    "5-fold cross-validated error over the geometries (a more complex one only where it wins by more "
                    "than the folds' spread).")
-@click.option("--fix", multiple=True, metavar="NAME=VALUE",
+@click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
               help="Hold a parameter fixed (repeatable); paper 003 uses --fix k=0.25.")
-@click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", help="Starting value of a parameter.")
-@click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW:HIGH",
+@click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
+              help="Starting value of a parameter.")
+@click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW:HIGH", type=NAME_RANGE,
               help="Narrower bounds for a parameter (within its physical range).")
 @click.option("--min-phi", type=float, help="Fit only relative azimuths >= this [deg] (paper 003: 90).")
 @click.option("--max-phi", type=float, help="Fit only relative azimuths <= this [deg].")
@@ -303,8 +307,8 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     target = update_target(output, overwrite, inputs={"MEASUREMENTS": measurements}) if output is not None else None
     table = ParameterTable.load(target) if target is not None and target.exists() else None
     fit = fit_measurement_file(
-        measurements, model_name, fixed=_assignments("--fix", fix), initial=_assignments("--init", initial),
-        bounds=_assignments("--bound", bounds, ranges=True), min_phi=min_phi, max_phi=max_phi,
+        measurements, model_name, fixed=dict(fix), initial=dict(initial),
+        bounds=dict(bounds), min_phi=min_phi, max_phi=max_phi,
         max_zenith=max_zenith, wavelength=wavelength,
     )
     for message in fit.warnings:
