@@ -85,5 +85,8 @@ UNKNOWN_PIXELS: tuple[str, ...] = ("keep", "nan")
 #: Where a correction evaluates its factor: at every pixel, or at the nodes of a sensor's coarse
 #: angle grid, interpolated to the pixels (:mod:`brdfcorr.correction.nodes`).
 FACTOR_AT: tuple[str, ...] = ("pixels", "nodes")
+#: Signs of the view zenith of an assessment (:func:`brdfcorr.analysis.view_angles.signed_view_zenith`):
+#: positive towards forward scattering (``sun``) or right of the flight direction (``track``).
+SIGN_CONVENTIONS: tuple[str, ...] = ("sun", "track")
 #: The reference sun zenith's words besides a number [deg] (:class:`brdfcorr.params.ReferenceGeometry`).
 REFERENCE_SZA_WORDS: tuple[str, ...] = ("mean", "observed", "hls")

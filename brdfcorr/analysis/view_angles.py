@@ -26,7 +26,7 @@ import xarray as xr
 
 from brdfcorr._arrays import cosd, sind
 from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
-from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
+from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH, SIGN_CONVENTIONS
 from brdfcorr.errors import BrdfcorrWarning, InputError
 
 __all__ = ["SIGN_CONVENTIONS", "GROWTH_LIMIT", "signed_view_zenith", "ViewAngleOptions", "assess_view_angles",
@@ -38,8 +38,8 @@ __all__ = ["SIGN_CONVENTIONS", "GROWTH_LIMIT", "signed_view_zenith", "ViewAngleO
 #: how often it passes 1.25 by chance and how often correlated errors pass it).
 GROWTH_LIMIT = 1.25
 
-#: How the sign of the view zenith is chosen (:func:`signed_view_zenith`).
-SIGN_CONVENTIONS = ("sun", "track")
+# SIGN_CONVENTIONS, how the sign of the view zenith is chosen (:func:`signed_view_zenith`), is
+# brdfcorr.defaults' (the command line's words too).
 _SIGN_WORDS = {
     "sun": ("forward scattering: relative azimuth > 90 deg, the sensor opposite the sun",
             "backscattering: relative azimuth < 90 deg, the sensor on the sun's side"),

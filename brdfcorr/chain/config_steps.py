@@ -17,13 +17,23 @@ from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
-from brdfcorr.defaults import AUTO_MODEL, LEVELS, MAX_BLOCK_SIZE, MIN_BIN_WIDTH
+from brdfcorr.defaults import AUTO_MODEL, LEVELS
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.coefficients import load_coefficients
-from brdfcorr.tasks.options import CORRECT, BrdfFrame, FactorAt, Topographic, Unknown
+from brdfcorr.tasks.options import (
+    ASSESS,
+    CORRECT,
+    FIT_CLASSES,
+    SIGN_BY,
+    BrdfFrame,
+    FactorAt,
+    Settings,
+    Topographic,
+    Unknown,
+)
 
 __all__ = [
     "MeasurementSet",
@@ -42,6 +52,15 @@ SurfaceModel = Literal[SURFACE_MODELS]  # type: ignore[valid-type]
 FitModel = Literal[(*SURFACE_MODELS, AUTO_MODEL)]  # type: ignore[valid-type]
 #: Whose brightness level an imagery fit leaves free (:data:`brdfcorr.defaults.LEVELS`).
 FitLevels = Literal[LEVELS]  # type: ignore[valid-type]
+#: Sign of the view zenith of an assessment (:data:`brdfcorr.tasks.options.SIGN_BY`).
+SignBy = Literal[SIGN_BY]  # type: ignore[valid-type]
+
+
+def _from(table: Settings, name: str, **chain: Any) -> Any:
+    """A field with the default and bounds of the setting ``name`` of a command's ``table``
+    (:mod:`brdfcorr.tasks.options`: the command line's), and the chain's own bounds ``chain`` over them."""
+    setting = table[name]
+    return Field(setting.default, **{**setting.bounds(), **chain})
 
 
 class MeasurementSet(StrictModel):
@@ -143,21 +162,21 @@ class ImageryFit(StrictModel):
     class_models: dict[PositiveInteger, FitModel] = Field(default_factory=dict)
     names: dict[PositiveInteger, str] = Field(default_factory=dict)
     fixed: dict[str, Number] | None = None
-    max_samples: Integer = Field(Sampling.max_samples, ge=10)
-    seed: Integer = Sampling.seed
-    block_size: Integer = Field(Sampling.block_size, ge=1)
-    levels: FitLevels = "auto"
-    patch_size: Integer = Field(Sampling.patch_size, ge=1)
+    max_samples: Integer = _from(FIT_CLASSES, "max_samples", ge=10)
+    seed: Integer = _from(FIT_CLASSES, "seed")
+    block_size: Integer = _from(FIT_CLASSES, "block_size")
+    levels: FitLevels = _from(FIT_CLASSES, "levels")
+    patch_size: Integer = _from(FIT_CLASSES, "patch_size")
     reflectance_scale: Number = Field(1.0, gt=0)
-    min_samples: Integer = Field(GuardRails.min_samples, ge=1)
-    min_vza_spread: Number = Field(GuardRails.min_vza_spread, ge=0)
-    max_condition: Number = Field(GuardRails.max_condition, ge=1, allow_inf_nan=False)
+    min_samples: Integer = _from(FIT_CLASSES, "min_samples", ge=1)
+    min_vza_spread: Number = _from(FIT_CLASSES, "min_vza_spread", ge=0)
+    max_condition: Number = _from(FIT_CLASSES, "max_condition", allow_inf_nan=False)
     bad_bands: list[tuple[Number, Number]] = Field(
         default_factory=lambda: [tuple(band_range) for band_range in WATER_VAPOUR_BANDS])
     fallback: str | None = None
     allow_uncorrected: bool = False
     prior: str | None = None
-    prior_spread: Number | None = Field(None, gt=0, allow_inf_nan=False)
+    prior_spread: Number | None = _from(FIT_CLASSES, "prior_spread", allow_inf_nan=False)
     output: str = "fitted_params.yaml"
 
     @field_validator("prior")
@@ -227,8 +246,8 @@ class TerrainStep(StrictModel):
         slope dependence).
     """
 
-    topographic: Topographic = CORRECT.default("topographic")
-    brdf_frame: BrdfFrame = CORRECT.default("brdf_frame")
+    topographic: Topographic = _from(CORRECT, "topographic")
+    brdf_frame: BrdfFrame = _from(CORRECT, "brdf_frame")
 
     @model_validator(mode="after")
     def _frame(self) -> TerrainStep:
@@ -263,11 +282,11 @@ class CorrectStep(StrictModel):
         surface.
     """
 
-    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = CORRECT.default("limits")
-    unknown: Unknown = CORRECT.default("unknown")
-    extrapolate: bool = CORRECT.default("extrapolate")
-    flip_view_azimuth: bool = CORRECT.default("flip_view_azimuth")
-    factor_at: FactorAt = CORRECT.default("factor_at")
+    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = _from(CORRECT, "limits")
+    unknown: Unknown = _from(CORRECT, "unknown")
+    extrapolate: bool = _from(CORRECT, "extrapolate")
+    flip_view_azimuth: bool = _from(CORRECT, "flip_view_azimuth")
+    factor_at: FactorAt = _from(CORRECT, "factor_at")
     qa: bool = True
     terrain: TerrainStep | None = None
 
@@ -300,11 +319,11 @@ class AssessStep(StrictModel):
         Side [pixels] of the spatial blocks the slopes' 1-sigma is cluster-robust over.
     """
 
-    sign_by: Literal["sun", "track"] = "sun"
-    heading: Number | None = Field(None, ge=0, lt=360, allow_inf_nan=False)
-    bin_width: Number = Field(2.0, ge=MIN_BIN_WIDTH, le=45)
-    min_vza: Number = Field(0.0, ge=0, lt=90)
-    block_size: Integer = Field(32, ge=1, le=MAX_BLOCK_SIZE)
+    sign_by: SignBy = _from(ASSESS, "sign_by")
+    heading: Number | None = _from(ASSESS, "heading", ge=0, lt=360, allow_inf_nan=False)
+    bin_width: Number = _from(ASSESS, "bin_width", le=45)
+    min_vza: Number = _from(ASSESS, "min_vza")
+    block_size: Integer = _from(ASSESS, "block_size")
 
     @model_validator(mode="after")
     def _heading(self) -> AssessStep:

@@ -14,7 +14,16 @@ from typing import Any
 
 import click
 
-from brdfcorr.cli._base import CHUNK_SIZE, CLASS_MODEL, CLASS_NAME, NAME_VALUE, READER_OPTION
+from brdfcorr.cli._base import (
+    CHUNK_SIZE,
+    CLASS_MODEL,
+    CLASS_NAME,
+    FIT_MODEL_CHOICE,
+    MODEL_CHOICE,
+    NAME_RANGE,
+    NAME_VALUE,
+    READER_OPTION,
+)
 from brdfcorr.tasks.options import Setting, Settings
 
 __all__ = ["CUSTOM_TYPES", "setting_options", "click_option"]
@@ -26,6 +35,9 @@ CUSTOM_TYPES: dict[str, click.ParamType] = {
     "class_name": CLASS_NAME,
     "class_model": CLASS_MODEL,
     "name_value": NAME_VALUE,
+    "name_range": NAME_RANGE,
+    "model": MODEL_CHOICE,
+    "fit_model": FIT_MODEL_CHOICE,
 }
 
 
@@ -46,6 +58,8 @@ def _click_type(setting: Setting, custom: dict[str, click.ParamType]) -> click.P
     """The click type of ``setting`` (None for text and flags)."""
     if setting.kind == "path":
         return click.Path(dir_okay=False, path_type=Path)
+    if setting.kind == "dir":
+        return click.Path(file_okay=False, path_type=Path)
     if setting.kind in ("float", "int"):
         return _number_type(setting)
     if setting.kind == "choice":
@@ -69,7 +83,7 @@ def click_option(setting: Setting, custom: dict[str, click.ParamType] | None = N
         keywords["default"] = setting.default
     given = {"nargs": setting.nargs != 1, "multiple": setting.multiple, "required": setting.required,
              "show_default": setting.show_default, "metavar": setting.metavar is not None,
-             "envvar": setting.envvar is not None}
+             "envvar": setting.envvar is not None, "hidden": setting.hidden}
     for key, wanted in given.items():
         if wanted:
             keywords[key] = getattr(setting, key)

@@ -14,7 +14,6 @@ from brdfcorr.cli._base import (
     CLASS_NAME,
     MODEL_CHOICE,
     NAME_VALUE,
-    PROGRESS,
     _format_table,
     handle_errors,
     main,
@@ -29,8 +28,9 @@ from brdfcorr.cli._inputs import (
     scale_options,
     slope_block_option,
 )
-from brdfcorr.defaults import MIN_BIN_WIDTH
+from brdfcorr.cli._settings import click_option, setting_options
 from brdfcorr.io.paths import check_outputs, refuse_existing
+from brdfcorr.tasks.options import ASSESS
 
 
 def _summary_rows(report: dict) -> list[dict[str, str]]:
@@ -60,46 +60,7 @@ def _number(value: float | None) -> str:
 @main.command("assess")
 @click.argument("before", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("after", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--classes", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Class map raster of BEFORE (ids > 0; 0 = no class).")
-@class_map_options
-@click.option("--angles", required=True,
-              help="Angle source of BEFORE: a 4-band raster of sza, saa, vza, vaa [deg] on its grid, or what "
-                   "--angles-kind names.")
-@angle_source_options
-@scale_options
-@click.option("--overlap", nargs=2, type=click.Path(dir_okay=False, path_type=Path),
-              metavar="OTHER_BEFORE OTHER_AFTER",
-              help="Another line's input and corrected image: compare the two lines where they overlap.")
-@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME", type=CLASS_NAME,
-              help="Name of a class in the report and figures (repeatable), e.g. 1=roof_tile.")
-@click.option("--sign-by", type=click.Choice(["sun", "track"]), default="sun", show_default=True,
-              help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
-                   "(track, with --heading).")
-@click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
-@click.option("--bin-width", type=click.FloatRange(min=MIN_BIN_WIDTH, max=90), default=2.0, show_default=True,
-              help="Bin width of the across-track profiles [deg of signed view zenith].")
-@click.option("--min-vza", type=click.FloatRange(min=0, max=90, max_open=True), default=0.0, show_default=True,
-              help="The side ratio compares pixels at least this far from nadir [deg].")
-@click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
-@slope_block_option
-@click.option("--clusters", "cluster_layer", type=click.Path(dir_okay=False, path_type=Path),
-              help="Raster on BEFORE's grid of integer ids of the units whose pixels share their errors (a "
-                   "composite's day-of-year band, a flight-line id): the slopes' 1-sigma is cluster-robust over "
-                   "these instead of square blocks.")
-@click.option("--cluster-band", type=click.IntRange(min=1), default=1, show_default=True,
-              help="The band of --clusters that holds the ids.")
-@click.option("--resampling", default="nearest", show_default=True,
-              help="Resampling of the other line onto this line's grid (rasterio name).")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="JSON report to write.")
-@click.option("--figures", "figures_dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Directory for the PNG figures (assess_profiles.png, assess_overlap.png).")
-@click.option("--chunk", type=CHUNK_SIZE,
-              help="Chunk size [pixels], a multiple of 16 [default: a multiple of the input's tiles, about 16 MiB "
-                   "of all bands].")
-@click.option("--overwrite", is_flag=True, help="Replace existing outputs [default: refuse].")
-@PROGRESS
+@setting_options(ASSESS)
 @handle_errors
 def assess_command(before, after, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                    offset, overlap, class_names, sign_by, heading, bin_width, min_vza, flip_view_azimuth,
@@ -210,10 +171,8 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
 @click.option("--ref-sza", help="Reference sun zenith [deg], 'mean', 'observed' or 'hls' [default: mean]; the view is "
                                 "normalized to nadir.")
-@click.option("--sign-by", type=click.Choice(["sun", "track"]), default="sun", show_default=True,
-              help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
-                   "(track, with --heading).")
-@click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
+@click_option(ASSESS["sign_by"])
+@click_option(ASSESS["heading"])
 @click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
 @slope_block_option
 @click.option("--clusters", "cluster_layers", multiple=True, type=click.Path(dir_okay=False, path_type=Path),

@@ -9,12 +9,9 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import (
-    CLASS_MODEL,
-    CLASS_NAME,
     FIT_MODEL_CHOICE,
     NAME_RANGE,
     NAME_VALUE,
-    PROGRESS,
     _format_table,
     _save_figure,
     class_bar,
@@ -23,16 +20,13 @@ from brdfcorr.cli._base import (
     progress_bars,
 )
 from brdfcorr.cli._inputs import (
-    angle_source_options,
-    class_map_options,
-    prior_options,
     prior_setting,
-    scale_options,
 )
-from brdfcorr.defaults import LEVELS
+from brdfcorr.cli._settings import setting_options
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.paths import check_outputs, refuse_existing, update_target
+from brdfcorr.tasks.options import FIT_CLASSES
 
 # The library (scipy, dask, rasterio, matplotlib) is imported when a command runs, not when its
 # options are parsed: --help and argument errors answer at once. --model is checked against the
@@ -61,61 +55,7 @@ class _BandRange(click.ParamType):
 
 @main.command("fit-classes")
 @click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--angles", multiple=True, required=True,
-              help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa "
-                   "[deg]) or what --angles-kind names.")
-@angle_source_options
-@click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Class map per image, in the images' order.")
-@class_map_options
-@click.option("--model", "model_name", type=FIT_MODEL_CHOICE,
-              help="Model for every class (see `brdfcorr models`), or auto: per class the candidate with the lowest "
-                   "held-out error over spatial blocks [default: ross_thick_li_sparse on an NDVI strata map "
-                   "(brdfcorr classes ndvi), else torrance_sparrow].")
-@click.option("--class-model", multiple=True, metavar="ID=MODEL", type=CLASS_MODEL,
-              help="Model of one class, or auto (repeatable).")
-@click.option("--class-name", "names", multiple=True, metavar="ID=NAME", type=CLASS_NAME,
-              help="Name of a class (repeatable) [default: the class map's class_names tag, else class_ID].")
-# --name: brdfcorr <= 0.3; says so when used
-@click.option("--name", "deprecated_names", multiple=True, hidden=True, type=CLASS_NAME)
-@click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
-              help="Hold a shape parameter fixed [default: k=0.25 for TS].")
-@click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
-@click.option("--block-size", type=click.IntRange(min=1), default=32, show_default=True,
-              help="Side [pixels] of the spatial blocks the fit's errors are cluster-robust over: smaller for "
-                   "coarse pixels or small images (errors from few blocks are flagged UNRELIABLE).")
-@click.option("--levels", type=click.Choice(LEVELS), default="auto", show_default=True,
-              help="Whose brightness level is free: auto frees each pixel's where several images share one grid "
-                   "(the shape is fitted to each pixel's own views, so land-cover differences between pixels never "
-                   "enter it) and pools a single image; patch frees each --patch-size square's (a composite, "
-                   "whose neighbours were seen from other orbits); pooled: one level per class.")
-@click.option("--patch-size", type=click.IntRange(min=1), default=8, show_default=True,
-              help="Side [pixels] of the patches of --levels patch (a divisor of --block-size).")
-@scale_options
-@click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
-@click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
-              help="Guard rail: minimum 5-95 % view zenith spread [deg] (with free levels: the spread of the "
-                   "geometry within each pixel or patch).")
-@click.option("--max-condition", type=click.FloatRange(min=1.0), default=1000.0, show_default=True,
-              help="Guard rail: maximum condition number of the linear design (above it the geometry does not "
-                   "separate the model's terms).")
-@click.option("--bad-bands", "bad_bands", multiple=True, type=_BandRange(),
-              help="Wavelength range [nm] left out of the fit (repeatable; `none`: no range); bands the ENVI "
-                   "header's bbl marks bad are left out too. They get no parameters and `correct` passes them "
-                   "through uncorrected [default: the water-vapour bands 1340:1450 and 1800:1960].")
-@click.option("--fallback",
-              help="Built-in material (brdfcorr materials) or coefficient set (brdfcorr coefficients: roy2016, "
-                   "roy2017) for classes that fail the guard rails [default: leave uncorrected].")
-@prior_options
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Parameter table to write (YAML).")
-@click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Fit report to write (JSON).")
-@click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Directory for one PNG per class (observed vs modelled against view zenith).")
-@click.option("--overwrite", is_flag=True, help="Replace an existing table (-o) and report [default: refuse].")
-@PROGRESS
+@setting_options(FIT_CLASSES, {"band_range": _BandRange()})
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,

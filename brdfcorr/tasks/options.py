@@ -22,23 +22,32 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from brdfcorr.defaults import (
+    AUTO_MODEL,
     BRDF_FRAMES,
     DEFAULT_LIMITS,
     FACTOR_AT,
+    LEVELS,
+    MAX_BLOCK_SIZE,
+    MIN_BIN_WIDTH,
     REFERENCE_SZA_WORDS,
+    SIGN_CONVENTIONS,
     TOPOGRAPHIC_METHODS,
     UNKNOWN_PIXELS,
 )
 from brdfcorr.io import FORMATS
 from brdfcorr.io.sensors import ANGLE_KINDS
 
-__all__ = ["Setting", "Settings", "ANGLE_SOURCE", "CLASS_MAP", "SCALE", "CORRECT", "OUTPUT_TYPES", "INTERLEAVES",
+__all__ = ["Setting", "Settings", "ANGLE_SOURCE", "CLASS_MAP", "SCALE", "PRIOR", "SLOPE_BLOCK", "CORRECT",
+           "FIT_CLASSES", "ASSESS", "NBAR", "OUTPUT_TYPES", "INTERLEAVES", "SIGN_BY",
            "Unknown", "FactorAt", "Topographic", "BrdfFrame"]
 
 #: Kinds of setting: a text, a file path (no folder), a number, an integer, a flag (off unless
 #: given), an on/off switch (``--x/--no-x``, default None: decided later), a word of ``choices``,
 #: or a type the command line names itself (``cli_type``).
-Kind = Literal["text", "path", "float", "int", "flag", "switch", "choice", "custom"]
+Kind = Literal["text", "path", "dir", "float", "int", "flag", "switch", "choice", "custom"]
+
+#: Signs of the view zenith of an assessment (:data:`brdfcorr.defaults.SIGN_CONVENTIONS`).
+SIGN_BY: tuple[str, ...] = SIGN_CONVENTIONS
 
 #: Type aliases of the words (for annotations; the words are the tuples of :mod:`brdfcorr.defaults`).
 Unknown = Literal[UNKNOWN_PIXELS]  # type: ignore[valid-type]
@@ -63,7 +72,7 @@ class Setting:
     flags : tuple of str
         Command-line flags, e.g. ``("-o", "--output")`` or ``("--progress/--no-progress",)``.
     kind : str
-        :data:`Kind`: how a value is read.
+        :data:`Kind`: how a value is read (``"dir"``: a folder path).
     help : str
         Help text, as ``--help`` shows it (units in brackets, ``[default: ...]`` where it is not shown).
     default : object, optional
@@ -83,6 +92,8 @@ class Setting:
     cli_type : str, optional
         Name of a command-line type (``"chunk"``, ``"material"``, ``"reader_option"``, ...) of a
         ``"custom"`` setting: :data:`brdfcorr.cli._settings.CUSTOM_TYPES`.
+    hidden : bool
+        Left out of ``--help`` (a deprecated spelling).
     given_only : bool
         The command line passes None where the option is not given (its ``default`` is applied
         later, after checking what it goes with; ``--help`` says ``[default: ...]``).
@@ -106,6 +117,7 @@ class Setting:
     metavar: str | None = None
     envvar: str | None = None
     cli_type: str | None = None
+    hidden: bool = False
     given_only: bool = False
 
     def bounds(self) -> dict[str, float]:
@@ -187,6 +199,38 @@ SCALE = (
                  "image's GDAL offset, else 0]."),
 )
 
+#: ``--prior`` and ``--prior-spread``: a coefficient set's kernel shape as the prior of a fit.
+PRIOR = (
+    Setting("prior", ("--prior",), "text", metavar="SET",
+            help="Built-in coefficient set (brdfcorr coefficients: roy2016, roy2017) whose kernel shape "
+                 "(f_vol/f_iso, f_geo/f_iso) is a prior of the fitted ross_thick_li_sparse classes: each "
+                 "band's weights become their posterior (docs/parameter-tables.md) [default: none]."),
+    Setting("prior_spread", ("--prior-spread",), "float", gt=0.0,
+            help="With --prior: its 1-sigma of either ratio; smaller trusts the prior more [default: 0.2]."),
+)
+
+#: ``--block-size`` of ``assess`` and ``assess-lines``: the blocks of the slopes' 1-sigma.
+SLOPE_BLOCK = (
+    Setting("block_size", ("--block-size",), "int", ge=1, le=MAX_BLOCK_SIZE, default=32, show_default=True,
+            help="Side [pixels] of the square blocks the slopes' 1-sigma is cluster-robust over (pixels of a block "
+                 "may share their errors: a field, a roof); the 1-sigma over blocks twice as large is reported too, "
+                 "with a warning where it is more than 1.25x larger (errors correlated beyond the blocks)."),
+)
+
+_OVERWRITE_OUTPUTS = _flag("overwrite", "--overwrite", "Replace existing outputs (-o, --qa) [default: refuse].")
+_PROGRESS = Setting("progress", ("--progress/--no-progress",), "switch", help="Progress bar [default: on a terminal].")
+_COMPRESS = Setting("compress", ("--compress",), "text", default="deflate", show_default=True, help="GDAL compression.")
+_COG = _flag("cog", "--cog", "Write Cloud-Optimized GeoTIFFs.")
+_QA = _path("qa_path", "--qa", "Also write the QA flags (uint8) to this GeoTIFF.")
+_SIGN_BY = Setting("sign_by", ("--sign-by",), "choice", choices=SIGN_BY, default="sun", show_default=True,
+                   help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
+                        "(track, with --heading).")
+_HEADING = Setting("heading", ("--heading",), "float", help="Flight direction [deg from north] for --sign-by track.")
+_CLUSTER_BAND = "The band of {} that holds the ids."
+_ASSESS_CHUNK = Setting("chunk", ("--chunk",), "custom", cli_type="chunk",
+                        help="Chunk size [pixels], a multiple of 16 [default: a multiple of the input's tiles, about "
+                             "16 MiB of all bands].")
+
 _ANGLE_RASTERS = tuple(
     _path(name, f"--{name}", f"{what} raster [deg].")
     for name, what in (("sza", "Solar zenith"), ("saa", "Solar azimuth"), ("vza", "View zenith"),
@@ -242,14 +286,14 @@ CORRECT = settings(
             help="Evaluate the factor at every pixel, or at the nodes of the sensor's coarse angle grid "
                  "(--angles-kind sentinel2) and interpolate it to the pixels: sen2nbar's method, faster; one "
                  "class, no --classes, --dem, --slope-aspect or --uncertainty."),
-    _path("qa_path", "--qa", "Also write the QA flags (uint8) to this GeoTIFF."),
-    Setting("compress", ("--compress",), "text", default="deflate", show_default=True, help="GDAL compression."),
-    _flag("cog", "--cog", "Write Cloud-Optimized GeoTIFFs."),
+    _QA,
+    _COMPRESS,
+    _COG,
     Setting("chunk", ("--chunk",), "custom", cli_type="chunk",
             help="Chunk and tile size [pixels], a multiple of 16 [default: the largest multiple of the "
                  "image's tiles with at most 16 MiB of all bands as float32, else 512, 256, 128 or 64]."),
-    Setting("progress", ("--progress/--no-progress",), "switch", help="Progress bar [default: on a terminal]."),
-    _flag("overwrite", "--overwrite", "Replace existing outputs (-o, --qa) [default: refuse]."),
+    _PROGRESS,
+    _OVERWRITE_OUTPUTS,
     Setting("scheduler", ("--scheduler",), "text", metavar="ADDRESS", envvar="DASK_SCHEDULER_ADDRESS",
             help="Address of a dask.distributed scheduler (tcp://host:8786): spread the scene chunk by chunk "
                  "over all its workers, which need the file system of the inputs and outputs [default: all "
@@ -269,4 +313,139 @@ CORRECT = settings(
     Setting("brdf_frame", ("--brdf-frame",), "choice", choices=BRDF_FRAMES, default="surface", given_only=True,
             help="Evaluate the BRDF in each tilted surface's frame or the horizontal one [default: surface; "
                  "horizontal for c and scs+c]."),
+)
+
+#: ``brdfcorr fit-classes`` (:func:`brdfcorr.tasks.fit.fit_class_files`); the chain's imagery fit
+#: step takes the defaults of the sampling and the guard rails from here.
+FIT_CLASSES = settings(
+    Setting("angles", ("--angles",), "text", multiple=True, required=True,
+            help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa "
+                 "[deg]) or what --angles-kind names."),
+    ANGLE_SOURCE,
+    Setting("classes", ("--classes",), "path", multiple=True, required=True,
+            help="Class map per image, in the images' order."),
+    CLASS_MAP,
+    Setting("model_name", ("--model",), "custom", cli_type="fit_model",
+            help="Model for every class (see `brdfcorr models`), or auto: per class the candidate with the lowest "
+                 "held-out error over spatial blocks [default: ross_thick_li_sparse on an NDVI strata map "
+                 "(brdfcorr classes ndvi), else torrance_sparrow]."),
+    Setting("class_model", ("--class-model",), "custom", cli_type="class_model", multiple=True, metavar="ID=MODEL",
+            help=f"Model of one class, or {AUTO_MODEL} (repeatable)."),
+    Setting("names", ("--class-name",), "custom", cli_type="class_name", multiple=True, metavar="ID=NAME",
+            help="Name of a class (repeatable) [default: the class map's class_names tag, else class_ID]."),
+    Setting("deprecated_names", ("--name",), "custom", cli_type="class_name", multiple=True, hidden=True,
+            help="brdfcorr <= 0.3's --class-name; says so when used."),
+    Setting("fix", ("--fix",), "custom", cli_type="name_value", multiple=True, metavar="NAME=VALUE",
+            help="Hold a shape parameter fixed [default: k=0.25 for TS]."),
+    Setting("max_samples", ("--max-samples",), "int", default=50_000, show_default=True,
+            help="Samples per class, over all images."),
+    Setting("seed", ("--seed",), "int", default=0, show_default=True, help="Seed of the pixel sampler."),
+    Setting("block_size", ("--block-size",), "int", ge=1, default=32, show_default=True,
+            help="Side [pixels] of the spatial blocks the fit's errors are cluster-robust over: smaller for "
+                 "coarse pixels or small images (errors from few blocks are flagged UNRELIABLE)."),
+    Setting("levels", ("--levels",), "choice", choices=LEVELS, default="auto", show_default=True,
+            help="Whose brightness level is free: auto frees each pixel's where several images share one grid "
+                 "(the shape is fitted to each pixel's own views, so land-cover differences between pixels never "
+                 "enter it) and pools a single image; patch frees each --patch-size square's (a composite, "
+                 "whose neighbours were seen from other orbits); pooled: one level per class."),
+    Setting("patch_size", ("--patch-size",), "int", ge=1, default=8, show_default=True,
+            help="Side [pixels] of the patches of --levels patch (a divisor of --block-size)."),
+    SCALE,
+    Setting("min_samples", ("--min-samples",), "int", default=500, show_default=True,
+            help="Guard rail: minimum samples per class."),
+    Setting("min_vza_spread", ("--min-vza-spread",), "float", default=10.0, show_default=True,
+            help="Guard rail: minimum 5-95 % view zenith spread [deg] (with free levels: the spread of the "
+                 "geometry within each pixel or patch)."),
+    Setting("max_condition", ("--max-condition",), "float", ge=1.0, default=1000.0, show_default=True,
+            help="Guard rail: maximum condition number of the linear design (above it the geometry does not "
+                 "separate the model's terms)."),
+    Setting("bad_bands", ("--bad-bands",), "custom", cli_type="band_range", multiple=True,
+            help="Wavelength range [nm] left out of the fit (repeatable; `none`: no range); bands the ENVI "
+                 "header's bbl marks bad are left out too. They get no parameters and `correct` passes them "
+                 "through uncorrected [default: the water-vapour bands 1340:1450 and 1800:1960]."),
+    Setting("fallback", ("--fallback",), "text",
+            help="Built-in material (brdfcorr materials) or coefficient set (brdfcorr coefficients: roy2016, "
+                 "roy2017) for classes that fail the guard rails [default: leave uncorrected]."),
+    PRIOR,
+    Setting("output", ("-o", "--output"), "path", required=True, help="Parameter table to write (YAML)."),
+    _path("report_path", "--report", "Fit report to write (JSON)."),
+    Setting("plot_dir", ("--plot-dir",), "dir",
+            help="Directory for one PNG per class (observed vs modelled against view zenith)."),
+    _flag("overwrite", "--overwrite", "Replace an existing table (-o) and report [default: refuse]."),
+    _PROGRESS,
+)
+
+#: ``brdfcorr assess`` (:func:`brdfcorr.tasks.assess.assess_files`); the chain's assess step takes
+#: ``sign_by``, ``heading``, ``bin_width``, ``min_vza`` and ``block_size`` from here.
+ASSESS = settings(
+    Setting("classes", ("--classes",), "path", required=True,
+            help="Class map raster of BEFORE (ids > 0; 0 = no class)."),
+    CLASS_MAP,
+    Setting("angles", ("--angles",), "text", required=True,
+            help="Angle source of BEFORE: a 4-band raster of sza, saa, vza, vaa [deg] on its grid, or what "
+                 "--angles-kind names."),
+    ANGLE_SOURCE,
+    SCALE,
+    Setting("overlap", ("--overlap",), "path", nargs=2, metavar="OTHER_BEFORE OTHER_AFTER",
+            help="Another line's input and corrected image: compare the two lines where they overlap."),
+    Setting("class_names", ("--class-name",), "custom", cli_type="class_name", multiple=True, metavar="ID=NAME",
+            help="Name of a class in the report and figures (repeatable), e.g. 1=roof_tile."),
+    _SIGN_BY,
+    _HEADING,
+    Setting("bin_width", ("--bin-width",), "float", ge=MIN_BIN_WIDTH, le=90, default=2.0, show_default=True,
+            help="Bin width of the across-track profiles [deg of signed view zenith]."),
+    Setting("min_vza", ("--min-vza",), "float", ge=0, lt=90, default=0.0, show_default=True,
+            help="The side ratio compares pixels at least this far from nadir [deg]."),
+    _flag("flip_view_azimuth", "--flip-view-azimuth", "View azimuths are stored as seen from the sensor."),
+    SLOPE_BLOCK,
+    _path("cluster_layer", "--clusters",
+          "Raster on BEFORE's grid of integer ids of the units whose pixels share their errors (a "
+          "composite's day-of-year band, a flight-line id): the slopes' 1-sigma is cluster-robust over "
+          "these instead of square blocks."),
+    Setting("cluster_band", ("--cluster-band",), "int", ge=1, default=1, show_default=True,
+            help=_CLUSTER_BAND.format("--clusters")),
+    Setting("resampling", ("--resampling",), "text", default="nearest", show_default=True,
+            help="Resampling of the other line onto this line's grid (rasterio name)."),
+    Setting("output", ("-o", "--output"), "path", required=True, help="JSON report to write."),
+    Setting("figures_dir", ("--figures",), "dir",
+            help="Directory for the PNG figures (assess_profiles.png, assess_overlap.png)."),
+    _ASSESS_CHUNK,
+    _flag("overwrite", "--overwrite", "Replace existing outputs [default: refuse]."),
+    _PROGRESS,
+)
+
+#: ``brdfcorr nbar`` (:func:`brdfcorr.tasks.nbar.nbar_files`).
+NBAR = settings(
+    Setting("output", ("-o", "--output"), "path", required=True,
+            help="Output GeoTIFF: NBAR reflectance factors (float32), the product's bands in its order."),
+    _QA,
+    Setting("resolution", ("--resolution",), "choice", choices=("10", "20"),
+            help="Sentinel-2 output pixel size [m]; other bands are resampled onto it [default: 20]."),
+    Setting("bands", ("--bands",), "text",
+            help="Band names in output order, comma-separated (B04,B8A or SR_B4,SR_B5) "
+                 "[default: every band with coefficients]."),
+    Setting("coefficients", ("--coefficients",), "text", default="roy2017", show_default=True,
+            help="Built-in coefficient set (brdfcorr coefficients): roy2017, or roy2016 (no red-edge bands)."),
+    Setting("ref_sza", ("--ref-sza",), "text", default="mean", show_default=True,
+            help="Reference sun zenith [deg], 'mean' (the scene's), 'hls' (HLS v1.4's for the scene centre's "
+                 "latitude) or 'observed' (each pixel's, as sen2nbar). The reference view is nadir."),
+    Setting("view_band", ("--view-band",), "text",
+            help="Sentinel-2: the view angles of this band's grids (e.g. B04) for every band, or "
+                 "'each': every band its own (as sen2nbar; one correction per band, slower) "
+                 "[default: the mean of all bands' grids]."),
+    Setting("factor_at", ("--factor-at",), "choice", choices=FACTOR_AT, default="pixels", show_default=True,
+            help="Sentinel-2: evaluate the c-factor at every pixel, or at the 5 km nodes of the angle grids and "
+                 "interpolate it to the pixels (sen2nbar's method, faster), except where the view azimuth jumps "
+                 "between nodes (within 0.15 %)."),
+    _path("keep_stack", "--keep-stack",
+          "Also keep the uncorrected bands as a small virtual raster (.vrt) reading the product's files, "
+          "masked and scaled: e.g. BEFORE for brdfcorr assess."),
+    _flag("keep_clouds", "--keep-clouds",
+          "Correct cloudy, shadowed and saturated pixels too (only the product's fill is no data)."),
+    _COMPRESS,
+    _COG,
+    Setting("chunk", ("--chunk",), "custom", cli_type="chunk",
+            help="Chunk and tile size [pixels], a multiple of 16 [default: 512]."),
+    _PROGRESS,
+    _OVERWRITE_OUTPUTS,
 )
