@@ -39,10 +39,12 @@ def prior_setting(prior: str | None, spread: float | None):
 
 
 def reference_sza(value: str | None):
-    """--ref-sza: a zenith [deg] or 'mean' / 'observed' / 'hls' (validated by ReferenceGeometry)."""
+    """--ref-sza: a zenith [deg] or a word of :data:`brdfcorr.defaults.REFERENCE_SZA_WORDS` ('mean',
+    'observed', 'hls'; validated by ReferenceGeometry)."""
     if value is None or value in REFERENCE_SZA_WORDS:
         return value
     try:
         return float(value)
     except ValueError:
-        raise click.BadParameter(f"{value!r} is not a number, 'mean', 'observed' or 'hls'") from None
+        words = ", ".join(map(repr, REFERENCE_SZA_WORDS[:-1])) + f" or {REFERENCE_SZA_WORDS[-1]!r}"
+        raise click.BadParameter(f"{value!r} is not a number, {words}") from None
