@@ -17,6 +17,7 @@ library.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -94,6 +95,13 @@ class Setting:
         ``"custom"`` setting: :data:`brdfcorr.cli._settings.CUSTOM_TYPES`.
     hidden : bool
         Left out of ``--help`` (a deprecated spelling).
+    chain : str, optional
+        The chain step (``"correct"``, ``"terrain"``, ``"fit"``, ``"assess"``) that has this setting
+        as a key of the same name, its field made from this setting
+        (:func:`brdfcorr.chain.config_steps.step_fields`).
+    chain_bounds : tuple of (str, object)
+        The chain key's own pydantic ``Field`` keywords over the bounds (a stricter bound,
+        ``allow_inf_nan``).
     given_only : bool
         The command line passes None where the option is not given (its ``default`` is applied
         later, after checking what it goes with; ``--help`` says ``[default: ...]``).
@@ -119,11 +127,17 @@ class Setting:
     cli_type: str | None = None
     hidden: bool = False
     given_only: bool = False
+    chain: str | None = None
+    chain_bounds: tuple[tuple[str, object], ...] = ()
 
     def bounds(self) -> dict[str, float]:
         """The given bounds as pydantic's ``Field`` keywords (``{"ge": 0.0}``)."""
         given = {"ge": self.ge, "gt": self.gt, "le": self.le, "lt": self.lt}
         return {key: value for key, value in given.items() if value is not None}
+
+    def chained(self, step: str, **chain_bounds: object) -> Setting:
+        """This setting, also a key of the chain step ``step`` (with the chain's own ``Field`` keywords)."""
+        return dataclasses.replace(self, chain=step, chain_bounds=tuple(chain_bounds.items()))
 
 
 @dataclass(frozen=True)
@@ -276,16 +290,17 @@ CORRECT = settings(
             help="Lower and upper limit of the correction factor."),
     _flag("no_limits", "--no-limits", "Do not limit the correction factor."),
     Setting("unknown", ("--unknown",), "choice", choices=UNKNOWN_PIXELS, default="keep", show_default=True,
-            help="Pixels of class 0 or of classes not in the table: keep unchanged, or set to NaN."),
+            help="Pixels of class 0 or of classes not in the table: keep unchanged, or set to NaN.", chain="correct"),
     Setting("wavelengths", ("--wavelengths",), "text",
             help="Band centres [nm], comma-separated (overrides the image's)."),
     SCALE,
-    _flag("extrapolate", "--extrapolate", "Allow band centres outside a class's table wavelengths."),
-    _flag("flip_view_azimuth", "--flip-view-azimuth", "View azimuths are stored as seen from the sensor: add 180 deg."),
+    _flag("extrapolate", "--extrapolate", "Allow band centres outside a class's table wavelengths.").chained("correct"),
+    _flag("flip_view_azimuth", "--flip-view-azimuth",
+          "View azimuths are stored as seen from the sensor: add 180 deg.").chained("correct"),
     Setting("factor_at", ("--factor-at",), "choice", choices=FACTOR_AT, default="pixels", show_default=True,
             help="Evaluate the factor at every pixel, or at the nodes of the sensor's coarse angle grid "
                  "(--angles-kind sentinel2) and interpolate it to the pixels: sen2nbar's method, faster; one "
-                 "class, no --classes, --dem, --slope-aspect or --uncertainty."),
+                 "class, no --classes, --dem, --slope-aspect or --uncertainty.", chain="correct"),
     _QA,
     _COMPRESS,
     _COG,
@@ -308,9 +323,10 @@ CORRECT = settings(
           "Tilted surfaces: a DEM/DSM [m] on the image grid (projected CRS; its pixel size in the CRS's "
           "unit, e.g. US survey feet, is converted to metres); slope and aspect by Horn's differences."),
     Setting("topographic", ("--topographic",), "choice", choices=(*TOPOGRAPHIC_METHODS, "none"), default="cosine",
-            given_only=True,
+            given_only=True, chain="terrain",
             help="Illumination correction before the BRDF step, with --slope-aspect or --dem [default: cosine]."),
     Setting("brdf_frame", ("--brdf-frame",), "choice", choices=BRDF_FRAMES, default="surface", given_only=True,
+            chain="terrain",
             help="Evaluate the BRDF in each tilted surface's frame or the horizontal one [default: surface; "
                  "horizontal for c and scs+c]."),
 )
@@ -338,35 +354,36 @@ FIT_CLASSES = settings(
     Setting("fix", ("--fix",), "custom", cli_type="name_value", multiple=True, metavar="NAME=VALUE",
             help="Hold a shape parameter fixed [default: k=0.25 for TS]."),
     Setting("max_samples", ("--max-samples",), "int", default=50_000, show_default=True,
-            help="Samples per class, over all images."),
-    Setting("seed", ("--seed",), "int", default=0, show_default=True, help="Seed of the pixel sampler."),
-    Setting("block_size", ("--block-size",), "int", ge=1, default=32, show_default=True,
+            help="Samples per class, over all images.").chained("fit", ge=10),
+    Setting("seed", ("--seed",), "int", default=0, show_default=True, help="Seed of the pixel sampler.", chain="fit"),
+    Setting("block_size", ("--block-size",), "int", ge=1, default=32, show_default=True, chain="fit",
             help="Side [pixels] of the spatial blocks the fit's errors are cluster-robust over: smaller for "
                  "coarse pixels or small images (errors from few blocks are flagged UNRELIABLE)."),
-    Setting("levels", ("--levels",), "choice", choices=LEVELS, default="auto", show_default=True,
+    Setting("levels", ("--levels",), "choice", choices=LEVELS, default="auto", show_default=True, chain="fit",
             help="Whose brightness level is free: auto frees each pixel's where several images share one grid "
                  "(the shape is fitted to each pixel's own views, so land-cover differences between pixels never "
                  "enter it) and pools a single image; patch frees each --patch-size square's (a composite, "
                  "whose neighbours were seen from other orbits); pooled: one level per class."),
-    Setting("patch_size", ("--patch-size",), "int", ge=1, default=8, show_default=True,
+    Setting("patch_size", ("--patch-size",), "int", ge=1, default=8, show_default=True, chain="fit",
             help="Side [pixels] of the patches of --levels patch (a divisor of --block-size)."),
     SCALE,
     Setting("min_samples", ("--min-samples",), "int", default=500, show_default=True,
-            help="Guard rail: minimum samples per class."),
+            help="Guard rail: minimum samples per class.").chained("fit", ge=1),
     Setting("min_vza_spread", ("--min-vza-spread",), "float", default=10.0, show_default=True,
             help="Guard rail: minimum 5-95 % view zenith spread [deg] (with free levels: the spread of the "
-                 "geometry within each pixel or patch)."),
+                 "geometry within each pixel or patch).").chained("fit", ge=0),
     Setting("max_condition", ("--max-condition",), "float", ge=1.0, default=1000.0, show_default=True,
             help="Guard rail: maximum condition number of the linear design (above it the geometry does not "
-                 "separate the model's terms)."),
+                 "separate the model's terms).").chained("fit", allow_inf_nan=False),
     Setting("bad_bands", ("--bad-bands",), "custom", cli_type="band_range", multiple=True,
             help="Wavelength range [nm] left out of the fit (repeatable; `none`: no range); bands the ENVI "
                  "header's bbl marks bad are left out too. They get no parameters and `correct` passes them "
                  "through uncorrected [default: the water-vapour bands 1340:1450 and 1800:1960]."),
     Setting("fallback", ("--fallback",), "text",
             help="Built-in material (brdfcorr materials) or coefficient set (brdfcorr coefficients: roy2016, "
-                 "roy2017) for classes that fail the guard rails [default: leave uncorrected]."),
-    PRIOR,
+                 "roy2017) for classes that fail the guard rails [default: leave uncorrected].", chain="fit"),
+    PRIOR[0].chained("fit"),
+    PRIOR[1].chained("fit", allow_inf_nan=False),
     Setting("output", ("-o", "--output"), "path", required=True, help="Parameter table to write (YAML)."),
     _path("report_path", "--report", "Fit report to write (JSON)."),
     Setting("plot_dir", ("--plot-dir",), "dir",
@@ -390,14 +407,14 @@ ASSESS = settings(
             help="Another line's input and corrected image: compare the two lines where they overlap."),
     Setting("class_names", ("--class-name",), "custom", cli_type="class_name", multiple=True, metavar="ID=NAME",
             help="Name of a class in the report and figures (repeatable), e.g. 1=roof_tile."),
-    _SIGN_BY,
-    _HEADING,
+    _SIGN_BY.chained("assess"),
+    _HEADING.chained("assess", ge=0, lt=360, allow_inf_nan=False),
     Setting("bin_width", ("--bin-width",), "float", ge=MIN_BIN_WIDTH, le=90, default=2.0, show_default=True,
-            help="Bin width of the across-track profiles [deg of signed view zenith]."),
+            help="Bin width of the across-track profiles [deg of signed view zenith].").chained("assess", le=45),
     Setting("min_vza", ("--min-vza",), "float", ge=0, lt=90, default=0.0, show_default=True,
-            help="The side ratio compares pixels at least this far from nadir [deg]."),
+            help="The side ratio compares pixels at least this far from nadir [deg].", chain="assess"),
     _flag("flip_view_azimuth", "--flip-view-azimuth", "View azimuths are stored as seen from the sensor."),
-    SLOPE_BLOCK,
+    SLOPE_BLOCK[0].chained("assess"),
     _path("cluster_layer", "--clusters",
           "Raster on BEFORE's grid of integer ids of the units whose pixels share their errors (a "
           "composite's day-of-year band, a flight-line id): the slopes' 1-sigma is cluster-robust over "

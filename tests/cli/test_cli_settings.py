@@ -82,6 +82,20 @@ def test_chain_steps_take_the_tables_defaults_and_words():
         AssessStep(bin_width=60)  # the command line allows up to 90, a chain 45
 
 
+@pytest.mark.parametrize(("step", "table", "model"), [("correct", CORRECT, "CorrectStep"),
+                                                    ("terrain", CORRECT, "TerrainStep"),
+                                                    ("fit", FIT_CLASSES, "ImageryFit"),
+                                                    ("assess", ASSESS, "AssessStep")])
+def test_chain_keys_are_made_from_the_settings(step, table, model):
+    from brdfcorr.chain import config_steps
+
+    fields = getattr(config_steps, model).model_fields
+    marked = [setting for setting in table if setting.chain == step]
+    assert marked and {setting.name for setting in marked} <= set(fields)
+    for setting in marked:
+        assert fields[setting.name].default == setting.default, setting.name
+
+
 def test_library_defaults_agree_with_the_tables():
     # brdfcorr.fit.settings keeps its own dataclass defaults (the library's); they must not drift.
     from brdfcorr.fit.settings import GuardRails, Sampling
