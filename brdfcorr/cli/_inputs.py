@@ -1,6 +1,6 @@
-"""Options shared by the commands that read scenes (``correct``, ``fit-classes``, ``assess-lines``):
-the angle source, the class map's grid and codes, the image's scale and offset, and the prior of
-an imagery fit, made from their settings in :mod:`brdfcorr.tasks.options`."""
+"""Helpers of the options the commands that read scenes share (their settings are in
+:mod:`brdfcorr.tasks.options`): ``--scale``/``--offset`` of ``classes ndvi``, the prior of a fit
+(``--prior``, ``--prior-spread``) and the reference sun zenith (``--ref-sza``)."""
 
 from __future__ import annotations
 
@@ -8,22 +8,10 @@ import click
 
 from brdfcorr.cli._settings import setting_options
 from brdfcorr.defaults import REFERENCE_SZA_WORDS
-from brdfcorr.tasks.options import ANGLE_SOURCE, CLASS_MAP, PRIOR, SCALE, SLOPE_BLOCK, settings
+from brdfcorr.tasks.options import SCALE, settings
 
-#: ``--angles-kind`` and ``--angle-option``: which reader the angle source goes through.
-angle_source_options = setting_options(settings(ANGLE_SOURCE))
-
-#: ``--align-classes`` and ``--class-lookup``: a class map on another grid, or with other codes.
-class_map_options = setting_options(settings(CLASS_MAP))
-
-#: ``--scale`` and ``--offset``: stored values to reflectance factors, applied on read.
+#: ``--scale`` and ``--offset`` (``classes ndvi``; the commands with a table of settings have them in it).
 scale_options = setting_options(settings(SCALE))
-
-#: ``--prior`` and ``--prior-spread``: a coefficient set's kernel shape as the prior of a fit.
-prior_options = setting_options(settings(PRIOR))
-
-#: ``--block-size`` of ``assess`` and ``assess-lines``: the blocks of the slopes' 1-sigma.
-slope_block_option = setting_options(settings(SLOPE_BLOCK))
 
 
 def prior_setting(prior: str | None, spread: float | None):

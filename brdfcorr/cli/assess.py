@@ -9,28 +9,18 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import (
-    CHUNK_SIZE,
-    CLASS_MODEL,
-    CLASS_NAME,
-    MODEL_CHOICE,
-    NAME_VALUE,
     _format_table,
     handle_errors,
     main,
     progress_bars,
 )
 from brdfcorr.cli._inputs import (
-    angle_source_options,
-    class_map_options,
-    prior_options,
     prior_setting,
     reference_sza,
-    scale_options,
-    slope_block_option,
 )
-from brdfcorr.cli._settings import click_option, setting_options
+from brdfcorr.cli._settings import setting_options
 from brdfcorr.io.paths import check_outputs, refuse_existing
-from brdfcorr.tasks.options import ASSESS
+from brdfcorr.tasks.options import ASSESS, ASSESS_LINES
 
 
 def _summary_rows(report: dict) -> list[dict[str, str]]:
@@ -149,43 +139,7 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 
 @main.command("assess-lines")
 @click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Class map per image, in the images' order.")
-@class_map_options
-@click.option("--angles", multiple=True, required=True,
-              help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa [deg]) "
-                   "or what --angles-kind names.")
-@angle_source_options
-@scale_options
-@click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
-              help="Model fitted for every class (see `brdfcorr models`).")
-@click.option("--class-model", multiple=True, metavar="ID=MODEL", type=CLASS_MODEL,
-              help="Model of one class (repeatable).")
-@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME", type=CLASS_NAME,
-              help="Name of a class in the fit and the report (repeatable), e.g. 1=roof_tile.")
-@click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
-              help="Hold a shape parameter fixed in the fits.")
-@prior_options
-@click.option("--max-samples", type=int, default=50_000, show_default=True,
-              help="Samples per class, over the training lines.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
-@click.option("--ref-sza", help="Reference sun zenith [deg], 'mean', 'observed' or 'hls' [default: mean]; the view is "
-                                "normalized to nadir.")
-@click_option(ASSESS["sign_by"])
-@click_option(ASSESS["heading"])
-@click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
-@slope_block_option
-@click.option("--clusters", "cluster_layers", multiple=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Per image, in the images' order: a raster of integer ids of the units whose pixels share their "
-                   "errors (detectors, acquisition days); the slopes' 1-sigma is cluster-robust over these.")
-@click.option("--cluster-band", type=click.IntRange(min=1), default=1, show_default=True,
-              help="The band of each --clusters raster that holds the ids.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="JSON report to write.")
-@click.option("--chunk", type=CHUNK_SIZE,
-              help="Chunk size [pixels], a multiple of 16 [default: a multiple of the input's tiles, about 16 MiB "
-                   "of all bands].")
-@click.option("--overwrite", is_flag=True, help="Replace an existing report [default: refuse].")
+@setting_options(ASSESS_LINES)
 @handle_errors
 def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                          offset, model_name, class_model, class_names, fix, prior, prior_spread, max_samples, seed,

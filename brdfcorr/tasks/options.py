@@ -39,7 +39,7 @@ from brdfcorr.io import FORMATS
 from brdfcorr.io.sensors import ANGLE_KINDS
 
 __all__ = ["Setting", "Settings", "ANGLE_SOURCE", "CLASS_MAP", "SCALE", "PRIOR", "SLOPE_BLOCK", "CORRECT",
-           "FIT_CLASSES", "ASSESS", "NBAR", "OUTPUT_TYPES", "INTERLEAVES", "SIGN_BY",
+           "FIT_CLASSES", "ASSESS", "ASSESS_LINES", "NBAR", "OUTPUT_TYPES", "INTERLEAVES", "SIGN_BY",
            "Unknown", "FactorAt", "Topographic", "BrdfFrame"]
 
 #: Kinds of setting: a text, a file path (no folder), a number, an integer, a flag (off unless
@@ -429,6 +429,39 @@ ASSESS = settings(
     _ASSESS_CHUNK,
     _flag("overwrite", "--overwrite", "Replace existing outputs [default: refuse]."),
     _PROGRESS,
+)
+
+#: ``brdfcorr assess-lines`` (:func:`brdfcorr.tasks.assess.leave_one_line_out_files`): the fit's and
+#: the assessment's settings, some with their own help.
+ASSESS_LINES = settings(
+    FIT_CLASSES["classes"],
+    CLASS_MAP,
+    FIT_CLASSES["angles"],
+    ANGLE_SOURCE,
+    SCALE,
+    Setting("model_name", ("--model",), "custom", cli_type="model", default="torrance_sparrow", show_default=True,
+            help="Model fitted for every class (see `brdfcorr models`)."),
+    dataclasses.replace(FIT_CLASSES["class_model"], help="Model of one class (repeatable)."),
+    dataclasses.replace(ASSESS["class_names"], help="Name of a class in the fit and the report (repeatable), e.g. "
+                                                    "1=roof_tile."),
+    dataclasses.replace(FIT_CLASSES["fix"], help="Hold a shape parameter fixed in the fits."),
+    PRIOR,
+    dataclasses.replace(FIT_CLASSES["max_samples"], help="Samples per class, over the training lines."),
+    FIT_CLASSES["seed"],
+    Setting("ref_sza", ("--ref-sza",), "text",
+            help="Reference sun zenith [deg], 'mean', 'observed' or 'hls' [default: mean]; the view is "
+                 "normalized to nadir."),
+    ASSESS["sign_by"],
+    ASSESS["heading"],
+    ASSESS["flip_view_azimuth"],
+    SLOPE_BLOCK,
+    Setting("cluster_layers", ("--clusters",), "path", multiple=True,
+            help="Per image, in the images' order: a raster of integer ids of the units whose pixels share their "
+                 "errors (detectors, acquisition days); the slopes' 1-sigma is cluster-robust over these."),
+    dataclasses.replace(ASSESS["cluster_band"], help=_CLUSTER_BAND.format("each --clusters raster")),
+    ASSESS["output"],
+    _ASSESS_CHUNK,
+    _flag("overwrite", "--overwrite", "Replace an existing report [default: refuse]."),
 )
 
 #: ``brdfcorr nbar`` (:func:`brdfcorr.tasks.nbar.nbar_files`).

@@ -17,9 +17,10 @@ from click.testing import CliRunner
 from brdfcorr import defaults
 from brdfcorr.cli import main
 from brdfcorr.cli._base import CLASS_NAME, NAME_RANGE, NAME_VALUE, READER_OPTION
-from brdfcorr.tasks.options import ASSESS, CORRECT, FIT_CLASSES, NBAR, Settings
+from brdfcorr.tasks.options import ASSESS, ASSESS_LINES, CORRECT, FIT_CLASSES, NBAR, Settings
 
-TABLES = {"correct": CORRECT, "fit-classes": FIT_CLASSES, "assess": ASSESS, "nbar": NBAR}
+TABLES = {"correct": CORRECT, "fit-classes": FIT_CLASSES, "assess": ASSESS, "assess-lines": ASSESS_LINES,
+          "nbar": NBAR}
 
 
 def _command(name: str) -> click.Command:
