@@ -71,3 +71,22 @@ AUTO_MODEL = "auto"
 #: neighbours come from other orbits); ``auto``: ``pixel`` where several scenes share one grid,
 #: else ``pooled``.
 LEVELS = ("auto", "pooled", "pixel", "patch")
+
+#: Topographic (illumination) corrections before the BRDF step
+#: (:func:`brdfcorr.correction.topographic.topographic_correction`, whose ``METHODS`` these are).
+TOPOGRAPHIC_METHODS: tuple[str, ...] = ("cosine", "c", "scs", "scs+c")
+#: The topographic methods with a fitted, empirical C coefficient.
+C_METHODS: tuple[str, ...] = ("c", "scs+c")
+#: Frames a correction evaluates the BRDF of a tilted surface in: the surface's own, or the horizontal.
+BRDF_FRAMES: tuple[str, ...] = ("surface", "horizontal")
+#: What a correction does with pixels of class 0 or of a class absent from the table: keep them
+#: unchanged, or set them to NaN (:func:`brdfcorr.normalize`'s ``unknown``).
+UNKNOWN_PIXELS: tuple[str, ...] = ("keep", "nan")
+#: Where a correction evaluates its factor: at every pixel, or at the nodes of a sensor's coarse
+#: angle grid, interpolated to the pixels (:mod:`brdfcorr.correction.nodes`).
+FACTOR_AT: tuple[str, ...] = ("pixels", "nodes")
+#: Signs of the view zenith of an assessment (:func:`brdfcorr.analysis.view_angles.signed_view_zenith`):
+#: positive towards forward scattering (``sun``) or right of the flight direction (``track``).
+SIGN_CONVENTIONS: tuple[str, ...] = ("sun", "track")
+#: The reference sun zenith's words besides a number [deg] (:class:`brdfcorr.params.ReferenceGeometry`).
+REFERENCE_SZA_WORDS: tuple[str, ...] = ("mean", "observed", "hls")

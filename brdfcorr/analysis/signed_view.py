@@ -12,13 +12,14 @@ from typing import Literal
 import numpy as np
 
 from brdfcorr._arrays import cosd, sind
+from brdfcorr.defaults import SIGN_CONVENTIONS
 from brdfcorr.errors import InputError
 
 __all__ = ["SIGN_CONVENTIONS", "signed_view_zenith"]
 
 
-#: How the sign of the view zenith is chosen (:func:`signed_view_zenith`).
-SIGN_CONVENTIONS = ("sun", "track")
+# SIGN_CONVENTIONS, how the sign of the view zenith is chosen (:func:`signed_view_zenith`), is
+# brdfcorr.defaults' (the command line's words too).
 _SIGN_WORDS = {
     "sun": ("forward scattering: relative azimuth > 90 deg, the sensor opposite the sun",
             "backscattering: relative azimuth < 90 deg, the sensor on the sun's side"),

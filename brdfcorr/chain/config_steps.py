@@ -5,24 +5,30 @@
 :class:`TerrainStep`), :class:`AssessStep` and :class:`QuicklookStep`. Pydantic models, validated as
 part of :class:`brdfcorr.chain.config.ChainConfig`; import them from
 :mod:`brdfcorr.chain.config`.
+
+The keys a step shares with its command (``unknown`` of ``correct``, ``max_samples`` of
+``fit-classes``, ...) are not written here: :func:`step_fields` makes them from the command's
+settings in :mod:`brdfcorr.tasks.options` (type, words, default, bounds), and the step's class
+derives from that model; only the chain's own keys and the checks across keys are written here.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, create_model, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.correction.topographic import frame_conflict
-from brdfcorr.defaults import AUTO_MODEL, DEFAULT_LIMITS, LEVELS, MAX_BLOCK_SIZE, MIN_BIN_WIDTH
+from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.coefficients import load_coefficients
+from brdfcorr.tasks.options import ASSESS, CORRECT, FIT_CLASSES, Setting, Settings
 
 __all__ = [
     "MeasurementSet",
@@ -39,8 +45,26 @@ __all__ = [
 SurfaceModel = Literal[SURFACE_MODELS]  # type: ignore[valid-type]
 #: ... or ``auto``, the model with the lowest held-out error, where a step fits one.
 FitModel = Literal[(*SURFACE_MODELS, AUTO_MODEL)]  # type: ignore[valid-type]
-#: Whose brightness level an imagery fit leaves free (:data:`brdfcorr.defaults.LEVELS`).
-FitLevels = Literal[LEVELS]  # type: ignore[valid-type]
+
+
+_KEY_TYPES: dict[str, Any] = {"flag": bool, "float": Number, "int": Integer, "text": str}
+
+
+def _key_type(setting: Setting) -> Any:
+    """The type of a chain key: a word of the setting's choices, a bool, a number or a text;
+    null allowed where the default is None."""
+    key_type = Literal[setting.choices] if setting.kind == "choice" else _KEY_TYPES[setting.kind]
+    return Optional[key_type] if setting.default is None else key_type  # noqa: UP045 (a runtime type)
+
+
+def step_fields(table: Settings, step: str) -> type[StrictModel]:
+    """A model of the keys of the chain step ``step``: the settings of a command's ``table``
+    (:mod:`brdfcorr.tasks.options`) marked with that step, each with the setting's type, words,
+    default and bounds, and the chain's own bounds over them. A step's class derives from it."""
+    fields = {setting.name: (_key_type(setting),
+                             Field(setting.default, **{**setting.bounds(), **dict(setting.chain_bounds)}))
+              for setting in table if setting.chain == step}
+    return create_model(f"{step.title()}Keys", __base__=StrictModel, __module__=__name__, **fields)
 
 
 class MeasurementSet(StrictModel):
@@ -88,7 +112,7 @@ class GoniometerFit(StrictModel):
         return self
 
 
-class ImageryFit(StrictModel):
+class ImageryFit(step_fields(FIT_CLASSES, "fit")):  # type: ignore[misc]
     """Fit step from the imagery itself: per-class fits pooled over the run's scenes
     (:func:`brdfcorr.tasks.fit.fit_class_files`, as ``brdfcorr fit-classes``: the same
     options and defaults).
@@ -142,21 +166,10 @@ class ImageryFit(StrictModel):
     class_models: dict[PositiveInteger, FitModel] = Field(default_factory=dict)
     names: dict[PositiveInteger, str] = Field(default_factory=dict)
     fixed: dict[str, Number] | None = None
-    max_samples: Integer = Field(Sampling.max_samples, ge=10)
-    seed: Integer = Sampling.seed
-    block_size: Integer = Field(Sampling.block_size, ge=1)
-    levels: FitLevels = "auto"
-    patch_size: Integer = Field(Sampling.patch_size, ge=1)
     reflectance_scale: Number = Field(1.0, gt=0)
-    min_samples: Integer = Field(GuardRails.min_samples, ge=1)
-    min_vza_spread: Number = Field(GuardRails.min_vza_spread, ge=0)
-    max_condition: Number = Field(GuardRails.max_condition, ge=1, allow_inf_nan=False)
     bad_bands: list[tuple[Number, Number]] = Field(
         default_factory=lambda: [tuple(band_range) for band_range in WATER_VAPOUR_BANDS])
-    fallback: str | None = None
     allow_uncorrected: bool = False
-    prior: str | None = None
-    prior_spread: Number | None = Field(None, gt=0, allow_inf_nan=False)
     output: str = "fitted_params.yaml"
 
     @field_validator("prior")
@@ -211,8 +224,8 @@ class ImageryFit(StrictModel):
         }
 
 
-class TerrainStep(StrictModel):
-    """Tilted surfaces in the correct step (:class:`brdfcorr.tasks.correct.Terrain`,
+class TerrainStep(step_fields(CORRECT, "terrain")):  # type: ignore[misc]
+    """Tilted surfaces in the correct step (:class:`brdfcorr.tasks.request.Terrain`,
     ``docs/terrain.md``); slope and aspect come from ``inputs.slope_aspect`` or ``inputs.dem``.
 
     Attributes
@@ -226,9 +239,6 @@ class TerrainStep(StrictModel):
         slope dependence).
     """
 
-    topographic: Literal["cosine", "c", "scs", "scs+c", "none"] = "cosine"
-    brdf_frame: Literal["surface", "horizontal"] = "surface"
-
     @model_validator(mode="after")
     def _frame(self) -> TerrainStep:
         conflict = frame_conflict(self.topographic, self.brdf_frame)
@@ -237,8 +247,9 @@ class TerrainStep(StrictModel):
         return self
 
 
-class CorrectStep(StrictModel):
-    """The normalization step (:func:`brdfcorr.correction.correct_files` options).
+class CorrectStep(step_fields(CORRECT, "correct")):  # type: ignore[misc]
+    """The normalization step (:func:`brdfcorr.tasks.correct.correct_files`); the words and defaults
+    are those of ``brdfcorr correct`` (:data:`brdfcorr.tasks.options.CORRECT`).
 
     Attributes
     ----------
@@ -261,11 +272,7 @@ class CorrectStep(StrictModel):
         surface.
     """
 
-    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = DEFAULT_LIMITS
-    unknown: Literal["keep", "nan"] = "keep"
-    extrapolate: bool = False
-    flip_view_azimuth: bool = False
-    factor_at: Literal["pixels", "nodes"] = "pixels"
+    limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = CORRECT.default("limits")
     qa: bool = True
     terrain: TerrainStep | None = None
 
@@ -277,7 +284,7 @@ class CorrectStep(StrictModel):
         return value
 
 
-class AssessStep(StrictModel):
+class AssessStep(step_fields(ASSESS, "assess")):  # type: ignore[misc]
     """The view-angle signal left in every scene, before and after the correction
     (:func:`brdfcorr.tasks.assess.assess_files`): ``{scene}_assess.json`` and the figure
     ``{scene}_assess_profiles.png`` (:func:`brdfcorr.plot.assess.write_assessment_figures`) in
@@ -297,12 +304,6 @@ class AssessStep(StrictModel):
     block_size : int
         Side [pixels] of the spatial blocks the slopes' 1-sigma is cluster-robust over.
     """
-
-    sign_by: Literal["sun", "track"] = "sun"
-    heading: Number | None = Field(None, ge=0, lt=360, allow_inf_nan=False)
-    bin_width: Number = Field(2.0, ge=MIN_BIN_WIDTH, le=45)
-    min_vza: Number = Field(0.0, ge=0, lt=90)
-    block_size: Integer = Field(32, ge=1, le=MAX_BLOCK_SIZE)
 
     @model_validator(mode="after")
     def _heading(self) -> AssessStep:

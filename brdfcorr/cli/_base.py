@@ -401,45 +401,69 @@ def main(debug):
     """Specular BRDF models and BRDF normalization of reflectance imagery."""
 
 
-def _assignments(option: str, items: tuple[str, ...], ranges: bool = False) -> dict:
-    """Parse ``NAME=VALUE`` (or ``NAME=LOW:HIGH`` with ``ranges``) command-line items."""
-    parsed = {}
-    for item in items:
-        name, _, text = item.partition("=")
+class Assignment(click.ParamType):
+    """``NAME=VALUE`` (or ``NAME=LOW:HIGH`` with ``ranges``) with numbers, converted to the pair
+    ``(name, value)`` or ``(name, (low, high))``; a repeatable option collects the pairs (``dict``
+    of them: the last wins for a name). A bad item is click's usage error (exit 2)."""
+
+    def __init__(self, ranges: bool = False):
+        self.ranges = ranges
+        self.name = "NAME=LOW:HIGH" if ranges else "NAME=VALUE"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):  # converted already (a default)
+            return value
+        name, _, text = str(value).partition("=")
         try:
-            value = tuple(float(part) for part in text.split(":")) if ranges else float(text)
-            if ranges and len(value) != 2:
+            number = tuple(float(part) for part in text.split(":")) if self.ranges else float(text)
+            if self.ranges and len(number) != 2:
                 raise ValueError
         except ValueError:
-            form = "NAME=LOW:HIGH" if ranges else "NAME=VALUE"
-            raise ParameterError(f"{option} {item!r}: expected {form} with numbers") from None
-        parsed[name.strip()] = value
-    return parsed
+            self.fail(f"{value!r}: expected {self.name} with numbers", param, ctx)
+        return name.strip(), number
 
 
-def _options(option: str, items: tuple[str, ...]) -> dict[str, object]:
-    """Parse ``KEY=VALUE`` items; values are read as YAML scalars (``20`` -> 20, ``B04`` -> "B04")."""
-    parsed = {}
-    for item in items:
-        key, separator, text = item.partition("=")
+class ReaderOption(click.ParamType):
+    """``KEY=VALUE`` of a reader (``--angle-option``), converted to ``(key, value)`` with the value
+    read as a YAML scalar (``20`` -> 20, ``B04`` -> "B04"; text that is no YAML scalar stays text)."""
+
+    name = "KEY=VALUE"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        key, separator, text = str(value).partition("=")
         if not separator or not key.strip():
-            raise ParameterError(f"{option} {item!r}: expected KEY=VALUE")
+            self.fail(f"{value!r}: expected KEY=VALUE", param, ctx)
         try:
-            parsed[key.strip()] = parse_yaml(text, option, ParameterError) if text.strip() else ""
+            scalar = parse_yaml(text, "--angle-option", ParameterError) if text.strip() else ""
         except ParameterError:  # not a YAML scalar: the text itself
-            parsed[key.strip()] = text
-    return parsed
+            scalar = text
+        return key.strip(), scalar
 
 
-def _pairs(option: str, items: tuple[str, ...]) -> dict[int, str]:
-    """Parse ``ID=TEXT`` command-line items into {id: text}."""
-    parsed = {}
-    for item in items:
-        key, _, text = item.partition("=")
+class ClassPair(click.ParamType):
+    """``ID=TEXT``: a class id (a non-negative integer) and a text (a name, a model), converted to
+    ``(id, text)``; a repeatable option collects the pairs (``dict`` of them)."""
+
+    def __init__(self, what: str = "NAME"):
+        self.name = f"ID={what}"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        key, _, text = str(value).partition("=")
         if not key.strip().isdigit() or not text.strip():
-            raise ParameterError(f"{option} {item!r}: expected CLASS_ID=VALUE, e.g. 2=grass")
-        parsed[int(key)] = text.strip()
-    return parsed
+            self.fail(f"{value!r}: expected CLASS_ID=VALUE, e.g. 2=grass", param, ctx)
+        return int(key), text.strip()
+
+
+#: The types of the KEY=VALUE and ID=NAME options (repeatable; ``dict(value)`` collects them).
+NAME_VALUE = Assignment()
+NAME_RANGE = Assignment(ranges=True)
+READER_OPTION = ReaderOption()
+CLASS_NAME = ClassPair("NAME")
+CLASS_MODEL = ClassPair("MODEL")
 
 
 def _save_figure(figure, target: Path, *, dpi: int = 110, echo: bool = True) -> None:

@@ -9,28 +9,18 @@ from pathlib import Path
 import click
 
 from brdfcorr.cli._base import (
-    CHUNK_SIZE,
-    MODEL_CHOICE,
-    PROGRESS,
-    _assignments,
     _format_table,
-    _options,
-    _pairs,
     handle_errors,
     main,
     progress_bars,
 )
 from brdfcorr.cli._inputs import (
-    angle_source_options,
-    class_map_options,
-    prior_options,
     prior_setting,
     reference_sza,
-    scale_options,
-    slope_block_option,
 )
-from brdfcorr.defaults import MIN_BIN_WIDTH
+from brdfcorr.cli._settings import setting_options
 from brdfcorr.io.paths import check_outputs, refuse_existing
+from brdfcorr.tasks.options import ASSESS, ASSESS_LINES
 
 
 def _summary_rows(report: dict) -> list[dict[str, str]]:
@@ -60,46 +50,7 @@ def _number(value: float | None) -> str:
 @main.command("assess")
 @click.argument("before", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("after", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--classes", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Class map raster of BEFORE (ids > 0; 0 = no class).")
-@class_map_options
-@click.option("--angles", required=True,
-              help="Angle source of BEFORE: a 4-band raster of sza, saa, vza, vaa [deg] on its grid, or what "
-                   "--angles-kind names.")
-@angle_source_options
-@scale_options
-@click.option("--overlap", nargs=2, type=click.Path(dir_okay=False, path_type=Path),
-              metavar="OTHER_BEFORE OTHER_AFTER",
-              help="Another line's input and corrected image: compare the two lines where they overlap.")
-@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME",
-              help="Name of a class in the report and figures (repeatable), e.g. 1=roof_tile.")
-@click.option("--sign-by", type=click.Choice(["sun", "track"]), default="sun", show_default=True,
-              help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
-                   "(track, with --heading).")
-@click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
-@click.option("--bin-width", type=click.FloatRange(min=MIN_BIN_WIDTH, max=90), default=2.0, show_default=True,
-              help="Bin width of the across-track profiles [deg of signed view zenith].")
-@click.option("--min-vza", type=click.FloatRange(min=0, max=90, max_open=True), default=0.0, show_default=True,
-              help="The side ratio compares pixels at least this far from nadir [deg].")
-@click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
-@slope_block_option
-@click.option("--clusters", "cluster_layer", type=click.Path(dir_okay=False, path_type=Path),
-              help="Raster on BEFORE's grid of integer ids of the units whose pixels share their errors (a "
-                   "composite's day-of-year band, a flight-line id): the slopes' 1-sigma is cluster-robust over "
-                   "these instead of square blocks.")
-@click.option("--cluster-band", type=click.IntRange(min=1), default=1, show_default=True,
-              help="The band of --clusters that holds the ids.")
-@click.option("--resampling", default="nearest", show_default=True,
-              help="Resampling of the other line onto this line's grid (rasterio name).")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="JSON report to write.")
-@click.option("--figures", "figures_dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Directory for the PNG figures (assess_profiles.png, assess_overlap.png).")
-@click.option("--chunk", type=CHUNK_SIZE,
-              help="Chunk size [pixels], a multiple of 16 [default: a multiple of the input's tiles, about 16 MiB "
-                   "of all bands].")
-@click.option("--overwrite", is_flag=True, help="Replace existing outputs [default: refuse].")
-@PROGRESS
+@setting_options(ASSESS)
 @handle_errors
 def assess_command(before, after, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                    offset, overlap, class_names, sign_by, heading, bin_width, min_vza, flip_view_azimuth,
@@ -133,11 +84,11 @@ def assess_command(before, after, classes, align_classes, class_lookup, angles, 
     with progress_bars(progress, "assess"):  # every pass, from the first (the angle check)
         assessment = assess_files(
             SceneSources(before, classes, angles, angles_kind=angles_kind,
-                         angle_options=_options("--angle-option", angle_option), scale=scale, offset=offset),
+                         angle_options=dict(angle_option), scale=scale, offset=offset),
             after, overlap=tuple(overlap) if overlap else None, resampling=resampling,
             clusters=None if cluster_layer is None else (cluster_layer, cluster_band),
             view_options=ViewAngleOptions(by=sign_by, heading=heading,
-                                          class_names=_pairs("--class-name", class_names), bin_width=bin_width,
+                                          class_names=dict(class_names), bin_width=bin_width,
                                           min_vza=min_vza, flip_view_azimuth=flip_view_azimuth,
                                           block_size=block_size),
             align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None,
@@ -188,43 +139,7 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
 
 @main.command("assess-lines")
 @click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Class map per image, in the images' order.")
-@class_map_options
-@click.option("--angles", multiple=True, required=True,
-              help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa [deg]) "
-                   "or what --angles-kind names.")
-@angle_source_options
-@scale_options
-@click.option("--model", "model_name", type=MODEL_CHOICE, default="torrance_sparrow", show_default=True,
-              help="Model fitted for every class (see `brdfcorr models`).")
-@click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class (repeatable).")
-@click.option("--class-name", "class_names", multiple=True, metavar="ID=NAME",
-              help="Name of a class in the fit and the report (repeatable), e.g. 1=roof_tile.")
-@click.option("--fix", multiple=True, metavar="NAME=VALUE", help="Hold a shape parameter fixed in the fits.")
-@prior_options
-@click.option("--max-samples", type=int, default=50_000, show_default=True,
-              help="Samples per class, over the training lines.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
-@click.option("--ref-sza", help="Reference sun zenith [deg], 'mean', 'observed' or 'hls' [default: mean]; the view is "
-                                "normalized to nadir.")
-@click.option("--sign-by", type=click.Choice(["sun", "track"]), default="sun", show_default=True,
-              help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
-                   "(track, with --heading).")
-@click.option("--heading", type=float, help="Flight direction [deg from north] for --sign-by track.")
-@click.option("--flip-view-azimuth", is_flag=True, help="View azimuths are stored as seen from the sensor.")
-@slope_block_option
-@click.option("--clusters", "cluster_layers", multiple=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Per image, in the images' order: a raster of integer ids of the units whose pixels share their "
-                   "errors (detectors, acquisition days); the slopes' 1-sigma is cluster-robust over these.")
-@click.option("--cluster-band", type=click.IntRange(min=1), default=1, show_default=True,
-              help="The band of each --clusters raster that holds the ids.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="JSON report to write.")
-@click.option("--chunk", type=CHUNK_SIZE,
-              help="Chunk size [pixels], a multiple of 16 [default: a multiple of the input's tiles, about 16 MiB "
-                   "of all bands].")
-@click.option("--overwrite", is_flag=True, help="Replace an existing report [default: refuse].")
+@setting_options(ASSESS_LINES)
 @handle_errors
 def assess_lines_command(images, classes, align_classes, class_lookup, angles, angles_kind, angle_option, scale,
                          offset, model_name, class_model, class_names, fix, prior, prior_spread, max_samples, seed,
@@ -254,14 +169,14 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     if not overwrite:
         refuse_existing([output])
     sza = reference_sza(ref_sza)
-    options = _options("--angle-option", angle_option)
+    options = dict(angle_option)
     assessment = leave_one_line_out_files(
         [SceneSources(image, class_map, angle_source, angles_kind=angles_kind, angle_options=options, scale=scale,
                       offset=offset) for image, class_map, angle_source in zip(images, classes, angles)],
-        HoldoutFit(model_name, class_models=_pairs("--class-model", class_model),
-                   fixed=_assignments("--fix", fix) or None, max_samples=max_samples, seed=seed,
+        HoldoutFit(model_name, class_models=dict(class_model),
+                   fixed=dict(fix) or None, max_samples=max_samples, seed=seed,
                    reference={"sza": "mean" if sza is None else sza, "vza": 0.0}, prior=shape_prior),
-        view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=_pairs("--class-name", class_names),
+        view_options=ViewAngleOptions(by=sign_by, heading=heading, class_names=dict(class_names),
                                       flip_view_azimuth=flip_view_azimuth, block_size=block_size),
         align_classes=align_classes, class_lookup=read_lookup(class_lookup) if class_lookup else None, chunks=chunk,
         clusters=[(path, cluster_band) for path in cluster_layers] or None,

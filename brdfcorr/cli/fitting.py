@@ -10,11 +10,9 @@ import click
 
 from brdfcorr.cli._base import (
     FIT_MODEL_CHOICE,
-    PROGRESS,
-    _assignments,
+    NAME_RANGE,
+    NAME_VALUE,
     _format_table,
-    _options,
-    _pairs,
     _save_figure,
     class_bar,
     handle_errors,
@@ -22,16 +20,13 @@ from brdfcorr.cli._base import (
     progress_bars,
 )
 from brdfcorr.cli._inputs import (
-    angle_source_options,
-    class_map_options,
-    prior_options,
     prior_setting,
-    scale_options,
 )
-from brdfcorr.defaults import LEVELS
+from brdfcorr.cli._settings import setting_options
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.paths import check_outputs, refuse_existing, update_target
+from brdfcorr.tasks.options import FIT_CLASSES
 
 # The library (scipy, dask, rasterio, matplotlib) is imported when a command runs, not when its
 # options are parsed: --help and argument errors answer at once. --model is checked against the
@@ -60,59 +55,7 @@ class _BandRange(click.ParamType):
 
 @main.command("fit-classes")
 @click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--angles", multiple=True, required=True,
-              help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa "
-                   "[deg]) or what --angles-kind names.")
-@angle_source_options
-@click.option("--classes", multiple=True, required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Class map per image, in the images' order.")
-@class_map_options
-@click.option("--model", "model_name", type=FIT_MODEL_CHOICE,
-              help="Model for every class (see `brdfcorr models`), or auto: per class the candidate with the lowest "
-                   "held-out error over spatial blocks [default: ross_thick_li_sparse on an NDVI strata map "
-                   "(brdfcorr classes ndvi), else torrance_sparrow].")
-@click.option("--class-model", multiple=True, metavar="ID=MODEL", help="Model of one class, or auto (repeatable).")
-@click.option("--class-name", "names", multiple=True, metavar="ID=NAME",
-              help="Name of a class (repeatable) [default: the class map's class_names tag, else class_ID].")
-@click.option("--name", "deprecated_names", multiple=True, hidden=True)  # brdfcorr <= 0.3; says so when used
-@click.option("--fix", multiple=True, metavar="NAME=VALUE",
-              help="Hold a shape parameter fixed [default: k=0.25 for TS].")
-@click.option("--max-samples", type=int, default=50_000, show_default=True, help="Samples per class, over all images.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the pixel sampler.")
-@click.option("--block-size", type=click.IntRange(min=1), default=32, show_default=True,
-              help="Side [pixels] of the spatial blocks the fit's errors are cluster-robust over: smaller for "
-                   "coarse pixels or small images (errors from few blocks are flagged UNRELIABLE).")
-@click.option("--levels", type=click.Choice(LEVELS), default="auto", show_default=True,
-              help="Whose brightness level is free: auto frees each pixel's where several images share one grid "
-                   "(the shape is fitted to each pixel's own views, so land-cover differences between pixels never "
-                   "enter it) and pools a single image; patch frees each --patch-size square's (a composite, "
-                   "whose neighbours were seen from other orbits); pooled: one level per class.")
-@click.option("--patch-size", type=click.IntRange(min=1), default=8, show_default=True,
-              help="Side [pixels] of the patches of --levels patch (a divisor of --block-size).")
-@scale_options
-@click.option("--min-samples", type=int, default=500, show_default=True, help="Guard rail: minimum samples per class.")
-@click.option("--min-vza-spread", type=float, default=10.0, show_default=True,
-              help="Guard rail: minimum 5-95 % view zenith spread [deg] (with free levels: the spread of the "
-                   "geometry within each pixel or patch).")
-@click.option("--max-condition", type=click.FloatRange(min=1.0), default=1000.0, show_default=True,
-              help="Guard rail: maximum condition number of the linear design (above it the geometry does not "
-                   "separate the model's terms).")
-@click.option("--bad-bands", "bad_bands", multiple=True, type=_BandRange(),
-              help="Wavelength range [nm] left out of the fit (repeatable; `none`: no range); bands the ENVI "
-                   "header's bbl marks bad are left out too. They get no parameters and `correct` passes them "
-                   "through uncorrected [default: the water-vapour bands 1340:1450 and 1800:1960].")
-@click.option("--fallback",
-              help="Built-in material (brdfcorr materials) or coefficient set (brdfcorr coefficients: roy2016, "
-                   "roy2017) for classes that fail the guard rails [default: leave uncorrected].")
-@prior_options
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Parameter table to write (YAML).")
-@click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Fit report to write (JSON).")
-@click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Directory for one PNG per class (observed vs modelled against view zenith).")
-@click.option("--overwrite", is_flag=True, help="Replace an existing table (-o) and report [default: refuse].")
-@PROGRESS
+@setting_options(FIT_CLASSES, {"band_range": _BandRange()})
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
@@ -144,10 +87,10 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         fallback_entry(fallback, 1, "check")  # fail before the work if the name is wrong
     shape_prior = prior_setting(prior, prior_spread)
     lookup = read_lookup(class_lookup) if class_lookup else None
-    options = _options("--angle-option", angle_option)
+    options = dict(angle_option)
     if deprecated_names:
         click.echo("brdfcorr: warning: --name is deprecated; use --class-name ID=NAME", err=True)
-    class_names = {**_pairs("--name", deprecated_names), **_pairs("--class-name", names)}
+    class_names = {**dict(deprecated_names), **dict(names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
     # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes fitted.
     with progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
@@ -155,8 +98,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
             [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
                         class_lookup=lookup, scale=scale, offset=offset)
              for image, angle_source, class_map in zip(images, angles, classes)],
-            ClassModels(model_name, class_models=_pairs("--class-model", class_model),
-                        fixed=_assignments("--fix", fix) or None, fallback=fallback, names=class_names,
+            ClassModels(model_name, class_models=dict(class_model),
+                        fixed=dict(fix) or None, fallback=fallback, names=class_names,
                         prior=shape_prior),
             sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
                               levels=levels, patch_size=patch_size),
@@ -265,10 +208,11 @@ def _write_json(target: Path, content: dict) -> None:
               help="Registered surface model to fit (see `brdfcorr models`), or auto: the candidate with the lowest "
                    "5-fold cross-validated error over the geometries (a more complex one only where it wins by more "
                    "than the folds' spread).")
-@click.option("--fix", multiple=True, metavar="NAME=VALUE",
+@click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
               help="Hold a parameter fixed (repeatable); paper 003 uses --fix k=0.25.")
-@click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", help="Starting value of a parameter.")
-@click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW:HIGH",
+@click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
+              help="Starting value of a parameter.")
+@click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW:HIGH", type=NAME_RANGE,
               help="Narrower bounds for a parameter (within its physical range).")
 @click.option("--min-phi", type=float, help="Fit only relative azimuths >= this [deg] (paper 003: 90).")
 @click.option("--max-phi", type=float, help="Fit only relative azimuths <= this [deg].")
@@ -303,8 +247,8 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     target = update_target(output, overwrite, inputs={"MEASUREMENTS": measurements}) if output is not None else None
     table = ParameterTable.load(target) if target is not None and target.exists() else None
     fit = fit_measurement_file(
-        measurements, model_name, fixed=_assignments("--fix", fix), initial=_assignments("--init", initial),
-        bounds=_assignments("--bound", bounds, ranges=True), min_phi=min_phi, max_phi=max_phi,
+        measurements, model_name, fixed=dict(fix), initial=dict(initial),
+        bounds=dict(bounds), min_phi=min_phi, max_phi=max_phi,
         max_zenith=max_zenith, wavelength=wavelength,
     )
     for message in fit.warnings:

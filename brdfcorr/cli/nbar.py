@@ -8,9 +8,11 @@ from pathlib import Path
 
 import click
 
-from brdfcorr.cli._base import CHUNK_SIZE, PROGRESS, handle_errors, main, progress_bars
+from brdfcorr.cli._base import handle_errors, main, progress_bars
 from brdfcorr.cli._inputs import reference_sza
+from brdfcorr.cli._settings import setting_options
 from brdfcorr.errors import BrdfcorrWarning
+from brdfcorr.tasks.options import NBAR
 
 # The library (dask, rasterio, scipy) is imported when the command runs, not when its options are
 # parsed: --help and argument errors answer at once.
@@ -18,36 +20,7 @@ from brdfcorr.errors import BrdfcorrWarning
 
 @main.command("nbar")
 @click.argument("product", type=click.Path(path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Output GeoTIFF: NBAR reflectance factors (float32), the product's bands in its order.")
-@click.option("--qa", "qa_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Also write the QA flags (uint8) to this GeoTIFF.")
-@click.option("--resolution", type=click.Choice(["10", "20"]), default=None,
-              help="Sentinel-2 output pixel size [m]; other bands are resampled onto it [default: 20].")
-@click.option("--bands", help="Band names in output order, comma-separated (B04,B8A or SR_B4,SR_B5) "
-                              "[default: every band with coefficients].")
-@click.option("--coefficients", default="roy2017", show_default=True,
-              help="Built-in coefficient set (brdfcorr coefficients): roy2017, or roy2016 (no red-edge bands).")
-@click.option("--ref-sza", default="mean", show_default=True,
-              help="Reference sun zenith [deg], 'mean' (the scene's), 'hls' (HLS v1.4's for the scene centre's "
-                   "latitude) or 'observed' (each pixel's, as sen2nbar). The reference view is nadir.")
-@click.option("--view-band", help="Sentinel-2: the view angles of this band's grids (e.g. B04) for every band, or "
-                                  "'each': every band its own (as sen2nbar; one correction per band, slower) "
-                                  "[default: the mean of all bands' grids].")
-@click.option("--factor-at", type=click.Choice(["pixels", "nodes"]), default="pixels", show_default=True,
-              help="Sentinel-2: evaluate the c-factor at every pixel, or at the 5 km nodes of the angle grids and "
-                   "interpolate it to the pixels (sen2nbar's method, faster), except where the view azimuth jumps "
-                   "between nodes (within 0.15 %).")
-@click.option("--keep-stack", type=click.Path(dir_okay=False, path_type=Path),
-              help="Also keep the uncorrected bands as a small virtual raster (.vrt) reading the product's files, "
-                   "masked and scaled: e.g. BEFORE for brdfcorr assess.")
-@click.option("--keep-clouds", is_flag=True,
-              help="Correct cloudy, shadowed and saturated pixels too (only the product's fill is no data).")
-@click.option("--compress", default="deflate", show_default=True, help="GDAL compression.")
-@click.option("--cog", is_flag=True, help="Write Cloud-Optimized GeoTIFFs.")
-@click.option("--chunk", type=CHUNK_SIZE, help="Chunk and tile size [pixels], a multiple of 16 [default: 512].")
-@PROGRESS
-@click.option("--overwrite", is_flag=True, help="Replace existing outputs (-o, --qa) [default: refuse].")
+@setting_options(NBAR)
 @handle_errors
 def nbar_command(product, output, qa_path, resolution, bands, coefficients, ref_sza, view_band, factor_at,
                  keep_stack, keep_clouds, compress, cog, chunk, progress, overwrite):

@@ -64,7 +64,7 @@ from brdfcorr.correction.inputs import BlockSettings, prepare_inputs
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.correction.series import is_series, over_dates
-from brdfcorr.defaults import DEFAULT_LIMITS
+from brdfcorr.defaults import DEFAULT_LIMITS, UNKNOWN_PIXELS
 from brdfcorr.errors import BrdfcorrWarning, InputError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
@@ -162,7 +162,7 @@ def normalize(
     ``corrected = observed * f(ref) / f(obs)`` (``docs/conventions.md``, "The correction"), the factor evaluated
     with the model of the pixel's class (paper 003 eq. 1, paper 000 eq. 5) at the pixel's geometry.
     """
-    if unknown not in ("keep", "nan"):
+    if unknown not in UNKNOWN_PIXELS:
         raise InputError(f"unknown must be 'keep' or 'nan', got {unknown!r}")
     params = as_parameter_table(params)
     if is_series(reflectance):  # (time, band, y, x): date by date (correction.series)

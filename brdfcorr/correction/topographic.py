@@ -68,7 +68,7 @@ from brdfcorr.correction.blocks import no_class_mask, split_pairs
 from brdfcorr.correction.inputs import angle_layers, check_grid, layer_nodata
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.terrain import cos_incidence
-from brdfcorr.defaults import DEFAULT_LIMITS
+from brdfcorr.defaults import C_METHODS, DEFAULT_LIMITS, TOPOGRAPHIC_METHODS
 from brdfcorr.errors import BrdfcorrWarning, InputError
 
 __all__ = [
@@ -83,9 +83,7 @@ __all__ = [
 ]
 
 Method = Literal["cosine", "c", "scs", "scs+c"]
-METHODS: tuple[str, ...] = ("cosine", "c", "scs", "scs+c")
-#: Methods with a fitted C coefficient.
-C_METHODS = ("c", "scs+c")
+METHODS: tuple[str, ...] = TOPOGRAPHIC_METHODS  # written once in brdfcorr.defaults (the command line's words)
 
 
 def frame_conflict(method: str, brdf_frame: str) -> str | None:

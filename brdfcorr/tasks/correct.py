@@ -9,12 +9,9 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import os
 import re
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import rasterio
@@ -23,131 +20,17 @@ import xarray as xr
 from brdfcorr import __version__
 from brdfcorr.correction import QA, describe_limits, normalize, normalize_at_nodes, qa_counts, resolve_reference
 from brdfcorr.correction.reference import with_hls_sza
-from brdfcorr.correction.terrain import (
-    SlopeAspect,
-    check_dem_slope,
-    check_slope_aspect,
-    slope_aspect,
-    slope_aspect_layers,
-)
-from brdfcorr.correction.topographic import frame_conflict, topographic_correction
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import rasters, writer
 from brdfcorr.io.angles import RELATIVE_ONLY, window_values
-from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.opening import open_layer, reading
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.scene import SceneData, open_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
-from brdfcorr.tasks.request import CorrectionRequest
+from brdfcorr.tasks.request import CorrectionRequest, Terrain
 
 __all__ = ["correct_files", "Terrain", "uncorrected_note", "MOSTLY_UNCORRECTED"]
-
-
-@dataclass(frozen=True)
-class Terrain:
-    """Tilted surfaces in a correction (``docs/terrain.md``): where slope and aspect come from and
-    what is done with them.
-
-    Attributes
-    ----------
-    slope_aspect : path-like, optional
-        A 2-band raster of slope and aspect [deg] on the image grid (band descriptions naming
-        ``slope`` and ``aspect`` decide which is which, else that order), or an ENVI ``obs_ort``
-        file (its bands "Slope" and "Aspect", :func:`brdfcorr.io.sensors.envi.read_envi_obs_terrain`).
-        Their values are checked in one pass (:func:`brdfcorr.correction.terrain.check_slope_aspect`):
-        radians, or no slope in [0, 90] deg at all, are an :class:`~brdfcorr.errors.InputError`.
-    dem : path-like, optional
-        Or a DEM/DSM [m] on the image grid in a projected CRS: slope and aspect by Horn's
-        differences (:func:`brdfcorr.correction.terrain.slope_aspect`), the pixel size converted
-        from the CRS's linear unit to metres (EPSG:2263, US survey feet). A DEM that gives no
-        pixel a slope (nodata only: every 3x3 neighbourhood holds nodata) is an
-        :class:`~brdfcorr.errors.InputError` (:func:`brdfcorr.correction.terrain.check_dem_slope`).
-        Give one of the two.
-    topographic : {"cosine", "c", "scs", "scs+c", "none"}, default "cosine"
-        Illumination correction before the BRDF step (:func:`brdfcorr.correction.topographic.topographic_correction`;
-        C fitted per class and band from the image for ``"c"`` and ``"scs+c"``).
-    brdf_frame : {"surface", "horizontal"}, default "surface"
-        Evaluate the BRDF in each surface's own frame (the observed geometry rotated by slope and
-        aspect; the reference stays horizontal) or in the horizontal frame. ``"surface"`` takes
-        the illumination's cos i into account itself only with ``"cosine"`` (or ``"none"``) before
-        it; the empirical C of ``"c"``/``"scs+c"`` absorbs part of the BRDF's slope dependence, so
-        those go with ``"horizontal"`` (combining them corrects the illumination twice, 15 % off
-        between the sides of a synthetic hill in ``tests/correction/test_terrain.py``).
-    """
-
-    slope_aspect: str | os.PathLike | None = None
-    dem: str | os.PathLike | None = None
-    topographic: Literal["cosine", "c", "scs", "scs+c", "none"] = "cosine"
-    brdf_frame: Literal["surface", "horizontal"] = "surface"
-
-    def __post_init__(self):
-        if (self.slope_aspect is None) == (self.dem is None):
-            raise InputError("terrain: give slope and aspect (a 2-band raster or an obs file) or a DEM, one of them")
-        conflict = frame_conflict(self.topographic, self.brdf_frame)
-        if conflict:
-            raise InputError(f"terrain: {conflict}")
-
-    @property
-    def inputs(self) -> list[tuple[str, object]]:
-        return [("slope/aspect raster", self.slope_aspect), ("DEM", self.dem)]
-
-    def open(self, like: xr.DataArray, chunks: int, compute: Mapping | None = None) -> SlopeAspect:
-        """Slope and aspect [deg] (y, x) on ``like``'s grid, lazily; layers read from a file are
-        checked in one pass (:func:`brdfcorr.correction.terrain.check_slope_aspect`: degrees, and
-        the file read to its end), those of a DEM too (:func:`~brdfcorr.correction.terrain.check_dem_slope`:
-        a slope somewhere), with the dask settings ``compute`` (``scheduler``, ``num_workers``)."""
-        if self.dem is not None:
-            dem = open_layer(self.dem, "DEM", chunks)
-            if dem.shape[0] != 1:
-                raise InputError(f"DEM file {self.dem} has {dem.shape[0]} bands; it needs 1")
-            try:
-                surface = slope_aspect(dem[0])
-            except InputError as error:  # "DEM: no CRS ...": name the file
-                raise InputError(f"DEM file {self.dem}: {str(error).removeprefix('DEM: ')}") from None
-            check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
-            with reading(f"DEM file {self.dem}"):
-                check_dem_slope(surface, f"DEM file {self.dem}", **(compute or {}))
-        else:
-            if _is_envi(self.slope_aspect):
-                from brdfcorr.io.sensors.envi import read_envi_obs_terrain  # sensors import this module's layer
-
-                layers = read_envi_obs_terrain(self.slope_aspect, like=like)
-                surface, source = SlopeAspect(layers["slope"], layers["aspect"]), f"obs file {self.slope_aspect}"
-            else:
-                surface = slope_aspect_layers(open_layer(self.slope_aspect, "slope/aspect", chunks))
-                source = f"slope/aspect file {self.slope_aspect}"
-            check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
-            with reading(source):
-                check_slope_aspect(surface, source, **(compute or {}))
-        return surface
-
-    def apply(self, scene: SceneData, chunks: int, limits, compute: Mapping | None = None):
-        """The reflectance after the topographic step, the slope and aspect layers for
-        :func:`brdfcorr.normalize` (none in the horizontal frame) and the topographic result."""
-        if scene.angles["saa"].attrs.get(RELATIVE_ONLY):
-            raise InputError("terrain: a tilted surface needs the sun's and the sensor's azimuths; the angle "
-                             "source gives only their relative azimuth (raa)")
-        slope, aspect = self.open(scene.reflectance, chunks, compute)
-        reflectance, topographic = scene.reflectance, None
-        if self.topographic != "none":
-            topographic = topographic_correction(
-                reflectance, {**scene.angles, "slope": slope, "aspect": aspect}, method=self.topographic,
-                classes=scene.classes, limits=limits,
-            )
-            reflectance = topographic.reflectance
-        surface = {"slope": slope, "aspect": aspect} if self.brdf_frame == "surface" else {}
-        return reflectance, surface, topographic
-
-
-def _is_envi(path) -> bool:
-    try:
-        with rasterio.open(path) as dataset:
-            return dataset.driver == "ENVI"
-    except rasterio.errors.RasterioIOError:
-        return False  # the reader names the file
 
 
 def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:

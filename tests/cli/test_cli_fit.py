@@ -142,9 +142,9 @@ def test_bad_measurement_files_give_one_error_line(tmp_path, text, message):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--fix", "k"], "--fix 'k': expected NAME=VALUE"),
+        (["--fix", "k"], "Invalid value for '--fix': 'k': expected NAME=VALUE"),
         (["--fix", "q=1"], "unknown parameter 'q'"),
-        (["--bound", "w=0.1"], "--bound 'w=0.1': expected NAME=LOW:HIGH"),
+        (["--bound", "w=0.1"], "Invalid value for '--bound': 'w=0.1': expected NAME=LOW:HIGH"),
         (["--model", "phong"], "unknown BRDF model 'phong'"),
         (["--min-phi", "181"], "no measurement has phi >= 181"),
     ],
