@@ -41,8 +41,9 @@ from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
 
 #: The layers, top first (pyproject.toml, [tool.importlinter]); modules outside them have none.
-LAYERS = [["brdfcorr.cli"], ["brdfcorr.chain"], ["brdfcorr.tasks"], ["brdfcorr.plot"], ["brdfcorr.analysis"], ["brdfcorr.fit"],
-          ["brdfcorr.correction"], ["brdfcorr.params"], ["brdfcorr.params_bands", "brdfcorr.params_fit"],
+LAYERS = [["brdfcorr.cli"], ["brdfcorr.chain"], ["brdfcorr.tasks"], ["brdfcorr.plot"], ["brdfcorr.analysis"],
+          ["brdfcorr.fit"], ["brdfcorr.correction"], ["brdfcorr.params"],
+          ["brdfcorr.params_bands", "brdfcorr.params_fit"],
           ["brdfcorr.models"], ["brdfcorr.geometry"], ["brdfcorr.io"]]
 
 

@@ -25,10 +25,11 @@ from rasterio.enums import MaskFlags
 
 from brdfcorr._entry import option
 from brdfcorr.errors import InputError
+from brdfcorr.io.gdal_log import GdalLog
 from brdfcorr.io.opening import chunk_spec, open_raster, opened
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths
-from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, _GdalMessages, pass_threads, write_rasters
+from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, pass_threads, write_rasters
 
 __all__ = [
     "open_image",
@@ -416,7 +417,7 @@ def _sample_cache(image: xr.DataArray) -> rasterio.Env:
 def _read_samples(data: dask.array.Array, positions, where: str, scheduler, num_workers) -> list[np.ndarray]:
     """:func:`_valid_sample` of the chunks of ``data`` at the (y, x) chunk ``positions``; a failed
     read is an :class:`InputError` with GDAL's first log lines."""
-    messages = _GdalMessages()  # GDAL's log lines of a failed read: into the one error
+    messages = GdalLog()  # GDAL's log lines of a failed read: into the one error
     try:
         with messages:
             # The writing pass's threads (io.writer): every dask thread keeps its own handle of

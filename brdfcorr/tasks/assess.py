@@ -46,7 +46,7 @@ __all__ = ["Assessment", "assess_files", "LinesAssessment", "check_line_files", 
            "write_json"]
 
 
-@dataclass
+@dataclass(frozen=True)
 class Assessment:
     """What :func:`assess_files` measured.
 
@@ -188,17 +188,16 @@ def assess_files(
                        if (path := getattr(scene, name)) is not None})
         if clusters is not None:
             inputs["clusters"] = f"{clusters[0]} band {clusters[1]}"
-        result = Assessment(inputs, view)
+        overlapped = None
         if overlap is not None:
             other_before = rasters.open_image(overlap[0], chunks=engine.chunks, scale=scene.scale, offset=scene.offset)
             other_after = rasters.open_image(overlap[1], chunks=engine.chunks)
-            result.overlap = assess_overlap(data.reflectance, corrected, other_before, other_after,
-                                            resampling=resampling)
+            overlapped = assess_overlap(data.reflectance, corrected, other_before, other_after, resampling=resampling)
             inputs.update(overlap_before=str(overlap[0]), overlap_after=str(overlap[1]))
-    return result
+    return Assessment(inputs, view, overlapped)
 
 
-@dataclass
+@dataclass(frozen=True)
 class LinesAssessment:
     """What :func:`leave_one_line_out_files` measured.
 

@@ -42,6 +42,7 @@ from brdfcorr.io.scene import SceneData, open_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
 from brdfcorr.tasks.request import CorrectionRequest
+from brdfcorr.tasks.results import CorrectionResult, TopographicSummary
 
 __all__ = ["correct_files", "Terrain", "uncorrected_note", "MOSTLY_UNCORRECTED"]
 
@@ -175,7 +176,7 @@ def _bounded_gdal_cache(function):
 
 
 @_bounded_gdal_cache
-def correct_files(request: CorrectionRequest) -> dict[str, object]:
+def correct_files(request: CorrectionRequest) -> CorrectionResult:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
     Inputs are opened lazily in chunks and checked once (:func:`brdfcorr.io.scene.open_scene`:
@@ -202,14 +203,13 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
 
     Returns
     -------
-    dict
-        Pixel counts (:func:`brdfcorr.correction.qa_counts`) plus ``reference`` (the geometry used),
-        with an integer output (``outputs.data_type="input"``) ``out_of_range`` (the valid pixels
-        stored as nodata and flagged ``nodata`` since some band did not fit the type; counted in the
-        writing pass, and among ``nodata``), with a topographic step ``topographic`` (its method and
-        the C fit per class and band), and
-        where most valid pixels were left uncorrected ``notes`` (:func:`uncorrected_note`; also a
-        warning).
+    CorrectionResult
+        ``counts``: pixel counts (:func:`brdfcorr.correction.qa_counts`), with an integer output
+        (``outputs.data_type="input"``) ``out_of_range`` (the valid pixels stored as nodata and
+        flagged ``nodata`` since some band did not fit the type; counted in the writing pass, and
+        among ``nodata``); ``reference`` (the geometry used); with a topographic step
+        ``topographic`` (its method and the C fit per class and band); where most valid pixels were
+        left uncorrected ``notes`` (:func:`uncorrected_note`; also a warning).
 
     Warns
     -----
@@ -269,16 +269,16 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
         gdal_cache=rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
         **compute,
     )
-    result: dict[str, object] = {**{key: int(value) for key, value in counts.items()}, "reference": reference}
-    note = uncorrected_note({key: int(value) for key, value in counts.items()})
+    pixels = {key: int(value) for key, value in counts.items()}
+    note = uncorrected_note(pixels)
     if note is not None:
         warnings.warn(note, BrdfcorrWarning, stacklevel=2)
-        result["notes"] = [note]
+    summary = None
     if topographic is not None:
         c_table = topographic.c_table
-        result["topographic"] = {"method": request.terrain.topographic,  # type: ignore[union-attr]
-                                 "c": [] if c_table is None else c_table.to_dict(orient="records")}
-    return result
+        summary = TopographicSummary(request.terrain.topographic,  # type: ignore[union-attr]
+                                     () if c_table is None else tuple(c_table.to_dict(orient="records")))
+    return CorrectionResult(pixels, reference, notes=() if note is None else (note,), topographic=summary)
 
 
 def _check_outputs(request: CorrectionRequest) -> None:
@@ -436,7 +436,7 @@ def _envi_outputs(request: CorrectionRequest, scene: SceneData) -> dict:
 
 
 def _fingerprint_tags(fingerprint: str | None) -> dict[str, str]:
-    """The tags a resumed chain compares (:mod:`brdfcorr.chain.plan`), written to the corrected
+    """The tags a resumed chain compares (:mod:`brdfcorr.chain.resume`), written to the corrected
     output only, which is renamed into place after the QA and uncertainty outputs: whoever finds
     them finds every output of the correction complete."""
     if fingerprint is None:
