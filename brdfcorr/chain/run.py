@@ -161,11 +161,19 @@ class ChunkProgress(Callback):
 
 
 # ----------------------------------------------------------------------------------- parameters
+def _scene_sources(scene: Scene, config: ChainConfig, kind: type[SceneSources] = SceneSources,
+                   **extra) -> SceneSources:
+    """The files of a planned scene as the tasks take them (a :class:`SceneSources`, or ``kind``
+    with the ``extra`` fields), read as ``inputs`` says (scale, offset)."""
+    return kind(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
+                angle_options=dict(scene.angle_options), scale=config.inputs.scale, offset=config.inputs.offset,
+                **extra)
+
+
 def _scene_files(scene: Scene, config: ChainConfig) -> SceneFiles:
     inputs = config.inputs
-    return SceneFiles(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
-                      angle_options=dict(scene.angle_options), name=scene.name, align_classes=inputs.align_classes,
-                      class_lookup=dict(inputs.class_lookup), scale=inputs.scale, offset=inputs.offset)
+    return _scene_sources(scene, config, SceneFiles, name=scene.name,  # type: ignore[return-value]
+                          align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup))
 
 
 def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
@@ -325,9 +333,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
     """The correct step; returns what it found: ``reference``, ``qa`` and ``topographic``."""
     step, outputs = config.steps.correct, config.outputs
     inputs = config.inputs
-    sources = SceneSources(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
-                           angle_options=dict(scene.angle_options), wavelengths=inputs.wavelengths,
-                           scale=inputs.scale, offset=inputs.offset)
+    sources = _scene_sources(scene, config, wavelengths=inputs.wavelengths)
     files = OutputFiles(
         scene.outputs["corrected"], qa=scene.outputs.get("qa"), uncertainty=scene.outputs.get("uncertainty"),
         format=outputs.format, interleave=outputs.interleave or "bsq", compress=outputs.compress, cog=outputs.cog,
@@ -354,8 +360,7 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
     """The assess step: the JSON report and the profile figure; returns ``assess``, the per-class
     summary (:func:`~brdfcorr.chain.report.assessment_summary`)."""
     step, inputs = config.steps.assess, config.inputs
-    sources = SceneSources(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
-                           angle_options=dict(scene.angle_options), scale=inputs.scale, offset=inputs.offset)
+    sources = _scene_sources(scene, config)
     view_options = ViewAngleOptions(
         by=step.sign_by, heading=step.heading, class_names={entry.id: entry.name for entry in table.classes},
         bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.steps.correct.flip_view_azimuth,

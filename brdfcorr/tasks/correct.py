@@ -6,7 +6,6 @@ It reads and writes files but prints nothing: the CLI shows the summary, chains 
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 import os
@@ -159,23 +158,15 @@ def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:
     return (qa | (topographic_qa & passed_on)).assign_attrs(qa.attrs)
 
 
-def _bounded_gdal_cache(function):
-    """Run ``function(request)`` with GDAL's block cache bounded for the whole run
-    (:func:`brdfcorr.io.rasters.bounded_gdal_cache`): the angle and scale checks read before the
-    write, and GDAL's default cache (5 % of RAM) would keep their tiles (issue 28)."""
-    @functools.wraps(function)
-    def bounded(request: CorrectionRequest):
-        image, chunks = request.scene.image, request.engine.chunks
-        try:
-            cache = rasters.bounded_gdal_cache(image, rasters.auto_chunk(image) if chunks is None else int(chunks))
-        except BrdfcorrError:  # a missing or unreadable image: the run's own checks say so, in order
-            return function(request)
-        with cache:
-            return function(request)
-    return bounded
+def _identified(request: CorrectionRequest) -> rasters.ImageFile | None:
+    """The image file identified once (:func:`brdfcorr.io.rasters.identify_image`: product kind,
+    layout), or None for a missing or unreadable image: the run's own checks say so, in order."""
+    try:
+        return rasters.identify_image(request.scene.image)
+    except BrdfcorrError:
+        return None
 
 
-@_bounded_gdal_cache
 def correct_files(request: CorrectionRequest) -> CorrectionResult:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
@@ -185,6 +176,11 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
     a temporary name renamed when complete, with band descriptions and provenance tags (reference
     geometry, limits, parameter table, brdfcorr version). The QA layer and the uncertainty are
     written in the same pass.
+
+    The image is identified once (its product kind and layout), its chunk size worked out once
+    (:func:`brdfcorr.io.rasters.auto_chunk` unless given) and GDAL's block cache bounded for the
+    whole run (:func:`brdfcorr.io.rasters.gdal_cache_bytes`): the angle and scale checks read
+    before the write, and GDAL's default cache (5 % of RAM) would keep their tiles (issue 28).
 
     The image's stored values are read as reflectance factors: scaled with the file's per-band GDAL
     scale and offset (``reflectance = stored * scale + offset``), or with the request's
@@ -236,12 +232,29 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
         An existing output without ``overwrite``, an output that is no regular file or the same
         file as the other output, or a failed write (disk full); nothing is left at the output paths.
     """
+    image = _identified(request)
+    chunks = None if request.engine.chunks is None else int(request.engine.chunks)
+    if image is not None and chunks is None:
+        chunks = rasters.auto_chunk(image)
+    if image is None or chunks is None:  # the checks name the image that cannot be read
+        return _correct(request, image, chunks, None)
+    cache = rasters.gdal_cache_bytes(image, chunks)
+    with rasterio.Env(GDAL_CACHEMAX=cache):
+        return _correct(request, image, chunks, cache)
+
+
+def _correct(request: CorrectionRequest, image: rasters.ImageFile | None, chunks: int | None,
+             cache: int | None) -> CorrectionResult:
+    """:func:`correct_files` of an image identified (None: it cannot be read), in chunks of
+    ``chunks`` pixels (None: worked out here, or the image's error) with GDAL's block cache
+    bounded to ``cache`` [bytes] (None: worked out for the write)."""
     _check_outputs(request)
     table, table_path = _load_table(request)
     engine = request.engine
-    chunks = rasters.auto_chunk(request.scene.image) if engine.chunks is None else int(engine.chunks)
+    if chunks is None:
+        chunks = rasters.auto_chunk(request.scene.image)  # the image's error, after the outputs' and the table's
     compute = {"scheduler": engine.scheduler, "num_workers": engine.num_workers}
-    scene = open_scene(request.scene, chunks=chunks,
+    scene = open_scene(request.scene, chunks=chunks, image=image,
                        prepare_classes=class_preparation(request.align_classes, request.class_lookup), **compute)
     _warn_wavelength_caveats(table, scene.reflectance)
     if request.scene.scale is None:  # a given scale is the user's word; else catch raw counts first
@@ -266,7 +279,7 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
         targets, geotiff=writer.GeoTiffOutput(compress=files.compress, blocksize=chunks, cog=files.cog), tags=tags,
         commit_tags=_fingerprint_tags(request.outputs.fingerprint), compute_with={**qa_counts(qa), **encoding},
         callbacks=engine.callbacks,
-        gdal_cache=rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
+        gdal_cache=cache or rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
         **compute,
     )
     pixels = {key: int(value) for key, value in counts.items()}
