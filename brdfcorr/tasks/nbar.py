@@ -23,7 +23,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
@@ -127,8 +127,7 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     Returns
     -------
     NbarResult
-        The pixel counts and the reference geometry (as of
-        :func:`~brdfcorr.tasks.correct.correct_files`), and the ``product`` read.
+        The pixel counts and reference geometry (:func:`~brdfcorr.tasks.correct.correct_files`), the ``product``.
 
     Raises
     ------
@@ -141,18 +140,8 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     refuse_archive(product)
     granule = find_hls_granule(product, bands=bands)
     if granule is not None:  # NBAR already: at most moved to another sun zenith
-        if (method.view_band is not None or method.factor_at != "pixels" or keep_stack is not None
-                or resolution not in (None, 30)):
-            raise InputError(f"{product}: an HLS granule is NBAR already, at 30 m; resolution (--resolution), "
-                             "view_band (--view-band), factor_at (--factor-at) and keep_stack (--keep-stack) are "
-                             "for Sentinel-2 and Landsat folders")
-        if method.reference_sza in ("mean", "observed"):
-            raise SensorInputError(hls_refusal(granule))
-        _check_outputs(outputs, granule, None)
-        corrected, qa, tags, reference = hls_sun_zenith_layers(
-            granule, coefficients=method.coefficients, reference_sza=method.reference_sza, masked=masked,
-            engine=replace(engine, chunks=engine.chunks or NBAR_CHUNK))
-        return NbarResult(_write_bands(corrected, qa, tuple(granule.bands), outputs, tags, engine), reference, granule)
+        _refuse_for_hls(product, granule, resolution, method, keep_stack)
+        return _moved_hls(granule, outputs, masked, method, engine)
     folder = find_product(product, resolution=resolution, bands=bands, masked=masked)
     angle_options = _angle_options(folder, method.view_band)
     _check_outputs(outputs, folder, keep_stack)
@@ -162,11 +151,41 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
         if method.view_band == EACH_BAND:
             counts, reference = _band_by_band(folder, stack, Path(scratch), outputs, method, engine)
         else:
-            result = correct_files(_request(folder, SceneSources(stack, None, folder.angles), angle_options,
-                                            nbar_table(folder, method.coefficients),
-                                            replace(outputs, fingerprint=None), method, engine))
-            counts, reference = result.counts, result.reference
+            counts, reference = _one_stack(folder, stack, angle_options, outputs, method, engine)
     return NbarResult(counts, reference, folder)
+
+
+def _one_stack(folder: ProductFolder, stack: Path, angle_options: dict, outputs: OutputFiles, method: NbarMethod,
+               engine: Engine) -> tuple[Mapping[str, int], ReferenceGeometry]:
+    """The bands corrected together with one set of view angle grids (one :func:`correct_files` of
+    the stack): the pixel counts and the reference geometry."""
+    result = correct_files(_request(folder, SceneSources(stack, None, folder.angles), angle_options,
+                                    nbar_table(folder, method.coefficients), replace(outputs, fingerprint=None),
+                                    method, engine))
+    return result.counts, result.reference
+
+
+def _refuse_for_hls(product, granule: HlsGranule, resolution: int | None, method: NbarMethod, keep_stack) -> None:
+    """The settings an HLS granule (NBAR already, at 30 m) cannot take, as one error: those of the
+    Sentinel-2 and Landsat folders, and a reference sun zenith that is not a fixed angle."""
+    if (method.view_band is not None or method.factor_at != "pixels" or keep_stack is not None
+            or resolution not in (None, 30)):
+        raise InputError(f"{product}: an HLS granule is NBAR already, at 30 m; resolution (--resolution), "
+                         "view_band (--view-band), factor_at (--factor-at) and keep_stack (--keep-stack) are "
+                         "for Sentinel-2 and Landsat folders")
+    if method.reference_sza in ("mean", "observed"):
+        raise SensorInputError(hls_refusal(granule))
+
+
+def _moved_hls(granule: HlsGranule, outputs: OutputFiles, masked: Sequence[int] | None, method: NbarMethod,
+               engine: Engine) -> NbarResult:
+    """An HLS granule moved to the method's fixed reference sun zenith [deg]
+    (:func:`brdfcorr.tasks.hls.hls_sun_zenith_layers`), written as :func:`nbar_files` writes."""
+    _check_outputs(outputs, granule, None)
+    corrected, qa, tags, reference = hls_sun_zenith_layers(
+        granule, coefficients=method.coefficients, reference_sza=method.reference_sza, masked=masked,
+        engine=replace(engine, chunks=engine.chunks or NBAR_CHUNK))
+    return NbarResult(_write_bands(corrected, qa, tuple(granule.bands), outputs, tags, engine), reference, granule)
 
 
 #: Archive suffixes products are downloaded as (Copernicus: ``….SAFE.zip``; USGS: ``….tar``).
