@@ -344,21 +344,32 @@ def fit_class_files(
     models, notes = _choices_from_maps(models, [data.classes for data in opened])
     bbl = [_bbl_ranges(scene, data) for scene, data in zip(used, opened)]
     ranges = [*sampling.bad_bands, *(run for runs, _ in bbl for run in runs)]
+    sampling = replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges)))
+    result, caught_notes = _fit_pooled(opened, models, sampling, guard, _imagery_source(used, models), progress)
+    notes += _bad_band_note(result, max((count for _, count in bbl), default=0))
+    return ImageryFitResult(result, used, _fitted_wavelengths(opened[0].reflectance, result), left_out, caught_notes,
+                            notes)
+
+
+def _fit_pooled(opened: Sequence[SceneData], models: ClassModels, sampling: Sampling, guard: GuardRails, source: str,
+                progress) -> tuple[ClassFitResult, list[str]]:
+    """:func:`brdfcorr.fit.fit_classes` of the opened scenes' pixels, and its warnings
+    (:class:`ClassFitWarning`) as notes."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ClassFitWarning)
-        result = fit_classes(
-            [s.reflectance for s in opened], [s.classes for s in opened],
-            [xr.Dataset(s.angles) for s in opened], models,
-            sampling=replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges))),
-            guard=guard, source=_imagery_source(used, models), progress=progress,
-        )
-    first = opened[0].reflectance
-    found = first.coords["wavelength"].values if "wavelength" in first.coords else None
-    if found is not None and result.bad_bands:  # the fitted bands' wavelengths, as the fits' arrays
+        result = fit_classes([s.reflectance for s in opened], [s.classes for s in opened],
+                             [xr.Dataset(s.angles) for s in opened], models, sampling=sampling, guard=guard,
+                             source=source, progress=progress)
+    return result, [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
+
+
+def _fitted_wavelengths(reflectance: xr.DataArray, result: ClassFitResult) -> np.ndarray | None:
+    """The band centres [nm] of the fitted bands (the bad bands left out), as the fits' arrays;
+    None for an image without band wavelengths."""
+    found = reflectance.coords["wavelength"].values if "wavelength" in reflectance.coords else None
+    if found is not None and result.bad_bands:
         found = found[~in_ranges(found, result.bad_bands)]
-    caught_notes = [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
-    notes += _bad_band_note(result, max((count for _, count in bbl), default=0))
-    return ImageryFitResult(result, used, found, left_out, caught_notes, notes)
+    return found
 
 
 def _opened_scenes(scenes: Sequence[SceneFiles], reflectance_scale: float, chunks, wavelengths,
