@@ -98,7 +98,7 @@ def plain_copy(source: Path, target: Path, chunk: int) -> None:
                     dst.write(src.read(window=window), window=window)
 
 
-def run_correct(paths: dict, output: Path, chunk: int | None, data_type: str = "float") -> dict:
+def run_correct(paths: dict, output: Path, chunk: int | None, data_type: str = "float") -> object:
     from brdfcorr.io.scene import SceneSources
     from brdfcorr.tasks.correct import correct_files
     from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles

@@ -17,7 +17,7 @@ register_accessor()  # the .brdf xarray accessor: now, or when xarray is importe
 #: Names imported at first use (PEP 562), so that `import brdfcorr` and the command line's
 #: `--help` and argument errors do not pay for dask and scipy.
 _LAZY = {"geometry": "brdfcorr.geometry", "models": "brdfcorr.models", "normalize": "brdfcorr.correction",
-         "ParameterTable": "brdfcorr.params", "run_chain": "brdfcorr.chain.api"}
+         "ParameterTable": "brdfcorr.params", "run_chain": "brdfcorr.chain.run"}
 
 
 def __getattr__(name: str):

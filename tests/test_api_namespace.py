@@ -9,7 +9,7 @@ import brdfcorr
 
 
 def test_top_level_names_are_the_library_objects():
-    from brdfcorr.chain.api import run_chain
+    from brdfcorr.chain.run import run_chain
     from brdfcorr.params import ParameterTable
 
     assert brdfcorr.ParameterTable is ParameterTable

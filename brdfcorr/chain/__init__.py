@@ -2,12 +2,14 @@
 
 - :mod:`~brdfcorr.chain.config` (with ``config_inputs``, ``config_outputs``, ``config_steps``) and
   :mod:`~brdfcorr.chain.patterns`: chain configs and their per-scene name patterns;
-- :mod:`~brdfcorr.chain.plan`, :mod:`~brdfcorr.chain.run`, :mod:`~brdfcorr.chain.report`,
-  :mod:`~brdfcorr.chain.quicklook`: plan, run and report a chain;
-- :mod:`~brdfcorr.chain.api`: ``brdfcorr.run_chain`` (a config file or a loaded config);
+- :mod:`~brdfcorr.chain.plan` (with :mod:`~brdfcorr.chain.scenes`, the scenes of a run, and
+  :mod:`~brdfcorr.chain.resume`, fingerprints and what a resumed run skips),
+  :mod:`~brdfcorr.chain.run`, :mod:`~brdfcorr.chain.report`,
+  :mod:`~brdfcorr.chain.quicklook`: plan, run and report a chain (:func:`~brdfcorr.chain.run.run_chain`,
+  ``brdfcorr.run_chain``: a config file or a loaded config);
 - :mod:`~brdfcorr.chain.demo`: the demo scene and its run.
 """
 
 #: The chain modules, imported at first use as ``brdfcorr.chain.<name>``.
-__all__ = ["api", "config", "config_inputs", "config_outputs", "config_steps", "demo", "patterns", "plan",
-           "quicklook", "report", "run"]
+__all__ = ["config", "config_inputs", "config_outputs", "config_steps", "demo", "patterns", "plan",
+           "quicklook", "report", "resume", "run", "scenes"]

@@ -13,7 +13,8 @@ every input image with
 
 from __future__ import annotations
 
-import re
+import string
+from collections.abc import Iterator
 from pathlib import Path
 
 __all__ = ["PATTERN_FIELDS", "check_pattern", "format_pattern"]
@@ -23,15 +24,42 @@ PATTERN_FIELDS = ("dir", "parent", "stem", "scene")
 
 
 def check_pattern(value: str, allowed=PATTERN_FIELDS) -> str:
-    """A str.format pattern using only the allowed placeholders (ValueError naming the first other)."""
-    names = re.findall(r"(?<!\{)\{([^{}]*)\}", value)
-    bad = [name for name in names if name not in allowed]
+    """A str.format pattern using only the allowed placeholders.
+
+    The pattern is read as :meth:`str.format` reads it (:meth:`string.Formatter.parse`), so a
+    conversion or a format spec (``{scene!s}``, ``{scene:>8}``) is accepted as it is there.
+
+    Raises
+    ------
+    ValueError
+        One line: the first placeholder that is not allowed (an attribute or an index of an allowed
+        one, ``{scene.upper}``, and a positional ``{}`` included), or the pattern is no valid
+        ``str.format`` pattern for strings (``{scene``, ``{scene:d}``).
+    """
+    try:
+        bad = [name for name in _field_names(value) if name not in allowed]
+    except ValueError as error:  # an unmatched brace
+        raise ValueError(f"pattern {value!r}: {error}") from None
     if bad:
         raise ValueError(
             f"pattern {value!r} uses {{{bad[0]}}}; allowed placeholders: "
             + ", ".join(f"{{{name}}}" for name in allowed)
         )
+    try:
+        value.format(**{name: "x" for name in allowed})
+    except ValueError as error:  # a format spec strings do not take
+        raise ValueError(f"pattern {value!r}: {error}") from None
     return value
+
+
+def _field_names(pattern: str) -> Iterator[str]:
+    """The field names of a str.format pattern, in order, those nested in format specs
+    (``{scene:>{width}}``) included."""
+    for _, name, spec, _ in string.Formatter().parse(pattern):
+        if name is not None:
+            yield name
+        if spec:
+            yield from _field_names(spec)
 
 
 def format_pattern(pattern: str, image: Path, scene: str) -> str:

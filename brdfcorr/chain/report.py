@@ -19,7 +19,8 @@ import rioxarray
 import xarray
 
 from brdfcorr import __version__
-from brdfcorr.chain.plan import RunPlan, Scene
+from brdfcorr.chain.plan import RunPlan
+from brdfcorr.chain.scenes import Scene
 from brdfcorr.errors import BrdfcorrError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.params import ParameterTable

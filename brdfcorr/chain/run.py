@@ -20,7 +20,7 @@ A failing scene is recorded (message and error type) and the others go on. Befor
 temporary files an interrupted earlier run left beside the run's outputs are removed
 (:func:`brdfcorr.io.paths.remove_partials`); the plan has already checked that no output is an
 input or another output, and each corrected output records the plan's fingerprint of its inputs
-and settings (:func:`brdfcorr.chain.plan.scene_fingerprint`) for the next resume.
+and settings (:func:`brdfcorr.chain.resume.scene_fingerprint`) for the next resume.
 
 Execution engines (``engine.scheduler``):
 
@@ -59,7 +59,7 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -73,8 +73,8 @@ from dask.callbacks import Callback
 
 from brdfcorr._entry import entered
 from brdfcorr.analysis.assess import ViewAngleOptions
-from brdfcorr.chain.config import ChainConfig, EngineConfig
-from brdfcorr.chain.plan import RunPlan, Scene, configured_table, plan_run, reuses_fit
+from brdfcorr.chain.config import ChainConfig, EngineConfig, load_config
+from brdfcorr.chain.plan import RunPlan, plan_run
 from brdfcorr.chain.quicklook import write_quicklook
 from brdfcorr.chain.report import (
     RunReport,
@@ -85,6 +85,8 @@ from brdfcorr.chain.report import (
     uncorrected_classes,
     versions,
 )
+from brdfcorr.chain.resume import configured_table, reuses_fit
+from brdfcorr.chain.scenes import Scene
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io import cluster
 from brdfcorr.io.paths import remove_partials
@@ -98,7 +100,6 @@ from brdfcorr.tasks.fit import SceneFiles, fit_class_files, fit_measurement_file
 from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
 __all__ = [
-    "connect_cluster",
     "Scene",
     "RunPlan",
     "RunReport",
@@ -113,8 +114,6 @@ __all__ = [
     "LOCK_NAME",
 ]
 
-#: Seconds to wait for a dask scheduler at ``engine.address`` before the run is refused (exit 2).
-CONNECT_TIMEOUT = 10
 #: Least time between two ``"chunks"`` progress events of a scene [s].
 CHUNK_EVENT_SECONDS = 0.2
 
@@ -162,11 +161,19 @@ class ChunkProgress(Callback):
 
 
 # ----------------------------------------------------------------------------------- parameters
+def _scene_sources(scene: Scene, config: ChainConfig, kind: type[SceneSources] = SceneSources,
+                   **extra) -> SceneSources:
+    """The files of a planned scene as the tasks take them (a :class:`SceneSources`, or ``kind``
+    with the ``extra`` fields), read as ``inputs`` says (scale, offset)."""
+    return kind(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
+                angle_options=dict(scene.angle_options), scale=config.inputs.scale, offset=config.inputs.offset,
+                **extra)
+
+
 def _scene_files(scene: Scene, config: ChainConfig) -> SceneFiles:
     inputs = config.inputs
-    return SceneFiles(scene.image, scene.classes, scene.angles, scene.angles_kind, dict(scene.angle_options),
-                      scene.name, align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup),
-                      scale=inputs.scale, offset=inputs.offset)
+    return _scene_sources(scene, config, SceneFiles, name=scene.name,  # type: ignore[return-value]
+                          align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup))
 
 
 def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
@@ -326,15 +333,13 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
     """The correct step; returns what it found: ``reference``, ``qa`` and ``topographic``."""
     step, outputs = config.steps.correct, config.outputs
     inputs = config.inputs
-    sources = SceneSources(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
-                           angle_options=dict(scene.angle_options), wavelengths=inputs.wavelengths,
-                           scale=inputs.scale, offset=inputs.offset)
+    sources = _scene_sources(scene, config, wavelengths=inputs.wavelengths)
     files = OutputFiles(
         scene.outputs["corrected"], qa=scene.outputs.get("qa"), uncertainty=scene.outputs.get("uncertainty"),
         format=outputs.format, interleave=outputs.interleave or "bsq", compress=outputs.compress, cog=outputs.cog,
-        fingerprint=scene.fingerprint or None,  # what a resumed run compares (brdfcorr.chain.plan)
+        fingerprint=scene.fingerprint or None,  # what a resumed run compares (brdfcorr.chain.resume)
     )
-    summary = correct_files(CorrectionRequest(
+    result = correct_files(CorrectionRequest(
         sources, table, files, reference=config.reference, limits=step.limits, extrapolate=step.extrapolate,
         unknown=step.unknown, flip_view_azimuth=step.flip_view_azimuth, terrain=_terrain(scene, config),
         factor_at=step.factor_at,
@@ -342,12 +347,12 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
         engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers),
         table_source=config.source,
     ))
-    found = {"reference": summary.pop("reference").describe()}
-    if "notes" in summary:  # most pixels left uncorrected: said in the report too
-        found["notes"] = summary.pop("notes")
-    if "topographic" in summary:
-        found["topographic"] = summary.pop("topographic")
-    found["qa"] = summary
+    found: dict[str, object] = {"reference": result.reference.describe()}
+    if result.notes:  # most pixels left uncorrected: said in the report too
+        found["notes"] = list(result.notes)
+    if result.topographic is not None:
+        found["topographic"] = result.topographic.as_dict()
+    found["qa"] = dict(result.counts)
     return found
 
 
@@ -355,8 +360,7 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
     """The assess step: the JSON report and the profile figure; returns ``assess``, the per-class
     summary (:func:`~brdfcorr.chain.report.assessment_summary`)."""
     step, inputs = config.steps.assess, config.inputs
-    sources = SceneSources(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
-                           angle_options=dict(scene.angle_options), scale=inputs.scale, offset=inputs.offset)
+    sources = _scene_sources(scene, config)
     view_options = ViewAngleOptions(
         by=step.sign_by, heading=step.heading, class_names={entry.id: entry.name for entry in table.classes},
         bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.steps.correct.flip_view_azimuth,
@@ -411,27 +415,10 @@ def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executo
             yield pool, {"scheduler": "threads", "threads": engine.threads_per_worker}
     else:
         # Scenes are driven from threads here; their chunks run on every worker of the cluster.
-        with connect_cluster(engine.address, workers=engine.workers,
-                             threads_per_worker=engine.threads_per_worker, setting="engine.address") as client, \
+        with cluster.connect_cluster(engine.address, workers=engine.workers, setting="engine.address",
+                                     threads_per_worker=engine.threads_per_worker) as client, \
                 concurrent.futures.ThreadPoolExecutor(engine.workers) as scenes:
             yield scenes, {"scheduler": client}
-
-
-def connect_cluster(address: str | None = None, *, workers: int = 1, threads_per_worker: int = 1,
-                    setting: str | None = None):
-    """A :class:`distributed.Client` of the dask scheduler at ``address`` (with at least one
-    worker), or of a local cluster of ``workers`` processes with ``threads_per_worker`` threads each:
-    :func:`brdfcorr.io.cluster.connect_cluster` (a context manager; connect, handshake and workers
-    bounded in time) with :data:`CONNECT_TIMEOUT`. ``setting`` names where the address came from
-    in errors (``engine.address``, ``--scheduler``).
-
-    Raises
-    ------
-    InputError
-        dask.distributed is not installed, or no dask scheduler with workers answers at ``address``.
-    """
-    return cluster.connect_cluster(address, workers=workers, threads_per_worker=threads_per_worker,
-                                   setting=setting, timeout=CONNECT_TIMEOUT)
 
 
 #: The lock file of a chain run, in its output directory; it holds the running process's id.
@@ -522,12 +509,19 @@ def _run_scenes(scenes: list[Scene], table: ParameterTable, config: ChainConfig,
 
 
 # -------------------------------------------------------------------------------------------- run
-def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: RunPlan | None = None) -> RunReport:
-    """Run a chain: parameter table (and fit), every scene, run report.
+def run_chain(config: ChainConfig | str | os.PathLike, *, overrides: Mapping[str, object] | None = None,
+              progress: Progress | None = None, plan: RunPlan | None = None) -> RunReport:
+    """Run a chain: parameter table (and fit), every scene, run report (``brdfcorr run``;
+    ``brdfcorr.run_chain``).
 
     Parameters
     ----------
-    config : ChainConfig
+    config : path-like or ChainConfig
+        The chain config file (YAML; relative paths are relative to it), or a config loaded with
+        :func:`brdfcorr.chain.config.load_config`.
+    overrides : mapping of str to object, optional
+        Dotted keys to replace (``{"engine.workers": 2}``), as ``brdfcorr run --set``; only with a
+        path (pass them to ``load_config`` otherwise).
     progress : callable, optional
         ``progress(event, info)`` (module docstring).
     plan : RunPlan, optional
@@ -541,12 +535,19 @@ def run_chain(config: ChainConfig, *, progress: Progress | None = None, plan: Ru
 
     Raises
     ------
+    TypeError
+        ``overrides`` with a loaded config.
     BrdfcorrError
-        Before any scene runs: no inputs, a bad parameter table, a failed fit step, an unreachable
-        cluster, another run writing to the output directory (:func:`run_lock`). Failures of single
-        scenes do not raise; they are in the report. A report that cannot be written (a full
+        Before any scene runs: a bad config, no inputs, a bad parameter table, a failed fit step, an
+        unreachable cluster, another run writing to the output directory (:func:`run_lock`). Failures
+        of single scenes do not raise; they are in the report. A report that cannot be written (a full
         disk) is an :class:`~brdfcorr.errors.OutputError`.
     """
+    if isinstance(config, ChainConfig):
+        if overrides:
+            raise TypeError("overrides apply to a config file; give them to load_config for a loaded config")
+    else:
+        config = load_config(config, overrides)
     started = datetime.now(timezone.utc).isoformat(timespec="seconds")
     clock = time.perf_counter()
     with entered("chain"):  # messages name chain keys (brdfcorr._entry)

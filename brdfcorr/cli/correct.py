@@ -68,7 +68,7 @@ def _cluster(address: str | None):
     """The client of the dask.distributed scheduler at ``address`` (None: this machine's threads)."""
     if not address:
         return contextlib.nullcontext(None)
-    from brdfcorr.chain.run import connect_cluster  # imported only for a cluster
+    from brdfcorr.io.cluster import connect_cluster  # imported only for a cluster
 
     return connect_cluster(address, setting="--scheduler")
 
@@ -162,17 +162,18 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
             ))
         finally:  # shown also when the correction then fails
             _show_warnings(caught)
+    counts = summary.counts
     click.echo(
-        f"wrote {output}: {summary['corrected']} pixels corrected, {summary['limited']} limited, "
-        f"{summary['unknown_class']} unknown class, {summary['no_class']} no class, "
-        f"{summary['nodata']} nodata ({summary['reference'].describe()}) in "
+        f"wrote {output}: {counts['corrected']} pixels corrected, {counts['limited']} limited, "
+        f"{counts['unknown_class']} unknown class, {counts['no_class']} no class, "
+        f"{counts['nodata']} nodata ({summary.reference.describe()}) in "
         f"{time.perf_counter() - start:.1f} s"
     )
-    if "topographic" in summary:
-        rows = summary["topographic"]["c"]
-        rejected = sum(not row["accepted"] for row in rows)
-        click.echo(f"topographic correction {summary['topographic']['method']}: "
+    topographic = summary.topographic
+    if topographic is not None:
+        rows, rejected = topographic.c, topographic.rejected
+        click.echo(f"topographic correction {topographic.method}: "
                    f"{len(rows) - rejected} class-band C fits used, {rejected} rejected (flagged)" if rows else
-                   f"topographic correction {summary['topographic']['method']}")
+                   f"topographic correction {topographic.method}")
 
 

@@ -50,9 +50,9 @@ def nbar_command(product, output, qa_path, resolution, bands, coefficients, ref_
             for warning in caught:
                 if issubclass(warning.category, BrdfcorrWarning):
                     click.echo(f"brdfcorr: warning: {warning.message}", err=True)
-    folder = summary["product"]
+    folder, counts = summary.product, summary.counts
     click.echo(
-        f"wrote {output}: {', '.join(folder.bands)} at {folder.resolution:g} m, {summary['corrected']} pixels "
-        f"corrected, {summary['limited']} limited, {summary['nodata']} nodata or masked "
-        f"({summary['reference'].describe()}) in {time.perf_counter() - start:.1f} s"
+        f"wrote {output}: {', '.join(folder.bands)} at {folder.resolution:g} m, {counts['corrected']} pixels "
+        f"corrected, {counts['limited']} limited, {counts['nodata']} nodata or masked "
+        f"({summary.reference.describe()}) in {time.perf_counter() - start:.1f} s"
     )

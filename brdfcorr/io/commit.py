@@ -3,7 +3,7 @@ once, after it was verified.
 
 GDAL reports a tile it could not write, or a TIFF directory it could not rewrite at close, as a
 logged error and rasterio raises nothing for it (a full disk gave files that read as NaN, with
-exit 0). :class:`GdalFailures` collects those errors while outputs are written; :func:`verify`
+exit 0). :class:`brdfcorr.io.gdal_log.GdalLog` collects those errors while outputs are written; :func:`verify`
 reopens each temporary file and checks what a full disk or a file size limit breaks;
 :meth:`Target.commit` renames the temporaries into place, the data file last. :func:`write_cause`
 (:mod:`brdfcorr.io.files`) names the cause: the file size limit, a full device, GDAL's message.
@@ -12,11 +12,7 @@ reopens each temporary file and checks what a full disk or a file size limit bre
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import functools
-import logging
 import os
-import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,8 +25,9 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io.files import write_cause
+from brdfcorr.io.gdal_log import OUT_OF_MEMORY
 
-__all__ = ["GdalFailures", "Target", "check_complete", "verify", "io_failure", "write_error", "written_files"]
+__all__ = ["Target", "check_complete", "verify", "io_failure", "write_error", "written_files"]
 
 
 def io_failure(error: Exception, targets: list, messages: list[str], written: list[Path]) -> BrdfcorrError:
@@ -54,115 +51,11 @@ def io_failure(error: Exception, targets: list, messages: list[str], written: li
 def write_error(targets: list, cause: str) -> OutputError:
     """One :class:`OutputError` for failed outputs: the targets, the cause and what to check."""
     folders = ", ".join(dict.fromkeys(str(Path(target).parent) for target in targets))
-    if cause.startswith(_OUT_OF_MEMORY):  # a tile too large for memory (--chunk), not the disk
+    if cause.startswith(OUT_OF_MEMORY):  # a tile too large for memory (--chunk), not the disk
         hint = "nothing was written (a smaller tile size, --chunk, needs less memory)"
     else:
         hint = f"nothing was written (check the free space, file size limit and permissions of {folders})"
     return OutputError(f"cannot write {', '.join(map(str, targets))}: {cause}; {hint}")
-
-
-_OUT_OF_MEMORY = "GDAL could not allocate memory"
-_CPLE_OUT_OF_MEMORY = 2  # GDAL's error number of a failed allocation
-
-
-class GdalFailures(logging.Handler):
-    """GDAL's failures (``CE_Failure``: a tile or line that was not written, a directory that could
-    not be rewritten) while outputs are written and closed. rasterio logs them at INFO level and
-    raises nothing for a failed flush or close, so they are collected here (the loggers' level is
-    lowered while any write is active) and the write fails if there is one. libtiff's own printing
-    of its errors is switched off (:func:`_quiet_libtiff`): nothing reaches stderr."""
-
-    _active = 0
-    _saved: dict[str, tuple[int, bool, int]] = {}  # name: (level, propagate, effective level before)
-    _guard = threading.Lock()
-    _NAMES = ("rasterio._env", "rasterio._err")
-
-    def __init__(self, thread: int | None = None):
-        super().__init__(logging.INFO)
-        self.failures: list[tuple[int, str]] = []
-        self.thread = thread  # only this thread's (a cluster's workers write; scenes run side by side here)
-
-    def emit(self, record: logging.LogRecord) -> None:
-        args = record.args if isinstance(record.args, tuple) else ()
-        if self.thread is not None and record.thread != self.thread:
-            return
-        if record.levelno >= logging.INFO and "err_no" in str(record.msg) and len(args) == 2:
-            failure = (int(args[0]), str(args[1]).strip())
-            if failure not in self.failures:
-                self.failures.append(failure)
-
-    def __enter__(self):
-        _quiet_libtiff()
-        with self._guard:
-            if GdalFailures._active == 0:
-                for name in self._NAMES:
-                    logger = logging.getLogger(name)
-                    GdalFailures._saved[name] = (logger.level, logger.propagate, logger.getEffectiveLevel())
-                    # INFO records reach the handlers here; the caller's handlers get what they got before.
-                    logger.setLevel(logging.INFO)
-                    logger.propagate = False
-                    logger.addHandler(_forward)
-            GdalFailures._active += 1
-            for name in self._NAMES:
-                logging.getLogger(name).addHandler(self)
-        return self
-
-    def __exit__(self, *exc):
-        with self._guard:
-            for name in self._NAMES:
-                logging.getLogger(name).removeHandler(self)
-            GdalFailures._active -= 1
-            if GdalFailures._active == 0:
-                for name, (level, propagate, _) in GdalFailures._saved.items():
-                    logger = logging.getLogger(name)
-                    logger.removeHandler(_forward)
-                    logger.setLevel(level)
-                    logger.propagate = propagate
-        return False
-
-    def cause(self) -> str:
-        """GDAL's last failure in words ("" if none)."""
-        if not self.failures:
-            return ""
-        number, message = self.failures[-1]
-        return f"{_OUT_OF_MEMORY}: {message}" if number == _CPLE_OUT_OF_MEMORY else f"GDAL: {message}"
-
-
-class _Forward(logging.Handler):
-    """While :class:`GdalFailures` lowers the level of rasterio's error loggers, passes on to their
-    parents the records the caller's logging would have had (at or above the level before)."""
-
-    def emit(self, record: logging.LogRecord) -> None:
-        level, propagate, effective = GdalFailures._saved.get(record.name, (0, True, logging.NOTSET))
-        if propagate and record.levelno >= effective:
-            logger = logging.getLogger(record.name).parent
-            if logger is not None:
-                logger.handle(record)
-
-
-_forward = _Forward()
-
-
-@functools.cache
-def _quiet_libtiff() -> None:
-    """Switch off libtiff's printing of errors and warnings to stderr (its default handlers).
-
-    GDAL reads libtiff's messages through per-file handlers and passes them on as GDAL errors
-    (collected by :class:`GdalFailures`); a few, such as ``_tiffWriteProc: No space left on
-    device``, go only to libtiff's process-wide handlers, which print them. The libtiff that GDAL
-    uses is the one mapped into this process (Linux: ``/proc/self/maps``); elsewhere nothing changes.
-    """
-    try:
-        with open("/proc/self/maps") as maps:
-            found = {line.split()[-1] for line in maps if "/libtiff" in line and ".so" in line}
-        for path in found:
-            library = ctypes.CDLL(path)
-            for name in ("TIFFSetErrorHandler", "TIFFSetWarningHandler"):
-                function = getattr(library, name)
-                function.restype, function.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
-                function(None)
-    except (OSError, AttributeError):  # no /proc, or a libtiff without these functions
-        pass
 
 
 @dataclass
@@ -239,7 +132,7 @@ def verify(target: Target, tags: Mapping[str, str], written: list[Path]) -> None
 def check_complete(path: str | os.PathLike) -> str | None:
     """What is wrong with an existing output raster, or None where it is whole: the checks of
     :func:`verify` that need no array (it opens; every GeoTIFF tile lies within the file; an ENVI
-    data file has its full length). A resumed run (:mod:`brdfcorr.chain.plan`) reopens what it
+    data file has its full length). A resumed run (:mod:`brdfcorr.chain.resume`) reopens what it
     would skip: a file cut short or damaged after it was written is redone, not reported complete.
     Reads the header and the tile index only."""
     try:

@@ -17,9 +17,10 @@ import xarray as xr
 from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
 from brdfcorr.errors import BrdfcorrError, InputError
+from brdfcorr.io.gdal_log import GdalLog
 from brdfcorr.io.sensors.hdf5 import hdf5_open_failure
 from brdfcorr.io.sensors.products import hdf5_hint
-from brdfcorr.io.writer import DEFAULT_CHUNK, _GdalMessages
+from brdfcorr.io.writer import DEFAULT_CHUNK
 
 __all__ = ["open_raster", "open_layer", "opened", "reading", "read_failure", "chunk_spec"]
 
@@ -32,7 +33,7 @@ def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = Fa
     _refuse_broken_hdf5(path, role)
     # GDAL's warnings while opening, through rasterio's logger (under an Env, never printed by GDAL
     # itself): a header tag it could not read means a file cut short, not a raster without a CRS.
-    messages = _GdalMessages(logging.WARNING, thread=threading.get_ident())
+    messages = GdalLog(logging.WARNING, thread=threading.get_ident())
     try:
         with warnings.catch_warnings(), rasterio.Env(), messages:
             # Per-band scales/offsets: rioxarray applies each band's, and says so in a warning.
@@ -84,7 +85,7 @@ def opened(path, role: str):
 def reading(what: str):
     """A pass over lazily opened layers: a read that fails (a truncated or damaged file: GDAL opens
     it, and a block read fails later) is an InputError ``cannot read {what}: {GDAL's reason}``."""
-    messages = _GdalMessages()  # GDAL's log lines of a failed read: into the one error
+    messages = GdalLog()  # GDAL's log lines of a failed read: into the one error
     try:
         with messages:
             yield

@@ -11,6 +11,7 @@ its band centres found by :func:`brdfcorr.io.wavelengths.band_wavelengths`. Angl
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,10 +26,11 @@ from rasterio.enums import MaskFlags
 
 from brdfcorr._entry import option
 from brdfcorr.errors import InputError
+from brdfcorr.io.gdal_log import GdalLog
 from brdfcorr.io.opening import chunk_spec, open_raster, opened
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths
-from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, _GdalMessages, pass_threads, write_rasters
+from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, pass_threads, write_rasters
 
 __all__ = [
     "open_image",
@@ -37,6 +39,8 @@ __all__ = [
     "auto_chunk",
     "choose_chunk",
     "Layout",
+    "ImageFile",
+    "identify_image",
     "image_layout",
     "cache_bytes",
     "gdal_cache_bytes",
@@ -53,17 +57,6 @@ MIN_GDAL_CACHE, MAX_GDAL_CACHE = 64 * 2**20, 512 * 2**20
 
 #: Valid values of the image that :func:`check_reflectance_scale` judges by (at most, per chunk read).
 SAMPLE_SIZE = 20_000
-
-
-def _band_count(path) -> int:
-    """Number of bands of an image file (GDAL's count, or the NEON/EMIT product's)."""
-    kind = hdf5_product(path)
-    if kind is not None:
-        from brdfcorr.io.sensors import emit, neon
-
-        return neon.neon_band_count(path) if kind == "neon" else emit.emit_band_count(path)
-    with opened(path, "image") as dataset:
-        return dataset.count
 
 
 #: Bytes of one chunk of all bands (as float32) that :func:`auto_chunk` aims at [bytes].
@@ -94,14 +87,63 @@ class Layout(NamedTuple):
     itemsize: int = 4
 
 
-def image_layout(path) -> Layout | None:
-    """The :class:`Layout` of an image file; None for a NEON or EMIT product (not read by GDAL)."""
-    if hdf5_product(path) is not None:
-        return None
+class ImageFile(NamedTuple):
+    """An image file identified once (:func:`identify_image`), to be carried to what sizes its
+    chunks and cache (:func:`auto_chunk`, :func:`gdal_cache_bytes`) and what opens it
+    (:func:`open_image`, :func:`brdfcorr.io.scene.open_scene`) instead of each looking again.
+
+    Attributes
+    ----------
+    path : path-like
+        The file.
+    product : {"neon", "emit"} or None
+        The HDF5 product it is (:func:`brdfcorr.io.sensors.products.hdf5_product`), None for a
+        raster GDAL reads.
+    layout : Layout or None
+        How GDAL stores it (None for a product).
+    bands : int
+        Its band count.
+    plain : bool
+        Whether its stored values are what a masked and scaled read gives (:func:`_read_as_stored`).
+    """
+
+    path: object
+    product: str | None
+    layout: Layout | None
+    bands: int
+    plain: bool = False
+
+
+def identify_image(path) -> ImageFile:
+    """The :class:`ImageFile` of an image: its product kind, layout and band count, read once.
+
+    Raises
+    ------
+    InputError
+        A missing or unreadable file (:func:`brdfcorr.io.opening.opened`).
+    """
+    product = hdf5_product(path)
+    if product is not None:
+        from brdfcorr.io.sensors import emit, neon
+
+        count = neon.neon_band_count(path) if product == "neon" else emit.emit_band_count(path)
+        return ImageFile(path, product, None, count)
     with opened(path, "image") as dataset:
         rows, columns = dataset.block_shapes[0]
-        return Layout(dataset.count, dataset.height, dataset.width, rows, columns,
-                      np.dtype(dataset.dtypes[0]).itemsize)
+        layout = Layout(dataset.count, dataset.height, dataset.width, rows, columns,
+                        np.dtype(dataset.dtypes[0]).itemsize)
+        return ImageFile(path, None, layout, layout.bands, _stored_as_read(dataset))
+
+
+def _identified(image) -> ImageFile:
+    """``image`` if it is an :class:`ImageFile` already, else :func:`identify_image` of the path."""
+    return image if isinstance(image, ImageFile) else identify_image(image)
+
+
+def image_layout(path) -> Layout | None:
+    """The :class:`Layout` of an image file (path or :class:`ImageFile`); None for a NEON or EMIT
+    product (not read by GDAL)."""
+    return _identified(path).layout
 
 
 def _chunk_bytes(bands: int, chunk: int) -> int:
@@ -141,14 +183,14 @@ def choose_chunk(layout: Layout, target_bytes: int = CHUNK_TARGET) -> int:
 
 
 def auto_chunk(path, target_bytes: int = CHUNK_TARGET) -> int:
-    """Spatial chunk (and tile) size [pixels] for an image file (:func:`choose_chunk`): aligned to
-    its tiles, about ``target_bytes`` of all bands (as float32), so memory stays flat for
-    hyperspectral cubes. A NEON or EMIT product (HDF5, no GDAL tiles): the largest of 512, 256,
-    128, 64 within ``target_bytes``."""
-    layout = image_layout(path)
-    if layout is None:
-        return _budget_chunk(_band_count(path), target_bytes)
-    return choose_chunk(layout, target_bytes)
+    """Spatial chunk (and tile) size [pixels] for an image file (a path or its :class:`ImageFile`;
+    :func:`choose_chunk`): aligned to its tiles, about ``target_bytes`` of all bands (as float32),
+    so memory stays flat for hyperspectral cubes. A NEON or EMIT product (HDF5, no GDAL tiles): the
+    largest of 512, 256, 128, 64 within ``target_bytes``."""
+    image = _identified(path)
+    if image.layout is None:
+        return _budget_chunk(image.bands, target_bytes)
+    return choose_chunk(image.layout, target_bytes)
 
 
 def cache_bytes(layout: Layout, chunk: int) -> int:
@@ -170,14 +212,14 @@ def cache_bytes(layout: Layout, chunk: int) -> int:
 
 
 def gdal_cache_bytes(path, chunk: int) -> int:
-    """A GDAL block cache [bytes] for reading ``path`` in chunks of ``chunk`` pixels
-    (:func:`cache_bytes`). GDAL's default (5 % of RAM) would let the cache, and so the peak memory,
-    grow with the image. A NEON or EMIT image is not read through GDAL: room for four chunks (the
-    class map's reads) suffices."""
-    layout = image_layout(path)
-    if layout is None:
-        return int(np.clip(4 * _chunk_bytes(_band_count(path), chunk), MIN_GDAL_CACHE, MAX_GDAL_CACHE))
-    return cache_bytes(layout, chunk)
+    """A GDAL block cache [bytes] for reading ``path`` (or its :class:`ImageFile`) in chunks of
+    ``chunk`` pixels (:func:`cache_bytes`). GDAL's default (5 % of RAM) would let the cache, and so
+    the peak memory, grow with the image. A NEON or EMIT image is not read through GDAL: room for
+    four chunks (the class map's reads) suffices."""
+    image = _identified(path)
+    if image.layout is None:
+        return int(np.clip(4 * _chunk_bytes(image.bands, chunk), MIN_GDAL_CACHE, MAX_GDAL_CACHE))
+    return cache_bytes(image.layout, chunk)
 
 
 def bounded_gdal_cache(path, chunk: int) -> rasterio.Env:
@@ -219,8 +261,9 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
 
     Parameters
     ----------
-    path : path-like
-        Any raster GDAL reads (GeoTIFF, ENVI, ...), or a NEON ``.h5`` / EMIT ``.nc`` image.
+    path : path-like or ImageFile
+        Any raster GDAL reads (GeoTIFF, ENVI, ...), or a NEON ``.h5`` / EMIT ``.nc`` image; or
+        such a file identified already (:func:`identify_image`: not looked at again).
     chunks : int or dict, optional
         Dask chunks; an int is the spatial chunk size with all bands in one chunk (default 512).
     wavelengths : sequence of float, optional
@@ -239,19 +282,41 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
         ``brdf_input_offset``: the scale and offset applied (a float, or a tuple of one per band
         where the bands differ).
     """
+    identified = path if isinstance(path, ImageFile) else None
+    path = path if identified is None else identified.path
+    _check_given_scaling(path, scale, offset)
+    if identified is not None:
+        product = identified.product
+    else:
+        product = hdf5_product(path) if Path(path).exists() else None
+    if product is not None:
+        return open_product(product, path, chunk_spec(chunks), wavelengths, scale, offset)
+    given = scale is not None or offset is not None
+    as_stored = not given and (identified.plain if identified is not None else _read_as_stored(path))
+    image = open_raster(path, "image", chunk_spec(chunks), masked=not as_stored,
+                        mask_and_scale=not (given or as_stored))
+    image = _as_reflectance(image, scale, offset, as_stored)
+    found = band_wavelengths(image, path, wavelengths)
+    if found is not None:
+        image = image.assign_coords(wavelength=(image.dims[0], found, {"units": "nm"}))
+    image.name = image.name or "reflectance"
+    return image
+
+
+def _check_given_scaling(path, scale: float | None, offset: float | None) -> None:
+    """A given scale and offset are finite, the scale > 0 (an :class:`InputError` naming the image)."""
     for name, value in (("scale", scale), ("offset", offset)):
         if value is not None and not math.isfinite(value):
             raise InputError(f"image {path}: the given {name} {value} is not a finite number")
     if scale is not None and scale <= 0:
         raise InputError(f"image {path}: the given scale {scale} must be > 0")
-    if Path(path).exists():
-        product = hdf5_product(path)
-        if product is not None:
-            return open_product(product, path, chunk_spec(chunks), wavelengths, scale, offset)
+
+
+def _as_reflectance(image: xr.DataArray, scale: float | None, offset: float | None, as_stored: bool) -> xr.DataArray:
+    """The image as read by :func:`open_image` turned into reflectance factors [1]: rioxarray's
+    scaling (or, with ``scale``/``offset`` given, those replacing the file's), float32 (float64 for
+    a float64 file), the scaling applied in attrs ``brdf_input_scale`` and ``brdf_input_offset``."""
     given = scale is not None or offset is not None
-    as_stored = not given and _read_as_stored(path)
-    image = open_raster(path, "image", chunk_spec(chunks), masked=not as_stored,
-                        mask_and_scale=not (given or as_stored))
     if as_stored and "_FillValue" in image.attrs:  # where a masked read keeps it
         image.encoding["_FillValue"] = image.attrs.pop("_FillValue")
     metadata = {**image.attrs, **image.encoding}  # scaled by rioxarray: in encoding, else in attrs
@@ -275,10 +340,6 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
                                "add_offset" if isinstance(applied["offset"], float) else "offsets": applied["offset"]})
     image.attrs["brdf_input_scale"] = applied["scale"]
     image.attrs["brdf_input_offset"] = applied["offset"]
-    found = band_wavelengths(image, path, wavelengths)
-    if found is not None:
-        image = image.assign_coords(wavelength=(image.dims[0], found, {"units": "nm"}))
-    image.name = image.name or "reflectance"
     return image
 
 
@@ -289,11 +350,19 @@ def _read_as_stored(path) -> bool:
     read time of a float cube). False where GDAL cannot open it (:func:`open_raster` says why)."""
     try:
         with opened(path, "image") as dataset:
-            return (all(np.dtype(dtype).kind == "f" for dtype in dataset.dtypes)
-                    and all(value is None or math.isnan(value) for value in dataset.nodatavals)
-                    and all(flags in ([MaskFlags.all_valid], [MaskFlags.nodata]) for flags in dataset.mask_flag_enums)
-                    and all(value == 1 for value in dataset.scales) and all(value == 0 for value in dataset.offsets))
+            return _stored_as_read(dataset)
     except (InputError, rasterio.errors.RasterioError, CPLE_BaseError):
+        return False
+
+
+def _stored_as_read(dataset) -> bool:
+    """:func:`_read_as_stored` of an open dataset."""
+    try:
+        return (all(np.dtype(dtype).kind == "f" for dtype in dataset.dtypes)
+                and all(value is None or math.isnan(value) for value in dataset.nodatavals)
+                and all(flags in ([MaskFlags.all_valid], [MaskFlags.nodata]) for flags in dataset.mask_flag_enums)
+                and all(value == 1 for value in dataset.scales) and all(value == 0 for value in dataset.offsets))
+    except (rasterio.errors.RasterioError, CPLE_BaseError):
         return False
 
 
@@ -370,21 +439,8 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
         The 99th percentile of the sample; None for a sample without a valid value (nothing to
         judge: no error).
     """
-    data = image.data
     where = source or image.encoding.get("source", "image")
-    if isinstance(data, dask.array.Array):
-        rows, columns = (sorted({int(i) for i in np.linspace(0, n - 1, min(blocks, n)).round()})
-                         for n in data.numblocks[-2:])
-        centre = (rows[len(rows) // 2], columns[len(columns) // 2])
-        spread = [(i, j) for i in rows for j in columns if (i, j) != centre]
-        with _sample_cache(image):
-            parts = _read_samples(data, [centre], where, scheduler, num_workers)
-            if sum(part.size for part in parts) < SAMPLE_SIZE:
-                parts += _read_samples(data, spread, where, scheduler, num_workers)
-    else:
-        array = np.asarray(data)
-        parts = [_valid_sample(array[..., ::max(1, array.shape[-2] // 256), ::max(1, array.shape[-1] // 256)])]
-    values = np.concatenate([np.ravel(part) for part in parts])
+    values = _sample_values(image, where, blocks, scheduler, num_workers)
     if not values.size:
         return None
     percentile = float(np.percentile(values, 99))
@@ -401,10 +457,33 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
     return percentile
 
 
-def _sample_cache(image: xr.DataArray) -> rasterio.Env:
+def _sample_values(image: xr.DataArray, where: str, blocks: int, scheduler, num_workers) -> np.ndarray:
+    """The valid values :func:`check_reflectance_scale` judges by: those of the central chunk and,
+    where it holds fewer than :data:`SAMPLE_SIZE`, of ``blocks`` x ``blocks`` chunks spread evenly
+    (an array in memory: every 256th row and column at most)."""
+    data = image.data
+    if isinstance(data, dask.array.Array):
+        rows, columns = (sorted({int(i) for i in np.linspace(0, n - 1, min(blocks, n)).round()})
+                         for n in data.numblocks[-2:])
+        centre = (rows[len(rows) // 2], columns[len(columns) // 2])
+        spread = [(i, j) for i in rows for j in columns if (i, j) != centre]
+        with _sample_cache(image):
+            parts = _read_samples(data, [centre], where, scheduler, num_workers)
+            if sum(part.size for part in parts) < SAMPLE_SIZE:
+                parts += _read_samples(data, spread, where, scheduler, num_workers)
+    else:
+        array = np.asarray(data)
+        parts = [_valid_sample(array[..., ::max(1, array.shape[-2] // 256), ::max(1, array.shape[-1] // 256)])]
+    return np.concatenate([np.ravel(part) for part in parts])
+
+
+def _sample_cache(image: xr.DataArray) -> contextlib.AbstractContextManager:
     """GDAL's block cache bounded as for the writing pass (:func:`gdal_cache_bytes`) while a few
     chunks of ``image`` are read: GDAL's default (5 % of RAM) keeps every tile read in memory,
-    and the file's handles (rioxarray's) stay open for the writing pass."""
+    and the file's handles (rioxarray's) stay open for the writing pass. Nothing new where the
+    caller bounded the cache already for its whole run (:func:`bounded_gdal_cache`)."""
+    if rasterio.env.hasenv() and "GDAL_CACHEMAX" in rasterio.env.getenv():
+        return contextlib.nullcontext()  # the caller bounded it for its whole run (bounded_gdal_cache)
     source = image.encoding.get("source")
     data = image.data
     chunk = max(data.chunksize[-2:]) if isinstance(data, dask.array.Array) else DEFAULT_CHUNK
@@ -416,7 +495,7 @@ def _sample_cache(image: xr.DataArray) -> rasterio.Env:
 def _read_samples(data: dask.array.Array, positions, where: str, scheduler, num_workers) -> list[np.ndarray]:
     """:func:`_valid_sample` of the chunks of ``data`` at the (y, x) chunk ``positions``; a failed
     read is an :class:`InputError` with GDAL's first log lines."""
-    messages = _GdalMessages()  # GDAL's log lines of a failed read: into the one error
+    messages = GdalLog()  # GDAL's log lines of a failed read: into the one error
     try:
         with messages:
             # The writing pass's threads (io.writer): every dask thread keeps its own handle of

@@ -14,7 +14,7 @@ from brdfcorr._entry import option
 from brdfcorr.errors import GridMismatchError, InputError
 from brdfcorr.io.angles import ANGLE_NAMES, AngleStatistics, check_angles, open_angles
 from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.rasters import open_classes, open_image
+from brdfcorr.io.rasters import ImageFile, open_classes, open_image
 
 __all__ = ["SceneSources", "SceneData", "open_scene", "check_class_grid"]
 
@@ -79,7 +79,8 @@ class SceneData(NamedTuple):
 
 def open_scene(sources: SceneSources, *, chunks=None,
                prepare_classes: Callable[[xr.DataArray, xr.DataArray], xr.DataArray] | None = None,
-               scheduler: str | None = None, num_workers: int | None = None) -> SceneData:
+               scheduler: str | None = None, num_workers: int | None = None,
+               image: ImageFile | None = None) -> SceneData:
     """Open one scene lazily and check it: reflectance, class map and the four angle layers.
 
     Parameters
@@ -94,6 +95,9 @@ def open_scene(sources: SceneSources, *, chunks=None,
         the image's (an opt-in: by default a class map on another grid is an error).
     scheduler, num_workers : optional
         As for :func:`brdfcorr.io.angles.check_angles`.
+    image : ImageFile, optional
+        ``sources.image`` identified already (:func:`brdfcorr.io.rasters.identify_image`: its
+        product kind and layout are not looked up again).
 
     Returns
     -------
@@ -103,8 +107,8 @@ def open_scene(sources: SceneSources, *, chunks=None,
         (:func:`brdfcorr.io.angles.check_angles`, the one pass over the angle data before the
         correction), with the angle statistics of that pass.
     """
-    reflectance = open_image(sources.image, chunks=chunks, wavelengths=sources.wavelengths, scale=sources.scale,
-                             offset=sources.offset)
+    reflectance = open_image(sources.image if image is None else image, chunks=chunks,
+                             wavelengths=sources.wavelengths, scale=sources.scale, offset=sources.offset)
     if sources.classes is None:  # one class for the whole image, lazily on its grid
         first = reflectance[0]
         band_coords = [name for name in first.coords if name not in (*first.dims, "spatial_ref")]

@@ -25,7 +25,6 @@ CRS); its ``description`` names the output, and band names cannot add header fie
 from __future__ import annotations
 
 import contextlib
-import logging
 import os
 import threading
 import uuid
@@ -48,8 +47,9 @@ from xarray.conventions import encode_cf_variable
 
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
-from brdfcorr.io.commit import GdalFailures, Target, io_failure, verify, write_error, written_files
+from brdfcorr.io.commit import Target, io_failure, verify, write_error, written_files
 from brdfcorr.io.files import DISK_CAUSES, sync_file, temporary_beside, write_cause
+from brdfcorr.io.gdal_log import GdalLog
 
 __all__ = ["write_rasters", "encode_integers", "pass_threads", "default_threads", "GeoTiffOutput", "EnviOutput",
            "check_format", "envi_header_path", "envi_sidecars", "check_envi_georeference",
@@ -324,30 +324,6 @@ def write_rasters(
                   envi)
 
 
-class _GdalMessages(logging.Handler):
-    """Collects GDAL's error messages (logged by rasterio) while writing, for one clear error
-    instead of one log line per failed block on stderr (``level`` WARNING: also GDAL's warnings,
-    such as a header tag it could not read; ``thread``: only those of that thread, not of another
-    scene opened at the same time)."""
-
-    def __init__(self, level: int = logging.ERROR, thread: int | None = None):
-        super().__init__(level)
-        self.messages: list[str] = []
-        self.thread = thread
-
-    def emit(self, record: logging.LogRecord) -> None:
-        if self.thread is None or record.thread == self.thread:
-            self.messages.append(record.getMessage().strip())
-
-    def __enter__(self):
-        logging.getLogger("rasterio").addHandler(self)
-        return self
-
-    def __exit__(self, *exc):
-        logging.getLogger("rasterio").removeHandler(self)
-        return False
-
-
 def _write(rasters, geotiff: GeoTiffOutput, tags, commit_tags, compute_with, callbacks, gdal_cache, scheduler,
            num_workers, envi):
     """The writing pass of :func:`write_rasters`, its arguments checked (``geotiff.compress`` lower case):
@@ -355,7 +331,8 @@ def _write(rasters, geotiff: GeoTiffOutput, tags, commit_tags, compute_with, cal
     them (:meth:`Target.commit`), the first target last. Any failure removes every temporary."""
     targets: list[Target] = []
     # On a cluster the workers write the chunks; here, only this thread's own GDAL calls count.
-    failures = GdalFailures(threading.get_ident() if _distributed_client(scheduler) is not None else None)
+    failures = GdalLog(thread=threading.get_ident() if _distributed_client(scheduler) is not None else None,
+                       failures=True)
     settings = {"GDAL_CACHEMAX": int(gdal_cache)} if gdal_cache else {}
     try:
         with failures, rasterio.Env(**settings):

@@ -46,7 +46,7 @@ __all__ = ["Assessment", "assess_files", "LinesAssessment", "check_line_files", 
            "write_json"]
 
 
-@dataclass
+@dataclass(frozen=True)
 class Assessment:
     """What :func:`assess_files` measured.
 
@@ -167,38 +167,59 @@ def assess_files(
         data = _open_scene_files(scene, engine, align_classes=align_classes, class_lookup=class_lookup)
         _check_signing(data, view_options)
         view_options = _named(view_options, [data.classes])
-        corrected = rasters.open_image(after, chunks=engine.chunks)
-        check_same_grid({"before": data.reflectance, "after": corrected})
-        if corrected.shape != data.reflectance.shape:
-            raise InputError(f"{after} has {corrected.shape[0]} bands, {scene.image} has {data.reflectance.shape[0]}")
+        corrected = _corrected_on_grid(after, scene.image, data.reflectance, engine.chunks)
         layers = data.angles
-        cluster_layer = None
-        if clusters is not None:
-            cluster_layer = rasters.open_clusters(clusters[0], chunks=engine.chunks, band=clusters[1])
-            check_same_grid({"image": data.reflectance, "cluster layer": cluster_layer})
+        cluster_layer = None if clusters is None else _cluster_layer(clusters, data.reflectance, engine.chunks)
         view = assess_view_angles(data.reflectance, corrected, data.classes, layers["vza"], layers["vaa"],
                                   layers["saa"], clusters=cluster_layer, options=view_options,
                                   scheduler=engine.scheduler, num_workers=engine.num_workers)
         if int(view["pixels"].sum()) == 0:  # an all-NaN AFTER (or BEFORE, or no class): an empty report
             raise InputError(f"no pixel of a class is valid (finite) in every band of both {scene.image} and {after}: "
                              "nothing to assess (is one of them all nodata?)")
-        inputs = {"before": str(scene.image), "after": str(after), "classes": str(scene.classes),
-                  "angles": str(scene.angles)}
-        inputs.update({name: str(path) for name in ("sza", "saa", "vza", "vaa")
-                       if (path := getattr(scene, name)) is not None})
-        if clusters is not None:
-            inputs["clusters"] = f"{clusters[0]} band {clusters[1]}"
-        result = Assessment(inputs, view)
-        if overlap is not None:
-            other_before = rasters.open_image(overlap[0], chunks=engine.chunks, scale=scene.scale, offset=scene.offset)
-            other_after = rasters.open_image(overlap[1], chunks=engine.chunks)
-            result.overlap = assess_overlap(data.reflectance, corrected, other_before, other_after,
-                                            resampling=resampling)
-            inputs.update(overlap_before=str(overlap[0]), overlap_after=str(overlap[1]))
-    return result
+        overlapped = None if overlap is None else _overlap(overlap, scene, data.reflectance, corrected, engine.chunks,
+                                                           resampling)
+    return Assessment(_assessed_inputs(scene, after, clusters, overlap), view, overlapped)
 
 
-@dataclass
+def _corrected_on_grid(after, image, before: xr.DataArray, chunks: int) -> xr.DataArray:
+    """The corrected image, opened and checked against its input: the same grid, the same bands."""
+    corrected = rasters.open_image(after, chunks=chunks)
+    check_same_grid({"before": before, "after": corrected})
+    if corrected.shape != before.shape:
+        raise InputError(f"{after} has {corrected.shape[0]} bands, {image} has {before.shape[0]}")
+    return corrected
+
+
+def _overlap(overlap, scene: SceneSources, before: xr.DataArray, after: xr.DataArray, chunks: int,
+             resampling: str) -> xr.Dataset:
+    """:func:`assess_overlap` with another line's input (read with the scene's scale and offset)
+    and corrected image."""
+    other_before = rasters.open_image(overlap[0], chunks=chunks, scale=scene.scale, offset=scene.offset)
+    other_after = rasters.open_image(overlap[1], chunks=chunks)
+    return assess_overlap(before, after, other_before, other_after, resampling=resampling)
+
+
+def _cluster_layer(clusters: tuple[str | os.PathLike, int], image: xr.DataArray, chunks: int) -> xr.DataArray:
+    """Band ``clusters[1]`` of the cluster raster ``clusters[0]``, checked on the image's grid."""
+    layer = rasters.open_clusters(clusters[0], chunks=chunks, band=clusters[1])
+    check_same_grid({"image": image, "cluster layer": layer})
+    return layer
+
+
+def _assessed_inputs(scene: SceneSources, after, clusters, overlap) -> dict[str, str]:
+    """The files an assessment read, by role (the report's ``inputs``)."""
+    inputs = {"before": str(scene.image), "after": str(after), "classes": str(scene.classes),
+              "angles": str(scene.angles)}
+    inputs.update({name: str(path) for name in ("sza", "saa", "vza", "vaa")
+                   if (path := getattr(scene, name)) is not None})
+    if clusters is not None:
+        inputs["clusters"] = f"{clusters[0]} band {clusters[1]}"
+    if overlap is not None:
+        inputs.update(overlap_before=str(overlap[0]), overlap_after=str(overlap[1]))
+    return inputs
+
+
+@dataclass(frozen=True)
 class LinesAssessment:
     """What :func:`leave_one_line_out_files` measured.
 

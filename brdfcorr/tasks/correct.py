@@ -6,7 +6,6 @@ It reads and writes files but prints nothing: the CLI shows the summary, chains 
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 import re
@@ -29,6 +28,7 @@ from brdfcorr.io.scene import SceneData, open_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
 from brdfcorr.tasks.request import CorrectionRequest, Terrain
+from brdfcorr.tasks.results import CorrectionResult, TopographicSummary
 
 __all__ = ["correct_files", "Terrain", "uncorrected_note", "MOSTLY_UNCORRECTED"]
 
@@ -41,24 +41,16 @@ def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:
     return (qa | (topographic_qa & passed_on)).assign_attrs(qa.attrs)
 
 
-def _bounded_gdal_cache(function):
-    """Run ``function(request)`` with GDAL's block cache bounded for the whole run
-    (:func:`brdfcorr.io.rasters.bounded_gdal_cache`): the angle and scale checks read before the
-    write, and GDAL's default cache (5 % of RAM) would keep their tiles (issue 28)."""
-    @functools.wraps(function)
-    def bounded(request: CorrectionRequest):
-        image, chunks = request.scene.image, request.engine.chunks
-        try:
-            cache = rasters.bounded_gdal_cache(image, rasters.auto_chunk(image) if chunks is None else int(chunks))
-        except BrdfcorrError:  # a missing or unreadable image: the run's own checks say so, in order
-            return function(request)
-        with cache:
-            return function(request)
-    return bounded
+def _identified(request: CorrectionRequest) -> rasters.ImageFile | None:
+    """The image file identified once (:func:`brdfcorr.io.rasters.identify_image`: product kind,
+    layout), or None for a missing or unreadable image: the run's own checks say so, in order."""
+    try:
+        return rasters.identify_image(request.scene.image)
+    except BrdfcorrError:
+        return None
 
 
-@_bounded_gdal_cache
-def correct_files(request: CorrectionRequest) -> dict[str, object]:
+def correct_files(request: CorrectionRequest) -> CorrectionResult:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
     Inputs are opened lazily in chunks and checked once (:func:`brdfcorr.io.scene.open_scene`:
@@ -67,6 +59,11 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
     a temporary name renamed when complete, with band descriptions and provenance tags (reference
     geometry, limits, parameter table, brdfcorr version). The QA layer and the uncertainty are
     written in the same pass.
+
+    The image is identified once (its product kind and layout), its chunk size worked out once
+    (:func:`brdfcorr.io.rasters.auto_chunk` unless given) and GDAL's block cache bounded for the
+    whole run (:func:`brdfcorr.io.rasters.gdal_cache_bytes`): the angle and scale checks read
+    before the write, and GDAL's default cache (5 % of RAM) would keep their tiles (issue 28).
 
     The image's stored values are read as reflectance factors: scaled with the file's per-band GDAL
     scale and offset (``reflectance = stored * scale + offset``), or with the request's
@@ -85,14 +82,13 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
 
     Returns
     -------
-    dict
-        Pixel counts (:func:`brdfcorr.correction.qa_counts`) plus ``reference`` (the geometry used),
-        with an integer output (``outputs.data_type="input"``) ``out_of_range`` (the valid pixels
-        stored as nodata and flagged ``nodata`` since some band did not fit the type; counted in the
-        writing pass, and among ``nodata``), with a topographic step ``topographic`` (its method and
-        the C fit per class and band), and
-        where most valid pixels were left uncorrected ``notes`` (:func:`uncorrected_note`; also a
-        warning).
+    CorrectionResult
+        ``counts``: pixel counts (:func:`brdfcorr.correction.qa_counts`), with an integer output
+        (``outputs.data_type="input"``) ``out_of_range`` (the valid pixels stored as nodata and
+        flagged ``nodata`` since some band did not fit the type; counted in the writing pass, and
+        among ``nodata``); ``reference`` (the geometry used); with a topographic step
+        ``topographic`` (its method and the C fit per class and band); where most valid pixels were
+        left uncorrected ``notes`` (:func:`uncorrected_note`; also a warning).
 
     Warns
     -----
@@ -119,12 +115,29 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
         An existing output without ``overwrite``, an output that is no regular file or the same
         file as the other output, or a failed write (disk full); nothing is left at the output paths.
     """
+    image = _identified(request)
+    chunks = None if request.engine.chunks is None else int(request.engine.chunks)
+    if image is not None and chunks is None:
+        chunks = rasters.auto_chunk(image)
+    if image is None or chunks is None:  # the checks name the image that cannot be read
+        return _correct(request, image, chunks, None)
+    cache = rasters.gdal_cache_bytes(image, chunks)
+    with rasterio.Env(GDAL_CACHEMAX=cache):
+        return _correct(request, image, chunks, cache)
+
+
+def _correct(request: CorrectionRequest, image: rasters.ImageFile | None, chunks: int | None,
+             cache: int | None) -> CorrectionResult:
+    """:func:`correct_files` of an image identified (None: it cannot be read), in chunks of
+    ``chunks`` pixels (None: worked out here, or the image's error) with GDAL's block cache
+    bounded to ``cache`` [bytes] (None: worked out for the write)."""
     _check_outputs(request)
     table, table_path = _load_table(request)
     engine = request.engine
-    chunks = rasters.auto_chunk(request.scene.image) if engine.chunks is None else int(engine.chunks)
+    if chunks is None:
+        chunks = rasters.auto_chunk(request.scene.image)  # the image's error, after the outputs' and the table's
     compute = {"scheduler": engine.scheduler, "num_workers": engine.num_workers}
-    scene = open_scene(request.scene, chunks=chunks,
+    scene = open_scene(request.scene, chunks=chunks, image=image,
                        prepare_classes=class_preparation(request.align_classes, request.class_lookup), **compute)
     _warn_wavelength_caveats(table, scene.reflectance)
     if request.scene.scale is None:  # a given scale is the user's word; else catch raw counts first
@@ -149,19 +162,19 @@ def correct_files(request: CorrectionRequest) -> dict[str, object]:
         targets, geotiff=writer.GeoTiffOutput(compress=files.compress, blocksize=chunks, cog=files.cog), tags=tags,
         commit_tags=_fingerprint_tags(request.outputs.fingerprint), compute_with={**qa_counts(qa), **encoding},
         callbacks=engine.callbacks,
-        gdal_cache=rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
+        gdal_cache=cache or rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
         **compute,
     )
-    result: dict[str, object] = {**{key: int(value) for key, value in counts.items()}, "reference": reference}
-    note = uncorrected_note({key: int(value) for key, value in counts.items()})
+    pixels = {key: int(value) for key, value in counts.items()}
+    note = uncorrected_note(pixels)
     if note is not None:
         warnings.warn(note, BrdfcorrWarning, stacklevel=2)
-        result["notes"] = [note]
+    summary = None
     if topographic is not None:
         c_table = topographic.c_table
-        result["topographic"] = {"method": request.terrain.topographic,  # type: ignore[union-attr]
-                                 "c": [] if c_table is None else c_table.to_dict(orient="records")}
-    return result
+        summary = TopographicSummary(request.terrain.topographic,  # type: ignore[union-attr]
+                                     () if c_table is None else tuple(c_table.to_dict(orient="records")))
+    return CorrectionResult(pixels, reference, notes=() if note is None else (note,), topographic=summary)
 
 
 def _check_outputs(request: CorrectionRequest) -> None:
@@ -319,7 +332,7 @@ def _envi_outputs(request: CorrectionRequest, scene: SceneData) -> dict:
 
 
 def _fingerprint_tags(fingerprint: str | None) -> dict[str, str]:
-    """The tags a resumed chain compares (:mod:`brdfcorr.chain.plan`), written to the corrected
+    """The tags a resumed chain compares (:mod:`brdfcorr.chain.resume`), written to the corrected
     output only, which is renamed into place after the QA and uncertainty outputs: whoever finds
     them finds every output of the correction complete."""
     if fingerprint is None:

@@ -40,12 +40,12 @@ __all__ = [
     "MeasurementFit",
     "fit_class_files",
     "SceneFiles",
-    "ImageryFit",
+    "ImageryFitResult",
 ]
 
 
 # ---------------------------------------------------------------------------- goniometer fit
-@dataclass
+@dataclass(frozen=True)
 class MeasurementFit:
     """The fit of one goniometer table (:func:`fit_measurement_file`).
 
@@ -163,24 +163,29 @@ def fit_measurement_file(
 
 # ------------------------------------------------------------------------------ imagery fit
 @dataclass(frozen=True)
-class SceneFiles:
-    """The files of one scene: image, class map and angle source, and how to read them (as for
-    :func:`correct_files`; ``scale``/``offset``: the image's, None for the file's)."""
+class SceneFiles(SceneSources):
+    """One scene of an imagery fit: its files as for a correction (:class:`~brdfcorr.io.scene.SceneSources`:
+    image, class map, angle source and how to read them; ``scale``/``offset``: the image's, None for
+    the file's), its name in messages and how its class map is prepared (as for
+    :func:`~brdfcorr.tasks.correct.correct_files`).
 
-    image: Path
-    classes: Path
-    angles: Path | str
-    angles_kind: str = "geotiff"
-    angle_options: Mapping[str, object] = field(default_factory=dict)
+    Attributes
+    ----------
+    name : str
+        The scene's name in the report of scenes left out (default: the image's path).
+    align_classes : bool
+        Bring the class map onto the image grid (nearest neighbour) instead of refusing another grid.
+    class_lookup : mapping of int to int, optional
+        Class ids of the map replaced by the table's (e.g. land-cover codes to classes).
+    """
+
     name: str = ""
     align_classes: bool = False
     class_lookup: Mapping[int, int] | None = None
-    scale: float | None = None
-    offset: float | None = None
 
 
-@dataclass
-class ImageryFit:
+@dataclass(frozen=True)
+class ImageryFitResult:
     """The result of :func:`fit_class_files`: the fit, the scenes used and those left out.
 
     ``wavelengths`` [nm] are those of the fitted bands (the bad bands left out), in the images'
@@ -289,7 +294,7 @@ def fit_class_files(
     scenes: Sequence[SceneFiles], models: ClassModels | str | None, *, sampling: Sampling = Sampling(),
     guard: GuardRails = GuardRails(), chunks: int | None = None, wavelengths: Sequence[float] | None = None,
     skip_unreadable: bool = False, progress=None,
-) -> ImageryFit:
+) -> ImageryFitResult:
     """Fit per-class, per-band parameters from the pixels of one or many scenes.
 
     Each scene is opened lazily and checked (:func:`brdfcorr.io.scene.open_scene`), its stored
@@ -339,21 +344,32 @@ def fit_class_files(
     models, notes = _choices_from_maps(models, [data.classes for data in opened])
     bbl = [_bbl_ranges(scene, data) for scene, data in zip(used, opened)]
     ranges = [*sampling.bad_bands, *(run for runs, _ in bbl for run in runs)]
+    sampling = replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges)))
+    result, caught_notes = _fit_pooled(opened, models, sampling, guard, _imagery_source(used, models), progress)
+    notes += _bad_band_note(result, max((count for _, count in bbl), default=0))
+    return ImageryFitResult(result, used, _fitted_wavelengths(opened[0].reflectance, result), left_out, caught_notes,
+                            notes)
+
+
+def _fit_pooled(opened: Sequence[SceneData], models: ClassModels, sampling: Sampling, guard: GuardRails, source: str,
+                progress) -> tuple[ClassFitResult, list[str]]:
+    """:func:`brdfcorr.fit.fit_classes` of the opened scenes' pixels, and its warnings
+    (:class:`ClassFitWarning`) as notes."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ClassFitWarning)
-        result = fit_classes(
-            [s.reflectance for s in opened], [s.classes for s in opened],
-            [xr.Dataset(s.angles) for s in opened], models,
-            sampling=replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges))),
-            guard=guard, source=_imagery_source(used, models), progress=progress,
-        )
-    first = opened[0].reflectance
-    found = first.coords["wavelength"].values if "wavelength" in first.coords else None
-    if found is not None and result.bad_bands:  # the fitted bands' wavelengths, as the fits' arrays
+        result = fit_classes([s.reflectance for s in opened], [s.classes for s in opened],
+                             [xr.Dataset(s.angles) for s in opened], models, sampling=sampling, guard=guard,
+                             source=source, progress=progress)
+    return result, [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
+
+
+def _fitted_wavelengths(reflectance: xr.DataArray, result: ClassFitResult) -> np.ndarray | None:
+    """The band centres [nm] of the fitted bands (the bad bands left out), as the fits' arrays;
+    None for an image without band wavelengths."""
+    found = reflectance.coords["wavelength"].values if "wavelength" in reflectance.coords else None
+    if found is not None and result.bad_bands:
         found = found[~in_ranges(found, result.bad_bands)]
-    caught_notes = [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
-    notes += _bad_band_note(result, max((count for _, count in bbl), default=0))
-    return ImageryFit(result, used, found, left_out, caught_notes, notes)
+    return found
 
 
 def _opened_scenes(scenes: Sequence[SceneFiles], reflectance_scale: float, chunks, wavelengths,
@@ -369,9 +385,8 @@ def _opened_scenes(scenes: Sequence[SceneFiles], reflectance_scale: float, chunk
                                  "differ; give the scale once")
             scale = reflectance_scale
         try:
-            sources = SceneSources(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
-                                   angle_options=dict(scene.angle_options), wavelengths=wavelengths,
-                                   scale=scale, offset=scene.offset)
+            sources = replace(scene, wavelengths=scene.wavelengths if wavelengths is None else wavelengths,
+                              scale=scale)
             data = open_scene(sources, chunks=chunks,
                               prepare_classes=class_preparation(scene.align_classes, scene.class_lookup))
             if scale is None:

@@ -23,7 +23,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
@@ -41,10 +41,11 @@ from brdfcorr.io.sensors.folders import ProductFolder, band_stacks, find_product
 from brdfcorr.io.sensors.hls import HlsGranule, find_hls_granule, hls_refusal
 from brdfcorr.io.writer import GeoTiffOutput, write_rasters
 from brdfcorr.models.coefficients import load_coefficients
-from brdfcorr.params import ClassEntry, ParameterTable
+from brdfcorr.params import ClassEntry, ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.correct import correct_files
 from brdfcorr.tasks.hls import hls_sun_zenith_layers
 from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
+from brdfcorr.tasks.results import NbarResult
 
 __all__ = ["nbar_files", "nbar_table", "NbarMethod", "EACH_BAND", "NBAR_CHUNK", "remove_stale_scratch"]
 
@@ -97,7 +98,7 @@ def nbar_table(product: ProductFolder, coefficients: str = "roy2017") -> Paramet
 def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: int | None = None,
                bands: Sequence[str] | None = None, masked: Sequence[int] | None = None,
                method: NbarMethod = NbarMethod(), keep_stack: str | os.PathLike | None = None,
-               engine: Engine = Engine()) -> dict[str, object]:
+               engine: Engine = Engine()) -> NbarResult:
     """NBAR of a Sentinel-2 L2A SAFE folder or a Landsat Collection-2 L2 folder; an HLS v2.0
     granule moved to a fixed reference sun zenith.
 
@@ -125,8 +126,8 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
 
     Returns
     -------
-    dict
-        :func:`~brdfcorr.tasks.correct.correct_files`' summary, and ``product``.
+    NbarResult
+        The pixel counts and reference geometry (:func:`~brdfcorr.tasks.correct.correct_files`), the ``product``.
 
     Raises
     ------
@@ -139,19 +140,8 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     refuse_archive(product)
     granule = find_hls_granule(product, bands=bands)
     if granule is not None:  # NBAR already: at most moved to another sun zenith
-        if (method.view_band is not None or method.factor_at != "pixels" or keep_stack is not None
-                or resolution not in (None, 30)):
-            raise InputError(f"{product}: an HLS granule is NBAR already, at 30 m; resolution (--resolution), "
-                             "view_band (--view-band), factor_at (--factor-at) and keep_stack (--keep-stack) are "
-                             "for Sentinel-2 and Landsat folders")
-        if method.reference_sza in ("mean", "observed"):
-            raise SensorInputError(hls_refusal(granule))
-        _check_outputs(outputs, granule, None)
-        corrected, qa, tags, reference = hls_sun_zenith_layers(
-            granule, coefficients=method.coefficients, reference_sza=method.reference_sza, masked=masked,
-            engine=replace(engine, chunks=engine.chunks or NBAR_CHUNK))
-        return {**_write_bands(corrected, qa, tuple(granule.bands), outputs, tags, engine), "reference": reference,
-                "product": granule}
+        _refuse_for_hls(product, granule, resolution, method, keep_stack)
+        return _moved_hls(granule, outputs, masked, method, engine)
     folder = find_product(product, resolution=resolution, bands=bands, masked=masked)
     angle_options = _angle_options(folder, method.view_band)
     _check_outputs(outputs, folder, keep_stack)
@@ -159,12 +149,43 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     with _scratch(outputs) as scratch:
         stack = write_stack(folder, keep_stack or Path(scratch) / "stack.vrt", chunks=engine.chunks)
         if method.view_band == EACH_BAND:
-            summary = _band_by_band(folder, stack, Path(scratch), outputs, method, engine)
+            counts, reference = _band_by_band(folder, stack, Path(scratch), outputs, method, engine)
         else:
-            summary = correct_files(_request(folder, SceneSources(stack, None, folder.angles), angle_options,
-                                             nbar_table(folder, method.coefficients),
-                                             replace(outputs, fingerprint=None), method, engine))
-    return {**summary, "product": folder}
+            counts, reference = _one_stack(folder, stack, angle_options, outputs, method, engine)
+    return NbarResult(counts, reference, folder)
+
+
+def _one_stack(folder: ProductFolder, stack: Path, angle_options: dict, outputs: OutputFiles, method: NbarMethod,
+               engine: Engine) -> tuple[Mapping[str, int], ReferenceGeometry]:
+    """The bands corrected together with one set of view angle grids (one :func:`correct_files` of
+    the stack): the pixel counts and the reference geometry."""
+    result = correct_files(_request(folder, SceneSources(stack, None, folder.angles), angle_options,
+                                    nbar_table(folder, method.coefficients), replace(outputs, fingerprint=None),
+                                    method, engine))
+    return result.counts, result.reference
+
+
+def _refuse_for_hls(product, granule: HlsGranule, resolution: int | None, method: NbarMethod, keep_stack) -> None:
+    """The settings an HLS granule (NBAR already, at 30 m) cannot take, as one error: those of the
+    Sentinel-2 and Landsat folders, and a reference sun zenith that is not a fixed angle."""
+    if (method.view_band is not None or method.factor_at != "pixels" or keep_stack is not None
+            or resolution not in (None, 30)):
+        raise InputError(f"{product}: an HLS granule is NBAR already, at 30 m; resolution (--resolution), "
+                         "view_band (--view-band), factor_at (--factor-at) and keep_stack (--keep-stack) are "
+                         "for Sentinel-2 and Landsat folders")
+    if method.reference_sza in ("mean", "observed"):
+        raise SensorInputError(hls_refusal(granule))
+
+
+def _moved_hls(granule: HlsGranule, outputs: OutputFiles, masked: Sequence[int] | None, method: NbarMethod,
+               engine: Engine) -> NbarResult:
+    """An HLS granule moved to the method's fixed reference sun zenith [deg]
+    (:func:`brdfcorr.tasks.hls.hls_sun_zenith_layers`), written as :func:`nbar_files` writes."""
+    _check_outputs(outputs, granule, None)
+    corrected, qa, tags, reference = hls_sun_zenith_layers(
+        granule, coefficients=method.coefficients, reference_sza=method.reference_sza, masked=masked,
+        engine=replace(engine, chunks=engine.chunks or NBAR_CHUNK))
+    return NbarResult(_write_bands(corrected, qa, tuple(granule.bands), outputs, tags, engine), reference, granule)
 
 
 #: Archive suffixes products are downloaded as (Copernicus: ``….SAFE.zip``; USGS: ``….tar``).
@@ -236,17 +257,18 @@ def _alive(pid: int) -> bool:
 
 
 def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: OutputFiles, method: NbarMethod,
-                  engine: Engine) -> dict[str, object]:
+                  engine: Engine) -> tuple[dict[str, int], ReferenceGeometry]:
     """Each band corrected with its own view angle grids (one :func:`correct_files` per band into
     uncompressed files in ``scratch``), then written as one output: the bands in order, the QA
-    flags of every band combined (a flag of any band is the pixel's), the counts of those."""
-    parts, summary = [], {}
+    flags of every band combined (a flag of any band is the pixel's); the counts of those and the
+    reference geometry."""
+    parts, reference = [], None
     for (name, _), band_stack in zip(folder.bands.items(), band_stacks(stack, scratch)):
         one = replace(folder, bands={name: folder.bands[name]})
         part = OutputFiles(scratch / f"nbar_{name}.tif", qa=scratch / f"qa_{name}.tif", compress="none")
-        summary = correct_files(_request(one, SceneSources(band_stack, None, folder.angles),
-                                         {**folder.angle_options, "band": name},
-                                         nbar_table(one, method.coefficients), part, method, engine))
+        reference = correct_files(_request(one, SceneSources(band_stack, None, folder.angles),
+                                           {**folder.angle_options, "band": name},
+                                           nbar_table(one, method.coefficients), part, method, engine)).reference
         parts.append(part)
     chunks = {"y": engine.chunks, "x": engine.chunks}
     corrected = xr.concat([rioxarray.open_rasterio(part.corrected, chunks=chunks, masked=True) for part in parts],
@@ -259,8 +281,7 @@ def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: Ou
                 brdf_parameter_table_content=json.dumps(nbar_table(folder, method.coefficients).to_dict(),
                                                         separators=(",", ":")),
                 brdf_view_angles="each band its own view angle grids")
-    return {**_write_bands(corrected, qa, tuple(folder.bands), outputs, tags, engine),
-            "reference": summary["reference"]}
+    return _write_bands(corrected, qa, tuple(folder.bands), outputs, tags, engine), reference
 
 
 def _write_bands(corrected: xr.DataArray, qa: xr.DataArray, names: tuple[str, ...], outputs: OutputFiles,

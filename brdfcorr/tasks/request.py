@@ -80,7 +80,7 @@ class OutputFiles:
         (the CLI's default). An input is never overwritten.
     fingerprint : str, optional
         Canonical JSON of everything the output depends on
-        (:func:`brdfcorr.chain.plan.scene_fingerprint`), written in the tags ``brdf_fingerprint``
+        (:func:`brdfcorr.chain.resume.scene_fingerprint`), written in the tags ``brdf_fingerprint``
         (its SHA-256) and ``brdf_fingerprint_content``: a resumed chain redoes a stale output.
     """
 

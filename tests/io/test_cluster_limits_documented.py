@@ -6,7 +6,6 @@ from pathlib import Path
 
 import pytest
 
-from brdfcorr.chain import run as chain
 from brdfcorr.errors import InputError
 from brdfcorr.io import cluster
 
@@ -23,7 +22,7 @@ def test_the_documented_limits_are_the_code_s():
     stated = [float(value) for value in re.findall(r"\*\*(\d+) s\*\*", section)]
     # The first limit is the connect and handshake of the scheduler, the second the first worker.
     assert stated == [cluster.CONNECT_TIMEOUT, cluster.WORKER_TIMEOUT] == [10.0, 60.0]
-    assert chain.CONNECT_TIMEOUT == cluster.CONNECT_TIMEOUT  # the CLI and chains connect alike
+    # the CLI and chains both connect with brdfcorr.io.cluster.connect_cluster and these defaults
     for setting in ("--scheduler", "DASK_SCHEDULER_ADDRESS", "engine.address"):
         assert setting in section
 

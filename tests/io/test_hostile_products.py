@@ -32,7 +32,6 @@ import rasterio
 import xarray as xr
 from affine import Affine
 
-from brdfcorr.chain import run as chain
 from brdfcorr.io import cluster
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
@@ -65,7 +64,7 @@ def template(tmp_path_factory, write_example_scene) -> Path:
 @pytest.fixture
 def short_timeouts(monkeypatch):
     """Seconds, not the library's 10 and 60: the cases below must fail, the sooner the better."""
-    monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 1.0)
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 1.0)
     monkeypatch.setattr(cluster, "WORKER_TIMEOUT", 1.0)
 
 
@@ -147,7 +146,7 @@ def test_chain_engine_address_of_a_silent_server(tmp_path, short_timeouts, silen
     from brdfcorr.errors import InputError
 
     with pytest.raises(InputError, match=rf"engine.address: cannot reach the dask scheduler at {silent_server}"):
-        with chain.connect_cluster(silent_server, setting="engine.address"):
+        with cluster.connect_cluster(silent_server, setting="engine.address"):
             pass
 
 

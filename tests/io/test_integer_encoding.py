@@ -116,11 +116,11 @@ def test_integer_output_takes_no_extra_pass(int_scene, tmp_path):
     floats, float_passes = _run(int_scene, tmp_path / "float.tif", "float")
     integers, integer_passes = _run(int_scene, tmp_path / "int.tif", "input")
     assert integer_passes == float_passes  # the correction is computed once, in the writing pass
-    assert "out_of_range" not in floats
+    assert "out_of_range" not in floats.counts
     with rasterio.open(tmp_path / "float.tif") as reference, rasterio.open(tmp_path / "int.qa.tif") as qa:
         counts = np.round(reference.read().astype(np.float64) / 0.004)
         flags = qa.read(1)
     beyond = (np.isfinite(counts) & (counts >= 255)).any(axis=0) & np.isfinite(counts).all(axis=0)
-    assert 0 < integers["out_of_range"] == beyond.sum()  # independent: the float output's counts
+    assert 0 < integers.counts["out_of_range"] == beyond.sum()  # independent: the float output's counts
     assert np.all(flags[beyond] & 1)  # flagged nodata
-    assert integers["nodata"] == floats["nodata"] + integers["out_of_range"]
+    assert integers.counts["nodata"] == floats.counts["nodata"] + integers.counts["out_of_range"]

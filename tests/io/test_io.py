@@ -241,8 +241,11 @@ def test_a_float_image_read_as_stored_equals_the_masked_read(tmp_path, nodata):
     data[:, :5, :7] = np.nan
     path = _write(tmp_path / "image.tif", data, nodata=nodata)
     plain, masked = rasters.open_image(path, chunks=16), _open_masked(path)
-    assert rasters._read_as_stored(path)
+    assert rasters._read_as_stored(path) and rasters.identify_image(path).plain
     np.testing.assert_array_equal(plain.values, masked.values)
+    identified = rasters.open_image(rasters.identify_image(path), chunks=16)  # carried: the same read
+    np.testing.assert_array_equal(identified.values, plain.values)
+    assert identified.attrs == plain.attrs and identified.encoding["source"] == plain.encoding["source"]
     assert plain.attrs == masked.attrs and plain.dtype == masked.dtype
     assert str(plain.rio.encoded_nodata) == str(masked.rio.encoded_nodata)
 
@@ -263,9 +266,39 @@ def test_an_image_needing_the_masked_read_keeps_it(tmp_path, kind):
             dataset.write_mask(mask)
         if kind == "scale":
             dataset.scales, dataset.offsets = (2.0, 2.0), (0.0, 0.0)
-    assert not rasters._read_as_stored(path)
+    assert not rasters._read_as_stored(path) and not rasters.identify_image(path).plain
     image = rasters.open_image(path, chunks=16).values
+    np.testing.assert_array_equal(rasters.open_image(rasters.identify_image(path), chunks=16).values, image)
     if kind == "scale":
         assert image[0, 10, 10] == pytest.approx(0.5)
     else:
         assert np.isnan(image[:, :4, :4]).all() and np.all(image[:, 4:, 4:] == 0.25)
+
+
+def test_an_image_is_identified_once_and_its_sizes_are_the_path_s(files, tmp_path, monkeypatch):
+    """A correction identifies its image once (product kind, layout; issue 42: it was looked up again
+    on every call, 4 times with a given chunk size): the chunk and cache sizes of the identified file
+    are those of its path, and ``correct_files`` asks for the product kind once."""
+    from brdfcorr.io import rasters
+    from brdfcorr.io.scene import SceneSources
+    from brdfcorr.tasks.correct import correct_files
+    from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
+    from brdfcorr.testing import example_table
+
+    image = rasters.identify_image(files["image"])
+    with rasterio.open(files["image"]) as dataset:
+        assert (image.product, image.bands, image.layout.height, image.layout.width) == (
+            None, dataset.count, dataset.height, dataset.width)
+        assert (image.layout.block_rows, image.layout.block_columns) == dataset.block_shapes[0]
+    assert rasters.auto_chunk(image) == rasters.auto_chunk(files["image"])
+    assert rasters.gdal_cache_bytes(image, 16) == rasters.gdal_cache_bytes(files["image"], 16)
+    calls = []
+    original = rasters.hdf5_product
+    monkeypatch.setattr(rasters, "hdf5_product", lambda path: calls.append(path) or original(path))
+    for chunks in (16, None):
+        calls.clear()
+        correct_files(CorrectionRequest(
+            SceneSources(files["image"], files["classes"], files["angles"]), example_table(),
+            OutputFiles(tmp_path / f"out{chunks}.tif"), reference={"sza": 35.0},
+            engine=Engine(chunks=chunks, scheduler="synchronous")))
+        assert calls == [files["image"]]

@@ -2,6 +2,7 @@
 (steps.correct.terrain), outputs.interleave for ENVI, chunk progress; each against a closed form,
 an independent computation or the library call the chain makes."""
 
+import dataclasses
 import json
 import os
 
@@ -16,6 +17,7 @@ from brdfcorr.io.scene import SceneSources
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.correct import Terrain, correct_files
 from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
+from brdfcorr.tasks.results import CorrectionResult, TopographicSummary
 from brdfcorr.testing import PIXEL, example_table, georeference
 
 NY, NX = 32, 48  # the scenes of make_scenes (tests/conftest.py)
@@ -193,9 +195,20 @@ def test_dem_pattern(tmp_path, make_scenes, write_chain, read, chain_reference):
     chain = write_chain(tmp_path, inputs__dem="{dir}/dem.tif", steps={"correct": {"limits": None, "terrain": {}}})
     report = run_chain(load_config(chain))
     assert report.ok, report.scenes
-    direct(paths, tmp_path / "direct.tif", example_table(), chain_reference, terrain=Terrain(dem=dem_file))
+    result = direct(paths, tmp_path / "direct.tif", example_table(), chain_reference, terrain=Terrain(dem=dem_file))
     np.testing.assert_array_equal(read(tmp_path / "out" / "line0_brdf.tif")[0], read(tmp_path / "direct.tif")[0])
     assert json.loads(report.path.read_text())["inputs"][0]["dem"] == str(dem_file)
+    # The result is a frozen record; the chain's report holds its fields as the library call gives them.
+    assert isinstance(result, CorrectionResult) and isinstance(result.topographic, TopographicSummary)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        result.counts = {}  # type: ignore[misc]
+    found = report.scenes[0]
+    assert found["qa"] == dict(result.counts) and found["reference"] == result.reference.describe()
+    assert found["topographic"] == result.topographic.as_dict() and result.topographic.method == "cosine"
+    assert result.topographic.c == () and result.topographic.rejected == 0  # cosine fits no C
+    assert result.notes == () and "notes" not in found  # most pixels corrected: nothing to say
+    # Every pixel of the scene is counted once among corrected, no class, unknown class and nodata, or more.
+    assert sum(result.counts[key] for key in ("corrected", "no_class", "unknown_class", "nodata")) >= NY * NX
 
 
 # --------------------------------------------------------------------------------- interleave

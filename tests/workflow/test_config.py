@@ -153,6 +153,35 @@ def test_format_pattern():
     assert format_pattern("{parent}_{stem}.tif", image, "x") == "line07_x_image.tif"
 
 
+
+def test_format_spec_in_pattern_accepted_and_formatted_as_str_format():
+    """``{scene:>8}`` is a valid str.format pattern (the old regex refused it): the config takes it and
+    the name is what ``str.format`` makes of it (source: the str.format spec, right-aligned in 8)."""
+    document = minimal()
+    document["inputs"]["classes"] = "{dir}/{scene:>8}_classes.tif"
+    config = ChainConfig.from_dict(document)
+    assert config.inputs.classes == "{dir}/{scene:>8}_classes.tif"
+    image = Path("/data/line07/x_image.tif")
+    assert format_pattern(config.inputs.classes, image, "x") == "/data/line07/       x_classes.tif"
+    assert format_pattern("{scene:>8}", image, "x") == "{:>8}".format("x")
+    assert format_pattern("{scene!r:_<5}{{lit}}", image, "ab") == "{!r:_<5}{{lit}}".format("ab")
+
+
+@pytest.mark.parametrize(("pattern", "message"), [
+    ("{scen:>8}_classes.tif", "pattern '{scen:>8}_classes.tif' uses {scen}; allowed placeholders: "
+                              "{dir}, {parent}, {stem}, {scene}"),
+    ("{scene.upper}.tif", "pattern '{scene.upper}.tif' uses {scene.upper}; allowed placeholders"),
+    ("{scene:>{width}}.tif", "uses {width}; allowed placeholders"),
+    ("{scene:d}.tif", "pattern '{scene:d}.tif': Unknown format code 'd'"),
+    ("{scene.tif", "pattern '{scene.tif': "),
+])
+def test_unknown_field_or_bad_spec_refused_in_one_line(pattern, message):
+    document = minimal()
+    document["inputs"]["classes"] = pattern
+    error = error_of(document)
+    assert message in error
+    assert "\n" not in error
+
 def test_overrides(tmp_path):
     data = minimal()
     changed = apply_overrides(data, {"engine.workers": 3, "outputs.existing": "overwrite"})

@@ -13,11 +13,10 @@ import pytest
 import rasterio
 from click.testing import CliRunner
 
-from brdfcorr.chain import run as chain
 from brdfcorr.chain.config import load_config
 from brdfcorr.chain.run import run_chain
 from brdfcorr.cli import main
-from brdfcorr.io import writer
+from brdfcorr.io import cluster, writer
 from brdfcorr.testing import synthetic_scene
 
 distributed = pytest.importorskip("distributed")
@@ -27,7 +26,7 @@ distributed = pytest.importorskip("distributed")
 def patient_connections(monkeypatch):
     """Clusters in these tests are real and on this machine: under load, connecting to one may take
     longer than the library's timeout for unreachable schedulers (tests of that set their own)."""
-    monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 300)
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 300)
 
 
 def test_distributed_matches_local(tmp_path, make_scenes, write_chain):
@@ -62,7 +61,7 @@ def test_distributed_matches_local(tmp_path, make_scenes, write_chain):
 def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch, make_scenes, write_chain):
     from brdfcorr.errors import InputError
 
-    monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 1)  # seconds; nothing listens on port 9
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 1)  # seconds; nothing listens on port 9
     make_scenes(tmp_path, count=1)
     config = load_config(write_chain(tmp_path), {
         "engine": {"scheduler": "distributed", "address": "tcp://127.0.0.1:9"}})
@@ -115,7 +114,7 @@ def test_one_scene_on_two_worker_processes_uses_both_and_matches_local(scene, tm
 
 
 def test_unreachable_scheduler_address_of_correct_is_one_clear_error(scene, tmp_path, monkeypatch):
-    monkeypatch.setattr(chain, "CONNECT_TIMEOUT", 1)  # seconds; nothing listens on port 9
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 1)  # seconds; nothing listens on port 9
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
         result = _correct(scene, tmp_path / "out.tif", "--scheduler", "tcp://127.0.0.1:9")
     assert result.exit_code == 2

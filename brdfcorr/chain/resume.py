@@ -1,0 +1,207 @@
+"""What a resumed chain run may skip: the parameter table known before the run, the fingerprint a
+corrected output records of its inputs and settings, and the checks that turn a skipped scene
+back to ``run`` (:func:`redo_stale`).
+
+A scene whose complete outputs exist is skipped (``outputs.existing: skip``) only when they are still
+whole (:func:`brdfcorr.io.commit.check_complete`, as a fresh write is checked) and its corrected image
+records (provenance tag ``brdf_parameter_table_content``) the parameter table this run will use
+(:func:`planned_table`) and the fingerprint this run would write (:func:`scene_fingerprint`; tags
+``brdf_fingerprint``, ``brdf_fingerprint_content``); the reason it is redone names what changed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import stat
+from pathlib import Path
+
+import rasterio
+import rasterio.errors
+
+from brdfcorr import __version__
+from brdfcorr.chain.config import ChainConfig
+from brdfcorr.chain.scenes import Scene
+from brdfcorr.io.commit import check_complete
+from brdfcorr.io.files import content_digest
+from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
+
+__all__ = ["configured_table", "reuses_fit", "planned_table", "redo_stale", "scene_fingerprint"]
+
+
+# ------------------------------------------------------------------------------------ parameters
+def configured_table(config: ChainConfig) -> ParameterTable:
+    """The parameters given in the config: built-in materials, inline classes, the table file
+    (later wins for a class id)."""
+    entries = []
+    for class_id, name in sorted(config.parameters.materials.items()):
+        entries.append(ClassEntry(id=class_id, material=name))  # the library's model and values
+    tables = [ParameterTable(classes=entries), ParameterTable(classes=list(config.parameters.classes))]
+    if config.parameters.table is not None:
+        tables.append(ParameterTable.load(config.resolve(config.parameters.table)))
+    return merge_tables(tables)
+
+
+def reuses_fit(config: ChainConfig, fit_output: Path | None) -> bool:
+    """Whether the run reuses the fitted table of an earlier run (resume) instead of fitting."""
+    return fit_output is not None and config.outputs.existing == "skip" and fit_output.exists()
+
+
+def planned_table(config: ChainConfig, fit_output: Path | None) -> ParameterTable | None:
+    """The parameter table the run will use, as known before it runs: the configured table and a
+    reused fitted table; None when the fit step makes a new table."""
+    if config.steps.fit is None:
+        return configured_table(config)
+    if not reuses_fit(config, fit_output):
+        return None
+    return merge_tables([configured_table(config), ParameterTable.load(fit_output)])
+
+
+# ----------------------------------------------------------------------------------------- resume
+def redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | None) -> list[Scene]:
+    """The scenes, with skipped ones turned to ``run`` when their outputs were not made with the
+    run's parameter table, inputs and settings."""
+    if not any(scene.action == "skip" and "corrected" in scene.outputs for scene in scenes):
+        return scenes
+    table_file = config.parameters.table
+    if table_file is not None and not config.resolve(table_file).exists():
+        return scenes  # without require_inputs only: the run stops before any scene (a plan warning)
+    table = planned_table(config, fit_output)
+    return [_unless_stale(scene, table) for scene in scenes]
+
+
+def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
+    """The scene, turned from ``skip`` to ``run`` if its corrected output was written with another
+    parameter table than ``table`` (provenance tag ``brdf_parameter_table_content`` of
+    :func:`brdfcorr.tasks.correct.correct_files`) or ``table`` is not known before the run, or
+    with another fingerprint than ``scene.fingerprint`` (tag ``brdf_fingerprint``)."""
+    if scene.action != "skip" or "corrected" not in scene.outputs:
+        return scene
+    damaged = _damaged(scene)
+    if damaged:
+        return dataclasses.replace(scene, action="run", reason=f"{damaged}: redone")
+    if table is None:
+        return dataclasses.replace(scene, action="run", reason="the fit step makes a new parameter table")
+    try:
+        with rasterio.open(scene.outputs["corrected"]) as dataset:
+            tags = dataset.tags()
+        written = json.loads(tags.get("brdf_parameter_table_content", "null"))
+    except (rasterio.errors.RasterioError, ValueError):
+        tags, written = {}, None
+    if written != json.loads(json.dumps(table.to_dict())):
+        return dataclasses.replace(scene, action="run", reason="outputs were made with another parameter table")
+    if tags.get("brdf_fingerprint") != hashlib.sha256(scene.fingerprint.encode()).hexdigest():
+        return dataclasses.replace(scene, action="run", reason=_what_changed(tags, scene.fingerprint))
+    return scene
+
+
+#: The outputs of a scene that are rasters (checked as a fresh write is before a resume skips them).
+_RASTERS = ("corrected", "qa", "uncertainty")
+
+
+def _damaged(scene: Scene) -> str | None:
+    """The first of a skipped scene's outputs that is no longer whole, in words: a raster cut short
+    or unreadable (:func:`brdfcorr.io.commit.check_complete`, as a fresh write is checked), an
+    assessment that is no JSON. None when all are whole."""
+    for role, path in scene.outputs.items():
+        if role in _RASTERS:
+            problem = check_complete(path)
+        elif path.suffix == ".json":
+            problem = _json_problem(path)
+        else:
+            continue
+        if problem is not None:
+            return f"{role} output {path} is damaged ({problem})"
+    return None
+
+
+def _json_problem(path: Path) -> str | None:
+    try:
+        json.loads(path.read_bytes())
+    except (OSError, ValueError) as error:
+        return f"it is no JSON document: {error}"
+    return None
+
+
+# ----------------------------------------------------------------------------------- fingerprints
+def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
+    """Everything a scene's corrected output depends on besides the parameter table, as canonical
+    JSON (sorted keys, no spaces): what :func:`brdfcorr.tasks.correct.correct_files` records
+    (tags ``brdf_fingerprint``, its SHA-256, and ``brdf_fingerprint_content``) and a resumed run
+    compares.
+
+    It holds the input files' (image, class map, angles, terrain source) path (as given), size,
+    modification time [ns] and content digest (:func:`brdfcorr.io.files.content_digest`; the
+    acquisition time of a ``solar`` angle source), the angle source's
+    kind and options, the other ``inputs`` settings (wavelengths, class lookup, ...), the reference
+    geometry, the correct step's options (limits, terrain, ...; not ``qa``: the QA and uncertainty
+    rasters are extra outputs of the same pass, their presence is checked as a file's), the output
+    format (compression, COG, ENVI interleave) and the brdfcorr version. The parameter table is recorded in
+    full apart from it (tag ``brdf_parameter_table_content``, :func:`planned_table`): a table from
+    the fit step is only known once the run has fitted it.
+    """
+    inputs = {role: _file_state(path) for role, path in scene.inputs()}
+    if scene.angles_kind == "solar":
+        inputs["angles"] = {"time": scene.angles}
+    correct = None if config.steps.correct is None else config.steps.correct.model_dump(mode="json", exclude={"qa"})
+    if correct is not None:  # the defaults of later options are not recorded: older outputs stay current
+        if correct["terrain"] is None:  # a flat correction records what it did before terrain
+            del correct["terrain"]
+        if correct["factor_at"] == "pixels":
+            del correct["factor_at"]
+    document = {
+        "brdfcorr": __version__,
+        "inputs": inputs,
+        "angle source": {"kind": scene.angles_kind, "options": scene.angle_options},
+        "settings": config.inputs.model_dump(mode="json", exclude={"images", "scene_regex", "angles", "classes",
+                                                                    "slope_aspect", "dem"}),
+        "reference": None if config.reference is None else config.reference.model_dump(mode="json"),
+        "correct": correct,
+        "format": config.outputs.model_dump(mode="json", include={"format", "compress", "cog", "interleave"},
+                                            exclude_none=True),
+    }
+    return json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def _file_state(path: Path) -> dict:
+    """A file's identity in a fingerprint: path (as given), size [bytes], modification time [ns] and
+    content (:func:`brdfcorr.io.files.content_digest`: an edit in place that kept the size and the
+    time changes it). Only regular files are read (a FIFO would block)."""
+    try:
+        status = os.stat(path)
+        digest = content_digest(path) if stat.S_ISREG(status.st_mode) else None
+    except OSError:
+        return {"path": str(path)}
+    return {"path": str(path), "size": status.st_size, "mtime_ns": status.st_mtime_ns, "content": digest}
+
+
+#: How a reason names a part of a fingerprint.
+_PARTS = {"brdfcorr": "brdfcorr version", "angle source": "angle source", "settings": "inputs settings",
+          "reference": "reference geometry", "correct": "steps.correct", "format": "output format"}
+
+
+def _what_changed(tags: dict, fingerprint: str) -> str:
+    """Why an output's recorded fingerprint is not ``fingerprint``, in words ("reference geometry
+    changed since it was written")."""
+    generic = "inputs or settings changed since it was written"
+    try:
+        written, planned = json.loads(tags["brdf_fingerprint_content"]), json.loads(fingerprint)
+    except (KeyError, ValueError):  # an output of a brdfcorr that recorded no fingerprint
+        return generic
+    if not isinstance(written, dict):
+        return generic
+    changed = []
+    for part, value in planned.items():
+        if written.get(part) == value:
+            continue
+        if part == "inputs":
+            old = written.get(part) if isinstance(written.get(part), dict) else {}
+            changed += [f"{role} {value[role].get('path', value[role].get('time'))}" for role in value
+                        if old.get(role) != value[role]]
+        elif part == "correct" and isinstance(written.get(part), dict) and isinstance(value, dict):
+            changed += [f"steps.correct.{key}" for key in value if written[part].get(key) != value[key]]
+        else:
+            changed.append(_PARTS.get(part, part))
+    return f"{', '.join(changed)} changed since it was written" if changed else generic

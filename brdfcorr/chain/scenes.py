@@ -1,0 +1,246 @@
+"""The scenes of a chain run: one per input image, with its files and what happens to it.
+
+:func:`input_images` expands the config's image patterns, :func:`plan_scenes` makes a
+:class:`Scene` of each (its name, class map, angle source, terrain source and output names, from
+the config's patterns: :mod:`brdfcorr.chain.patterns`) and decides its action from the files alone
+(``run``, ``skip``, ``fail``); :mod:`brdfcorr.chain.resume` then checks the skipped ones, and
+:func:`brdfcorr.chain.plan.plan_run` puts it together.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import rasterio
+import rasterio.errors
+
+from brdfcorr.chain.config import ChainConfig, format_pattern
+from brdfcorr.errors import InputError
+from brdfcorr.plot.assess import figure_paths
+
+__all__ = ["Scene", "input_images", "plan_scenes", "check_quicklook_bands"]
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One input image and everything the chain reads and writes for it.
+
+    Attributes
+    ----------
+    name : str
+        Scene name (``{scene}`` in patterns).
+    image, classes : Path
+        Reflectance image and class map.
+    angles_kind : str
+        Angle source kind (``geotiff``, ``envi_obs``, ...).
+    angles : str
+        The angle source: a path, or for ``solar`` the acquisition time.
+    angle_options : dict
+        Options of the angle reader.
+    outputs : dict of str to Path
+        ``corrected`` and, when enabled, ``qa``, ``uncertainty``, ``assess`` (JSON report),
+        ``assess_profiles`` (its figure) and ``quicklook``.
+    action : {"run", "skip", "fail"}
+        What the run will do; ``reason`` says why for ``skip`` and ``fail`` (and for ``run`` when
+        existing outputs are redone).
+    fingerprint : str
+        What the corrected output will record of its inputs and settings
+        (:func:`brdfcorr.chain.resume.scene_fingerprint`).
+    slope_aspect, dem : Path, optional
+        The terrain source of ``steps.correct.terrain`` (one of them, or neither).
+    """
+
+    name: str
+    image: Path
+    classes: Path
+    angles_kind: str
+    angles: str
+    angle_options: dict
+    outputs: dict
+    action: str = "run"
+    reason: str = ""
+    fingerprint: str = ""
+    slope_aspect: Path | None = None
+    dem: Path | None = None
+
+    def inputs(self) -> list[tuple[str, Path]]:
+        """(role, path) of the files the scene reads: image, class map, angle file and the terrain
+        source."""
+        files = [("image", self.image)]
+        if self.classes != Path():  # Path(): a scene failed before its files were named
+            files.append(("class map", self.classes))
+        if self.angles_kind != "solar" and self.angles:  # the solar source is a time, not a file
+            files.append(("angles", Path(self.angles)))
+        files += [(role, path) for role, path in (("slope/aspect", self.slope_aspect), ("DEM", self.dem))
+                  if path is not None]
+        return files
+
+    def describe(self) -> dict:
+        """JSON-friendly description (for the report and ``--dry-run``)."""
+        return {
+            "scene": self.name,
+            "image": str(self.image),
+            "angles": {"kind": self.angles_kind, "source": self.angles, **(
+                {"options": self.angle_options} if self.angle_options else {})},
+            "classes": str(self.classes),
+            **{role: str(path) for role, path in (("slope_aspect", self.slope_aspect), ("dem", self.dem))
+               if path is not None},
+            "outputs": {key: str(value) for key, value in self.outputs.items()},
+            "action": self.action,
+            **({"reason": self.reason} if self.reason else {}),
+        }
+
+
+def input_images(config: ChainConfig, require_inputs: bool) -> tuple[list[Path], list[str]]:
+    """The input images (globs expanded, duplicates dropped) and notes on patterns matching nothing."""
+    images, notes, typo = [], [], False
+    for item in config.inputs.images:
+        pattern = str(config.resolve(item))
+        if glob.has_magic(pattern):
+            matches = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file())
+            if not matches:
+                notes.append(f"inputs.images: {item!r} matches no file")
+                typo = typo or _glob_root(pattern).is_dir()
+            images += matches
+        else:
+            images.append(Path(pattern))
+    images = list(dict.fromkeys(images))  # as given: a link stays a link ({dir} is its directory)
+    # A pattern matching nothing is a typo, not an empty batch: an error, also without
+    # require_inputs (validate, --dry-run) where its folder exists; only the data of a folder
+    # that does not exist yet may be missing there (a warning).
+    if not images:
+        message = f"inputs.images matches no file ({', '.join(config.inputs.images)})"
+        if require_inputs or typo:
+            raise InputError(f"{config.source}: {message}")
+        notes = [message]
+    elif notes and (require_inputs or typo):
+        raise InputError(f"{config.source}: {'; '.join(notes)} (fix or remove the pattern)")
+    return images, notes
+
+
+def _glob_root(pattern: str) -> Path:
+    """The folder of a glob pattern up to its first wildcard (``data/*/x.tif`` -> ``data``)."""
+    parts = Path(pattern).parts
+    fixed = next(index for index, part in enumerate(parts) if glob.has_magic(part))
+    return Path(*parts[:fixed]) if fixed else Path()
+
+
+def check_quicklook_bands(config: ChainConfig, scenes: list[Scene]) -> None:
+    """Refuse quicklook bands beyond the band count of an input image (read from the file's header),
+    before anything is corrected: one band list serves the whole batch, so an image with fewer
+    bands means the setting is wrong, as a glob typo is. Images that are missing or unreadable are
+    left to their scene (which fails on them)."""
+    step = config.steps.quicklook
+    if step is None or step.bands is None:  # chosen by wavelength per image
+        return
+    needed = max(step.bands)
+    short = []
+    for scene in scenes:
+        if not scene.image.is_file():  # missing (the scene fails) or no regular file: not opened here
+            continue
+        try:
+            with rasterio.open(scene.image) as dataset:
+                count = dataset.count
+        except (OSError, rasterio.errors.RasterioError):
+            continue
+        if count < needed:
+            short.append(f"{scene.image} has {count}")
+    if short:
+        more = f" (and {len(short) - 1} more)" if len(short) > 1 else ""
+        raise InputError(
+            f"{config.source}: steps.quicklook.bands {list(step.bands)} needs {needed} bands, but image "
+            f"{short[0]}{more}; choose bands of every image"
+        )
+
+
+def _scene_name(config: ChainConfig, image: Path, shared_stems=frozenset()) -> str:
+    regex = config.inputs.scene_regex
+    if regex is None:  # the stem, qualified by the directory when several images share it
+        return f"{image.parent.name}_{image.stem}" if image.stem in shared_stems else image.stem
+    match = re.search(regex, image.name)
+    if match is None or not match.group("scene"):
+        raise InputError(f"inputs.scene_regex {regex!r} does not match image file name {image.name!r}")
+    return match.group("scene")
+
+
+def plan_scenes(config: ChainConfig, images: list[Path], output_dir: Path,
+                fingerprint: Callable[[Scene, ChainConfig], str]) -> list[Scene]:
+    """One scene per image, with its action and ``fingerprint(scene, config)``
+    (:func:`brdfcorr.chain.resume.scene_fingerprint`); no two scenes may write the same file name
+    (:func:`brdfcorr.chain.plan.plan_run` then checks every output against every input and output by
+    file identity)."""
+    stems = [image.stem for image in images]
+    shared = frozenset(stem for stem in stems if stems.count(stem) > 1)
+    scenes, writers = [], {}
+    for index, image in enumerate(images):
+        scene = _plan_scene(config, image, shared, output_dir, fingerprint)
+        for path in scene.outputs.values():
+            if path in writers and writers[path][0] != index:  # one scene's own outputs: plan_run
+                raise InputError(
+                    f"outputs: scenes {writers[path][1]} and {scene.name} would both write {path}; use {{scene}} or "
+                    "{stem} in the output naming patterns, or a scene_regex giving distinct names"
+                )
+            writers[path] = (index, scene.name)
+        scenes.append(scene)
+    return scenes
+
+
+def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, output_dir: Path,
+                fingerprint: Callable[[Scene, ChainConfig], str]) -> Scene:
+    angles = config.inputs.angles
+    try:
+        name = _scene_name(config, image, shared_stems)
+    except InputError as error:
+        return Scene(image.stem, image, Path(), angles.kind, "", {}, {}, "fail", str(error))
+
+    def fill(pattern: str) -> str:
+        return format_pattern(pattern, image, name)
+
+    classes = config.resolve(fill(config.inputs.classes))  # not resolved: the user's paths, in messages too
+    angle_source = fill(angles.path)
+    if angles.kind != "solar":  # the solar source is a time, not a file
+        angle_source = str(config.resolve(angle_source))
+    slope_aspect, dem = (None if pattern is None else config.resolve(fill(pattern))
+                         for pattern in (config.inputs.slope_aspect, config.inputs.dem))
+    outputs = _output_paths(config, output_dir, fill, name)
+    scene = Scene(name, image, classes, angles.kind, angle_source, dict(angles.options), outputs,
+                  slope_aspect=slope_aspect, dem=dem)
+    action, reason = _action(config, scene)
+    scene = dataclasses.replace(scene, action=action, reason=reason)
+    return dataclasses.replace(scene, fingerprint=fingerprint(scene, config))
+
+
+def _output_paths(config: ChainConfig, output_dir: Path, fill, name: str) -> dict[str, Path]:
+    naming, steps, outputs = config.outputs, config.steps, {}
+    if steps.correct is not None:
+        outputs["corrected"] = output_dir / fill(naming.naming)
+        if steps.correct.qa:
+            outputs["qa"] = output_dir / fill(naming.qa_naming)
+        if naming.uncertainty:
+            outputs["uncertainty"] = output_dir / fill(naming.uncertainty_naming)
+    if steps.assess is not None:  # the figure's name: brdfcorr.plot.assess.write_assessment_figures
+        outputs["assess"] = output_dir / f"{name}_assess.json"
+        outputs["assess_profiles"], = figure_paths(output_dir, prefix=f"{name}_assess")
+    if steps.quicklook is not None:
+        outputs["quicklook"] = output_dir / fill(naming.quicklook_naming)
+    return outputs
+
+
+def _action(config: ChainConfig, scene: Scene) -> tuple[str, str]:
+    """(action, reason) from the files alone; :func:`brdfcorr.chain.resume.redo_stale` then checks the
+    skipped scenes."""
+    missing = [f"{role} {path}" for role, path in scene.inputs() if not path.exists()]
+    if missing:
+        return "fail", "missing input: " + ", ".join(missing)
+    existing = config.outputs.existing
+    if scene.outputs and all(path.exists() for path in scene.outputs.values()):
+        if existing == "skip":
+            return "skip", "complete outputs exist"
+        if existing == "error":
+            return "fail", "outputs exist (outputs.existing: error)"
+    return "run", ""
