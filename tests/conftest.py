@@ -177,8 +177,9 @@ def read():
 
 
 # ------------------------------------------------------------------- refused command lines
-# invoke, refused, correct_args: the hostile-input tests
-# (tests/cli/test_hostile_inputs_round3.py, tests/io/test_hostile_products.py, tests/io/test_hostile_files.py,
+# invoke, refused, correct_args: the hostile-input tests (tests/cli/test_chunk_sizes_refused.py,
+# tests/cli/test_64_bit_integer_outputs.py, tests/cli/test_angle_and_terrain_rasters_checked.py,
+# tests/io/test_product_metadata_checked.py, tests/io/test_hostile_products.py, tests/io/test_hostile_files.py,
 # tests/cli/test_bad_input.py).
 
 def _invoke(args, env=None) -> tuple[int, str]:

@@ -2,22 +2,87 @@
 
 The commands are taken from each page's ```bash blocks in order (``make`` targets excepted: they
 build the environment this test runs in) and run with the package's ``brdfcorr`` on the PATH, in a
-scratch directory that links the repository's ``configs/`` and ``examples/``: the README's first,
-then each page of ``docs/`` in a copy of what the README's commands made (``demo_output/``), as a
-reader who followed the README would have it. Pages are separate tests, so they run in parallel.
+scratch directory that links the repository's ``configs/`` and ``examples/``.
+
+A page's commands fall into groups (:data:`GROUPS`): a group is the commands from its first one up
+to the next group's first, run in order in a directory of its own that starts as a copy of what the
+groups it needs made. A group that needed a file made by a group it does not name would fail (the
+file is not in its copy), so a wrong split fails the test; it never hides a failure. Each group is
+one test, so groups that do not depend on each other run in parallel (pytest-xdist), and each is run
+once per session for all workers (:func:`_build`: a lock file in the session's shared temporary
+folder), however many other groups start from its outputs.
+
+The docs' pages start where a reader who followed the README would: from a copy of what all of the
+README's commands made (``demo_output/``). Two kinds of command are not run twice:
+
+- a command of a page that repeats a README command verbatim and names no file (``brdfcorr models``)
+  stands for the README's run of it: its output cannot differ;
+- ``brdfcorr demo -o DIR --no-progress`` (docs/assess.md) is the README's ``brdfcorr demo -o
+  demo_output`` with another folder name and no progress bar on stderr: DIR is a copy of the
+  README's ``demo_output/`` (the same scene and chain, so the same files).
 """
 
+from __future__ import annotations
+
+import fcntl
 import os
 import re
 import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 
 ROOT = Path(__file__).parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+#: Where a page's commands split into groups that run apart: for each group, the start of its first
+#: command, its name and the groups it starts from ("page:name"; "README.md" is every README group).
+#: A page not listed is one group named "all", which starts from the README's outputs if one of its
+#: commands names demo_output/, else from an empty directory.
+GROUPS = {
+    "README.md": [
+        ("brdfcorr models", "listings", ()),
+        ("brdfcorr demo -o demo_output", "demo", ()),
+        ("brdfcorr validate configs/*.yaml", "chain", ("README.md:demo",)),
+        ("brdfcorr correct demo_output/", "correct", ("README.md:demo",)),
+        ("brdfcorr fit-classes demo_output/", "fit-classes", ("README.md:demo",)),
+        ("python examples/make_goniometer_csv.py", "goniometer", ("README.md:demo",)),
+        ("brdfcorr analyze", "analyze", ("README.md:demo",)),
+    ],
+    "classmaps.md": [
+        ("brdfcorr classes ndvi", "strata", ("README.md",)),
+        ("python examples/make_landcover.py", "landcover", ("README.md",)),
+    ],
+    "parameter-tables.md": [
+        ("brdfcorr materials roof_tile", "materials", ("README.md",)),
+        ("printf", "material-classes", ("README.md",)),
+        ("brdfcorr coefficients", "coefficients", ("README.md",)),
+        ("brdfcorr classes ndvi", "prior", ("README.md",)),
+    ],
+    "sensors.md": [
+        ("python examples/make_sensor_products.py", "products", ()),
+        ("brdfcorr classes ndvi products/aviris-ng/", "aviris", ("sensors.md:products",)),
+        ("brdfcorr classes ndvi products/neon/", "neon", ("sensors.md:products",)),
+        ("brdfcorr classes ndvi products/emit/", "emit", ("sensors.md:products", "sensors.md:aviris")),
+        ("python examples/nbar_products.py", "s2_l7", ()),
+        ("brdfcorr nbar s2_l7/S2A", "sentinel2", ("sensors.md:s2_l7",)),
+        ("brdfcorr nbar s2_l7/LE07", "landsat", ("sensors.md:s2_l7",)),
+        ("brdfcorr nbar s2_l7/S2A_MSIL2A_20190425T132241_N0400_R038_T23LLF_20190425T164208.SAFE --factor-at nodes",
+         "sentinel2-nodes", ("sensors.md:s2_l7",)),
+    ],
+}
+#: docs/assess.md's demo: the README's demo in another folder (see the module's docstring).
+DEMO_AGAIN = re.compile(r"brdfcorr demo -o (?P<folder>[\w.-]+) --no-progress")
+
+
+class Group(NamedTuple):
+    """Commands of one page that run in order in one directory, after copies of what ``needs`` made."""
+
+    page: str
+    commands: tuple[str, ...]
+    needs: tuple[str, ...]
 
 
 def page_commands(page: Path) -> list[str]:
@@ -31,7 +96,30 @@ def page_commands(page: Path) -> list[str]:
     return commands
 
 
-def run_commands(commands: list[str], directory: Path) -> None:
+def page_groups(page: Path) -> dict[str, Group]:
+    """The groups of a page's commands by "page:name", in page order (:data:`GROUPS`)."""
+    commands = page_commands(page)
+    readme = ("README.md",) if any("demo_output" in command for command in commands) else ()
+    splits = GROUPS.get(page.name) or [(commands[0], "all", readme)]
+    starts, position = [], 0
+    for start, name, _ in splits:
+        position = next((i for i in range(position, len(commands)) if commands[i].startswith(start)), None)
+        assert position is not None, f"{page.name}: no command starts with {start!r} after the group before"
+        starts.append(position)
+    assert starts[0] == 0, f"{page.name}: the first group must start with the first command"
+    ends = [*starts[1:], len(commands)]
+    return {f"{page.name}:{name}": Group(page.name, tuple(commands[a:b]), needs)
+            for (_, name, needs), a, b in zip(splits, starts, ends)}
+
+
+ALL_GROUPS = {key: group for page in PAGES if page_commands(page) for key, group in page_groups(page).items()}
+README_COMMANDS = {command: key for key, group in ALL_GROUPS.items() if group.page == "README.md"
+                   for command in group.commands}
+#: "README.md": every README group, the directory the docs start from.
+ALL_GROUPS["README.md"] = Group("README.md", (), tuple(key for key in ALL_GROUPS if key.startswith("README.md:")))
+
+
+def run_commands(commands, directory: Path) -> None:
     """Run commands in order in ``directory`` (linking the repository's configs/ and examples/)."""
     for name in ("configs", "examples"):
         if not (directory / name).exists():
@@ -39,17 +127,70 @@ def run_commands(commands: list[str], directory: Path) -> None:
     environment = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     for command in commands:
         result = subprocess.run(command, shell=True, cwd=directory, env=environment, capture_output=True, text=True,
-                                timeout=300)
+                                timeout=600)
         assert result.returncode == 0, f"{command}\n{result.stdout}\n{result.stderr}"
 
 
-@pytest.fixture(scope="session")
-def readme_directory(tmp_path_factory) -> Path:
-    """A directory in which the README's commands have run: its ``demo_output/`` is what the docs'
-    commands start from, as a reader's would."""
-    directory = tmp_path_factory.mktemp("readme")
-    run_commands(page_commands(ROOT / "README.md"), directory)
+def _copy_into(source: Path, target: Path) -> None:
+    """Copy the files of ``source`` into ``target`` (the links to configs/ and examples/ excepted),
+    skipping files that a copy of the same file already put there (same size and time)."""
+    for folder, _, files in os.walk(source):
+        relative = Path(folder).relative_to(source)
+        if relative.parts[:1] in (("configs",), ("examples",)):
+            continue
+        (target / relative).mkdir(parents=True, exist_ok=True)
+        for name in files:
+            path, copy = Path(folder) / name, target / relative / name
+            if path.is_symlink() or (copy.exists() and (copy.stat().st_size, copy.stat().st_mtime_ns)
+                                     == (path.stat().st_size, path.stat().st_mtime_ns)):
+                continue
+            shutil.copy2(path, copy)
+
+
+def _run_group(key: str, directory: Path, build) -> None:
+    """Run a group's commands in ``directory`` after copying in what the groups it needs made."""
+    group = ALL_GROUPS[key]
+    for need in group.needs:
+        _copy_into(build(need), directory)
+    for command in group.commands:
+        again = DEMO_AGAIN.fullmatch(command)
+        if again:
+            _copy_into(build("README.md:demo") / "demo_output", directory / again["folder"])
+        elif group.page != "README.md" and command in README_COMMANDS and not re.search(r"/|>|-o\b", command):
+            build(README_COMMANDS[command])
+        else:
+            run_commands([command], directory)
+
+
+def _build(root: Path, key: str) -> Path:
+    """The directory in which group ``key`` ran, under ``root``: run by the first worker that asks,
+    which holds a lock file meanwhile; the others wait for it and reuse the directory (or its failure)."""
+    name = key.replace(":", "-")
+    directory, done, failed = root / name, root / f"{name}.done", root / f"{name}.failed"
+    with open(root / f"{name}.lock", "a") as lock:
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+        if failed.exists():
+            pytest.fail(f"{key} failed (in another test):\n{failed.read_text()}")
+        if not done.exists():
+            shutil.rmtree(directory, ignore_errors=True)
+            directory.mkdir()
+            try:
+                _run_group(key, directory, lambda need: _build(root, need))
+            except BaseException as error:
+                failed.write_text(str(error))
+                raise
+            done.touch()
     return directory
+
+
+@pytest.fixture(scope="session")
+def build(tmp_path_factory):
+    """``build(key)``: the directory in which group ``key`` ran, shared by the session's workers
+    (the parent of a worker's temporary folder is the session's)."""
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "doc-commands"
+    root.mkdir(exist_ok=True)
+    return lambda key: _build(root, key)
 
 
 def test_readme_has_the_two_quick_start_commands():
@@ -58,15 +199,23 @@ def test_readme_has_the_two_quick_start_commands():
     assert len(page_commands(ROOT / "README.md")) >= 15
 
 
-@pytest.mark.parametrize("page", [page.name for page in PAGES if page_commands(page)])
-def test_every_command_of_a_page_runs(page, request, tmp_path):
-    if page == "README.md":
-        request.getfixturevalue("readme_directory")  # runs the README's commands and checks each
-        return
-    commands = page_commands(ROOT / "docs" / page)
-    if any("demo_output" in command for command in commands):  # a copy of the README's results
-        shutil.copytree(request.getfixturevalue("readme_directory") / "demo_output", tmp_path / "demo_output")
-    run_commands(commands, tmp_path)
+def test_groups_keep_every_command_once_and_in_order():
+    for page in PAGES:
+        groups = [group for group in ALL_GROUPS.values() if group.page == page.name and group.commands]
+        assert [command for group in groups for command in group.commands] == page_commands(page), page.name
+    assert DEMO_AGAIN.fullmatch("brdfcorr demo -o assess_demo --no-progress")
+    assert "brdfcorr demo -o demo_output" in README_COMMANDS
+
+
+#: The groups that need none first, so that a second worker has one to run while the first makes
+#: what the others start from.
+TESTED = sorted((key for key in ALL_GROUPS if ":" in key),
+                key=lambda key: bool(ALL_GROUPS[key].needs) or any(map(DEMO_AGAIN.fullmatch, ALL_GROUPS[key].commands)))
+
+
+@pytest.mark.parametrize("group", TESTED)
+def test_every_command_of_a_page_runs(group, build):
+    build(group)
 
 
 def test_every_python_example_runs():

@@ -26,6 +26,9 @@ import socket
 import threading
 from pathlib import Path
 
+import distributed
+import h5netcdf  # noqa: F401  (the "hdf5" extra: a test dependency)
+import h5py
 import numpy as np
 import pytest
 import rasterio
@@ -36,19 +39,6 @@ from brdfcorr.io import cluster
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, synthetic_scene
-
-try:  # the "hdf5" extra
-    import h5netcdf  # noqa: F401
-    import h5py
-except ImportError:
-    h5py = None
-try:  # the "distributed" extra
-    import distributed
-except ImportError:
-    distributed = None
-
-needs_hdf5 = pytest.mark.skipif(h5py is None, reason="NEON and EMIT products need h5py and h5netcdf")
-needs_distributed = pytest.mark.skipif(distributed is None, reason="clusters need dask.distributed")
 
 NY, NX = 16, 16
 
@@ -109,7 +99,6 @@ def http_server():
     server.server_close()
 
 
-@needs_distributed
 @pytest.mark.parametrize("address, pattern", [
     ("notanaddress", r"--scheduler: 'notanaddress' is no dask scheduler address"),
     ("tcp://[::1", r"--scheduler: 'tcp://\[::1' is no dask scheduler address"),
@@ -118,13 +107,11 @@ def test_scheduler_address_that_is_none(scene, short_timeouts, address, pattern,
     refused(scene, correct_args(scene, "--scheduler", address), pattern)
 
 
-@needs_distributed
 def test_garbage_dask_scheduler_address_variable(scene, short_timeouts, refused, correct_args):
     refused(scene, correct_args(scene), r"--scheduler: '\?\?garbage\?\?' is no dask scheduler address",
             env={"DASK_SCHEDULER_ADDRESS": "??garbage??"})
 
 
-@needs_distributed
 @pytest.mark.parametrize("server", ["silent_server", "http_server"])
 def test_scheduler_port_where_no_scheduler_listens(scene, short_timeouts, server, request, refused, correct_args):
     address = request.getfixturevalue(server)
@@ -133,7 +120,6 @@ def test_scheduler_port_where_no_scheduler_listens(scene, short_timeouts, server
             r"(no answer within 1 s|something answers there, but not as a dask scheduler)")
 
 
-@needs_distributed
 def test_scheduler_without_workers(scene, short_timeouts, refused, correct_args):
     with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None) as local:
         address = local.scheduler_address
@@ -141,7 +127,6 @@ def test_scheduler_without_workers(scene, short_timeouts, refused, correct_args)
                 rf"--scheduler: the dask scheduler at {re.escape(address)} has no workers \(none joined within 1 s\)")
 
 
-@needs_distributed
 def test_chain_engine_address_of_a_silent_server(tmp_path, short_timeouts, silent_server):
     from brdfcorr.errors import InputError
 
@@ -245,7 +230,6 @@ def _replace(name: str, **create):
     return edit
 
 
-@needs_hdf5
 @pytest.mark.parametrize("edit, pattern", [
     pytest.param(_set_attr("Reflectance_Data", "Scale_Factor", np.nan),
                  r"Reflectance_Data Scale_Factor nan must be a finite number > 0", id="scale-factor-nan"),
@@ -285,7 +269,6 @@ def test_neon_metadata_that_leaves_nothing_or_a_wrong_number(neon, edit, pattern
     refused(scene, args, pattern)
 
 
-@needs_hdf5
 @pytest.mark.parametrize("value", [np.nan, np.inf])
 def test_neon_ignore_value_that_is_no_number_falls_back_to_neons_fill(neon, value, invoke):
     """NEON documents -9999 as its fill: with a NaN (or inf) Data_Ignore_Value the stored -9999
@@ -307,7 +290,6 @@ def test_neon_ignore_value_that_is_no_number_falls_back_to_neons_fill(neon, valu
     np.testing.assert_array_equal(corrected, expected)
 
 
-@needs_hdf5
 def test_truncated_neon_file_is_one_line_without_hdf5_diagnostics(neon, refused):
     """GDAL's HDF5 library printed 22 lines of HDF5-DIAG per attempt before the error."""
     scene, args = neon()
@@ -404,7 +386,6 @@ def _nan_glt():
     return glt_x, glt_y
 
 
-@needs_hdf5
 @pytest.mark.parametrize("case, pattern", [
     ({"obs": _obs(sza=np.nan)}, r"OBS\S+\.nc \(emit\): no finite sza value \(all NaN, inf or nodata\)"),
     ({"obs": np.where(np.arange(len(OBS_BANDS)) == 2, np.inf, _obs()).astype("float32")},
@@ -428,7 +409,6 @@ def test_emit_granules_that_leave_nothing_or_a_wrong_number(emit, case, pattern,
     refused(scene, args, pattern)
 
 
-@needs_hdf5
 def test_emit_float_glt_of_integers_is_taken_as_integers(emit, invoke):
     """A GLT stored as floats that are all integers is EMIT's GLT: the same output as int32's."""
     scene, args = emit()

@@ -1,6 +1,7 @@
 """Kernel-driven (Ross-Li) and RPV models: closed forms, published values, an independent scalar
 implementation, properties over the domain, array kinds, invalid input."""
 
+import importlib
 import math
 import warnings
 from decimal import Decimal, getcontext, localcontext
@@ -661,14 +662,14 @@ def test_xarray_weights_per_band_share_the_geometry():
     assert rpv(30.0, theta_r, 10.0, rho0, 0.8, -0.1, 0.5).dims == ("x", "band")
 
 
-# --- Independent implementation from PyPI (optional) ----------------------------------------
+# --- Independent implementation from PyPI (pydirectional, a test dependency) ------------------
 
 
 def _pydirectional():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # its import warns about pydantic v1 APIs
-        return pytest.importorskip("pydirectional.brdf_forward_model.RTLS"), pytest.importorskip(
-            "pydirectional.brdf_forward_model.RPV")
+        return (importlib.import_module("pydirectional.brdf_forward_model.RTLS"),
+                importlib.import_module("pydirectional.brdf_forward_model.RPV"))
 
 
 @pytest.mark.parametrize("volume", VOLUME_KERNELS)

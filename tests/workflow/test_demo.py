@@ -5,9 +5,12 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
+import pvlib
 import pytest
 import rasterio
 from click.testing import CliRunner
+from pyproj import Transformer
 
 from brdfcorr.chain.config import load_config
 from brdfcorr.chain.demo import DEMO_TIME, demo_angles, demo_scene, demo_table, run_demo
@@ -30,9 +33,6 @@ def test_view_geometry_closed_form():
 
 
 def test_sun_position_matches_pvlib():
-    pvlib = pytest.importorskip("pvlib")
-    import pandas as pd
-    from pyproj import Transformer
 
     angles = demo_angles(rows=4, pixel=50.0)
     x, y = float(angles.x[0]), float(angles.y[0])

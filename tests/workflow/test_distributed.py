@@ -8,6 +8,7 @@ import os
 import re
 
 import dask
+import distributed
 import numpy as np
 import pytest
 import rasterio
@@ -18,8 +19,6 @@ from brdfcorr.chain.run import run_chain
 from brdfcorr.cli import main
 from brdfcorr.io import cluster, writer
 from brdfcorr.testing import synthetic_scene
-
-distributed = pytest.importorskip("distributed")
 
 
 @pytest.fixture(autouse=True)

@@ -22,9 +22,6 @@ from brdfcorr.chain.demo import demo_scene
 from brdfcorr.cli import main
 from brdfcorr.testing import write_emit_granules, write_envi_line, write_neon_reflectance
 
-pytest.importorskip("h5py")
-pytest.importorskip("h5netcdf")
-
 ROOT = Path(__file__).parents[2]
 SECTIONS = ("AVIRIS-NG and AVIRIS-3 (ENVI)", "NEON AOP (HDF5)", "EMIT (NetCDF)")
 

@@ -25,9 +25,6 @@ from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing.products import EMIT_OBS_BAND_NAMES
 
-pytest.importorskip("h5py")
-pytest.importorskip("h5netcdf")
-
 DOWNTRACK, CROSSTRACK = 8, 6
 ORTHO_Y, ORTHO_X = 9, 11
 FILL = -9999.0

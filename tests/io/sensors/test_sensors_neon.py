@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 
 import dask.array as da
+import h5py
 import numpy as np
 import pytest
 import rasterio
@@ -27,9 +28,6 @@ from brdfcorr.io.sensors.neon import parse_map_info, read_neon_angles, read_neon
 from brdfcorr.models import torrance_sparrow
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
-
-h5py = pytest.importorskip("h5py")
-pytest.importorskip("h5netcdf")
 
 ROWS, COLS = 7, 9
 WAVELENGTH = np.array([381.6, 561.2, 851.7, 1601.4])

@@ -1,0 +1,88 @@
+"""An ENVI header says only what is true (issue 26): it cannot say "sheared" or "no CRS", so such
+outputs are refused (exit 2, one ``brdfcorr: error:`` line, nothing written), not written wrong; its
+``description`` names the output, not its temporary file, and a folder name with ``}`` and a line
+break cannot add header fields.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+import rasterio
+from affine import Affine
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.testing import file_digests
+
+# The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
+
+
+def _correct_args(scene, output, *extra) -> list[str]:
+    return ["correct", str(scene["image"]), "--angles", str(scene["angles"]), "--classes", str(scene["classes"]),
+            "--params", str(scene["params"]), "-o", str(output), "--chunk", "16", "--no-progress", *map(str, extra)]
+
+
+def _one_line(stderr: str, pattern: str) -> str:
+    """stderr is exactly one ``brdfcorr: error:`` line (no libtiff or GDAL line) matching ``pattern``,
+    after brdfcorr's own warnings (a fit's guard rails) if any."""
+    lines = [line for line in stderr.splitlines() if not line.startswith("brdfcorr: warning: ")]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("brdfcorr: error: ") and re.search(pattern, lines[0]), lines[0]
+    return lines[0]
+
+
+# ----------------------------------------------------------------------------- ENVI headers
+def _regrid(scene, transform: Affine, crs) -> None:
+    """Rewrite the scene's image, angles and class map with another geotransform and CRS."""
+    for key in ("image", "angles", "classes"):
+        with rasterio.open(scene[key]) as source:
+            profile, values, descriptions = source.profile, source.read(), source.descriptions
+        profile.update(transform=transform, crs=crs)
+        scene[key].unlink()
+        with rasterio.open(scene[key], "w", **profile) as target:
+            target.write(values)
+            target.descriptions = descriptions
+
+
+@pytest.mark.parametrize("transform, crs, pattern", [
+    (Affine(10.0, 3.0, 500_000.0, 0.0, -10.0, 5_400_000.0), "EPSG:32632", "the image's geotransform is sheared"),
+    (Affine(10.0, 0.0, 500_000.0, 0.0, -10.0, 5_400_000.0), None, "the image has no CRS"),
+])
+def test_envi_refuses_what_its_header_cannot_say(scene, transform, crs, pattern):
+    _regrid(scene, transform, crs)
+    output = scene["out"] / "c.img"
+    before = file_digests(scene["dir"])
+    result = CliRunner().invoke(main, _correct_args(scene, output, "--format", "ENVI"))
+    assert result.exit_code == 2, result.output
+    _one_line(result.stderr, rf"ENVI output {re.escape(str(output))}: {pattern}")
+    assert list(scene["out"].iterdir()) == [] and file_digests(scene["dir"]) == before
+    # A GeoTIFF holds both as they are.
+    result = CliRunner().invoke(main, _correct_args(scene, scene["out"] / "c.tif"))
+    assert result.exit_code == 0, result.output
+    with rasterio.open(scene["out"] / "c.tif") as written:
+        assert written.transform == transform and written.crs == (crs and rasterio.crs.CRS.from_string(crs))
+
+
+def _header_fields(path: Path) -> dict[str, str]:
+    """An ENVI header's fields (``key = value``, a ``{...}`` value may span lines)."""
+    text = path.read_text()
+    assert text.startswith("ENVI\n")
+    return {key.strip(): value.strip() for key, value in
+            re.findall(r"^([^=\n{}]+?)\s*=\s*(\{[^}]*\}|[^\n]*)$", text[5:], flags=re.M)}
+
+
+def test_envi_header_names_the_output_and_no_folder_adds_fields(scene):
+    folder = scene["out"] / "x}\ndata gain values = {2, 2, 2, 2}"
+    folder.mkdir()
+    output = folder / "c.img"
+    result = CliRunner().invoke(main, _correct_args(scene, output, "--format", "ENVI"))
+    assert result.exit_code == 0, result.output
+    fields = _header_fields(folder / "c.hdr")
+    assert "data gain values" not in fields
+    assert fields["description"] == "{\nbrdfcorr output c.img}" and "partial" not in fields["description"]
+    assert fields["bands"] == "4" and fields["band names"] == "{\n480 nm,\n560 nm,\n660 nm,\n830 nm}"
+    with rasterio.open(output) as envi, rasterio.open(scene["image"]) as image:
+        assert envi.count == image.count == 4  # not doubled

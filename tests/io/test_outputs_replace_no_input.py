@@ -1,0 +1,116 @@
+"""An output replaces no input (issue 26): the sidecars GDAL reads beside an input (an ENVI header in
+both namings, ``.aux.xml``) are inputs, and ``materials -o`` follows the overwrite rule of every output
+and keeps a symbolic link a link. A refusal is exit code 2 with exactly one stderr line
+``brdfcorr: error: ...`` naming the file, nothing written and the inputs byte-identical.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+import rasterio
+from click.testing import CliRunner
+
+from brdfcorr.cli import main
+from brdfcorr.io.paths import InputOverwriteError, check_outputs
+from brdfcorr.params import ParameterTable
+from brdfcorr.testing import file_digests
+
+# The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
+
+
+def _correct_args(scene, output, *extra) -> list[str]:
+    return ["correct", str(scene["image"]), "--angles", str(scene["angles"]), "--classes", str(scene["classes"]),
+            "--params", str(scene["params"]), "-o", str(output), "--chunk", "16", "--no-progress", *map(str, extra)]
+
+
+def _one_line(stderr: str, pattern: str) -> str:
+    """stderr is exactly one ``brdfcorr: error:`` line (no libtiff or GDAL line) matching ``pattern``,
+    after brdfcorr's own warnings (a fit's guard rails) if any."""
+    lines = [line for line in stderr.splitlines() if not line.startswith("brdfcorr: warning: ")]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("brdfcorr: error: ") and re.search(pattern, lines[0]), lines[0]
+    return lines[0]
+
+
+# ------------------------------------------------------------------------ sidecars are inputs
+def _envi_input(scene, header_name: str) -> Path:
+    """The scene's image as an ENVI file ``in.img`` with its header at ``header_name``."""
+    image = scene["dir"] / "in.img"
+    rasterio.shutil.copy(scene["image"], image, driver="ENVI")
+    if header_name != "in.hdr":
+        (scene["dir"] / "in.hdr").rename(scene["dir"] / header_name)
+    return image
+
+
+@pytest.mark.parametrize("header, output", [("in.img.hdr", "in.img.bsq"), ("in.hdr", "in.bsq")])
+def test_envi_output_header_never_replaces_an_input_header(scene, header, output):
+    """GDAL finds an ENVI header as NAME.hdr or NAME.ext.hdr; the output in.img.bsq writes in.img.hdr."""
+    image = _envi_input(scene, header)
+    with rasterio.open(image) as dataset:  # GDAL reads the header of either naming
+        assert dataset.driver == "ENVI" and dataset.count == 4
+    before = file_digests(scene["dir"])
+    args = _correct_args({**scene, "image": image}, scene["dir"] / output, "--format", "ENVI")
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    _one_line(result.stderr, rf"output header \S*{re.escape(header)} is also an input")
+    assert file_digests(scene["dir"]) == before
+    assert not (scene["dir"] / output).exists()
+
+
+def test_report_on_an_input_aux_xml_is_refused(scene):
+    aux = Path(f"{scene['image']}.aux.xml")
+    aux.write_text('<PAMDataset><Metadata><MDI key="a">1</MDI></Metadata></PAMDataset>\n')
+    before = file_digests(scene["dir"])
+    args = ["fit-classes", scene["image"], "--angles", scene["angles"], "--classes", scene["classes"],
+            "-o", scene["out"] / "t.yaml", "--report", aux]
+    result = CliRunner().invoke(main, [str(a) for a in args])
+    assert result.exit_code == 2, result.output
+    _one_line(result.stderr, r"--report \S*image\.tif\.aux\.xml is also an input")
+    assert file_digests(scene["dir"]) == before and list(scene["out"].iterdir()) == []
+
+
+@pytest.mark.parametrize("suffix", [".hdr", ".aux.xml", ".ovr", ".msk"])
+def test_guard_knows_every_sidecar(tmp_path, suffix):
+    image = tmp_path / "image.img"
+    image.write_bytes(b"\0")
+    sidecar = Path(f"{image}{suffix}")
+    sidecar.write_text("x")
+    with pytest.raises(InputOverwriteError):
+        check_outputs({"report": sidecar}, {"image": image})
+    sidecar.unlink()  # absent: nothing to protect
+    check_outputs({"report": sidecar}, {"image": image})
+
+
+# -------------------------------------------------------------------------------- materials -o
+def test_materials_output_follows_the_overwrite_rule(tmp_path):
+    table = tmp_path / "table.yaml"
+    table.write_text("# my notes\nclasses:\n  - {id: 1, name: tiles, material: roof_tile}\n")
+    before = table.read_bytes()
+    result = CliRunner().invoke(main, ["materials", "red_concrete", "-o", str(table)])
+    assert result.exit_code == 2
+    _one_line(result.stderr, rf"output {re.escape(str(table))} exists; give --overwrite")
+    assert table.read_bytes() == before
+    result = CliRunner().invoke(main, ["materials", "red_concrete", "-o", str(table), "--overwrite"])
+    assert result.exit_code == 0, result.output
+    assert ParameterTable.load(table).class_ids == (1, 2)
+
+
+def test_materials_output_keeps_a_symbolic_link_a_link(tmp_path):
+    real = tmp_path / "tables" / "real.yaml"
+    real.parent.mkdir()
+    ParameterTable().with_class({"id": 1, "material": "roof_tile"}).save(real)
+    link = tmp_path / "table.yaml"
+    link.symlink_to(real)
+    result = CliRunner().invoke(main, ["materials", "red_concrete", "-o", str(link), "--overwrite"])
+    assert result.exit_code == 0, result.output
+    assert link.is_symlink() and link.resolve() == real.resolve()
+    assert ParameterTable.load(real).class_ids == (1, 2)
+    dangling = tmp_path / "nothing.yaml"
+    dangling.symlink_to(tmp_path / "missing.yaml")
+    result = CliRunner().invoke(main, ["materials", "red_concrete", "-o", str(dangling)])
+    assert result.exit_code == 2
+    _one_line(result.stderr, "is a symbolic link to no file")
+    assert dangling.is_symlink() and not (tmp_path / "missing.yaml").exists()
