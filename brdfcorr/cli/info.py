@@ -28,10 +28,26 @@ def material_names() -> tuple[str, ...]:
 MODELS_WIDTH = 100
 
 #: The ``--overwrite`` option of the commands that add a class to a parameter table ``-o``.
-OVERWRITE_TABLE = click.option(
-    "--overwrite", is_flag=True,
-    help="Add the class to an existing table -o (rewritten: its comments and layout are not kept; a symbolic "
-         "link stays a link, the file it points to is rewritten).")
+def as_class_options(what: str):
+    """NAME and the options that write ``what`` as a class of a parameter table (``materials``,
+    ``coefficients``)."""
+    decorators = (
+        click.argument("name", required=False),
+        click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+                     help=f"Write {what} as a class of this parameter table (a new file; an existing table "
+                          "needs --overwrite)."),
+        click.option("--class-id", type=int, help="Its class id [default: 1 more than the largest]."),
+        click.option("--overwrite", is_flag=True,
+                     help="Add the class to an existing table -o (rewritten: its comments and layout are not "
+                          "kept; a symbolic link stays a link, the file it points to is rewritten)."),
+    )
+
+    def decorate(command):
+        for decorator in reversed(decorators):
+            command = decorator(command)
+        return command
+
+    return decorate
 
 
 @main.command("models")
@@ -86,12 +102,7 @@ def _add_class(output: Path, overwrite: bool, class_id: int | None, entry) -> in
 
 
 @main.command("materials")
-@click.argument("name", required=False)
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the material NAME as a class of this parameter table (a new file; an existing "
-                   "table needs --overwrite).")
-@click.option("--class-id", type=int, help="Its class id [default: 1 more than the largest].")
-@OVERWRITE_TABLE
+@as_class_options("the material NAME")
 @handle_errors
 def materials_command(name, output, class_id, overwrite):
     """List the built-in materials, or show one material's parameters with errors.
@@ -123,12 +134,7 @@ def materials_command(name, output, class_id, overwrite):
 
 
 @main.command("coefficients")
-@click.argument("name", required=False)
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the coefficient set NAME as a class of this parameter table (a new file; an existing "
-                   "table needs --overwrite).")
-@click.option("--class-id", type=int, help="Its class id [default: 1 more than the largest].")
-@OVERWRITE_TABLE
+@as_class_options("the coefficient set NAME")
 @handle_errors
 def coefficients_command(name, output, class_id, overwrite):
     """List the built-in BRDF coefficient sets, or show one set's weights per band.
