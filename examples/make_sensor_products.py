@@ -36,8 +36,8 @@ import sys
 from importlib.util import find_spec
 from pathlib import Path
 
-from brdfcorr.testing import write_emit_granules, write_envi_line, write_neon_reflectance
 from brdfcorr.chain.demo import demo_scene
+from brdfcorr.testing import write_emit_granules, write_envi_line, write_neon_reflectance
 
 #: Ground pixel [m] of every scene (the town's streets and houses are drawn in metres).
 PIXEL = 5.0
