@@ -12,6 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from _cli_lines import _one_line
 from click.testing import CliRunner
 
 from brdfcorr.chain import run as chain_module
@@ -22,15 +23,6 @@ from brdfcorr.cli import main
 from brdfcorr.io import commit
 
 # The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
-
-
-def _one_line(stderr: str, pattern: str) -> str:
-    """stderr is exactly one ``brdfcorr: error:`` line (no libtiff or GDAL line) matching ``pattern``,
-    after brdfcorr's own warnings (a fit's guard rails) if any."""
-    lines = [line for line in stderr.splitlines() if not line.startswith("brdfcorr: warning: ")]
-    assert len(lines) == 1, stderr
-    assert lines[0].startswith("brdfcorr: error: ") and re.search(pattern, lines[0]), lines[0]
-    return lines[0]
 
 
 # --------------------------------------------------------------------------- one run at a time

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 import rasterio
+from _cli_lines import _correct_args, _one_line
 from affine import Affine
 from click.testing import CliRunner
 
@@ -18,20 +19,6 @@ from brdfcorr.cli import main
 from brdfcorr.testing import file_digests
 
 # The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
-
-
-def _correct_args(scene, output, *extra) -> list[str]:
-    return ["correct", str(scene["image"]), "--angles", str(scene["angles"]), "--classes", str(scene["classes"]),
-            "--params", str(scene["params"]), "-o", str(output), "--chunk", "16", "--no-progress", *map(str, extra)]
-
-
-def _one_line(stderr: str, pattern: str) -> str:
-    """stderr is exactly one ``brdfcorr: error:`` line (no libtiff or GDAL line) matching ``pattern``,
-    after brdfcorr's own warnings (a fit's guard rails) if any."""
-    lines = [line for line in stderr.splitlines() if not line.startswith("brdfcorr: warning: ")]
-    assert len(lines) == 1, stderr
-    assert lines[0].startswith("brdfcorr: error: ") and re.search(pattern, lines[0]), lines[0]
-    return lines[0]
 
 
 # ----------------------------------------------------------------------------- ENVI headers

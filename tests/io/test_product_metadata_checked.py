@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rasterio
+from _cli_lines import _nbar
 
-from brdfcorr.testing import write_landsat_c2, write_mtd_tl, write_sentinel2_safe
+from brdfcorr.testing import write_landsat_c2, write_mtd_tl
 
 #: Seconds a command may take before it counts as hung (a FIFO blocks forever).
 HANG_GUARD = 60
@@ -33,23 +34,10 @@ def _subprocess(args: list) -> tuple[int, str]:
     return result.returncode, result.stderr
 
 
-@pytest.fixture
-def safe(tmp_path) -> dict[str, Path]:
-    """A SAFE folder with synthetic metadata under ``in/`` and an empty ``out/``, as a ``refused`` scene."""
-    folder = write_sentinel2_safe(tmp_path / "in", size=8)
-    (tmp_path / "out").mkdir()
-    return {"dir": tmp_path / "in", "safe": folder, "out": tmp_path / "out", "mtd": folder / "MTD_MSIL2A.xml",
-            "tl": next(folder.glob("GRANULE/*/MTD_TL.xml"))}
-
-
 def _edit(path: Path, old: str, new: str, count: int = 1) -> None:
     text = path.read_text()
     assert old in text, old
     path.write_text(text.replace(old, new, count))
-
-
-def _nbar(safe) -> list:
-    return ["nbar", safe["safe"], "-o", safe["out"] / "nbar.tif", "--no-progress"]
 
 
 # ------------------------------------------------------------------ MTD_MSIL2A.xml scaling

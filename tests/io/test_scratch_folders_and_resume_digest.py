@@ -11,29 +11,15 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
-import pytest
+from _cli_lines import _nbar
 
 from brdfcorr.testing import write_sentinel2_safe
 
 #: Seconds a command may take before it counts as hung (a FIFO blocks forever).
 HANG_GUARD = 60
 
-
-@pytest.fixture
-def safe(tmp_path) -> dict[str, Path]:
-    """A SAFE folder with synthetic metadata under ``in/`` and an empty ``out/``, as a ``refused`` scene."""
-    folder = write_sentinel2_safe(tmp_path / "in", size=8)
-    (tmp_path / "out").mkdir()
-    return {"dir": tmp_path / "in", "safe": folder, "out": tmp_path / "out", "mtd": folder / "MTD_MSIL2A.xml",
-            "tl": next(folder.glob("GRANULE/*/MTD_TL.xml"))}
-
-
-
-def _nbar(safe) -> list:
-    return ["nbar", safe["safe"], "-o", safe["out"] / "nbar.tif", "--no-progress"]
 
 
 # ------------------------------------------------------------------------- resume: content digest

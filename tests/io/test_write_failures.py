@@ -29,6 +29,7 @@ import numpy as np
 import pytest
 import rasterio
 import xarray as xr
+from _cli_lines import _correct_args, _one_line
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
@@ -37,11 +38,6 @@ from brdfcorr.io.writer import GeoTiffOutput, write_rasters
 from brdfcorr.testing import file_digests, georeference
 
 # The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
-
-
-def _correct_args(scene, output, *extra) -> list[str]:
-    return ["correct", str(scene["image"]), "--angles", str(scene["angles"]), "--classes", str(scene["classes"]),
-            "--params", str(scene["params"]), "-o", str(output), "--chunk", "16", "--no-progress", *map(str, extra)]
 
 
 def _limited(limit: int):
@@ -56,15 +52,6 @@ def _run(args, limit: int | None = None, cwd=None) -> subprocess.CompletedProces
     return subprocess.run([sys.executable, "-c", "from brdfcorr.cli import main; main()", *map(str, args)],
                           capture_output=True, text=True, timeout=120, cwd=cwd,
                           preexec_fn=None if limit is None else _limited(limit))
-
-
-def _one_line(stderr: str, pattern: str) -> str:
-    """stderr is exactly one ``brdfcorr: error:`` line (no libtiff or GDAL line) matching ``pattern``,
-    after brdfcorr's own warnings (a fit's guard rails) if any."""
-    lines = [line for line in stderr.splitlines() if not line.startswith("brdfcorr: warning: ")]
-    assert len(lines) == 1, stderr
-    assert lines[0].startswith("brdfcorr: error: ") and re.search(pattern, lines[0]), lines[0]
-    return lines[0]
 
 
 # --------------------------------------------------------------------------------- full disks
