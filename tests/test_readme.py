@@ -13,13 +13,9 @@ once per session for all workers (:func:`_build`: a lock file in the session's s
 folder), however many other groups start from its outputs.
 
 The docs' pages start where a reader who followed the README would: from a copy of what all of the
-README's commands made (``demo_output/``). Two kinds of command are not run twice:
-
-- a command of a page that repeats a README command verbatim and names no file (``brdfcorr models``)
-  stands for the README's run of it: its output cannot differ;
-- ``brdfcorr demo -o DIR --no-progress`` (docs/assess.md) is the README's ``brdfcorr demo -o
-  demo_output`` with another folder name and no progress bar on stderr: DIR is a copy of the
-  README's ``demo_output/`` (the same scene and chain, so the same files).
+README's commands made (``demo_output/``). A command of a page that repeats a README command
+verbatim and names no file (``brdfcorr models``) is not run twice: the README's run of it stands for
+it (its output cannot differ).
 """
 
 from __future__ import annotations
@@ -73,8 +69,6 @@ GROUPS = {
          "sentinel2-nodes", ("sensors.md:s2_l7",)),
     ],
 }
-#: docs/assess.md's demo: the README's demo in another folder (see the module's docstring).
-DEMO_AGAIN = re.compile(r"brdfcorr demo -o (?P<folder>[\w.-]+) --no-progress")
 
 
 class Group(NamedTuple):
@@ -153,10 +147,7 @@ def _run_group(key: str, directory: Path, build) -> None:
     for need in group.needs:
         _copy_into(build(need), directory)
     for command in group.commands:
-        again = DEMO_AGAIN.fullmatch(command)
-        if again:
-            _copy_into(build("README.md:demo") / "demo_output", directory / again["folder"])
-        elif group.page != "README.md" and command in README_COMMANDS and not re.search(r"/|>|-o\b", command):
+        if group.page != "README.md" and command in README_COMMANDS and not re.search(r"/|>|-o\b", command):
             build(README_COMMANDS[command])
         else:
             run_commands([command], directory)
@@ -203,14 +194,13 @@ def test_groups_keep_every_command_once_and_in_order():
     for page in PAGES:
         groups = [group for group in ALL_GROUPS.values() if group.page == page.name and group.commands]
         assert [command for group in groups for command in group.commands] == page_commands(page), page.name
-    assert DEMO_AGAIN.fullmatch("brdfcorr demo -o assess_demo --no-progress")
     assert "brdfcorr demo -o demo_output" in README_COMMANDS
 
 
 #: The groups that need none first, so that a second worker has one to run while the first makes
 #: what the others start from.
 TESTED = sorted((key for key in ALL_GROUPS if ":" in key),
-                key=lambda key: bool(ALL_GROUPS[key].needs) or any(map(DEMO_AGAIN.fullmatch, ALL_GROUPS[key].commands)))
+                key=lambda key: bool(ALL_GROUPS[key].needs))
 
 
 @pytest.mark.parametrize("group", TESTED)
