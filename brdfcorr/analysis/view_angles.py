@@ -29,13 +29,18 @@ from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import BrdfcorrWarning, InputError
 
 __all__ = ["SIGN_CONVENTIONS", "GROWTH_LIMIT", "signed_view_zenith", "ViewAngleOptions", "assess_view_angles",
-           "error_growth_warning", "view_angle_report"]
+           "error_growth_warning", "narrow_range_warning", "view_zenith_ranges", "view_angle_report"]
 
 #: The slopes' 1-sigma from blocks of twice the block size over the one reported, above which
 #: :func:`assess_view_angles` warns that the errors are correlated beyond its clusters. Under
 #: independent errors the ratio scatters about 1 (``benchmarks/bench_assess_coverage.py`` counts
 #: how often it passes 1.25 by chance and how often correlated errors pass it).
 GROWTH_LIMIT = 1.25
+
+#: The signed view zenith range [deg] below which :func:`assess_view_angles` warns that a class's
+#: slope, reported per 10 deg, is extrapolated beyond the view angles it was measured over: the
+#: unit of the slope itself.
+NARROW_RANGE = 10.0
 
 
 def _check_options(options: ViewAngleOptions) -> None:
@@ -194,7 +199,9 @@ def assess_view_angles(
     Warns
     -----
     BrdfcorrWarning
-        One line (:func:`error_growth_warning`) where a class's 1-sigma grows with the block.
+        One line (:func:`error_growth_warning`) where a class's 1-sigma grows with the block; one
+        line (:func:`narrow_range_warning`) where a class is seen over less than
+        :data:`NARROW_RANGE` of signed view zenith.
 
     Notes
     -----
@@ -226,9 +233,9 @@ def assess_view_angles(
     result = _statistics(sums, ids, edges, before, options.class_names or {},
                          {"sign_convention": by, "heading": options.heading, "min_vza": float(min_vza),
                           "error_clusters": clustered}, options.block_size, clusters is not None)
-    message = error_growth_warning(result)
-    if message is not None:
-        warnings.warn(message, BrdfcorrWarning, stacklevel=2)
+    for message in (error_growth_warning(result), narrow_range_warning(result)):
+        if message is not None:
+            warnings.warn(message, BrdfcorrWarning, stacklevel=2)
     return result
 
 
@@ -351,6 +358,31 @@ def error_growth_warning(dataset: xr.Dataset, limit: float = GROWTH_LIMIT) -> st
             "errors (--clusters: a composite's day-of-year band, a flight-line id) or a larger --block-size")
 
 
+def view_zenith_ranges(dataset: xr.Dataset) -> np.ndarray:
+    """Per class, the signed view zenith range [deg] its pixels cover: from the lower edge of its
+    first non-empty bin to the upper edge of its last (:func:`assess_view_angles`); NaN without pixels."""
+    edges = dataset["vza_bin_edges"].values
+    ranges = np.full(dataset.sizes["class"], np.nan)
+    for index, pixels in enumerate(dataset["bin_pixels"].values):
+        seen = np.flatnonzero(pixels > 0)
+        if seen.size:
+            ranges[index] = edges[seen[-1], 1] - edges[seen[0], 0]
+    return ranges
+
+
+def narrow_range_warning(dataset: xr.Dataset, limit: float = NARROW_RANGE) -> str | None:
+    """One line naming the classes seen over less than ``limit`` [deg] of signed view zenith, whose
+    slopes per 10 deg are extrapolated beyond the angles measured (their 1-sigma is large and
+    their value says little); None otherwise."""
+    ranges = view_zenith_ranges(dataset)
+    narrow = np.flatnonzero(ranges < limit)
+    if narrow.size == 0:
+        return None
+    names = ", ".join(f"{dataset['class_name'].values[index]} ({ranges[index]:g} deg)" for index in narrow)
+    return (f"seen over less than {limit:g} deg of view zenith: {names}; their slopes per 10 deg extrapolate "
+            "beyond the view angles measured: read them with their 1-sigma, or assess a wider swath")
+
+
 def _stage_summary(values: xr.DataArray) -> dict[str, object]:
     """Median and maximum of |values| over every class and band, per stage."""
     summary = {}
@@ -374,7 +406,8 @@ def _within_two_sigma(dataset: xr.Dataset) -> dict[str, int]:
 def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
     """The result of :func:`assess_view_angles` as a JSON-serialisable dict.
 
-    Per class: id, name, pixels, blocks (the clusters of the 1-sigma), ``error_growth`` (the
+    Per class: id, name, pixels, blocks (the clusters of the 1-sigma), ``view_zenith_range_deg``
+    (:func:`view_zenith_ranges`), ``error_growth`` (the
     median over bands of the 1-sigma's growth to blocks of twice the size, after the correction),
     ``bands_within_2_sigma`` (how many of its bands' slopes
     lie within 2 sigma of 0: ``before``, ``after``, ``of``) and per stage the per band lists of
@@ -387,13 +420,14 @@ def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
     cluster-robust over, the two block sizes [pixels] and the warning of
     :func:`error_growth_warning` (or None).
     """
-    growth = _class_growth(dataset)
+    growth, ranges = _class_growth(dataset), view_zenith_ranges(dataset)
     classes = []
     for index, class_id in enumerate(dataset["class"].values):
         one = dataset.isel({"class": index})
         entry: dict[str, object] = {"id": int(class_id), "name": str(one["class_name"].values),
                                     "pixels": int(one["pixels"]), "blocks": int(one["blocks"]),
-                                    "error_growth": _json_numbers(growth[index])}
+                                    "error_growth": _json_numbers(growth[index]),
+                                    "view_zenith_range_deg": _json_numbers(ranges[index])}
         for stage in STAGES:
             values = one.sel(stage=stage)
             entry[stage] = {name: _json_numbers(values[name].values)
@@ -417,7 +451,7 @@ def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
                   "side_ratio": "1"},
         "errors": {"clusters": dataset.attrs.get("error_clusters"),
                    "block_sizes": [int(size) for size in dataset["block_size"].values],
-                   "warning": error_growth_warning(dataset)},
+                   "warning": error_growth_warning(dataset), "narrow": narrow_range_warning(dataset)},
         "bands": _band_list(dataset),
         "classes": classes,
         "summary": {"abs_relative_slope_percent_per_10deg": _stage_summary(dataset["relative_slope"]),

@@ -18,7 +18,7 @@ from brdfcorr.analysis.assess import (
     signed_view_zenith,
     view_angle_report,
 )
-from brdfcorr.errors import InputError
+from brdfcorr.errors import BrdfcorrWarning, InputError
 from brdfcorr.plot.assess import overlap_figure, profile_figure, write_assessment_figures
 from brdfcorr.tasks.assess import Assessment, write_json
 from brdfcorr.testing import synthetic_angles
@@ -266,3 +266,25 @@ def test_figures_are_drawn_and_written(geometry, class_map, tmp_path, make_cube,
     written = write_assessment_figures(Assessment({}, view, overlap), tmp_path / "figures")
     assert [p.name for p in written] == ["assess_profiles.png", "assess_overlap.png"]
     assert all(p.read_bytes().startswith(b"\x89PNG") for p in written)
+
+
+def test_a_class_seen_over_a_narrow_view_range_is_named_in_a_warning(geometry, make_cube):
+    """A class seen only near nadir gets a slope per 10 deg extrapolated from a few degrees (issue 38:
+    "43.51 ± 77.12 %/10°" from a 3°-wide range without a word); its range is the span of its bins."""
+    from brdfcorr.analysis.view_angles import NARROW_RANGE, view_angle_report
+
+    signed = signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"])
+    classes = np.where(np.abs(signed) < 4.0, 2, 1)
+    cube = make_cube(0.2 + 0.001 * signed, 0.3 + 0.002 * signed)
+    options = ViewAngleOptions(class_names={1: "wide", 2: "nadir"})
+    with pytest.warns(BrdfcorrWarning, match=r"less than 10 deg of view zenith: nadir \((?P<range>[\d.]+) deg\)"):
+        result = assess_view_angles(cube, cube, classes, geometry["vza"], geometry["vaa"], geometry["saa"],
+                                    options=options)
+    width = options.bin_width  # independently: the bins of width bin_width that hold the class's zeniths
+    inside = signed[classes == 2]
+    expected = (np.floor(inside.max() / width) + 1 - np.floor(inside.min() / width)) * width
+    report = view_angle_report(result)
+    ranges = {entry["name"]: entry["view_zenith_range_deg"] for entry in report["classes"]}
+    assert ranges["nadir"] == pytest.approx(expected) and ranges["nadir"] < NARROW_RANGE
+    assert ranges["wide"] > NARROW_RANGE
+    assert "nadir (" in report["errors"]["narrow"] and "wide (" not in report["errors"]["narrow"]
