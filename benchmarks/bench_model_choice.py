@@ -27,7 +27,7 @@ import numpy as np
 
 from brdfcorr.fit.goniometer import fit_brdf
 from brdfcorr.fit.selection import choose_model
-from brdfcorr.fit.solver import DEFAULT_FIXED
+from brdfcorr.fit.shapes import DEFAULT_FIXED
 from brdfcorr.models import get_model, load_material
 from brdfcorr.models.coefficients import load_coefficients
 

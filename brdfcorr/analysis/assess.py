@@ -37,13 +37,8 @@ The results are :class:`xarray.Dataset` objects with labelled dims (``stage``: b
 from brdfcorr.analysis._assess_common import STAGES  # noqa: F401  (importable from here as before the split)
 from brdfcorr.analysis.holdout import HeldOutLine, HoldoutFit, Line, leave_one_line_out, leave_one_line_out_report
 from brdfcorr.analysis.overlap import assess_overlap, overlap_report
-from brdfcorr.analysis.view_angles import (
-    SIGN_CONVENTIONS,
-    ViewAngleOptions,
-    assess_view_angles,
-    signed_view_zenith,
-    view_angle_report,
-)
+from brdfcorr.analysis.signed_view import SIGN_CONVENTIONS, signed_view_zenith
+from brdfcorr.analysis.view_angles import ViewAngleOptions, assess_view_angles, view_angle_report
 
 __all__ = [
     "SIGN_CONVENTIONS",

@@ -1,10 +1,10 @@
 """The view-angle signal left in a scene, per class and band, before and after a correction.
 
 :func:`assess_view_angles` measures the least-squares slope of reflectance against the *signed*
-view zenith (:func:`signed_view_zenith`), absolute [1/deg] and relative [%/10 deg]; the ratio of
-the mean reflectance on the positive side of nadir to that on the negative side
-(forward/backward scattering, or right/left of the flight direction); and the across-track
-profile, the mean reflectance in bins of signed view zenith. One chunk-wise pass over the before
+view zenith (:func:`~brdfcorr.analysis.signed_view.signed_view_zenith`), absolute [1/deg] and
+relative [%/10 deg]; the ratio of the mean reflectance on the positive side of nadir to that on
+the negative side (forward/backward scattering, or right/left of the flight direction); and the
+across-track profile, the mean reflectance in bins of signed view zenith. One chunk-wise pass over the before
 and after cubes (dask: per-block sums, :class:`_Sums`, added in a tree, one compute).
 :func:`view_angle_report` turns the result into a plain dict (NaN as ``None``, valid JSON).
 """
@@ -23,12 +23,12 @@ import rioxarray  # noqa: F401  (registers .rio)
 import xarray as xr
 
 from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
-from brdfcorr.analysis.signed_view import _SIGN_WORDS, SIGN_CONVENTIONS, signed_view_zenith
+from brdfcorr.analysis.signed_view import _SIGN_WORDS, SIGN_CONVENTIONS
 from brdfcorr.analysis.view_angle_sums import _moments, _scene_sums, _SumOptions, _Sums
 from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import BrdfcorrWarning, InputError
 
-__all__ = ["SIGN_CONVENTIONS", "GROWTH_LIMIT", "signed_view_zenith", "ViewAngleOptions", "assess_view_angles",
+__all__ = ["GROWTH_LIMIT", "ViewAngleOptions", "assess_view_angles",
            "error_growth_warning", "narrow_range_warning", "view_zenith_ranges", "view_angle_report"]
 
 #: The slopes' 1-sigma from blocks of twice the block size over the one reported, above which
@@ -105,7 +105,7 @@ class ViewAngleOptions:
     Attributes
     ----------
     by : {"sun", "track"}, default "sun"
-        The sign convention of the view zenith (:func:`signed_view_zenith`).
+        The sign convention of the view zenith (:func:`~brdfcorr.analysis.signed_view.signed_view_zenith`).
     heading : float, optional
         Flight direction [deg], clockwise from north; needed for ``by="track"``.
     class_ids : sequence of int, optional

@@ -245,7 +245,7 @@ def _cross_scores(design, coefficients, data, influence) -> np.ndarray:
     for rows in _row_blocks(data.shape[0]):
         residuals = data[rows] - design[rows] @ coefficients
         products = (design[rows][:, :, None] * influence[rows][:, None, :]).reshape(-1, m * k)
-        total += np.einsum("np,nb->pb", products, residuals)  # einsum: see solver._LinearProfile.products
+        total += np.einsum("np,nb->pb", products, residuals)  # einsum: see profile._LinearProfile.products
     return total.T.reshape(data.shape[1], m, k)
 
 

@@ -50,7 +50,7 @@ class GuardRails:
     Notes
     -----
     A fit with a free shape parameter at an end of its search range
-    (:func:`~brdfcorr.fit.solver.search_range`, unless that end is a closed physical bound) fails
+    (:func:`~brdfcorr.fit.shapes.search_range`, unless that end is a closed physical bound) fails
     as well when its angular R^2 is below :data:`POOR_R2`: the data do not constrain the parameter
     and the model does not follow the angular signal. With a good angular fit the parameter is
     only poorly determined (n of the Torrance-Sparrow model often is): that is noted, not failed.

@@ -38,27 +38,11 @@ import numpy as np
 from brdfcorr.fit.class_errors import _class_errors
 from brdfcorr.fit.profile import _LinearProfile, _profile
 from brdfcorr.fit.shape_search import _coarse_shape, _newton_polish
-from brdfcorr.fit.shapes import (
-    DEFAULT_FIXED,
-    MODEL_SEARCH_RANGES,
-    SEARCH_RANGES,
-    _resolve,
-    imagery_models,
-    intensity_terms,
-    search_range,
-)
+from brdfcorr.fit.shapes import _resolve
 from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model
 
-__all__ = [
-    "DEFAULT_FIXED",
-    "SEARCH_RANGES",
-    "fit_class_samples",
-    "MODEL_SEARCH_RANGES",
-    "imagery_models",
-    "intensity_terms",
-    "search_range",
-]
+__all__ = ["fit_class_samples", "LEVEL_ITERATIONS"]
 
 
 def _condition(design: np.ndarray) -> float:
@@ -86,7 +70,7 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
     Parameters
     ----------
     model : str or Model
-        A surface model of the registry with intensity terms (:func:`intensity_terms`).
+        A surface model of the registry with intensity terms (:func:`brdfcorr.fit.shapes.intensity_terms`).
     theta_i, theta_r, phi : array-like, shape (N,)
         Solar zenith, view zenith and relative azimuth of each sample [deg].
     brdf : array-like, shape (N, B)
@@ -121,7 +105,7 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
         of squared residuals / (N - p) [sr^-2]), ``r2``, ``rmse`` (per band), ``condition`` (of the
         column-normalized linear design), ``shape`` (the free shape values), ``fixed`` (the fixed
         ones), ``at_edge`` (free shape parameters at an end of their search range,
-        :func:`search_range`, that is not a closed physical bound), ``error_dof`` (B, p: effective
+        :func:`brdfcorr.fit.shapes.search_range`, that is not a closed physical bound), ``error_dof`` (B, p: effective
         degrees of freedom of each error), ``n_clusters`` (blocks, or samples without them),
         ``errors_reliable`` (bool) and ``errors_reason`` (why not; empty when reliable;
         :func:`brdfcorr.fit.identifiability.error_reliability`), ``n_groups`` (groups with free levels

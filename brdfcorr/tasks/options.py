@@ -39,16 +39,13 @@ from brdfcorr.io import FORMATS
 from brdfcorr.io.sensors import ANGLE_KINDS
 
 __all__ = ["Setting", "Settings", "ANGLE_SOURCE", "CLASS_MAP", "SCALE", "PRIOR", "SLOPE_BLOCK", "CORRECT",
-           "FIT_CLASSES", "ASSESS", "ASSESS_LINES", "NBAR", "OUTPUT_TYPES", "INTERLEAVES", "SIGN_BY",
+           "FIT_CLASSES", "ASSESS", "ASSESS_LINES", "NBAR", "OUTPUT_TYPES", "INTERLEAVES",
            "Unknown", "FactorAt", "Topographic", "BrdfFrame"]
 
 #: Kinds of setting: a text, a file path (no folder), a number, an integer, a flag (off unless
 #: given), an on/off switch (``--x/--no-x``, default None: decided later), a word of ``choices``,
 #: or a type the command line names itself (``cli_type``).
 Kind = Literal["text", "path", "dir", "float", "int", "flag", "switch", "choice", "custom"]
-
-#: Signs of the view zenith of an assessment (:data:`brdfcorr.defaults.SIGN_CONVENTIONS`).
-SIGN_BY: tuple[str, ...] = SIGN_CONVENTIONS
 
 #: Type aliases of the words (for annotations; the words are the tuples of :mod:`brdfcorr.defaults`).
 Unknown = Literal[UNKNOWN_PIXELS]  # type: ignore[valid-type]
@@ -236,7 +233,7 @@ _PROGRESS = Setting("progress", ("--progress/--no-progress",), "switch", help="P
 _COMPRESS = Setting("compress", ("--compress",), "text", default="deflate", show_default=True, help="GDAL compression.")
 _COG = _flag("cog", "--cog", "Write Cloud-Optimized GeoTIFFs.")
 _QA = _path("qa_path", "--qa", "Also write the QA flags (uint8) to this GeoTIFF.")
-_SIGN_BY = Setting("sign_by", ("--sign-by",), "choice", choices=SIGN_BY, default="sun", show_default=True,
+_SIGN_BY = Setting("sign_by", ("--sign-by",), "choice", choices=SIGN_CONVENTIONS, default="sun", show_default=True,
                    help="Sign of the view zenith: + forward scattering (sun), or + right of the flight direction "
                         "(track, with --heading).")
 _HEADING = Setting("heading", ("--heading",), "float", help="Flight direction [deg from north] for --sign-by track.")
