@@ -234,12 +234,18 @@ def terminate_as_interrupt():
         signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
 
 
-def _silence_half_built_objects():
-    """After a signal stopped a command, drop what the objects it interrupted in their
-    ``__init__`` say when they are destroyed (a file manager of xarray stopped half-built: "Exception
-    ignored in ... has no attribute '_local'"), so that the command's one line is the last it prints."""
-    sys.unraisablehook = lambda unraisable: None
-    gc.collect()
+def _free_half_built_objects(error: BaseException) -> None:
+    """After a signal stopped a command: free the objects it interrupted in their ``__init__`` (the
+    frames of ``error``'s traceback hold them) now, dropping what their ``__del__`` says (a file
+    manager of xarray stopped half-built: "Exception ignored in ... has no attribute '_local'"), so
+    that the command's one line is the last it prints. The previous hook is restored: an in-process
+    caller (click's CliRunner, pytest) keeps its own."""
+    previous, sys.unraisablehook = sys.unraisablehook, (lambda unraisable: None)
+    try:
+        traceback.clear_frames(error.__traceback__)
+        gc.collect()
+    finally:
+        sys.unraisablehook = previous
 
 
 def handle_errors(command):
@@ -257,13 +263,13 @@ def handle_errors(command):
             hint = f" (see --help of {where})" if where else ""
             click.echo(f"brdfcorr: error: {where + ': ' if where else ''}{error.format_message()}{hint}", err=True)
             sys.exit(error.exit_code)
-        except Terminated:
-            _silence_half_built_objects()
+        except Terminated as error:
+            _free_half_built_objects(error)
             click.echo("brdfcorr: terminated", err=True)
             sys.exit(EXIT_TERMINATED)
-        except (KeyboardInterrupt, click.exceptions.Abort):
+        except (KeyboardInterrupt, click.exceptions.Abort) as error:
             # Ctrl-C: partial outputs are removed on the way out (atomic_path); 128 + SIGINT.
-            _silence_half_built_objects()
+            _free_half_built_objects(error)
             click.echo("brdfcorr: interrupted", err=True)
             sys.exit(EXIT_INTERRUPTED)
         except (click.exceptions.ClickException, click.exceptions.Exit):
