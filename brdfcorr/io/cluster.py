@@ -10,7 +10,10 @@ computation wait forever. :func:`connect_cluster` therefore
    client exists until a scheduler has answered (a client that fails half-made is what printed
    ``Client.__del__`` tracebacks at exit);
 2. makes the :class:`distributed.Client` and waits a bounded time for at least one worker
-   (:meth:`distributed.Client.wait_for_workers`), closing the client when none comes.
+   (:meth:`distributed.Client.wait_for_workers`), closing the client when none comes;
+3. while the client is held, watches the workers (:class:`_WorkerWatch`): a scheduler whose last
+   worker dies keeps the run's tasks waiting for a new one forever, so once it has had none for
+   the same bounded time the run's computations are cancelled and the run stops with one line.
 
 Each failure is one :class:`~brdfcorr.errors.InputError` naming the setting the address came from
 (``--scheduler``, ``engine.address``). dask.distributed is an optional dependency, imported here
@@ -20,8 +23,10 @@ only when a cluster is asked for.
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import contextlib
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -35,6 +40,8 @@ CONNECT_TIMEOUT = 10.0
 WORKER_TIMEOUT = 60.0
 #: Seconds the probe thread is given beyond its own timeout before it is abandoned.
 _MARGIN = 2.0
+#: Seconds between two looks at the workers of a cluster a run holds.
+_WATCH_INTERVAL = 0.5
 
 
 def _distributed(setting: str) -> Any:
@@ -159,4 +166,62 @@ def connect_cluster(address: str | None = None, *, workers: int = 1, threads_per
         except TimeoutError:
             raise InputError(f"{where}: the dask scheduler at {address} has no workers (none joined within "
                              f"{worker_timeout:g} s); start workers with dask-worker {address}") from None
-        yield client
+        watch = stack.enter_context(_WorkerWatch(client, worker_timeout, (
+            f"{where}: the dask scheduler at {address} lost its last worker and none joined within "
+            f"{worker_timeout:g} s; the run was stopped (restart workers and run again)")))
+        try:
+            yield client
+        except concurrent.futures.CancelledError:
+            if watch.fired:
+                raise InputError(watch.message) from None
+            raise
+
+
+class _WorkerWatch:
+    """A context that cancels every computation of ``client`` once its scheduler has had no worker
+    for ``timeout`` seconds.
+
+    dask moves a lost worker's tasks to the others, but a scheduler left without any keeps them
+    waiting for a new worker forever (``distributed.scheduler.no-workers-timeout`` is off by
+    default, and it is the scheduler's own setting, not the client's). A daemon thread looks at the
+    workers every :data:`_WATCH_INTERVAL` seconds; where the time runs out it cancels the client's
+    futures, so the waiting computation raises :class:`concurrent.futures.CancelledError` (with
+    ``message``) and :attr:`fired` is set. A worker that joins in time resets the clock.
+    """
+
+    def __init__(self, client: Any, timeout: float, message: str) -> None:
+        self.client, self.timeout, self.message = client, timeout, message
+        self.fired = False
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name="brdfcorr-worker-watch", daemon=True)
+
+    def __enter__(self) -> _WorkerWatch:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def _watch(self) -> None:
+        without_since = None
+        while not self._stop.wait(_WATCH_INTERVAL):
+            try:
+                workers = self.client.scheduler_info(n_workers=1).get("workers")
+            except Exception:  # noqa: BLE001 - the scheduler itself is gone: the client's own error says so
+                return
+            now = time.monotonic()
+            if workers:
+                without_since = None
+            elif without_since is None:
+                without_since = now
+            elif now - without_since > self.timeout and self.client.futures:
+                self._cancel()
+                without_since = None
+
+    def _cancel(self) -> None:
+        from distributed import Future
+
+        self.fired = True
+        pending = [Future(key, self.client) for key in list(self.client.futures)]
+        self.client.cancel(pending, force=True, reason="no worker", msg=self.message)

@@ -503,3 +503,43 @@ def test_slope_aspect_layer_without_a_finite_value(scene, layer, refused, correc
     path = _rewrite(scene["angles"], scene["dir"] / "slope_aspect.tif", lambda v: surface)
     refused(scene, correct_args(scene, "--slope-aspect", path),
             rf"slope/aspect file \S+slope_aspect\.tif: no finite {layer} value \(all NaN, inf or nodata\)")
+
+
+def test_a_cluster_that_loses_its_last_worker_stops_the_run_in_one_line(monkeypatch):
+    """Issue 39: a scheduler whose only worker dies keeps the run's tasks waiting forever; the
+    run is stopped once it has had no worker for WORKER_TIMEOUT, with one line naming it."""
+    import time
+
+    import dask
+    import dask.array as da
+
+    from brdfcorr.errors import InputError
+
+    monkeypatch.setattr(cluster, "WORKER_TIMEOUT", 1.0)
+
+    def slow(block):
+        time.sleep(0.2)
+        return block
+
+    outcome: dict = {}
+
+    def run(address):  # in a thread: without the watch, the computation would wait forever
+        try:
+            with cluster.connect_cluster(address, setting="--scheduler") as client:
+                stopper.start()
+                dask.compute(da.ones((100, 4), chunks=(1, 4)).map_blocks(slow).sum(), scheduler=client)
+        except InputError as error:
+            outcome["error"] = error
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as local:
+        address = local.scheduler_address
+        stopper = threading.Timer(0.5, local.scale, args=(0,))  # the worker leaves mid-run
+        runner = threading.Thread(target=run, args=(address,), daemon=True)
+        runner.start()
+        # 100 chunks of 0.2 s on one thread would take 20 s: the run stops about a second after the loss
+        runner.join(timeout=15.0)
+        stopped = not runner.is_alive()
+        stopper.join()
+    assert stopped, "the run still waits for a worker"
+    assert str(outcome["error"]) == (f"--scheduler: the dask scheduler at {address} lost its last worker and none "
+                                     "joined within 1 s; the run was stopped (restart workers and run again)")
