@@ -26,8 +26,7 @@ from rasterio.enums import MaskFlags
 
 from brdfcorr._entry import option
 from brdfcorr.errors import InputError
-from brdfcorr.io.gdal_log import GdalLog
-from brdfcorr.io.opening import chunk_spec, open_raster, opened
+from brdfcorr.io.opening import chunk_spec, open_raster, opened, reading
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths
 from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, pass_threads, write_rasters
@@ -494,17 +493,12 @@ def _sample_cache(image: xr.DataArray) -> contextlib.AbstractContextManager:
 
 def _read_samples(data: dask.array.Array, positions, where: str, scheduler, num_workers) -> list[np.ndarray]:
     """:func:`_valid_sample` of the chunks of ``data`` at the (y, x) chunk ``positions``; a failed
-    read is an :class:`InputError` with GDAL's first log lines."""
-    messages = GdalLog()  # GDAL's log lines of a failed read: into the one error
-    try:
-        with messages:
-            # The writing pass's threads (io.writer): every dask thread keeps its own handle of
-            # the file, and with it a decompressed input tile, for the rest of the run.
-            return list(dask.compute(*(dask.delayed(_valid_sample)(data.blocks[..., i, j]) for i, j in positions),
-                                     scheduler=scheduler, num_workers=pass_threads(scheduler, num_workers)))
-    except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
-        reason = "; ".join(messages.messages[:2]) or str(error) or type(error).__name__
-        raise InputError(f"cannot read image {where}: {reason}") from None
+    read is an :class:`InputError` with GDAL's reason (:func:`~brdfcorr.io.opening.reading`)."""
+    with reading(f"image {where}"):
+        # The writing pass's threads (io.writer): every dask thread keeps its own handle of
+        # the file, and with it a decompressed input tile, for the rest of the run.
+        return list(dask.compute(*(dask.delayed(_valid_sample)(data.blocks[..., i, j]) for i, j in positions),
+                                 scheduler=scheduler, num_workers=pass_threads(scheduler, num_workers)))
 
 
 def _valid_sample(block: np.ndarray, size: int = SAMPLE_SIZE) -> np.ndarray:
