@@ -35,13 +35,15 @@ def _values_list(grid: np.ndarray) -> str:
 
 def write_mtd_tl(path: str | os.PathLike, *, crs: str = "EPSG:32632",
                  corner: tuple[float, float] = (300000.0, 5000040.0),
-                 sun_zenith: tuple[float, float] = (35.0, 37.0), sun_azimuth: float = 150.0) -> Path:
+                 sun_zenith: tuple[float, float] = (35.0, 37.0), sun_azimuth: float = 150.0,
+                 sensing_time: str = "2023-06-15T10:30:00.000Z") -> Path:
     """A synthetic Sentinel-2 L2A granule metadata file (``MTD_TL.xml``) with the elements
     :func:`brdfcorr.io.sensors.parse_mtd_tl` and sen2nbar read: a 109.8 km tile at ``corner``, a
     23 x 23 sun grid at 5 km (zenith rising north to south over ``sun_zenith``, one azimuth), and
     one detector per band whose view zenith grows from 0.5 deg at the tile's centre column to
     about 10 deg at its edges, seen towards the east-south-east (105 deg) west of the ground track
-    and the west-north-west (285 deg) east of it (a sun-synchronous descending orbit)."""
+    and the west-north-west (285 deg) east of it (a sun-synchronous descending orbit), sensed at
+    ``sensing_time`` (ISO 8601)."""
     columns = np.arange(23) * 5000.0 - 54900.0  # node x relative to the tile's centre [m]
     sun_z = np.repeat(np.linspace(*sun_zenith, 23)[:, None], 23, axis=1)
     view_z = np.repeat((0.5 + 9.5 * np.abs(columns) / 55000.0)[None, :], 23, axis=0)
@@ -56,8 +58,8 @@ def write_mtd_tl(path: str | os.PathLike, *, crs: str = "EPSG:32632",
     path = Path(path)
     path.write_text(
         '<?xml version="1.0" encoding="UTF-8"?>\n<n1:Level-2A_Tile_ID xmlns:n1="https://psd-14.sentinel2.eo.esa.int'
-        '/PSD/S2_PDI_Level-2A_Tile_Metadata.xsd"><n1:General_Info><SENSING_TIME>2023-06-15T10:30:00.000Z'
-        f"</SENSING_TIME></n1:General_Info><n1:Geometric_Info><Tile_Geocoding><HORIZONTAL_CS_CODE>{crs}"
+        '/PSD/S2_PDI_Level-2A_Tile_Metadata.xsd"><n1:General_Info><SENSING_TIME>'
+        f"{sensing_time}</SENSING_TIME></n1:General_Info><n1:Geometric_Info><Tile_Geocoding><HORIZONTAL_CS_CODE>{crs}"
         f"</HORIZONTAL_CS_CODE>{sizes}{positions}</Tile_Geocoding><Tile_Angles><Sun_Angles_Grid><Zenith>"
         f"{_values_list(sun_z)}</Zenith><Azimuth>{_values_list(np.full((23, 23), sun_azimuth))}</Azimuth>"
         f"</Sun_Angles_Grid>{views}</Tile_Angles></n1:Geometric_Info></n1:Level-2A_Tile_ID>\n")
@@ -66,9 +68,11 @@ def write_mtd_tl(path: str | os.PathLike, *, crs: str = "EPSG:32632",
 
 def write_sentinel2_safe(directory: str | os.PathLike, mtd_tl: str | os.PathLike | None = None, *, size: int = 16,
                          offset: tuple[float, float] = (40000.0, 40000.0), baseline: str = "04.00",
-                         seed: int = 0) -> Path:
+                         seed: int = 0, sensed: tuple[str, tuple[float, float]] | None = None) -> Path:
     """A small Sentinel-2 L2A SAFE folder: a real granule's ``MTD_TL.xml`` (copied, its root
-    retagged Level-2A as an L2A granule's is; None: :func:`write_mtd_tl`'s), a product ``MTD_MSIL2A.xml`` (``baseline``,
+    retagged Level-2A as an L2A granule's is; None: :func:`write_mtd_tl`'s; with ``sensed``, a
+    (time ``YYYYMMDDTHHMMSS``, sun zenith range [deg]) pair, :func:`write_mtd_tl`'s at that time and
+    sun, the folder and file names dated alike: one date of a series), a product ``MTD_MSIL2A.xml`` (``baseline``,
     quantification 10000, BOA_ADD_OFFSET -1000 from 04.00), and synthetic bands written as GeoTIFFs
     under the L2A names (``R10m/..._B02_10m.jp2``; GDAL opens them by content): ``size`` x ``size``
     pixels at 20 m (2 ``size`` at 10 m) whose upper-left corner is ``offset`` [m] right of and below
@@ -80,11 +84,17 @@ def write_sentinel2_safe(directory: str | os.PathLike, mtd_tl: str | os.PathLike
 
     from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl
 
+    if sensed is not None and mtd_tl is not None:
+        raise ValueError("write_sentinel2_safe: give mtd_tl or sensed, not both")
     name = "T23LLF"  # the tile of the real metadata in tests/data (file names only)
-    safe = Path(directory) / f"S2A_MSIL2A_20190425T132241_N{baseline.replace('.', '')}_R038_{name}_20190425T164208.SAFE"
-    granule = safe / "GRANULE" / f"L2A_{name}_A020055_20190425T132236"
+    when = "20190425T132241" if sensed is None else sensed[0]
+    safe = Path(directory) / f"S2A_MSIL2A_{when}_N{baseline.replace('.', '')}_R038_{name}_{when[:8]}T164208.SAFE"
+    granule = safe / "GRANULE" / f"L2A_{name}_A020055_{when[:8]}T132236"
     granule.mkdir(parents=True)
-    if mtd_tl is None:
+    if sensed is not None:
+        stamp = f"{when[:4]}-{when[4:6]}-{when[6:8]}T{when[9:11]}:{when[11:13]}:{when[13:15]}.000Z"
+        write_mtd_tl(granule / "MTD_TL.xml", sun_zenith=sensed[1], sensing_time=stamp)
+    elif mtd_tl is None:
         write_mtd_tl(granule / "MTD_TL.xml")
     else:
         (granule / "MTD_TL.xml").write_text(Path(mtd_tl).read_text().replace("Level-1C_Tile_ID", "Level-2A_Tile_ID"))
@@ -113,7 +123,7 @@ def write_sentinel2_safe(directory: str | os.PathLike, mtd_tl: str | os.PathLike
                 data[0] = SCL_CLOUD_HIGH
             else:
                 data = rng.integers(1500, 5000, size=(n, n), dtype="uint16")
-            path = folder / f"{name}_20190425T132241_{band}_{resolution}m.jp2"
+            path = folder / f"{name}_{when}_{band}_{resolution}m.jp2"
             with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype=data.dtype,
                                crs=tile.crs, transform=transform, nodata=0) as dataset:
                 dataset.write(data, 1)

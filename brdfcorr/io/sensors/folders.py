@@ -30,6 +30,7 @@ import math
 import os
 import re
 import threading
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -52,7 +53,8 @@ from brdfcorr.io.sensors.hls import find_hls_granule, hls_refusal
 from brdfcorr.io.sensors.landsat import find_angle_bands
 from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
 
-__all__ = ["ProductFolder", "find_product", "find_sentinel2_l2a", "find_landsat_c2_l2", "write_stack", "band_stacks",
+__all__ = ["ProductFolder", "find_product", "find_sentinel2_l2a", "find_landsat_c2_l2", "write_stack", "open_stack",
+           "band_stacks",
            "hls_refusal", "SCL_MASKED", "QA_PIXEL_MASKED", "LANDSAT_SCALE", "LANDSAT_OFFSET", "QUANTIFICATION_RANGE",
            "OFFSET_RANGE"]
 
@@ -457,6 +459,31 @@ def write_stack(product: ProductFolder, target: str | Path, chunks: int = 1024) 
             cause = write_cause(error, [temporary])
             raise OutputError(f"cannot write {target}: {cause}; nothing was written") from None
     return target
+
+
+def open_stack(product: ProductFolder, chunks: int = 1024) -> xr.DataArray:
+    """The product's bands on one grid as reflectance factors [1] (band, y, x), lazily, nothing written.
+
+    The same bands, resampling and scaling as :func:`write_stack`'s virtual raster, read from its
+    XML text (GDAL opens a VRT document given as text), with the quality mask applied as NaN
+    instead of through a mask file. ``band`` holds the band names, ``wavelength`` their centres
+    [nm]; masked pixels and the product's no data (DN 0) are NaN.
+    """
+    with rasterio.open(product.grid) as grid:
+        text = _stack_xml(product, grid, None)
+        invalid = _invalid(product, _on_grid(product.mask, grid, chunks)) if product.masked else None
+    with warnings.catch_warnings():  # per-band offsets: rioxarray applies each band's, and says so
+        warnings.filterwarnings("ignore", r"(Scales|Offsets) differ across bands", UserWarning)
+        stack = rioxarray.open_rasterio(text, chunks={"band": -1, "y": chunks, "x": chunks}, masked=True,
+                                        mask_and_scale=True, lock=False)
+    if invalid is not None:
+        stack = stack.where(~invalid)
+    stack = stack.assign_coords(band=list(product.bands),
+                                wavelength=("band", list(product.wavelengths), {"units": "nm"}))
+    stack.encoding.pop("source", None)  # the XML text, not a file
+    stack.attrs = {"sensor": product.sensor, "product": str(product.path)}
+    stack.name = "reflectance"
+    return stack
 
 
 def _stack_xml(product: ProductFolder, grid: rasterio.DatasetReader, mask: str | None) -> str:

@@ -1,0 +1,136 @@
+"""A time series of product folders as one lazy cube for notebooks: :func:`open_products`.
+
+Sentinel-2 L2A SAFE folders or Landsat Collection-2 L2 folders of one tile (or path/row), opened
+as a (time, band, y, x) reflectance cube with their (time, y, x) sun and view angles and the
+c-factor table of their bands, so that one call of the ``.brdf`` accessor gives the NBAR of every
+date as ``brdfcorr nbar`` gives it for each folder alone (docs/time-series.md)::
+
+    series = open_products(sorted(Path("tiles").glob("*.SAFE")))
+    nbar, qa = series.reflectance.brdf.normalize(None, series.angles, series.table, reference={"sza": 45.0})
+
+Nothing is read until the result is computed or plotted, except each folder's metadata.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import pandas as pd
+import xarray as xr
+
+from brdfcorr.errors import SensorInputError
+from brdfcorr.io.sensors import read_angles
+from brdfcorr.io.sensors.folders import ProductFolder, find_product, open_stack
+from brdfcorr.params import ParameterTable
+from brdfcorr.tasks.nbar import NBAR_CHUNK, nbar_table, refuse_archive
+
+__all__ = ["ProductSeries", "open_products"]
+
+#: A date in a product folder's name (Sentinel-2 ``20190425T132241``, Landsat ``20110306``).
+_NAME_DATE = re.compile(r"_(\d{8}(?:T\d{6})?)_")
+
+
+@dataclass(frozen=True)
+class ProductSeries:
+    """Product folders of one grid as a time series (:func:`open_products`).
+
+    Attributes
+    ----------
+    reflectance : DataArray
+        Reflectance factors [1] (time, band, y, x), lazily; masked pixels (clouds, shadows, fill)
+        NaN; ``band`` the band names, ``wavelength`` their centres [nm]; ``time`` the sensing times.
+    angles : Dataset
+        ``sza``, ``saa``, ``vza``, ``vaa`` [deg] (time, y, x) on the same grid, from each folder's
+        own angle source (Sentinel-2 ``MTD_TL.xml``, the mean of the bands' view grids; Landsat
+        angle bands or ``ANG.txt``).
+    table : ParameterTable
+        One class (id 1) with the coefficient set's weights of the bands, in band order.
+    products : tuple of ProductFolder
+        The folders in time order.
+    """
+
+    reflectance: xr.DataArray
+    angles: xr.Dataset
+    table: ParameterTable
+    products: tuple[ProductFolder, ...]
+
+
+def open_products(folders: Iterable[str | os.PathLike], *, resolution: int | None = None,
+                  bands: Sequence[str] | None = None, masked: Sequence[int] | None = None,
+                  coefficients: str = "roy2017", chunks: int = NBAR_CHUNK) -> ProductSeries:
+    """Product folders of one tile as a lazy (time, band, y, x) cube with its angles and c-factor table.
+
+    Parameters
+    ----------
+    folders : iterable of path-like
+        Sentinel-2 L2A ``.SAFE`` folders or Landsat Collection-2 L2 folders, all of one sensor, on
+        one grid (one tile or path/row, one resolution); in any order (sorted by sensing time).
+    resolution, bands, masked :
+        As for ``brdfcorr nbar`` (:func:`brdfcorr.tasks.nbar.nbar_files`): Sentinel-2 pixel size
+        [m] (default 20), band names in output order, SCL classes or QA_PIXEL bits made NaN.
+    coefficients : {"roy2017", "roy2016"}
+        The built-in coefficient set of :attr:`ProductSeries.table`.
+    chunks : int
+        Spatial chunk size [pixels] of the cube and its angles.
+
+    Returns
+    -------
+    ProductSeries
+
+    Raises
+    ------
+    SensorInputError
+        No folder; a folder that is no product (as ``brdfcorr nbar`` says it); folders of other
+        sensors, bands or grids than the first (named with what differs).
+    """
+    products = []
+    for folder in folders:
+        refuse_archive(folder)
+        products.append(find_product(folder, resolution=resolution, bands=bands, masked=masked))
+    if not products:
+        raise SensorInputError("open_products: no product folder given")
+    dates = []
+    for product in products:
+        stack = open_stack(product, chunks)
+        angles = read_angles(product.angles_kind, product.angles, like=stack, chunks=chunks,
+                             **product.angle_options)
+        dates.append((_sensing_time(product, angles), product, stack, angles))
+    dates.sort(key=lambda date: date[0])
+    first = dates[0][2]
+    for _, product, stack, _ in dates[1:]:
+        _check_alike(first, stack, product)
+    times = pd.DatetimeIndex([date[0] for date in dates], name="time")
+    reflectance = xr.concat([date[2] for date in dates], dim=times, combine_attrs="drop_conflicts")
+    angles = xr.concat([date[3] for date in dates], dim=times, combine_attrs="drop_conflicts")
+    return ProductSeries(reflectance, angles, nbar_table(products[0], coefficients),
+                         tuple(date[1] for date in dates))
+
+
+def _sensing_time(product: ProductFolder, angles: xr.Dataset) -> pd.Timestamp:
+    """The sensing time of a product: its angle source's (Sentinel-2 ``SENSING_TIME``), else the
+    date in its folder's name (Landsat's acquisition date)."""
+    text = angles.attrs.get("sensing_time")
+    if text is None:
+        found = _NAME_DATE.search(product.path.name)
+        if found is None:
+            raise SensorInputError(f"{product.path}: no sensing time (no date in the folder's name)")
+        text = found.group(1)
+    time = pd.Timestamp(text)
+    return time.tz_localize(None) if time.tzinfo else time
+
+
+def _check_alike(first: xr.DataArray, stack: xr.DataArray, product: ProductFolder) -> None:
+    """Refuse a folder whose sensor, bands or grid differ from the first folder's."""
+    same_grid = (stack.rio.crs == first.rio.crs and stack.rio.transform() == first.rio.transform()
+                 and stack.shape == first.shape)
+    differs = [what for what, same in (
+        ("sensor", stack.attrs["sensor"] == first.attrs["sensor"]),
+        ("bands", list(stack["band"].values) == list(first["band"].values)),
+        ("grid (CRS, transform, size)", same_grid),
+    ) if not same]
+    if differs:
+        raise SensorInputError(f"{product.path}: its {', '.join(differs)} differ from those of "
+                               f"{first.attrs['product']}; a series is one sensor's bands on one grid")
