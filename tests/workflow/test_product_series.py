@@ -58,3 +58,18 @@ def test_folders_of_another_sensor_are_refused(folders, tmp_path):
         open_products([folders[0], landsat])
     with pytest.raises(SensorInputError, match="no product folder given"):
         open_products([])
+
+
+def test_the_example_writes_a_series_that_opens(tmp_path, monkeypatch):
+    import runpy
+    from pathlib import Path
+
+    script = Path(__file__).parents[2] / "examples" / "sentinel2_series.py"
+    monkeypatch.setattr("sys.argv", [str(script), str(tmp_path), "--dates", "3", "--size", "8"])
+    runpy.run_path(str(script), run_name="__main__")
+    series = open_products(sorted(tmp_path.glob("*.SAFE")))
+    assert series.reflectance.sizes == {"time": 3, "band": 9, "y": 8, "x": 8}
+    # the tile's sun zenith ranges start at 55, 42.5 and 30 deg (np.linspace(55, 30, 3)): one window
+    # of the tile sees each date's grid at the same place, 12.5 deg apart
+    suns = series.angles["sza"].mean(["y", "x"]).values
+    np.testing.assert_allclose(np.diff(suns), [-12.5, -12.5], atol=1e-9)
