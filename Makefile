@@ -44,12 +44,13 @@ test: lint
 	$(BIN)/python -m pytest -n $(WORKERS)
 
 # Refresh both lock files from pyproject.toml's ranges; the run lock takes the test lock's
-# versions, so `make demo` and `make test` install the same brdfcorr dependencies.
+# versions, so `make demo` and `make test` install the same brdfcorr dependencies. The run lock
+# holds the hdf5 extra, so every example runs after `make demo` (NEON and EMIT products).
 lock:
 	$(PYTHON) -m venv .venv-lock
 	.venv-lock/bin/python -m pip install --quiet uv==$(UV_VERSION)
 	.venv-lock/bin/$(LOCK) pyproject.toml requirements/build.in --extra test -o requirements/test.lock
-	.venv-lock/bin/$(LOCK) pyproject.toml requirements/build.in -c requirements/test.lock -o requirements/run.lock
+	.venv-lock/bin/$(LOCK) pyproject.toml requirements/build.in --extra hdf5 -c requirements/test.lock -o requirements/run.lock
 
 # The suite against the newest releases of every dependency, in a separate environment.
 test-latest:

@@ -24,8 +24,8 @@ that the examples run in seconds:
     python examples/make_sensor_products.py products
 
 The NEON and EMIT products are HDF5/NetCDF-4 files: writing them needs h5py and h5netcdf (the hdf5
-extra, ``pip install 'brdfcorr[hdf5]'``; ``make test``'s environment has them, ``make demo``'s does
-not); ``--sensor aviris-ng`` writes the ENVI lines alone.
+extra, ``pip install 'brdfcorr[hdf5]'``; the environments of ``make demo`` and ``make test`` have
+them); ``--sensor aviris-ng`` writes the ENVI lines alone.
 """
 
 from __future__ import annotations
