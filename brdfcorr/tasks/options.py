@@ -396,7 +396,7 @@ FIT_CLASSES = settings(
 )
 
 #: ``brdfcorr assess`` (:func:`brdfcorr.tasks.assess.assess_files`); the chain's assess step takes
-#: ``sign_by``, ``heading``, ``bin_width``, ``min_vza`` and ``block_size`` from here.
+#: ``sign_by``, ``heading``, ``bin_width``, ``min_vza``, ``block_size`` and ``cluster_band`` from here.
 ASSESS = settings(
     Setting("classes", ("--classes",), "path", required=True,
             help="Class map raster of BEFORE (ids > 0; 0 = no class)."),
@@ -423,7 +423,7 @@ ASSESS = settings(
           "composite's day-of-year band, a flight-line id): the slopes' 1-sigma is cluster-robust over "
           "these instead of square blocks."),
     Setting("cluster_band", ("--cluster-band",), "int", ge=1, default=1, show_default=True,
-            help=_CLUSTER_BAND.format("--clusters")),
+            help=_CLUSTER_BAND.format("--clusters"), chain="assess"),
     Setting("resampling", ("--resampling",), "text", default="nearest", show_default=True,
             help="Resampling of the other line onto this line's grid (rasterio name)."),
     Setting("output", ("-o", "--output"), "path", required=True, help="JSON report to write."),
