@@ -60,6 +60,7 @@ class Outcome:
     sigma: float
     warned: bool
     striped: bool = False
+    stripe_ratio: float = float("nan")
 
 
 def scene(kind: str, size: int, patch: int, stripe: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -83,7 +84,7 @@ def assess(values: np.ndarray, angles: dict, block_size: int, clusters=None) -> 
                                     angles["saa"], clusters=clusters, options=ViewAngleOptions(block_size=block_size))
     return Outcome(float(result["relative_slope"].values[1, 0, 0]),
                    float(result["relative_slope_error"].values[1, 0, 0]), error_growth_warning(result) is not None,
-                   stripe_warning(result) is not None)
+                   stripe_warning(result) is not None, float(result["stripe_ratio"].values[1, 0, 0]))
 
 
 def doubling(values: np.ndarray, angles: dict, block_size: int) -> tuple[Outcome, int]:
@@ -135,7 +136,9 @@ def run(kind: str, args, angles: dict) -> None:
         followed.append(which)
     truth = np.std([o.slope for o in blocks])
     print(f"{kind}: the slopes' own spread (true 1-sigma) {truth:.4f} %/10deg over {args.scenes} scenes")
-    print(summary(f"blocks of {args.block_size}", blocks))
+    ratios = np.percentile([o.stripe_ratio for o in blocks], [5, 50, 95])
+    print(summary(f"blocks of {args.block_size}", blocks)
+          + "; stripe ratio 5/50/95th percentile {:.2f}/{:.2f}/{:.2f}".format(*ratios))
     counts = {size: sizes.count(size) for size in sorted(set(sizes))}
     print(summary("doubling", doubled) + f"; final block sizes {counts}")
     print(summary("cluster layer", layered))

@@ -1,6 +1,7 @@
 """Errors shared along the track at one view angle (a detector's stripes), which no square block
 and no larger block holds: the check behind the stripe warning of
-:func:`brdfcorr.analysis.view_angles.assess_view_angles`.
+:func:`brdfcorr.analysis.view_angles.assess_view_angles`. The same check sees the errors of a
+composite's days where each day's orbit sees the scene from its own view angles.
 
 A push-broom detector sees its stripe of the scene at one view angle along the whole track; a
 calibration error of the detector is shared by every pixel of the stripe. Square blocks cut the
@@ -106,5 +107,6 @@ def stripe_warning(dataset: xr.Dataset, limit: float = STRIPE_LIMIT) -> str | No
     worst = int(np.nanargmax(ratios))
     return (f"the slopes' 1-sigma over bins of view zenith is {ratios[worst]:.1f}x the one over "
             f"{dataset.attrs['error_clusters']} ({dataset['class_name'].values[worst]}; more than {limit:g}x): errors "
-            "shared along the track at one view angle (a detector's stripes) make the 1-sigma too small and larger "
-            "blocks do not hold them; give the detector ids (a push-broom line's column numbers) as --clusters")
+            "shared by the pixels seen at one view angle (a detector's stripe along the track, an orbit's day in a "
+            "composite) make the 1-sigma too small and larger blocks do not hold them; give their ids as --clusters "
+            "(the detector ids, a push-broom line's column numbers; a composite's day-of-year band)")
