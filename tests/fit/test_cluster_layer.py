@@ -180,3 +180,22 @@ def test_fit_classes_clusters_on_the_command_line(tmp_path):
                                       "-o", str(tmp_path / "bad.yaml")])
     assert twice.exit_code == 2 and "2 image(s) and 1 --clusters" in twice.output
     assert not (tmp_path / "bad.yaml").exists()
+
+
+def test_free_levels_per_pixel_get_clusters_that_hold_every_view_of_a_pixel():
+    # Two dates on one grid, each pixel's level free: a pixel's two views lie in one cluster. The
+    # same column strips in both dates stay apart (one cluster per strip holding pixels of the
+    # class); strips by column in one date and by row in the other chain every pixel together.
+    image, classes, angles = _line(24, 32, seed=5)
+    rows, cols = np.indices(classes.shape)
+    by_column, by_row = cols // 8, 100 + rows // 8
+    same = sample_classes([image, image], [classes, classes], [angles, angles], levels="pixel",
+                          clusters=[by_column, by_column])
+    for class_id, samples in same.items():
+        strips = np.unique(by_column[classes.values == class_id])
+        assert np.unique(samples.block).size == strips.size
+        for group in np.unique(samples.group):
+            assert np.unique(samples.block[samples.group == group]).size == 1
+    crossed = sample_classes([image, image], [classes, classes], [angles, angles], levels="pixel",
+                             clusters=[by_column, by_row])
+    assert all(np.unique(samples.block).size == 1 for samples in crossed.values())
