@@ -14,14 +14,20 @@ within 2 of its reported 1-sigma. Three kinds of scene:
   (a detector's calibration: every stripe at one view angle).
 
 Per kind, over ``--scenes`` seeds: the spread of the slopes themselves (the true 1-sigma) against
-the median reported 1-sigma, the coverage and how often the warning of
-:func:`brdfcorr.analysis.view_angles.error_growth_warning` fires, for three ways to run ``assess``:
+the median reported 1-sigma, the coverage and how often the warnings of
+:func:`brdfcorr.analysis.view_angles.error_growth_warning` (``warned``) and
+:func:`brdfcorr.analysis.view_stripes.stripe_warning` (``striped``) fire, for four ways to run
+``assess``:
 
-* ``blocks``: the default advice's starting point, ``--block-size`` (8);
-* ``doubling``: what the warning says, a larger block: the block size doubled until the warning is
+* ``blocks``: the starting point, ``--block-size`` (8);
+* ``doubling``: what the growth warning says, a larger block: the block size doubled until it is
   silent (at most to a quarter of the scene, 4 blocks);
 * ``cluster layer``: the other advice, the units that share errors given as ``--clusters`` (the
-  patch or stripe ids; for independent pixels, the blocks).
+  patch or stripe ids; for independent pixels, the blocks);
+* ``advice``: what a user who follows the tool does, scene by scene: where the stripe warning
+  fires, the detector ids as ``--clusters`` (the stripe ids; a column's own id where the scene has
+  no stripes); else where the growth warning fires, the block size doubled until it is silent;
+  else the blocks of 8.
 
 Goal (issue 40): coverage 0.9-0.98 when the advice is followed.
 
@@ -39,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from brdfcorr.analysis.view_angles import ViewAngleOptions, assess_view_angles, error_growth_warning
+from brdfcorr.analysis.view_stripes import stripe_warning
 from brdfcorr.testing import synthetic_angles
 from brdfcorr.testing.noise import patch_noise, strip_noise
 
@@ -52,6 +59,8 @@ class Outcome:
     slope: float
     sigma: float
     warned: bool
+    striped: bool = False
+    stripe_ratio: float = float("nan")
 
 
 def scene(kind: str, size: int, patch: int, stripe: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -74,7 +83,8 @@ def assess(values: np.ndarray, angles: dict, block_size: int, clusters=None) -> 
         result = assess_view_angles(cube, cube, np.ones(values.shape, np.int64), angles["vza"], angles["vaa"],
                                     angles["saa"], clusters=clusters, options=ViewAngleOptions(block_size=block_size))
     return Outcome(float(result["relative_slope"].values[1, 0, 0]),
-                   float(result["relative_slope_error"].values[1, 0, 0]), error_growth_warning(result) is not None)
+                   float(result["relative_slope_error"].values[1, 0, 0]), error_growth_warning(result) is not None,
+                   stripe_warning(result) is not None, float(result["stripe_ratio"].values[1, 0, 0]))
 
 
 def doubling(values: np.ndarray, angles: dict, block_size: int) -> tuple[Outcome, int]:
@@ -87,6 +97,17 @@ def doubling(values: np.ndarray, angles: dict, block_size: int) -> tuple[Outcome
     return outcome, block_size
 
 
+def advice(values: np.ndarray, angles: dict, block_size: int, detectors: np.ndarray) -> tuple[Outcome, str]:
+    """What a user who follows the tool's warnings gets (module docstring), and which advice was
+    followed: ``stripes`` (the ``detectors`` ids as the cluster layer), ``doubling`` or ``none``."""
+    outcome = assess(values, angles, block_size)
+    if outcome.striped:
+        return assess(values, angles, block_size, detectors), "stripes"
+    if outcome.warned:
+        return doubling(values, angles, block_size)[0], "doubling"
+    return outcome, "none"
+
+
 def coverage(outcomes: list[Outcome]) -> float:
     """Share of the slopes within 2 reported sigma of 0 (the true slope)."""
     return float(np.mean([abs(o.slope) <= 2.0 * o.sigma for o in outcomes]))
@@ -95,12 +116,14 @@ def coverage(outcomes: list[Outcome]) -> float:
 def summary(name: str, outcomes: list[Outcome]) -> str:
     sigmas = np.array([o.sigma for o in outcomes])
     return (f"  {name:<14} median 1-sigma {np.median(sigmas):.4f}, coverage of +-2 sigma "
-            f"{coverage(outcomes):.3f}, warned {np.mean([o.warned for o in outcomes]):.3f}")
+            f"{coverage(outcomes):.3f}, warned {np.mean([o.warned for o in outcomes]):.3f}, "
+            f"striped {np.mean([o.striped for o in outcomes]):.3f}")
 
 
 def run(kind: str, args, angles: dict) -> None:
     """Print the numbers of one kind of scene (module docstring)."""
-    blocks, doubled, layered, sizes = [], [], [], []
+    blocks, doubled, layered, sizes, advised, followed = [], [], [], [], [], []
+    columns = np.ascontiguousarray(np.broadcast_to(np.arange(args.size), (args.size, args.size)))
     for seed in range(args.scenes):
         values, ids = scene(kind, args.size, args.patch, args.stripe, np.random.default_rng(seed))
         blocks.append(assess(values, angles, args.block_size))
@@ -108,12 +131,19 @@ def run(kind: str, args, angles: dict) -> None:
         doubled.append(outcome)
         sizes.append(size)
         layered.append(assess(values, angles, args.block_size, ids) if ids is not None else blocks[-1])
+        outcome, which = advice(values, angles, args.block_size, ids if kind == "stripes" else columns)
+        advised.append(outcome)
+        followed.append(which)
     truth = np.std([o.slope for o in blocks])
     print(f"{kind}: the slopes' own spread (true 1-sigma) {truth:.4f} %/10deg over {args.scenes} scenes")
-    print(summary(f"blocks of {args.block_size}", blocks))
+    ratios = np.percentile([o.stripe_ratio for o in blocks], [5, 50, 95])
+    print(summary(f"blocks of {args.block_size}", blocks)
+          + "; stripe ratio 5/50/95th percentile {:.2f}/{:.2f}/{:.2f}".format(*ratios))
     counts = {size: sizes.count(size) for size in sorted(set(sizes))}
     print(summary("doubling", doubled) + f"; final block sizes {counts}")
     print(summary("cluster layer", layered))
+    paths = {name: followed.count(name) for name in ("none", "doubling", "stripes") if name in followed}
+    print(summary("advice", advised) + f"; advice followed {paths}")
 
 
 def main() -> None:

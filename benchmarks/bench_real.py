@@ -8,7 +8,9 @@ eight, so neighbouring pixels are seen from either side of nadir: the view-angle
 cover shows as a slope of its reflectance against the signed view zenith.
 
 Three corrections of the subset, each to nadir view at the observed sun zenith (brdfcorr's
-default reference):
+default reference) or, with ``--ref-sza``, at the subset's mean or a fixed sun zenith (the
+subset's sun and view zenith are tied by its orbits, r = -0.99: a reference that follows the
+observed sun keeps a slope against the view; the header line prints r):
 
 - ``brdfcorr``: ``brdfcorr classes ndvi`` strata (quartiles of the raw NDVI,
   :func:`brdfcorr.tasks.classmaps.ndvi_class_file`), ``fit-classes`` on the subset itself
@@ -33,7 +35,8 @@ two-fold cross-check follows: the strata fitted on one colour of a checkerboard 
 and assessed on the other, the raw slope and the c-factor's on the same held-out pixels beside.
 
 Run: ``python benchmarks/bench_real.py`` (about 10 s; ``--strata`` cuts the fit's strata at other
-percentiles); ``--json FILE`` also writes the numbers.
+percentiles; ``--ref-sza 28`` corrects to a fixed sun zenith of 28 deg); ``--json FILE`` also
+writes the numbers.
 """
 
 from __future__ import annotations
@@ -98,17 +101,20 @@ def fit_table(data: Path, classes: Path, max_samples: int = 50_000,
     return fit.table, [entry for entry in fit.report()["classes"] if entry.get("status") != "fitted"]
 
 
-def correct(data: Path, classes: Path | None, table: ParameterTable, target: Path, extrapolate: bool = False) -> Path:
-    """``correct`` the subset with ``table`` to nadir view at the observed sun zenith (the default)."""
+def correct(data: Path, classes: Path | None, table: ParameterTable, target: Path, extrapolate: bool = False,
+            ref_sza: float | str = "observed") -> Path:
+    """``correct`` the subset with ``table`` to nadir view at the sun zenith ``ref_sza`` [deg]:
+    each pixel's observed one (the default), the scene's ``mean``, or a fixed value."""
     request = CorrectionRequest(SceneSources(data / "reflectance.tif", classes, data / "angles.tif"), table,
-                                OutputFiles(target), extrapolate=extrapolate)
+                                OutputFiles(target), extrapolate=extrapolate, reference={"sza": ref_sza, "vza": 0.0})
     correct_files(request)
     return target
 
 
 def correct_subset(directory: Path, data: Path = DATA, strata_percentiles: Sequence[float] = PERCENTILES,
                    max_samples: int = 50_000, prior_spread: float | None = None,
-                   model: str | None = None, levels: str = "pooled") -> dict[str, object]:
+                   model: str | None = None, levels: str = "pooled",
+                   ref_sza: float | str = "observed") -> dict[str, object]:
     """Strata, fit and the three corrections of the subset in ``data``, written to ``directory``.
 
     The fit's strata are cut at ``strata_percentiles`` of the raw NDVI [%]. Returns the paths
@@ -120,13 +126,15 @@ def correct_subset(directory: Path, data: Path = DATA, strata_percentiles: Seque
     ndvi_class_file(data / "reflectance.tif", strata, bins=NdviBins(percentiles=list(strata_percentiles)))
     table, left_out = fit_table(data, strata, max_samples, prior_spread, model, levels)
     outputs: dict[str, object] = {"strata": strata, "left_out": left_out}
-    outputs["c-factor"] = correct(data, None, roy2016_table(), directory / "c-factor.tif", extrapolate=True)
+    outputs["c-factor"] = correct(data, None, roy2016_table(), directory / "c-factor.tif", extrapolate=True,
+                                  ref_sza=ref_sza)
     fitted = sorted(entry.id for entry in table.classes)
     if fitted:
-        outputs["brdfcorr"] = correct(data, strata, table, directory / "brdfcorr.tif")
+        outputs["brdfcorr"] = correct(data, strata, table, directory / "brdfcorr.tif", ref_sza=ref_sza)
     if len(fitted) >= 2 and len({entry.model for entry in table.classes}) == 1:  # one model to interpolate
         interpolated = table.with_ndvi_interpolation({"classes": fitted})
-        outputs["brdfcorr interp"] = correct(data, strata, interpolated, directory / "brdfcorr_interp.tif")
+        outputs["brdfcorr interp"] = correct(data, strata, interpolated, directory / "brdfcorr_interp.tif",
+                                             ref_sza=ref_sza)
     return outputs
 
 
@@ -208,14 +216,15 @@ def _nan_slopes(like: dict[str, list[float]]) -> dict[str, list[float]]:
 
 def slope_table(directory: Path, data: Path = DATA, strata_percentiles: Sequence[float] = PERCENTILES,
                 max_samples: int = 50_000, prior_spread: float | None = None,
-                model: str | None = None, levels: str = "pooled") -> dict[str, object]:
+                model: str | None = None, levels: str = "pooled",
+                ref_sza: float | str = "observed") -> dict[str, object]:
     """Relative slopes [%/10 deg] per method (``raw`` and :data:`METHODS`; NaN for a method that did
     not run), band (:data:`REPORTED`) and NDVI group (quartiles of the raw NDVI,
     :data:`PERCENTILES`), the groups' names and pixels, the fit's classes left out; the corrected
     files in ``outputs``."""
     groups = directory / "groups.tif"
     names = ndvi_class_file(data / "reflectance.tif", groups, bins=NdviBins(percentiles=list(PERCENTILES))).names
-    outputs = correct_subset(directory, data, strata_percentiles, max_samples, prior_spread, model, levels)
+    outputs = correct_subset(directory, data, strata_percentiles, max_samples, prior_spread, model, levels, ref_sza)
     slopes: dict[str, dict[str, list[float]]] = {}
     errors = {"raw": standard_errors(data, data / "reflectance.tif", groups)}
     for method in METHODS:
@@ -242,7 +251,8 @@ def masked_copy(classes: Path, keep: np.ndarray, target: Path) -> Path:
 
 
 def holdout(directory: Path, result: dict[str, object], data: Path = DATA, block: int = HOLDOUT_BLOCK,
-            prior_spread: float | None = None, model: str | None = None, levels: str = "pooled") -> list[dict]:
+            prior_spread: float | None = None, model: str | None = None, levels: str = "pooled",
+            ref_sza: float | str = "observed") -> list[dict]:
     """Two-fold cross-check on a checkerboard of ``block`` x ``block`` pixel squares: fit the
     strata on the pixels of one colour, correct the subset, assess on the NDVI groups' pixels of
     the other colour; the raw slopes and the c-factor's on the same pixels beside. Per fold:
@@ -262,11 +272,35 @@ def holdout(directory: Path, result: dict[str, object], data: Path = DATA, block
                             "c-factor": standard_errors(data, outputs["c-factor"], groups)}}
         entry["brdfcorr"] = entry["errors"]["brdfcorr"] = _nan_slopes(cfactor["raw"])
         if table.classes:
-            corrected = correct(data, outputs["strata"], table, directory / f"fold{fold}_brdfcorr.tif")
+            corrected = correct(data, outputs["strata"], table, directory / f"fold{fold}_brdfcorr.tif", ref_sza=ref_sza)
             entry["brdfcorr"] = relative_slopes(data, corrected, groups, result["names"])["after"]
             entry["errors"]["brdfcorr"] = standard_errors(data, corrected, groups)
         folds.append(entry)
     return folds
+
+
+def sun_and_view(data: Path = DATA) -> dict[str, float]:
+    """The subset's sun zenith [deg]: its range and mean over the pixels valid in every band, and
+    its correlation with the signed view zenith there (a composite's orbits tie the two: a slope
+    against the view is then also one against the sun, and a reference that follows the observed
+    sun keeps part of it)."""
+    raw = open_image(data / "reflectance.tif").values
+    angles = {key: value.values for key, value in open_angles(data / "angles.tif").items()}
+    theta = signed_view_zenith(angles["vza"], angles["vaa"], angles["saa"], by="sun")
+    valid = np.isfinite(raw).all(axis=0) & np.isfinite(theta) & np.isfinite(angles["sza"])
+    sza = angles["sza"][valid]
+    return {"min": float(sza.min()), "max": float(sza.max()), "mean": float(sza.mean()),
+            "r_signed_vza": float(np.corrcoef(sza, theta[valid])[0, 1])}
+
+
+def _reference(text: str) -> float | str:
+    """``--ref-sza``: ``observed``, ``mean`` or a sun zenith [deg] in [0, 90)."""
+    if text in ("observed", "mean"):
+        return text
+    value = float(text)
+    if not 0.0 <= value < 90.0:
+        raise argparse.ArgumentTypeError(f"{text}: give observed, mean or a sun zenith in [0, 90) deg")
+    return value
 
 
 def worst(slopes: dict[str, list[float]]) -> float:
@@ -329,17 +363,26 @@ def main(argv: Sequence[str] | None = None) -> None:
                                         "[default: ross_thick_li_sparse, the strata's]")
     parser.add_argument("--levels", choices=("pooled", "patch"), default="pooled",
                         help=f"fit-classes --levels: pooled, or each {PATCH}-pixel square's own level")
+    parser.add_argument("--ref-sza", type=_reference, default="observed",
+                        help="reference sun zenith of every correction: observed (each pixel's, the default), mean "
+                             "(the subset's) or a fixed value [deg]; the view is nadir")
     parser.add_argument("--json", type=Path, help="also write the numbers to this JSON file")
     args = parser.parse_args(argv)
+    sun = sun_and_view(args.data)
+    print(f"sun zenith {sun['min']:.1f}-{sun['max']:.1f} deg (mean {sun['mean']:.2f}), correlation with the signed "
+          f"view zenith r = {sun['r_signed_vza']:.2f}; reference: nadir view, sun zenith "
+          + (f"{args.ref_sza:g} deg" if isinstance(args.ref_sza, float) else args.ref_sza))
     with tempfile.TemporaryDirectory() as scratch:
         result = slope_table(Path(scratch), args.data, [float(p) for p in args.strata.split(",")],
-                             prior_spread=args.prior_spread, model=args.model, levels=args.levels)
+                             prior_spread=args.prior_spread, model=args.model, levels=args.levels,
+                             ref_sza=args.ref_sza)
         folds = holdout(Path(scratch), result, args.data, prior_spread=args.prior_spread, model=args.model,
-                        levels=args.levels)
+                        levels=args.levels, ref_sza=args.ref_sza)
     print_report(result, folds)
     if args.json:
         numbers = {key: result[key] for key in ("slopes", "errors", "groups", "pixels", "left_out")}
-        args.json.write_text(json.dumps({**numbers, "holdout": folds}, indent=1, default=str))
+        args.json.write_text(json.dumps({**numbers, "holdout": folds, "ref_sza": args.ref_sza, "sun": sun}, indent=1,
+                                        default=str))
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ class _Sums:
     r: np.ndarray       # (2, B, K) sum of reflectance
     sr: np.ndarray      # (2, B, K) sum of signed zenith times reflectance
     bin_n: np.ndarray   # (K, M)
+    bin_s: np.ndarray   # (K, M) sum of the signed zenith per bin [deg]
     bin_r: np.ndarray   # (2, B, K, M)
     side_n: np.ndarray  # (K, 2)
     side_r: np.ndarray  # (2, B, K, 2)
@@ -168,6 +169,7 @@ def _block_sums(before, after, classes, vza, vaa, saa, clusters, options: _SumOp
     sums = _Sums(
         *(class_sums[0, 0, :, position] for position in range(3)), r=class_sums[..., 3], sr=class_sums[..., 4],
         bin_n=np.bincount(groups, minlength=n_classes * n_bins).astype(np.float64).reshape(n_classes, n_bins),
+        bin_s=np.bincount(groups, weights=s, minlength=n_classes * n_bins).reshape(n_classes, n_bins),
         bin_r=np.zeros((2, n_bands, n_classes, n_bins)),
         side_n=np.bincount(sides, minlength=n_classes * 2).astype(np.float64).reshape(n_classes, 2),
         side_r=np.zeros((2, n_bands, n_classes, 2)),

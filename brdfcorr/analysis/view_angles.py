@@ -25,11 +25,12 @@ import xarray as xr
 from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
 from brdfcorr.analysis.signed_view import _SIGN_WORDS, SIGN_CONVENTIONS
 from brdfcorr.analysis.view_angle_sums import _moments, _scene_sums, _SumOptions, _Sums
+from brdfcorr.analysis.view_stripes import STRIPE_LIMIT, class_stripe_ratios, stripe_ratio, stripe_warning
 from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import BrdfcorrWarning, InputError
 
-__all__ = ["GROWTH_LIMIT", "ViewAngleOptions", "assess_view_angles",
-           "error_growth_warning", "narrow_range_warning", "view_zenith_ranges", "view_angle_report"]
+__all__ = ["GROWTH_LIMIT", "STRIPE_LIMIT", "ViewAngleOptions", "assess_view_angles", "error_growth_warning",
+           "narrow_range_warning", "stripe_warning", "view_zenith_ranges", "view_angle_report"]
 
 #: The slopes' 1-sigma from blocks of twice the block size over the one reported, above which
 #: :func:`assess_view_angles` warns that the errors are correlated beyond its clusters. Under
@@ -186,6 +187,11 @@ def assess_view_angles(
           divided by ``relative_slope_error``. Well above 1 (more than :data:`GROWTH_LIMIT`;
           :func:`error_growth_warning`), the errors are correlated beyond the clusters and the
           1-sigma is too small;
+        - ``stripe_ratio`` (stage, band, class): the 1-sigma with the bins of signed view zenith
+          (over the whole scene) as clusters, the bins' smooth trend taken out, over
+          ``relative_slope_error`` (:func:`brdfcorr.analysis.view_stripes.stripe_ratio`). Well
+          above 1 (more than :data:`STRIPE_LIMIT`; :func:`stripe_warning`), errors are shared
+          along the track at one view angle (a detector's stripes) and the 1-sigma is too small;
         - ``side_ratio`` (stage, band, class): mean R on the positive side over that on the negative
           side [-] (forward/backward with ``by="sun"``, right/left with ``by="track"``), 1 when
           the sides agree; ``side_pixels`` (class, side);
@@ -200,8 +206,9 @@ def assess_view_angles(
     -----
     BrdfcorrWarning
         One line (:func:`error_growth_warning`) where a class's 1-sigma grows with the block; one
-        line (:func:`narrow_range_warning`) where a class is seen over less than
-        :data:`NARROW_RANGE` of signed view zenith.
+        line (:func:`stripe_warning`) where it is too small for errors shared at one view angle
+        along the track; one line (:func:`narrow_range_warning`) where a class is seen over less
+        than :data:`NARROW_RANGE` of signed view zenith.
 
     Notes
     -----
@@ -233,7 +240,7 @@ def assess_view_angles(
     result = _statistics(sums, ids, edges, before, options.class_names or {},
                          {"sign_convention": by, "heading": options.heading, "min_vza": float(min_vza),
                           "error_clusters": clustered}, options.block_size, clusters is not None)
-    for message in (error_growth_warning(result), narrow_range_warning(result)):
+    for message in (error_growth_warning(result), stripe_warning(result), narrow_range_warning(result)):
         if message is not None:
             warnings.warn(message, BrdfcorrWarning, stacklevel=2)
     return result
@@ -271,6 +278,10 @@ def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataAr
         "error_growth": (("stage", "band", "class"), _divide(block_errors[..., 1], slope_error),
                          {"long_name": "1-sigma over blocks of twice the size over the 1-sigma reported",
                           "units": "1"}),
+        "stripe_ratio": (("stage", "band", "class"),
+                         stripe_ratio(sums.bin_n, sums.bin_s, sums.bin_r, (slope, mean, mean_s), n * variance,
+                                      slope_error),
+                         {"long_name": "1-sigma over bins of view zenith over the 1-sigma reported", "units": "1"}),
         "blocks": (("class",), groups.astype(np.int64), {"long_name": "clusters (ids or blocks) with pixels of the "
                                                                       "class", "units": "1"}),
         "side_ratio": (("stage", "band", "class"), _divide(side_mean[..., 1], side_mean[..., 0]),
@@ -417,16 +428,19 @@ def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
     ``summary``: median and largest |relative slope| and |side ratio − 1| [%] over classes and
     bands, before and after, and how many class-band slopes lie within 2 sigma of 0
     (``slopes_within_2_sigma``: ``before``, ``after``, ``of``). ``errors``: what the 1-sigma is
-    cluster-robust over, the two block sizes [pixels] and the warning of
-    :func:`error_growth_warning` (or None).
+    cluster-robust over, the two block sizes [pixels], the warnings of
+    :func:`error_growth_warning` (``warning``) and :func:`stripe_warning` (``stripes``), or None.
+    Per class also ``stripe_ratio``: the median over bands, after the correction, of the 1-sigma
+    over bins of view zenith over the one reported (:func:`stripe_warning`).
     """
-    growth, ranges = _class_growth(dataset), view_zenith_ranges(dataset)
+    growth, ranges, stripes = _class_growth(dataset), view_zenith_ranges(dataset), class_stripe_ratios(dataset)
     classes = []
     for index, class_id in enumerate(dataset["class"].values):
         one = dataset.isel({"class": index})
         entry: dict[str, object] = {"id": int(class_id), "name": str(one["class_name"].values),
                                     "pixels": int(one["pixels"]), "blocks": int(one["blocks"]),
                                     "error_growth": _json_numbers(growth[index]),
+                                    "stripe_ratio": _json_numbers(stripes[index]),
                                     "view_zenith_range_deg": _json_numbers(ranges[index])}
         for stage in STAGES:
             values = one.sel(stage=stage)
@@ -451,7 +465,8 @@ def view_angle_report(dataset: xr.Dataset) -> dict[str, object]:
                   "side_ratio": "1"},
         "errors": {"clusters": dataset.attrs.get("error_clusters"),
                    "block_sizes": [int(size) for size in dataset["block_size"].values],
-                   "warning": error_growth_warning(dataset), "narrow": narrow_range_warning(dataset)},
+                   "warning": error_growth_warning(dataset), "stripes": stripe_warning(dataset),
+                   "narrow": narrow_range_warning(dataset)},
         "bands": _band_list(dataset),
         "classes": classes,
         "summary": {"abs_relative_slope_percent_per_10deg": _stage_summary(dataset["relative_slope"]),

@@ -21,6 +21,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import Field, create_model, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
+from brdfcorr.chain.patterns import check_pattern
 from brdfcorr.correction.topographic import frame_conflict
 from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import UnknownNameError
@@ -303,7 +304,21 @@ class AssessStep(step_fields(ASSESS, "assess")):  # type: ignore[misc]
         The side ratio compares pixels with ``|signed vza| >= min_vza`` [deg] (and never 0).
     block_size : int
         Side [pixels] of the spatial blocks the slopes' 1-sigma is cluster-robust over.
+    clusters : str, optional
+        Name pattern (``{scene}``, ``{stem}``, ``{dir}``, ``{parent}``) of each scene's cluster
+        layer: a raster on its grid of integer ids of the units whose pixels share their errors (a
+        composite's day-of-year band, a flight-line id); the slopes' 1-sigma is cluster-robust over
+        these instead of square blocks (``brdfcorr assess --clusters``).
+    cluster_band : int
+        The band of the cluster layer that holds the ids (``--cluster-band``).
     """
+
+    clusters: str | None = Field(None, min_length=1)
+
+    @field_validator("clusters")
+    @classmethod
+    def _clusters_pattern(cls, value: str | None) -> str | None:
+        return value if value is None else check_pattern(value)
 
     @model_validator(mode="after")
     def _heading(self) -> AssessStep:

@@ -74,6 +74,7 @@ from dask.callbacks import Callback
 from brdfcorr._entry import entered
 from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.chain.config import ChainConfig, EngineConfig, load_config
+from brdfcorr.chain.patterns import format_pattern
 from brdfcorr.chain.plan import RunPlan, plan_run
 from brdfcorr.chain.quicklook import write_quicklook
 from brdfcorr.chain.report import (
@@ -366,9 +367,11 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
         bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.steps.correct.flip_view_azimuth,
         block_size=step.block_size,
     )
+    clusters = None if step.clusters is None else (
+        config.resolve(format_pattern(step.clusters, scene.image, scene.name)), step.cluster_band)
     assessment = assess_files(
         sources, scene.outputs["corrected"], view_options=view_options, align_classes=inputs.align_classes,
-        class_lookup=dict(inputs.class_lookup),
+        class_lookup=dict(inputs.class_lookup), clusters=clusters,
         engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers),
     )
     report = assessment.report()

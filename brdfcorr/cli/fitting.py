@@ -59,7 +59,8 @@ class _BandRange(click.ParamType):
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
-                        block_size, levels, patch_size, scale, offset, min_samples, min_vza_spread, max_condition,
+                        block_size, levels, patch_size, cluster_layers, cluster_band, scale, offset, min_samples,
+                        min_vza_spread, max_condition,
                         bad_bands, fallback, prior, prior_spread, output, report_path, plot_dir, overwrite, progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
 
@@ -77,9 +78,13 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
             f"{len(images)} image(s), {len(angles)} --angles and {len(classes)} --classes: give one "
             "angle raster and one class map per image, in the same order"
         )
+    if cluster_layers and len(cluster_layers) != len(images):
+        raise InputError(f"{len(images)} image(s) and {len(cluster_layers)} --clusters: give one cluster layer per "
+                         "image, in the same order")
     written = {"-o": output, "--report": report_path}
     read = [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
-            *(("--angles", path) for path in angles if angles_kind != "solar"), ("--class-lookup", class_lookup)]
+            *(("--angles", path) for path in angles if angles_kind != "solar"), ("--class-lookup", class_lookup),
+            *(("--clusters", path) for path in cluster_layers)]
     check_outputs(written, read)
     if not overwrite:  # before the fit: its work is not wasted on an output that would be refused
         refuse_existing(written.values())
@@ -96,8 +101,9 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     with progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
         fit = fit_class_files(
             [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
-                        class_lookup=lookup, scale=scale, offset=offset)
-             for image, angle_source, class_map in zip(images, angles, classes)],
+                        class_lookup=lookup, scale=scale, offset=offset,
+                        clusters=(cluster_layers[index], cluster_band) if cluster_layers else None)
+             for index, (image, angle_source, class_map) in enumerate(zip(images, angles, classes))],
             ClassModels(model_name, class_models=dict(class_model),
                         fixed=dict(fix) or None, fallback=fallback, names=class_names,
                         prior=shape_prior),

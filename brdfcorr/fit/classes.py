@@ -404,7 +404,7 @@ def _thinned(samples: ClassSamples, keep: int) -> ClassSamples:
 def fit_classes(images, classes, angles, models: ClassModels | str | Model = ClassModels(), *,
                 sampling: Sampling = Sampling(), wavelengths: Sequence[float] | None = None,
                 guard: GuardRails = GuardRails(), grid_points: int = 9, progress=None,
-                source: str = "brdfcorr.fit.fit_classes") -> ClassFitResult:
+                source: str = "brdfcorr.fit.fit_classes", clusters=None) -> ClassFitResult:
     """Fit a BRDF model per class (shape per class, intensities per band) from imagery.
 
     Parameters
@@ -438,6 +438,11 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     source : str, default "brdfcorr.fit.fit_classes"
         What was fitted (command, input files), the ``source`` of each fitted class's ``fit:``
         block in the table: its errors, joint covariance, N, chi^2/dof and R^2 per band.
+    clusters : DataArray or array (y, x), or a list of them, optional
+        A cluster layer per scene (integer ids of the units whose pixels share their errors: a
+        composite's day-of-year band, a flight-line id): the errors are cluster-robust over these
+        instead of square blocks of ``sampling.block_size``, and the held-out folds of ``auto``
+        hold out whole clusters (:func:`sample_classes`).
 
     Returns
     -------
@@ -460,7 +465,7 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     pooled = sample_classes(
         scenes, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
         seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
-        levels=sampling.levels, patch_size=sampling.patch_size,
+        levels=sampling.levels, patch_size=sampling.patch_size, clusters=clusters,
     )
     prior = _prior(models, wavelengths)
     fits, entries, kept = [], [], {}

@@ -7,13 +7,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse
+import scipy.sparse.csgraph
 import xarray as xr
 
 from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.geometry import relative_azimuth
 
-__all__ = ["LEVELS", "ClassSamples", "resolve_levels", "sample_classes", "scene_lists"]
+__all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
 
 
 @dataclass
@@ -24,7 +26,7 @@ class ClassSamples:
     theta_r: np.ndarray
     phi: np.ndarray
     brdf: np.ndarray  # (N, B)
-    block: np.ndarray | None = None  # spatial block id of each sample (cluster for the errors)
+    block: np.ndarray | None = None  # spatial block (or cluster layer) id of each sample (cluster for the errors)
     group: np.ndarray | None = None  # the pixel or patch whose level is free (LEVELS), if any
     scene: np.ndarray | None = None  # the scene each sample comes from (its level is free too)
     levels: str = "pooled"  # whose levels are free (LEVELS, resolved)
@@ -62,12 +64,13 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
 
 
 def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int,
-                   shared_grid: bool = False) -> tuple:
+                   shared_grid: bool = False, cluster_ids: np.ndarray | None = None) -> tuple:
     """The samples of one scene (number ``scene``) at the flat pixel indices ``flat`` of its class
     map (of ``shape`` (y, x)): sun zenith, view zenith and relative azimuth [deg], BRDF (N, B)
     [sr^-1], and the id of each sample's spatial block of ``block_size`` pixels (unique over the
     scenes; on a ``shared_grid`` the same in every scene, so that a block holds every view of its
-    ground). Stored values times ``reflectance_scale`` are reflectance factors."""
+    ground), or, given the scene's ``cluster_ids`` (y, x; integer-valued), each sample's id there.
+    Stored values times ``reflectance_scale`` are reflectance factors."""
     iy, ix = np.unravel_index(flat, shape)
     where = {"y": xr.DataArray(iy, dims="sample"), "x": xr.DataArray(ix, dims="sample")}
 
@@ -77,10 +80,14 @@ def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale:
 
     reflectance = pick(image.transpose("band", "y", "x")).T * reflectance_scale
     saa, vaa = pick(angle_set["saa"]), pick(angle_set["vaa"])
-    blocks_x = -(-shape[1] // block_size)
-    block = (0 if shared_grid else scene, iy // block_size, ix // block_size)
+    if cluster_ids is not None:
+        labels = cluster_ids[iy, ix].astype(np.int64)
+    else:
+        blocks_x = -(-shape[1] // block_size)
+        block = (0 if shared_grid else scene, iy // block_size, ix // block_size)
+        labels = (block[0] * 10**9 + block[1] * blocks_x + block[2]).astype(np.int64)
     return (pick(angle_set["sza"]), pick(angle_set["vza"]), relative_azimuth(saa, vaa), reflectance / math.pi,
-            (block[0] * 10**9 + block[1] * blocks_x + block[2]).astype(np.int64))
+            labels)
 
 
 def _check_bands(brdf: np.ndarray, image, class_id: int) -> None:
@@ -99,7 +106,7 @@ def _check_bands(brdf: np.ndarray, image, class_id: int) -> None:
 
 def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None, max_samples: int = 50_000,
                    seed: int = 0, reflectance_scale: float = 1.0, block_size: int = 32, levels: str = "pooled",
-                   patch_size: int = 8) -> dict[int, ClassSamples]:
+                   patch_size: int = 8, clusters=None) -> dict[int, ClassSamples]:
     """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
 
     Parameters
@@ -134,6 +141,15 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     patch_size : int, default 8
         Side [pixels] of the patches of ``levels="patch"``; it must divide ``block_size`` (a
         block holds whole patches).
+    clusters : DataArray or array (y, x), or a list of them, optional
+        Instead of square blocks, a cluster layer per scene (one for every scene, or a list in
+        the scenes' order) on its grid: integer ids of the units whose pixels share their errors
+        (a composite's day-of-year band, a flight-line or detector id), each sample's
+        ``ClassSamples.block``. An id is one cluster over all scenes (a detector's pixels in
+        every scene; number the scenes' ids apart to keep them apart). Pixels with a non-finite
+        id or the layer's rioxarray nodata are not sampled. With free levels, clusters that share
+        a group (a pixel's or patch's views) are merged into one (:func:`nested_clusters`): a
+        group's level is estimated from all its views.
 
     Returns
     -------
@@ -146,6 +162,8 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     InputError
         A band without a finite value at any sampled pixel of a class (named by number and
         wavelength): no sample would be left.
+    ParameterError
+        Cluster layers: not one per scene, not on a scene's grid, or ids that are not integers.
 
     Notes
     -----
@@ -159,10 +177,13 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
             "give one class map and one angle set per image"
         )
     maps = [_class_values(class_map) for class_map in classes]
+    cluster_ids = _cluster_ids(clusters, [m.shape for m in maps])
     valid_angles = [
         np.all([np.isfinite(np.asarray(a[name].values)) for name in ("sza", "saa", "vza", "vaa")], axis=0)
         for a in angles
     ]
+    if cluster_ids is not None:
+        valid_angles = [ok & np.isfinite(ids) for ok, ids in zip(valid_angles, cluster_ids)]
     if class_ids is None:
         class_ids = sorted({int(c) for m in maps for c in np.unique(m) if c > 0})
     shared = _shared_grid(images, maps)
@@ -181,21 +202,72 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
             chosen = _grouped_choice(groups, max_samples, rng)
         selected = [(candidates[scene][chosen[scene]], None if groups[scene] is None else groups[scene][chosen[scene]])
                     for scene in range(len(images))]
-        parts = _scene_parts(images, angles, maps, selected, reflectance_scale, block_size, shared)
-        pooled[class_id] = _class_samples(parts, images[0], class_id, levels)
+        parts = _scene_parts(images, angles, maps, selected, (reflectance_scale, block_size, shared), cluster_ids)
+        samples = _class_samples(parts, images[0], class_id, levels)
+        if cluster_ids is not None and samples.group is not None and samples.block is not None and samples.block.size:
+            samples.block = nested_clusters(samples.block, samples.group)
+        pooled[class_id] = samples
     return pooled
 
 
-def _scene_parts(images: list, angles: list, maps: list[np.ndarray], selected: list[tuple],
-                 reflectance_scale: float, block_size: int, shared: bool) -> list[tuple]:
+def _cluster_ids(clusters, shapes: list[tuple[int, ...]]) -> list[np.ndarray] | None:
+    """Each scene's cluster ids (float (y, x): NaN where none, at the layer's nodata), from one
+    layer for every scene or a list of one per scene; None without a layer. ParameterError where
+    the layers do not match the scenes or hold ids that are not integers."""
+    if clusters is None:
+        return None
+    if isinstance(clusters, xr.DataArray) and "time" in clusters.dims:  # one layer per date of a cube
+        clusters = [clusters.isel(time=index, drop=True) for index in range(clusters.sizes["time"])]
+    layers = list(clusters) if isinstance(clusters, (list, tuple)) else [clusters] * len(shapes)
+    if len(layers) != len(shapes):
+        raise ParameterError(f"{len(layers)} cluster layers for {len(shapes)} scenes: give one per scene, or one "
+                             "for every scene")
+    found = []
+    for scene, (layer, shape) in enumerate(zip(layers, shapes)):
+        nodata = layer.rio.nodata if isinstance(layer, xr.DataArray) and hasattr(layer, "rio") else None
+        ids = np.asarray(layer.values if isinstance(layer, xr.DataArray) else layer, dtype=float)
+        if ids.shape != tuple(shape):
+            raise ParameterError(f"the cluster layer of scene {scene + 1} has shape {ids.shape}, its class map "
+                                 f"{tuple(shape)}: give a layer on the scene's grid")
+        if nodata is not None:
+            ids = np.where(ids == nodata, np.nan, ids)
+        finite = ids[np.isfinite(ids)]
+        if np.any(finite != np.round(finite)):
+            raise ParameterError(f"the cluster layer of scene {scene + 1} holds ids that are not integers: give "
+                                 "integer ids (a day-of-year band, a flight-line id)")
+        found.append(ids)
+    return found
+
+
+def nested_clusters(clusters: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Cluster ids (N,) coarsened so that every group (N,; a pixel or patch whose level is free)
+    lies in one cluster: clusters that share a group are merged, transitively (the connected
+    components of the graph linking each sample's cluster to its group). Ids 0..C-1; unchanged
+    partitions where the clusters hold whole groups already (square blocks of whole patches)."""
+    _, cluster_index = np.unique(clusters, return_inverse=True)
+    _, group_index = np.unique(groups, return_inverse=True)
+    cluster_index, group_index = cluster_index.reshape(-1), group_index.reshape(-1)
+    n_clusters = int(cluster_index.max(initial=-1)) + 1
+    size = n_clusters + int(group_index.max(initial=-1)) + 1
+    links = scipy.sparse.coo_matrix((np.ones(cluster_index.size), (cluster_index, n_clusters + group_index)),
+                                    shape=(size, size))
+    _, component = scipy.sparse.csgraph.connected_components(links, directed=False)
+    return component[cluster_index].astype(np.int64)
+
+
+def _scene_parts(images: list, angles: list, maps: list[np.ndarray], selected: list[tuple], reading: tuple,
+                 cluster_ids: list[np.ndarray] | None) -> list[tuple]:
     """Each scene's part of one class's samples (:func:`_scene_samples`: angles [deg], BRDF [sr^-1],
-    block; with groups also the group and the scene of each sample) at its ``selected`` pixels
-    (flat indices into the scene's grid, and their groups or None); scenes without any are skipped."""
+    block or cluster id; with groups also the group and the scene of each sample) at its
+    ``selected`` pixels (flat indices into the scene's grid, and their groups or None); scenes
+    without any are skipped. ``reading``: the reflectance scale, block size and whether the scenes
+    share one grid."""
+    reflectance_scale, block_size, shared = reading
     parts = []
     for scene, ((flat, group), image, angle_set) in enumerate(zip(selected, images, angles)):
         if flat.size:
             values = _scene_samples(scene, image, angle_set, maps[scene].shape, flat, reflectance_scale,
-                                    block_size, shared)
+                                    block_size, shared, None if cluster_ids is None else cluster_ids[scene])
             labels = () if group is None else (group, np.full(flat.size, scene))
             parts.append((*values, *labels))
     return parts

@@ -29,6 +29,7 @@ from brdfcorr.fit.measurements import Measurements, filter_measurements, read_me
 from brdfcorr.fit.selection import ModelChoice, choose_model, fixed_for
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
 from brdfcorr.io import rasters
+from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable
@@ -177,11 +178,16 @@ class SceneFiles(SceneSources):
         Bring the class map onto the image grid (nearest neighbour) instead of refusing another grid.
     class_lookup : mapping of int to int, optional
         Class ids of the map replaced by the table's (e.g. land-cover codes to classes).
+    clusters : (path-like, int), optional
+        A raster on the image's grid and its band (from 1) of integer ids of the units whose
+        pixels share their errors (a composite's day-of-year band, a flight-line id): the fit's
+        errors are cluster-robust over these instead of square blocks (every scene needs one then).
     """
 
     name: str = ""
     align_classes: bool = False
     class_lookup: Mapping[int, int] | None = None
+    clusters: tuple[str | os.PathLike, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -287,7 +293,10 @@ def _imagery_source(scenes: Sequence[SceneFiles], choice: ClassModels) -> str:
     models = f"model {getattr(choice.model, 'name', choice.model)}" + (
         "; class models " + ", ".join(f"{key}={value}" for key, value in sorted(class_models.items()))
         if class_models else "")
-    return f"brdfcorr fit-classes {images} (classes {classes}; {models})"
+    errors = ("; errors over the clusters of " + ", ".join(f"{Path(scene.clusters[0]).name} band {scene.clusters[1]}"
+                                                          for scene in scenes if scene.clusters is not None)
+              if any(scene.clusters is not None for scene in scenes) else "")
+    return f"brdfcorr fit-classes {images} (classes {classes}; {models}{errors})"
 
 
 def fit_class_files(
@@ -345,21 +354,44 @@ def fit_class_files(
     bbl = [_bbl_ranges(scene, data) for scene, data in zip(used, opened)]
     ranges = [*sampling.bad_bands, *(run for runs, _ in bbl for run in runs)]
     sampling = replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges)))
-    result, caught_notes = _fit_pooled(opened, models, sampling, guard, _imagery_source(used, models), progress)
+    layers = _cluster_layers(used, opened, chunks)
+    result, caught_notes = _fit_pooled(opened, models, sampling, guard, _imagery_source(used, models), progress,
+                                       layers)
     notes += _bad_band_note(result, max((count for _, count in bbl), default=0))
     return ImageryFitResult(result, used, _fitted_wavelengths(opened[0].reflectance, result), left_out, caught_notes,
                             notes)
 
 
+def _cluster_layers(scenes: Sequence[SceneFiles], opened: Sequence[SceneData],
+                    chunks: int | None) -> list[xr.DataArray] | None:
+    """Each scene's cluster layer (:attr:`SceneFiles.clusters`), opened lazily and checked on its
+    image's grid; None where no scene has one. Some scenes with a layer and others without is an
+    :class:`InputError` (their errors would mix clusters and blocks)."""
+    given = [scene.clusters is not None for scene in scenes]
+    if not any(given):
+        return None
+    if not all(given):
+        missing = ", ".join(str(scene.image) for scene in scenes if scene.clusters is None)
+        raise InputError(f"a cluster layer for {sum(given)} of {len(scenes)} images ({missing} has none): give one "
+                         "per image, in the images' order")
+    layers = []
+    for scene, data in zip(scenes, opened):
+        path, band = scene.clusters  # type: ignore[misc]  # all given (checked above)
+        layer = rasters.open_clusters(path, chunks=chunks, band=band)
+        check_same_grid({f"{scene.image}": data.reflectance, f"cluster layer {path}": layer})
+        layers.append(layer)
+    return layers
+
+
 def _fit_pooled(opened: Sequence[SceneData], models: ClassModels, sampling: Sampling, guard: GuardRails, source: str,
-                progress) -> tuple[ClassFitResult, list[str]]:
-    """:func:`brdfcorr.fit.fit_classes` of the opened scenes' pixels, and its warnings
-    (:class:`ClassFitWarning`) as notes."""
+                progress, clusters: list[xr.DataArray] | None = None) -> tuple[ClassFitResult, list[str]]:
+    """:func:`brdfcorr.fit.fit_classes` of the opened scenes' pixels (errors over the ``clusters``
+    layers, if any), and its warnings (:class:`ClassFitWarning`) as notes."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ClassFitWarning)
         result = fit_classes([s.reflectance for s in opened], [s.classes for s in opened],
                              [xr.Dataset(s.angles) for s in opened], models, sampling=sampling, guard=guard,
-                             source=source, progress=progress)
+                             source=source, progress=progress, clusters=clusters)
     return result, [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
 
 

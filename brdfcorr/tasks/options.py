@@ -363,6 +363,12 @@ FIT_CLASSES = settings(
                  "whose neighbours were seen from other orbits); pooled: one level per class."),
     Setting("patch_size", ("--patch-size",), "int", ge=1, default=8, show_default=True, chain="fit",
             help="Side [pixels] of the patches of --levels patch (a divisor of --block-size)."),
+    Setting("cluster_layers", ("--clusters",), "path", multiple=True,
+            help="Per image, in the images' order: a raster on its grid of integer ids of the units whose pixels "
+                 "share their errors (a composite's day-of-year band, a flight-line id); the fit's errors are "
+                 "cluster-robust over these instead of --block-size squares (an id is one cluster in every image)."),
+    Setting("cluster_band", ("--cluster-band",), "int", ge=1, default=1, show_default=True,
+            help=_CLUSTER_BAND.format("each --clusters raster")),
     SCALE,
     Setting("min_samples", ("--min-samples",), "int", default=500, show_default=True,
             help="Guard rail: minimum samples per class.").chained("fit", ge=1),
@@ -390,7 +396,7 @@ FIT_CLASSES = settings(
 )
 
 #: ``brdfcorr assess`` (:func:`brdfcorr.tasks.assess.assess_files`); the chain's assess step takes
-#: ``sign_by``, ``heading``, ``bin_width``, ``min_vza`` and ``block_size`` from here.
+#: ``sign_by``, ``heading``, ``bin_width``, ``min_vza``, ``block_size`` and ``cluster_band`` from here.
 ASSESS = settings(
     Setting("classes", ("--classes",), "path", required=True,
             help="Class map raster of BEFORE (ids > 0; 0 = no class)."),
@@ -417,7 +423,7 @@ ASSESS = settings(
           "composite's day-of-year band, a flight-line id): the slopes' 1-sigma is cluster-robust over "
           "these instead of square blocks."),
     Setting("cluster_band", ("--cluster-band",), "int", ge=1, default=1, show_default=True,
-            help=_CLUSTER_BAND.format("--clusters")),
+            help=_CLUSTER_BAND.format("--clusters"), chain="assess"),
     Setting("resampling", ("--resampling",), "text", default="nearest", show_default=True,
             help="Resampling of the other line onto this line's grid (rasterio name)."),
     Setting("output", ("-o", "--output"), "path", required=True, help="JSON report to write."),

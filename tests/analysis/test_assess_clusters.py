@@ -4,12 +4,15 @@ square patches (the days of a composite) or by strips along the view angle."""
 
 from __future__ import annotations
 
+import warnings
+
 import dask.array as da
 import numpy as np
 import pytest
 
 from brdfcorr.analysis.assess import ViewAngleOptions, assess_view_angles, signed_view_zenith, view_angle_report
 from brdfcorr.analysis.view_angles import GROWTH_LIMIT, error_growth_warning
+from brdfcorr.analysis.view_stripes import STRIPE_LIMIT, stripe_warning
 from brdfcorr.errors import BrdfcorrWarning
 from brdfcorr.testing import synthetic_angles
 from brdfcorr.testing.noise import patch_noise, strip_noise
@@ -112,3 +115,73 @@ def test_independent_errors_do_not_warn(geometry):
     result = _assess(values, geometry, block_size=8)
     assert abs(result["error_growth"].values[1, 0, 0] - 1) < 0.15
     assert error_growth_warning(result) is None
+
+
+# --------------------------------------------------------------- errors shared along the track
+def _stripe_ratio_by_hand(theta, values, width):
+    """The 1-sigma over bins of ``width`` deg of signed view zenith (edges at multiples of it),
+    each bin's mean residual of the least-squares line less a weighted cubic over the bins, over
+    the CR1 1-sigma over square blocks of 8 (:func:`_cr1`): pixel by pixel, numpy's polyfit."""
+    x = theta - theta.mean()
+    slope = (x * values).sum() / (x * x).sum()
+    residuals = values - values.mean() - slope * x
+    bins = np.floor(theta / width).astype(int)
+    labels = np.unique(bins)
+    n = np.array([np.sum(bins == b) for b in labels], float)
+    centre = np.array([theta[bins == b].mean() for b in labels])
+    mean_residual = np.array([residuals[bins == b].mean() for b in labels])
+    # np.polyfit's w multiplies the residuals: sqrt(n) gives a fit weighted by the pixels.
+    trend = np.polyval(np.polyfit(centre, mean_residual, 3, w=np.sqrt(n)), centre)
+    scores = n * (centre - theta.mean()) * (mean_residual - trend)
+    sigma = np.sqrt(labels.size / (labels.size - 4) * (scores**2).sum()) / (x * x).sum()
+    rows, cols = np.indices(SHAPE)
+    return sigma / _cr1(theta, values, ((rows // 8) * 16 + cols // 8).ravel())
+
+
+def test_the_stripe_ratio_is_the_bins_one_over_the_blocks(geometry):
+    rng = np.random.default_rng(21)
+    noise, _ = strip_noise(SHAPE, 2, 0.02, rng)
+    values = 0.3 + noise + rng.normal(0, 0.01, SHAPE)
+    theta = signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"])
+    with pytest.warns(BrdfcorrWarning):
+        result = _assess(values, geometry, block_size=8)
+    expected = _stripe_ratio_by_hand(theta.ravel(), values.ravel(), 2.0)
+    np.testing.assert_allclose(result["stripe_ratio"].values[:, 0, 0], expected, rtol=1e-6)
+
+
+def test_stripes_warn_and_their_ids_silence_the_warning(geometry):
+    # Detector stripes of 2 columns: the 1-sigma over bins of view zenith is 2.79-5.59x the blocks'
+    # (5th-95th percentile over 300 scenes, benchmarks/bench_assess_coverage.py), so the warning names the fix; with the stripe ids as
+    # clusters the reported 1-sigma holds them and the ratio is about 1.
+    rng = np.random.default_rng(7)
+    noise, stripes = strip_noise(SHAPE, 2, 0.02, rng)
+    values = 0.3 + noise + rng.normal(0, 0.01, SHAPE)
+    with pytest.warns(BrdfcorrWarning, match=r"over bins of view zenith is .*x the one over square blocks of 8 pixels.*"
+                                             r"give their ids as --clusters \(the detector ids"):
+        blocks = _assess(values, geometry, block_size=8)
+    assert blocks["stripe_ratio"].values[1, 0, 0] > STRIPE_LIMIT
+    by_stripe = _assess(values, geometry, clusters=stripes, block_size=8)
+    assert stripe_warning(by_stripe) is None and 0.5 < by_stripe["stripe_ratio"].values[1, 0, 0] < 1.5
+    report = view_angle_report(blocks)
+    assert report["errors"]["stripes"] == stripe_warning(blocks)
+    assert report["classes"][0]["stripe_ratio"] == pytest.approx(float(blocks["stripe_ratio"].values[1, 0, 0]))
+
+
+def test_a_curved_profile_and_patches_are_not_stripes(geometry):
+    # White noise on a strongly curved profile (a straight line leaves a U in the residuals, 30
+    # times the noise at the edges): the cubic over the bins takes it out, no stripe warning.
+    # Patch-shared errors
+    # (a composite's days) neither: their bins share them with each other.
+    rng = np.random.default_rng(3)
+    theta = signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"])
+    curved = 0.3 + 0.3 * (theta / 30.0) ** 2 + 0.1 * (theta / 30.0) ** 3 + rng.normal(0, 0.01, SHAPE)
+    with warnings.catch_warnings(record=True) as caught:  # the block growth warns here (the U is smooth in space)
+        warnings.simplefilter("always", BrdfcorrWarning)
+        result = _assess(curved, geometry, block_size=8)
+    assert not any("bins of view zenith" in str(w.message) for w in caught)
+    assert result["stripe_ratio"].values[1, 0, 0] < 1.5
+    patches, _ = patch_noise(SHAPE, 16, 0.02, rng)
+    with pytest.warns(BrdfcorrWarning, match="grows") as caught:
+        result = _assess(0.3 + patches + rng.normal(0, 0.01, SHAPE), geometry, block_size=8)
+    assert not any("bins of view zenith" in str(w.message) for w in caught)
+    assert stripe_warning(result) is None
