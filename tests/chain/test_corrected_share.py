@@ -64,10 +64,10 @@ def test_the_key_says_a_small_share_is_expected(landcover):
 
 
 def test_with_the_lookup_the_scene_is_corrected_and_ok(landcover):
-    chain = _chain(landcover, "lookup", {}, class_lookup=yaml.safe_load((landcover / "lookup.yaml").read_text()))
+    chain = _chain(landcover, "withlookup", {}, class_lookup=yaml.safe_load((landcover / "lookup.yaml").read_text()))
     result = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
     assert result.exit_code == 0, result.output
-    report = json.loads((landcover / "out_lookup" / "run_report.json").read_text())
+    report = json.loads((landcover / "out_withlookup" / "run_report.json").read_text())
     qa = report["scenes"][0]["qa"]
     assert qa["corrected"] >= 0.5 * (qa["corrected"] + qa["no_class"] + qa["unknown_class"])
 

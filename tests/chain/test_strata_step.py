@@ -85,12 +85,34 @@ def by_hand(demo) -> dict[str, Path]:
 
 
 @pytest.fixture(scope="module")
-def chained(demo) -> Path:
+def console(demo) -> str:
+    """The console of the chain's run."""
     root, _ = demo
-    result = _run("run", _chain(root, "strata"), "--no-progress")
+    result = _run("run", _chain(root, "strata", **{"steps.assess": {}}), "--no-progress")
     assert result.exit_code == 0, result.output
     assert "1 ok, 0 skipped, 0 failed" in result.stdout
-    return root / "out_strata"
+    return result.stdout
+
+
+@pytest.fixture(scope="module")
+def chained(demo, console) -> Path:
+    return demo[0] / "out_strata"
+
+
+def test_the_console_has_a_fit_line_and_an_assessment_line_per_class(chained, console):
+    report = json.loads((chained / "run_report.json").read_text())
+    lines = console.splitlines()
+    fit = lines[lines.index("fit:") + 3:]
+    for entry in report["fit"]["classes"]:  # 1 uncorrected (its reason), 2 and 3 fitted
+        row = fit[entry["class_id"] - 1].split()
+        assert row[:5] == [str(entry["class_id"]), entry["name"], entry["model"], entry["status"],
+                           str(entry["n_samples"])], row
+    heading = "assessment (median |relative slope| over bands, %/10 deg):"
+    assessed = lines[lines.index(heading) + 3:]
+    for number, entry in enumerate(report["scenes"][0]["assess"]):
+        slopes = entry["median_abs_relative_slope_percent_per_10deg"]
+        assert assessed[number].split() == ["line01", str(entry["id"]), f"({entry['name']})", str(entry["pixels"]),
+                                            f"{slopes['before']:.3g}", f"{slopes['after']:.3g}"]
 
 
 def test_the_chain_derives_the_class_map_of_classes_ndvi(chained, by_hand):
