@@ -175,3 +175,28 @@ def test_bad_strata_keys_are_refused_in_one_line(demo, changes, strata, expected
     assert result.exit_code == 2, result.output
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and expected in lines[0], result.stderr
+
+
+def test_a_scene_whose_strata_cannot_be_made_fails_alone(demo, tmp_path):
+    # line02: the demo line's blue-green bands only (no red, no NIR): no NDVI, no strata.
+    root, scene = demo
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    for role in ("image", "angles"):
+        (scenes / f"line01_{role}.tif").symlink_to(scene[role])
+    (scenes / "line02_angles.tif").symlink_to(scene["angles"])
+    with rasterio.open(scene["image"]) as source:
+        profile = {**source.profile, "count": 3}
+        with rasterio.open(scenes / "line02_image.tif", "w", **profile) as target:
+            target.write(source.read([1, 2, 3]))
+            for band in (1, 2, 3):
+                target.set_band_description(band, source.descriptions[band - 1])
+    result = _run("run", _chain(tmp_path, "two"), "--no-progress")
+    assert result.exit_code == 3, result.output
+    assert "1 ok, 0 skipped, 1 failed" in result.stdout
+    report = json.loads((tmp_path / "out_two" / "run_report.json").read_text())
+    line01, line02 = report["scenes"]
+    assert line01["status"] == "ok" and line02["status"] == "failed"
+    assert line02["error"].startswith("steps.strata: ") and "red" in line02["error"], line02["error"]
+    assert not (tmp_path / "out_two" / "line02_strata.tif").exists()
+    assert report["fit"]["scenes_left_out"][0]["scene"] == "line02"  # the fit pooled line01 alone
