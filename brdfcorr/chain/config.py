@@ -51,6 +51,7 @@ from brdfcorr.chain.config_steps import (
     MeasurementSet,
     QuicklookStep,
     StepsConfig,
+    StrataStep,
     TerrainStep,
 )
 from brdfcorr.chain.config_steps import SurfaceModel as SurfaceModel
@@ -72,6 +73,7 @@ __all__ = [
     "TerrainStep",
     "QuicklookStep",
     "AssessStep",
+    "StrataStep",
     "StepsConfig",
     "OutputsConfig",
     "EngineConfig",
@@ -124,9 +126,24 @@ class ChainConfig(StrictModel):
         if has_terrain and (correct is None or correct.terrain is None):
             raise ValueError("inputs.slope_aspect and inputs.dem are read by steps.correct.terrain: set it "
                              "(e.g. terrain: {}) or leave the terrain inputs out")
+        self._check_class_maps()
         if self.outputs.uncertainty and correct is None:
             raise ValueError("outputs.uncertainty is written by the correct step: it needs steps.correct")
         return self
+
+    def _check_class_maps(self) -> None:
+        """One source of the class maps: ``inputs.classes``, or ``steps.strata`` deriving them."""
+        inputs, strata = self.inputs, self.steps.strata
+        if strata is None and inputs.classes is None:
+            raise ValueError("inputs.classes is missing: give the class maps' name pattern, or set steps.strata "
+                             "to derive NDVI strata of each image")
+        if strata is not None:
+            given = [f"inputs.{key}" for key, unset in (("classes", inputs.classes is None),
+                                                        ("align_classes", not inputs.align_classes),
+                                                        ("class_lookup", not inputs.class_lookup)) if not unset]
+            if given:
+                raise ValueError(f"steps.strata derives each scene's class map: leave out {', '.join(given)} "
+                                 "(or steps.strata, to use the given maps)")
 
     @property
     def base_dir(self) -> Path:

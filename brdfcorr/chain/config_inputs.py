@@ -70,8 +70,9 @@ class InputsConfig(StrictModel):
         scene name used in patterns (default: the file stem).
     angles : AngleSource
         Per-scene angle source.
-    classes : str
-        Name pattern of the per-scene class map raster.
+    classes : str, optional
+        Name pattern of the per-scene class map raster; left out when ``steps.strata`` derives the
+        class maps (NDVI strata of each image).
     align_classes : bool
         The class maps may lie on another grid or CRS (a land-cover product): resample them onto
         each image's grid by nearest neighbour (recorded in the outputs' tags). Default False: a
@@ -94,7 +95,7 @@ class InputsConfig(StrictModel):
     images: list[str] = Field(min_length=1)
     scene_regex: str | None = None
     angles: AngleSource
-    classes: str = Field(min_length=1)
+    classes: str | None = Field(None, min_length=1)
     align_classes: bool = False
     class_lookup: dict[Integer, Annotated[Integer, Field(ge=0, le=65535)]] = Field(default_factory=dict)
     slope_aspect: str | None = Field(None, min_length=1)
@@ -125,8 +126,8 @@ class InputsConfig(StrictModel):
 
     @field_validator("classes")
     @classmethod
-    def _pattern(cls, value: str) -> str:
-        return check_pattern(value)
+    def _pattern(cls, value: str | None) -> str | None:
+        return value if value is None else check_pattern(value)
 
     @field_validator("slope_aspect", "dem")
     @classmethod

@@ -31,9 +31,10 @@ class OutputsConfig(StrictModel):
     ----------
     directory : str
         Output directory (created).
-    naming, qa_naming, uncertainty_naming, quicklook_naming : str
+    naming, qa_naming, uncertainty_naming, quicklook_naming, strata_naming : str
         Patterns with ``{scene}``, ``{stem}``, ``{parent}`` for the corrected raster, the QA GeoTIFF,
-        the uncertainty GeoTIFF and the quicklook PNG. ``naming``'s extension must fit ``format``
+        the uncertainty GeoTIFF, the quicklook PNG and the NDVI strata class map of ``steps.strata``
+        (GeoTIFF). ``naming``'s extension must fit ``format``
         (:func:`brdfcorr.io.writer.check_format`); its default is ``{scene}_brdf.tif`` for GTiff and
         ``{scene}_brdf.img`` for ENVI.
     uncertainty : bool
@@ -61,6 +62,7 @@ class OutputsConfig(StrictModel):
     qa_naming: str = "{scene}_qa.tif"
     uncertainty_naming: str = "{scene}_uncertainty.tif"
     quicklook_naming: str = "{scene}_quicklook.png"
+    strata_naming: str = "{scene}_strata.tif"
     uncertainty: bool = False
     format: Literal["GTiff", "ENVI"] = "GTiff"
     interleave: Literal["bsq", "bil"] | None = None
@@ -69,7 +71,7 @@ class OutputsConfig(StrictModel):
     existing: Literal["error", "skip", "overwrite"] = "skip"
     report: str = "run_report.json"
 
-    @field_validator("naming", "qa_naming", "uncertainty_naming", "quicklook_naming")
+    @field_validator("naming", "qa_naming", "uncertainty_naming", "quicklook_naming", "strata_naming")
     @classmethod
     def _names(cls, value: str) -> str:
         check_pattern(value, ("parent", "stem", "scene"))
@@ -90,7 +92,8 @@ class OutputsConfig(StrictModel):
     @model_validator(mode="after")
     def _format(self) -> OutputsConfig:
         for key, name, driver in (("naming", self.naming, self.format), ("qa_naming", self.qa_naming, "GTiff"),
-                                  ("uncertainty_naming", self.uncertainty_naming, "GTiff")):
+                                  ("uncertainty_naming", self.uncertainty_naming, "GTiff"),
+                                  ("strata_naming", self.strata_naming, "GTiff")):
             try:
                 check_format(name, driver, f"outputs.{key}")
             except InputError as error:

@@ -1,6 +1,6 @@
-"""The ``steps:`` section of a chain config: fit, correct (with terrain), assess and quicklook.
+"""The ``steps:`` section of a chain config: strata, fit, correct (with terrain), assess and quicklook.
 
-:class:`StepsConfig` holds one optional model per step: :class:`ImageryFit` or
+:class:`StepsConfig` holds one optional model per step: :class:`StrataStep`, :class:`ImageryFit` or
 :class:`GoniometerFit` (with its :class:`MeasurementSet` tables), :class:`CorrectStep` (with
 :class:`TerrainStep`), :class:`AssessStep` and :class:`QuicklookStep`. Pydantic models, validated as
 part of :class:`brdfcorr.chain.config.ChainConfig`; import them from
@@ -29,9 +29,12 @@ from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.coefficients import load_coefficients
+from brdfcorr.strata import DEFAULT_EDGES
+from brdfcorr.tasks.correct import MOSTLY_UNCORRECTED
 from brdfcorr.tasks.options import ASSESS, CORRECT, FIT_CLASSES, Setting, Settings
 
 __all__ = [
+    "StrataStep",
     "MeasurementSet",
     "GoniometerFit",
     "ImageryFit",
@@ -66,6 +69,62 @@ def step_fields(table: Settings, step: str) -> type[StrictModel]:
                              Field(setting.default, **{**setting.bounds(), **dict(setting.chain_bounds)}))
               for setting in table if setting.chain == step}
     return create_model(f"{step.title()}Keys", __base__=StrictModel, __module__=__name__, **fields)
+
+
+class StrataStep(StrictModel):
+    """The class map of every scene derived from its own image: NDVI strata (``brdfcorr classes
+    ndvi``, :func:`brdfcorr.tasks.classmaps.ndvi_class_file`), written to ``outputs.strata_naming``
+    before the fit, and the class map the fit, correct, assess and quicklook steps use (in place of
+    ``inputs.classes``).
+
+    Attributes
+    ----------
+    edges : list of float, optional
+        Fixed NDVI edges [1], strictly increasing: n edges give strata 1..n+1, the same in every
+        scene (``--edges``). Default :data:`brdfcorr.strata.DEFAULT_EDGES` (0.1, 0.3, 0.5, 0.7)
+        unless ``percentiles`` is given.
+    percentiles : list of float, optional
+        Each scene's NDVI percentiles [%] as its edges instead (``--percentiles``): strata of about
+        equal size, whose edges differ from scene to scene.
+    water_id, shadow_id : int
+        Class of water and of shadow pixels (``--water-id``, ``--shadow-id``): 0 (no class,
+        left uncorrected; default) or an id above the strata.
+    ndvi_interpolation : bool, default False
+        Give the run's table an ``ndvi_interpolation:`` block over the strata in the table
+        (:class:`brdfcorr.params.NdviInterpolation`): a stratum's pixel gets the coefficients
+        interpolated in its own NDVI between the strata's centres (their mean NDVI in the scene
+        corrected), FlexBRDF's continuous correction (``docs/classmaps.md``).
+    """
+
+    edges: list[Number] | None = Field(None, min_length=1)
+    percentiles: list[Annotated[Number, Field(gt=0, lt=100)]] | None = Field(None, min_length=1)
+    water_id: Integer = Field(0, ge=0, le=255)
+    shadow_id: Integer = Field(0, ge=0, le=255)
+    ndvi_interpolation: bool = False
+
+    @field_validator("edges", "percentiles")
+    @classmethod
+    def _increasing(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and not all(math.isfinite(b) and a < b for a, b in zip(value, value[1:])):
+            raise ValueError(f"{list(value)} must be finite and strictly increasing")
+        return value
+
+    @model_validator(mode="after")
+    def _ids(self) -> StrataStep:
+        if self.edges is not None and self.percentiles is not None:
+            raise ValueError("give edges or percentiles, not both")
+        strata = self.strata_ids()
+        for key, value in (("water_id", self.water_id), ("shadow_id", self.shadow_id)):
+            if value in strata:
+                raise ValueError(f"{key} {value} is the id of a stratum (1 to {strata[-1]}): give 0 or an id above")
+        if self.water_id and self.water_id == self.shadow_id:
+            raise ValueError(f"water_id and shadow_id are both {self.water_id}; give different ids or 0")
+        return self
+
+    def strata_ids(self) -> list[int]:
+        """The class ids of the NDVI strata, in increasing NDVI: 1 to the number of edges + 1."""
+        cuts = self.percentiles if self.percentiles is not None else self.edges or DEFAULT_EDGES
+        return list(range(1, len(cuts) + 2))
 
 
 class MeasurementSet(StrictModel):
@@ -268,6 +327,12 @@ class CorrectStep(step_fields(CORRECT, "correct")):  # type: ignore[misc]
         terrain or uncertainty; :mod:`brdfcorr.correction.nodes`).
     qa : bool
         Also write the QA flag raster.
+    min_corrected_share : float
+        Least share [0-1] of a scene's valid pixels the correction must touch (QA ``corrected``
+        over the pixels with data): a scene under it is a failed scene (``brdfcorr run`` exits with
+        3, naming the share and this key). Default 0.5, where ``brdfcorr correct`` warns
+        (:data:`brdfcorr.tasks.correct.MOSTLY_UNCORRECTED`); 0 where few corrected pixels are
+        expected (a class map covering part of the scene).
     terrain : TerrainStep, optional
         Correct tilted surfaces (needs ``inputs.slope_aspect`` or ``inputs.dem``); null: a flat
         surface.
@@ -275,6 +340,7 @@ class CorrectStep(step_fields(CORRECT, "correct")):  # type: ignore[misc]
 
     limits: tuple[Annotated[Number, Field(gt=0)], Annotated[Number, Field(gt=0)]] | None = CORRECT.default("limits")
     qa: bool = True
+    min_corrected_share: Number = Field(MOSTLY_UNCORRECTED, ge=0, le=1)
     terrain: TerrainStep | None = None
 
     @field_validator("limits")
@@ -364,9 +430,10 @@ class QuicklookStep(StrictModel):
 
 
 class StepsConfig(StrictModel):
-    """The steps, always run in the order fit -> correct -> assess -> quicklook; leave one out (or
-    null) to skip it. ``correct`` is on by default."""
+    """The steps, always run in the order strata -> fit -> correct -> assess -> quicklook; leave one
+    out (or null) to skip it. ``correct`` is on by default."""
 
+    strata: StrataStep | None = None
     fit: Annotated[Union[ImageryFit, GoniometerFit], Field(discriminator="source")] | None = None
     correct: CorrectStep | None = Field(default_factory=CorrectStep)
     assess: AssessStep | None = None

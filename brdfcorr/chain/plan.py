@@ -74,7 +74,8 @@ class RunPlan:
     @property
     def steps(self) -> list[str]:
         steps = self.config.steps
-        return [name for name in ("fit", "correct", "assess", "quicklook") if getattr(steps, name) is not None]
+        names = ("strata", "fit", "correct", "assess", "quicklook")
+        return [name for name in names if getattr(steps, name) is not None]
 
     def files_written(self) -> list[Path]:
         """Every file the run may write: the scenes' outputs, the run report, the fitted table."""

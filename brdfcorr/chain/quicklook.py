@@ -4,9 +4,12 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+import numpy as np
+
+from brdfcorr.io import rasters
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.overview import raster_summary, read_small
 from brdfcorr.io.wavelengths import file_wavelengths
@@ -19,7 +22,7 @@ __all__ = ["write_quicklook"]
 def write_quicklook(image: str | os.PathLike, corrected: str | os.PathLike, target: str | os.PathLike, *,
                     classes: str | os.PathLike | None = None, bands: Sequence[int] | None = None,
                     percentiles=(1.0, 99.9), max_size: int = 800, title: str = "",
-                    class_names: Mapping[int, str] | None = None) -> Path:
+                    class_names: Mapping[int, str] | None = None, prepare_classes: Callable | None = None) -> Path:
     """Write the before/after PNG of :func:`~brdfcorr.plot.quicklook.quicklook_figure`.
 
     Parameters
@@ -40,13 +43,21 @@ def write_quicklook(image: str | os.PathLike, corrected: str | os.PathLike, targ
         Longest side of the panels [pixels].
     title : str
         Prefix of the panel titles.
+    class_names : mapping of int to str, optional
+        Names of the classes in the legend (the parameter table's).
+    prepare_classes : callable, optional
+        ``prepare_classes(classes, image)`` -> the class map on the image grid, as the correct step
+        prepared it (:func:`brdfcorr.tasks.classmaps.class_preparation`: an aligned land-cover
+        map, its codes remapped): the profiles are those of its classes, not of the file's codes
+        on its own grid.
     """
     count, transform, tags = raster_summary(corrected)
     wavelengths = file_wavelengths(corrected)
     bands = list(bands) if bands else true_colour_bands(wavelengths, count)
     before = read_small(image, bands, max_size)
     after = read_small(corrected, bands, max_size)
-    class_map = None if classes is None else read_small(classes, [1], max_size, average=False)[0]
+    class_map = None if classes is None else _small_class_map(image, classes, before.shape[1:], max_size,
+                                                               prepare_classes)
     figure = quicklook_figure(before, after, class_map=class_map, band_label=band_label(bands, wavelengths),
                               percentiles=percentiles, title=title, class_names=class_names,
                               north_up=is_north_up(transform), sun_azimuth=scene_sun_azimuth(tags))
@@ -54,3 +65,18 @@ def write_quicklook(image: str | os.PathLike, corrected: str | os.PathLike, targ
     with atomic_path(target) as temporary:
         figure.savefig(temporary, dpi=90, format="png")
     return target
+
+
+def _small_class_map(image, classes, shape: tuple[int, int], max_size: int,
+                     prepare: Callable | None) -> np.ndarray:
+    """The class map decimated to ``shape`` (the panels'), nearest neighbour: the file's own
+    (:func:`brdfcorr.io.overview.read_small`), or ``prepare(classes, image)`` sampled at the
+    centres of the panels' pixels (an aligned map is computed there only, chunk by chunk)."""
+    if prepare is None:
+        return read_small(classes, [1], max_size, average=False)[0]
+    reflectance = rasters.open_image(image)
+    prepared = prepare(rasters.open_classes(classes, chunks=rasters.auto_chunk(image)), reflectance)
+    rows, columns = (((np.arange(n) + 0.5) * size / n).astype(int)
+                     for n, size in zip(shape, (prepared.sizes["y"], prepared.sizes["x"])))
+    small = prepared.isel(y=rows, x=columns).values.astype(np.float64)
+    return np.where(small > 0, small, np.nan)  # 0: no class

@@ -25,7 +25,7 @@ from brdfcorr.errors import BrdfcorrError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.params import ParameterTable
 
-__all__ = ["RunReport", "scene_result", "assessment_summary", "earlier_findings", "versions"]
+__all__ = ["RunReport", "scene_result", "failed_for_share", "assessment_summary", "earlier_findings", "versions"]
 
 #: What a scene's result keeps of its correction and assessment (and a resumed run copies from the
 #: report of the run that wrote the outputs).
@@ -98,6 +98,23 @@ def failed_for_uncorrected(result: dict, classes: list[str]) -> dict:
             "error": f"{result['qa']['unknown_class']} pixels of classes the fit left uncorrected: "
                      f"class {'; class '.join(classes)} (set steps.fit.allow_uncorrected: true if that is expected, "
                      "or steps.fit.fallback)"}
+
+
+def failed_for_share(result: dict, min_share: float) -> dict:
+    """A scene result that is ``failed`` where the correction touched less than ``min_share`` of the
+    scene's valid pixels (QA counts: ``corrected`` over ``corrected + no_class + unknown_class``;
+    nodata is not counted): a class map that does not match the table (an aligned land-cover map
+    without a lookup corrects nothing) did not do what the run was asked, unless the chain says so
+    (``steps.correct.min_corrected_share``, 0 for none)."""
+    qa = result.get("qa") or {}
+    valid = sum(int(qa.get(key, 0)) for key in ("corrected", "no_class", "unknown_class"))
+    if result.get("status") != "ok" or not valid or qa["corrected"] >= min_share * valid:
+        return result
+    return {**result, "status": "failed", "error_type": "TooFewCorrected",
+            "error": f"only {100 * qa['corrected'] / valid:.1f} % of the {valid} valid pixels were corrected "
+                     f"({qa.get('no_class', 0)} have no class, {qa.get('unknown_class', 0)} a class the table does "
+                     f"not have), under steps.correct.min_corrected_share {min_share:g}; check the class map "
+                     "against the table's class ids, or lower the key (0: any share) if that is expected"}
 
 
 def assessment_summary(report: Mapping) -> list[dict]:

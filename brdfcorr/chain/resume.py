@@ -24,11 +24,13 @@ import rasterio.errors
 from brdfcorr import __version__
 from brdfcorr.chain.config import ChainConfig
 from brdfcorr.chain.scenes import Scene
+from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.io.commit import check_complete
 from brdfcorr.io.files import content_digest
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 
-__all__ = ["configured_table", "reuses_fit", "planned_table", "redo_stale", "scene_fingerprint"]
+__all__ = ["configured_table", "with_strata_interpolation", "reuses_fit", "planned_table", "redo_stale",
+           "scene_fingerprint"]
 
 
 # ------------------------------------------------------------------------------------ parameters
@@ -44,6 +46,31 @@ def configured_table(config: ChainConfig) -> ParameterTable:
     return merge_tables(tables)
 
 
+def with_strata_interpolation(table: ParameterTable, config: ChainConfig) -> ParameterTable:
+    """``table`` with the ``ndvi_interpolation:`` block of ``steps.strata.ndvi_interpolation`` over
+    the strata it holds, in increasing NDVI (a stratum the fit left out is not in it); ``table``
+    itself without that key.
+
+    Raises
+    ------
+    InputError
+        Fewer than two strata in the table, or strata whose models cannot be interpolated
+        (:meth:`brdfcorr.params.NdviInterpolation.check_classes`).
+    """
+    step = config.steps.strata
+    if step is None or not step.ndvi_interpolation:
+        return table
+    strata = [class_id for class_id in step.strata_ids() if class_id in table]
+    key = "steps.strata.ndvi_interpolation"
+    if len(strata) < 2:
+        raise InputError(f"{key}: it needs two strata in the parameter table, which has "
+                         f"{len(strata)} of the strata {', '.join(map(str, step.strata_ids()))}")
+    try:
+        return table.with_ndvi_interpolation({"classes": strata})
+    except ParameterError as error:
+        raise InputError(f"{key}: {error}") from None
+
+
 def reuses_fit(config: ChainConfig, fit_output: Path | None) -> bool:
     """Whether the run reuses the fitted table of an earlier run (resume) instead of fitting."""
     return fit_output is not None and config.outputs.existing == "skip" and fit_output.exists()
@@ -53,10 +80,11 @@ def planned_table(config: ChainConfig, fit_output: Path | None) -> ParameterTabl
     """The parameter table the run will use, as known before it runs: the configured table and a
     reused fitted table; None when the fit step makes a new table."""
     if config.steps.fit is None:
-        return configured_table(config)
+        return with_strata_interpolation(configured_table(config), config)
     if not reuses_fit(config, fit_output):
         return None
-    return merge_tables([configured_table(config), ParameterTable.load(fit_output)])
+    return with_strata_interpolation(merge_tables([configured_table(config), ParameterTable.load(fit_output)]),
+                                     config)
 
 
 # ----------------------------------------------------------------------------------------- resume
@@ -98,7 +126,7 @@ def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
 
 
 #: The outputs of a scene that are rasters (checked as a fresh write is before a resume skips them).
-_RASTERS = ("corrected", "qa", "uncertainty")
+_RASTERS = ("corrected", "qa", "uncertainty", "strata")
 
 
 def _damaged(scene: Scene) -> str | None:
@@ -138,14 +166,17 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     kind and options, the other ``inputs`` settings (wavelengths, class lookup, ...), the reference
     geometry, the correct step's options (limits, terrain, ...; not ``qa``: the QA and uncertainty
     rasters are extra outputs of the same pass, their presence is checked as a file's), the output
-    format (compression, COG, ENVI interleave) and the brdfcorr version. The parameter table is recorded in
+    format (compression, COG, ENVI interleave), the ``steps.strata`` settings where that step derives
+    the class map (then no input) and the brdfcorr version. The parameter table is recorded in
     full apart from it (tag ``brdf_parameter_table_content``, :func:`planned_table`): a table from
     the fit step is only known once the run has fitted it.
     """
     inputs = {role: _file_state(path) for role, path in scene.inputs()}
     if scene.angles_kind == "solar":
         inputs["angles"] = {"time": scene.angles}
-    correct = None if config.steps.correct is None else config.steps.correct.model_dump(mode="json", exclude={"qa"})
+    # Not qa and min_corrected_share: an extra output, and a check of the counts after the write.
+    correct = None if config.steps.correct is None else config.steps.correct.model_dump(
+        mode="json", exclude={"qa", "min_corrected_share"})
     if correct is not None:  # the defaults of later options are not recorded: older outputs stay current
         if correct["terrain"] is None:  # a flat correction records what it did before terrain
             del correct["terrain"]
@@ -162,6 +193,8 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
         "format": config.outputs.model_dump(mode="json", include={"format", "compress", "cog", "interleave"},
                                             exclude_none=True),
     }
+    if config.steps.strata is not None:  # the derived class map's settings (its file is an output)
+        document["strata"] = config.steps.strata.model_dump(mode="json")
     return json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
 
 
@@ -179,7 +212,8 @@ def _file_state(path: Path) -> dict:
 
 #: How a reason names a part of a fingerprint.
 _PARTS = {"brdfcorr": "brdfcorr version", "angle source": "angle source", "settings": "inputs settings",
-          "reference": "reference geometry", "correct": "steps.correct", "format": "output format"}
+          "reference": "reference geometry", "correct": "steps.correct", "format": "output format",
+          "strata": "steps.strata"}
 
 
 def _what_changed(tags: dict, fingerprint: str) -> str:

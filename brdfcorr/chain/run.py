@@ -4,10 +4,13 @@
 into scenes and decides what happens to each (``run``, ``skip``, ``fail``; :mod:`.plan`).
 :func:`run_chain` follows that plan:
 
+0. derives the class map of every scene to run where ``steps.strata`` says so: NDVI strata of its
+   image (:func:`brdfcorr.tasks.classmaps.ndvi_class_file`), the class map of the steps below; a
+   scene whose map cannot be made fails;
 1. builds the parameter table: built-in materials, the table file, the ``fit`` step (from
    goniometer CSVs with :func:`brdfcorr.tasks.fit.fit_measurement_file` or from the imagery
    with :func:`brdfcorr.tasks.fit.fit_class_files`), merged in that order (later wins for a
-   class id);
+   class id), with the strata's ``ndvi_interpolation`` block where the strata step asks for it;
 2. normalizes every scene to run with :func:`brdfcorr.tasks.correct.correct_files` (lazy, chunked,
    atomic writes, QA counts; optionally the uncertainty raster and tilted surfaces,
    :class:`brdfcorr.tasks.correct.Terrain`), assesses the view-angle signal left in it
@@ -45,7 +48,7 @@ Nothing here prints: progress goes to a callback ``progress(event, info)`` with 
 (the checks of the angles and of the reflectance scale) to its last (the write, the assessment),
 counted together, so that ``done`` only grows and ``total`` grows as each pass starts; with the
 ``threads`` and ``synchronous`` engines only, at the start of each pass, at most every
-:data:`CHUNK_EVENT_SECONDS` and at its end) and ``"scene"`` (the scene's result,
+:data:`brdfcorr.chain.progress.CHUNK_EVENT_SECONDS` and at its end) and ``"scene"`` (the scene's result,
 :func:`~brdfcorr.chain.report.scene_result`).
 """
 
@@ -59,7 +62,7 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -69,25 +72,26 @@ try:  # advisory file locks (POSIX): one chain run per output directory
 except ImportError:  # pragma: no cover (Windows)
     fcntl = None  # type: ignore[assignment]
 
-from dask.callbacks import Callback
-
 from brdfcorr._entry import entered
 from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.chain.config import ChainConfig, EngineConfig, load_config
 from brdfcorr.chain.patterns import format_pattern
 from brdfcorr.chain.plan import RunPlan, plan_run
+from brdfcorr.chain.progress import ChunkProgress, Progress
 from brdfcorr.chain.quicklook import write_quicklook
 from brdfcorr.chain.report import (
     RunReport,
     assessment_summary,
     earlier_findings,
+    failed_for_share,
     failed_for_uncorrected,
     scene_result,
     uncorrected_classes,
     versions,
 )
-from brdfcorr.chain.resume import configured_table, reuses_fit
+from brdfcorr.chain.resume import configured_table, reuses_fit, with_strata_interpolation
 from brdfcorr.chain.scenes import Scene
+from brdfcorr.chain.strata_step import derive_strata
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io import cluster
 from brdfcorr.io.paths import remove_partials
@@ -96,6 +100,7 @@ from brdfcorr.io.writer import default_threads
 from brdfcorr.params import ParameterTable, merge_tables
 from brdfcorr.plot.assess import write_assessment_figures
 from brdfcorr.tasks.assess import assess_files, write_json
+from brdfcorr.tasks.classmaps import class_preparation
 from brdfcorr.tasks.correct import Terrain, correct_files
 from brdfcorr.tasks.fit import SceneFiles, fit_class_files, fit_measurement_file
 from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
@@ -108,58 +113,11 @@ __all__ = [
     "build_table",
     "run_chain",
     "process_scene",
-    "ChunkProgress",
     "write_quicklook",
     "versions",
     "run_lock",
     "LOCK_NAME",
 ]
-
-#: Least time between two ``"chunks"`` progress events of a scene [s].
-CHUNK_EVENT_SECONDS = 0.2
-
-Progress = Callable[[str, dict], None]
-
-
-class ChunkProgress(Callback):
-    """A dask callback (local schedulers) that reports the tasks of a scene's computations as
-    ``progress("chunks", {"scene": name, "done": n, "total": n})``: at the start of each, at most
-    every ``interval`` seconds, and when it ends. The computations run while it is active are
-    counted together (the tasks of those that ended plus those of the running one), so the counts
-    only grow from the scene's first pass to its last."""
-
-    def __init__(self, scene: str, progress: Progress, interval: float = CHUNK_EVENT_SECONDS):
-        super().__init__()
-        self.scene, self.progress, self.interval = scene, progress, interval
-        self._state: dict | None = None
-        self._last = 0.0
-        self._ended = 0  # tasks of the computations that ended
-
-    def _counts(self) -> tuple[int, int]:
-        state = self._state or {}
-        done = len(state.get("finished", ()))
-        total = done + sum(len(state.get(key, ())) for key in ("ready", "waiting", "running"))
-        return self._ended + done, self._ended + total
-
-    def _emit(self) -> None:
-        done, total = self._counts()
-        self._last = time.monotonic()
-        self.progress("chunks", {"scene": self.scene, "done": done, "total": total})
-
-    def _start_state(self, dsk, state) -> None:
-        self._state = state
-        self._emit()
-
-    def _posttask(self, key, result, dsk, state, worker_id) -> None:
-        if time.monotonic() - self._last >= self.interval:
-            self._emit()
-
-    def _finish(self, dsk, state, errored) -> None:
-        if not errored:
-            self._emit()
-        self._ended = self._counts()[1]
-        self._state = None
-
 
 # ----------------------------------------------------------------------------------- parameters
 def _scene_sources(scene: Scene, config: ChainConfig, kind: type[SceneSources] = SceneSources,
@@ -239,7 +197,7 @@ def build_table(plan: RunPlan, progress: Progress | None = None) -> tuple[Parame
     table = merge_tables(tables)
     if not len(table) and config.steps.correct is not None:
         raise InputError(f"{config.source}: the parameter table of the run has no class")
-    return table, fit_report
+    return with_strata_interpolation(table, config), fit_report
 
 
 # --------------------------------------------------------------------------------------- scenes
@@ -387,6 +345,7 @@ def _quicklook(scene: Scene, config: ChainConfig, table: ParameterTable) -> dict
         scene.image, scene.outputs["corrected"], scene.outputs["quicklook"], classes=scene.classes,
         bands=step.bands, percentiles=step.percentiles, max_size=step.max_size, title=scene.name,
         class_names={entry.id: entry.name for entry in table.classes},
+        prepare_classes=class_preparation(config.inputs.align_classes, config.inputs.class_lookup),
     )
     return {}
 
@@ -568,8 +527,11 @@ def _run_plan(plan: RunPlan, progress: Progress | None, started: str, clock: flo
         remove_partials(target)
 
     tick = time.perf_counter()
+    plan = derive_strata(plan, progress)
+    timings = {"strata": round(time.perf_counter() - tick, 3)} if config.steps.strata is not None else {}
+    tick = time.perf_counter()
     table, fit_report = build_table(plan, progress)
-    timings = {"parameters": round(time.perf_counter() - tick, 3)}
+    timings["parameters"] = round(time.perf_counter() - tick, 3)
     report = RunReport(plan, table, fit=fit_report, started=started)
     plan.output_dir.mkdir(parents=True, exist_ok=True)
 
@@ -585,6 +547,8 @@ def _run_plan(plan: RunPlan, progress: Progress | None, started: str, clock: flo
         uncorrected_classes(fit_report)
     for result in _run_scenes([scene for scene in plan.scenes if scene.action != "skip"], table, config, progress):
         result = failed_for_uncorrected(result, left_uncorrected)
+        if config.steps.correct is not None:
+            result = failed_for_share(result, config.steps.correct.min_corrected_share)
         report.scenes.append(result)
         notify("scene", result)
     timings["scenes"] = round(time.perf_counter() - tick, 3)

@@ -43,8 +43,9 @@ class Scene:
     angle_options : dict
         Options of the angle reader.
     outputs : dict of str to Path
-        ``corrected`` and, when enabled, ``qa``, ``uncertainty``, ``assess`` (JSON report),
-        ``assess_profiles`` (its figure) and ``quicklook``.
+        ``corrected`` and, when enabled, ``strata`` (the class map ``steps.strata`` derives, then
+        also ``classes``), ``qa``, ``uncertainty``, ``assess`` (JSON report), ``assess_profiles``
+        (its figure) and ``quicklook``.
     action : {"run", "skip", "fail"}
         What the run will do; ``reason`` says why for ``skip`` and ``fail`` (and for ``run`` when
         existing outputs are redone).
@@ -69,10 +70,11 @@ class Scene:
     dem: Path | None = None
 
     def inputs(self) -> list[tuple[str, Path]]:
-        """(role, path) of the files the scene reads: image, class map, angle file and the terrain
-        source."""
+        """(role, path) of the files the scene reads: image, class map (unless the chain derives it,
+        ``outputs["strata"]``), angle file and the terrain source."""
         files = [("image", self.image)]
-        if self.classes != Path():  # Path(): a scene failed before its files were named
+        # Path(): a scene failed before its files were named
+        if self.classes != Path() and self.outputs.get("strata") != self.classes:
             files.append(("class map", self.classes))
         if self.angles_kind != "solar" and self.angles:  # the solar source is a time, not a file
             files.append(("angles", Path(self.angles)))
@@ -201,13 +203,14 @@ def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, outpu
     def fill(pattern: str) -> str:
         return format_pattern(pattern, image, name)
 
-    classes = config.resolve(fill(config.inputs.classes))  # not resolved: the user's paths, in messages too
+    outputs = _output_paths(config, output_dir, fill, name)
+    # A derived class map (steps.strata) is an output; a given one is resolved against the config.
+    classes = outputs["strata"] if "strata" in outputs else config.resolve(fill(config.inputs.classes))
     angle_source = fill(angles.path)
     if angles.kind != "solar":  # the solar source is a time, not a file
         angle_source = str(config.resolve(angle_source))
     slope_aspect, dem = (None if pattern is None else config.resolve(fill(pattern))
                          for pattern in (config.inputs.slope_aspect, config.inputs.dem))
-    outputs = _output_paths(config, output_dir, fill, name)
     scene = Scene(name, image, classes, angles.kind, angle_source, dict(angles.options), outputs,
                   slope_aspect=slope_aspect, dem=dem)
     action, reason = _action(config, scene)
@@ -217,6 +220,8 @@ def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, outpu
 
 def _output_paths(config: ChainConfig, output_dir: Path, fill, name: str) -> dict[str, Path]:
     naming, steps, outputs = config.outputs, config.steps, {}
+    if steps.strata is not None:
+        outputs["strata"] = output_dir / fill(naming.strata_naming)
     if steps.correct is not None:
         outputs["corrected"] = output_dir / fill(naming.naming)
         if steps.correct.qa:

@@ -93,18 +93,34 @@ PROGRESS = click.option("--progress/--no-progress", default=None, help="Progress
 
 @contextlib.contextmanager
 def progress_bars(progress: bool | None, description: str):
-    """A progress bar on stderr (tqdm's dask callback) over the chunks of every dask pass run in
-    the block, from the first (the checks that read a few chunks) to the write, where ``progress``
-    (None: where stderr is a terminal). Yields the callbacks entered (empty without a bar)."""
+    """One progress bar on stderr over the tasks of every dask pass run in the block, from the first
+    (the checks that read a few chunks) to the write, where ``progress`` (None: where stderr is a
+    terminal): its total grows as each pass starts and its count only grows (tqdm's own dask
+    callback started a new bar at every pass). Yields the callbacks entered (empty without a bar)."""
     if progress is None:
         progress = sys.stderr.isatty()
     if not progress:
         yield []
         return
-    from tqdm.dask import TqdmCallback  # with dask: imported when a command runs, not for --help
+    from tqdm import tqdm  # with dask: imported when a command runs, not for --help
 
-    with TqdmCallback(desc=description, leave=False, file=sys.stderr) as callback:
-        yield [callback]
+    from brdfcorr.chain.progress import ChunkProgress
+
+    bars: list = []
+
+    def show(event: str, info: dict) -> None:
+        if not bars:  # at the first pass's start, with its total
+            bars.append(tqdm(desc=description, total=info["total"], unit="task", leave=False, file=sys.stderr))
+        bar = bars[0]
+        bar.total = info["total"]
+        bar.update(info["done"] - bar.n)
+
+    try:
+        with ChunkProgress(description, show) as callback:
+            yield [callback]
+    finally:
+        if bars:
+            bars[0].close()
 
 
 @contextlib.contextmanager

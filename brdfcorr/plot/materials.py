@@ -55,7 +55,10 @@ def plot_materials(materials: Sequence[Material], max_zenith: float = 80.0) -> F
             xlabel="relative azimuth φ [°] (180 = forward)",
             ylabel="BRDF [sr⁻¹]",
         )
-    figure.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside right center", fontsize="small")
+    # Below the panels, one row: on the right it covered the last panel's view-zenith label, which
+    # is wider than its axes (the layout reserves room for the legend beside the axes, not the label).
+    figure.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center", ncols=min(len(materials), 5),
+                  fontsize="small")
     figure.suptitle(
         "Torrance–Sparrow model with the fits of Meister et al. (2000), Table 1 (550 nm)"
     )

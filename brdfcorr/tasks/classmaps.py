@@ -29,8 +29,10 @@ def class_preparation(align: bool = False, lookup: Mapping[int, int] | None = No
 
     ``align``: bring a class map on another grid or CRS onto the image grid by nearest neighbour
     (:func:`brdfcorr.strata.align_class_map`); ``lookup``: remap its codes to table ids (e.g. ESA
-    WorldCover codes, :func:`brdfcorr.strata.remap_classes`).
+    WorldCover codes, :func:`brdfcorr.strata.remap_classes`); an empty lookup (a chain's default
+    ``class_lookup: {}``) is none.
     """
+    lookup = lookup or None
     if align:
         return lambda classes, image: align_class_map(classes, image, lookup)
     if lookup:
@@ -81,12 +83,13 @@ def read_lookup(path: str | os.PathLike) -> dict[int, int]:
 
 
 def _write_class_map(classes: xr.DataArray, output, *, inputs: Sequence[tuple], overwrite: bool, chunks: int,
-                     tags: Mapping[str, str]) -> None:
+                     tags: Mapping[str, str], compute: Mapping[str, object] | None = None) -> None:
     check_outputs({"output": output}, inputs)
     if not overwrite:
         refuse_existing([output])
     Path(output).parent.mkdir(parents=True, exist_ok=True)
-    rasters.write_rasters({output: classes}, geotiff=rasters.GeoTiffOutput(blocksize=chunks), tags=dict(tags))
+    rasters.write_rasters({output: classes}, geotiff=rasters.GeoTiffOutput(blocksize=chunks), tags=dict(tags),
+                          **(compute or {}))
 
 
 @dataclass(frozen=True)
@@ -104,7 +107,8 @@ class NdviBins:
 def ndvi_class_file(
     image: str | os.PathLike, output: str | os.PathLike, *, bins: NdviBins = NdviBins(),
     wavelengths: Sequence[float] | None = None, scale: float | None = None, offset: float | None = None,
-    chunks: int | None = None, overwrite: bool = False,
+    chunks: int | None = None, overwrite: bool = False, scheduler: str | None = None,
+    num_workers: int | None = None,
 ) -> NdviStrata:
     """Write a class map of NDVI strata of ``image`` (:func:`brdfcorr.strata.ndvi_strata`).
 
@@ -124,6 +128,9 @@ def ndvi_class_file(
         Chunk and tile size [pixels] (default :func:`brdfcorr.io.rasters.auto_chunk`).
     overwrite : bool, default False
         Replace an existing output.
+    scheduler, num_workers : optional
+        dask scheduler and its threads of the scale check and the write (a chain's engine; default
+        dask's); the percentiles' pass uses dask's default.
 
     Returns
     -------
@@ -133,15 +140,16 @@ def ndvi_class_file(
     chunks = rasters.auto_chunk(image) if chunks is None else int(chunks)
     with rasters.bounded_gdal_cache(image, chunks):  # every pass: the check, the percentiles, the write
         reflectance = rasters.open_image(image, chunks=chunks, wavelengths=wavelengths, scale=scale, offset=offset)
+        compute = {"scheduler": scheduler, "num_workers": num_workers}
         if scale is None:
-            rasters.check_reflectance_scale(reflectance, str(image))
+            rasters.check_reflectance_scale(reflectance, str(image), **compute)
         strata = ndvi_strata(reflectance, edges=bins.edges, percentiles=bins.percentiles, water_id=bins.water_id,
                              shadow_id=bins.shadow_id)
         names = ",".join(f"{ident}:{name}" for ident, name in sorted(strata.names.items()))
         tags = {"brdf_class_map": f"NDVI strata of {Path(image).name}; edges "
                                   + ",".join(f"{edge:g}" for edge in strata.edges), "class_names": names}
         _write_class_map(strata.classes, output, inputs=[("image", image)], overwrite=overwrite, chunks=chunks,
-                         tags=tags)
+                         tags=tags, compute=compute)
     return strata
 
 

@@ -51,7 +51,8 @@ def test_defaults_and_base_dir(tmp_path):
      "'synchronous' or 'distributed'"),
     ("outputs", {"directory": "out", "compres": "lzw"},
      "chain.yaml: outputs.compres: unknown key; allowed keys: cog, compress, directory, existing, "
-     "format, interleave, naming, qa_naming, quicklook_naming, report, uncertainty, uncertainty_naming"),
+     "format, interleave, naming, qa_naming, quicklook_naming, report, strata_naming, uncertainty, "
+     "uncertainty_naming"),
     ("reference", {"sza": "meen"},
      "chain.yaml: reference.sza: 'meen' is not allowed; allowed: a number, 'mean', 'observed' or 'hls'"),
     ("steps", {"fit": {"source": "imag"}},
