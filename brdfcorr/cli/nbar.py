@@ -28,7 +28,8 @@ def nbar_command(product, output, qa_path, resolution, bands, coefficients, ref_
 
     PRODUCT is a Sentinel-2 L2A .SAFE folder (bands from IMG_DATA, angles from the granule's
     MTD_TL.xml, scaling from MTD_MSIL2A.xml, clouds from the SCL) or a Landsat Collection-2
-    Level-2 folder (SR_B* bands, QA_PIXEL, angles from the angle bands or the ANG.txt). An HLS
+    Level-2 folder (SR_B* bands, QA_PIXEL, angles from the angle bands or the ANG.txt), or a
+    Sentinel-2 STAC item (.json) whose assets are local files. An HLS
     S30/L30 granule is NBAR already: it is only moved to another sun zenith (--ref-sza DEG). Every
     pixel is normalized to nadir view with the published global RTLSR coefficients of its band
     (Roy et al. 2016, 2017): the c-factor method of HLS and sen2nbar.

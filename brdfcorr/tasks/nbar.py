@@ -39,6 +39,7 @@ from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.sensors.folders import ProductFolder, band_stacks, find_product, write_stack
 from brdfcorr.io.sensors.hls import HlsGranule, find_hls_granule, hls_refusal
+from brdfcorr.io.sensors.stac import find_stac_item, is_stac_item
 from brdfcorr.io.writer import GeoTiffOutput, write_rasters
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable, ReferenceGeometry
@@ -142,7 +143,7 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
     if granule is not None:  # NBAR already: at most moved to another sun zenith
         _refuse_for_hls(product, granule, resolution, method, keep_stack)
         return _moved_hls(granule, outputs, masked, method, engine)
-    folder = find_product(product, resolution=resolution, bands=bands, masked=masked)
+    folder = find_product_or_item(product, resolution=resolution, bands=bands, masked=masked)
     angle_options = _angle_options(folder, method.view_band)
     _check_outputs(outputs, folder, keep_stack)
     engine = replace(engine, chunks=engine.chunks or NBAR_CHUNK)
@@ -153,6 +154,15 @@ def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: 
         else:
             counts, reference = _one_stack(folder, stack, angle_options, outputs, method, engine)
     return NbarResult(counts, reference, folder)
+
+
+def find_product_or_item(product: str | os.PathLike, *, resolution: int | None = None,
+                         bands: Sequence[str] | None = None, masked: Sequence[int] | None = None) -> ProductFolder:
+    """The product of a folder (:func:`~brdfcorr.io.sensors.folders.find_product`) or of a
+    Sentinel-2 STAC item file with local assets (:func:`~brdfcorr.io.sensors.stac.find_stac_item`)."""
+    if is_stac_item(product):
+        return find_stac_item(product, resolution=resolution or 20, bands=bands, masked=masked)
+    return find_product(product, resolution=resolution, bands=bands, masked=masked)
 
 
 def _one_stack(folder: ProductFolder, stack: Path, angle_options: dict, outputs: OutputFiles, method: NbarMethod,

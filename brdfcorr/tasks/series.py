@@ -23,9 +23,9 @@ import xarray as xr
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.sensors import read_angles
-from brdfcorr.io.sensors.folders import ProductFolder, find_product, open_stack
+from brdfcorr.io.sensors.folders import ProductFolder, open_stack
 from brdfcorr.params import ParameterTable
-from brdfcorr.tasks.nbar import NBAR_CHUNK, nbar_table, refuse_archive
+from brdfcorr.tasks.nbar import NBAR_CHUNK, find_product_or_item, nbar_table, refuse_archive
 
 __all__ = ["ProductSeries", "open_products"]
 
@@ -66,7 +66,8 @@ def open_products(folders: Iterable[str | os.PathLike], *, resolution: int | Non
     Parameters
     ----------
     folders : iterable of path-like
-        Sentinel-2 L2A ``.SAFE`` folders or Landsat Collection-2 L2 folders, all of one sensor, on
+        Sentinel-2 L2A ``.SAFE`` folders, Sentinel-2 STAC item files with local assets
+        (:mod:`brdfcorr.io.sensors.stac`) or Landsat Collection-2 L2 folders, all of one sensor, on
         one grid (one tile or path/row, one resolution); in any order (sorted by sensing time).
     resolution, bands, masked :
         As for ``brdfcorr nbar`` (:func:`brdfcorr.tasks.nbar.nbar_files`): Sentinel-2 pixel size
@@ -89,7 +90,7 @@ def open_products(folders: Iterable[str | os.PathLike], *, resolution: int | Non
     products = []
     for folder in folders:
         refuse_archive(folder)
-        products.append(find_product(folder, resolution=resolution, bands=bands, masked=masked))
+        products.append(find_product_or_item(folder, resolution=resolution, bands=bands, masked=masked))
     if not products:
         raise SensorInputError("open_products: no product folder given")
     dates = []

@@ -17,6 +17,7 @@ from brdfcorr.io.sensors.envi import acquisition_time
 __all__ = [
     "write_mtd_tl",
     "write_sentinel2_safe",
+    "write_stac_item",
     "write_landsat_c2",
     "observation_layers",
     "write_envi_line",
@@ -128,6 +129,44 @@ def write_sentinel2_safe(directory: str | os.PathLike, mtd_tl: str | os.PathLike
                                crs=tile.crs, transform=transform, nodata=0) as dataset:
                 dataset.write(data, 1)
     return safe
+
+
+#: Asset keys of the Earth Search ``sentinel-2-l2a`` items (common names) by band.
+_STAC_KEYS = {"B02": "blue", "B03": "green", "B04": "red", "B05": "rededge1", "B06": "rededge2", "B07": "rededge3",
+              "B08": "nir", "B8A": "nir08", "B11": "swir16", "B12": "swir22", "SCL": "scl"}
+
+
+def write_stac_item(safe: str | os.PathLike, *, scaling: bool = True) -> Path:
+    """A STAC item (JSON, beside ``safe``) of a SAFE folder written by :func:`write_sentinel2_safe`,
+    laid out as Earth Search's ``sentinel-2-l2a`` items are: one asset per band under its common
+    name with its ``eo:bands`` name and (with ``scaling``) ``raster:bands`` scale 0.0001 and offset
+    -0.1, ``scl`` and ``granule_metadata``; hrefs relative to the item. The bands are the SAFE's
+    20 m files (B08 its 10 m file), so the item reads the same pixels as the folder at 20 m."""
+    import json
+
+    from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl
+
+    safe = Path(safe)
+    granule = next(safe.glob("GRANULE/*"))
+    tile = parse_mtd_tl(granule / "MTD_TL.xml")
+    assets = {}
+    for band, key in _STAC_KEYS.items():
+        resolution = 10 if band == "B08" else 20
+        file = next((granule / "IMG_DATA" / f"R{resolution}m").glob(f"*_{band}_{resolution}m.jp2"))
+        asset = {"href": str(file.relative_to(safe.parent)), "type": "image/tiff; application=geotiff",
+                 "roles": ["data"], "eo:bands": [{"name": band}]}
+        if scaling and band != "SCL":
+            asset["raster:bands"] = [{"nodata": 0, "data_type": "uint16", "scale": 0.0001, "offset": -0.1}]
+        assets[key] = asset
+    assets["granule_metadata"] = {"href": str((granule / "MTD_TL.xml").relative_to(safe.parent)),
+                                  "type": "application/xml", "roles": ["metadata"]}
+    item = {"type": "Feature", "stac_version": "1.0.0", "id": safe.stem, "geometry": None,
+            "properties": {"datetime": tile.sensing_time.isoformat(), "platform": "sentinel-2a",
+                           "constellation": "sentinel-2", "s2:processing_baseline": "04.00"},
+            "links": [], "assets": assets}
+    path = safe.parent / f"{safe.stem}.json"
+    path.write_text(json.dumps(item, indent=1))
+    return path
 
 
 #: QA_PIXEL values written by :func:`write_landsat_c2`: clear land (bit 6) and cloud (bits 3, 6 off).

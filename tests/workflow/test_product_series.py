@@ -73,3 +73,58 @@ def test_the_example_writes_a_series_that_opens(tmp_path, monkeypatch):
     # of the tile sees each date's grid at the same place, 12.5 deg apart
     suns = series.angles["sza"].mean(["y", "x"]).values
     np.testing.assert_allclose(np.diff(suns), [-12.5, -12.5], atol=1e-9)
+
+
+# --- STAC items with local assets ---------------------------------------------------------------
+
+def test_stac_items_read_as_their_safe_folders(folders, tmp_path):
+    """An item written from each SAFE folder (Earth Search's layout) gives the same cube and angles,
+    and `brdfcorr nbar item.json` the same file as `brdfcorr nbar FOLDER`."""
+    from brdfcorr.testing import write_stac_item
+
+    items = [write_stac_item(folder) for folder in folders]
+    by_folder, by_item = open_products(folders), open_products(items)
+    np.testing.assert_array_equal(by_item.reflectance.values, by_folder.reflectance.values)
+    for name in ("sza", "saa", "vza", "vaa"):
+        np.testing.assert_array_equal(by_item.angles[name].values, by_folder.angles[name].values)
+    outputs = []
+    for source in (folders[0], items[0]):
+        output = tmp_path / f"{source.suffix.lstrip('.')}.tif"
+        result = CliRunner().invoke(main, ["nbar", str(source), "-o", str(output), "--no-progress"])
+        assert result.exit_code == 0, result.output
+        with rasterio.open(output) as dataset:
+            outputs.append(dataset.read())
+    np.testing.assert_array_equal(*outputs)
+
+
+def test_an_item_without_raster_scaling_takes_esas_of_its_baseline(folders):
+    from brdfcorr.testing import write_stac_item
+
+    scaled = open_products([write_stac_item(folders[0])])
+    unscaled = open_products([write_stac_item(folders[0], scaling=False)])  # 04.00: 1/10000 and -0.1
+    np.testing.assert_array_equal(unscaled.reflectance.values, scaled.reflectance.values)
+    assert "no raster:bands scaling: ESA's of processing baseline 04.00" in unscaled.products[0].notes
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda item: item["assets"]["red"].update(href="https://example.com/B04.tif"),
+     r"asset red is remote \(https://example.com/B04.tif\); download the assets beside the item first"),
+    (lambda item: item["assets"].pop("scl"), r"the item has no asset for SCL"),
+    (lambda item: item["assets"].pop("granule_metadata"), r"the item has no asset for granule metadata"),
+    (lambda item: item["properties"].update(platform="landsat-8", constellation=""),
+     r"a STAC item of landsat-8; brdfcorr reads Sentinel-2 L2A items"),
+    (lambda item: item["assets"]["red"]["raster:bands"][0].update(offset=-1000),
+     r"asset red: scale 0.0001 and offset -1000 are no Sentinel-2 L2A scaling"),
+    (lambda item: item.update(type="FeatureCollection"), r"not a STAC item"),
+])
+def test_a_stac_item_brdfcorr_cannot_read_is_one_line(folders, edit, message):
+    import json
+
+    from brdfcorr.testing import write_stac_item
+
+    path = write_stac_item(folders[0])
+    item = json.loads(path.read_text())
+    edit(item)
+    path.write_text(json.dumps(item))
+    with pytest.raises(SensorInputError, match=message):
+        open_products([path])

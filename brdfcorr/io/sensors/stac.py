@@ -1,0 +1,166 @@
+"""Sentinel-2 L2A STAC items whose assets are local files, read as product folders (:func:`find_stac_item`).
+
+A STAC item (SpatioTemporal Asset Catalog, item specification 1.0; the ``eo``, ``raster`` and
+``sat`` extensions) of a Sentinel-2 L2A granule, as the public catalogues publish them (Element
+84's Earth Search ``sentinel-2-l2a``, Microsoft's Planetary Computer), lists one asset per band
+(a GeoTIFF or JPEG 2000 file), the scene classification and the granule metadata
+(``MTD_TL.xml``, the angle grids). With the assets downloaded beside the item (hrefs relative to
+the item file, or absolute local paths), the item is a :class:`~brdfcorr.io.sensors.folders.ProductFolder`
+like a SAFE folder: ``brdfcorr nbar item.json`` and :func:`brdfcorr.tasks.series.open_products`
+take it.
+
+How the assets are recognised: a band by the name of its ``eo:bands`` entry (``B04``; STAC 1.1's
+``bands``), else by the asset's key; the scene classification by the name or key ``SCL``/``scl``;
+the granule metadata by the key ``granule_metadata`` (Earth Search) or ``granule-metadata``
+(Planetary Computer), else by a file named ``MTD_TL.xml``. The scaling of each band is its
+asset's ``raster:bands`` ``scale`` and ``offset`` (reflectance = DN x scale + offset); an asset
+without them takes ESA's (1/10000, and -0.1 from processing baseline 04.00, the item's
+``s2:processing_baseline``), with a note. Remote hrefs (``https://``, ``s3://``) are refused:
+download the assets first, or load the cube with a STAC loader (stackstac, odc-stac).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import rasterio
+
+from brdfcorr.errors import SensorInputError
+from brdfcorr.io.files import read_regular
+from brdfcorr.io.sensors.bands import SENTINEL2_WAVELENGTHS
+from brdfcorr.io.sensors.folders import OFFSET_RANGE, QUANTIFICATION_RANGE, SCL_MASKED, SENTINEL2_BANDS, ProductFolder
+from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
+
+__all__ = ["find_stac_item", "is_stac_item"]
+
+#: Keys of the granule metadata asset in the public catalogues (Earth Search, Planetary Computer).
+METADATA_KEYS = ("granule_metadata", "granule-metadata")
+
+
+def is_stac_item(path: str | Path) -> bool:
+    """Whether ``path`` names a STAC item file (a ``.json`` file), not a product folder."""
+    return Path(path).suffix.lower() == ".json" and not Path(path).is_dir()
+
+
+def _item(path: Path) -> dict:
+    """The item's JSON object, checked to be a STAC item with assets."""
+    text = read_regular(path, "STAC item", SensorInputError).decode("utf-8", errors="replace")
+    try:
+        item = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise SensorInputError(f"{path}: not a STAC item (no JSON: {error})") from None
+    if not isinstance(item, dict) or item.get("type") != "Feature" or not isinstance(item.get("assets"), dict):
+        raise SensorInputError(f"{path}: not a STAC item (a JSON object of type Feature with assets)")
+    properties = item.get("properties") or {}
+    platform = str(properties.get("platform", "")) + str(properties.get("constellation", ""))
+    if "sentinel-2" not in platform.lower():
+        raise SensorInputError(f"{path}: a STAC item of {platform or 'an unnamed platform'}; brdfcorr reads "
+                               "Sentinel-2 L2A items (platform sentinel-2a/b/c)")
+    return item
+
+
+def _asset_name(key: str, asset: Mapping) -> str:
+    """The band name an asset holds: its ``eo:bands`` (or STAC 1.1 ``bands``) entry's, else its key."""
+    for field in ("eo:bands", "bands"):
+        entries = asset.get(field)
+        if isinstance(entries, list) and len(entries) == 1 and isinstance(entries[0], dict) and entries[0].get("name"):
+            return str(entries[0]["name"])
+    return key
+
+
+def _assets(item: Mapping) -> dict[str, tuple[str, Mapping]]:
+    """(key, asset) of the item's assets by what they hold: band names, ``SCL``, ``granule metadata``."""
+    assets = {_asset_name(key, asset): (key, asset) for key, asset in item["assets"].items() if isinstance(asset, dict)}
+    if "scl" in assets and "SCL" not in assets:
+        assets["SCL"] = assets["scl"]
+    metadata = [(key, asset) for key, asset in item["assets"].items() if isinstance(asset, dict)
+                and (key in METADATA_KEYS or str(asset.get("href", "")).endswith("MTD_TL.xml"))]
+    if metadata:
+        assets["granule metadata"] = metadata[0]
+    return assets
+
+
+def _local_file(item_path: Path, key: str, asset: Mapping) -> Path:
+    """The local file of an asset: its href relative to the item's folder, or an absolute path."""
+    href = str(asset.get("href", ""))
+    if "://" in href and not href.startswith("file://"):
+        raise SensorInputError(f"{item_path}: asset {key} is remote ({href}); download the assets beside the "
+                               "item first (hrefs relative to it), or load the cube with a STAC loader (stackstac, "
+                               "odc-stac)")
+    file = item_path.parent / href.removeprefix("file://")
+    if not href or not file.is_file():
+        raise SensorInputError(f"{item_path}: asset {key}: no file at {file}")
+    return file
+
+
+def _scaling(item_path: Path, key: str, asset: Mapping, baseline: float | None) -> tuple[float, float, str | None]:
+    """(scale, offset, note) of a band asset: its ``raster:bands`` entry's, else ESA's by baseline."""
+    entries = asset.get("raster:bands")
+    entry = entries[0] if isinstance(entries, list) and entries and isinstance(entries[0], dict) else {}
+    if "scale" in entry:
+        scale, offset = float(entry["scale"]), float(entry.get("offset", 0.0))
+        note = None
+    else:
+        if baseline is None:
+            raise SensorInputError(f"{item_path}: asset {key} has no raster:bands scale and the item no "
+                                   "s2:processing_baseline: its scaling is unknown")
+        scale, offset = 1e-4, (-0.1 if baseline >= 4.0 else 0.0)
+        note = f"no raster:bands scaling: ESA's of processing baseline {baseline:05.2f}"
+    if not 1.0 / QUANTIFICATION_RANGE[1] <= scale <= 1.0 / QUANTIFICATION_RANGE[0] or \
+            not OFFSET_RANGE[0] <= offset <= OFFSET_RANGE[1]:
+        raise SensorInputError(f"{item_path}: asset {key}: scale {scale:g} and offset {offset:g} are no Sentinel-2 "
+                               f"L2A scaling (ESA: 0.0001 and -0.1)")
+    return scale, offset, note
+
+
+def _resolution(file: Path) -> float:
+    with rasterio.open(file) as dataset:
+        return float(abs(dataset.transform.a))
+
+
+def find_stac_item(path: str | Path, *, resolution: int = 20, bands: Sequence[str] | None = None,
+                   masked: Sequence[int] | None = None) -> ProductFolder:
+    """A Sentinel-2 L2A STAC item with local assets as a product folder (module docstring).
+
+    Parameters are those of :func:`brdfcorr.io.sensors.folders.find_sentinel2_l2a`.
+
+    Raises
+    ------
+    SensorInputError
+        Not a Sentinel-2 STAC item; a band, the SCL or the granule metadata missing; a remote or
+        missing asset file; a scaling that is no Sentinel-2 L2A scaling.
+    """
+    path = Path(path)
+    item = _item(path)
+    if resolution not in SENTINEL2_BANDS:
+        raise SensorInputError(f"{path}: Sentinel-2 resolution must be 10 or 20 m, got {resolution}")
+    names = tuple(bands) if bands is not None else SENTINEL2_BANDS[resolution]
+    unknown = [name for name in names if name not in BAND_NAMES]
+    if unknown or not names:
+        raise SensorInputError(f"{path}: unknown Sentinel-2 band(s) {unknown}; bands are {', '.join(BAND_NAMES)}")
+    assets = _assets(item)
+    missing = [name for name in (*names, "SCL", "granule metadata") if name not in assets]
+    if missing:
+        raise SensorInputError(f"{path}: the item has no asset for {', '.join(missing)}")
+    raw_baseline = (item.get("properties") or {}).get("s2:processing_baseline")
+    baseline = float(raw_baseline) if raw_baseline is not None else None
+    files, scalings = {}, []
+    for name in names:
+        key, asset = assets[name]
+        files[name] = _local_file(path, key, asset)
+        scalings.append(_scaling(path, key, asset, baseline))
+    grid = next((file for file in files.values() if _resolution(file) == resolution), None)
+    if grid is None:
+        raise SensorInputError(f"{path}: no band asset at {resolution} m to define the grid")
+    notes = sorted({note for *_, note in scalings if note})
+    return ProductFolder(
+        path=path, kind="sentinel2_l2a", sensor="sentinel2", bands=files,
+        wavelengths=tuple(SENTINEL2_WAVELENGTHS[name] for name in names),
+        scales=tuple(scale for scale, _, _ in scalings), offsets=tuple(offset for _, offset, _ in scalings),
+        resolution=float(resolution), grid=grid, mask=_local_file(path, *assets["SCL"]),
+        masked=tuple(SCL_MASKED if masked is None else masked),
+        angles=_local_file(path, *assets["granule metadata"]), angles_kind="sentinel2",
+        notes=(f"STAC item {item.get('id', path.stem)}", *notes),
+    )
