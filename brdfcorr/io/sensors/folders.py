@@ -258,6 +258,18 @@ def _band_file(safe: Path, band: str, resolution: int) -> Path:
     raise SensorInputError(f"{safe}: no image file of band {band} (GRANULE/*/IMG_DATA/R*m/*_{band}_*m.jp2)")
 
 
+def sentinel2_band_names(source: Path, resolution: int, bands: Sequence[str] | None) -> tuple[str, ...]:
+    """The Sentinel-2 bands read at ``resolution`` (10 or 20 m): ``bands`` (checked) or the
+    default :data:`SENTINEL2_BANDS` of the resolution; one error naming ``source`` otherwise."""
+    if resolution not in SENTINEL2_BANDS:
+        raise SensorInputError(f"{source}: Sentinel-2 resolution must be 10 or 20 m, got {resolution}")
+    names = tuple(bands) if bands is not None else SENTINEL2_BANDS[resolution]
+    unknown = [name for name in names if name not in BAND_NAMES]
+    if unknown or not names:
+        raise SensorInputError(f"{source}: unknown Sentinel-2 band(s) {unknown}; bands are {', '.join(BAND_NAMES)}")
+    return names
+
+
 def find_sentinel2_l2a(path: str | Path, *, resolution: int = 20, bands: Sequence[str] | None = None,
                        masked: Sequence[int] | None = None) -> ProductFolder:
     """A Sentinel-2 L2A SAFE folder at ``resolution`` (10 or 20 m).
@@ -274,12 +286,7 @@ def find_sentinel2_l2a(path: str | Path, *, resolution: int = 20, bands: Sequenc
         SCL classes that become no data (default :data:`SCL_MASKED`; ``()``: only DN 0).
     """
     safe = Path(path)
-    if resolution not in SENTINEL2_BANDS:
-        raise SensorInputError(f"{safe}: Sentinel-2 resolution must be 10 or 20 m, got {resolution}")
-    names = tuple(bands) if bands is not None else SENTINEL2_BANDS[resolution]
-    unknown = [name for name in names if name not in BAND_NAMES]
-    if unknown or not names:
-        raise SensorInputError(f"{safe}: unknown Sentinel-2 band(s) {unknown}; bands are {', '.join(BAND_NAMES)}")
+    names = sentinel2_band_names(safe, resolution, bands)
     baseline, quantification, offsets, notes = _product_scaling(safe / "MTD_MSIL2A.xml", names)
     files = {name: _band_file(safe, name, resolution) for name in names}
     grid = next((f for f in files.values() if f.parent.name == f"R{resolution}m"), None)

@@ -30,8 +30,13 @@ import rasterio
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.files import read_regular
 from brdfcorr.io.sensors.bands import SENTINEL2_WAVELENGTHS
-from brdfcorr.io.sensors.folders import OFFSET_RANGE, QUANTIFICATION_RANGE, SCL_MASKED, SENTINEL2_BANDS, ProductFolder
-from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
+from brdfcorr.io.sensors.folders import (
+    OFFSET_RANGE,
+    QUANTIFICATION_RANGE,
+    SCL_MASKED,
+    ProductFolder,
+    sentinel2_band_names,
+)
 
 __all__ = ["find_stac_item", "is_stac_item"]
 
@@ -134,12 +139,7 @@ def find_stac_item(path: str | Path, *, resolution: int = 20, bands: Sequence[st
     """
     path = Path(path)
     item = _item(path)
-    if resolution not in SENTINEL2_BANDS:
-        raise SensorInputError(f"{path}: Sentinel-2 resolution must be 10 or 20 m, got {resolution}")
-    names = tuple(bands) if bands is not None else SENTINEL2_BANDS[resolution]
-    unknown = [name for name in names if name not in BAND_NAMES]
-    if unknown or not names:
-        raise SensorInputError(f"{path}: unknown Sentinel-2 band(s) {unknown}; bands are {', '.join(BAND_NAMES)}")
+    names = sentinel2_band_names(path, resolution, bands)
     assets = _assets(item)
     missing = [name for name in (*names, "SCL", "granule metadata") if name not in assets]
     if missing:
