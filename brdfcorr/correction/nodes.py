@@ -139,9 +139,9 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
     node_values = np.concatenate([factor.values, ((node_qa.values & QA.LIMITED) > 0)[np.newaxis]]).astype(np.float64)
     jumps = azimuth_span(nodes["vaa"].values) > (np.inf if jump is None else jump)
     per_pixel = partial(_pixel_factors, nodes={name: nodes[name].values for name in ANGLES}, jumps=jumps,
-                        source=source, target=target,
-                        like=ones.isel(y=slice(0, 1), x=slice(0, 1)), params=params, reference=reference,
-                        limits=limits, extrapolate=extrapolate)
+                        source=source, target=target, like=ones.isel(y=slice(0, 1), x=slice(0, 1)),
+                        evaluate=partial(normalize, params=params, reference=reference, limits=limits,
+                                         extrapolate=extrapolate))
     pairs = da.map_blocks(_corrected_block, reflectance.data, dtype=reflectance.dtype, meta=np.empty((0, 0, 0)),
                           node_values=node_values, source=source, target=target, per_pixel=per_pixel)
     corrected_data, qa_data = split_pairs(pairs, reflectance.data.chunks, reflectance.dtype)
@@ -162,11 +162,11 @@ def _cells(positions: np.ndarray, nodes: int) -> np.ndarray:
 
 
 def _pixel_factors(rows: slice, cols: slice, *, nodes: Mapping[str, np.ndarray], jumps: np.ndarray, source, target,
-                   like: xr.DataArray, params: ParameterTable, reference: ReferenceGeometry, limits,
-                   extrapolate: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   like: xr.DataArray, evaluate: Callable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pixels ``rows`` x ``cols`` in grid cells with an azimuth jump (``jumps``, per cell):
     their mask (y, x), the factor of every band (band, n) from their own interpolated angles, as
-    :func:`normalize` evaluates it, and their limited flags (n,)."""
+    :func:`normalize` evaluates it (``evaluate``: it with the table, reference and limits bound),
+    and their limited flags (n,)."""
     rows_at = (target.f + target.e * (np.arange(rows.start, rows.stop) + 0.5) - source.f) / source.e - 0.5
     cols_at = (target.c + target.a * (np.arange(cols.start, cols.stop) + 0.5) - source.c) / source.a - 0.5
     mask = jumps[_cells(rows_at, jumps.shape[0] + 1)[:, None], _cells(cols_at, jumps.shape[1] + 1)[None, :]]
@@ -177,8 +177,7 @@ def _pixel_factors(rows: slice, cols: slice, *, nodes: Mapping[str, np.ndarray],
               for name, values in nodes.items()}
     ones = xr.DataArray(np.ones((like.shape[0], 1, int(mask.sum()))), dims=like.dims,
                         coords={name: coord for name, coord in like.coords.items() if coord.dims == like.dims[:1]})
-    factor, qa = normalize(ones, xr.ones_like(angles["sza"], dtype=np.uint8), angles, params, reference,
-                           limits=limits, extrapolate=extrapolate)
+    factor, qa = evaluate(ones, xr.ones_like(angles["sza"], dtype=np.uint8), angles)
     return mask, np.asarray(factor.values)[:, 0], (np.asarray(qa.values)[0] & QA.LIMITED) > 0
 
 
