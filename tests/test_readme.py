@@ -174,14 +174,20 @@ def _build(root: Path, key: str) -> Path:
     return directory
 
 
-@pytest.fixture(scope="session")
-def build(tmp_path_factory):
+def builder(tmp_path_factory):
     """``build(key)``: the directory in which group ``key`` ran, shared by the session's workers
-    (the parent of a worker's temporary folder is the session's)."""
+    (the parent of a worker's temporary folder is the session's) and by the tests that check what a
+    page's commands wrote (tests/workflow/test_sensor_examples.py)."""
     base = tmp_path_factory.getbasetemp()
     root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "doc-commands"
     root.mkdir(exist_ok=True)
     return lambda key: _build(root, key)
+
+
+@pytest.fixture(scope="session")
+def build(tmp_path_factory):
+    """:func:`builder`'s ``build(key)``."""
+    return builder(tmp_path_factory)
 
 
 def test_readme_has_the_two_quick_start_commands():

@@ -25,7 +25,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import integrate, optimize
 
 from brdfcorr.errors import BrdfcorrWarning, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
@@ -245,6 +244,8 @@ def azimuthal_width(model, params: Mapping[str, float], theta_i: float, theta_r:
     if below.size == 0:
         return math.inf
     left = below[-1]
+    from scipy import optimize  # at first use: every chain imports this module, few call this
+
     phi_half = optimize.brentq(
         lambda p: float(specular(theta_i, theta_r, p)) - 0.5 * peak, phis[left], phis[left + 1], xtol=1e-10
     )
@@ -404,6 +405,8 @@ def specular_albedo_bound(t1: float, w: float, fresnel_max: float = 1.0) -> floa
 
     def integrand(alpha):
         return math.exp(-((w * scale * alpha) ** 2)) * math.cos(alpha) * math.sin(alpha)
+
+    from scipy import integrate  # at first use: every chain imports this module, few call this
 
     value, _ = integrate.quad(integrand, 0.0, 0.5 * math.pi, epsabs=0.0, epsrel=1e-10, limit=200)
     return 8.0 * t1 * fresnel_max * 2.0 * math.pi * value

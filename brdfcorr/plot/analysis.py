@@ -6,15 +6,17 @@ Every function returns a :class:`matplotlib.figure.Figure`; saving is the caller
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.colors import LogNorm
-from matplotlib.figure import Figure
 
 from brdfcorr.analysis.papers import WIDTH_GEOMETRIES
 from brdfcorr.analysis.simulate import NORMALIZATION_GEOMETRY, simulate_vcavity
 from brdfcorr.models import empirical, torrance_sparrow
 from brdfcorr.models.materials import Material
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["FIGURE2_ROUGHNESSES", "FIGURE2_CUTS", "plot_figure2", "plot_polar", "plot_azimuthal_widths"]
 
@@ -52,6 +54,7 @@ def plot_figure2(
     Fresnel reflectance (n very large), the empirical model (paper 000 eq. 5) with b = 1 rad^-4 and
     c = w.
     """
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(12, 12), layout="constrained")
     axes = figure.subplots(len(FIGURE2_CUTS), len(roughnesses), squeeze=False)
     view = np.linspace(0.0, 89.0, 357)
@@ -84,6 +87,8 @@ def plot_polar(material: Material, zeniths: Sequence[float] = (30.0, 50.0, 65.0)
     The angle is the relative azimuth (0 = backscatter towards the sun, 180 = forward) and the
     radius the view zenith [deg]; colour is the BRDF [sr^-1] on a log scale.
     """
+    from matplotlib.colors import LogNorm
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(4.6 * len(zeniths), 4.4), layout="constrained")
     axes = figure.subplots(1, len(zeniths), subplot_kw={"projection": "polar"}, squeeze=False)[0]
     azimuth = np.linspace(0.0, 360.0, 181)
@@ -105,6 +110,7 @@ def plot_polar(material: Material, zeniths: Sequence[float] = (30.0, 50.0, 65.0)
 
 def plot_azimuthal_widths(materials: Sequence[Material], geometries=WIDTH_GEOMETRIES) -> Figure:
     """Specular part (BRDF - t0) against relative azimuth, normalized to its peak (paper 003, fig. 3)."""
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(4.2 * len(materials), 3.8), layout="constrained")
     axes = figure.subplots(1, len(materials), squeeze=False)[0]
     phi = np.linspace(0.0, 180.0, 721)

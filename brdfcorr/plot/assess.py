@@ -10,16 +10,17 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import xarray as xr
-from matplotlib.colors import TwoSlopeNorm
-from matplotlib.figure import Figure
 
 from brdfcorr.errors import InputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.plot._display import display_name
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["profile_figure", "overlap_figure", "figure_paths", "write_assessment_figures", "default_band"]
 
@@ -75,6 +76,7 @@ def profile_figure(view: xr.Dataset, *, band: int | None = None, title: str = ""
     band = default_band(view) if band is None else int(band)
     if not 0 <= band < view.sizes["band"]:
         raise InputError(f"band index {band} is outside 0..{view.sizes['band'] - 1}")
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(13, 5.5), layout="constrained")
     left, right = figure.subplots(1, 2, width_ratios=(3, 2))
     centres = view["vza_bin"].values
@@ -122,6 +124,8 @@ def overlap_figure(overlap: xr.Dataset, *, title: str = "") -> Figure:
     title : str
         Prefix of the titles.
     """
+    from matplotlib.colors import TwoSlopeNorm
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(13, 4.5), layout="constrained")
     histogram_axis, *map_axes = figure.subplots(1, 3, width_ratios=(2, 1.5, 1.5))
     edges = overlap["difference_bin_edges"].values

@@ -13,12 +13,15 @@ References
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from brdfcorr.fit.goniometer import FitResult
 from brdfcorr.fit.measurements import Measurements
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["principal_plane_cuts", "azimuth_cuts", "plot_principal_plane", "plot_azimuth"]
 
@@ -29,6 +32,7 @@ _EXCLUDED = {"fmt": "o", "mfc": "none", "color": "0.55", "ecolor": "0.7", "ms": 
 def _grid(count: int, panel: tuple[float, float] = (4.2, 3.4)):
     rows = math.ceil(count / 4)
     columns = math.ceil(count / rows)
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(panel[0] * columns, panel[1] * rows), layout="constrained")
     axes = np.atleast_1d(figure.subplots(rows, columns, squeeze=False).ravel())
     for axis in axes[count:]:

@@ -6,13 +6,16 @@ Every function returns a :class:`matplotlib.figure.Figure`; saving is the caller
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from brdfcorr.models import get_model
 from brdfcorr.models.materials import Material
 from brdfcorr.plot._display import display_name, representative_bands
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: The illumination geometries of paper 003, fig. 3: (theta_i, theta_r) of each azimuthal cut [deg].
 AZIMUTH_CUTS = ((30.0, 30.0), (50.0, 50.0), (65.0, 70.0))
@@ -33,6 +36,7 @@ def plot_materials(materials: Sequence[Material], max_zenith: float = 80.0) -> F
     negative = backward, phi = 0) for theta_i = 30, 50, 65 deg, as paper 003 fig. 2.
     Bottom: BRDF against relative azimuth 90-180 deg at the geometries of paper 003 fig. 3.
     """
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(13, 7.5), layout="constrained")
     axes = figure.subplots(2, 3)
     view = np.linspace(-max_zenith, max_zenith, 321)
@@ -111,6 +115,7 @@ def plot_class_fit(fit, samples, wavelengths=None, max_panels: int = 4) -> Figur
     n_bands = samples.brdf.shape[1]
     bands = representative_bands(wavelengths, n_bands, max_panels)
     signed = np.where(samples.phi > 90.0, samples.theta_r, -samples.theta_r)
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(4.2 * len(bands), 3.8), layout="constrained")
     axes = np.atleast_1d(figure.subplots(1, len(bands), sharey=False))
     groups = sun_zenith_groups(samples.theta_i)

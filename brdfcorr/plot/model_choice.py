@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.figure import Figure
 
 from brdfcorr.fit.selection import ModelChoice
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_model_choice"]
 
@@ -30,6 +34,7 @@ def plot_model_choice(choice: ModelChoice, title: str = "") -> Figure:
     spread = np.array([row["fold_sd"] or 0.0 for row in rows], float)
     r2 = np.array([np.nan if row["heldout_r2"] is None else row["heldout_r2"] for row in rows], float)
     chosen = np.array([row["chosen"] for row in rows])
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(9.0, 0.5 * len(rows) + 2.0), layout="constrained")
     left, right = figure.subplots(1, 2, sharey=True)
     for axis, values, label in ((left, error, "held-out mean squared error (weighted)"),

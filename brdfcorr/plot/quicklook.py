@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from brdfcorr.plot._display import NODATA_COLOUR, NODATA_NAME, display_name, sun_side
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["quicklook_figure", "band_label"]
 
@@ -49,6 +52,7 @@ def quicklook_figure(before: np.ndarray, after: np.ndarray, *, class_map: np.nda
         to the sun, and the profile says which side looks into forward scattering (the sun's side:
         the sensor looks away from the sun there) and which into backscatter (the hotspot side).
     """
+    from matplotlib.figure import Figure  # at first use: a run that draws nothing imports no matplotlib
     figure = Figure(figsize=(12, 8), layout="constrained")
     grid = figure.add_gridspec(2, 2, height_ratios=(3, 2))
     display = _stretch(np.concatenate([before, after], axis=2), percentiles)

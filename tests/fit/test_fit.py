@@ -181,7 +181,7 @@ def test_result_attributes(roof_tile_fit):
     model = result.predict(data.theta_i, data.theta_r, data.phi)
     np.testing.assert_allclose(result.residuals, data.brdf - model, rtol=1e-10, atol=1e-15)
     assert result.chi2 == pytest.approx(np.sum(result.pulls**2))
-    assert 0.0 <= result.p_value <= 1.0
+    assert result.p_value == pytest.approx(chi2_distribution.sf(result.chi2, result.dof), rel=1e-12)
     assert 1 <= result.n_converged <= result.n_starts
 
 

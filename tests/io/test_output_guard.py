@@ -67,13 +67,24 @@ def _refused(root: Path, args: list, pattern: str) -> str:
 
 
 # ------------------------------------------------------------------------- chains: the demo
-@pytest.fixture
-def demo(tmp_path) -> Path:
+def _demo(directory: Path) -> Path:
     """A small demo output: demo.yaml, scene/line01_{image,angles,classes}.tif, corrected/ (made
     here, not copied: the outputs' fingerprints hold the inputs' paths)."""
-    directory = tmp_path / "demo"
     assert run_demo(directory, rows=40, pixel=16.0, materials_figure=False).report.ok
     return directory
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory) -> Path:
+    """The demo output, made once for the tests that only read it or are refused: a refusal
+    changes and writes nothing (``_refused`` checks every file and name under it)."""
+    return _demo(tmp_path_factory.mktemp("shared") / "demo")
+
+
+@pytest.fixture
+def own_demo(tmp_path) -> Path:
+    """A demo output of the test's own, for a test that adds a file to it."""
+    return _demo(tmp_path / "demo")
 
 
 def test_demo_reruns_skip_everything(demo):
@@ -140,7 +151,8 @@ def test_chain_outputs_never_replace_an_input_or_each_other(demo, case, dry_run)
              pattern)
 
 
-def test_chain_report_on_a_hard_link_of_an_input(demo):
+def test_chain_report_on_a_hard_link_of_an_input(own_demo):
+    demo = own_demo
     os.link(demo / "scene" / "line01_angles.tif", demo / "corrected" / "linked.json")
     _refused(demo, ["run", demo / "demo.yaml", "--set", "outputs.report=linked.json"],
              r"outputs\.report \S*corrected/linked\.json would overwrite an input \(the same file as the angles "

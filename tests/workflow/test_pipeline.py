@@ -384,8 +384,8 @@ def test_scene_workers_end_with_the_run(tmp_path):
         if __name__ == "__main__":
             with concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
                                                         initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
+                pool.submit(os.getpid).result()  # the worker has run its initializer: no waiting on a guess
                 future = pool.submit(sleep)
-                time.sleep(3)
                 print(" ".join(str(p.pid) for p in multiprocessing.active_children()), flush=True)
                 future.result()
     """))

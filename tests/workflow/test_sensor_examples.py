@@ -2,8 +2,8 @@
 examples/make_sensor_products.py writes read back as the scene they were rendered from, and the
 documented commands, run as written, remove the view-angle signal that the scene was rendered with.
 
-tests/test_readme.py runs the same commands as subprocesses (they must run); here they run in this
-process (click's runner) so that their assessment reports can be checked.
+tests/test_readme.py runs the same commands as subprocesses (they must run); their assessment reports
+are checked here (the directories test_readme.py ran them in: they run once per session).
 """
 
 from __future__ import annotations
@@ -11,15 +11,12 @@ from __future__ import annotations
 import importlib.util
 import json
 import re
-import shlex
 from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 from brdfcorr.chain.demo import demo_scene
-from brdfcorr.cli import main
 from brdfcorr.testing import write_emit_granules, write_envi_line, write_neon_reflectance
 
 ROOT = Path(__file__).parents[2]
@@ -50,26 +47,16 @@ def _generator():
 
 
 @pytest.fixture(scope="module")
-def worked_examples(tmp_path_factory, monkeypatch_module):
-    """Run every documented command in one scratch directory, in order (EMIT uses the AVIRIS-NG table)."""
-    directory = tmp_path_factory.mktemp("sensor_examples")
-    monkeypatch_module.chdir(directory)
-    runner = CliRunner()
-    for command in example_commands():
-        words = shlex.split(command)
-        if words[:2] == ["python", "examples/make_sensor_products.py"]:
-            _generator().main(words[2:])
-            continue
-        assert words[0] == "brdfcorr", command
-        result = runner.invoke(main, words[1:], catch_exceptions=False)
-        assert result.exit_code == 0, f"{command}\n{result.output}"
-    return directory
+def worked_examples(tmp_path_factory) -> dict[str, Path]:
+    """What the documented commands wrote, by file name. tests/test_readme.py runs them as written
+    (as subprocesses, each group once per test session for all workers: its groups sensors.md:products,
+    :aviris, :neon and :emit, which are these commands in this order); this module checks what they wrote."""
+    from test_readme import ALL_GROUPS, builder
 
-
-@pytest.fixture(scope="module")
-def monkeypatch_module():
-    with pytest.MonkeyPatch.context() as patch:
-        yield patch
+    groups = ("sensors.md:products", "sensors.md:aviris", "sensors.md:neon", "sensors.md:emit")
+    assert [command for group in groups for command in ALL_GROUPS[group].commands] == example_commands()
+    build = builder(tmp_path_factory)
+    return {path.name: path for group in groups[1:] for path in build(group).iterdir()}
 
 
 def median_abs_slopes(report: dict, when: str) -> dict[int, float]:
@@ -80,7 +67,7 @@ def median_abs_slopes(report: dict, when: str) -> dict[int, float]:
 
 @pytest.mark.parametrize("report_name", ["aviris_080000_assess.json", "neon_090000_assess.json", "emit_assess.json"])
 def test_each_worked_example_removes_the_view_angle_slope(worked_examples, report_name):
-    report = json.loads((worked_examples / report_name).read_text())
+    report = json.loads(worked_examples[report_name].read_text())
     before, after = median_abs_slopes(report, "before"), median_abs_slopes(report, "after")
     # The strata present: 1 (roofs and concrete, NDVI < 0.1), 2 (bare soil) and 5 (grass and trees).
     assert set(before) == {1, 2, 5}
@@ -99,7 +86,7 @@ def test_every_pixel_with_a_stratum_is_corrected(worked_examples):
     # stratum and no pixel is flagged 'unknown class' (QA bit 4) in the AVIRIS-NG example's QA layer.
     import rasterio
 
-    with rasterio.open(worked_examples / "aviris_080000_qa.tif") as dataset:
+    with rasterio.open(worked_examples["aviris_080000_qa.tif"]) as dataset:
         qa = dataset.read(1)
     assert not np.any(qa & 4)
     assert np.count_nonzero(qa == 0) > 0.9 * qa.size  # clean pixels: all but the pond (no class)

@@ -1,0 +1,50 @@
+"""A correction that draws nothing imports neither scipy.stats nor matplotlib (issue 42).
+
+Every ``brdfcorr`` process paid ~1.7 s for scipy.stats (one chi^2 survival function in
+``fit/results.py``, now ``scipy.special.chdtrc``), ~1.1 s for matplotlib (``plot/*`` imported
+``matplotlib.figure`` at module level, and ``chain/scenes.py`` reaches ``plot/assess.py``) and
+~0.6 s for scipy.integrate/optimize (``analysis/papers.py``, reached through ``analysis``) before
+it corrected a pixel. The figures and those analyses import them when they run. A property, not a
+timing: each check runs in a fresh interpreter, since this test session has long imported them.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+
+#: Imported only by what needs them: the figures, the papers' analyses, the statistics tests.
+DEFERRED = ("matplotlib", "scipy.stats", "scipy.integrate")
+
+#: Print the deferred libraries loaded so far (the last line of the subprocess's output).
+_REPORT = f"import sys; print(sorted(m for m in {DEFERRED!r} if m in sys.modules))"
+
+
+def _deferred_after(code: str, cwd=None) -> list[str]:
+    """The deferred libraries in sys.modules of a fresh interpreter after running ``code``."""
+    result = subprocess.run([sys.executable, "-c", f"{code}\n{_REPORT}"], capture_output=True, text=True,
+                            timeout=300, cwd=cwd)
+    assert result.returncode == 0, result.stderr
+    return ast.literal_eval(result.stdout.strip().splitlines()[-1])
+
+
+def test_the_correction_path_and_the_chain_runner_import_no_figures_nor_statistics():
+    assert _deferred_after("import brdfcorr.tasks.correct, brdfcorr.chain.run, brdfcorr.cli.correct") == []
+
+
+def test_a_chain_that_draws_nothing_imports_no_figures_nor_statistics(tmp_path, make_scenes, write_chain):
+    # The run as `brdfcorr run` makes it (its lazy imports included): one scene, the correct step only.
+    make_scenes(tmp_path, count=1, ny=8, nx=8)
+    args = ["run", str(write_chain(tmp_path)), "--no-progress"]
+    code = f"from brdfcorr.cli import main\ntry:\n    main({args!r})\nexcept SystemExit as stop:\n    assert not stop.code"
+    assert _deferred_after(code, cwd=tmp_path) == []
+    assert (tmp_path / "out" / "line0_brdf.tif").exists()
+
+
+def test_a_figure_still_imports_matplotlib_when_it_is_drawn():
+    # The other side of the property: the deferred import is there, and it is matplotlib's Figure.
+    code = ("import numpy as np\nfrom brdfcorr.plot.quicklook import quicklook_figure\n"
+            "cube = np.ones((3, 4, 5))\nfigure = quicklook_figure(cube, cube)\n"
+            "assert type(figure).__module__ == 'matplotlib.figure', type(figure)")
+    assert "matplotlib" in _deferred_after(code)
