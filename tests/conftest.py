@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import re
 import shutil
+import sys
 from pathlib import Path
 
 import dask
@@ -19,6 +20,7 @@ from click.testing import CliRunner
 from hypothesis import settings
 
 from brdfcorr.analysis.assess import Line
+from brdfcorr.chain.demo import demo_scene, write_demo_scene
 from brdfcorr.cli import main
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.classmaps import NdviBins, ndvi_class_file
@@ -392,3 +394,23 @@ def _tables_close(got, expected, rtol: float = 1e-9) -> None:
 @pytest.fixture(scope="session")
 def tables_close():
     return _tables_close
+
+
+_ROOT = Path(__file__).parents[1]
+
+
+# ------------------------------------------------- a land-cover map on another grid (tests/chain)
+@pytest.fixture(scope="session")
+def landcover(tmp_path_factory) -> Path:
+    """A directory with the demo line (60 rows) and the examples' WorldCover stand-in of it
+    (EPSG:4326, about 5 m) as ``landcover.tif``."""
+    root = tmp_path_factory.mktemp("share")
+    paths = write_demo_scene(root / "scenes", demo_scene(rows=60, pixel=12.0))
+    sys.path.insert(0, str(_ROOT / "examples"))
+    try:
+        import make_landcover
+    finally:
+        sys.path.remove(str(_ROOT / "examples"))
+    make_landcover.main([str(paths["classes"]), str(root / "landcover.tif")])
+    shutil.copy(_ROOT / "examples" / "worldcover_lookup.yaml", root / "lookup.yaml")
+    return root

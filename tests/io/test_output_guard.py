@@ -403,8 +403,10 @@ def test_scene_given_as_a_link_reads_the_files_beside_the_link(tmp_path, make_sc
         profile, classes = dataset.profile, dataset.read()
     with rasterio.open(links / "classes.tif", "w", **profile) as dataset:
         dataset.write(np.zeros_like(classes))  # no class anywhere: the image is left as it is
+    # no pixel corrected is expected here: said with min_corrected_share 0 (else the scene fails)
     chain = write_chain(tmp_path, inputs={"images": ["links/*/image.tif"], "classes": "{dir}/classes.tif",
-                                          "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"}})
+                                          "angles": {"kind": "geotiff", "path": "{dir}/angles.tif"}},
+                        steps={"correct": {"limits": None, "min_corrected_share": 0}})
     plan = plan_run(load_config(chain))
     (planned,) = plan.scenes
     assert planned.image == links / "image.tif" and planned.classes == links / "classes.tif"
