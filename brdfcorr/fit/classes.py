@@ -270,7 +270,7 @@ def _pooled_if_alike(samples: ClassSamples, guard: GuardRails, pool_if_alike: bo
     if pool_if_alike and within is not None and within < guard.min_vza_spread:
         notes.append(f"the views of each pixel differ by {within:.1f} deg < {guard.min_vza_spread:g} deg: "
                      "fitted pooled (one level for the class)")
-        return dataclasses.replace(samples, group=None, scene=None, levels="pooled"), None
+        return dataclasses.replace(samples, group=None, levels="pooled"), None
     return samples, within
 
 
@@ -475,6 +475,8 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
             fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id), grid_points=grid_points,
             prior=prior, pool_if_alike=sampling.levels == "auto",
         )
+        if samples.note is not None:
+            fit.notes.append(samples.note)
         fits.append(fit)
         entry = class_entry(fit, wavelengths, source, used_ranges or None)
         entries += [] if entry is None else [entry]

@@ -13,6 +13,7 @@ import xarray as xr
 
 from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, ParameterError
+from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.geometry import relative_azimuth
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
@@ -30,6 +31,7 @@ class ClassSamples:
     group: np.ndarray | None = None  # the pixel or patch whose level is free (LEVELS), if any
     scene: np.ndarray | None = None  # the scene each sample comes from (its level is free too)
     levels: str = "pooled"  # whose levels are free (LEVELS, resolved)
+    note: str | None = None  # how the scenes were brought onto one grid, if they were
 
 
 def _class_values(class_map: xr.DataArray) -> np.ndarray:
@@ -64,15 +66,19 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
 
 
 def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int,
-                   shared_grid: bool = False, cluster_ids: np.ndarray | None = None) -> tuple:
+                   shared_grid: bool = False, cluster_ids: np.ndarray | None = None,
+                   read_at: np.ndarray | None = None) -> tuple:
     """The samples of one scene (number ``scene``) at the flat pixel indices ``flat`` of its class
     map (of ``shape`` (y, x)): sun zenith, view zenith and relative azimuth [deg], BRDF (N, B)
     [sr^-1], and the id of each sample's spatial block of ``block_size`` pixels (unique over the
     scenes; on a ``shared_grid`` the same in every scene, so that a block holds every view of its
     ground), or, given the scene's ``cluster_ids`` (y, x; integer-valued), each sample's id there.
-    Stored values times ``reflectance_scale`` are reflectance factors."""
+    Stored values times ``reflectance_scale`` are reflectance factors. With ``read_at`` (flat
+    indices into the scene's own grid) the class map's grid is a common grid
+    (:mod:`brdfcorr.fit.grids`) and the values are read at those pixels of the scene."""
     iy, ix = np.unravel_index(flat, shape)
-    where = {"y": xr.DataArray(iy, dims="sample"), "x": xr.DataArray(ix, dims="sample")}
+    ry, rx = (iy, ix) if read_at is None else np.unravel_index(read_at, (image.sizes["y"], image.sizes["x"]))
+    where = {"y": xr.DataArray(ry, dims="sample"), "x": xr.DataArray(rx, dims="sample")}
 
     def pick(array):
         # Pointwise (vectorized) indexing: lazy on dask, reads only the sampled pixels.
@@ -137,7 +143,12 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         Whose level the fit leaves free (:data:`LEVELS`, :mod:`brdfcorr.fit.within`): with
         ``pixel`` or ``patch`` whole groups (a pixel's views in every scene; a patch's pixels) are
         sampled, groups with a single view left out, and every sample carries its group and scene
-        (``ClassSamples.group``, ``.scene``). ``pixel`` needs several scenes on one grid.
+        (``ClassSamples.group``, ``.scene``). ``pixel`` needs several scenes. Scenes on
+        different grids (overlapping flight lines) are brought onto one common grid for
+        ``pixel`` and ``patch`` (and for ``auto`` where at least :data:`AUTO_OVERLAP` of the
+        ground they see is seen twice): the first scene's CRS and pixel grid over the union of
+        their extents, nearest neighbour (:mod:`brdfcorr.fit.grids`; each class's
+        ``ClassSamples.note`` says how many of its pixels are seen twice or more).
     patch_size : int, default 8
         Side [pixels] of the patches of ``levels="patch"``; it must divide ``block_size`` (a
         block holds whole patches).
@@ -168,7 +179,8 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     Notes
     -----
     Only the class maps and the angle layers needed to find valid pixels are computed whole; the
-    reflectance is read at the sampled pixels only (pointwise indexing stays lazy on dask).
+    reflectance is read at the sampled pixels only (pointwise indexing stays lazy on dask), on
+    the scenes' own grids also where they were brought onto a common grid.
     """
     images, classes, angles = scene_lists(images, classes, angles)
     if not len(images) == len(classes) == len(angles):
@@ -187,6 +199,15 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     if class_ids is None:
         class_ids = sorted({int(c) for m in maps for c in np.unique(m) if c > 0})
     shared = _shared_grid(images, maps)
+    grid = None
+    if not shared and len(images) > 1 and levels in ("pixel", "patch", "auto"):
+        grid = _common_grid(images, maps, valid_angles, levels)
+        if grid is not None:  # every layer the sampler holds whole, on the common grid
+            maps = [grid.gather(scene, m, 0) for scene, m in enumerate(maps)]
+            valid_angles = [grid.gather(scene, ok, False) for scene, ok in enumerate(valid_angles)]
+            cluster_ids = None if cluster_ids is None else [grid.gather(scene, ids, np.nan)
+                                                            for scene, ids in enumerate(cluster_ids)]
+            shared = True
     levels = resolve_levels(levels, len(images), shared, patch_size, block_size)
     patch = 1 if levels == "pixel" else patch_size
     rng = np.random.default_rng(seed)
@@ -202,8 +223,10 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
             chosen = _grouped_choice(groups, max_samples, rng)
         selected = [(candidates[scene][chosen[scene]], None if groups[scene] is None else groups[scene][chosen[scene]])
                     for scene in range(len(images))]
-        parts = _scene_parts(images, angles, maps, selected, (reflectance_scale, block_size, shared), cluster_ids)
+        parts = _scene_parts(images, angles, maps, selected, (reflectance_scale, block_size, shared), cluster_ids,
+                             grid)
         samples = _class_samples(parts, images[0], class_id, levels)
+        samples.note = None if grid is None else _grid_note(candidates, grid.shape)
         if cluster_ids is not None and samples.group is not None and samples.block is not None and samples.block.size:
             samples.block = nested_clusters(samples.block, samples.group)
         pooled[class_id] = samples
@@ -256,37 +279,74 @@ def nested_clusters(clusters: np.ndarray, groups: np.ndarray) -> np.ndarray:
 
 
 def _scene_parts(images: list, angles: list, maps: list[np.ndarray], selected: list[tuple], reading: tuple,
-                 cluster_ids: list[np.ndarray] | None) -> list[tuple]:
+                 cluster_ids: list[np.ndarray] | None, grid: CommonGrid | None = None) -> list[tuple]:
     """Each scene's part of one class's samples (:func:`_scene_samples`: angles [deg], BRDF [sr^-1],
-    block or cluster id; with groups also the group and the scene of each sample) at its
-    ``selected`` pixels (flat indices into the scene's grid, and their groups or None); scenes
-    without any are skipped. ``reading``: the reflectance scale, block size and whether the scenes
-    share one grid."""
+    block or cluster id; with groups also the group; and the scene of each sample) at its
+    ``selected`` pixels (flat indices into the scene's grid, or the common ``grid``'s, and their
+    groups or None); scenes without any are skipped. ``reading``: the reflectance scale, block
+    size and whether the scenes share one grid."""
     reflectance_scale, block_size, shared = reading
     parts = []
     for scene, ((flat, group), image, angle_set) in enumerate(zip(selected, images, angles)):
         if flat.size:
             values = _scene_samples(scene, image, angle_set, maps[scene].shape, flat, reflectance_scale,
-                                    block_size, shared, None if cluster_ids is None else cluster_ids[scene])
-            labels = () if group is None else (group, np.full(flat.size, scene))
-            parts.append((*values, *labels))
+                                    block_size, shared, None if cluster_ids is None else cluster_ids[scene],
+                                    None if grid is None else grid.source_pixels(scene, flat))
+            labels = () if group is None else (group,)
+            parts.append((*values, *labels, np.full(flat.size, scene)))
     return parts
 
 
 def _class_samples(parts: list[tuple], image, class_id: int, levels: str) -> ClassSamples:
-    """One class's samples from the scenes' parts (angles, BRDF, block[, group, scene]), without
-    the samples that are not finite in some band."""
+    """One class's samples from the scenes' parts (angles, BRDF, block[, group], scene), without
+    the samples that are not finite in some band; pooled samples keep their scene too (for
+    errors clustered by scene, :mod:`brdfcorr.fit.two_way`)."""
     grouped = levels != "pooled"
     if not parts:
         empty = np.empty(0, np.int64)
         arrays = [*(np.empty(0) for _ in range(3)), np.empty((0, image.sizes["band"])), empty,
-                  *((empty, empty) if grouped else (None, None))]
-        return ClassSamples(*arrays, levels=levels)
-    arrays = [np.concatenate(p) for p in zip(*parts)]
-    _check_bands(arrays[3], image, class_id)
-    keep = np.all(np.isfinite(arrays[3]), axis=1)
-    kept = [a[keep] for a in arrays]
-    return ClassSamples(*kept, *((None, None) if not grouped else ()), levels=levels)
+                  *((empty,) if grouped else ()), empty]
+    else:
+        arrays = [np.concatenate(p) for p in zip(*parts)]
+        _check_bands(arrays[3], image, class_id)
+        keep = np.all(np.isfinite(arrays[3]), axis=1)
+        arrays = [a[keep] for a in arrays]
+    group = arrays[5] if grouped else None
+    return ClassSamples(*arrays[:5], group=group, scene=arrays[-1], levels=levels)
+
+
+#: ``levels="auto"`` over scenes on different grids frees each pixel's level when at least this
+#: share of the pixels of the common grid that some scene sees (with a class) is seen by two or more.
+AUTO_OVERLAP = 0.1
+
+
+def _common_grid(images: list, maps: list[np.ndarray], valid: list[np.ndarray], levels: str) -> CommonGrid | None:
+    """The common grid of scenes on different grids (:func:`brdfcorr.fit.grids.common_grid`);
+    for ``levels="auto"`` only where the scenes are georeferenced and overlap
+    (:data:`AUTO_OVERLAP`), else None (pooled); for ``patch`` None where they are not
+    georeferenced (each scene's own patches)."""
+    try:
+        grid = common_grid(images)
+    except ParameterError:
+        if levels == "pixel":
+            raise
+        return None  # auto pools, patches stay each scene's own
+    if levels != "auto":
+        return grid
+    seen = np.sum([grid.gather(scene, (m > 0) & ok, False) for scene, (m, ok) in enumerate(zip(maps, valid))],
+                  axis=0)
+    covered = int(np.count_nonzero(seen))
+    return grid if covered and np.count_nonzero(seen >= 2) >= AUTO_OVERLAP * covered else None
+
+
+def _grid_note(candidates: list[np.ndarray], shape: tuple[int, int]) -> str:
+    """How many of a class's pixels of the common grid (of ``shape``) the scenes' ``candidates``
+    (flat indices) see twice or more, and how many once (they drop out of a within fit)."""
+    seen = np.bincount(np.concatenate(candidates), minlength=shape[0] * shape[1]) if candidates else np.zeros(1)
+    twice, once = int(np.count_nonzero(seen >= 2)), int(np.count_nonzero(seen == 1))
+    return (f"scenes on different grids resampled (nearest neighbour) onto the first scene's grid over their "
+            f"union ({shape[0]} x {shape[1]} pixels): {twice} of the class's pixels seen by two or more scenes, "
+            f"{once} seen once (left out of the within fit)")
 
 
 def _shared_grid(images, maps) -> bool:
@@ -309,9 +369,8 @@ def resolve_levels(levels: str, n_scenes: int, shared: bool, patch_size: int, bl
     if levels == "auto":
         return "pixel" if shared and n_scenes > 1 else "pooled"
     if levels == "pixel" and not (shared and n_scenes > 1):
-        raise ParameterError("free levels per pixel need several scenes on one grid (the same ground seen more "
-                             "than once): resample them onto one grid (rioxarray's reproject_match), or use "
-                             "levels per patch")
+        raise ParameterError("free levels per pixel need several scenes on one grid, or georeferenced scenes "
+                             "that overlap (the same ground seen more than once): use levels per patch")
     if levels == "patch" and (patch_size < 1 or block_size % patch_size):
         raise ParameterError(f"patch size {patch_size}: it must be a positive divisor of the block size "
                              f"{block_size} (a block holds whole patches)")
