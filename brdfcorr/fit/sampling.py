@@ -32,6 +32,7 @@ class ClassSamples:
     scene: np.ndarray | None = None  # the scene each sample comes from (its level is free too)
     levels: str = "pooled"  # whose levels are free (LEVELS, resolved)
     note: str | None = None  # how the scenes were brought onto one grid, if they were
+    scene_errors: bool = False  # errors two-way cluster-robust, over ``block`` and ``scene`` (fit.two_way)
 
 
 def _class_values(class_map: xr.DataArray) -> np.ndarray:
