@@ -107,3 +107,34 @@ def test_fit_classes_takes_two_way_errors_from_its_sampling(make_lines):
         assert not b.errors_reliable  # 3 lines are too few clusters to trust them
     with pytest.raises(ParameterError, match="errors cluster"):
         fit_classes(*arguments, "ross_thick_li_sparse", sampling=Sampling(errors_cluster="three-way"))
+
+
+def test_cli_fits_overlapping_line_files_with_pixel_levels_and_two_way_errors(make_lines, tmp_path):
+    """fit-classes over three overlapping line files (each on its own shifted grid): pixel levels
+    on the common grid, said so; --errors-cluster two-way gives the same parameters, other errors."""
+    from click.testing import CliRunner
+
+    from brdfcorr.cli import main
+    from brdfcorr.params import ParameterTable
+    from brdfcorr.testing import write_scene
+
+    arguments = []
+    for line in make_lines(n_lines=3):
+        paths = write_scene(tmp_path / line.name, {"reflectance": line.reflectance, "classes": line.classes,
+                                                   **line.angles})
+        arguments += [str(paths["image"]), "--classes", str(paths["classes"]), "--angles", str(paths["angles"])]
+    tables = {}
+    for errors in ("one-way", "two-way"):
+        output = tmp_path / f"{errors}.yaml"
+        result = CliRunner().invoke(main, ["fit-classes", *arguments, "--model", "ross_thick_li_sparse",
+                                           "--levels", "pixel", "--block-size", "8", "--errors-cluster", errors,
+                                           "-o", str(output)])
+        assert result.exit_code == 0, result.output
+        assert "free levels per pixel" in result.output and "seen by two or more scenes" in result.output
+        tables[errors] = ParameterTable.load(output)
+    for one, two in zip(tables["one-way"].classes, tables["two-way"].classes):
+        np.testing.assert_allclose(one.params["f_vol"], two.params["f_vol"], rtol=1e-12)
+        assert not np.allclose(one.fit.matrices(), two.fit.matrices())
+    refused = CliRunner().invoke(main, ["fit-classes", *arguments, "--errors-cluster", "three-way", "-o",
+                                        str(tmp_path / "x.yaml")])
+    assert refused.exit_code == 2
