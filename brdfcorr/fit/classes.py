@@ -469,7 +469,7 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     pooled = sample_classes(
         scenes, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
         seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
-        levels=sampling.levels, patch_size=sampling.patch_size, clusters=clusters,
+        levels=sampling.levels, patch_size=sampling.patch_size, clusters=clusters, min_repeated=guard.min_samples,
     )
     prior = _prior(models, wavelengths)
     fits, entries, kept = [], [], {}

@@ -113,7 +113,7 @@ def _check_bands(brdf: np.ndarray, image, class_id: int) -> None:
 
 def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None, max_samples: int = 50_000,
                    seed: int = 0, reflectance_scale: float = 1.0, block_size: int = 32, levels: str = "pooled",
-                   patch_size: int = 8, clusters=None) -> dict[int, ClassSamples]:
+                   patch_size: int = 8, clusters=None, min_repeated: int = 500) -> dict[int, ClassSamples]:
     """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
 
     Parameters
@@ -146,10 +146,11 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         sampled, groups with a single view left out, and every sample carries its group and scene
         (``ClassSamples.group``, ``.scene``). ``pixel`` needs several scenes. Scenes on
         different grids (overlapping flight lines) are brought onto one common grid for
-        ``pixel`` and ``patch`` (and for ``auto`` where at least :data:`AUTO_OVERLAP` of the
-        ground they see is seen twice): the first scene's CRS and pixel grid over the union of
-        their extents, nearest neighbour (:mod:`brdfcorr.fit.grids`; each class's
-        ``ClassSamples.note`` says how many of its pixels are seen twice or more).
+        ``pixel`` and ``patch`` (and for ``auto``, for each class whose views of pixels seen
+        twice or more number ``min_repeated`` at least; other classes are pooled): the first
+        scene's CRS and pixel grid over the union of their extents, nearest neighbour
+        (:mod:`brdfcorr.fit.grids`; each class's ``ClassSamples.note`` says how many of its
+        pixels are seen twice or more).
     patch_size : int, default 8
         Side [pixels] of the patches of ``levels="patch"``; it must divide ``block_size`` (a
         block holds whole patches).
@@ -162,6 +163,11 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         id or the layer's rioxarray nodata are not sampled. With free levels, clusters that share
         a group (a pixel's or patch's views) are merged into one (:func:`nested_clusters`): a
         group's level is estimated from all its views.
+    min_repeated : int, default 500
+        With ``levels="auto"`` over scenes on different grids: the fewest views of pixels seen
+        twice or more for a class to be sampled within pixels on the common grid (fewer: pooled,
+        on the scenes' own grids). :func:`brdfcorr.fit.fit_classes` passes its guard rail's
+        ``min_samples``.
 
     Returns
     -------
@@ -199,39 +205,79 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         valid_angles = [ok & np.isfinite(ids) for ok, ids in zip(valid_angles, cluster_ids)]
     if class_ids is None:
         class_ids = sorted({int(c) for m in maps for c in np.unique(m) if c > 0})
-    shared = _shared_grid(images, maps)
-    grid = None
-    if not shared and len(images) > 1 and levels in ("pixel", "patch", "auto"):
-        grid = _common_grid(images, maps, valid_angles, levels)
-        if grid is not None:  # every layer the sampler holds whole, on the common grid
-            maps = [grid.gather(scene, m, 0) for scene, m in enumerate(maps)]
-            valid_angles = [grid.gather(scene, ok, False) for scene, ok in enumerate(valid_angles)]
-            cluster_ids = None if cluster_ids is None else [grid.gather(scene, ids, np.nan)
-                                                            for scene, ids in enumerate(cluster_ids)]
-            shared = True
-    levels = resolve_levels(levels, len(images), shared, patch_size, block_size)
-    patch = 1 if levels == "pixel" else patch_size
+    own = _Layers(maps, valid_angles, cluster_ids, _shared_grid(images, maps))
+    common = None
+    if not own.shared and len(images) > 1 and levels in ("pixel", "patch", "auto"):
+        grid = _common_grid(images, levels)
+        if grid is not None:
+            common = own.on_grid(grid, resolve_levels(levels, len(images), True, patch_size, block_size))
+    if common is None or levels == "auto":
+        own.levels = resolve_levels(levels, len(images), own.shared, patch_size, block_size)
     rng = np.random.default_rng(seed)
     pooled: dict[int, ClassSamples] = {}
     for class_id in class_ids:
-        candidates = [np.flatnonzero((m == class_id) & ok) for m, ok in zip(maps, valid_angles)]
-        groups: list[np.ndarray | None] = [None] * len(images)
-        if levels == "pooled":
-            chosen = _pooled_choice(candidates, max_samples, rng)
-        else:
-            groups = [_group_of(flat, m.shape, patch, None if shared else scene)
-                      for scene, (flat, m) in enumerate(zip(candidates, maps))]
-            chosen = _grouped_choice(groups, max_samples, rng)
-        selected = [(candidates[scene][chosen[scene]], None if groups[scene] is None else groups[scene][chosen[scene]])
-                    for scene in range(len(images))]
-        parts = _scene_parts(images, angles, maps, selected, (reflectance_scale, block_size, shared), cluster_ids,
-                             grid)
-        samples = _class_samples(parts, images[0], class_id, levels)
-        samples.note = None if grid is None else _grid_note(candidates, grid.shape)
-        if cluster_ids is not None and samples.group is not None and samples.block is not None and samples.block.size:
-            samples.block = nested_clusters(samples.block, samples.group)
-        pooled[class_id] = samples
+        within = common is not None and (levels != "auto" or common.repeated_views(class_id) >= min_repeated)
+        layers = common if within and common is not None else own
+        pooled[class_id] = _sample_class(class_id, images, angles, layers, rng,
+                                         (max_samples, reflectance_scale, block_size, patch_size))
     return pooled
+
+
+@dataclass
+class _Layers:
+    """What the sampler holds whole of every scene: class ids, valid angles (and cluster ids)
+    (y, x), on one grid (``shared``; a ``grid`` they were brought onto, if they were) or each on
+    its scene's own; and the levels (:data:`LEVELS`, resolved) sampled from them."""
+
+    maps: list[np.ndarray]
+    valid: list[np.ndarray]
+    cluster_ids: list[np.ndarray] | None
+    shared: bool
+    levels: str = "pooled"
+    grid: CommonGrid | None = None
+
+    def on_grid(self, grid: CommonGrid, levels: str) -> _Layers:
+        """The layers gathered onto the common ``grid`` (nearest neighbour, :mod:`brdfcorr.fit.grids`)."""
+        clusters = self.cluster_ids
+        return _Layers([grid.gather(scene, m, 0) for scene, m in enumerate(self.maps)],
+                       [grid.gather(scene, ok, False) for scene, ok in enumerate(self.valid)],
+                       None if clusters is None else [grid.gather(scene, ids, np.nan)
+                                                      for scene, ids in enumerate(clusters)],
+                       True, levels, grid)
+
+    def candidates(self, class_id: int) -> list[np.ndarray]:
+        """Per scene, the flat indices of the class's valid pixels."""
+        return [np.flatnonzero((m == class_id) & ok) for m, ok in zip(self.maps, self.valid)]
+
+    def repeated_views(self, class_id: int) -> int:
+        """The class's views of pixels seen by two or more scenes (on a shared grid)."""
+        seen = np.sum([(m == class_id) & ok for m, ok in zip(self.maps, self.valid)], axis=0)
+        return int(seen[seen >= 2].sum())
+
+
+def _sample_class(class_id: int, images: list, angles: list, layers: _Layers, rng, reading: tuple) -> ClassSamples:
+    """One class's samples (:func:`sample_classes`) from the ``layers``; ``reading``: the most
+    samples, the reflectance scale, the block size and the patch size."""
+    max_samples, reflectance_scale, block_size, patch_size = reading
+    candidates = layers.candidates(class_id)
+    groups: list[np.ndarray | None] = [None] * len(images)
+    if layers.levels == "pooled":
+        chosen = _pooled_choice(candidates, max_samples, rng)
+    else:
+        patch = 1 if layers.levels == "pixel" else patch_size
+        groups = [_group_of(flat, m.shape, patch, None if layers.shared else scene)
+                  for scene, (flat, m) in enumerate(zip(candidates, layers.maps))]
+        chosen = _grouped_choice(groups, max_samples, rng)
+    selected = [(candidates[scene][chosen[scene]], None if groups[scene] is None else groups[scene][chosen[scene]])
+                for scene in range(len(images))]
+    parts = _scene_parts(images, angles, layers.maps, selected, (reflectance_scale, block_size, layers.shared),
+                         layers.cluster_ids, layers.grid)
+    samples = _class_samples(parts, images[0], class_id, layers.levels)
+    samples.note = None if layers.grid is None else _grid_note(candidates, layers.grid.shape)
+    if layers.cluster_ids is not None and samples.group is not None and samples.block is not None \
+            and samples.block.size:
+        samples.block = nested_clusters(samples.block, samples.group)
+    return samples
 
 
 def _cluster_ids(clusters, shapes: list[tuple[int, ...]]) -> list[np.ndarray] | None:
@@ -316,28 +362,16 @@ def _class_samples(parts: list[tuple], image, class_id: int, levels: str) -> Cla
     return ClassSamples(*arrays[:5], group=group, scene=arrays[-1], levels=levels)
 
 
-#: ``levels="auto"`` over scenes on different grids frees each pixel's level when at least this
-#: share of the pixels of the common grid that some scene sees (with a class) is seen by two or more.
-AUTO_OVERLAP = 0.1
-
-
-def _common_grid(images: list, maps: list[np.ndarray], valid: list[np.ndarray], levels: str) -> CommonGrid | None:
-    """The common grid of scenes on different grids (:func:`brdfcorr.fit.grids.common_grid`);
-    for ``levels="auto"`` only where the scenes are georeferenced and overlap
-    (:data:`AUTO_OVERLAP`), else None (pooled); for ``patch`` None where they are not
-    georeferenced (each scene's own patches)."""
+def _common_grid(images: list, levels: str) -> CommonGrid | None:
+    """The common grid of scenes on different grids (:func:`brdfcorr.fit.grids.common_grid`), or
+    None where they are not georeferenced and ``levels`` is ``auto`` (pooled) or ``patch`` (each
+    scene's own patches); ParameterError for ``pixel``."""
     try:
-        grid = common_grid(images)
+        return common_grid(images)
     except ParameterError:
         if levels == "pixel":
             raise
-        return None  # auto pools, patches stay each scene's own
-    if levels != "auto":
-        return grid
-    seen = np.sum([grid.gather(scene, (m > 0) & ok, False) for scene, (m, ok) in enumerate(zip(maps, valid))],
-                  axis=0)
-    covered = int(np.count_nonzero(seen))
-    return grid if covered and np.count_nonzero(seen >= 2) >= AUTO_OVERLAP * covered else None
+        return None
 
 
 def _grid_note(candidates: list[np.ndarray], shape: tuple[int, int]) -> str:

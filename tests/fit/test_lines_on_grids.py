@@ -90,10 +90,18 @@ def test_pixel_levels_on_a_common_grid_recover_the_shape_pooled_reads_from_the_c
 
 
 def test_auto_frees_pixels_where_lines_overlap_and_pools_where_they_do_not():
+    """auto frees a class's pixel levels where the lines see enough of its ground twice:
+    min_repeated views of pixels seen twice or more (fit_classes: its guard rail's min_samples)."""
     overlapping = [_line(0.0, 0.0, 90.0), _line(30.25, 0.3, 270.0, seed=1)]
     apart = [_line(0.0, 0.0, 90.0), _line(80.0, 0.0, 270.0, seed=1)]  # no common ground
-    assert sample_classes(*(list(layer) for layer in zip(*overlapping)), levels="auto")[1].levels == "pixel"
-    assert sample_classes(*(list(layer) for layer in zip(*apart)), levels="auto")[1].levels == "pooled"
+    layers = [list(layer) for layer in zip(*overlapping)]
+    # Common pixels whose centres lie in both lines: columns 30-63 (centres 30.5-63.5 >= 30.25),
+    # rows 0-47 (centres 0.5-47.5 >= 0.3): 34 x 48, two views each.
+    views = 2 * 34 * 48
+    assert sample_classes(*layers, levels="auto", min_repeated=views)[1].levels == "pixel"
+    assert sample_classes(*layers, levels="auto", min_repeated=views + 1)[1].levels == "pooled"
+    assert sample_classes(*(list(layer) for layer in zip(*apart)), levels="auto", min_repeated=1)[1].levels \
+        == "pooled"
     with pytest.warns(UserWarning):  # pixel levels where no pixel is seen twice: nothing to fit within
         assert _fit(apart, "pixel").status != "fitted"
 
