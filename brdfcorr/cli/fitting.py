@@ -59,8 +59,8 @@ class _BandRange(click.ParamType):
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
-                        block_size, levels, patch_size, errors_cluster, cluster_layers, cluster_band, scale, offset, min_samples,
-                        min_vza_spread, max_condition,
+                        block_size, levels, patch_size, errors_cluster, cluster_layers, cluster_band, scale, offset,
+                        min_samples, min_vza_spread, max_condition,
                         bad_bands, fallback, prior, prior_spread, output, report_path, plot_dir, overwrite, progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
 
