@@ -57,11 +57,6 @@ class CommonGrid:
         """The flat indices into scene ``scene``'s own grid of common-grid pixels ``flat``."""
         return self.sources[scene][flat]
 
-    def views(self, valid: list[np.ndarray]) -> np.ndarray:
-        """How many scenes see each common-grid pixel (y, x), given each scene's ``valid`` mask
-        on the common grid."""
-        return np.sum(valid, axis=0)
-
 
 def _crs_and_transform(image: xr.DataArray, scene: int):
     """The CRS and affine transform of a scene's image; ParameterError without a CRS."""
@@ -95,7 +90,7 @@ def _target(images: list[xr.DataArray]):
 
 
 def _source_index(image: xr.DataArray, crs, transform, shape: tuple[int, int]) -> np.ndarray:
-    """Flat index of the image's own pixel that each common-grid pixel takes (nearest
+    """Flat index (int32) of the image's own pixel that each common-grid pixel takes (nearest
     neighbour, rioxarray's reproject), -1 outside the image; flat (ny * nx,)."""
     from rasterio.enums import Resampling
 
@@ -106,7 +101,7 @@ def _source_index(image: xr.DataArray, crs, transform, shape: tuple[int, int]) -
                          coords={"y": image["y"].values, "x": image["x"].values})
     index = index.rio.write_crs(image.rio.crs).rio.write_transform(image.rio.transform()).rio.write_nodata(-1)
     moved = index.rio.reproject(crs, shape=shape, transform=transform, resampling=Resampling.nearest, nodata=-1)
-    return np.asarray(moved.values, dtype=np.int64).reshape(-1)
+    return np.asarray(moved.values, dtype=np.int32).reshape(-1)
 
 
 def common_grid(images: list[xr.DataArray]) -> CommonGrid:

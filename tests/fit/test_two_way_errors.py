@@ -138,3 +138,9 @@ def test_cli_fits_overlapping_line_files_with_pixel_levels_and_two_way_errors(ma
     refused = CliRunner().invoke(main, ["fit-classes", *arguments, "--errors-cluster", "three-way", "-o",
                                         str(tmp_path / "x.yaml")])
     assert refused.exit_code == 2
+
+
+def test_library_default_is_the_command_lines():
+    from brdfcorr.tasks.options import FIT_CLASSES
+
+    assert Sampling().errors_cluster == FIT_CLASSES.default("errors_cluster") == "one-way"
