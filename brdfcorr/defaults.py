@@ -71,6 +71,9 @@ AUTO_MODEL = "auto"
 #: neighbours come from other orbits); ``auto``: ``pixel`` where several scenes share one grid,
 #: else ``pooled``.
 LEVELS = ("auto", "pooled", "pixel", "patch")
+#: How the errors of an imagery fit are clustered (``--errors-cluster``; :mod:`brdfcorr.fit.two_way`):
+#: over spatial blocks, pixels or cluster-layer ids, or over those and the scenes at once.
+ERROR_CLUSTERS = ("one-way", "two-way")
 
 #: Topographic (illumination) corrections before the BRDF step
 #: (:func:`brdfcorr.correction.topographic.topographic_correction`, whose ``METHODS`` these are).

@@ -59,8 +59,8 @@ class _BandRange(click.ParamType):
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
-                        block_size, levels, patch_size, cluster_layers, cluster_band, scale, offset, min_samples,
-                        min_vza_spread, max_condition,
+                        block_size, levels, patch_size, errors_cluster, cluster_layers, cluster_band, scale, offset,
+                        min_samples, min_vza_spread, max_condition,
                         bad_bands, fallback, prior, prior_spread, output, report_path, plot_dir, overwrite, progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
 
@@ -108,7 +108,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
                         fixed=dict(fix) or None, fallback=fallback, names=class_names,
                         prior=shape_prior),
             sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
-                              levels=levels, patch_size=patch_size),
+                              levels=levels, patch_size=patch_size, errors_cluster=errors_cluster),
             guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
             progress=fitted,
         )
@@ -174,6 +174,9 @@ def _echo_levels(fits) -> None:
         kind, groups = within[0].levels, sum(class_fit.n_groups or 0 for class_fit in within)
         click.echo(f"free levels per {kind}: the shapes are fitted to the differences between the views of each "
                    f"{kind} ({groups} seen two or more times); R2 and the spread are within them")
+        for class_fit in within:  # lines on different grids: how much ground they share
+            for note in (note for note in class_fit.notes if note.startswith("scenes on different grids")):
+                click.echo(f"class {class_fit.class_id} ({class_fit.name}): {note}")
 
 
 def _class_row(fit) -> dict[str, str]:

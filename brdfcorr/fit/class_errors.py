@@ -12,7 +12,8 @@ from brdfcorr.fit.identifiability import error_reliability, t_variance_factor
 from brdfcorr.fit.profile import _LinearProfile
 from brdfcorr.fit.sandwich import _joint_covariance
 from brdfcorr.fit.shape_search import _at_edge, _room
-from brdfcorr.fit.within import cluster_mean_variance, with_constant, with_level_variance
+from brdfcorr.fit.two_way import clustered_covariance, clustered_mean_variance
+from brdfcorr.fit.within import with_constant, with_level_variance
 from brdfcorr.models import Model
 
 __all__: list[str] = []
@@ -38,7 +39,7 @@ def _with_levels(profile: _LinearProfile, shape: dict[str, float], coefficients,
     if profile.constant:
         covariance = _with_level(profile, shape, coefficients, covariance, clusters)
     joint = [*profile.kept, *([] if profile.constant_index is None else [profile.constant_index])]
-    relative_variance = cluster_mean_variance(profile.level, clusters) / profile.scale**2
+    relative_variance = clustered_mean_variance(profile.level, clusters) / profile.scale**2
     return with_level_variance(covariance, intensities[joint].T, relative_variance)
 
 
@@ -59,7 +60,7 @@ def _with_level(profile: _LinearProfile, shape: dict[str, float], coefficients, 
         jacobian.append(-(derivative[kept] @ coefficients) / means[index])
     jacobian += [np.full(coefficients.shape[1], -means[j] / means[index]) for j in kept]
     levels = profile.raw_data - raw[:, kept] @ coefficients  # (N, B): each sample's level
-    variance = cluster_mean_variance(levels, clusters)
+    variance = clustered_mean_variance(levels, clusters)
     return with_constant(covariance, np.stack(jacobian, axis=1), variance / means[index] ** 2)
 
 
@@ -69,14 +70,16 @@ def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, coef
     ``errors_reason``. ``coefficients`` are the intensities of the profile's terms (the design's
     columns), ``intensities`` every linear term's (with a restored constant, :func:`_with_level`).
 
-    The covariance is the CR2 sandwich (:func:`brdfcorr.fit.sandwich._joint_covariance`) with each
+    The covariance is the CR2 sandwich (:func:`brdfcorr.fit.sandwich._joint_covariance`; two-way
+    over pixels and scenes for :class:`brdfcorr.fit.two_way.TwoWayClusters`) with each
     parameter's variance multiplied by the t-variance factor of its effective degrees of freedom
     (:func:`brdfcorr.fit.identifiability.t_variance_factor`; correlations unchanged), so that the
     pulls ``(fit - truth) / error`` have unit SD with few spatial blocks too; whether they can be
     trusted is :func:`brdfcorr.fit.identifiability.error_reliability` (``docs/uncertainty.md``).
     """
     model = profile.model
-    sandwich = _joint_covariance(profile, shape, design, coefficients, clusters)
+    sandwich = clustered_covariance(lambda labels: _joint_covariance(profile, shape, design, coefficients, labels),
+                                    clusters)
     joint_names = [*shape, *profile.terms]
     joint, dof = sandwich.covariance, sandwich.dof
     if profile.levels is not None:

@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from brdfcorr.defaults import AUTO_MODEL
-from brdfcorr.errors import BrdfcorrWarning, FitError, InputError
+from brdfcorr.defaults import AUTO_MODEL, ERROR_CLUSTERS
+from brdfcorr.errors import BrdfcorrWarning, FitError, InputError, ParameterError
 from brdfcorr.fit.class_fit import ClassFit
 from brdfcorr.fit.entries import class_entry
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
@@ -251,7 +251,8 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
     fails or fits poorly (unless its model was chosen by held-out error)."""
     levels = None if samples.group is None else Levels.from_labels(samples.group, samples.scene)
     result = fit_class_samples(model, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, fixed=fixed,
-                               grid_points=grid_points, clusters=samples.block, levels=levels)
+                               grid_points=grid_points, clusters=samples.block, levels=levels,
+                               scenes=samples.scene if samples.scene_errors else None)
     _record(report, result)
     if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
         _apply_prior(report, *prior, samples)
@@ -270,7 +271,7 @@ def _pooled_if_alike(samples: ClassSamples, guard: GuardRails, pool_if_alike: bo
     if pool_if_alike and within is not None and within < guard.min_vza_spread:
         notes.append(f"the views of each pixel differ by {within:.1f} deg < {guard.min_vza_spread:g} deg: "
                      "fitted pooled (one level for the class)")
-        return dataclasses.replace(samples, group=None, scene=None, levels="pooled"), None
+        return dataclasses.replace(samples, group=None, levels="pooled"), None
     return samples, within
 
 
@@ -422,8 +423,9 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         :class:`ClassFitWarning` says so.
     sampling : Sampling, default Sampling()
         Samples per class, seed, reflectance scale, bad bands and spatial block size of the sampler
-        (:func:`sample_classes`; the errors are cluster-robust over the blocks), and the samples
-        per class kept in the result for plots.
+        (:func:`sample_classes`; the errors are cluster-robust over the blocks, and over the
+        scenes too with ``errors_cluster="two-way"``), and the samples per class kept in the
+        result for plots.
     wavelengths : sequence of float, optional
         Band centres [nm]; default: the images' ``wavelength`` coordinate if present. Written to
         the table so that it can be applied to other sensors by interpolation.
@@ -458,6 +460,8 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     left out).
     """
     models = _with_default_model(models)
+    if sampling.errors_cluster not in ERROR_CLUSTERS:
+        raise ParameterError(f"errors cluster {sampling.errors_cluster!r}: use one of {', '.join(ERROR_CLUSTERS)}")
     scenes, classes, angles = scene_lists(images, classes, angles)
     if wavelengths is None and "wavelength" in scenes[0].coords:
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
@@ -465,16 +469,19 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     pooled = sample_classes(
         scenes, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
         seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
-        levels=sampling.levels, patch_size=sampling.patch_size, clusters=clusters,
+        levels=sampling.levels, patch_size=sampling.patch_size, clusters=clusters, min_repeated=guard.min_samples,
     )
     prior = _prior(models, wavelengths)
     fits, entries, kept = [], [], {}
     for class_id, samples in pooled.items():
+        samples.scene_errors = sampling.errors_cluster == "two-way"
         fit = fit_one_class(
             class_id, models.name_of(class_id), models.model_of(class_id), samples,
             fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id), grid_points=grid_points,
             prior=prior, pool_if_alike=sampling.levels == "auto",
         )
+        if samples.note is not None:
+            fit.notes.append(samples.note)
         fits.append(fit)
         entry = class_entry(fit, wavelengths, source, used_ranges or None)
         entries += [] if entry is None else [entry]

@@ -13,6 +13,7 @@ import xarray as xr
 
 from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, ParameterError
+from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.geometry import relative_azimuth
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
@@ -30,6 +31,8 @@ class ClassSamples:
     group: np.ndarray | None = None  # the pixel or patch whose level is free (LEVELS), if any
     scene: np.ndarray | None = None  # the scene each sample comes from (its level is free too)
     levels: str = "pooled"  # whose levels are free (LEVELS, resolved)
+    note: str | None = None  # how the scenes were brought onto one grid, if they were
+    scene_errors: bool = False  # errors two-way cluster-robust, over ``block`` and ``scene`` (fit.two_way)
 
 
 def _class_values(class_map: xr.DataArray) -> np.ndarray:
@@ -64,15 +67,19 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
 
 
 def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int,
-                   shared_grid: bool = False, cluster_ids: np.ndarray | None = None) -> tuple:
+                   shared_grid: bool = False, cluster_ids: np.ndarray | None = None,
+                   read_at: np.ndarray | None = None) -> tuple:
     """The samples of one scene (number ``scene``) at the flat pixel indices ``flat`` of its class
     map (of ``shape`` (y, x)): sun zenith, view zenith and relative azimuth [deg], BRDF (N, B)
     [sr^-1], and the id of each sample's spatial block of ``block_size`` pixels (unique over the
     scenes; on a ``shared_grid`` the same in every scene, so that a block holds every view of its
     ground), or, given the scene's ``cluster_ids`` (y, x; integer-valued), each sample's id there.
-    Stored values times ``reflectance_scale`` are reflectance factors."""
+    Stored values times ``reflectance_scale`` are reflectance factors. With ``read_at`` (flat
+    indices into the scene's own grid) the class map's grid is a common grid
+    (:mod:`brdfcorr.fit.grids`) and the values are read at those pixels of the scene."""
     iy, ix = np.unravel_index(flat, shape)
-    where = {"y": xr.DataArray(iy, dims="sample"), "x": xr.DataArray(ix, dims="sample")}
+    ry, rx = (iy, ix) if read_at is None else np.unravel_index(read_at, (image.sizes["y"], image.sizes["x"]))
+    where = {"y": xr.DataArray(ry, dims="sample"), "x": xr.DataArray(rx, dims="sample")}
 
     def pick(array):
         # Pointwise (vectorized) indexing: lazy on dask, reads only the sampled pixels.
@@ -106,7 +113,7 @@ def _check_bands(brdf: np.ndarray, image, class_id: int) -> None:
 
 def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None, max_samples: int = 50_000,
                    seed: int = 0, reflectance_scale: float = 1.0, block_size: int = 32, levels: str = "pooled",
-                   patch_size: int = 8, clusters=None) -> dict[int, ClassSamples]:
+                   patch_size: int = 8, clusters=None, min_repeated: int = 500) -> dict[int, ClassSamples]:
     """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
 
     Parameters
@@ -137,7 +144,13 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         Whose level the fit leaves free (:data:`LEVELS`, :mod:`brdfcorr.fit.within`): with
         ``pixel`` or ``patch`` whole groups (a pixel's views in every scene; a patch's pixels) are
         sampled, groups with a single view left out, and every sample carries its group and scene
-        (``ClassSamples.group``, ``.scene``). ``pixel`` needs several scenes on one grid.
+        (``ClassSamples.group``, ``.scene``). ``pixel`` needs several scenes. Scenes on
+        different grids (overlapping flight lines) are brought onto one common grid for
+        ``pixel`` and ``patch`` (and for ``auto``, for each class whose views of pixels seen
+        twice or more number ``min_repeated`` at least; other classes are pooled): the first
+        scene's CRS and pixel grid over the union of their extents, nearest neighbour
+        (:mod:`brdfcorr.fit.grids`; each class's ``ClassSamples.note`` says how many of its
+        pixels are seen twice or more).
     patch_size : int, default 8
         Side [pixels] of the patches of ``levels="patch"``; it must divide ``block_size`` (a
         block holds whole patches).
@@ -150,6 +163,11 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         id or the layer's rioxarray nodata are not sampled. With free levels, clusters that share
         a group (a pixel's or patch's views) are merged into one (:func:`nested_clusters`): a
         group's level is estimated from all its views.
+    min_repeated : int, default 500
+        With ``levels="auto"`` over scenes on different grids: the fewest views of pixels seen
+        twice or more for a class to be sampled within pixels on the common grid (fewer: pooled,
+        on the scenes' own grids). :func:`brdfcorr.fit.fit_classes` passes its guard rail's
+        ``min_samples``.
 
     Returns
     -------
@@ -168,7 +186,8 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     Notes
     -----
     Only the class maps and the angle layers needed to find valid pixels are computed whole; the
-    reflectance is read at the sampled pixels only (pointwise indexing stays lazy on dask).
+    reflectance is read at the sampled pixels only (pointwise indexing stays lazy on dask), on
+    the scenes' own grids also where they were brought onto a common grid.
     """
     images, classes, angles = scene_lists(images, classes, angles)
     if not len(images) == len(classes) == len(angles):
@@ -186,28 +205,79 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         valid_angles = [ok & np.isfinite(ids) for ok, ids in zip(valid_angles, cluster_ids)]
     if class_ids is None:
         class_ids = sorted({int(c) for m in maps for c in np.unique(m) if c > 0})
-    shared = _shared_grid(images, maps)
-    levels = resolve_levels(levels, len(images), shared, patch_size, block_size)
-    patch = 1 if levels == "pixel" else patch_size
+    own = _Layers(maps, valid_angles, cluster_ids, _shared_grid(images, maps))
+    common = None
+    if not own.shared and len(images) > 1 and levels in ("pixel", "patch", "auto"):
+        grid = _common_grid(images, levels)
+        if grid is not None:
+            common = own.on_grid(grid, resolve_levels(levels, len(images), True, patch_size, block_size))
+    if common is None or levels == "auto":
+        own.levels = resolve_levels(levels, len(images), own.shared, patch_size, block_size)
     rng = np.random.default_rng(seed)
     pooled: dict[int, ClassSamples] = {}
     for class_id in class_ids:
-        candidates = [np.flatnonzero((m == class_id) & ok) for m, ok in zip(maps, valid_angles)]
-        groups: list[np.ndarray | None] = [None] * len(images)
-        if levels == "pooled":
-            chosen = _pooled_choice(candidates, max_samples, rng)
-        else:
-            groups = [_group_of(flat, m.shape, patch, None if shared else scene)
-                      for scene, (flat, m) in enumerate(zip(candidates, maps))]
-            chosen = _grouped_choice(groups, max_samples, rng)
-        selected = [(candidates[scene][chosen[scene]], None if groups[scene] is None else groups[scene][chosen[scene]])
-                    for scene in range(len(images))]
-        parts = _scene_parts(images, angles, maps, selected, (reflectance_scale, block_size, shared), cluster_ids)
-        samples = _class_samples(parts, images[0], class_id, levels)
-        if cluster_ids is not None and samples.group is not None and samples.block is not None and samples.block.size:
-            samples.block = nested_clusters(samples.block, samples.group)
-        pooled[class_id] = samples
+        within = common is not None and (levels != "auto" or common.repeated_views(class_id) >= min_repeated)
+        layers = common if within and common is not None else own
+        pooled[class_id] = _sample_class(class_id, images, angles, layers, rng,
+                                         (max_samples, reflectance_scale, block_size, patch_size))
     return pooled
+
+
+@dataclass
+class _Layers:
+    """What the sampler holds whole of every scene: class ids, valid angles (and cluster ids)
+    (y, x), on one grid (``shared``; a ``grid`` they were brought onto, if they were) or each on
+    its scene's own; and the levels (:data:`LEVELS`, resolved) sampled from them."""
+
+    maps: list[np.ndarray]
+    valid: list[np.ndarray]
+    cluster_ids: list[np.ndarray] | None
+    shared: bool
+    levels: str = "pooled"
+    grid: CommonGrid | None = None
+
+    def on_grid(self, grid: CommonGrid, levels: str) -> _Layers:
+        """The layers gathered onto the common ``grid`` (nearest neighbour, :mod:`brdfcorr.fit.grids`)."""
+        clusters = self.cluster_ids
+        return _Layers([grid.gather(scene, m, 0) for scene, m in enumerate(self.maps)],
+                       [grid.gather(scene, ok, False) for scene, ok in enumerate(self.valid)],
+                       None if clusters is None else [grid.gather(scene, ids, np.nan)
+                                                      for scene, ids in enumerate(clusters)],
+                       True, levels, grid)
+
+    def candidates(self, class_id: int) -> list[np.ndarray]:
+        """Per scene, the flat indices of the class's valid pixels."""
+        return [np.flatnonzero((m == class_id) & ok) for m, ok in zip(self.maps, self.valid)]
+
+    def repeated_views(self, class_id: int) -> int:
+        """The class's views of pixels seen by two or more scenes (on a shared grid)."""
+        seen = np.sum([(m == class_id) & ok for m, ok in zip(self.maps, self.valid)], axis=0)
+        return int(seen[seen >= 2].sum())
+
+
+def _sample_class(class_id: int, images: list, angles: list, layers: _Layers, rng, reading: tuple) -> ClassSamples:
+    """One class's samples (:func:`sample_classes`) from the ``layers``; ``reading``: the most
+    samples, the reflectance scale, the block size and the patch size."""
+    max_samples, reflectance_scale, block_size, patch_size = reading
+    candidates = layers.candidates(class_id)
+    groups: list[np.ndarray | None] = [None] * len(images)
+    if layers.levels == "pooled":
+        chosen = _pooled_choice(candidates, max_samples, rng)
+    else:
+        patch = 1 if layers.levels == "pixel" else patch_size
+        groups = [_group_of(flat, m.shape, patch, None if layers.shared else scene)
+                  for scene, (flat, m) in enumerate(zip(candidates, layers.maps))]
+        chosen = _grouped_choice(groups, max_samples, rng)
+    selected = [(candidates[scene][chosen[scene]], None if groups[scene] is None else groups[scene][chosen[scene]])
+                for scene in range(len(images))]
+    parts = _scene_parts(images, angles, layers.maps, selected, (reflectance_scale, block_size, layers.shared),
+                         layers.cluster_ids, layers.grid)
+    samples = _class_samples(parts, images[0], class_id, layers.levels)
+    samples.note = None if layers.grid is None else _grid_note(candidates, layers.grid.shape)
+    if layers.cluster_ids is not None and samples.group is not None and samples.block is not None \
+            and samples.block.size:
+        samples.block = nested_clusters(samples.block, samples.group)
+    return samples
 
 
 def _cluster_ids(clusters, shapes: list[tuple[int, ...]]) -> list[np.ndarray] | None:
@@ -256,37 +326,62 @@ def nested_clusters(clusters: np.ndarray, groups: np.ndarray) -> np.ndarray:
 
 
 def _scene_parts(images: list, angles: list, maps: list[np.ndarray], selected: list[tuple], reading: tuple,
-                 cluster_ids: list[np.ndarray] | None) -> list[tuple]:
+                 cluster_ids: list[np.ndarray] | None, grid: CommonGrid | None = None) -> list[tuple]:
     """Each scene's part of one class's samples (:func:`_scene_samples`: angles [deg], BRDF [sr^-1],
-    block or cluster id; with groups also the group and the scene of each sample) at its
-    ``selected`` pixels (flat indices into the scene's grid, and their groups or None); scenes
-    without any are skipped. ``reading``: the reflectance scale, block size and whether the scenes
-    share one grid."""
+    block or cluster id; with groups also the group; and the scene of each sample) at its
+    ``selected`` pixels (flat indices into the scene's grid, or the common ``grid``'s, and their
+    groups or None); scenes without any are skipped. ``reading``: the reflectance scale, block
+    size and whether the scenes share one grid."""
     reflectance_scale, block_size, shared = reading
     parts = []
     for scene, ((flat, group), image, angle_set) in enumerate(zip(selected, images, angles)):
         if flat.size:
             values = _scene_samples(scene, image, angle_set, maps[scene].shape, flat, reflectance_scale,
-                                    block_size, shared, None if cluster_ids is None else cluster_ids[scene])
-            labels = () if group is None else (group, np.full(flat.size, scene))
-            parts.append((*values, *labels))
+                                    block_size, shared, None if cluster_ids is None else cluster_ids[scene],
+                                    None if grid is None else grid.source_pixels(scene, flat))
+            labels = () if group is None else (group,)
+            parts.append((*values, *labels, np.full(flat.size, scene)))
     return parts
 
 
 def _class_samples(parts: list[tuple], image, class_id: int, levels: str) -> ClassSamples:
-    """One class's samples from the scenes' parts (angles, BRDF, block[, group, scene]), without
-    the samples that are not finite in some band."""
+    """One class's samples from the scenes' parts (angles, BRDF, block[, group], scene), without
+    the samples that are not finite in some band; pooled samples keep their scene too (for
+    errors clustered by scene, :mod:`brdfcorr.fit.two_way`)."""
     grouped = levels != "pooled"
     if not parts:
         empty = np.empty(0, np.int64)
         arrays = [*(np.empty(0) for _ in range(3)), np.empty((0, image.sizes["band"])), empty,
-                  *((empty, empty) if grouped else (None, None))]
-        return ClassSamples(*arrays, levels=levels)
-    arrays = [np.concatenate(p) for p in zip(*parts)]
-    _check_bands(arrays[3], image, class_id)
-    keep = np.all(np.isfinite(arrays[3]), axis=1)
-    kept = [a[keep] for a in arrays]
-    return ClassSamples(*kept, *((None, None) if not grouped else ()), levels=levels)
+                  *((empty,) if grouped else ()), empty]
+    else:
+        arrays = [np.concatenate(p) for p in zip(*parts)]
+        _check_bands(arrays[3], image, class_id)
+        keep = np.all(np.isfinite(arrays[3]), axis=1)
+        arrays = [a[keep] for a in arrays]
+    group = arrays[5] if grouped else None
+    return ClassSamples(*arrays[:5], group=group, scene=arrays[-1], levels=levels)
+
+
+def _common_grid(images: list, levels: str) -> CommonGrid | None:
+    """The common grid of scenes on different grids (:func:`brdfcorr.fit.grids.common_grid`), or
+    None where they are not georeferenced and ``levels`` is ``auto`` (pooled) or ``patch`` (each
+    scene's own patches); ParameterError for ``pixel``."""
+    try:
+        return common_grid(images)
+    except ParameterError:
+        if levels == "pixel":
+            raise
+        return None
+
+
+def _grid_note(candidates: list[np.ndarray], shape: tuple[int, int]) -> str:
+    """How many of a class's pixels of the common grid (of ``shape``) the scenes' ``candidates``
+    (flat indices) see twice or more, and how many once (they drop out of a within fit)."""
+    seen = np.bincount(np.concatenate(candidates), minlength=shape[0] * shape[1]) if candidates else np.zeros(1)
+    twice, once = int(np.count_nonzero(seen >= 2)), int(np.count_nonzero(seen == 1))
+    return (f"scenes on different grids resampled (nearest neighbour) onto the first scene's grid over their "
+            f"union ({shape[0]} x {shape[1]} pixels): {twice} of the class's pixels seen by two or more scenes, "
+            f"{once} seen once (left out of the within fit)")
 
 
 def _shared_grid(images, maps) -> bool:
@@ -309,9 +404,8 @@ def resolve_levels(levels: str, n_scenes: int, shared: bool, patch_size: int, bl
     if levels == "auto":
         return "pixel" if shared and n_scenes > 1 else "pooled"
     if levels == "pixel" and not (shared and n_scenes > 1):
-        raise ParameterError("free levels per pixel need several scenes on one grid (the same ground seen more "
-                             "than once): resample them onto one grid (rioxarray's reproject_match), or use "
-                             "levels per patch")
+        raise ParameterError("free levels per pixel need several scenes on one grid, or georeferenced scenes "
+                             "that overlap (the same ground seen more than once): use levels per patch")
     if levels == "patch" and (patch_size < 1 or block_size % patch_size):
         raise ParameterError(f"patch size {patch_size}: it must be a positive divisor of the block size "
                              f"{block_size} (a block holds whole patches)")

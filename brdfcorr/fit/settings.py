@@ -148,6 +148,11 @@ class Sampling:
         grid (the shape is then fitted to each pixel's own views only) and pools a single scene.
     patch_size : int, default 8
         Side [pixels] of the patches of ``levels="patch"`` (a divisor of ``block_size``).
+    errors_cluster : {"one-way", "two-way"}, default "one-way"
+        Errors cluster-robust over the blocks (or pixels, patches, cluster-layer ids) alone, or
+        over those and the scenes at once (Cameron, Gelbach and Miller 2011;
+        :mod:`brdfcorr.fit.two_way`): for errors shared by every pixel of a date or line (its
+        atmosphere, its calibration). With one scene both are the same.
     """
 
     max_samples: int = 50_000
@@ -158,6 +163,7 @@ class Sampling:
     bad_bands: tuple[tuple[float, float], ...] = WATER_VAPOUR_BANDS
     levels: str = "auto"
     patch_size: int = 8
+    errors_cluster: str = "one-way"
 
 
 def fallback_entry(name: str, class_id: int, class_name: str) -> dict:

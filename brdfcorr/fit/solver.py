@@ -39,6 +39,7 @@ from brdfcorr.fit.class_errors import _class_errors
 from brdfcorr.fit.profile import _LinearProfile, _profile
 from brdfcorr.fit.shape_search import _coarse_shape, _newton_polish
 from brdfcorr.fit.shapes import _resolve
+from brdfcorr.fit.two_way import TwoWayClusters
 from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model
 
@@ -62,7 +63,7 @@ LEVEL_ITERATIONS = 3
 
 def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed: Mapping[str, float] | None = None,
                       grid_points: int = 9, search_samples: int = 20_000, clusters=None,
-                      levels: Levels | None = None) -> dict:
+                      levels: Levels | None = None, scenes=None) -> dict:
     """Fit one class: shape parameters shared by all bands, intensity terms per band. Without free
     shape parameters (kernel-driven models, Lambertian) the fit is one weighted linear least-squares
     solve: no search, no Newton steps.
@@ -94,6 +95,9 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
         from the class's mean. Samples alone in their group, or in one without a positive mean, are left
         out. R^2, angular R^2, RMS and chi^2/dof are then those of the within-group differences.
         Clusters must hold whole groups.
+    scenes : array-like of int, shape (N,), optional
+        The scene (date, line) of each sample: the errors are then two-way cluster-robust, over
+        ``clusters`` and over the scenes (:mod:`brdfcorr.fit.two_way`; one-way with one scene).
 
     Returns
     -------
@@ -112,7 +116,10 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
         that hold two or more samples; None without ``levels``).
     """
     model, fixed, free = _resolve(model, fixed)
-    samples, clusters, levels = _repeated_only((theta_i, theta_r, phi, brdf), clusters, levels)
+    rows, clusters, levels = _repeated_only((theta_i, theta_r, phi, brdf, *(() if scenes is None else (scenes,))),
+                                            clusters, levels)
+    samples = rows[:4]
+    clusters = clusters if scenes is None else TwoWayClusters.of(clusters, rows[4])
     profile = _profile(model, *samples, fixed, levels=levels)
     if levels is not None and not profile.terms and not free:  # the level alone (Lambertian): nothing within
         levels, profile = None, _profile(model, *samples, fixed)

@@ -26,6 +26,7 @@ from brdfcorr.defaults import (
     AUTO_MODEL,
     BRDF_FRAMES,
     DEFAULT_LIMITS,
+    ERROR_CLUSTERS,
     FACTOR_AT,
     LEVELS,
     MAX_BLOCK_SIZE,
@@ -363,6 +364,12 @@ FIT_CLASSES = settings(
                  "whose neighbours were seen from other orbits); pooled: one level per class."),
     Setting("patch_size", ("--patch-size",), "int", ge=1, default=8, show_default=True, chain="fit",
             help="Side [pixels] of the patches of --levels patch (a divisor of --block-size)."),
+    Setting("errors_cluster", ("--errors-cluster",), "choice", choices=ERROR_CLUSTERS, default="one-way",
+            show_default=True,
+            help="one-way: the fit's errors are cluster-robust over --block-size squares (or pixels, patches, "
+                 "--clusters ids); two-way: over those and the images at once (errors shared by every pixel of "
+                 "a date or line: its atmosphere, its calibration; Cameron, Gelbach & Miller 2011). Needs many "
+                 "images to be trusted."),
     Setting("cluster_layers", ("--clusters",), "path", multiple=True,
             help="Per image, in the images' order: a raster on its grid of integer ids of the units whose pixels "
                  "share their errors (a composite's day-of-year band, a flight-line id); the fit's errors are "
