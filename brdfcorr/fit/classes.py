@@ -253,6 +253,7 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
     result = fit_class_samples(model, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, fixed=fixed,
                                grid_points=grid_points, clusters=samples.block, levels=levels)
     _record(report, result)
+    report.notes += [held.note(name) for name, held in result["held"].items()]
     if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
         _apply_prior(report, *prior, samples)
         guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
