@@ -54,7 +54,7 @@ def fit_classes_seconds(paths: dict[str, Path], output: Path, model: str | None)
     imports included, as a user runs it), with ``--model model`` (None: the default)."""
     command = [sys.executable, "-c", "from brdfcorr.cli import main; main()", "fit-classes", str(paths["image"]),
                "--angles", str(paths["angles"]), "--classes", str(paths["classes"]), "-o", str(output),
-               "--no-progress", *(["--model", model] if model else [])]
+               "--no-progress", "--overwrite", *(["--model", model] if model else [])]
     start = time.perf_counter()
     subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
     return time.perf_counter() - start
