@@ -204,6 +204,8 @@ def _hold_unconstrained(profile: _LinearProfile, shape: dict[str, float], soluti
     """
     held: dict[str, Held] = {}
     for name in _at_edge(profile, shape):
+        if name not in _at_edge(profile, shape):  # moved off its edge when another was held
+            continue
         value = _middle(profile.ranges[name])
         trial_profile = profile.holding(name, value)
         rest = {key: shape_value for key, shape_value in shape.items() if key != name}

@@ -47,8 +47,10 @@ def test_rpv_on_a_specular_lobe_ends_at_its_limit_and_says_so():
     # converged fit with theta kept <= 0.99.
     angles = _goniometer(0)
     brdf = get_model("torrance_sparrow")(*angles, **load_material("roof_tile").params)
-    with pytest.warns(FitWarning, match="limit of the model"):
-        result = fit_brdf("rpv", *angles, brdf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NonIdentifiableWarning)  # (the limit's errors are not determined)
+        with pytest.warns(FitWarning, match="limit of the model"):
+            result = fit_brdf("rpv", *angles, brdf)
     assert result.params["theta"] > 0.99 and result.n_converged >= 2
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
