@@ -109,9 +109,14 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
         degrees of freedom of each error), ``n_clusters`` (blocks, or samples without them),
         ``errors_reliable`` (bool) and ``errors_reason`` (why not; empty when reliable;
         :func:`brdfcorr.fit.identifiability.error_reliability`), ``n_groups`` (groups with free levels
-        that hold two or more samples; None without ``levels``), ``held`` (the shape parameters
-        that ended at the edge of their search range without the data constraining them, held at
-        the middle of the range and listed in ``fixed``: name -> :class:`Held`).
+        that hold two or more samples; None without ``levels``), ``if_held``: where shape
+        parameters ended at the edge of their search range without the data constraining them
+        (:func:`_hold_unconstrained`), the fit with them held at the middle of the range (a dict
+        like this one, its ``held``: name -> :class:`Held`, those parameters in ``fixed``), else
+        None; ``held`` ({} here). The caller chooses: fit-classes takes it for a class whose fit at
+        the edge explains too little of its angular signal to be kept
+        (:func:`brdfcorr.fit.classes._held_if_poor`); where the fit at the edge is good, its edge
+        value is kept (holding it would change a fit the data support, if not significantly).
     """
     model, fixed, free = _resolve(model, fixed)
     samples, clusters, levels = _repeated_only((theta_i, theta_r, phi, brdf), clusters, levels)
@@ -121,9 +126,12 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
     coarse = _coarse_shape(model, fixed, free, samples, search_samples, grid_points, full=profile)[1] if free else {}
     shape = _newton_polish(profile, coarse) if free else {}
     profile, shape, solution = _solve_with_levels(profile, shape, samples, free)
-    profile, shape, solution, held = _hold_unconstrained(profile, shape, solution, clusters)
-    return {**_fit_summary(profile, shape, {**fixed, **{name: h.value for name, h in held.items()}}, solution,
-                           clusters), "held": held}
+    held_profile, held_shape, held_solution, held = _hold_unconstrained(profile, shape, solution, clusters)
+    if_held = None
+    if held:
+        if_held = {**_fit_summary(held_profile, held_shape, {**fixed, **{name: h.value for name, h in held.items()}},
+                                  held_solution, clusters), "held": held, "if_held": None}
+    return {**_fit_summary(profile, shape, fixed, solution, clusters), "held": {}, "if_held": if_held}
 
 
 def _solve_with_levels(profile: _LinearProfile, shape: dict[str, float], samples: tuple,

@@ -101,7 +101,7 @@ def test_an_imagery_fit_recovers_the_lobe_shape_and_the_intensities_per_band(see
     bands = [{**PARAMS["ross_li_ts"]}, {**PARAMS["ross_li_ts"], "f_iso": 0.1, "f_vol": 0.05, "t1": 0.4}]
     brdf = np.column_stack([model(ti, tr, phi, **band) for band in bands])
     result = fit_class_samples("ross_li_ts", ti, tr, phi, brdf)
-    assert result["at_edge"] == [] and result["held"] == {}
+    assert result["at_edge"] == [] and result["if_held"] is None
     assert result["params"]["w"][0] == pytest.approx(0.0362, rel=1e-3)
     assert result["params"]["n"][0] == pytest.approx(1.77, rel=1e-3)
     np.testing.assert_allclose(result["params"]["f_iso"], [0.03, 0.1], rtol=3e-3)
