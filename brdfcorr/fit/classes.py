@@ -32,7 +32,7 @@ import numpy as np
 
 from brdfcorr.defaults import AUTO_MODEL, ERROR_CLUSTERS
 from brdfcorr.errors import BrdfcorrWarning, FitError, InputError, ParameterError
-from brdfcorr.fit.class_fit import ClassFit
+from brdfcorr.fit.class_fit import ClassFit, _finite_median
 from brdfcorr.fit.entries import class_entry
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
 from brdfcorr.fit.quality import fit_quality
@@ -253,13 +253,25 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
     result = fit_class_samples(model, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, fixed=fixed,
                                grid_points=grid_points, clusters=samples.block, levels=levels,
                                scenes=samples.scene if samples.scene_errors else None)
+    result = _held_if_poor(result)
     _record(report, result)
+    report.notes += [held.note(name) for name, held in result["held"].items()]
     if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
         _apply_prior(report, *prior, samples)
         guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
     report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
     if report.model_choice is None and (report.reasons or not report.median_angular_r2 >= POOR_R2):
         _suggest_model(report, model, samples)
+
+
+def _held_if_poor(result: dict) -> dict:
+    """The fit of :func:`fit_class_samples`, or its fit with the unconstrained edge parameters held
+    (``result["if_held"]``) where the fit at the edge explains too little of the angular signal
+    (median angular R^2 < :data:`POOR_R2`) for its edge to be kept with a note (:func:`_fit_reasons`
+    would fail the class)."""
+    if result["if_held"] is None or _finite_median(result["angular_r2"]) >= POOR_R2:
+        return result
+    return result["if_held"]
 
 
 def _pooled_if_alike(samples: ClassSamples, guard: GuardRails, pool_if_alike: bool,

@@ -308,7 +308,8 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
     brdfcorr.errors.ParameterError
         Unknown parameter names, invalid fixed values, empty bounds.
     brdfcorr.errors.FitError
-        Nothing to fit, not more measurements than free parameters, or no start converged.
+        Nothing to fit, not more measurements than free parameters, or no start converged (and
+        fewer than two ran out of evaluations at one chi^2, :func:`_best_solution`).
 
     Warns
     -----
@@ -317,7 +318,8 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
         parameter whose error exceeds both its value and its default, or an ill-conditioned or
         singular Jacobian (paper 003: n, k and t1 trade off unless k is fixed).
     FitWarning
-        A free parameter ended on a bound.
+        A free parameter ended on a bound, or the fit lies at a limit of the model (no start
+        converged, several ran out of evaluations at one chi^2: :func:`_best_solution`).
 
     Notes
     -----
@@ -335,7 +337,7 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
     starts = _starting_points(problem, initial)
     if initial:  # the user's start first, then the default grid: a poor guess cannot spoil the fit
         starts += _starting_points(problem, {})
-    best, n_converged = _best_solution(problem, starts)
+    best, n_converged, limit = _best_solution(problem, starts)
 
     values = dict(zip(free, map(float, best.x)))
     model_values = np.asarray(model.kernel(problem.geometry, **problem.fixed, **values), dtype=float)
@@ -348,6 +350,9 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
         covariance = covariance * (chi2 / dof)
     messages, at_bounds = _fit_warnings(problem, values, best.active_mask, covariance, condition_number,
                                         error_analysis.correlation_limit)
+    if limit:
+        messages.append(_limit_message(problem, values, n_converged))
+        warnings.warn(messages[-1], FitWarning, stacklevel=2)
     all_values, errors = _parameter_values(problem, values, np.sqrt(np.diag(covariance)))
     return FitResult(
         model=model, params=all_values, errors=errors, free=free, fixed=problem.fixed, covariance=covariance,
@@ -378,13 +383,24 @@ def _problem(model: Model, measurements: tuple, fixed, initial, bounds):
     return problem, sigma, initial
 
 
+#: Starts that ran out of evaluations count as a fit at a limit of the model (:func:`_best_solution`)
+#: when at least this many reached the same chi^2: within :data:`LIMIT_AGREEMENT` of its share per
+#: degree of freedom (chi^2 / dof), far below what the measurements can tell apart.
+LIMIT_STARTS, LIMIT_AGREEMENT = 2, 0.01
+
+
 def _best_solution(problem: _Problem, starts: list[np.ndarray]):
     """Least squares (trust-region reflective, within the bounds) from every start.
 
-    Returns the solution with the lowest cost (:class:`scipy.optimize.OptimizeResult`) and how many
-    starts reached it (within 1e-6 relative). Raises :class:`FitError` when none converged.
+    Returns the solution with the lowest cost (:class:`scipy.optimize.OptimizeResult`), how many
+    starts reached it (within 1e-6 relative) and whether it is a fit at a limit of the model: where
+    no start converged but :data:`LIMIT_STARTS` or more ran out of evaluations at the same cost
+    (within :data:`LIMIT_AGREEMENT` of chi^2 / dof), their best is kept; they followed a valley towards an optimum
+    the model reaches only in a limit (RPV on a specular lobe: theta -> 1 with rho0 -> inf, where
+    ``rho0 (1 - theta^2)`` stays finite), so the cost is the infimum but the parameters are not
+    determined. Raises :class:`FitError` when neither happened.
     """
-    solutions = []
+    solutions, exhausted = [], []
     for start in starts:
         try:
             solution = least_squares(
@@ -393,15 +409,35 @@ def _best_solution(problem: _Problem, starts: list[np.ndarray]):
             )
         except (ValueError, np.linalg.LinAlgError):  # a start where the model is not finite
             continue
-        if solution.status > 0 and np.isfinite(solution.cost):
-            solutions.append(solution)
-    if not solutions:
-        raise FitError(f"{problem.model.name}: the fit did not converge from any of {len(starts)} starts")
+        if np.isfinite(solution.cost):
+            (solutions if solution.status > 0 else exhausted if solution.status == 0 else []).append(solution)
+    tolerance, limit = 1e-6, not solutions
+    if limit:
+        tolerance = LIMIT_AGREEMENT / max(problem.data.size - len(problem.free), 1)
+        solutions = _agreeing(exhausted, tolerance)
+        if len(solutions) < LIMIT_STARTS:
+            raise FitError(f"{problem.model.name}: the fit did not converge from any of {len(starts)} starts")
     best = min(solutions, key=lambda solution: solution.cost)
-    n_converged = sum(
-        solution.cost <= best.cost * (1 + 1e-6) + 1e-300 for solution in solutions
-    )
-    return best, int(n_converged)
+    return best, len(_agreeing(solutions, tolerance)), limit
+
+
+def _agreeing(solutions: list, tolerance: float) -> list:
+    """The solutions whose cost is within ``tolerance`` (relative) of the lowest."""
+    if not solutions:
+        return []
+    lowest = min(solution.cost for solution in solutions)
+    return [solution for solution in solutions if solution.cost <= lowest * (1 + tolerance) + 1e-300]
+
+
+def _limit_message(problem: _Problem, values: Mapping[str, float], n_agreeing: int) -> str:
+    """The warning of a fit at a limit of the model (:func:`_best_solution`), naming the free
+    parameters within 1 % of a finite bound."""
+    near = [f"{name} = {values[name]:.4g}" for name, low, high in zip(problem.free, problem.lower, problem.upper)
+            if math.isfinite(high - low) and min(values[name] - low, high - values[name]) < 0.01 * (high - low)]
+    where = f" (towards {', '.join(near)} at the end of its range)" if near else ""
+    return (f"{problem.model.name}: no start converged; {n_agreeing} ran out of evaluations at the same chi^2 "
+            f"along a valley{where}: the best fit lies at a limit of the model, its parameters and errors "
+            "are not determined (another model may describe the surface)")
 
 
 def _goodness(data: np.ndarray, residuals: np.ndarray, weights: np.ndarray) -> tuple[float, float]:

@@ -9,6 +9,7 @@ left) is what the shape search minimizes (:mod:`brdfcorr.fit.shape_search`). Wit
 
 from __future__ import annotations
 
+import copy
 import itertools
 import math
 from collections.abc import Mapping
@@ -65,6 +66,19 @@ class _LinearProfile:
         variance = self.sum_yy / self.n - (self.sum_y / self.n) ** 2
         # Inverse-variance band weights; a constant band carries no shape information.
         self.weights = np.where(variance > 0, 1.0 / np.where(variance > 0, variance, 1.0), 0.0)
+
+    def holding(self, name: str, value: float) -> _LinearProfile:
+        """This profile with the free shape parameter ``name`` held at ``value`` (the same data
+        and sums; one free shape parameter fewer)."""
+        held = copy.copy(self)
+        held.fixed = {**self.fixed, name: value}
+        held.ranges = {key: search for key, search in self.ranges.items() if key != name}
+        return held
+
+    def residuals(self, design: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
+        """The (N, B) residuals of the data the profile fits (within groups where the levels are
+        free) from ``design @ coefficients`` [sr^-1]."""
+        return self.data - design @ coefficients
 
     def raw_design(self, shape: Mapping[str, float]) -> np.ndarray:
         """The (N, m) design matrix of every linear term of the model at a trial shape."""

@@ -37,13 +37,13 @@ import numpy as np
 
 from brdfcorr.fit.class_errors import _class_errors
 from brdfcorr.fit.profile import _LinearProfile, _profile
-from brdfcorr.fit.shape_search import _coarse_shape, _newton_polish
+from brdfcorr.fit.shape_search import _at_edge, _coarse_shape, _newton_polish
 from brdfcorr.fit.shapes import _resolve
 from brdfcorr.fit.two_way import TwoWayClusters
 from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model
 
-__all__ = ["fit_class_samples", "LEVEL_ITERATIONS"]
+__all__ = ["fit_class_samples", "Held", "LEVEL_ITERATIONS", "UNCONSTRAINED_T"]
 
 
 def _condition(design: np.ndarray) -> float:
@@ -113,12 +113,19 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
         degrees of freedom of each error), ``n_clusters`` (blocks, or samples without them),
         ``errors_reliable`` (bool) and ``errors_reason`` (why not; empty when reliable;
         :func:`brdfcorr.fit.identifiability.error_reliability`), ``n_groups`` (groups with free levels
-        that hold two or more samples; None without ``levels``).
+        that hold two or more samples; None without ``levels``), ``if_held``: where shape
+        parameters ended at the edge of their search range without the data constraining them
+        (:func:`_hold_unconstrained`), the fit with them held at the middle of the range (a dict
+        like this one, its ``held``: name -> :class:`Held`, those parameters in ``fixed``), else
+        None; ``held`` ({} here). The caller chooses: fit-classes takes it for a class whose fit at
+        the edge explains too little of its angular signal to be kept
+        (:func:`brdfcorr.fit.classes._held_if_poor`); where the fit at the edge is good, its edge
+        value is kept (holding it would change a fit the data support, if not significantly).
     """
     model, fixed, free = _resolve(model, fixed)
     rows, clusters, levels = _repeated_only((theta_i, theta_r, phi, brdf, *(() if scenes is None else (scenes,))),
                                             clusters, levels)
-    samples = rows[:4]
+    samples, spatial = rows[:4], clusters  # the edge test (_hold_unconstrained) pairs over the spatial clusters
     clusters = clusters if scenes is None else TwoWayClusters.of(clusters, rows[4])
     profile = _profile(model, *samples, fixed, levels=levels)
     if levels is not None and not profile.terms and not free:  # the level alone (Lambertian): nothing within
@@ -126,7 +133,12 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
     coarse = _coarse_shape(model, fixed, free, samples, search_samples, grid_points, full=profile)[1] if free else {}
     shape = _newton_polish(profile, coarse) if free else {}
     profile, shape, solution = _solve_with_levels(profile, shape, samples, free)
-    return _fit_summary(profile, shape, fixed, solution, clusters)
+    held_profile, held_shape, held_solution, held = _hold_unconstrained(profile, shape, solution, spatial)
+    if_held = None
+    if held:
+        if_held = {**_fit_summary(held_profile, held_shape, {**fixed, **{name: h.value for name, h in held.items()}},
+                                  held_solution, clusters), "held": held, "if_held": None}
+    return {**_fit_summary(profile, shape, fixed, solution, clusters), "held": {}, "if_held": if_held}
 
 
 def _solve_with_levels(profile: _LinearProfile, shape: dict[str, float], samples: tuple,
@@ -143,6 +155,82 @@ def _solve_with_levels(profile: _LinearProfile, shape: dict[str, float], samples
         shape = _newton_polish(profile, shape) if free else {}
         solution = _Solution.of(profile, shape)
     return profile, shape, solution
+
+
+#: A shape parameter that ends at the edge of its search range is held at the middle of the range
+#: when the fit at the edge beats the fit with it held there by less than this many standard errors
+#: over the clusters (:func:`_edge_advantage`): the data do not constrain it.
+UNCONSTRAINED_T = 2.0
+
+
+@dataclass(frozen=True)
+class Held:
+    """A free shape parameter held at the middle of its search range because the data do not
+    constrain it (:func:`_hold_unconstrained`): the ``value`` held, the ``edge`` value the search
+    ended at, and the fit's advantage there, ``t`` standard errors over ``clusters`` clusters."""
+
+    value: float
+    edge: float
+    t: float
+    clusters: int
+
+    def note(self, name: str) -> str:
+        """One line for the fit's notes."""
+        return (f"{name} is not constrained by the data (the fit at the edge of its search range, {name} = "
+                f"{self.edge:.4g}, is better than at {self.value:.4g} by {self.t:.2f} standard errors over "
+                f"{self.clusters} clusters, < {UNCONSTRAINED_T:g}): held at {self.value:.4g}, the middle of the range")
+
+
+def _middle(search: tuple[float, float, bool]) -> float:
+    """The middle of a search range (geometric for a logarithmic one)."""
+    low, high, logarithmic = search
+    return math.sqrt(low * high) if logarithmic else 0.5 * (low + high)
+
+
+def _edge_advantage(profile: _LinearProfile, edge: _Solution, held: _Solution, clusters) -> tuple[float, int]:
+    """How much better the fit ``edge`` explains the data than ``held``, in standard errors over the
+    clusters: the mean over clusters of the decrease of the weighted squared residuals (each band
+    weighted as in the objective) divided by its standard error (a paired t statistic, robust to
+    residuals shared within a cluster and across bands), and the number of clusters (samples
+    without ``clusters``). 0 when the edge is no better at all."""
+    gain = (profile.residuals(held.design, held.coefficients) ** 2
+            - profile.residuals(edge.design, edge.coefficients) ** 2) @ profile.weights  # (N,)
+    index = np.arange(gain.size) if clusters is None else np.unique(clusters, return_inverse=True)[1].reshape(-1)
+    per_cluster = np.bincount(index, gain)
+    count = per_cluster.size
+    spread = per_cluster.std(ddof=1) if count > 1 else 0.0
+    if per_cluster.sum() <= 0.0:
+        return 0.0, count
+    return (float(per_cluster.mean() / (spread / math.sqrt(count))) if spread > 0 else math.inf), count
+
+
+def _hold_unconstrained(profile: _LinearProfile, shape: dict[str, float], solution: _Solution,
+                        clusters) -> tuple[_LinearProfile, dict[str, float], _Solution, dict[str, Held]]:
+    """Each shape parameter that ended at the edge of its search range (:func:`_at_edge`) and that
+    the data do not constrain, held at the middle of its range, the others polished again.
+
+    The edge is either where the data put the optimum (beyond the range) or where a flat profile
+    drifted (the data cannot tell the values apart: n of a Torrance-Sparrow lobe seen over a few
+    tens of degrees trades with t1). The fit held at the middle tells them apart: where the fit at
+    the edge is better by less than :data:`UNCONSTRAINED_T` standard errors over the clusters
+    (:func:`_edge_advantage`), the parameter is held there (and no longer at the edge); otherwise
+    it stays at the edge (for the guard rails to judge). Returns the profile, shape, solve and the
+    parameters held (:class:`Held`).
+    """
+    held: dict[str, Held] = {}
+    for name in _at_edge(profile, shape):
+        if name not in _at_edge(profile, shape):  # moved off its edge when another was held
+            continue
+        value = _middle(profile.ranges[name])
+        trial_profile = profile.holding(name, value)
+        rest = {key: shape_value for key, shape_value in shape.items() if key != name}
+        trial_shape = _newton_polish(trial_profile, rest) if rest else {}
+        trial = _Solution.of(trial_profile, trial_shape)
+        t, count = _edge_advantage(profile, solution, trial, clusters)
+        if t < UNCONSTRAINED_T:
+            held[name] = Held(value, shape[name], t, count)
+            profile, shape, solution = trial_profile, trial_shape, trial
+    return profile, shape, solution, held
 
 
 def _repeated_only(samples: tuple, clusters, levels: Levels | None) -> tuple[tuple, np.ndarray | None, Levels | None]:

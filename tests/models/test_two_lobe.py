@@ -89,17 +89,20 @@ def test_a_goniometer_fit_recovers_a_two_lobe_surface():
         assert result.params[name] == pytest.approx(value, rel=1e-4, abs=1e-7), name
 
 
-def test_an_imagery_fit_recovers_the_lobe_shape_and_the_intensities_per_band():
-    # Its own generator: the module's is shared, and its state depends on which tests ran before
-    # (pytest-xdist). Seeds 1, 3 and 4 stop in the n-t1 valley (n = 1.65, R^2 0.99998): a known
-    # defect of the shape search, written in the issue 36 note.
-    n, rng = 3000, np.random.default_rng(0)
+@pytest.mark.parametrize("seed", range(5))
+def test_an_imagery_fit_recovers_the_lobe_shape_and_the_intensities_per_band(seed):
+    # Noise-free: the truth is the exact minimum (objective 0), so the fit must end there to within
+    # the Newton polish's convergence step (1e-3 relative); t1 trades with n along the Fresnel
+    # factor (t1 19 % high at n = 1.65, 7 % low), hence three times that for the intensities.
+    # Seeds 1, 3 and 4 once stopped in that n-t1 valley: the grid's best point lay at n = 1.05.
+    n, rng = 3000, np.random.default_rng(seed)
     ti, tr, phi = rng.uniform(20, 50, n), rng.uniform(0, 40, n), rng.choice([5.0, 175.0], n) + rng.uniform(-5, 5, n)
     model = get_model("ross_li_ts")
     bands = [{**PARAMS["ross_li_ts"]}, {**PARAMS["ross_li_ts"], "f_iso": 0.1, "f_vol": 0.05, "t1": 0.4}]
     brdf = np.column_stack([model(ti, tr, phi, **band) for band in bands])
     result = fit_class_samples("ross_li_ts", ti, tr, phi, brdf)
+    assert result["at_edge"] == [] and result["if_held"] is None
     assert result["params"]["w"][0] == pytest.approx(0.0362, rel=1e-3)
-    assert result["params"]["n"][0] == pytest.approx(1.77, rel=1e-2)
-    np.testing.assert_allclose(result["params"]["f_iso"], [0.03, 0.1], rtol=1e-3)
-    np.testing.assert_allclose(result["params"]["t1"], [0.2, 0.4], rtol=1e-2)
+    assert result["params"]["n"][0] == pytest.approx(1.77, rel=1e-3)
+    np.testing.assert_allclose(result["params"]["f_iso"], [0.03, 0.1], rtol=3e-3)
+    np.testing.assert_allclose(result["params"]["t1"], [0.2, 0.4], rtol=3e-3)
