@@ -19,13 +19,12 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import subprocess
-import sys
 import time
 
 import dask.array as da
 import numpy as np
 import xarray as xr
+from bench_stack_fit import compare_levels
 
 BANDS, CHUNK, PIXEL = 8, 250, 10.0
 ORIGIN = (500_000.0, 5_400_000.0)
@@ -101,14 +100,7 @@ def main() -> None:
     if args.one:
         print(json.dumps(run_one(args.one, args.lines, args.size)))
         return
-    results = {}
-    for levels in ("pooled", "pixel"):
-        output = subprocess.run([sys.executable, __file__, "--one", levels, "--lines", str(args.lines),
-                                 "--size", str(args.size)], check=True, capture_output=True, text=True).stdout
-        results[levels] = json.loads(output.strip().splitlines()[-1])
-        print(f"{levels:7s}: {results[levels]['seconds']:.1f} s, peak {results[levels]['peak_mib']:.0f} MiB, "
-              f"f_vol/f_iso of the NIR band per class {np.round(results[levels]['f_vol/f_iso'], 3).tolist()} "
-              f"{results[levels]['notes']}")
+    results = compare_levels(__file__, ["--lines", str(args.lines), "--size", str(args.size)])
     width = _offset(args.lines - 1, args.size)[0] + args.size
     resampled = 4 * args.lines * BANDS * (args.size + 1) * np.ceil(width) / 2**20
     truth = WEIGHTS["f_vol"][-1] / WEIGHTS["f_iso"][-1]

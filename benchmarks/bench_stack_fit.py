@@ -79,6 +79,20 @@ def run_one(levels: str, dates: int, size: int) -> dict:
             "f_vol/f_iso": ratios}
 
 
+def compare_levels(script: str, arguments: list[str]) -> dict[str, dict]:
+    """``script --one LEVELS ARGUMENTS`` for pooled and per-pixel levels, each in a fresh process (its
+    own peak RSS): each run's result (its last stdout line, JSON), printed (shared with
+    bench_lines_fit.py)."""
+    results = {}
+    for levels in ("pooled", "pixel"):
+        output = subprocess.run([sys.executable, script, "--one", levels, *arguments], check=True,
+                                capture_output=True, text=True).stdout
+        result = results[levels] = json.loads(output.strip().splitlines()[-1])
+        print(f"{levels:7s}: {result['seconds']:.1f} s, peak {result['peak_mib']:.0f} MiB, f_vol/f_iso of the "
+              f"NIR band per class {np.round(result['f_vol/f_iso'], 3).tolist()} {result.get('notes', '')}".rstrip())
+    return results
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dates", type=int, default=20)
@@ -88,13 +102,7 @@ def main() -> None:
     if args.one:
         print(json.dumps(run_one(args.one, args.dates, args.size)))
         return
-    results = {}
-    for levels in ("pooled", "pixel"):
-        output = subprocess.run([sys.executable, __file__, "--one", levels, "--dates", str(args.dates),
-                                 "--size", str(args.size)], check=True, capture_output=True, text=True).stdout
-        results[levels] = json.loads(output.strip().splitlines()[-1])
-        print(f"{levels:7s}: {results[levels]['seconds']:.1f} s, peak {results[levels]['peak_mib']:.0f} MiB, "
-              f"f_vol/f_iso of the NIR band per class {np.round(results[levels]['f_vol/f_iso'], 3).tolist()}")
+    results = compare_levels(__file__, ["--dates", str(args.dates), "--size", str(args.size)])
     gib = 4 * args.dates * BANDS * args.size**2 / 2**30
     time_ratio = results["pixel"]["seconds"] / results["pooled"]["seconds"]
     print(f"{args.dates} dates x {BANDS} bands x {args.size} x {args.size} (lazy, {gib:.1f} GiB float32): "
