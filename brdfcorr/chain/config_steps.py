@@ -198,6 +198,9 @@ class ImageryFit(step_fields(FIT_CLASSES, "fit")):  # type: ignore[misc]
         Whose brightness level is free (``--levels``; :class:`brdfcorr.fit.Sampling`).
     patch_size : int
         Side [pixels] of the patches of ``levels: patch`` (``--patch-size``).
+    errors_cluster : {"one-way", "two-way"}
+        Whether the errors are cluster-robust over the blocks alone or over the blocks and the scenes
+        at once (``--errors-cluster``; :mod:`brdfcorr.fit.two_way`).
     min_samples, min_vza_spread, max_condition :
         Guard rails (:class:`brdfcorr.fit.GuardRails`): samples per class, 5-95 % view zenith
         spread [deg], condition number of the linear design [-].
@@ -277,7 +280,7 @@ class ImageryFit(step_fields(FIT_CLASSES, "fit")):  # type: ignore[misc]
                                   else ShapePrior.given(self.prior, self.prior_spread)),
             "sampling": Sampling(max_samples=self.max_samples, seed=self.seed, block_size=self.block_size,
                                  reflectance_scale=self.reflectance_scale, levels=self.levels,
-                                 patch_size=self.patch_size,
+                                 patch_size=self.patch_size, errors_cluster=self.errors_cluster,
                                  bad_bands=tuple(tuple(band_range) for band_range in self.bad_bands)),
             "guard": GuardRails(min_samples=self.min_samples, min_vza_spread=self.min_vza_spread,
                                 max_condition=self.max_condition),

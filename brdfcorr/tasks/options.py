@@ -365,7 +365,7 @@ FIT_CLASSES = settings(
     Setting("patch_size", ("--patch-size",), "int", ge=1, default=8, show_default=True, chain="fit",
             help="Side [pixels] of the patches of --levels patch (a divisor of --block-size)."),
     Setting("errors_cluster", ("--errors-cluster",), "choice", choices=ERROR_CLUSTERS, default="one-way",
-            show_default=True,
+            show_default=True, chain="fit",
             help="one-way: the fit's errors are cluster-robust over --block-size squares (or pixels, patches, "
                  "--clusters ids); two-way: over those and the images at once (errors shared by every pixel of "
                  "a date or line: its atmosphere, its calibration; Cameron, Gelbach & Miller 2011). Needs many "

@@ -83,6 +83,15 @@ def test_chain_steps_take_the_tables_defaults_and_words():
         AssessStep(bin_width=60)  # the command line allows up to 90, a chain 45
 
 
+def test_the_fit_step_passes_its_error_clusters_to_the_sampling():
+    from brdfcorr.chain.config_steps import ImageryFit
+
+    assert ImageryFit(source="imagery").fit_settings()["sampling"].errors_cluster == "one-way"
+    assert ImageryFit(source="imagery", errors_cluster="two-way").fit_settings()["sampling"].errors_cluster == "two-way"
+    with pytest.raises(ValueError, match="errors_cluster"):
+        ImageryFit(source="imagery", errors_cluster="three-way")
+
+
 @pytest.mark.parametrize(("step", "table", "model"), [("correct", CORRECT, "CorrectStep"),
                                                     ("terrain", CORRECT, "TerrainStep"),
                                                     ("fit", FIT_CLASSES, "ImageryFit"),
