@@ -19,7 +19,7 @@ from brdfcorr._validation import Integer, StrictModel, short_repr
 from brdfcorr.chain.patterns import check_pattern
 from brdfcorr.defaults import chunk_size_problem
 from brdfcorr.errors import InputError
-from brdfcorr.io.writer import check_format
+from brdfcorr.io.writer import check_format, default_threads
 
 __all__ = ["OutputsConfig", "EngineConfig"]
 
@@ -155,6 +155,14 @@ class EngineConfig(StrictModel):
         if problem:  # the rule of --chunk (brdfcorr.defaults.CHUNK_RANGE)
             raise ValueError(f"chunk {value} {problem}")
         return value
+
+    @property
+    def local_threads(self) -> int:
+        """Threads of a scene's chunks computed in this process: ``workers`` where given with a local
+        scheduler (``threads``, ``synchronous``), else the thread count of ``brdfcorr correct``
+        (one per 4 cores, :func:`brdfcorr.io.writer.default_threads`), not all cores."""
+        given = self.scheduler in ("threads", "synchronous") and "workers" in self.model_fields_set
+        return self.workers if given else default_threads()
 
     @model_validator(mode="after")
     def _address(self) -> EngineConfig:

@@ -24,6 +24,7 @@ from brdfcorr.chain.scenes import Scene
 from brdfcorr.errors import BrdfcorrError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.params import ParameterTable
+from brdfcorr.tasks.correct import too_few_corrected
 
 __all__ = ["RunReport", "scene_result", "failed_for_share", "assessment_summary", "earlier_findings", "versions"]
 
@@ -107,9 +108,9 @@ def failed_for_share(result: dict, min_share: float) -> dict:
     without a lookup corrects nothing) did not do what the run was asked, unless the chain says so
     (``steps.correct.min_corrected_share``, 0 for none)."""
     qa = result.get("qa") or {}
-    valid = sum(int(qa.get(key, 0)) for key in ("corrected", "no_class", "unknown_class"))
-    if result.get("status") != "ok" or not valid or qa["corrected"] >= min_share * valid:
+    if result.get("status") != "ok" or not too_few_corrected(qa, min_share):
         return result
+    valid = sum(int(qa.get(key, 0)) for key in ("corrected", "no_class", "unknown_class"))
     return {**result, "status": "failed", "error_type": "TooFewCorrected",
             "error": f"only {100 * qa['corrected'] / valid:.1f} % of the {valid} valid pixels were corrected "
                      f"({qa.get('no_class', 0)} have no class, {qa.get('unknown_class', 0)} a class the table does "

@@ -96,7 +96,6 @@ from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io import cluster
 from brdfcorr.io.paths import remove_partials
 from brdfcorr.io.scene import SceneSources
-from brdfcorr.io.writer import default_threads
 from brdfcorr.params import ParameterTable, merge_tables
 from brdfcorr.plot.assess import write_assessment_figures
 from brdfcorr.tasks.assess import assess_files, write_json
@@ -366,9 +365,7 @@ def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executo
     """(executor, compute): the executor of scene tasks (None: run them inline) and the keyword
     arguments of :func:`process_scene` naming the dask scheduler of a scene's chunks."""
     if engine.scheduler in ("threads", "synchronous"):
-        # Without engine.workers, the thread count of `brdfcorr correct` (one per 4 cores), not all cores.
-        given = "workers" in engine.model_fields_set
-        yield None, {"scheduler": engine.scheduler, "threads": engine.workers if given else default_threads()}
+        yield None, {"scheduler": engine.scheduler, "threads": engine.local_threads}
     elif engine.scheduler == "processes":
         # spawn: a forked child would inherit the parent's thread pools and locks mid-use.
         with concurrent.futures.ProcessPoolExecutor(

@@ -12,7 +12,6 @@ from brdfcorr.chain.plan import RunPlan
 from brdfcorr.chain.progress import ChunkProgress, Progress
 from brdfcorr.chain.scenes import Scene
 from brdfcorr.errors import BrdfcorrError
-from brdfcorr.io.writer import default_threads
 from brdfcorr.tasks.classmaps import NdviBins, ndvi_class_file
 
 __all__ = ["derive_strata"]
@@ -28,9 +27,7 @@ def derive_strata(plan: RunPlan, progress: Progress | None = None) -> RunPlan:
         return plan
     engine = config.engine
     local = engine.scheduler in ("threads", "synchronous")  # else the run's process uses its own threads
-    given = local and "workers" in engine.model_fields_set
-    compute = {"scheduler": engine.scheduler if local else "threads",
-               "num_workers": engine.workers if given else default_threads()}
+    compute = {"scheduler": engine.scheduler if local else "threads", "num_workers": engine.local_threads}
     return dataclasses.replace(plan, scenes=tuple(
         _strata(scene, config, compute, progress) if scene.action == "run" else scene for scene in plan.scenes))
 

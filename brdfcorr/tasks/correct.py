@@ -30,7 +30,7 @@ from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
 from brdfcorr.tasks.request import CorrectionRequest, Terrain
 from brdfcorr.tasks.results import CorrectionResult, TopographicSummary
 
-__all__ = ["correct_files", "Terrain", "uncorrected_note", "MOSTLY_UNCORRECTED"]
+__all__ = ["correct_files", "Terrain", "uncorrected_note", "too_few_corrected", "MOSTLY_UNCORRECTED"]
 
 
 def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:
@@ -215,11 +215,18 @@ def _load_table(request: CorrectionRequest) -> tuple[ParameterTable, str | None]
 MOSTLY_UNCORRECTED = 0.5
 
 
+def too_few_corrected(counts: Mapping[str, int], share: float = MOSTLY_UNCORRECTED) -> bool:
+    """Whether the correction touched less than ``share`` of the valid pixels: QA ``corrected`` over
+    ``corrected + no_class + unknown_class`` (nodata is not counted; no valid pixel: False)."""
+    valid = sum(int(counts.get(key, 0)) for key in ("corrected", "no_class", "unknown_class"))
+    return bool(valid) and counts.get("corrected", 0) < share * valid
+
+
 def uncorrected_note(counts: dict[str, int]) -> str | None:
     """A note when most valid pixels (not nodata) were left uncorrected, naming why; else None."""
-    valid = counts["corrected"] + counts["no_class"] + counts["unknown_class"]
-    if not valid or counts["corrected"] >= MOSTLY_UNCORRECTED * valid:
+    if not too_few_corrected(counts):
         return None
+    valid = counts["corrected"] + counts["no_class"] + counts["unknown_class"]
     return (f"only {100 * counts['corrected'] / valid:.0f} % of the {valid} valid pixels were corrected: "
             f"{counts['no_class']} have no class and {counts['unknown_class']} a class the parameter table does "
             "not have; check the class map against the table's class ids")
