@@ -26,6 +26,7 @@ from rasterio.enums import MaskFlags
 
 from brdfcorr._entry import option
 from brdfcorr.errors import InputError
+from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.opening import chunk_spec, open_raster, opened, reading
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths
@@ -385,9 +386,12 @@ def open_classes(path, chunks=None) -> xr.DataArray:
     return classes.rio.write_nodata(nodata) if nodata is not None else classes
 
 
-def open_clusters(path, chunks=None, band: int = 1) -> xr.DataArray:
+def open_clusters(path, chunks=None, band: int = 1, *, like: xr.DataArray | None = None,
+                  names: tuple[str, str] = ("image", "cluster layer")) -> xr.DataArray:
     """Open band ``band`` of a cluster layer (y, x) lazily: integer ids of the units whose pixels
-    share their errors (a composite's day-of-year band, a flight-line id), with its nodata."""
+    share their errors (a composite's day-of-year band, a flight-line id), with its nodata; with
+    ``like`` (the image), checked on its grid (:func:`brdfcorr.io.grid.check_same_grid`, the two
+    named ``names`` in its message)."""
     layer = open_raster(path, "cluster layer", chunk_spec(chunks), masked=False)
     count = layer.sizes[layer.dims[0]]
     if not 1 <= band <= count:
@@ -398,7 +402,10 @@ def open_clusters(path, chunks=None, band: int = 1) -> xr.DataArray:
     nodata = layer.rio.nodata
     layer = layer.isel({layer.dims[0]: band - 1}, drop=True)
     layer.name = "clusters"
-    return layer.rio.write_nodata(nodata) if nodata is not None else layer
+    layer = layer.rio.write_nodata(nodata) if nodata is not None else layer
+    if like is not None:
+        check_same_grid({names[0]: like, names[1]: layer})
+    return layer
 
 
 def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, limit: float = 2.0,

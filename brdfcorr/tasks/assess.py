@@ -201,9 +201,7 @@ def _overlap(overlap, scene: SceneSources, before: xr.DataArray, after: xr.DataA
 
 def _cluster_layer(clusters: tuple[str | os.PathLike, int], image: xr.DataArray, chunks: int) -> xr.DataArray:
     """Band ``clusters[1]`` of the cluster raster ``clusters[0]``, checked on the image's grid."""
-    layer = rasters.open_clusters(clusters[0], chunks=chunks, band=clusters[1])
-    check_same_grid({"image": image, "cluster layer": layer})
-    return layer
+    return rasters.open_clusters(clusters[0], chunks=chunks, band=clusters[1], like=image)
 
 
 def _assessed_inputs(scene: SceneSources, after, clusters, overlap) -> dict[str, str]:
@@ -305,8 +303,7 @@ def leave_one_line_out_files(
         if clusters is not None:
             path, band = clusters[index]
             size = rasters.auto_chunk(scene.image) if chunks is None else int(chunks)
-            layer = rasters.open_clusters(path, chunks=size, band=band)
-            check_same_grid({"image": data.reflectance, "cluster layer": layer})
+            layer = rasters.open_clusters(path, chunks=size, band=band, like=data.reflectance)
             entry["clusters"] = f"{path} band {band}"
         lines.append(Line(name, data.reflectance, data.classes, data.angles, layer))
         inputs.append(entry)

@@ -29,7 +29,6 @@ from brdfcorr.fit.measurements import Measurements, filter_measurements, read_me
 from brdfcorr.fit.selection import ModelChoice, choose_model, fixed_for
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
 from brdfcorr.io import rasters
-from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable
@@ -377,9 +376,8 @@ def _cluster_layers(scenes: Sequence[SceneFiles], opened: Sequence[SceneData],
     layers = []
     for scene, data in zip(scenes, opened):
         path, band = scene.clusters  # type: ignore[misc]  # all given (checked above)
-        layer = rasters.open_clusters(path, chunks=chunks, band=band)
-        check_same_grid({f"{scene.image}": data.reflectance, f"cluster layer {path}": layer})
-        layers.append(layer)
+        layers.append(rasters.open_clusters(path, chunks=chunks, band=band, like=data.reflectance,
+                                            names=(f"{scene.image}", f"cluster layer {path}")))
     return layers
 
 
