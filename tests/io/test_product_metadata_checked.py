@@ -185,6 +185,26 @@ def test_landsat_view_zenith_band_beyond_its_range(landsat, refused):
             r"_VZA\.TIF: VZA values \d+ to 2\d+ are outside 0 to 9000, the hundredths of a degree")
 
 
+def test_landsat_view_azimuth_band_in_degrees(landsat, refused):
+    """Degrees (100 and -80) read as hundredths would put the satellite 1 deg from due north."""
+    _scale_band(next(landsat["folder"].glob("*_VAA.TIF")), 0.01)
+    refused(landsat, ["nbar", landsat["folder"], "-o", landsat["out"] / "nbar.tif", "--no-progress"],
+            r"_VAA\.TIF: VAA values -80 to 100 are degrees, not the hundredths of a degree of a Landsat angle "
+            r"band \(the satellite within 1\.8 deg of due north or south of every pixel\)")
+
+
+def test_landsat_view_zenith_band_in_degrees_on_a_wide_scene(tmp_path, refused):
+    """140 pixels of 30 m (4.2 km) each way: some pixel is 2 km from any ground track, 0.16 deg
+    off nadir, yet degrees read as hundredths put all within 0.03 deg."""
+    folder = write_landsat_c2(tmp_path / "in", size=140, angle_bands=True)
+    (tmp_path / "out").mkdir()
+    _scale_band(next(folder.glob("*_VZA.TIF")), 0.01)
+    refused({"dir": tmp_path / "in", "out": tmp_path / "out"},
+            ["nbar", folder, "-o", tmp_path / "out" / "nbar.tif", "--no-progress"],
+            r"_VZA\.TIF: VZA values 0 to 2 are degrees, not the hundredths of a degree of a Landsat angle band "
+            r"\(a scene 4 km wide seen within 0\.085 deg of nadir\)")
+
+
 # ------------------------------------------------------------------------------ nothing hangs
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
 def test_fifo_as_the_granule_metadata(safe, refused):

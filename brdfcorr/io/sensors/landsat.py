@@ -353,13 +353,49 @@ def find_ang_txt(path: str | Path) -> Path | None:
     return candidates[0] if len(candidates) == 1 else None
 
 
-def _sample_range(path: Path) -> tuple[float, float] | None:
+def _sample_range(path: Path) -> tuple[tuple[float, float] | None, rasterio.coords.BoundingBox, CRS | None]:
     """(min, max) of a decimated read (at most 256 x 256, cheap on any size) of a band's valid
-    values; None where it has none."""
+    values (None where it has none), with the band's bounds and CRS."""
     with rasterio.open(path) as dataset:
         sample = dataset.read(1, out_shape=(min(dataset.height, 256), min(dataset.width, 256)), masked=True)
+        bounds, crs = dataset.bounds, (CRS.from_user_input(dataset.crs) if dataset.crs else None)
     values = np.ma.masked_invalid(sample.astype("float64")).compressed()
-    return (float(values.min()), float(values.max())) if values.size else None
+    found = (float(values.min()), float(values.max())) if values.size else None
+    return found, bounds, crs
+
+
+#: Landsat's view zenith at the swath edge [deg] (185 km swath from 705 km): a view zenith band in
+#: degrees holds at most about this many units.
+VZA_EDGE = 7.5
+#: Side [m] of a scene beyond which some pixel lies at least half of it (2 km) from any straight
+#: ground track: seen at least atan(2 / 705) = 0.16 deg off nadir, 16 hundredths.
+WIDE_ENOUGH = 4000.0
+#: Latitude [deg] below which Landsat's ground track (inclination 98.2 deg) runs more than 15 deg
+#: from east-west, so no pixel sees the satellite within 1.8 deg of due north or south.
+TRACK_TURN_LATITUDE = 81.5
+
+
+def _looks_like_degrees(key: str, high_abs: float, bounds, crs: CRS | None) -> str | None:
+    """Why a view band's values read as degrees rather than hundredths, or None.
+
+    A view zenith band whose values stay within Landsat's edge view zenith (7.5) over a scene wider
+    than :data:`WIDE_ENOUGH` each way would put every pixel within 0.09 deg of nadir, where some
+    pixel must be 0.16 deg off it. A view azimuth band whose values all lie within 180 of 0 would
+    put the satellite within 1.8 deg of due north or south of every pixel, which the across-track
+    view of a near-polar orbit gives only near its turning latitude.
+    """
+    if crs is None:
+        return None
+    if key == "vza" and crs.is_projected and high_abs <= VZA_EDGE + 1.0:
+        if min(bounds.right - bounds.left, bounds.top - bounds.bottom) >= WIDE_ENOUGH:
+            return f"a scene {WIDE_ENOUGH / 1000:g} km wide seen within {(VZA_EDGE + 1.0) / 100:g} deg of nadir"
+    if key == "vaa" and high_abs <= 180.0:
+        to_geographic = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
+        _, latitudes = to_geographic.transform([bounds.left, bounds.right, bounds.left, bounds.right],
+                                               [bounds.top, bounds.top, bounds.bottom, bounds.bottom])
+        if max(abs(value) for value in latitudes) < TRACK_TURN_LATITUDE:
+            return "the satellite within 1.8 deg of due north or south of every pixel"
+    return None
 
 
 def check_hundredths(path: Path, key: str) -> None:
@@ -367,19 +403,25 @@ def check_hundredths(path: Path, key: str) -> None:
 
     A sun zenith band of values all at most 90 would be a sun within 0.9 deg of the zenith, which
     no Landsat overpass has (morning orbit): it holds degrees, and read as hundredths the sun would
-    be put at the zenith (NBAR 15 % off). The other bands' degrees fall inside their hundredths
-    range; they come with the sun band of the same product.
+    be put at the zenith (NBAR 15 % off). View bands in degrees beside a sun band in hundredths
+    (a product written by another tool) are found by :func:`_looks_like_degrees`; on a scene too
+    small or too far north for those rules they pass, within their hundredths range.
     """
-    found = _sample_range(path)
+    found, bounds, crs = _sample_range(path)
     if found is None:
         return
     (low, high), (least, most) = found, HUNDREDTHS[key]
+    name = ANGLE_SUFFIXES[key][1:]
     if low < least or high > most:
-        raise SensorInputError(f"{path}: {ANGLE_SUFFIXES[key][1:]} values {low:g} to {high:g} are outside {least} to "
+        raise SensorInputError(f"{path}: {name} values {low:g} to {high:g} are outside {least} to "
                                f"{most}, the hundredths of a degree of a Landsat angle band")
     if key == "sza" and high <= 90.0:
         raise SensorInputError(f"{path}: SZA values {low:g} to {high:g} are degrees, not the hundredths of a degree "
                                "of a Landsat angle band (a sun within 0.9 deg of the zenith); store them x 100")
+    reason = _looks_like_degrees(key, max(abs(low), abs(high)), bounds, crs)
+    if reason is not None:
+        raise SensorInputError(f"{path}: {name} values {low:g} to {high:g} are degrees, not the hundredths of a "
+                               f"degree of a Landsat angle band ({reason}); store them x 100")
 
 
 def _read_angle_band(path: Path, key: str, like, chunks, flip: bool) -> xr.DataArray:
