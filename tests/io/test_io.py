@@ -279,7 +279,7 @@ def test_an_image_is_identified_once_and_its_sizes_are_the_path_s(files, tmp_pat
     """A correction identifies its image once (product kind, layout; issue 42: it was looked up again
     on every call, 4 times with a given chunk size): the chunk and cache sizes of the identified file
     are those of its path, and ``correct_files`` asks for the product kind once."""
-    from brdfcorr.io import rasters
+    from brdfcorr.io import product, rasters
     from brdfcorr.io.scene import SceneSources
     from brdfcorr.tasks.correct import correct_files
     from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
@@ -293,8 +293,8 @@ def test_an_image_is_identified_once_and_its_sizes_are_the_path_s(files, tmp_pat
     assert rasters.auto_chunk(image) == rasters.auto_chunk(files["image"])
     assert rasters.gdal_cache_bytes(image, 16) == rasters.gdal_cache_bytes(files["image"], 16)
     calls = []
-    original = rasters.hdf5_product
-    monkeypatch.setattr(rasters, "hdf5_product", lambda path: calls.append(path) or original(path))
+    original = product.hdf5_product
+    monkeypatch.setattr(product, "hdf5_product", lambda path: calls.append(path) or original(path))
     for chunks in (16, None):
         calls.clear()
         correct_files(CorrectionRequest(
