@@ -84,6 +84,9 @@ class ImageFile(NamedTuple):
         Its band count.
     plain : bool
         Whether its stored values are what a masked and scaled read gives (:func:`_read_as_stored`).
+    envi_header : tuple of str or None
+        For an ENVI file the fields of its header that GDAL keeps in its ENVI metadata domain;
+        None for another format.
     """
 
     path: object
@@ -91,10 +94,12 @@ class ImageFile(NamedTuple):
     layout: Layout | None
     bands: int
     plain: bool = False
+    envi_header: tuple[str, ...] | None = None
 
 
 def identify_image(path) -> ImageFile:
-    """The :class:`ImageFile` of an image: its product kind, layout and band count, read once.
+    """The :class:`ImageFile` of an image: its product kind, layout, band count and ENVI header
+    fields, read once.
 
     Raises
     ------
@@ -111,7 +116,8 @@ def identify_image(path) -> ImageFile:
         rows, columns = dataset.block_shapes[0]
         layout = Layout(dataset.count, dataset.height, dataset.width, rows, columns,
                         np.dtype(dataset.dtypes[0]).itemsize)
-        return ImageFile(path, None, layout, layout.bands, _stored_as_read(dataset))
+        header = tuple(dataset.tags(ns="ENVI")) if dataset.driver == "ENVI" else None
+        return ImageFile(path, None, layout, layout.bands, _stored_as_read(dataset), header)
 
 
 def _identified(image) -> ImageFile:

@@ -87,6 +87,9 @@ class SceneData(NamedTuple):
     cache: int | None = None
     """GDAL's block cache [bytes] bounded while the scene is read and written (:func:`opened_scene`),
     None where not bounded."""
+    threads: int | None = None
+    """The dask threads of its passes (:func:`brdfcorr.io.writer.pass_threads`: the scale check's and
+    the write's; None: the scheduler's own), worked out once (:func:`opened_scene`)."""
 
 
 def open_scene(sources: SceneSources, *, chunks=None,
@@ -164,8 +167,8 @@ def opened_scene(sources: SceneSources, *, chunks: int | None = None,
     (:func:`brdfcorr.io.rasters.check_reflectance_scale`, a few chunks read, not a pass).
 
     The checks before the write read tiles; GDAL's default cache (5 % of RAM) would keep them for
-    the rest of the run (issue 28). The :class:`SceneData` given carries the image, the chunk size
-    and the cache, so nothing after looks at the file again.
+    the rest of the run (issue 28). The :class:`SceneData` given carries the image, the chunk size,
+    the cache and the thread count of its passes, so nothing after works them out again.
 
     Parameters
     ----------
@@ -193,7 +196,7 @@ def opened_scene(sources: SceneSources, *, chunks: int | None = None,
         if sources.scale is None:  # a given scale is the user's word; else catch raw counts first
             rasters.check_reflectance_scale(scene.reflectance, str(sources.image), scheduler=scheduler,
                                             num_workers=threads)
-        yield scene._replace(image=image, chunks=chunks, cache=cache)
+        yield scene._replace(image=image, chunks=chunks, cache=cache, threads=threads)
 
 
 def _identified(path, chunks: int | None) -> ImageFile | None:

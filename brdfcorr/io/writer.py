@@ -4,8 +4,9 @@
 extra lazy results (QA counts) in the same dask pass; a failed write (disk full, file size limit,
 permissions), also one GDAL reports only in its log or at close, is one
 :class:`~brdfcorr.errors.OutputError`, and every output is verified before it is renamed
-(:mod:`brdfcorr.io.commit`). rioxarray creates each file (georeference, nodata,
-band descriptions, tags); the chunks then go
+(:mod:`brdfcorr.io.commit`). :func:`writing` is the same pass for a caller that computes it
+itself (a correction computes its own chunks; the writer only stores them). rioxarray creates each
+file (georeference, nodata, band descriptions, tags); the chunks then go
 
 - on one machine (dask's threaded or synchronous scheduler) through *one* open GDAL handle per
   file, under a lock: each written tile is handed to GDAL's pool of compression threads

@@ -14,7 +14,6 @@ from collections.abc import Mapping, Sequence
 
 import dask
 import numpy as np
-import rasterio
 import xarray as xr
 
 from brdfcorr import __version__
@@ -25,7 +24,7 @@ from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import writer
 from brdfcorr.io.angles import RELATIVE_ONLY, window_values
 from brdfcorr.io.paths import check_format, check_outputs, refuse_existing
-from brdfcorr.io.product import gdal_cache_bytes
+from brdfcorr.io.product import ImageFile, gdal_cache_bytes
 from brdfcorr.io.scene import SceneData, opened_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
@@ -148,7 +147,7 @@ def _correct(request: CorrectionRequest, scene: SceneData, table: ParameterTable
                         gdal_cache=scene.cache or gdal_cache_bytes(request.scene.image, scene.chunks)) as writes:
         # The one pass: the correction's chunks computed here, each stored by the writer as it comes.
         *_, counts = dask.compute(*writes, {**qa_counts(qa), **encoding}, scheduler=engine.scheduler,
-                                  num_workers=writer.pass_threads(engine.scheduler, engine.num_workers))
+                                  num_workers=scene.threads)
     pixels = {key: int(value) for key, value in counts.items()}
     note = uncorrected_note(pixels)
     if note is not None:
@@ -290,7 +289,7 @@ def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, requ
     corrected.attrs["long_name"] = _band_descriptions(scene.reflectance)
     for name in ("scale_factor", "add_offset"):  # the output holds physical values
         corrected.attrs.pop(name, None)
-    for name in _envi_header_items(request.scene.image, corrected.attrs):  # no tags of the output
+    for name in _envi_header_items(scene.image, corrected.attrs):  # no tags of the output
         corrected.attrs.pop(name)
     stored = np.dtype(scene.reflectance.encoding.get("rasterio_dtype", scene.reflectance.dtype))
     if request.outputs.data_type == "input" and stored.kind in "iu":
@@ -380,17 +379,14 @@ def _warn_wavelength_caveats(table: ParameterTable, reflectance: xr.DataArray) -
             warnings.warn(caveat, BrdfcorrWarning, stacklevel=3)
 
 
-def _envi_header_items(image, attrs: Mapping) -> list[str]:
-    """The attrs that rioxarray took from an ENVI input's header (its ENVI metadata domain, and the
-    ``Band_N`` band names and ``wavelength_units`` GDAL mirrors into the default domain): header
-    fields of the input, not provenance of the output. None for another format."""
-    try:
-        with rasterio.open(image) as dataset:
-            if dataset.driver != "ENVI":
-                return []
-            header = set(dataset.tags(ns="ENVI")) | {"wavelength", "wavelength_units", "fwhm"}
-    except rasterio.errors.RasterioIOError:
+def _envi_header_items(image: ImageFile | None, attrs: Mapping) -> list[str]:
+    """The attrs that rioxarray took from an ENVI input's header (its ENVI metadata domain, known
+    from the image's identification, and the ``Band_N`` band names and ``wavelength_units`` GDAL
+    mirrors into the default domain): header fields of the input, not provenance of the output.
+    None for another format."""
+    if image is None or image.envi_header is None:
         return []
+    header = set(image.envi_header) | {"wavelength", "wavelength_units", "fwhm"}
     return [name for name in attrs if name in header or re.fullmatch(r"Band_\d+", name)]
 
 
