@@ -1,7 +1,7 @@
 """The block machinery that the correction and its uncertainty share (internal to
 :mod:`brdfcorr.correction`): per-class plans of the band parameters, a block's pixel geometry
-(flags, usable pixels, the surface frame, observed and reference geometries) and the split of
-blockwise (values, QA) pairs."""
+(flags, usable pixels, the surface frame, observed and reference geometries), its non-finite
+reflectance (:func:`cube_masks`) and the split of blockwise (values, QA) pairs."""
 
 from __future__ import annotations
 
@@ -183,6 +183,22 @@ def local_frame(qa, usable, angles, slope, aspect):
         away = usable & ((local.sza >= 90) | (local.vza >= 90))
     set_flags(qa, away, QA.FACING_AWAY)
     return (local.sza, local.saa, local.vza, local.vaa), usable & ~away
+
+
+def cube_masks(cube, qa):
+    """Flag pixels with non-finite reflectance in some band (``qa`` in place); returns the few
+    pixels with a non-finite band sum (indices) and where in them a value is +-inf."""
+    candidates = infinite = None
+    if cube.dtype.kind == "f":
+        # NaN or +-inf in some band makes the band sum non-finite (one pass, no mask cube); those
+        # few pixels are then checked band by band (a sum of finite values may overflow).
+        with np.errstate(over="ignore", invalid="ignore"):
+            candidates = np.flatnonzero(~np.isfinite(np.add.reduce(cube, axis=0)))
+        if candidates.size:
+            values = cube[:, candidates]
+            set_flags(qa, candidates[~np.isfinite(values).all(axis=0)], QA.NODATA)
+            infinite = np.isinf(values)
+    return candidates, infinite
 
 
 def present_classes(values: np.ndarray) -> list:

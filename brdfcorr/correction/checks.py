@@ -8,6 +8,8 @@ input the others refuse (issue 38):
   (rioxarray's ``scale_factor``/``add_offset``, as :func:`brdfcorr.io.rasters.open_image` applies
   a file's), and refused without them: an offset (Sentinel-2 L2A from baseline 04.00: -0.1) left
   out changes the corrected values, not only their units;
+- :func:`checked_layers`: the class map and angle layers as (y, x) arrays on the reflectance's
+  grid (:func:`check_grid`), real numbers, the angles guarded (:func:`guard_angles`);
 - :func:`guard_angles`: angle layers that can only be radians
   (:func:`brdfcorr.io.angles.looks_like_radians`, the rule the command line applies to its angle
   files) are refused, lazily for dask input: the check runs with each chunk's correction.
@@ -17,7 +19,7 @@ Messages name the fix in the caller's words (:mod:`brdfcorr._entry`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Hashable, Iterable, Mapping, Sequence
 
 import dask.array as da
 import numpy as np
@@ -26,20 +28,43 @@ import xarray as xr
 from brdfcorr._entry import option
 from brdfcorr.errors import InputError
 from brdfcorr.io.angles import looks_like_radians, radians_message
+from brdfcorr.io.grid import check_same_grid
+from brdfcorr.io.scene import check_class_grid
 
-__all__ = ["check_layout", "reflectance_factors", "guard_angles", "BAND_DIMS"]
+__all__ = ["angle_layers", "ANGLE_LAYERS", "TERRAIN_LAYERS", "check_layout", "reflectance_factors", "checked_layers",
+           "check_grid", "as_dataarray", "guard_angles", "BAND_DIMS"]
 
 #: Dimension names that hold bands (a cube whose last dimension has one of them is (y, x, band)).
 BAND_DIMS = ("band", "bands", "wavelength", "channel", "spectral")
 
 
-def check_layout(reflectance: xr.DataArray, layer_shapes: list[tuple[int, ...]]) -> None:
-    """Refuse a (y, x, band) cube: its last dimension is named like bands, or the (y, x) layers
-    (class map, angles) have the shape of its first two axes and not of its last two."""
+#: The layers of ``angles`` every correction needs, and the two a tilted surface adds [deg].
+ANGLE_LAYERS = ("sza", "saa", "vza", "vaa")
+TERRAIN_LAYERS = ("slope", "aspect")
+
+
+def angle_layers(angles, names: Sequence[str] = ANGLE_LAYERS) -> dict:
+    """The layers ``names`` of ``angles`` (an xarray Dataset, or a mapping of name to array),
+    plus ``slope`` and ``aspect`` where it holds them (both or neither)."""
+    if not isinstance(angles, (Mapping, xr.Dataset)):
+        raise InputError(f"angles must be a Dataset or mapping with {', '.join(names)}, got {type(angles).__name__}")
+    missing = [name for name in names if name not in angles]
+    if missing:
+        raise InputError(f"angles has no {', '.join(missing)} (it needs {', '.join(names)})")
+    terrain = [name for name in TERRAIN_LAYERS if name in angles and name not in names]
+    if len(terrain) == 1:
+        raise InputError("slope and aspect go together: give both or neither")
+    return {name: angles[name] for name in (*names, *terrain)}
+
+
+def check_layout(reflectance: xr.DataArray, layers: Iterable) -> None:
+    """Refuse a (y, x, band) cube: its last dimension is named like bands, or the (y, x) ``layers``
+    (class map, angles: numpy, dask or xarray) have the shape of its first two axes and not of its
+    last two."""
     if reflectance.ndim != 3:
         return
     named_last = reflectance.dims[-1] in BAND_DIMS and reflectance.dims[0] not in BAND_DIMS
-    shapes = {shape for shape in layer_shapes if len(shape) == 2}
+    shapes = {np.shape(layer) for layer in layers if np.ndim(layer) == 2}
     leading = bool(shapes) and all(shape == reflectance.shape[:2] != reflectance.shape[1:] for shape in shapes)
     if named_last or leading:
         numbered = all(str(dim).startswith("dim_") or dim in ("band", "y", "x") for dim in reflectance.dims)
@@ -68,6 +93,48 @@ def reflectance_factors(reflectance: xr.DataArray) -> xr.DataArray:
     scaled = (values.astype(np.float32) * np.float32(scale) + np.float32(offset)).astype(np.float32)
     attrs = {k: v for k, v in reflectance.attrs.items() if k not in ("scale_factor", "add_offset", "_FillValue")}
     return scaled.assign_attrs(attrs, brdf_input_scale=scale, brdf_input_offset=offset).rename(reflectance.name)
+
+
+def as_dataarray(value, name: str, dims: Sequence[Hashable]) -> xr.DataArray:
+    if isinstance(value, xr.DataArray):
+        return value
+    array = value if isinstance(value, da.Array) else np.asarray(value)
+    if array.ndim != len(dims):
+        raise InputError(f"{name} must have {len(dims)} dimensions {tuple(dims)}, got shape {array.shape}")
+    return xr.DataArray(array, dims=tuple(dims), name=name)
+
+
+def check_grid(reflectance: xr.DataArray, name: str, layer: xr.DataArray) -> xr.DataArray:
+    """The layer as (y, x) on the reflectance's grid (:func:`brdfcorr.io.grid.check_same_grid`)."""
+    spatial = reflectance.dims[1:]
+    if layer.ndim == 3 and layer.shape[0] == 1:
+        layer = layer.isel({layer.dims[0]: 0}, drop=True)
+    if layer.ndim != 2:
+        raise InputError(f"{name} must be 2-D (y, x), got dims {layer.dims}")
+    if layer.dims != spatial:
+        layer = layer.rename(dict(zip(layer.dims, spatial)))
+    if name == "classes":  # a land-cover map on another grid: the message names the alignment
+        check_class_grid(reflectance, layer, "reflectance")
+    check_same_grid({"reflectance": reflectance, name: layer})
+    return layer
+
+
+def checked_layers(reflectance: xr.DataArray, named: Mapping[str, object]) -> dict[str, xr.DataArray]:
+    """The class map and the angle layers ``named`` (numpy, dask or xarray; ``classes``, ``sza`` ...
+    ``vaa``, and ``slope``, ``aspect`` for a tilted surface) as (y, x) DataArrays on the
+    reflectance's grid (:func:`check_grid`), refused where they (or the reflectance) hold complex
+    values, the angles guarded against radians (:func:`guard_angles`), the class map refused where
+    it holds no numbers."""
+    layers = {name: check_grid(reflectance, name, as_dataarray(layer, name, reflectance.dims[1:]))
+              for name, layer in named.items()}
+    complex_layers = [f"{name} ({layer.dtype})" for name, layer in {"reflectance": reflectance, **layers}.items()
+                      if layer.dtype.kind == "c"]
+    if complex_layers:  # the imaginary part would be lost, or carried into a complex "reflectance"
+        raise InputError(f"complex values in {', '.join(complex_layers)}; real numbers are expected")
+    layers = guard_angles(layers)
+    if layers["classes"].dtype.kind not in "iuf":
+        raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
+    return layers
 
 
 def _nodata(array: xr.DataArray, metadata: Mapping) -> float | None:

@@ -12,36 +12,17 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
-from brdfcorr.correction.checks import check_layout, guard_angles, reflectance_factors
+from brdfcorr.correction.checks import (  # check_grid: the topographic step's as well
+    angle_layers,
+    as_dataarray,
+    check_grid,  # noqa: F401
+    check_layout,
+    checked_layers,
+    reflectance_factors,
+)
 from brdfcorr.correction.reference import fixed_sza, resolve_reference, scene_mean_sza, with_hls_sza
 from brdfcorr.errors import InputError
-from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.scene import check_class_grid
 from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
-
-
-def as_dataarray(value, name: str, dims: Sequence[str]) -> xr.DataArray:
-    if isinstance(value, xr.DataArray):
-        return value
-    array = value if isinstance(value, da.Array) else np.asarray(value)
-    if array.ndim != len(dims):
-        raise InputError(f"{name} must have {len(dims)} dimensions {tuple(dims)}, got shape {array.shape}")
-    return xr.DataArray(array, dims=tuple(dims), name=name)
-
-
-def check_grid(reflectance: xr.DataArray, name: str, layer: xr.DataArray) -> xr.DataArray:
-    """The layer as (y, x) on the reflectance's grid (:func:`brdfcorr.io.grid.check_same_grid`)."""
-    spatial = reflectance.dims[1:]
-    if layer.ndim == 3 and layer.shape[0] == 1:
-        layer = layer.isel({layer.dims[0]: 0}, drop=True)
-    if layer.ndim != 2:
-        raise InputError(f"{name} must be 2-D (y, x), got dims {layer.dims}")
-    if layer.dims != spatial:
-        layer = layer.rename(dict(zip(layer.dims, spatial)))
-    if name == "classes":  # a land-cover map on another grid: the message names the alignment
-        check_class_grid(reflectance, layer, "reflectance")
-    check_same_grid({"reflectance": reflectance, name: layer})
-    return layer
 
 
 def one_class(reflectance: xr.DataArray) -> xr.DataArray:
@@ -63,25 +44,6 @@ def layer_nodata(layer: xr.DataArray):
         return layer.rio.nodata
     except Exception:  # a layer rioxarray cannot describe has no declared nodata
         return layer.attrs.get("_FillValue")
-
-
-#: The layers of ``angles`` every correction needs, and the two a tilted surface adds [deg].
-ANGLE_LAYERS = ("sza", "saa", "vza", "vaa")
-TERRAIN_LAYERS = ("slope", "aspect")
-
-
-def angle_layers(angles, names: Sequence[str] = ANGLE_LAYERS) -> dict:
-    """The layers ``names`` of ``angles`` (an xarray Dataset, or a mapping of name to array),
-    plus ``slope`` and ``aspect`` where it holds them (both or neither)."""
-    if not isinstance(angles, (Mapping, xr.Dataset)):
-        raise InputError(f"angles must be a Dataset or mapping with {', '.join(names)}, got {type(angles).__name__}")
-    missing = [name for name in names if name not in angles]
-    if missing:
-        raise InputError(f"angles has no {', '.join(missing)} (it needs {', '.join(names)})")
-    terrain = [name for name in TERRAIN_LAYERS if name in angles and name not in names]
-    if len(terrain) == 1:
-        raise InputError("slope and aspect go together: give both or neither")
-    return {name: angles[name] for name in (*names, *terrain)}
 
 
 @dataclass(frozen=True)
@@ -169,19 +131,9 @@ def prepare_inputs(
         raise InputError(f"reflectance must be 3-D (band, y, x) or 4-D (time, band, y, x), got dims "
                          f"{reflectance.dims}")
     named = {"classes": one_class(reflectance) if classes is None else classes, **angle_layers(angles)}
-    check_layout(reflectance, [np.shape(layer) for layer in named.values()])
+    check_layout(reflectance, named.values())
     reflectance = reflectance_factors(reflectance)
-    layers = {
-        name: check_grid(reflectance, name, as_dataarray(layer, name, reflectance.dims[1:]))
-        for name, layer in named.items()
-    }
-    complex_layers = [f"{name} ({layer.dtype})" for name, layer in {"reflectance": reflectance, **layers}.items()
-                      if layer.dtype.kind == "c"]
-    if complex_layers:  # the imaginary part would be lost, or carried into a complex "reflectance"
-        raise InputError(f"complex values in {', '.join(complex_layers)}; real numbers are expected")
-    layers.update(guard_angles({name: layers[name] for name in ANGLE_LAYERS}))
-    if layers["classes"].dtype.kind not in "iuf":
-        raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
+    layers = checked_layers(reflectance, named)
     reference = with_hls_sza(reference, reflectance)
     if wavelengths is None and "wavelength" in reflectance.coords:
         wavelengths = reflectance["wavelength"].values.tolist()

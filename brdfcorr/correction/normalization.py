@@ -56,6 +56,7 @@ from brdfcorr.correction.blocks import (
     PixelGeometry,
     Plans,
     class_plan,
+    cube_masks,
     present_classes,
     split_pairs,
 )
@@ -179,10 +180,10 @@ def normalize(
     band_dim = reflectance.dims[0]
     class_plans = {cid: class_plan(cid, entry.model, entry.params, entry.no_parameters)
                    for cid, entry in inputs.resolved.items()}
+    plans = Plans(class_plans)
     if group is None:  # coefficients continuous in NDVI: the reference value depends on the pixel
         check_reference_signal(class_plans, reference)
-    kwargs: dict[str, Any] = dict(plans=Plans(class_plans), settings=inputs.settings, unknown_nan=unknown == "nan",
-                                  group=group)
+    kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings, unknown_nan=unknown == "nan", group=group)
     if inputs.lazy:
         pairs = inputs.blockwise(_normalize_block, kwargs)
         corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, inputs.settings.out_dtype)
@@ -269,7 +270,7 @@ def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Pla
     reference, limits, out_dtype = settings.reference, settings.limits, settings.out_dtype
     pixels = PixelGeometry.of_block(layers, settings)
     classes, qa, usable, no_class = pixels.classes, pixels.qa, pixels.usable, pixels.no_class
-    candidates, infinite = _cube_masks(cube, qa)
+    candidates, infinite = cube_masks(cube, qa)
     base = np.ones(ny * nx, dtype=out_dtype)  # factor of pixels no class corrects
     base[~usable] = np.nan
     unclassified = usable & no_class
@@ -316,22 +317,6 @@ def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Pla
         if passed:  # a band of this block without parameters for the class: passed through
             set_flags(qa, index, QA.BAND_UNCORRECTED)
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
-
-
-def _cube_masks(cube, qa):
-    """Flag pixels with non-finite reflectance in some band (``qa`` in place); returns the few
-    pixels with a non-finite band sum (indices) and where in them a value is +-inf."""
-    candidates = infinite = None
-    if cube.dtype.kind == "f":
-        # NaN or +-inf in some band makes the band sum non-finite (one pass, no mask cube); those
-        # few pixels are then checked band by band (a sum of finite values may overflow).
-        with np.errstate(over="ignore", invalid="ignore"):
-            candidates = np.flatnonzero(~np.isfinite(np.add.reduce(cube, axis=0)))
-        if candidates.size:
-            values = cube[:, candidates]
-            set_flags(qa, candidates[~np.isfinite(values).all(axis=0)], QA.NODATA)
-            infinite = np.isinf(values)
-    return candidates, infinite
 
 
 def _apply_factors(cube, band_index, base, states, limits, out_dtype):

@@ -1,4 +1,5 @@
-"""Reading and writing: images and class maps (:mod:`.rasters`), angle rasters (:mod:`.angles`),
+"""Reading and writing: an image identified once, its chunk and cache sizes (:mod:`.product`),
+images and class maps (:mod:`.rasters`), angle rasters (:mod:`.angles`),
 band centres (:mod:`.wavelengths`), the grid check (:mod:`.grid`), a whole scene (:mod:`.scene`),
 GeoTIFF and ENVI output (:mod:`.writer`), atomic output files and safe YAML (:mod:`.files`), the
 output guard (:mod:`.paths`), and what sensor products deliver (:mod:`.sensors`).
@@ -12,7 +13,7 @@ import importlib
 #: The public face of the package, imported on first use: name -> module.
 _PUBLIC = {
     "open_image": "rasters", "open_classes": "rasters", "check_reflectance_scale": "rasters",
-    "auto_chunk": "rasters", "open_angles": "angles", "check_angles": "angles", "ANGLE_NAMES": "angles",
+    "auto_chunk": "product", "open_angles": "angles", "check_angles": "angles", "ANGLE_NAMES": "angles",
     "open_scene": "scene", "SceneSources": "scene", "check_same_grid": "grid", "open_layer": "opening",
     "band_wavelengths": "wavelengths", "parse_wavelength": "wavelengths", "write_rasters": "writer",
     "GeoTiffOutput": "writer",

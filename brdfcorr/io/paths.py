@@ -17,7 +17,8 @@ resolved path otherwise (an output not yet written is the input of the same path
 as the user gave them; identity is only compared here.
 
 :func:`remove_partials` removes the temporary files an interrupted run left beside its outputs
-(the names of :func:`brdfcorr.io.files.atomic_path`).
+(the names of :func:`brdfcorr.io.files.atomic_path`); :func:`check_format` refuses an output whose
+file name extension belongs to another format.
 """
 
 from __future__ import annotations
@@ -30,9 +31,10 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from brdfcorr.errors import InputError, OutputError
+from brdfcorr.io import EXTENSIONS, FORMATS
 
-__all__ = ["check_outputs", "sidecar_paths", "same_file", "file_identity", "refuse_existing", "update_target",
-           "remove_partials", "InputOverwriteError", "SameOutputError"]
+__all__ = ["check_outputs", "check_format", "sidecar_paths", "same_file", "file_identity", "refuse_existing",
+           "update_target", "remove_partials", "InputOverwriteError", "SameOutputError"]
 
 PathLike = str | os.PathLike
 Named = Mapping[str, PathLike | None] | Iterable[PathLike | tuple[str, PathLike | None] | None]
@@ -175,6 +177,24 @@ def check_outputs(outputs: Named, inputs: Named = ()) -> None:
             if identity == other_identity:
                 raise SameOutputError(other_name, other_path, name, path)
         written.append((name, path, identity))
+
+
+def check_format(path: str | os.PathLike, driver: str, what: str = "output") -> None:
+    """Refuse an output whose file name extension does not belong to its format (:data:`EXTENSIONS`):
+    ``out.img`` written as a GeoTIFF, or ``out.tif`` as ENVI, would mislead every reader.
+
+    Raises
+    ------
+    InputError
+        An unknown format, or an extension of another format.
+    """
+    if driver not in EXTENSIONS:
+        raise InputError(f"unknown output format {driver!r}; choose one of {', '.join(FORMATS)}")
+    suffix = Path(path).suffix.lower()
+    if suffix not in EXTENSIONS[driver]:
+        allowed = ", ".join(extension or "no extension" for extension in EXTENSIONS[driver])
+        raise InputError(f"{what} {path}: extension {suffix or '(none)'} does not fit format {driver} "
+                         f"(use {allowed})")
 
 
 def refuse_existing(targets: Iterable[PathLike | None]) -> None:

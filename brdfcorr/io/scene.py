@@ -1,24 +1,28 @@
 """One scene's input files, opened lazily and checked together: where they are
-(:class:`SceneSources`) and what they hold (:class:`SceneData`, :func:`open_scene`)."""
+(:class:`SceneSources`) and what they hold (:class:`SceneData`, :func:`open_scene`; for a whole
+run, with the image identified once and GDAL's cache bounded: :func:`opened_scene`)."""
 
 from __future__ import annotations
 
-import os
-from collections.abc import Callable, Mapping, Sequence
+import contextlib
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+import rasterio
 import xarray as xr
 
 from brdfcorr._entry import option
-from brdfcorr.errors import GridMismatchError, InputError
+from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError
+from brdfcorr.io import rasters
 from brdfcorr.io.angles import ANGLE_NAMES, AngleStatistics, check_angles, open_angles
 from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.rasters import ImageFile, open_classes, open_image
+from brdfcorr.io.paths import PathLike
+from brdfcorr.io.product import ImageFile, auto_chunk, gdal_cache_bytes, identify_image
+from brdfcorr.io.rasters import open_classes, open_image
+from brdfcorr.io.writer import pass_threads
 
-__all__ = ["SceneSources", "SceneData", "open_scene", "check_class_grid"]
-
-PathLike = str | os.PathLike
+__all__ = ["SceneSources", "SceneData", "open_scene", "opened_scene", "check_class_grid"]
 
 
 @dataclass(frozen=True)
@@ -75,6 +79,17 @@ class SceneData(NamedTuple):
     """``sza``, ``saa``, ``vza``, ``vaa`` (y, x) [deg] on the image grid."""
     statistics: AngleStatistics
     """Ranges and means of the angle layers (the scene-mean sun zenith among them)."""
+    image: ImageFile | None = None
+    """The image file identified once (:func:`brdfcorr.io.product.identify_image`: product kind,
+    layout), None where it was opened by its path."""
+    chunks: int | None = None
+    """The spatial chunk size it was opened with [pixels] (:func:`opened_scene`)."""
+    cache: int | None = None
+    """GDAL's block cache [bytes] bounded while the scene is read and written (:func:`opened_scene`),
+    None where not bounded."""
+    threads: int | None = None
+    """The dask threads of its passes (:func:`brdfcorr.io.writer.pass_threads`: the scale check's and
+    the write's; None: the scheduler's own), worked out once (:func:`opened_scene`)."""
 
 
 def open_scene(sources: SceneSources, *, chunks=None,
@@ -96,7 +111,7 @@ def open_scene(sources: SceneSources, *, chunks=None,
     scheduler, num_workers : optional
         As for :func:`brdfcorr.io.angles.check_angles`.
     image : ImageFile, optional
-        ``sources.image`` identified already (:func:`brdfcorr.io.rasters.identify_image`: its
+        ``sources.image`` identified already (:func:`brdfcorr.io.product.identify_image`: its
         product kind and layout are not looked up again).
 
     Returns
@@ -136,7 +151,64 @@ def open_scene(sources: SceneSources, *, chunks=None,
         check_class_grid(reflectance, class_map)
     check_same_grid({"image": reflectance, "classes": class_map, **layers})
     statistics = check_angles(layers, source=source, scheduler=scheduler, num_workers=num_workers)
-    return SceneData(reflectance, class_map, layers, statistics)
+    return SceneData(reflectance, class_map, layers, statistics, image)
+
+
+@contextlib.contextmanager
+def opened_scene(sources: SceneSources, *, chunks: int | None = None,
+                 prepare_classes: Callable[[xr.DataArray, xr.DataArray], xr.DataArray] | None = None,
+                 scheduler: str | None = None, num_workers: int | None = None) -> Iterator[SceneData]:
+    """One scene for a whole run (a correction): its image identified once (product kind, layout:
+    :func:`brdfcorr.io.product.identify_image`), its chunk size worked out from that
+    (:func:`brdfcorr.io.product.auto_chunk`) unless given, GDAL's block cache bounded
+    (:func:`brdfcorr.io.product.gdal_cache_bytes`) from here to the end of the ``with`` block, the
+    scene opened and checked (:func:`open_scene`), and, without a given scale
+    (``sources.scale``), a sample of the image checked for raw counts
+    (:func:`brdfcorr.io.rasters.check_reflectance_scale`, a few chunks read, not a pass).
+
+    The checks before the write read tiles; GDAL's default cache (5 % of RAM) would keep them for
+    the rest of the run (issue 28). The :class:`SceneData` given carries the image, the chunk size,
+    the cache and the thread count of its passes, so nothing after works them out again.
+
+    Parameters
+    ----------
+    sources : SceneSources
+        The files.
+    chunks : int, optional
+        Spatial chunk (and tile) size [pixels]; default :func:`brdfcorr.io.product.auto_chunk`.
+    prepare_classes, scheduler, num_workers : optional
+        As for :func:`open_scene`.
+
+    Raises
+    ------
+    InputError
+        As :func:`open_scene` and :func:`brdfcorr.io.rasters.check_reflectance_scale`; an image
+        that cannot be identified says so when its chunk size was to be worked out from it, else
+        as :func:`open_scene` opens it.
+    """
+    image = _identified(sources.image, chunks)
+    chunks = auto_chunk(image) if chunks is None else int(chunks)  # (image None: chunks given)
+    cache = None if image is None else gdal_cache_bytes(image, chunks)
+    threads = pass_threads(scheduler, num_workers)  # the scale check's, as the write's
+    with rasterio.Env(GDAL_CACHEMAX=cache) if cache else contextlib.nullcontext():
+        scene = open_scene(sources, chunks=chunks, image=image, prepare_classes=prepare_classes,
+                           scheduler=scheduler, num_workers=num_workers)
+        if sources.scale is None:  # a given scale is the user's word; else catch raw counts first
+            rasters.check_reflectance_scale(scene.reflectance, str(sources.image), scheduler=scheduler,
+                                            num_workers=threads)
+        yield scene._replace(image=image, chunks=chunks, cache=cache, threads=threads)
+
+
+def _identified(path, chunks: int | None) -> ImageFile | None:
+    """The image identified (:func:`brdfcorr.io.product.identify_image`); where it cannot be, its
+    error when the chunk size is to be worked out from it, else None: :func:`open_scene` names the
+    image that cannot be read, in its order."""
+    try:
+        return identify_image(path)
+    except BrdfcorrError:
+        if chunks is None:
+            raise
+        return None
 
 
 def check_class_grid(image: xr.DataArray, class_map: xr.DataArray, image_name: str = "image") -> None:

@@ -4,8 +4,9 @@
 extra lazy results (QA counts) in the same dask pass; a failed write (disk full, file size limit,
 permissions), also one GDAL reports only in its log or at close, is one
 :class:`~brdfcorr.errors.OutputError`, and every output is verified before it is renamed
-(:mod:`brdfcorr.io.commit`). rioxarray creates each file (georeference, nodata,
-band descriptions, tags); the chunks then go
+(:mod:`brdfcorr.io.commit`). :func:`writing` is the same pass for a caller that computes it
+itself (a correction computes its own chunks; the writer only stores them). rioxarray creates each
+file (georeference, nodata, band descriptions, tags); the chunks then go
 
 - on one machine (dask's threaded or synchronous scheduler) through *one* open GDAL handle per
   file, under a lock: each written tile is handed to GDAL's pool of compression threads
@@ -28,7 +29,7 @@ import contextlib
 import os
 import threading
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
@@ -50,9 +51,10 @@ from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
 from brdfcorr.io.commit import Target, io_failure, verify, write_error, written_files
 from brdfcorr.io.files import DISK_CAUSES, sync_file, temporary_beside, write_cause
 from brdfcorr.io.gdal_log import GdalLog
+from brdfcorr.io.paths import check_format  # an output's format and extension: a path check, importable here too
 
-__all__ = ["write_rasters", "encode_integers", "pass_threads", "default_threads", "GeoTiffOutput", "EnviOutput",
-           "check_format", "envi_header_path", "envi_sidecars", "check_envi_georeference",
+__all__ = ["write_rasters", "writing", "encode_integers", "pass_threads", "default_threads", "GeoTiffOutput",
+           "EnviOutput", "check_format", "envi_header_path", "envi_sidecars", "check_envi_georeference",
            "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
@@ -129,24 +131,6 @@ class EnviOutput:
     interleave: Literal["bsq", "bil"] = "bsq"
     wavelength: Sequence[float] | None = None
     fwhm: Sequence[float] | None = None
-
-
-def check_format(path: str | os.PathLike, driver: str, what: str = "output") -> None:
-    """Refuse an output whose file name extension does not belong to its format (:data:`EXTENSIONS`):
-    ``out.img`` written as a GeoTIFF, or ``out.tif`` as ENVI, would mislead every reader.
-
-    Raises
-    ------
-    InputError
-        An unknown format, or an extension of another format.
-    """
-    if driver not in EXTENSIONS:
-        raise InputError(f"unknown output format {driver!r}; choose one of {', '.join(FORMATS)}")
-    suffix = Path(path).suffix.lower()
-    if suffix not in EXTENSIONS[driver]:
-        allowed = ", ".join(extension or "no extension" for extension in EXTENSIONS[driver])
-        raise InputError(f"{what} {path}: extension {suffix or '(none)'} does not fit format {driver} "
-                         f"(use {allowed})")
 
 
 def envi_header_path(path: str | os.PathLike) -> Path:
@@ -304,6 +288,69 @@ def write_rasters(
     -------
     The computed ``compute_with`` (None if not given).
     """
+    with writing(rasters, geotiff, tags=tags, commit_tags=commit_tags, callbacks=callbacks, gdal_cache=gdal_cache,
+                 scheduler=scheduler, envi=envi) as writes:
+        *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler,
+                                 num_workers=pass_threads(scheduler, num_workers))
+    return extra
+
+
+@contextlib.contextmanager
+def writing(rasters: Mapping, geotiff: GeoTiffOutput = GeoTiffOutput(), *, tags=None, commit_tags=None,
+            callbacks: Sequence = (), gdal_cache: int | None = None, scheduler=None,
+            envi: Mapping | None = None) -> Iterator[list]:
+    """The writing pass of :func:`write_rasters` around a caller that computes it: every target
+    created under a temporary name, the lazy writes of their chunks given to the ``with`` block,
+    which computes them (in one :func:`dask.compute` with what else it needs: a task computes its
+    own pass, so the writer does not drive the task's functions), with ``callbacks`` active;
+    then the files closed, checked for GDAL's failures, verified, flushed and committed
+    (:meth:`~brdfcorr.io.commit.Target.commit`), the first target last. Any failure, in the block
+    as well, removes every temporary. Arguments as for :func:`write_rasters`.
+
+    Yields
+    ------
+    list
+        The lazy writes (dask; None for an array in memory, written when created).
+    """
+    geotiff, envi = _checked(rasters, geotiff, envi)
+    targets: list[Target] = []
+    # On a cluster the workers write the chunks; here, only this thread's own GDAL calls count.
+    failures = GdalLog(thread=threading.get_ident() if _distributed_client(scheduler) is not None else None,
+                       failures=True)
+    settings = {"GDAL_CACHEMAX": int(gdal_cache)} if gdal_cache else {}
+    try:
+        with failures, rasterio.Env(**settings):
+            for target, array in rasters.items():
+                targets.append(_target(Path(target), array, envi.get(Path(target)), geotiff.cog))
+            handles: list = []
+            writes = _stores(targets, geotiff, tags, commit_tags, _distributed_client(scheduler), handles)
+            with contextlib.ExitStack() as active:
+                for callback in callbacks:
+                    active.enter_context(callback)
+                try:  # one pass for everything: shared inputs are read and normalized once
+                    yield writes
+                except BaseException:
+                    for handle in handles:  # the failure is the news; the files are discarded
+                        with contextlib.suppress(Exception):
+                            handle.close()
+                    raise
+            _finish(targets, handles, geotiff)
+        if failures.failures:
+            raise write_error(list(rasters), write_cause(None, written_files(targets), failures.cause()))
+        _commit(targets, tags, commit_tags)
+    except BaseException as error:
+        problem = _problem(error, list(rasters), failures, targets)
+        for target in targets:
+            target.discard()
+        if problem is not None:
+            raise problem from error
+        raise
+
+
+def _checked(rasters: Mapping, geotiff: GeoTiffOutput, envi: Mapping | None) -> tuple[GeoTiffOutput, dict]:
+    """The arguments of :func:`write_rasters` checked before anything is created: the tile size,
+    the output folders, the compression (lower case), ENVI and COG apart, the ENVI targets'
+    georeference. Returns ``geotiff`` with its compression in lower case and the ENVI targets by path."""
     blocksize = geotiff.blocksize
     if not (blocksize >= 16 and blocksize % 16 == 0):
         raise InputError(f"tile size {blocksize} must be a positive multiple of 16")
@@ -320,49 +367,29 @@ def write_rasters(
     for target in envi:
         if target in {Path(path) for path in rasters}:
             check_envi_georeference(rasters[next(path for path in rasters if Path(path) == target)], target)
-    return _write(rasters, geotiff, tags, commit_tags, compute_with, callbacks, gdal_cache, scheduler, num_workers,
-                  envi)
+    return geotiff, envi
 
 
-def _write(rasters, geotiff: GeoTiffOutput, tags, commit_tags, compute_with, callbacks, gdal_cache, scheduler,
-           num_workers, envi):
-    """The writing pass of :func:`write_rasters`, its arguments checked (``geotiff.compress`` lower case):
-    write every target to temporaries, check GDAL's failures, verify and flush each, then commit
-    them (:meth:`Target.commit`), the first target last. Any failure removes every temporary."""
-    targets: list[Target] = []
-    # On a cluster the workers write the chunks; here, only this thread's own GDAL calls count.
-    failures = GdalLog(thread=threading.get_ident() if _distributed_client(scheduler) is not None else None,
-                       failures=True)
-    settings = {"GDAL_CACHEMAX": int(gdal_cache)} if gdal_cache else {}
-    try:
-        with failures, rasterio.Env(**settings):
-            for target, array in rasters.items():
-                targets.append(_target(Path(target), array, envi.get(Path(target)), geotiff.cog))
-            extra = _compute(targets, geotiff, tags, commit_tags, compute_with, callbacks, scheduler, num_workers)
-        if failures.failures:
-            raise write_error(list(rasters), write_cause(None, written_files(targets), failures.cause()))
-        for index, target in enumerate(targets):
-            verify(target, _file_tags(tags, commit_tags, index), written_files(targets))
-            for path in target.kept():
-                if path.exists():
-                    sync_file(path)
-        for target in reversed(targets):  # the first target (with the commit tags) last
-            target.commit()
-    except BaseException as error:
-        problem = None
-        failed = isinstance(error, (OSError, rasterio.errors.RasterioError, CPLE_BaseError))
-        if failed and not isinstance(error, BrdfcorrError):
-            problem = io_failure(error, list(rasters), [failures.cause()] if failures.failures else [],
-                                 written_files(targets))
-        elif isinstance(error, SystemError):  # rasterio: GDAL failed and said nothing (a full disk at creation)
-            cause = write_cause(None, written_files(targets), "")
-            problem = write_error(list(rasters), cause) if cause.startswith(DISK_CAUSES) else None
-        for target in targets:
-            target.discard()
-        if problem is not None:
-            raise problem from error
-        raise
-    return extra
+def _commit(targets: list[Target], tags, commit_tags) -> None:
+    """Verify and flush every target, then rename them into place, the first (with the commit tags) last."""
+    for index, target in enumerate(targets):
+        verify(target, _file_tags(tags, commit_tags, index), written_files(targets))
+        for path in target.kept():
+            if path.exists():
+                sync_file(path)
+    for target in reversed(targets):
+        target.commit()
+
+
+def _problem(error: BaseException, rasters: list, failures: GdalLog, targets: list[Target]) -> OutputError | None:
+    """The :class:`OutputError` that a failed write is (None: ``error`` says it itself)."""
+    failed = isinstance(error, (OSError, rasterio.errors.RasterioError, CPLE_BaseError))
+    if failed and not isinstance(error, BrdfcorrError):
+        return io_failure(error, rasters, [failures.cause()] if failures.failures else [], written_files(targets))
+    if isinstance(error, SystemError):  # rasterio: GDAL failed and said nothing (a full disk at creation)
+        cause = write_cause(None, written_files(targets), "")
+        return write_error(rasters, cause) if cause.startswith(DISK_CAUSES) else None
+    return None
 
 
 def _file_tags(tags, commit_tags, index: int) -> dict:
@@ -379,12 +406,9 @@ def _target(final: Path, array: xr.DataArray, layout: EnviOutput | None, cog: bo
     return Target(final, _envi_safe(array), layout, temporary, written, envi_sidecars(temporary, final))
 
 
-def _compute(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, compute_with, callbacks, scheduler,
-             num_workers):
-    """Create the files, compute everything in one dask pass, close them (a full disk often fails
-    here), copy the COGs and complete the ENVI headers; returns the computed ``compute_with``."""
-    client = _distributed_client(scheduler)
-    writes, handles = [], []
+def _stores(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, client, handles: list) -> list:
+    """Create the files and return their lazy writes (:func:`_store`; open handles appended to ``handles``)."""
+    writes = []
     for index, target in enumerate(targets):
         if isinstance(target.layout, EnviOutput):
             options = {"driver": "ENVI", "interleave": target.layout.interleave.upper(), "SUFFIX": "ADD"}
@@ -392,17 +416,12 @@ def _compute(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, c
             options = _write_options(geotiff.compress, geotiff.blocksize, target.array)
         writes.append(_store(target.array, target.written, options, _file_tags(tags, commit_tags, index), client,
                              handles))
-    with contextlib.ExitStack() as active:
-        for callback in callbacks:
-            active.enter_context(callback)
-        try:  # one pass for everything: shared inputs are read and normalized once
-            *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler,
-                                     num_workers=pass_threads(scheduler, num_workers))
-        except BaseException:
-            for handle in handles:  # the failure is the news; the files are discarded
-                with contextlib.suppress(Exception):
-                    handle.close()
-            raise
+    return writes
+
+
+def _finish(targets: list[Target], handles: list, geotiff: GeoTiffOutput) -> None:
+    """After the pass: close the files (a full disk often fails here), copy the COGs and complete
+    the ENVI headers."""
     for handle in handles:  # waits for GDAL's last compressed tiles; a full disk fails here
         handle.close()
     for target in targets:
@@ -415,7 +434,6 @@ def _compute(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, c
             )
         if isinstance(target.layout, EnviOutput):
             _write_envi_header(target.temporary, target.layout, target.final)
-    return extra
 
 
 def _cog_options(compress: str) -> dict:

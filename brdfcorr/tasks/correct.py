@@ -12,19 +12,20 @@ import re
 import warnings
 from collections.abc import Mapping, Sequence
 
+import dask
 import numpy as np
-import rasterio
 import xarray as xr
 
 from brdfcorr import __version__
 from brdfcorr.correction import QA, describe_limits, normalize, normalize_at_nodes, qa_counts, resolve_reference
 from brdfcorr.correction.reference import with_hls_sza
 from brdfcorr.correction.uncertainty import correction_uncertainty
-from brdfcorr.errors import BrdfcorrError, BrdfcorrWarning, InputError, ParameterError
-from brdfcorr.io import rasters, writer
+from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
+from brdfcorr.io import writer
 from brdfcorr.io.angles import RELATIVE_ONLY, window_values
-from brdfcorr.io.paths import check_outputs, refuse_existing
-from brdfcorr.io.scene import SceneData, open_scene
+from brdfcorr.io.paths import check_format, check_outputs, refuse_existing
+from brdfcorr.io.product import ImageFile, gdal_cache_bytes
+from brdfcorr.io.scene import SceneData, opened_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
 from brdfcorr.tasks.request import CorrectionRequest, Terrain
@@ -41,19 +42,10 @@ def _merged_qa(qa: xr.DataArray, topographic_qa: xr.DataArray) -> xr.DataArray:
     return (qa | (topographic_qa & passed_on)).assign_attrs(qa.attrs)
 
 
-def _identified(request: CorrectionRequest) -> rasters.ImageFile | None:
-    """The image file identified once (:func:`brdfcorr.io.rasters.identify_image`: product kind,
-    layout), or None for a missing or unreadable image: the run's own checks say so, in order."""
-    try:
-        return rasters.identify_image(request.scene.image)
-    except BrdfcorrError:
-        return None
-
-
 def correct_files(request: CorrectionRequest) -> CorrectionResult:
     """Normalize an image file: read image, angles and class map, write the corrected image.
 
-    Inputs are opened lazily in chunks and checked once (:func:`brdfcorr.io.scene.open_scene`:
+    Inputs are opened lazily in chunks and checked once (:func:`brdfcorr.io.scene.opened_scene`:
     one grid check, one pass over the angle data that also gives the scene-mean sun zenith),
     normalized with :func:`brdfcorr.normalize` and written tiled and compressed, chunk by chunk, to
     a temporary name renamed when complete, with band descriptions and provenance tags (reference
@@ -61,9 +53,10 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
     written in the same pass.
 
     The image is identified once (its product kind and layout), its chunk size worked out once
-    (:func:`brdfcorr.io.rasters.auto_chunk` unless given) and GDAL's block cache bounded for the
-    whole run (:func:`brdfcorr.io.rasters.gdal_cache_bytes`): the angle and scale checks read
-    before the write, and GDAL's default cache (5 % of RAM) would keep their tiles (issue 28).
+    (:func:`brdfcorr.io.product.auto_chunk` unless given) and GDAL's block cache bounded for the
+    whole run (:func:`brdfcorr.io.product.gdal_cache_bytes`): the angle and scale checks read
+    before the write, and GDAL's default cache (5 % of RAM) would keep their tiles (issue 28); the
+    opened scene carries all three (:func:`brdfcorr.io.scene.opened_scene`).
 
     The image's stored values are read as reflectance factors: scaled with the file's per-band GDAL
     scale and offset (``reflectance = stored * scale + offset``), or with the request's
@@ -115,56 +108,46 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
         An existing output without ``overwrite``, an output that is no regular file or the same
         file as the other output, or a failed write (disk full); nothing is left at the output paths.
     """
-    image = _identified(request)
-    chunks = None if request.engine.chunks is None else int(request.engine.chunks)
-    if image is not None and chunks is None:
-        chunks = rasters.auto_chunk(image)
-    if image is None or chunks is None:  # the checks name the image that cannot be read
-        return _correct(request, image, chunks, None)
-    cache = rasters.gdal_cache_bytes(image, chunks)
-    with rasterio.Env(GDAL_CACHEMAX=cache):
-        return _correct(request, image, chunks, cache)
-
-
-def _correct(request: CorrectionRequest, image: rasters.ImageFile | None, chunks: int | None,
-             cache: int | None) -> CorrectionResult:
-    """:func:`correct_files` of an image identified (None: it cannot be read), in chunks of
-    ``chunks`` pixels (None: worked out here, or the image's error) with GDAL's block cache
-    bounded to ``cache`` [bytes] (None: worked out for the write)."""
     _check_outputs(request)
     table, table_path = _load_table(request)
     engine = request.engine
-    if chunks is None:
-        chunks = rasters.auto_chunk(request.scene.image)  # the image's error, after the outputs' and the table's
     compute = {"scheduler": engine.scheduler, "num_workers": engine.num_workers}
-    scene = open_scene(request.scene, chunks=chunks, image=image,
-                       prepare_classes=class_preparation(request.align_classes, request.class_lookup), **compute)
+    with opened_scene(request.scene, chunks=None if engine.chunks is None else int(engine.chunks),
+                      prepare_classes=class_preparation(request.align_classes, request.class_lookup),
+                      **compute) as scene:
+        return _correct(request, scene, table, table_path)
+
+
+def _correct(request: CorrectionRequest, scene: SceneData, table: ParameterTable,
+             table_path: str | None) -> CorrectionResult:
+    """:func:`correct_files` of a scene opened for the run (:func:`brdfcorr.io.scene.opened_scene`)."""
+    engine = request.engine
     _warn_wavelength_caveats(table, scene.reflectance)
-    if request.scene.scale is None:  # a given scale is the user's word; else catch raw counts first
-        rasters.check_reflectance_scale(scene.reflectance, str(request.scene.image), **compute)
     reference, sza_source = _scene_reference(request.reference, table, scene)
-    corrected, qa, sigma, topographic = _corrected_layers(request, scene, table, reference, chunks)
+    corrected, qa, sigma, topographic = _corrected_layers(request, scene, table, reference, scene.chunks)
     if topographic is not None:
         qa = _merged_qa(qa, topographic.qa)
     corrected, qa, encoding = _as_output(corrected, qa, scene, request)
     files = request.outputs
     targets = {path: layer for path, layer in ((files.corrected, corrected), (files.qa, qa), (files.uncertainty, sigma))
                if path is not None}
+    commit_tags = _fingerprint_tags(files.fingerprint)  # the corrected output's only
+    envi, scene_tags = _envi_outputs(request, scene), _scene_tags(scene, request.class_lookup)
     tags = {
         "brdf_reference": reference.describe(),
         "brdf_reference_sza_source": sza_source,
         "brdf_limits": describe_limits(request.limits),
         "brdf_parameter_table": table_path or "(in memory)",
         "brdf_parameter_table_content": json.dumps(table.to_dict(), separators=(",", ":")),
-        **_scene_tags(scene, request.class_lookup),
+        **scene_tags,
     }
-    counts = rasters.write_rasters(
-        targets, geotiff=writer.GeoTiffOutput(compress=files.compress, blocksize=chunks, cog=files.cog), tags=tags,
-        commit_tags=_fingerprint_tags(request.outputs.fingerprint), compute_with={**qa_counts(qa), **encoding},
-        callbacks=engine.callbacks,
-        gdal_cache=cache or rasters.gdal_cache_bytes(request.scene.image, chunks), envi=_envi_outputs(request, scene),
-        **compute,
-    )
+    geotiff = writer.GeoTiffOutput(compress=files.compress, blocksize=scene.chunks, cog=files.cog)
+    with writer.writing(targets, geotiff, tags=tags, commit_tags=commit_tags, callbacks=engine.callbacks, envi=envi,
+                        scheduler=engine.scheduler,
+                        gdal_cache=scene.cache or gdal_cache_bytes(request.scene.image, scene.chunks)) as writes:
+        # The one pass: the correction's chunks computed here, each stored by the writer as it comes.
+        *_, counts = dask.compute(*writes, {**qa_counts(qa), **encoding}, scheduler=engine.scheduler,
+                                  num_workers=scene.threads)
     pixels = {key: int(value) for key, value in counts.items()}
     note = uncorrected_note(pixels)
     if note is not None:
@@ -185,10 +168,10 @@ def _check_outputs(request: CorrectionRequest) -> None:
         header, aux = (final for _, final in writer.envi_sidecars(files.corrected, files.corrected))
         outputs.update({f"output header {header}": header, f"output sidecar {aux}": aux})
     check_outputs(outputs, inputs)  # the inputs' sidecars (ENVI headers in both namings, .aux.xml) included
-    writer.check_format(files.corrected, files.format)
+    check_format(files.corrected, files.format)
     for path, what in ((files.qa, "QA output"), (files.uncertainty, "uncertainty output")):
         if path is not None:
-            writer.check_format(path, "GTiff", what)
+            check_format(path, "GTiff", what)
     if not files.overwrite:
         refuse_existing([files.corrected, files.qa, files.uncertainty])
 
@@ -306,7 +289,7 @@ def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, requ
     corrected.attrs["long_name"] = _band_descriptions(scene.reflectance)
     for name in ("scale_factor", "add_offset"):  # the output holds physical values
         corrected.attrs.pop(name, None)
-    for name in _envi_header_items(request.scene.image, corrected.attrs):  # no tags of the output
+    for name in _envi_header_items(scene.image, corrected.attrs):  # no tags of the output
         corrected.attrs.pop(name)
     stored = np.dtype(scene.reflectance.encoding.get("rasterio_dtype", scene.reflectance.dtype))
     if request.outputs.data_type == "input" and stored.kind in "iu":
@@ -396,17 +379,14 @@ def _warn_wavelength_caveats(table: ParameterTable, reflectance: xr.DataArray) -
             warnings.warn(caveat, BrdfcorrWarning, stacklevel=3)
 
 
-def _envi_header_items(image, attrs: Mapping) -> list[str]:
-    """The attrs that rioxarray took from an ENVI input's header (its ENVI metadata domain, and the
-    ``Band_N`` band names and ``wavelength_units`` GDAL mirrors into the default domain): header
-    fields of the input, not provenance of the output. None for another format."""
-    try:
-        with rasterio.open(image) as dataset:
-            if dataset.driver != "ENVI":
-                return []
-            header = set(dataset.tags(ns="ENVI")) | {"wavelength", "wavelength_units", "fwhm"}
-    except rasterio.errors.RasterioIOError:
+def _envi_header_items(image: ImageFile | None, attrs: Mapping) -> list[str]:
+    """The attrs that rioxarray took from an ENVI input's header (its ENVI metadata domain, known
+    from the image's identification, and the ``Band_N`` band names and ``wavelength_units`` GDAL
+    mirrors into the default domain): header fields of the input, not provenance of the output.
+    None for another format."""
+    if image is None or image.envi_header is None:
         return []
+    header = set(image.envi_header) | {"wavelength", "wavelength_units", "fwhm"}
     return [name for name in attrs if name in header or re.fullmatch(r"Band_\d+", name)]
 
 

@@ -36,6 +36,7 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.opening import open_layer, reading
+from brdfcorr.io.paths import PathLike
 from brdfcorr.io.scene import SceneData, SceneSources
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.options import CORRECT, BrdfFrame, FactorAt, Topographic, Unknown
@@ -44,8 +45,6 @@ if TYPE_CHECKING:
     import distributed
 
 __all__ = ["CorrectionRequest", "OutputFiles", "Engine", "SceneSources", "Terrain"]
-
-PathLike = str | os.PathLike
 
 
 @dataclass(frozen=True)

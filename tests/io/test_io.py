@@ -279,7 +279,7 @@ def test_an_image_is_identified_once_and_its_sizes_are_the_path_s(files, tmp_pat
     """A correction identifies its image once (product kind, layout; issue 42: it was looked up again
     on every call, 4 times with a given chunk size): the chunk and cache sizes of the identified file
     are those of its path, and ``correct_files`` asks for the product kind once."""
-    from brdfcorr.io import rasters
+    from brdfcorr.io import product, rasters
     from brdfcorr.io.scene import SceneSources
     from brdfcorr.tasks.correct import correct_files
     from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
@@ -293,8 +293,8 @@ def test_an_image_is_identified_once_and_its_sizes_are_the_path_s(files, tmp_pat
     assert rasters.auto_chunk(image) == rasters.auto_chunk(files["image"])
     assert rasters.gdal_cache_bytes(image, 16) == rasters.gdal_cache_bytes(files["image"], 16)
     calls = []
-    original = rasters.hdf5_product
-    monkeypatch.setattr(rasters, "hdf5_product", lambda path: calls.append(path) or original(path))
+    original = product.hdf5_product
+    monkeypatch.setattr(product, "hdf5_product", lambda path: calls.append(path) or original(path))
     for chunks in (16, None):
         calls.clear()
         correct_files(CorrectionRequest(
@@ -302,3 +302,23 @@ def test_an_image_is_identified_once_and_its_sizes_are_the_path_s(files, tmp_pat
             OutputFiles(tmp_path / f"out{chunks}.tif"), reference={"sza": 35.0},
             engine=Engine(chunks=chunks, scheduler="synchronous")))
         assert calls == [files["image"]]
+
+
+def test_a_scene_opened_for_a_run_carries_the_sizes_of_its_image(files):
+    """``opened_scene`` identifies the image once and carries what follows (issue 42): the chunk
+    size and GDAL cache of the path (each worked out from the file again here), the thread count of
+    the scene's passes, and, inside the block, GDAL's cache bounded to it."""
+    from brdfcorr.io import product
+    from brdfcorr.io.scene import SceneSources, opened_scene
+    from brdfcorr.io.writer import pass_threads
+
+    sources = SceneSources(files["image"], files["classes"], files["angles"])
+    with opened_scene(sources, scheduler="threads") as scene:
+        assert rasterio.env.getenv()["GDAL_CACHEMAX"] == scene.cache
+        assert scene.image == product.identify_image(files["image"])
+        assert scene.chunks == product.auto_chunk(files["image"])
+        assert scene.cache == product.gdal_cache_bytes(files["image"], scene.chunks)
+        assert scene.threads == pass_threads("threads", None)
+        assert scene.reflectance.chunks[-1][0] == min(scene.chunks, scene.reflectance.sizes["x"])
+    with opened_scene(sources, chunks=16, scheduler="synchronous") as scene:
+        assert scene.chunks == 16 and scene.reflectance.chunks[-1][0] == 16

@@ -25,6 +25,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import dask
 import numpy as np
 import pytest
 import rasterio
@@ -174,3 +175,22 @@ def test_a_gdal_allocation_failure_is_not_blamed_on_the_disk(tmp_path, monkeypat
     message = str(raised.value)
     assert "GDAL could not allocate memory: cannot allocate 160000000000 bytes" in message
     assert "free space" not in message and list(tmp_path.iterdir()) == []
+
+
+def test_a_failure_inside_the_writing_block_leaves_nothing(tmp_path):
+    """``writing`` around a caller that computes the pass itself (a correction): a failure in the
+    caller's block, after the files were created, removes every temporary and writes no target."""
+    from brdfcorr.io.writer import writing
+
+    array = georeference(xr.DataArray(np.ones((2, 32, 32), np.float32), dims=("band", "y", "x")).chunk(16))
+    targets = {tmp_path / "a.tif": array, tmp_path / "b.tif": array[0]}
+    with pytest.raises(RuntimeError, match="the caller's computation failed"):
+        with writing(targets, GeoTiffOutput(blocksize=16), scheduler="synchronous") as writes:
+            assert len(writes) == 2 and list(tmp_path.iterdir())  # created under temporary names
+            raise RuntimeError("the caller's computation failed")
+    assert list(tmp_path.iterdir()) == []
+    with writing(targets, GeoTiffOutput(blocksize=16), scheduler="synchronous") as writes:
+        dask.compute(*writes, scheduler="synchronous")
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["a.tif", "b.tif"]
+    with rasterio.open(tmp_path / "a.tif") as written:
+        assert written.count == 2 and (written.read() == 1).all()
