@@ -27,6 +27,10 @@ correction alone):
   instead of patches;
 - ``c-factor``: the fixed global RTLSR coefficients of Roy et al. (2016), Table 1.
 
+``--strata neighbourhood`` cuts the strata (of every fitted method) from the NDVI of each pixel's
+``WINDOW`` x ``WINDOW`` neighbourhood's median reflectance instead of its own: a cover estimate
+that does not depend on the pixel's own view (issue 37's part 2).
+
 Measure (issue 37's): each pixel's reflectance over the median of its 9 x 9 neighbourhood (land
 cover varies little within 21 km, the view does: the ratio holds the view's effect), its
 least-squares slope against the signed view zenith (positive towards forward scattering) per group
@@ -39,8 +43,10 @@ ways); the in-sample figure beside. A composite without a day layer (``--data
 benchmarks/data/modis_mod09a1_h18v04``) is held out on the checkerboard only (``--square`` smaller
 for a small cut), its 1-sigma clustered by ``PATCH`` x ``PATCH`` blocks instead of days.
 
-    python benchmarks/bench_composite.py
-    python benchmarks/bench_composite.py --data benchmarks/data/modis_mod09a1_h18v04 --square 16
+    python benchmarks/bench_composite.py [--methods pooled,patch,local]
+    python benchmarks/bench_composite.py --strata neighbourhood
+    python benchmarks/bench_composite.py --methods pooled,patch,local --square 16 \\
+        --data benchmarks/data/modis_mod09a1_h18v04
 """
 
 from __future__ import annotations
@@ -152,14 +158,30 @@ def fit_and_correct(image, angles, strata, fit_on: np.ndarray, levels: str) -> n
     return np.asarray(corrected.values)
 
 
-def local_ratio(cube: np.ndarray) -> np.ndarray:
-    """Each pixel over the NaN-median of its ``WINDOW`` x ``WINDOW`` neighbourhood, per band."""
+def neighbourhood_median(cube: np.ndarray) -> np.ndarray:
+    """The NaN-median of each pixel's ``WINDOW`` x ``WINDOW`` neighbourhood, per band."""
     half = WINDOW // 2
     padded = np.pad(cube, ((0, 0), (half, half), (half, half)), constant_values=np.nan)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows
-        median = np.nanmedian(sliding_window_view(padded, (WINDOW, WINDOW), axis=(1, 2)), axis=(-2, -1))
-    return cube / median
+        return np.nanmedian(sliding_window_view(padded, (WINDOW, WINDOW), axis=(1, 2)), axis=(-2, -1))
+
+
+def local_ratio(cube: np.ndarray) -> np.ndarray:
+    """Each pixel over the NaN-median of its ``WINDOW`` x ``WINDOW`` neighbourhood, per band."""
+    return cube / neighbourhood_median(cube)
+
+
+def strata_of(image, kind: str):
+    """NDVI quartile strata of each pixel's own NDVI (``ndvi``) or of its neighbourhood's median
+    reflectance (``neighbourhood``: a cover estimate that the pixel's own view barely moves, since
+    its neighbours were seen from other orbits), 0 where the pixel itself is not finite."""
+    if kind == "ndvi":
+        return ndvi_strata(image, percentiles=PERCENTILES).classes
+    values = np.asarray(image.values, dtype=float)
+    median = image.copy(data=neighbourhood_median(values).astype(np.float32))
+    strata = ndvi_strata(median, percentiles=PERCENTILES).classes
+    return strata.where(xr.DataArray(np.all(np.isfinite(values), axis=0), dims=("y", "x")), 0).astype(strata.dtype)
 
 
 def clustered_slope(x: np.ndarray, y: np.ndarray, clusters: np.ndarray) -> tuple[float, float]:
@@ -197,7 +219,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DATA)
     parser.add_argument("--square", type=int, default=SQUARE, help="side [px] of the checkerboard's squares")
-    parser.add_argument("--methods", default="pooled,patch,local", help="fitted methods, comma-separated")
+    parser.add_argument("--methods", default="pooled,patch", help="fitted methods, comma-separated "
+                        "(pooled, patch, local)")
+    parser.add_argument("--strata", choices=("ndvi", "neighbourhood"), default="ndvi",
+                        help="strata of each pixel's NDVI or of its neighbourhood's median reflectance")
     args = parser.parse_args()
     start = time.perf_counter()
     image, angles, day = load(args.data)
@@ -209,7 +234,7 @@ def main() -> None:
     wavelengths = image["wavelength"].values
     raw = np.asarray(image.values)
     index = np.asarray(ndvi(image).values)
-    strata = ndvi_strata(image, percentiles=PERCENTILES).classes
+    strata = strata_of(image, args.strata)
     signed = angles["vza"].values * np.sign(-np.cos(np.radians(angles["vaa"].values)))
     groups = {"vegetation": index >= VEGETATION_NDVI, "other": index < VEGETATION_NDVI}
     black = (rows // args.square + columns // args.square) % 2 == 0
