@@ -23,9 +23,10 @@ notes on free levels. Line 1 alone (``bench_kernels.py``'s A' workflow) is the f
 
 Measured (400 x 600 x 60, 1 % noise, seed 0; binned / interpolated): line 1 alone 3.42 / 3.27 %,
 both lines pooled 3.71 / 3.40 % (median error 0.258 %), both lines with each pixel's level free
-(``auto`` picks it) 0.08 / 0.14 %, median error 0.033 %: the goal is met. The fit frees no level
+(``auto`` picks it) 0.08 / 0.14 %, median error 0.033 %: the goal is met (seeds 1 and 2 at 12
+bands: 0.13 / 0.17 % and 0.09 / 0.11 %). The fit frees no level
 per line there (the spread within pixels left beside the lines' own levels is 3.3-3.6 deg): with
-one (the fit before issue 37's follow-up) the same rows were 15.5 % at 12 bands, worse than pooled.
+one (the fit before issue 37's follow-up) the same rows were 16.2 / 16.1 % at 12 bands, worse than pooled.
 
     python benchmarks/bench_scene_a_lines.py [--bands 12] [--shift 300]
 """
