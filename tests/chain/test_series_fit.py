@@ -23,8 +23,8 @@ FIT = {"levels": "pixel", "block_size": 8, "min_samples": 50, "allow_uncorrected
 
 @pytest.fixture(scope="module")
 def series(tmp_path_factory) -> Path:
-    """Four dates of the same ground (seed 0) under a sun 3 deg higher each date and views that
-    alternate from one side to the other (a neighbouring orbit every other date)."""
+    """Four dates of the same ground (seed 0) under a sun 3 deg higher each date, the view zenith at
+    the swath's edges 12 and 20 deg on alternate dates (a neighbouring orbit every other date)."""
     root = tmp_path_factory.mktemp("series")
     for number, date in enumerate(DATES):
         angles = synthetic_angles(24, 32, sza=(25.0 + 3 * number, 30.0 + 3 * number), vza_max=12.0 + 8 * (number % 2))
