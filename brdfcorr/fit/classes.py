@@ -99,15 +99,16 @@ def _angular(model: Model) -> bool:
     return len(model.linear) > 1 or bool(model.shape_names)
 
 
-def _within_spread(samples: ClassSamples) -> float:
+def _within_spread(samples: ClassSamples, scenes: bool = False) -> float:
     """How differently the groups of free levels were seen [deg]: twice the 95th percentile of
     each sample's distance from its group's mean geometry, in (sun zenith, view zenith x cos and
     x sin of the relative azimuth), the polar plot of the view about the sun's azimuth. Two lines
     seeing a pixel at 20 deg from opposite sides give 40 deg; the pixels of a patch of one flight
-    line, about their view zenith step."""
+    line, about their view zenith step. ``scenes``: what is left once each scene's mean is taken
+    out as well (the two-way within geometry, :meth:`Levels.demean`)."""
     if samples.group is None or np.size(samples.theta_i) == 0:
         return 0.0
-    levels = Levels.from_labels(samples.group)
+    levels = Levels.from_labels(samples.group, samples.scene if scenes else None)
     azimuth = np.radians(samples.phi)
     geometry = np.column_stack([samples.theta_i, samples.theta_r * np.cos(azimuth), samples.theta_r * np.sin(azimuth)])
     distance = np.linalg.norm(levels.demean(geometry), axis=1)[levels.counts[0][levels.factors[0]] >= 2]
@@ -249,7 +250,7 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
     """Fit the class (:func:`fit_class_samples`) into its ``report``, with the shape ``prior`` where it
     applies, the guard rails' reasons against the fit, and another model suggested where the class
     fails or fits poorly (unless its model was chosen by held-out error)."""
-    levels = None if samples.group is None else Levels.from_labels(samples.group, samples.scene)
+    levels = None if samples.group is None else _free_levels(samples, guard, report.notes)
     result = fit_class_samples(model, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, fixed=fixed,
                                grid_points=grid_points, clusters=samples.block, levels=levels,
                                scenes=samples.scene if samples.scene_errors else None)
@@ -262,6 +263,23 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
     report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
     if report.model_choice is None and (report.reasons or not report.median_angular_r2 >= POOR_R2):
         _suggest_model(report, model, samples)
+
+
+def _free_levels(samples: ClassSamples, guard: GuardRails, notes: list[str]) -> Levels:
+    """Each group's level free, and each scene's (a date's atmosphere, a line's calibration) too,
+    unless the scenes' levels would take the signal: where the geometry spread within groups left
+    once each scene's mean geometry is taken out is below the guard rail's (two lines that see
+    their overlap from opposite sides: the difference between a pixel's views is then the same
+    for every pixel, and a level per line absorbs it), with a note."""
+    scene = samples.scene
+    if scene is not None and np.unique(scene).size > 1:
+        left = _within_spread(samples, scenes=True)
+        if left < guard.min_vza_spread:
+            notes.append(f"no level of its own per scene: the geometry spread within each {samples.levels} "
+                         f"left beside the scenes' own levels, {left:.1f} deg < {guard.min_vza_spread:g} deg, "
+                         "would leave the shape unidentified")
+            scene = None
+    return Levels.from_labels(samples.group, scene)
 
 
 def _held_if_poor(result: dict) -> dict:

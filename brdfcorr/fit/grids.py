@@ -86,7 +86,7 @@ def _target(images: list[xr.DataArray]):
     col1, row1 = math.ceil(columns[1] - SNAP), math.ceil(rows[1] - SNAP)
     from affine import Affine
 
-    return crs, transform * Affine.translation(col0, row0), (row1 - row0, col1 - col0)
+    return crs, transform @ Affine.translation(col0, row0), (row1 - row0, col1 - col0)
 
 
 def _source_index(image: xr.DataArray, crs, transform, shape: tuple[int, int]) -> np.ndarray:

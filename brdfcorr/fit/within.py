@@ -22,7 +22,10 @@ The shape and the geometry-dependent intensities are then fitted to the differen
 views of one group alone, so differences between groups never enter them. A second factor (the
 scene: a date's or a line's own level, e.g. its atmosphere) is projected out as well by
 alternating projections (the method of alternating projections of Gaure 2013), which converge to
-the two-way within transformation.
+the two-way within transformation; :func:`brdfcorr.fit.classes.fit_one_class` frees it only where
+the geometry left within groups beside it still spreads as the guard rail asks (two lines that
+see their overlap from opposite sides differ at every pixel by one step of the view, which a level
+per line would absorb).
 
 The constant term of the model (``t0``, ``f_iso``: the level itself) is not identified within
 groups; it is restored afterwards from the class's mean (:func:`restored_constant`), so the table
