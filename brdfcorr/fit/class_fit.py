@@ -68,9 +68,10 @@ class ClassFit:
     fallback : str or None
         The built-in material used instead, if any.
     better_model : str or None
-        For a class that failed or fits poorly (median R^2 < :data:`brdfcorr.fit.classes.POOR_R2`):
+        For a class whose fit failed or is poor (median R^2 < :data:`brdfcorr.fit.classes.POOR_R2`):
         another surface model that explains clearly more of its data (see
-        :data:`brdfcorr.fit.classes.BETTER_GAIN`), if any.
+        :data:`brdfcorr.fit.classes.BETTER_GAIN`), if any. Not tried for a class that fails only for
+        its sample (too few pixels, too narrow a range of views), which no model mends.
     better_r2 : float or None
         That model's held-out median R^2 (cross-validated over spatial blocks, on a subsample).
     errors_reliable : bool or None

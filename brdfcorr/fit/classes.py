@@ -248,8 +248,8 @@ def fit_one_class(class_id: int, name: str, model: str | Model, samples: ClassSa
 def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: Mapping[str, float] | None,
                  grid_points: int, prior: tuple[ShapePrior, np.ndarray] | None, guard: GuardRails) -> None:
     """Fit the class (:func:`fit_class_samples`) into its ``report``, with the shape ``prior`` where it
-    applies, the guard rails' reasons against the fit, and another model suggested where the class
-    fails or fits poorly (unless its model was chosen by held-out error)."""
+    applies, the guard rails' reasons against the fit, and another model suggested where the fit
+    fails or is poor (unless its model was chosen by held-out error)."""
     levels = None if samples.group is None else _free_levels(samples, guard, report.notes)
     result = fit_class_samples(model, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, fixed=fixed,
                                grid_points=grid_points, clusters=samples.block, levels=levels,
@@ -260,8 +260,11 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
     if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
         _apply_prior(report, *prior, samples)
         guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
-    report.reasons += _fit_reasons(report, model, result["at_edge"], guard)
-    if report.model_choice is None and (report.reasons or not report.median_angular_r2 >= POOR_R2):
+    fit_reasons = _fit_reasons(report, model, result["at_edge"], guard)
+    report.reasons += fit_reasons
+    # Another model cannot mend a sample that is too small or seen over too narrow a range
+    # (_sample_reasons): it is tried only where the model itself fails or fits poorly.
+    if report.model_choice is None and (fit_reasons or not report.median_angular_r2 >= POOR_R2):
         _suggest_model(report, model, samples)
 
 

@@ -7,8 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
+from brdfcorr.fit import classes, shape_search, solver
 from brdfcorr.fit import profile as profiles
-from brdfcorr.fit import shape_search, solver
 from brdfcorr.fit.classes import ClassFitWarning, ClassSamples, GuardRails, fit_one_class
 from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.solver import fit_class_samples
@@ -120,6 +120,26 @@ def test_kernel_class_fitted_with_empirical_fails_and_a_kernel_model_is_suggeste
         warnings.simplefilter("error", ClassFitWarning)
         good = fit_one_class(7, "meadow", RTLSR, ClassSamples(*angles, brdf))
     assert good.status == "fitted" and good.better_model is None and good.median_r2 > 0.9
+
+
+def test_a_class_failing_only_for_its_views_tries_no_other_model(monkeypatch):
+    # Too narrow a view range is the sample's fault, not the model's: the right model fits well,
+    # fails the spread guard alone, and no other model is fitted (choose_class_model not called).
+    rng = np.random.default_rng(4)
+    n = 4000
+    sza, across = rng.uniform(35, 45, n), rng.uniform(-1, 1, n)
+    angles = (sza, 40 * np.abs(across), relative_azimuth(np.full(n, 95.0), np.where(across < 0, 270.0, 90.0)))
+    brdf = render(angles) * (1 + 0.01 * rng.standard_normal((n, 4)))
+
+    def no_choice(*args, **kwargs):
+        raise AssertionError("another model was tried for a sample no model mends")
+
+    monkeypatch.setattr(classes, "choose_class_model", no_choice)
+    with pytest.warns(ClassFitWarning, match=r"view zenith spread"):
+        fit = fit_one_class(7, "meadow", RTLSR, ClassSamples(*angles, brdf), guard=GuardRails(min_vza_spread=89.0))
+    assert fit.status == "uncorrected" and fit.median_r2 > 0.9
+    assert len(fit.reasons) == 1 and fit.reasons[0].startswith("view zenith spread"), fit.reasons
+    assert fit.better_model is None
 
 
 def test_specular_intensity_stays_non_negative_without_a_specular_peak():
