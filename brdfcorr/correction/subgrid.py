@@ -311,9 +311,11 @@ def _subgrid_block(reflectance: np.ndarray, *, nodes: Mapping[str, np.ndarray], 
             limited = ((window < limits[0]) | (window > limits[1])).any(axis=0)
         np.clip(window, *limits, out=window)
         qa[limited] |= np.uint8(QA.LIMITED)
+    # nodata: a reflectance not finite, or no factor but for an invalid geometry (flagged so already)
+    nodata = ~np.isfinite(reflectance).all(axis=0)
+    nodata |= ~np.isfinite(window).all(axis=0) & (qa & QA.INVALID_GEOMETRY == 0)
     corrected = np.multiply(reflectance, window, out=window, casting="unsafe").astype(reflectance.dtype, copy=False)
-    nodata = ~np.isfinite(corrected).all(axis=0)
-    if nodata.any():
+    if nodata.any():  # +-inf is nodata like NaN: NaN in the output
         corrected[:, nodata] = np.where(np.isfinite(corrected[:, nodata]), corrected[:, nodata], np.nan)
         qa[nodata] |= np.uint8(QA.NODATA)
     return corrected, qa[np.newaxis]
