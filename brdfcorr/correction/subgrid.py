@@ -247,10 +247,11 @@ def _cell_of(samples: np.ndarray, size: int) -> np.ndarray:
 
 
 def _factor_window(positions: tuple[np.ndarray, np.ndarray], nodes: Mapping[str, np.ndarray], bands: slice,
-                   evaluate, subdivisions: int, tolerance: float, dtype) -> tuple[np.ndarray, np.ndarray]:
+                   evaluate, subdivisions: int, tolerance: float, dtype) -> tuple[np.ndarray, np.ndarray, tuple]:
     """The unclipped factor (band, y, x) of one block whose pixels lie at the coarse
-    ``positions`` (rows, cols), in ``dtype``, and the QA flags of its pixels evaluated one by one
-    (y, x) (module docstring, steps 1-4)."""
+    ``positions`` (rows, cols), in ``dtype``, the QA flags of its pixels evaluated one by one
+    (y, x) (module docstring, steps 1-4), and the least and largest factor evaluated: every
+    interpolated one lies between them (the bilinear weights are positive)."""
     rows_at, cols_at = positions
     size = (rows_at.size, cols_at.size)
     coarse = [axis_samples(at, n, subdivisions) for at, n in zip(positions, next(iter(nodes.values())).shape)]
@@ -265,22 +266,31 @@ def _factor_window(positions: tuple[np.ndarray, np.ndarray], nodes: Mapping[str,
     qa = np.zeros(size, dtype=np.uint8)
     qa[np.ix_(fine_r, fine_c)] = fine_qa
     flagged = cells > tolerance
+    span = _span(fine)
     if flagged.any():
-        _evaluate_cells(window, qa, flagged, coarse, positions, nodes, bands, evaluate)
-    return window, qa
+        span = _span(np.array([*span, *_evaluate_cells(window, qa, flagged, coarse, positions, nodes, bands,
+                                                          evaluate)]))
+    return window, qa, span
 
 
-def _exact_everywhere(positions, nodes, bands, evaluate, dtype) -> tuple[np.ndarray, np.ndarray]:
-    """The factor and QA flags of every pixel of a block from its own angles."""
+def _span(factor: np.ndarray) -> tuple[float, float]:
+    """The least and largest finite value of ``factor`` ((inf, -inf) where none is finite)."""
+    finite = factor[np.isfinite(factor)]
+    return (float(finite.min()), float(finite.max())) if finite.size else (np.inf, -np.inf)
+
+
+def _exact_everywhere(positions, nodes, bands, evaluate, dtype) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """The factor and QA flags of every pixel of a block from its own angles, and the factor's span."""
     factor, qa = evaluate(angles_at(nodes, *positions), bands)
-    return factor.astype(dtype), qa.astype(np.uint8)
+    return factor.astype(dtype), qa.astype(np.uint8), _span(factor)
 
 
 def _evaluate_cells(window: np.ndarray, qa: np.ndarray, flagged: np.ndarray, coarse: list[np.ndarray],
-                    positions: tuple[np.ndarray, np.ndarray], nodes, bands: slice, evaluate) -> None:
+                    positions: tuple[np.ndarray, np.ndarray], nodes, bands: slice, evaluate) -> tuple[float, float]:
     """Replace, in ``window`` (band, y, x) and ``qa`` (y, x), the factor and flags of the pixels
     in the ``flagged`` cells of the coarse samples by those from each pixel's own angles, in one
-    evaluation: the angles of each row of cells on its flagged columns, then the pixels."""
+    evaluation: the angles of each row of cells on its flagged columns, then the pixels. Returns
+    the span of their factors (:func:`_span`)."""
     cell_cols = _cell_of(coarse[1], window.shape[2])
     picked_rows, picked_cols, picked = [], [], {name: [] for name in nodes}
     for row_cell in np.flatnonzero(flagged.any(axis=1)):
@@ -294,6 +304,7 @@ def _evaluate_cells(window: np.ndarray, qa: np.ndarray, flagged: np.ndarray, coa
     at = (np.concatenate(picked_rows), np.concatenate(picked_cols))
     window[:, at[0], at[1]] = factor
     qa[at] = flags
+    return _span(factor)
 
 
 def _subgrid_block(reflectance: np.ndarray, *, nodes: Mapping[str, np.ndarray], source, target, evaluate,
@@ -304,18 +315,31 @@ def _subgrid_block(reflectance: np.ndarray, *, nodes: Mapping[str, np.ndarray], 
     (band0, band1), (row0, row1), (col0, col1) = block_info[0]["array-location"]
     positions = ((target.f + target.e * (np.arange(row0, row1) + 0.5) - source.f) / source.e - 0.5,
                  (target.c + target.a * (np.arange(col0, col1) + 0.5) - source.c) / source.a - 0.5)
-    window, qa = _factor_window(positions, nodes, slice(band0, band1), evaluate, subdivisions, tolerance,
-                                reflectance.dtype)
-    if limits is not None:
-        with np.errstate(invalid="ignore"):  # NaN compares False: no factor is nodata, not limited
-            limited = ((window < limits[0]) | (window > limits[1])).any(axis=0)
+    window, qa, span = _factor_window(positions, nodes, slice(band0, band1), evaluate, subdivisions, tolerance,
+                                      reflectance.dtype)
+    # 1e-6: the float32 rounding of interpolated factors near a limit
+    if limits is not None and (span[0] < limits[0] * (1 + 1e-6) or span[1] > limits[1] * (1 - 1e-6)):
+        # fmin/fmax pass NaN over: a band without a factor is nodata, not limited
+        limited = (np.fmin.reduce(window, axis=0) < limits[0]) | (np.fmax.reduce(window, axis=0) > limits[1])
         np.clip(window, *limits, out=window)
         qa[limited] |= np.uint8(QA.LIMITED)
-    # nodata: a reflectance not finite, or no factor but for an invalid geometry (flagged so already)
-    nodata = ~np.isfinite(reflectance).all(axis=0)
-    nodata |= ~np.isfinite(window).all(axis=0) & (qa & QA.INVALID_GEOMETRY == 0)
-    corrected = np.multiply(reflectance, window, out=window, casting="unsafe").astype(reflectance.dtype, copy=False)
-    if nodata.any():  # +-inf is nodata like NaN: NaN in the output
-        corrected[:, nodata] = np.where(np.isfinite(corrected[:, nodata]), corrected[:, nodata], np.nan)
-        qa[nodata] |= np.uint8(QA.NODATA)
+    corrected = np.multiply(reflectance, window, out=window, casting="unsafe")
+    with np.errstate(over="ignore", invalid="ignore"):  # a band sum is finite where every band is (one pass)
+        suspect = np.flatnonzero(~np.isfinite(np.add.reduce(corrected, axis=0)))
+    if suspect.size:
+        _flag_nodata(corrected, reflectance, qa, suspect)
     return corrected, qa[np.newaxis]
+
+
+def _flag_nodata(corrected: np.ndarray, reflectance: np.ndarray, qa: np.ndarray, suspect: np.ndarray) -> None:
+    """At the ``suspect`` pixels (flat indices; some value not finite, or a band sum overflowing):
+    values not finite set to NaN (+-inf is nodata like NaN), and the pixel flagged ``nodata``
+    where its reflectance is not finite in some band, or its factor, but for an invalid geometry
+    (flagged so already), as :func:`normalize` flags them."""
+    flat, flags = corrected.reshape(corrected.shape[0], -1), qa.reshape(-1)
+    values = flat[:, suspect]
+    finite = np.isfinite(values)
+    no_reflectance = ~np.isfinite(reflectance.reshape(reflectance.shape[0], -1)[:, suspect]).all(axis=0)
+    nodata = no_reflectance | (~finite.all(axis=0) & (flags[suspect] & QA.INVALID_GEOMETRY == 0))
+    flat[:, suspect] = np.where(finite, values, np.nan)
+    flags[suspect[nodata]] |= np.uint8(QA.NODATA)
