@@ -136,7 +136,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="rounds per condition [default: 3]")
     parser.add_argument("--sen2nbar-python", default=DEFAULT_PYTHON)
     args = parser.parse_args()
-    print(f"{os.cpu_count()} cores; uptime: {subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}")
+    uptime = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    print(f"{os.cpu_count()} cores; uptime: {uptime}")
     with tempfile.TemporaryDirectory() as directory:
         scratch = Path(directory)
         if args.job == "correct":

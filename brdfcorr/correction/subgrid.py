@@ -34,7 +34,7 @@ where the reflectance or the factor is not finite and ``limited`` where the fact
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Hashable, Mapping
 from functools import partial
 
 import dask.array as da
@@ -66,8 +66,9 @@ def suits_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.DataArray],
     (:data:`~brdfcorr.io.sensors.grids.GRID_SOURCE`), a table of one class without bad bands
     and without coefficients continuous in NDVI. A class map, terrain or an uncertainty layer
     the caller rules out."""
-    records = [angles[name].encoding.get(GRID_SOURCE) if name in angles else None for name in ANGLES]
-    if any(record is None for record in records) or reflectance.ndim != 3 or reflectance.dtype.kind != "f":
+    found = [angles[name].encoding.get(GRID_SOURCE) if name in angles else None for name in ANGLES]
+    records = [record for record in found if record is not None]
+    if len(records) != len(ANGLES) or reflectance.ndim != 3 or reflectance.dtype.kind != "f":
         return False
     grids = {(tuple(record[0]), record[2], record[3], np.shape(record[1])) for record in records}
     shape = (reflectance.shape[1], reflectance.shape[2])
@@ -203,7 +204,7 @@ def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.Data
     return Normalized(corrected, qa)
 
 
-def _exact(angles: Mapping[str, np.ndarray], bands: slice, *, class_id: int, band_dim: str, band_coords: Mapping,
+def _exact(angles: Mapping[str, np.ndarray], bands: slice, *, class_id: int, band_dim: Hashable, band_coords: Mapping,
            evaluate) -> tuple[np.ndarray, np.ndarray]:
     """The unclipped factor (band, ...) of the bands ``bands`` and the QA flags (...) at
     ``angles`` (arrays of one shape, 1-D or 2-D [deg]), as :func:`normalize` (``evaluate``, the
@@ -292,7 +293,9 @@ def _evaluate_cells(window: np.ndarray, qa: np.ndarray, flagged: np.ndarray, coa
     evaluation: the angles of each row of cells on its flagged columns, then the pixels. Returns
     the span of their factors (:func:`_span`)."""
     cell_cols = _cell_of(coarse[1], window.shape[2])
-    picked_rows, picked_cols, picked = [], [], {name: [] for name in nodes}
+    picked_rows: list[np.ndarray] = []
+    picked_cols: list[np.ndarray] = []
+    picked: dict[str, list[np.ndarray]] = {name: [] for name in nodes}
     for row_cell in np.flatnonzero(flagged.any(axis=1)):
         rows = np.arange(coarse[0][row_cell], coarse[0][row_cell + 1] + 1)
         cols = np.flatnonzero(flagged[row_cell][cell_cols])
