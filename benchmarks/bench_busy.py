@@ -21,8 +21,17 @@ install sen2nbar``; ``--sen2nbar-python``): brdfcorr uncompressed against sen2nb
 uncompressed), and brdfcorr with deflate against sen2nbar followed by GDAL's deflate copy of its
 outputs (``NUM_THREADS=ALL_CPUS``, predictor 3). Goal: <= 1.0 x in both.
 
-Measured: ``docs/scaling.md`` ("Under load") and ``docs/sensors.md`` ("Side by side with
-sen2nbar").
+Measured (issue 41, 2 cores shared with three other jobs; medians of three):
+
+* ``--job nbar --s2-size 2048`` (load average 8.5 before the quiet rounds, 3.9 before the busy
+  ones): quiet, sen2nbar 19.2 s, brdfcorr uncompressed 17.2 s (0.90 x), sen2nbar + GDAL deflate
+  copy 49.6 s, brdfcorr deflate 33.6 s (0.68 x); busy, 36.1 s, 12.4 s (0.34 x), 70.7 s, 19.0 s
+  (0.27 x).
+* ``--job correct --size 2048`` (load average 7.0 before the quiet rounds): quiet, GDAL copy
+  67.3 s, brdfcorr 88.4 s (1.31 x), peak RSS 800 MiB (goal 864 MiB); busy (load average 7.2), 101.6 s and 82.1 s
+  (0.81 x), peak RSS 783 MiB.
+
+``docs/scaling.md`` ("Under load") and ``docs/sensors.md`` ("Side by side with sen2nbar").
 
 Usage::
 
