@@ -19,6 +19,7 @@ import xarray as xr
 from brdfcorr import __version__
 from brdfcorr.correction import QA, describe_limits, normalize, normalize_at_nodes, qa_counts, resolve_reference
 from brdfcorr.correction.reference import with_hls_sza
+from brdfcorr.correction.subgrid import normalize_on_subgrid, suits_subgrid
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import writer
@@ -241,6 +242,12 @@ def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: Param
     if request.terrain is not None:
         compute = {"scheduler": request.engine.scheduler, "num_workers": request.engine.num_workers}
         reflectance, surface, topographic = request.terrain.apply(scene, chunks, request.limits, compute)
+    if (request.terrain is None and request.scene.classes is None and request.outputs.uncertainty is None
+            and suits_subgrid(reflectance, scene.angles, table)):  # the per-pixel factor, sampled (correction.subgrid)
+        corrected, qa = normalize_on_subgrid(reflectance, scene.angles, table, reference, limits=request.limits,
+                                             extrapolate=request.extrapolate,
+                                             flip_view_azimuth=request.flip_view_azimuth)
+        return corrected, qa, None, None
     arguments = dict(
         reflectance=reflectance, classes=scene.classes, angles={**scene.angles, **surface}, params=table,
         reference=reference, limits=request.limits, extrapolate=request.extrapolate,
