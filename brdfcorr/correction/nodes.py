@@ -144,14 +144,20 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
                                          extrapolate=extrapolate))
     pairs = da.map_blocks(_corrected_block, reflectance.data, dtype=reflectance.dtype, meta=np.empty((0, 0, 0)),
                           node_values=node_values, source=source, target=target, per_pixel=per_pixel)
+    return normalized_from_pairs(pairs, reflectance, band_dim, {
+        "brdf_reference": reference.describe(), "brdf_limits": describe_limits(limits),
+        "brdf_factor_at": "the nodes of the angle grid, interpolated bilinearly to the pixels"})
+
+
+def normalized_from_pairs(pairs: da.Array, reflectance: xr.DataArray, band_dim, attrs: Mapping) -> Normalized:
+    """The corrected cube (``reflectance``'s dims, coords and attrs, with ``attrs`` added) and its
+    QA layer from the (corrected, qa) pairs of a ``map_blocks`` over ``reflectance.data``."""
     corrected_data, qa_data = split_pairs(pairs, reflectance.data.chunks, reflectance.dtype)
-    corrected = xr.DataArray(corrected_data, dims=reflectance.dims, coords=reflectance.coords, name=reflectance.name)
+    corrected = xr.DataArray(corrected_data, dims=reflectance.dims, coords=reflectance.coords, name=reflectance.name,
+                             attrs={**reflectance.attrs, **attrs})
     spatial = {name: coord for name, coord in reflectance.coords.items() if band_dim not in coord.dims}
     qa = xr.DataArray(qa_data, dims=reflectance.dims[1:], coords=spatial, name="qa",
                       attrs=qa_attrs("BRDF normalization quality flags"))
-    corrected.attrs = {**reflectance.attrs, "brdf_reference": reference.describe(),
-                       "brdf_limits": describe_limits(limits),
-                       "brdf_factor_at": "the nodes of the angle grid, interpolated bilinearly to the pixels"}
     return Normalized(corrected, qa)
 
 

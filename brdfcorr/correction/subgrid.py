@@ -45,9 +45,9 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
-from brdfcorr.correction.blocks import split_pairs
+from brdfcorr.correction.nodes import normalized_from_pairs
 from brdfcorr.correction.normalization import Normalized, normalize
-from brdfcorr.correction.qa import QA, qa_attrs
+from brdfcorr.correction.qa import QA
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.io.sensors.grids import GRID_SOURCE
@@ -198,14 +198,8 @@ def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.Data
     pairs = da.map_blocks(_subgrid_block, reflectance.data, dtype=reflectance.dtype, meta=np.empty((0, 0, 0)),
                           nodes=nodes, source=source, target=target, evaluate=evaluate, limits=limits,
                           subdivisions=subdivisions, tolerance=tolerance)
-    corrected_data, qa_data = split_pairs(pairs, reflectance.data.chunks, reflectance.dtype)
-    corrected = xr.DataArray(corrected_data, dims=reflectance.dims, coords=reflectance.coords, name=reflectance.name)
-    spatial = {name: coord for name, coord in reflectance.coords.items() if band_dim not in coord.dims}
-    qa = xr.DataArray(qa_data, dims=reflectance.dims[1:], coords=spatial, name="qa",
-                      attrs=qa_attrs("BRDF normalization quality flags"))
-    corrected.attrs = {**reflectance.attrs, "brdf_reference": reference.describe(),
-                       "brdf_limits": describe_limits(limits)}
-    return Normalized(corrected, qa)
+    return normalized_from_pairs(pairs, reflectance, band_dim, {"brdf_reference": reference.describe(),
+                                                                "brdf_limits": describe_limits(limits)})
 
 
 def _exact(angles: Mapping[str, np.ndarray], bands: slice, *, class_id: int, band_dim: Hashable, band_coords: Mapping,
