@@ -11,14 +11,25 @@ reflectance is read at the sampled pixels only. Each mode runs in a fresh proces
 resident memory is read from ``resource.getrusage``; the ratio of the within fit to the pooled one
 is printed for time and memory, next to the size the resampled float32 cubes would have had.
 
+``--layout survey``: a survey block instead, long lines (``3 * --size`` rows) flown side by side
+with the usual 30 % sidelap (each shifted east by 70 % of a line plus 0.37 pixel): the union of
+the lines is many times one line, and each line's layers of the common grid are held over its
+own window only (:mod:`brdfcorr.fit.grids`). ``--before CHECKOUT`` also runs the pixel-level fit
+with the package of another checkout (e.g. the commit before the windows) in a fresh process and
+prints the ratios of time and peak memory, after / before, measured in the same run.
+
     python benchmarks/bench_lines_fit.py [--lines 4] [--size 1000]
+    python benchmarks/bench_lines_fit.py --lines 12 --size 500 --layout survey --before ../main
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
+import subprocess
+import sys
 import time
 
 import dask.array as da
@@ -32,12 +43,16 @@ WEIGHTS = {"f_iso": np.linspace(0.03, 0.12, BANDS), "f_vol": np.linspace(0.02, 0
            "f_geo": np.linspace(0.005, 0.02, BANDS)}
 
 
-def _offset(line: int, size: int) -> tuple[float, float]:
+#: Layouts: (east shift of each line [fraction of a line], line length [multiple of --size]).
+LAYOUTS = {"strip": (0.3, 1), "survey": (0.7, 3)}
+
+
+def _offset(line: int, size: int, layout: str = "strip") -> tuple[float, float]:
     """Columns east and rows south of line ``line``'s grid from the first's [pixels]."""
-    return line * (0.3 * size + 0.37), line * 0.21
+    return line * (LAYOUTS[layout][0] * size + 0.37), line * 0.21
 
 
-def _line(line: int, size: int):
+def _line(line: int, size: int, layout: str = "strip"):
     """A lazy image, its class map and angles on the line's own (georeferenced) grid."""
     import rioxarray  # noqa: F401  (registers .rio)
 
@@ -45,14 +60,15 @@ def _line(line: int, size: int):
     from brdfcorr.models import get_model
 
     rtlsr = get_model("ross_thick_li_sparse")
-    columns, rows = _offset(line, size)
+    columns, rows = _offset(line, size, layout)
+    length = LAYOUTS[layout][1] * size
     x = ORIGIN[0] + PIXEL * (columns + np.arange(size) + 0.5)
-    y = ORIGIN[1] - PIXEL * (rows + np.arange(size) + 0.5)
-    vza = np.linspace(2.0, 40.0, size)[None, :] * np.ones((size, 1))
-    sza, saa = np.linspace(30.0, 38.0, size)[:, None] * np.ones((1, size)), np.full((size, size), 150.0)
-    vaa = np.full((size, size), 90.0 if line % 2 == 0 else 270.0)
+    y = ORIGIN[1] - PIXEL * (rows + np.arange(length) + 0.5)
+    vza = np.linspace(2.0, 40.0, size)[None, :] * np.ones((length, 1))
+    sza, saa = np.linspace(30.0, 38.0, length)[:, None] * np.ones((1, size)), np.full((length, size), 150.0)
+    vaa = np.full((length, size), 90.0 if line % 2 == 0 else 270.0)
     phi = relative_azimuth(saa, vaa)
-    classes = ((y[:, None] - y.min()) * 4 // (size * PIXEL) + 1).astype(np.int32) * np.ones((1, size), np.int32)
+    classes = ((y[:, None] - y.min()) * 4 // (length * PIXEL) + 1).astype(np.int32) * np.ones((1, size), np.int32)
 
     def block(block_id=None):
         _, row, column = block_id
@@ -65,7 +81,7 @@ def _line(line: int, size: int):
         noise = 1 + 0.01 * rng.standard_normal(brdf.shape)
         return (np.pi * brdf * cover * noise).astype(np.float32)
 
-    cube = da.map_blocks(block, dtype=np.float32, chunks=((BANDS,), (CHUNK,) * (size // CHUNK),
+    cube = da.map_blocks(block, dtype=np.float32, chunks=((BANDS,), (CHUNK,) * (length // CHUNK),
                                                           (CHUNK,) * (size // CHUNK)))
 
     def on_grid(array):
@@ -78,10 +94,10 @@ def _line(line: int, size: int):
             on_grid(xr.DataArray(classes, dims=("y", "x"))), angles)
 
 
-def run_one(levels: str, lines: int, size: int) -> dict:
+def run_one(levels: str, lines: int, size: int, layout: str = "strip") -> dict:
     from brdfcorr.fit import ClassModels, Sampling, fit_classes
 
-    images, maps, angle_sets = zip(*(_line(line, size) for line in range(lines)))
+    images, maps, angle_sets = zip(*(_line(line, size, layout) for line in range(lines)))
     start = time.perf_counter()
     result = fit_classes(list(images), list(maps), list(angle_sets), ClassModels("ross_thick_li_sparse"),
                          sampling=Sampling(levels=levels), wavelengths=list(np.linspace(450, 900, BANDS)))
@@ -91,23 +107,42 @@ def run_one(levels: str, lines: int, size: int) -> dict:
             "f_vol/f_iso": ratios, "notes": [n for f in result.fits for n in f.notes if "resampled" in n][:1]}
 
 
+def _before(checkout: str, arguments: list[str], after: dict) -> None:
+    """The pixel-level fit with the package of ``checkout`` in a fresh process; after / before."""
+    environment = dict(os.environ, PYTHONPATH=os.path.abspath(checkout))
+    output = subprocess.run([sys.executable, __file__, "--one", "pixel", *arguments], check=True,
+                            capture_output=True, text=True, env=environment).stdout
+    before = json.loads(output.strip().splitlines()[-1])
+    print(f"before ({checkout}): {before['seconds']:.1f} s, peak {before['peak_mib']:.0f} MiB, f_vol/f_iso "
+          f"{np.round(before['f_vol/f_iso'], 3).tolist()}; after / before: time "
+          f"{after['seconds'] / before['seconds']:.2f}x, peak memory {after['peak_mib'] / before['peak_mib']:.2f}x, "
+          f"same f_vol/f_iso: {before['f_vol/f_iso'] == after['f_vol/f_iso']}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lines", type=int, default=4)
     parser.add_argument("--size", type=int, default=1000, help="pixels per side (a multiple of 250)")
+    parser.add_argument("--layout", choices=tuple(LAYOUTS), default="strip")
+    parser.add_argument("--before", metavar="CHECKOUT", help="also run the pixel fit with this checkout's package")
     parser.add_argument("--one", choices=("pooled", "pixel"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(run_one(args.one, args.lines, args.size)))
+        print(json.dumps(run_one(args.one, args.lines, args.size, args.layout)))
         return
-    results = compare_levels(__file__, ["--lines", str(args.lines), "--size", str(args.size)])
-    width = _offset(args.lines - 1, args.size)[0] + args.size
-    resampled = 4 * args.lines * BANDS * (args.size + 1) * np.ceil(width) / 2**20
+    arguments = ["--lines", str(args.lines), "--size", str(args.size), "--layout", args.layout]
+    results = compare_levels(__file__, arguments)
+    shift, length = LAYOUTS[args.layout]
+    width = _offset(args.lines - 1, args.size, args.layout)[0] + args.size
+    resampled = 4 * args.lines * BANDS * (length * args.size + 1) * np.ceil(width) / 2**20
     truth = WEIGHTS["f_vol"][-1] / WEIGHTS["f_iso"][-1]
-    print(f"{args.lines} lines x {BANDS} bands x {args.size} x {args.size} on their own grids (lazy): pixel levels on "
-          f"the common grid / pooled: time {results['pixel']['seconds'] / results['pooled']['seconds']:.2f}x, peak "
+    print(f"{args.lines} lines x {BANDS} bands x {length * args.size} x {args.size} ({args.layout}) on their own grids "
+          f"(lazy): pixel levels on the common grid / pooled: time "
+          f"{results['pixel']['seconds'] / results['pooled']['seconds']:.2f}x, peak "
           f"memory {results['pixel']['peak_mib'] / results['pooled']['peak_mib']:.2f}x (resampled float32 cubes "
           f"would hold {resampled:.0f} MiB); truth f_vol/f_iso {truth:.3f}")
+    if args.before:
+        _before(args.before, arguments, results["pixel"])
 
 
 if __name__ == "__main__":

@@ -83,6 +83,21 @@ def _parameter_table(params_path: Path | None):
     return as_parameter_table(params_path, argument="--params")
 
 
+def _is_product(image: Path, given: dict) -> bool:
+    """Whether IMAGE is a product folder or STAC item (:func:`brdfcorr.tasks.series.is_product`);
+    then the options its product gives (angles, scaling, wavelengths) must not be ``given``."""
+    from brdfcorr.errors import InputError
+    from brdfcorr.tasks.series import is_product
+
+    if not is_product(image):
+        return False
+    named = [flag for flag, value in given.items() if value]
+    if named:
+        raise InputError(f"{', '.join(named)}: product folder {image} brings its own angles, scaling and "
+                         "wavelengths; leave it out")
+    return True
+
+
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
     """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
     from brdfcorr.tasks.request import Terrain
@@ -96,7 +111,7 @@ def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
 
 
 @main.command("correct")
-@click.argument("image", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("image", type=click.Path(path_type=Path))
 @setting_options(CORRECT, {"material": _ClassMaterial()})
 @handle_errors
 def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa, raa, classes, align_classes,
@@ -114,6 +129,11 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     Classes come from --params, and from --material ID=NAME (a built-in material, over the
     table's class of that id); a material applied to bands more than 100 nm from its fit's
     wavelength (550 nm) is warned about once per class.
+
+    IMAGE may be a product folder (Sentinel-2 L2A SAFE, Landsat Collection-2 L2, a Sentinel-2 STAC
+    item with local assets, as brdfcorr nbar reads it): its bands, scaling, masks and angles come
+    from the product, e.g. one date of a series corrected with the table brdfcorr fit-classes
+    fitted over all the dates.
     """
     from brdfcorr.io.scene import SceneSources
     from brdfcorr.tasks.classmaps import read_lookup
@@ -138,16 +158,29 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     source = " ".join([str(params_path)] * (params_path is not None)
                       + [f"--material {entry.id}={entry.material}" for entry in materials])
     start = time.perf_counter()
-    sources = SceneSources(image, classes, angles, angles_kind=angles_kind,
-                           angle_options=dict(angle_option), sza=sza, saa=saa, vza=vza,
-                           vaa=vaa, raa=raa, wavelengths=wavelengths, scale=scale, offset=offset)
+    scratch, product_files = contextlib.ExitStack(), {}
+    if _is_product(image, {"--angles": angles, "--angle-option": angle_option, "--sza": sza, "--saa": saa,
+                           "--vza": vza, "--vaa": vaa, "--raa": raa, "--wavelengths": wavelengths,
+                           "--scale": scale, "--offset": offset, "--angles-kind": angles_kind != "geotiff"}):
+        import tempfile
+
+        from brdfcorr.tasks.series import product_sources
+
+        found, product = product_sources(image, scratch.enter_context(tempfile.TemporaryDirectory(
+            prefix="brdfcorr-product-")), **({"chunks": chunk} if chunk else {}))
+        sources = SceneSources(classes=classes, **found)
+        product_files = {role: path for role, path in product.files}
+    else:
+        sources = SceneSources(image, classes, angles, angles_kind=angles_kind,
+                               angle_options=dict(angle_option), sza=sza, saa=saa, vza=vza,
+                               vaa=vaa, raa=raa, wavelengths=wavelengths, scale=scale, offset=offset)
     outputs = OutputFiles(output, qa=qa_path, uncertainty=uncertainty_path, format=output_format,
                           interleave=interleave.lower(), data_type=output_type, compress=compress, cog=cog,
                           overwrite=overwrite)
     terrain = _terrain(slope_aspect, dem, topographic, brdf_frame)
     lookup = read_lookup(class_lookup) if class_lookup else None
     # The bar runs from the first pass (the angle and scale checks) to the write.
-    with _cluster(scheduler) as client, warnings.catch_warnings(record=True) as caught, \
+    with scratch, _cluster(scheduler) as client, warnings.catch_warnings(record=True) as caught, \
             progress_bars(progress, "correct"):
         warnings.simplefilter("always", BrdfcorrWarning)  # each class's caveat, however often run
         try:
@@ -158,7 +191,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                 align_classes=align_classes, class_lookup=lookup,
                 engine=Engine(chunks=chunk, scheduler=client), table_source=source,
                 reads={"--params": params_path if params_path is None or params_path.exists() else None,
-                       "--class-lookup": class_lookup},  # never overwritten either
+                       "--class-lookup": class_lookup, **product_files},  # never overwritten either
             ))
         finally:  # shown also when the correction then fails
             _show_warnings(caught)

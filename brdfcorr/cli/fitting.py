@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import textwrap
 from pathlib import Path
@@ -54,7 +55,7 @@ class _BandRange(click.ParamType):
 
 
 @main.command("fit-classes")
-@click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
 @setting_options(FIT_CLASSES, {"band_range": _BandRange()})
 @handle_errors
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
@@ -67,12 +68,22 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     The images' stored values are read as reflectance factors with their GDAL scale/offset, or
     --scale and --offset; an image that still looks like raw counts is refused unless --scale is
     given. Bad bands (water vapour, those the ENVI header's bbl marks) are left out of the fit.
+
+    IMAGES may instead be product folders of one grid, the dates of a time series (Sentinel-2 L2A
+    SAFE, Landsat Collection-2 L2, Sentinel-2 STAC items with local assets, as brdfcorr nbar reads
+    them): their bands, scaling, masks and angles come from each product (no --angles), and one
+    --classes serves every date.
     """
     from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
     from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.fit import SceneFiles, fit_class_files
 
+    scratch = contextlib.ExitStack()
+    products = _products(images, angles, angles_kind, angle_option, scale, offset)
+    if products:
+        classes = classes * len(images) if len(classes) == 1 else classes
+        angles = tuple(str(image) for image in images)  # the products' own sources, for the checks below
     if not len(images) == len(angles) == len(classes):
         raise InputError(
             f"{len(images)} image(s), {len(angles)} --angles and {len(classes)} --classes: give one "
@@ -98,12 +109,14 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     class_names = {**dict(deprecated_names), **dict(names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
     # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes fitted.
-    with progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
+    with scratch, progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
+        files = _product_files(images, scratch) if products else [
+            {"image": image, "angles": angle_source, "angles_kind": angles_kind, "angle_options": options,
+             "scale": scale, "offset": offset} for image, angle_source in zip(images, angles)]
         fit = fit_class_files(
-            [SceneFiles(image, class_map, angle_source, angles_kind, options, align_classes=align_classes,
-                        class_lookup=lookup, scale=scale, offset=offset,
-                        clusters=(cluster_layers[index], cluster_band) if cluster_layers else None)
-             for index, (image, angle_source, class_map) in enumerate(zip(images, angles, classes))],
+            [SceneFiles(classes=class_map, align_classes=align_classes, class_lookup=lookup,
+                        clusters=(cluster_layers[index], cluster_band) if cluster_layers else None, **sources)
+             for index, (sources, class_map) in enumerate(zip(files, classes))],
             ClassModels(model_name, class_models=dict(class_model),
                         fixed=dict(fix) or None, fallback=fallback, names=class_names,
                         prior=shape_prior),
@@ -138,6 +151,36 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     if plot_dir:
         _plot_class_fits(fit, plots)
         click.echo(f"wrote plots to {plot_dir}")
+
+
+def _products(images, angles, angles_kind, angle_option, scale, offset) -> bool:
+    """Whether IMAGES are product folders (or STAC items), all of them: then the angles and scaling
+    are the products' own, and giving them is an error; a mix of products and files is too."""
+    from brdfcorr.tasks.series import is_product
+
+    found = [is_product(image) for image in images]
+    if not any(found):
+        return False
+    if not all(found):
+        raise InputError(f"{images[found.index(False)]} is a file and {images[found.index(True)]} a product: give "
+                         "product folders (the dates of a series) or image files, not both")
+    given = [flag for flag, value in (("--angles", angles), ("--angles-kind", angles_kind != "geotiff"),
+                                      ("--angle-option", angle_option), ("--scale", scale is not None),
+                                      ("--offset", offset is not None)) if value]
+    if given:
+        raise InputError(f"{', '.join(given)}: product folders bring their own angles and scaling; leave it out")
+    return True
+
+
+def _product_files(images, scratch: contextlib.ExitStack) -> list[dict]:
+    """Each product's scene files (:func:`brdfcorr.tasks.series.product_sources`): its bands
+    stacked in a scratch folder that ``scratch`` removes."""
+    import tempfile
+
+    from brdfcorr.tasks.series import product_sources
+
+    folder = scratch.enter_context(tempfile.TemporaryDirectory(prefix="brdfcorr-products-"))
+    return [product_sources(image, folder)[0] for image in images]
 
 
 def _class_plot_files(fits, plot_dir: Path) -> dict[tuple[int, str], Path]:

@@ -237,7 +237,8 @@ class _Layers:
     grid: CommonGrid | None = None
 
     def on_grid(self, grid: CommonGrid, levels: str) -> _Layers:
-        """The layers gathered onto the common ``grid`` (nearest neighbour, :mod:`brdfcorr.fit.grids`)."""
+        """The layers gathered onto the common ``grid`` (nearest neighbour, :mod:`brdfcorr.fit.grids`),
+        each over its scene's window only (:class:`brdfcorr.fit.grids.WindowLayer`)."""
         clusters = self.cluster_ids
         return _Layers([grid.gather(scene, m, 0) for scene, m in enumerate(self.maps)],
                        [grid.gather(scene, ok, False) for scene, ok in enumerate(self.valid)],
@@ -246,11 +247,16 @@ class _Layers:
                        True, levels, grid)
 
     def candidates(self, class_id: int) -> list[np.ndarray]:
-        """Per scene, the flat indices of the class's valid pixels."""
+        """Per scene, the flat indices (of the common grid, if there is one) of the class's valid pixels."""
+        if self.grid is not None:  # windowed layers
+            return [m.flat_where((m.values == class_id) & ok.values) for m, ok in zip(self.maps, self.valid)]
         return [np.flatnonzero((m == class_id) & ok) for m, ok in zip(self.maps, self.valid)]
 
     def repeated_views(self, class_id: int) -> int:
         """The class's views of pixels seen by two or more scenes (on a shared grid)."""
+        if self.grid is not None:
+            _, seen = np.unique(np.concatenate(self.candidates(class_id)), return_counts=True)
+            return int(seen[seen >= 2].sum())
         seen = np.sum([(m == class_id) & ok for m, ok in zip(self.maps, self.valid)], axis=0)
         return int(seen[seen >= 2].sum())
 
@@ -377,7 +383,7 @@ def _common_grid(images: list, levels: str) -> CommonGrid | None:
 def _grid_note(candidates: list[np.ndarray], shape: tuple[int, int]) -> str:
     """How many of a class's pixels of the common grid (of ``shape``) the scenes' ``candidates``
     (flat indices) see twice or more, and how many once (they drop out of a within fit)."""
-    seen = np.bincount(np.concatenate(candidates), minlength=shape[0] * shape[1]) if candidates else np.zeros(1)
+    seen = np.unique(np.concatenate(candidates), return_counts=True)[1] if candidates else np.zeros(1)
     twice, once = int(np.count_nonzero(seen >= 2)), int(np.count_nonzero(seen == 1))
     return (f"scenes on different grids resampled (nearest neighbour) onto the first scene's grid over their "
             f"union ({shape[0]} x {shape[1]} pixels): {twice} of the class's pixels seen by two or more scenes, "

@@ -332,12 +332,12 @@ CORRECT = settings(
 #: ``brdfcorr fit-classes`` (:func:`brdfcorr.tasks.fit.fit_class_files`); the chain's imagery fit
 #: step takes the defaults of the sampling and the guard rails from here.
 FIT_CLASSES = settings(
-    Setting("angles", ("--angles",), "text", multiple=True, required=True,
+    Setting("angles", ("--angles",), "text", multiple=True,
             help="Angle source per image, in the images' order: a 4-band raster (sza, saa, vza, vaa "
-                 "[deg]) or what --angles-kind names."),
+                 "[deg]) or what --angles-kind names (none for product folders: each has its own)."),
     ANGLE_SOURCE,
     Setting("classes", ("--classes",), "path", multiple=True, required=True,
-            help="Class map per image, in the images' order."),
+            help="Class map per image, in the images' order (product folders of one grid: one for every date)."),
     CLASS_MAP,
     Setting("model_name", ("--model",), "custom", cli_type="fit_model",
             help="Model for every class (see `brdfcorr models`), or auto: per class the candidate with the lowest "

@@ -9,6 +9,10 @@ date as ``brdfcorr nbar`` gives it for each folder alone (docs/time-series.md)::
     nbar, qa = series.reflectance.brdf.normalize(None, series.angles, series.table, reference={"sza": 45.0})
 
 Nothing is read until the result is computed or plotted, except each folder's metadata.
+
+The command line takes the same folders as files (:func:`product_sources`): ``brdfcorr fit-classes``
+over the dates (their bands stacked as virtual rasters in a scratch folder, their angles from each
+product) and ``brdfcorr correct`` of one date with the fitted table.
 """
 
 from __future__ import annotations
@@ -17,17 +21,19 @@ import os
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import pandas as pd
 import xarray as xr
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.sensors import read_angles
-from brdfcorr.io.sensors.folders import ProductFolder, open_stack
+from brdfcorr.io.sensors.folders import ProductFolder, open_stack, write_stack
+from brdfcorr.io.sensors.stac import is_stac_item
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.nbar import NBAR_CHUNK, find_product_or_item, nbar_table, refuse_archive
 
-__all__ = ["ProductSeries", "open_products"]
+__all__ = ["ProductSeries", "open_products", "is_product", "product_sources"]
 
 #: A date in a product folder's name (Sentinel-2 ``20190425T132241``, Landsat ``20110306``).
 _NAME_DATE = re.compile(r"_(\d{8}(?:T\d{6})?)_")
@@ -135,3 +141,49 @@ def _check_alike(first: xr.DataArray, stack: xr.DataArray, product: ProductFolde
     if differs:
         raise SensorInputError(f"{product.path}: its {', '.join(differs)} differ from those of "
                                f"{first.attrs['product']}; a series is one sensor's bands on one grid")
+
+
+def is_product(path: str | os.PathLike) -> bool:
+    """Whether an input path names a product rather than a raster file: a folder (a Sentinel-2
+    SAFE, a Landsat Collection-2 folder) or a STAC item file (``.json``)."""
+    return Path(path).is_dir() or is_stac_item(path)
+
+
+def product_sources(path: str | os.PathLike, scratch: str | os.PathLike, *, chunks: int = NBAR_CHUNK,
+                    resolution: int | None = None, bands: Sequence[str] | None = None,
+                    masked: Sequence[int] | None = None) -> tuple[dict, ProductFolder]:
+    """A product folder or STAC item as the files of one scene, for ``fit-classes`` and ``correct``.
+
+    The product's bands are stacked, masked and scaled as ``brdfcorr nbar`` stacks them: a GDAL
+    virtual raster (and its mask) written into the folder ``scratch``
+    (:func:`brdfcorr.io.sensors.folders.write_stack`, nothing copied); the angles are the
+    product's own source. The scene then reads the values that :func:`open_products` gives for
+    that date (a test compares a fit and a correction with the accessor's, value for value).
+
+    Parameters
+    ----------
+    path : path-like
+        A Sentinel-2 L2A SAFE folder, a Landsat Collection-2 L2 folder or a Sentinel-2 STAC item.
+    scratch : path-like
+        An existing folder for the stack; the caller removes it after the fit or correction.
+    chunks, resolution, bands, masked :
+        As for :func:`open_products`.
+
+    Returns
+    -------
+    sources : dict
+        Keywords of :class:`brdfcorr.io.scene.SceneSources` (without ``classes``): ``image`` (the
+        stack), ``angles``, ``angles_kind``, ``angle_options`` and, where every band has the same,
+        the product's ``scale`` and ``offset`` (reflectance = DN x scale + offset).
+    product : ProductFolder
+        The product read (its ``files``, for the output guard).
+    """
+    refuse_archive(path)
+    product = find_product_or_item(path, resolution=resolution, bands=bands, masked=masked)
+    folder = Path(scratch) / f"{len(list(Path(scratch).iterdir()))}"  # one per product: the names may repeat
+    folder.mkdir()
+    stack = write_stack(product, folder / f"{Path(path).name}.vrt", chunks=chunks)
+    scales, offsets = set(product.scales), set(product.offsets)
+    known = {"scale": scales.pop(), "offset": offsets.pop()} if len(scales) == len(offsets) == 1 else {}
+    return {"image": stack, "angles": product.angles, "angles_kind": product.angles_kind,
+            "angle_options": dict(product.angle_options), **known}, product

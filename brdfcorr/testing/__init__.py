@@ -23,13 +23,15 @@ import yaml
 
 from brdfcorr.geometry import relative_azimuth
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import products, small_scenes
+from brdfcorr.testing import products, series, small_scenes
 from brdfcorr.testing.products import *  # noqa: F403 (the product writers, re-exported)
+from brdfcorr.testing.series import *  # noqa: F403 (a product series with a BRDF, re-exported)
 from brdfcorr.testing.small_scenes import *  # noqa: F403 (the fit's small scenes, re-exported)
 
 __all__ = [
     "example_table", "file_digests", "synthetic_angles", "synthetic_classes", "render", "synthetic_scene",
-    "write_scene", "write_scene_chain", "georeference", *products.__all__, *small_scenes.__all__,
+    "write_scene", "write_scene_chain", "georeference", *products.__all__, *series.__all__,
+    *small_scenes.__all__,
 ]
 
 #: Grid used by the helpers: 10 m pixels of UTM zone 32N.
