@@ -96,7 +96,8 @@ def node_angles(angles: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
 
 def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataArray], params: ParameterTable,
                        reference: ReferenceGeometry, *, limits: tuple[float, float] | None = DEFAULT_LIMITS,
-                       extrapolate: bool = False, jump: float | None = JUMP) -> Normalized:
+                       extrapolate: bool = False, jump: float | None = JUMP,
+                       flip_view_azimuth: bool = False) -> Normalized:
     """Normalize ``reflectance`` with the factor evaluated at the angle grid's nodes (module
     docstring) and interpolated bilinearly to the pixels.
 
@@ -118,6 +119,8 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
         In grid cells whose four nodes' view azimuths span more than this [deg]
         (:func:`azimuth_span`), the factor of each pixel from its own interpolated angles; None:
         the factor interpolated everywhere (sen2nbar's method).
+    flip_view_azimuth : bool, default False
+        As for :func:`brdfcorr.correction.normalize`: the view azimuths are from the sensor.
 
     Returns
     -------
@@ -134,14 +137,15 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
     if template.rio.crs is not None:
         ones = ones.rio.write_crs(template.rio.crs)
     classes = xr.ones_like(template, dtype=np.uint8)
-    factor, node_qa = normalize(ones, classes, nodes, params, reference, limits=limits, extrapolate=extrapolate)
+    factor, node_qa = normalize(ones, classes, nodes, params, reference, limits=limits, extrapolate=extrapolate,
+                                flip_view_azimuth=flip_view_azimuth)
     _, _, source, target, _ = angles["sza"].encoding[GRID_SOURCE]
     node_values = np.concatenate([factor.values, ((node_qa.values & QA.LIMITED) > 0)[np.newaxis]]).astype(np.float64)
     jumps = azimuth_span(nodes["vaa"].values) > (np.inf if jump is None else jump)
     per_pixel = partial(_pixel_factors, nodes={name: nodes[name].values for name in ANGLES}, jumps=jumps,
                         source=source, target=target, like=ones.isel(y=slice(0, 1), x=slice(0, 1)),
                         evaluate=partial(normalize, params=params, reference=reference, limits=limits,
-                                         extrapolate=extrapolate))
+                                         extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth))
     pairs = da.map_blocks(_corrected_block, reflectance.data, dtype=reflectance.dtype, meta=np.empty((0, 0, 0)),
                           node_values=node_values, source=source, target=target, per_pixel=per_pixel)
     return normalized_from_pairs(pairs, reflectance, band_dim, {

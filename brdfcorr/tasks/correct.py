@@ -279,7 +279,7 @@ def _corrected_at_nodes(request: CorrectionRequest, scene: SceneData, table: Par
                          "one smooth correction of the whole image (evaluate it at the pixels)")
     try:
         return normalize_at_nodes(scene.reflectance, scene.angles, table, reference, limits=request.limits,
-                                  extrapolate=request.extrapolate)
+                                  extrapolate=request.extrapolate, flip_view_azimuth=request.flip_view_azimuth)
     except ParameterError as error:
         raise ParameterError(f"{request.table_source or 'parameter table'}: {error} "
                              f"(image {request.scene.image})") from None

@@ -67,6 +67,19 @@ def test_pixels_on_the_nodes_get_the_per_pixel_factor(scene):
     assert (qa.values == 0).all()
 
 
+def test_view_azimuths_from_the_sensor_are_flipped_as_per_pixel(scene):
+    """flip_view_azimuth (view azimuths from the sensor): the pixels on the nodes get the
+    per-pixel factor with the same flip, which differs from the unflipped one."""
+    image, angles = scene
+    nodes, _ = normalize_at_nodes(image, angles, TABLE, REFERENCE, flip_view_azimuth=True)
+    classes = xr.ones_like(angles["sza"], dtype=np.uint8)
+    flipped, _ = normalize(image, classes, angles, TABLE, REFERENCE, flip_view_azimuth=True)
+    unflipped, _ = normalize(image, classes, angles, TABLE, REFERENCE)
+    on_nodes = (slice(None), slice(2, None, 5), slice(2, None, 5))
+    np.testing.assert_allclose(nodes.values[on_nodes], flipped.values[on_nodes], rtol=2e-6)
+    assert np.abs(flipped.values[on_nodes] / unflipped.values[on_nodes] - 1).max() > 1e-2
+
+
 def test_limits_clip_the_factor_and_flag_the_pixels(scene):
     """Limits (1, 1): the factor is 1, every corrected value the input, and every pixel whose
     nodes' factors were clipped (all of them: no factor is exactly 1 here) is flagged limited."""
