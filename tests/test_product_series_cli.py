@@ -96,5 +96,5 @@ def test_product_folders_refuse_angles_and_a_mix_with_files(series, invoke, tmp_
     assert code == 2 and "not both" in stderr
     code, stderr = invoke(["correct", folders[0], "--angles", "x.tif", "--params", "roy2017",
                            "-o", tmp_path / "c.tif"])
-    assert code == 2 and "brings its own angles" in stderr
+    assert code == 2 and "--angles: product folders bring their own angles, scaling and wavelengths; leave it out" in stderr
     assert not list(tmp_path.iterdir())

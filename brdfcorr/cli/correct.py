@@ -83,21 +83,6 @@ def _parameter_table(params_path: Path | None):
     return as_parameter_table(params_path, argument="--params")
 
 
-def _is_product(image: Path, given: dict) -> bool:
-    """Whether IMAGE is a product folder or STAC item (:func:`brdfcorr.tasks.series.is_product`);
-    then the options its product gives (angles, scaling, wavelengths) must not be ``given``."""
-    from brdfcorr.errors import InputError
-    from brdfcorr.tasks.series import is_product
-
-    if not is_product(image):
-        return False
-    named = [flag for flag, value in given.items() if value]
-    if named:
-        raise InputError(f"{', '.join(named)}: product folder {image} brings its own angles, scaling and "
-                         "wavelengths; leave it out")
-    return True
-
-
 def _terrain(slope_aspect, dem, topographic, brdf_frame) -> Terrain | None:
     """The tilted-surface options as a :class:`Terrain` (None without --slope-aspect or --dem)."""
     from brdfcorr.tasks.request import Terrain
@@ -159,7 +144,9 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                       + [f"--material {entry.id}={entry.material}" for entry in materials])
     start = time.perf_counter()
     scratch, product_files = contextlib.ExitStack(), {}
-    if _is_product(image, {"--angles": angles, "--angle-option": angle_option, "--sza": sza, "--saa": saa,
+    from brdfcorr.tasks.series import products_among
+
+    if products_among([image], {"--angles": angles, "--angle-option": angle_option, "--sza": sza, "--saa": saa,
                            "--vza": vza, "--vaa": vaa, "--raa": raa, "--wavelengths": wavelengths,
                            "--scale": scale, "--offset": offset, "--angles-kind": angles_kind != "geotiff"}):
         import tempfile

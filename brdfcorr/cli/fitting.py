@@ -78,9 +78,12 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.fit import SceneFiles, fit_class_files
+    from brdfcorr.tasks.series import products_among
 
     scratch = contextlib.ExitStack()
-    products = _products(images, angles, angles_kind, angle_option, scale, offset)
+    products = products_among(images, {"--angles": angles, "--angles-kind": angles_kind != "geotiff",
+                                       "--angle-option": angle_option, "--scale": scale is not None,
+                                       "--offset": offset is not None})
     if products:
         classes = classes * len(images) if len(classes) == 1 else classes
         angles = tuple(str(image) for image in images)  # the products' own sources, for the checks below
@@ -151,25 +154,6 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     if plot_dir:
         _plot_class_fits(fit, plots)
         click.echo(f"wrote plots to {plot_dir}")
-
-
-def _products(images, angles, angles_kind, angle_option, scale, offset) -> bool:
-    """Whether IMAGES are product folders (or STAC items), all of them: then the angles and scaling
-    are the products' own, and giving them is an error; a mix of products and files is too."""
-    from brdfcorr.tasks.series import is_product
-
-    found = [is_product(image) for image in images]
-    if not any(found):
-        return False
-    if not all(found):
-        raise InputError(f"{images[found.index(False)]} is a file and {images[found.index(True)]} a product: give "
-                         "product folders (the dates of a series) or image files, not both")
-    given = [flag for flag, value in (("--angles", angles), ("--angles-kind", angles_kind != "geotiff"),
-                                      ("--angle-option", angle_option), ("--scale", scale is not None),
-                                      ("--offset", offset is not None)) if value]
-    if given:
-        raise InputError(f"{', '.join(given)}: product folders bring their own angles and scaling; leave it out")
-    return True
 
 
 def _product_files(images, scratch: contextlib.ExitStack) -> list[dict]:
