@@ -21,15 +21,16 @@ install sen2nbar``; ``--sen2nbar-python``): brdfcorr uncompressed against sen2nb
 uncompressed), and brdfcorr with deflate against sen2nbar followed by GDAL's deflate copy of its
 outputs (``NUM_THREADS=ALL_CPUS``, predictor 3). Goal: <= 1.0 x in both.
 
-Measured (issue 41, 2 cores shared with three other jobs; medians of three):
+Measured (issue 41, 2 cores; medians of three):
 
-* ``--job nbar --s2-size 2048`` (load average 8.5 before the quiet rounds, 3.9 before the busy
-  ones): quiet, sen2nbar 19.2 s, brdfcorr uncompressed 17.2 s (0.90 x), sen2nbar + GDAL deflate
-  copy 49.6 s, brdfcorr deflate 33.6 s (0.68 x); busy, 36.1 s, 12.4 s (0.34 x), 70.7 s, 19.0 s
-  (0.27 x).
-* ``--job correct --size 2048`` (load average 7.0 before the quiet rounds): quiet, GDAL copy
-  67.3 s, brdfcorr 88.4 s (1.31 x), peak RSS 800 MiB (goal 864 MiB); busy (load average 7.2), 101.6 s and 82.1 s
-  (0.81 x), peak RSS 783 MiB.
+* ``--job nbar --s2-size 2048`` on a quiet machine (load average 1.7 before the quiet rounds):
+  quiet, sen2nbar 6.94 s, brdfcorr uncompressed 7.09 s (1.02 x), sen2nbar + GDAL deflate copy
+  14.64 s, brdfcorr deflate 9.70 s (0.66 x); busy, 7.35 s, 6.55 s (0.89 x), 17.58 s, 11.92 s
+  (0.68 x). Shared with three other jobs (load average 8.5): 0.90 x and 0.68 x quiet.
+* ``--job correct --size 2048`` on a quiet machine (load average 2.2 before the quiet rounds):
+  quiet, GDAL copy 20.2 s, brdfcorr 22.7 s (1.12 x), peak RSS 800 MiB (goal 864 MiB); busy,
+  25.6 s and 28.4 s (1.11 x), peak RSS 782 MiB. With three other jobs on the machine (load
+  average 7.0) the same run gave 1.31 x quiet and 0.81 x busy: the ratio swings by a third.
 
 ``docs/scaling.md`` ("Under load") and ``docs/sensors.md`` ("Side by side with sen2nbar").
 

@@ -47,9 +47,9 @@ rounding (0.0000 % on every band). At ``--size 2048`` (88 million band-pixels) s
 (1.34 x); with the factor at every pixel 9.94 s uncompressed (1.97 x) and 15.7 s with deflate.
 Issue 41 made the per-pixel factor a sampled and checked one (:mod:`brdfcorr.correction.subgrid`,
 within 0.0035 % of the factor evaluated at every pixel on the whole real tile): the per-pixel runs,
-medians of three in ``benchmarks/bench_busy.py --job nbar --s2-size 2048`` on the same machine
-under a load average of 8.5, took 0.90 x sen2nbar's time uncompressed and 0.68 x sen2nbar's plus a
-GDAL deflate copy of its outputs with deflate (``docs/sensors.md``).
+medians of three in ``benchmarks/bench_busy.py --job nbar --s2-size 2048`` on a quiet 2-core
+machine, took 1.02 x sen2nbar's time uncompressed and 0.66 x sen2nbar's plus a GDAL deflate copy
+of its outputs with deflate (``docs/sensors.md``).
 
 Usage::
 
