@@ -153,7 +153,7 @@ def _target(images: list[xr.DataArray]):
     col1, row1 = math.ceil(columns[1] - SNAP), math.ceil(rows[1] - SNAP)
     from affine import Affine
 
-    return crs, transform @ Affine.translation(col0, row0), (row1 - row0, col1 - col0)
+    return crs, transform * Affine.translation(col0, row0), (row1 - row0, col1 - col0)
 
 
 def _window(image: xr.DataArray, crs, transform, shape: tuple[int, int]) -> Window:
@@ -189,7 +189,7 @@ def _source_index(image: xr.DataArray, crs, transform, window: Window) -> np.nda
                          coords={"y": image["y"].values, "x": image["x"].values})
     index = index.rio.write_crs(image.rio.crs).rio.write_transform(image.rio.transform()).rio.write_nodata(-1)
     moved = index.rio.reproject(crs, shape=(window.rows, window.cols),
-                                transform=transform @ Affine.translation(window.col0, window.row0),
+                                transform=transform * Affine.translation(window.col0, window.row0),
                                 resampling=Resampling.nearest, nodata=-1)
     return np.asarray(moved.values, dtype=np.int32).reshape(-1)
 
