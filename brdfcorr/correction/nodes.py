@@ -43,7 +43,7 @@ from brdfcorr.correction.qa import QA, qa_attrs
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
-from brdfcorr.io.sensors.grids import GRID_SOURCE, interpolate_window
+from brdfcorr.io.sensors.grids import GRID_SOURCE, coarse_positions, interpolate_window
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
 __all__ = ["normalize_at_nodes", "node_angles", "azimuth_span", "JUMP"]
@@ -177,8 +177,8 @@ def _pixel_factors(rows: slice, cols: slice, *, nodes: Mapping[str, np.ndarray],
     their mask (y, x), the factor of every band (band, n) from their own interpolated angles, as
     :func:`normalize` evaluates it (``evaluate``: it with the table, reference and limits bound),
     and their limited flags (n,)."""
-    rows_at = (target.f + target.e * (np.arange(rows.start, rows.stop) + 0.5) - source.f) / source.e - 0.5
-    cols_at = (target.c + target.a * (np.arange(cols.start, cols.stop) + 0.5) - source.c) / source.a - 0.5
+    rows_at, cols_at = coarse_positions(source, target, np.arange(rows.start, rows.stop),
+                                        np.arange(cols.start, cols.stop))
     mask = jumps[_cells(rows_at, jumps.shape[0] + 1)[:, None], _cells(cols_at, jumps.shape[1] + 1)[None, :]]
     if not mask.any():
         return mask, np.empty((like.shape[0], 0)), np.empty(0, bool)

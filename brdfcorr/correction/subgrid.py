@@ -50,7 +50,7 @@ from brdfcorr.correction.normalization import Normalized, normalize
 from brdfcorr.correction.qa import QA
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
-from brdfcorr.io.sensors.grids import GRID_SOURCE
+from brdfcorr.io.sensors.grids import GRID_SOURCE, coarse_positions, interpolate_at
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
 __all__ = ["normalize_on_subgrid", "suits_subgrid", "axis_samples", "SUBDIVISIONS", "TOLERANCE"]
@@ -133,28 +133,11 @@ def interpolate_samples(values: np.ndarray, rows: tuple, cols: tuple) -> np.ndar
 
 
 def angles_at(nodes: Mapping[str, np.ndarray], rows_at: np.ndarray, cols_at: np.ndarray) -> dict[str, np.ndarray]:
-    """The angle grids ``nodes`` [deg] interpolated bilinearly at the coarse positions ``rows_at``
-    x ``cols_at`` (centre of node k at k, the edge value held beyond the outermost nodes), as
-    :func:`brdfcorr.io.sensors.grids.to_grid` interpolates them: azimuths through their sine and
-    cosine."""
-    def weights(positions, size):
-        clamped = np.clip(positions, 0.0, size - 1.0)
-        lower = np.minimum(np.floor(clamped).astype(np.intp), size - 1)
-        return lower, np.minimum(lower + 1, size - 1), clamped - lower
-
-    shape = next(iter(nodes.values())).shape
-    rows, cols = weights(rows_at, shape[0]), weights(cols_at, shape[1])
-    out = {}
-    for name, values in nodes.items():
-        if name in ("saa", "vaa"):
-            radians = np.radians(values)
-            azimuth = np.degrees(np.arctan2(interpolate_samples(np.sin(radians), rows, cols),
-                                            interpolate_samples(np.cos(radians), rows, cols)))
-            azimuth = np.where(azimuth < 0.0, azimuth + 360.0, azimuth)
-            out[name] = np.where(azimuth >= 360.0, 0.0, azimuth)  # -1e-15 + 360 rounds to 360
-        else:
-            out[name] = interpolate_samples(values, rows, cols)
-    return out
+    """The angle grids ``nodes`` [deg] at the coarse positions ``rows_at`` x ``cols_at``, as
+    :func:`brdfcorr.io.sensors.grids.to_grid` interpolates the image's pixels
+    (:func:`~brdfcorr.io.sensors.grids.interpolate_at`)."""
+    return {name: interpolate_at(values, rows_at, cols_at, angle=name in ("saa", "vaa"))
+            for name, values in nodes.items()}
 
 
 def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.DataArray], params: ParameterTable,
@@ -314,8 +297,7 @@ def _subgrid_block(reflectance: np.ndarray, *, nodes: Mapping[str, np.ndarray], 
     ``limits``, and its QA flags (1, y, x); both as one pair
     (:func:`brdfcorr.correction.blocks.split_pairs`)."""
     (band0, band1), (row0, row1), (col0, col1) = block_info[0]["array-location"]
-    positions = ((target.f + target.e * (np.arange(row0, row1) + 0.5) - source.f) / source.e - 0.5,
-                 (target.c + target.a * (np.arange(col0, col1) + 0.5) - source.c) / source.a - 0.5)
+    positions = coarse_positions(source, target, np.arange(row0, row1), np.arange(col0, col1))
     window, qa, span = _factor_window(positions, nodes, slice(band0, band1), evaluate, subdivisions, tolerance,
                                       reflectance.dtype)
     # 1e-6: the float32 rounding of interpolated factors near a limit

@@ -30,8 +30,8 @@ from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
 
-__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "check_covers", "grid_statistics", "grid_window", "grid_template",
-           "interpolate_window", "pixel_centres", "to_grid", "wrap_azimuth"]
+__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "check_covers", "coarse_positions", "grid_statistics", "grid_window",
+           "grid_template", "interpolate_at", "interpolate_window", "pixel_centres", "to_grid", "wrap_azimuth"]
 
 #: Encoding key of a layer interpolated by :func:`to_grid` holding its shape (y, x) and the statistics
 #: of :func:`brdfcorr.io.angles.check_angles` (min, max, finite count, count in [0, 90) and their
@@ -130,7 +130,7 @@ def _separable(values: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.nda
     return _weight_matrix(rows, values.shape[-2]) @ values @ _weight_matrix(cols, values.shape[-1]).T
 
 
-def _coarse_positions(source_transform: Affine, target_transform: Affine, rows: np.ndarray, cols: np.ndarray):
+def coarse_positions(source_transform: Affine, target_transform: Affine, rows: np.ndarray, cols: np.ndarray):
     """Positions, in coarse cell indices (centre of cell k at k), of the centres of the target
     pixel rows ``rows`` and columns ``cols`` (axis-aligned grids of one CRS)."""
     x = target_transform.c + target_transform.a * (cols + 0.5)
@@ -138,8 +138,11 @@ def _coarse_positions(source_transform: Affine, target_transform: Affine, rows: 
     return (y - source_transform.f) / source_transform.e - 0.5, (x - source_transform.c) / source_transform.a - 0.5
 
 
-def _interpolate_separable(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, angle: bool) -> np.ndarray:
-    """:func:`_separable` at coarse positions; azimuths [deg] through their sine and cosine."""
+def interpolate_at(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, angle: bool) -> np.ndarray:
+    """Bilinear interpolation of finite coarse ``values`` (..., y, x) at the grid of coarse
+    positions ``rows`` x ``cols`` (:func:`coarse_positions`; the edge value held beyond the
+    outermost centres), as the separable path of :func:`to_grid` interpolates every pixel
+    (:func:`_separable`); azimuths [deg] with ``angle``, through their sine and cosine."""
     if not angle:
         return _separable(values, rows, cols)
     radians = np.radians(values)
@@ -158,9 +161,9 @@ def _interpolate_block(block_info, *, values, source_transform, target_transform
     if separable:
         # Rows and columns map to coarse positions independently: two 1-D interpolations per
         # block instead of a four-neighbour lookup per pixel (the same bilinear values).
-        rows, cols = _coarse_positions(source_transform, target_transform, np.arange(row0, row1),
+        rows, cols = coarse_positions(source_transform, target_transform, np.arange(row0, row1),
                                        np.arange(col0, col1))
-        return _interpolate_separable(values, rows, cols, angle)
+        return interpolate_at(values, rows, cols, angle)
     x, y = pixel_centres(target_transform, row0, col0, (row1 - row0, col1 - col0))
     if transformer is not None:
         x, y = transformer.transform(x, y)
@@ -197,8 +200,8 @@ def grid_statistics(values: np.ndarray, source_transform: Affine, target_transfo
     None where the grids are not separable (:func:`to_grid`) or a zenith leaves [0, 90) (a pass
     over the pixels counts those).
     """
-    rows, cols = _coarse_positions(source_transform, target_transform, np.arange(shape[0]), np.arange(shape[1]))
-    sample = _interpolate_separable(values, rows[_breakpoints(rows, values.shape[0])],
+    rows, cols = coarse_positions(source_transform, target_transform, np.arange(shape[0]), np.arange(shape[1]))
+    sample = interpolate_at(values, rows[_breakpoints(rows, values.shape[0])],
                                     cols[_breakpoints(cols, values.shape[1])], angle)
     count = float(shape[0] * shape[1])
     if angle:
@@ -335,6 +338,6 @@ def interpolate_window(values: np.ndarray, source_transform: Affine, target_tran
     axis-aligned in one CRS), at the target pixels ``rows`` x ``cols`` (slices with start and
     stop); leading dimensions of ``values`` (bands) are kept. Azimuths [deg] with ``angle``
     (a 2-D grid)."""
-    positions = _coarse_positions(source_transform, target_transform, np.arange(rows.start, rows.stop),
+    positions = coarse_positions(source_transform, target_transform, np.arange(rows.start, rows.stop),
                                   np.arange(cols.start, cols.stop))
-    return _interpolate_separable(values, *positions, angle)
+    return interpolate_at(values, *positions, angle)
