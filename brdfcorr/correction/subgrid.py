@@ -178,6 +178,9 @@ def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.Data
     evaluate = partial(_exact, class_id=params.classes[0].id, band_dim=band_dim, band_coords=band_coords,
                        evaluate=partial(normalize, params=params, reference=reference, limits=None,
                                         extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth))
+    # normalize's checks of the table against the bands and of the reference, here at the nodes
+    # (a few hundred values), as normalize makes them before any block is computed
+    evaluate(nodes, slice(0, reflectance.sizes[band_dim]))
     pairs = da.map_blocks(_subgrid_block, reflectance.data, dtype=reflectance.dtype, meta=np.empty((0, 0, 0)),
                           nodes=nodes, source=source, target=target, evaluate=evaluate, limits=limits,
                           subdivisions=subdivisions, tolerance=tolerance)

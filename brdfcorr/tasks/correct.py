@@ -6,6 +6,7 @@ It reads and writes files but prints nothing: the CLI shows the summary, chains 
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import re
@@ -125,7 +126,7 @@ def _correct(request: CorrectionRequest, scene: SceneData, table: ParameterTable
     engine = request.engine
     _warn_wavelength_caveats(table, scene.reflectance)
     reference, sza_source = _scene_reference(request.reference, table, scene)
-    corrected, qa, sigma, topographic = _corrected_layers(request, scene, table, reference, scene.chunks)
+    corrected, qa, sigma, topographic = _corrected_layers(request, scene, table, reference)
     if topographic is not None:
         qa = _merged_qa(qa, topographic.qa)
     corrected, qa, encoding = _as_output(corrected, qa, scene, request)
@@ -233,32 +234,31 @@ def _scene_reference(reference, table: ParameterTable, scene: SceneData) -> tupl
 
 
 def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: ParameterTable,
-                      reference: ReferenceGeometry, chunks: int):
+                      reference: ReferenceGeometry):
     """The corrected reflectance, its QA flags and 1-sigma (or None), and the topographic step's
     result (or None), all lazy."""
     if request.factor_at == "nodes":
-        return (*_corrected_at_nodes(request, scene, table, reference), None, None)
+        with _table_named(request):
+            return (*_corrected_at_nodes(request, scene, table, reference), None, None)
     reflectance, surface, topographic = scene.reflectance, {}, None
     if request.terrain is not None:
         compute = {"scheduler": request.engine.scheduler, "num_workers": request.engine.num_workers}
-        reflectance, surface, topographic = request.terrain.apply(scene, chunks, request.limits, compute)
+        reflectance, surface, topographic = request.terrain.apply(scene, scene.chunks, request.limits, compute)
     if (request.terrain is None and request.scene.classes is None and request.outputs.uncertainty is None
             and suits_subgrid(reflectance, scene.angles, table)):  # the per-pixel factor, sampled (correction.subgrid)
-        corrected, qa = normalize_on_subgrid(reflectance, scene.angles, table, reference, limits=request.limits,
-                                             extrapolate=request.extrapolate,
-                                             flip_view_azimuth=request.flip_view_azimuth)
+        with _table_named(request):
+            corrected, qa = normalize_on_subgrid(reflectance, scene.angles, table, reference, limits=request.limits,
+                                                 extrapolate=request.extrapolate,
+                                                 flip_view_azimuth=request.flip_view_azimuth)
         return corrected, qa, None, None
     arguments = dict(
         reflectance=reflectance, classes=scene.classes, angles={**scene.angles, **surface}, params=table,
         reference=reference, limits=request.limits, extrapolate=request.extrapolate,
         flip_view_azimuth=request.flip_view_azimuth,
     )
-    try:
+    with _table_named(request):
         corrected, qa = normalize(**arguments, unknown=request.unknown)
         sigma = correction_uncertainty(**arguments) if request.outputs.uncertainty is not None else None
-    except ParameterError as error:  # the table does not fit the image's bands: name both files
-        table_path = request.table_source if isinstance(request.table, ParameterTable) else request.table
-        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {request.scene.image})") from None
     if sigma is not None:
         sigma = sigma.drop_vars("wavelength", errors="ignore").rio.write_nodata(np.nan, encoded=True)
         sigma.attrs["long_name"] = _band_descriptions(scene.reflectance)
@@ -277,12 +277,19 @@ def _corrected_at_nodes(request: CorrectionRequest, scene: SceneData, table: Par
     if unsuited:
         raise InputError(f"cannot evaluate the factor at the angle grid's nodes with {', '.join(unsuited)}: it is "
                          "one smooth correction of the whole image (evaluate it at the pixels)")
+    return normalize_at_nodes(scene.reflectance, scene.angles, table, reference, limits=request.limits,
+                              extrapolate=request.extrapolate, flip_view_azimuth=request.flip_view_azimuth)
+
+
+@contextlib.contextmanager
+def _table_named(request: CorrectionRequest):
+    """A ParameterError of the correction (the table does not fit the image's bands, whichever way
+    the factor is evaluated) raised naming the table and the image."""
     try:
-        return normalize_at_nodes(scene.reflectance, scene.angles, table, reference, limits=request.limits,
-                                  extrapolate=request.extrapolate, flip_view_azimuth=request.flip_view_azimuth)
+        yield
     except ParameterError as error:
-        raise ParameterError(f"{request.table_source or 'parameter table'}: {error} "
-                             f"(image {request.scene.image})") from None
+        table_path = request.table_source if isinstance(request.table, ParameterTable) else request.table
+        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {request.scene.image})") from None
 
 
 def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, request: CorrectionRequest):
