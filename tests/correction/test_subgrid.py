@@ -17,6 +17,7 @@ from affine import Affine
 
 from brdfcorr.correction import QA, normalize
 from brdfcorr.correction.subgrid import axis_samples, normalize_on_subgrid, suits_subgrid
+from brdfcorr.errors import ParameterError
 from brdfcorr.io.sensors.grids import to_grid
 from brdfcorr.io.sensors.sentinel2 import read_sentinel2_angles
 from brdfcorr.models.coefficients import load_coefficients
@@ -127,3 +128,16 @@ def test_not_suited_without_a_coarse_grid_or_with_two_classes(scene):
     two = ParameterTable(classes=[TABLE.classes[0], TABLE.classes[0].model_copy(update={"id": 2})])
     assert not suits_subgrid(image, angles, two)
     assert not suits_subgrid(image.astype(np.int16), angles, TABLE)
+
+
+def test_a_table_that_does_not_fit_the_bands_is_refused_before_any_block(scene):
+    """A table of 600-700 nm for bands at 490 and 842 nm: the same ParameterError as normalize's,
+    raised by the call itself (the result is lazy: no block computed), as normalize raises it."""
+    image, angles = scene
+    narrow = ParameterTable(classes=[{**TABLE.classes[0].model_dump(exclude_none=True), "wavelengths": [600.0, 700.0]}])
+    reference = ReferenceGeometry(sza=40.0, vza=0.0, raa=0.0)
+    with pytest.raises(ParameterError) as theirs:
+        normalize(image, None, angles, narrow, reference)
+    with pytest.raises(ParameterError) as ours:
+        normalize_on_subgrid(image, angles, narrow, reference)
+    assert str(ours.value) == str(theirs.value)
