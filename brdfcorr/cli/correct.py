@@ -144,19 +144,14 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                       + [f"--material {entry.id}={entry.material}" for entry in materials])
     start = time.perf_counter()
     scratch, product_files = contextlib.ExitStack(), {}
-    from brdfcorr.tasks.series import products_among
+    from brdfcorr.tasks.series import products_among, stacked_products
 
     if products_among([image], {"--angles": angles, "--angle-option": angle_option, "--sza": sza, "--saa": saa,
                            "--vza": vza, "--vaa": vaa, "--raa": raa, "--wavelengths": wavelengths,
                            "--scale": scale, "--offset": offset, "--angles-kind": angles_kind != "geotiff"}):
-        import tempfile
-
-        from brdfcorr.tasks.series import product_sources
-
-        found, product = product_sources(image, scratch.enter_context(tempfile.TemporaryDirectory(
-            prefix="brdfcorr-product-")), **({"chunks": chunk} if chunk else {}))
+        [(found, product)] = scratch.enter_context(stacked_products([image], **({"chunks": chunk} if chunk else {})))
         sources = SceneSources(classes=classes, **found)
-        product_files = {role: path for role, path in product.files}
+        product_files = dict(product.files)
     else:
         sources = SceneSources(image, classes, angles, angles_kind=angles_kind,
                                angle_options=dict(angle_option), sza=sza, saa=saa, vza=vza,

@@ -78,9 +78,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.fit import SceneFiles, fit_class_files
-    from brdfcorr.tasks.series import products_among
+    from brdfcorr.tasks.series import products_among, stacked_products
 
-    scratch = contextlib.ExitStack()
     products = products_among(images, {"--angles": angles, "--angles-kind": angles_kind != "geotiff",
                                        "--angle-option": angle_option, "--scale": scale is not None,
                                        "--offset": offset is not None})
@@ -112,8 +111,9 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     class_names = {**dict(deprecated_names), **dict(names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
     # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes fitted.
-    with scratch, progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
-        files = _product_files(images, scratch) if products else [
+    with stacked_products(images) if products else contextlib.nullcontext([]) as stacked, \
+            progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
+        files = [found for found, _ in stacked] if products else [
             {"image": image, "angles": angle_source, "angles_kind": angles_kind, "angle_options": options,
              "scale": scale, "offset": offset} for image, angle_source in zip(images, angles)]
         fit = fit_class_files(
@@ -154,17 +154,6 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     if plot_dir:
         _plot_class_fits(fit, plots)
         click.echo(f"wrote plots to {plot_dir}")
-
-
-def _product_files(images, scratch: contextlib.ExitStack) -> list[dict]:
-    """Each product's scene files (:func:`brdfcorr.tasks.series.product_sources`): its bands
-    stacked in a scratch folder that ``scratch`` removes."""
-    import tempfile
-
-    from brdfcorr.tasks.series import product_sources
-
-    folder = scratch.enter_context(tempfile.TemporaryDirectory(prefix="brdfcorr-products-"))
-    return [product_sources(image, folder)[0] for image in images]
 
 
 def _class_plot_files(fits, plot_dir: Path) -> dict[tuple[int, str], Path]:

@@ -17,9 +17,11 @@ product) and ``brdfcorr correct`` of one date with the fitted table.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
-from collections.abc import Iterable, Mapping, Sequence
+import tempfile
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -166,6 +168,15 @@ def products_among(images: Sequence[str | os.PathLike], given: Mapping[str, obje
         raise InputError(f"{', '.join(named)}: product folders bring their own angles, scaling and wavelengths; "
                          f"leave {'it' if len(named) == 1 else 'them'} out")
     return True
+
+
+@contextlib.contextmanager
+def stacked_products(paths: Sequence[str | os.PathLike], *,
+                     chunks: int = NBAR_CHUNK) -> Iterator[list[tuple[dict, ProductFolder]]]:
+    """Each product's scene files and product (:func:`product_sources`), stacked in one scratch
+    folder that is removed at the end of the ``with`` block (the run that reads them)."""
+    with tempfile.TemporaryDirectory(prefix="brdfcorr-products-") as folder:
+        yield [product_sources(path, folder, chunks=chunks) for path in paths]
 
 
 def product_sources(path: str | os.PathLike, scratch: str | os.PathLike, *, chunks: int = NBAR_CHUNK,
