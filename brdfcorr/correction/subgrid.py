@@ -10,8 +10,8 @@ kernels at every pixel is then mostly redundant work. Here, per block:
 1. Along each axis, the *coarse* samples: the first and last pixel, the two pixels either side
    of every node of the angle grid (where the interpolated angles have a kink) and, between
    those, steps of at most 1 / :data:`SUBDIVISIONS` of a grid cell (:func:`axis_samples`); the
-   *fine* samples: those and the pixel midway between each two (steps of at most 1/16 of a
-   cell, about 312 m on a 5 km grid).
+   *fine* samples: those and the pixel midway between each two (steps of at most 1/32 of a
+   cell, about 156 m on a 5 km grid).
 2. The factor is evaluated exactly (:func:`normalize`, unclipped) at the fine samples.
 3. Each cell of the coarse samples is checked: its factor interpolated bilinearly from its four
    corners against the exact factor at the fine samples in and around it. For a smooth factor
@@ -24,10 +24,10 @@ kernels at every pixel is then mostly redundant work. Here, per block:
    interpolations), then clipped to the limits, per pixel.
 
 On the whole real T23LLF tile (``tests/correction/test_subgrid.py``, each pixel of a 60 m
-grid: the samples lie as many metres apart as at 10 m and 20 m) the result is within 0.0017 %
+grid: the samples lie as many metres apart as at 10 m and 20 m) the result is within 0.0015 %
 of the per-pixel factor of :func:`normalize` with the view grids averaged over the bands and
-0.0035 % with B02's own (the goal of issue 41: 0.01 %), for about a third of the time at 60 m
-and less at finer pixels (the samples are fewer per pixel).
+0.0017 % with B02's own (the goal of issue 41: 0.01 %), and less time goes into evaluating
+pixels one by one at finer pixels (the samples are fewer per pixel).
 It suits one smooth correction over the whole image: one class, no class map, no terrain, no
 uncertainty layer, no coefficients continuous in NDVI and no bad bands
 (:func:`suits_subgrid`); otherwise the factor is evaluated at every pixel.
@@ -57,8 +57,11 @@ __all__ = ["normalize_on_subgrid", "suits_subgrid", "axis_samples", "SUBDIVISION
 
 ANGLES = ("sza", "saa", "vza", "vaa")
 #: Cells of the coarse samples per cell of the angle grid along each axis (the fine samples
-#: halve them): 8 gives about 312 m between fine samples on a 5 km grid.
-SUBDIVISIONS = 8
+#: halve them): 16 gives about 156 m between fine samples on a 5 km grid. With 8, a fifth of the
+#: cells of a real tile's 20 m blocks failed the check (4.5 % of the pixels evaluated one by one,
+#: half of the factor's time, on the SAFE of ``benchmarks/bench_busy.py --job nbar``); with 16
+#: none did, for 4 times as many samples (still under 1 % of the pixels).
+SUBDIVISIONS = 16
 #: Largest relative error [-] of a coarse-sample cell's interpolation (step 3 of the module
 #: docstring) below which its pixels take the factor interpolated from the fine samples.
 TOLERANCE = 2.5e-5
@@ -123,13 +126,18 @@ def _linear_weights(samples: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np
 
 def interpolate_samples(values: np.ndarray, rows: tuple, cols: tuple) -> np.ndarray:
     """``values`` (..., r, c) at samples interpolated bilinearly (:func:`_linear_weights` along
-    each axis: ``rows`` and ``cols``), first along the columns, then the rows."""
+    each axis: ``rows`` and ``cols``), first along the columns, then the rows, each as
+    ``lower + t (upper - lower)``: the rows' differences are taken between the few samples, so
+    the full-size result costs one gather, one product and one sum in place."""
     lower, upper, t = cols
-    t = t.astype(values.dtype)
-    along = values[..., lower] * (1 - t) + values[..., upper] * t
+    along = values[..., lower] + (values[..., upper] - values[..., lower]) * t.astype(values.dtype)
     lower, upper, t = rows
-    t = t.astype(values.dtype)[:, None]
-    return along[..., lower, :] * (1 - t) + along[..., upper, :] * t
+    result = along[..., lower, :]
+    if along.shape[-2] > 1:  # else every row is the one sample's (t = 0)
+        step = np.diff(along, axis=-2)[..., lower, :]  # upper is lower + 1 (_linear_weights)
+        step *= t.astype(values.dtype)[:, None]
+        result += step
+    return result
 
 
 def angles_at(nodes: Mapping[str, np.ndarray], rows_at: np.ndarray, cols_at: np.ndarray) -> dict[str, np.ndarray]:
