@@ -23,10 +23,11 @@ outputs (``NUM_THREADS=ALL_CPUS``, predictor 3). Goal: <= 1.0 x in both.
 
 Measured (issue 41, 2 cores; medians of three):
 
-* ``--job nbar --s2-size 2048`` on a quiet machine (load average 1.7 before the quiet rounds):
-  quiet, sen2nbar 6.94 s, brdfcorr uncompressed 7.09 s (1.02 x), sen2nbar + GDAL deflate copy
-  14.64 s, brdfcorr deflate 9.70 s (0.66 x); busy, 7.35 s, 6.55 s (0.89 x), 17.58 s, 11.92 s
-  (0.68 x). Shared with three other jobs (load average 8.5): 0.90 x and 0.68 x quiet.
+* ``--job nbar --s2-size 2048`` (load average 1.5 before the quiet rounds, two light jobs beside):
+  quiet, sen2nbar 7.70 s, brdfcorr uncompressed 6.83 s (0.89 x), sen2nbar + GDAL deflate copy
+  14.53 s, brdfcorr deflate 9.26 s (0.64 x); busy, 8.73 s, 6.31 s (0.72 x), 19.60 s, 11.49 s
+  (0.59 x). With 8 subdivisions of a grid cell instead of 16 (``correction.subgrid``) it was
+  1.02 x and 0.66 x quiet.
 * ``--job correct --size 2048`` on a quiet machine (load average 2.2 before the quiet rounds):
   quiet, GDAL copy 20.2 s, brdfcorr 22.7 s (1.12 x), peak RSS 800 MiB (goal 864 MiB); busy,
   25.6 s and 28.4 s (1.11 x), peak RSS 782 MiB. With three other jobs on the machine (load
