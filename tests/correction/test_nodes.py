@@ -10,40 +10,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import xarray as xr
-from affine import Affine
 
 from brdfcorr.correction import QA, normalize, normalize_at_nodes
 from brdfcorr.errors import InputError
-from brdfcorr.io.sensors.grids import to_grid
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
-NODES = Affine(100.0, 0.0, 0.0, 0.0, -100.0, 500.0)
-PIXELS = Affine(20.0, 0.0, 0.0, 0.0, -20.0, 500.0)
 TABLE = ParameterTable(classes=[{"id": 1, "name": "global", "model": "ross_thick_li_sparse",
                                  "params": {"f_iso": [0.05, 0.3], "f_vol": [0.02, 0.15], "f_geo": [0.005, 0.04]},
                                  "wavelengths": [450.0, 900.0]}])
 REFERENCE = ReferenceGeometry(sza=40.0, vza=0.0, raa=0.0)
 
 
-def _grid(values: np.ndarray, transform: Affine) -> xr.DataArray:
-    rows, cols = values.shape
-    array = xr.DataArray(values, dims=("y", "x"), coords={"y": transform.f + transform.e * (np.arange(rows) + 0.5),
-                                                           "x": transform.c + transform.a * (np.arange(cols) + 0.5)})
-    return array.rio.write_crs("EPSG:32633").rio.write_transform(transform)
-
-
 @pytest.fixture
-def scene():
+def scene(node_scene):
     rows, cols = np.meshgrid(np.arange(5.0), np.arange(6.0), indexing="ij")
     coarse = {"sza": 30.0 + 2.0 * rows + cols, "saa": 140.0 + 3.0 * cols, "vza": 1.0 + 1.8 * cols + 0.3 * rows,
               "vaa": 100.0 + 20.0 * rows}
-    rng = np.random.default_rng(3)
-    image = _grid(np.zeros((25, 30)), PIXELS).expand_dims(band=3).assign_coords(wavelength=("band", [490.0, 665.0,
-                                                                                                    842.0]))
-    image = image.copy(data=rng.uniform(0.05, 0.5, (3, 25, 30)).astype(np.float32)).chunk({"y": 16, "x": 16})
-    angles = {name: to_grid(_grid(values, NODES), image, angle=name.endswith("aa"), chunks=(16, 16))
-              for name, values in coarse.items()}
-    return image, angles
+    return node_scene(coarse, np.random.default_rng(3).uniform(0.05, 0.5, (3, 25, 30)).astype(np.float32))
 
 
 def test_pixels_on_the_nodes_get_the_per_pixel_factor(scene):

@@ -13,12 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-from affine import Affine
 
 from brdfcorr.correction import QA, normalize
 from brdfcorr.correction.subgrid import axis_samples, normalize_on_subgrid, suits_subgrid
 from brdfcorr.errors import ParameterError
-from brdfcorr.io.sensors.grids import to_grid
 from brdfcorr.io.sensors.sentinel2 import read_sentinel2_angles
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable, ReferenceGeometry
@@ -65,37 +63,22 @@ def test_axis_samples_keep_the_nodes_kinks_and_the_step():
     assert np.diff(samples).max() <= np.ceil(83 / 16) + 1
 
 
-NODES = Affine(100.0, 0.0, 0.0, 0.0, -100.0, 500.0)
-PIXELS = Affine(20.0, 0.0, 0.0, 0.0, -20.0, 500.0)
 TABLE = ParameterTable(classes=[{"id": 1, "name": "global", "model": "ross_thick_li_sparse",
                                  "params": {"f_iso": [0.05, 0.3], "f_vol": [0.02, 0.15], "f_geo": [0.005, 0.04]},
                                  "wavelengths": [450.0, 900.0]}])
 
 
-def _grid(values: np.ndarray, transform: Affine) -> xr.DataArray:
-    rows, cols = values.shape
-    array = xr.DataArray(values, dims=("y", "x"), coords={"y": transform.f + transform.e * (np.arange(rows) + 0.5),
-                                                           "x": transform.c + transform.a * (np.arange(cols) + 0.5)})
-    return array.rio.write_crs("EPSG:32633").rio.write_transform(transform)
-
-
 @pytest.fixture
-def scene():
+def scene(node_scene):
     """Sun and view angles on a 5 x 6 grid of 100 m nodes, interpolated to 20 m (25 x 30 pixels,
     chunks of 16, one chunk 9 pixels wide); the sun at the lower right beyond 90 deg (invalid
     geometry there); NaN and +inf reflectance at two pixels."""
     rows, cols = np.meshgrid(np.arange(5.0), np.arange(6.0), indexing="ij")
     coarse = {"sza": 30.0 + 10.0 * rows + 5.0 * cols, "saa": 140.0 + 3.0 * cols, "vza": 1.0 + 1.8 * cols + 0.3 * rows,
               "vaa": 100.0 + 40.0 * rows}
-    rng = np.random.default_rng(3)
-    data = rng.uniform(0.05, 0.5, (3, 25, 30)).astype(np.float32)
+    data = np.random.default_rng(3).uniform(0.05, 0.5, (3, 25, 30)).astype(np.float32)
     data[1, 3, 4], data[2, 10, 11] = np.nan, np.inf
-    image = _grid(np.zeros((25, 30)), PIXELS).expand_dims(band=3).assign_coords(wavelength=("band", [490.0, 665.0,
-                                                                                                    842.0]))
-    image = image.copy(data=data).chunk({"y": 16, "x": 16})
-    angles = {name: to_grid(_grid(values, NODES), image, angle=name.endswith("aa"), chunks=(16, 16))
-              for name, values in coarse.items()}
-    return image, angles
+    return node_scene(coarse, data)
 
 
 @pytest.mark.parametrize("reference", [ReferenceGeometry(sza=40.0, vza=0.0, raa=0.0),
