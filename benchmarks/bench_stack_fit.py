@@ -10,6 +10,10 @@ resident memory is read from ``resource.getrusage``; the ratio of the within fit
 pooled one is printed for time and memory.
 
     python benchmarks/bench_stack_fit.py [--dates 20] [--size 1000]
+
+Measured (issue 37, 2 cores, two light jobs beside): pooled 11.0 s, peak 1079 MiB, NIR
+f_vol/f_iso 1.585-1.598 per class; pixel levels 12.8 s, peak 1173 MiB, 0.568-0.580 (truth 0.583):
+time 1.17 x, peak memory 1.09 x the pooled fit's.
 """
 
 from __future__ import annotations
