@@ -499,11 +499,8 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     if wavelengths is None and "wavelength" in scenes[0].coords:
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
     scenes, wavelengths, used_ranges, left_out = _without_bad_bands(scenes, wavelengths, sampling.bad_bands)
-    pooled = sample_classes(
-        scenes, classes, angles, class_ids=models.class_ids, max_samples=sampling.max_samples,
-        seed=sampling.seed, reflectance_scale=sampling.reflectance_scale, block_size=sampling.block_size,
-        levels=sampling.levels, patch_size=sampling.patch_size, clusters=clusters, min_repeated=guard.min_samples,
-    )
+    pooled = sample_classes(scenes, classes, angles, class_ids=models.class_ids, sampling=sampling, clusters=clusters,
+                            min_repeated=guard.min_samples)
     prior = _prior(models, wavelengths)
     fits, entries, kept = [], [], {}
     for class_id, samples in pooled.items():

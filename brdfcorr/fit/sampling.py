@@ -14,6 +14,7 @@ import xarray as xr
 from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
+from brdfcorr.fit.settings import Sampling
 from brdfcorr.geometry import relative_azimuth
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
@@ -111,9 +112,8 @@ def _check_bands(brdf: np.ndarray, image, class_id: int) -> None:
                      f"of class {class_id} (all NaN, inf or nodata); leave the band out of the image")
 
 
-def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None, max_samples: int = 50_000,
-                   seed: int = 0, reflectance_scale: float = 1.0, block_size: int = 32, levels: str = "pooled",
-                   patch_size: int = 8, clusters=None, min_repeated: int = 500) -> dict[int, ClassSamples]:
+def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None,
+                   sampling: Sampling = Sampling(), clusters=None, min_repeated: int = 500) -> dict[int, ClassSamples]:
     """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
 
     Parameters
@@ -129,31 +129,23 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on the images' grids (docs/conventions.md).
     class_ids : sequence of int, optional
         Classes to sample (default: every positive id found).
-    max_samples : int, default 50000
-        Cap per class, over all scenes together. Sampling without replacement, seeded.
-    seed : int, default 0
-        Seed of the sampler: the same inputs and seed give the same samples.
-    reflectance_scale : float, default 1
-        Multiplier that turns stored values into reflectance factors (e.g. 1e-4 for 0-10000).
-    block_size : int, default 32
-        Side [pixels] of the square spatial blocks whose ids label the samples
-        (``ClassSamples.block``), so that the fit's errors allow for albedo and texture that are
-        correlated between neighbouring pixels. On scenes that share one grid a block is the same
-        ground in every scene.
-    levels : {"pooled", "pixel", "patch", "auto"}, default "pooled"
-        Whose level the fit leaves free (:data:`LEVELS`, :mod:`brdfcorr.fit.within`): with
-        ``pixel`` or ``patch`` whole groups (a pixel's views in every scene; a patch's pixels) are
-        sampled, groups with a single view left out, and every sample carries its group and scene
-        (``ClassSamples.group``, ``.scene``). ``pixel`` needs several scenes. Scenes on
-        different grids (overlapping flight lines) are brought onto one common grid for
-        ``pixel`` and ``patch`` (and for ``auto``, for each class whose views of pixels seen
-        twice or more number ``min_repeated`` at least; other classes are pooled): the first
-        scene's CRS and pixel grid over the union of their extents, nearest neighbour
-        (:mod:`brdfcorr.fit.grids`; each class's ``ClassSamples.note`` says how many of its
-        pixels are seen twice or more).
-    patch_size : int, default 8
-        Side [pixels] of the patches of ``levels="patch"``; it must divide ``block_size`` (a
-        block holds whole patches).
+    sampling : Sampling, default Sampling()
+        The sampler's settings (:class:`brdfcorr.fit.settings.Sampling`; its ``keep_samples``,
+        ``bad_bands`` and ``errors_cluster`` are the fit's): ``max_samples`` per class over all
+        scenes together (without replacement, from ``seed``), the ``reflectance_scale``, the
+        ``block_size`` [pixels] of the square spatial blocks whose ids label the samples
+        (``ClassSamples.block``; on scenes that share one grid a block is the same ground in every
+        scene), and whose level the fit leaves free (``levels``, :data:`LEVELS`,
+        :mod:`brdfcorr.fit.within`): with ``pixel`` or ``patch`` (of ``patch_size`` pixels, a
+        divisor of ``block_size``) whole groups (a pixel's views in every scene; a patch's pixels)
+        are sampled, groups with a single view left out, and every sample carries its group and
+        scene (``ClassSamples.group``, ``.scene``); ``pixel`` needs several scenes, ``auto`` frees
+        the pixels' levels where several scenes share ground and pools a single scene. Scenes on
+        different grids (overlapping flight lines) are brought onto one common grid for ``pixel``
+        and ``patch`` (and for ``auto``, for each class whose views of pixels seen twice or more
+        number ``min_repeated`` at least; other classes are pooled): the first scene's CRS and
+        pixel grid over the union of their extents, nearest neighbour (:mod:`brdfcorr.fit.grids`;
+        each class's ``ClassSamples.note`` says how many of its pixels are seen twice or more).
     clusters : DataArray or array (y, x), or a list of them, optional
         Instead of square blocks, a cluster layer per scene (one for every scene, or a list in
         the scenes' order) on its grid: integer ids of the units whose pixels share their errors
@@ -206,6 +198,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     if class_ids is None:
         class_ids = sorted({int(c) for m in maps for c in np.unique(m) if c > 0})
     own = _Layers(maps, valid_angles, cluster_ids, _shared_grid(images, maps))
+    levels, patch_size, block_size = sampling.levels, sampling.patch_size, sampling.block_size
     common = None
     if not own.shared and len(images) > 1 and levels in ("pixel", "patch", "auto"):
         grid = _common_grid(images, levels)
@@ -213,13 +206,13 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
             common = own.on_grid(grid, resolve_levels(levels, len(images), True, patch_size, block_size))
     if common is None or levels == "auto":
         own.levels = resolve_levels(levels, len(images), own.shared, patch_size, block_size)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(sampling.seed)
     pooled: dict[int, ClassSamples] = {}
     for class_id in class_ids:
         within = common is not None and (levels != "auto" or common.repeated_views(class_id) >= min_repeated)
         layers = common if within and common is not None else own
         pooled[class_id] = _sample_class(class_id, images, angles, layers, rng,
-                                         (max_samples, reflectance_scale, block_size, patch_size))
+                                         (sampling.max_samples, sampling.reflectance_scale, block_size, patch_size))
     return pooled
 
 

@@ -157,16 +157,16 @@ def test_guard_rails_fall_back_or_leave_uncorrected_and_say_so():
 
 def test_sampling_is_reproducible_capped_and_lazy_safe():
     image, classes, angles = airborne_line(ny=40, nx=60)
-    first = sample_classes(image, classes, angles, max_samples=300, seed=3)
-    again = sample_classes(image.chunk({"y": 16}), classes, angles, max_samples=300, seed=3)
-    other = sample_classes(image, classes, angles, max_samples=300, seed=4)
+    first = sample_classes(image, classes, angles, sampling=Sampling(max_samples=300, seed=3))
+    again = sample_classes(image.chunk({"y": 16}), classes, angles, sampling=Sampling(max_samples=300, seed=3))
+    other = sample_classes(image, classes, angles, sampling=Sampling(max_samples=300, seed=4))
     for class_id in (1, 2):
         assert first[class_id].brdf.shape == (300, 4)
         np.testing.assert_array_equal(first[class_id].brdf, again[class_id].brdf)
         assert not np.array_equal(first[class_id].theta_r, other[class_id].theta_r)
     # Two scenes pool their pixels: the cap applies to the union.
-    pooled = sample_classes([image, image], [classes, classes], [angles, angles], max_samples=10**6)
-    single = sample_classes(image, classes, angles, max_samples=10**6)
+    pooled = sample_classes([image, image], [classes, classes], [angles, angles], sampling=Sampling(max_samples=10**6, levels="pooled"))
+    single = sample_classes(image, classes, angles, sampling=Sampling(max_samples=10**6))
     assert pooled[1].brdf.shape[0] == 2 * single[1].brdf.shape[0]
 
 

@@ -189,13 +189,11 @@ def test_free_levels_per_pixel_get_clusters_that_hold_every_view_of_a_pixel():
     image, classes, angles = _line(24, 32, seed=5)
     rows, cols = np.indices(classes.shape)
     by_column, by_row = cols // 8, 100 + rows // 8
-    same = sample_classes([image, image], [classes, classes], [angles, angles], levels="pixel",
-                          clusters=[by_column, by_column])
+    same = sample_classes([image, image], [classes, classes], [angles, angles], clusters=[by_column, by_column], sampling=Sampling(levels="pixel"))
     for class_id, samples in same.items():
         strips = np.unique(by_column[classes.values == class_id])
         assert np.unique(samples.block).size == strips.size
         for group in np.unique(samples.group):
             assert np.unique(samples.block[samples.group == group]).size == 1
-    crossed = sample_classes([image, image], [classes, classes], [angles, angles], levels="pixel",
-                             clusters=[by_column, by_row])
+    crossed = sample_classes([image, image], [classes, classes], [angles, angles], clusters=[by_column, by_row], sampling=Sampling(levels="pixel"))
     assert all(np.unique(samples.block).size == 1 for samples in crossed.values())

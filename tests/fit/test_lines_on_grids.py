@@ -98,9 +98,9 @@ def test_auto_frees_pixels_where_lines_overlap_and_pools_where_they_do_not():
     # Common pixels whose centres lie in both lines: columns 30-63 (centres 30.5-63.5 >= 30.25),
     # rows 0-47 (centres 0.5-47.5 >= 0.3): 34 x 48, two views each.
     views = 2 * 34 * 48
-    assert sample_classes(*layers, levels="auto", min_repeated=views)[1].levels == "pixel"
-    assert sample_classes(*layers, levels="auto", min_repeated=views + 1)[1].levels == "pooled"
-    assert sample_classes(*(list(layer) for layer in zip(*apart)), levels="auto", min_repeated=1)[1].levels \
+    assert sample_classes(*layers, min_repeated=views, sampling=Sampling(levels="auto"))[1].levels == "pixel"
+    assert sample_classes(*layers, min_repeated=views + 1, sampling=Sampling(levels="auto"))[1].levels == "pooled"
+    assert sample_classes(*(list(layer) for layer in zip(*apart)), min_repeated=1, sampling=Sampling(levels="auto"))[1].levels \
         == "pooled"
     with pytest.warns(UserWarning):  # pixel levels where no pixel is seen twice: nothing to fit within
         assert _fit(apart, "pixel").status != "fitted"
@@ -127,8 +127,7 @@ def test_integer_shifts_sample_exactly_as_lines_placed_on_one_grid_by_hand():
     """Lines shifted by whole pixels: the common-grid path gives the samples of the same lines
     padded onto their union grid by hand (numpy; NaN and class 0 outside each line)."""
     lines = [_line(0.0, 0.0, 90.0), _line(24.0, 3.0, 270.0, seed=1)]
-    resampled = sample_classes(*(list(layer) for layer in zip(*lines)), levels="pixel", max_samples=3000,
-                               block_size=8)[1]
+    resampled = sample_classes(*(list(layer) for layer in zip(*lines)), sampling=Sampling(levels="pixel", max_samples=3000, block_size=8))[1]
     padded = []
     for (image, classes, angles), (row, column) in zip(lines, [(0, 0), (3, 24)]):
         def place(values, fill, row=row, column=column):
@@ -139,8 +138,7 @@ def test_integer_shifts_sample_exactly_as_lines_placed_on_one_grid_by_hand():
         padded.append((xr.DataArray(place(image.values, np.nan), dims=("band", *dims)),
                        xr.DataArray(place(classes.values, 0).astype(int), dims=dims),
                        xr.Dataset({name: (dims, place(angles[name].values, np.nan)) for name in angles})))
-    by_hand = sample_classes(*(list(layer) for layer in zip(*padded)), levels="pixel", max_samples=3000,
-                             block_size=8)[1]
+    by_hand = sample_classes(*(list(layer) for layer in zip(*padded)), sampling=Sampling(levels="pixel", max_samples=3000, block_size=8))[1]
     for name in ("theta_i", "theta_r", "phi", "brdf", "block", "group", "scene"):
         np.testing.assert_array_equal(getattr(resampled, name), getattr(by_hand, name), err_msg=name)
 
@@ -155,7 +153,7 @@ def test_scenes_on_one_grid_take_no_resampling_path(monkeypatch):
     monkeypatch.setattr(sampling, "common_grid", refuse)
     fit = _fit(lines, "pixel")
     assert fit.levels == "pixel" and not any("resampled" in note for note in fit.notes)
-    samples = sample_classes(*(list(layer) for layer in zip(*lines)), levels="auto")[1]
+    samples = sample_classes(*(list(layer) for layer in zip(*lines)), sampling=Sampling(levels="auto"))[1]
     assert samples.note is None and samples.levels == "pixel"
 
 
@@ -165,6 +163,6 @@ def test_pixel_levels_need_georeferenced_scenes_on_different_grids():
     bare = [(layer.drop_vars("spatial_ref") if "spatial_ref" in layer.coords else layer)
             for layer in (image, small[0])]
     with pytest.raises(ParameterError, match="has no CRS"):
-        sample_classes(bare, [classes, small[1]], [angles, small[2]], levels="pixel")
-    pooled = sample_classes(bare, [classes, small[1]], [angles, small[2]], levels="auto")[1]
+        sample_classes(bare, [classes, small[1]], [angles, small[2]], sampling=Sampling(levels="pixel"))
+    pooled = sample_classes(bare, [classes, small[1]], [angles, small[2]], sampling=Sampling(levels="auto"))[1]
     assert pooled.levels == "pooled" and pooled.note is None

@@ -147,7 +147,7 @@ def _stack(dates: int, shape=(40, 64), seed=0):
 
 def test_pixel_levels_sample_whole_pixels_on_one_grid():
     images, maps, angles = _stack(3)
-    samples = sample_classes(images, maps, angles, levels="pixel", max_samples=900)[1]
+    samples = sample_classes(images, maps, angles, sampling=Sampling(levels="pixel", max_samples=900))[1]
     assert samples.levels == "pixel"
     assert samples.theta_i.size <= 900
     labels, counts = np.unique(samples.group, return_counts=True)
@@ -170,9 +170,9 @@ def test_levels_auto_frees_pixels_of_a_stack_and_pools_a_single_scene():
 def test_pixel_levels_refused_without_a_shared_grid():
     images, maps, angles = _stack(1)
     with pytest.raises(ParameterError, match="several scenes on one grid"):
-        sample_classes(images, maps, angles, levels="pixel")
+        sample_classes(images, maps, angles, sampling=Sampling(levels="pixel"))
     with pytest.raises(ParameterError, match="divisor of the block size"):
-        sample_classes(images, maps, angles, levels="patch", patch_size=5, block_size=32)
+        sample_classes(images, maps, angles, sampling=Sampling(levels="patch", patch_size=5, block_size=32))
 
 
 def test_patches_of_one_flight_line_fail_the_spread_guard_rail():
