@@ -4,8 +4,11 @@ Every ``brdfcorr`` process paid ~1.7 s for scipy.stats (one chi^2 survival funct
 ``fit/results.py``, now ``scipy.special.chdtrc``), ~1.1 s for matplotlib (``plot/*`` imported
 ``matplotlib.figure`` at module level, and ``chain/scenes.py`` reaches ``plot/assess.py``) and
 ~0.6 s for scipy.integrate/optimize (``analysis/papers.py``, reached through ``analysis``) before
-it corrected a pixel. The figures and those analyses import them when they run. A property, not a
-timing: each check runs in a fresh interpreter, since this test session has long imported them.
+it corrected a pixel. The figures and those analyses import them when they run. Likewise pvlib
+(with requests and h5py, 0.3 s; the sun positions of the ``solar`` angle source) and
+scipy.interpolate (0.2 s; the spline of a Landsat ANG.txt), which the sensor readers reached at
+import. A property, not a timing: each check runs in a fresh interpreter, since this test session
+has long imported them.
 """
 
 from __future__ import annotations
@@ -14,8 +17,9 @@ import ast
 import subprocess
 import sys
 
-#: Imported only by what needs them: the figures, the papers' analyses, the statistics tests.
-DEFERRED = ("matplotlib", "scipy.stats", "scipy.integrate")
+#: Imported only by what needs them: the figures, the papers' analyses, the statistics tests, the
+#: sun positions and the Landsat angle reader.
+DEFERRED = ("matplotlib", "scipy.stats", "scipy.integrate", "pvlib", "scipy.interpolate")
 
 #: Print the deferred libraries loaded so far (the last line of the subprocess's output).
 _REPORT = f"import sys; print(sorted(m for m in {DEFERRED!r} if m in sys.modules))"

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import dask.array as da
 import numpy as np
@@ -36,13 +37,15 @@ import rasterio
 import rioxarray
 import xarray as xr
 from pyproj import CRS, Transformer
-from scipy.interpolate import CubicSpline
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.files import read_regular
 from brdfcorr.io.grid import grid_difference
 from brdfcorr.io.sensors.grids import GRID_CHUNK, _grid_of, pixel_centres, to_grid, wrap_azimuth
 from brdfcorr.io.sensors.solar import solar_angles
+
+if TYPE_CHECKING:
+    from scipy.interpolate import CubicSpline
 
 __all__ = [
     "ANGLE_SCALE",
@@ -242,6 +245,8 @@ def _spline(ang: dict, group: str, time_key: str, prefix: str, source) -> tuple[
             raise SensorInputError(f"{source}: {group} {prefix}{axis} has {values.size} values for {times.size} "
                                    f"times ({time_key})")
         axes.append(values)
+    from scipy.interpolate import CubicSpline  # at first use: opening a product without ANG.txt needs none
+
     return times, CubicSpline(times, np.stack(axes, axis=-1))
 
 

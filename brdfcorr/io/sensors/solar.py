@@ -17,7 +17,6 @@ import dask.array as da
 import numpy as np
 import pandas as pd
 import xarray as xr
-from pvlib import spa
 from pyproj import CRS, Transformer
 
 from brdfcorr.errors import SensorInputError
@@ -66,6 +65,8 @@ def solar_position(time, latitude, longitude, altitude=0.0, refraction: bool = F
         np.asarray(altitude, dtype="float64"),
     )
     shape = latitude.shape
+    from pvlib import spa  # at first use: pvlib and what it imports (requests, h5py) take 0.3 s
+
     result = spa.solar_position(
         np.array([_unix_seconds(time)]), latitude.ravel(), longitude.ravel(), altitude.ravel(),
         _PRESSURE_HPA, _TEMPERATURE_C, _DELTA_T_S, _REFRACTION_AT_HORIZON_DEG,
