@@ -40,7 +40,10 @@ lint: $(VENV)/.installed-test
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
 
+# The package's bytecode written first: where PYTHONDONTWRITEBYTECODE is set, every brdfcorr
+# process the tests start (the docs' commands, the command-line tests) would compile it again.
 test: lint
+	$(BIN)/python -m compileall -q brdfcorr
 	$(BIN)/python -m pytest -n $(WORKERS)
 
 # Refresh both lock files from pyproject.toml's ranges; the run lock takes the test lock's
