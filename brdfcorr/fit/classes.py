@@ -37,7 +37,14 @@ from brdfcorr.fit.entries import class_entry
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
 from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.sampling import ClassSamples, sample_classes, scene_lists
-from brdfcorr.fit.selection import IMAGERY_CANDIDATES, SELECT_GRID, ModelChoice, choose_class_model, fixed_for
+from brdfcorr.fit.selection import (
+    IMAGERY_CANDIDATES,
+    SELECT_GRID,
+    ModelChoice,
+    check_fixed,
+    choose_class_model,
+    fixed_for,
+)
 from brdfcorr.fit.settings import (
     DEFAULT_MODEL,
     WATER_VAPOUR_BANDS,
@@ -418,6 +425,13 @@ def _with_default_model(models: ClassModels | str | Model) -> ClassModels:
     return dataclasses.replace(models, model=DEFAULT_MODEL) if models.model is None else models
 
 
+def _models_in_play(models: ClassModels) -> list[str]:
+    """The registry names of every model ``models`` may fit: the default, the classes' own, and
+    the candidates of a held-out choice (``auto``)."""
+    names = [getattr(model, "name", model) for model in (models.model, *(models.class_models or {}).values())]
+    return [candidate for name in names for candidate in (IMAGERY_CANDIDATES if name == AUTO_MODEL else (name,))]
+
+
 def _prior(models: ClassModels, wavelengths: Sequence[float] | None) -> tuple[ShapePrior, np.ndarray] | None:
     """The shape prior of ``models`` with its ratios at the band centres ``wavelengths`` [nm]
     (:func:`brdfcorr.fit.prior.prior_ratios`), or None without a prior."""
@@ -493,6 +507,7 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     left out).
     """
     models = _with_default_model(models)
+    check_fixed(models.fixed, _models_in_play(models))
     if sampling.errors_cluster not in ERROR_CLUSTERS:
         raise ParameterError(f"errors cluster {sampling.errors_cluster!r}: use one of {', '.join(ERROR_CLUSTERS)}")
     scenes, classes, angles = scene_lists(images, classes, angles)

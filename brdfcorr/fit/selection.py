@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from brdfcorr.defaults import AUTO_MODEL
-from brdfcorr.errors import BrdfcorrError, FitError
+from brdfcorr.errors import BrdfcorrError, FitError, ParameterError
 from brdfcorr.fit.goniometer import fit_brdf
 from brdfcorr.fit.profile import _profile
 from brdfcorr.fit.shape_search import _search, _search_subset
@@ -53,6 +53,7 @@ __all__ = [
     "choose_model",
     "choose_class_model",
     "fixed_for",
+    "check_fixed",
 ]
 
 #: The model name that asks for the choice by held-out error (CLI ``--model auto``, tables, chains).
@@ -195,6 +196,24 @@ def _folds(groups: np.ndarray, folds: int, seed: int) -> np.ndarray:
     return fold_of_group[inverse.reshape(-1)]
 
 
+def check_fixed(fixed: Mapping[str, float] | None, models: Sequence[str]) -> None:
+    """Raise :class:`~brdfcorr.errors.ParameterError` where a name of ``fixed`` is a different
+    parameter in two of ``models`` (registry names), as ``k`` is RPV's Minnaert-like exponent and
+    the Torrance-Sparrow models' absorption index: one value, applied to every model that has the
+    name (:func:`fixed_for`), would hold both."""
+    for key in dict(fixed or {}):
+        meanings: dict[int, tuple[str, list[str]]] = {}
+        for name in dict.fromkeys(models):
+            model = get_model(name)
+            if key in model.parameter_names:
+                parameter = model.parameter(key)
+                meanings.setdefault(id(parameter), (parameter.description, []))[1].append(name)
+        if len(meanings) > 1:
+            which = "; ".join(f"{description} in {', '.join(names)}" for description, names in meanings.values())
+            raise ParameterError(f"the fixed parameter {key} is not the same parameter in the models fitted here "
+                                 f"({which}): fix it with one model named, or leave it free")
+
+
 def fixed_for(name: str, fixed: Mapping[str, float] | None) -> dict[str, float]:
     """The parameters model ``name`` holds fixed: its defaults (:data:`DEFAULT_FIXED`) with those
     of ``fixed`` that it has (the values a fit over several candidate models gives each one)."""
@@ -264,6 +283,7 @@ def choose_model(
     brdfcorr.errors.FitError
         When no candidate can be fitted, or there are fewer than 2 measurements per fold.
     """
+    check_fixed(fixed, candidates)
     angles = [np.asarray(value, dtype=float).reshape(-1) for value in (theta_i, theta_r, phi)]
     data = np.asarray(brdf, dtype=float).reshape(-1, 1)
     errors = None if sigma is None else np.asarray(sigma, dtype=float).reshape(-1)
@@ -362,6 +382,7 @@ def choose_class_model(
     intensities solved by non-negative least squares; the held-out error of a band is weighted by
     its inverse variance, as the fit weights the bands.
     """
+    check_fixed(fixed, candidates)
     angles, raw, blocks, levels, data = _choice_data(samples)
     groups, grouping = (blocks, "spatial blocks") if blocks is not None else (np.arange(data.shape[0]), "samples")
     folds = _fold_count(groups, folds)

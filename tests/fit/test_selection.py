@@ -5,14 +5,23 @@ import math
 
 import numpy as np
 import pytest
+import xarray as xr
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.errors import FitError
-from brdfcorr.fit.classes import ClassFitWarning, fit_one_class
+from brdfcorr.errors import FitError, ParameterError
+from brdfcorr.fit.classes import ClassFitWarning, ClassModels, _models_in_play, fit_classes, fit_one_class
 from brdfcorr.fit.sampling import ClassSamples
-from brdfcorr.fit.selection import CandidateScore, _folds, _one_se_choice, choose_class_model, choose_model
+from brdfcorr.fit.selection import (
+    CandidateScore,
+    _folds,
+    _one_se_choice,
+    check_fixed,
+    choose_class_model,
+    choose_model,
+)
 from brdfcorr.models import get_model
+from brdfcorr.testing import synthetic_scene
 
 TWO_LOBE = {"f_iso": 0.03, "f_vol": 0.02, "f_geo": 0.004, "t1": 0.2, "w": 0.0362, "n": 1.77, "k": 0.25}
 KERNELS = {"f_iso": 0.05, "f_vol": 0.03, "f_geo": 0.01}
@@ -131,3 +140,22 @@ def test_the_model_choice_figure_has_one_bar_per_candidate_and_names_the_chosen(
     widths = [patch.get_width() for patch in left.patches]
     assert widths == pytest.approx([2.5, 0.15, 0.0])  # mean fold errors; none for the unfitted
     assert "ross_li_ts chosen" in figure.texts[0].get_text()
+
+
+def test_a_fixed_name_that_is_a_different_parameter_in_two_candidates_is_refused(tmp_path):
+    # k is RPV's Minnaert-like exponent and the Torrance-Sparrow models' absorption index (the
+    # registry's parameters): --fix k=0.25 with --model auto held RPV's exponent at 0.25 silently.
+    ti, tr, phi = _geometries()
+    brdf = get_model("ross_li_ts")(ti, tr, phi, **TWO_LOBE)
+    with pytest.raises(ParameterError, match=r"fixed parameter k .*Minnaert-like exponent.* in rpv, rpv_peak"):
+        choose_model(ti, tr, phi, brdf, fixed={"k": 0.25})
+    check_fixed({"k": 0.25}, ("torrance_sparrow", "ross_li_ts", "ross_thick_li_sparse"))  # one meaning: kept
+    csv = tmp_path / "tile.csv"
+    csv.write_text("theta_i,theta_r,phi,brdf\n" + "".join(f"{a},{b},{c},{d}\n" for a, b, c, d in zip(ti, tr, phi, brdf)))
+    refused = CliRunner().invoke(main, ["fit", str(csv), "--model", "auto", "--fix", "k=0.25"])
+    assert refused.exit_code == 2 and "fixed parameter k is not the same parameter" in refused.output
+    models = ClassModels("torrance_sparrow", class_models={2: "rpv"}, fixed={"k": 0.3})
+    assert _models_in_play(models) == ["torrance_sparrow", "rpv"]
+    with pytest.raises(ParameterError, match="fixed parameter k"):
+        scene = synthetic_scene(ny=8, nx=8)
+        fit_classes(scene["reflectance"], scene["classes"], xr.Dataset({a: scene[a] for a in ("sza", "saa", "vza", "vaa")}), models)
