@@ -203,6 +203,7 @@ def product_sources(path: str | os.PathLike, scratch: str | os.PathLike, *, chun
     -------
     sources : dict
         Keywords of :class:`brdfcorr.io.scene.SceneSources` (without ``classes``): ``image`` (the
+        stack), ``label`` (``path`` as given: errors and reports name the product, not the scratch
         stack), ``angles``, ``angles_kind``, ``angle_options`` and, where every band has the same,
         the product's ``scale`` and ``offset`` (reflectance = DN x scale + offset).
     product : ProductFolder
@@ -215,5 +216,5 @@ def product_sources(path: str | os.PathLike, scratch: str | os.PathLike, *, chun
     stack = write_stack(product, folder / f"{Path(path).name}.vrt", chunks=chunks)
     scales, offsets = set(product.scales), set(product.offsets)
     known = {"scale": scales.pop(), "offset": offsets.pop()} if len(scales) == len(offsets) == 1 else {}
-    return {"image": stack, "angles": product.angles, "angles_kind": product.angles_kind,
+    return {"image": stack, "label": str(path), "angles": product.angles, "angles_kind": product.angles_kind,
             "angle_options": dict(product.angle_options), **known}, product
