@@ -78,7 +78,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.fit import SceneFiles, fit_class_files
-    from brdfcorr.tasks.series import products_among, stacked_products
+    from brdfcorr.tasks.series import product_files, products_among, stacked_products
 
     products = products_among(images, {"--angles": angles, "--angles-kind": angles_kind != "geotiff",
                                        "--angle-option": angle_option, "--scale": scale is not None,
@@ -99,8 +99,6 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
             *(("--angles", path) for path in angles if angles_kind != "solar"), ("--class-lookup", class_lookup),
             *(("--clusters", path) for path in cluster_layers)]
     check_outputs(written, read)
-    if not overwrite:  # before the fit: its work is not wasted on an output that would be refused
-        refuse_existing(written.values())
     if fallback:
         fallback_entry(fallback, 1, "check")  # fail before the work if the name is wrong
     shape_prior = prior_setting(prior, prior_spread)
@@ -110,24 +108,30 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         click.echo("brdfcorr: warning: --name is deprecated; use --class-name ID=NAME", err=True)
     class_names = {**dict(deprecated_names), **dict(names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
-    # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes fitted.
-    with stacked_products(images) if products else contextlib.nullcontext([]) as stacked, \
-            progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
+    with stacked_products(images) if products else contextlib.nullcontext([]) as stacked:
+        if products:  # the files in the folders (bands, masks, angles): inputs too, never overwritten
+            read += product_files(product for _, product in stacked)
+            check_outputs(written, read)
+        if not overwrite:  # before the fit: its work is not wasted on an output that would be refused
+            refuse_existing(written.values())
         files = [found for found, _ in stacked] if products else [
             {"image": image, "angles": angle_source, "angles_kind": angles_kind, "angle_options": options,
              "scale": scale, "offset": offset} for image, angle_source in zip(images, angles)]
-        fit = fit_class_files(
-            [SceneFiles(classes=class_map, align_classes=align_classes, class_lookup=lookup,
-                        clusters=(cluster_layers[index], cluster_band) if cluster_layers else None, **sources)
-             for index, (sources, class_map) in enumerate(zip(files, classes))],
-            ClassModels(model_name, class_models=dict(class_model),
-                        fixed=dict(fix) or None, fallback=fallback, names=class_names,
-                        prior=shape_prior),
-            sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
-                              levels=levels, patch_size=patch_size, errors_cluster=errors_cluster),
-            guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
-            progress=fitted,
-        )
+        # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes.
+        with progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
+            fit = fit_class_files(
+                [SceneFiles(classes=class_map, align_classes=align_classes, class_lookup=lookup,
+                            clusters=(cluster_layers[index], cluster_band) if cluster_layers else None, **sources)
+                 for index, (sources, class_map) in enumerate(zip(files, classes))],
+                ClassModels(model_name, class_models=dict(class_model),
+                            fixed=dict(fix) or None, fallback=fallback, names=class_names,
+                            prior=shape_prior),
+                sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
+                                  levels=levels, patch_size=patch_size, errors_cluster=errors_cluster),
+                guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread,
+                                 max_condition=max_condition),
+                progress=fitted,
+            )
     plots = _class_plot_files(fit.result.fits, plot_dir) if plot_dir else {}
     check_outputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)
     for message in fit.warnings:

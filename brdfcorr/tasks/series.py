@@ -35,7 +35,7 @@ from brdfcorr.io.sensors.stac import is_stac_item
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.nbar import NBAR_CHUNK, find_product_or_item, nbar_table, refuse_archive
 
-__all__ = ["ProductSeries", "open_products", "is_product", "product_sources"]
+__all__ = ["ProductSeries", "open_products", "is_product", "product_sources", "product_files"]
 
 #: A date in a product folder's name (Sentinel-2 ``20190425T132241``, Landsat ``20110306``).
 _NAME_DATE = re.compile(r"_(\d{8}(?:T\d{6})?)_")
@@ -168,6 +168,13 @@ def products_among(images: Sequence[str | os.PathLike], given: Mapping[str, obje
         raise InputError(f"{', '.join(named)}: product folders bring their own angles, scaling and wavelengths; "
                          f"leave {'it' if len(named) == 1 else 'them'} out")
     return True
+
+
+def product_files(products: Iterable[ProductFolder]) -> list[tuple[str, Path]]:
+    """Every file the products read (:attr:`ProductFolder.files`), named by role and product
+    (``band B04 of NAME.SAFE``): inputs of the output guard (:func:`brdfcorr.io.paths.check_outputs`)
+    of ``correct`` and ``fit-classes``, which never overwrite them."""
+    return [(f"{role} of {product.path.name}", path) for product in products for role, path in product.files]
 
 
 @contextlib.contextmanager
