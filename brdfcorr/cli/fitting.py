@@ -78,7 +78,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.fit import SceneFiles, fit_class_files
-    from brdfcorr.tasks.series import product_files, products_among, stacked_products
+    from brdfcorr.tasks.series import products_among, stacked_products
 
     products = products_among(images, {"--angles": angles, "--angles-kind": angles_kind != "geotiff",
                                        "--angle-option": angle_option, "--scale": scale is not None,
@@ -109,11 +109,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     class_names = {**dict(deprecated_names), **dict(names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
     with stacked_products(images) if products else contextlib.nullcontext([]) as stacked:
-        if products:  # the files in the folders (bands, masks, angles): inputs too, never overwritten
-            read += product_files(product for _, product in stacked)
-            check_outputs(written, read)
-        if not overwrite:  # before the fit: its work is not wasted on an output that would be refused
-            refuse_existing(written.values())
+        read += _guard_outputs(written, read, [product for _, product in stacked], overwrite)
         files = [found for found, _ in stacked] if products else [
             {"image": image, "angles": angle_source, "angles_kind": angles_kind, "angle_options": options,
              "scale": scale, "offset": offset} for image, angle_source in zip(images, angles)]
@@ -158,6 +154,22 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     if plot_dir:
         _plot_class_fits(fit, plots)
         click.echo(f"wrote plots to {plot_dir}")
+
+
+def _guard_outputs(written: dict, read: list, products: list, overwrite: bool) -> list:
+    """The output guard of ``fit-classes`` before the fit (its work is not wasted on an output that
+    would be refused): the outputs checked against the files in the product folders too (bands,
+    masks, angle files: inputs, never overwritten, :func:`brdfcorr.tasks.series.product_files`),
+    and, without ``overwrite``, refused where they exist. Returns those files (for the later
+    check of the plots)."""
+    from brdfcorr.tasks.series import product_files
+
+    found = product_files(products)
+    if found:
+        check_outputs(written, [*read, *found])
+    if not overwrite:
+        refuse_existing(written.values())
+    return found
 
 
 def _class_plot_files(fits, plot_dir: Path) -> dict[tuple[int, str], Path]:

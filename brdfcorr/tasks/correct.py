@@ -289,7 +289,8 @@ def _table_named(request: CorrectionRequest):
         yield
     except ParameterError as error:
         table_path = request.table_source if isinstance(request.table, ParameterTable) else request.table
-        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {request.scene.image_label})") from None
+        image = request.scene.image_label
+        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {image})") from None
 
 
 def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, request: CorrectionRequest):
