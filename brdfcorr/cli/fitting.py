@@ -72,7 +72,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     IMAGES may instead be product folders of one grid, the dates of a time series (Sentinel-2 L2A
     SAFE, Landsat Collection-2 L2, Sentinel-2 STAC items with local assets, as brdfcorr nbar reads
     them): their bands, scaling, masks and angles come from each product (no --angles), and one
-    --classes serves every date.
+    --classes serves every date. The files in the folders are inputs too: never an output.
     """
     from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
     from brdfcorr.fit.settings import fallback_entry
