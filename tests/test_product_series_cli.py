@@ -64,6 +64,9 @@ def test_fit_classes_over_product_folders_is_the_accessors_fit(series, table):
     _, _, fitted = _python_path(series)
     cli = ParameterTable.load(table)
     assert [entry.id for entry in cli.classes] == [entry.id for entry in fitted.table.classes] == [1, 2]
+    # The table's provenance names the folders given, not the scratch rasters that stacked their bands.
+    names = ", ".join(folder.name for folder in _folders(series))
+    assert all(entry.fit.source.startswith(f"brdfcorr fit-classes {names} (") for entry in cli.classes)
     for ours, theirs in zip(cli.classes, fitted.table.classes):
         assert ours.model == theirs.model
         for name in ("f_iso", "f_vol", "f_geo"):  # value for value
