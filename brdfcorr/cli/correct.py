@@ -143,24 +143,25 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     source = " ".join([str(params_path)] * (params_path is not None)
                       + [f"--material {entry.id}={entry.material}" for entry in materials])
     start = time.perf_counter()
-    scratch, product_files = contextlib.ExitStack(), {}
-    from brdfcorr.tasks.series import products_among, stacked_products
+    outputs = OutputFiles(output, qa=qa_path, uncertainty=uncertainty_path, format=output_format,
+                          interleave=interleave.lower(), data_type=output_type, compress=compress, cog=cog,
+                          overwrite=overwrite)
+    terrain = _terrain(slope_aspect, dem, topographic, brdf_frame)
+    lookup = read_lookup(class_lookup) if class_lookup else None
+    # The products are stacked last: nothing that may fail stands between the stack and its with block.
+    scratch, product_reads = contextlib.ExitStack(), {}
+    from brdfcorr.tasks.series import product_files, products_among, stacked_products
 
     if products_among([image], {"--angles": angles, "--angle-option": angle_option, "--sza": sza, "--saa": saa,
                            "--vza": vza, "--vaa": vaa, "--raa": raa, "--wavelengths": wavelengths,
                            "--scale": scale, "--offset": offset, "--angles-kind": angles_kind != "geotiff"}):
         [(found, product)] = scratch.enter_context(stacked_products([image], **({"chunks": chunk} if chunk else {})))
         sources = SceneSources(classes=classes, **found)
-        product_files = dict(product.files)
+        product_reads = dict(product_files([product]))  # the output guard's inputs, as fit-classes'
     else:
         sources = SceneSources(image, classes, angles, angles_kind=angles_kind,
                                angle_options=dict(angle_option), sza=sza, saa=saa, vza=vza,
                                vaa=vaa, raa=raa, wavelengths=wavelengths, scale=scale, offset=offset)
-    outputs = OutputFiles(output, qa=qa_path, uncertainty=uncertainty_path, format=output_format,
-                          interleave=interleave.lower(), data_type=output_type, compress=compress, cog=cog,
-                          overwrite=overwrite)
-    terrain = _terrain(slope_aspect, dem, topographic, brdf_frame)
-    lookup = read_lookup(class_lookup) if class_lookup else None
     # The bar runs from the first pass (the angle and scale checks) to the write.
     with scratch, _cluster(scheduler) as client, warnings.catch_warnings(record=True) as caught, \
             progress_bars(progress, "correct"):
@@ -173,7 +174,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
                 align_classes=align_classes, class_lookup=lookup,
                 engine=Engine(chunks=chunk, scheduler=client), table_source=source,
                 reads={"--params": params_path if params_path is None or params_path.exists() else None,
-                       "--class-lookup": class_lookup, **product_files},  # never overwritten either
+                       "--class-lookup": class_lookup, **product_reads},  # never overwritten either
             ))
         finally:  # shown also when the correction then fails
             _show_warnings(caught)

@@ -58,8 +58,10 @@ def grid_difference(layer: xr.DataArray, base: xr.DataArray) -> str | None:
 
 
 def describe_layer(name: str, layer: xr.DataArray) -> str:
-    """A layer's name for messages, with its file where it has one: ``classes (classes.tif)``."""
-    source = layer.encoding.get("source")
+    """A layer's name for messages, with its file where it has one: ``classes (classes.tif)``; the
+    encoding's ``label`` over its ``source`` (a product folder for the scratch raster that stacks
+    its bands, :attr:`brdfcorr.io.scene.SceneSources.label`)."""
+    source = layer.encoding.get("label") or layer.encoding.get("source")
     return f"{name} ({source})" if source else name
 
 

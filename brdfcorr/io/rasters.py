@@ -253,7 +253,7 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
         The 99th percentile of the sample; None for a sample without a valid value (nothing to
         judge: no error).
     """
-    where = source or image.encoding.get("source", "image")
+    where = source or image.encoding.get("label") or image.encoding.get("source", "image")
     values = _sample_values(image, where, blocks, scheduler, num_workers)
     if not values.size:
         return None

@@ -44,6 +44,10 @@ class SceneSources:
         Band centres [nm] replacing the image's (:func:`brdfcorr.io.rasters.open_image`).
     scale, offset : float, optional
         Reflectance factor per stored unit and of a stored 0, replacing the file's.
+    label : str, optional
+        How messages name the image (:attr:`image_label`) where ``image`` is not the path the user
+        gave: a product folder or STAC item whose bands were stacked in a scratch virtual raster
+        (:func:`brdfcorr.tasks.series.product_sources`) is named as given, not as that raster.
     """
 
     image: PathLike
@@ -59,6 +63,12 @@ class SceneSources:
     wavelengths: Sequence[float] | None = None
     scale: float | None = None
     offset: float | None = None
+    label: str | None = None
+
+    @property
+    def image_label(self) -> str:
+        """The image as messages and reports name it: ``label``, else its path."""
+        return self.label or str(self.image)
 
     @property
     def inputs(self) -> list[tuple[str, PathLike | None]]:
@@ -124,6 +134,8 @@ def open_scene(sources: SceneSources, *, chunks=None,
     """
     reflectance = open_image(sources.image if image is None else image, chunks=chunks,
                              wavelengths=sources.wavelengths, scale=sources.scale, offset=sources.offset)
+    if sources.label:  # the grid checks' and other messages' name of its file (describe_layer)
+        reflectance.encoding["label"] = sources.label
     if sources.classes is None:  # one class for the whole image, lazily on its grid
         first = reflectance[0]
         band_coords = [name for name in first.coords if name not in (*first.dims, "spatial_ref")]
@@ -194,7 +206,7 @@ def opened_scene(sources: SceneSources, *, chunks: int | None = None,
         scene = open_scene(sources, chunks=chunks, image=image, prepare_classes=prepare_classes,
                            scheduler=scheduler, num_workers=num_workers)
         if sources.scale is None:  # a given scale is the user's word; else catch raw counts first
-            rasters.check_reflectance_scale(scene.reflectance, str(sources.image), scheduler=scheduler,
+            rasters.check_reflectance_scale(scene.reflectance, sources.image_label, scheduler=scheduler,
                                             num_workers=threads)
         yield scene._replace(image=image, chunks=chunks, cache=cache, threads=threads)
 

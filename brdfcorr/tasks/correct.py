@@ -289,7 +289,8 @@ def _table_named(request: CorrectionRequest):
         yield
     except ParameterError as error:
         table_path = request.table_source if isinstance(request.table, ParameterTable) else request.table
-        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {request.scene.image})") from None
+        image = request.scene.image_label
+        raise ParameterError(f"{table_path or 'parameter table'}: {error} (image {image})") from None
 
 
 def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, request: CorrectionRequest):
@@ -309,7 +310,7 @@ def _as_output(corrected: xr.DataArray, qa: xr.DataArray, scene: SceneData, requ
     if request.outputs.data_type == "input" and stored.kind in "iu":
         if stored.itemsize > 4:
             raise InputError(
-                f"output type 'input' (--output-type input): image {request.scene.image} is stored as {stored}, "
+                f"output type 'input' (--output-type input): image {request.scene.image_label} is stored as {stored}, "
                 "and a 64-bit integer output cannot be written exactly (GDAL keeps its nodata as a double: "
                 "int64's lowest and uint64's highest value do not read back); write floats (--output-type float)"
             )

@@ -172,7 +172,7 @@ class SceneFiles(SceneSources):
     Attributes
     ----------
     name : str
-        The scene's name in the report of scenes left out (default: the image's path).
+        The scene's name in the report of scenes left out (default: :attr:`image_label`).
     align_classes : bool
         Bring the class map onto the image grid (nearest neighbour) instead of refusing another grid.
     class_lookup : mapping of int to int, optional
@@ -258,7 +258,7 @@ def _bbl_ranges(scene: SceneFiles, data: SceneData) -> tuple[list[list[float]], 
     if bad is None or not bad.any():
         return [], 0
     if "wavelength" not in data.reflectance.coords:
-        raise InputError(f"{scene.image}: the header's bbl marks {int(bad.sum())} bands bad but the image has no "
+        raise InputError(f"{scene.image_label}: the header's bbl marks {int(bad.sum())} bands bad but the image has no "
                          f"band wavelengths to leave them out by; give {option('wavelengths')}")
     centres = np.asarray(data.reflectance["wavelength"].values, dtype=float)
     order = np.argsort(centres, kind="stable")
@@ -286,7 +286,7 @@ def _bad_band_note(result: ClassFitResult, from_bbl: int) -> list[str]:
 def _imagery_source(scenes: Sequence[SceneFiles], choice: ClassModels) -> str:
     """What an imagery fit used, for the table's ``fit:`` blocks: ``"brdfcorr fit-classes a.tif,
     b.tif (classes a_classes.tif, b_classes.tif; model torrance_sparrow)"``."""
-    images = ", ".join(Path(scene.image).name for scene in scenes)
+    images = ", ".join(Path(scene.image_label).name for scene in scenes)
     classes = ", ".join(Path(scene.classes).name for scene in scenes)
     class_models = choice.class_models
     models = f"model {getattr(choice.model, 'name', choice.model)}" + (
@@ -370,14 +370,14 @@ def _cluster_layers(scenes: Sequence[SceneFiles], opened: Sequence[SceneData],
     if not any(given):
         return None
     if not all(given):
-        missing = ", ".join(str(scene.image) for scene in scenes if scene.clusters is None)
+        missing = ", ".join(scene.image_label for scene in scenes if scene.clusters is None)
         raise InputError(f"a cluster layer for {sum(given)} of {len(scenes)} images ({missing} has none): give one "
                          "per image, in the images' order")
     layers = []
     for scene, data in zip(scenes, opened):
         path, band = scene.clusters  # type: ignore[misc]  # all given (checked above)
         layers.append(rasters.open_clusters(path, chunks=chunks, band=band, like=data.reflectance,
-                                            names=(f"{scene.image}", f"cluster layer {path}")))
+                                            names=(scene.image_label, f"cluster layer {path}")))
     return layers
 
 
@@ -411,7 +411,7 @@ def _opened_scenes(scenes: Sequence[SceneFiles], reflectance_scale: float, chunk
         scale = scene.scale
         if reflectance_scale != 1.0:  # the 0.1 option: the scale of the stored values, now applied on read
             if scale is not None and scale != reflectance_scale:
-                raise InputError(f"{scene.image}: scale {scale} and reflectance_scale {reflectance_scale} "
+                raise InputError(f"{scene.image_label}: scale {scale} and reflectance_scale {reflectance_scale} "
                                  "differ; give the scale once")
             scale = reflectance_scale
         try:
@@ -420,11 +420,11 @@ def _opened_scenes(scenes: Sequence[SceneFiles], reflectance_scale: float, chunk
             data = open_scene(sources, chunks=chunks,
                               prepare_classes=class_preparation(scene.align_classes, scene.class_lookup))
             if scale is None:
-                rasters.check_reflectance_scale(data.reflectance, str(scene.image))
+                rasters.check_reflectance_scale(data.reflectance, scene.image_label)
         except BrdfcorrError as error:
             if not skip_unreadable:
                 raise
-            left_out.append({"scene": scene.name or str(scene.image), "reason": str(error)})
+            left_out.append({"scene": scene.name or scene.image_label, "reason": str(error)})
             continue
         opened.append(data)
         used.append(scene)

@@ -35,7 +35,7 @@ from brdfcorr.io.sensors.stac import is_stac_item
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.nbar import NBAR_CHUNK, find_product_or_item, nbar_table, refuse_archive
 
-__all__ = ["ProductSeries", "open_products", "is_product", "product_sources"]
+__all__ = ["ProductSeries", "open_products", "is_product", "product_sources", "product_files"]
 
 #: A date in a product folder's name (Sentinel-2 ``20190425T132241``, Landsat ``20110306``).
 _NAME_DATE = re.compile(r"_(\d{8}(?:T\d{6})?)_")
@@ -170,6 +170,13 @@ def products_among(images: Sequence[str | os.PathLike], given: Mapping[str, obje
     return True
 
 
+def product_files(products: Iterable[ProductFolder]) -> list[tuple[str, Path]]:
+    """Every file the products read (:attr:`ProductFolder.files`), named by role and product
+    (``band B04 of NAME.SAFE``): inputs of the output guard (:func:`brdfcorr.io.paths.check_outputs`)
+    of ``correct`` and ``fit-classes``, which never overwrite them."""
+    return [(f"{role} of {product.path.name}", path) for product in products for role, path in product.files]
+
+
 @contextlib.contextmanager
 def stacked_products(paths: Sequence[str | os.PathLike], *,
                      chunks: int = NBAR_CHUNK) -> Iterator[list[tuple[dict, ProductFolder]]]:
@@ -203,6 +210,7 @@ def product_sources(path: str | os.PathLike, scratch: str | os.PathLike, *, chun
     -------
     sources : dict
         Keywords of :class:`brdfcorr.io.scene.SceneSources` (without ``classes``): ``image`` (the
+        stack), ``label`` (``path`` as given: errors and reports name the product, not the scratch
         stack), ``angles``, ``angles_kind``, ``angle_options`` and, where every band has the same,
         the product's ``scale`` and ``offset`` (reflectance = DN x scale + offset).
     product : ProductFolder
@@ -215,5 +223,5 @@ def product_sources(path: str | os.PathLike, scratch: str | os.PathLike, *, chun
     stack = write_stack(product, folder / f"{Path(path).name}.vrt", chunks=chunks)
     scales, offsets = set(product.scales), set(product.offsets)
     known = {"scale": scales.pop(), "offset": offsets.pop()} if len(scales) == len(offsets) == 1 else {}
-    return {"image": stack, "angles": product.angles, "angles_kind": product.angles_kind,
+    return {"image": stack, "label": str(path), "angles": product.angles, "angles_kind": product.angles_kind,
             "angle_options": dict(product.angle_options), **known}, product
