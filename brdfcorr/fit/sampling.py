@@ -211,8 +211,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     for class_id in class_ids:
         within = common is not None and (levels != "auto" or common.repeated_views(class_id) >= min_repeated)
         layers = common if within and common is not None else own
-        pooled[class_id] = _sample_class(class_id, images, angles, layers, rng,
-                                         (sampling.max_samples, sampling.reflectance_scale, block_size, patch_size))
+        pooled[class_id] = _sample_class(class_id, images, angles, layers, rng, sampling)
     return pooled
 
 
@@ -254,22 +253,24 @@ class _Layers:
         return int(seen[seen >= 2].sum())
 
 
-def _sample_class(class_id: int, images: list, angles: list, layers: _Layers, rng, reading: tuple) -> ClassSamples:
-    """One class's samples (:func:`sample_classes`) from the ``layers``; ``reading``: the most
-    samples, the reflectance scale, the block size and the patch size."""
-    max_samples, reflectance_scale, block_size, patch_size = reading
+def _sample_class(class_id: int, images: list, angles: list, layers: _Layers, rng,
+                  sampling: Sampling) -> ClassSamples:
+    """One class's samples (:func:`sample_classes`) from the ``layers``, as ``sampling`` says
+    (the most samples, the reflectance scale, the block and patch sizes)."""
+    max_samples = sampling.max_samples
     candidates = layers.candidates(class_id)
     groups: list[np.ndarray | None] = [None] * len(images)
     if layers.levels == "pooled":
         chosen = _pooled_choice(candidates, max_samples, rng)
     else:
-        patch = 1 if layers.levels == "pixel" else patch_size
+        patch = 1 if layers.levels == "pixel" else sampling.patch_size
         groups = [_group_of(flat, m.shape, patch, None if layers.shared else scene)
                   for scene, (flat, m) in enumerate(zip(candidates, layers.maps))]
         chosen = _grouped_choice(groups, max_samples, rng)
     selected = [(candidates[scene][chosen[scene]], None if groups[scene] is None else groups[scene][chosen[scene]])
                 for scene in range(len(images))]
-    parts = _scene_parts(images, angles, layers.maps, selected, (reflectance_scale, block_size, layers.shared),
+    parts = _scene_parts(images, angles, layers.maps, selected,
+                         (sampling.reflectance_scale, sampling.block_size, layers.shared),
                          layers.cluster_ids, layers.grid)
     samples = _class_samples(parts, images[0], class_id, layers.levels)
     samples.note = None if layers.grid is None else _grid_note(candidates, layers.grid.shape)
