@@ -166,3 +166,31 @@ def test_the_scratch_stacks_are_removed_after_a_failing_run(copy, scratch, monke
     with pytest.raises(RuntimeError, match="middle of the run"):
         run_chain(_chain(copy))
     assert not _stacks(scratch)
+
+
+def test_a_folder_that_is_no_product_fails_its_scene_and_the_others_go_on(copy, scratch):
+    (copy / "tiles" / "S2B_MSIL2A_broken.SAFE").mkdir()  # matched by the glob, holds no product
+    report = run_chain(_chain(copy))
+    status = {Path(result["image"]).name: result["status"] for result in report.scenes}
+    assert status.pop("S2B_MSIL2A_broken.SAFE") == "failed" and set(status.values()) == {"ok"}
+    failed = next(result for result in report.scenes if result["status"] == "failed")
+    assert "S2B_MSIL2A_broken.SAFE" in failed["error"]
+    assert len(report.fit["scenes_left_out"]) == 1  # the fit over the three dates that are products
+    assert not _stacks(scratch)
+
+
+def test_strata_derived_from_each_products_stack(copy, scratch):
+    """``steps.strata`` reads each product's stacked bands (not the folder: no raster), with their
+    scaling and band centres (NDVI needs red and NIR): every date gets a class map on the products'
+    grid, split at its median NDVI into two strata."""
+    document = {**CHAIN, "inputs": {"images": ["tiles/*.SAFE"]},
+                "steps": {"strata": {"percentiles": [50]}, "fit": {"source": "imagery", **FIT, "allow_uncorrected": True},
+                          "correct": {}}}
+    (copy / "chain.yaml").write_text(yaml.safe_dump(document))
+    report = run_chain(copy / "chain.yaml")
+    assert report.ok, report.scenes
+    classes = rioxarray.open_rasterio(copy / "tiles" / "classes.tif")
+    for folder in sorted((copy / "tiles").glob("*.SAFE")):
+        strata = rioxarray.open_rasterio(copy / "out" / f"{folder.stem}_strata.tif")
+        assert strata.shape == classes.shape and strata.rio.transform() == classes.rio.transform()
+        assert {1, 2} <= set(np.unique(strata.values))
