@@ -21,7 +21,7 @@ from brdfcorr.chain.plan import plan_run
 from brdfcorr.chain.products import SCRATCH_PREFIX
 from brdfcorr.chain.run import run_chain
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import write_sentinel2_series
+from brdfcorr.testing import write_sentinel2_series, write_stac_item
 
 FIT = {"model": "ross_thick_li_sparse", "levels": "pixel", "block_size": 8, "min_samples": 50}
 CHAIN = {
@@ -194,3 +194,25 @@ def test_strata_derived_from_each_products_stack(copy, scratch):
         strata = rioxarray.open_rasterio(copy / "out" / f"{folder.stem}_strata.tif")
         assert strata.shape == classes.shape and strata.rio.transform() == classes.rio.transform()
         assert {1, 2} <= set(np.unique(strata.values))
+
+
+def test_stac_items_run_as_their_folders(copy, scratch):
+    """Sentinel-2 STAC items with local assets (``tiles/*.json``) are products as the SAFE folders
+    are: the item of each folder reads the same pixels, scaling and angles, so the chain over the
+    items fits the same table and writes the same dates as the chain over the folders."""
+    items = [write_stac_item(folder) for folder in sorted((copy / "tiles").glob("*.SAFE"))]
+    assert run_chain(_chain(copy)).ok
+    document = {**CHAIN, "inputs": {**CHAIN["inputs"], "images": ["tiles/*.json"]},
+                "outputs": {**CHAIN["outputs"], "directory": "items_out"}}
+    (copy / "items.yaml").write_text(yaml.safe_dump(document))
+    report = run_chain(copy / "items.yaml")
+    assert report.ok, report.scenes
+    assert [result["image"] for result in report.scenes] == [str(item) for item in items]
+    tables = [ParameterTable.load(copy / folder / "fitted_params.yaml") for folder in ("items_out", "out")]
+    # the same fit (the fit's provenance names the stacks it read, item.json.vrt or folder.SAFE.vrt)
+    assert [(entry.id, entry.model, entry.params) for entry in tables[0].classes] == [
+        (entry.id, entry.model, entry.params) for entry in tables[1].classes]
+    for item, folder in zip(items, sorted((copy / "tiles").glob("*.SAFE"))):
+        np.testing.assert_array_equal(rioxarray.open_rasterio(copy / "items_out" / f"{item.stem}_nbar.tif").values,
+                                      rioxarray.open_rasterio(copy / "out" / f"{folder.stem}_nbar.tif").values)
+    assert not _stacks(scratch)
