@@ -241,7 +241,7 @@ def _are_products(config: ChainConfig, images: list[Path]) -> bool:
         products = products_among([image for image in images if os.path.lexists(image)], given)
     except InputError as error:
         raise InputError(f"{config.source}: {error}") from None
-    if not products and inputs.angles is None and images:
+    if not products and inputs.angles is None and any(os.path.lexists(image) for image in images):
         raise InputError(f"{config.source}: inputs.angles is missing: image files need their angle source "
                          "(only product folders bring their own)")
     return products
@@ -279,7 +279,9 @@ def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, outpu
     outputs = _output_paths(config, output_dir, fill, name)
     # A derived class map (steps.strata) is an output; a given one is resolved against the config.
     classes = outputs["strata"] if "strata" in outputs else config.resolve(fill(config.inputs.classes))
-    if angles is not None:
+    if angles is None and not product:  # no image exists: its scene fails for that (_action)
+        found = {"angles_kind": "", "angles": "", "angle_options": {}}
+    elif angles is not None:
         angle_source = fill(angles.path)
         if angles.kind != "solar":  # the solar source is a time, not a file
             angle_source = str(config.resolve(angle_source))
