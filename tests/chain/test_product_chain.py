@@ -216,3 +216,19 @@ def test_stac_items_run_as_their_folders(copy, scratch):
         np.testing.assert_array_equal(rioxarray.open_rasterio(copy / "items_out" / f"{item.stem}_nbar.tif").values,
                                       rioxarray.open_rasterio(copy / "out" / f"{folder.stem}_nbar.tif").values)
     assert not _stacks(scratch)
+
+
+def test_process_workers_read_the_runs_stacks(copy, scratch):
+    """With ``engine.scheduler: processes`` the scenes are corrected in spawned worker processes,
+    which read the stacks of the run's scratch folder: the same dates as in the calling thread."""
+    assert run_chain(_chain(copy)).ok
+    document = {**CHAIN, "outputs": {**CHAIN["outputs"], "directory": "processes"},
+                "engine": {"scheduler": "processes", "workers": 2, "threads_per_worker": 1}}
+    (copy / "processes.yaml").write_text(yaml.safe_dump(document))
+    report = run_chain(copy / "processes.yaml")
+    assert report.ok, report.scenes
+    for folder in sorted((copy / "tiles").glob("*.SAFE")):
+        name = f"{folder.stem}_nbar.tif"
+        np.testing.assert_array_equal(rioxarray.open_rasterio(copy / "processes" / name).values,
+                                      rioxarray.open_rasterio(copy / "out" / name).values)
+    assert not _stacks(scratch)
