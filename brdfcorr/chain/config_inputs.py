@@ -64,12 +64,18 @@ class InputsConfig(StrictModel):
     Attributes
     ----------
     images : list of str
-        Image paths or globs (``scenes/*_image.tif``); every match is one scene, sorted by path.
+        Image paths or globs (``scenes/*_image.tif``); every match is one scene, sorted by path. Or
+        product folders (``tiles/*.SAFE``: Sentinel-2 L2A SAFE, Landsat Collection-2 L2 folders,
+        Sentinel-2 STAC item files with local assets), all of them: each product is one scene
+        whose bands, scaling, wavelengths and angles come from the product
+        (:mod:`brdfcorr.chain.products`), so ``angles``, ``scale``, ``offset`` and
+        ``wavelengths`` are then left out.
     scene_regex : str, optional
-        Regular expression with a named group ``scene``, matched on the image file name, giving the
-        scene name used in patterns (default: the file stem).
-    angles : AngleSource
-        Per-scene angle source.
+        Regular expression with a named group ``scene``, matched on the image file name (or the
+        product's folder or item name), giving the scene name used in patterns (default: the file
+        stem).
+    angles : AngleSource, optional
+        Per-scene angle source; needed for image files, refused for products.
     classes : str, optional
         Name pattern of the per-scene class map raster; left out when ``steps.strata`` derives the
         class maps (NDVI strata of each image).
@@ -94,7 +100,7 @@ class InputsConfig(StrictModel):
 
     images: list[str] = Field(min_length=1)
     scene_regex: str | None = None
-    angles: AngleSource
+    angles: AngleSource | None = None
     classes: str | None = Field(None, min_length=1)
     align_classes: bool = False
     class_lookup: dict[Integer, Annotated[Integer, Field(ge=0, le=65535)]] = Field(default_factory=dict)

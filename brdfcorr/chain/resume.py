@@ -160,7 +160,8 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     (tags ``brdf_fingerprint``, its SHA-256, and ``brdf_fingerprint_content``) and a resumed run
     compares.
 
-    It holds the input files' (image, class map, angles, terrain source) path (as given), size,
+    It holds the input files' (image, class map, angles, terrain source; a product's bands, mask
+    and angle metadata) path (as given), size,
     modification time [ns] and content digest (:func:`brdfcorr.io.files.content_digest`; the
     acquisition time of a ``solar`` angle source), the angle source's
     kind and options, the other ``inputs`` settings (wavelengths, class lookup, ...), the reference
@@ -201,9 +202,12 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
 def _file_state(path: Path) -> dict:
     """A file's identity in a fingerprint: path (as given), size [bytes], modification time [ns] and
     content (:func:`brdfcorr.io.files.content_digest`: an edit in place that kept the size and the
-    time changes it). Only regular files are read (a FIFO would block)."""
+    time changes it). Only regular files are read (a FIFO would block); a product folder is its
+    path only (its files are inputs of their own: a file added beside them changes nothing)."""
     try:
         status = os.stat(path)
+        if stat.S_ISDIR(status.st_mode):
+            return {"path": str(path)}
         digest = content_digest(path) if stat.S_ISREG(status.st_mode) else None
     except OSError:
         return {"path": str(path)}

@@ -57,6 +57,7 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import ctypes
+import dataclasses
 import multiprocessing
 import os
 import signal
@@ -77,6 +78,7 @@ from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.chain.config import ChainConfig, EngineConfig, load_config
 from brdfcorr.chain.patterns import format_pattern
 from brdfcorr.chain.plan import RunPlan, plan_run
+from brdfcorr.chain.products import stacked_scenes
 from brdfcorr.chain.progress import ChunkProgress, Progress
 from brdfcorr.chain.quicklook import write_quicklook
 from brdfcorr.chain.report import (
@@ -123,8 +125,8 @@ def _scene_sources(scene: Scene, config: ChainConfig, kind: type[SceneSources] =
                    **extra) -> SceneSources:
     """The files of a planned scene as the tasks take them (a :class:`SceneSources`, or ``kind``
     with the ``extra`` fields), read as ``inputs`` says (scale, offset)."""
-    return kind(scene.image, scene.classes, scene.angles, angles_kind=scene.angles_kind,
-                angle_options=dict(scene.angle_options), scale=config.inputs.scale, offset=config.inputs.offset,
+    return kind(scene.raster, scene.classes, scene.angles, angles_kind=scene.angles_kind,
+                angle_options=dict(scene.angle_options), **scene.scaling(config.inputs.scale, config.inputs.offset),
                 **extra)
 
 
@@ -303,7 +305,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
         factor_at=step.factor_at,
         align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup),
         engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers),
-        table_source=config.source,
+        table_source=config.source, reads=scene.product_files,  # a product's files: never overwritten
     ))
     found: dict[str, object] = {"reference": result.reference.describe()}
     if result.notes:  # most pixels left uncorrected: said in the report too
@@ -341,7 +343,7 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
 def _quicklook(scene: Scene, config: ChainConfig, table: ParameterTable) -> dict:
     step = config.steps.quicklook
     write_quicklook(
-        scene.image, scene.outputs["corrected"], scene.outputs["quicklook"], classes=scene.classes,
+        scene.raster, scene.outputs["corrected"], scene.outputs["quicklook"], classes=scene.classes,
         bands=step.bands, percentiles=step.percentiles, max_size=step.max_size, title=scene.name,
         class_names={entry.id: entry.name for entry in table.classes},
         prepare_classes=class_preparation(config.inputs.align_classes, config.inputs.class_lookup),
@@ -511,8 +513,10 @@ def run_chain(config: ChainConfig | str | os.PathLike, *, overrides: Mapping[str
     clock = time.perf_counter()
     with entered("chain"):  # messages name chain keys (brdfcorr._entry)
         plan = plan if plan is not None else plan_run(config)
-    with run_lock(plan.output_dir), entered("chain"):
-        return _run_plan(plan, progress, started, clock)
+    # Product scenes read their bands stacked in a scratch folder, removed when the run ends.
+    with run_lock(plan.output_dir), entered("chain"), \
+            stacked_scenes(plan.scenes, chunks=config.engine.chunk) as scenes:
+        return _run_plan(dataclasses.replace(plan, scenes=scenes), progress, started, clock)
 
 
 def _run_plan(plan: RunPlan, progress: Progress | None, started: str, clock: float) -> RunReport:

@@ -1,4 +1,4 @@
-"""The scenes of a chain run: one per input image, with its files and what happens to it.
+"""The scenes of a chain run: one per input image (or product), with its files and what happens to it.
 
 :func:`input_images` expands the config's image patterns, :func:`plan_scenes` makes a
 :class:`Scene` of each (its name, class map, angle source, terrain source and output names, from
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import glob
+import os
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -20,8 +21,10 @@ import rasterio
 import rasterio.errors
 
 from brdfcorr.chain.config import ChainConfig, format_pattern
-from brdfcorr.errors import InputError
+from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.plot.assess import figure_paths
+from brdfcorr.tasks.nbar import find_product_or_item, refuse_archive
+from brdfcorr.tasks.series import products_among
 
 __all__ = ["Scene", "input_images", "plan_scenes", "check_quicklook_bands"]
 
@@ -54,6 +57,14 @@ class Scene:
         (:func:`brdfcorr.chain.resume.scene_fingerprint`).
     slope_aspect, dem : Path, optional
         The terrain source of ``steps.correct.terrain`` (one of them, or neither).
+    product_files : tuple of (str, Path)
+        For a product (``image`` a product folder or STAC item, :mod:`brdfcorr.chain.products`):
+        every file it reads, by role (bands, quality mask, angle metadata); empty for an image file.
+    stack, scale, offset : optional
+        For a product, during a run only (:func:`brdfcorr.chain.products.stacked_scenes`): the
+        stacked bands read as the scene's image (a VRT in the run's scratch folder) and the
+        product's reflectance scaling (reflectance = DN x scale + offset) where every band has
+        the same.
     """
 
     name: str
@@ -68,15 +79,32 @@ class Scene:
     fingerprint: str = ""
     slope_aspect: Path | None = None
     dem: Path | None = None
+    product_files: tuple[tuple[str, Path], ...] = ()
+    stack: Path | None = None
+    scale: float | None = None
+    offset: float | None = None
+
+    @property
+    def raster(self) -> Path:
+        """The raster the steps read: the image, or a product's stack."""
+        return self.image if self.stack is None else self.stack
+
+    def scaling(self, scale: float | None, offset: float | None) -> dict:
+        """``scale`` and ``offset`` of :class:`~brdfcorr.io.scene.SceneSources`: a product's own
+        (None where its bands differ: each band's GDAL scale), else the given ones (``inputs``)."""
+        if self.product_files:
+            return {"scale": self.scale, "offset": self.offset}
+        return {"scale": scale, "offset": offset}
 
     def inputs(self) -> list[tuple[str, Path]]:
-        """(role, path) of the files the scene reads: image, class map (unless the chain derives it,
-        ``outputs["strata"]``), angle file and the terrain source."""
-        files = [("image", self.image)]
+        """(role, path) of the files the scene reads: image (or product and its files), class map
+        (unless the chain derives it, ``outputs["strata"]``), angle file and the terrain source."""
+        files = [("product", self.image), *self.product_files] if self.product_files else [("image", self.image)]
         # Path(): a scene failed before its files were named
         if self.classes != Path() and self.outputs.get("strata") != self.classes:
             files.append(("class map", self.classes))
-        if self.angles_kind != "solar" and self.angles:  # the solar source is a time, not a file
+        # the solar source is a time, not a file; a product's angle files are among its files
+        if self.angles_kind != "solar" and self.angles and not self.product_files:
             files.append(("angles", Path(self.angles)))
         files += [(role, path) for role, path in (("slope/aspect", self.slope_aspect), ("DEM", self.dem))
                   if path is not None]
@@ -87,8 +115,10 @@ class Scene:
         return {
             "scene": self.name,
             "image": str(self.image),
+            **({"product": True} if self.product_files else {}),
             "angles": {"kind": self.angles_kind, "source": self.angles, **(
-                {"options": self.angle_options} if self.angle_options else {})},
+                {"options": {key: value if isinstance(value, (str, int, float, bool)) else str(value)
+                             for key, value in self.angle_options.items()}} if self.angle_options else {})},
             "classes": str(self.classes),
             **{role: str(path) for role, path in (("slope_aspect", self.slope_aspect), ("dem", self.dem))
                if path is not None},
@@ -104,7 +134,8 @@ def input_images(config: ChainConfig, require_inputs: bool) -> tuple[list[Path],
     for item in config.inputs.images:
         pattern = str(config.resolve(item))
         if glob.has_magic(pattern):
-            matches = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file())
+            # files, and folders: product folders (a mix with files is refused by plan_scenes)
+            matches = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file() or Path(p).is_dir())
             if not matches:
                 notes.append(f"inputs.images: {item!r} matches no file")
                 typo = typo or _glob_root(pattern).is_dir()
@@ -176,11 +207,12 @@ def plan_scenes(config: ChainConfig, images: list[Path], output_dir: Path,
     (:func:`brdfcorr.chain.resume.scene_fingerprint`); no two scenes may write the same file name
     (:func:`brdfcorr.chain.plan.plan_run` then checks every output against every input and output by
     file identity)."""
+    products = _are_products(config, images)
     stems = [image.stem for image in images]
     shared = frozenset(stem for stem in stems if stems.count(stem) > 1)
     scenes, writers = [], {}
     for index, image in enumerate(images):
-        scene = _plan_scene(config, image, shared, output_dir, fingerprint)
+        scene = _plan_scene(config, image, shared, output_dir, fingerprint, products)
         for path in scene.outputs.values():
             if path in writers and writers[path][0] != index:  # one scene's own outputs: plan_run
                 raise InputError(
@@ -192,13 +224,54 @@ def plan_scenes(config: ChainConfig, images: list[Path], output_dir: Path,
     return scenes
 
 
+def _are_products(config: ChainConfig, images: list[Path]) -> bool:
+    """Whether the run's inputs are products (:func:`brdfcorr.tasks.series.products_among`: all of
+    them, none of the settings that products bring themselves given); images that do not exist
+    (their scenes fail) count as neither.
+
+    Raises
+    ------
+    InputError
+        A mix of products and image files; ``inputs.angles``, ``scale``, ``offset`` or
+        ``wavelengths`` given with products; image files without ``inputs.angles``.
+    """
+    inputs = config.inputs
+    given = {f"inputs.{key}": getattr(inputs, key) is not None for key in ("angles", "scale", "offset", "wavelengths")}
+    try:
+        products = products_among([image for image in images if os.path.lexists(image)], given)
+    except InputError as error:
+        raise InputError(f"{config.source}: {error}") from None
+    if not products and inputs.angles is None and any(os.path.lexists(image) for image in images):
+        raise InputError(f"{config.source}: inputs.angles is missing: image files need their angle source "
+                         "(only product folders bring their own)")
+    return products
+
+
+def _product_fields(image: Path) -> dict:
+    """The :class:`Scene` fields that a product brings: its angle source and files (read from its
+    metadata only; the bands are stacked for the run, :mod:`brdfcorr.chain.products`).
+
+    Raises
+    ------
+    BrdfcorrError
+        The product is missing, in an archive, or no product (as ``brdfcorr nbar`` says it).
+    """
+    if not os.path.lexists(image):
+        raise InputError(f"missing input: product {image}")
+    refuse_archive(image)
+    product = find_product_or_item(image)
+    return {"angles_kind": product.angles_kind, "angles": str(product.angles),
+            "angle_options": dict(product.angle_options), "product_files": tuple(product.files)}
+
+
 def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, output_dir: Path,
-                fingerprint: Callable[[Scene, ChainConfig], str]) -> Scene:
+                fingerprint: Callable[[Scene, ChainConfig], str], product: bool = False) -> Scene:
     angles = config.inputs.angles
     try:
         name = _scene_name(config, image, shared_stems)
-    except InputError as error:
-        return Scene(image.stem, image, Path(), angles.kind, "", {}, {}, "fail", str(error))
+        found = _product_fields(image) if product else {}
+    except BrdfcorrError as error:
+        return Scene(image.stem, image, Path(), "" if angles is None else angles.kind, "", {}, {}, "fail", str(error))
 
     def fill(pattern: str) -> str:
         return format_pattern(pattern, image, name)
@@ -206,13 +279,16 @@ def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, outpu
     outputs = _output_paths(config, output_dir, fill, name)
     # A derived class map (steps.strata) is an output; a given one is resolved against the config.
     classes = outputs["strata"] if "strata" in outputs else config.resolve(fill(config.inputs.classes))
-    angle_source = fill(angles.path)
-    if angles.kind != "solar":  # the solar source is a time, not a file
-        angle_source = str(config.resolve(angle_source))
+    if angles is None and not product:  # no image exists: its scene fails for that (_action)
+        found = {"angles_kind": "", "angles": "", "angle_options": {}}
+    elif angles is not None:
+        angle_source = fill(angles.path)
+        if angles.kind != "solar":  # the solar source is a time, not a file
+            angle_source = str(config.resolve(angle_source))
+        found = {"angles_kind": angles.kind, "angles": angle_source, "angle_options": dict(angles.options)}
     slope_aspect, dem = (None if pattern is None else config.resolve(fill(pattern))
                          for pattern in (config.inputs.slope_aspect, config.inputs.dem))
-    scene = Scene(name, image, classes, angles.kind, angle_source, dict(angles.options), outputs,
-                  slope_aspect=slope_aspect, dem=dem)
+    scene = Scene(name, image, classes, outputs=outputs, slope_aspect=slope_aspect, dem=dem, **found)
     action, reason = _action(config, scene)
     scene = dataclasses.replace(scene, action=action, reason=reason)
     return dataclasses.replace(scene, fingerprint=fingerprint(scene, config))

@@ -39,9 +39,9 @@ def _strata(scene: Scene, config: ChainConfig, compute: dict, progress: Progress
     chunks = ChunkProgress(f"{scene.name} strata", progress) if progress is not None else contextlib.nullcontext()
     try:
         with chunks:
-            ndvi_class_file(scene.image, scene.outputs["strata"], bins=bins, wavelengths=inputs.wavelengths,
-                            scale=inputs.scale, offset=inputs.offset, chunks=config.engine.chunk, overwrite=True,
-                            **compute)
+            ndvi_class_file(scene.raster, scene.outputs["strata"], bins=bins, wavelengths=inputs.wavelengths,
+                            **scene.scaling(inputs.scale, inputs.offset), chunks=config.engine.chunk,
+                            overwrite=True, **compute)
     except Exception as error:  # noqa: BLE001 (isolation: a scene's failure must not stop the run)
         reason = str(error) if isinstance(error, BrdfcorrError) else f"{type(error).__name__}: {error}"
         return dataclasses.replace(scene, action="fail", reason=f"steps.strata: {reason}")
