@@ -124,10 +124,11 @@ __all__ = [
 def _scene_sources(scene: Scene, config: ChainConfig, kind: type[SceneSources] = SceneSources,
                    **extra) -> SceneSources:
     """The files of a planned scene as the tasks take them (a :class:`SceneSources`, or ``kind``
-    with the ``extra`` fields), read as ``inputs`` says (scale, offset)."""
+    with the ``extra`` fields), read as ``inputs`` says (scale, offset); a product's stack labelled
+    with the product, as messages and the fitted table's record name it."""
     return kind(scene.raster, scene.classes, scene.angles, angles_kind=scene.angles_kind,
                 angle_options=dict(scene.angle_options), **scene.scaling(config.inputs.scale, config.inputs.offset),
-                **extra)
+                label=str(scene.image) if scene.stack is not None else None, **extra)
 
 
 def _scene_files(scene: Scene, config: ChainConfig) -> SceneFiles:

@@ -82,6 +82,9 @@ def test_chain_over_products_is_fit_classes_and_correct_of_the_folders(copy, scr
     assert code == 0, stderr
     chain_table = ParameterTable.load(copy / "out" / "fitted_params.yaml")
     assert chain_table == ParameterTable.load(by_hand / "table.yaml")
+    # the fit's record names the folders, as fit-classes' does, not the run's scratch stacks
+    assert folders[0].name in (copy / "out" / "fitted_params.yaml").read_text()
+    assert ".vrt" not in (copy / "out" / "fitted_params.yaml").read_text()
     assert [entry.id for entry in chain_table.classes] == [1, 2]
     for folder in folders:
         output = by_hand / f"{folder.stem}_nbar.tif"
@@ -209,7 +212,7 @@ def test_stac_items_run_as_their_folders(copy, scratch):
     assert report.ok, report.scenes
     assert [result["image"] for result in report.scenes] == [str(item) for item in items]
     tables = [ParameterTable.load(copy / folder / "fitted_params.yaml") for folder in ("items_out", "out")]
-    # the same fit (the fit's provenance names the stacks it read, item.json.vrt or folder.SAFE.vrt)
+    # the same fit (its record names what it read: the items, or the folders)
     assert [(entry.id, entry.model, entry.params) for entry in tables[0].classes] == [
         (entry.id, entry.model, entry.params) for entry in tables[1].classes]
     for item, folder in zip(items, sorted((copy / "tiles").glob("*.SAFE"))):
