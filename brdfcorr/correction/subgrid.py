@@ -131,10 +131,10 @@ def interpolate_samples(values: np.ndarray, rows: tuple, cols: tuple) -> np.ndar
     the full-size result costs one gather, one product and one sum in place."""
     lower, upper, t = cols
     along = values[..., lower] + (values[..., upper] - values[..., lower]) * t.astype(values.dtype)
-    lower, upper, t = rows
+    lower, _, t = rows  # the upper sample is lower + 1 (_linear_weights)
     result = along[..., lower, :]
     if along.shape[-2] > 1:  # else every row is the one sample's (t = 0)
-        step = np.diff(along, axis=-2)[..., lower, :]  # upper is lower + 1 (_linear_weights)
+        step = np.diff(along, axis=-2)[..., lower, :]
         step *= t.astype(values.dtype)[:, None]
         result += step
     return result
