@@ -144,8 +144,9 @@ def _copy_into(source: Path, target: Path) -> None:
 def _run_group(key: str, directory: Path, build) -> None:
     """Run a group's commands in ``directory`` after copying in what the groups it needs made."""
     group = ALL_GROUPS[key]
+    built = _built_all(group.needs, build)
     for need in group.needs:
-        _copy_into(build(need), directory)
+        _copy_into(built[need], directory)
     for command in group.commands:
         if group.page != "README.md" and command in README_COMMANDS and not re.search(r"/|>|-o\b", command):
             build(README_COMMANDS[command])
@@ -153,20 +154,39 @@ def _run_group(key: str, directory: Path, build) -> None:
             run_commands([command], directory)
 
 
-def _build(root: Path, key: str) -> Path:
+def _built_all(keys, build) -> dict[str, Path]:
+    """The directories of the groups ``keys``: those no other worker is building are built first,
+    then the others waited for, so that two workers build the groups they both need side by side
+    instead of one waiting for the other (``build(key, wait=False)``: None while another holds it)."""
+    built: dict[str, Path] = {}
+    while len(built) < len(keys):
+        for key in keys:
+            if key not in built and (directory := build(key, wait=False)) is not None:
+                built[key] = directory
+        waiting = [key for key in keys if key not in built]
+        if waiting:
+            built[waiting[0]] = build(waiting[0])
+    return built
+
+
+def _build(root: Path, key: str, wait: bool = True) -> Path | None:
     """The directory in which group ``key`` ran, under ``root``: run by the first worker that asks,
-    which holds a lock file meanwhile; the others wait for it and reuse the directory (or its failure)."""
+    which holds a lock file meanwhile; the others wait for it (or, without ``wait``, get None while
+    it runs) and reuse the directory (or its failure)."""
     name = key.replace(":", "-")
     directory, done, failed = root / name, root / f"{name}.done", root / f"{name}.failed"
     with open(root / f"{name}.lock", "a") as lock:
-        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+        try:
+            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+        except BlockingIOError:
+            return None
         if failed.exists():
             pytest.fail(f"{key} failed (in another test):\n{failed.read_text()}")
         if not done.exists():
             shutil.rmtree(directory, ignore_errors=True)
             directory.mkdir()
             try:
-                _run_group(key, directory, lambda need: _build(root, need))
+                _run_group(key, directory, lambda need, wait=True: _build(root, need, wait))
             except BaseException as error:
                 failed.write_text(str(error))
                 raise
@@ -181,7 +201,7 @@ def builder(tmp_path_factory):
     base = tmp_path_factory.getbasetemp()
     root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "doc-commands"
     root.mkdir(exist_ok=True)
-    return lambda key: _build(root, key)
+    return lambda key, wait=True: _build(root, key, wait)
 
 
 @pytest.fixture(scope="session")

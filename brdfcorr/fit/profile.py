@@ -131,32 +131,44 @@ class _LinearProfile:
         """Per-band linear coefficients (m, B) and sums of squared residuals (B,).
 
         Least squares with the terms whose lower bound is 0 kept >= 0 (those with lower bound -inf
-        are free), exactly: every face of the constraint box (which terms are free) is solved from
+        are free), exactly: where the unconstrained solution keeps them >= 0 in every band it is
+        the answer; else every face of the constraint box (which terms are free) is solved from
         the normal equations and the best feasible one kept per band (at most 2^m - 1 small solves
         for m <= 3 terms, all bands at once). Terms the geometry cannot tell apart (a near-singular
         face) are left at 0. The data enter through one product ``design.T @ data``.
         """
         gram, cross = self.products(design)
-        m, n_bands = cross.shape
-        best = np.zeros((m, n_bands))
+        m = cross.shape[0]
+        everything = np.arange(m)
+        found = self._face(gram, cross, everything)
+        if found is not None and found[1].all():  # the unconstrained optimum is feasible: the optimum
+            return found[0], np.maximum(found[2], 0.0)
+        best = np.zeros(cross.shape)
         best_ssr = self.sum_yy.copy()  # every coefficient 0
         for free in itertools.product((False, True), repeat=m):
-            if not any(free):
-                continue
             index = np.flatnonzero(free)
-            sub = gram[np.ix_(index, index)]
-            scale = np.sqrt(np.diag(sub))
-            if not np.all(scale > 0) or np.linalg.cond(sub / np.outer(scale, scale)) > 1e12:
+            face = found if index.size == m else self._face(gram, cross, index) if index.size else None
+            if face is None:
                 continue
-            values = np.linalg.solve(sub, cross[index])  # (k, B)
-            feasible = np.all((values >= 0) | ~self.nonnegative[index, None], axis=0)
-            ssr = self.sum_yy - np.einsum("kb,kb->b", values, cross[index])  # at the face optimum
+            values, feasible, ssr = face
             better = feasible & (ssr < best_ssr - 1e-12 * np.abs(best_ssr))
             if better.any():
                 best[:, better] = 0.0
                 best[np.ix_(index, better)] = values[:, better]
                 best_ssr = np.where(better, ssr, best_ssr)
         return best, np.maximum(best_ssr, 0.0)
+
+    def _face(self, gram: np.ndarray, cross: np.ndarray, index: np.ndarray):
+        """The least-squares coefficients (k, B) of the terms ``index`` alone (the others 0), whether
+        they are feasible per band (B,) and the sums of squared residuals left (B,); None where
+        those terms are (nearly) collinear (condition number of the scaled Gram matrix > 1e12)."""
+        sub = gram[np.ix_(index, index)]
+        scale = np.sqrt(np.diag(sub))
+        if not np.all(scale > 0) or np.linalg.cond(sub / np.outer(scale, scale)) > 1e12:
+            return None
+        values = np.linalg.solve(sub, cross[index])  # (k, B)
+        feasible = np.all((values >= 0) | ~self.nonnegative[index, None], axis=0)
+        return values, feasible, self.sum_yy - np.einsum("kb,kb->b", values, cross[index])  # at the face optimum
 
     def objective(self, shape: Mapping[str, float]) -> float:
         return float(self.solve(self.design(shape))[1] @ self.weights)

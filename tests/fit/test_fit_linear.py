@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.optimize
 
 from brdfcorr.fit import classes, shape_search, solver
 from brdfcorr.fit import profile as profiles
@@ -185,6 +186,28 @@ def test_terms_without_a_lower_bound_may_be_negative():
     profile = profiles._LinearProfile(bounded, profile.geometry, profile.data, {})
     coefficients, _ = profile.solve(profile.design({}))
     assert coefficients[1, 0] == 0.0 and coefficients[0, 0] == pytest.approx(profile.data.mean())
+
+
+def test_the_bounded_solve_is_scipys_bounded_least_squares_band_by_band():
+    # Bands whose unconstrained optimum keeps f_vol and f_geo >= 0 and bands where it does not
+    # (negative truths, noise): in every band the coefficients are those of scipy's bounded linear
+    # least squares (lsq_linear, an independent active-set solver) with the registry's bounds.
+    rng = np.random.default_rng(11)
+    angles = airborne_lines(2000, seed=11)
+    truths = np.array([[0.05, 0.03, 0.01], [0.05, -0.02, 0.01], [0.05, 0.02, -0.03], [0.0, -0.01, -0.01],
+                       [0.03, 0.0, 0.0], [-0.01, 0.02, 0.005]]).T
+    geometry = ScatteringGeometry(*angles)
+    design = np.column_stack(np.broadcast_arrays(*RTLSR.terms(geometry, {})))  # the kernels (N, 3)
+    brdf = design @ truths + 0.002 * rng.standard_normal((2000, truths.shape[1]))
+    profile = profiles._LinearProfile(RTLSR, geometry, brdf, {})
+    np.testing.assert_allclose(profile.design({}), design)
+    coefficients, ssr = profile.solve(design)
+    lower = [RTLSR.parameter(name).lower for name in RTLSR.linear]
+    for band in range(brdf.shape[1]):
+        expected = scipy.optimize.lsq_linear(design, brdf[:, band], bounds=(lower, np.inf), tol=1e-14).x
+        np.testing.assert_allclose(coefficients[:, band], expected, atol=1e-9)
+        assert ssr[band] == pytest.approx(((brdf[:, band] - design @ coefficients[:, band]) ** 2).sum(), rel=1e-9)
+    assert (coefficients == 0).any() and (coefficients > 0).all(axis=0).any()  # both cases were met
 
 
 def test_fit_quality_of_any_weights_is_their_r2_against_a_direct_evaluation():
