@@ -6,6 +6,7 @@ fit-classes SAFE1 SAFE2 ... --classes MAP`` fits the dates at once, each pixel's
 from __future__ import annotations
 
 import shutil
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.tasks.correct import correct_files
 from brdfcorr.tasks.fit import SceneFiles, fit_class_files
 from brdfcorr.tasks.request import CorrectionRequest, OutputFiles
-from brdfcorr.tasks.series import open_products, stacked_products
+from brdfcorr.tasks.series import find_products, open_products, stacked_products
 from brdfcorr.testing import SERIES_SHAPE, file_digests, write_sentinel2_series
 from brdfcorr.testing.products import write_landsat_c2, write_stac_item
 
@@ -159,14 +160,14 @@ def test_errors_name_the_stac_item_and_the_folder_in_python(series, tmp_path):
     item = write_stac_item(safe)
     table = ParameterTable.load(_three_band_table(tmp_path / "three.yaml"))
     for product in (item, safe):
-        with stacked_products([product]) as [(found, _)]:
+        with stacked_products(find_products([product])) as [found]:
             request = CorrectionRequest(SceneSources(classes=None, **found), table,
                                         OutputFiles(tmp_path / "out.tif"))
             with pytest.raises(ParameterError) as raised:
                 correct_files(request)
         _names_the_product(str(raised.value), product)
     half = _half_class_map(series, tmp_path / "half.tif")
-    with stacked_products([safe]) as [(found, _)], pytest.raises(GridMismatchError) as raised:
+    with stacked_products(find_products([safe])) as [found], pytest.raises(GridMismatchError) as raised:
         fit_class_files([SceneFiles(classes=half, **found)], ClassModels("ross_thick_li_sparse"))
     _names_the_product(str(raised.value), safe)
     assert not (tmp_path / "out.tif").exists()
@@ -204,3 +205,38 @@ def test_fit_classes_and_correct_refuse_to_write_over_a_landsat_band(invoke, tmp
         assert len(stderr.splitlines()) == 1 and f"{named} {band} is also an input" in stderr, stderr
         assert f"band SR_B4 of {folder.name}" in stderr, stderr
     assert file_digests(folder) == before
+
+
+# ------------------------------------------------------- a product is identified once per run (issue 42)
+
+
+@pytest.fixture
+def identified(monkeypatch) -> Counter:
+    """How often each SAFE folder is identified (its MTD_MSIL2A.xml read into a ProductFolder:
+    :func:`brdfcorr.io.sensors.folders.find_sentinel2_l2a`, which every way of finding a SAFE takes)."""
+    import brdfcorr.io.sensors.folders as folders
+
+    counts: Counter = Counter()
+    original = folders.find_sentinel2_l2a
+
+    def counting(path, **options):
+        counts[Path(path).name] += 1
+        return original(path, **options)
+
+    monkeypatch.setattr(folders, "find_sentinel2_l2a", counting)
+    return counts
+
+
+def test_correct_and_fit_classes_identify_each_product_once(series, table, invoke, identified, tmp_path):
+    """The output guard (the product's files are inputs) and the stack of the bands use the product
+    found once: one identification per folder and command."""
+    folders = _folders(series)
+    code, stderr = invoke(["correct", folders[0], "--classes", series / "tiles" / "classes.tif", "--params", table,
+                           "--ref-sza", "45", "-o", tmp_path / "date.tif", "--no-progress"])
+    assert code == 0, stderr
+    assert identified == {folders[0].name: 1}
+    identified.clear()
+    code, stderr = invoke(["fit-classes", *folders, "--classes", series / "tiles" / "classes.tif",
+                           "--model", "ross_thick_li_sparse", *FIT, "-o", tmp_path / "t.yaml", "--no-progress"])
+    assert code == 0, stderr
+    assert identified == {folder.name: 1 for folder in folders} and len(folders) == 4

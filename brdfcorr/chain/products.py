@@ -2,11 +2,12 @@
 
 A chain whose ``inputs.images`` are products (Sentinel-2 L2A SAFE folders, Landsat Collection-2
 L2 folders, Sentinel-2 STAC item files with local assets) runs them as ``brdfcorr fit-classes``
-and ``brdfcorr correct`` do: every product is one scene whose angle source and files the plan
-takes from the product's metadata (:func:`brdfcorr.chain.scenes.plan_scenes`; the files are the
-scene's inputs, so the output guard and the resume fingerprint cover them), and whose bands
-:func:`stacked_scenes` stacks for the run as virtual rasters in one scratch folder
-(:func:`brdfcorr.tasks.series.product_sources`, nothing copied), removed when the run ends,
+and ``brdfcorr correct`` do: every product is one scene whose product the plan finds once
+(:func:`brdfcorr.chain.scenes.plan_scenes`: its metadata read, its angle source and files taken
+from it; the files are the scene's inputs, so the output guard and the resume fingerprint cover
+them), and whose bands :func:`stacked_scenes` stacks from that product for the run as virtual
+rasters in one scratch folder (:func:`brdfcorr.tasks.series.product_sources`, nothing copied and
+nothing identified again), removed when the run ends,
 however it ends. The steps then read the stack with the product's scaling
 (:attr:`~brdfcorr.chain.scenes.Scene.raster`, ``scale``, ``offset``).
 """
@@ -48,7 +49,7 @@ def stacked_scenes(scenes: tuple[Scene, ...], *, chunks: int | None = None) -> I
         The scenes in the same order; a product that cannot be stacked turns its scene to
         ``fail`` with the reason (the others go on). No scratch folder is made without a product.
     """
-    if not any(scene.product_files and scene.action != "fail" for scene in scenes):
+    if not any(scene.product is not None and scene.action != "fail" for scene in scenes):
         yield scenes
         return
     with tempfile.TemporaryDirectory(prefix=SCRATCH_PREFIX) as scratch:
@@ -57,10 +58,10 @@ def stacked_scenes(scenes: tuple[Scene, ...], *, chunks: int | None = None) -> I
 
 def _stacked(scene: Scene, scratch: Path, chunks: int | None) -> Scene:
     """One scene with its product's stack in ``scratch`` (or turned to ``fail``)."""
-    if not scene.product_files or scene.action == "fail":
+    if scene.product is None or scene.action == "fail":
         return scene
     try:
-        found, _ = product_sources(scene.image, scratch, **({"chunks": chunks} if chunks else {}))
+        found = product_sources(scene.product, scratch, **({"chunks": chunks} if chunks else {}))
     except (BrdfcorrError, OSError) as error:
         return dataclasses.replace(scene, action="fail", reason=f"stacking product {scene.image}: {error}")
     return dataclasses.replace(scene, stack=Path(found["image"]), scale=found.get("scale"),

@@ -16,6 +16,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import rasterio
 import rasterio.errors
@@ -23,8 +24,10 @@ import rasterio.errors
 from brdfcorr.chain.config import ChainConfig, format_pattern
 from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.plot.assess import figure_paths
-from brdfcorr.tasks.nbar import find_product_or_item, refuse_archive
-from brdfcorr.tasks.series import products_among
+from brdfcorr.tasks.series import find_products, products_among
+
+if TYPE_CHECKING:
+    from brdfcorr.io.sensors.folders import ProductFolder
 
 __all__ = ["Scene", "input_images", "plan_scenes", "check_quicklook_bands"]
 
@@ -57,9 +60,13 @@ class Scene:
         (:func:`brdfcorr.chain.resume.scene_fingerprint`).
     slope_aspect, dem : Path, optional
         The terrain source of ``steps.correct.terrain`` (one of them, or neither).
-    product_files : tuple of (str, Path)
+    product : ProductFolder, optional
         For a product (``image`` a product folder or STAC item, :mod:`brdfcorr.chain.products`):
-        every file it reads, by role (bands, quality mask, angle metadata); empty for an image file.
+        the product as the plan found it (its metadata read once per run; the run stacks its bands
+        from it, :func:`brdfcorr.chain.products.stacked_scenes`); None for an image file.
+    product_files : tuple of (str, Path)
+        For a product, every file it reads, by role (bands, quality mask, angle metadata: its
+        :attr:`~brdfcorr.io.sensors.folders.ProductFolder.files` when planned); empty for an image file.
     stack, scale, offset : optional
         For a product, during a run only (:func:`brdfcorr.chain.products.stacked_scenes`): the
         stacked bands read as the scene's image (a VRT in the run's scratch folder) and the
@@ -79,6 +86,7 @@ class Scene:
     fingerprint: str = ""
     slope_aspect: Path | None = None
     dem: Path | None = None
+    product: ProductFolder | None = None
     product_files: tuple[tuple[str, Path], ...] = ()
     stack: Path | None = None
     scale: float | None = None
@@ -92,19 +100,19 @@ class Scene:
     def scaling(self, scale: float | None, offset: float | None) -> dict:
         """``scale`` and ``offset`` of :class:`~brdfcorr.io.scene.SceneSources`: a product's own
         (None where its bands differ: each band's GDAL scale), else the given ones (``inputs``)."""
-        if self.product_files:
+        if self.product is not None:
             return {"scale": self.scale, "offset": self.offset}
         return {"scale": scale, "offset": offset}
 
     def inputs(self) -> list[tuple[str, Path]]:
         """(role, path) of the files the scene reads: image (or product and its files), class map
         (unless the chain derives it, ``outputs["strata"]``), angle file and the terrain source."""
-        files = [("product", self.image), *self.product_files] if self.product_files else [("image", self.image)]
+        files = [("product", self.image), *self.product_files] if self.product is not None else [("image", self.image)]
         # Path(): a scene failed before its files were named
         if self.classes != Path() and self.outputs.get("strata") != self.classes:
             files.append(("class map", self.classes))
         # the solar source is a time, not a file; a product's angle files are among its files
-        if self.angles_kind != "solar" and self.angles and not self.product_files:
+        if self.angles_kind != "solar" and self.angles and self.product is None:
             files.append(("angles", Path(self.angles)))
         files += [(role, path) for role, path in (("slope/aspect", self.slope_aspect), ("DEM", self.dem))
                   if path is not None]
@@ -115,7 +123,7 @@ class Scene:
         return {
             "scene": self.name,
             "image": str(self.image),
-            **({"product": True} if self.product_files else {}),
+            **({"product": True} if self.product is not None else {}),
             "angles": {"kind": self.angles_kind, "source": self.angles, **(
                 {"options": {key: value if isinstance(value, (str, int, float, bool)) else str(value)
                              for key, value in self.angle_options.items()}} if self.angle_options else {})},
@@ -248,8 +256,9 @@ def _are_products(config: ChainConfig, images: list[Path]) -> bool:
 
 
 def _product_fields(image: Path) -> dict:
-    """The :class:`Scene` fields that a product brings: its angle source and files (read from its
-    metadata only; the bands are stacked for the run, :mod:`brdfcorr.chain.products`).
+    """The :class:`Scene` fields that a product brings: the product, found once for the run (from
+    its metadata only, :func:`brdfcorr.tasks.series.find_products`; the run stacks its bands from
+    it, :mod:`brdfcorr.chain.products`), its angle source and its files.
 
     Raises
     ------
@@ -258,10 +267,9 @@ def _product_fields(image: Path) -> dict:
     """
     if not os.path.lexists(image):
         raise InputError(f"missing input: product {image}")
-    refuse_archive(image)
-    product = find_product_or_item(image)
+    [product] = find_products([image])
     return {"angles_kind": product.angles_kind, "angles": str(product.angles),
-            "angle_options": dict(product.angle_options), "product_files": tuple(product.files)}
+            "angle_options": dict(product.angle_options), "product": product, "product_files": tuple(product.files)}
 
 
 def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, output_dir: Path,

@@ -150,14 +150,15 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     lookup = read_lookup(class_lookup) if class_lookup else None
     # The products are stacked last: nothing that may fail stands between the stack and its with block.
     scratch, product_reads = contextlib.ExitStack(), {}
-    from brdfcorr.tasks.series import product_files, products_among, stacked_products
+    from brdfcorr.tasks.series import find_products, product_files, products_among, stacked_products
 
     if products_among([image], {"--angles": angles, "--angle-option": angle_option, "--sza": sza, "--saa": saa,
                            "--vza": vza, "--vaa": vaa, "--raa": raa, "--wavelengths": wavelengths,
                            "--scale": scale, "--offset": offset, "--angles-kind": angles_kind != "geotiff"}):
-        [(found, product)] = scratch.enter_context(stacked_products([image], **({"chunks": chunk} if chunk else {})))
+        products = find_products([image])  # identified once: the output guard and the stack use it
+        product_reads = dict(product_files(products))  # the output guard's inputs, as fit-classes'
+        [found] = scratch.enter_context(stacked_products(products, **({"chunks": chunk} if chunk else {})))
         sources = SceneSources(classes=classes, **found)
-        product_reads = dict(product_files([product]))  # the output guard's inputs, as fit-classes'
     else:
         sources = SceneSources(image, classes, angles, angles_kind=angles_kind,
                                angle_options=dict(angle_option), sza=sza, saa=saa, vza=vza,

@@ -78,7 +78,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.fit import SceneFiles, fit_class_files
-    from brdfcorr.tasks.series import products_among, stacked_products
+    from brdfcorr.tasks.series import find_products, products_among, stacked_products
 
     products = products_among(images, {"--angles": angles, "--angles-kind": angles_kind != "geotiff",
                                        "--angle-option": angle_option, "--scale": scale is not None,
@@ -108,9 +108,10 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         click.echo("brdfcorr: warning: --name is deprecated; use --class-name ID=NAME", err=True)
     class_names = {**dict(deprecated_names), **dict(names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
-    with stacked_products(images) if products else contextlib.nullcontext([]) as stacked:
-        read += _guard_outputs(written, read, [product for _, product in stacked], overwrite)
-        files = [found for found, _ in stacked] if products else [
+    found = find_products(images) if products else []  # identified once: the guard and the stacks use them
+    read += _guard_outputs(written, read, found, overwrite)
+    with stacked_products(found) if products else contextlib.nullcontext([]) as stacked:
+        files = stacked if products else [
             {"image": image, "angles": angle_source, "angles_kind": angles_kind, "angle_options": options,
              "scale": scale, "offset": offset} for image, angle_source in zip(images, angles)]
         # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes.
@@ -157,8 +158,9 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
 
 
 def _guard_outputs(written: dict, read: list, products: list, overwrite: bool) -> list:
-    """The output guard of ``fit-classes`` before the fit (its work is not wasted on an output that
-    would be refused): the outputs checked against the files in the product folders too (bands,
+    """The output guard of ``fit-classes`` before the stacking and the fit (their work is not wasted
+    on an output that would be refused): the outputs checked against the files of the ``products``
+    found for the run too (bands,
     masks, angle files: inputs, never overwritten, :func:`brdfcorr.tasks.series.product_files`),
     and, without ``overwrite``, refused where they exist. Returns those files (for the later
     check of the plots)."""

@@ -12,7 +12,9 @@ Nothing is read until the result is computed or plotted, except each folder's me
 
 The command line takes the same folders as files (:func:`product_sources`): ``brdfcorr fit-classes``
 over the dates (their bands stacked as virtual rasters in a scratch folder, their angles from each
-product) and ``brdfcorr correct`` of one date with the fitted table.
+product) and ``brdfcorr correct`` of one date with the fitted table. Each product is identified
+once per run (:func:`find_products`, its metadata read) and then handed on as found: to the output
+guard (:func:`product_files`) and to the stacking (:func:`stacked_products`).
 """
 
 from __future__ import annotations
@@ -35,7 +37,8 @@ from brdfcorr.io.sensors.stac import is_stac_item
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.nbar import NBAR_CHUNK, find_product_or_item, nbar_table, refuse_archive
 
-__all__ = ["ProductSeries", "open_products", "is_product", "product_sources", "product_files"]
+__all__ = ["ProductSeries", "open_products", "is_product", "find_products", "product_sources", "product_files",
+           "stacked_products"]
 
 #: A date in a product folder's name (Sentinel-2 ``20190425T132241``, Landsat ``20110306``).
 _NAME_DATE = re.compile(r"_(\d{8}(?:T\d{6})?)_")
@@ -95,10 +98,7 @@ def open_products(folders: Iterable[str | os.PathLike], *, resolution: int | Non
         No folder; a folder that is no product (as ``brdfcorr nbar`` says it); folders of other
         sensors, bands or grids than the first (named with what differs).
     """
-    products = []
-    for folder in folders:
-        refuse_archive(folder)
-        products.append(find_product_or_item(folder, resolution=resolution, bands=bands, masked=masked))
+    products = find_products(folders, resolution=resolution, bands=bands, masked=masked)
     if not products:
         raise SensorInputError("open_products: no product folder given")
     dates = []
@@ -177,51 +177,72 @@ def product_files(products: Iterable[ProductFolder]) -> list[tuple[str, Path]]:
     return [(f"{role} of {product.path.name}", path) for product in products for role, path in product.files]
 
 
+def find_products(paths: Iterable[str | os.PathLike], *, resolution: int | None = None,
+                  bands: Sequence[str] | None = None, masked: Sequence[int] | None = None) -> list[ProductFolder]:
+    """The product of each path, identified once for the run (its metadata read): the run then
+    hands it on (:func:`product_files`, :func:`stacked_products`) instead of finding it again.
+
+    Parameters
+    ----------
+    paths : iterable of path-like
+        Sentinel-2 L2A SAFE folders, Landsat Collection-2 L2 folders or Sentinel-2 STAC item files
+        (:func:`brdfcorr.tasks.nbar.find_product_or_item`); each product's ``path`` is the path as
+        given, which errors, labels and reports name.
+    resolution, bands, masked :
+        As for :func:`open_products`.
+
+    Raises
+    ------
+    SensorInputError
+        A path in an archive, or no product (as ``brdfcorr nbar`` says it), named.
+    """
+    products = []
+    for path in paths:
+        refuse_archive(path)
+        products.append(find_product_or_item(path, resolution=resolution, bands=bands, masked=masked))
+    return products
+
+
 @contextlib.contextmanager
-def stacked_products(paths: Sequence[str | os.PathLike], *,
-                     chunks: int = NBAR_CHUNK) -> Iterator[list[tuple[dict, ProductFolder]]]:
-    """Each product's scene files and product (:func:`product_sources`), stacked in one scratch
-    folder that is removed at the end of the ``with`` block (the run that reads them)."""
+def stacked_products(products: Sequence[ProductFolder], *, chunks: int = NBAR_CHUNK) -> Iterator[list[dict]]:
+    """Each product's scene files (:func:`product_sources`), stacked in one scratch folder that is
+    removed at the end of the ``with`` block (the run that reads them)."""
     with tempfile.TemporaryDirectory(prefix="brdfcorr-products-") as folder:
-        yield [product_sources(path, folder, chunks=chunks) for path in paths]
+        yield [product_sources(product, folder, chunks=chunks) for product in products]
 
 
-def product_sources(path: str | os.PathLike, scratch: str | os.PathLike, *, chunks: int = NBAR_CHUNK,
-                    resolution: int | None = None, bands: Sequence[str] | None = None,
-                    masked: Sequence[int] | None = None) -> tuple[dict, ProductFolder]:
-    """A product folder or STAC item as the files of one scene, for ``fit-classes`` and ``correct``.
+def product_sources(product: ProductFolder, scratch: str | os.PathLike, *, chunks: int = NBAR_CHUNK) -> dict:
+    """A product (:func:`find_products`) as the files of one scene, for ``fit-classes`` and ``correct``.
 
     The product's bands are stacked, masked and scaled as ``brdfcorr nbar`` stacks them: a GDAL
     virtual raster (and its mask) written into the folder ``scratch``
     (:func:`brdfcorr.io.sensors.folders.write_stack`, nothing copied); the angles are the
     product's own source. The scene then reads the values that :func:`open_products` gives for
     that date (a test compares a fit and a correction with the accessor's, value for value).
+    The product's metadata is not read again: it is the product found for the run.
 
     Parameters
     ----------
-    path : path-like
-        A Sentinel-2 L2A SAFE folder, a Landsat Collection-2 L2 folder or a Sentinel-2 STAC item.
+    product : ProductFolder
+        A Sentinel-2 L2A SAFE folder, a Landsat Collection-2 L2 folder or a Sentinel-2 STAC item,
+        as found (:func:`find_products`, :func:`brdfcorr.tasks.nbar.find_product_or_item`).
     scratch : path-like
         An existing folder for the stack; the caller removes it after the fit or correction.
-    chunks, resolution, bands, masked :
-        As for :func:`open_products`.
+    chunks : int
+        Block size [pixels] of the stack's mask file, as for :func:`open_products`.
 
     Returns
     -------
-    sources : dict
+    dict
         Keywords of :class:`brdfcorr.io.scene.SceneSources` (without ``classes``): ``image`` (the
-        stack), ``label`` (``path`` as given: errors and reports name the product, not the scratch
-        stack), ``angles``, ``angles_kind``, ``angle_options`` and, where every band has the same,
-        the product's ``scale`` and ``offset`` (reflectance = DN x scale + offset).
-    product : ProductFolder
-        The product read (its ``files``, for the output guard).
+        stack), ``label`` (the product's path as given: errors and reports name the product, not
+        the scratch stack), ``angles``, ``angles_kind``, ``angle_options`` and, where every band
+        has the same, the product's ``scale`` and ``offset`` (reflectance = DN x scale + offset).
     """
-    refuse_archive(path)
-    product = find_product_or_item(path, resolution=resolution, bands=bands, masked=masked)
     folder = Path(scratch) / f"{len(list(Path(scratch).iterdir()))}"  # one per product: the names may repeat
     folder.mkdir()
-    stack = write_stack(product, folder / f"{Path(path).name}.vrt", chunks=chunks)
+    stack = write_stack(product, folder / f"{product.path.name}.vrt", chunks=chunks)
     scales, offsets = set(product.scales), set(product.offsets)
     known = {"scale": scales.pop(), "offset": offsets.pop()} if len(scales) == len(offsets) == 1 else {}
-    return {"image": stack, "label": str(path), "angles": product.angles, "angles_kind": product.angles_kind,
-            "angle_options": dict(product.angle_options), **known}, product
+    return {"image": stack, "label": str(product.path), "angles": product.angles, "angles_kind": product.angles_kind,
+            "angle_options": dict(product.angle_options), **known}
