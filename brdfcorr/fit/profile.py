@@ -10,6 +10,7 @@ left) is what the shape search minimizes (:mod:`brdfcorr.fit.shape_search`). Wit
 from __future__ import annotations
 
 import copy
+import functools
 import itertools
 import math
 from collections.abc import Mapping
@@ -24,6 +25,16 @@ from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model
 
 __all__ = ["geometry_bins"]
+
+
+@functools.cache
+def _faces(m: int) -> tuple[dict[int, tuple[np.ndarray, np.ndarray]], int]:
+    """The faces of the constraint box of ``m`` linear terms (the non-empty sets of free terms), in
+    the order of ``itertools.product((False, True), repeat=m)``, by size k: their positions in
+    that order and their (F_k, k) term indices; and how many there are."""
+    order = [np.flatnonzero(free) for free in itertools.product((False, True), repeat=m) if any(free)]
+    return {k: (np.array([i for i, face in enumerate(order) if face.size == k]),
+                np.array([face for face in order if face.size == k])) for k in range(1, m + 1)}, len(order)
 
 
 class _LinearProfile:
@@ -133,42 +144,44 @@ class _LinearProfile:
         Least squares with the terms whose lower bound is 0 kept >= 0 (those with lower bound -inf
         are free), exactly: where the unconstrained solution keeps them >= 0 in every band it is
         the answer; else every face of the constraint box (which terms are free) is solved from
-        the normal equations and the best feasible one kept per band (at most 2^m - 1 small solves
-        for m <= 3 terms, all bands at once). Terms the geometry cannot tell apart (a near-singular
-        face) are left at 0. The data enter through one product ``design.T @ data``.
+        the normal equations and the best feasible one kept per band (2^m - 1 small solves, all
+        faces of a size and all bands at once). Terms the geometry cannot tell apart (a
+        near-singular face) are left at 0. The data enter through one product ``design.T @ data``.
         """
         gram, cross = self.products(design)
-        m = cross.shape[0]
-        everything = np.arange(m)
-        found = self._face(gram, cross, everything)
-        if found is not None and found[1].all():  # the unconstrained optimum is feasible: the optimum
-            return found[0], np.maximum(found[2], 0.0)
-        best = np.zeros(cross.shape)
-        best_ssr = self.sum_yy.copy()  # every coefficient 0
-        for free in itertools.product((False, True), repeat=m):
-            index = np.flatnonzero(free)
-            face = found if index.size == m else self._face(gram, cross, index) if index.size else None
-            if face is None:
-                continue
-            values, feasible, ssr = face
-            better = feasible & (ssr < best_ssr - 1e-12 * np.abs(best_ssr))
-            if better.any():
-                best[:, better] = 0.0
-                best[np.ix_(index, better)] = values[:, better]
-                best_ssr = np.where(better, ssr, best_ssr)
+        m, n_bands = cross.shape
+        by_size, count = _faces(m)
+        everything = by_size[m][1]
+        full = self._solved(gram, cross, everything)
+        if full[1].all():  # the unconstrained optimum is feasible in every band: the optimum
+            return full[0][0], np.maximum(full[2][0], 0.0)
+        coefficients = np.zeros((count, m, n_bands))
+        feasible, ssr = np.zeros((count, n_bands), dtype=bool), np.empty((count, n_bands))
+        for size, (positions, faces) in by_size.items():
+            values, feasible[positions], ssr[positions] = full if size == m else self._solved(gram, cross, faces)
+            coefficients[positions[:, None], faces] = values
+        # Per band the first face (in itertools.product order) of least ssr, by more than rounding.
+        winner, best_ssr = np.full(n_bands, -1), self.sum_yy.copy()  # -1: every coefficient 0
+        for face in range(count):
+            better = feasible[face] & (ssr[face] < best_ssr - 1e-12 * np.abs(best_ssr))
+            winner, best_ssr = np.where(better, face, winner), np.where(better, ssr[face], best_ssr)
+        best = np.where(winner >= 0, coefficients[winner, :, np.arange(n_bands)].T, 0.0)
         return best, np.maximum(best_ssr, 0.0)
 
-    def _face(self, gram: np.ndarray, cross: np.ndarray, index: np.ndarray):
-        """The least-squares coefficients (k, B) of the terms ``index`` alone (the others 0), whether
-        they are feasible per band (B,) and the sums of squared residuals left (B,); None where
-        those terms are (nearly) collinear (condition number of the scaled Gram matrix > 1e12)."""
-        sub = gram[np.ix_(index, index)]
-        scale = np.sqrt(np.diag(sub))
-        if not np.all(scale > 0) or np.linalg.cond(sub / np.outer(scale, scale)) > 1e12:
-            return None
-        values = np.linalg.solve(sub, cross[index])  # (k, B)
-        feasible = np.all((values >= 0) | ~self.nonnegative[index, None], axis=0)
-        return values, feasible, self.sum_yy - np.einsum("kb,kb->b", values, cross[index])  # at the face optimum
+    def _solved(self, gram: np.ndarray, cross: np.ndarray, faces: np.ndarray):
+        """For faces of k terms each ((F, k) term indices; the others 0): their least-squares
+        coefficients (F, k, B), whether they are feasible per band (F, B) and the sums of squared
+        residuals left (F, B). A face whose terms are (nearly) collinear (condition number of the
+        scaled Gram matrix > 1e12) is never feasible."""
+        sub = gram[faces[:, :, None], faces[:, None, :]]  # (F, k, k)
+        scale = np.sqrt(np.diagonal(sub, axis1=1, axis2=2))
+        usable = np.all(scale > 0, axis=1)
+        usable[usable] = ~(np.linalg.cond(sub[usable] / (scale[usable, :, None] * scale[usable, None, :])) > 1e12)
+        values = np.zeros(faces.shape + cross.shape[1:])
+        if usable.any():
+            values[usable] = np.linalg.solve(sub[usable], cross[faces[usable]])
+        feasible = usable[:, None] & np.all((values >= 0) | ~self.nonnegative[faces][:, :, None], axis=1)
+        return values, feasible, self.sum_yy - np.einsum("fkb,fkb->fb", values, cross[faces])  # at each face's optimum
 
     def objective(self, shape: Mapping[str, float]) -> float:
         return float(self.solve(self.design(shape))[1] @ self.weights)
