@@ -27,6 +27,7 @@ References
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import warnings
@@ -143,6 +144,29 @@ class _Problem:
             values = self.model.kernel(self.geometry, **self.fixed, **dict(zip(self.free, x)))
             residuals = (np.asarray(values, dtype=float) - self.data) * self.weights
         return np.where(np.isfinite(residuals), residuals, _NON_FINITE_RESIDUAL)
+
+    @functools.cached_property
+    def _columns(self) -> ScatteringGeometry:
+        """The measurements' geometry as (N, 1) columns, against which a row of parameter values
+        broadcasts."""
+        return ScatteringGeometry(*(np.asarray(angle)[:, None] for angle in
+                                    (self.geometry.theta_i, self.geometry.theta_r, self.geometry.phi)))
+
+    def residual_rows(self, _function, points) -> np.ndarray:
+        """:meth:`weighted_residuals` at many values of the free parameters at once: one row (N,)
+        per point, from one model evaluation over (N, points) (the models are elementwise, so each
+        row is what :meth:`weighted_residuals` gives at its point, value for value).
+
+        The ``workers`` map of :func:`scipy.optimize.least_squares`, which evaluates the points of
+        a finite-difference Jacobian through it (``workers(function, points)``; ``function`` is
+        :meth:`weighted_residuals` as scipy wraps it, computed here in one pass instead).
+        """
+        values = np.array(list(points), dtype=float)  # (Y, P)
+        with np.errstate(all="ignore"):
+            model = self.model.kernel(self._columns, **self.fixed, **dict(zip(self.free, values.T)))
+            model = np.broadcast_to(np.asarray(model, dtype=float), (self.data.size, len(values)))
+            residuals = (model - self.data[:, None]) * self.weights[:, None]
+        return np.where(np.isfinite(residuals), residuals, _NON_FINITE_RESIDUAL).T
 
 
 def _scalar(value, what: str) -> float:
@@ -405,7 +429,7 @@ def _best_solution(problem: _Problem, starts: list[np.ndarray]):
         try:
             solution = least_squares(
                 problem.weighted_residuals, start, bounds=(problem.lower, problem.upper), x_scale="jac",
-                method="trf",
+                method="trf", workers=problem.residual_rows,  # the Jacobian's points in one model call
             )
         except (ValueError, np.linalg.LinAlgError):  # a start where the model is not finite
             continue

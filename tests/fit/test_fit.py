@@ -12,13 +12,14 @@ from brdfcorr.fit.goniometer import (
     ErrorAnalysis,
     FitWarning,
     NonIdentifiableWarning,
+    _problem,
     fit_brdf,
     fit_measurements,
     format_with_error,
 )
 from brdfcorr.fit.measurements import filter_measurements, goniometer_angles, synthesize_measurements
 from brdfcorr.geometry import ScatteringGeometry
-from brdfcorr.models import get_model
+from brdfcorr.models import REGISTRY, get_model
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 
@@ -425,3 +426,22 @@ def test_fit_wavelengths_needs_a_wavelength_column(roof_tile_fit):
     _, data, _ = roof_tile_fit
     with pytest.raises(FitError, match="no wavelength column"):
         fit_wavelengths("torrance_sparrow", data)
+
+
+@pytest.mark.parametrize("name", sorted(REGISTRY))
+def test_the_jacobians_batched_evaluations_are_the_single_ones_value_for_value(name):
+    # least_squares evaluates a finite-difference Jacobian's points through `workers`: the batched
+    # evaluation (one model call over every point) must give each point's residuals exactly as
+    # the one-point function does, or the fits would depend on how the points were grouped.
+    model = get_model(name)
+    rng = np.random.default_rng(5)
+    theta_i, theta_r, phi = goniometer_angles()
+    defaults = {parameter.name: parameter.default for parameter in model.parameters}
+    brdf = model(theta_i, theta_r, phi, **defaults) * (1 + 0.05 * rng.standard_normal(theta_i.size))
+    problem, _, _ = _problem(model, (theta_i, theta_r, phi, brdf, None), None, None, None)
+    low, high = np.clip(problem.lower, -5, 5), np.clip(problem.upper, -5, 5)
+    points = [low + (high - low) * rng.uniform(0.05, 0.95, low.size) for _ in range(6)]
+    rows = problem.residual_rows(None, iter(points))
+    assert rows.shape == (len(points), brdf.size)
+    for point, row in zip(points, rows):
+        np.testing.assert_array_equal(row, problem.weighted_residuals(point))
