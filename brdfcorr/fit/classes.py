@@ -54,7 +54,7 @@ from brdfcorr.fit.settings import (
     fallback_entry,
 )
 from brdfcorr.fit.shapes import DEFAULT_FIXED, SEARCH_RANGES, intensity_terms, search_range
-from brdfcorr.fit.solver import fit_class_samples
+from brdfcorr.fit.solver import GRID_POINTS, fit_class_samples
 from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model, get_model
 from brdfcorr.params import ParameterTable
@@ -192,8 +192,8 @@ def _suggest_model(report: ClassFit, model: Model, samples: ClassSamples) -> Non
 
 def fit_one_class(class_id: int, name: str, model: str | Model, samples: ClassSamples, *,
                   fixed: Mapping[str, float] | None = None, guard: GuardRails = GuardRails(),
-                  fallback: str | None = None, grid_points: int = 9, prior: tuple[ShapePrior, np.ndarray] | None = None,
-                  pool_if_alike: bool = False) -> ClassFit:
+                  fallback: str | None = None, grid_points: int = GRID_POINTS,
+                  prior: tuple[ShapePrior, np.ndarray] | None = None, pool_if_alike: bool = False) -> ClassFit:
     """Fit one class's samples and apply the guard rails (see :func:`fit_class_samples`).
 
     A class that fails a guard rail, or fits poorly (median R^2 < :data:`POOR_R2`), is also fitted with
@@ -219,7 +219,7 @@ def fit_one_class(class_id: int, name: str, model: str | Model, samples: ClassSa
     fallback : str, optional
         Built-in material or coefficient set used when the fit fails its guard rails
         (:func:`brdfcorr.fit.settings.fallback_entry`; None: left uncorrected).
-    grid_points : int, default 9
+    grid_points : int, default :data:`brdfcorr.fit.solver.GRID_POINTS`
         Coarse-grid points per free shape parameter.
     prior : (ShapePrior, ndarray), optional
         A shape prior and its ratios f_vol/f_iso, f_geo/f_iso per band (n_bands, 2;
@@ -451,7 +451,7 @@ def _thinned(samples: ClassSamples, keep: int) -> ClassSamples:
 
 def fit_classes(images, classes, angles, models: ClassModels | str | Model = ClassModels(), *,
                 sampling: Sampling = Sampling(), wavelengths: Sequence[float] | None = None,
-                guard: GuardRails = GuardRails(), grid_points: int = 9, progress=None,
+                guard: GuardRails = GuardRails(), progress=None,
                 source: str = "brdfcorr.fit.fit_classes", clusters=None) -> ClassFitResult:
     """Fit a BRDF model per class (shape per class, intensities per band) from imagery.
 
@@ -480,8 +480,6 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         Minimum samples, view-zenith spread, conditioning and R^2 a class must meet, with its
         shape parameters inside their search ranges. A class that fails, or fits poorly, gets a
         suggested better model in its report if another one explains clearly more.
-    grid_points : int, default 9
-        Coarse-grid points per free shape parameter.
     progress : callable, optional
         Called as ``progress(class_id)`` after each class (e.g. a progress bar's update).
     source : str, default "brdfcorr.fit.fit_classes"
@@ -522,7 +520,7 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         samples.scene_errors = sampling.errors_cluster == "two-way"
         fit = fit_one_class(
             class_id, models.name_of(class_id), models.model_of(class_id), samples,
-            fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id), grid_points=grid_points,
+            fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id),
             prior=prior, pool_if_alike=sampling.levels == "auto",
         )
         if samples.note is not None:

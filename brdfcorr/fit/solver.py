@@ -43,7 +43,7 @@ from brdfcorr.fit.two_way import TwoWayClusters
 from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model
 
-__all__ = ["fit_class_samples", "Held", "LEVEL_ITERATIONS", "UNCONSTRAINED_T"]
+__all__ = ["fit_class_samples", "Held", "GRID_POINTS", "LEVEL_ITERATIONS", "SEARCH_SAMPLES", "UNCONSTRAINED_T"]
 
 
 def _condition(design: np.ndarray) -> float:
@@ -61,9 +61,17 @@ def _condition(design: np.ndarray) -> float:
 LEVEL_ITERATIONS = 3
 
 
+#: Points per free shape parameter of the coarse search grid of a class fit (at most
+#: :data:`brdfcorr.fit.shape_search.MAX_GRID_POINTS` in all).
+GRID_POINTS = 9
+#: Samples of the coarse shape search (a seeded subsample); the optimum is then polished and the
+#: errors computed on all samples.
+SEARCH_SAMPLES = 20_000
+
+
 def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed: Mapping[str, float] | None = None,
-                      grid_points: int = 9, search_samples: int = 20_000, clusters=None,
-                      levels: Levels | None = None, scenes=None) -> dict:
+                      grid_points: int = GRID_POINTS, clusters=None, levels: Levels | None = None,
+                      scenes=None) -> dict:
     """Fit one class: shape parameters shared by all bands, intensity terms per band. Without free
     shape parameters (kernel-driven models, Lambertian) the fit is one weighted linear least-squares
     solve: no search, no Newton steps.
@@ -79,11 +87,9 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
     fixed : mapping, optional
         Shape parameters held fixed (default: k = 0.25 for the Torrance-Sparrow models, as paper 003
         did). Intensity terms cannot be fixed.
-    grid_points : int, default 9
-        Points per free shape parameter in the coarse search grid.
-    search_samples : int, default 20000
-        Samples used for the coarse search (a seeded subsample); the optimum is then polished and the
-        errors computed on all samples.
+    grid_points : int, default :data:`GRID_POINTS`
+        Points per free shape parameter in the coarse search grid (on :data:`SEARCH_SAMPLES` of the
+        samples at most).
     clusters : array-like of int, shape (N,), optional
         A cluster id per sample (e.g. its spatial block). Errors are then cluster-robust: samples of one
         cluster may share their errors (spatially correlated albedo, texture). Without clusters the
@@ -130,7 +136,7 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
     profile = _profile(model, *samples, fixed, levels=levels)
     if levels is not None and not profile.terms and not free:  # the level alone (Lambertian): nothing within
         levels, profile = None, _profile(model, *samples, fixed)
-    coarse = _coarse_shape(model, fixed, free, samples, search_samples, grid_points, full=profile)[1] if free else {}
+    coarse = _coarse_shape(model, fixed, free, samples, SEARCH_SAMPLES, grid_points, full=profile)[1] if free else {}
     shape = _newton_polish(profile, coarse) if free else {}
     profile, shape, solution = _solve_with_levels(profile, shape, samples, free)
     held_profile, held_shape, held_solution, held = _hold_unconstrained(profile, shape, solution, spatial)
