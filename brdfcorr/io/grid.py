@@ -13,6 +13,7 @@ grid to contradict the image's; it is on the grid when its shape is.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import NamedTuple
 
 import numpy as np
 import rioxarray  # noqa: F401  (registers the .rio accessor)
@@ -27,12 +28,20 @@ __all__ = ["TOLERANCE", "grid_difference", "check_same_grid", "describe_layer"]
 TOLERANCE = 1e-6
 
 
-def _shape(layer: xr.DataArray) -> tuple[int, int]:
-    return tuple(layer.shape[-2:])  # type: ignore[return-value]
+class _Grid(NamedTuple):
+    """What the grid check compares of a layer, read once per check (rioxarray works the
+    transform out from the coordinates at each call)."""
+
+    shape: tuple[int, int]  # rows, columns
+    crs: object  # None without one
+    transform: tuple[float, ...] | None  # the six coefficients; None without any georeference
 
 
-def _georeferenced(layer: xr.DataArray) -> bool:
-    return layer.rio.crs is not None or any(dim in layer.coords for dim in layer.dims[-2:])
+def _grid(layer: xr.DataArray) -> _Grid:
+    crs = layer.rio.crs
+    georeferenced = crs is not None or any(dim in layer.coords for dim in layer.dims[-2:])
+    return _Grid(tuple(layer.shape[-2:]), crs,  # type: ignore[arg-type]
+                 tuple(layer.rio.transform())[:6] if georeferenced else None)
 
 
 def grid_difference(layer: xr.DataArray, base: xr.DataArray) -> str | None:
@@ -43,17 +52,19 @@ def grid_difference(layer: xr.DataArray, base: xr.DataArray) -> str | None:
     :data:`TOLERANCE` of ``base``'s pixel size. A layer without any georeference (module docstring)
     is compared by its shape only.
     """
-    if _shape(layer) != _shape(base):
-        return f"shape (rows, columns) {_shape(layer)} differs from {_shape(base)}"
-    if not (_georeferenced(layer) and _georeferenced(base)):
+    return _difference(_grid(layer), _grid(base))
+
+
+def _difference(grid: _Grid, base: _Grid) -> str | None:
+    if grid.shape != base.shape:
+        return f"shape (rows, columns) {grid.shape} differs from {base.shape}"
+    if grid.transform is None or base.transform is None:
         return None
-    crs, base_crs = layer.rio.crs, base.rio.crs
-    if crs != base_crs:
-        return f"CRS {crs} differs from {base_crs}"
-    transform, base_transform = layer.rio.transform(), base.rio.transform()
-    pixel = max(abs(base_transform.a), abs(base_transform.e), 1e-12)
-    if not np.allclose(tuple(transform)[:6], tuple(base_transform)[:6], rtol=0, atol=TOLERANCE * pixel):
-        return f"transform {tuple(transform)[:6]} differs from {tuple(base_transform)[:6]}"
+    if grid.crs != base.crs:
+        return f"CRS {grid.crs} differs from {base.crs}"
+    pixel = max(abs(base.transform[0]), abs(base.transform[4]), 1e-12)
+    if not np.allclose(grid.transform, base.transform, rtol=0, atol=TOLERANCE * pixel):
+        return f"transform {grid.transform} differs from {base.transform}"
     return None
 
 
@@ -65,14 +76,13 @@ def describe_layer(name: str, layer: xr.DataArray) -> str:
     return f"{name} ({source})" if source else name
 
 
-def _check_finite_transform(name: str, layer: xr.DataArray) -> None:
+def _check_finite_transform(name: str, layer: xr.DataArray, grid: _Grid) -> None:
     """A georeferenced layer whose transform holds NaN or inf has no grid at all: say so (it was
     reported as "not on the grid" of the image)."""
-    if layer.rio.crs is None and not all(dim in layer.coords for dim in layer.dims[-2:]):
+    if grid.transform is None or (grid.crs is None and not all(dim in layer.coords for dim in layer.dims[-2:])):
         return
-    coefficients = tuple(layer.rio.transform())[:6]
-    if not np.all(np.isfinite(coefficients)):
-        shown = ", ".join(f"{value:g}" for value in coefficients)
+    if not np.all(np.isfinite(grid.transform)):
+        shown = ", ".join(f"{value:g}" for value in grid.transform)
         raise InputError(f"{describe_layer(name, layer)}: its geotransform ({shown}) holds non-finite values")
 
 
@@ -94,11 +104,11 @@ def check_same_grid(layers: Mapping[str, xr.DataArray], reference: str | None = 
         A layer whose geotransform holds NaN or inf.
     """
     reference = reference or next(iter(layers))
-    base = layers[reference]
+    grids = {name: _grid(layer) for name, layer in layers.items()}
     for name, layer in layers.items():
-        _check_finite_transform(name, layer)
+        _check_finite_transform(name, layer, grids[name])
     for name, layer in layers.items():
-        difference = None if name == reference else grid_difference(layer, base)
+        difference = None if name == reference else _difference(grids[name], grids[reference])
         if difference is not None:
-            where = describe_layer(reference, base)
+            where = describe_layer(reference, layers[reference])
             raise GridMismatchError(f"{describe_layer(name, layer)} is not on the grid of {where}: {difference}")
