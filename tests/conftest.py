@@ -5,6 +5,7 @@ overlapping flight lines, scaled integer images."""
 
 from __future__ import annotations
 
+import collections
 import re
 import shutil
 import sys
@@ -416,3 +417,20 @@ def landcover(tmp_path_factory) -> Path:
     make_landcover.main([str(paths["classes"]), str(root / "landcover.tif")])
     shutil.copy(_ROOT / "examples" / "worldcover_lookup.yaml", root / "lookup.yaml")
     return root
+
+
+@pytest.fixture
+def identified(monkeypatch) -> collections.Counter:
+    """How often each SAFE folder is identified (its MTD_MSIL2A.xml read into a ProductFolder:
+    :func:`brdfcorr.io.sensors.folders.find_sentinel2_l2a`, which every way of finding a SAFE takes)."""
+    import brdfcorr.io.sensors.folders as folders
+
+    counts: collections.Counter = collections.Counter()
+    original = folders.find_sentinel2_l2a
+
+    def counting(path, **options):
+        counts[Path(path).name] += 1
+        return original(path, **options)
+
+    monkeypatch.setattr(folders, "find_sentinel2_l2a", counting)
+    return counts

@@ -6,7 +6,6 @@ fit-classes SAFE1 SAFE2 ... --classes MAP`` fits the dates at once, each pixel's
 from __future__ import annotations
 
 import shutil
-from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -208,23 +207,6 @@ def test_fit_classes_and_correct_refuse_to_write_over_a_landsat_band(invoke, tmp
 
 
 # ------------------------------------------------------- a product is identified once per run (issue 42)
-
-
-@pytest.fixture
-def identified(monkeypatch) -> Counter:
-    """How often each SAFE folder is identified (its MTD_MSIL2A.xml read into a ProductFolder:
-    :func:`brdfcorr.io.sensors.folders.find_sentinel2_l2a`, which every way of finding a SAFE takes)."""
-    import brdfcorr.io.sensors.folders as folders
-
-    counts: Counter = Counter()
-    original = folders.find_sentinel2_l2a
-
-    def counting(path, **options):
-        counts[Path(path).name] += 1
-        return original(path, **options)
-
-    monkeypatch.setattr(folders, "find_sentinel2_l2a", counting)
-    return counts
 
 
 def test_correct_and_fit_classes_identify_each_product_once(series, table, invoke, identified, tmp_path):

@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -238,22 +237,11 @@ def test_process_workers_read_the_runs_stacks(copy, scratch):
     assert not _stacks(scratch)
 
 
-def test_each_product_is_identified_once_per_run(copy, scratch, monkeypatch):
+def test_each_product_is_identified_once_per_run(copy, scratch, identified):
     """The plan finds each product (its metadata read: MTD_MSIL2A.xml, the files, the angle source)
     and the run stacks its bands from the product the scene carries: one identification per folder
-    and run (issue 42), here counted where every way of finding a SAFE passes
-    (:func:`brdfcorr.io.sensors.folders.find_sentinel2_l2a`)."""
-    import brdfcorr.io.sensors.folders as folders
-
-    counts: Counter = Counter()
-    original = folders.find_sentinel2_l2a
-
-    def counting(path, **options):
-        counts[Path(path).name] += 1
-        return original(path, **options)
-
-    monkeypatch.setattr(folders, "find_sentinel2_l2a", counting)
+    and run (issue 42), counted where every way of finding a SAFE passes (``identified``)."""
     report = run_chain(_chain(copy))
     assert report.ok, report.scenes
-    assert counts == {folder.name: 1 for folder in (copy / "tiles").glob("*.SAFE")}
-    assert len(counts) == 3
+    assert identified == {folder.name: 1 for folder in (copy / "tiles").glob("*.SAFE")}
+    assert len(identified) == 3
