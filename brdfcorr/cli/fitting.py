@@ -78,11 +78,12 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     from brdfcorr.fit.settings import fallback_entry
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.fit import SceneFiles, fit_class_files
-    from brdfcorr.tasks.series import find_products, products_among, stacked_products
+    from brdfcorr.tasks.series import find_products, product_files, products_among, stacked_products
 
     products = products_among(images, {"--angles": angles, "--angles-kind": angles_kind != "geotiff",
                                        "--angle-option": angle_option, "--scale": scale is not None,
                                        "--offset": offset is not None})
+    found = find_products(images) if products else []  # identified once: the output guard and the stacks use them
     if products:
         classes = classes * len(images) if len(classes) == 1 else classes
         angles = tuple(str(image) for image in images)  # the products' own sources, for the checks below
@@ -97,8 +98,10 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     written = {"-o": output, "--report": report_path}
     read = [*(("IMAGES", path) for path in images), *(("--classes", path) for path in classes),
             *(("--angles", path) for path in angles if angles_kind != "solar"), ("--class-lookup", class_lookup),
-            *(("--clusters", path) for path in cluster_layers)]
+            *(("--clusters", path) for path in cluster_layers), *product_files(found)]  # a product's files too
     check_outputs(written, read)
+    if not overwrite:  # before the stacking and the fit: their work is not wasted on an output that would be refused
+        refuse_existing(written.values())
     if fallback:
         fallback_entry(fallback, 1, "check")  # fail before the work if the name is wrong
     shape_prior = prior_setting(prior, prior_spread)
@@ -108,27 +111,24 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
         click.echo("brdfcorr: warning: --name is deprecated; use --class-name ID=NAME", err=True)
     class_names = {**dict(deprecated_names), **dict(names)}
     ranges = WATER_VAPOUR_BANDS if not bad_bands else tuple(item for item in bad_bands if item is not None)
-    found = find_products(images) if products else []  # identified once: the guard and the stacks use them
-    read += _guard_outputs(written, read, found, overwrite)
-    with stacked_products(found) if products else contextlib.nullcontext([]) as stacked:
+    # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes fitted.
+    with stacked_products(found) if products else contextlib.nullcontext([]) as stacked, \
+            progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
         files = stacked if products else [
             {"image": image, "angles": angle_source, "angles_kind": angles_kind, "angle_options": options,
              "scale": scale, "offset": offset} for image, angle_source in zip(images, angles)]
-        # One bar over the dask passes (the checks, the class maps, angles and samples read), one over the classes.
-        with progress_bars(progress, "fit-classes"), class_bar(progress, "fit classes") as fitted:
-            fit = fit_class_files(
-                [SceneFiles(classes=class_map, align_classes=align_classes, class_lookup=lookup,
-                            clusters=(cluster_layers[index], cluster_band) if cluster_layers else None, **sources)
-                 for index, (sources, class_map) in enumerate(zip(files, classes))],
-                ClassModels(model_name, class_models=dict(class_model),
-                            fixed=dict(fix) or None, fallback=fallback, names=class_names,
-                            prior=shape_prior),
-                sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
-                                  levels=levels, patch_size=patch_size, errors_cluster=errors_cluster),
-                guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread,
-                                 max_condition=max_condition),
-                progress=fitted,
-            )
+        fit = fit_class_files(
+            [SceneFiles(classes=class_map, align_classes=align_classes, class_lookup=lookup,
+                        clusters=(cluster_layers[index], cluster_band) if cluster_layers else None, **sources)
+             for index, (sources, class_map) in enumerate(zip(files, classes))],
+            ClassModels(model_name, class_models=dict(class_model),
+                        fixed=dict(fix) or None, fallback=fallback, names=class_names,
+                        prior=shape_prior),
+            sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
+                              levels=levels, patch_size=patch_size, errors_cluster=errors_cluster),
+            guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
+            progress=fitted,
+        )
     plots = _class_plot_files(fit.result.fits, plot_dir) if plot_dir else {}
     check_outputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)
     for message in fit.warnings:
@@ -155,23 +155,6 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     if plot_dir:
         _plot_class_fits(fit, plots)
         click.echo(f"wrote plots to {plot_dir}")
-
-
-def _guard_outputs(written: dict, read: list, products: list, overwrite: bool) -> list:
-    """The output guard of ``fit-classes`` before the stacking and the fit (their work is not wasted
-    on an output that would be refused): the outputs checked against the files of the ``products``
-    found for the run too (bands,
-    masks, angle files: inputs, never overwritten, :func:`brdfcorr.tasks.series.product_files`),
-    and, without ``overwrite``, refused where they exist. Returns those files (for the later
-    check of the plots)."""
-    from brdfcorr.tasks.series import product_files
-
-    found = product_files(products)
-    if found:
-        check_outputs(written, [*read, *found])
-    if not overwrite:
-        refuse_existing(written.values())
-    return found
 
 
 def _class_plot_files(fits, plot_dir: Path) -> dict[tuple[int, str], Path]:
