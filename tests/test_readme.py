@@ -2,7 +2,9 @@
 
 The commands are taken from each page's ```bash blocks in order (``make`` targets excepted: they
 build the environment this test runs in) and run with the package's ``brdfcorr`` on the PATH, in a
-scratch directory that links the repository's ``configs/`` and ``examples/``.
+scratch directory that links the repository's ``configs/`` and ``examples/`` (``brdfcorr`` and
+``python script.py`` commands in processes forked from one that has imported the package:
+:func:`run_commands`).
 
 A page's commands fall into groups (:data:`GROUPS`): a group is the commands from its first one up
 to the next group's first, run in order in a directory of its own that starts as a copy of what the
@@ -21,14 +23,17 @@ it (its output cannot differ).
 from __future__ import annotations
 
 import fcntl
+import glob
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 from typing import NamedTuple
 
+import _forked
 import pytest
 
 ROOT = Path(__file__).parents[1]
@@ -113,15 +118,42 @@ README_COMMANDS = {command: key for key, group in ALL_GROUPS.items() if group.pa
 ALL_GROUPS["README.md"] = Group("README.md", (), tuple(key for key in ALL_GROUPS if key.startswith("README.md:")))
 
 
+#: Shell syntax beyond words and globs: such a command runs in a shell.
+_SHELL_SYNTAX = re.compile(r"[|&;<>()$`\\\n]")
+
+
+def _argv(command: str, directory: Path) -> list[str] | None:
+    """The arguments of a ``brdfcorr ...`` or ``python script.py ...`` command with no shell syntax
+    but globs, expanded as the shell would (sorted; a glob that matches nothing stays as written),
+    else None (the command runs in a shell)."""
+    if _SHELL_SYNTAX.search(command):
+        return None
+    words = shlex.split(command)
+    if words[0] != "brdfcorr" and not (words[0] == "python" and len(words) > 1 and words[1].endswith(".py")):
+        return None
+    expanded = []
+    for word in words:
+        matches = sorted(glob.glob(word, root_dir=directory)) if glob.has_magic(word) else []
+        expanded.extend(matches or [word])
+    return expanded
+
+
 def run_commands(commands, directory: Path) -> None:
-    """Run commands in order in ``directory`` (linking the repository's configs/ and examples/)."""
+    """Run commands in order in ``directory`` (linking the repository's configs/ and examples/).
+
+    A ``brdfcorr`` or ``python script.py`` command without shell syntax runs in a process forked
+    from a server that has imported the package (tests/_forked.py: the same console-script entry
+    point, without 2 s of imports a command); any other runs in a shell.
+    """
     for name in ("configs", "examples"):
         if not (directory / name).exists():
             (directory / name).symlink_to(ROOT / name)
     environment = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     for command in commands:
-        result = subprocess.run(command, shell=True, cwd=directory, env=environment, capture_output=True, text=True,
-                                timeout=600)
+        argv = _argv(command, directory)
+        result = (_forked.run(argv, cwd=directory, timeout=600) if argv is not None else
+                  subprocess.run(command, shell=True, cwd=directory, env=environment, capture_output=True, text=True,
+                                 timeout=600))
         assert result.returncode == 0, f"{command}\n{result.stdout}\n{result.stderr}"
 
 

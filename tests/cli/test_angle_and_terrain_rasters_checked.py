@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
+import _forked
 import numpy as np
 import pytest
 import rasterio
@@ -63,9 +62,8 @@ def _random_surface(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 def _cli(args) -> tuple[int, str]:
     """The installed command in its own process: stderr is everything written to it, GDAL's own
     lines included."""
-    command = [str(Path(sys.executable).parent / "brdfcorr"), *map(str, args)]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=300)
-    return result.returncode, result.stderr
+    finished = _forked.run(["brdfcorr", *args])
+    return finished.returncode, finished.stderr
 
 
 def test_truncated_angle_raster(scene, refused, correct_args):

@@ -18,12 +18,11 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import subprocess
-import sys
 import tracemalloc
 from functools import partial
 from pathlib import Path
 
+import _forked
 import numpy as np
 import pytest
 
@@ -71,9 +70,8 @@ def _chain(scene, text: str | None = None, **sections) -> Path:
 def _subprocess(args: list, cwd: Path | None = None) -> tuple[int, str]:
     """The command line in its own process, killed after :data:`HANG_GUARD` (a FIFO cannot hang
     the test run): the exit code and stderr."""
-    result = subprocess.run([sys.executable, "-c", "from brdfcorr.cli import main; main()", *map(str, args)],
-                            capture_output=True, text=True, timeout=HANG_GUARD, cwd=cwd)
-    return result.returncode, result.stderr
+    finished = _forked.run(["brdfcorr", *args], cwd=cwd, timeout=HANG_GUARD)
+    return finished.returncode, finished.stderr
 
 
 # ------------------------------------------------------------------------ parameter tables (correct)

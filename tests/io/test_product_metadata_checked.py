@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
+import _forked
 import numpy as np
 import pytest
 import rasterio
@@ -29,9 +28,8 @@ HANG_GUARD = 60
 
 def _subprocess(args: list) -> tuple[int, str]:
     """The command line in its own process, killed after :data:`HANG_GUARD`: exit code, stderr."""
-    result = subprocess.run([sys.executable, "-c", "from brdfcorr.cli import main; main()", *map(str, args)],
-                            capture_output=True, text=True, timeout=HANG_GUARD)
-    return result.returncode, result.stderr
+    finished = _forked.run(["brdfcorr", *args], timeout=HANG_GUARD)
+    return finished.returncode, finished.stderr
 
 
 def _edit(path: Path, old: str, new: str, count: int = 1) -> None:

@@ -18,13 +18,10 @@ import errno
 import logging
 import os
 import re
-import resource
 import shutil
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
+import _forked
 import dask
 import numpy as np
 import pytest
@@ -41,18 +38,9 @@ from brdfcorr.testing import file_digests, georeference
 # The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
 
 
-def _limited(limit: int):
-    def preexec():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG
-    return preexec
-
-
-def _run(args, limit: int | None = None, cwd=None) -> subprocess.CompletedProcess:
-    """``brdfcorr ARGS`` in a subprocess, under a file size limit [bytes] if given."""
-    return subprocess.run([sys.executable, "-c", "from brdfcorr.cli import main; main()", *map(str, args)],
-                          capture_output=True, text=True, timeout=120, cwd=cwd,
-                          preexec_fn=None if limit is None else _limited(limit))
+def _run(args, limit: int | None = None, cwd=None) -> _forked.Finished:
+    """``brdfcorr ARGS`` in a process of its own, under a file size limit [bytes] if given."""
+    return _forked.run(["brdfcorr", *args], cwd=cwd, timeout=120, file_size_limit=limit)
 
 
 # --------------------------------------------------------------------------------- full disks
