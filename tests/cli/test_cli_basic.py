@@ -1,6 +1,5 @@
-"""The foundation CLI commands: models, materials, demo."""
+"""The foundation CLI commands: models, materials (the demo: tests/workflow/test_demo.py)."""
 
-import matplotlib.image
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
@@ -22,14 +21,6 @@ def test_materials_table_and_unknown_material():
     assert result.exit_code == 2
     assert "unknown material 'asphalt'" in result.output
     assert "Traceback" not in result.output
-
-
-def test_demo_writes_a_png(tmp_path):
-    result = CliRunner().invoke(main, ["demo", "--output-dir", str(tmp_path / "out")])
-    assert result.exit_code == 0, result.output
-    image = matplotlib.image.imread(tmp_path / "out" / "materials_brdf.png")
-    assert image.shape[0] > 400 and image.shape[1] > 800
-    assert not [p for p in (tmp_path / "out").rglob("*") if p.name.endswith(".partial")]  # no temp left
 
 
 def test_atomic_path_leaves_nothing_on_failure_and_uses_the_default_mode(tmp_path):

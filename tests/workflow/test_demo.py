@@ -4,6 +4,7 @@ across-track gradient, the CLI writes what the README promises."""
 import json
 from pathlib import Path
 
+import matplotlib.image
 import numpy as np
 import pandas as pd
 import pvlib
@@ -116,6 +117,9 @@ def test_demo_cli(tmp_path):
                  "corrected/run_report.json", "materials_brdf.png", "demo.yaml", "scene/line01_image.tif"):
         assert (tmp_path / "demo" / name).exists(), name
     assert "1 ok, 0 skipped, 0 failed" in result.output
+    image = matplotlib.image.imread(tmp_path / "demo" / "materials_brdf.png")
+    assert image.shape[0] > 400 and image.shape[1] > 800
+    assert not [path for path in (tmp_path / "demo").rglob("*") if path.name.endswith(".partial")]  # no temp left
     # The copied chain reruns with `brdfcorr run` (and resumes: the scene is complete).
     again = CliRunner().invoke(main, ["run", str(tmp_path / "demo" / "demo.yaml"), "--no-progress"])
     assert again.exit_code == 0 and "0 ok, 1 skipped, 0 failed" in again.output
