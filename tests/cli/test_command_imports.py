@@ -52,3 +52,15 @@ def test_a_figure_still_imports_matplotlib_when_it_is_drawn():
             "cube = np.ones((3, 4, 5))\nfigure = quicklook_figure(cube, cube)\n"
             "assert type(figure).__module__ == 'matplotlib.figure', type(figure)")
     assert "matplotlib" in _deferred_after(code)
+
+
+def test_the_library_listings_import_neither_xarray_nor_scipy():
+    # `brdfcorr models`, `materials` and `coefficients` (the README's first commands) print
+    # registries and published tables: they took 1.7 s for xarray, pandas, dask and scipy.special
+    # (brdfcorr._arrays imported them for the kernels' xarray wrapping and degree sines).
+    for command in (["models"], ["materials", "roof_tile"], ["coefficients", "roy2016"]):
+        code = (f"import sys\nfrom brdfcorr.cli import main\ntry:\n    main({command!r})\nexcept SystemExit as stop:\n"
+                "    assert not stop.code\nprint(sorted(m for m in ('xarray', 'pandas', 'dask', 'scipy') if m in sys.modules))")
+        result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, result.stderr
+        assert result.stdout.strip().splitlines()[-1] == "[]", command
