@@ -124,9 +124,10 @@ def progress_bars(progress: bool | None, description: str):
 
 
 @contextlib.contextmanager
-def class_bar(progress: bool | None, description: str):
-    """A counting bar on stderr (where ``progress``; None: where stderr is a terminal); yields a
-    callable ``update(item)`` that advances it (a no-op without a bar)."""
+def class_bar(progress: bool | None, description: str, unit: str = "class"):
+    """A counting bar on stderr (where ``progress``; None: where stderr is a terminal) of items
+    that take seconds each (classes, fits); yields a callable ``update(item)`` that advances it
+    (a no-op without a bar)."""
     if progress is None:
         progress = sys.stderr.isatty()
     if not progress:
@@ -134,8 +135,8 @@ def class_bar(progress: bool | None, description: str):
         return
     from tqdm import tqdm
 
-    # Every class shown (a class takes seconds; tqdm's rate limit would skip the last ones).
-    with tqdm(desc=description, unit="class", leave=False, file=sys.stderr, mininterval=0, miniters=1) as bar:
+    # Every item shown (an item takes seconds; tqdm's rate limit would skip the last ones).
+    with tqdm(desc=description, unit=unit, leave=False, file=sys.stderr, mininterval=0, miniters=1) as bar:
         yield lambda item: bar.update()
 
 

@@ -13,6 +13,7 @@ from brdfcorr.cli._base import (
     FIT_MODEL_CHOICE,
     NAME_RANGE,
     NAME_VALUE,
+    PROGRESS,
     _format_table,
     _save_figure,
     class_bar,
@@ -258,9 +259,10 @@ def _write_json(target: Path, content: dict) -> None:
 @click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write the principal-plane and azimuth figures (PNG) here.")
 @click.option("--log", "log_scale", is_flag=True, help="Logarithmic BRDF axes in the figures.")
+@PROGRESS
 @handle_errors
 def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi, max_zenith,
-                wavelength, output, class_id, class_name, overwrite, deprecated_name, plot_dir, log_scale):
+                wavelength, output, class_id, class_name, overwrite, deprecated_name, plot_dir, log_scale, progress):
     """Fit a BRDF model to goniometer MEASUREMENTS (CSV: theta_i, theta_r, phi, brdf[, sigma,
     wavelength]).
 
@@ -272,11 +274,12 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
 
     target = update_target(output, overwrite, inputs={"MEASUREMENTS": measurements}) if output is not None else None
     table = ParameterTable.load(target) if target is not None and target.exists() else None
-    fit = fit_measurement_file(
-        measurements, model_name, fixed=dict(fix), initial=dict(initial),
-        bounds=dict(bounds), min_phi=min_phi, max_phi=max_phi,
-        max_zenith=max_zenith, wavelength=wavelength,
-    )
+    with class_bar(progress, "fit", unit="fit") as fitted:  # a candidate of --model auto or a wavelength
+        fit = fit_measurement_file(
+            measurements, model_name, fixed=dict(fix), initial=dict(initial),
+            bounds=dict(bounds), min_phi=min_phi, max_phi=max_phi,
+            max_zenith=max_zenith, wavelength=wavelength, progress=fitted,
+        )
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)
     if deprecated_name is not None:

@@ -252,6 +252,7 @@ def choose_model(
     fixed: Mapping[str, float] | None = None,
     folds: int = FOLDS,
     seed: int = SEED,
+    progress: Callable[[str], object] | None = None,
 ) -> ModelChoice:
     """Choose the model of goniometer measurements by k-fold cross-validation over geometries.
 
@@ -272,6 +273,9 @@ def choose_model(
         Folds (at most the number of measurements).
     seed : int, default 0
         Seed of the random assignment of geometries to folds.
+    progress : callable, optional
+        Called as ``progress(name)`` after each candidate's folds are fitted (a progress bar's
+        update; a candidate takes seconds).
 
     Returns
     -------
@@ -303,6 +307,8 @@ def choose_model(
             return np.asarray(result.predict(*(a[test] for a in angles)), dtype=float)[:, None]
 
         scores.append(_cross_validate(name, fold, n_free, fit_and_predict, data, weights))
+        if progress is not None:
+            progress(name)
     chosen, best = _one_se_choice(scores)
     return ModelChoice(chosen, best, tuple(scores), folds, "geometries")
 

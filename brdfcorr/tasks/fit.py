@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -112,7 +112,7 @@ def fit_measurement_file(
     path: str | os.PathLike, model: str, *, fixed: Mapping[str, float] | None = None,
     initial: Mapping[str, float] | None = None, bounds: Mapping[str, tuple[float, float]] | None = None,
     min_phi: float | None = None, max_phi: float | None = None, max_zenith: float | None = None,
-    wavelength: float | None = None,
+    wavelength: float | None = None, progress: Callable[[str], object] | None = None,
 ) -> MeasurementFit:
     """Fit a registry model to a goniometer measurement table, one fit per wavelength.
 
@@ -133,6 +133,9 @@ def fit_measurement_file(
         Fit only these measurements [deg] (paper 003: ``min_phi=90``).
     wavelength : float, optional
         Fit only this wavelength [nm] of a table with a wavelength column.
+    progress : callable, optional
+        Called as ``progress(model)`` after each fit of a wavelength and, with ``"auto"``, after
+        each candidate's cross-validation (a progress bar's update).
     """
     everything = read_measurements(path)
     if wavelength is not None:
@@ -147,7 +150,7 @@ def fit_measurement_file(
         for band in bands:
             subset = fitted if band is None else fitted.at_wavelength(band)
             choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
-                                         fixed=fixed)
+                                         fixed=fixed, progress=progress)
         chosen = [choice.chosen for choice in choices.values()]
         model = max(chosen, key=chosen.count)  # the first of the most frequent
         options["fixed"] = fixed_for(model, fixed) or None
@@ -156,6 +159,8 @@ def fit_measurement_file(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", FitWarning)
             results[band] = fit_measurements(model, subset, **options)
+        if progress is not None:
+            progress(model)
         where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
         notes += [f"{where}{w.message}" for w in caught if issubclass(w.category, FitWarning)]
     return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes, choices)

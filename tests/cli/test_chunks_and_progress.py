@@ -201,3 +201,34 @@ def test_fit_classes_counts_the_classes_it_has_fitted(files, tmp_path):
     result = CliRunner().invoke(main, arguments)
     assert result.exit_code == 0, result.output
     assert f"fit classes: {n_classes}" in result.stderr.replace("\r", "\n"), result.stderr
+
+
+
+def _flat_measurements(wavelengths=(None,)):
+    """A Lambertian surface (t0 = 0.1) measured at 100 geometries per wavelength, 1 % noise."""
+    grid = np.meshgrid([10, 25, 40, 55], [0, 15, 30, 45, 60], [0, 45, 90, 135, 180], indexing="ij")
+    ti, tr, phi = (np.asarray(a, dtype=float).ravel() for a in grid)
+    brdf = 0.1 * (1 + 0.01 * np.random.default_rng(0).standard_normal(ti.size))
+    return ti, tr, phi, brdf
+
+
+def test_fit_counts_its_fits_on_request(tmp_path):
+    # One step per wavelength fitted (with --model auto, one more per candidate: choose_model's
+    # progress, the next test).
+    ti, tr, phi, brdf = _flat_measurements()
+    csv = tmp_path / "flat.csv"
+    csv.write_text("theta_i,theta_r,phi,brdf,wavelength\n" + "".join(
+        f"{a},{b},{c},{d},{w}\n" for w in (450, 550, 650) for a, b, c, d in zip(ti, tr, phi, brdf)))
+    for option, shown in (("--progress", True), ("--no-progress", False)):
+        result = CliRunner().invoke(main, ["fit", str(csv), "--model", "lambertian", option])
+        assert result.exit_code == 0, result.output
+        assert ("fit: 3fit " in result.stderr.replace("\r", "\n")) is shown, result.stderr
+        assert "fit:" not in result.stdout
+
+
+def test_the_model_choice_reports_each_candidate_once_its_folds_are_fitted():
+    from brdfcorr.fit.selection import choose_model
+
+    seen = []
+    choice = choose_model(*_flat_measurements(), candidates=("lambertian", "ross_thick_li_sparse"), progress=seen.append)
+    assert seen == ["lambertian", "ross_thick_li_sparse"] and choice.chosen == "lambertian"
