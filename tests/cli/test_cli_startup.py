@@ -93,3 +93,13 @@ def test_an_unknown_option_is_refused_without_a_heavy_library(command):
     # `brdfcorr COMMAND --bogus`: click refuses the option before the command's body runs. A group
     # (`classes`, `analyze`) refuses it before choosing a subcommand.
     assert _heavy_after(_main_with(command, "--bogus")) == []
+
+
+def test_python_dash_m_brdfcorr_is_the_command():
+    # Where the console script is not on the PATH: the same group, its name and its exit codes.
+    version = subprocess.run([sys.executable, "-m", "brdfcorr", "--version"], capture_output=True, text=True,
+                             timeout=120)
+    assert version.returncode == 0 and version.stdout.startswith("brdfcorr, version ")
+    refused = subprocess.run([sys.executable, "-m", "brdfcorr", "materials", "asphalt"], capture_output=True,
+                             text=True, timeout=120)
+    assert refused.returncode == 2 and refused.stderr.startswith("brdfcorr: error: unknown material 'asphalt'")
