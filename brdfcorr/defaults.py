@@ -9,6 +9,12 @@ without loading the library.
 #: default range of the topographic factor and of the uncertainty's factor.
 DEFAULT_LIMITS: tuple[float, float] = (0.2, 5.0)
 
+#: Red and near-infrared ranges of the NDVI [nm] (:func:`brdfcorr.strata.ndvi`, a table's
+#: ``strata`` section): they hold Sentinel-2 B4 (665) and B8/B8A (842/865), Landsat 8/9 OLI B4
+#: (655) and B5 (865), and the 660/850 nm bands FlexBRDF uses.
+RED_RANGE: tuple[float, float] = (620.0, 690.0)
+NIR_RANGE: tuple[float, float] = (780.0, 900.0)
+
 #: Chunk and output tile sizes [pixels] a user may give (``--chunk``, a chain's ``engine.chunk``):
 #: multiples of 16 (GeoTIFF tiles are) from the first to the second.
 CHUNK_RANGE: tuple[int, int] = (16, 8192)

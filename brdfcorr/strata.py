@@ -29,6 +29,7 @@ from rasterio.warp import transform_bounds
 
 from brdfcorr._arrays import is_lazy
 from brdfcorr._entry import option
+from brdfcorr.defaults import NIR_RANGE, RED_RANGE
 from brdfcorr.errors import InputError
 
 __all__ = [
@@ -36,10 +37,6 @@ __all__ = [
     "RED_RANGE", "NIR_RANGE", "DEFAULT_EDGES", "WATER_TESTS", "SHADOW_REFLECTANCE",
 ]
 
-#: Red and near-infrared ranges [nm]: they hold Sentinel-2 B4 (665) and B8/B8A (842/865),
-#: Landsat 8/9 OLI B4 (655) and B5 (865), and the 660/850 nm bands FlexBRDF uses.
-RED_RANGE = (620.0, 690.0)
-NIR_RANGE = (780.0, 900.0)
 #: Default NDVI edges: bare/built (< 0.1), sparse (0.1-0.3), moderate (0.3-0.5), dense (0.5-0.7)
 #: and very dense (>= 0.7) vegetation. Fixed edges give the same ids the same meaning in every scene.
 DEFAULT_EDGES = (0.1, 0.3, 0.5, 0.7)

@@ -18,10 +18,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
-import xarray as xr
 
 from brdfcorr._entry import option
 from brdfcorr._validation import short_repr
@@ -29,6 +28,9 @@ from brdfcorr.errors import ParameterError
 from brdfcorr.models import Model, get_model
 from brdfcorr.models.materials import load_material
 from brdfcorr.params.fit_record import EntryFields, FitRecord
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is made: reading a table needs none
+    import xarray as xr
 
 __all__ = ["BandParameters", "ClassFields", "MATERIAL_WAVELENGTH_TOLERANCE", "in_ranges"]
 
@@ -282,6 +284,8 @@ def bands_dataset(
 ) -> xr.Dataset:
     """Classes resolved to the bands as a Dataset of (class, band) arrays
     (:meth:`ParameterTable.to_xarray`)."""
+    import xarray as xr
+
     if n_bands is None:
         n_bands = len(wavelengths) if wavelengths is not None else 0
     names = list(dict.fromkeys(n for entry in resolved.values() for n in entry.params))

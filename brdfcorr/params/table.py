@@ -12,20 +12,22 @@ import os
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
-import xarray as xr
 import yaml
 from pydantic import BeforeValidator, Field, ValidationError, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, StrictModel, describe_errors, refuse_boolean
+from brdfcorr.defaults import NIR_RANGE, RED_RANGE
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.io.files import atomic_path, parse_yaml, read_document
 from brdfcorr.models import get_model
 from brdfcorr.params.bands import BandParameters, bands_dataset, resolve_entry
 from brdfcorr.params.entry import ClassEntry
-from brdfcorr.strata import NIR_RANGE, RED_RANGE
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 __all__ = [
     "ReferenceGeometry",

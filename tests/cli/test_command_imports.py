@@ -16,6 +16,7 @@ from __future__ import annotations
 import ast
 import subprocess
 import sys
+from pathlib import Path
 
 #: Imported only by what needs them: the figures, the papers' analyses, the statistics tests, the
 #: sun positions and the Landsat angle reader.
@@ -54,11 +55,14 @@ def test_a_figure_still_imports_matplotlib_when_it_is_drawn():
     assert "matplotlib" in _deferred_after(code)
 
 
-def test_the_library_listings_import_neither_xarray_nor_scipy():
+def test_the_library_listings_and_a_tables_validation_import_neither_xarray_nor_scipy():
     # `brdfcorr models`, `materials` and `coefficients` (the README's first commands) print
     # registries and published tables: they took 1.7 s for xarray, pandas, dask and scipy.special
     # (brdfcorr._arrays imported them for the kernels' xarray wrapping and degree sines).
-    for command in (["models"], ["materials", "roof_tile"], ["coefficients", "roy2016"]):
+    # `validate TABLE` reads YAML into pydantic models: 2.8 s before (params imported brdfcorr.strata
+    # for the NDVI's band ranges, and xarray for the one function that makes a Dataset).
+    table = Path(__file__).parents[2] / "configs" / "params_example.yaml"
+    for command in (["models"], ["materials", "roof_tile"], ["coefficients", "roy2016"], ["validate", str(table)]):
         code = (f"import sys\nfrom brdfcorr.cli import main\ntry:\n    main({command!r})\nexcept SystemExit as stop:\n"
                 "    assert not stop.code\nprint(sorted(m for m in ('xarray', 'pandas', 'dask', 'scipy') if m in sys.modules))")
         result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
