@@ -79,16 +79,18 @@ def _drained(pipe) -> str:
     return b"".join(chunks).decode(errors="replace")
 
 
-def run(argv: list, *, cwd: Path | str | None = None, timeout: float = 300,
+def run(argv: list, *, cwd: Path | str | None = None, env: dict[str, str] | None = None, timeout: float = 300,
         file_size_limit: int | None = None) -> Finished:
     """Run ``brdfcorr ARGS...`` or ``python SCRIPT ARGS...`` in a forked process of its own, in
-    ``cwd``, under a file size limit [bytes] if given (stdout and stderr are pipes, as
-    ``subprocess.run`` makes them: not held to it); killed after ``timeout`` [s]
-    (:class:`subprocess.TimeoutExpired`, as ``subprocess.run`` raises)."""
+    ``cwd``, with the environment ``env`` (default: this process's), under a file size limit
+    [bytes] if given (stdout and stderr are pipes, as ``subprocess.run`` makes them: not held to
+    it); killed after ``timeout`` [s] (:class:`subprocess.TimeoutExpired`, as ``subprocess.run``
+    raises)."""
     argv = [str(word) for word in argv]
     server = _server()
     pipes = [server.Pipe(duplex=False) for _ in range(2)]
-    child = server.Process(target=_child, args=(argv, None if cwd is None else str(cwd), dict(os.environ),
+    environment = dict(os.environ if env is None else env)
+    child = server.Process(target=_child, args=(argv, None if cwd is None else str(cwd), environment,
                                                 tuple(writer for _, writer in pipes), file_size_limit))
     child.start()
     for _, writer in pipes:

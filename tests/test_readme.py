@@ -151,7 +151,7 @@ def run_commands(commands, directory: Path) -> None:
     environment = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     for command in commands:
         argv = _argv(command, directory)
-        result = (_forked.run(argv, cwd=directory, timeout=600) if argv is not None else
+        result = (_forked.run(argv, cwd=directory, env=environment, timeout=600) if argv is not None else
                   subprocess.run(command, shell=True, cwd=directory, env=environment, capture_output=True, text=True,
                                  timeout=600))
         assert result.returncode == 0, f"{command}\n{result.stdout}\n{result.stderr}"
