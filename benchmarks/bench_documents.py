@@ -12,6 +12,9 @@ one-line table), measured in the same run, so that the figure means the same on 
 
 In-process, a valid table of 20 000 classes (about 2 MB) is loaded with brdfcorr's bounded parser
 and compared with PyYAML's own libyaml loader (``yaml.CSafeLoader``, no bounds, no validation).
+Measured (stop 49, ``--size 2e6``, 19 842 classes, 2.2 MB): 1.00 x the libyaml loader before,
+0.71 x after a parameter's bounds check took a table's single numbers without numpy
+(:meth:`brdfcorr.models.Parameter.check`: the table's validation 2.6 s -> 0.9 s, a merge 1.6 s -> 0.4 s).
 
 Usage::
 

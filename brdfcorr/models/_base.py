@@ -63,12 +63,25 @@ class Parameter:
         upper = "" if math.isinf(self.upper) else f"<= {self.upper:g}"
         return " and ".join(part for part in (lower, upper) if part) or "finite"
 
+    def _holds(self, number: float) -> bool:
+        """Whether one number is finite and within the bounds (the condition of :meth:`check`)."""
+        try:
+            number = float(number)
+        except OverflowError:  # an integer beyond float's range: check says so
+            return False
+        return (math.isfinite(number) and self.lower <= number <= self.upper
+                and not (self.lower_open and number == self.lower))
+
     def check(self, value, model: str) -> None:
         """Raise :class:`ParameterError` if any element of ``value`` is invalid.
 
         Lazy (dask) values are not inspected: that would compute them. Parameter tables validate
         their values when they are loaded, before anything lazy is built.
         """
+        if type(value) is np.ndarray and value.ndim == 0 and value.dtype.kind in "fiu":
+            value = value.item()  # a table's number (0-d, as entries hold it): checked without numpy
+        if type(value) in (float, int) and self._holds(value):
+            return  # ~1 us instead of ~25 (a table of 20 000 classes has 100 000 of them)
         if is_lazy(value):
             return
         try:
