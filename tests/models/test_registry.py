@@ -3,6 +3,7 @@
 import inspect
 import math
 
+import numpy as np
 import pytest
 
 from brdfcorr.errors import ParameterError, UnknownNameError
@@ -108,3 +109,22 @@ def test_the_light_table_of_model_names_is_the_registrys():
     assert MODEL_NAMES == tuple(REGISTRY)
     assert SURFACE_MODEL_NAMES == tuple(SURFACE_MODELS)
     assert set(SURFACE_MODELS) < set(REGISTRY)
+
+
+@pytest.mark.parametrize("name", sorted(REGISTRY))
+def test_a_single_number_gets_the_verdict_and_message_of_an_array(name):
+    # Parameter.check takes a number (and a 0-d array, as table entries hold it) without numpy: the
+    # same verdict and the same message as the array path, at the bounds and beyond them.
+    for parameter in REGISTRY[name].parameters:
+        edges = [value for value in (parameter.lower, parameter.upper) if math.isfinite(value)]
+        values = [*edges, *(value + step for value in edges for step in (-1e-9, 1e-9, -1.0, 1.0)),
+                  0.0, 1.0, -1.0, math.nan, math.inf, -math.inf, 2, 10**400]
+        for value in values:
+            outcomes = []
+            for form in (value, np.asarray(value, dtype=float) if abs(value) < 1e300 else value, [value]):
+                try:
+                    parameter.check(form, name)
+                    outcomes.append("valid")
+                except (ParameterError, OverflowError) as error:
+                    outcomes.append(f"{type(error).__name__}: {error}")
+            assert outcomes[0] == outcomes[1] == outcomes[2], (parameter.name, value, outcomes)
