@@ -21,17 +21,8 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
-from typing import NamedTuple
 
 import brdfcorr
-
-
-class Finished(NamedTuple):
-    """What a command left: its exit code and everything it wrote to stdout and to stderr."""
-
-    returncode: int
-    stdout: str
-    stderr: str
 
 
 @functools.cache
@@ -80,12 +71,12 @@ def _drained(pipe) -> str:
 
 
 def run(argv: list, *, cwd: Path | str | None = None, env: dict[str, str] | None = None, timeout: float = 300,
-        file_size_limit: int | None = None) -> Finished:
+        file_size_limit: int | None = None) -> subprocess.CompletedProcess:
     """Run ``brdfcorr ARGS...`` or ``python SCRIPT ARGS...`` in a forked process of its own, in
     ``cwd``, with the environment ``env`` (default: this process's), under a file size limit
     [bytes] if given (stdout and stderr are pipes, as ``subprocess.run`` makes them: not held to
     it); killed after ``timeout`` [s] (:class:`subprocess.TimeoutExpired`, as ``subprocess.run``
-    raises)."""
+    raises). Returns what ``subprocess.run`` returns: the exit code, stdout and stderr as text."""
     argv = [str(word) for word in argv]
     server = _server()
     pipes = [server.Pipe(duplex=False) for _ in range(2)]
@@ -103,4 +94,4 @@ def run(argv: list, *, cwd: Path | str | None = None, env: dict[str, str] | None
             child.join()
             raise subprocess.TimeoutExpired(argv, timeout)
         stdout, stderr = (output.result() for output in outputs)
-    return Finished(child.exitcode, stdout, stderr)
+    return subprocess.CompletedProcess(argv, child.exitcode, stdout, stderr)

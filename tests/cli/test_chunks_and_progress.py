@@ -203,9 +203,8 @@ def test_fit_classes_counts_the_classes_it_has_fitted(files, tmp_path):
     assert f"fit classes: {n_classes}" in result.stderr.replace("\r", "\n"), result.stderr
 
 
-
-def _flat_measurements(wavelengths=(None,)):
-    """A Lambertian surface (t0 = 0.1) measured at 100 geometries per wavelength, 1 % noise."""
+def _flat_measurements():
+    """A Lambertian surface (t0 = 0.1) measured at 100 geometries, 1 % noise: angles [deg], BRDF [sr^-1]."""
     grid = np.meshgrid([10, 25, 40, 55], [0, 15, 30, 45, 60], [0, 45, 90, 135, 180], indexing="ij")
     ti, tr, phi = (np.asarray(a, dtype=float).ravel() for a in grid)
     brdf = 0.1 * (1 + 0.01 * np.random.default_rng(0).standard_normal(ti.size))

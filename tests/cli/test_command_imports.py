@@ -22,13 +22,12 @@ from pathlib import Path
 #: sun positions and the Landsat angle reader.
 DEFERRED = ("matplotlib", "scipy.stats", "scipy.integrate", "pvlib", "scipy.interpolate")
 
-#: Print the deferred libraries loaded so far (the last line of the subprocess's output).
-_REPORT = f"import sys; print(sorted(m for m in {DEFERRED!r} if m in sys.modules))"
 
-
-def _deferred_after(code: str, cwd=None) -> list[str]:
-    """The deferred libraries in sys.modules of a fresh interpreter after running ``code``."""
-    result = subprocess.run([sys.executable, "-c", f"{code}\n{_REPORT}"], capture_output=True, text=True,
+def _deferred_after(code: str, cwd=None, libraries: tuple[str, ...] = DEFERRED) -> list[str]:
+    """The ``libraries`` in sys.modules of a fresh interpreter after running ``code`` (printed as
+    the last line of its output)."""
+    report = f"import sys; print(sorted(m for m in {libraries!r} if m in sys.modules))"
+    result = subprocess.run([sys.executable, "-c", f"{code}\n{report}"], capture_output=True, text=True,
                             timeout=300, cwd=cwd)
     assert result.returncode == 0, result.stderr
     return ast.literal_eval(result.stdout.strip().splitlines()[-1])
@@ -63,8 +62,5 @@ def test_the_library_listings_and_a_tables_validation_import_neither_xarray_nor_
     # for the NDVI's band ranges, and xarray for the one function that makes a Dataset).
     table = Path(__file__).parents[2] / "configs" / "params_example.yaml"
     for command in (["models"], ["materials", "roof_tile"], ["coefficients", "roy2016"], ["validate", str(table)]):
-        code = (f"import sys\nfrom brdfcorr.cli import main\ntry:\n    main({command!r})\nexcept SystemExit as stop:\n"
-                "    assert not stop.code\nprint(sorted(m for m in ('xarray', 'pandas', 'dask', 'scipy') if m in sys.modules))")
-        result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-        assert result.returncode == 0, result.stderr
-        assert result.stdout.strip().splitlines()[-1] == "[]", command
+        code = f"from brdfcorr.cli import main\ntry:\n    main({command!r})\nexcept SystemExit as stop:\n    assert not stop.code"
+        assert _deferred_after(code, libraries=("xarray", "pandas", "dask", "scipy")) == [], command

@@ -19,6 +19,7 @@ import logging
 import os
 import re
 import shutil
+import subprocess
 from pathlib import Path
 
 import _forked
@@ -38,7 +39,7 @@ from brdfcorr.testing import file_digests, georeference
 # The scene: a copy of the 32 x 32 template of tests/conftest.py, 4 bands of float32: 16 384 bytes of data.
 
 
-def _run(args, limit: int | None = None, cwd=None) -> _forked.Finished:
+def _run(args, limit: int | None = None, cwd=None) -> subprocess.CompletedProcess:
     """``brdfcorr ARGS`` in a process of its own, under a file size limit [bytes] if given."""
     return _forked.run(["brdfcorr", *args], cwd=cwd, timeout=120, file_size_limit=limit)
 
