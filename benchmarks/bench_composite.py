@@ -67,6 +67,7 @@ from scipy.ndimage import uniform_filter
 
 from brdfcorr import normalize
 from brdfcorr.fit import ClassModels, Sampling, fit_classes
+from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.models import get_model
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable
@@ -105,10 +106,10 @@ def roy2016_table() -> ParameterTable:
     return ParameterTable(classes=[ClassEntry(**load_coefficients("roy2016").table_entry(1))])
 
 
-def fitted_table(image, classes, angles, levels: str) -> ParameterTable:
+def fitted_table(image, classes, angles, levels: str, prior: ShapePrior | None = None) -> ParameterTable:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return fit_classes(image, classes, angles, ClassModels("ross_thick_li_sparse"),
+        return fit_classes(image, classes, angles, ClassModels("ross_thick_li_sparse", prior=prior),
                            sampling=Sampling(levels=levels, patch_size=PATCH, max_samples=200_000)).table
 
 
@@ -149,14 +150,15 @@ def local_table(image, classes, angles, fit_on: np.ndarray) -> ParameterTable:
     return table
 
 
-def fit_and_correct(image, angles, strata, fit_on: np.ndarray, levels: str) -> np.ndarray:
+def fit_and_correct(image, angles, strata, fit_on: np.ndarray, levels: str,
+                    prior: ShapePrior | None = None) -> np.ndarray:
     """The strata fitted on the pixels ``fit_on`` with ``levels`` (or ``"local"``, the module
     docstring), the whole composite corrected."""
     classes = strata.where(xr.DataArray(fit_on, dims=("y", "x")), 0).astype(np.int32)
     if levels == "local":
         table = local_table(image, classes, angles, fit_on)
     else:
-        table = fitted_table(image, classes, angles, levels)
+        table = fitted_table(image, classes, angles, levels, prior)
     corrected, _ = normalize(image, strata, angles, table, REFERENCE)
     return np.asarray(corrected.values)
 
@@ -226,6 +228,9 @@ def main() -> None:
                         "(pooled, patch, local)")
     parser.add_argument("--strata", choices=("ndvi", "neighbourhood"), default="ndvi",
                         help="strata of each pixel's NDVI or of its neighbourhood's median reflectance")
+    parser.add_argument("--prior-spread", type=float, default=None,
+                        help="fit with the kernel shape of Roy et al. (2016) as a prior of this spread "
+                             "(fit-classes --prior roy2016 --prior-spread S)")
     args = parser.parse_args()
     start = time.perf_counter()
     image, angles, day = load(args.data)
@@ -253,13 +258,14 @@ def main() -> None:
     print(f"{args.data.name} composite, {image.sizes['y']} x {image.sizes['x']}, corrected to nadir at "
           f"sza {REFERENCE['sza']:g} deg; slope of pixel / {WINDOW}x{WINDOW} median against signed vza "
           f"[%/10 deg], 1-sigma clustered by {'composite day' if by_day else 'block'}")
+    prior = None if args.prior_spread is None else ShapePrior("roy2016", args.prior_spread)
     measure = partial(slopes, signed=signed, groups=groups, day=day, wavelengths=wavelengths)
     for split, folds in splits.items():
         held_out = {levels: np.full(raw.shape, np.nan, dtype=np.float32) for levels in methods}
         for number, (fit_on, assess_on) in enumerate(folds):
             results = {"raw": measure(raw, assess_on=assess_on), "c-factor": measure(cfactor, assess_on=assess_on)}
             for levels in methods:
-                corrected = fit_and_correct(image, angles, strata, fit_on, levels)
+                corrected = fit_and_correct(image, angles, strata, fit_on, levels, prior)
                 held_out[levels][:, assess_on] = corrected[:, assess_on]
                 results[levels] = measure(corrected, assess_on=assess_on)
             report(f"{split}, fold {number}", results, methods)

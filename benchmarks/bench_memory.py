@@ -134,8 +134,8 @@ def predicted_mib(image: Path, base: float) -> dict[str, float]:
     machine [MiB] (:func:`brdfcorr.io.rasters.peak_memory_terms`): the imports (``base``, measured),
     per dask thread its input block and chunks, GDAL's block cache, per compression thread the
     output tiles it holds, and the run's fixed overhead."""
+    from brdfcorr.defaults import available_cores, default_threads
     from brdfcorr.io.rasters import auto_chunk, image_layout, peak_memory_terms
-    from brdfcorr.io.writer import available_cores, default_threads
 
     chunk = auto_chunk(image)
     terms = peak_memory_terms(image_layout(image), chunk, default_threads(), available_cores())

@@ -32,7 +32,8 @@ geometry). The image is identified once (``io.product``) and carried by the scen
 (``io.scene.opened_scene``); the task computes the pass inside ``io.writer.writing``, which only
 writes. What remains is mostly the correction's own reading order (params -> models -> geometry
 while the table is resolved and the reference checked) and comprehensions, which the profiler sees
-as functions.
+as functions. Later (the scale check moved to ``io.scale_check``): 113 stays in 39 modules, 52 by
+layer, ``io.rasters`` entered twice (the image opened, then scaled after its band centres are read).
 
 Usage::
 

@@ -29,7 +29,7 @@ from rasterio.warp import transform_bounds
 
 from brdfcorr._arrays import is_lazy
 from brdfcorr._entry import option
-from brdfcorr.defaults import NIR_RANGE, RED_RANGE
+from brdfcorr.defaults import DEFAULT_EDGES, NIR_RANGE, RED_RANGE
 from brdfcorr.errors import InputError
 
 __all__ = [
@@ -37,9 +37,6 @@ __all__ = [
     "RED_RANGE", "NIR_RANGE", "DEFAULT_EDGES", "WATER_TESTS", "SHADOW_REFLECTANCE",
 ]
 
-#: Default NDVI edges: bare/built (< 0.1), sparse (0.1-0.3), moderate (0.3-0.5), dense (0.5-0.7)
-#: and very dense (>= 0.7) vegetation. Fixed edges give the same ids the same meaning in every scene.
-DEFAULT_EDGES = (0.1, 0.3, 0.5, 0.7)
 #: Water tests, OR-ed: (NDVI below, NIR reflectance below) pairs; Fmask's water test (Zhu and
 #: Woodcock 2012, eq. 5): NDVI < 0.01 and NIR < 0.11, or NDVI < 0.1 and NIR < 0.05.
 WATER_TESTS = ((0.01, 0.11), (0.1, 0.05))

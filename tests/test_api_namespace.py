@@ -69,3 +69,23 @@ def test_all_names_the_modules_of_the_package(package):
 
     modules = {info.name for info in pkgutil.iter_modules(importlib.import_module(package).__path__)}
     assert set(importlib.import_module(package).__all__) == modules
+
+
+@pytest.mark.parametrize("package", ["brdfcorr.fit", "brdfcorr.io"])
+def test_a_lazy_package_face_gives_its_modules_objects(package):
+    # brdfcorr.fit and brdfcorr.io load their modules at first use (PEP 562): every name of the
+    # face is the module's own object, the face keeps the public names of goniometer (which it
+    # once re-exported with a star import), and dir() lists them before they are used.
+    import importlib
+
+    face = importlib.import_module(package)
+    for name in face.__all__:
+        module = importlib.import_module(f"{package}.{face._PUBLIC[name]}")
+        assert getattr(face, name) is getattr(module, name), name
+    if package == "brdfcorr.fit":
+        from brdfcorr.fit import goniometer
+
+        assert set(goniometer.__all__) <= set(face.__all__)
+    assert set(face.__all__) <= set(dir(face))
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        face.nothing  # noqa: B018

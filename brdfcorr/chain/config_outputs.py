@@ -17,9 +17,9 @@ from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, StrictModel, short_repr
 from brdfcorr.chain.patterns import check_pattern
-from brdfcorr.defaults import chunk_size_problem
+from brdfcorr.defaults import chunk_size_problem, default_threads
 from brdfcorr.errors import InputError
-from brdfcorr.io.writer import check_format, default_threads
+from brdfcorr.io.paths import check_format
 
 __all__ = ["OutputsConfig", "EngineConfig"]
 
@@ -121,7 +121,7 @@ class EngineConfig(StrictModel):
         Threads (``threads``), processes (``processes``, local ``distributed``); with
         ``distributed`` also the number of scenes in flight at once. Default: the cores; with
         ``threads`` left out, the threads of ``brdfcorr correct`` (one per 4 cores,
-        :func:`brdfcorr.io.writer.default_threads`).
+        :func:`brdfcorr.defaults.default_threads`).
     threads_per_worker : int
         Threads for the chunks of a scene inside a process, and of each worker process of a local
         ``distributed`` cluster.
@@ -160,7 +160,7 @@ class EngineConfig(StrictModel):
     def local_threads(self) -> int:
         """Threads of a scene's chunks computed in this process: ``workers`` where given with a local
         scheduler (``threads``, ``synchronous``), else the thread count of ``brdfcorr correct``
-        (one per 4 cores, :func:`brdfcorr.io.writer.default_threads`), not all cores."""
+        (one per 4 cores, :func:`brdfcorr.defaults.default_threads`), not all cores."""
         given = self.scheduler in ("threads", "synchronous") and "workers" in self.model_fields_set
         return self.workers if given else default_threads()
 

@@ -22,15 +22,12 @@ from pydantic import Field, create_model, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel
 from brdfcorr.chain.patterns import check_pattern
-from brdfcorr.correction.topographic import frame_conflict
-from brdfcorr.defaults import AUTO_MODEL
+from brdfcorr.defaults import AUTO_MODEL, DEFAULT_EDGES, MOSTLY_UNCORRECTED, frame_conflict
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.fit.prior import ShapePrior
 from brdfcorr.fit.settings import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling, fallback_entry
 from brdfcorr.models import SURFACE_MODELS
 from brdfcorr.models.coefficients import load_coefficients
-from brdfcorr.strata import DEFAULT_EDGES
-from brdfcorr.tasks.correct import MOSTLY_UNCORRECTED
 from brdfcorr.tasks.options import ASSESS, CORRECT, FIT_CLASSES, Setting, Settings
 
 __all__ = [
@@ -81,7 +78,7 @@ class StrataStep(StrictModel):
     ----------
     edges : list of float, optional
         Fixed NDVI edges [1], strictly increasing: n edges give strata 1..n+1, the same in every
-        scene (``--edges``). Default :data:`brdfcorr.strata.DEFAULT_EDGES` (0.1, 0.3, 0.5, 0.7)
+        scene (``--edges``). Default :data:`brdfcorr.defaults.DEFAULT_EDGES` (0.1, 0.3, 0.5, 0.7)
         unless ``percentiles`` is given.
     percentiles : list of float, optional
         Each scene's NDVI percentiles [%] as its edges instead (``--percentiles``): strata of about
@@ -334,7 +331,7 @@ class CorrectStep(step_fields(CORRECT, "correct")):  # type: ignore[misc]
         Least share [0-1] of a scene's valid pixels the correction must touch (QA ``corrected``
         over the pixels with data): a scene under it is a failed scene (``brdfcorr run`` exits with
         3, naming the share and this key). Default 0.5, where ``brdfcorr correct`` warns
-        (:data:`brdfcorr.tasks.correct.MOSTLY_UNCORRECTED`); 0 where few corrected pixels are
+        (:data:`brdfcorr.defaults.MOSTLY_UNCORRECTED`); 0 where few corrected pixels are
         expected (a class map covering part of the scene).
     terrain : TerrainStep, optional
         Correct tilted surfaces (needs ``inputs.slope_aspect`` or ``inputs.dem``); null: a flat

@@ -41,8 +41,7 @@ from brdfcorr.chain.resume import planned_table, redo_stale, scene_fingerprint
 from brdfcorr.chain.scenes import Scene, check_quicklook_bands, input_images, plan_scenes
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
-from brdfcorr.io.paths import InputOverwriteError, check_outputs
-from brdfcorr.io.writer import envi_sidecars
+from brdfcorr.io.paths import InputOverwriteError, check_outputs, envi_sidecars
 from brdfcorr.params import ParameterTable
 
 __all__ = ["RunPlan", "plan_run"]

@@ -28,7 +28,7 @@ and settings (:func:`brdfcorr.chain.resume.scene_fingerprint`) for the next resu
 Execution engines (``engine.scheduler``):
 
 ``threads``       scenes one after another, each scene's chunks on ``workers`` threads (default:
-                  those of ``brdfcorr correct``, :func:`brdfcorr.io.writer.default_threads`)
+                  those of ``brdfcorr correct``, :func:`brdfcorr.defaults.default_threads`)
 ``synchronous``   everything in the calling thread
 ``processes``     ``workers`` scenes at once in a process pool (``threads_per_worker`` each)
 ``distributed``   every scene spread chunk by chunk over all workers of a ``dask.distributed``

@@ -23,8 +23,8 @@ import rasterio.errors
 
 from brdfcorr.chain.config import ChainConfig, format_pattern
 from brdfcorr.errors import BrdfcorrError, InputError
+from brdfcorr.io.sensors.inputs import products_among
 from brdfcorr.plot.assess import figure_paths
-from brdfcorr.tasks.series import find_products, products_among
 
 if TYPE_CHECKING:
     from brdfcorr.io.sensors.folders import ProductFolder
@@ -233,7 +233,7 @@ def plan_scenes(config: ChainConfig, images: list[Path], output_dir: Path,
 
 
 def _are_products(config: ChainConfig, images: list[Path]) -> bool:
-    """Whether the run's inputs are products (:func:`brdfcorr.tasks.series.products_among`: all of
+    """Whether the run's inputs are products (:func:`brdfcorr.io.sensors.inputs.products_among`: all of
     them, none of the settings that products bring themselves given); images that do not exist
     (their scenes fail) count as neither.
 
@@ -265,6 +265,8 @@ def _product_fields(image: Path) -> dict:
     BrdfcorrError
         The product is missing, in an archive, or no product (as ``brdfcorr nbar`` says it).
     """
+    from brdfcorr.tasks.series import find_products  # the product readers: for product chains only
+
     if not os.path.lexists(image):
         raise InputError(f"missing input: product {image}")
     [product] = find_products([image])

@@ -269,7 +269,7 @@ def validate_command(chains, settings, strict):
             click.echo(f"{chain}: valid parameter table; classes {', '.join(map(str, table.class_ids))}")
             continue
         from brdfcorr.chain.config import config_from_document
-        from brdfcorr.chain.run import plan_run
+        from brdfcorr.chain.plan import plan_run
 
         plan = plan_run(config_from_document(document, chain, overrides), require_inputs=False)
         missing = plan.missing_inputs()

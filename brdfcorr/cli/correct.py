@@ -150,7 +150,8 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     lookup = read_lookup(class_lookup) if class_lookup else None
     # The products are stacked last: nothing that may fail stands between the stack and its with block.
     scratch, product_reads = contextlib.ExitStack(), {}
-    from brdfcorr.tasks.series import find_products, product_files, products_among, stacked_products
+    from brdfcorr.io.sensors.inputs import products_among
+    from brdfcorr.tasks.series import find_products, product_files, stacked_products
 
     if products_among([image], {"--angles": angles, "--angle-option": angle_option, "--sza": sza, "--saa": saa,
                            "--vza": vza, "--vaa": vaa, "--raa": raa, "--wavelengths": wavelengths,

@@ -77,9 +77,10 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     """
     from brdfcorr.fit.classes import WATER_VAPOUR_BANDS, ClassModels, GuardRails, Sampling
     from brdfcorr.fit.settings import fallback_entry
+    from brdfcorr.io.sensors.inputs import products_among
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.fit import SceneFiles, fit_class_files
-    from brdfcorr.tasks.series import find_products, product_files, products_among, stacked_products
+    from brdfcorr.tasks.series import find_products, product_files, stacked_products
 
     products = products_among(images, {"--angles": angles, "--angles-kind": angles_kind != "geotiff",
                                        "--angle-option": angle_option, "--scale": scale is not None,

@@ -86,15 +86,6 @@ Method = Literal["cosine", "c", "scs", "scs+c"]
 METHODS: tuple[str, ...] = TOPOGRAPHIC_METHODS  # written once in brdfcorr.defaults (the command line's words)
 
 
-def frame_conflict(method: str, brdf_frame: str) -> str | None:
-    """Why ``method`` cannot precede a BRDF evaluated in ``brdf_frame``, or None: the empirical C of
-    ``"c"`` and ``"scs+c"`` absorbs part of the BRDF's slope dependence, so with the BRDF in the
-    surface's frame the illumination is corrected twice (15 % between the sides of the synthetic
-    hill of ``tests/correction/test_terrain.py``)."""
-    if method in C_METHODS and brdf_frame == "surface":
-        return (f"topographic {method!r} fits an empirical C that absorbs part of the BRDF's slope "
-                "dependence; combine it with brdf_frame 'horizontal', or use 'cosine' with 'surface'")
-    return None
 #: Least coefficient of determination of an accepted C fit [-].
 R2_MIN = 0.1
 #: Accepted range of C [-], besides the bound C > -min(cos i) over the class's lit pixels that every

@@ -15,12 +15,18 @@
   its ``ClassModels``, ``Sampling`` and ``GuardRails`` options).
 """
 
-from brdfcorr.fit import goniometer as _goniometer
-from brdfcorr.fit.classes import ClassFitResult, ClassModels, GuardRails, Sampling, fit_classes
-from brdfcorr.fit.goniometer import *  # noqa: F403  (the names of goniometer.__all__: fit_brdf, FitResult, ...)
-from brdfcorr.fit.measurements import Measurements, read_measurements
+from brdfcorr._lazy import attach
 
-__all__ = [
-    *_goniometer.__all__, "fit_classes", "ClassModels", "Sampling", "GuardRails", "ClassFitResult", "Measurements",
-    "read_measurements",
-]
+#: The public face of the package, imported on first use (PEP 562): name -> module. A chain
+#: config's settings (:mod:`.settings`, :mod:`.prior`) are then read without scipy's optimizers.
+_PUBLIC = {
+    **dict.fromkeys(["ErrorAnalysis", "FitResult", "FitWarning", "NonIdentifiableWarning", "fit_brdf",
+                     "fit_measurements", "fit_wavelengths", "spectral_table_entry", "format_with_error"], "goniometer"),
+    **dict.fromkeys(["fit_classes", "ClassFitResult"], "classes"),
+    **dict.fromkeys(["ClassModels", "Sampling", "GuardRails"], "settings"),
+    **dict.fromkeys(["Measurements", "read_measurements"], "measurements"),
+}
+__all__ = list(_PUBLIC)
+
+
+__getattr__, __dir__ = attach(__name__, _PUBLIC)

@@ -8,11 +8,11 @@ The raster functions are imported on first use (``brdfcorr.io.open_image``): ras
 rioxarray take a while to load, and parameter tables and configs need only :mod:`.files`.
 """
 
-import importlib
+from brdfcorr._lazy import attach
 
 #: The public face of the package, imported on first use: name -> module.
 _PUBLIC = {
-    "open_image": "rasters", "open_classes": "rasters", "check_reflectance_scale": "rasters",
+    "open_image": "rasters", "open_classes": "rasters", "check_reflectance_scale": "scale_check",
     "auto_chunk": "product", "open_angles": "angles", "check_angles": "angles", "ANGLE_NAMES": "angles",
     "open_scene": "scene", "SceneSources": "scene", "check_same_grid": "grid", "open_layer": "opening",
     "band_wavelengths": "wavelengths", "parse_wavelength": "wavelengths", "write_rasters": "writer",
@@ -28,7 +28,4 @@ FORMATS = ("GTiff", "ENVI")
 EXTENSIONS = {"GTiff": (".tif", ".tiff"), "ENVI": (".img", ".bsq", ".bil", ".dat", "")}
 
 
-def __getattr__(name: str):
-    if name in _PUBLIC:
-        return getattr(importlib.import_module(f"brdfcorr.io.{_PUBLIC[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = attach(__name__, _PUBLIC)

@@ -16,16 +16,19 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import rasterio
 import rasterio.enums
-import xarray as xr
 from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io.files import write_cause
 from brdfcorr.io.gdal_log import OUT_OF_MEMORY
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 __all__ = ["Target", "check_complete", "verify", "io_failure", "write_error", "written_files"]
 

@@ -34,7 +34,8 @@ from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io import EXTENSIONS, FORMATS
 
 __all__ = ["check_outputs", "check_format", "sidecar_paths", "same_file", "file_identity", "refuse_existing",
-           "update_target", "remove_partials", "InputOverwriteError", "SameOutputError"]
+           "update_target", "remove_partials", "envi_header_path", "envi_sidecars", "InputOverwriteError",
+           "SameOutputError"]
 
 PathLike = str | os.PathLike
 Named = Mapping[str, PathLike | None] | Iterable[PathLike | tuple[str, PathLike | None] | None]
@@ -246,3 +247,16 @@ def remove_partials(target: PathLike) -> list[Path]:
                     os.unlink(entry.path)
                     removed.append(Path(entry.path))
     return removed
+
+
+def envi_header_path(path: str | os.PathLike) -> Path:
+    """The header GDAL writes beside an ENVI data file: ``out.img`` -> ``out.hdr``."""
+    return Path(path).with_suffix(".hdr")
+
+
+def envi_sidecars(temporary: str | os.PathLike, target: str | os.PathLike) -> list[tuple[Path, Path]]:
+    """The header and ``.aux.xml`` GDAL writes beside an ENVI data file at ``temporary``
+    (``SUFFIX=ADD``: ``temporary.hdr``) and the names they get beside ``target``: its header
+    ``NAME.hdr`` (:func:`envi_header_path`) and ``NAME.ext.aux.xml``."""
+    return [(Path(f"{temporary}.hdr"), envi_header_path(target)),
+            (Path(f"{temporary}.aux.xml"), Path(f"{target}.aux.xml"))]

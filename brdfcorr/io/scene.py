@@ -14,7 +14,7 @@ import xarray as xr
 
 from brdfcorr._entry import option
 from brdfcorr.errors import BrdfcorrError, GridMismatchError, InputError
-from brdfcorr.io import rasters
+from brdfcorr.io import scale_check
 from brdfcorr.io.angles import ANGLE_NAMES, AngleStatistics, check_angles, open_angles
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.paths import PathLike
@@ -176,7 +176,7 @@ def opened_scene(sources: SceneSources, *, chunks: int | None = None,
     (:func:`brdfcorr.io.product.gdal_cache_bytes`) from here to the end of the ``with`` block, the
     scene opened and checked (:func:`open_scene`), and, without a given scale
     (``sources.scale``), a sample of the image checked for raw counts
-    (:func:`brdfcorr.io.rasters.check_reflectance_scale`, a few chunks read, not a pass).
+    (:func:`brdfcorr.io.scale_check.check_reflectance_scale`, a few chunks read, not a pass).
 
     The checks before the write read tiles; GDAL's default cache (5 % of RAM) would keep them for
     the rest of the run (issue 28). The :class:`SceneData` given carries the image, the chunk size,
@@ -194,7 +194,7 @@ def opened_scene(sources: SceneSources, *, chunks: int | None = None,
     Raises
     ------
     InputError
-        As :func:`open_scene` and :func:`brdfcorr.io.rasters.check_reflectance_scale`; an image
+        As :func:`open_scene` and :func:`brdfcorr.io.scale_check.check_reflectance_scale`; an image
         that cannot be identified says so when its chunk size was to be worked out from it, else
         as :func:`open_scene` opens it.
     """
@@ -206,7 +206,7 @@ def opened_scene(sources: SceneSources, *, chunks: int | None = None,
         scene = open_scene(sources, chunks=chunks, image=image, prepare_classes=prepare_classes,
                            scheduler=scheduler, num_workers=num_workers)
         if sources.scale is None:  # a given scale is the user's word; else catch raw counts first
-            rasters.check_reflectance_scale(scene.reflectance, sources.image_label, scheduler=scheduler,
+            scale_check.check_reflectance_scale(scene.reflectance, sources.image_label, scheduler=scheduler,
                                             num_workers=threads)
         yield scene._replace(image=image, chunks=chunks, cache=cache, threads=threads)
 

@@ -46,12 +46,17 @@ import xarray as xr
 from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 from xarray.conventions import encode_cf_variable
 
+from brdfcorr.defaults import default_threads
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
 from brdfcorr.io.commit import Target, io_failure, verify, write_error, written_files
 from brdfcorr.io.files import DISK_CAUSES, sync_file, temporary_beside, write_cause
 from brdfcorr.io.gdal_log import GdalLog
-from brdfcorr.io.paths import check_format  # an output's format and extension: a path check, importable here too
+from brdfcorr.io.paths import (  # path checks and names, importable here too
+    check_format,
+    envi_header_path,
+    envi_sidecars,
+)
 
 __all__ = ["write_rasters", "writing", "encode_integers", "pass_threads", "default_threads", "GeoTiffOutput",
            "EnviOutput", "check_format", "envi_header_path", "envi_sidecars", "check_envi_georeference",
@@ -59,32 +64,9 @@ __all__ = ["write_rasters", "writing", "encode_integers", "pass_threads", "defau
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
-#: Cores per dask thread of a writing pass on this machine when the caller names no thread count:
-#: reading and correcting a chunk costs a third of compressing it (deflate with predictor, measured
-#: on a 64-band cube), and GDAL compresses on all cores; every further dask thread holds its chunks
-#: and their intermediates (about 170 MiB for a 16 MiB chunk), docs/scaling.md.
-CORES_PER_THREAD = 4
-
-
-def available_cores() -> int:
-    """The cores this process may run on: its CPU affinity where the system has one (``taskset``,
-    a container's CPU set), else the machine's cores."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):  # no affinity on macOS and Windows
-        return max(1, os.cpu_count() or 1)
-
-
-def default_threads() -> int:
-    """The dask threads of a scene's pass on this machine when the user names none: one per
-    :data:`CORES_PER_THREAD` of :func:`available_cores` (GDAL compresses on all of them). The one
-    rule of ``brdfcorr correct`` (:func:`write_rasters`) and of a chain's ``threads`` engine."""
-    return max(1, available_cores() // CORES_PER_THREAD)
-
-
 def pass_threads(scheduler, num_workers: int | None) -> int | None:
     """The ``num_workers`` of a scene's dask pass (:func:`write_rasters` and the checks that read
-    before it, :func:`brdfcorr.io.rasters.check_reflectance_scale`): as given (or dask's
+    before it, :func:`brdfcorr.io.scale_check.check_reflectance_scale`): as given (or dask's
     ``num_workers`` setting), else :func:`default_threads` on dask's threaded scheduler; None
     leaves other schedulers be."""
     if num_workers is not None or dask.config.get("num_workers", None) is not None:
@@ -131,11 +113,6 @@ class EnviOutput:
     interleave: Literal["bsq", "bil"] = "bsq"
     wavelength: Sequence[float] | None = None
     fwhm: Sequence[float] | None = None
-
-
-def envi_header_path(path: str | os.PathLike) -> Path:
-    """The header GDAL writes beside an ENVI data file: ``out.img`` -> ``out.hdr``."""
-    return Path(path).with_suffix(".hdr")
 
 
 def _tile_size(blocksize: int, array: xr.DataArray) -> tuple[int, int]:
@@ -278,7 +255,7 @@ def write_rasters(
         client) spreads the chunks over the cluster's workers, each writing under a
         :class:`distributed.Lock` of its file. On dask's threaded scheduler without a thread count
         (``num_workers`` or dask's ``num_workers`` setting) the pass uses one thread per
-        :data:`CORES_PER_THREAD` cores: GDAL compresses the tiles on all of them.
+        :data:`brdfcorr.defaults.CORES_PER_THREAD` cores: GDAL compresses the tiles on all of them.
     envi : mapping of path to EnviOutput, optional
         Targets to write as ENVI (uncompressed, ``geotiff`` does not apply), with their
         header (``.hdr`` beside the data file, :func:`envi_header_path`) and ``.aux.xml`` (tags);
@@ -569,11 +546,3 @@ def check_envi_georeference(array: xr.DataArray, target: str | os.PathLike) -> N
     if array.rio.crs is None and not transform.is_identity:
         raise InputError(f"ENVI output {target}: the image has no CRS; an ENVI header would say 'Arbitrary', read "
                          "back as a local CRS; write a GeoTIFF (--format GTiff) or give the image a CRS")
-
-
-def envi_sidecars(temporary: str | os.PathLike, target: str | os.PathLike) -> list[tuple[Path, Path]]:
-    """The header and ``.aux.xml`` GDAL writes beside an ENVI data file at ``temporary``
-    (``SUFFIX=ADD``: ``temporary.hdr``) and the names they get beside ``target``: its header
-    ``NAME.hdr`` (:func:`envi_header_path`) and ``NAME.ext.aux.xml``."""
-    return [(Path(f"{temporary}.hdr"), envi_header_path(target)),
-            (Path(f"{temporary}.aux.xml"), Path(f"{target}.aux.xml"))]

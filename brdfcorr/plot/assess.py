@@ -13,13 +13,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-import xarray as xr
 
 from brdfcorr.errors import InputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.plot._display import display_name
 
 if TYPE_CHECKING:
+    import xarray as xr
     from matplotlib.figure import Figure
 
 __all__ = ["profile_figure", "overlap_figure", "figure_paths", "write_assessment_figures", "default_band"]

@@ -15,7 +15,7 @@ from pathlib import Path
 import xarray as xr
 
 from brdfcorr.errors import InputError
-from brdfcorr.io import rasters
+from brdfcorr.io import rasters, scale_check
 from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata, remap_classes
@@ -122,7 +122,7 @@ def ndvi_class_file(
     scale, offset : float, optional
         Reflectance factor per stored unit and of a stored 0, replacing the file's
         (:func:`brdfcorr.io.rasters.open_image`). Without ``scale`` the image is checked for values
-        that are no reflectance factors (:func:`brdfcorr.io.rasters.check_reflectance_scale`): an
+        that are no reflectance factors (:func:`brdfcorr.io.scale_check.check_reflectance_scale`): an
         offset left out changes NDVI.
     chunks : int, optional
         Chunk and tile size [pixels] (default :func:`brdfcorr.io.rasters.auto_chunk`).
@@ -142,7 +142,7 @@ def ndvi_class_file(
         reflectance = rasters.open_image(image, chunks=chunks, wavelengths=wavelengths, scale=scale, offset=offset)
         compute = {"scheduler": scheduler, "num_workers": num_workers}
         if scale is None:
-            rasters.check_reflectance_scale(reflectance, str(image), **compute)
+            scale_check.check_reflectance_scale(reflectance, str(image), **compute)
         strata = ndvi_strata(reflectance, edges=bins.edges, percentiles=bins.percentiles, water_id=bins.water_id,
                              shadow_id=bins.shadow_id)
         names = ",".join(f"{ident}:{name}" for ident, name in sorted(strata.names.items()))

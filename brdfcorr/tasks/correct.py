@@ -22,6 +22,7 @@ from brdfcorr.correction import QA, describe_limits, normalize, normalize_at_nod
 from brdfcorr.correction.reference import with_hls_sza
 from brdfcorr.correction.subgrid import normalize_on_subgrid, suits_subgrid
 from brdfcorr.correction.uncertainty import correction_uncertainty
+from brdfcorr.defaults import MOSTLY_UNCORRECTED
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import writer
 from brdfcorr.io.angles import RELATIVE_ONLY, window_values
@@ -63,7 +64,7 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
     The image's stored values are read as reflectance factors: scaled with the file's per-band GDAL
     scale and offset (``reflectance = stored * scale + offset``), or with the request's
     ``scene.scale``/``scene.offset``. Without a given scale a sample of the image is checked for raw
-    counts (:func:`brdfcorr.io.rasters.check_reflectance_scale`, a few chunks read, not a pass). The
+    counts (:func:`brdfcorr.io.scale_check.check_reflectance_scale`, a few chunks read, not a pass). The
     output holds reflectance factors (float32, float64 for a float64 input, no GDAL scale/offset)
     and records the scaling applied in the tags ``brdf_input_scale`` and ``brdf_input_offset``;
     with ``outputs.data_type="input"`` an integer input's type instead, with its scale, offset and
@@ -194,10 +195,6 @@ def _load_table(request: CorrectionRequest) -> tuple[ParameterTable, str | None]
         raise InputError(f"{source or 'parameter table'}: classes {ids}, but no class map was given (the whole "
                          "image would be class 1); give the class map (--classes)")
     return table, source
-
-
-#: Below this fraction of the valid pixels corrected, a correction says so (a warning and a note).
-MOSTLY_UNCORRECTED = 0.5
 
 
 def too_few_corrected(counts: Mapping[str, int], share: float = MOSTLY_UNCORRECTED) -> bool:

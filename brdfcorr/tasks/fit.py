@@ -28,7 +28,7 @@ from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spe
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
 from brdfcorr.fit.selection import ModelChoice, choose_model, fixed_for
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
-from brdfcorr.io import rasters
+from brdfcorr.io import rasters, scale_check
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable
@@ -315,7 +315,7 @@ def fit_class_files(
     ``offset``), then the classes' pixels are pooled over the scenes, sampled and fitted
     (:func:`brdfcorr.fit.fit_classes`, with its guard rails). A scene without a given scale whose
     sample does not look like reflectance factors (raw counts) is an :class:`InputError`
-    (:func:`brdfcorr.io.rasters.check_reflectance_scale`).
+    (:func:`brdfcorr.io.scale_check.check_reflectance_scale`).
 
     Parameters
     ----------
@@ -425,7 +425,7 @@ def _opened_scenes(scenes: Sequence[SceneFiles], reflectance_scale: float, chunk
             data = open_scene(sources, chunks=chunks,
                               prepare_classes=class_preparation(scene.align_classes, scene.class_lookup))
             if scale is None:
-                rasters.check_reflectance_scale(data.reflectance, scene.image_label)
+                scale_check.check_reflectance_scale(data.reflectance, scene.image_label)
         except BrdfcorrError as error:
             if not skip_unreadable:
                 raise

@@ -24,7 +24,7 @@ from brdfcorr.correction import QA, qa_attrs
 from brdfcorr.correction.reference import resolve_reference, with_hls_sza
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.grid import grid_difference
-from brdfcorr.io.rasters import check_reflectance_scale
+from brdfcorr.io.scale_check import check_reflectance_scale
 from brdfcorr.io.sensors.hls import HLS_FMASK_MASKED, HlsGranule
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ParameterTable

@@ -30,8 +30,8 @@ from brdfcorr.correction.terrain import (
     slope_aspect,
     slope_aspect_layers,
 )
-from brdfcorr.correction.topographic import frame_conflict, topographic_correction
-from brdfcorr.defaults import chunk_size_problem
+from brdfcorr.correction.topographic import topographic_correction
+from brdfcorr.defaults import chunk_size_problem, frame_conflict
 from brdfcorr.errors import InputError
 from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.grid import check_same_grid

@@ -23,17 +23,17 @@ import contextlib
 import os
 import re
 import tempfile
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 import xarray as xr
 
-from brdfcorr.errors import InputError, SensorInputError
+from brdfcorr.errors import SensorInputError
 from brdfcorr.io.sensors import read_angles
 from brdfcorr.io.sensors.folders import ProductFolder, open_stack, write_stack
-from brdfcorr.io.sensors.stac import is_stac_item
+from brdfcorr.io.sensors.inputs import is_product
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.nbar import NBAR_CHUNK, find_product_or_item, nbar_table, refuse_archive
 
@@ -143,31 +143,6 @@ def _check_alike(first: xr.DataArray, stack: xr.DataArray, product: ProductFolde
     if differs:
         raise SensorInputError(f"{product.path}: its {', '.join(differs)} differ from those of "
                                f"{first.attrs['product']}; a series is one sensor's bands on one grid")
-
-
-def is_product(path: str | os.PathLike) -> bool:
-    """Whether an input path names a product rather than a raster file: a folder (a Sentinel-2
-    SAFE, a Landsat Collection-2 folder) or a STAC item file (``.json``)."""
-    return Path(path).is_dir() or is_stac_item(path)
-
-
-def products_among(images: Sequence[str | os.PathLike], given: Mapping[str, object]) -> bool:
-    """Whether the inputs ``images`` are products (:func:`is_product`), all of them.
-
-    Raises InputError for a mix of products and files, and for the options in ``given`` ({flag:
-    its value, false where not given}) that products bring themselves (angles, scaling, wavelengths).
-    """
-    found = [is_product(image) for image in images]
-    if not any(found):
-        return False
-    if not all(found):
-        raise InputError(f"{images[found.index(False)]} is a file and {images[found.index(True)]} a product: give "
-                         "product folders (the dates of a series) or image files, not both")
-    named = [flag for flag, value in given.items() if value]
-    if named:
-        raise InputError(f"{', '.join(named)}: product folders bring their own angles, scaling and wavelengths; "
-                         f"leave {'it' if len(named) == 1 else 'them'} out")
-    return True
 
 
 def product_files(products: Iterable[ProductFolder]) -> list[tuple[str, Path]]:

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from brdfcorr.cli import main
 from brdfcorr.defaults import CHUNK_RANGE
-from brdfcorr.io import rasters
+from brdfcorr.io import rasters, scale_check
 from brdfcorr.io.rasters import (
     CHUNK_TARGET,
     MAX_GDAL_CACHE,
@@ -160,13 +160,13 @@ def test_correct_progress_runs_from_the_first_pass(files, tmp_path, monkeypatch)
     # The bar is active when the scale check (the first pass that reads the image, before the
     # write) runs: progress from the start of the work, not only during the write.
     active = []
-    check = rasters.check_reflectance_scale
+    check = scale_check.check_reflectance_scale
 
     def recording_check(*args, **kwargs):
         active.append(len(dask.callbacks.Callback.active))
         return check(*args, **kwargs)
 
-    monkeypatch.setattr(rasters, "check_reflectance_scale", recording_check)
+    monkeypatch.setattr(scale_check, "check_reflectance_scale", recording_check)
     for option in ("--progress", "--no-progress"):
         arguments = [str(a) for a in _commands(files, tmp_path)["correct"]] + [option, "--overwrite"]
         result = CliRunner().invoke(main, arguments)
@@ -178,15 +178,15 @@ def test_gdal_cache_is_bounded_while_the_scale_check_reads(files, monkeypatch):
     # The check reads a few chunks before the write: under GDAL's default cache (5 % of RAM) every
     # tile read stayed in memory for the rest of the run (issue 28: +390 MiB on a 1 GiB cube).
     seen = []
-    sample = rasters._valid_sample
+    sample = scale_check._valid_sample
 
     def recording_sample(block, *args, **kwargs):
         seen.append(rasterio.env.getenv().get("GDAL_CACHEMAX"))
         return sample(block, *args, **kwargs)
 
-    monkeypatch.setattr(rasters, "_valid_sample", recording_sample)
+    monkeypatch.setattr(scale_check, "_valid_sample", recording_sample)
     image = rasters.open_image(files["image"], chunks=16)
-    assert rasters.check_reflectance_scale(image, scheduler="synchronous") == pytest.approx(
+    assert scale_check.check_reflectance_scale(image, scheduler="synchronous") == pytest.approx(
         np.nanpercentile(image.values, 99), rel=0.05)
     assert seen and all(value == rasters.gdal_cache_bytes(files["image"], 16) for value in seen)
 

@@ -19,7 +19,7 @@ from click.testing import CliRunner
 from brdfcorr.cli import main
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import Sampling
-from brdfcorr.io import rasters
+from brdfcorr.io import rasters, scale_check
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.fit import SceneFiles, fit_class_files
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
@@ -292,10 +292,10 @@ def test_scale_check_reads_only_the_central_chunk_when_it_holds_enough(monkeypat
     # Each chunk read decompresses its input tiles (a sixth of a 1 GiB cube's correction time for
     # nine chunks, issue 28): one chunk of 4 x 80 x 80 valid values is enough to judge by.
     read = []
-    sample = rasters._valid_sample
-    monkeypatch.setattr(rasters, "_valid_sample", lambda block, *a, **k: read.append(block.shape) or sample(block))
+    sample = scale_check._valid_sample
+    monkeypatch.setattr(scale_check, "_valid_sample", lambda block, *a, **k: read.append(block.shape) or sample(block))
     values = np.random.default_rng(0).uniform(0.0, 0.5, (4, 400, 400)).astype("float32")
-    assert rasters.check_reflectance_scale(_reflectance_cube(values, 80), scheduler="synchronous") <= 0.5
+    assert scale_check.check_reflectance_scale(_reflectance_cube(values, 80), scheduler="synchronous") <= 0.5
     assert read == [(4, 80, 80)]
 
 
@@ -305,4 +305,4 @@ def test_scale_check_looks_beyond_an_empty_centre():
     values = np.random.default_rng(0).uniform(0.0, 5000.0, (4, 400, 400)).astype("float32")
     values[:, 160:240, 160:240] = np.nan
     with pytest.raises(InputError, match=r"reflectance \* scale \+ offset before the call \(or scale=/offset="):
-        rasters.check_reflectance_scale(_reflectance_cube(values, 80), scheduler="synchronous")
+        scale_check.check_reflectance_scale(_reflectance_cube(values, 80), scheduler="synchronous")

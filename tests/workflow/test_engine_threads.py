@@ -1,5 +1,5 @@
 """One rule for the dask threads of a scene when the user names none: a chain's ``threads`` engine
-uses as many as ``brdfcorr correct`` (one per :data:`brdfcorr.io.writer.CORES_PER_THREAD` cores),
+uses as many as ``brdfcorr correct`` (one per :data:`brdfcorr.defaults.CORES_PER_THREAD` cores),
 not one per core."""
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ import os
 
 import pytest
 
+from brdfcorr import defaults
 from brdfcorr.chain.config import load_config
 from brdfcorr.chain.config_outputs import EngineConfig
 from brdfcorr.chain.run import _executor
@@ -33,7 +34,7 @@ def _chain_threads(engine: EngineConfig) -> int | None:
 def test_a_threads_chain_uses_the_threads_of_correct(cores, count):
     cores(count)
     correct_threads = writer.pass_threads(None, None)  # `brdfcorr correct`: no thread count, dask's default scheduler
-    assert correct_threads == writer.default_threads() == max(1, count // writer.CORES_PER_THREAD)
+    assert correct_threads == defaults.default_threads() == max(1, count // defaults.CORES_PER_THREAD)
     assert _chain_threads(EngineConfig(scheduler="threads")) == correct_threads
 
 

@@ -37,16 +37,12 @@ from brdfcorr.io.sensors.folders import (
     ProductFolder,
     sentinel2_band_names,
 )
+from brdfcorr.io.sensors.inputs import is_stac_item
 
 __all__ = ["find_stac_item", "is_stac_item"]
 
 #: Keys of the granule metadata asset in the public catalogues (Earth Search, Planetary Computer).
 METADATA_KEYS = ("granule_metadata", "granule-metadata")
-
-
-def is_stac_item(path: str | Path) -> bool:
-    """Whether ``path`` names a STAC item file (a ``.json`` file), not a product folder."""
-    return Path(path).suffix.lower() == ".json" and not Path(path).is_dir()
 
 
 def _item(path: Path) -> dict:
