@@ -260,16 +260,21 @@ def _write_json(target: Path, content: dict) -> None:
 @click.option("--plot-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write the principal-plane and azimuth figures (PNG) here.")
 @click.option("--log", "log_scale", is_flag=True, help="Logarithmic BRDF axes in the figures.")
+@click.option("--workers", type=click.IntRange(min=1),
+              help="Processes that fit the candidates of --model auto side by side (the choice is the same) "
+                   "[default: one per core this process may use].")
 @PROGRESS
 @handle_errors
 def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi, max_zenith,
-                wavelength, output, class_id, class_name, overwrite, deprecated_name, plot_dir, log_scale, progress):
+                wavelength, output, class_id, class_name, overwrite, deprecated_name, plot_dir, log_scale, workers,
+                progress):
     """Fit a BRDF model to goniometer MEASUREMENTS (CSV: theta_i, theta_r, phi, brdf[, sigma,
     wavelength]).
 
     Prints the fitted parameters with 1-sigma errors and chi2/dof (as paper 003, Table 1) and the
     parameter correlations; with -o writes the fit as a class of a parameter table.
     """
+    from brdfcorr.defaults import available_cores
     from brdfcorr.params import ParameterTable
     from brdfcorr.tasks.fit import fit_measurement_file
 
@@ -279,7 +284,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
         fit = fit_measurement_file(
             measurements, model_name, fixed=dict(fix), initial=dict(initial),
             bounds=dict(bounds), min_phi=min_phi, max_phi=max_phi,
-            max_zenith=max_zenith, wavelength=wavelength, progress=fitted,
+            max_zenith=max_zenith, wavelength=wavelength, progress=fitted, workers=workers or available_cores(),
         )
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)

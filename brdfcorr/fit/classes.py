@@ -156,16 +156,19 @@ def _fit_reasons(report: ClassFit, model: Model, at_edge: Sequence[str], guard: 
     return reasons
 
 
-def _apply_prior(report: ClassFit, prior: ShapePrior, ratios: np.ndarray, samples: ClassSamples) -> None:
+def _apply_prior(report: ClassFit, prior: ShapePrior, ratios: np.ndarray, samples: ClassSamples,
+                 levels: Levels | None) -> None:
     """The fitted RTLSR weights, covariance and errors of ``report`` replaced by their posterior
     under ``prior`` (:func:`brdfcorr.fit.prior.shape_posterior`), and its R^2, angular R^2, RMS
-    and chi^2/dof by the posterior's on ``samples``: the guard rails judge the weights delivered."""
+    and chi^2/dof by the posterior's on ``samples`` (within the groups of the fit's free
+    ``levels``, as the fit judged its own): the guard rails judge the weights delivered."""
     weights = np.column_stack([report.params[name] for name in KERNEL_WEIGHTS])
     posterior, covariance = shape_posterior(weights, report.covariance, ratios, prior.spread)
     report.params = {**report.params, **{name: posterior[:, j] for j, name in enumerate(KERNEL_WEIGHTS)}}
     report.errors = {**report.errors, **{name: np.sqrt(covariance[:, j, j]) for j, name in enumerate(KERNEL_WEIGHTS)}}
     report.covariance, report.prior = covariance, prior.label
-    quality = fit_quality(PRIOR_MODEL, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, posterior.T)
+    quality = fit_quality(PRIOR_MODEL, samples.theta_i, samples.theta_r, samples.phi, samples.brdf, posterior.T,
+                          levels=levels)
     report.r2, report.rmse, report.angular_r2, report.chi2_dof = (
         quality[name] for name in ("r2", "rmse", "angular_r2", "chi2_dof"))
 
@@ -265,7 +268,7 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
     _record(report, result)
     report.notes += [held.note(name) for name, held in result["held"].items()]
     if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
-        _apply_prior(report, *prior, samples)
+        _apply_prior(report, *prior, samples, levels)
         guard = dataclasses.replace(guard, max_condition=math.inf)  # the prior fixes what the geometry cannot
     fit_reasons = _fit_reasons(report, model, result["at_edge"], guard)
     report.reasons += fit_reasons

@@ -12,15 +12,16 @@ import numpy as np
 
 from brdfcorr.fit.profile import _profile
 from brdfcorr.fit.shapes import _resolve
-from brdfcorr.fit.solver import _quality
+from brdfcorr.fit.solver import _absorbed, _quality, _repeated_only
+from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model
 
 __all__ = ["fit_quality"]
 
 
 def fit_quality(model: str | Model, theta_i, theta_r, phi, brdf, intensities, *,
-                shape: Mapping[str, float] | None = None,
-                fixed: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
+                shape: Mapping[str, float] | None = None, fixed: Mapping[str, float] | None = None,
+                levels: Levels | None = None) -> dict[str, np.ndarray]:
     """How well given intensities explain the samples: what
     :func:`brdfcorr.fit.solver.fit_class_samples` reports of its own solution (``chi2_dof``,
     ``r2``, ``angular_r2``, ``rmse`` per band), for any other, e.g. the posterior of a shape prior
@@ -36,18 +37,30 @@ def fit_quality(model: str | Model, theta_i, theta_r, phi, brdf, intensities, *,
         Values of the free shape parameters (none for the kernel-driven models).
     fixed : mapping, optional
         Shape parameters held fixed, as for :func:`brdfcorr.fit.solver.fit_class_samples`.
+    levels : Levels, optional
+        The free levels the fit had (:mod:`brdfcorr.fit.within`): the quality is then that of the
+        views within groups, each group's views at the level the given intensities give it at its
+        own geometry, as the fit's last round judges its own solution; the constant term
+        (f_iso, t0) is the level's.
 
     Returns
     -------
     dict of str to ndarray
-        ``chi2_dof`` [sr^-2] (over N minus the linear terms and free shape parameters, as a fit's),
-        ``r2`` [-], ``angular_r2`` [-], ``rmse`` [sr^-1], each (B,).
+        ``chi2_dof`` [sr^-2] (over N minus the linear terms, free shape parameters and free
+        levels, as a fit's), ``r2`` [-], ``angular_r2`` [-], ``rmse`` [sr^-1], each (B,).
     """
     model, fixed, free = _resolve(model, fixed)
-    profile = _profile(model, theta_i, theta_r, phi, brdf, fixed)
-    design = profile.design(dict(shape or {}))
-    coefficients = np.asarray(intensities, float).reshape(design.shape[1], -1)
+    shape = dict(shape or {})
+    samples, _, levels = _repeated_only((theta_i, theta_r, phi, brdf), None, levels)
+    profile = _profile(model, *samples, fixed, levels=levels)
+    intensities = np.asarray(intensities, float).reshape(len(model.linear), -1)
+    if levels is not None:
+        group_model = levels.group_means(profile.raw_design(shape) @ intensities)
+        profile = _profile(model, *samples, fixed, levels=levels, group_model=np.maximum(group_model, 1e-12))
+    design = profile.design(shape)
+    coefficients = intensities[profile.kept]
     gram, cross = profile.products(design)
     ssr = profile.sum_yy - 2 * np.einsum("kb,kb->b", coefficients, cross) + np.einsum(
         "kb,kl,lb->b", coefficients, gram, coefficients)
-    return _quality(profile, design, coefficients, np.maximum(ssr, 0.0), len(model.linear) + len(free))
+    return _quality(profile, design, coefficients, np.maximum(ssr, 0.0),
+                    len(model.linear) + len(free) + _absorbed(levels))

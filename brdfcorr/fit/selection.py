@@ -28,9 +28,12 @@ References
 
 from __future__ import annotations
 
+import concurrent.futures
+import contextlib
+import functools
 import math
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -222,18 +225,17 @@ def fixed_for(name: str, fixed: Mapping[str, float] | None) -> dict[str, float]:
     return {**DEFAULT_FIXED.get(name, {}), **given}
 
 
-def _cross_validate(name: str, fold: np.ndarray, n_free: int, fit_and_predict: Callable,
+def _cross_validate(name: str, fold: np.ndarray, n_free: int, predict: Callable[[int], np.ndarray],
                     data: np.ndarray, weights: np.ndarray) -> CandidateScore:
-    """Held-out errors of one candidate: ``fit_and_predict(train, test)`` returns the predictions
-    at the test rows (n_test, B) from a fit on the train rows (boolean masks)."""
+    """Held-out errors of one candidate: ``predict(number)`` returns the predictions at the rows of
+    fold ``number`` (n_test, B) from a fit on the other folds' rows."""
     predictions = np.full(data.shape, np.nan)
     errors = []
     try:
         for number in range(int(fold.max()) + 1):
             test = fold == number
-            with warnings.catch_warnings(), np.errstate(all="ignore"):
-                warnings.simplefilter("ignore")  # a fold's warnings say nothing about the choice
-                predictions[test] = fit_and_predict(~test, test)
+            with _quiet():
+                predictions[test] = predict(number)
             errors.append(float(np.mean((predictions[test] - data[test]) ** 2 * weights[test])))
     except (BrdfcorrError, ValueError, np.linalg.LinAlgError) as error:
         return CandidateScore(name, n_free, (), math.nan, str(error))
@@ -246,6 +248,25 @@ def _cross_validate(name: str, fold: np.ndarray, n_free: int, fit_and_predict: C
     return CandidateScore(name, n_free, tuple(errors), float(np.nanmedian(r2)) if np.any(np.isfinite(r2)) else math.nan)
 
 
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """A fold's fit without its warnings: they say nothing about the choice."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        yield
+
+
+def _fold_fit(name: str, fixed: Mapping[str, float], angles: list[np.ndarray], data: np.ndarray,
+              errors: np.ndarray | None, train: np.ndarray, test: np.ndarray) -> np.ndarray:
+    """The predictions (n_test, 1) [sr^-1] at the ``test`` rows of model ``name`` fitted to the
+    ``train`` rows (boolean masks) of goniometer measurements: one task of :func:`choose_model`,
+    a module function so that a process pool can run it."""
+    with _quiet():
+        result = fit_brdf(name, *(a[train] for a in angles), data[train, 0], None if errors is None else errors[train],
+                          fixed=fixed)
+        return np.asarray(result.predict(*(a[test] for a in angles)), dtype=float)[:, None]
+
+
 def choose_model(
     theta_i, theta_r, phi, brdf, sigma=None, *,
     candidates: Sequence[str] = GONIOMETER_CANDIDATES,
@@ -253,6 +274,7 @@ def choose_model(
     folds: int = FOLDS,
     seed: int = SEED,
     progress: Callable[[str], object] | None = None,
+    executor: concurrent.futures.Executor | None = None,
 ) -> ModelChoice:
     """Choose the model of goniometer measurements by k-fold cross-validation over geometries.
 
@@ -276,6 +298,11 @@ def choose_model(
     progress : callable, optional
         Called as ``progress(name)`` after each candidate's folds are fitted (a progress bar's
         update; a candidate takes seconds).
+    executor : concurrent.futures.Executor, optional
+        Runs the candidates' fold fits (candidates x folds independent fits, all submitted at
+        once), e.g. a :class:`~concurrent.futures.ProcessPoolExecutor` over the cores
+        (``brdfcorr fit --model auto --workers N``). The choice is the same as without one, the
+        fits in this process one after the other.
 
     Returns
     -------
@@ -296,17 +323,17 @@ def choose_model(
                        f"(at least {2 * folds}); name a model")
     weights = np.ones_like(data) if errors is None else (1.0 / errors**2)[:, None]
     fold = _folds(np.arange(data.shape[0]), folds, seed)
+    tasks = {(name, number): (name, fixed_for(name, fixed), angles, data, errors, fold != number, fold == number)
+             for name in candidates for number in range(folds)}
+    if executor is None:  # one fit after the other, as the scores ask for them
+        results = {key: functools.partial(_fold_fit, *task) for key, task in tasks.items()}
+    else:  # every fold fit submitted at once; each candidate's score waits for its own
+        results = {key: executor.submit(_fold_fit, *task).result for key, task in tasks.items()}
     scores = []
     for name in candidates:
-        model_fixed = fixed_for(name, fixed)
-        n_free = len(get_model(name).parameters) - len(model_fixed)
-
-        def fit_and_predict(train, test, name=name, model_fixed=model_fixed):
-            result = fit_brdf(name, *(a[train] for a in angles), data[train, 0],
-                              None if errors is None else errors[train], fixed=model_fixed)
-            return np.asarray(result.predict(*(a[test] for a in angles)), dtype=float)[:, None]
-
-        scores.append(_cross_validate(name, fold, n_free, fit_and_predict, data, weights))
+        n_free = len(get_model(name).parameters) - len(fixed_for(name, fixed))
+        scores.append(_cross_validate(name, fold, n_free, lambda number, name=name: results[name, number](), data,
+                                      weights))
         if progress is not None:
             progress(name)
     chosen, best = _one_se_choice(scores)
@@ -412,6 +439,7 @@ def choose_class_model(
             # With free levels the fit is in BRDF units at its class mean level; the target is relative.
             return prediction if levels is None else prediction / profile.scale
 
-        scores.append(_cross_validate(name, fold, n_free, fit_and_predict, data, weights))
+        predict = lambda number, fit_and_predict=fit_and_predict: fit_and_predict(fold != number, fold == number)  # noqa: E731
+        scores.append(_cross_validate(name, fold, n_free, predict, data, weights))
     chosen, best = _one_se_choice(scores)
     return ModelChoice(chosen, best, tuple(scores), folds, grouping)

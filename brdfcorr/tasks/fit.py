@@ -11,6 +11,9 @@ of an image file is :func:`brdfcorr.tasks.correct.correct_files`.
 
 from __future__ import annotations
 
+import concurrent.futures
+import contextlib
+import multiprocessing
 import os
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -112,7 +115,7 @@ def fit_measurement_file(
     path: str | os.PathLike, model: str, *, fixed: Mapping[str, float] | None = None,
     initial: Mapping[str, float] | None = None, bounds: Mapping[str, tuple[float, float]] | None = None,
     min_phi: float | None = None, max_phi: float | None = None, max_zenith: float | None = None,
-    wavelength: float | None = None, progress: Callable[[str], object] | None = None,
+    wavelength: float | None = None, progress: Callable[[str], object] | None = None, workers: int = 1,
 ) -> MeasurementFit:
     """Fit a registry model to a goniometer measurement table, one fit per wavelength.
 
@@ -136,6 +139,9 @@ def fit_measurement_file(
     progress : callable, optional
         Called as ``progress(model)`` after each fit of a wavelength and, with ``"auto"``, after
         each candidate's cross-validation (a progress bar's update).
+    workers : int, default 1
+        Processes that fit the candidates' folds of ``"auto"`` side by side (a process pool; the
+        choice is the same as with one). Each starts by importing the fits (about a second).
     """
     everything = read_measurements(path)
     if wavelength is not None:
@@ -147,10 +153,11 @@ def fit_measurement_file(
     bands = fitted.wavelengths or [None]
     results, notes, choices = {}, [], {}
     if model == AUTO_MODEL:
-        for band in bands:
-            subset = fitted if band is None else fitted.at_wavelength(band)
-            choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
-                                         fixed=fixed, progress=progress)
+        with _fold_pool(workers) as executor:
+            for band in bands:
+                subset = fitted if band is None else fitted.at_wavelength(band)
+                choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
+                                             fixed=fixed, progress=progress, executor=executor)
         chosen = [choice.chosen for choice in choices.values()]
         model = max(chosen, key=chosen.count)  # the first of the most frequent
         options["fixed"] = fixed_for(model, fixed) or None
@@ -164,6 +171,14 @@ def fit_measurement_file(
         where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
         notes += [f"{where}{w.message}" for w in caught if issubclass(w.category, FitWarning)]
     return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes, choices)
+
+
+def _fold_pool(workers: int) -> contextlib.AbstractContextManager[concurrent.futures.Executor | None]:
+    """A pool of ``workers`` fresh processes (spawned: no thread of this one is copied) for the fold
+    fits of a model choice, shut down at the end of the ``with`` block; None for one worker."""
+    if workers <= 1:
+        return contextlib.nullcontext()
+    return concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
 
 
 # ------------------------------------------------------------------------------ imagery fit

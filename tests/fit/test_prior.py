@@ -178,3 +178,30 @@ def test_the_guard_rails_judge_the_posterior_not_the_fit():
     np.testing.assert_allclose(pulled.angular_r2, expected["angular_r2"], rtol=1e-12)
     np.testing.assert_allclose(pulled.r2, expected["r2"], rtol=1e-12)
     assert np.all(pulled.angular_r2 < 0.9) and np.all(plain.angular_r2 > 0.95)
+
+
+def test_a_wide_prior_leaves_a_fit_with_free_levels_judged_within_its_pixels():
+    # Pixels seen four times, each at its own brightness (cover 0.5-2x): the fit with each pixel's
+    # level free judges its views within pixels (angular R^2 near 1). A prior far too wide to move
+    # the weights must leave what the guard rails read as it was. Judged on the samples' absolute
+    # values instead, the pixels' levels counted as unexplained: a real composite's strata with
+    # patch levels were left uncorrected under --prior (angular R^2 0.74 -> -0.06).
+    from brdfcorr.fit.classes import ClassSamples, fit_one_class
+    from brdfcorr.models import get_model
+
+    rtlsr, rng = get_model("ross_thick_li_sparse"), np.random.default_rng(4)
+    pixels, views = 500, 4
+    sza, vza = rng.uniform(25, 45, (pixels, views)), rng.uniform(0, 40, (pixels, views))
+    phi = rng.uniform(0, 180, (pixels, views))
+    cover = rng.uniform(0.5, 2.0, (pixels, 1))
+    brdf = rtlsr(sza, vza, phi, f_iso=0.05, f_vol=0.03, f_geo=0.008) * cover * (1 + 0.01 * rng.standard_normal(sza.shape))
+    samples = ClassSamples(sza.ravel(), vza.ravel(), phi.ravel(), brdf.reshape(-1, 1),
+                           group=np.repeat(np.arange(pixels), views), levels="pixel")
+    plain = fit_one_class(1, "grass", rtlsr, samples)
+    wide = fit_one_class(1, "grass", rtlsr, samples, prior=(ShapePrior("roy2016", 1e6), np.array([[0.5, 0.1]])))
+    assert plain.status == wide.status == "fitted" and wide.prior == "roy2016 (spread 1e+06)"
+    for name in rtlsr.linear:
+        np.testing.assert_allclose(wide.params[name], plain.params[name], rtol=1e-6)
+    assert plain.angular_r2[0] > 0.9
+    np.testing.assert_allclose(wide.angular_r2, plain.angular_r2, atol=1e-3)
+    np.testing.assert_allclose(wide.r2, plain.r2, atol=1e-3)

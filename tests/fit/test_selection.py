@@ -71,6 +71,22 @@ def test_a_two_lobe_surface_chooses_the_two_lobe_model_and_a_kernel_surface_the_
     assert [row["chosen"] for row in kernels.rows()] == [False, True, False]
 
 
+def test_the_fold_fits_in_a_process_pool_give_the_same_choice():
+    # `fit --model auto --workers N` hands the candidates' fold fits to processes: each fit is the
+    # same computation, so every fold's held-out error is the same to the last bit.
+    import concurrent.futures
+    import multiprocessing
+
+    ti, tr, phi = _geometries()
+    brdf = get_model("ross_thick_li_sparse")(ti, tr, phi, **KERNELS) * (1 + 0.02 * np.random.default_rng(3).standard_normal(ti.size))
+    candidates = ("ross_thick_li_sparse", "torrance_sparrow")
+    alone = choose_model(ti, tr, phi, brdf, candidates=candidates)
+    with concurrent.futures.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        pooled = choose_model(ti, tr, phi, brdf, candidates=candidates, executor=pool, progress=(done := []).append)
+    assert pooled == alone and alone.chosen == "ross_thick_li_sparse"
+    assert done == list(candidates)
+
+
 def test_too_few_measurements_for_the_folds_are_refused():
     with pytest.raises(FitError, match="too few"):
         choose_model([10, 20], [10, 20], [0, 180], [0.1, 0.2])

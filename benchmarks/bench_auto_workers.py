@@ -1,0 +1,67 @@
+"""Benchmark: the model choice of ``brdfcorr fit --model auto`` in one process and in a pool of
+worker processes (``--workers N``), on the README's roof-tile measurements.
+
+The choice fits every candidate (:data:`brdfcorr.fit.selection.GONIOMETER_CANDIDATES`, six
+models) on five folds: thirty independent least-squares fits, which ``choose_model`` hands to a
+:class:`concurrent.futures.ProcessPoolExecutor` (spawned processes; each imports the fits first).
+The table is the paper-003 roof tile at the EGO geometries with 4 % noise (``python
+examples/make_goniometer_csv.py roof_tile``), phi >= 90 deg as the README fits it. Prints the
+wall time of each, its ratio to the one-process choice measured in the same run, and whether the
+choice (every fold's held-out error) is the same.
+
+    python benchmarks/bench_auto_workers.py [--workers 2,4]
+
+Measured (this 2-core machine, quiet): one process 21.1 s; two workers 11.9 s (0.56 x), the same
+choice and fold errors. (`brdfcorr fit --model auto` of the README's table: 25-28 s with
+`--workers 1`, 17-18 s with two: the command also reads, fits the chosen model and prints.)
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import multiprocessing
+import time
+
+from brdfcorr.defaults import available_cores
+from brdfcorr.fit.measurements import filter_measurements, goniometer_angles, synthesize_measurements
+from brdfcorr.fit.selection import choose_model
+from brdfcorr.models.materials import load_material
+
+
+def measurements():
+    """The roof tile's synthetic goniometer table (examples/make_goniometer_csv.py), phi >= 90 deg."""
+    material = load_material("roof_tile")
+    data = synthesize_measurements(material.model, material.params, *goniometer_angles(), relative_noise=0.04,
+                                   seed=0, source=material.label)
+    return filter_measurements(data, min_phi=90.0)
+
+
+def timed_choice(data, workers: int):
+    """The choice and its wall time [s] with ``workers`` processes (1: in this process)."""
+    start = time.perf_counter()
+    if workers == 1:
+        choice = choose_model(data.theta_i, data.theta_r, data.phi, data.brdf, data.sigma)
+    else:
+        context = multiprocessing.get_context("spawn")
+        with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+            choice = choose_model(data.theta_i, data.theta_r, data.phi, data.brdf, data.sigma, executor=pool)
+    return choice, time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workers", default=str(available_cores()),
+                        help="worker counts to time, comma-separated [default: this machine's cores]")
+    args = parser.parse_args()
+    data = measurements()
+    alone, baseline = timed_choice(data, 1)
+    print(f"{len(data.brdf)} measurements; one process: {baseline:.1f} s, chose {alone.chosen}")
+    for workers in (int(text) for text in args.workers.split(",")):
+        choice, seconds = timed_choice(data, workers)
+        print(f"{workers} workers: {seconds:.1f} s ({seconds / baseline:.2f} x one process), "
+              f"same choice and fold errors: {choice == alone}")
+
+
+if __name__ == "__main__":
+    main()
