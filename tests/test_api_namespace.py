@@ -14,6 +14,9 @@ def test_top_level_names_are_the_library_objects():
 
     assert brdfcorr.ParameterTable is ParameterTable
     assert brdfcorr.run_chain is run_chain
+    from brdfcorr.tasks import fit, goniometer  # the goniometer task's names where they were before
+
+    assert fit.fit_measurement_file is goniometer.fit_measurement_file and fit.MeasurementFit is goniometer.MeasurementFit
     assert {"ParameterTable", "run_chain", "normalize"} <= set(brdfcorr.__all__)
 
 

@@ -8,7 +8,7 @@ into scenes and decides what happens to each (``run``, ``skip``, ``fail``; :mod:
    image (:func:`brdfcorr.tasks.classmaps.ndvi_class_file`), the class map of the steps below; a
    scene whose map cannot be made fails;
 1. builds the parameter table: built-in materials, the table file, the ``fit`` step (from
-   goniometer CSVs with :func:`brdfcorr.tasks.fit.fit_measurement_file` or from the imagery
+   goniometer CSVs with :func:`brdfcorr.tasks.goniometer.fit_measurement_file` or from the imagery
    with :func:`brdfcorr.tasks.fit.fit_class_files`), merged in that order (later wins for a
    class id), with the strata's ``ndvi_interpolation`` block where the strata step asks for it;
 2. normalizes every scene to run with :func:`brdfcorr.tasks.correct.correct_files` (lazy, chunked,
@@ -103,7 +103,8 @@ from brdfcorr.plot.assess import write_assessment_figures
 from brdfcorr.tasks.assess import assess_files, write_json
 from brdfcorr.tasks.classmaps import class_preparation
 from brdfcorr.tasks.correct import Terrain, correct_files
-from brdfcorr.tasks.fit import SceneFiles, fit_class_files, fit_measurement_file
+from brdfcorr.tasks.fit import SceneFiles, fit_class_files
+from brdfcorr.tasks.goniometer import fit_measurement_file
 from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
 __all__ = [

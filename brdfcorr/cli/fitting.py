@@ -276,7 +276,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     """
     from brdfcorr.defaults import available_cores
     from brdfcorr.params import ParameterTable
-    from brdfcorr.tasks.fit import fit_measurement_file
+    from brdfcorr.tasks.goniometer import fit_measurement_file
 
     target = update_target(output, overwrite, inputs={"MEASUREMENTS": measurements}) if output is not None else None
     table = ParameterTable.load(target) if target is not None and target.exists() else None

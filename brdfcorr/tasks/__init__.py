@@ -2,7 +2,7 @@
 
 - :mod:`~brdfcorr.tasks.correct`: correct an image file (:func:`~brdfcorr.tasks.correct.correct_files`
   of a :class:`~brdfcorr.tasks.request.CorrectionRequest`);
-- :mod:`~brdfcorr.tasks.fit`: fit a goniometer table, fit classes from scenes;
+- :mod:`~brdfcorr.tasks.goniometer`: fit a goniometer table; :mod:`~brdfcorr.tasks.fit`: fit classes from scenes;
 - :mod:`~brdfcorr.tasks.assess`: assess a correction, leave one line out;
 - :mod:`~brdfcorr.tasks.nbar`, :mod:`~brdfcorr.tasks.hls`: NBAR of Sentinel-2 / Landsat folders and HLS granules;
 - :mod:`~brdfcorr.tasks.series`: a time series of such folders as one lazy cube for notebooks;
@@ -15,4 +15,5 @@ A task never imports :mod:`brdfcorr.chain` (import-linter's layers contract).
 
 #: The task modules, imported at first use as ``brdfcorr.tasks.<name>`` (importing this package
 #: loads none of them: the command line pays only for the task it runs).
-__all__ = ["assess", "classmaps", "correct", "fit", "hls", "nbar", "options", "request", "results", "series"]
+__all__ = ["assess", "classmaps", "correct", "fit", "goniometer", "hls", "nbar", "options", "request", "results",
+           "series"]

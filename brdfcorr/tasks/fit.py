@@ -1,22 +1,17 @@
-"""The fits on files that the CLI and chains share: one library function each.
+"""The imagery fit on files that the CLI and chains share: :func:`fit_class_files` fits per-class
+parameters from scenes (``brdfcorr fit-classes``, a chain's imagery fit).
 
-- :func:`fit_measurement_file`: fit a goniometer table (``brdfcorr fit``, a chain's goniometer fit);
-- :func:`fit_class_files`: fit per-class parameters from scenes (``brdfcorr fit-classes``, a chain's
-  imagery fit).
-
-They read and write files but print nothing: the CLI shows their results, chains report them.
-Warnings of the fits are collected into the results (``warnings``), one line each. The correction
-of an image file is :func:`brdfcorr.tasks.correct.correct_files`.
+It reads files but prints nothing: the CLI shows its result, chains report it. Warnings of the
+fits are collected into the result (``warnings``), one line each. A goniometer table's fit is
+:mod:`brdfcorr.tasks.goniometer` (its names are importable from here too); the correction of an
+image file is :func:`brdfcorr.tasks.correct.correct_files`.
 """
 
 from __future__ import annotations
 
-import concurrent.futures
-import contextlib
-import multiprocessing
 import os
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -24,12 +19,8 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr._entry import option
-from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.fit.classes import ClassFitResult, ClassFitWarning, ClassModels, GuardRails, Sampling, fit_classes
-from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
-from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
-from brdfcorr.fit.selection import ModelChoice, choose_model, fixed_for
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
 from brdfcorr.io import rasters, scale_check
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
@@ -37,148 +28,15 @@ from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable
 from brdfcorr.params.bands import in_ranges
 from brdfcorr.tasks.classmaps import class_preparation, tagged_class_names
+from brdfcorr.tasks.goniometer import MeasurementFit, fit_measurement_file
 
 __all__ = [
-    "fit_measurement_file",
+    "fit_measurement_file",  # these two: brdfcorr.tasks.goniometer's, re-exported from their home before
     "MeasurementFit",
     "fit_class_files",
     "SceneFiles",
     "ImageryFitResult",
 ]
-
-
-# ---------------------------------------------------------------------------- goniometer fit
-@dataclass(frozen=True)
-class MeasurementFit:
-    """The fit of one goniometer table (:func:`fit_measurement_file`).
-
-    Attributes
-    ----------
-    path : Path
-        The measurement file.
-    everything, fitted : Measurements
-        All measurements (of the chosen wavelength) and those selected for the fit.
-    keep : ndarray of bool
-        Which of ``everything`` were fitted.
-    selection : str
-        The selection in words ("phi >= 90 deg"), empty when every measurement is fitted.
-    results : dict of float or None to FitResult
-        One fit per wavelength (key None for a table without wavelengths).
-    warnings : list of str
-        Identifiability and convergence warnings, prefixed with the wavelength where there are
-        several.
-    choices : dict of float or None to ModelChoice
-        With ``model="auto"``: each wavelength's choice by held-out error (empty otherwise).
-    """
-
-    path: Path
-    everything: Measurements
-    fitted: Measurements
-    keep: np.ndarray
-    selection: str
-    results: dict[float | None, FitResult]
-    warnings: list[str] = field(default_factory=list)
-    choices: dict[float | None, ModelChoice] = field(default_factory=dict)
-
-    @property
-    def source(self) -> str:
-        """What was fitted, for the table's ``fit:`` block: ``"brdfcorr fit tiles.csv (torrance_sparrow;
-        fixed k=0.25; phi >= 90)"``."""
-        first = next(iter(self.results.values()))
-        details = [first.model.name]
-        if self.choices:
-            choice = next(iter(self.choices.values()))
-            details[0] += f" chosen by {choice.folds}-fold cross-validation over {choice.grouping}"
-        if first.fixed:
-            details.append("fixed " + ", ".join(f"{key}={value:g}" for key, value in first.fixed.items()))
-        if self.selection:
-            details.append(self.selection)
-        return f"brdfcorr fit {self.path.name} ({'; '.join(details)})"
-
-    def table_entry(self, class_id: int, name: str) -> dict:
-        """The fit as a class of a parameter table (spectral where there are several wavelengths),
-        with its ``fit:`` provenance block (:meth:`brdfcorr.fit.FitResult.fit_record`)."""
-        if len(self.results) > 1:
-            return spectral_table_entry(self.results, class_id, name, self.source)
-        return next(iter(self.results.values())).table_entry(class_id, name, self.source)
-
-    def report(self) -> list[dict]:
-        """JSON-friendly fits per wavelength: params, errors, reduced chi^2."""
-        return [
-            {"wavelength": wavelength, "params": dict(result.params),
-             "errors": {k: float(v) for k, v in result.errors.items()}, "reduced_chi2": float(result.reduced_chi2)}
-            for wavelength, result in self.results.items()
-        ]
-
-
-def fit_measurement_file(
-    path: str | os.PathLike, model: str, *, fixed: Mapping[str, float] | None = None,
-    initial: Mapping[str, float] | None = None, bounds: Mapping[str, tuple[float, float]] | None = None,
-    min_phi: float | None = None, max_phi: float | None = None, max_zenith: float | None = None,
-    wavelength: float | None = None, progress: Callable[[str], object] | None = None, workers: int = 1,
-) -> MeasurementFit:
-    """Fit a registry model to a goniometer measurement table, one fit per wavelength.
-
-    Parameters
-    ----------
-    path : path-like
-        CSV with columns ``theta_i, theta_r, phi, brdf[, sigma, wavelength]`` [deg, sr^-1]
-        (:func:`brdfcorr.fit.measurements.read_measurements`).
-    model : str
-        Registered surface model, or ``"auto"``: the candidate with the lowest held-out error
-        (:func:`brdfcorr.fit.selection.choose_model`, each wavelength; where the wavelengths choose
-        differently, the model most of them chose, fitted at every wavelength).
-    fixed, initial, bounds :
-        As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25); with ``"auto"`` the
-        fixed values apply to the candidates that have them, and initial values and bounds to the
-        chosen model.
-    min_phi, max_phi, max_zenith : float, optional
-        Fit only these measurements [deg] (paper 003: ``min_phi=90``).
-    wavelength : float, optional
-        Fit only this wavelength [nm] of a table with a wavelength column.
-    progress : callable, optional
-        Called as ``progress(model)`` after each fit of a wavelength and, with ``"auto"``, after
-        each candidate's cross-validation (a progress bar's update).
-    workers : int, default 1
-        Processes that fit the candidates' folds of ``"auto"`` side by side (a process pool; the
-        choice is the same as with one). Each starts by importing the fits (about a second).
-    """
-    everything = read_measurements(path)
-    if wavelength is not None:
-        everything = everything.at_wavelength(wavelength)
-    limits = {"min_phi": min_phi, "max_phi": max_phi, "max_zenith": max_zenith}
-    fitted = filter_measurements(everything, **limits)
-    keep, selection = selection_mask(everything, **limits)
-    options = {"fixed": fixed or None, "initial": initial or None, "bounds": bounds or None}
-    bands = fitted.wavelengths or [None]
-    results, notes, choices = {}, [], {}
-    if model == AUTO_MODEL:
-        with _fold_pool(workers) as executor:
-            for band in bands:
-                subset = fitted if band is None else fitted.at_wavelength(band)
-                choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
-                                             fixed=fixed, progress=progress, executor=executor)
-        chosen = [choice.chosen for choice in choices.values()]
-        model = max(chosen, key=chosen.count)  # the first of the most frequent
-        options["fixed"] = fixed_for(model, fixed) or None
-    for band in bands:
-        subset = fitted if band is None else fitted.at_wavelength(band)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", FitWarning)
-            results[band] = fit_measurements(model, subset, **options)
-        if progress is not None:
-            progress(model)
-        where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
-        notes += [f"{where}{w.message}" for w in caught if issubclass(w.category, FitWarning)]
-    return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes, choices)
-
-
-def _fold_pool(workers: int) -> contextlib.AbstractContextManager[concurrent.futures.Executor | None]:
-    """A pool of ``workers`` fresh processes (spawned: no thread of this one is copied) for the fold
-    fits of a model choice, shut down at the end of the ``with`` block; None for one worker."""
-    if workers <= 1:
-        return contextlib.nullcontext()
-    return concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
 
 
 # ------------------------------------------------------------------------------ imagery fit

@@ -6,7 +6,7 @@
 - :class:`NbarResult`: :func:`brdfcorr.tasks.nbar.nbar_files` (``brdfcorr nbar``).
 
 The fit and assessment tasks return their own records (:class:`brdfcorr.tasks.fit.ImageryFitResult`,
-:class:`brdfcorr.tasks.fit.MeasurementFit`, :class:`brdfcorr.tasks.assess.Assessment`), whose
+:class:`brdfcorr.tasks.goniometer.MeasurementFit`, :class:`brdfcorr.tasks.assess.Assessment`), whose
 ``report()`` is what a chain's report holds.
 """
 

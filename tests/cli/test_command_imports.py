@@ -76,3 +76,16 @@ def test_a_chains_validation_imports_neither_xarray_nor_scipy(tmp_path, make_sce
         code = (f"from brdfcorr.cli import main\ntry:\n    main(['validate', {str(chain)!r}])\n"
                 "except SystemExit as stop:\n    assert not stop.code")
         assert _deferred_after(code, cwd=tmp_path, libraries=("xarray", "pandas", "dask", "scipy")) == [], chain
+
+
+def test_a_goniometer_fit_imports_no_raster_stack(tmp_path):
+    # `brdfcorr fit CSV -o TABLE` (paper 003's procedure, the README's goniometer step) needs scipy's
+    # optimizers, not xarray, dask or rasterio: 3.7 s before, when its task lived beside the imagery
+    # fit (brdfcorr.tasks.fit), now brdfcorr.tasks.goniometer.
+    csv = tmp_path / "tile.csv"
+    csv.write_text("theta_i,theta_r,phi,brdf\n" + "".join(f"{ti},{tr},180,{0.02 + 0.001 * tr}\n"
+                                                        for ti in (30, 50) for tr in range(0, 70, 5)))
+    command = ["fit", str(csv), "--model", "lambertian", "-o", str(tmp_path / "table.yaml")]
+    code = f"from brdfcorr.cli import main\ntry:\n    main({command!r})\nexcept SystemExit as stop:\n    assert not stop.code"
+    assert _deferred_after(code, libraries=("xarray", "pandas", "dask", "rasterio", "matplotlib")) == []
+    assert (tmp_path / "table.yaml").is_file()

@@ -180,7 +180,7 @@ def _goniometer_csv(directory, wavelengths=(None,)):
 
 
 def test_goniometer_fit_writes_its_fit_block(tmp_path):
-    from brdfcorr.tasks.fit import fit_measurement_file
+    from brdfcorr.tasks.goniometer import fit_measurement_file
 
     fit = fit_measurement_file(_goniometer_csv(tmp_path), "torrance_sparrow", fixed={"k": 0.25}, min_phi=90)
     result = fit.results[None]
@@ -202,7 +202,7 @@ def test_goniometer_fit_writes_its_fit_block(tmp_path):
 
 
 def test_spectral_goniometer_fit_has_one_matrix_per_wavelength(tmp_path):
-    from brdfcorr.tasks.fit import fit_measurement_file
+    from brdfcorr.tasks.goniometer import fit_measurement_file
 
     fit = fit_measurement_file(_goniometer_csv(tmp_path, (450.0, 850.0)), "torrance_sparrow",
                                fixed={"k": 0.25}, min_phi=90)
