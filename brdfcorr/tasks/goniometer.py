@@ -14,7 +14,7 @@ import contextlib
 import multiprocessing
 import os
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -153,9 +153,16 @@ def fit_measurement_file(
     return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes, choices)
 
 
-def _fold_pool(workers: int) -> contextlib.AbstractContextManager[concurrent.futures.Executor | None]:
+@contextlib.contextmanager
+def _fold_pool(workers: int) -> Iterator[concurrent.futures.Executor | None]:
     """A pool of ``workers`` fresh processes (spawned: no thread of this one is copied) for the fold
-    fits of a model choice, shut down at the end of the ``with`` block; None for one worker."""
+    fits of a model choice, for the ``with`` block; None for one worker. Leaving the block early
+    (an error, Ctrl-C) cancels the fits not started, so it waits for the running ones only."""
     if workers <= 1:
-        return contextlib.nullcontext()
-    return concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+        yield None
+        return
+    pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)

@@ -87,6 +87,19 @@ def test_the_fold_fits_in_a_process_pool_give_the_same_choice():
     assert done == list(candidates)
 
 
+def test_leaving_the_fold_pool_early_cancels_the_fits_not_started():
+    # Ctrl-C during `fit --model auto`: the pool waits for the fits running, not for all thirty.
+    import time
+
+    from brdfcorr.tasks.goniometer import _fold_pool
+
+    futures = []
+    with pytest.raises(KeyboardInterrupt), _fold_pool(2) as pool:
+        futures = [pool.submit(time.sleep, 0.5) for _ in range(20)]
+        raise KeyboardInterrupt
+    assert sum(future.cancelled() for future in futures) >= 15
+
+
 def test_too_few_measurements_for_the_folds_are_refused():
     with pytest.raises(FitError, match="too few"):
         choose_model([10, 20], [10, 20], [0, 180], [0.1, 0.2])
