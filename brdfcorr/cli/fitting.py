@@ -63,7 +63,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
                         block_size, levels, patch_size, errors_cluster, cluster_layers, cluster_band, scale, offset,
                         min_samples, min_vza_spread, max_condition,
-                        bad_bands, fallback, prior, prior_spread, output, report_path, plot_dir, overwrite, progress):
+                        bad_bands, fallback, prior, prior_spread, output, report_path, plot_dir, overwrite, workers,
+                        progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
 
     The images' stored values are read as reflectance factors with their GDAL scale/offset, or
@@ -129,7 +130,7 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
             sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
                               levels=levels, patch_size=patch_size, errors_cluster=errors_cluster),
             guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
-            progress=fitted,
+            progress=fitted, workers=workers,
         )
     plots = _class_plot_files(fit.result.fits, plot_dir) if plot_dir else {}
     check_outputs({**written, **{f"--plot-dir file {path}": path for path in plots.values()}}, read)

@@ -22,6 +22,7 @@ parameters in the resulting table are in sr^-1 like the goniometer fits of paper
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import math
 import warnings
@@ -56,7 +57,7 @@ from brdfcorr.fit.settings import (
 from brdfcorr.fit.shapes import DEFAULT_FIXED, SEARCH_RANGES, intensity_terms, search_range
 from brdfcorr.fit.solver import GRID_POINTS, fit_class_samples
 from brdfcorr.fit.within import Levels
-from brdfcorr.models import Model, get_model
+from brdfcorr.models import REGISTRY, Model, get_model
 from brdfcorr.params import ParameterTable
 from brdfcorr.params.bands import in_ranges
 
@@ -446,6 +447,21 @@ def _prior(models: ClassModels, wavelengths: Sequence[float] | None) -> tuple[Sh
     return models.prior, prior_ratios(models.prior.coefficients, wavelengths)
 
 
+def _by_name(model: str | Model) -> str | Model:
+    """A registered model by its name (a process pool's task takes it so: some models' kernels are
+    closures, which do not pickle); another as it is."""
+    return model.name if isinstance(model, Model) and REGISTRY.get(model.name) is model else model
+
+
+def _fit_recording(args: tuple, options: dict) -> tuple[ClassFit, list[tuple[str, type[Warning]]]]:
+    """:func:`fit_one_class` with its warnings recorded, as (message, category): a process pool's
+    task of :func:`fit_classes`, whose warnings would be lost in the worker process."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fit = fit_one_class(*args, **options)
+    return fit, [(str(warning.message), warning.category) for warning in caught]
+
+
 def _thinned(samples: ClassSamples, keep: int) -> ClassSamples:
     """About ``keep`` of a class's samples, evenly spaced, for plots (angles and BRDF only)."""
     step = max(1, samples.theta_i.size // keep)
@@ -455,7 +471,8 @@ def _thinned(samples: ClassSamples, keep: int) -> ClassSamples:
 def fit_classes(images, classes, angles, models: ClassModels | str | Model = ClassModels(), *,
                 sampling: Sampling = Sampling(), wavelengths: Sequence[float] | None = None,
                 guard: GuardRails = GuardRails(), progress=None,
-                source: str = "brdfcorr.fit.fit_classes", clusters=None) -> ClassFitResult:
+                source: str = "brdfcorr.fit.fit_classes", clusters=None,
+                executor: concurrent.futures.Executor | None = None) -> ClassFitResult:
     """Fit a BRDF model per class (shape per class, intensities per band) from imagery.
 
     Parameters
@@ -493,6 +510,11 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         composite's day-of-year band, a flight-line id): the errors are cluster-robust over these
         instead of square blocks of ``sampling.block_size``, and the held-out folds of ``auto``
         hold out whole clusters (:func:`sample_classes`).
+    executor : concurrent.futures.Executor, optional
+        Fits the classes (each class's fit is independent of the others'), e.g. a
+        :class:`~concurrent.futures.ProcessPoolExecutor` over the cores (``brdfcorr fit-classes
+        --workers N``): the same fits as without one, one class after the other in this process;
+        the classes' warnings are given here, in the classes' order.
 
     Returns
     -------
@@ -518,14 +540,22 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     pooled = sample_classes(scenes, classes, angles, class_ids=models.class_ids, sampling=sampling, clusters=clusters,
                             min_repeated=guard.min_samples)
     prior = _prior(models, wavelengths)
-    fits, entries, kept = [], [], {}
+    tasks = {}
     for class_id, samples in pooled.items():
         samples.scene_errors = sampling.errors_cluster == "two-way"
-        fit = fit_one_class(
-            class_id, models.name_of(class_id), models.model_of(class_id), samples,
-            fixed=models.fixed, guard=guard, fallback=models.fallback_of(class_id),
-            prior=prior, pool_if_alike=sampling.levels == "auto",
-        )
+        tasks[class_id] = ((class_id, models.name_of(class_id), _by_name(models.model_of(class_id)), samples),
+                           {"fixed": models.fixed, "guard": guard, "fallback": models.fallback_of(class_id),
+                            "prior": prior, "pool_if_alike": sampling.levels == "auto"})
+    futures = {} if executor is None else {key: executor.submit(_fit_recording, *task) for key, task in tasks.items()}
+    fits, entries, kept = [], [], {}
+    for class_id, samples in pooled.items():
+        if executor is None:
+            args, options = tasks[class_id]
+            fit = fit_one_class(*args, **options)
+        else:  # the class's warnings, given here as they would have been in this process
+            fit, caught = futures[class_id].result()
+            for message, category in caught:
+                warnings.warn(message, category, stacklevel=2)
         if samples.note is not None:
             fit.notes.append(samples.note)
         fits.append(fit)

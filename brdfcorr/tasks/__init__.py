@@ -15,5 +15,5 @@ A task never imports :mod:`brdfcorr.chain` (import-linter's layers contract).
 
 #: The task modules, imported at first use as ``brdfcorr.tasks.<name>`` (importing this package
 #: loads none of them: the command line pays only for the task it runs).
-__all__ = ["assess", "classmaps", "correct", "fit", "goniometer", "hls", "nbar", "options", "request", "results",
-           "series"]
+__all__ = ["assess", "classmaps", "correct", "fit", "goniometer", "hls", "nbar", "options", "pool", "request",
+           "results", "series"]

@@ -9,6 +9,7 @@ image file is :func:`brdfcorr.tasks.correct.correct_files`.
 
 from __future__ import annotations
 
+import concurrent.futures
 import os
 import warnings
 from collections.abc import Mapping, Sequence
@@ -29,6 +30,7 @@ from brdfcorr.params import ParameterTable
 from brdfcorr.params.bands import in_ranges
 from brdfcorr.tasks.classmaps import class_preparation, tagged_class_names
 from brdfcorr.tasks.goniometer import MeasurementFit, fit_measurement_file
+from brdfcorr.tasks.pool import process_pool
 
 __all__ = [
     "fit_measurement_file",  # these two: brdfcorr.tasks.goniometer's, re-exported from their home before
@@ -179,7 +181,7 @@ def _imagery_source(scenes: Sequence[SceneFiles], choice: ClassModels) -> str:
 def fit_class_files(
     scenes: Sequence[SceneFiles], models: ClassModels | str | None, *, sampling: Sampling = Sampling(),
     guard: GuardRails = GuardRails(), chunks: int | None = None, wavelengths: Sequence[float] | None = None,
-    skip_unreadable: bool = False, progress=None,
+    skip_unreadable: bool = False, progress=None, workers: int = 1,
 ) -> ImageryFitResult:
     """Fit per-class, per-band parameters from the pixels of one or many scenes.
 
@@ -215,6 +217,10 @@ def fit_class_files(
         least one scene must open (a chain's fit step uses this).
     progress : callable, optional
         Called as ``progress(class_id)`` after each class is fitted (a progress bar's update).
+    workers : int, default 1
+        Processes that fit the classes side by side (:mod:`brdfcorr.tasks.pool`; the same fits as
+        with one). Each starts by importing the fits (about a second): for many classes, or many
+        samples per class.
 
     Notes
     -----
@@ -232,8 +238,9 @@ def fit_class_files(
     ranges = [*sampling.bad_bands, *(run for runs, _ in bbl for run in runs)]
     sampling = replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges)))
     layers = _cluster_layers(used, opened, chunks)
-    result, caught_notes = _fit_pooled(opened, models, sampling, guard, _imagery_source(used, models), progress,
-                                       layers)
+    with process_pool(workers) as executor:
+        result, caught_notes = _fit_pooled(opened, models, sampling, guard, _imagery_source(used, models), progress,
+                                           layers, executor)
     notes += _bad_band_note(result, max((count for _, count in bbl), default=0))
     return ImageryFitResult(result, used, _fitted_wavelengths(opened[0].reflectance, result), left_out, caught_notes,
                             notes)
@@ -260,14 +267,16 @@ def _cluster_layers(scenes: Sequence[SceneFiles], opened: Sequence[SceneData],
 
 
 def _fit_pooled(opened: Sequence[SceneData], models: ClassModels, sampling: Sampling, guard: GuardRails, source: str,
-                progress, clusters: list[xr.DataArray] | None = None) -> tuple[ClassFitResult, list[str]]:
+                progress, clusters: list[xr.DataArray] | None = None,
+                executor: concurrent.futures.Executor | None = None) -> tuple[ClassFitResult, list[str]]:
     """:func:`brdfcorr.fit.fit_classes` of the opened scenes' pixels (errors over the ``clusters``
-    layers, if any), and its warnings (:class:`ClassFitWarning`) as notes."""
+    layers, if any; the classes fitted by ``executor``, if given), and its warnings
+    (:class:`ClassFitWarning`) as notes."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ClassFitWarning)
         result = fit_classes([s.reflectance for s in opened], [s.classes for s in opened],
                              [xr.Dataset(s.angles) for s in opened], models, sampling=sampling, guard=guard,
-                             source=source, progress=progress, clusters=clusters)
+                             source=source, progress=progress, clusters=clusters, executor=executor)
     return result, [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
 
 

@@ -9,12 +9,9 @@ needs scipy's optimizers only, not the raster stack of the imagery fit (:mod:`br
 
 from __future__ import annotations
 
-import concurrent.futures
-import contextlib
-import multiprocessing
 import os
 import warnings
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,6 +21,7 @@ from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
 from brdfcorr.fit.selection import ModelChoice, choose_model, fixed_for
+from brdfcorr.tasks.pool import process_pool
 
 __all__ = ["fit_measurement_file", "MeasurementFit"]
 
@@ -133,7 +131,7 @@ def fit_measurement_file(
     bands = fitted.wavelengths or [None]
     results, notes, choices = {}, [], {}
     if model == AUTO_MODEL:
-        with _fold_pool(workers) as executor:
+        with process_pool(workers) as executor:
             for band in bands:
                 subset = fitted if band is None else fitted.at_wavelength(band)
                 choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
@@ -151,18 +149,3 @@ def fit_measurement_file(
         where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
         notes += [f"{where}{w.message}" for w in caught if issubclass(w.category, FitWarning)]
     return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes, choices)
-
-
-@contextlib.contextmanager
-def _fold_pool(workers: int) -> Iterator[concurrent.futures.Executor | None]:
-    """A pool of ``workers`` fresh processes (spawned: no thread of this one is copied) for the fold
-    fits of a model choice, for the ``with`` block; None for one worker. Leaving the block early
-    (an error, Ctrl-C) cancels the fits not started, so it waits for the running ones only."""
-    if workers <= 1:
-        yield None
-        return
-    pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
-    try:
-        yield pool
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)

@@ -399,6 +399,9 @@ FIT_CLASSES = settings(
     Setting("plot_dir", ("--plot-dir",), "dir",
             help="Directory for one PNG per class (observed vs modelled against view zenith)."),
     _flag("overwrite", "--overwrite", "Replace an existing table (-o) and report [default: refuse]."),
+    Setting("workers", ("--workers",), "int", ge=1, default=1, show_default=True,
+            help="Processes that fit the classes side by side (the same fits); each first imports the fits "
+                 "(about a second): for many classes or many samples."),
     _PROGRESS,
 )
 

@@ -155,6 +155,31 @@ def test_guard_rails_fall_back_or_leave_uncorrected_and_say_so():
     assert result.table[1].model == "torrance_sparrow" and result.table[1].params["w"] == 0.0362
 
 
+def test_classes_fitted_in_a_process_pool_give_the_same_table_and_warnings():
+    # `fit-classes --workers N`: each class's fit is independent and the same computation in a
+    # worker process; its warnings, recorded there, are given here in the classes' order. A model
+    # object from the registry travels by its name (some kernels are closures, which do not pickle).
+    import concurrent.futures
+    import multiprocessing
+
+    from brdfcorr.models import get_model
+
+    image, classes, angles = airborne_line(ny=40, nx=60, vza_max=40.0)
+    narrow = xr.where(np.abs(angles["vza"]) < 3, classes, 1)  # class 2 fails its view zenith spread
+    models = ClassModels("empirical", class_models={2: get_model("ross_thick_li_sparse")})
+    with warnings.catch_warnings(record=True) as alone_warnings:
+        warnings.simplefilter("always", ClassFitWarning)
+        alone = fit_classes(image, narrow, angles, models)
+    with warnings.catch_warnings(record=True) as pooled_warnings, \
+            concurrent.futures.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        warnings.simplefilter("always", ClassFitWarning)
+        pooled = fit_classes(image, narrow, angles, models, executor=pool)
+    assert pooled.table.to_dict() == alone.table.to_dict() and pooled.table.class_ids == (1,)
+    assert [fit.summary() for fit in pooled.fits] == [fit.summary() for fit in alone.fits]
+    messages = [str(w.message) for w in alone_warnings if w.category is ClassFitWarning]
+    assert messages and [str(w.message) for w in pooled_warnings if w.category is ClassFitWarning] == messages
+
+
 def test_sampling_is_reproducible_capped_and_lazy_safe():
     image, classes, angles = airborne_line(ny=40, nx=60)
     first = sample_classes(image, classes, angles, sampling=Sampling(max_samples=300, seed=3))

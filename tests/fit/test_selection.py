@@ -91,10 +91,10 @@ def test_leaving_the_fold_pool_early_cancels_the_fits_not_started():
     # Ctrl-C during `fit --model auto`: the pool waits for the fits running, not for all thirty.
     import time
 
-    from brdfcorr.tasks.goniometer import _fold_pool
+    from brdfcorr.tasks.pool import process_pool
 
     futures = []
-    with pytest.raises(KeyboardInterrupt), _fold_pool(2) as pool:
+    with pytest.raises(KeyboardInterrupt), process_pool(2) as pool:
         futures = [pool.submit(time.sleep, 0.5) for _ in range(20)]
         raise KeyboardInterrupt
     assert sum(future.cancelled() for future in futures) >= 15
