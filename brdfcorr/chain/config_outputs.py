@@ -112,7 +112,9 @@ class EngineConfig(StrictModel):
     ----------
     scheduler : {"threads", "processes", "synchronous", "distributed"}
         ``threads``: scenes one after another, each scene's chunks on ``workers`` threads.
-        ``processes``: ``workers`` scenes at a time in separate processes.
+        ``processes``: ``workers`` scenes at a time in separate processes, and the fit step's
+        classes (a goniometer fit's ``auto`` candidates) as many at a time
+        (:mod:`brdfcorr.tasks.pool`).
         ``synchronous``: everything in the calling thread (debugging).
         ``distributed``: every scene spread chunk by chunk over all workers of a
         ``dask.distributed`` cluster at ``address`` (or of a local cluster of ``workers``

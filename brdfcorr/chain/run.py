@@ -149,12 +149,19 @@ def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
     names = {class_id: name for class_id, name in config.parameters.materials.items()}
     try:
         fit = fit_class_files(candidates, **step.fit_settings(names), chunks=config.engine.chunk,
-                              wavelengths=config.inputs.wavelengths, skip_unreadable=True)
+                              wavelengths=config.inputs.wavelengths, skip_unreadable=True,
+                              workers=_fit_workers(config.engine))
     except InputError as error:
         raise InputError(f"steps.fit: {error}{reasons}") from None
     report = fit.report()
     report["scenes_left_out"] = failed + report["scenes_left_out"]
     return fit.table, report
+
+
+def _fit_workers(engine: EngineConfig) -> int:
+    """The processes of the fit step's pool (the classes of an imagery fit, the candidates of a
+    goniometer ``auto``): the engine's workers where it runs scenes in processes, else one."""
+    return engine.workers if engine.scheduler == "processes" else 1
 
 
 def _fit_goniometer(plan: RunPlan) -> tuple[ParameterTable, dict]:
@@ -164,6 +171,7 @@ def _fit_goniometer(plan: RunPlan) -> tuple[ParameterTable, dict]:
         fit = fit_measurement_file(
             config.resolve(item.file), item.model, fixed=item.fixed, initial=item.initial,
             min_phi=item.min_phi, max_phi=item.max_phi, max_zenith=item.max_zenith,
+            workers=_fit_workers(config.engine),
         )
         notes += [f"class {item.class_id} ({item.name}): {note}" for note in fit.warnings]
         table = table.with_class(fit.table_entry(item.class_id, item.name))
