@@ -47,8 +47,8 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
     Parameters
     ----------
     image : DataArray
-        (band, y, x) as from :func:`brdfcorr.io.rasters.open_image` (attrs ``brdf_input_scale``/``brdf_input_offset``
-        name the scaling applied in the message).
+        (band, y, x) as from :func:`brdfcorr.io.rasters.open_image` (attrs ``brdf_input_scale`` and
+        ``brdf_input_offset`` name the scaling applied in the message).
     source : str, optional
         Name of the image for the message (default: its file).
     limit : float, default 2.0
@@ -103,10 +103,10 @@ def _sample_values(image: xr.DataArray, where: str, blocks: int, scheduler, num_
 
 
 def _sample_cache(image: xr.DataArray) -> contextlib.AbstractContextManager:
-    """GDAL's block cache bounded as for the writing pass (:func:`gdal_cache_bytes`) while a few
+    """GDAL's block cache bounded as for the writing pass (:func:`brdfcorr.io.product.gdal_cache_bytes`) while a few
     chunks of ``image`` are read: GDAL's default (5 % of RAM) keeps every tile read in memory,
     and the file's handles (rioxarray's) stay open for the writing pass. Nothing new where the
-    caller bounded the cache already for its whole run (:func:`bounded_gdal_cache`)."""
+    caller bounded the cache already for its whole run (:func:`brdfcorr.io.product.bounded_gdal_cache`)."""
     if rasterio.env.hasenv() and "GDAL_CACHEMAX" in rasterio.env.getenv():
         return contextlib.nullcontext()  # the caller bounded it for its whole run (bounded_gdal_cache)
     source = image.encoding.get("source")
