@@ -100,6 +100,22 @@ def test_leaving_the_fold_pool_early_cancels_the_fits_not_started():
     assert sum(future.cancelled() for future in futures) >= 15
 
 
+def test_where_no_process_pool_can_be_made_the_fits_run_here_and_say_so(monkeypatch):
+    # A system without POSIX semaphores (no /dev/shm: AWS Lambda, some containers) refuses a
+    # process pool; `fit --model auto` then fits in its own process instead of failing.
+    import concurrent.futures
+
+    from brdfcorr.errors import BrdfcorrWarning
+    from brdfcorr.tasks.pool import process_pool
+
+    def refused(*args, **kwargs):
+        raise OSError(38, "Function not implemented")
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", refused)
+    with pytest.warns(BrdfcorrWarning, match="no worker processes can be started here"), process_pool(4) as pool:
+        assert pool is None
+
+
 def test_too_few_measurements_for_the_folds_are_refused():
     with pytest.raises(FitError, match="too few"):
         choose_model([10, 20], [10, 20], [0, 180], [0.1, 0.2])
