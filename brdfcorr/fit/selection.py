@@ -234,8 +234,7 @@ def _cross_validate(name: str, fold: np.ndarray, n_free: int, predict: Callable[
     try:
         for number in range(int(fold.max()) + 1):
             test = fold == number
-            with _quiet():
-                predictions[test] = predict(number)
+            predictions[test] = predict(number)
             errors.append(float(np.mean((predictions[test] - data[test]) ** 2 * weights[test])))
     except (BrdfcorrError, ValueError, np.linalg.LinAlgError) as error:
         return CandidateScore(name, n_free, (), math.nan, str(error))
@@ -429,17 +428,18 @@ def choose_class_model(
         free = _free_shape(model, model_fixed)
         n_free = len(model.linear) * data.shape[1] + len(free)
 
-        def fit_and_predict(train, test, model=model, model_fixed=model_fixed, free=free):
+        def predict(number, model=model, model_fixed=model_fixed, free=free):
+            train, test = fold != number, fold == number
             part = lambda rows: None if levels is None else levels.subset(rows)  # noqa: E731
-            profile = _profile(model, *(a[train] for a in angles), raw[train], model_fixed, levels=part(train))
-            shape = _search(profile, free, grid_points) if free else {}
-            intensities, _ = profile.solve(profile.design(shape))
-            held_out = _profile(model, *(a[test] for a in angles), raw[test], model_fixed, levels=part(test))
-            prediction = held_out.design(shape) @ intensities
-            # With free levels the fit is in BRDF units at its class mean level; the target is relative.
-            return prediction if levels is None else prediction / profile.scale
+            with _quiet():
+                profile = _profile(model, *(a[train] for a in angles), raw[train], model_fixed, levels=part(train))
+                shape = _search(profile, free, grid_points) if free else {}
+                intensities, _ = profile.solve(profile.design(shape))
+                held_out = _profile(model, *(a[test] for a in angles), raw[test], model_fixed, levels=part(test))
+                prediction = held_out.design(shape) @ intensities
+                # With free levels the fit is in BRDF units at its class mean level; the target is relative.
+                return prediction if levels is None else prediction / profile.scale
 
-        predict = lambda number, fit_and_predict=fit_and_predict: fit_and_predict(fold != number, fold == number)  # noqa: E731
         scores.append(_cross_validate(name, fold, n_free, predict, data, weights))
     chosen, best = _one_se_choice(scores)
     return ModelChoice(chosen, best, tuple(scores), folds, grouping)
