@@ -33,6 +33,11 @@ def _deferred_after(code: str, cwd=None, libraries: tuple[str, ...] = DEFERRED) 
     return ast.literal_eval(result.stdout.strip().splitlines()[-1])
 
 
+def _command(arguments: list[str]) -> str:
+    """Code that runs ``brdfcorr ARGUMENTS`` as the console script does and asserts its success."""
+    return f"from brdfcorr.cli import main\ntry:\n    main({arguments!r})\nexcept SystemExit as stop:\n    assert not stop.code"
+
+
 def test_the_correction_path_and_the_chain_runner_import_no_figures_nor_statistics():
     assert _deferred_after("import brdfcorr.tasks.correct, brdfcorr.chain.run, brdfcorr.cli.correct") == []
 
@@ -41,8 +46,7 @@ def test_a_chain_that_draws_nothing_imports_no_figures_nor_statistics(tmp_path, 
     # The run as `brdfcorr run` makes it (its lazy imports included): one scene, the correct step only.
     make_scenes(tmp_path, count=1, ny=8, nx=8)
     args = ["run", str(write_chain(tmp_path)), "--no-progress"]
-    code = f"from brdfcorr.cli import main\ntry:\n    main({args!r})\nexcept SystemExit as stop:\n    assert not stop.code"
-    assert _deferred_after(code, cwd=tmp_path) == []
+    assert _deferred_after(_command(args), cwd=tmp_path) == []
     assert (tmp_path / "out" / "line0_brdf.tif").exists()
 
 
@@ -62,8 +66,7 @@ def test_the_library_listings_and_a_tables_validation_import_neither_xarray_nor_
     # for the NDVI's band ranges, and xarray for the one function that makes a Dataset).
     table = Path(__file__).parents[2] / "configs" / "params_example.yaml"
     for command in (["models"], ["materials", "roof_tile"], ["coefficients", "roy2016"], ["validate", str(table)]):
-        code = f"from brdfcorr.cli import main\ntry:\n    main({command!r})\nexcept SystemExit as stop:\n    assert not stop.code"
-        assert _deferred_after(code, libraries=("xarray", "pandas", "dask", "scipy")) == [], command
+        assert _deferred_after(_command(command), libraries=("xarray", "pandas", "dask", "scipy")) == [], command
 
 
 def test_a_chains_validation_imports_neither_xarray_nor_scipy(tmp_path, make_scenes, write_chain):
@@ -73,9 +76,7 @@ def test_a_chains_validation_imports_neither_xarray_nor_scipy(tmp_path, make_sce
     make_scenes(tmp_path, count=1, ny=8, nx=8)
     examples = Path(__file__).parents[2] / "configs"
     for chain in (write_chain(tmp_path), examples / "demo.yaml", examples / "imagery_fit.yaml"):
-        code = (f"from brdfcorr.cli import main\ntry:\n    main(['validate', {str(chain)!r}])\n"
-                "except SystemExit as stop:\n    assert not stop.code")
-        assert _deferred_after(code, cwd=tmp_path, libraries=("xarray", "pandas", "dask", "scipy")) == [], chain
+        assert _deferred_after(_command(["validate", str(chain)]), cwd=tmp_path, libraries=("xarray", "pandas", "dask", "scipy")) == [], chain
 
 
 def test_a_goniometer_fit_imports_no_raster_stack(tmp_path):
@@ -86,6 +87,5 @@ def test_a_goniometer_fit_imports_no_raster_stack(tmp_path):
     csv.write_text("theta_i,theta_r,phi,brdf\n" + "".join(f"{ti},{tr},180,{0.02 + 0.001 * tr}\n"
                                                         for ti in (30, 50) for tr in range(0, 70, 5)))
     command = ["fit", str(csv), "--model", "lambertian", "-o", str(tmp_path / "table.yaml")]
-    code = f"from brdfcorr.cli import main\ntry:\n    main({command!r})\nexcept SystemExit as stop:\n    assert not stop.code"
-    assert _deferred_after(code, libraries=("xarray", "pandas", "dask", "rasterio", "matplotlib")) == []
+    assert _deferred_after(_command(command), libraries=("xarray", "pandas", "dask", "rasterio", "matplotlib")) == []
     assert (tmp_path / "table.yaml").is_file()
