@@ -14,9 +14,12 @@ import errno
 import gc
 import hashlib
 import os
+import signal
 import stat
 import tempfile
+import threading
 import xml.etree.ElementTree as ElementTree
+from collections.abc import Iterator
 from pathlib import Path
 
 import yaml
@@ -59,6 +62,32 @@ MAX_ALIAS_NODES = 1_000_000
 #: composer's recursion far from Python's limit.
 MAX_DEPTH = 100
 _MERGE_TAG = "tag:yaml.org,2002:merge"
+
+
+@contextlib.contextmanager
+def interrupts_held() -> Iterator[None]:
+    """Ctrl-C and SIGTERM held back for the ``with`` block and delivered at its end, to the handlers
+    they had (in the main thread, where Python runs its signal handlers; elsewhere nothing is held).
+
+    Around the making of a temporary file and the recording of its name (:func:`atomic_path`,
+    :mod:`brdfcorr.io.writer`): an interrupt between the two would leave a file that no cleanup
+    knows; held back, it arrives where the name is known and the cleanup removes the file. The
+    handlers are swapped, not the signals blocked: a signal sent to the process may be taken by
+    any of its threads, so a mask of this thread alone would not hold it.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    numbers = (signal.SIGINT, signal.SIGTERM)
+    caught: list[int] = []
+    previous = {number: signal.signal(number, lambda number, frame: caught.append(number)) for number in numbers}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, signal.SIG_DFL if handler is None else handler)
+        if caught:
+            signal.raise_signal(caught[0])  # to its own handler again: KeyboardInterrupt, the CLI's exit
 
 
 def temporary_beside(target: str | os.PathLike, suffix: str = ".partial") -> Path:
@@ -147,11 +176,13 @@ def atomic_path(target: str | os.PathLike):
     :class:`~brdfcorr.errors.OutputError` naming ``target`` and the cause (:func:`write_cause`).
     """
     target = Path(target)
+    temporary = None
     try:
-        temporary = temporary_beside(target)
-    except OSError as error:
-        raise OutputError(f"cannot write {target}: {write_cause(error, [target])}") from None
-    try:
+        try:
+            with interrupts_held():  # a Ctrl-C while the file is made arrives once ``temporary`` names it
+                temporary = temporary_beside(target)
+        except OSError as error:
+            raise OutputError(f"cannot write {target}: {write_cause(error, [target])}") from None
         yield temporary
         sync_file(temporary)
         os.replace(temporary, target)
@@ -161,8 +192,9 @@ def atomic_path(target: str | os.PathLike):
         cause = write_cause(error, [temporary])
         raise OutputError(f"cannot write {target}: {cause}; nothing was written") from None
     finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temporary)
+        if temporary is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(temporary)
 
 
 _FILE_KINDS = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",

@@ -50,7 +50,7 @@ from brdfcorr.defaults import default_threads
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
 from brdfcorr.io.commit import Target, io_failure, verify, write_error, written_files
-from brdfcorr.io.files import DISK_CAUSES, sync_file, temporary_beside, write_cause
+from brdfcorr.io.files import DISK_CAUSES, interrupts_held, sync_file, temporary_beside, write_cause
 from brdfcorr.io.gdal_log import GdalLog
 from brdfcorr.io.paths import (  # path checks and names, importable here too
     check_format,
@@ -298,7 +298,8 @@ def writing(rasters: Mapping, geotiff: GeoTiffOutput = GeoTiffOutput(), *, tags=
     try:
         with failures, rasterio.Env(**settings):
             for target, array in rasters.items():
-                targets.append(_target(Path(target), array, envi.get(Path(target)), geotiff.cog))
+                with interrupts_held():  # a Ctrl-C while a file is made arrives once ``targets`` holds it
+                    targets.append(_target(Path(target), array, envi.get(Path(target)), geotiff.cog))
             handles: list = []
             writes = _stores(targets, geotiff, tags, commit_tags, _distributed_client(scheduler), handles)
             with contextlib.ExitStack() as active:

@@ -322,3 +322,45 @@ def test_a_scene_opened_for_a_run_carries_the_sizes_of_its_image(files):
         assert scene.reflectance.chunks[-1][0] == min(scene.chunks, scene.reflectance.sizes["x"])
     with opened_scene(sources, chunks=16, scheduler="synchronous") as scene:
         assert scene.chunks == 16 and scene.reflectance.chunks[-1][0] == 16
+
+
+_SIGNAL_WHILE_A_TEMPORARY_IS_MADE = """
+import os, signal, sys
+from pathlib import Path
+import numpy as np, xarray as xr
+from brdfcorr.io.files import atomic_path
+from brdfcorr.io.writer import write_rasters
+from brdfcorr.testing import georeference
+
+def interrupted(*_):
+    raise KeyboardInterrupt
+signal.signal(signal.SIGTERM, interrupted)
+chmod = os.chmod
+def chmod_and_signal(*args, **kwargs):  # the last step of making a temporary file: a SIGTERM lands here
+    chmod(*args, **kwargs)
+    os.kill(os.getpid(), signal.SIGTERM)
+os.chmod = chmod_and_signal
+folder = Path(sys.argv[1])
+image = georeference(xr.DataArray(np.zeros((1, 16, 16), "float32"), dims=("band", "y", "x")))
+for write in (lambda: atomic_path(folder / "table.yaml").__enter__(),
+              lambda: write_rasters({folder / "out.tif": image})):
+    try:
+        write()
+    except KeyboardInterrupt:
+        print("interrupted")
+"""
+
+
+def test_an_interrupt_while_a_temporary_file_is_made_leaves_no_file(tmp_path):
+    # A Ctrl-C or SIGTERM between the making of a temporary file and the recording of its name
+    # left a `.NAME.XXXXXXXX.partial` that no cleanup knew (a real SIGINT during `brdfcorr demo`
+    # left `.demo.yaml.*.partial`): held back while the file is made, it arrives where the
+    # cleanup removes the file. A fresh interpreter: the signal is sent to the process itself.
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-c", _SIGNAL_WHILE_A_TEMPORARY_IS_MADE, str(tmp_path)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["interrupted", "interrupted"]
+    assert list(tmp_path.iterdir()) == []
