@@ -95,6 +95,7 @@ from brdfcorr.chain.resume import configured_table, reuses_fit, with_strata_inte
 from brdfcorr.chain.scenes import Scene
 from brdfcorr.chain.strata_step import derive_strata
 from brdfcorr.errors import InputError, OutputError
+from brdfcorr.fit.measurements import MeasurementSelection
 from brdfcorr.io import cluster
 from brdfcorr.io.paths import remove_partials
 from brdfcorr.io.scene import SceneSources
@@ -170,7 +171,7 @@ def _fit_goniometer(plan: RunPlan) -> tuple[ParameterTable, dict]:
     for item in config.steps.fit.measurements:
         fit = fit_measurement_file(
             config.resolve(item.file), item.model, fixed=item.fixed, initial=item.initial,
-            min_phi=item.min_phi, max_phi=item.max_phi, max_zenith=item.max_zenith,
+            select=MeasurementSelection(item.min_phi, item.max_phi, item.max_zenith),
             workers=_fit_workers(config.engine),
         )
         notes += [f"class {item.class_id} ({item.name}): {note}" for note in fit.warnings]

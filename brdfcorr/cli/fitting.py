@@ -276,6 +276,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     parameter correlations; with -o writes the fit as a class of a parameter table.
     """
     from brdfcorr.defaults import available_cores
+    from brdfcorr.fit.measurements import MeasurementSelection
     from brdfcorr.params import ParameterTable
     from brdfcorr.tasks.goniometer import fit_measurement_file
 
@@ -283,9 +284,9 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     table = ParameterTable.load(target) if target is not None and target.exists() else None
     with class_bar(progress, "fit", unit="fit") as fitted:  # a candidate of --model auto or a wavelength
         fit = fit_measurement_file(
-            measurements, model_name, fixed=dict(fix), initial=dict(initial),
-            bounds=dict(bounds), min_phi=min_phi, max_phi=max_phi,
-            max_zenith=max_zenith, wavelength=wavelength, progress=fitted, workers=workers or available_cores(),
+            measurements, model_name, fixed=dict(fix), initial=dict(initial), bounds=dict(bounds),
+            select=MeasurementSelection(min_phi, max_phi, max_zenith, wavelength), progress=fitted,
+            workers=workers or available_cores(),
         )
     for message in fit.warnings:
         click.echo(f"brdfcorr: warning: {message}", err=True)

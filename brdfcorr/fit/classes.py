@@ -34,7 +34,7 @@ import numpy as np
 from brdfcorr.defaults import AUTO_MODEL, ERROR_CLUSTERS
 from brdfcorr.errors import BrdfcorrWarning, FitError, InputError, ParameterError
 from brdfcorr.fit.class_fit import ClassFit, _finite_median
-from brdfcorr.fit.entries import class_entry
+from brdfcorr.fit.entries import class_entry, record_source
 from brdfcorr.fit.prior import KERNEL_WEIGHTS, PRIOR_MODEL, ShapePrior, prior_ratios, shape_posterior
 from brdfcorr.fit.quality import fit_quality
 from brdfcorr.fit.sampling import ClassSamples, sample_classes, scene_lists
@@ -381,7 +381,7 @@ class ClassFitResult:
         The centres [nm] of the image bands left out, in the images' order.
     """
 
-    table: object
+    table: ParameterTable
     fits: list[ClassFit]
     samples: dict[int, ClassSamples]
     bad_bands: list[list[float]] = field(default_factory=list)
@@ -390,6 +390,15 @@ class ClassFitResult:
     def report(self) -> list[dict[str, object]]:
         """JSON-friendly fit report, one entry per class."""
         return [fit.summary() for fit in self.fits]
+
+    def with_source(self, source: str) -> ClassFitResult:
+        """The result with ``source`` (what was fitted: command, input files) as the ``source`` of
+        each fitted class's ``fit:`` block in the table (default: ``"brdfcorr.fit.fit_classes"``)."""
+        fits = {fit.class_id: fit for fit in self.fits}
+        classes = [entry if entry.fit is None else entry.model_copy(update={
+            "fit": entry.fit.model_copy(update={"source": record_source(fits[entry.id], source)})})
+            for entry in self.table.classes]
+        return dataclasses.replace(self, table=self.table.model_copy(update={"classes": classes}))
 
 
 def _merged(ranges) -> list[list[float]]:
@@ -470,8 +479,7 @@ def _thinned(samples: ClassSamples, keep: int) -> ClassSamples:
 
 def fit_classes(images, classes, angles, models: ClassModels | str | Model = ClassModels(), *,
                 sampling: Sampling = Sampling(), wavelengths: Sequence[float] | None = None,
-                guard: GuardRails = GuardRails(), progress=None,
-                source: str = "brdfcorr.fit.fit_classes", clusters=None,
+                guard: GuardRails = GuardRails(), progress=None, clusters=None,
                 executor: concurrent.futures.Executor | None = None) -> ClassFitResult:
     """Fit a BRDF model per class (shape per class, intensities per band) from imagery.
 
@@ -502,9 +510,6 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         suggested better model in its report if another one explains clearly more.
     progress : callable, optional
         Called as ``progress(class_id)`` after each class (e.g. a progress bar's update).
-    source : str, default "brdfcorr.fit.fit_classes"
-        What was fitted (command, input files), the ``source`` of each fitted class's ``fit:``
-        block in the table: its errors, joint covariance, N, chi^2/dof and R^2 per band.
     clusters : DataArray or array (y, x), or a list of them, optional
         A cluster layer per scene (integer ids of the units whose pixels share their errors: a
         composite's day-of-year band, a flight-line id): the errors are cluster-robust over these
@@ -559,7 +564,7 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         if samples.note is not None:
             fit.notes.append(samples.note)
         fits.append(fit)
-        entry = class_entry(fit, wavelengths, source, used_ranges or None)
+        entry = class_entry(fit, wavelengths, "brdfcorr.fit.fit_classes", used_ranges or None)
         entries += [] if entry is None else [entry]
         kept[class_id] = _thinned(samples, sampling.keep_samples)
         if progress is not None:

@@ -12,15 +12,19 @@ from brdfcorr.fit.class_fit import ClassFit, compact
 from brdfcorr.fit.settings import fallback_entry
 from brdfcorr.params import ClassEntry
 
-__all__ = ["class_entry", "compact"]
+__all__ = ["class_entry", "compact", "record_source"]
+
+
+def record_source(fit: ClassFit, source: str) -> str:
+    """The ``source`` of a fitted class's ``fit:`` block: what was fitted, and its shape prior."""
+    return source if fit.prior is None else f"{source} + shape prior {fit.prior}"
 
 
 def _fit_record(fit: ClassFit, source: str, per_band: bool) -> dict | None:
     """The table's ``fit:`` block (:class:`brdfcorr.params.FitRecord`) of a fitted class: one
     matrix per band, or a single one when the parameters are band-independent. None when the
     covariance is not finite or has a negative variance (a table holds numbers only)."""
-    if fit.prior is not None:
-        source = f"{source} + shape prior {fit.prior}"
+    source = record_source(fit, source)
     covariance = 0.5 * (fit.covariance + np.swapaxes(fit.covariance, 1, 2))
     variances = np.diagonal(covariance, axis1=1, axis2=2)
     if covariance.size == 0 or not np.all(np.isfinite(covariance)) or np.any(variances < 0):

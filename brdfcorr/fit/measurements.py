@@ -58,6 +58,7 @@ __all__ = [
     "write_measurements",
     "filter_measurements",
     "selection_mask",
+    "MeasurementSelection",
     "goniometer_angles",
     "synthesize_measurements",
 ]
@@ -459,6 +460,30 @@ def filter_measurements(
             f"(of {len(measurements)} measurements)"
         )
     return measurements.select(keep, description)
+
+
+@dataclass(frozen=True)
+class MeasurementSelection:
+    """Which measurements of a table a fit uses; paper 003 fitted ``MeasurementSelection(min_phi=90)``.
+
+    Attributes
+    ----------
+    min_phi, max_phi, max_zenith : float, optional
+        The geometric selection of :func:`filter_measurements` [deg].
+    wavelength : float, optional
+        Only this wavelength [nm] of a table with a wavelength column
+        (:meth:`Measurements.at_wavelength`).
+    """
+
+    min_phi: float | None = None
+    max_phi: float | None = None
+    max_zenith: float | None = None
+    wavelength: float | None = None
+
+    @property
+    def geometry(self) -> dict[str, float | None]:
+        """The keyword arguments of :func:`filter_measurements` and :func:`selection_mask`."""
+        return {"min_phi": self.min_phi, "max_phi": self.max_phi, "max_zenith": self.max_zenith}
 
 
 def goniometer_angles(

@@ -271,7 +271,6 @@ def choose_model(
     candidates: Sequence[str] = GONIOMETER_CANDIDATES,
     fixed: Mapping[str, float] | None = None,
     folds: int = FOLDS,
-    seed: int = SEED,
     progress: Callable[[str], object] | None = None,
     executor: concurrent.futures.Executor | None = None,
 ) -> ModelChoice:
@@ -291,9 +290,8 @@ def choose_model(
         Parameters held fixed in every candidate that has them (besides each model's defaults,
         k = 0.25 for the Torrance-Sparrow lobes).
     folds : int, default 5
-        Folds (at most the number of measurements).
-    seed : int, default 0
-        Seed of the random assignment of geometries to folds.
+        Folds (at most the number of measurements), geometries assigned to them at random with
+        the seed :data:`SEED`.
     progress : callable, optional
         Called as ``progress(name)`` after each candidate's folds are fitted (a progress bar's
         update; a candidate takes seconds).
@@ -321,7 +319,7 @@ def choose_model(
         raise FitError(f"{data.shape[0]} measurements are too few for a {folds}-fold choice of the model "
                        f"(at least {2 * folds}); name a model")
     weights = np.ones_like(data) if errors is None else (1.0 / errors**2)[:, None]
-    fold = _folds(np.arange(data.shape[0]), folds, seed)
+    fold = _folds(np.arange(data.shape[0]), folds, SEED)
     tasks = {(name, number): (name, fixed_for(name, fixed), angles, data, errors, fold != number, fold == number)
              for name in candidates for number in range(folds)}
     if executor is None:  # one fit after the other, as the scores ask for them

@@ -276,7 +276,7 @@ def _fit_pooled(opened: Sequence[SceneData], models: ClassModels, sampling: Samp
         warnings.simplefilter("always", ClassFitWarning)
         result = fit_classes([s.reflectance for s in opened], [s.classes for s in opened],
                              [xr.Dataset(s.angles) for s in opened], models, sampling=sampling, guard=guard,
-                             source=source, progress=progress, clusters=clusters, executor=executor)
+                             progress=progress, clusters=clusters, executor=executor).with_source(source)
     return result, [str(w.message) for w in caught if issubclass(w.category, ClassFitWarning)]
 
 

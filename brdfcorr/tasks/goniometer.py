@@ -19,7 +19,13 @@ import numpy as np
 
 from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
-from brdfcorr.fit.measurements import Measurements, filter_measurements, read_measurements, selection_mask
+from brdfcorr.fit.measurements import (
+    Measurements,
+    MeasurementSelection,
+    filter_measurements,
+    read_measurements,
+    selection_mask,
+)
 from brdfcorr.fit.selection import ModelChoice, choose_model, fixed_for
 from brdfcorr.tasks.pool import process_pool
 
@@ -92,8 +98,8 @@ class MeasurementFit:
 def fit_measurement_file(
     path: str | os.PathLike, model: str, *, fixed: Mapping[str, float] | None = None,
     initial: Mapping[str, float] | None = None, bounds: Mapping[str, tuple[float, float]] | None = None,
-    min_phi: float | None = None, max_phi: float | None = None, max_zenith: float | None = None,
-    wavelength: float | None = None, progress: Callable[[str], object] | None = None, workers: int = 1,
+    select: MeasurementSelection = MeasurementSelection(), progress: Callable[[str], object] | None = None,
+    workers: int = 1,
 ) -> MeasurementFit:
     """Fit a registry model to a goniometer measurement table, one fit per wavelength.
 
@@ -110,10 +116,9 @@ def fit_measurement_file(
         As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25); with ``"auto"`` the
         fixed values apply to the candidates that have them, and initial values and bounds to the
         chosen model.
-    min_phi, max_phi, max_zenith : float, optional
-        Fit only these measurements [deg] (paper 003: ``min_phi=90``).
-    wavelength : float, optional
-        Fit only this wavelength [nm] of a table with a wavelength column.
+    select : MeasurementSelection, optional
+        Fit only these measurements: a geometric selection [deg] (paper 003:
+        ``MeasurementSelection(min_phi=90)``) and one wavelength [nm] of a table with several.
     progress : callable, optional
         Called as ``progress(model)`` after each fit of a wavelength and, with ``"auto"``, after
         each candidate's cross-validation (a progress bar's update).
@@ -122,11 +127,10 @@ def fit_measurement_file(
         choice is the same as with one). Each starts by importing the fits (about a second).
     """
     everything = read_measurements(path)
-    if wavelength is not None:
-        everything = everything.at_wavelength(wavelength)
-    limits = {"min_phi": min_phi, "max_phi": max_phi, "max_zenith": max_zenith}
-    fitted = filter_measurements(everything, **limits)
-    keep, selection = selection_mask(everything, **limits)
+    if select.wavelength is not None:
+        everything = everything.at_wavelength(select.wavelength)
+    fitted = filter_measurements(everything, **select.geometry)
+    keep, selection = selection_mask(everything, **select.geometry)
     options = {"fixed": fixed or None, "initial": initial or None, "bounds": bounds or None}
     bands = fitted.wavelengths or [None]
     results, notes, choices = {}, [], {}

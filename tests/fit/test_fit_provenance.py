@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from brdfcorr.errors import ParameterError
+from brdfcorr.fit.measurements import MeasurementSelection
 from brdfcorr.params import FitRecord, ParameterTable
 
 # Two wavelengths, two fitted parameters (f_geo held fixed). Errors are sqrt(diag) by hand:
@@ -182,7 +183,8 @@ def _goniometer_csv(directory, wavelengths=(None,)):
 def test_goniometer_fit_writes_its_fit_block(tmp_path):
     from brdfcorr.tasks.goniometer import fit_measurement_file
 
-    fit = fit_measurement_file(_goniometer_csv(tmp_path), "torrance_sparrow", fixed={"k": 0.25}, min_phi=90)
+    fit = fit_measurement_file(_goniometer_csv(tmp_path), "torrance_sparrow", fixed={"k": 0.25},
+                               select=MeasurementSelection(min_phi=90))
     result = fit.results[None]
     entry = ParameterTable().with_class(fit.table_entry(1, "tiles"))[1]
     record = entry.fit
@@ -205,7 +207,7 @@ def test_spectral_goniometer_fit_has_one_matrix_per_wavelength(tmp_path):
     from brdfcorr.tasks.goniometer import fit_measurement_file
 
     fit = fit_measurement_file(_goniometer_csv(tmp_path, (450.0, 850.0)), "torrance_sparrow",
-                               fixed={"k": 0.25}, min_phi=90)
+                               fixed={"k": 0.25}, select=MeasurementSelection(min_phi=90))
     table = ParameterTable().with_class(fit.table_entry(3, "tiles"))
     assert table[3].fit.per_wavelength and table[3].fit.n == [fit.results[450.0].n_measurements] * 2
     resolved = table.for_bands(wavelengths=[450.0, 650.0, 850.0])[3]
@@ -249,7 +251,7 @@ def _scene(ny=48, nx=80, seed=0):
 def test_imagery_fit_writes_its_fit_block(tmp_path):
     from brdfcorr.fit.classes import ClassModels, fit_classes
 
-    result = fit_classes(*_scene(), ClassModels(names={1: "roof_tile"}), source="test scene")
+    result = fit_classes(*_scene(), ClassModels(names={1: "roof_tile"})).with_source("test scene")
     fit, entry = result.fits[0], result.table[1]
     record = entry.fit
     assert fit.status == "fitted" and record.source == "test scene"
