@@ -1,5 +1,5 @@
 """Benchmark: a real MODIS 16-day composite corrected to one fixed geometry, fitted pooled or with
-each patch's level free (issue 37; run by hand, about a minute).
+each patch's level free (issue 37; run by hand, about three minutes).
 
 The data (``benchmarks/data/modis_myd13a1_h30v10/``, its README for the source and licence): MYD13A1
 collection 6, tile h30v10, 1-16 June 2020, 480 x 480 pixels of 2.3 km, northern Australian savanna,
@@ -41,7 +41,10 @@ out. Held out twice: fitted on one colour of a checkerboard of 32-pixel squares 
 other (both ways), and fitted on the pixels of odd days and assessed on those of even days (both
 ways); the in-sample figure beside. Each hold-out is also *cross-fitted*: every pixel corrected by
 the fit of the fold that left it out and all of them assessed together, twice the pixels of one
-fold, so a 1-sigma about 1/sqrt(2) of a fold's. A composite without a day layer (``--data
+fold, so a 1-sigma about 1/sqrt(2) of a fold's. Beside each worst |slope|, what a perfect
+correction would show with the same 1-sigmas (the median and 90th percentile of the worst of
+slopes drawn as N(0, sigma)) and the chance of slopes at least as far from 0 if none were left
+(chi^2 of slope / sigma, one degree of freedom each). A composite without a day layer (``--data
 benchmarks/data/modis_mod09a1_h18v04``) is held out on the checkerboard only (``--square`` smaller
 for a small cut), its 1-sigma clustered by ``PATCH`` x ``PATCH`` blocks instead of days.
 
@@ -64,6 +67,7 @@ import rioxarray
 import xarray as xr
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.ndimage import uniform_filter
+from scipy.stats import chi2
 
 from brdfcorr import normalize
 from brdfcorr.fit import ClassModels, Sampling, fit_classes
@@ -220,6 +224,20 @@ def worst(values: dict[str, tuple[float, float]]) -> float:
     return max(abs(slope) for slope, _ in values.values())
 
 
+def noise_floor(values: dict[str, tuple[float, float]], draws: int = 100_000) -> tuple[float, float]:
+    """What a perfect correction would show: the median and 90th percentile of the worst |slope| of
+    slopes drawn as N(0, sigma) with the measured 1-sigmas (independent draws, seeded)."""
+    sigmas = np.array([sigma for _, sigma in values.values()])
+    drawn = np.abs(np.random.default_rng(0).standard_normal((draws, sigmas.size)) * sigmas).max(axis=1)
+    return float(np.median(drawn)), float(np.quantile(drawn, 0.9))
+
+
+def chance(values: dict[str, tuple[float, float]]) -> float:
+    """The probability of slopes at least this far from 0 under a perfect correction (chi^2 of the
+    slopes over their 1-sigmas, one degree of freedom each)."""
+    return float(chi2.sf(sum((slope / sigma) ** 2 for slope, sigma in values.values()), len(values)))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DATA)
@@ -283,11 +301,15 @@ def report(title: str, results: dict[str, dict[str, tuple[float, float]]], metho
     for key in results["raw"]:
         print(f"  {key:16s}" + "".join(f"{results[m][key][0]:+8.2f}±{results[m][key][1]:<6.2f}" for m in results))
     limit = worst(results["c-factor"])
+    print(f"  c-factor: worst {limit:.2f}; p(slopes | none left) {chance(results['c-factor']):.2g}")
     for levels in methods:
         value = worst(results[levels])
         met = value <= GOAL_WORST and value <= GOAL_RATIO * limit
+        median, high = noise_floor(results[levels])
         print(f"  {levels}: worst {value:.2f} (goal <= {GOAL_WORST} and <= half the c-factor's "
-              f"{limit:.2f}: {'met' if met else 'MISSED'}); raw {worst(results['raw']):.2f}")
+              f"{limit:.2f}: {'met' if met else 'MISSED'}); raw {worst(results['raw']):.2f}; a perfect "
+              f"correction's worst, from these 1-sigmas: {median:.2f} (90 %: {high:.2f}); p(slopes | none "
+              f"left) {chance(results[levels]):.2g}")
 
 
 if __name__ == "__main__":
