@@ -31,6 +31,7 @@ from brdfcorr._arrays import is_lazy
 from brdfcorr._entry import option
 from brdfcorr.defaults import DEFAULT_EDGES, NIR_RANGE, RED_RANGE
 from brdfcorr.errors import InputError
+from brdfcorr.io.wavelengths import with_wavelengths
 
 __all__ = [
     "ndvi", "ndvi_strata", "NdviStrata", "remap_classes", "align_class_map", "WORLDCOVER_CODES",
@@ -57,6 +58,7 @@ def _band_mean(image: xr.DataArray, span: Sequence[float], role: str) -> xr.Data
     """Mean reflectance of the bands whose centre lies in ``span`` [nm] (ends included)."""
     if image.ndim != 3:
         raise InputError(f"the image must be (band, y, x); it has dims {image.dims}")
+    image = with_wavelengths(image)
     if "wavelength" not in image.coords:
         source = image.encoding.get("source") or image.attrs.get("source") or "the image"
         raise InputError(f"{source}: no band centres [nm] in its tags, band descriptions or header; give them "

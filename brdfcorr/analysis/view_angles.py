@@ -25,7 +25,13 @@ import xarray as xr
 from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
 from brdfcorr.analysis.signed_view import _SIGN_WORDS, SIGN_CONVENTIONS
 from brdfcorr.analysis.view_angle_sums import _moments, _scene_sums, _SumOptions, _Sums
-from brdfcorr.analysis.view_stripes import STRIPE_LIMIT, class_stripe_ratios, stripe_ratio, stripe_warning
+from brdfcorr.analysis.view_stripes import (
+    CLUSTER_LAYER,
+    STRIPE_LIMIT,
+    class_stripe_ratios,
+    stripe_ratio,
+    stripe_warning,
+)
 from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import BrdfcorrWarning, InputError
 
@@ -236,7 +242,7 @@ def assess_view_angles(
                           cluster_nodata=_class_nodata(clusters))
     compute = {key: value for key, value in (("scheduler", scheduler), ("num_workers", num_workers)) if value}
     sums = _scene_sums([before.data, after.data, *layers], summing, compute)
-    clustered = "the cluster layer's ids" if clusters is not None else f"square blocks of {options.block_size} pixels"
+    clustered = CLUSTER_LAYER if clusters is not None else f"square blocks of {options.block_size} pixels"
     result = _statistics(sums, ids, edges, before, options.class_names or {},
                          {"sign_convention": by, "heading": options.heading, "min_vza": float(min_vza),
                           "error_clusters": clustered}, options.block_size, clusters is not None)
@@ -365,8 +371,12 @@ def error_growth_warning(dataset: xr.Dataset, limit: float = GROWTH_LIMIT) -> st
     size = int(dataset["block_size"].values[1])
     return (f"the slopes' 1-sigma grows {growth[worst]:.1f}x from {dataset.attrs['error_clusters']} to square "
             f"blocks of {size} pixels ({dataset['class_name'].values[worst]}; more than {limit:g}x): the errors are "
-            "correlated beyond them and the 1-sigma is too small; give a cluster layer of the units that share "
-            "errors (--clusters: a composite's day-of-year band, a flight-line id) or a larger --block-size")
+            "correlated beyond them and the 1-sigma is too small; " + (
+                "the cluster layer's units are smaller than those that share errors: give coarser ones (several "
+                "days, a whole flight line) or, without --clusters, a larger --block-size"
+                if dataset.attrs["error_clusters"] == CLUSTER_LAYER else
+                "give a cluster layer of the units that share errors (--clusters: a composite's day-of-year band, "
+                "a flight-line id) or a larger --block-size"))
 
 
 def view_zenith_ranges(dataset: xr.Dataset) -> np.ndarray:

@@ -29,8 +29,11 @@ import xarray as xr
 
 from brdfcorr.analysis._assess_common import _divide
 
-__all__ = ["MIN_STRIPE_BINS", "STRIPE_DEGREE", "STRIPE_LIMIT", "class_stripe_ratios", "stripe_ratio", "stripe_warning"]
+__all__ = ["CLUSTER_LAYER", "MIN_STRIPE_BINS", "STRIPE_DEGREE", "STRIPE_LIMIT", "class_stripe_ratios", "stripe_ratio",
+           "stripe_warning"]
 
+#: How a report names the clusters of its errors when they are a cluster layer's (``--clusters``).
+CLUSTER_LAYER = "the cluster layer's ids"
 #: The ratio of the 1-sigma over bins of view zenith to the one reported above which
 #: :func:`stripe_warning` warns (``benchmarks/bench_assess_coverage.py`` counts how often
 #: independent, patch- and stripe-correlated scenes pass it).
@@ -108,5 +111,7 @@ def stripe_warning(dataset: xr.Dataset, limit: float = STRIPE_LIMIT) -> str | No
     return (f"the slopes' 1-sigma over bins of view zenith is {ratios[worst]:.1f}x the one over "
             f"{dataset.attrs['error_clusters']} ({dataset['class_name'].values[worst]}; more than {limit:g}x): errors "
             "shared by the pixels seen at one view angle (a detector's stripe along the track, an orbit's day in a "
-            "composite) make the 1-sigma too small and larger blocks do not hold them; give their ids as --clusters "
-            "(the detector ids, a push-broom line's column numbers; a composite's day-of-year band)")
+            "composite) make the 1-sigma too small and larger blocks do not hold them; " + (
+                "the cluster layer does not hold them either: give ids that the pixels of one view angle share"
+                if dataset.attrs["error_clusters"] == CLUSTER_LAYER else "give their ids as --clusters") +
+            " (the detector ids, a push-broom line's column numbers; a composite's day-of-year band)")

@@ -76,9 +76,28 @@ def check_layout(reflectance: xr.DataArray, layers: Iterable) -> None:
 
 
 def reflectance_factors(reflectance: xr.DataArray) -> xr.DataArray:
-    """Integer counts as reflectance factors with the scale and offset they carry (attrs or encoding
-    ``scale_factor``/``add_offset``, their ``_FillValue`` or rioxarray nodata as NaN); other arrays
-    as they are. Integer counts without a scale are an :class:`InputError`."""
+    """Reflectance factors of the stored values, with no packing or nodata attribute left.
+
+    Integer counts are scaled with the scale and offset they carry (attrs or encoding
+    ``scale_factor``/``add_offset``; their ``_FillValue`` or rioxarray nodata as NaN); integer
+    counts without a scale are an :class:`InputError`. Floats are taken as they are, their declared
+    nodata (rioxarray's, or a ``_FillValue`` attribute) as NaN; floats that still carry a
+    ``scale_factor`` or ``add_offset`` attribute are packed values (``rioxarray.open_rasterio(path,
+    masked=True)`` reads them so) and an :class:`InputError`: neither reading is safe to guess.
+    """
+    if reflectance.dtype.kind == "f":
+        packed = {key: reflectance.attrs[key] for key in ("scale_factor", "add_offset") if key in reflectance.attrs}
+        if packed:
+            described = ", ".join(f"{key}={value}" for key, value in packed.items())
+            raise InputError(
+                f"reflectance holds floats that still carry {described} among their attributes: packed values "
+                "(as rioxarray.open_rasterio(path, masked=True) reads them). Read them with mask_and_scale=True, "
+                "or drop the attributes if they are applied already"
+            )
+        nodata = _nodata(reflectance, reflectance.attrs)
+        if nodata is None or np.isnan(nodata):
+            return reflectance
+        return _plain(reflectance.where(reflectance != nodata), reflectance)
     if reflectance.dtype.kind not in "iu":
         return reflectance
     metadata = {**reflectance.encoding, **reflectance.attrs}
@@ -91,8 +110,19 @@ def reflectance_factors(reflectance: xr.DataArray) -> xr.DataArray:
     nodata = _nodata(reflectance, metadata)
     values = reflectance if nodata is None else reflectance.where(reflectance != nodata)
     scaled = (values.astype(np.float32) * np.float32(scale) + np.float32(offset)).astype(np.float32)
-    attrs = {k: v for k, v in reflectance.attrs.items() if k not in ("scale_factor", "add_offset", "_FillValue")}
-    return scaled.assign_attrs(attrs, brdf_input_scale=scale, brdf_input_offset=offset).rename(reflectance.name)
+    return _plain(scaled, reflectance).assign_attrs(brdf_input_scale=scale, brdf_input_offset=offset)
+
+
+#: Attributes that describe stored values, not reflectance factors: dropped once the values are read.
+_STORAGE_ATTRS = ("scale_factor", "add_offset", "_FillValue", "missing_value")
+
+
+def _plain(values: xr.DataArray, stored: xr.DataArray) -> xr.DataArray:
+    """``values`` named as ``stored``, with its attributes less those of the storage
+    (:data:`_STORAGE_ATTRS`; xarray keeps attributes through arithmetic)."""
+    values = values.rename(stored.name)
+    values.attrs = {key: value for key, value in stored.attrs.items() if key not in _STORAGE_ATTRS}
+    return values
 
 
 def as_dataarray(value, name: str, dims: Sequence[Hashable]) -> xr.DataArray:
@@ -111,7 +141,12 @@ def check_grid(reflectance: xr.DataArray, name: str, layer: xr.DataArray) -> xr.
         layer = layer.isel({layer.dims[0]: 0}, drop=True)
     if layer.ndim != 2:
         raise InputError(f"{name} must be 2-D (y, x), got dims {layer.dims}")
-    if layer.dims != spatial:
+    if set(layer.dims) == set(spatial):  # the reflectance's own names, perhaps in another order
+        layer = layer.transpose(*spatial)
+    elif set(layer.dims) & set(spatial):
+        raise InputError(f"{name} has dims {layer.dims} and the reflectance {reflectance.dims}: name the "
+                         f"layer's dims as the reflectance's spatial ones, {spatial}")
+    elif layer.dims != spatial:  # other names (a numpy array's): in the reflectance's order
         layer = layer.rename(dict(zip(layer.dims, spatial)))
     if name == "classes":  # a land-cover map on another grid: the message names the alignment
         check_class_grid(reflectance, layer, "reflectance")
@@ -138,7 +173,7 @@ def checked_layers(reflectance: xr.DataArray, named: Mapping[str, object]) -> di
 
 
 def _nodata(array: xr.DataArray, metadata: Mapping) -> float | None:
-    """The stored nodata value of integer counts: rioxarray's, else ``_FillValue``."""
+    """The declared nodata value of stored values: rioxarray's, else ``_FillValue`` of ``metadata``."""
     try:
         import rioxarray  # noqa: F401  (registers the .rio accessor)
 

@@ -22,6 +22,7 @@ from brdfcorr.correction.checks import (  # check_grid: the topographic step's a
 )
 from brdfcorr.correction.reference import fixed_sza, resolve_reference, scene_mean_sza, with_hls_sza
 from brdfcorr.errors import InputError
+from brdfcorr.io.wavelengths import with_wavelengths
 from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
 
 
@@ -130,13 +131,17 @@ def prepare_inputs(
     if reflectance.ndim != 3:
         raise InputError(f"reflectance must be 3-D (band, y, x) or 4-D (time, band, y, x), got dims "
                          f"{reflectance.dims}")
+    if reflectance.dims[0] == "time":  # (time, y, x): one band picked from a series
+        raise InputError(f"reflectance has dims {reflectance.dims} and no band dimension (a band picked with "
+                         ".sel(band=4) drops it): keep it, .sel(band=[4]), or add it, "
+                         "reflectance.expand_dims('band', axis=1)")
     named = {"classes": one_class(reflectance) if classes is None else classes, **angle_layers(angles)}
     check_layout(reflectance, named.values())
-    reflectance = reflectance_factors(reflectance)
+    reflectance = with_wavelengths(reflectance_factors(reflectance))
     layers = checked_layers(reflectance, named)
     reference = with_hls_sza(reference, reflectance)
     if wavelengths is None and "wavelength" in reflectance.coords:
-        wavelengths = reflectance["wavelength"].values.tolist()
+        wavelengths = np.atleast_1d(reflectance["wavelength"].values).tolist()  # a scalar: one band
     resolved = params.for_bands(wavelengths, n_bands=reflectance.shape[0], extrapolate=extrapolate)
     settings = BlockSettings(reference, limits, layer_nodata(layers["classes"]), flip_view_azimuth,
                              np.result_type(reflectance.dtype, np.float32))

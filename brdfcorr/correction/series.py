@@ -41,6 +41,10 @@ def over_dates(normalize_one: Callable, reflectance, classes, angles, params, re
     if dim in BAND_DIMS:
         raise InputError(f"reflectance has dims {cube.dims}; a 4-D cube is (time, band, y, x): "
                          f"transpose it, e.g. reflectance.transpose({cube.dims[1]!r}, {dim!r}, ...)")
+    classes = _dated(classes, cube, "classes")
+    angles = (_dated(angles, cube, "angles") if isinstance(angles, xr.Dataset) else
+              {name: _dated(layer, cube, name) for name, layer in angles.items()} if isinstance(angles, Mapping)
+              else angles)
     results = [
         normalize_one(cube.isel({dim: index}), _at_date(classes, dim, index, "classes"),
                       _angles_at_date(angles, dim, index), params, reference, **options)
@@ -49,6 +53,31 @@ def over_dates(normalize_one: Callable, reflectance, classes, angles, params, re
     corrected = xr.concat([result.reflectance for result in results], dim=dim)
     qa = xr.concat([result.qa for result in results], dim=dim)
     return type(results[0])(corrected.transpose(dim, *cube.dims[1:]), qa.transpose(dim, *cube.dims[2:]))
+
+
+def _dated(layer, cube: xr.DataArray, name: str):
+    """``layer`` with its dates those of ``cube``, in the cube's order: picked by label where both
+    label their time dimension (a layer may hold more dates than the cube), else one per date in
+    the same order. A layer without the time dimension is the same for every date."""
+    dim, count = cube.dims[0], cube.sizes[cube.dims[0]]
+    if isinstance(layer, (xr.DataArray, xr.Dataset)):
+        if dim not in layer.dims:
+            return layer
+        if dim in cube.coords and dim in layer.coords:
+            missing = np.setdiff1d(cube[dim].values, layer[dim].values)
+            if missing.size:
+                raise InputError(f"{name} has no {dim} {', '.join(map(str, missing[:3]))}"
+                                 f"{' ...' if missing.size > 3 else ''} of the reflectance: give it every date")
+            return layer.sel({dim: cube[dim].values})
+        found = layer.sizes[dim]
+    elif np.ndim(layer) == 3:
+        found = np.shape(layer)[0]
+    else:
+        return layer
+    if found != count:
+        raise InputError(f"reflectance has {count} dates along {dim!r} and {name} {found}: give one per date, "
+                         f"or one for every date")
+    return layer
 
 
 def _at_date(layer, dim: Hashable, index: int, name: str):

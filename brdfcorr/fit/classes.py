@@ -30,6 +30,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import xarray as xr
 
 from brdfcorr.defaults import AUTO_MODEL, ERROR_CLUSTERS
 from brdfcorr.errors import BrdfcorrWarning, FitError, InputError, ParameterError
@@ -57,6 +58,7 @@ from brdfcorr.fit.settings import (
 from brdfcorr.fit.shapes import DEFAULT_FIXED, SEARCH_RANGES, intensity_terms, search_range
 from brdfcorr.fit.solver import GRID_POINTS, fit_class_samples
 from brdfcorr.fit.within import Levels
+from brdfcorr.io.wavelengths import with_wavelengths
 from brdfcorr.models import REGISTRY, Model, get_model
 from brdfcorr.params import ParameterTable
 from brdfcorr.params.bands import in_ranges
@@ -539,6 +541,7 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     if sampling.errors_cluster not in ERROR_CLUSTERS:
         raise ParameterError(f"errors cluster {sampling.errors_cluster!r}: use one of {', '.join(ERROR_CLUSTERS)}")
     scenes, classes, angles = scene_lists(images, classes, angles)
+    scenes = [with_wavelengths(scene) if isinstance(scene, xr.DataArray) else scene for scene in scenes]
     if wavelengths is None and "wavelength" in scenes[0].coords:
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
     scenes, wavelengths, used_ranges, left_out = _without_bad_bands(scenes, wavelengths, sampling.bad_bands)

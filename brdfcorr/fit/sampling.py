@@ -11,6 +11,13 @@ import scipy.sparse
 import scipy.sparse.csgraph
 import xarray as xr
 
+from brdfcorr.correction.checks import (
+    ANGLE_LAYERS,
+    as_dataarray,
+    check_layout,
+    guard_angles,
+    reflectance_factors,
+)
 from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
@@ -65,6 +72,31 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
         return [value] * count
 
     return per_date(images), per_date(classes), per_date(angles)
+
+
+def _checked(images: list, classes: list, angles: list, reflectance_scale: float) -> tuple[list, list]:
+    """The images as reflectance factors and the angle sets guarded against radians, as
+    :func:`brdfcorr.correction.normalize` checks its inputs (:mod:`brdfcorr.correction.checks`):
+    bands last refused, integer counts scaled with the scale they carry (or by
+    ``reflectance_scale``, not both), a declared nodata as NaN."""
+    checked_images, checked_angles = [], []
+    for image, class_map, angle_set in zip(images, classes, angles):
+        image = as_dataarray(image, "image", ("band", "y", "x"))
+        layers = {name: angle_set[name] for name in ANGLE_LAYERS if name in angle_set}
+        check_layout(image, [class_map, *layers.values()])
+        stored = {**image.encoding, **image.attrs}
+        if image.dtype.kind not in "iu" or reflectance_scale == 1.0:
+            image = reflectance_factors(image)
+        elif "scale_factor" in stored:
+            raise ParameterError(f"the image's counts carry scale_factor={stored['scale_factor']} and the sampling's "
+                                 f"reflectance_scale={reflectance_scale:g} would scale them again: give one of the two")
+        checked_images.append(image)
+        if len(layers) == len(ANGLE_LAYERS):  # else the sampler names what is missing
+            guarded = guard_angles(layers)["sza"]
+            angle_set = (angle_set.assign(sza=guarded) if isinstance(angle_set, xr.Dataset)
+                         else {**angle_set, "sza": guarded})
+        checked_angles.append(angle_set)
+    return checked_images, checked_angles
 
 
 def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int,
@@ -187,6 +219,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
             f"{len(images)} images, {len(classes)} class maps and {len(angles)} angle sets: "
             "give one class map and one angle set per image"
         )
+    images, angles = _checked(images, classes, angles, sampling.reflectance_scale)
     maps = [_class_values(class_map) for class_map in classes]
     cluster_ids = _cluster_ids(clusters, [m.shape for m in maps])
     valid_angles = [

@@ -40,7 +40,7 @@ from brdfcorr.io.product import (  # the identification and sizes, importable fr
     peak_memory_terms,
 )
 from brdfcorr.io.sensors.products import hdf5_product, open_product
-from brdfcorr.io.wavelengths import band_wavelengths
+from brdfcorr.io.wavelengths import band_wavelengths, envi_fwhm
 from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, write_rasters
 
 __all__ = [
@@ -124,6 +124,10 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
     image = _as_reflectance(image, scale, offset, as_stored)
     if found is not None:
         image = image.assign_coords(wavelength=(image.dims[0], found, {"units": "nm"}))
+    if "fwhm" in image.coords:  # rioxarray's, from an ENVI header: in the header's units
+        fwhm = envi_fwhm(path)
+        image = image.drop_vars("fwhm") if fwhm is None else image.assign_coords(
+            fwhm=(image.dims[0], fwhm, {"units": "nm"}))
     image.name = image.name or "reflectance"
     return image
 

@@ -14,8 +14,8 @@ from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.io.opening import opened
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, named_band_wavelengths
 
-__all__ = ["band_wavelengths", "file_wavelengths", "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS",
-           "SENTINEL2_WAVELENGTHS"]
+__all__ = ["band_wavelengths", "file_wavelengths", "with_wavelengths", "envi_header_wavelengths", "envi_fwhm",
+           "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS", "SENTINEL2_WAVELENGTHS"]
 
 _UNITS_TO_NM = {
     "": 1.0, "nm": 1.0, "nanometer": 1.0, "nanometers": 1.0, "nanometre": 1.0, "nanometres": 1.0,
@@ -48,13 +48,14 @@ def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,
     """Band-centre wavelengths [nm] of an image, or None when nothing gives them.
 
     Sources, in the order of ``docs/conventions.md``: ``explicit``; a dataset tag ``wavelength`` with
-    comma-separated values (``wavelength_units`` tag honoured, nm by default); band descriptions
-    holding a number with an optional unit; band descriptions that are band names, Landsat 8/9 OLI
-    names (``SR_B1`` ... ``SR_B7``, ``B1`` ...; :data:`LANDSAT_OLI_WAVELENGTHS`) where a dataset tag
-    ``sensor`` or ``SENSOR_ID`` says ``OLI``, else Sentinel-2 names (``B02``, ``B2``, ``B8A``;
-    Sentinel-2A centres, :data:`SENTINEL2_WAVELENGTHS`) when every band has one; the ENVI header of
-    an ENVI image. Band names that fit neither rule (a mix, ``SR_B4`` without the sensor) give no
-    wavelengths rather than a guess.
+    comma-separated values (``wavelength_units`` tag honoured, nm by default); the ``wavelength``
+    item of an ENVI image's header (:func:`envi_header_wavelengths`: before the band descriptions
+    GDAL makes of it, which lose its units); band descriptions holding a number with an optional
+    unit; band descriptions that are band names, Landsat 8/9 OLI names (``SR_B1`` ... ``SR_B7``,
+    ``B1`` ...; :data:`LANDSAT_OLI_WAVELENGTHS`) where a dataset tag ``sensor`` or ``SENSOR_ID``
+    says ``OLI``, else Sentinel-2 names (``B02``, ``B2``, ``B8A``; Sentinel-2A centres,
+    :data:`SENTINEL2_WAVELENGTHS`) when every band has one. Band names that fit neither rule (a mix,
+    ``SR_B4`` without the sensor) give no wavelengths rather than a guess.
 
     Raises
     ------
@@ -87,6 +88,66 @@ def _file_metadata(path) -> tuple[int, dict, tuple, dict]:
         return dataset.count, dataset.tags(), dataset.descriptions, envi_header
 
 
+def with_wavelengths(array: xr.DataArray) -> xr.DataArray:
+    """``array`` with a ``wavelength`` coordinate [nm] where it carries its band centres otherwise.
+
+    Its own ``wavelength`` coordinate is read in the unit of its ``units`` attribute (nm without
+    one); without it, STAC's ``center_wavelength`` [µm] (``eo:bands``, as stackstac and odc-stac
+    give it) where every band has one, else the band dimension's labels where they are Sentinel-2
+    band names (``"B04"``; :func:`~brdfcorr.io.sensors.bands.named_band_wavelengths`). An array
+    with none of them is returned as it is. The band dimension is the third from last: (band, y,
+    x) or (time, band, y, x).
+
+    Raises
+    ------
+    InputError
+        A ``wavelength`` coordinate in a unit other than nm or µm.
+    """
+    if "wavelength" in array.coords:
+        coordinate = array["wavelength"]
+        unit = str(coordinate.attrs.get("units", "nm")).strip().lower()
+        if unit not in _UNITS_TO_NM:
+            raise InputError(f"the wavelength coordinate is in {unit!r}: give it in nm or µm (its 'units' attribute)")
+        if _UNITS_TO_NM[unit] == 1.0:
+            return array
+        nm = np.asarray(coordinate.values, dtype=float) * _UNITS_TO_NM[unit]
+        return array.assign_coords(wavelength=(coordinate.dims, nm, {**coordinate.attrs, "units": "nm"}))
+    band = array.dims[-3] if array.ndim >= 3 else None
+    if "center_wavelength" in array.coords:
+        coordinate = array["center_wavelength"]
+        try:
+            microns = np.asarray(coordinate.values, dtype=float)
+        except (TypeError, ValueError):  # a band without one (None): not every band is spectral
+            microns = np.array([np.nan])
+        if np.all(np.isfinite(microns) & (microns > 0)):
+            return array.assign_coords(wavelength=(coordinate.dims, 1e3 * microns, {"units": "nm"}))
+    if band is not None and band in array.coords and array[band].dtype.kind in "OUS":
+        named, _ = named_band_wavelengths([str(label) for label in array[band].values], {})
+        if named is not None:
+            return array.assign_coords(wavelength=(band, np.asarray(named, dtype=float), {"units": "nm"}))
+    return array
+
+
+def envi_header_wavelengths(path) -> tuple[np.ndarray, np.ndarray | None]:
+    """Band centres and FWHM [nm] of an ENVI image's header in its units
+    (:func:`brdfcorr.io.sensors.envi.envi_wavelengths`), an :class:`InputError` where it is malformed."""
+    from brdfcorr.io.sensors.envi import envi_wavelengths
+
+    try:
+        return envi_wavelengths(path)
+    except BrdfcorrError as error:
+        raise InputError(str(error)) from None
+
+
+def envi_fwhm(path) -> np.ndarray | None:
+    """The FWHM [nm] of an ENVI image's header, None where it holds none or no band centres to
+    tell its units by (:func:`envi_header_wavelengths`)."""
+    try:
+        return envi_header_wavelengths(path)[1]
+    except InputError:
+        return None
+
+
 def _from_metadata(n_bands: int, tags, descriptions, envi_header, path, source, explicit) -> np.ndarray | None:
     """:func:`band_wavelengths` from what the image or file holds."""
     values = None
@@ -104,6 +165,8 @@ def _from_metadata(n_bands: int, tags, descriptions, envi_header, path, source, 
             raise InputError(f"{source}: unknown wavelength_units {unit!r}")
         values = [v * _UNITS_TO_NM[unit] for v in values]
         origin = "tag 'wavelength'"
+    elif "wavelength" in envi_header:  # before the band descriptions GDAL makes of it, without its units
+        values, origin = envi_header_wavelengths(path)[0].tolist(), "ENVI header"
     else:
         parsed = [parse_wavelength(d or "") for d in descriptions] if descriptions else []
         named, named_origin = named_band_wavelengths(descriptions, tags)
@@ -111,13 +174,6 @@ def _from_metadata(n_bands: int, tags, descriptions, envi_header, path, source, 
             values, origin = parsed, "band descriptions"
         elif named is not None:
             values, origin = named, named_origin
-        elif "wavelength" in envi_header:
-            from brdfcorr.io.sensors.envi import envi_wavelengths
-
-            try:
-                values, origin = envi_wavelengths(path)[0].tolist(), "ENVI header"
-            except BrdfcorrError as error:
-                raise InputError(str(error)) from None
     if values is None:
         return None
     if len(values) != n_bands:

@@ -88,6 +88,20 @@ def test_patch_correlated_errors_warn_at_small_blocks_and_their_ids_follow_them(
                                rtol=1e-9)
 
 
+def test_a_cluster_layer_too_fine_is_told_to_coarsen_not_to_be_given(geometry):
+    # Offsets shared by 32-pixel patches, a cluster layer of 8-pixel squares: the 1-sigma grows from
+    # the layer's units to blocks of 32 (block_size 16, doubled), and the advice is coarser units.
+    rng = np.random.default_rng(5)
+    noise, _ = patch_noise(SHAPE, 32, 0.02, rng)
+    values = 0.3 + noise + rng.normal(0, 0.01, SHAPE)
+    rows, columns = np.indices(SHAPE)
+    fine = (rows // 8) * SHAPE[1] + columns // 8
+    with pytest.warns(BrdfcorrWarning, match=r"from the cluster layer's ids to square blocks of 32") as caught:
+        _assess(values, geometry, clusters=fine, block_size=16)
+    message = str(caught[0].message)
+    assert "give coarser ones" in message and "give a cluster layer" not in message
+
+
 def test_stripes_along_the_track_need_their_ids_as_clusters(geometry):
     # An offset per stripe of 2 columns along the whole track (a detector, at one view angle):
     # blocks of 8 pixels cut each stripe into 16 pieces taken as independent, so their 1-sigma is

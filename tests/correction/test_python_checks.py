@@ -11,6 +11,7 @@ import xarray as xr
 from brdfcorr._entry import entered
 from brdfcorr.correction import normalize
 from brdfcorr.errors import GridMismatchError, InputError, ParameterError
+from brdfcorr.fit import Sampling
 from brdfcorr.testing import example_table, synthetic_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
@@ -38,7 +39,7 @@ def test_integer_counts_with_scale_and_offset_are_corrected_as_factors(scene):
     factors = scene["reflectance"].clip(0, 5)
     counts = np.round((factors + 0.1) / 0.0001).astype(np.uint16)
     counts.attrs.update(scale_factor=0.0001, add_offset=-0.1)
-    stored = counts * 0.0001 - 0.1  # what the counts stand for, exactly
+    stored = xr.DataArray(counts.values * 0.0001 - 0.1, dims=counts.dims, coords=counts.coords)  # what they stand for
     expected = normalize(stored.astype(np.float32), scene["classes"], _angles(scene), example_table()).reflectance
     corrected = normalize(counts, scene["classes"], _angles(scene), example_table()).reflectance
     np.testing.assert_allclose(corrected.values, expected.values, rtol=1e-5, atol=1e-6)
@@ -104,3 +105,92 @@ def test_a_coefficient_set_by_name_and_no_class_map_correct_every_pixel(scene):
     assert not np.any(corrected.reflectance.values == scene["reflectance"].values)  # every pixel corrected
     with pytest.raises(Exception, match="roy2071"):
         normalize(scene["reflectance"], None, _angles(scene), "roy2071")
+
+
+def test_layers_with_dims_x_y_are_taken_by_name_not_by_position(scene):
+    # A square image without coordinates: the layers' (x, y) would fit the grid read as (y, x).
+    square = synthetic_scene(ny=24, nx=24)
+    angles = _angles(square)
+    expected = normalize(square["reflectance"], square["classes"], angles, example_table()).reflectance
+    swapped = {name: xr.DataArray(layer.values.T, dims=("x", "y")) for name, layer in angles.items()}
+    classes = xr.DataArray(square["classes"].values.T, dims=("x", "y"))
+    corrected = normalize(square["reflectance"], classes, swapped, example_table()).reflectance
+    np.testing.assert_array_equal(corrected.values, expected.values)
+    with pytest.raises(InputError, match=r"classes has dims \('y', 'row'\)"):
+        normalize(square["reflectance"], square["classes"].rename(x="row"), angles, example_table())
+
+
+def test_a_declared_float_nodata_is_nodata_not_reflectance(scene):
+    image = scene["reflectance"].copy()
+    image[:, 3, 4] = -9999.0
+    image.attrs["_FillValue"] = -9999.0
+    result = normalize(image, scene["classes"], _angles(scene), example_table())
+    assert np.isnan(result.reflectance.values[:, 3, 4]).all() and result.qa.values[3, 4] & 1  # QA nodata
+    assert "_FillValue" not in result.reflectance.attrs
+    clean = normalize(scene["reflectance"], scene["classes"], _angles(scene), example_table()).reflectance
+    away = np.ones(image.shape[1:], bool)
+    away[3, 4] = False
+    np.testing.assert_array_equal(result.reflectance.values[:, away], clean.values[:, away])
+
+
+def test_integer_counts_leave_no_packing_attribute_on_the_factors(scene):
+    counts = np.round((scene["reflectance"].clip(0, 5) + 0.1) / 0.0001).astype(np.uint16)
+    counts.attrs.update(scale_factor=0.0001, add_offset=-0.1, _FillValue=0, long_name="B04")
+    corrected = normalize(counts, scene["classes"], _angles(scene), example_table()).reflectance
+    # Left on the float output, a reader that decodes them would turn 0.07 into 0.07 * 1e-4 - 0.1.
+    assert not {"scale_factor", "add_offset", "_FillValue"} & set(corrected.attrs)
+    assert corrected.attrs["long_name"] == "B04" and corrected.attrs["brdf_input_scale"] == 0.0001
+
+
+def test_floats_that_still_carry_a_scale_are_refused(scene):
+    packed = np.round((scene["reflectance"].clip(0, 5) + 0.1) / 0.0001).astype(np.float32)
+    packed.attrs.update(scale_factor=0.0001, add_offset=-0.1)  # open_rasterio(masked=True) reads counts so
+    with pytest.raises(InputError, match="floats that still carry scale_factor=0.0001, add_offset=-0.1.*"
+                                         "mask_and_scale=True"):
+        normalize(packed, scene["classes"], _angles(scene), example_table())
+
+
+def test_one_band_picked_from_a_series_is_refused_with_the_fix(scene):
+    series = xr.concat([scene["reflectance"]] * 2, dim="time").isel(band=0)  # (time, y, x)
+    with pytest.raises(InputError, match=r"dims \('time', 'y', 'x'\) and no band dimension.*expand_dims"):
+        normalize(series, scene["classes"], _angles(scene), example_table())
+    kept = scene["reflectance"].isel(band=0).expand_dims("band")  # one band, its wavelength a scalar
+    alone = normalize(kept, scene["classes"], _angles(scene), example_table()).reflectance
+    every = normalize(scene["reflectance"], scene["classes"], _angles(scene), example_table()).reflectance
+    np.testing.assert_array_equal(alone.values[0], every.values[0])
+
+
+def test_fit_classes_checks_its_inputs_as_normalize_does(scene):
+    from brdfcorr.fit import fit_classes
+
+    angles = xr.Dataset(_angles(scene))
+    with pytest.raises(InputError, match="look like radians"):
+        fit_classes(scene["reflectance"], scene["classes"], np.radians(angles), "ross_thick_li_sparse")
+    counts = (scene["reflectance"] * 10000).astype(np.uint16)
+    with pytest.raises(InputError, match=r"integer counts \(uint16\) without a scale_factor"):
+        fit_classes(counts, scene["classes"], angles, "ross_thick_li_sparse")
+    counts.attrs["scale_factor"] = 0.0001
+    with pytest.raises(ParameterError, match="scale_factor=0.0001 and the sampling's reflectance_scale=0.0001"):
+        fit_classes(counts, scene["classes"], angles, "ross_thick_li_sparse",
+                    sampling=Sampling(reflectance_scale=0.0001))
+    with pytest.raises(InputError, match="bands last"):
+        fit_classes(scene["reflectance"].transpose("y", "x", "band"), scene["classes"], angles, "ross_thick_li_sparse")
+
+
+def test_band_centres_in_micrometres_or_stac_terms_are_read_in_nanometres(scene):
+    # The coefficient set is per wavelength: the band centres choose each band's weights.
+    nm = scene["reflectance"]
+    expected = normalize(nm, None, _angles(scene), "roy2017", reference={"sza": 40.0}).reflectance
+    centres = nm["wavelength"].values
+    microns = nm.assign_coords(wavelength=("band", centres / 1000, {"units": "µm"}))
+    # stackstac / odc-stac: no wavelength coordinate, eo:bands' center_wavelength [µm] instead.
+    stac = nm.drop_vars("wavelength").assign_coords(center_wavelength=("band", centres / 1000))
+    for cube in (microns, stac):
+        corrected = normalize(cube, None, _angles(scene), "roy2017", reference={"sza": 40.0}).reflectance
+        np.testing.assert_allclose(corrected.values, expected.values, rtol=1e-6)
+    # Sentinel-2 band names as the band labels, as stackstac gives the assets' keys.
+    named = nm.drop_vars("wavelength").assign_coords(band=["B02", "B03", "B04", "B08"])
+    corrected = normalize(named, None, _angles(scene), "roy2017", reference={"sza": 40.0}).reflectance
+    np.testing.assert_allclose(corrected["wavelength"].values, [492.4, 559.8, 664.6, 832.8])
+    with pytest.raises(InputError, match="wavelength coordinate is in 'cm'"):
+        normalize(nm.assign_coords(wavelength=("band", centres, {"units": "cm"})), None, _angles(scene), "roy2017")

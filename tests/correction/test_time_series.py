@@ -11,6 +11,7 @@ import xarray as xr
 
 import brdfcorr  # noqa: F401  (registers the .brdf accessor)
 from brdfcorr.correction import normalize
+from brdfcorr.errors import InputError
 from brdfcorr.testing import example_table, synthetic_angles, synthetic_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
@@ -53,3 +54,22 @@ def test_a_coefficient_set_without_a_class_map_and_one_class_map_for_all_dates(s
     first = normalize(scenes[0]["reflectance"], None, {n: scenes[0][n] for n in ANGLES}, "roy2017",
                       reference={"sza": 45.0})
     np.testing.assert_array_equal(nbar.isel(time=0).values, first.reflectance.values)
+
+
+def test_dated_layers_are_paired_with_the_cubes_dates_by_label(scenes):
+    cube = _stack([s["reflectance"] for s in scenes])
+    angles = xr.Dataset({name: _stack([s[name] for s in scenes]) for name in ANGLES})
+    classes = _stack([s["classes"] for s in scenes])
+    table, reference = example_table(), {"sza": 40.0}
+    # A cloudy date dropped from the cube only, the angles given in reverse order: each date
+    # still takes its own angles and class map.
+    kept = cube.sel(time=[DATES[0], DATES[2]])
+    result = kept.brdf.normalize(classes.isel(time=[2, 1, 0]), angles.isel(time=[2, 1, 0]), table, reference=reference)
+    alone = normalize(scenes[2]["reflectance"], scenes[2]["classes"], {n: scenes[2][n] for n in ANGLES}, table,
+                      reference=reference).reflectance
+    np.testing.assert_array_equal(result.reflectance.sel(time=DATES[2]).values, alone.values)
+    with pytest.raises(InputError, match="angles has no time 2024-05-11"):
+        cube.brdf.normalize(classes, angles.isel(time=[0, 1]), table)
+    unlabelled = {name: np.stack([s[name].values for s in scenes[:2]]) for name in ANGLES}
+    with pytest.raises(InputError, match="reflectance has 3 dates along 'time' and sza 2"):
+        cube.brdf.normalize(classes, unlabelled, table)

@@ -230,3 +230,38 @@ def test_a_reflectance_cube_given_as_obs_file_is_one_short_line():
     message = str(caught.value)
     assert "\n" not in message and len(message) < 400
     assert "(425 bands)" in message and "obs/obs_ort file" in message
+
+
+@pytest.mark.parametrize("units", ["", "wavelength units = Micrometers\n"])
+def test_a_header_in_micrometres_is_read_and_written_in_nanometres(tmp_path, units):
+    # isofit's wavelength table of the cube: centres and FWHM in micrometres (a real file).
+    _, centres, fwhm = np.loadtxt(CUBE / "wavelengths.txt").T
+    header = CUBE_IMAGE.with_suffix(".hdr").read_text()
+    listed = "{" + ", ".join(f"{value:.5f}" for value in centres) + "}"
+    widths = "{" + ", ".join(f"{value:.5f}" for value in fwhm) + "}"
+    header = re.sub(r"wavelength = \{[^}]*\}", f"{units}wavelength = {listed}", header)
+    header = re.sub(r"fwhm = \{[^}]*\}", f"fwhm = {widths}", header)
+    image = tmp_path / "cube"
+    shutil.copy(CUBE_IMAGE, image)
+    image.with_suffix(".hdr").write_text(header)
+    from brdfcorr.io.rasters import open_image
+
+    opened = open_image(image, scale=1.0)
+    # Without units GDAL describes the bands as "0.37686": read as nm, every centre was 1000 x too small.
+    np.testing.assert_allclose(opened["wavelength"].values, 1000 * centres, atol=1e-6)
+    np.testing.assert_allclose(opened["fwhm"].values, 1000 * fwhm, atol=1e-6)
+    # The corrected ENVI image's header says nm: its FWHM must be in nm too.
+    from click.testing import CliRunner
+
+    from brdfcorr.cli import main
+
+    table = tmp_path / "table.yaml"
+    table.write_text("classes:\n  - {id: 1, name: veg, model: ross_thick_li_sparse, "
+                     "params: {f_iso: 0.1, f_vol: 0.05, f_geo: 0.01}}\n")
+    result = CliRunner().invoke(main, ["correct", str(image), "--angles", str(CUBE_OBS), "--angles-kind", "envi_obs",
+                                       "--params", str(table), "--scale", "1", "-o", str(tmp_path / "out.img"),
+                                       "--format", "ENVI"])
+    assert result.exit_code == 0, result.output
+    written = envi_wavelengths(tmp_path / "out.img")
+    np.testing.assert_allclose(written[0], 1000 * centres, atol=1e-4)
+    np.testing.assert_allclose(written[1], 1000 * fwhm, atol=1e-4)
