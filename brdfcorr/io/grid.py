@@ -47,10 +47,11 @@ def _grid(layer: xr.DataArray) -> _Grid:
 def grid_difference(layer: xr.DataArray, base: xr.DataArray) -> str | None:
     """How ``layer``'s grid differs from ``base``'s, or None when they are the same grid.
 
-    Compared on the last two dims: the shape (rows, columns), then the CRS (one of them without a
-    CRS differs from one with), then the transforms, coefficient by coefficient within
-    :data:`TOLERANCE` of ``base``'s pixel size. A layer without any georeference (module docstring)
-    is compared by its shape only.
+    Compared on the last two dims: the shape (rows, columns), then the CRS (where both have one: a
+    layer without a CRS has none to contradict the other's, e.g. angle arrays built on the image's
+    x/y coordinates), then the transforms, coefficient by coefficient within :data:`TOLERANCE` of
+    ``base``'s pixel size. A layer without any georeference (module docstring) is compared by its
+    shape only.
     """
     return _difference(_grid(layer), _grid(base))
 
@@ -60,7 +61,7 @@ def _difference(grid: _Grid, base: _Grid) -> str | None:
         return f"shape (rows, columns) {grid.shape} differs from {base.shape}"
     if grid.transform is None or base.transform is None:
         return None
-    if grid.crs != base.crs:
+    if grid.crs is not None and base.crs is not None and grid.crs != base.crs:
         return f"CRS {grid.crs} differs from {base.crs}"
     pixel = max(abs(base.transform[0]), abs(base.transform[4]), 1e-12)
     if not np.allclose(grid.transform, base.transform, rtol=0, atol=TOLERANCE * pixel):

@@ -146,7 +146,7 @@ def no_parameter_bands(entry: ClassFields, wavelengths: Sequence[float] | None) 
     if wavelengths is None:
         raise ParameterError(
             f"{class_label(entry)}: bad_bands are wavelength ranges [nm]; the image's band wavelengths are needed "
-            f"(band descriptions, a 'wavelength' tag, or {option('wavelengths')})"
+            f"(a 'wavelength' coordinate or tag, band descriptions, or {option('wavelengths')})"
         )
     bad = in_ranges(wavelengths, entry.bad_bands)
     return bad if bad.any() else None
@@ -233,7 +233,7 @@ def interpolate(entry: ClassFields, name: str, value: np.ndarray, wavelengths: S
     if wavelengths is None:
         raise ParameterError(
             f"{class_label(entry)}: parameter {name} is given per wavelength; the image's band "
-            f"wavelengths are needed (band descriptions, a 'wavelength' tag, or {option('wavelengths')})"
+            f"wavelengths are needed (a 'wavelength' coordinate or tag, band descriptions, or {option('wavelengths')})"
         )
     table = np.asarray(entry.wavelengths, dtype=float)
     centres = np.asarray(wavelengths, dtype=float)

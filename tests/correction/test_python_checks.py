@@ -194,3 +194,14 @@ def test_band_centres_in_micrometres_or_stac_terms_are_read_in_nanometres(scene)
     np.testing.assert_allclose(corrected["wavelength"].values, [492.4, 559.8, 664.6, 832.8])
     with pytest.raises(InputError, match="wavelength coordinate is in 'cm'"):
         normalize(nm.assign_coords(wavelength=("band", centres, {"units": "cm"})), None, _angles(scene), "roy2017")
+
+
+def test_angles_on_the_images_coordinates_without_a_crs_are_on_its_grid(scene):
+    bare = {name: layer.drop_vars("spatial_ref") for name, layer in _angles(scene).items()}
+    assert all(layer.rio.crs is None for layer in bare.values()) and scene["reflectance"].rio.crs is not None
+    corrected = normalize(scene["reflectance"], scene["classes"], bare, example_table()).reflectance
+    expected = normalize(scene["reflectance"], scene["classes"], _angles(scene), example_table()).reflectance
+    np.testing.assert_array_equal(corrected.values, expected.values)
+    shifted = {name: layer.assign_coords(x=layer.x + 100.0) for name, layer in bare.items()}
+    with pytest.raises(GridMismatchError, match="transform"):
+        normalize(scene["reflectance"], scene["classes"], shifted, example_table())
