@@ -18,7 +18,7 @@ import xarray as xr
 from brdfcorr.correction.checks import BAND_DIMS
 from brdfcorr.errors import InputError
 
-__all__ = ["is_series", "over_dates"]
+__all__ = ["dated_like", "is_series", "over_dates"]
 
 
 def is_series(reflectance) -> bool:
@@ -41,9 +41,9 @@ def over_dates(normalize_one: Callable, reflectance, classes, angles, params, re
     if dim in BAND_DIMS:
         raise InputError(f"reflectance has dims {cube.dims}; a 4-D cube is (time, band, y, x): "
                          f"transpose it, e.g. reflectance.transpose({cube.dims[1]!r}, {dim!r}, ...)")
-    classes = _dated(classes, cube, "classes")
-    angles = (_dated(angles, cube, "angles") if isinstance(angles, xr.Dataset) else
-              {name: _dated(layer, cube, name) for name, layer in angles.items()} if isinstance(angles, Mapping)
+    classes = dated_like(classes, cube, "classes")
+    angles = (dated_like(angles, cube, "angles") if isinstance(angles, xr.Dataset) else
+              {name: dated_like(layer, cube, name) for name, layer in angles.items()} if isinstance(angles, Mapping)
               else angles)
     results = [
         normalize_one(cube.isel({dim: index}), _at_date(classes, dim, index, "classes"),
@@ -55,10 +55,11 @@ def over_dates(normalize_one: Callable, reflectance, classes, angles, params, re
     return type(results[0])(corrected.transpose(dim, *cube.dims[1:]), qa.transpose(dim, *cube.dims[2:]))
 
 
-def _dated(layer, cube: xr.DataArray, name: str):
-    """``layer`` with its dates those of ``cube``, in the cube's order: picked by label where both
-    label their time dimension (a layer may hold more dates than the cube), else one per date in
-    the same order. A layer without the time dimension is the same for every date."""
+def dated_like(layer, cube: xr.DataArray, name: str):
+    """``layer`` with its dates those of ``cube`` (its first dimension), in the cube's order: picked
+    by label where both label their time dimension (a layer may hold more dates than the cube),
+    else one per date in the same order, an :class:`InputError` where the counts differ. A layer
+    without the time dimension is the same for every date."""
     dim, count = cube.dims[0], cube.sizes[cube.dims[0]]
     if isinstance(layer, (xr.DataArray, xr.Dataset)):
         if dim not in layer.dims:

@@ -18,6 +18,7 @@ from brdfcorr.correction.checks import (
     guard_angles,
     reflectance_factors,
 )
+from brdfcorr.correction.series import dated_like
 from brdfcorr.defaults import LEVELS
 from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
@@ -60,18 +61,17 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
     have that dimension and the same for every date where they have not."""
     if not isinstance(images, xr.DataArray) or dim not in images.dims:
         return _as_list(images), _as_list(classes), _as_list(angles)
-    count = images.sizes[dim]
+    cube = images.transpose(dim, ...)
+    count = cube.sizes[dim]
 
-    def per_date(value) -> list:
+    def per_date(value, name: str | None = None) -> list:
         if isinstance(value, (xr.DataArray, xr.Dataset)) and dim in value.dims:
-            if value.sizes[dim] != count:
-                raise ParameterError(f"the image has {count} dates along {dim!r} and its "
-                                     f"{'angles' if isinstance(value, xr.Dataset) else 'class map'} "
-                                     f"{value.sizes[dim]}: give one per date, or one for every date")
+            if name is not None:  # the image's dates, by label where both have them
+                value = dated_like(value, cube, name)
             return [value.isel({dim: index}, drop=True) for index in range(count)]
         return [value] * count
 
-    return per_date(images), per_date(classes), per_date(angles)
+    return per_date(cube), per_date(classes, "class map"), per_date(angles, "angles")
 
 
 def _checked(images: list, classes: list, angles: list, reflectance_scale: float) -> tuple[list, list]:

@@ -197,6 +197,25 @@ def test_a_time_cube_is_fitted_as_its_dates():
         np.testing.assert_allclose(by_cube.fits[0].params[name], values)
 
 
+def test_a_time_cubes_angles_are_its_dates_by_label():
+    import pandas as pd
+
+    import brdfcorr  # noqa: F401  (registers the .brdf accessor)
+
+    images, maps, angles = _stack(3)
+    dates = pd.Index(pd.date_range("2024-06-01", periods=3), name="time")
+    cube, angle_cube = xr.concat(images, dim=dates), xr.concat(angles, dim=dates)
+    in_order = cube.brdf.fit_classes(maps[0], angle_cube, wavelengths=[650.0])
+    # The angles in reverse order, and a cube of two of the dates: each date still takes its own.
+    reversed_angles = angle_cube.isel(time=[2, 1, 0])
+    assert cube.brdf.fit_classes(maps[0], reversed_angles, wavelengths=[650.0]).table == in_order.table
+    two = cube.isel(time=[0, 2]).brdf.fit_classes(maps[0], reversed_angles, wavelengths=[650.0])
+    expected = fit_classes([images[0], images[2]], [maps[0]] * 2, [angles[0], angles[2]],
+                           ClassModels("ross_thick_li_sparse"), wavelengths=[650.0])
+    for name, values in expected.fits[0].params.items():
+        np.testing.assert_allclose(two.fits[0].params[name], values)
+
+
 def test_cli_fits_a_stack_of_dates_with_each_pixels_level_free(tmp_path):
     from click.testing import CliRunner
 
