@@ -142,8 +142,7 @@ def _uncertainty_notes(config: ChainConfig, fit_output: Path | None) -> list[str
     table = planned_table(config, fit_output) if config.outputs.uncertainty else None
     if table is None:  # no uncertainty raster, or the fit step makes the table (with covariances)
         return []
-    # A library material has its published errors (correction.uncertainty.material_covariance).
-    bare = [entry.label for entry in table.classes if entry.fit is None and entry.material is None]
+    bare = table.classes_without_errors()
     if not bare:
         return []
     return [f"outputs.uncertainty: {', '.join(bare)} have no fit: block (covariance) in the parameter "

@@ -319,7 +319,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
         table_source=config.source, reads=scene.product_files,  # a product's files: never overwritten
     ))
     found: dict[str, object] = {"reference": result.reference.describe()}
-    if result.notes:  # most pixels left uncorrected: said in the report too
+    if result.notes:  # most pixels left uncorrected, an uncertainty without errors: said in the report too
         found["notes"] = list(result.notes)
     if result.topographic is not None:
         found["topographic"] = result.topographic.as_dict()

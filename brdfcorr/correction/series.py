@@ -29,7 +29,8 @@ def is_series(reflectance) -> bool:
 def over_dates(normalize_one: Callable, reflectance, classes, angles, params, reference=None, **options):
     """``normalize_one`` (:func:`brdfcorr.correction.normalize`) date by date over a (time, band, y,
     x) cube; returns its result type with the corrected cube (time, band, y, x) and the QA layer
-    (time, y, x).
+    (time, y, x), or, for a function that returns one DataArray per date
+    (:func:`~brdfcorr.correction.uncertainty.correction_uncertainty`), their cube.
 
     ``classes`` and each angle layer are (y, x), the same for every date, or have the cube's time
     dimension (a DataArray with that dim, or an array with one more axis than (y, x)).
@@ -50,6 +51,8 @@ def over_dates(normalize_one: Callable, reflectance, classes, angles, params, re
                       _angles_at_date(angles, dim, index), params, reference, **options)
         for index in range(cube.sizes[dim])
     ]
+    if isinstance(results[0], xr.DataArray):  # one layer per date (the uncertainty's 1-sigma)
+        return xr.concat(results, dim=dim).transpose(dim, *cube.dims[1:])
     corrected = xr.concat([result.reflectance for result in results], dim=dim)
     qa = xr.concat([result.qa for result in results], dim=dim)
     return type(results[0])(corrected.transpose(dim, *cube.dims[1:]), qa.transpose(dim, *cube.dims[2:]))

@@ -65,6 +65,7 @@ import xarray as xr
 
 from brdfcorr._arrays import cosd
 from brdfcorr.correction.blocks import no_class_mask, split_pairs
+from brdfcorr.correction.checks import reflectance_factors
 from brdfcorr.correction.inputs import angle_layers, check_grid, layer_nodata
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.terrain import cos_incidence
@@ -363,12 +364,17 @@ def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=N
 
 
 def _as_cube(reflectance) -> xr.DataArray:
+    """The reflectance as a (band, y, x) DataArray of its values: integer counts that carry a scale
+    scaled with it and its offset (an offset left in would change C and the cosine correction
+    alike), a declared float nodata as NaN (:func:`~brdfcorr.correction.checks.reflectance_factors`);
+    counts without a scale are taken in their own units."""
     if not isinstance(reflectance, xr.DataArray):
         array = reflectance if isinstance(reflectance, da.Array) else np.asarray(reflectance)
         reflectance = xr.DataArray(array, dims=("band", "y", "x"), name="reflectance")
     if reflectance.ndim != 3:
         raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
-    return reflectance
+    scaled = "scale_factor" in {**reflectance.encoding, **reflectance.attrs}
+    return reflectance if reflectance.dtype.kind in "iu" and not scaled else reflectance_factors(reflectance)
 
 
 def _layer(reflectance: xr.DataArray, name: str, value) -> xr.DataArray:
@@ -403,6 +409,18 @@ def _c_lookup(c_table: pd.DataFrame, n_bands: int):
     c_matrix[rows, bands] = c_table["c"].to_numpy(dtype=np.float64)
     accepted[rows, bands] = c_table["accepted"].to_numpy(dtype=bool) & np.isfinite(c_matrix[rows, bands])
     return class_ids, c_matrix, accepted
+
+
+def _check_c_classes(class_ids: np.ndarray, with_classes: bool) -> None:
+    """Refuse a C table whose classes the correction cannot tell apart: C per class without a
+    class map (every pixel would take the first class's C), or one C for the whole image (class 0)
+    with a class map (no pixel would find its class)."""
+    per_class = class_ids[class_ids != 0]
+    if not with_classes and per_class.size:
+        raise InputError(f"the C table holds C per class ({', '.join(map(str, per_class[:5].tolist()))}): give the "
+                         "class map it was fitted with (classes=)")
+    if with_classes and not per_class.size:
+        raise InputError("the C table was fitted without a class map (class 0): apply it without classes")
 
 
 def _warn_rejected(table: pd.DataFrame) -> None:
@@ -486,6 +504,7 @@ def topographic_correction(
                             c_range=c_range, min_pixels=min_pixels, cos_i_min=cos_i_min)
         _warn_rejected(c_table)
         lookup = _c_lookup(c_table, n_bands)
+        _check_c_classes(lookup[0], class_layer is not None)
     else:
         c_table = None
     out_dtype = np.result_type(reflectance.dtype, np.float32)

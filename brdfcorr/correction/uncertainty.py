@@ -74,6 +74,7 @@ import xarray as xr
 from brdfcorr.correction.blocks import NO_PARAMETERS, PixelGeometry, Plans, class_plan, present_classes
 from brdfcorr.correction.inputs import BlockSettings, prepare_inputs
 from brdfcorr.correction.reference import describe_limits
+from brdfcorr.correction.series import is_series, over_dates
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import BrdfcorrWarning, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
@@ -456,8 +457,9 @@ def correction_uncertainty(
 
     Parameters
     ----------
-    reflectance : xarray.DataArray (band, y, x)
-        Observed reflectance (any units; the result has them). numpy or dask backed.
+    reflectance : xarray.DataArray (band, y, x) or (time, band, y, x)
+        Observed reflectance (any units; the result has them). numpy or dask backed. A cube with
+        a time dimension first gives one 1-sigma per date, as :func:`normalize` corrects it.
     classes : xarray.DataArray (y, x)
         Class map: ids of ``params``; 0, NaN and the map's nodata mean "no class".
     angles : xarray.Dataset or mapping of str to xarray.DataArray (y, x)
@@ -497,6 +499,10 @@ def correction_uncertainty(
     GridMismatchError, InputError
         A layer is not on the reflectance's grid, has the wrong dimensions, or an option is invalid.
     """
+    if is_series(reflectance):  # (time, band, y, x): date by date, as normalize (correction.series)
+        return over_dates(correction_uncertainty, reflectance, classes, angles, params, reference,
+                          wavelengths=wavelengths, extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth,
+                          limits=limits)
     inputs = prepare_inputs(reflectance, classes, angles, params, reference, limits=limits, wavelengths=wavelengths,
                             extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
     reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits

@@ -66,8 +66,10 @@ def _refuse_broken_hdf5(path, role: str) -> None:
 
 
 def open_layer(path, role: str, chunks=None) -> xr.DataArray:
-    """Any raster (band, y, x), lazily, nodata as NaN; ``role`` names it in errors ("DEM")."""
-    return open_raster(path, role, chunk_spec(chunks), masked=True)
+    """Any raster (band, y, x), lazily, nodata as NaN and the values scaled by the file's own scale
+    and offset (a DEM stored as decimetres with a scale of 0.1 reads as metres); ``role`` names it
+    in errors ("DEM")."""
+    return open_raster(path, role, chunk_spec(chunks), masked=True, mask_and_scale=True)
 
 
 @contextlib.contextmanager

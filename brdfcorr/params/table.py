@@ -190,6 +190,11 @@ class ParameterTable(StrictModel):
     def __contains__(self, class_id: object) -> bool:
         return any(entry.id == class_id for entry in self.classes)
 
+    def classes_without_errors(self) -> list[str]:
+        """The labels of the classes with neither a ``fit:`` covariance nor a library material's
+        published errors: their pixels are NaN in an uncertainty raster (``docs/uncertainty.md``)."""
+        return [entry.label for entry in self.classes if entry.fit is None and entry.material is None]
+
     def __len__(self) -> int:
         return len(self.classes)
 

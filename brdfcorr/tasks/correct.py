@@ -152,15 +152,25 @@ def _correct(request: CorrectionRequest, scene: SceneData, table: ParameterTable
         *_, counts = dask.compute(*writes, {**qa_counts(qa), **encoding}, scheduler=engine.scheduler,
                                   num_workers=scene.threads)
     pixels = {key: int(value) for key, value in counts.items()}
-    note = uncorrected_note(pixels)
-    if note is not None:
+    notes = [note for note in (uncorrected_note(pixels), _uncertainty_note(files.uncertainty, table)) if note]
+    for note in notes:
         warnings.warn(note, BrdfcorrWarning, stacklevel=2)
     summary = None
     if topographic is not None:
         c_table = topographic.c_table
         summary = TopographicSummary(request.terrain.topographic,  # type: ignore[union-attr]
                                      () if c_table is None else tuple(c_table.to_dict(orient="records")))
-    return CorrectionResult(pixels, reference, notes=() if note is None else (note,), topographic=summary)
+    return CorrectionResult(pixels, reference, notes=tuple(notes), topographic=summary)
+
+
+def _uncertainty_note(output, table: ParameterTable) -> str | None:
+    """A note when an uncertainty output was written and classes of the table have no errors to
+    propagate (their pixels are NaN there); else None."""
+    bare = table.classes_without_errors() if output is not None else []
+    if not bare:
+        return None
+    return (f"{', '.join(bare[:5])}{' ...' if len(bare) > 5 else ''} have no fit: block (covariance) in the parameter "
+            f"table: their pixels are NaN in the uncertainty output {output}")
 
 
 def _check_outputs(request: CorrectionRequest) -> None:

@@ -67,7 +67,8 @@ class CorrectionResult:
         The reference geometry used (a ``"mean"`` sun zenith replaced by the scene's mean [deg]).
     notes : tuple of str
         One line each, what the user should know (most valid pixels left uncorrected,
-        :func:`brdfcorr.tasks.correct.uncorrected_note`; also a warning).
+        :func:`brdfcorr.tasks.correct.uncorrected_note`; classes without errors in an uncertainty
+        output); each also a warning.
     topographic : TopographicSummary, optional
         The topographic step, with terrain (None without).
     """

@@ -145,6 +145,9 @@ def test_uncertainty_output_is_the_propagated_sigma(scene, tmp_path):
             params, "-o", output, "--uncertainty", sigma_path, "--ref-sza", "35", "--no-progress"]
     result = CliRunner().invoke(main, [str(a) for a in args])
     assert result.exit_code == 0, result.output
+    # The classes without errors are named: their pixels are NaN in the uncertainty output.
+    bare = [entry.label for entry in table.classes if entry.id != 1 and entry.material is None]
+    assert bare and all(label in result.stderr for label in bare) and "have no fit: block" in result.stderr
 
     data = scene["data"]
     expected = correction_uncertainty(

@@ -344,3 +344,22 @@ def test_obs_terrain_band_names_can_be_overridden_and_are_checked():
         read_envi_obs_terrain(path, band_names={"tilt": "slope"})
     terrain = read_envi_obs_terrain(path)
     assert terrain.slope.shape == (25, 30) and float(terrain.slope.max()) < 90
+
+
+def test_a_dem_stored_with_a_scale_is_read_in_its_units(tmp_path):
+    # An east-facing plane, 0.2 m of rise per m (11.31 deg), stored as uint16 decimetres with a GDAL
+    # scale of 0.1 beside the same plane in float32 metres: both give the same slope.
+    from affine import Affine
+
+    from brdfcorr.io.opening import open_layer
+
+    rows, columns = np.indices((20, 30))
+    metres = 100.0 + 0.2 * 10.0 * columns  # 10-m pixels, rising eastwards
+    profile = dict(driver="GTiff", height=20, width=30, count=1, crs="EPSG:32632",
+                   transform=Affine(10.0, 0.0, 500_000.0, 0.0, -10.0, 5_400_000.0))
+    with rasterio.open(tmp_path / "dem_dm.tif", "w", dtype="uint16", **profile) as dataset:
+        dataset.write(np.round(metres * 10).astype(np.uint16), 1)
+        dataset.scales = (0.1,)
+    surface = slope_aspect(open_layer(tmp_path / "dem_dm.tif", "DEM")[0])
+    np.testing.assert_allclose(surface.slope.values, np.degrees(np.arctan(0.2)), atol=1e-4)
+    np.testing.assert_allclose(surface.aspect.values, 270.0, atol=1e-4)  # facing west: downhill is west

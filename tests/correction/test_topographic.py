@@ -91,6 +91,32 @@ def test_c_is_fitted_per_class():
     np.testing.assert_array_equal(result.reflectance.values[0, 0, :5], 999.0)
 
 
+def test_a_c_table_is_applied_with_the_class_map_it_was_fitted_with():
+    slope, aspect, cos_i = _terrain(seed=3)
+    classes = np.where(np.arange(40)[None, :] < 20, 1, 2) * np.ones((30, 1), int)
+    observed = _cube(np.where(classes == 1, 0.1 * cos_i + 0.02, 0.1 * cos_i + 0.3))
+    angles = {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}
+    per_class = fit_c(observed, cos_i, xr.DataArray(classes, dims=("y", "x")))  # C = 0.2 and 3
+    with pytest.raises(InputError, match=r"C per class \(1, 2\): give the class map"):
+        topographic_correction(observed, angles, method="c", c_table=per_class)  # every pixel took C = 0.2
+    whole = fit_c(observed, cos_i)
+    with pytest.raises(InputError, match="fitted without a class map"):
+        topographic_correction(observed, angles, method="c", c_table=whole, classes=classes)
+
+
+def test_integer_counts_with_a_scale_are_corrected_as_reflectance():
+    # Counts = (R + 0.1) / 1e-4 with an offset of -0.1: the cosine correction of R, not of the counts.
+    slope, aspect, cos_i = _terrain()
+    observed = 0.3 * cos_i / np.cos(np.radians(SZA))
+    counts = _cube(np.round((np.clip(observed, 0, None) + 0.1) / 1e-4).astype(np.uint16))
+    counts.attrs.update(scale_factor=1e-4, add_offset=-0.1)
+    result = topographic_correction(counts, {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect},
+                                    method="cosine", limits=None)
+    lit = cos_i > 0.2
+    np.testing.assert_allclose(result.reflectance.values[0][lit], 0.3, atol=1e-4 / cos_i[lit].min())
+    assert "scale_factor" not in result.reflectance.attrs
+
+
 def test_layers_must_be_on_the_reflectance_grid():
     slope, aspect, cos_i = _terrain()
     with pytest.raises(GridMismatchError, match=r"slope is not on the grid of reflectance: shape \(rows, columns\)"):

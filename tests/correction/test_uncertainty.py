@@ -270,6 +270,21 @@ def test_observed_at_the_reference_geometry_has_zero_sigma():
         np.testing.assert_allclose(sigma.values, 0.0, atol=1e-10, err_msg=model)
 
 
+def test_a_time_cube_has_each_dates_sigma():
+    import pandas as pd
+
+    cov = np.diag([0.001**2, 0.01**2])
+    table = _table(_class(1, "torrance_sparrow", ROOF, ("t0", "t1"), cov))
+    dates = [_pixels([30.0 + 10 * d] * 4, [0.0] * 4, [10.0, 20.0, 30.0, 40.0], [170.0] * 4) for d in range(3)]
+    time = pd.Index(pd.date_range("2024-06-01", periods=3), name="time")
+    cube = xr.concat([layers["reflectance"] for layers in dates], dim=time)
+    angles = {name: xr.concat([layers[name] for layers in dates], dim=time) for name in ANGLES}
+    sigma = correction_uncertainty(cube, dates[0]["classes"], angles, table, reference=REFERENCE)
+    assert sigma.dims == ("time", "band", "y", "x")
+    for index, layers in enumerate(dates):
+        np.testing.assert_array_equal(sigma.isel(time=index).values, _sigma(layers, table, reference=REFERENCE).values)
+
+
 # ------------------------------------------------------------------------------------- nodata
 def test_nodata_where_there_is_nothing_to_propagate():
     # Pixels: 0 class 1 with covariance, 1 class 2 without, 2 class 9 unknown, 3 class 0, 4 a zenith
