@@ -464,8 +464,9 @@ def topographic_correction(
         Class map: C is fitted per class and band; without it, one C per band for the whole image.
         Its nodata (``classes.rio.nodata``, else ``_FillValue``), 0 and NaN mean "no class".
     c_table : pandas.DataFrame, optional
-        C coefficients to use (the table :func:`fit_c` returns, e.g. from another scene); by
-        default fitted on this image (which reads it once; the correction itself stays lazy).
+        C coefficients to use (the table :func:`fit_c` returns, e.g. from another scene), with
+        the class map it was fitted with (C per class) or without one (class 0: one C per band);
+        by default fitted on this image (which reads it once; the correction itself stays lazy).
     limits : (float, float) or None, default (0.2, 5)
         The factor is clipped to this range [-]; clipped pixels are flagged ``limited``.
     r2_min, c_range, min_pixels, cos_i_min :
