@@ -1,8 +1,9 @@
 """Goniometer measurement tables: read, validate, filter, write and synthesize them.
 
 A measurement table is a CSV file with one BRDF measurement per row and a header naming the
-columns (any order, case-insensitive, a unit suffix such as ``theta_i [deg]`` is ignored, extra
-columns are ignored, ``#`` lines are comments)::
+columns (any order, case-insensitive; a unit suffix such as ``theta_i [deg]`` must name the unit
+brdfcorr reads, below, else the table is refused: ``theta_i [rad]`` would be read as degrees;
+extra columns are ignored, ``#`` lines are comments)::
 
     theta_i,theta_r,phi,brdf,sigma
     30,0,180,0.0262,0.0010
@@ -69,8 +70,14 @@ OPTIONAL_COLUMNS = ("sigma", "wavelength")
 #: How many offending rows an error message lists before it says "and N more".
 _MAX_LISTED = 5
 
-# A header cell "theta_i [deg]" or "brdf (1/sr)" names the column theta_i / brdf.
-_UNIT_SUFFIX = re.compile(r"\s*[\[(].*[\])]\s*$")
+# A header cell "theta_i [deg]" or "brdf (1/sr)" names the column theta_i / brdf, in that unit.
+_UNIT_SUFFIX = re.compile(r"\s*[\[(](.*)[\])]\s*$")
+#: The units a header may name for each column (lower case, spaces removed): the ones brdfcorr reads.
+_UNITS = {
+    **dict.fromkeys(("theta_i", "theta_r", "phi"), {"deg", "degree", "degrees", "°"}),
+    **dict.fromkeys(("brdf", "sigma"), {"1/sr", "sr^-1", "sr-1", "sr⁻¹", "/sr", "sr**-1", "1/steradian"}),
+    "wavelength": {"nm", "nanometer", "nanometers", "nanometre", "nanometres"},
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -273,6 +280,19 @@ def _column_name(header_cell: str) -> str:
     return _UNIT_SUFFIX.sub("", header_cell.strip()).strip().lower()
 
 
+def _check_units(cells: list[str], header: list[str], path: Path) -> None:
+    """MeasurementError for a column whose header names a unit other than the one brdfcorr reads
+    (``theta_i [rad]``, ``brdf [%]``): its values would be read in the wrong unit."""
+    for cell, name in zip(cells, header):
+        match = _UNIT_SUFFIX.search(cell.strip())
+        written = "" if match is None else match[1].strip()
+        if name in _UNITS and written and re.sub(r"\s+", "", written).lower() not in _UNITS[name]:
+            raise MeasurementError(
+                f"{path}: column {name} is in {written!r}; brdfcorr reads angles in degrees, brdf and sigma in "
+                "sr^-1 and wavelengths in nm: convert the column (and its header)"
+            )
+
+
 def _read_text(path: Path) -> str:
     """The CSV's text; MeasurementError for a missing, non-regular, binary or unreadable file."""
     if path.exists() and not (path.is_file() or path.is_dir()):  # a FIFO or device would block or never end
@@ -294,6 +314,7 @@ def _checked_header(cells: list[str], path: Path, line: int) -> list[str]:
     """The column names of the header cells (units in brackets dropped, lower case); MeasurementError
     for a duplicated or missing required column (``line``: the header's line number)."""
     header = [_column_name(cell) for cell in cells]
+    _check_units(cells, header, path)
     duplicated = sorted({name for name in header if name and header.count(name) > 1})
     if duplicated:
         raise MeasurementError(f"{path}: duplicated column(s) {', '.join(duplicated)}")

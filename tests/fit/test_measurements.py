@@ -46,6 +46,20 @@ def test_header_is_flexible_and_sigma_optional(tmp_path):
     assert (data.theta_i[0], data.theta_r[0], data.phi[0], data.brdf[0]) == (20, 10, 180, 0.1)
 
 
+@pytest.mark.parametrize("header, unit", [("theta_i [rad],theta_r [rad],phi [rad],brdf", "'rad'"),
+                                          ("theta_i,theta_r,phi,brdf [%]", "'%'"),
+                                          ("theta_i,theta_r,phi,brdf,wavelength (um)", "'um'")])
+def test_a_header_naming_another_unit_is_refused(tmp_path, header, unit):
+    # Read as degrees, sr^-1 and nm, the values would be wrong without a word (radians as degrees
+    # fitted f_vol = 50 for 0.02; percent gave weights 100 times too large).
+    path = write(tmp_path, f"{header}\n0.5,0.2,3.1,3.0{',0.55' if 'wavelength' in header else ''}\n")
+    with pytest.raises(MeasurementError, match=f"is in {unit}; brdfcorr reads angles in degrees"):
+        read_measurements(path)
+    spelled = write(tmp_path, "theta_i [ Degrees ],theta_r [°],phi (deg),brdf [sr^-1],sigma (1 / sr)\n30,0,180,0.1,0.01\n",
+                    name="spelled.csv")
+    assert len(read_measurements(spelled)) == 1
+
+
 def test_write_read_round_trip_and_input_untouched(tmp_path):
     truth = load_material("red_concrete")
     original = synthesize_measurements(truth.model, truth.params, *goniometer_angles(), seed=2)
