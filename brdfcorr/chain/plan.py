@@ -128,7 +128,7 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     sources, fit_output, parameter_notes = _parameter_sources(config, output_dir, require_inputs)
     report = output_dir / config.outputs.report
     _check_outputs(config, scenes, report, fit_output)
-    scenes = redo_stale(config, scenes, fit_output)
+    scenes = redo_stale(config, scenes, fit_output, report)
     missing = tuple(notes + parameter_notes)  # before the uncertainty notes: files not found
     if not parameter_notes:  # the table's files exist
         notes += _uncertainty_notes(config, fit_output)

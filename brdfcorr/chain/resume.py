@@ -7,6 +7,8 @@ whole (:func:`brdfcorr.io.commit.check_complete`, as a fresh write is checked) a
 records (provenance tag ``brdf_parameter_table_content``) the parameter table this run will use
 (:func:`planned_table`) and the fingerprint this run would write (:func:`scene_fingerprint`; tags
 ``brdf_fingerprint``, ``brdf_fingerprint_content``); the reason it is redone names what changed.
+A scene the earlier run failed (its run report, :func:`earlier_report`) is redone whatever its
+outputs: a scene fails after its outputs are written where too few of its pixels were corrected.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from brdfcorr.io.files import content_digest
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 
 __all__ = ["configured_table", "with_strata_interpolation", "reuses_fit", "planned_table", "redo_stale",
-           "scene_fingerprint"]
+           "scene_fingerprint", "earlier_report", "reused_fit_report"]
 
 
 # ------------------------------------------------------------------------------------ parameters
@@ -76,6 +78,26 @@ def reuses_fit(config: ChainConfig, fit_output: Path | None) -> bool:
     return fit_output is not None and config.outputs.existing == "skip" and fit_output.exists()
 
 
+def earlier_report(report: Path) -> dict:
+    """The run report an earlier run left at ``report`` (empty where there is none or it is unreadable)."""
+    try:
+        found = json.loads(report.read_text())
+    except (OSError, ValueError):
+        return {}
+    return found if isinstance(found, dict) else {}
+
+
+def reused_fit_report(step_source: str, fit_output: Path, report: Path) -> dict:
+    """The fit report of a run that reuses the fitted table at ``fit_output``, with the classes the
+    earlier run's fit reported (those its guard rails left uncorrected still fail the scenes that
+    hold them) where its report describes that table."""
+    found = {"source": step_source, "reused": str(fit_output)}
+    fit = earlier_report(report).get("fit")
+    if isinstance(fit, dict) and str(fit_output) in (fit.get("output"), fit.get("reused")) and fit.get("classes"):
+        found["classes"] = fit["classes"]
+    return found
+
+
 def planned_table(config: ChainConfig, fit_output: Path | None) -> ParameterTable | None:
     """The parameter table the run will use, as known before it runs: the configured table and a
     reused fitted table; None when the fit step makes a new table."""
@@ -88,9 +110,15 @@ def planned_table(config: ChainConfig, fit_output: Path | None) -> ParameterTabl
 
 
 # ----------------------------------------------------------------------------------------- resume
-def redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | None) -> list[Scene]:
-    """The scenes, with skipped ones turned to ``run`` when their outputs were not made with the
-    run's parameter table, inputs and settings."""
+def redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | None, report: Path) -> list[Scene]:
+    """The scenes, with skipped ones turned to ``run`` when the earlier run (its report at
+    ``report``) failed them or their outputs were not made with the run's parameter table, inputs
+    and settings."""
+    results = earlier_report(report).get("scenes")
+    failed = {str(result.get("image")) for result in results if isinstance(result, dict)
+              and result.get("status") == "failed"} if isinstance(results, list) else set()
+    scenes = [dataclasses.replace(scene, action="run", reason="failed in the earlier run: redone")
+              if scene.action == "skip" and str(scene.image) in failed else scene for scene in scenes]
     if not any(scene.action == "skip" and "corrected" in scene.outputs for scene in scenes):
         return scenes
     table_file = config.parameters.table

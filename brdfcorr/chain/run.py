@@ -91,7 +91,7 @@ from brdfcorr.chain.report import (
     uncorrected_classes,
     versions,
 )
-from brdfcorr.chain.resume import configured_table, reuses_fit, with_strata_interpolation
+from brdfcorr.chain.resume import configured_table, reused_fit_report, reuses_fit, with_strata_interpolation
 from brdfcorr.chain.scenes import Scene
 from brdfcorr.chain.strata_step import derive_strata
 from brdfcorr.errors import InputError, OutputError
@@ -197,7 +197,7 @@ def build_table(plan: RunPlan, progress: Progress | None = None) -> tuple[Parame
     if step is not None:
         if reuses_fit(config, plan.fit_output):
             fitted = ParameterTable.load(plan.fit_output)
-            fit_report = {"source": step.source, "reused": str(plan.fit_output)}
+            fit_report = reused_fit_report(step.source, plan.fit_output, plan.report)
         else:
             fitted, fit_report = (_fit_imagery if step.source == "imagery" else _fit_goniometer)(plan)
             plan.output_dir.mkdir(parents=True, exist_ok=True)

@@ -58,3 +58,17 @@ def test_allowed_uncorrected_classes_leave_the_scene_ok(demo):
     result = CliRunner().invoke(main, ["run", str(_chain(demo, "allowed", allow_uncorrected=True)), "--no-progress"])
     assert result.exit_code == 0, result.output
     assert "1 ok, 0 skipped, 0 failed" in result.stdout and "fit:" in result.stdout
+
+
+def test_a_failed_scene_fails_again_on_a_rerun_that_reuses_the_fit(demo):
+    # The failed scene's outputs are complete and match the run's table and inputs: before, the rerun
+    # skipped it ("0 failed", exit 0), and a rerun of a changed image reused the fitted table
+    # without the classes its fit left uncorrected, so the redone scene passed.
+    chain = _chain(demo, "rerun")
+    assert CliRunner().invoke(main, ["run", str(chain), "--no-progress"]).exit_code == 3
+    again = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
+    assert again.exit_code == 3, again.output
+    assert "0 ok, 0 skipped, 1 failed" in again.stdout
+    report = json.loads((demo / "out_rerun" / "run_report.json").read_text())
+    assert report["fit"]["reused"] and {entry["status"] for entry in report["fit"]["classes"]} >= {"uncorrected"}
+    assert report["scenes"][0]["error_type"] == "UncorrectedClasses"
