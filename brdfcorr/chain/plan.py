@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from brdfcorr.chain.config import ChainConfig
-from brdfcorr.chain.resume import planned_table, redo_stale, scene_fingerprint
+from brdfcorr.chain.resume import fit_fingerprint, planned_table, redo_stale, reuses_fit, scene_fingerprint
 from brdfcorr.chain.scenes import Scene, check_quicklook_bands, input_images, plan_scenes
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
@@ -62,6 +62,10 @@ class RunPlan:
     #: ``require_inputs=False``): an image pattern, the parameter table, a measurement file. Scenes
     #: with a missing class map or angle file are those whose action is ``fail`` (:meth:`missing_inputs`).
     missing: tuple[str, ...] = ()
+    #: What the fitted table depends on (:func:`~brdfcorr.chain.resume.fit_fingerprint`; None
+    #: without a fit step), and whether the run reuses the table an earlier run fitted from the same.
+    fit_fingerprint: str | None = None
+    reuses_fit: bool = False
 
     def missing_inputs(self) -> list[str]:
         """Every input the run would miss, in words: :attr:`missing`, then each scene failing for a
@@ -128,18 +132,23 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     sources, fit_output, parameter_notes = _parameter_sources(config, output_dir, require_inputs)
     report = output_dir / config.outputs.report
     _check_outputs(config, scenes, report, fit_output)
-    scenes = redo_stale(config, scenes, fit_output, report)
+    fingerprint = fit_fingerprint(config, scenes) if not parameter_notes else None  # its files exist
+    reused = fit_output if reuses_fit(config, fit_output, report, fingerprint) else None
+    if reused is not None:
+        sources[-1] = f"the fitted table {reused}, reused: its fit settings and inputs are unchanged"
+    scenes = redo_stale(config, scenes, reused, report)
     missing = tuple(notes + parameter_notes)  # before the uncertainty notes: files not found
     if not parameter_notes:  # the table's files exist
-        notes += _uncertainty_notes(config, fit_output)
+        notes += _uncertainty_notes(config, reused)
     return RunPlan(config, tuple(scenes), output_dir, report, fit_output, tuple(sources),
-                   tuple(notes + parameter_notes), missing)
+                   tuple(notes + parameter_notes), missing, fingerprint, reused is not None)
 
 
-def _uncertainty_notes(config: ChainConfig, fit_output: Path | None) -> list[str]:
-    """A warning when ``outputs.uncertainty`` is on and classes of the planned table have no
-    ``fit:`` covariance: their pixels are NaN in the uncertainty raster (docs/uncertainty.md)."""
-    table = planned_table(config, fit_output) if config.outputs.uncertainty else None
+def _uncertainty_notes(config: ChainConfig, reused: Path | None) -> list[str]:
+    """A warning when ``outputs.uncertainty`` is on and classes of the planned table (with the
+    fitted table it ``reused``) have no ``fit:`` covariance: their pixels are NaN in the
+    uncertainty raster (docs/uncertainty.md)."""
+    table = planned_table(config, reused) if config.outputs.uncertainty else None
     if table is None:  # no uncertainty raster, or the fit step makes the table (with covariances)
         return []
     bare = table.classes_without_errors()

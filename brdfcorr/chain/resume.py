@@ -32,7 +32,7 @@ from brdfcorr.io.files import content_digest
 from brdfcorr.params import ClassEntry, ParameterTable, merge_tables
 
 __all__ = ["configured_table", "with_strata_interpolation", "reuses_fit", "planned_table", "redo_stale",
-           "scene_fingerprint", "earlier_report", "reused_fit_report"]
+           "scene_fingerprint", "fit_fingerprint", "earlier_report", "reused_fit_report"]
 
 
 # ------------------------------------------------------------------------------------ parameters
@@ -73,9 +73,35 @@ def with_strata_interpolation(table: ParameterTable, config: ChainConfig) -> Par
         raise InputError(f"{key}: {error}") from None
 
 
-def reuses_fit(config: ChainConfig, fit_output: Path | None) -> bool:
-    """Whether the run reuses the fitted table of an earlier run (resume) instead of fitting."""
-    return fit_output is not None and config.outputs.existing == "skip" and fit_output.exists()
+def reuses_fit(config: ChainConfig, fit_output: Path | None, report: Path, fingerprint: str | None) -> bool:
+    """Whether the run reuses the fitted table of an earlier run (resume) instead of fitting: with
+    ``outputs.existing: skip``, where the table exists and the earlier run's report (at ``report``)
+    records the fit ``fingerprint`` of this run (:func:`fit_fingerprint`: the same fit settings
+    and inputs)."""
+    if fit_output is None or config.outputs.existing != "skip" or not fit_output.exists():
+        return False
+    fit = earlier_report(report).get("fit")
+    return isinstance(fit, dict) and fit.get("fingerprint") == fingerprint
+
+
+def fit_fingerprint(config: ChainConfig, scenes: list[Scene]) -> str | None:
+    """What a chain's fitted table depends on, as the SHA-256 of canonical JSON: the fit step's
+    settings, the brdfcorr version and its inputs (each measurement file, or each scene's image,
+    class map and angle files, as :func:`scene_fingerprint` records them, with the ``inputs`` and
+    ``steps.strata`` settings); None without a fit step."""
+    step = config.steps.fit
+    if step is None:
+        return None
+    document: dict = {"brdfcorr": __version__, "fit": step.model_dump(mode="json", exclude={"output"})}
+    if step.source == "goniometer":
+        document["inputs"] = [_file_state(config.resolve(item.file)) for item in step.measurements]
+    else:
+        document["inputs"] = [{role: _file_state(path) for role, path in scene.inputs()} for scene in scenes]
+        document["settings"] = config.inputs.model_dump(mode="json", exclude={"images", "scene_regex"})
+        if config.steps.strata is not None:
+            document["strata"] = config.steps.strata.model_dump(mode="json")
+    text = json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def earlier_report(report: Path) -> dict:
@@ -88,32 +114,29 @@ def earlier_report(report: Path) -> dict:
 
 
 def reused_fit_report(step_source: str, fit_output: Path, report: Path) -> dict:
-    """The fit report of a run that reuses the fitted table at ``fit_output``, with the classes the
-    earlier run's fit reported (those its guard rails left uncorrected still fail the scenes that
-    hold them) where its report describes that table."""
-    found = {"source": step_source, "reused": str(fit_output)}
-    fit = earlier_report(report).get("fit")
-    if isinstance(fit, dict) and str(fit_output) in (fit.get("output"), fit.get("reused")) and fit.get("classes"):
-        found["classes"] = fit["classes"]
-    return found
+    """The fit report of a run that reuses the fitted table at ``fit_output`` (:func:`reuses_fit`):
+    the earlier run's fingerprint and the classes its fit reported (those its guard rails left
+    uncorrected still fail the scenes that hold them)."""
+    fit = earlier_report(report)["fit"]
+    return {"source": step_source, "reused": str(fit_output), "fingerprint": fit["fingerprint"],
+            **({"classes": fit["classes"]} if fit.get("classes") else {})}
 
 
-def planned_table(config: ChainConfig, fit_output: Path | None) -> ParameterTable | None:
-    """The parameter table the run will use, as known before it runs: the configured table and a
-    reused fitted table; None when the fit step makes a new table."""
+def planned_table(config: ChainConfig, reused: Path | None) -> ParameterTable | None:
+    """The parameter table the run will use, as known before it runs: the configured table and the
+    fitted table it reuses (``reused``, :func:`reuses_fit`); None when the fit step makes a new table."""
     if config.steps.fit is None:
         return with_strata_interpolation(configured_table(config), config)
-    if not reuses_fit(config, fit_output):
+    if reused is None:
         return None
-    return with_strata_interpolation(merge_tables([configured_table(config), ParameterTable.load(fit_output)]),
-                                     config)
+    return with_strata_interpolation(merge_tables([configured_table(config), ParameterTable.load(reused)]), config)
 
 
 # ----------------------------------------------------------------------------------------- resume
-def redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | None, report: Path) -> list[Scene]:
+def redo_stale(config: ChainConfig, scenes: list[Scene], reused: Path | None, report: Path) -> list[Scene]:
     """The scenes, with skipped ones turned to ``run`` when the earlier run (its report at
-    ``report``) failed them or their outputs were not made with the run's parameter table, inputs
-    and settings."""
+    ``report``) failed them or their outputs were not made with the run's parameter table (with
+    the fitted table it ``reused``, if any), inputs and settings."""
     results = earlier_report(report).get("scenes")
     failed = {str(result.get("image")) for result in results if isinstance(result, dict)
               and result.get("status") == "failed"} if isinstance(results, list) else set()
@@ -124,7 +147,7 @@ def redo_stale(config: ChainConfig, scenes: list[Scene], fit_output: Path | None
     table_file = config.parameters.table
     if table_file is not None and not config.resolve(table_file).exists():
         return scenes  # without require_inputs only: the run stops before any scene (a plan warning)
-    table = planned_table(config, fit_output)
+    table = planned_table(config, reused)
     return [_unless_stale(scene, table) for scene in scenes]
 
 

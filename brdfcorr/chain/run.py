@@ -91,7 +91,7 @@ from brdfcorr.chain.report import (
     uncorrected_classes,
     versions,
 )
-from brdfcorr.chain.resume import configured_table, reused_fit_report, reuses_fit, with_strata_interpolation
+from brdfcorr.chain.resume import configured_table, reused_fit_report, with_strata_interpolation
 from brdfcorr.chain.scenes import Scene
 from brdfcorr.chain.strata_step import derive_strata
 from brdfcorr.errors import InputError, OutputError
@@ -195,14 +195,14 @@ def build_table(plan: RunPlan, progress: Progress | None = None) -> tuple[Parame
     fit_report = None
     step = config.steps.fit
     if step is not None:
-        if reuses_fit(config, plan.fit_output):
+        if plan.reuses_fit:
             fitted = ParameterTable.load(plan.fit_output)
             fit_report = reused_fit_report(step.source, plan.fit_output, plan.report)
         else:
             fitted, fit_report = (_fit_imagery if step.source == "imagery" else _fit_goniometer)(plan)
             plan.output_dir.mkdir(parents=True, exist_ok=True)
             fitted.save(plan.fit_output)
-            fit_report["output"] = str(plan.fit_output)
+            fit_report.update(output=str(plan.fit_output), fingerprint=plan.fit_fingerprint)
         tables.append(fitted)
         if progress is not None:
             progress("fit", {"classes": list(fitted.class_ids), **fit_report})

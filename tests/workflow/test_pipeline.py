@@ -170,9 +170,14 @@ def test_imagery_fit_step(tmp_path, make_scenes, write_chain):
     table = report.to_dict()["parameters"]["table"]["classes"]
     assert [entry["params"] for entry in table] == [entry["params"] for entry in fitted["classes"]]
     assert all(entry["qa"]["unknown_class"] == 0 for entry in report.scenes)
-    # Resume reuses the fitted table instead of refitting.
+    # Resume reuses the fitted table instead of refitting: the fit's settings and inputs are those
+    # the first run recorded (its fingerprint), and so are the classes its fit reported.
     again = run_chain(load_config(chain))
-    assert again.fit == {"source": "imagery", "reused": str(tmp_path / "out" / "fitted_params.yaml")}
+    assert again.fit == {"source": "imagery", "reused": str(tmp_path / "out" / "fitted_params.yaml"),
+                         "fingerprint": report.fit["fingerprint"], "classes": report.fit["classes"]}
+    # Other fit settings make another fit: the table is fitted again, not reused.
+    changed = run_chain(load_config(chain, overrides={"steps.fit.max_samples": 4000}))
+    assert "reused" not in changed.fit and changed.fit["fingerprint"] != report.fit["fingerprint"]
 
 
 def test_goniometer_fit_step(tmp_path, make_scenes, write_chain):
@@ -193,6 +198,14 @@ def test_goniometer_fit_step(tmp_path, make_scenes, write_chain):
         assert abs(fit["params"][name] - tile.params[name]) < 4 * fit["errors"][name], name
     table = report.to_dict()["parameters"]["table"]["classes"]
     assert table[0]["name"] == "tile_fit" and table[1]["name"] == "grass"  # fit replaced class 1 only
+    # Other measurements in the same file: fitted again (before, the earlier table was reused and
+    # the scene skipped), and the scene corrected with the new table.
+    write_measurements(tmp_path / "tile.csv", synthesize_measurements(
+        tile.model, {**tile.params, "w": 2 * tile.params["w"]}, theta_i, theta_r, phi, relative_noise=0.01, seed=1))
+    again = run_chain(load_config(chain))
+    assert "reused" not in again.fit and again.scenes[0]["status"] == "ok"
+    refit = again.fit["classes"][0]["fits"][0]["params"]["w"]
+    assert abs(refit - 2 * tile.params["w"]) < 4 * again.fit["classes"][0]["fits"][0]["errors"]["w"]
 
 
 def test_processes_engine_matches_threads(tmp_path, make_scenes, write_chain, read):
