@@ -219,7 +219,9 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     geometry, the correct step's options (limits, terrain, ...; not ``qa``: the QA and uncertainty
     rasters are extra outputs of the same pass, their presence is checked as a file's), the output
     format (compression, COG, ENVI interleave), the ``steps.strata`` settings where that step derives
-    the class map (then no input) and the brdfcorr version. The parameter table is recorded in
+    the class map (then no input), the ``steps.assess`` and ``steps.quicklook`` settings where the
+    scene has those outputs (a changed setting redoes the scene, its correction too) and the
+    brdfcorr version. The parameter table is recorded in
     full apart from it (tag ``brdf_parameter_table_content``, :func:`planned_table`): a table from
     the fit step is only known once the run has fitted it.
     """
@@ -247,6 +249,10 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
     }
     if config.steps.strata is not None:  # the derived class map's settings (its file is an output)
         document["strata"] = config.steps.strata.model_dump(mode="json")
+    for name in ("assess", "quicklook"):  # outputs of the scene too: redone with the scene
+        step = getattr(config.steps, name)
+        if step is not None:
+            document[name] = step.model_dump(mode="json")
     return json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
 
 
@@ -268,7 +274,7 @@ def _file_state(path: Path) -> dict:
 #: How a reason names a part of a fingerprint.
 _PARTS = {"brdfcorr": "brdfcorr version", "angle source": "angle source", "settings": "inputs settings",
           "reference": "reference geometry", "correct": "steps.correct", "format": "output format",
-          "strata": "steps.strata"}
+          "strata": "steps.strata", "assess": "steps.assess", "quicklook": "steps.quicklook"}
 
 
 def _what_changed(tags: dict, fingerprint: str) -> str:

@@ -149,7 +149,7 @@ def test_without_interpolation_the_strata_keep_their_own_coefficients(demo, chai
 
 def test_a_resumed_run_skips_the_scene_until_a_strata_setting_changes(demo, chained):
     root, _ = demo
-    chain = _chain(root, "strata")
+    chain = _chain(root, "strata", **{"steps.assess": {}})  # the chain the console fixture ran
     result = _run("run", chain, "--resume", "--no-progress")
     assert result.exit_code == 0 and "0 ok, 1 skipped, 0 failed" in result.stdout, result.output
     result = _run("run", chain, "--dry-run", "--set", "steps.strata.edges=[0.1, 0.6]")

@@ -10,6 +10,7 @@ measured cases of issue 14) and on the scenes of :mod:`test_pipeline`.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 import shutil
@@ -463,6 +464,21 @@ def test_resume_redoes_what_changed_and_skips_the_rest(tmp_path, make_scenes, wr
     # Other limits: redone, naming the setting.
     planned, _, output = _actions(chain, "--set", "reference.sza=40", "--set", "steps.correct.limits=[0.5, 2]")
     assert planned == {"line0_image": "run", "line1_image": "run"} and "steps.correct.limits changed" in output
+
+
+def test_resume_redoes_a_scene_whose_assessment_settings_changed(tmp_path, make_scenes, write_chain):
+    # The assessment is an output of the scene: before, a rerun with another min_vza skipped the
+    # scene and kept the assessment of the old settings beside a report that recorded the new ones.
+    make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path, steps={"correct": {"limits": None}, "assess": {}})
+    assert run_chain(load_config(chain)).ok
+    planned, _, _ = _actions(chain)
+    assert planned == {"line0_image": "skip", "line1_image": "skip"}
+    planned, _, output = _actions(chain, "--set", "steps.assess.min_vza=20")
+    assert planned == {"line0_image": "run", "line1_image": "run"}
+    assert "steps.assess changed since it was written" in output
+    written = json.loads((tmp_path / "out" / "line0_image_assess.json").read_text())
+    assert json.dumps(written).count('"min_vza": 20.0') >= 1
 
 
 def test_resume_redoes_an_input_edited_in_place_with_its_size_and_time(tmp_path, make_scenes, write_chain):
