@@ -40,13 +40,14 @@ from __future__ import annotations
 import csv
 import os
 import re
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from brdfcorr.errors import MeasurementError
+from brdfcorr.errors import BrdfcorrWarning, MeasurementError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.io.files import atomic_path
 from brdfcorr.models import get_model
@@ -395,7 +396,21 @@ def read_measurements(path: str | os.PathLike) -> Measurements:
         problems += [problem] if problem else []
     if problems:
         raise MeasurementError(f"{path}: " + "; ".join(problems))
+    _warn_repeated_rows(np.column_stack(list(columns.values())), labels, path)
     return Measurements(**columns, rows=np.array(numbers), source=str(path))
+
+
+def _warn_repeated_rows(table: np.ndarray, labels: list[str], path: Path) -> None:
+    """A :class:`~brdfcorr.errors.BrdfcorrWarning` naming the rows that repeat an earlier row in
+    every column: a fit counts them as measurements of their own, which shrinks its errors (two
+    copies of every row by sqrt(2)); a repeated measurement differs at least in its BRDF."""
+    _, first = np.unique(table, axis=0, return_index=True)
+    repeated = np.ones(len(table), dtype=bool)
+    repeated[first] = False
+    if repeated.any():
+        warnings.warn(f"{path}: the rows at {_list_rows(labels, repeated)} repeat earlier ones in every column: a fit counts "
+                      "them as measurements of their own and its errors shrink; remove them if they are copies",
+                      BrdfcorrWarning, stacklevel=3)
 
 
 def write_measurements(path: str | os.PathLike, measurements: Measurements) -> Path:
