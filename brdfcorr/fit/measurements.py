@@ -408,9 +408,9 @@ def _warn_repeated_rows(table: np.ndarray, labels: list[str], path: Path) -> Non
     repeated = np.ones(len(table), dtype=bool)
     repeated[first] = False
     if repeated.any():
-        warnings.warn(f"{path}: the rows at {_list_rows(labels, repeated)} repeat earlier ones in every column: a fit counts "
-                      "them as measurements of their own and its errors shrink; remove them if they are copies",
-                      BrdfcorrWarning, stacklevel=3)
+        warnings.warn(f"{path}: the rows at {_list_rows(labels, repeated)} repeat earlier ones in every column: "
+                      "a fit counts them as measurements of their own and its errors shrink; remove them if they "
+                      "are copies", BrdfcorrWarning, stacklevel=3)
 
 
 def write_measurements(path: str | os.PathLike, measurements: Measurements) -> Path:
