@@ -20,6 +20,7 @@ import xarray
 
 from brdfcorr import __version__
 from brdfcorr.chain.plan import RunPlan
+from brdfcorr.chain.resume import earlier_report
 from brdfcorr.chain.scenes import Scene
 from brdfcorr.errors import BrdfcorrError
 from brdfcorr.io.files import atomic_path
@@ -145,12 +146,11 @@ def earlier_findings(report: Path) -> dict[str, dict]:
     """What an earlier run found for its completed scenes (:data:`FINDINGS`), by image, from its
     report at ``report`` (empty if there is none or it is unreadable)."""
     try:
-        scenes = json.loads(report.read_text())["scenes"]
         return {
             result["image"]: {key: result[key] for key in FINDINGS if key in result}
-            for result in scenes if result.get("status") in ("ok", "skipped")
+            for result in earlier_report(report)["scenes"] if result.get("status") in ("ok", "skipped")
         }
-    except (OSError, ValueError, KeyError, TypeError):
+    except (KeyError, TypeError, AttributeError):
         return {}
 
 

@@ -31,7 +31,8 @@ from brdfcorr.io.angles import looks_like_radians, radians_message
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scene import check_class_grid
 
-__all__ = ["angle_layers", "ANGLE_LAYERS", "TERRAIN_LAYERS", "check_layout", "reflectance_factors", "checked_layers",
+__all__ = ["angle_layers", "ANGLE_LAYERS", "TERRAIN_LAYERS", "check_layout", "carries_scale", "reflectance_factors",
+           "checked_layers",
            "check_grid", "as_dataarray", "guard_angles", "BAND_DIMS"]
 
 #: Dimension names that hold bands (a cube whose last dimension has one of them is (y, x, band)).
@@ -75,13 +76,20 @@ def check_layout(reflectance: xr.DataArray, layers: Iterable) -> None:
                          f"(y, x, band); transpose to (band, y, x): {fix}")
 
 
-def reflectance_factors(reflectance: xr.DataArray) -> xr.DataArray:
+def carries_scale(array: xr.DataArray) -> bool:
+    """Whether ``array`` carries a ``scale_factor`` (attrs or encoding) for its stored values."""
+    return "scale_factor" in {**array.encoding, **array.attrs}
+
+
+def reflectance_factors(reflectance: xr.DataArray, *, unscaled_counts: bool = False) -> xr.DataArray:
     """Reflectance factors of the stored values, with no packing or nodata attribute left.
 
     Integer counts are scaled with the scale and offset they carry (attrs or encoding
     ``scale_factor``/``add_offset``; their ``_FillValue`` or rioxarray nodata as NaN); integer
-    counts without a scale are an :class:`InputError`. Floats are taken as they are, their declared
-    nodata (rioxarray's, or a ``_FillValue`` attribute) as NaN; floats that still carry a
+    counts without a scale are an :class:`InputError`, or, with ``unscaled_counts``, taken as they
+    are (values in their own units: the topographic correction's, a fit's ``reflectance_scale``).
+    Floats are taken as they are, their declared nodata (rioxarray's, or a ``_FillValue``
+    attribute) as NaN; floats that still carry a
     ``scale_factor`` or ``add_offset`` attribute are packed values (``rioxarray.open_rasterio(path,
     masked=True)`` reads them so) and an :class:`InputError`: neither reading is safe to guess.
     """
@@ -98,7 +106,7 @@ def reflectance_factors(reflectance: xr.DataArray) -> xr.DataArray:
         if nodata is None or np.isnan(nodata):
             return reflectance
         return _plain(reflectance.where(reflectance != nodata), reflectance)
-    if reflectance.dtype.kind not in "iu":
+    if reflectance.dtype.kind not in "iu" or (unscaled_counts and not carries_scale(reflectance)):
         return reflectance
     metadata = {**reflectance.encoding, **reflectance.attrs}
     if "scale_factor" not in metadata:

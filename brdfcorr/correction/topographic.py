@@ -373,8 +373,7 @@ def _as_cube(reflectance) -> xr.DataArray:
         reflectance = xr.DataArray(array, dims=("band", "y", "x"), name="reflectance")
     if reflectance.ndim != 3:
         raise InputError(f"reflectance must be 3-D (band, y, x), got dims {reflectance.dims}")
-    scaled = "scale_factor" in {**reflectance.encoding, **reflectance.attrs}
-    return reflectance if reflectance.dtype.kind in "iu" and not scaled else reflectance_factors(reflectance)
+    return reflectance_factors(reflectance, unscaled_counts=True)
 
 
 def _layer(reflectance: xr.DataArray, name: str, value) -> xr.DataArray:

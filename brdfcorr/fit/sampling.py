@@ -14,6 +14,7 @@ import xarray as xr
 from brdfcorr.correction.checks import (
     ANGLE_LAYERS,
     as_dataarray,
+    carries_scale,
     check_layout,
     guard_angles,
     reflectance_factors,
@@ -84,13 +85,11 @@ def _checked(images: list, classes: list, angles: list, reflectance_scale: float
         image = as_dataarray(image, "image", ("band", "y", "x"))
         layers = {name: angle_set[name] for name in ANGLE_LAYERS if name in angle_set}
         check_layout(image, [class_map, *layers.values()])
-        stored = {**image.encoding, **image.attrs}
-        if image.dtype.kind not in "iu" or reflectance_scale == 1.0:
-            image = reflectance_factors(image)
-        elif "scale_factor" in stored:
-            raise ParameterError(f"the image's counts carry scale_factor={stored['scale_factor']} and the sampling's "
-                                 f"reflectance_scale={reflectance_scale:g} would scale them again: give one of the two")
-        checked_images.append(image)
+        if reflectance_scale != 1.0 and image.dtype.kind in "iu" and carries_scale(image):
+            scale = {**image.encoding, **image.attrs}["scale_factor"]
+            raise ParameterError(f"the image's counts carry scale_factor={scale} and the sampling's reflectance_scale="
+                                 f"{reflectance_scale:g} would scale them again: give one of the two")
+        checked_images.append(reflectance_factors(image, unscaled_counts=reflectance_scale != 1.0))
         if len(layers) == len(ANGLE_LAYERS):  # else the sampler names what is missing
             guarded = guard_angles(layers)["sza"]
             angle_set = (angle_set.assign(sza=guarded) if isinstance(angle_set, xr.Dataset)
