@@ -118,7 +118,7 @@ def leave_one_line_out(
     view_options : ViewAngleOptions
         The assessment of each held-out line (:func:`assess_view_angles`). Its ``class_names`` also
         name the classes of the fits, and its ``flip_view_azimuth`` (``vaa`` stored as seen from
-        the sensor) applies to the correction too.
+        the sensor) applies to the fits and the corrections too.
     overlap : bool, default True
         Also compare the held-out line with every other line it overlaps (both corrected with the
         parameters fitted without it), :func:`assess_overlap`.
@@ -143,7 +143,8 @@ def leave_one_line_out(
         fitted = fit_classes([t.reflectance for t in training], [t.classes for t in training],
                              [xr.Dataset(dict(t.angles)) for t in training],
                              ClassModels(model, class_models=class_models, fixed=fixed, names=names, prior=fit.prior),
-                             sampling=Sampling(max_samples=max_samples, seed=seed))
+                             sampling=Sampling(max_samples=max_samples, seed=seed,
+                                               flip_view_azimuth=flip_view_azimuth))
 
         def corrected(target: Line, table=fitted.table) -> xr.DataArray:
             return normalize(target.reflectance, target.classes, target.angles, table, reference, limits=limits,

@@ -131,6 +131,12 @@ class ChainConfig(StrictModel):
             raise ValueError("outputs.uncertainty is written by the correct step: it needs steps.correct")
         return self
 
+    @property
+    def flips_view_azimuth(self) -> bool:
+        """The scenes' view azimuths are stored as seen from the sensor (``steps.correct``'s
+        ``flip_view_azimuth``): the imagery fit reads them as the correction does."""
+        return self.steps.correct is not None and self.steps.correct.flip_view_azimuth
+
     def _check_class_maps(self) -> None:
         """One source of the class maps: ``inputs.classes``, or ``steps.strata`` deriving them."""
         inputs, strata = self.inputs, self.steps.strata

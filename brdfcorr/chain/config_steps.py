@@ -266,10 +266,11 @@ class ImageryFit(step_fields(FIT_CLASSES, "fit")):  # type: ignore[misc]
                 raise ValueError(f"range [{low:g}, {high:g}] nm must be finite with 0 < low <= high")
         return value
 
-    def fit_settings(self, names: Mapping[int, str] | None = None) -> dict[str, Any]:
+    def fit_settings(self, names: Mapping[int, str] | None = None, flip_view_azimuth: bool = False) -> dict[str, Any]:
         """The step as the keyword arguments ``models``, ``sampling`` (with the bad bands) and
         ``guard`` of :func:`brdfcorr.tasks.fit.fit_class_files`; ``names`` are default class
-        names (the step's ``names`` win)."""
+        names (the step's ``names`` win); ``flip_view_azimuth`` is the correct step's (the
+        scenes' view azimuths are stored as seen from the sensor: fitted as they are corrected)."""
         return {
             "models": ClassModels(self.model, class_models=self.class_models, fixed=self.fixed,
                                   fallback=self.fallback, names={**(names or {}), **self.names},
@@ -278,7 +279,8 @@ class ImageryFit(step_fields(FIT_CLASSES, "fit")):  # type: ignore[misc]
             "sampling": Sampling(max_samples=self.max_samples, seed=self.seed, block_size=self.block_size,
                                  reflectance_scale=self.reflectance_scale, levels=self.levels,
                                  patch_size=self.patch_size, errors_cluster=self.errors_cluster,
-                                 bad_bands=tuple(tuple(band_range) for band_range in self.bad_bands)),
+                                 bad_bands=tuple(tuple(band_range) for band_range in self.bad_bands),
+                                 flip_view_azimuth=flip_view_azimuth),
             "guard": GuardRails(min_samples=self.min_samples, min_vza_spread=self.min_vza_spread,
                                 max_condition=self.max_condition),
         }

@@ -100,6 +100,8 @@ def fit_fingerprint(config: ChainConfig, scenes: list[Scene]) -> str | None:
         document["settings"] = config.inputs.model_dump(mode="json", exclude={"images", "scene_regex"})
         if config.steps.strata is not None:
             document["strata"] = config.steps.strata.model_dump(mode="json")
+        if config.flips_view_azimuth:  # the fit reads the view azimuths as the correction does
+            document["flip_view_azimuth"] = True
     text = json.dumps(document, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 

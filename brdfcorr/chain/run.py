@@ -149,7 +149,8 @@ def _fit_imagery(plan: RunPlan) -> tuple[ParameterTable, dict]:
         raise InputError(f"steps.fit: no scene could be opened for the imagery fit{reasons}")
     names = {class_id: name for class_id, name in config.parameters.materials.items()}
     try:
-        fit = fit_class_files(candidates, **step.fit_settings(names), chunks=config.engine.chunk,
+        fit = fit_class_files(candidates, **step.fit_settings(names, config.flips_view_azimuth),
+                              chunks=config.engine.chunk,
                               wavelengths=config.inputs.wavelengths, skip_unreadable=True,
                               workers=_fit_workers(config.engine))
     except InputError as error:

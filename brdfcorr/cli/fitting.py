@@ -62,7 +62,7 @@ class _BandRange(click.ParamType):
 def fit_classes_command(images, angles, angles_kind, angle_option, classes, align_classes, class_lookup,
                         model_name, class_model, names, deprecated_names, fix, max_samples, seed,
                         block_size, levels, patch_size, errors_cluster, cluster_layers, cluster_band, scale, offset,
-                        min_samples, min_vza_spread, max_condition,
+                        flip_view_azimuth, min_samples, min_vza_spread, max_condition,
                         bad_bands, fallback, prior, prior_spread, output, report_path, plot_dir, overwrite, workers,
                         progress):
     """Fit per-class, per-band BRDF parameters from IMAGES themselves (one or many scenes).
@@ -128,7 +128,8 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
                         fixed=dict(fix) or None, fallback=fallback, names=class_names,
                         prior=shape_prior),
             sampling=Sampling(max_samples=max_samples, seed=seed, block_size=block_size, bad_bands=ranges,
-                              levels=levels, patch_size=patch_size, errors_cluster=errors_cluster),
+                              levels=levels, patch_size=patch_size, errors_cluster=errors_cluster,
+                              flip_view_azimuth=flip_view_azimuth),
             guard=GuardRails(min_samples=min_samples, min_vza_spread=min_vza_spread, max_condition=max_condition),
             progress=fitted, workers=workers,
         )

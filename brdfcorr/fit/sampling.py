@@ -75,11 +75,13 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
     return per_date(cube), per_date(classes, "class map"), per_date(angles, "angles")
 
 
-def _checked(images: list, classes: list, angles: list, reflectance_scale: float) -> tuple[list, list]:
+def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> tuple[list, list]:
     """The images as reflectance factors and the angle sets guarded against radians, as
     :func:`brdfcorr.correction.normalize` checks its inputs (:mod:`brdfcorr.correction.checks`):
-    bands last refused, integer counts scaled with the scale they carry (or by
-    ``reflectance_scale``, not both), a declared nodata as NaN."""
+    bands last refused, integer counts scaled with the scale they carry (or by the sampling's
+    ``reflectance_scale``, not both), a declared nodata as NaN, and view azimuths stored as seen
+    from the sensor turned by 180 deg (the sampling's ``flip_view_azimuth``)."""
+    reflectance_scale = sampling.reflectance_scale
     checked_images, checked_angles = [], []
     for image, class_map, angle_set in zip(images, classes, angles):
         image = as_dataarray(image, "image", ("band", "y", "x"))
@@ -91,9 +93,11 @@ def _checked(images: list, classes: list, angles: list, reflectance_scale: float
                                  f"{reflectance_scale:g} would scale them again: give one of the two")
         checked_images.append(reflectance_factors(image, unscaled_counts=reflectance_scale != 1.0))
         if len(layers) == len(ANGLE_LAYERS):  # else the sampler names what is missing
-            guarded = guard_angles(layers)["sza"]
-            angle_set = (angle_set.assign(sza=guarded) if isinstance(angle_set, xr.Dataset)
-                         else {**angle_set, "sza": guarded})
+            replaced = {"sza": guard_angles(layers)["sza"]}
+            if sampling.flip_view_azimuth:
+                replaced["vaa"] = layers["vaa"] + 180.0
+            angle_set = (angle_set.assign(replaced) if isinstance(angle_set, xr.Dataset)
+                         else {**angle_set, **replaced})
         checked_angles.append(angle_set)
     return checked_images, checked_angles
 
@@ -218,7 +222,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
             f"{len(images)} images, {len(classes)} class maps and {len(angles)} angle sets: "
             "give one class map and one angle set per image"
         )
-    images, angles = _checked(images, classes, angles, sampling.reflectance_scale)
+    images, angles = _checked(images, classes, angles, sampling)
     maps = [_class_values(class_map) for class_map in classes]
     cluster_ids = _cluster_ids(clusters, [m.shape for m in maps])
     valid_angles = [

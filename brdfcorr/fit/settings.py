@@ -153,6 +153,10 @@ class Sampling:
         over those and the scenes at once (Cameron, Gelbach and Miller 2011;
         :mod:`brdfcorr.fit.two_way`): for errors shared by every pixel of a date or line (its
         atmosphere, its calibration). With one scene both are the same.
+    flip_view_azimuth : bool, default False
+        The view azimuths are stored as seen from the sensor (towards the ground): 180 deg is added
+        to each before the relative azimuth is formed, as :func:`brdfcorr.normalize` does with the
+        same option, so that a table is fitted and applied in one convention.
     """
 
     max_samples: int = 50_000
@@ -164,6 +168,7 @@ class Sampling:
     levels: str = "auto"
     patch_size: int = 8
     errors_cluster: str = "one-way"
+    flip_view_azimuth: bool = False
 
 
 def fallback_entry(name: str, class_id: int, class_name: str) -> dict:

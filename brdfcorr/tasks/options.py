@@ -377,6 +377,7 @@ FIT_CLASSES = settings(
     Setting("cluster_band", ("--cluster-band",), "int", ge=1, default=1, show_default=True,
             help=_CLUSTER_BAND.format("each --clusters raster")),
     SCALE,
+    dataclasses.replace(CORRECT["flip_view_azimuth"], chain=None),
     Setting("min_samples", ("--min-samples",), "int", default=500, show_default=True,
             help="Guard rail: minimum samples per class.").chained("fit", ge=1),
     Setting("min_vza_spread", ("--min-vza-spread",), "float", default=10.0, show_default=True,

@@ -186,3 +186,18 @@ def test_each_line_takes_its_cluster_layer(files, tmp_path):
                                                          tmp_path / "two.json")])
     assert refused.exit_code == 2 and "give one per line" in refused.output
     assert len(refused.output.strip().splitlines()) == 1
+
+
+def test_view_azimuths_stored_from_the_sensor_are_flipped_in_the_fits_too(lines, tables_close):
+    # The same lines with each view azimuth stored as seen from the sensor (vaa + 180) and
+    # --flip-view-azimuth: every held-out fit, correction and assessment is that of the lines
+    # stored the usual way (the fits read the azimuths as the corrections do).
+    turned = [line._replace(angles={**line.angles, "vaa": (line.angles["vaa"] + 180.0) % 360.0}) for line in lines]
+    fit = HoldoutFit("ross_thick_li_sparse", reference=REFERENCE)
+    plain = leave_one_line_out(lines, fit, view_options=ViewAngleOptions(class_names=NAMES))
+    flipped = leave_one_line_out(turned, fit, view_options=ViewAngleOptions(class_names=NAMES,
+                                                                            flip_view_azimuth=True))
+    for ours, theirs in zip(flipped, plain):
+        tables_close(ours.table, theirs.table, rtol=1e-6)
+        assert ours.table.classes  # fitted, not left uncorrected
+        np.testing.assert_allclose(ours.view["relative_slope"].values, theirs.view["relative_slope"].values, atol=1e-6)

@@ -291,3 +291,31 @@ def test_block_robust_errors_grow_with_spatially_correlated_albedo():
     assert w_error(independent, 8) == pytest.approx(w_error(independent, 1), rel=0.3)
     smooth = _single_class_line(1, texture_sigma=2.0)
     assert w_error(smooth, 8) > 3 * w_error(smooth, 1)
+
+
+def test_cli_fit_classes_reads_view_azimuths_from_the_sensor_with_the_flip(tmp_path):
+    # The same line written twice, the second with each view azimuth as seen from the sensor
+    # (vaa + 180): with --flip-view-azimuth its table is the first one's, as `correct` applies it.
+    from click.testing import CliRunner
+
+    from brdfcorr.cli import main
+    from brdfcorr.testing import georeference, write_scene
+
+    image, classes, angles = airborne_line(ny=48, nx=64)
+    tables = []
+    for name, turn, flags in (("plain", 0.0, []), ("from_sensor", 180.0, ["--flip-view-azimuth"])):
+        scene = {"reflectance": georeference(image.drop_vars(["x", "y"])),
+                 "classes": georeference(classes.drop_vars(["x", "y"]).astype(np.uint8)),
+                 **{k: georeference(angles[k].drop_vars(["x", "y"])) for k in ("sza", "saa", "vza")},
+                 "vaa": georeference(((angles["vaa"] + turn) % 360.0).drop_vars(["x", "y"]))}
+        paths = write_scene(tmp_path / name, scene)
+        output = tmp_path / f"{name}.yaml"
+        result = CliRunner().invoke(main, ["fit-classes", str(paths["image"]), "--angles", str(paths["angles"]),
+                                           "--classes", str(paths["classes"]), "-o", str(output), "--no-progress",
+                                           *flags])
+        assert result.exit_code == 0, result.output
+        tables.append(ParameterTable.load(output))
+    assert tables[0].class_ids == tables[1].class_ids and tables[0].class_ids
+    for ours, theirs in zip(tables[1].classes, tables[0].classes):
+        for name, values in ours.params.items():
+            np.testing.assert_allclose(values, theirs.params[name], rtol=1e-5)
