@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +31,7 @@ from brdfcorr.io.gdal_log import OUT_OF_MEMORY
 if TYPE_CHECKING:
     import xarray as xr
 
-__all__ = ["Target", "check_complete", "verify", "io_failure", "write_error", "written_files"]
+__all__ = ["Target", "check_complete", "verify", "io_failure", "remote_failure", "write_error", "written_files"]
 
 
 def io_failure(error: Exception, targets: list, messages: list[str], written: list[Path]) -> BrdfcorrError:
@@ -49,6 +50,25 @@ def io_failure(error: Exception, targets: list, messages: list[str], written: li
     if "Read failed" in str(error) or "IReadBlock" in reason:
         return InputError(f"reading an input failed while writing {', '.join(map(str, targets))}: {reason}")
     return write_error(targets, write_cause(error if isinstance(error, OSError) else None, written, reason))
+
+
+#: What dask.distributed hands back for an exception it cannot send from a worker (rasterio's
+#: chained GDAL errors): a plain ``Exception`` whose one argument is the original's repr.
+_REMOTE_ERROR = re.compile(r"^(Rasterio\w*Error|CPLE_\w+|OSError|FileNotFoundError|PermissionError)\((['\"])(.*)\2\)$",
+                           re.S)
+
+
+def remote_failure(error: BaseException) -> str | None:
+    """The reason of an input or output error raised on a dask.distributed worker and handed back
+    as a plain ``Exception`` (:data:`_REMOTE_ERROR`), with a hint; None for any other error."""
+    if type(error) is not Exception or len(error.args) != 1:
+        return None
+    match = _REMOTE_ERROR.match(str(error.args[0]))
+    if match is None:
+        return None
+    reason = match.group(3).replace("Read failed. See previous exception for details.", "a read failed")
+    return (f"{reason} (on a dask.distributed worker: a truncated or damaged file, or a path the workers "
+            "cannot reach)")
 
 
 def write_error(targets: list, cause: str) -> OutputError:

@@ -17,6 +17,7 @@ import xarray as xr
 from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
 from brdfcorr.errors import BrdfcorrError, InputError
+from brdfcorr.io.commit import remote_failure
 from brdfcorr.io.gdal_log import GdalLog
 from brdfcorr.io.sensors.hdf5 import hdf5_open_failure
 from brdfcorr.io.sensors.products import hdf5_hint
@@ -39,8 +40,9 @@ def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = Fa
             # Per-band scales/offsets: rioxarray applies each band's, and says so in a warning.
             warnings.filterwarnings("ignore", r"(Scales|Offsets) differ across bands", UserWarning)
             # lock=False: every dask thread reads through its own handle, so reads run in parallel.
-            array = rioxarray.open_rasterio(path, chunks=chunks, masked=masked, mask_and_scale=mask_and_scale,
-                                            lock=False)
+            # An absolute path: the graph's reads may run on dask.distributed workers started elsewhere.
+            array = rioxarray.open_rasterio(path.absolute(), chunks=chunks, masked=masked,
+                                            mask_and_scale=mask_and_scale, lock=False)
     except rasterio.errors.RasterioError as error:
         raise InputError(f"cannot read {role} file {path}: {error}{hdf5_hint(path)}") from None
     damaged = [message for message in messages.messages if "IO error" in message]
@@ -95,6 +97,11 @@ def reading(what: str):
         raise
     except (OSError, rasterio.errors.RasterioError, CPLE_BaseError) as error:
         raise InputError(f"cannot read {what}: {read_failure(error, messages.messages)}") from None
+    except Exception as error:  # noqa: BLE001 (one kind is ours: a worker's failure, handed back plain)
+        remote = remote_failure(error)
+        if remote is None:
+            raise
+        raise InputError(f"cannot read {what}: {remote}") from None
 
 
 def read_failure(error: BaseException, messages: Sequence[str] = ()) -> str:

@@ -49,7 +49,7 @@ from xarray.conventions import encode_cf_variable
 from brdfcorr.defaults import default_threads
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
-from brdfcorr.io.commit import Target, io_failure, verify, write_error, written_files
+from brdfcorr.io.commit import Target, io_failure, remote_failure, verify, write_error, written_files
 from brdfcorr.io.files import DISK_CAUSES, interrupts_held, sync_file, temporary_beside, write_cause
 from brdfcorr.io.gdal_log import GdalLog
 from brdfcorr.io.paths import (  # path checks and names, importable here too
@@ -359,8 +359,12 @@ def _commit(targets: list[Target], tags, commit_tags) -> None:
         target.commit()
 
 
-def _problem(error: BaseException, rasters: list, failures: GdalLog, targets: list[Target]) -> OutputError | None:
-    """The :class:`OutputError` that a failed write is (None: ``error`` says it itself)."""
+def _problem(error: BaseException, rasters: list, failures: GdalLog, targets: list[Target]) -> BrdfcorrError | None:
+    """The :class:`OutputError` that a failed write is, or the :class:`InputError` of an input
+    that could not be read during it (None: ``error`` says it itself)."""
+    remote = remote_failure(error)
+    if remote is not None:
+        return InputError(f"reading or writing failed while writing {', '.join(map(str, rasters))}: {remote}")
     failed = isinstance(error, (OSError, rasterio.errors.RasterioError, CPLE_BaseError))
     if failed and not isinstance(error, BrdfcorrError):
         return io_failure(error, rasters, [failures.cause()] if failures.failures else [], written_files(targets))

@@ -170,3 +170,36 @@ def test_cog_keeps_the_predictor(scene, tmp_path):
         assert cog.tags(ns="IMAGE_STRUCTURE")["PREDICTOR"] == "3"  # floating point
         assert qa.tags(ns="IMAGE_STRUCTURE")["PREDICTOR"] == "2"  # horizontal differencing
         assert cog.tags(ns="IMAGE_STRUCTURE")["LAYOUT"] == "COG"
+
+
+def test_a_workers_read_failure_handed_back_plain_is_one_clear_error():
+    # dask.distributed cannot send rasterio's chained GDAL errors back from a worker: it hands back
+    # a plain Exception holding their repr (as a real cluster gave, by hand: exit 1, "internal
+    # error"). Read passes and the writer turn it into the InputError of a local read.
+    from brdfcorr.errors import InputError
+    from brdfcorr.io.commit import remote_failure
+    from brdfcorr.io.opening import reading
+
+    handed_back = Exception("RasterioIOError('Read failed. See previous exception for details.')")
+    assert "a read failed (on a dask.distributed worker" in remote_failure(handed_back)
+    assert "s1/angles.tif: No such file" in remote_failure(Exception("RasterioIOError('s1/angles.tif: No such file')"))
+    assert remote_failure(Exception("something else")) is None and remote_failure(ValueError("x")) is None
+    with pytest.raises(InputError, match=r"^cannot read image a.tif: a read failed \(on a dask.distributed"):
+        with reading("image a.tif"):
+            raise handed_back
+    with pytest.raises(Exception, match="something else"):
+        with reading("image a.tif"):
+            raise Exception("something else")
+
+
+def test_rasters_are_read_by_absolute_path(scene, tmp_path, monkeypatch):
+    # A scene opened by relative path is read lazily from another working directory, as a
+    # dask.distributed worker started elsewhere reads it.
+    from brdfcorr.io.opening import open_raster
+
+    monkeypatch.chdir(scene["image"].parent)
+    array = open_raster(scene["image"].name, "image", {"band": -1, "y": 16, "x": 16}, masked=True)
+    assert array.encoding["source"] == scene["image"].name  # messages name the path as given
+    monkeypatch.chdir(tmp_path)
+    with rasterio.open(scene["image"]) as dataset:
+        np.testing.assert_array_equal(array.values, dataset.read(masked=True).filled(np.nan))
