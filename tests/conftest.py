@@ -296,16 +296,17 @@ KERNEL_TABLE = ParameterTable(classes=[
 
 
 
-def _lines(n_lines=3, ny=48, nx=64, shift=24):
+def _lines(n_lines=3, ny=48, nx=64, shift=24, szas=None):
     """Lines flown north side by side over one ground (classes, albedo texture), each with its own
-    view geometry across its swath, rendered with KERNEL_TABLE (brdfcorr.testing.render)."""
+    view geometry across its swath and its sun zenith ``szas[index]`` [deg] (default 35 for every
+    line), rendered with KERNEL_TABLE (brdfcorr.testing.render)."""
     rng = np.random.default_rng(3)
     width = nx + shift * (n_lines - 1)
     ground_classes = np.kron(rng.choice([1, 2], size=(ny // 4, -(-width // 4))), np.ones((4, 4), int))[:ny, :width]
     ground_brightness = rng.uniform(0.8, 1.2, (ny, width))  # albedo texture
-    angles = synthetic_angles(ny, nx, sza=(35.0, 35.0), vza_max=30.0, saa=120.0, dtype=np.float64)
     lines = []
-    for index in range(n_lines):
+    for index, sza in enumerate((35.0,) * n_lines if szas is None else szas):
+        angles = synthetic_angles(ny, nx, sza=(sza, sza), vza_max=30.0, saa=120.0, dtype=np.float64)
         window = slice(index * shift, index * shift + nx)
         classes, brightness = ground_classes[:, window], ground_brightness[:, window]
         cube = render(KERNEL_TABLE, classes, **angles, wavelengths=[560.0, 860.0], brightness=brightness)
@@ -332,8 +333,9 @@ def shifted():
 
 @pytest.fixture(scope="session")
 def make_lines():
-    """``make_lines(n_lines=3, ny=48, nx=64, shift=24)``: overlapping lines rendered with a known
-    kernel model (KERNEL_TABLE), as brdfcorr.analysis.assess.Line."""
+    """``make_lines(n_lines=3, ny=48, nx=64, shift=24, szas=None)``: overlapping lines rendered
+    with a known kernel model (KERNEL_TABLE), as brdfcorr.analysis.assess.Line; ``szas``: each
+    line's sun zenith [deg] (default 35)."""
     return _lines
 
 

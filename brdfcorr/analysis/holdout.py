@@ -9,10 +9,13 @@ and :func:`brdfcorr.analysis.overlap.assess_overlap` against the lines it overla
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+import dask
+import dask.array as da
+import numpy as np
 import xarray as xr
 
 from brdfcorr.analysis.overlap import _overlaps, assess_overlap, overlap_report
@@ -52,9 +55,14 @@ class HeldOutLine:
     view : xarray.Dataset
         :func:`assess_view_angles` of the line before and after.
     overlaps : dict of str to xarray.Dataset
-        :func:`assess_overlap` against each overlapping other line (both corrected with ``table``).
+        :func:`assess_overlap` against each overlapping other line (both corrected with ``table``
+        to ``reference``).
     fit_report : list of dict
         The fit's per-class report (:meth:`brdfcorr.fit.ClassFitResult.report`).
+    reference : dict
+        The reference geometry this line and the lines it overlaps were corrected to: ``sza``,
+        ``vza`` [deg] as given (a ``"mean"`` sun zenith replaced by the mean over all the lines
+        [deg]) and ``sza_from``, how its sun zenith was chosen (:func:`_common_reference`).
     """
 
     name: str
@@ -62,6 +70,7 @@ class HeldOutLine:
     view: xr.Dataset
     overlaps: dict[str, xr.Dataset] = field(default_factory=dict)
     fit_report: list = field(default_factory=list)
+    reference: dict[str, object] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -82,8 +91,10 @@ class HoldoutFit:
     seed : int, default 0
         Seed of the pixel sampler.
     reference : mapping, optional
-        Reference geometry of the correction (:func:`brdfcorr.normalize`; default: the scene-mean
-        sun zenith, nadir view: ``{"sza": "mean", "vza": 0.0}``).
+        Reference geometry of the correction (:func:`brdfcorr.normalize`; default: the mean sun
+        zenith, nadir view: ``{"sza": "mean", "vza": 0.0}``). A ``"mean"`` sun zenith is the mean
+        over all the lines (of each line's scene mean), one sun for every line, so that an
+        overlap compares two lines corrected to the same sun.
     limits : (float, float) or None, default DEFAULT_LIMITS
         Limits of the correction factor [-] (:data:`brdfcorr.defaults.DEFAULT_LIMITS`; None: none).
     prior : ShapePrior, optional
@@ -121,7 +132,8 @@ def leave_one_line_out(
         the sensor) applies to the fits and the corrections too.
     overlap : bool, default True
         Also compare the held-out line with every other line it overlaps (both corrected with the
-        parameters fitted without it), :func:`assess_overlap`.
+        parameters fitted without it, to one reference geometry: a ``"mean"`` sun zenith is the
+        mean of the lines' mean sun zeniths), :func:`assess_overlap`.
 
     Returns
     -------
@@ -136,7 +148,7 @@ def leave_one_line_out(
     # The settings by the names the fit and the correction below take them.
     model, class_models, fixed, max_samples, seed = fit.model, fit.class_models, fit.fixed, fit.max_samples, fit.seed
     limits, names, flip_view_azimuth = fit.limits, view_options.class_names, view_options.flip_view_azimuth
-    reference = dict(fit.reference) if fit.reference is not None else {"sza": "mean", "vza": 0.0}
+    geometry, sza_from = _common_reference(lines, fit.reference)
     results = []
     for held, line in enumerate(lines):
         training = [other for index, other in enumerate(lines) if index != held]
@@ -147,28 +159,57 @@ def leave_one_line_out(
                                                flip_view_azimuth=flip_view_azimuth))
 
         def corrected(target: Line, table=fitted.table) -> xr.DataArray:
-            return normalize(target.reflectance, target.classes, target.angles, table, reference, limits=limits,
+            return normalize(target.reflectance, target.classes, target.angles, table, geometry, limits=limits,
                              flip_view_azimuth=flip_view_azimuth).reflectance
 
         after = corrected(line)
         view = assess_view_angles(line.reflectance, after, line.classes, line.angles["vza"], line.angles["vaa"],
                                   line.angles["saa"], clusters=line.clusters, options=view_options)
-        overlaps = {}
-        if overlap:
-            for other in training:
-                if _overlaps(line.reflectance, other.reflectance):
-                    overlaps[other.name] = assess_overlap(line.reflectance, after, other.reflectance,
-                                                          corrected(other))
-        results.append(HeldOutLine(line.name, fitted.table, view, overlaps, fitted.report()))
+        overlaps = _overlap_assessments(line, after, training, corrected) if overlap else {}
+        reference = {**geometry, "sza_from": sza_from}
+        results.append(HeldOutLine(line.name, fitted.table, view, overlaps, fitted.report(), reference))
     return results
+
+
+def _overlap_assessments(line: Line, after: xr.DataArray, others: Sequence[Line],
+                         corrected: Callable[[Line], xr.DataArray]) -> dict[str, xr.Dataset]:
+    """:func:`assess_overlap` of ``line`` (``after``: corrected) against each of ``others`` it
+    overlaps, corrected by ``corrected`` (the same parameters and reference geometry), by name."""
+    return {other.name: assess_overlap(line.reflectance, after, other.reflectance, corrected(other))
+            for other in others if _overlaps(line.reflectance, other.reflectance)}
+
+
+def _common_reference(lines: Sequence[Line],
+                      reference: Mapping[str, object] | None) -> tuple[dict[str, object], str]:
+    """The reference geometry every line is corrected to (default ``{"sza": "mean", "vza": 0.0}``)
+    and how its sun zenith was chosen. A ``"mean"`` sun zenith becomes the mean over the lines of
+    each line's scene-mean sun zenith [deg] (:func:`brdfcorr.correction.reference.scene_mean_sza`),
+    ``"mean of the lines"``: corrected each to its own scene mean, two lines under different suns
+    would differ in their overlap by the BRDF between the two suns, not by the correction's error.
+    Other sun zeniths are kept: a number [deg] (``"fixed"``), ``"observed"`` (each pixel's own sun)
+    or ``"hls"`` (each line's)."""
+    from brdfcorr.correction.reference import scene_mean_sza
+
+    geometry = dict(reference) if reference is not None else {"sza": "mean", "vza": 0.0}
+    sza = geometry.get("sza", "observed")
+    if sza != "mean":
+        return geometry, sza if isinstance(sza, str) else "fixed"
+    layers = [line.angles["sza"].data for line in lines]
+    means = dask.compute(*(scene_mean_sza(layer, da if isinstance(layer, da.Array) else np) for layer in layers))
+    missing = [line.name for line, mean in zip(lines, means) if not np.isfinite(mean)]
+    if missing:
+        raise InputError(f"line {missing[0]}: no valid solar zenith for the mean sun zenith of the lines")
+    return {**geometry, "sza": float(np.mean(means))}, "mean of the lines"
 
 
 def leave_one_line_out_report(results: Sequence[HeldOutLine]) -> dict[str, object]:
     """:func:`leave_one_line_out` as a JSON-serialisable dict: per held-out line its view-angle
-    report, its overlap reports by other line, and the fit without it."""
+    report, the reference geometry it and the lines it overlaps were corrected to (``sza``,
+    ``vza`` [deg], ``sza_from``), its overlap reports by other line, and the fit without it."""
     return {
         "kind": "leave-one-line-out",
         "lines": [{"held_out": result.name, "view_angles": view_angle_report(result.view),
+                   "reference": dict(result.reference),
                    "overlaps": {name: overlap_report(data) for name, data in result.overlaps.items()},
                    "fit": result.fit_report} for result in results],
     }

@@ -2,7 +2,9 @@
 of the before and after cubes, the sums of reflectance, signed view zenith and their products per
 class and band (:class:`_Sums`), by bin of view zenith, by side of nadir and by spatial block
 (:class:`_ClusterSums`, for the cluster-robust errors); dask adds the blocks' sums in a tree and
-computes them in one pass (:func:`_scene_sums`).
+computes them in one pass (:func:`_scene_sums`). Square blocks and clusters are placed in the
+scene, not in a dask block: one cut by a dask block's edge is summed over the scene before its outer
+products are taken, so no statistic depends on the chunking.
 """
 
 from __future__ import annotations
@@ -35,10 +37,8 @@ class _Sums:
     bin_r: np.ndarray   # (2, B, K, M)
     side_n: np.ndarray  # (K, 2)
     side_r: np.ndarray  # (2, B, K, 2)
-    blocks: np.ndarray  # (K,) spatial blocks holding pixels of the class
-    moments: np.ndarray  # (2, B, K, 5, 5) sum over blocks of v v^T, v = (n, Σθ, Σθ², ΣR, ΣθR) of a block
-    blocks2: np.ndarray  # (K,) the same for blocks of twice the size
-    moments2: np.ndarray  # (2, B, K, 5, 5)
+    squares: _SquareSums  # square blocks of the block size, for the slope's cluster-robust error
+    squares2: _SquareSums  # the same for blocks of twice the size
     clusters: _ClusterSums  # v per (class, cluster id) of the cluster layer, added over the whole scene
 
     def __add__(self, other: _Sums) -> _Sums:
@@ -47,9 +47,10 @@ class _Sums:
 
 @dataclass
 class _ClusterSums:
-    """Per (class index, cluster id) of a cluster layer (``keys``, (L, 2)) the sums v = (n, Σθ,
-    Σθ², ΣR, ΣθR) of each stage and band (``vectors``, (L, 2, B, 5)). A cluster may span dask
-    blocks, so the sums are added over the scene before their outer products are taken."""
+    """Per (class index, cluster id) of a cluster layer, or per (class index, square block's number
+    in the scene) (``keys``, (L, 2)), the sums v = (n, Σθ,
+    Σθ², ΣR, ΣθR) of each stage and band (``vectors``, (L, 2, B, 5)). A cluster or block may
+    span dask blocks, so the sums are added over the scene before their outer products are taken."""
 
     keys: np.ndarray
     vectors: np.ndarray
@@ -59,6 +60,33 @@ class _ClusterSums:
         vectors = np.zeros((keys.shape[0], *self.vectors.shape[1:]))
         np.add.at(vectors, member.reshape(-1), np.concatenate([self.vectors, other.vectors]))
         return _ClusterSums(keys, vectors)
+
+    def moments(self, n_classes: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per class the clusters holding its pixels, (K,), and Σ_g v_g v_gᵀ over them, (2, B, K, 5, 5)."""
+        owner = _one_hot(self.keys[:, 0], n_classes)
+        return owner.sum(axis=0), _moments(self.vectors, owner)
+
+
+@dataclass
+class _SquareSums:
+    """The sums over square blocks of one size behind the slope's cluster-robust error: of the
+    blocks that lie wholly within one dask block, per class their number (``blocks``, (K,)) and
+    Σ_g v_g v_gᵀ (``moments``, (2, B, K, 5, 5), v = (n, Σθ, Σθ², ΣR, ΣθR) of a block); those cut
+    by a dask block's edge are kept as sums keyed by their place in the scene (``cut``) until the
+    whole scene's are added (:meth:`closed`), so that the blocks do not depend on the chunking."""
+
+    blocks: np.ndarray
+    moments: np.ndarray
+    cut: _ClusterSums
+
+    def __add__(self, other: _SquareSums) -> _SquareSums:
+        return _SquareSums(self.blocks + other.blocks, self.moments + other.moments, self.cut + other.cut)
+
+    def closed(self) -> _SquareSums:
+        """Every block counted and in the moments, none left cut (once the whole scene is added)."""
+        blocks, moments = self.cut.moments(self.blocks.shape[0])
+        empty = _ClusterSums(self.cut.keys[:0], self.cut.vectors[:0])
+        return _SquareSums(self.blocks + blocks, self.moments + moments, empty)
 
 
 def _class_index(classes: np.ndarray, ids: np.ndarray) -> np.ndarray:
@@ -85,8 +113,9 @@ class _SumOptions:
     flip_view_azimuth : bool
         ``vaa`` is stored as seen from the sensor: add 180 deg.
     block_size : int
-        Side [pixels] of the spatial blocks of the slope's cluster-robust error (within a chunk);
-        the sums are also taken over blocks of twice the size.
+        Side [pixels] of the square blocks of the slope's cluster-robust error, counted from the
+        scene's first pixel (a block may span dask blocks); the sums are also taken over blocks of
+        twice the size.
     cluster_nodata : float, optional
         The cluster layer's nodata value: pixels holding it (or a non-finite id) are left out.
     """
@@ -101,16 +130,58 @@ class _SumOptions:
     cluster_nodata: float | None = None
 
 
-def _spatial_blocks(valid: np.ndarray, k: np.ndarray, n_classes: int, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each valid pixel's (class, spatial block of ``size`` pixels) group, numbered 0..G-1 in
-    order, and the one-hot (G, K) matrix of the groups' classes."""
+@dataclass(frozen=True)
+class _Window:
+    """Where a dask block lies in the scene [pixels]: its first row and column, and the scene's
+    height and width (the square blocks are counted from the scene's first pixel)."""
+
+    row: int
+    column: int
+    height: int
+    width: int
+
+
+def _one_hot(index: np.ndarray, n: int) -> np.ndarray:
+    """(len(index), n): 1 where column ``index[g]`` of row g, else 0."""
+    owner = np.zeros((index.shape[0], n))
+    owner[np.arange(index.shape[0]), index] = 1.0
+    return owner
+
+
+def _inside(index: np.ndarray, size: int, start: int, length: int, total: int) -> np.ndarray:
+    """Whether the blocks ``index`` of ``size`` pixels along an axis of ``total`` pixels (the last
+    block cut at the scene's edge) lie wholly within the pixels start..start + length - 1."""
+    return (index * size >= start) & (np.minimum((index + 1) * size, total) <= start + length)
+
+
+def _spatial_blocks(valid: np.ndarray, k: np.ndarray, size: int,
+                    window: _Window) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each valid pixel's (class, square block of ``size`` pixels of the scene) group, numbered
+    0..G-1 (``member``); the groups' keys (G, 2): class index and the block's number in the scene
+    (row by row); whether each group's block lies wholly within this dask block (G,)."""
     rows, columns = np.nonzero(valid)  # the order of boolean indexing
-    per_row = -(-valid.shape[1] // size)
-    cells = per_row * -(-valid.shape[0] // size)
-    labels, member = np.unique(k * cells + (rows // size) * per_row + columns // size, return_inverse=True)
-    owner = np.zeros((labels.size, n_classes))
-    owner[np.arange(labels.size), labels // cells] = 1.0
-    return member.reshape(-1), owner
+    per_row = -(-window.width // size)
+    cells = per_row * -(-window.height // size)
+    block = ((rows + window.row) // size) * per_row + (columns + window.column) // size
+    labels, member = np.unique(k * cells + block, return_inverse=True)
+    keys = np.stack(np.divmod(labels, cells), axis=1)
+    block_row, block_column = np.divmod(keys[:, 1], per_row)
+    inside = (_inside(block_row, size, window.row, valid.shape[0], window.height)
+              & _inside(block_column, size, window.column, valid.shape[1], window.width))
+    return member.reshape(-1), keys, inside
+
+
+def _square_sums(valid: np.ndarray, k: np.ndarray, s: np.ndarray, cubes, n_classes: int, size: int,
+                 window: _Window) -> tuple[_SquareSums, np.ndarray]:
+    """:class:`_SquareSums` over square blocks of ``size`` pixels of one dask block (``valid``:
+    (y, x) mask; ``k``, ``s``: the valid pixels' class index and signed zenith [deg]; ``cubes``:
+    each stage's (B, valid pixels)), and the class sums (2, B, K, 5) of v = (n, Σθ, Σθ², ΣR, ΣθR)."""
+    member, keys, inside = _spatial_blocks(valid, k, size, window)
+    vectors = _group_vectors(member, keys.shape[0], s, cubes)
+    owner = _one_hot(keys[inside, 0], n_classes)
+    squares = _SquareSums(owner.sum(axis=0), _moments(vectors[inside], owner),
+                          _ClusterSums(keys[~inside], vectors[~inside]))
+    return squares, np.einsum("gk,gsbi->sbki", _one_hot(keys[:, 0], n_classes), vectors)
 
 
 def _group_vectors(member: np.ndarray, size: int, s: np.ndarray, cubes) -> np.ndarray:
@@ -139,8 +210,10 @@ def _cluster_sums(clusters: np.ndarray | None, k: np.ndarray, s: np.ndarray, cub
     return _ClusterSums(keys, _group_vectors(member.reshape(-1), keys.shape[0], s, cubes))
 
 
-def _block_sums(before, after, classes, vza, vaa, saa, clusters, options: _SumOptions) -> _Sums:
-    """:class:`_Sums` of one block: cubes (band, y, x), layers (y, x), numpy."""
+def _block_sums(before, after, classes, vza, vaa, saa, clusters, options: _SumOptions,
+                window: _Window | None = None) -> _Sums:
+    """:class:`_Sums` of one block: cubes (band, y, x), layers (y, x), numpy; ``window``: where
+    the block lies in the scene (default: the block is the whole scene)."""
     ids, edges, min_vza = options.ids, options.edges, options.min_vza
     n_bands, n_classes, n_bins = before.shape[0], len(ids), len(edges) - 1
     vaa = vaa + 180.0 if options.flip_view_azimuth else vaa
@@ -160,12 +233,10 @@ def _block_sums(before, after, classes, vza, vaa, saa, clusters, options: _SumOp
     groups = k * n_bins + bins
     outer = np.abs(s) >= max(min_vza, np.finfo(float).tiny)  # 0 (nadir, or perpendicular) is on neither side
     sides = k[outer] * 2 + (s[outer] > 0)
-    # Sums per (class, spatial block) first: the class sums are theirs added, and their outer
-    # products give the slope's cluster-robust error (_cluster_error), at two block sizes.
-    member, owner = _spatial_blocks(valid, k, n_classes, options.block_size)
-    vectors = _group_vectors(member, owner.shape[0], s, cubes)
-    member2, owner2 = _spatial_blocks(valid, k, n_classes, 2 * options.block_size)
-    class_sums = np.einsum("gk,gsbi->sbki", owner, vectors)  # (2, B, K, 5)
+    # Sums per (class, square block of the scene) first: the class sums are theirs added, and
+    # their outer products give the slope's cluster-robust error (_cluster_error), at two sizes.
+    window = window or _Window(0, 0, *valid.shape)
+    squares, class_sums = _square_sums(valid, k, s, cubes, n_classes, options.block_size, window)
     sums = _Sums(
         *(class_sums[0, 0, :, position] for position in range(3)), r=class_sums[..., 3], sr=class_sums[..., 4],
         bin_n=np.bincount(groups, minlength=n_classes * n_bins).astype(np.float64).reshape(n_classes, n_bins),
@@ -173,8 +244,7 @@ def _block_sums(before, after, classes, vza, vaa, saa, clusters, options: _SumOp
         bin_r=np.zeros((2, n_bands, n_classes, n_bins)),
         side_n=np.bincount(sides, minlength=n_classes * 2).astype(np.float64).reshape(n_classes, 2),
         side_r=np.zeros((2, n_bands, n_classes, 2)),
-        blocks=owner.sum(axis=0), moments=_moments(vectors, owner),
-        blocks2=owner2.sum(axis=0), moments2=_moments(_group_vectors(member2, owner2.shape[0], s, cubes), owner2),
+        squares=squares, squares2=_square_sums(valid, k, s, cubes, n_classes, 2 * options.block_size, window)[0],
         clusters=_cluster_sums(None if clusters is None else clusters[valid], k, s, cubes),
     )
     for stage, cube in enumerate(cubes):
@@ -198,16 +268,19 @@ def _scene_sums(arrays: list, options: _SumOptions, compute: dict) -> _Sums:
     """:class:`_Sums` of whole arrays (before, after, classes, vza, vaa, saa, clusters): directly for numpy,
     per dask block and added in a tree otherwise (one compute; every block read once)."""
     if not any(isinstance(a, da.Array) for a in arrays):
-        return _block_sums(*(None if a is None else np.asarray(a) for a in arrays), options)
-    cube = next(a for a in arrays[:2] if isinstance(a, da.Array))
-    spatial = cube.chunks[1:]
-    cubes = [da.asarray(a).rechunk((-1, *spatial)).to_delayed()[0] for a in arrays[:2]]
-    layers = [None if a is None else da.asarray(a).rechunk(spatial).to_delayed() for a in arrays[2:]]
-    block = dask.delayed(_block_sums, pure=True)
-    parts = [
-        block(cubes[0][i, j], cubes[1][i, j], *(None if layer is None else layer[i, j] for layer in layers),
-              options)
-        for i in range(len(spatial[0])) for j in range(len(spatial[1]))
-    ]
-    (total,) = dask.compute(_tree_sum(parts), **compute)
+        total = _block_sums(*(None if a is None else np.asarray(a) for a in arrays), options)
+    else:
+        cube = next(a for a in arrays[:2] if isinstance(a, da.Array))
+        spatial = cube.chunks[1:]
+        starts = [np.cumsum((0, *sizes[:-1])) for sizes in spatial]
+        cubes = [da.asarray(a).rechunk((-1, *spatial)).to_delayed()[0] for a in arrays[:2]]
+        layers = [None if a is None else da.asarray(a).rechunk(spatial).to_delayed() for a in arrays[2:]]
+        block = dask.delayed(_block_sums, pure=True)
+        parts = [
+            block(cubes[0][i, j], cubes[1][i, j], *(None if layer is None else layer[i, j] for layer in layers),
+                  options, _Window(int(starts[0][i]), int(starts[1][j]), *cube.shape[1:]))
+            for i in range(len(spatial[0])) for j in range(len(spatial[1]))
+        ]
+        (total,) = dask.compute(_tree_sum(parts), **compute)
+    total.squares, total.squares2 = total.squares.closed(), total.squares2.closed()
     return total

@@ -24,7 +24,7 @@ import xarray as xr
 
 from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
 from brdfcorr.analysis.signed_view import _SIGN_WORDS, SIGN_CONVENTIONS
-from brdfcorr.analysis.view_angle_sums import _moments, _scene_sums, _SumOptions, _Sums
+from brdfcorr.analysis.view_angle_sums import _scene_sums, _SumOptions, _Sums
 from brdfcorr.analysis.view_stripes import (
     CLUSTER_LAYER,
     STRIPE_LIMIT,
@@ -307,14 +307,12 @@ def _slope_errors(sums: _Sums, n_classes: int, terms: tuple, clustered: bool) ->
     """The slopes' 1-sigma [1/deg] (:func:`_cluster_error`; ``terms``: slope, mean, mean signed
     zenith, Sxx): cluster-robust over the cluster ids where ``clustered``, else over the square
     blocks; the 1-sigma over blocks of both sizes (..., 2); the clusters (ids or blocks) per class."""
-    block_errors = np.stack([_cluster_error(sums.moments, sums.blocks, *terms),
-                             _cluster_error(sums.moments2, sums.blocks2, *terms)], axis=-1)
+    block_errors = np.stack([_cluster_error(sums.squares.moments, sums.squares.blocks, *terms),
+                             _cluster_error(sums.squares2.moments, sums.squares2.blocks, *terms)], axis=-1)
     if not clustered:
-        return block_errors[..., 0], block_errors, sums.blocks
-    owner = np.zeros((sums.clusters.keys.shape[0], n_classes))
-    owner[np.arange(owner.shape[0]), sums.clusters.keys[:, 0]] = 1.0
-    groups = owner.sum(axis=0)
-    return _cluster_error(_moments(sums.clusters.vectors, owner), groups, *terms), block_errors, groups
+        return block_errors[..., 0], block_errors, sums.squares.blocks
+    groups, moments = sums.clusters.moments(n_classes)
+    return _cluster_error(moments, groups, *terms), block_errors, groups
 
 
 def _coords(cube: xr.DataArray, ids: np.ndarray, names: Mapping[int, str], block_size: int, lower: np.ndarray,

@@ -41,7 +41,7 @@ from brdfcorr.chain.resume import fit_fingerprint, planned_table, redo_stale, re
 from brdfcorr.chain.scenes import Scene, check_quicklook_bands, input_images, plan_scenes
 from brdfcorr.errors import InputError, OutputError
 from brdfcorr.fit.settings import DEFAULT_MODEL, STRATA_MODEL
-from brdfcorr.io.paths import InputOverwriteError, check_outputs, envi_sidecars
+from brdfcorr.io.paths import InputOverwriteError, SidecarClashError, check_outputs, envi_sidecars
 from brdfcorr.params import ParameterTable
 
 __all__ = ["RunPlan", "plan_run"]
@@ -213,6 +213,8 @@ def _check_outputs(config: ChainConfig, scenes: list[Scene], report: Path, fit_o
         read += [("steps.fit.measurements", config.resolve(item.file)) for item in config.steps.fit.measurements]
     try:
         check_outputs(written, read)
+    except SidecarClashError as clash:  # a file GDAL would read with an input, not there yet
+        raise InputError(f"{config.source}: {clash}") from None
     except InputOverwriteError as clash:
         raise InputError(f"{config.source}: {clash.output_name} would overwrite an input (the same file as "
                          f"{clash.input_name} {clash.input})") from None

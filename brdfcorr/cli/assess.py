@@ -137,6 +137,14 @@ def _held_out_rows(line: dict) -> list[dict[str, str]]:
     return rows
 
 
+def _reference_line(reference: dict) -> str:
+    """The reference geometry of the leave-one-line-out report (``reference`` of a line) in words."""
+    sza, source = reference["sza"], reference["sza_from"]
+    sun = {"observed": "each pixel's own sun zenith", "hls": "each line's HLS sun zenith"}.get(
+        source, f"sun zenith {sza:.4g} deg ({'the mean of the lines' if source == 'mean of the lines' else 'fixed'})")
+    return f"held-out lines and their overlaps corrected to {sun}, view zenith {reference.get('vza', 0.0):g} deg"
+
+
 @main.command("assess-lines")
 @click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @setting_options(ASSESS_LINES)
@@ -183,6 +191,8 @@ def assess_lines_command(images, classes, align_classes, class_lookup, angles, a
     )
     report = assessment.report()
     write_json(report, output)
+    click.echo(_reference_line(report["lines"][0]["reference"]))
+    click.echo()
     for line in report["lines"]:
         training = ", ".join(entry["name"] for entry in report["inputs"] if entry["name"] != line["held_out"])
         click.echo(f"{line['held_out']} (parameters fitted on {training})")

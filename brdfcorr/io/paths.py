@@ -6,10 +6,13 @@ One rule for every brdfcorr command and chain (:func:`check_outputs`):
 2. an output is not the same file as any input: inputs are never overwritten;
 3. no two outputs are the same file (the second would replace the first);
 4. the files GDAL reads beside an input raster (:func:`sidecar_paths`: an ENVI header in both
-   namings ``NAME.hdr`` and ``NAME.ext.hdr``, ``.aux.xml``, ``.ovr``, ``.msk``) are inputs too, where
-   they exist: ``correct in.img -o in.img.bsq --format ENVI`` would write its header over the
-   input's ``in.img.hdr``. The sidecars an output writes are named by the caller (an ENVI output's
-   header and ``.aux.xml``, :func:`brdfcorr.io.writer.envi_sidecars`).
+   namings ``NAME.hdr`` and ``NAME.ext.hdr``, ``.aux.xml``, ``.ovr``, ``.msk``) are inputs too:
+   where they exist, ``correct in.img -o in.img.bsq --format ENVI`` would write its header over the
+   input's ``in.img.hdr``; where they do not, an output there would become the input's sidecar
+   (GDAL opens ``in.bil`` with ``in.bil.hdr`` in preference to ``in.hdr``, so the header of an
+   output ``in.bil.img`` would scramble every later read of the input) and is refused as well
+   (:class:`SidecarClashError`). The sidecars an output writes are named by the caller (an ENVI
+   output's header and ``.aux.xml``, :func:`brdfcorr.io.writer.envi_sidecars`).
 
 "The same file" is decided by file identity where both paths exist (``os.stat``: device and inode,
 through symbolic links, so a link to an input or a hard link of it is that input), and by the
@@ -35,7 +38,7 @@ from brdfcorr.io import EXTENSIONS, FORMATS
 
 __all__ = ["check_outputs", "check_format", "sidecar_paths", "same_file", "file_identity", "refuse_existing",
            "update_target", "remove_partials", "envi_header_path", "envi_sidecars", "InputOverwriteError",
-           "SameOutputError"]
+           "SidecarClashError", "SameOutputError"]
 
 PathLike = str | os.PathLike
 Named = Mapping[str, PathLike | None] | Iterable[PathLike | tuple[str, PathLike | None] | None]
@@ -45,10 +48,29 @@ class InputOverwriteError(InputError):
     """An output is the same file as an input (attributes: ``output_name``, ``output``,
     ``input_name``, ``input``)."""
 
-    def __init__(self, output_name: str, output: PathLike, input_name: str, input: PathLike):
+    def __init__(self, output_name: str, output: PathLike, input_name: str, input: PathLike,
+                 message: str | None = None):
         self.output_name, self.output, self.input_name, self.input = output_name, output, input_name, input
-        super().__init__(f"{_describe(output_name, output)} is also an input; inputs are never overwritten "
-                         f"(the same file as {_describe(input_name, input)})")
+        super().__init__(message or f"{_describe(output_name, output)} is also an input; inputs are never "
+                                    f"overwritten (the same file as {_describe(input_name, input)})")
+
+
+#: What GDAL reads from a sidecar, by the end of its name (:func:`sidecar_paths`).
+_SIDECAR_KINDS = {".hdr": "ENVI header", ".aux.xml": "tags and statistics (.aux.xml)", ".ovr": "overviews",
+                  ".msk": "mask"}
+
+
+class SidecarClashError(InputOverwriteError):
+    """An output is a file GDAL would read beside an input (:func:`sidecar_paths`) that does not
+    exist yet: once written, it would become the input's header, tags, overviews or mask
+    (attributes as :class:`InputOverwriteError`, ``input`` the raster; ``sidecar``: the path)."""
+
+    def __init__(self, output_name: str, output: PathLike, input_name: str, input: PathLike, sidecar: PathLike):
+        self.sidecar = sidecar
+        kind = next((what for end, what in _SIDECAR_KINDS.items() if str(sidecar).lower().endswith(end)), "sidecar")
+        super().__init__(output_name, output, input_name, input,
+                         f"{_describe(output_name, output)} would become the {kind} GDAL reads with "
+                         f"{_describe(input_name, input)} and change what it reads; give the output another name")
 
 
 class SameOutputError(OutputError):
@@ -133,12 +155,14 @@ def sidecar_paths(path: PathLike) -> list[Path]:
     return list(dict.fromkeys(found))
 
 
-def _with_sidecars(inputs: list[tuple[str, Path]]) -> list[tuple[str, Path]]:
-    """The inputs and the sidecars of each that exist (GDAL reads them with the input)."""
-    found = []
+def _with_sidecars(inputs: list[tuple[str, Path]]) -> list[tuple[str, Path, tuple[str, Path] | None]]:
+    """The inputs and every sidecar of each (GDAL reads them with the input), existing or not: the
+    name, the path and, for a sidecar not there (yet), the (name, path) of its input."""
+    found: list[tuple[str, Path, tuple[str, Path] | None]] = []
     for name, path in inputs:
-        found.append((name, path))
-        found += [(f"{name} sidecar", sidecar) for sidecar in sidecar_paths(path) if os.path.lexists(sidecar)]
+        found.append((name, path, None))
+        found += [(f"{name} sidecar", sidecar, None if os.path.lexists(sidecar) else (name, path))
+                  for sidecar in sidecar_paths(path)]
     return found
 
 
@@ -151,19 +175,20 @@ def check_outputs(outputs: Named, inputs: Named = ()) -> None:
         What the command writes; the name is how messages call it (an option ``-o``, a config key
         ``outputs.report``; a name that shows the path is used as it is). None paths are skipped.
     inputs : mapping or iterable, as ``outputs``
-        What the command reads; the sidecars of each that exist (:func:`sidecar_paths`) are
-        inputs too.
+        What the command reads; the sidecars of each (:func:`sidecar_paths`) are inputs too,
+        existing or not (an output there would become the input's sidecar).
 
     Raises
     ------
     OutputError
         An output is a directory, device, FIFO or socket.
     InputOverwriteError
-        An output is the same file as an input (an :class:`~brdfcorr.errors.InputError`).
+        An output is the same file as an input (an :class:`~brdfcorr.errors.InputError`), or
+        (:class:`SidecarClashError`) a sidecar GDAL would read with an input.
     SameOutputError
         Two outputs are the same file (an :class:`~brdfcorr.errors.OutputError`).
     """
-    read = [(name, path, file_identity(path)) for name, path in _with_sidecars(_named(inputs, "input"))]
+    read = [(name, path, file_identity(path), owner) for name, path, owner in _with_sidecars(_named(inputs, "input"))]
     written = []
     for name, path in _named(outputs, "output"):
         kind = _not_regular(path)
@@ -171,7 +196,9 @@ def check_outputs(outputs: Named, inputs: Named = ()) -> None:
             raise OutputError(f"{_describe(name, path)} is a {kind}, not a regular file; outputs are written "
                               "as regular files only")
         identity = file_identity(path)
-        for input_name, input_path, input_identity in read:
+        for input_name, input_path, input_identity, owner in read:
+            if identity == input_identity and owner is not None:
+                raise SidecarClashError(name, path, *owner, input_path)
             if identity == input_identity:
                 raise InputOverwriteError(name, path, input_name, input_path)
         for other_name, other_path, other_identity in written:

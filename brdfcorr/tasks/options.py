@@ -463,8 +463,9 @@ ASSESS_LINES = settings(
     dataclasses.replace(FIT_CLASSES["max_samples"], help="Samples per class, over the training lines."),
     FIT_CLASSES["seed"],
     Setting("ref_sza", ("--ref-sza",), "text",
-            help="Reference sun zenith [deg], 'mean', 'observed' or 'hls' [default: mean]; the view is "
-                 "normalized to nadir."),
+            help="Reference sun zenith [deg], 'mean' (one sun for every line: the mean of the lines' mean sun "
+                 "zeniths, so that an overlap compares two lines at one sun), 'observed' or 'hls' [default: mean]; "
+                 "the view is normalized to nadir."),
     ASSESS["sign_by"],
     ASSESS["heading"],
     ASSESS["flip_view_azimuth"],

@@ -145,6 +145,35 @@ def test_the_slope_error_is_cluster_robust_over_spatial_blocks(geometry, class_m
             np.testing.assert_allclose(result["relative_slope_error"].values[:, 0, index], relative, rtol=1e-9)
 
 
+@pytest.mark.parametrize("chunk", [16, 48, 512])
+def test_the_slope_error_is_over_blocks_of_the_scene_whatever_the_chunking(chunk):
+    # Blocks of 32 and 64 pixels counted from the scene's first pixel, as the report says, for
+    # chunks smaller than a block (16), cutting blocks (48) and holding the scene (512): the
+    # 1-sigma equals the pixel-by-pixel CR1 over those blocks. Before, blocks were cut at the
+    # chunk's edges (chunks of 16: the 1-sigma of blocks of 16). 112 columns: the last blocks
+    # are cut by the scene's edge.
+    ny, nx, size = 96, 112, 32
+    angles = synthetic_angles(ny, nx, vza_max=30.0, saa=90.0, dtype=np.float64)
+    theta = signed_view_zenith(angles["vza"], angles["vaa"], angles["saa"])
+    rng = np.random.default_rng(11)
+    shared = np.kron(rng.normal(0, 0.02, (ny // 16, nx // 16)), np.ones((16, 16)))
+    before = (0.3 + 0.001 * theta + shared + rng.normal(0, 0.01, (ny, nx)))[None]
+    classes = np.where((np.arange(nx)[None, :] // 3) % 2 == 0, 1, 2) * np.ones((ny, 1), np.int64)
+    result = assess_view_angles(da.from_array(before, chunks=(1, chunk, chunk)), before,
+                                da.from_array(classes, chunks=chunk), angles["vza"], angles["vaa"], angles["saa"],
+                                options=ViewAngleOptions(block_size=size))
+    rows, columns = np.indices((ny, nx))
+    for index, class_id in enumerate((1, 2)):
+        pick = classes == class_id
+        for position, side in enumerate((size, 2 * size)):
+            blocks = (rows // side) * nx + columns // side
+            expected = 1000 * _cluster_robust_slope_error(theta[pick], before[0][pick], blocks[pick]) \
+                / before[0][pick].mean()
+            np.testing.assert_allclose(result["relative_slope_error_blocks"].values[:, 0, index, position],
+                                       expected, rtol=1e-9)
+        assert int(result["blocks"].values[index]) == len(np.unique(((rows // size) * nx + columns // size)[pick]))
+
+
 def test_the_slope_error_of_independent_pixels_is_the_classical_one():
     # White noise, blocks of 4 x 4 pixels (2500 of them): the cluster-robust 1-sigma of the
     # relative slope is within 10 % of the textbook sigma / sqrt(Sxx) (1000 / mean; sigma known).
@@ -236,6 +265,30 @@ def test_leave_one_line_out_improves_the_held_out_metrics(make_lines):
     report = leave_one_line_out_report(results)
     json.dumps(report, allow_nan=False)
     assert set(report["lines"][1]["overlaps"]) == {"line1", "line3"}
+
+
+def test_leave_one_line_out_corrects_both_lines_of_an_overlap_to_one_sun(make_lines):
+    # Lines under suns of 30, 45 and 38 deg, the reference sun "mean" (the default): every line is
+    # corrected to one sun, the mean of the lines' mean sun zeniths, (30 + 45 + 38) / 3 deg, so
+    # every number equals a run given that sun. Before, each line went to its own scene mean and an
+    # overlap's difference after held the BRDF between two suns (7-16 % instead of 0.003-1.3 %).
+    lines = make_lines(szas=(30.0, 45.0, 38.0))
+    common = (30.0 + 45.0 + 38.0) / 3
+    mean = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse"))
+    fixed = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference={"sza": common, "vza": 0.0}))
+    for by_mean, by_number in zip(mean, fixed):
+        assert by_mean.reference == {"sza": pytest.approx(common, rel=1e-12), "vza": 0.0,
+                                     "sza_from": "mean of the lines"}
+        assert by_number.reference["sza_from"] == "fixed"
+        assert set(by_mean.overlaps) == set(by_number.overlaps) and by_mean.overlaps
+        for name, overlap in by_mean.overlaps.items():
+            np.testing.assert_allclose(overlap["rmse"].values, by_number.overlaps[name]["rmse"].values, rtol=1e-9)
+            # property: the correction takes the overlap difference down
+            relative = overlap["relative_rmse"]
+            assert (relative.sel(stage="after") < relative.sel(stage="before")).all(), (by_mean.name, name)
+    report = leave_one_line_out_report(mean)
+    assert report["lines"][0]["reference"]["sza_from"] == "mean of the lines"
+    json.dumps(report, allow_nan=False)
 
 
 def test_figures_are_drawn_and_written(geometry, class_map, tmp_path, make_cube, shifted):

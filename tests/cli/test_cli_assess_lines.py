@@ -111,6 +111,9 @@ def test_cli_report_equals_the_library_report(files, library_report, tmp_path):
     slope = line["view_angles"]["summary"]["abs_relative_slope_percent_per_10deg"]
     assert f"{slope['before']['max']:.2f}" in result.output and f"{slope['after']['max']:.2f}" in result.output
     assert "overlap with line1" in result.output and "overlap with line3" in result.output
+    # the reference every line and its overlaps were corrected to, in the report and printed
+    assert line["reference"] == {"sza": 35.0, "vza": 0.0, "sza_from": "fixed"}
+    assert "corrected to sun zenith 35 deg (fixed), view zenith 0 deg" in result.output
     # an existing report is replaced only with --overwrite
     again = _invoke("assess-lines", *_arguments(files), "--model", "ross_thick_li_sparse", "-o", output)
     assert again.exit_code == 2
@@ -182,6 +185,8 @@ def test_each_line_takes_its_cluster_layer(files, tmp_path):
     assert [entry["clusters"] for entry in report["inputs"]] == [f"{layer} band 1" for layer in layers]
     for line in report["lines"]:
         assert "cluster layer" in line["view_angles"]["errors"]["clusters"]
+        assert line["reference"]["sza_from"] == "mean of the lines"  # the default reference sun
+    assert "corrected to sun zenith 35 deg (the mean of the lines)" in result.output  # every line's sun: 35 deg
     refused = CliRunner().invoke(main, [str(a) for a in ("assess-lines", *_arguments(files), *clusters[:4], "-o",
                                                          tmp_path / "two.json")])
     assert refused.exit_code == 2 and "give one per line" in refused.output

@@ -15,7 +15,7 @@ from _cli_lines import _correct_args, _one_line
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.io.paths import InputOverwriteError, check_outputs
+from brdfcorr.io.paths import InputOverwriteError, SidecarClashError, check_outputs
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import file_digests
 
@@ -47,6 +47,22 @@ def test_envi_output_header_never_replaces_an_input_header(scene, header, output
     assert not (scene["dir"] / output).exists()
 
 
+def test_envi_output_header_never_becomes_an_input_header(scene):
+    """The input in.img with its header in.hdr: an output in.img.bsq writes its header as in.img.hdr,
+    the naming GDAL looks for first when it opens in.img, so that header would become the input's
+    from then on (every later read of in.img scrambled). Refused, though no in.img.hdr exists yet."""
+    image = _envi_input(scene, "in.hdr")
+    before = file_digests(scene["dir"])
+    args = _correct_args({**scene, "image": image}, scene["dir"] / "in.img.bsq", "--format", "ENVI")
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    _one_line(result.stderr, r"output header \S*in\.img\.hdr would become the ENVI header GDAL reads with "
+                             r"\S* \S*in\.img\b")
+    assert file_digests(scene["dir"]) == before  # nothing written, nothing changed
+    with rasterio.open(image) as dataset:  # the input still reads with its own header
+        assert [Path(name).name for name in dataset.files if name.endswith(".hdr")] == ["in.hdr"]
+
+
 def test_report_on_an_input_aux_xml_is_refused(scene):
     aux = Path(f"{scene['image']}.aux.xml")
     aux.write_text('<PAMDataset><Metadata><MDI key="a">1</MDI></Metadata></PAMDataset>\n')
@@ -65,10 +81,12 @@ def test_guard_knows_every_sidecar(tmp_path, suffix):
     image.write_bytes(b"\0")
     sidecar = Path(f"{image}{suffix}")
     sidecar.write_text("x")
-    with pytest.raises(InputOverwriteError):
+    with pytest.raises(InputOverwriteError, match="is also an input"):
         check_outputs({"report": sidecar}, {"image": image})
-    sidecar.unlink()  # absent: nothing to protect
-    check_outputs({"report": sidecar}, {"image": image})
+    sidecar.unlink()  # absent: written, it would become the image's sidecar
+    with pytest.raises(SidecarClashError, match=rf"report \S*image\.img{re.escape(suffix)} would become the .* "
+                                                rf"GDAL reads with image \S*image\.img"):
+        check_outputs({"report": sidecar}, {"image": image})
 
 
 # -------------------------------------------------------------------------------- materials -o
