@@ -161,9 +161,17 @@ def _with_sidecars(inputs: list[tuple[str, Path]]) -> list[tuple[str, Path, tupl
     found: list[tuple[str, Path, tuple[str, Path] | None]] = []
     for name, path in inputs:
         found.append((name, path, None))
-        found += [(f"{name} sidecar", sidecar, None if os.path.lexists(sidecar) else (name, path))
-                  for sidecar in sidecar_paths(path)]
+        for sidecar in sidecar_paths(path):
+            if os.path.lexists(sidecar):
+                found.append((f"{name} sidecar", sidecar, None))
+            elif not (_is_geotiff(path) and sidecar.suffix.lower() == ".hdr"):  # GDAL reads no header with a GeoTIFF
+                found.append((f"{name} sidecar", sidecar, (name, path)))
     return found
+
+
+def _is_geotiff(path: Path) -> bool:
+    """A GeoTIFF by its name: GDAL identifies it by its own header, never by an ENVI ``.hdr`` beside it."""
+    return path.suffix.lower() in (".tif", ".tiff")
 
 
 def check_outputs(outputs: Named, inputs: Named = ()) -> None:

@@ -119,3 +119,13 @@ def test_materials_output_keeps_a_symbolic_link_a_link(tmp_path):
     assert result.exit_code == 2
     _one_line(result.stderr, "is a symbolic link to no file")
     assert dangling.is_symlink() and not (tmp_path / "missing.yaml").exists()
+
+
+def test_an_envi_output_beside_a_geotiff_of_its_name_is_allowed(tmp_path):
+    # GDAL identifies a GeoTIFF by its own header and reads no ENVI .hdr with it: the header of an
+    # output image.img (image.hdr) changes nothing image.tif reads, so it is no clash; its .aux.xml is.
+    image = tmp_path / "image.tif"
+    image.write_bytes(b"\0")
+    check_outputs({"-o": tmp_path / "image.img", "header": tmp_path / "image.hdr"}, {"image": image})
+    with pytest.raises(SidecarClashError):
+        check_outputs({"tags": tmp_path / "image.tif.aux.xml"}, {"image": image})
