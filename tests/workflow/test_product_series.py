@@ -78,12 +78,16 @@ def test_the_example_writes_a_series_that_opens(tmp_path, monkeypatch):
 
 # --- STAC items with local assets ---------------------------------------------------------------
 
-def test_stac_items_read_as_their_safe_folders(folders, tmp_path):
-    """An item written from each SAFE folder (Earth Search's layout) gives the same cube and angles,
-    and `brdfcorr nbar item.json` the same file as `brdfcorr nbar FOLDER`."""
+@pytest.mark.parametrize("layout", ["earth_search", "planetary_computer"])
+def test_stac_items_read_as_their_safe_folders(folders, tmp_path, layout):
+    """An item written from each SAFE folder gives the same cube and angles, and `brdfcorr nbar
+    item.json` the same file as `brdfcorr nbar FOLDER`: in Earth Search v1's layout (assets keyed
+    and their eo:bands named by common name, red, nir08, each beside a remote JPEG 2000 copy of the
+    same name; refused as "no asset for B02, ..." before, a bug hunt) and the Planetary Computer's
+    (B04)."""
     from brdfcorr.testing import write_stac_item
 
-    items = [write_stac_item(folder) for folder in folders]
+    items = [write_stac_item(folder, layout=layout) for folder in folders]
     by_folder, by_item = open_products(folders), open_products(items)
     np.testing.assert_array_equal(by_item.reflectance.values, by_folder.reflectance.values)
     for name in ("sza", "saa", "vza", "vaa"):
@@ -96,6 +100,17 @@ def test_stac_items_read_as_their_safe_folders(folders, tmp_path):
         with rasterio.open(output) as dataset:
             outputs.append(dataset.read())
     np.testing.assert_array_equal(*outputs)
+
+
+def test_the_earth_search_nir_bands_are_b08_and_b8a(folders):
+    """Earth Search v1 keys B08 as ``nir`` and B8A as ``nir08`` (the real item
+    S2A_39QTA_20230628_0_L2A: nir is B08.tif, nir08 B8A.tif): at 10 m both, as the folder reads them."""
+    from brdfcorr.testing import write_stac_item
+
+    by_folder = open_products(folders[:1], resolution=10, bands=["B08", "B8A"])
+    by_item = open_products([write_stac_item(folders[0])], resolution=10, bands=["B08", "B8A"])
+    assert [file.name[-11:] for file in by_item.products[0].bands.values()] == ["B08_10m.jp2", "B8A_20m.jp2"]
+    np.testing.assert_array_equal(by_item.reflectance.values, by_folder.reflectance.values)
 
 
 def test_an_item_without_raster_scaling_takes_esas_of_its_baseline(folders):
