@@ -76,6 +76,32 @@ def test_the_example_writes_a_series_that_opens(tmp_path, monkeypatch):
     np.testing.assert_allclose(np.diff(suns), [-12.5, -12.5], atol=1e-9)
 
 
+@pytest.mark.parametrize("kind", ["sentinel2", "landsat"])
+def test_the_table_follows_the_cubes_bands_not_their_positions(folders, tmp_path, kind):
+    """The c-factor corrects each band on its own, so a cube of the series' bands in another order,
+    or some of them, must give each band the values it has in the whole cube. The series' table
+    was applied by position: the reversed cube took the weights of the band at the mirrored place,
+    about 1 % off (a bug hunt). It now carries the bands' centres [nm] and is matched to the cube's
+    ``wavelength`` coordinate; Landsat's SR_B* names alone give none, so a cube without the
+    coordinate is refused rather than corrected by position."""
+    from brdfcorr.errors import ParameterError
+
+    products = folders[:1] if kind == "sentinel2" else [write_landsat_c2(tmp_path, size=8, angle_bands=True)]
+    series = open_products(products)
+    reference = {"sza": 45.0}
+    whole, _ = series.reflectance.brdf.normalize(None, series.angles, series.table, reference=reference)
+    for picked in (slice(None, None, -1), [2, 0]):
+        cube = series.reflectance.isel(band=picked)
+        part, _ = cube.brdf.normalize(None, series.angles, series.table, reference=reference)
+        expected = whole.sel(band=cube["band"].values)
+        np.testing.assert_allclose(part.values, expected.values, rtol=1e-6, equal_nan=True)
+    assert series.table[1].wavelengths == sorted(series.products[0].wavelengths)  # the bands' centres [nm]
+    if kind == "landsat":
+        with pytest.raises(ParameterError, match=r"the image's band wavelengths are needed \(a 'wavelength' coordinate"):
+            series.reflectance.drop_vars("wavelength").brdf.normalize(None, series.angles, series.table,
+                                                                     reference=reference)
+
+
 # --- STAC items with local assets ---------------------------------------------------------------
 
 @pytest.mark.parametrize("layout", ["earth_search", "planetary_computer"])
