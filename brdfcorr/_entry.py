@@ -44,6 +44,7 @@ _OPTIONS: dict[str, dict[Entry, str]] = {
     "angles_kind_envi": {"cli": "--angles-kind envi_obs", "chain": "inputs.angles.kind: envi_obs",
                          "python": "brdfcorr.io.sensors.read_angles('envi_obs', path, like=image)"},
     "degrees": {"cli": "", "chain": "", "python": " (np.degrees converts them)"},
+    "bands": {"cli": "--bands", "chain": "bands", "python": "bands="},
     "reference_sza": {"cli": "--ref-sza", "chain": "steps.correct.reference.sza", "python": "reference={'sza': ...}"},
 }
 

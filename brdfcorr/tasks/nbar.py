@@ -88,12 +88,22 @@ class NbarMethod:
 
 
 def nbar_table(product: ProductFolder, coefficients: str = "roy2017") -> ParameterTable:
-    """The one-class table (id 1) of the product's bands, in band order, from the built-in
-    coefficient set ``coefficients`` (weights divided by pi: sr^-1)."""
+    """The one-class table (id 1) of the product's bands from the built-in coefficient set
+    ``coefficients``: each band's weights (divided by pi: sr^-1) at its centre [nm] (the class's
+    ``wavelengths``, ascending).
+
+    The table carries the bands' identities as wavelengths, so it is matched to an image by the
+    image's band centres (its ``wavelength`` coordinate or tag, :mod:`brdfcorr.params.bands`), as
+    every table with wavelengths is, not by position: a cube of the product's bands in another
+    order, or some of them, takes each band's own weights (a band centre between the product's is
+    interpolated, one outside them refused without ``extrapolate``; an image without band centres
+    is refused, naming how to give them).
+    """
     library = load_coefficients(coefficients)
-    entry = library.table_entry(1, sensor=product.sensor, bands=list(product.bands),
+    bands = sorted(zip(product.wavelengths, product.bands, strict=True))  # (centre [nm], name), ascending
+    entry = library.table_entry(1, sensor=product.sensor, bands=[name for _, name in bands],
                                 name=f"{library.name} ({product.sensor})")
-    return ParameterTable(classes=[ClassEntry(**entry)])
+    return ParameterTable(classes=[ClassEntry(**entry, wavelengths=[centre for centre, _ in bands])])
 
 
 def nbar_files(product: str | os.PathLike, outputs: OutputFiles, *, resolution: int | None = None,
@@ -273,8 +283,9 @@ def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: Ou
     flags of every band combined (a flag of any band is the pixel's); the counts of those and the
     reference geometry."""
     parts, reference = [], None
-    for (name, _), band_stack in zip(folder.bands.items(), band_stacks(stack, scratch)):
-        one = replace(folder, bands={name: folder.bands[name]})
+    for index, (name, band_stack) in enumerate(zip(folder.bands, band_stacks(stack, scratch))):
+        one = replace(folder, bands={name: folder.bands[name]}, wavelengths=folder.wavelengths[index:index + 1],
+                      scales=folder.scales[index:index + 1], offsets=folder.offsets[index:index + 1])
         part = OutputFiles(scratch / f"nbar_{name}.tif", qa=scratch / f"qa_{name}.tif", compress="none")
         reference = correct_files(_request(one, SceneSources(band_stack, None, folder.angles),
                                            {**folder.angle_options, "band": name},

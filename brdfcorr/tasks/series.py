@@ -58,7 +58,9 @@ class ProductSeries:
         own angle source (Sentinel-2 ``MTD_TL.xml``, the mean of the bands' view grids; Landsat
         angle bands or ``ANG.txt``).
     table : ParameterTable
-        One class (id 1) with the coefficient set's weights of the bands, in band order.
+        One class (id 1) with the coefficient set's weights of the bands at their centres [nm]
+        (:func:`brdfcorr.tasks.nbar.nbar_table`): matched to a cube's bands by its ``wavelength``
+        coordinate, in any order or subset.
     products : tuple of ProductFolder
         The folders in time order.
     """

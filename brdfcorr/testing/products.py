@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import re
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import xarray as xr
@@ -131,17 +132,41 @@ def write_sentinel2_safe(directory: str | os.PathLike, mtd_tl: str | os.PathLike
     return safe
 
 
-#: Asset keys of the Earth Search ``sentinel-2-l2a`` items (common names) by band.
-_STAC_KEYS = {"B02": "blue", "B03": "green", "B04": "red", "B05": "rededge1", "B06": "rededge2", "B07": "rededge3",
-              "B08": "nir", "B8A": "nir08", "B11": "swir16", "B12": "swir22", "SCL": "scl"}
+#: The band assets of Earth Search v1 ``sentinel-2-l2a`` items, copied from a real one
+#: (``sentinel-s2-l2a-cogs/39/Q/TA/2023/6/S2A_39QTA_20230628_0_L2A``): per band, the asset key, which
+#: is also its ``eo:bands`` name, the entry's ``common_name`` and ``center_wavelength`` [µm]. The
+#: Planetary Computer keys and names the assets by band (``B04``) instead.
+_EARTH_SEARCH_V1 = {"B02": ("blue", "blue", 0.49), "B03": ("green", "green", 0.56), "B04": ("red", "red", 0.665),
+                    "B05": ("rededge1", "rededge", 0.704), "B06": ("rededge2", "rededge", 0.74),
+                    "B07": ("rededge3", "rededge", 0.783), "B08": ("nir", "nir", 0.842),
+                    "B8A": ("nir08", "nir08", 0.865), "B11": ("swir16", "swir16", 1.61),
+                    "B12": ("swir22", "swir22", 2.19)}
 
 
-def write_stac_item(safe: str | os.PathLike, *, scaling: bool = True) -> Path:
-    """A STAC item (JSON, beside ``safe``) of a SAFE folder written by :func:`write_sentinel2_safe`,
-    laid out as Earth Search's ``sentinel-2-l2a`` items are: one asset per band under its common
-    name with its ``eo:bands`` name and (with ``scaling``) ``raster:bands`` scale 0.0001 and offset
-    -0.1, ``scl`` and ``granule_metadata``; hrefs relative to the item. The bands are the SAFE's
-    20 m files (B08 its 10 m file), so the item reads the same pixels as the folder at 20 m."""
+def _stac_band_asset(band: str, href: str, layout: str, scaling: bool) -> tuple[str, dict]:
+    """(key, asset) of one band file in ``layout`` (:func:`write_stac_item`)."""
+    key, common, microns = _EARTH_SEARCH_V1[band]
+    name = key if layout == "earth_search" else band
+    asset = {"href": href, "type": "image/tiff; application=geotiff", "roles": ["data", "reflectance"],
+             "eo:bands": [{"name": name, "common_name": common, "center_wavelength": microns}]}
+    if scaling:
+        asset["raster:bands"] = [{"nodata": 0, "data_type": "uint16", "scale": 0.0001, "offset": -0.1}]
+    return name, asset
+
+
+def write_stac_item(safe: str | os.PathLike, *, scaling: bool = True,
+                    layout: Literal["earth_search", "planetary_computer"] = "earth_search") -> Path:
+    """A STAC item (JSON, beside ``safe``) of a SAFE folder written by :func:`write_sentinel2_safe`.
+
+    ``layout="earth_search"``: as Earth Search v1 publishes ``sentinel-2-l2a`` items
+    (:data:`_EARTH_SEARCH_V1`): one asset per band keyed by its common name (``red``, ``nir08``),
+    its ``eo:bands`` entry named so too, ``scl`` and ``granule_metadata``, and beside each band its
+    JPEG 2000 copy (``red-jp2``, the same ``eo:bands`` entry) at a remote ``s3://`` href, as in the
+    real items. ``layout="planetary_computer"``: keys and ``eo:bands`` names the band names
+    (``B04``), ``SCL`` and ``granule-metadata``. With ``scaling``, each band's ``raster:bands`` scale
+    0.0001 and offset -0.1. Local hrefs are relative to the item. The bands are the SAFE's 20 m
+    files (B08 its 10 m file), so the item reads the same pixels as the folder at 20 m.
+    """
     import json
 
     from brdfcorr.io.sensors.sentinel2 import parse_mtd_tl
@@ -149,21 +174,24 @@ def write_stac_item(safe: str | os.PathLike, *, scaling: bool = True) -> Path:
     safe = Path(safe)
     granule = next(safe.glob("GRANULE/*"))
     tile = parse_mtd_tl(granule / "MTD_TL.xml")
-    assets = {}
-    for band, key in _STAC_KEYS.items():
+    assets, copies = {}, {}
+    for band in _EARTH_SEARCH_V1:
         resolution = 10 if band == "B08" else 20
         file = next((granule / "IMG_DATA" / f"R{resolution}m").glob(f"*_{band}_{resolution}m.jp2"))
-        asset = {"href": str(file.relative_to(safe.parent)), "type": "image/tiff; application=geotiff",
-                 "roles": ["data"], "eo:bands": [{"name": band}]}
-        if scaling and band != "SCL":
-            asset["raster:bands"] = [{"nodata": 0, "data_type": "uint16", "scale": 0.0001, "offset": -0.1}]
+        key, asset = _stac_band_asset(band, str(file.relative_to(safe.parent)), layout, scaling)
         assets[key] = asset
-    assets["granule_metadata"] = {"href": str((granule / "MTD_TL.xml").relative_to(safe.parent)),
-                                  "type": "application/xml", "roles": ["metadata"]}
+        if layout == "earth_search":  # the real items' remote JPEG 2000 copy, of the same eo:bands name
+            copies[f"{key}-jp2"] = {**asset, "href": f"s3://sentinel-s2-l2a/tiles/{band}.jp2", "type": "image/jp2"}
+    scl = next((granule / "IMG_DATA" / "R20m").glob("*_SCL_20m.jp2"))
+    assets["scl" if layout == "earth_search" else "SCL"] = {
+        "href": str(scl.relative_to(safe.parent)), "type": "image/tiff; application=geotiff", "roles": ["data"]}
+    assets["granule_metadata" if layout == "earth_search" else "granule-metadata"] = {
+        "href": str((granule / "MTD_TL.xml").relative_to(safe.parent)), "type": "application/xml",
+        "roles": ["metadata"]}
     item = {"type": "Feature", "stac_version": "1.0.0", "id": safe.stem, "geometry": None,
             "properties": {"datetime": tile.sensing_time.isoformat(), "platform": "sentinel-2a",
                            "constellation": "sentinel-2", "s2:processing_baseline": "04.00"},
-            "links": [], "assets": assets}
+            "links": [], "assets": {**assets, **copies}}
     path = safe.parent / f"{safe.stem}.json"
     path.write_text(json.dumps(item, indent=1))
     return path

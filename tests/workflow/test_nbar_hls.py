@@ -190,3 +190,38 @@ def test_a_band_on_a_shifted_grid_is_named_not_the_fmask(granule, tmp_path):
     """A band shifted against the others was blamed on the Fmask (issue 39)."""
     line = _refusal_of_a_shifted_file(granule, tmp_path, "*.B8A.tif", 1)
     assert re.search(r"B8A\.tif: band B8A is not on the grid of band B04 \S+B04\.tif: ", line), line
+
+
+def _second_granule(granule: Path, granule_id: str) -> None:
+    """Copies of the granule's files under another granule's id, beside them in its folder (as
+    earthaccess downloads a search's granules into one folder)."""
+    import shutil
+
+    for file in sorted(granule.glob("HLS.S30.T33UUP.2023166T101559.v2.0.*.tif")):
+        shutil.copy(file, granule / file.name.replace("HLS.S30.T33UUP.2023166T101559.v2.0", granule_id))
+
+
+@pytest.mark.parametrize("other", ["HLS.S30.T33UUP.2023171T101601.v2.0",  # another date: its Fmask was read
+                                   "HLS.L30.T33UUP.2023168T094512.v2.0"])  # L30: its B05 (NIR) is not S30's B05
+def test_a_folder_of_several_granules_is_refused_naming_them(granule, tmp_path, other):
+    """The bands of one granule were read with the Fmask of another, and an S30 + L30 folder read
+    the S30 red-edge B05 as the L30 NIR B05 (a bug hunt): now one line naming both granules."""
+    _second_granule(granule, other)
+    output = tmp_path / "out.tif"
+    result = run("nbar", granule, "--ref-sza", "45", "-o", output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and not output.exists(), result.stderr
+    assert "2 HLS granules in one folder" in lines[0]
+    assert "HLS.S30.T33UUP.2023166T101559.v2.0" in lines[0] and other in lines[0]
+
+
+def test_a_band_named_twice_is_one_line_naming_it(granule, tmp_path):
+    """``--bands B04,B04`` was an internal AlignmentError, exit 1 (a bug hunt)."""
+    output = tmp_path / "out.tif"
+    result = run("nbar", granule, "--bands", "B04,B8A,B04", "--ref-sza", "45", "-o", output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and not output.exists(), result.stderr
+    assert lines[0] == f"brdfcorr: error: {granule}: band B04 is named more than once in --bands (B04, B8A, B04); " \
+                       "name each band once"

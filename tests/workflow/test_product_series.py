@@ -76,14 +76,44 @@ def test_the_example_writes_a_series_that_opens(tmp_path, monkeypatch):
     np.testing.assert_allclose(np.diff(suns), [-12.5, -12.5], atol=1e-9)
 
 
+@pytest.mark.parametrize("kind", ["sentinel2", "landsat"])
+def test_the_table_follows_the_cubes_bands_not_their_positions(folders, tmp_path, kind):
+    """The c-factor corrects each band on its own, so a cube of the series' bands in another order,
+    or some of them, must give each band the values it has in the whole cube. The series' table
+    was applied by position: the reversed cube took the weights of the band at the mirrored place,
+    about 1 % off (a bug hunt). It now carries the bands' centres [nm] and is matched to the cube's
+    ``wavelength`` coordinate; Landsat's SR_B* names alone give none, so a cube without the
+    coordinate is refused rather than corrected by position."""
+    from brdfcorr.errors import ParameterError
+
+    products = folders[:1] if kind == "sentinel2" else [write_landsat_c2(tmp_path, size=8, angle_bands=True)]
+    series = open_products(products)
+    reference = {"sza": 45.0}
+    whole, _ = series.reflectance.brdf.normalize(None, series.angles, series.table, reference=reference)
+    for picked in (slice(None, None, -1), [2, 0]):
+        cube = series.reflectance.isel(band=picked)
+        part, _ = cube.brdf.normalize(None, series.angles, series.table, reference=reference)
+        expected = whole.sel(band=cube["band"].values)
+        np.testing.assert_allclose(part.values, expected.values, rtol=1e-6, equal_nan=True)
+    assert series.table[1].wavelengths == sorted(series.products[0].wavelengths)  # the bands' centres [nm]
+    if kind == "landsat":
+        with pytest.raises(ParameterError, match=r"the image's band wavelengths are needed \(a 'wavelength' coordinate"):
+            series.reflectance.drop_vars("wavelength").brdf.normalize(None, series.angles, series.table,
+                                                                     reference=reference)
+
+
 # --- STAC items with local assets ---------------------------------------------------------------
 
-def test_stac_items_read_as_their_safe_folders(folders, tmp_path):
-    """An item written from each SAFE folder (Earth Search's layout) gives the same cube and angles,
-    and `brdfcorr nbar item.json` the same file as `brdfcorr nbar FOLDER`."""
+@pytest.mark.parametrize("layout", ["earth_search", "planetary_computer"])
+def test_stac_items_read_as_their_safe_folders(folders, tmp_path, layout):
+    """An item written from each SAFE folder gives the same cube and angles, and `brdfcorr nbar
+    item.json` the same file as `brdfcorr nbar FOLDER`: in Earth Search v1's layout (assets keyed
+    and their eo:bands named by common name, red, nir08, each beside a remote JPEG 2000 copy of the
+    same name; refused as "no asset for B02, ..." before, a bug hunt) and the Planetary Computer's
+    (B04)."""
     from brdfcorr.testing import write_stac_item
 
-    items = [write_stac_item(folder) for folder in folders]
+    items = [write_stac_item(folder, layout=layout) for folder in folders]
     by_folder, by_item = open_products(folders), open_products(items)
     np.testing.assert_array_equal(by_item.reflectance.values, by_folder.reflectance.values)
     for name in ("sza", "saa", "vza", "vaa"):
@@ -96,6 +126,17 @@ def test_stac_items_read_as_their_safe_folders(folders, tmp_path):
         with rasterio.open(output) as dataset:
             outputs.append(dataset.read())
     np.testing.assert_array_equal(*outputs)
+
+
+def test_the_earth_search_nir_bands_are_b08_and_b8a(folders):
+    """Earth Search v1 keys B08 as ``nir`` and B8A as ``nir08`` (the real item
+    S2A_39QTA_20230628_0_L2A: nir is B08.tif, nir08 B8A.tif): at 10 m both, as the folder reads them."""
+    from brdfcorr.testing import write_stac_item
+
+    by_folder = open_products(folders[:1], resolution=10, bands=["B08", "B8A"])
+    by_item = open_products([write_stac_item(folders[0])], resolution=10, bands=["B08", "B8A"])
+    assert [file.name[-11:] for file in by_item.products[0].bands.values()] == ["B08_10m.jp2", "B8A_20m.jp2"]
+    np.testing.assert_array_equal(by_item.reflectance.values, by_folder.reflectance.values)
 
 
 def test_an_item_without_raster_scaling_takes_esas_of_its_baseline(folders):

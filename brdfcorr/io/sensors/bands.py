@@ -3,11 +3,17 @@
 
 from __future__ import annotations
 
+import os
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "named_band_wavelengths", "ProductBands"]
+from brdfcorr._entry import option
+from brdfcorr.errors import SensorInputError
+
+__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "named_band_wavelengths", "ProductBands",
+           "band_list"]
 
 #: Central wavelengths [nm] of the Sentinel-2A MSI bands (ESA, Sentinel-2 spectral response
 #: functions, COPE-GSEG-EOPG-TN-15-0007). Sentinel-2B's centres differ by 3 nm or less in B01 to
@@ -39,6 +45,22 @@ def landsat_oli_band(text: str | None) -> int | None:
     """Band number of a Landsat OLI band name (``"SR_B4"``, ``"B4"``, ``"B04"``) of bands 1-7, or None."""
     match = re.fullmatch(r"(?:SR_)?B0?([1-7])", (text or "").strip(), re.I)
     return int(match[1]) if match else None
+
+
+def band_list(source: str | os.PathLike, bands: Sequence[str] | None) -> tuple[str, ...] | None:
+    """The band names asked of a product reader (``bands``, in output order) as a tuple, or None
+    where none were asked; a band named more than once is one :class:`SensorInputError` naming it
+    and ``source`` (the readers key their files by band name, so a repeated band would be read once
+    while its wavelengths and sun zeniths were counted twice)."""
+    if bands is None:
+        return None
+    names = tuple(bands)
+    repeated = [name for index, name in enumerate(names) if name in names[:index]]
+    if repeated:
+        twice = ", ".join(dict.fromkeys(repeated))
+        raise SensorInputError(f"{source}: band {twice} is named more than once in {option('bands')} "
+                               f"({', '.join(names)}); name each band once")
+    return names
 
 
 def named_band_wavelengths(descriptions, tags) -> tuple[list[float] | None, str]:

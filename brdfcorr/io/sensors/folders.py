@@ -47,7 +47,7 @@ from rasterio.vrt import WarpedVRT
 from brdfcorr.errors import OutputError, SensorInputError
 from brdfcorr.io.files import atomic_path, read_xml, write_cause
 from brdfcorr.io.paths import check_outputs
-from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands
+from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands, band_list
 from brdfcorr.io.sensors.grids import check_covers
 from brdfcorr.io.sensors.hls import find_hls_granule, hls_refusal
 from brdfcorr.io.sensors.landsat import find_angle_bands
@@ -260,10 +260,12 @@ def _band_file(safe: Path, band: str, resolution: int) -> Path:
 
 def sentinel2_band_names(source: Path, resolution: int, bands: Sequence[str] | None) -> tuple[str, ...]:
     """The Sentinel-2 bands read at ``resolution`` (10 or 20 m): ``bands`` (checked) or the
-    default :data:`SENTINEL2_BANDS` of the resolution; one error naming ``source`` otherwise."""
+    default :data:`SENTINEL2_BANDS` of the resolution; one error naming ``source`` otherwise (a
+    band named twice: :func:`~brdfcorr.io.sensors.bands.band_list`)."""
+    asked = band_list(source, bands)
     if resolution not in SENTINEL2_BANDS:
         raise SensorInputError(f"{source}: Sentinel-2 resolution must be 10 or 20 m, got {resolution}")
-    names = tuple(bands) if bands is not None else SENTINEL2_BANDS[resolution]
+    names = asked if asked is not None else SENTINEL2_BANDS[resolution]
     unknown = [name for name in names if name not in BAND_NAMES]
     if unknown or not names:
         raise SensorInputError(f"{source}: unknown Sentinel-2 band(s) {unknown}; bands are {', '.join(BAND_NAMES)}")
@@ -281,7 +283,7 @@ def find_sentinel2_l2a(path: str | Path, *, resolution: int = 20, bands: Sequenc
     resolution : {10, 20}
         Output pixel size [m]; bands of another resolution are resampled onto its grid.
     bands : sequence of str, optional
-        Band names in output order (default: :data:`SENTINEL2_BANDS` of the resolution).
+        Band names in output order, each once (default: :data:`SENTINEL2_BANDS` of the resolution).
     masked : sequence of int, optional
         SCL classes that become no data (default :data:`SCL_MASKED`; ``()``: only DN 0).
     """
@@ -325,12 +327,13 @@ def find_landsat_c2_l2(path: str | Path, *, bands: Sequence[str] | None = None,
     path : path-like
         The folder with ``*_SR_B<n>.TIF``, ``*_QA_PIXEL.TIF`` and ``*_ANG.txt``.
     bands : sequence of str, optional
-        Band names (``SR_B4``) in output order (default: the six reflective bands with published
-        coefficients, in band order).
+        Band names (``SR_B4``) in output order, each once (default: the six reflective bands with
+        published coefficients, in band order).
     masked : sequence of int, optional
         QA_PIXEL bits that make a pixel no data (default :data:`QA_PIXEL_MASKED`; ``()``: fill only).
     """
     folder = Path(path)
+    bands = band_list(folder, bands)
     sr_files = {f"SR_B{_SR_BAND.search(p.name)[1]}": p for p in sorted(folder.iterdir()) if _SR_BAND.search(p.name)}
     if not sr_files:
         raise SensorInputError(f"{folder}: no Landsat surface reflectance band (*_SR_B<n>.TIF)")

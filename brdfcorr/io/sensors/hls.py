@@ -23,11 +23,12 @@ from pathlib import Path
 import rasterio
 
 from brdfcorr.errors import SensorInputError
-from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands
+from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, ProductBands, band_list
 
 __all__ = ["HlsGranule", "find_hls_granule", "hls_refusal", "HLS_FMASK_MASKED"]
 
-_HLS_FILE = re.compile(r"^HLS\.(S30|L30)\..*\.(B\w+|Fmask)\.tiff?$", re.IGNORECASE)
+#: An HLS v2.0 file name: the granule id (``HLS.S30.T33UUP.2023166T101559.v2.0``), its product, the band.
+_HLS_FILE = re.compile(r"^(HLS\.(S30|L30)\..*)\.(B\w+|Fmask)\.tiff?$", re.IGNORECASE)
 #: Fmask bits that make a pixel no data by default: cloud, adjacent to cloud or shadow, cloud shadow.
 HLS_FMASK_MASKED = (1, 2, 3)
 #: Per product: the coefficient library's sensor key and, per HLS band with published coefficients
@@ -71,7 +72,16 @@ class HlsGranule(ProductBands):
 
 
 def _hls_files(path: Path) -> list[Path]:
-    return sorted(p for p in path.iterdir() if _HLS_FILE.match(p.name)) if path.is_dir() else []
+    """The HLS files in folder ``path``, all of one granule: a folder of several (earthaccess
+    downloads a search's granules into one) is one :class:`SensorInputError` naming their ids,
+    as the bands of one date with the Fmask of another, or an S30 B05 (red edge) read as an
+    L30 B05 (NIR), would be silently wrong."""
+    files = sorted(p for p in path.iterdir() if _HLS_FILE.match(p.name)) if path.is_dir() else []
+    granules = list(dict.fromkeys(_HLS_FILE.match(file.name)[1] for file in files))
+    if len(granules) > 1:
+        raise SensorInputError(f"{path}: {len(granules)} HLS granules in one folder ({', '.join(granules)}); "
+                               "brdfcorr reads one granule per folder: move each into a folder of its own")
+    return files
 
 
 def _nbar_sza(path: Path) -> float | None:
@@ -109,10 +119,12 @@ def find_hls_granule(path: str | Path, bands: Sequence[str] | None = None) -> Hl
     Raises
     ------
     SensorInputError
-        A band asked for is missing or has no published coefficients, or the band files carry no
-        readable ``NBAR_SOLAR_ZENITH`` tag.
+        The folder holds files of more than one granule; a band asked for is named twice, is
+        missing or has no published coefficients; the band files carry no readable
+        ``NBAR_SOLAR_ZENITH`` tag.
     """
     path = Path(path)
+    bands = band_list(path, bands)
     files = _hls_files(path)
     if not files:
         return None

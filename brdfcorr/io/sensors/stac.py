@@ -9,8 +9,11 @@ the item file, or absolute local paths), the item is a :class:`~brdfcorr.io.sens
 like a SAFE folder: ``brdfcorr nbar item.json`` and :func:`brdfcorr.tasks.series.open_products`
 take it.
 
-How the assets are recognised: a band by the name of its ``eo:bands`` entry (``B04``; STAC 1.1's
-``bands``), else by the asset's key; the scene classification by the name or key ``SCL``/``scl``;
+How the assets are recognised: a band by its asset's key, else by the name of its one ``eo:bands``
+entry (STAC 1.1's ``bands``), each either the band's name (``B04``: the Planetary Computer) or its
+common name (``red``, ``nir08``: Earth Search v1, :data:`COMMON_NAMES`); where two assets hold a
+band, the one keyed by it (Earth Search v1's COG ``blue`` before its JPEG 2000 copy ``blue-jp2``,
+whose ``eo:bands`` name is ``blue`` too); the scene classification by the name or key ``SCL``/``scl``;
 the granule metadata by the key ``granule_metadata`` (Earth Search) or ``granule-metadata``
 (Planetary Computer), else by a file named ``MTD_TL.xml``. The scaling of each band is its
 asset's ``raster:bands`` ``scale`` and ``offset`` (reflectance = DN x scale + offset); an asset
@@ -29,7 +32,7 @@ import rasterio
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.files import read_regular
-from brdfcorr.io.sensors.bands import SENTINEL2_WAVELENGTHS
+from brdfcorr.io.sensors.bands import SENTINEL2_WAVELENGTHS, sentinel2_band
 from brdfcorr.io.sensors.folders import (
     OFFSET_RANGE,
     QUANTIFICATION_RANGE,
@@ -43,6 +46,13 @@ __all__ = ["find_stac_item", "is_stac_item"]
 
 #: Keys of the granule metadata asset in the public catalogues (Earth Search, Planetary Computer).
 METADATA_KEYS = ("granule_metadata", "granule-metadata")
+#: Sentinel-2 bands by the common names (STAC ``eo`` extension) that key their assets and name
+#: their ``eo:bands`` entries in Earth Search v1's ``sentinel-2-l2a`` items (e.g. item
+#: ``S2A_39QTA_20230628_0_L2A``: asset ``red``, ``eo:bands`` ``[{"name": "red", ...}]``, file B04.tif).
+#: The entries' ``common_name`` is not read: ``rededge1`` to ``rededge3`` all carry ``rededge``.
+COMMON_NAMES = {"coastal": "B01", "blue": "B02", "green": "B03", "red": "B04", "rededge1": "B05",
+                "rededge2": "B06", "rededge3": "B07", "nir": "B08", "nir08": "B8A", "nir09": "B09",
+                "swir16": "B11", "swir22": "B12"}
 
 
 def _item(path: Path) -> dict:
@@ -62,20 +72,36 @@ def _item(path: Path) -> dict:
     return item
 
 
-def _asset_name(key: str, asset: Mapping) -> str:
-    """The band name an asset holds: its ``eo:bands`` (or STAC 1.1 ``bands``) entry's, else its key."""
+def _band(text: str | None) -> str | None:
+    """The Sentinel-2 band (``B04``) a band name or common name (:data:`COMMON_NAMES`) names, ``SCL``
+    for ``SCL``/``scl``, or None."""
+    if (text or "").upper() == "SCL":
+        return "SCL"
+    return COMMON_NAMES.get(text or "") or sentinel2_band(text)
+
+
+def _eo_name(asset: Mapping) -> str | None:
+    """The name of an asset's one ``eo:bands`` (or STAC 1.1 ``bands``) entry, or None."""
     for field in ("eo:bands", "bands"):
         entries = asset.get(field)
         if isinstance(entries, list) and len(entries) == 1 and isinstance(entries[0], dict) and entries[0].get("name"):
             return str(entries[0]["name"])
-    return key
+    return None
 
 
 def _assets(item: Mapping) -> dict[str, tuple[str, Mapping]]:
-    """(key, asset) of the item's assets by what they hold: band names, ``SCL``, ``granule metadata``."""
-    assets = {_asset_name(key, asset): (key, asset) for key, asset in item["assets"].items() if isinstance(asset, dict)}
-    if "scl" in assets and "SCL" not in assets:
-        assets["SCL"] = assets["scl"]
+    """(key, asset) of the item's assets by what they hold: band names, ``SCL``, ``granule metadata``;
+    a band by the asset keyed by it, else by the first whose ``eo:bands`` entry names it (module docstring)."""
+    by_key: dict[str, tuple[str, Mapping]] = {}
+    by_name: dict[str, tuple[str, Mapping]] = {}
+    for key, asset in item["assets"].items():
+        if not isinstance(asset, dict):
+            continue
+        if (band := _band(key)) is not None:
+            by_key.setdefault(band, (key, asset))
+        if (band := _band(_eo_name(asset))) is not None:
+            by_name.setdefault(band, (key, asset))
+    assets = {**by_name, **by_key}
     metadata = [(key, asset) for key, asset in item["assets"].items() if isinstance(asset, dict)
                 and (key in METADATA_KEYS or str(asset.get("href", "")).endswith("MTD_TL.xml"))]
     if metadata:
@@ -139,7 +165,8 @@ def find_stac_item(path: str | Path, *, resolution: int = 20, bands: Sequence[st
     assets = _assets(item)
     missing = [name for name in (*names, "SCL", "granule metadata") if name not in assets]
     if missing:
-        raise SensorInputError(f"{path}: the item has no asset for {', '.join(missing)}")
+        raise SensorInputError(f"{path}: the item has no asset for {', '.join(missing)} (assets are known by "
+                               "their key or eo:bands name: a band name, B04, or a common name, red)")
     raw_baseline = (item.get("properties") or {}).get("s2:processing_baseline")
     baseline = float(raw_baseline) if raw_baseline is not None else None
     files, scalings = {}, []
