@@ -56,7 +56,7 @@ from brdfcorr.fit.settings import (
     fallback_entry,
 )
 from brdfcorr.fit.shapes import DEFAULT_FIXED, SEARCH_RANGES, intensity_terms, search_range
-from brdfcorr.fit.solver import GRID_POINTS, fit_class_samples
+from brdfcorr.fit.solver import GRID_POINTS, LEVEL_TOLERANCE, MAX_LEVEL_ITERATIONS, fit_class_samples
 from brdfcorr.fit.within import Levels
 from brdfcorr.io.wavelengths import with_wavelengths
 from brdfcorr.models import REGISTRY, Model, get_model
@@ -93,7 +93,15 @@ SUGGEST_GRID = 5
 
 
 class ClassFitWarning(BrdfcorrWarning):
-    """A class failed a guard rail and fell back to a built-in material or to no correction."""
+    """A class of an imagery fit needs a look: it failed a guard rail and fell back to a built-in
+    material or to no correction, its free levels did not converge, or the class settings name
+    classes that the fit does not have."""
+
+
+def _warn(report: ClassFit, note: str) -> None:
+    """``note`` in the class's notes, and a :class:`ClassFitWarning` naming the class."""
+    report.notes.append(note)
+    warnings.warn(f"class {report.class_id} ({report.name}): {note}", ClassFitWarning, stacklevel=3)
 
 
 def _spread(values: np.ndarray) -> float:
@@ -269,6 +277,9 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
                                scenes=samples.scene if samples.scene_errors else None)
     result = _held_if_poor(result)
     _record(report, result)
+    if not result["levels_converged"]:  # kept, but said: its shape may be off by about the last change
+        _warn(report, f"free levels did not converge to {LEVEL_TOLERANCE:g} within {MAX_LEVEL_ITERATIONS} "
+                      "repetitions of the fit (brdfcorr.fit.solver): the shape may be slightly off")
     report.notes += [held.note(name) for name, held in result["held"].items()]
     if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
         _apply_prior(report, *prior, samples, levels)
