@@ -258,7 +258,8 @@ def fit_one_class(class_id: int, name: str, model: str | Model, samples: ClassSa
         phi_spread=_spread(np.asarray(samples.phi)), fallback=fallback, notes=notes, model_choice=choice,
         levels=samples.levels,
     )
-    report.reasons = _sample_reasons(report, guard)
+    # A band empty at every pixel sampled leaves no sample: that is the reason, not the count.
+    report.reasons = [samples.empty_reason] if samples.empty_reason else _sample_reasons(report, guard)
     if report.n_samples >= max(len(model.parameters) + 1, 3):
         _fit_samples(report, model, samples, fixed, grid_points, prior, guard)
     if report.reasons:
