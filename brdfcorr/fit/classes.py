@@ -509,7 +509,8 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         fallback materials. A model name or model alone stands for ``ClassModels(model)``. A class
         that fails its guard rails gets its fallback material or, without one, is left out of the
         table (left uncorrected, and flagged by the correction); either way a
-        :class:`ClassFitWarning` says so.
+        :class:`ClassFitWarning` says so, as it names the classes that per-class settings name
+        but the class maps do not hold (:meth:`ClassModels.unused`).
     sampling : Sampling, default Sampling()
         Samples per class, seed, reflectance scale, bad bands and spatial block size of the sampler
         (:func:`sample_classes`; the errors are cluster-robust over the blocks, and over the
@@ -559,6 +560,9 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     scenes, wavelengths, used_ranges, left_out = _without_bad_bands(scenes, wavelengths, sampling.bad_bands)
     pooled = sample_classes(scenes, classes, angles, class_ids=models.class_ids, sampling=sampling, clusters=clusters,
                             min_repeated=guard.min_samples)
+    unused = models.unused(pooled)
+    if unused is not None:
+        warnings.warn(unused, ClassFitWarning, stacklevel=2)
     prior = _prior(models, wavelengths)
     tasks = {}
     for class_id, samples in pooled.items():

@@ -1,8 +1,10 @@
 """What an imagery fit makes of inputs that hold less than its settings expect: a band without a
 finite value in one small class (that class fails, the others are fitted) or in every class (the
-band is bad for the image)."""
+band is bad for the image), and class settings that name classes no class map holds."""
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import pytest
@@ -57,3 +59,25 @@ def test_a_band_empty_in_every_class_is_refused_for_the_image():
                                          r"class \(3 classes; .*leave the band out of the image$"):
         fit_classes(image, classes, angles, ClassModels("ross_thick_li_sparse"), guard=GUARD)
 
+
+def test_class_settings_for_classes_the_fit_does_not_have_are_named():
+    image, classes, angles = _scene(small_class=False)
+    models = ClassModels("ross_thick_li_sparse", class_models={9: "rpv", 1: "ross_thin_li_sparse"},
+                         names={9: "foo", 12: "bar", 2: "soil"}, fallback={9: "roy2016"})
+    with pytest.warns(ClassFitWarning, match=r"^the class settings name classes 9, 12 that no class map holds "
+                                             r"\(class_models 9; names 9, 12; fallback 9\): not used$"):
+        result = fit_classes(image, classes, angles, models, guard=GUARD)
+    assert [(fit.model, fit.name) for fit in result.fits] == [("ross_thin_li_sparse", "class_1"),
+                                                              ("ross_thick_li_sparse", "soil")]
+    chosen = ClassModels("ross_thick_li_sparse", names={2: "soil"}, class_ids=[1])
+    with pytest.warns(ClassFitWarning, match=r"name class 2 that the class_ids leave out \(names 2\)"):
+        fit_classes(image, classes, angles, chosen, guard=GUARD)
+
+
+def test_class_settings_of_classes_fitted_give_no_warning():
+    image, classes, angles = _scene(small_class=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ClassFitWarning)
+        # default_names (a strata map's tags, a chain's table) describe what a map may hold: not checked
+        fit_classes(image, classes, angles, ClassModels("ross_thick_li_sparse", names={1: "veg", 2: "soil"},
+                                                        default_names={5: "water"}), guard=GUARD)
