@@ -273,7 +273,7 @@ class ImageryFit(step_fields(FIT_CLASSES, "fit")):  # type: ignore[misc]
         scenes' view azimuths are stored as seen from the sensor: fitted as they are corrected)."""
         return {
             "models": ClassModels(self.model, class_models=self.class_models, fixed=self.fixed,
-                                  fallback=self.fallback, names={**(names or {}), **self.names},
+                                  fallback=self.fallback, names=self.names, default_names=names,
                                   prior=None if self.prior is None
                                   else ShapePrior.given(self.prior, self.prior_spread)),
             "sampling": Sampling(max_samples=self.max_samples, seed=self.seed, block_size=self.block_size,

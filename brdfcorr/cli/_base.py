@@ -489,10 +489,16 @@ CLASS_NAME = ClassPair("NAME")
 CLASS_MODEL = ClassPair("MODEL")
 
 
+def _draw_figure(figure, path: Path, target: Path, *, dpi: int = 110) -> None:
+    """Draw ``figure`` into ``path`` (a temporary file of a joint write,
+    :func:`brdfcorr.io.files.atomic_paths`) in the format of ``target``'s suffix (png without one)."""
+    figure.savefig(path, dpi=dpi, format=target.suffix.lstrip(".") or "png")
+
+
 def _save_figure(figure, target: Path, *, dpi: int = 110, echo: bool = True) -> None:
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as temporary:
-        figure.savefig(temporary, dpi=dpi, format=target.suffix.lstrip(".") or "png")
+        _draw_figure(figure, temporary, target, dpi=dpi)
     if echo:
         click.echo(f"wrote {target}")
 

@@ -14,8 +14,8 @@ from brdfcorr.cli._base import (
     NAME_RANGE,
     NAME_VALUE,
     PROGRESS,
+    _draw_figure,
     _format_table,
-    _save_figure,
     class_bar,
     handle_errors,
     main,
@@ -25,8 +25,8 @@ from brdfcorr.cli._inputs import (
     prior_setting,
 )
 from brdfcorr.cli._settings import setting_options
-from brdfcorr.errors import InputError, OutputError
-from brdfcorr.io.files import atomic_path
+from brdfcorr.errors import InputError
+from brdfcorr.io.files import atomic_paths
 from brdfcorr.io.paths import check_outputs, refuse_existing, update_target
 from brdfcorr.tasks.options import FIT_CLASSES
 
@@ -150,15 +150,25 @@ def fit_classes_command(images, angles, angles_kind, angle_option, classes, alig
     if shape_prior is not None:
         moved = sum(class_fit.prior is not None and class_fit.status == "fitted" for class_fit in fit.result.fits)
         click.echo(f"shape prior {shape_prior.label}: {moved} fitted class(es) at their posterior")
-    output.parent.mkdir(parents=True, exist_ok=True)
-    path = fit.table.save(output)
-    click.echo(f"wrote {path}")
-    if report_path:
-        _write_json(report_path, {"classes": fit.result.report(), "bad_bands": fit.result.bad_bands,
-                                  "bands_left_out": fit.result.bands_left_out, "notes": fit.notes})
+    _write_class_outputs(fit, output, report_path, plots)
     if plot_dir:
-        _plot_class_fits(fit, plots)
         click.echo(f"wrote plots to {plot_dir}")
+
+
+def _write_class_outputs(fit, output: Path, report_path: Path | None, plots: dict[tuple[int, str], Path]) -> None:
+    """The table, the report and the figures of fit-classes, together or not at all
+    (:func:`brdfcorr.io.files.atomic_paths`): a table beside a report or figures that failed would
+    look finished, and a rerun would refuse to replace it."""
+    with atomic_paths([output, *filter(None, [report_path]), *plots.values()]) as temporaries:
+        temporaries[output].write_text(fit.table.to_yaml_text())
+        if report_path:
+            temporaries[report_path].write_text(json.dumps(
+                {"classes": fit.result.report(), "bad_bands": fit.result.bad_bands,
+                 "bands_left_out": fit.result.bands_left_out, "notes": fit.notes}, indent=2))
+        _plot_class_fits(fit, plots, temporaries)
+    for written in (output, report_path):
+        if written:
+            click.echo(f"wrote {written}")
 
 
 def _class_plot_files(fits, plot_dir: Path) -> dict[tuple[int, str], Path]:
@@ -173,19 +183,21 @@ def _class_plot_files(fits, plot_dir: Path) -> dict[tuple[int, str], Path]:
     return files
 
 
-def _plot_class_fits(fit, files: dict[tuple[int, str], Path]) -> None:
+def _plot_class_fits(fit, files: dict[tuple[int, str], Path], temporaries: dict[Path, Path]) -> None:
     """Per class: observed and modelled against view zenith; the held-out error of each candidate
-    model where ``auto`` chose it."""
+    model where ``auto`` chose it; drawn into the ``temporaries`` of the ``files``."""
     from brdfcorr.plot.materials import plot_class_fit
     from brdfcorr.plot.model_choice import plot_model_choice
 
     for class_fit in fit.result.fits:
         if (class_fit.class_id, "fit") in files:
             figure = plot_class_fit(class_fit, fit.result.samples[class_fit.class_id], fit.wavelengths)
-            _save_figure(figure, files[(class_fit.class_id, "fit")], echo=False)
+            target = files[(class_fit.class_id, "fit")]
+            _draw_figure(figure, temporaries[target], target)
         if (class_fit.class_id, "model_choice") in files:
             figure = plot_model_choice(class_fit.model_choice, f"class {class_fit.class_id} ({class_fit.name})")
-            _save_figure(figure, files[(class_fit.class_id, "model_choice")], echo=False)
+            target = files[(class_fit.class_id, "model_choice")]
+            _draw_figure(figure, temporaries[target], target)
 
 
 def _echo_levels(fits) -> None:
@@ -218,18 +230,6 @@ def _class_row(fit) -> dict[str, str]:
         "errors": {None: "-", True: "reliable"}.get(  # the whole reason is in --report and the table's fit:
             fit.errors_reliable, "UNRELIABLE: " + textwrap.shorten(fit.errors_reason, 60, placeholder="...")),
     }
-
-
-def _write_json(target: Path, content: dict) -> None:
-    """Write a JSON report atomically; a folder that cannot be made or a full disk is one
-    :class:`OutputError` (exit 2), nothing left at ``target``."""
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise OutputError(f"cannot write {target}: {error.strerror or error}") from None
-    with atomic_path(target) as temporary:
-        temporary.write_text(json.dumps(content, indent=2))
-    click.echo(f"wrote {target}")
 
 
 @main.command("fit")
@@ -294,20 +294,26 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
     if deprecated_name is not None:
         click.echo("brdfcorr: warning: --name is deprecated; use --class-name NAME", err=True)
     name = class_name or deprecated_name or measurements.stem
-    if plot_dir is not None:  # the figures' names are known now: check them before writing anything
-        plots = {f"--plot-dir file {path}": path for path in _measurement_plot_files(fit, name, plot_dir).values()}
-        check_outputs({"-o": output, **plots}, {"MEASUREMENTS": measurements})
+    figures = _measurement_plot_files(fit, name, plot_dir) if plot_dir is not None else {}
+    if figures:  # the figures' names are known now: check them before writing anything
+        check_outputs({"-o": output, **{f"--plot-dir file {path}": path for path in figures.values()}},
+                      {"MEASUREMENTS": measurements})
     for band, choice in fit.choices.items():
         click.echo(("" if band is None else f"{band:g} nm: ") + choice.table())
     _echo_measurement_fit(fit, name)
-    if plot_dir is not None:
-        _plot_measurement_fit(fit, name, plot_dir, "log" if log_scale else "linear")
+    table = table if table is not None else ParameterTable()
+    class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
+    replaced = class_id in table
+    # The figures and the table appear together or not at all (one that failed leaves none).
+    with atomic_paths([*figures.values(), *filter(None, [target])]) as temporaries:
+        if figures:
+            _plot_measurement_fit(fit, name, {key: (path, temporaries[path]) for key, path in figures.items()},
+                                  "log" if log_scale else "linear")
+        if target is not None:
+            temporaries[target].write_text(table.with_class(fit.table_entry(class_id, name)).to_yaml_text())
+    for figure in figures.values():
+        click.echo(f"wrote {figure}")
     if output is not None:
-        table = table if table is not None else ParameterTable()
-        if class_id is None:
-            class_id = max(table.class_ids, default=0) + 1
-        replaced = class_id in table
-        table.with_class(fit.table_entry(class_id, name)).save(target)
         click.echo(f"{'replaced' if replaced else 'wrote'} class {class_id} ({name}) in {output}")
 
 
@@ -354,20 +360,21 @@ def _measurement_plot_files(fit, name: str, plot_dir: Path) -> dict[tuple, Path]
             for band in fit.results for kind in kinds[band]}
 
 
-def _plot_measurement_fit(fit, name: str, plot_dir: Path, scale: str) -> None:
-    """Principal-plane and azimuth figures (paper 003, figs. 2 and 3) per wavelength."""
+def _plot_measurement_fit(fit, name: str, files: dict[tuple, tuple[Path, Path]], scale: str) -> None:
+    """Principal-plane and azimuth figures (paper 003, figs. 2 and 3) per wavelength, drawn into
+    the temporary file of each of :func:`_measurement_plot_files` ({key: (target, temporary)})."""
     from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
     from brdfcorr.plot.model_choice import plot_model_choice
 
     others_all = fit.everything.select(~fit.keep, "not fitted") if not fit.keep.all() else None
-    files = _measurement_plot_files(fit, name, plot_dir)
     for band, result in fit.results.items():
         fitted, others = fit.fitted, others_all
         if band is not None:
             fitted = fit.fitted.at_wavelength(band)
             others = others.at_wavelength(band) if others is not None and band in others.wavelengths else None
         for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
-            _save_figure(plot(result, fitted, others, yscale=scale), files[(band, suffix)], dpi=120)
+            _draw_figure(plot(result, fitted, others, yscale=scale), *reversed(files[(band, suffix)]), dpi=120)
         if band in fit.choices:
             title = name if band is None else f"{name}, {band:g} nm"
-            _save_figure(plot_model_choice(fit.choices[band], title), files[(band, "model_choice")], dpi=120)
+            _draw_figure(plot_model_choice(fit.choices[band], title), *reversed(files[(band, "model_choice")]),
+                         dpi=120)

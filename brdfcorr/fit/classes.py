@@ -56,7 +56,7 @@ from brdfcorr.fit.settings import (
     fallback_entry,
 )
 from brdfcorr.fit.shapes import DEFAULT_FIXED, SEARCH_RANGES, intensity_terms, search_range
-from brdfcorr.fit.solver import GRID_POINTS, fit_class_samples
+from brdfcorr.fit.solver import GRID_POINTS, LEVEL_TOLERANCE, MAX_LEVEL_ITERATIONS, fit_class_samples
 from brdfcorr.fit.within import Levels
 from brdfcorr.io.wavelengths import with_wavelengths
 from brdfcorr.models import REGISTRY, Model, get_model
@@ -93,7 +93,15 @@ SUGGEST_GRID = 5
 
 
 class ClassFitWarning(BrdfcorrWarning):
-    """A class failed a guard rail and fell back to a built-in material or to no correction."""
+    """A class of an imagery fit needs a look: it failed a guard rail and fell back to a built-in
+    material or to no correction, its free levels did not converge, or the class settings name
+    classes that the fit does not have."""
+
+
+def _warn(report: ClassFit, note: str) -> None:
+    """``note`` in the class's notes, and a :class:`ClassFitWarning` naming the class."""
+    report.notes.append(note)
+    warnings.warn(f"class {report.class_id} ({report.name}): {note}", ClassFitWarning, stacklevel=3)
 
 
 def _spread(values: np.ndarray) -> float:
@@ -250,7 +258,8 @@ def fit_one_class(class_id: int, name: str, model: str | Model, samples: ClassSa
         phi_spread=_spread(np.asarray(samples.phi)), fallback=fallback, notes=notes, model_choice=choice,
         levels=samples.levels,
     )
-    report.reasons = _sample_reasons(report, guard)
+    # A band empty at every pixel sampled leaves no sample: that is the reason, not the count.
+    report.reasons = [samples.empty_reason] if samples.empty_reason else _sample_reasons(report, guard)
     if report.n_samples >= max(len(model.parameters) + 1, 3):
         _fit_samples(report, model, samples, fixed, grid_points, prior, guard)
     if report.reasons:
@@ -269,6 +278,9 @@ def _fit_samples(report: ClassFit, model: Model, samples: ClassSamples, fixed: M
                                scenes=samples.scene if samples.scene_errors else None)
     result = _held_if_poor(result)
     _record(report, result)
+    if not result["levels_converged"]:  # kept, but said: its shape may be off by about the last change
+        _warn(report, f"free levels did not converge to {LEVEL_TOLERANCE:g} within {MAX_LEVEL_ITERATIONS} "
+                      "repetitions of the fit (brdfcorr.fit.solver): the shape may be slightly off")
     report.notes += [held.note(name) for name, held in result["held"].items()]
     if prior is not None and model.name == PRIOR_MODEL and tuple(report.free) == KERNEL_WEIGHTS:
         _apply_prior(report, *prior, samples, levels)
@@ -497,7 +509,8 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         fallback materials. A model name or model alone stands for ``ClassModels(model)``. A class
         that fails its guard rails gets its fallback material or, without one, is left out of the
         table (left uncorrected, and flagged by the correction); either way a
-        :class:`ClassFitWarning` says so.
+        :class:`ClassFitWarning` says so, as it names the classes that per-class settings name
+        but the class maps do not hold (:meth:`ClassModels.unused`).
     sampling : Sampling, default Sampling()
         Samples per class, seed, reflectance scale, bad bands and spatial block size of the sampler
         (:func:`sample_classes`; the errors are cluster-robust over the blocks, and over the
@@ -547,6 +560,9 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     scenes, wavelengths, used_ranges, left_out = _without_bad_bands(scenes, wavelengths, sampling.bad_bands)
     pooled = sample_classes(scenes, classes, angles, class_ids=models.class_ids, sampling=sampling, clusters=clusters,
                             min_repeated=guard.min_samples)
+    unused = models.unused(pooled)
+    if unused is not None:
+        warnings.warn(unused, ClassFitWarning, stacklevel=2)
     prior = _prior(models, wavelengths)
     tasks = {}
     for class_id, samples in pooled.items():

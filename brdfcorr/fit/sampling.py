@@ -43,6 +43,8 @@ class ClassSamples:
     levels: str = "pooled"  # whose levels are free (LEVELS, resolved)
     note: str | None = None  # how the scenes were brought onto one grid, if they were
     scene_errors: bool = False  # errors two-way cluster-robust, over ``block`` and ``scene`` (fit.two_way)
+    empty_bands: tuple[int, ...] = ()  # bands (0-based) not finite at any sampled pixel: no sample is left
+    empty_reason: str | None = None  # ... named, with the pixels sampled: why the class cannot be fitted
 
 
 def _class_values(class_map: xr.DataArray) -> np.ndarray:
@@ -133,18 +135,23 @@ def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale:
             labels)
 
 
-def _check_bands(brdf: np.ndarray, image, class_id: int) -> None:
-    """Refuse samples with a band that is not finite at any of them: every sample would be dropped
-    (a class of "0 samples"), and the message would not name the band."""
-    empty = np.flatnonzero(~np.isfinite(brdf).any(axis=0))
-    if empty.size == 0:
-        return
+def _band_names(indices, image) -> str:
+    """Bands by number (1-based) and, where the image has them, wavelength [nm]; five at most."""
     wavelengths = image.coords["wavelength"].values if "wavelength" in image.coords else None
     names = [f"band {index + 1}" + (f" ({float(wavelengths[index]):g} nm)" if wavelengths is not None else "")
-             for index in empty[:5]]
-    more = f" and {empty.size - 5} more" if empty.size > 5 else ""
-    raise InputError(f"{', '.join(names)}{more}: no finite reflectance at any of the {brdf.shape[0]} sampled pixels "
-                     f"of class {class_id} (all NaN, inf or nodata); leave the band out of the image")
+             for index in indices[:5]]
+    return ", ".join(names) + (f" and {len(indices) - 5} more" if len(indices) > 5 else "")
+
+
+def _check_bands(pooled: dict[int, ClassSamples], image) -> None:
+    """Refuse a band that is not finite at any sampled pixel of any class: every sample of every
+    class would be dropped, and the band is bad for the whole image. A band empty in some classes
+    only fails those classes (``ClassSamples.empty_bands``, their guard rails)."""
+    sampled = [samples for samples in pooled.values() if samples.empty_bands or samples.theta_i.size]
+    empty = sorted(set.intersection(*(set(samples.empty_bands) for samples in sampled))) if sampled else []
+    if empty:
+        raise InputError(f"{_band_names(empty, image)}: no finite reflectance at any sampled pixel of any class "
+                         f"({len(sampled)} classes; all NaN, inf or nodata); leave the band out of the image")
 
 
 def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None,
@@ -205,8 +212,9 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     Raises
     ------
     InputError
-        A band without a finite value at any sampled pixel of a class (named by number and
-        wavelength): no sample would be left.
+        A band without a finite value at any sampled pixel of any class (named by number and
+        wavelength): bad for the whole image. A band empty in some classes only leaves those
+        without samples (``ClassSamples.empty_bands``; their fits fail, naming the band).
     ParameterError
         Cluster layers: not one per scene, not on a scene's grid, or ids that are not integers.
 
@@ -248,6 +256,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         within = common is not None and (levels != "auto" or common.repeated_views(class_id) >= min_repeated)
         layers = common if within and common is not None else own
         pooled[class_id] = _sample_class(class_id, images, angles, layers, rng, sampling)
+    _check_bands(pooled, images[0])
     return pooled
 
 
@@ -382,8 +391,9 @@ def _scene_parts(images: list, angles: list, maps: list[np.ndarray], selected: l
 
 def _class_samples(parts: list[tuple], image, class_id: int, levels: str) -> ClassSamples:
     """One class's samples from the scenes' parts (angles, BRDF, block[, group], scene), without
-    the samples that are not finite in some band; pooled samples keep their scene too (for
-    errors clustered by scene, :mod:`brdfcorr.fit.two_way`)."""
+    the samples that are not finite in some band (the bands finite at none named in
+    ``empty_bands`` and ``empty_reason``); pooled samples keep their scene too (for errors
+    clustered by scene, :mod:`brdfcorr.fit.two_way`)."""
     grouped = levels != "pooled"
     if not parts:
         empty = np.empty(0, np.int64)
@@ -391,11 +401,16 @@ def _class_samples(parts: list[tuple], image, class_id: int, levels: str) -> Cla
                   *((empty,) if grouped else ()), empty]
     else:
         arrays = [np.concatenate(p) for p in zip(*parts)]
-        _check_bands(arrays[3], image, class_id)
-        keep = np.all(np.isfinite(arrays[3]), axis=1)
+        finite = np.isfinite(arrays[3])
+        empty = tuple(int(band) for band in np.flatnonzero(~finite.any(axis=0)))
+        keep = np.all(finite, axis=1)
         arrays = [a[keep] for a in arrays]
-    group = arrays[5] if grouped else None
-    return ClassSamples(*arrays[:5], group=group, scene=arrays[-1], levels=levels)
+    samples = ClassSamples(*arrays[:5], group=arrays[5] if grouped else None, scene=arrays[-1], levels=levels)
+    if parts and empty:
+        samples.empty_bands = empty
+        samples.empty_reason = (f"{_band_names(empty, image)}: no finite reflectance at any of the class's "
+                                f"{keep.size} sampled pixels (all NaN, inf or nodata)")
+    return samples
 
 
 def _common_grid(images: list, levels: str) -> CommonGrid | None:

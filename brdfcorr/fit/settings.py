@@ -5,7 +5,7 @@ must pass (:class:`GuardRails`); and the bands an imagery fit leaves out by defa
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from brdfcorr.errors import UnknownNameError
@@ -86,6 +86,10 @@ class ClassModels:
         Class names (default ``class_<id>``).
     class_ids : sequence of int, optional
         Classes to fit (default: every positive id in the class maps).
+    default_names : mapping of int to str, optional
+        Names of the classes that ``names`` does not name (a class map's ``class_names`` tag, a
+        chain's materials): they describe what a map may hold, so unlike ``names`` they are not
+        checked against the classes found (:meth:`unused`).
     prior : ShapePrior, optional
         A coefficient set's kernel shape as the prior of every ``ross_thick_li_sparse`` class
         (:mod:`brdfcorr.fit.prior`): each band's weights and covariance are the posterior's, and
@@ -107,18 +111,36 @@ class ClassModels:
     names: Mapping[int, str] | None = None
     class_ids: Sequence[int] | None = None
     prior: ShapePrior | None = None
+    default_names: Mapping[int, str] | None = None
 
     def model_of(self, class_id: int) -> str | Model:
         """The surface model of class ``class_id``."""
         return (self.class_models or {}).get(class_id, DEFAULT_MODEL if self.model is None else self.model)
 
     def name_of(self, class_id: int) -> str:
-        """The name of class ``class_id`` (``class_<id>`` when it has none)."""
-        return (self.names or {}).get(class_id, f"class_{class_id}")
+        """The name of class ``class_id``: from ``names``, else ``default_names``, else ``class_<id>``."""
+        return {**(self.default_names or {}), **(self.names or {})}.get(class_id, f"class_{class_id}")
 
     def fallback_of(self, class_id: int) -> str | None:
         """The built-in material of class ``class_id`` should its fit fail (None: left uncorrected)."""
         return self.fallback.get(class_id) if isinstance(self.fallback, Mapping) else self.fallback
+
+    def unused(self, fitted: Iterable[int]) -> str | None:
+        """What the per-class settings (``class_models``, ``names``, a ``fallback`` per class) say
+        of classes outside ``fitted`` (the classes found in the class maps, or ``class_ids``),
+        which would be ignored: one line naming them (a typo, 9 for 7, fits the wrong model
+        without it), or None where every class they name is fitted."""
+        settings = {"class_models": self.class_models, "names": self.names,
+                    "fallback": self.fallback if isinstance(self.fallback, Mapping) else None}
+        kept = set(fitted)
+        named = {key: sorted(set(value or ()) - kept) for key, value in settings.items()}
+        ids = sorted({ident for missing in named.values() for ident in missing})
+        if not ids:
+            return None
+        where = "no class map holds" if self.class_ids is None else "the class_ids leave out"
+        which = "; ".join(f"{key} {', '.join(map(str, missing))}" for key, missing in named.items() if missing)
+        return (f"the class settings name class{'es' if len(ids) > 1 else ''} {', '.join(map(str, ids))} that "
+                f"{where} ({which}): not used")
 
 
 @dataclass(frozen=True)

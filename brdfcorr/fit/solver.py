@@ -43,7 +43,8 @@ from brdfcorr.fit.two_way import TwoWayClusters
 from brdfcorr.fit.within import Levels
 from brdfcorr.models import Model
 
-__all__ = ["fit_class_samples", "Held", "GRID_POINTS", "LEVEL_ITERATIONS", "SEARCH_SAMPLES", "UNCONSTRAINED_T"]
+__all__ = ["fit_class_samples", "Held", "GRID_POINTS", "LEVEL_TOLERANCE", "MAX_LEVEL_ITERATIONS", "SEARCH_SAMPLES",
+           "UNCONSTRAINED_T"]
 
 
 def _condition(design: np.ndarray) -> float:
@@ -56,9 +57,12 @@ def _condition(design: np.ndarray) -> float:
     return float(np.sqrt(eigenvalues[-1] / eigenvalues[0])) if eigenvalues[0] > 0 else math.inf
 
 
-#: With free levels, the fit is repeated this many times with each group's views at the level of
-#: the previous fit at its geometry (:mod:`brdfcorr.fit.within`).
-LEVEL_ITERATIONS = 3
+#: With free levels, the fit is repeated with each group's views at the level of the previous fit at
+#: its geometry (:mod:`brdfcorr.fit.within`) until those levels change by no more than this fraction
+#: (in every band, of the band's largest level) from one fit to the next ...
+LEVEL_TOLERANCE = 1e-7
+#: ... or this many times (then the fit says that its levels did not converge: ``levels_converged``).
+MAX_LEVEL_ITERATIONS = 30
 
 
 #: Points per free shape parameter of the coarse search grid of a class fit (at most
@@ -127,6 +131,9 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
         the edge explains too little of its angular signal to be kept
         (:func:`brdfcorr.fit.classes._held_if_poor`); where the fit at the edge is good, its edge
         value is kept (holding it would change a fit the data support, if not significantly).
+        ``level_iterations``: with free levels, the fits repeated until the groups' levels
+        converged (:func:`_solve_with_levels`; None without free levels or where they did not
+        converge within :data:`MAX_LEVEL_ITERATIONS`), and ``levels_converged`` (False only there).
     """
     model, fixed, free = _resolve(model, fixed)
     rows, clusters, levels = _repeated_only((theta_i, theta_r, phi, brdf, *(() if scenes is None else (scenes,))),
@@ -138,29 +145,43 @@ def fit_class_samples(model: str | Model, theta_i, theta_r, phi, brdf, *, fixed:
         levels, profile = None, _profile(model, *samples, fixed)
     coarse = _coarse_shape(model, fixed, free, samples, SEARCH_SAMPLES, grid_points, full=profile)[1] if free else {}
     shape = _newton_polish(profile, coarse) if free else {}
-    profile, shape, solution = _solve_with_levels(profile, shape, samples, free)
+    profile, shape, solution, iterations = _solve_with_levels(profile, shape, samples, free)
+    converged = {"level_iterations": iterations, "levels_converged": profile.levels is None or iterations is not None}
     held_profile, held_shape, held_solution, held = _hold_unconstrained(profile, shape, solution, spatial)
     if_held = None
     if held:
         if_held = {**_fit_summary(held_profile, held_shape, {**fixed, **{name: h.value for name, h in held.items()}},
-                                  held_solution, clusters), "held": held, "if_held": None}
-    return {**_fit_summary(profile, shape, fixed, solution, clusters), "held": {}, "if_held": if_held}
+                                  held_solution, clusters), "held": held, "if_held": None, **converged}
+    return {**_fit_summary(profile, shape, fixed, solution, clusters), "held": {}, "if_held": if_held, **converged}
 
 
 def _solve_with_levels(profile: _LinearProfile, shape: dict[str, float], samples: tuple,
-                       free: list[str]) -> tuple[_LinearProfile, dict[str, float], _Solution]:
-    """The linear solve at ``shape``; with free levels, then :data:`LEVEL_ITERATIONS` times each
-    group's views back at the model's level at its own geometry (:mod:`brdfcorr.fit.within`), the
-    shape polished again each time. Returns the last profile, shape and solve."""
+                       free: list[str]) -> tuple[_LinearProfile, dict[str, float], _Solution, int | None]:
+    """The linear solve at ``shape``; with free levels, then repeated with each group's views
+    brought back to the model's level at its own geometry (:mod:`brdfcorr.fit.within`), the shape
+    polished again each time, until those levels (N, B) [sr^-1] change by no more than
+    :data:`LEVEL_TOLERANCE` of each band's largest, at most :data:`MAX_LEVEL_ITERATIONS` times.
+
+    The repetition is a fixed-point iteration of the levels: at the truth the views relative to
+    their group's mean, times the model's level there, are the model itself, so a noise-free class
+    is recovered exactly once it has converged (linearly: about one digit per repetition).
+    Returns the last profile, shape and solve, and the repetitions done (None without free levels
+    or where they did not converge within the cap)."""
     solution = _Solution.of(profile, shape)
     levels = profile.levels
-    for _ in range(LEVEL_ITERATIONS if levels is not None else 0):
-        group_model = levels.group_means(profile.raw_design(shape) @ solution.intensities)
-        profile = _profile(profile.model, *samples, profile.fixed, levels=levels,
-                           group_model=np.maximum(group_model, 1e-12))
+    if levels is None:
+        return profile, shape, solution, None
+    previous = np.broadcast_to(profile.scale, profile.raw_data.shape)  # the first fit's: the class's mean level
+    for iteration in range(1, MAX_LEVEL_ITERATIONS + 1):
+        group_model = np.maximum(levels.group_means(profile.raw_design(shape) @ solution.intensities), 1e-12)
+        profile = _profile(profile.model, *samples, profile.fixed, levels=levels, group_model=group_model)
         shape = _newton_polish(profile, shape) if free else {}
         solution = _Solution.of(profile, shape)
-    return profile, shape, solution
+        change = np.max(np.abs(group_model - previous), axis=0) / np.max(np.abs(group_model), axis=0)
+        if np.all(change <= LEVEL_TOLERANCE):
+            return profile, shape, solution, iteration
+        previous = group_model
+    return profile, shape, solution, None
 
 
 #: A shape parameter that ends at the edge of its search range is held at the middle of the range

@@ -17,7 +17,8 @@ brought back to the model's level at the group's own geometry, ``u_nd = f_nd gba
 with ``gbar_n`` the mean of the current fit over the group's views (:meth:`Levels.relative`):
 ``u = g`` at the truth, so the within fit of ``u`` is consistent, and a pixel twice as bright
 weighs in the shape as much as any other. The solver starts from ``gbar_n`` equal for every
-group (the class's mean level) and iterates (:data:`brdfcorr.fit.solver.LEVEL_ITERATIONS`).
+group (the class's mean level) and iterates until the levels converge
+(:data:`brdfcorr.fit.solver.LEVEL_TOLERANCE`).
 The shape and the geometry-dependent intensities are then fitted to the differences between the
 views of one group alone, so differences between groups never enter them. A second factor (the
 scene: a date's or a line's own level, e.g. its atmosphere) is projected out as well by

@@ -19,7 +19,7 @@ import stat
 import tempfile
 import threading
 import xml.etree.ElementTree as ElementTree
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import yaml
@@ -48,8 +48,9 @@ except ImportError:  # pragma: no cover (PyYAML built without libyaml)
             Parser.__init__(self)
 
 
-__all__ = ["atomic_path", "temporary_beside", "content_digest", "sync_file", "write_cause", "DISK_CAUSES",
-           "read_document", "read_regular", "parse_yaml", "MAX_DOCUMENT_BYTES", "MAX_ALIAS_NODES", "MAX_DEPTH"]
+__all__ = ["atomic_path", "atomic_paths", "temporary_beside", "content_digest", "sync_file", "write_cause",
+           "DISK_CAUSES", "read_document", "read_regular", "parse_yaml", "MAX_DOCUMENT_BYTES", "MAX_ALIAS_NODES",
+           "MAX_DEPTH"]
 
 #: Largest YAML document brdfcorr reads [bytes]. A table of 20 000 classes is about 2 MB; a bigger
 #: file is a mistake (an image given as a table) and would take minutes to parse.
@@ -195,6 +196,59 @@ def atomic_path(target: str | os.PathLike):
         if temporary is not None:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(temporary)
+
+
+@contextlib.contextmanager
+def atomic_paths(targets: Iterable[str | os.PathLike]) -> Iterator[dict[Path, Path]]:
+    """Yield a temporary path beside each of several ``targets`` ({target: temporary}); rename them
+    all onto their targets only when the block succeeds: the outputs of one command appear together
+    or not at all (a table beside a report and figures that failed to write would look finished).
+
+    Every target's folder is made and its temporary file created before the block runs, so a
+    target that cannot be written (a folder that is a file, no permission) fails before anything
+    is. An exception in the block, or while flushing or renaming, leaves none of the targets (a
+    rename that failed after others removes the ones renamed) and no temporary file. An ``OSError``
+    becomes one :class:`~brdfcorr.errors.OutputError` naming the target(s) and the cause
+    (:func:`write_cause`), as in :func:`atomic_path`.
+    """
+    temporaries: dict[Path, Path] = {}
+    try:
+        for target in map(Path, dict.fromkeys(targets)):
+            try:
+                target.parent.mkdir(parents=True, exist_ok=True)
+                with interrupts_held():  # a Ctrl-C while the file is made arrives once ``temporaries`` names it
+                    temporaries[target] = temporary_beside(target)
+            except OSError as error:
+                cause = write_cause(error, [target])
+                raise OutputError(f"cannot write {target}: {cause}; nothing was written") from None
+        yield dict(temporaries)
+        for temporary in temporaries.values():
+            sync_file(temporary)
+        _rename_all(temporaries)
+    except OutputError:  # already one message
+        raise
+    except OSError as error:
+        cause = write_cause(error, list(temporaries.values()))
+        raise OutputError(f"cannot write {', '.join(map(str, temporaries))}: {cause}; nothing was written") from None
+    finally:
+        for temporary in temporaries.values():
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(temporary)
+
+
+def _rename_all(temporaries: dict[Path, Path]) -> None:
+    """Rename each temporary onto its target; where one fails, the targets renamed before it are
+    removed (they are this run's, and alone they would look finished) and the error raised."""
+    renamed = []
+    try:
+        for target, temporary in temporaries.items():
+            os.replace(temporary, target)
+            renamed.append(target)
+    except OSError:
+        for target in renamed:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(target)
+        raise
 
 
 _FILE_KINDS = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",

@@ -121,10 +121,10 @@ def _choices_from_maps(models: ClassModels, class_maps: Sequence[xr.DataArray]) 
             notes.append(f"model {STRATA_MODEL} for every class: the class map is NDVI strata (vegetation and soil, "
                          "brdfcorr classes ndvi); --model chooses another")
     tagged = tagged_class_names(*class_maps)
-    given = dict(models.names or {})
+    given = {**(models.default_names or {}), **(models.names or {})}
     named = {key: value for key, value in tagged.items() if key not in given}
-    if named:
-        update["names"] = {**named, **given}
+    if named:  # what the maps may hold: not checked against the classes found, as given names are
+        update["default_names"] = {**(models.default_names or {}), **named}
         listed = ", ".join(f"{key}={value}" for key, value in sorted(named.items()))
         notes.append(f"class names from the class map's tags: {listed}")
     return replace(models, **update), notes

@@ -105,8 +105,13 @@ class Engine:
         Spatial chunk and tile size [pixels], a multiple of 16 from 16 to 8192 (else an
         :class:`~brdfcorr.errors.InputError`); by default :func:`brdfcorr.io.rasters.auto_chunk`.
     scheduler, num_workers : optional
-        dask scheduler of the computations and its number of workers (as for :func:`dask.compute`);
-        a ``distributed.Client`` spreads the scene's chunks over the cluster's workers.
+        dask scheduler of the computations and its number of workers (as for :func:`dask.compute`):
+        ``"threads"`` (dask's default) or ``"synchronous"`` on this machine, or a
+        ``distributed.Client`` (or ``"distributed"``, dask's current client), which spreads the
+        scene's chunks over the cluster's workers (a ``distributed.LocalCluster`` over this
+        machine's processes). Dask's process pool (``"processes"``) is refused
+        (:class:`~brdfcorr.errors.InputError`): the outputs are written through open GDAL handles
+        and thread locks, which cannot be sent to another process.
     callbacks : sequence
         Dask callbacks active while computing (a progress bar).
     """
@@ -120,6 +125,12 @@ class Engine:
         problem = None if self.chunks is None else chunk_size_problem(self.chunks)
         if problem:  # the rule of --chunk and engine.chunk, before anything is read
             raise InputError(f"chunk size {self.chunks} {problem}")
+        if self.scheduler in ("processes", "multiprocessing") or \
+                getattr(self.scheduler, "__module__", None) == "dask.multiprocessing":  # its ``get``
+            raise InputError(f"scheduler {getattr(self.scheduler, '__name__', self.scheduler)!r}: dask's process "
+                             "pool cannot take the writers' open GDAL handles and thread locks to its processes; "
+                             "use 'threads' or 'synchronous', or a dask.distributed Client (a LocalCluster for "
+                             "processes on this machine)")
 
 
 @dataclass(frozen=True)

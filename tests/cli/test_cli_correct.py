@@ -200,3 +200,25 @@ def test_correct_files_reads_sensor_angle_sources(files, scene, tmp_path, monkey
                         lambda source, like: xr.Dataset({n: scene[n] for n in ("sza", "saa")}))
     with pytest.raises(InputError, match=r"angle source t0 \(sun_only\) gives no vza, vaa"):
         correct("c.tif", "t0", angles_kind="sun_only")
+
+
+def test_dask_process_pool_is_refused_up_front_and_the_local_schedulers_correct(files, tmp_path):
+    """Engine(scheduler="processes") failed deep in the write with "cannot pickle '_thread.lock'"
+    (the writers' GDAL handles and locks stay in this process); it is refused before anything is
+    read, naming the schedulers that work, and those do."""
+    import dask.multiprocessing
+
+    from brdfcorr.io.scene import SceneSources
+    from brdfcorr.tasks.correct import correct_files
+    from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
+
+    for scheduler in ("processes", "multiprocessing", dask.multiprocessing.get):
+        with pytest.raises(InputError, match=r"dask's process pool cannot .*use 'threads' or 'synchronous', or a "
+                                             r"dask.distributed Client"):
+            Engine(scheduler=scheduler)
+    for scheduler in ("synchronous", "threads"):
+        request = CorrectionRequest(SceneSources(files["image"], files["classes"], files["angles"]), example_table(),
+                                    OutputFiles(tmp_path / f"{scheduler}.tif"), reference={"sza": 35.0},
+                                    engine=Engine(chunks=16, scheduler=scheduler))
+        correct_files(request)
+        assert (tmp_path / f"{scheduler}.tif").is_file()

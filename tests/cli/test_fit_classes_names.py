@@ -120,3 +120,14 @@ def test_the_block_size_is_an_option(files, size, blocks):
     assert result.exit_code == 0, result.output
     reasons = [entry["errors_reason"] for entry in json.loads(report.read_text())["classes"]]
     assert all(f"errors from {blocks} spatial blocks" in reason and "--block-size" in reason for reason in reasons)
+
+
+def test_class_settings_for_a_class_no_map_holds_are_named(files):
+    """--class-model 9=rpv --class-name 9=foo where the map holds classes 1 and 2 (9 meant 7, or
+    1): the fit goes on and says which settings it did not use, instead of nothing."""
+    result, output = _fit(files, files["strata"], "--class-model", "9=rpv", "--class-name", "9=foo",
+                          "--class-name", "2=grass", output="typo.yaml")
+    assert result.exit_code == 0, result.output
+    assert ("brdfcorr: warning: the class settings name class 9 that no class map holds (class_models 9; names 9): "
+            "not used") in result.stderr.splitlines()
+    assert ParameterTable.load(output)[2].name == "grass"

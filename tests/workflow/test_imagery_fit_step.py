@@ -65,7 +65,9 @@ def test_given_settings_reach_the_fit_and_names_of_the_step_win():
                       bad_bands=[[650, 670]], min_samples=20)
     settings = step.fit_settings({1: "roof_tile", 2: "tile"})
     assert settings["models"].model == "lambertian"
-    assert dict(settings["models"].names) == {1: "roof_tile", 2: "grass"}
+    models = settings["models"]  # the table's names are defaults: not checked against the classes found
+    assert dict(models.names) == {2: "grass"} and dict(models.default_names) == {1: "roof_tile", 2: "tile"}
+    assert [models.name_of(class_id) for class_id in (1, 2, 3)] == ["roof_tile", "grass", "class_3"]
     assert settings["guard"] == GuardRails(min_samples=20, max_condition=50.0)
     assert settings["sampling"].bad_bands == ((650.0, 670.0),)
     assert ImageryFit(source="imagery", bad_bands=[]).fit_settings()["sampling"].bad_bands == ()  # --bad-bands none

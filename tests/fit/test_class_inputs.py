@@ -1,0 +1,83 @@
+"""What an imagery fit makes of inputs that hold less than its settings expect: a band without a
+finite value in one small class (that class fails, the others are fitted) or in every class (the
+band is bad for the image), and class settings that name classes no class map holds."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from brdfcorr.errors import InputError
+from brdfcorr.fit.classes import ClassFitWarning, ClassModels, GuardRails, fit_classes
+from brdfcorr.params import ParameterTable
+from brdfcorr.testing import synthetic_scene
+
+WAVELENGTHS = (480.0, 560.0, 660.0, 830.0)
+KERNELS = ParameterTable(classes=[
+    {"id": ident, "name": name, "model": "ross_thick_li_sparse", "wavelengths": list(WAVELENGTHS),
+     "params": {"f_iso": [0.03, 0.06, 0.04, 0.35], "f_vol": [0.015, 0.03, 0.02, 0.2],
+                "f_geo": [0.003, 0.006, 0.004, 0.03]}}
+    for ident, name in ((1, "veg"), (2, "soil"))])
+GUARD = GuardRails(min_samples=100)
+
+
+def _scene(small_class: bool = True):
+    """A line of classes 1 and 2 (4x4-pixel patches), with class 7 on 20 pixels (4 x 5) in a corner."""
+    scene = synthetic_scene(48, 64, wavelengths=WAVELENGTHS, table=KERNELS, dtype=np.float64)
+    classes = scene["classes"].copy()
+    if small_class:
+        classes[0:4, 0:5] = 7
+    angles = xr.Dataset({name: scene[name] for name in ("sza", "saa", "vza", "vaa")})
+    return scene["reflectance"].copy(), classes, angles
+
+
+def test_a_band_empty_in_one_small_class_fails_that_class_only():
+    """Band 2 is NaN at class 7's 20 pixels only: class 7 is left uncorrected with a warning that
+    names it and the band; classes 1 and 2 (about 1500 pixels each) are fitted as without it."""
+    image, classes, angles = _scene()
+    image[1, 0:4, 0:5] = np.nan
+    with pytest.warns(ClassFitWarning, match=r"class 7 \(class_7\): band 2 \(560 nm\): no finite reflectance at any "
+                                             r"of the class's 20 sampled pixels"):
+        result = fit_classes(image, classes, angles, ClassModels("ross_thick_li_sparse"), guard=GUARD)
+    status = {fit.class_id: fit.status for fit in result.fits}
+    assert status == {1: "fitted", 2: "fitted", 7: "uncorrected"}
+    assert result.table.class_ids == (1, 2)
+    with pytest.warns(ClassFitWarning, match=r"class 7 \(class_7\): 20 samples < 100"):  # too small in any case
+        clean = fit_classes(*_scene(), ClassModels("ross_thick_li_sparse"), guard=GUARD)
+    for fit, expected in zip(result.fits[:2], clean.fits[:2]):
+        for name, values in expected.params.items():
+            np.testing.assert_array_equal(fit.params[name], values)
+
+
+def test_a_band_empty_in_every_class_is_refused_for_the_image():
+    image, classes, angles = _scene()
+    image[2] = np.nan
+    with pytest.raises(InputError, match=r"^band 3 \(660 nm\): no finite reflectance at any sampled pixel of any "
+                                         r"class \(3 classes; .*leave the band out of the image$"):
+        fit_classes(image, classes, angles, ClassModels("ross_thick_li_sparse"), guard=GUARD)
+
+
+def test_class_settings_for_classes_the_fit_does_not_have_are_named():
+    image, classes, angles = _scene(small_class=False)
+    models = ClassModels("ross_thick_li_sparse", class_models={9: "rpv", 1: "ross_thin_li_sparse"},
+                         names={9: "foo", 12: "bar", 2: "soil"}, fallback={9: "roy2016"})
+    with pytest.warns(ClassFitWarning, match=r"^the class settings name classes 9, 12 that no class map holds "
+                                             r"\(class_models 9; names 9, 12; fallback 9\): not used$"):
+        result = fit_classes(image, classes, angles, models, guard=GUARD)
+    assert [(fit.model, fit.name) for fit in result.fits] == [("ross_thin_li_sparse", "class_1"),
+                                                              ("ross_thick_li_sparse", "soil")]
+    chosen = ClassModels("ross_thick_li_sparse", names={2: "soil"}, class_ids=[1])
+    with pytest.warns(ClassFitWarning, match=r"name class 2 that the class_ids leave out \(names 2\)"):
+        fit_classes(image, classes, angles, chosen, guard=GUARD)
+
+
+def test_class_settings_of_classes_fitted_give_no_warning():
+    image, classes, angles = _scene(small_class=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ClassFitWarning)
+        # default_names (a strata map's tags, a chain's table) describe what a map may hold: not checked
+        fit_classes(image, classes, angles, ClassModels("ross_thick_li_sparse", names={1: "veg", 2: "soil"},
+                                                        default_names={5: "water"}), guard=GUARD)
