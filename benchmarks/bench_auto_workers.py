@@ -24,8 +24,9 @@ import multiprocessing
 import time
 
 from brdfcorr.defaults import available_cores
-from brdfcorr.fit.measurements import filter_measurements, goniometer_angles, synthesize_measurements
+from brdfcorr.fit.measurements import filter_measurements
 from brdfcorr.fit.selection import choose_model
+from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
 from brdfcorr.models.materials import load_material
 
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import argparse
 
-from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+from brdfcorr.fit.measurements import write_measurements
+from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
 from brdfcorr.models.materials import load_material
 
 

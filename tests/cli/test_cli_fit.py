@@ -8,13 +8,8 @@ from click.testing import CliRunner
 
 from brdfcorr.cli import main
 from brdfcorr.fit.goniometer import fit_measurements
-from brdfcorr.fit.measurements import (
-    filter_measurements,
-    goniometer_angles,
-    read_measurements,
-    synthesize_measurements,
-    write_measurements,
-)
+from brdfcorr.fit.measurements import filter_measurements, read_measurements, write_measurements
+from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 

@@ -12,7 +12,8 @@ from click.testing import CliRunner
 from matplotlib.figure import Figure
 
 from brdfcorr.cli import main
-from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+from brdfcorr.fit.measurements import write_measurements
+from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import synthetic_scene, write_scene

@@ -11,7 +11,8 @@ import pytest
 from click.testing import CliRunner
 
 from brdfcorr.cli import main
-from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+from brdfcorr.fit.measurements import write_measurements
+from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
 from brdfcorr.models import load_material
 from brdfcorr.params import ParameterTable
 

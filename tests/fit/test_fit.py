@@ -17,7 +17,8 @@ from brdfcorr.fit.goniometer import (
     fit_measurements,
     format_with_error,
 )
-from brdfcorr.fit.measurements import filter_measurements, goniometer_angles, synthesize_measurements
+from brdfcorr.fit.measurements import filter_measurements
+from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import REGISTRY, get_model
 from brdfcorr.models.materials import load_material

@@ -164,7 +164,7 @@ def test_single_matrix_for_varying_parameters_is_an_error():
 # --- fit and fit-classes write the block ------------------------------------------------------
 def _goniometer_csv(directory, wavelengths=(None,)):
     """Roof tile measurements (paper 003, Table 1) with 2 % noise, at one or more wavelengths."""
-    from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements
+    from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
     from brdfcorr.models.materials import load_material
 
     truth = load_material("roof_tile")

@@ -10,12 +10,11 @@ from brdfcorr.errors import InputError, MeasurementError
 from brdfcorr.fit.measurements import (
     Measurements,
     filter_measurements,
-    goniometer_angles,
     read_measurements,
     selection_mask,
-    synthesize_measurements,
     write_measurements,
 )
+from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
 from brdfcorr.models.materials import load_material
 
 HEADER = "theta_i,theta_r,phi,brdf,sigma\n"

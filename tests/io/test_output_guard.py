@@ -266,7 +266,8 @@ def test_fit_classes_report_is_the_class_lookup(scene):
 
 
 def test_fit_table_is_one_of_its_figures(scene):
-    from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+    from brdfcorr.fit.measurements import write_measurements
+    from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
     from brdfcorr.models.materials import load_material
 
     tile = load_material("roof_tile")

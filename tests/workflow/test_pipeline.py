@@ -181,7 +181,8 @@ def test_imagery_fit_step(tmp_path, make_scenes, write_chain):
 
 
 def test_goniometer_fit_step(tmp_path, make_scenes, write_chain):
-    from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+    from brdfcorr.fit.measurements import write_measurements
+    from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
     from brdfcorr.models.materials import load_material
 
     make_scenes(tmp_path, count=1)
@@ -296,7 +297,8 @@ def test_dry_run_and_run_agree_on_stale_scenes(tmp_path, make_scenes, write_chai
 def test_dry_run_and_run_agree_when_the_fit_makes_a_new_table(tmp_path, make_scenes, write_chain):
     """Complete outputs, but the fitted table of the earlier run is gone: the fit runs again and
     its table is not known before the run, so the dry run and the run both redo the scenes."""
-    from brdfcorr.fit.measurements import goniometer_angles, synthesize_measurements, write_measurements
+    from brdfcorr.fit.measurements import write_measurements
+    from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
     from brdfcorr.models.materials import load_material
 
     make_scenes(tmp_path, count=2)
