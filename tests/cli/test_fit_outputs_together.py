@@ -16,20 +16,11 @@ from brdfcorr.fit.measurements import write_measurements
 from brdfcorr.fit.synthetic import goniometer_angles, synthesize_measurements
 from brdfcorr.models.materials import load_material
 from brdfcorr.params import ParameterTable
-from brdfcorr.testing import synthetic_scene, write_scene
-
-WAVELENGTHS = (480.0, 560.0, 660.0, 830.0)
-KERNELS = ParameterTable(classes=[
-    {"id": ident, "name": name, "model": "ross_thick_li_sparse", "wavelengths": list(WAVELENGTHS),
-     "params": {"f_iso": [0.03, 0.06, 0.04, 0.35], "f_vol": [0.015, 0.03, 0.02, 0.2],
-                "f_geo": [0.003, 0.006, 0.004, 0.03]}}
-    for ident, name in ((1, "veg"), (2, "soil"))])
 
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    root = tmp_path_factory.mktemp("together")
-    return write_scene(root / "scene", synthetic_scene(48, 64, wavelengths=WAVELENGTHS, table=KERNELS))
+def scene(tmp_path_factory, write_strata_scene):
+    return write_strata_scene(tmp_path_factory.mktemp("together") / "scene")
 
 
 @pytest.fixture(scope="module")
