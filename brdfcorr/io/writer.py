@@ -108,11 +108,14 @@ class EnviOutput:
     wavelength, fwhm : sequence of float, optional
         Band centres and full widths at half maximum [nm], written to the header as
         ``wavelength``, ``fwhm`` and ``wavelength units = Nanometers``.
+    bad_bands : sequence of bool, optional
+        Which bands are bad (the input header's bad band list), written as ``bbl`` (1 good, 0 bad).
     """
 
     interleave: Literal["bsq", "bil"] = "bsq"
     wavelength: Sequence[float] | None = None
     fwhm: Sequence[float] | None = None
+    bad_bands: Sequence[bool] | None = None
 
 
 def _tile_size(blocksize: int, array: xr.DataArray) -> tuple[int, int]:
@@ -504,6 +507,8 @@ def _write_envi_header(path: Path, layout: EnviOutput, final: Path) -> None:
         items.update(wavelength=_header_list(layout.wavelength), wavelength_units="Nanometers")
     if layout.fwhm is not None:
         items["fwhm"] = _header_list(layout.fwhm)
+    if layout.bad_bands is not None:
+        items["bbl"] = _header_list([not bad for bad in layout.bad_bands])
     if items:
         with rasterio.open(path, "r+") as dataset:
             dataset.update_tags(ns="ENVI", **items)

@@ -185,6 +185,14 @@ def test_cli_leaves_out_water_vapour_and_bbl_bands_says_so_and_correct_passes_th
         flags = qa.read(1)
     assert ((flags & QA.BAND_UNCORRECTED) > 0).all()
 
+    # An ENVI output keeps the input's bad band list: downstream tools still skip band 2.
+    envi = CliRunner().invoke(main, ["correct", *common, "--params", str(out / "table.yaml"), "--format", "ENVI",
+                                     "-o", str(out / "corrected.img")])
+    assert envi.exit_code == 0, envi.output
+    with rasterio.open(out / "corrected.img") as result:
+        assert result.tags(ns="ENVI")["bbl"].replace(" ", "") == "{1,0,1,1,1,1,1,1}"
+        assert np.array_equal(result.read(), after, equal_nan=True)
+
     none = CliRunner().invoke(main, ["fit-classes", *common, "--model", "ross_thick_li_sparse", "--min-samples",
                                      "50", "--bad-bands", "none", "-o", str(out / "bbl_only.yaml")])
     assert none.exit_code == 0, none.output
