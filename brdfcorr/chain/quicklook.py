@@ -54,8 +54,8 @@ def write_quicklook(image: str | os.PathLike, corrected: str | os.PathLike, targ
     count, transform, tags = raster_summary(corrected)
     wavelengths = file_wavelengths(corrected)
     bands = list(bands) if bands else true_colour_bands(wavelengths, count)
-    before = read_small(image, bands, max_size)
-    after = read_small(corrected, bands, max_size)
+    before = _stored_as_read(read_small(image, bands, max_size), tags, bands)
+    after = read_small(corrected, bands, max_size, scaled=True)  # an output of the input's type: scaled
     class_map = None if classes is None else _small_class_map(image, classes, before.shape[1:], max_size,
                                                                prepare_classes)
     figure = quicklook_figure(before, after, class_map=class_map, band_label=band_label(bands, wavelengths),
@@ -65,6 +65,19 @@ def write_quicklook(image: str | os.PathLike, corrected: str | os.PathLike, targ
     with atomic_path(target) as temporary:
         figure.savefig(temporary, dpi=90, format="png")
     return target
+
+
+def _stored_as_read(values: np.ndarray, tags: Mapping[str, str], bands: Sequence[int]) -> np.ndarray:
+    """The input's stored ``values`` (band, y, x) of ``bands`` (1-based) as the reflectance factors
+    the correction read: times the scale plus the offset the corrected output's tags record
+    (``brdf_input_scale``, ``brdf_input_offset``: one value, or one per band), so that both panels
+    share one stretch in one unit (scaled counts beside reflectance left the "after" panel black)."""
+    def per_band(key: str, default: float) -> np.ndarray:
+        text = tags.get(key)
+        values_of_bands = np.array([float(v) for v in text.split(",")]) if text else np.array([default])
+        return values_of_bands[[band - 1 for band in bands]] if values_of_bands.size > 1 else values_of_bands
+
+    return values * per_band("brdf_input_scale", 1.0)[:, None, None] + per_band("brdf_input_offset", 0.0)[:, None, None]
 
 
 def _small_class_map(image, classes, shape: tuple[int, int], max_size: int,

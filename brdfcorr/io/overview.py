@@ -14,7 +14,8 @@ from brdfcorr.io.opening import opened
 __all__ = ["read_small", "raster_summary"]
 
 
-def read_small(path: str | os.PathLike, bands: Sequence[int], max_size: int, average: bool = True) -> np.ndarray:
+def read_small(path: str | os.PathLike, bands: Sequence[int], max_size: int, average: bool = True,
+               scaled: bool = False) -> np.ndarray:
     """Bands of a raster decimated to at most ``max_size`` pixels on its longer side.
 
     Parameters
@@ -26,6 +27,9 @@ def read_small(path: str | os.PathLike, bands: Sequence[int], max_size: int, ave
         Longest side of the result [pixels].
     average : bool, default True
         GDAL resampling: average (reflectance) or nearest (class maps).
+    scaled : bool, default False
+        The values times the file's own scale plus its offset (GDAL's per-band metadata), else the
+        stored values.
 
     Returns
     -------
@@ -40,7 +44,10 @@ def read_small(path: str | os.PathLike, bands: Sequence[int], max_size: int, ave
         shape = (len(bands), max(1, round(dataset.height / scale)), max(1, round(dataset.width / scale)))
         data = dataset.read(list(bands), out_shape=shape, masked=True,
                             resampling=Resampling.average if average else Resampling.nearest)
-    return np.ma.filled(data.astype(np.float64), np.nan)
+        scales, offsets = (np.array([values[band - 1] for band in bands], dtype=np.float64)[:, None, None]
+                           for values in (dataset.scales, dataset.offsets))
+    values = np.ma.filled(data.astype(np.float64), np.nan)
+    return values * scales + offsets if scaled else values
 
 
 def raster_summary(path: str | os.PathLike) -> tuple[int, tuple[float, ...], dict[str, str]]:
