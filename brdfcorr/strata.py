@@ -384,7 +384,8 @@ def align_class_map(classes: xr.DataArray, image: xr.DataArray,
     image : xarray.DataArray (..., y, x)
         Any layer on the target grid (the reflectance image); its y/x chunks become the result's.
     lookup : mapping of int to int, optional
-        Code -> table id, applied after resampling (:func:`remap_classes`).
+        Code -> table id (:func:`remap_classes`), applied before resampling: a code 0 that is a
+        class (MODIS land cover's water) stays apart from the 0 of places the map does not reach.
 
     Returns
     -------
@@ -403,6 +404,10 @@ def align_class_map(classes: xr.DataArray, image: xr.DataArray,
     """
     _check_integer(classes)
     _check_overlap(classes, image)
+    remapped = {}
+    if lookup is not None:
+        classes = remap_classes(classes, lookup)
+        remapped = classes.attrs
     crs, transform = image.rio.crs, image.rio.transform()
     y_dim, x_dim = image.rio.y_dim, image.rio.x_dim
     chunks = image.chunksizes if image.chunks is not None else {y_dim: (image.rio.height,), x_dim: (image.rio.width,)}
@@ -418,11 +423,9 @@ def align_class_map(classes: xr.DataArray, image: xr.DataArray,
     aligned = xr.DataArray(data, dims=("y", "x"), name="classes",
                            coords={"y": image[y_dim].values, "x": image[x_dim].values})
     aligned = aligned.rio.write_crs(crs).rio.write_transform(transform).rio.write_nodata(0)
-    if lookup is not None:
-        aligned = remap_classes(aligned, lookup)
     (res_x, res_y), source_crs = classes.rio.resolution(), classes.rio.crs
     unit = "degree" if source_crs.is_geographic else (source_crs.linear_units or "unknown")
-    aligned.attrs.update({"long_name": "class id", "resampled_from_crs": source_crs.to_string(),
+    aligned.attrs.update({**remapped, "long_name": "class id", "resampled_from_crs": source_crs.to_string(),
                           "resampled_from_resolution": f"{abs(res_x):g} x {abs(res_y):g} {unit}",
                           "resampling": "nearest"})
     return aligned

@@ -259,6 +259,19 @@ def test_align_from_geographic_crs_lands_at_known_locations():
     assert aligned.attrs["class_lookup"].startswith("1:11,2:12")
 
 
+def test_a_lookup_of_code_0_holds_on_an_aligned_map_as_on_one_on_the_image_grid():
+    # MODIS land cover's code 0 is water, a class: with the lookup 0 -> 4 it is class 4 whether
+    # the map needs aligning or not (it was "no class" once aligned: the warp's fill is 0 too);
+    # the map's nodata (255) and places it does not reach stay 0.
+    image = _target(8, 10)
+    codes = np.tile(np.array([0, 10, 20, 255], dtype=np.uint8), (8, 3))[:, :10]
+    class_map = _grid(codes, PIXEL, nodata=255)
+    lookup = {0: 4, 10: 1, 20: 2}
+    expected = np.select([codes == 0, codes == 10, codes == 20], [4, 1, 2], 0)
+    np.testing.assert_array_equal(remap_classes(class_map, lookup).values, expected)
+    np.testing.assert_array_equal(align_class_map(class_map, image, lookup).values, expected)
+
+
 def test_align_partial_cover_gives_no_class_where_the_map_does_not_reach():
     image = _lazy(_target(), 4)
     left = _grid(np.full((12, 6), 3, np.uint8), PIXEL)  # the 6 left columns of the image grid only
