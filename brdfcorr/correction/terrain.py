@@ -201,13 +201,30 @@ def _pixel_size(dem: xr.DataArray, pixel_size) -> tuple[float, float]:
     except Exception as error:  # no georeference rioxarray can read
         raise InputError(f"DEM: no pixel size (give pixel_size): {error}") from error
     if crs is None:
-        raise InputError("DEM: no CRS, so no pixel size in metres; give pixel_size=(dx, dy)")
+        raise InputError("DEM: no CRS, so no pixel size in metres; write its projected CRS into the file "
+                         "(in Python: pixel_size=(dx, dy))")
     if crs.is_geographic:
         raise InputError(f"DEM: CRS {crs} is geographic (degrees); reproject it to metres first")
     if transform.b != 0 or transform.d != 0:
         raise InputError(f"DEM: rotated grid (transform {tuple(transform)[:6]}) is not supported")
-    metres = _metres_per_unit(crs)
+    metres = _metres_per_unit(crs) / _metres_per_height_unit(crs)  # ground distance in the heights' unit
     return float(transform.a) * metres, float(transform.e) * metres
+
+
+def _metres_per_height_unit(crs) -> float:
+    """Metres per unit of the elevations: the vertical unit of a compound CRS (a US LiDAR DEM in
+    EPSG:2263+6360 gives heights in US survey feet: taken as metres, its slopes came out 3.3 times
+    too steep in tangent, 30 deg for 10), else 1 (elevations in metres, ``docs/terrain.md``)."""
+    from pyproj import CRS
+
+    vertical = [sub for sub in CRS.from_user_input(crs.to_wkt()).sub_crs_list if sub.is_vertical]
+    if not vertical:
+        return 1.0
+    factor = vertical[0].axis_info[0].unit_conversion_factor
+    if not (np.isfinite(factor) and factor > 0):
+        raise InputError(f"DEM: the vertical CRS of {crs} has the unit {vertical[0].axis_info[0].unit_name!r} "
+                         f"of {factor} m; give the elevations in metres")
+    return float(factor)
 
 
 def _metres_per_unit(crs) -> float:
@@ -218,9 +235,10 @@ def _metres_per_unit(crs) -> float:
         unit, factor = crs.linear_units_factor if crs.is_projected else crs.units_factor
     except (ValueError, AttributeError) as error:  # rasterio's CRSError: no unit to be found
         raise InputError(f"DEM: CRS {crs} names no linear unit, so no pixel size in metres; give "
-                         f"pixel_size=(dx, dy) ({error})") from None
+                         f"pixel_size=(dx, dy) in Python ({error})") from None
     if not (np.isfinite(factor) and factor > 0):
-        raise InputError(f"DEM: CRS {crs} has the linear unit {unit!r} of {factor} m; give pixel_size=(dx, dy)")
+        raise InputError(f"DEM: CRS {crs} has the linear unit {unit!r} of {factor} m; give pixel_size=(dx, dy) "
+                         "in Python")
     return float(factor)
 
 
@@ -263,6 +281,8 @@ def slope_aspect(dem, *, pixel_size: float | tuple[float, float] | None = None) 
         in a north-up raster). A single number d means (d, -d). By default from the raster's
         transform (``dem.rio.transform()``: ``a`` and ``e``) in its CRS's linear unit, converted to
         metres (a CRS in US survey feet, EPSG:2263: x 0.3048006); required for arrays without one.
+        Elevations are in metres, or in the vertical unit of a compound CRS (EPSG:2263+6360:
+        heights in US survey feet), to which the pixel size is then converted.
 
     Returns
     -------

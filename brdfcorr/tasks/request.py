@@ -194,7 +194,7 @@ class Terrain:
                 surface = slope_aspect(dem[0])
             except InputError as error:  # "DEM: no CRS ...": name the file
                 raise InputError(f"DEM file {self.dem}: {str(error).removeprefix('DEM: ')}") from None
-            check_same_grid({"image": like, "slope": surface.slope, "aspect": surface.aspect})
+            check_same_grid({"image": like, f"DEM {self.dem}": surface.slope})
             with reading(f"DEM file {self.dem}"):
                 check_dem_slope(surface, f"DEM file {self.dem}", **(compute or {}))
         else:

@@ -130,6 +130,19 @@ def test_dem_in_us_survey_feet_gives_slopes_in_metres(tmp_path, write_example_sc
         np.testing.assert_allclose(by_dem.read(), by_layers.read(), rtol=1e-5, equal_nan=True)
 
 
+def test_dem_heights_in_the_vertical_unit_of_a_compound_crs(tmp_path):
+    # A US LiDAR DEM: x, y and heights in US survey feet (EPSG:2263 + NAVD88 height in ftUS,
+    # EPSG:6360). A plane rising tan(10 deg) per unit northwards is 10 deg whatever the unit, where
+    # heights in feet read as metres gave 30 deg.
+    rows = np.arange(NY)[:, None] * np.ones((1, NX))
+    heights = 100.0 - np.tan(np.radians(10.0)) * PIXEL * rows  # feet, rows 10 ft apart going south
+    dem = georeference(xr.DataArray(heights[None], dims=("band", "y", "x")), crs="EPSG:2263+6360")
+    dem.rio.to_raster(tmp_path / "dem.tif")
+    surface = slope_aspect(rioxarray.open_rasterio(tmp_path / "dem.tif")[0])
+    np.testing.assert_allclose(surface.slope.values, 10.0, atol=1e-6)
+    np.testing.assert_allclose(surface.aspect.values, 180.0, atol=1e-6)
+
+
 def test_dem_pixel_size_in_metres_is_unchanged():
     dem = georeference(xr.DataArray(np.arange(NY)[:, None] * np.ones((NY, NX)), dims=("y", "x")))
     slope = slope_aspect(dem).slope.values
@@ -189,3 +202,21 @@ def test_plausible_slope_aspect_rasters_still_correct(scene, slope, aspect, corr
     result = CliRunner().invoke(main, [str(a) for a in correct_args(scene, "--slope-aspect", path)])
     assert result.exit_code == 0, result.output
     assert scene["output"].is_file()
+
+
+def test_a_dem_on_another_grid_or_without_a_crs_is_named_with_a_fix_the_command_line_has(scene, tmp_path, refused,
+                                                                                           correct_args):
+    # The DEM's own file is named (it was "slope is not on the grid of image"), and a DEM without a
+    # CRS is told what to write, not a Python keyword the command line does not have.
+    with rasterio.open(scene["image"]) as image:
+        profile = {**image.profile, "count": 1, "dtype": "float32", "nodata": None}
+        shifted = {**profile, "transform": image.transform * rasterio.Affine.translation(3, 0)}
+        no_crs = {key: value for key, value in profile.items() if key != "crs"}
+        heights = np.zeros((1, image.height, image.width), dtype=np.float32)
+    for name, options in (("shifted.tif", shifted), ("no_crs.tif", no_crs)):
+        with rasterio.open(tmp_path / name, "w", **options) as dem:
+            dem.write(heights)
+    refused(scene, correct_args(scene, "--dem", tmp_path / "shifted.tif"),
+            r"DEM \S*shifted\.tif is not on the grid of image")
+    result = refused(scene, correct_args(scene, "--dem", tmp_path / "no_crs.tif"), r"DEM file \S*no_crs\.tif: no CRS")
+    assert "pixel_size=" not in result.split("write its projected CRS")[0]
