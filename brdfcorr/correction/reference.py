@@ -3,17 +3,13 @@ the factor limits are written in tags."""
 
 from __future__ import annotations
 
-import dask
-import dask.array as da
 import numpy as np
-import xarray as xr
 from pyproj import Transformer
 
-from brdfcorr.correction.checks import reflectance_factors
 from brdfcorr.errors import InputError
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
-__all__ = ["resolve_reference", "describe_limits", "scene_mean_sza", "image_mean_sza", "fixed_sza", "hls_sza",
+__all__ = ["resolve_reference", "describe_limits", "scene_mean_sza", "fixed_sza", "hls_sza",
            "centre_latitude", "with_hls_sza"]
 
 
@@ -28,37 +24,10 @@ def resolve_reference(reference, params: ParameterTable) -> ReferenceGeometry:
     return validated if validated is not None else ReferenceGeometry()
 
 
-def scene_mean_sza(sza, xp, has_data=None):
-    """Mean of the valid solar zeniths (finite, in [0, 90)) [deg] at the pixels where
-    ``has_data`` (the image has data there; default: every pixel); lazy for dask."""
+def scene_mean_sza(sza, xp):
+    """Mean of the valid solar zeniths (finite, in [0, 90)) [deg]; lazy for dask."""
     valid = (sza >= 0) & (sza < 90)
-    if has_data is not None:
-        valid = valid & has_data
     return xp.nanmean(xp.where(valid, sza.astype(np.float64), np.nan))
-
-
-def image_mean_sza(reflectance: xr.DataArray, sza: xr.DataArray, *, scheduler=None, num_workers=None) -> float:
-    """The scene mean of the sun zenith [deg] that a ``"mean"`` reference takes: the mean of the
-    valid solar zeniths at the pixels where the image's first band has data (not NaN, not its
-    declared nodata), computed now (one pass over the two layers, as for :func:`dask.compute`).
-    Angle layers that go on where the image has none (a swath's fill, a tile's corner, an angle
-    band filled with 0) leave the mean as it is over the image.
-
-    Raises
-    ------
-    InputError
-        Where no pixel has both data and a valid solar zenith.
-    """
-    band = reflectance_factors(reflectance.isel(band=[0]), unscaled_counts=True)[0].data
-    zeniths = sza.data
-    lazy = isinstance(band, da.Array) or isinstance(zeniths, da.Array)
-    xp = da if lazy else np
-    mean = scene_mean_sza(xp.asarray(zeniths), xp, xp.isfinite(band))
-    value = float(dask.compute(mean, scheduler=scheduler, num_workers=num_workers)[0] if lazy else mean)
-    if not np.isfinite(value):
-        where = sza.encoding.get("source", "sza")
-        raise InputError(f"{where}: no valid solar zenith where the image has data, for the scene mean")
-    return value
 
 
 def fixed_sza(reference: ReferenceGeometry) -> float:

@@ -19,7 +19,7 @@ import xarray as xr
 
 from brdfcorr import __version__
 from brdfcorr.correction import QA, describe_limits, normalize, normalize_at_nodes, qa_counts, resolve_reference
-from brdfcorr.correction.reference import image_mean_sza, with_hls_sza
+from brdfcorr.correction.reference import with_hls_sza
 from brdfcorr.correction.subgrid import normalize_on_subgrid, suits_subgrid
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.defaults import MOSTLY_UNCORRECTED
@@ -127,8 +127,7 @@ def _correct(request: CorrectionRequest, scene: SceneData, table: ParameterTable
     """:func:`correct_files` of a scene opened for the run (:func:`brdfcorr.io.scene.opened_scene`)."""
     engine = request.engine
     _warn_wavelength_caveats(table, scene.reflectance)
-    reference, sza_source = _scene_reference(request.reference, table, scene,
-                                             {"scheduler": engine.scheduler, "num_workers": scene.threads})
+    reference, sza_source = _scene_reference(request.reference, table, scene)
     corrected, qa, sigma, topographic = _corrected_layers(request, scene, table, reference)
     if topographic is not None:
         qa = _merged_qa(qa, topographic.qa)
@@ -226,11 +225,8 @@ def uncorrected_note(counts: dict[str, int]) -> str | None:
             "not have; check the class map against the table's class ids")
 
 
-def _scene_reference(reference, table: ParameterTable, scene: SceneData,
-                     compute: Mapping) -> tuple[ReferenceGeometry, str]:
-    """The reference geometry, a ``"mean"`` sun zenith replaced by the scene's mean where the image
-    has data (:func:`~brdfcorr.correction.reference.image_mean_sza`, computed with ``compute``'s
-    scheduler) (``"hls"`` by
+def _scene_reference(reference, table: ParameterTable, scene: SceneData) -> tuple[ReferenceGeometry, str]:
+    """The reference geometry, a ``"mean"`` sun zenith replaced by the scene's mean (``"hls"`` by
     HLS v1.4's at the scene centre's latitude), and how its sun zenith was chosen: ``"fixed"``,
     ``"mean"``, ``"hls"`` or ``"observed"``."""
     resolved = resolve_reference(reference, table)
@@ -238,8 +234,11 @@ def _scene_reference(reference, table: ParameterTable, scene: SceneData,
         return with_hls_sza(resolved, scene.reflectance), "hls"
     if resolved.sza != "mean":
         return resolved, resolved.sza if isinstance(resolved.sza, str) else "fixed"
-    mean = image_mean_sza(scene.reflectance, scene.angles["sza"], **compute)
-    return resolved.model_copy(update={"sza": mean}), "mean"
+    mean = scene.statistics.means["sza"]
+    if not np.isfinite(mean):
+        where = scene.angles["sza"].encoding.get("source", "sza")
+        raise InputError(f"{where}: no valid solar zenith for the scene mean")
+    return resolved.model_copy(update={"sza": float(mean)}), "mean"
 
 
 def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: ParameterTable,

@@ -91,25 +91,6 @@ def test_separate_angle_files_give_the_same_output(files, scene, tmp_path):
         assert a.tags()["brdf_reference_sza_source"] == "mean"
 
 
-def test_the_mean_sun_zenith_leaves_out_the_angles_where_the_image_has_no_data(scene, tmp_path, write_example_scene):
-    # The image's top rows are its nodata, their sun zeniths 0 (an angle band filled with 0 and no
-    # nodata tag): the scene mean is over the rows with data, as an independent numpy mean says,
-    # and the output equals the library's normalize at that fixed sun zenith.
-    filled = {name: layer.copy() for name, layer in scene.items()}
-    filled["reflectance"][:, :10] = np.nan  # the written image's nodata
-    filled["sza"][:10] = 0.0
-    files = write_example_scene(tmp_path / "filled", filled)
-    output = tmp_path / "out.tif"
-    result = _invoke(*_base(files, output), "--ref-sza", "mean")
-    assert result.exit_code == 0, result.output
-    mean = float(np.mean(scene["sza"].values[10:].astype(np.float64)))
-    with rasterio.open(output) as written:
-        assert written.tags()["brdf_reference"].startswith(f"sza={mean:g} ")
-        expected, _ = normalize(scene["reflectance"], scene["classes"].rio.write_nodata(255),
-                                {a: scene[a] for a in ANGLES}, example_table(), reference={"sza": mean})
-        np.testing.assert_allclose(written.read()[:, 10:], expected.values[:, 10:], rtol=1e-6)
-
-
 def test_grid_mismatch_exits_2_naming_the_file(files, scene, tmp_path):
     other = tmp_path / "classes_shifted.tif"
     other.write_bytes(files["classes"].read_bytes())
