@@ -164,14 +164,19 @@ def _with_sidecars(inputs: list[tuple[str, Path]]) -> list[tuple[str, Path, tupl
         for sidecar in sidecar_paths(path):
             if os.path.lexists(sidecar):
                 found.append((f"{name} sidecar", sidecar, None))
-            elif not (_is_geotiff(path) and sidecar.suffix.lower() == ".hdr"):  # GDAL reads no header with a GeoTIFF
+            elif not (_self_described(path) and sidecar.suffix.lower() == ".hdr"):  # GDAL reads no .hdr with it
                 found.append((f"{name} sidecar", sidecar, (name, path)))
     return found
 
 
-def _is_geotiff(path: Path) -> bool:
-    """A GeoTIFF by its name: GDAL identifies it by its own header, never by an ENVI ``.hdr`` beside it."""
-    return path.suffix.lower() in (".tif", ".tiff")
+#: Formats GDAL identifies by their own header, never by an ENVI ``.hdr`` beside them (by name).
+_SELF_DESCRIBED = (".tif", ".tiff", ".vrt", ".jp2", ".nc", ".h5", ".he5", ".hdf", ".png", ".jpg")
+
+
+def _self_described(path: Path) -> bool:
+    """A raster whose format GDAL knows from the file itself (a GeoTIFF, VRT, JPEG 2000, netCDF,
+    HDF5, ...: :data:`_SELF_DESCRIBED`), so that no ENVI ``.hdr`` is ever read with it."""
+    return path.suffix.lower() in _SELF_DESCRIBED
 
 
 def check_outputs(outputs: Named, inputs: Named = ()) -> None:

@@ -125,9 +125,16 @@ class Engine:
         problem = None if self.chunks is None else chunk_size_problem(self.chunks)
         if problem:  # the rule of --chunk and engine.chunk, before anything is read
             raise InputError(f"chunk size {self.chunks} {problem}")
-        if self.scheduler in ("processes", "multiprocessing") or \
-                getattr(self.scheduler, "__module__", None) == "dask.multiprocessing":  # its ``get``
-            raise InputError(f"scheduler {getattr(self.scheduler, '__name__', self.scheduler)!r}: dask's process "
+        import concurrent.futures
+
+        import dask
+
+        # The scheduler given, else dask's own setting (dask.config.set, DASK_SCHEDULER) that a pass would use.
+        scheduler = self.scheduler if self.scheduler is not None else dask.config.get("scheduler", None)
+        if scheduler in ("processes", "multiprocessing") or isinstance(
+                scheduler, concurrent.futures.ProcessPoolExecutor) or \
+                getattr(scheduler, "__module__", None) == "dask.multiprocessing":  # its ``get``
+            raise InputError(f"scheduler {getattr(scheduler, '__name__', scheduler)!r}: dask's process "
                              "pool cannot take the writers' open GDAL handles and thread locks to its processes; "
                              "use 'threads' or 'synchronous', or a dask.distributed Client (a LocalCluster for "
                              "processes on this machine)")

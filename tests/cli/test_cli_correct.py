@@ -187,6 +187,9 @@ def test_dask_process_pool_is_refused_up_front_and_the_local_schedulers_correct(
     """Engine(scheduler="processes") failed deep in the write with "cannot pickle '_thread.lock'"
     (the writers' GDAL handles and locks stay in this process); it is refused before anything is
     read, naming the schedulers that work, and those do."""
+    import concurrent.futures
+
+    import dask
     import dask.multiprocessing
 
     from brdfcorr.io.scene import SceneSources
@@ -197,6 +200,10 @@ def test_dask_process_pool_is_refused_up_front_and_the_local_schedulers_correct(
         with pytest.raises(InputError, match=r"dask's process pool cannot .*use 'threads' or 'synchronous', or a "
                                              r"dask.distributed Client"):
             Engine(scheduler=scheduler)
+    with pytest.raises(InputError, match="dask's process pool"):  # a process executor, as dask takes one
+        Engine(scheduler=concurrent.futures.ProcessPoolExecutor(1))
+    with dask.config.set(scheduler="processes"), pytest.raises(InputError, match="dask's process pool"):
+        Engine()  # dask's own setting (DASK_SCHEDULER=processes), which the passes would use
     for scheduler in ("synchronous", "threads"):
         request = CorrectionRequest(SceneSources(files["image"], files["classes"], files["angles"]), example_table(),
                                     OutputFiles(tmp_path / f"{scheduler}.tif"), reference={"sza": 35.0},

@@ -127,5 +127,7 @@ def test_an_envi_output_beside_a_geotiff_of_its_name_is_allowed(tmp_path):
     image = tmp_path / "image.tif"
     image.write_bytes(b"\0")
     check_outputs({"-o": tmp_path / "image.img", "header": tmp_path / "image.hdr"}, {"image": image})
+    (tmp_path / "stack.vrt").write_text("<VRTDataset/>")  # a VRT likewise (GDAL knows it by its content)
+    check_outputs({"header": tmp_path / "stack.hdr"}, {"image": tmp_path / "stack.vrt"})
     with pytest.raises(SidecarClashError):
         check_outputs({"tags": tmp_path / "image.tif.aux.xml"}, {"image": image})
