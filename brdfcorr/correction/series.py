@@ -38,10 +38,8 @@ def over_dates(normalize_one: Callable, reflectance, classes, angles, params, re
     cube = reflectance if isinstance(reflectance, xr.DataArray) else xr.DataArray(
         reflectance if isinstance(reflectance, da.Array) else np.asarray(reflectance),
         dims=("time", "band", "y", "x"), name="reflectance")
+    _check_layout(cube)
     dim = cube.dims[0]
-    if dim in BAND_DIMS:
-        raise InputError(f"reflectance has dims {cube.dims}; a 4-D cube is (time, band, y, x): "
-                         f"transpose it, e.g. reflectance.transpose({cube.dims[1]!r}, {dim!r}, ...)")
     classes = dated_like(classes, cube, "classes")
     angles = (dated_like(angles, cube, "angles") if isinstance(angles, xr.Dataset) else
               {name: dated_like(layer, cube, name) for name, layer in angles.items()} if isinstance(angles, Mapping)
@@ -58,6 +56,22 @@ def over_dates(normalize_one: Callable, reflectance, classes, angles, params, re
     return type(results[0])(corrected.transpose(dim, *cube.dims[1:]), qa.transpose(dim, *cube.dims[2:]))
 
 
+def _check_layout(cube: xr.DataArray) -> None:
+    """Refuse a cube whose dims are named in another order than (time, band, y, x), naming the
+    transpose that orders it (the band dim is one of :data:`BAND_DIMS`; y and x are the dims so
+    named, else the last two of the others)."""
+    band = next((dim for dim in cube.dims if dim in BAND_DIMS), None)
+    if band is None:
+        return  # unnamed dims: taken in the documented order
+    others = [dim for dim in cube.dims if dim != band]
+    spatial = ("y", "x") if {"y", "x"} <= set(others) else tuple(others[-2:])
+    expected = (*(dim for dim in others if dim not in spatial), band, *spatial)
+    if cube.dims != expected:
+        order = ", ".join(map(repr, expected))
+        raise InputError(f"reflectance has dims {cube.dims}; a 4-D cube is (time, band, y, x): "
+                         f"transpose it, reflectance.transpose({order})")
+
+
 def dated_like(layer, cube: xr.DataArray, name: str):
     """``layer`` with its dates those of ``cube`` (its first dimension), in the cube's order: picked
     by label where both label their time dimension (a layer may hold more dates than the cube),
@@ -68,11 +82,21 @@ def dated_like(layer, cube: xr.DataArray, name: str):
         if dim not in layer.dims:
             return layer
         if dim in cube.coords and dim in layer.coords:
-            missing = np.setdiff1d(cube[dim].values, layer[dim].values)
+            labels, given = cube[dim].values, layer[dim].values
+            if np.array_equal(labels, given):
+                return layer  # the same dates in the same order (repeated labels included)
+            repeated = [label for label in (labels, given) if np.unique(label).size < label.size]
+            if repeated:
+                values, counts = np.unique(repeated[0], return_counts=True)
+                raise InputError(f"{'reflectance' if repeated[0] is labels else name} repeats {dim} "
+                                 f"{', '.join(map(str, values[counts > 1][:3]))} and the dates of {name} differ "
+                                 f"from the reflectance's: pair them by position (drop the {dim} labels of {name}) or "
+                                 f"combine the repeated dates first (e.g. groupby('{dim}').first())")
+            missing = np.setdiff1d(labels, given)
             if missing.size:
                 raise InputError(f"{name} has no {dim} {', '.join(map(str, missing[:3]))}"
                                  f"{' ...' if missing.size > 3 else ''} of the reflectance: give it every date")
-            return layer.sel({dim: cube[dim].values})
+            return layer.sel({dim: labels})
         found = layer.sizes[dim]
     elif np.ndim(layer) == 3:
         found = np.shape(layer)[0]

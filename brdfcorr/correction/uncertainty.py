@@ -11,7 +11,7 @@ covariance order, and one p x p matrix per table wavelength or one for all) give
 (the Gauss "law of propagation of uncertainty", JCGM 100:2008 (GUM) eq. 13)
 
     sigma_F^2 = J Sigma J^T,     J_a = dF/dp_a over the covariance's parameters              (2)
-    sigma     = observed * sigma_F                                                          (3)
+    sigma     = |observed| * sigma_F                                                        (3)
 
 ``sigma`` is the 1-sigma of the corrected reflectance, in the reflectance's units. Parameters the
 fit held fixed are not in Sigma: they contribute no variance. The observed reflectance is taken as
@@ -63,6 +63,7 @@ chunk once.
 from __future__ import annotations
 
 import dataclasses
+import os
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -80,7 +81,7 @@ from brdfcorr.errors import BrdfcorrWarning, ParameterError
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model
 from brdfcorr.models.materials import load_material
-from brdfcorr.params import BandParameters, ParameterTable, ReferenceGeometry
+from brdfcorr.params import BandParameters, ParameterTable, ReferenceGeometry, as_parameter_table
 
 __all__ = ["correction_uncertainty", "factor_jacobian", "difference_step", "material_covariance"]
 
@@ -93,7 +94,7 @@ RELATIVE_STEP = float(np.finfo(np.float64).eps) ** (1.0 / 3.0)
 
 #: How the shape derivatives are computed, for the output's attrs and the docs.
 METHOD = (
-    "first-order propagation of the fit's parameter covariance, sigma = observed * sqrt(J Sigma J^T), "
+    "first-order propagation of the fit's parameter covariance, sigma = |observed| * sqrt(J Sigma J^T), "
     "J = d(f(ref)/f(obs))/dp: exact for the linear (intensity) parameters, central differences with "
     "step eps^(1/3) * max(|s|, |default|) for shape parameters (one-sided at a range bound); NaN where "
     "the class has no covariance (a library material gets its published errors, uncorrelated), no class or "
@@ -401,7 +402,7 @@ def _uncertainty_block(reflectance, band_index, reference_sza, *layers, plans: P
         with np.errstate(invalid="ignore", over="ignore"):
             values = cube[:, index].astype(np.float64)
             values[~np.isfinite(values)] = np.nan  # +-inf reflectance is nodata, like NaN
-            out[:, index] = values * sigma
+            out[:, index] = np.abs(values) * sigma  # eq. 3: a negative reflectance (dark water) too
     return out.reshape(n_bands, ny, nx)
 
 
@@ -439,7 +440,7 @@ def correction_uncertainty(
     reflectance,
     classes,
     angles,
-    params: ParameterTable,
+    params: ParameterTable | str | os.PathLike,
     reference: ReferenceGeometry | dict | None = None,
     *,
     wavelengths: Sequence[float] | None = None,
@@ -449,7 +450,7 @@ def correction_uncertainty(
 ) -> xr.DataArray:
     """The per-pixel 1-sigma of the BRDF-corrected reflectance from the fit's parameter covariance.
 
-    ``sigma = observed * sqrt(J Sigma J^T)`` with ``J = dF/dp`` of the correction factor
+    ``sigma = |observed| * sqrt(J Sigma J^T)`` with ``J = dF/dp`` of the correction factor
     ``F = f(ref; p) / f(obs; p)`` over the parameters of the class's covariance Sigma (module
     docstring, eqs. 1-5; ``docs/uncertainty.md``). Takes the arguments of
     :func:`brdfcorr.correction.normalize` (give the same ones) and is its companion: lazy and chunked
@@ -468,8 +469,9 @@ def correction_uncertainty(
         then taken in each surface's own frame (:func:`brdfcorr.correction.terrain.local_angles`),
         the reference in the horizontal frame; pixels whose sun or sensor is behind the surface (or
         with an invalid slope) are NaN.
-    params : ParameterTable
-        Model, parameters and (per class, optionally) the fit's covariance (its ``fit:`` block).
+    params : ParameterTable, path-like or str
+        Model, parameters and (per class, optionally) the fit's covariance (its ``fit:`` block): a
+        table, a YAML file of one, or a built-in coefficient set's name, as for :func:`normalize`.
     reference : ReferenceGeometry or dict, optional
         Target geometry as for :func:`normalize`: ``sza`` [deg], ``"mean"`` or ``"observed"``,
         ``vza`` [deg], ``raa`` [deg]; defaults to the table's, else observed sun and nadir view.
@@ -503,6 +505,7 @@ def correction_uncertainty(
         return over_dates(correction_uncertainty, reflectance, classes, angles, params, reference,
                           wavelengths=wavelengths, extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth,
                           limits=limits)
+    params = as_parameter_table(params)
     inputs = prepare_inputs(reflectance, classes, angles, params, reference, limits=limits, wavelengths=wavelengths,
                             extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
     reflectance, reference, limits = inputs.reflectance, inputs.settings.reference, inputs.settings.limits

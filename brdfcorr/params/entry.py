@@ -201,7 +201,13 @@ class ClassEntry(StrictModel):
 
         Resolved as :meth:`band_values` resolves the parameters: matrices given per wavelength are
         interpolated element-wise, linearly in wavelength (a convex combination of covariance
-        matrices, so still positive semi-definite), with the same edge-extrapolation rule; matrices
+        matrices, so still positive semi-definite), with the same edge-extrapolation rule. Between
+        two table wavelengths this is an upper bound: the parameters interpolated with weights
+        ``1 - w`` and ``w`` have the covariance ``(1-w)^2 S1 + w^2 S2 + w(1-w)(C + C^T)`` (C: the
+        cross-covariance of the two wavelengths' fits, unknown to the table), largest where the
+        fits' errors are fully correlated and never above ``(1-w) S1 + w S2``; fits of one sample at
+        neighbouring wavelengths share its geometry and calibration errors, so independence (up to
+        sqrt(2) smaller at the midpoint) is not assumed. Matrices
         given per band are taken as they are; a single matrix applies to every band. Rows and
         columns follow ``fit.parameters``.
         """

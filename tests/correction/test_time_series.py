@@ -73,3 +73,24 @@ def test_dated_layers_are_paired_with_the_cubes_dates_by_label(scenes):
     unlabelled = {name: np.stack([s[name].values for s in scenes[:2]]) for name in ANGLES}
     with pytest.raises(InputError, match="reflectance has 3 dates along 'time' and sza 2"):
         cube.brdf.normalize(classes, unlabelled, table)
+
+
+def test_repeated_dates_pair_by_position_where_the_labels_are_the_same(scenes):
+    # Two granules of one datetime (a stackstac stack of adjacent tiles): the angle layers carry the
+    # same labels, so each date takes its own angles, as when the labels are dropped.
+    dates = pd.Index([DATES[0], DATES[0], DATES[2]], name="time")
+    cube = xr.concat([s["reflectance"] for s in scenes], dim=dates)
+    angles = xr.Dataset({name: xr.concat([s[name] for s in scenes], dim=dates) for name in ANGLES})
+    table, reference = example_table(), {"sza": 40.0}
+    result = cube.brdf.normalize(scenes[0]["classes"], angles, table, reference=reference)
+    by_position = cube.brdf.normalize(scenes[0]["classes"], angles.drop_vars("time"), table, reference=reference)
+    np.testing.assert_array_equal(result.reflectance.values, by_position.reflectance.values)
+    with pytest.raises(InputError, match="reflectance repeats time 2024-05-01"):
+        cube.brdf.normalize(scenes[0]["classes"], angles.isel(time=[2, 1, 0]), table, reference=reference)
+
+
+@pytest.mark.parametrize("order", [("band", "y", "x", "time"), ("time", "y", "x", "band"), ("y", "x", "time", "band")])
+def test_a_cube_in_another_order_is_told_the_transpose_that_orders_it(scenes, order):
+    cube = _stack([s["reflectance"] for s in scenes]).transpose(*order)
+    with pytest.raises(InputError, match=r"reflectance.transpose\('time', 'band', 'y', 'x'\)"):
+        cube.brdf.normalize(scenes[0]["classes"], {n: scenes[0][n] for n in ANGLES}, example_table())

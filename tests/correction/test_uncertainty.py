@@ -307,6 +307,27 @@ def test_nodata_where_there_is_nothing_to_propagate():
     assert np.isfinite(_sigma(layers, table, reference=REFERENCE, limits=None).values[0, 0, 6])
 
 
+def test_a_negative_reflectance_has_the_sigma_of_its_magnitude():
+    # Eq. 3: sigma = |observed| sigma_F. Dark water after Sentinel-2's -0.1 offset reads below 0; the
+    # 1-sigma of -0.01 is that of +0.01 (a standard deviation is never negative).
+    table = _table(_class(1, "torrance_sparrow", ROOF, ("t0", "t1"), np.diag([0.001**2, 0.01**2])))
+    layers = _pixels([40, 40], [0, 0], [20, 20], [170, 170])
+    layers["reflectance"].values[0, 0] = [-0.01, 0.01]
+    sigma = _sigma(layers, table, reference=REFERENCE).values[0, 0]
+    assert sigma[1] > 0
+    np.testing.assert_allclose(sigma[0], sigma[1], rtol=1e-12)
+
+
+def test_the_table_can_be_a_file_as_for_normalize(tmp_path):
+    table = _table(_class(1, "torrance_sparrow", ROOF, ("t0", "t1"), np.diag([0.001**2, 0.01**2])))
+    path = tmp_path / "table.yaml"
+    table.save(path)
+    layers = _pixels(SZA, SAA, VZA, VAA)
+    expected = _sigma(layers, table, reference=REFERENCE).values
+    for given in (path, str(path)):
+        np.testing.assert_array_equal(_sigma(layers, given, reference=REFERENCE).values, expected)
+
+
 def test_a_table_without_covariance_gives_all_nodata_and_the_attrs():
     scene = synthetic_scene(ny=8, nx=8, dtype=np.float32)
     sigma = correction_uncertainty(scene["reflectance"], scene["classes"], {a: scene[a] for a in ANGLES},
