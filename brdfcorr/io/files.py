@@ -206,8 +206,9 @@ def atomic_paths(targets: Iterable[str | os.PathLike]) -> Iterator[dict[Path, Pa
 
     Every target's folder is made and its temporary file created before the block runs, so a
     target that cannot be written (a folder that is a file, no permission) fails before anything
-    is. An exception in the block, or while flushing or renaming, leaves none of the targets (a
-    rename that failed after others removes the ones renamed) and no temporary file. An ``OSError``
+    is. An exception in the block, or while flushing or renaming, leaves the targets as they were
+    (a file already at a target, replaced with ``--overwrite``, is moved aside before the renames
+    and put back if one fails: :func:`_rename_all`) and no temporary file. An ``OSError``
     becomes one :class:`~brdfcorr.errors.OutputError` naming the target(s) and the cause
     (:func:`write_cause`), as in :func:`atomic_path`.
     """
@@ -224,7 +225,8 @@ def atomic_paths(targets: Iterable[str | os.PathLike]) -> Iterator[dict[Path, Pa
         yield dict(temporaries)
         for temporary in temporaries.values():
             sync_file(temporary)
-        _rename_all(temporaries)
+        with interrupts_held():  # a Ctrl-C between moving the old files aside and putting them back waits
+            _rename_all(temporaries)
     except OutputError:  # already one message
         raise
     except OSError as error:
@@ -237,10 +239,18 @@ def atomic_paths(targets: Iterable[str | os.PathLike]) -> Iterator[dict[Path, Pa
 
 
 def _rename_all(temporaries: dict[Path, Path]) -> None:
-    """Rename each temporary onto its target; where one fails, the targets renamed before it are
-    removed (they are this run's, and alone they would look finished) and the error raised."""
+    """Rename each temporary onto its target, the files already at the targets moved aside first
+    (:func:`_set_aside`); where a rename fails, the targets renamed are removed, the old files put
+    back and the error raised; once all are renamed, the old files are removed. An old output is
+    thus lost only when every new one is in place (a backup that cannot be put back stays beside
+    its target as ``.NAME.XXXXXXXX.backup``)."""
+    backups: dict[Path, Path] = {}
     renamed = []
     try:
+        for target in temporaries:
+            backup = _set_aside(target)
+            if backup is not None:
+                backups[target] = backup
         for target, temporary in temporaries.items():
             os.replace(temporary, target)
             renamed.append(target)
@@ -248,7 +258,28 @@ def _rename_all(temporaries: dict[Path, Path]) -> None:
         for target in renamed:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(target)
+        for target, backup in backups.items():
+            with contextlib.suppress(OSError):
+                os.replace(backup, target)
         raise
+    for backup in backups.values():
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(backup)
+
+
+def _set_aside(target: Path) -> Path | None:
+    """Move a file (or link) at ``target`` to a new backup name beside it
+    (:func:`temporary_beside`, ``.backup``: not a temporary that
+    :func:`brdfcorr.io.paths.remove_partials` removes); its path, or None where there is none."""
+    if not os.path.lexists(target):
+        return None
+    backup = temporary_beside(target, ".backup")
+    try:
+        os.replace(target, backup)
+    except OSError:
+        os.unlink(backup)  # still the empty file made for the name
+        raise
+    return backup
 
 
 _FILE_KINDS = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",
