@@ -1,8 +1,7 @@
 """The imagery fit's spatial blocks (``fit-classes --block-size``: the clusters of its robust errors
 and the folds of ``auto``'s held-out choice) are squares of the scene, row // block and
-column // block counted from its first pixel, not pieces of a dask chunk: the chunk size changes
-neither the blocks nor the fitted parameters and errors (as for ``assess``, whose blocks were once
-cut at chunk edges: brdfcorr.analysis.view_angle_sums).
+column // block counted from its first pixel, not pieces of a dask chunk (as for ``assess``, whose
+blocks were once cut at chunk edges: brdfcorr.analysis.view_angle_sums).
 """
 
 from __future__ import annotations
@@ -12,8 +11,6 @@ import xarray as xr
 
 from brdfcorr.fit.sampling import sample_classes
 from brdfcorr.fit.settings import Sampling
-from brdfcorr.tasks.fit import SceneFiles, fit_class_files
-from brdfcorr.testing import synthetic_scene, write_scene
 
 BLOCK = 24  # not a multiple of the chunks below: blocks straddle their edges
 
@@ -34,14 +31,3 @@ def test_sample_blocks_are_numbered_in_the_scene():
     assert samples.block.size == 2000
     np.testing.assert_array_equal(samples.block, (row // BLOCK) * blocks_per_row + column // BLOCK)
 
-
-def test_the_chunk_size_changes_no_fitted_parameter_nor_error(tmp_path):
-    scene = synthetic_scene(ny=96, nx=96)
-    noise = 1 + 0.05 * np.random.default_rng(1).standard_normal(scene["reflectance"].shape)
-    scene["reflectance"] = scene["reflectance"] * noise.astype("float32")
-    paths = write_scene(tmp_path, scene)
-    files = [SceneFiles(image=paths["image"], classes=paths["classes"], angles=paths["angles"])]
-    reports = [fit_class_files(files, "torrance_sparrow", sampling=Sampling(block_size=BLOCK), chunks=chunks).report()
-               for chunks in (16, None)]
-    assert reports[0]["classes"][0]["params"] and reports[0]["classes"][0]["errors"]
-    assert reports[1] == reports[0]  # exactly: the same samples, blocks and fits
