@@ -164,6 +164,11 @@ def _fit_reasons(report: ClassFit, model: Model, at_edge: Sequence[str], guard: 
             report.notes.append(f"{where}: poorly determined (the angular fit is good: R^2 {angular:.3f})")
         else:
             reasons.append(f"{where}: the data do not constrain it, or its optimum lies outside")
+    for parameter in model.parameters:  # a table holds only values its model allows
+        try:
+            parameter.check(report.params.get(parameter.name, ()), model.name)
+        except ParameterError as error:
+            reasons.append(f"fitted {error}: the data do not determine it")
     return reasons
 
 

@@ -232,3 +232,22 @@ def test_fit_quality_of_any_weights_is_their_r2_against_a_direct_evaluation():
     for name in ("r2", "rmse", "chi2_dof", "angular_r2"):
         np.testing.assert_allclose(own[name], fit[name], rtol=1e-9)
     assert np.all(quality["r2"] < fit["r2"]) and np.all(quality["angular_r2"] < fit["angular_r2"])
+
+
+def test_a_fit_outside_its_models_range_fails_the_class_instead_of_the_table(monkeypatch):
+    # A degenerate fit (free levels that absorb the peak) once gave the empirical model's a = 6e25
+    # sr^-1; the table refuses a > 1000 (the model's range), and fit-classes crashed with pydantic's
+    # error. The class fails its guard rails instead, named, and the other classes keep their fit.
+    angles = airborne_lines(2000, seed=3)
+    brdf = render(angles)
+    original = classes.fit_class_samples
+
+    def overflowing(*args, **kwargs):
+        result = original(*args, **kwargs)
+        return {**result, "params": {**result["params"], "f_vol": np.full(4, -np.inf)}}
+
+    monkeypatch.setattr(classes, "fit_class_samples", overflowing)
+    with pytest.warns(ClassFitWarning, match=r"class 7 \(meadow\): fitted ross_thick_li_sparse: parameter f_vol"):
+        fit = fit_one_class(7, "meadow", RTLSR, ClassSamples(*angles, brdf))
+    assert fit.status == "uncorrected"
+    assert classes.class_entry(fit, [450.0, 550.0, 650.0, 850.0], "test") is None
