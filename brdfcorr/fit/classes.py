@@ -152,7 +152,10 @@ def _fit_reasons(report: ClassFit, model: Model, at_edge: Sequence[str], guard: 
             f"the geometry does not separate the terms {', '.join(model.linear)}"
         )
     angular = report.median_angular_r2
-    if _angular(model) and not angular >= guard.min_r2:
+    if _angular(model) and math.isnan(angular):
+        reasons.append("no angular signal stands out of the samples' scatter within geometry bins (angular R^2 "
+                       f"undefined): nothing for {model.name} to follow")
+    elif _angular(model) and not angular >= guard.min_r2:
         reasons.append(
             f"median angular R^2 {angular:.3f} < {guard.min_r2:g}: "
             f"{model.name} explains almost none of the angular signal"

@@ -251,3 +251,13 @@ def test_a_fit_outside_its_models_range_fails_the_class_instead_of_the_table(mon
         fit = fit_one_class(7, "meadow", RTLSR, ClassSamples(*angles, brdf))
     assert fit.status == "uncorrected"
     assert classes.class_entry(fit, [450.0, 550.0, 650.0, 850.0], "test") is None
+
+
+def test_a_class_without_angular_signal_is_told_so():
+    # A uniform Lambertian class: no bin mean stands out of the scatter, the angular R^2 is undefined
+    # (NaN), which the reason says instead of "median angular R^2 nan < 0.05".
+    angles = airborne_lines(4000, seed=5)
+    brdf = np.full((4000, 2), 0.03)
+    with pytest.warns(ClassFitWarning, match="no angular signal stands out"):
+        fit = fit_one_class(7, "lawn", RTLSR, ClassSamples(*angles, brdf))
+    assert math.isnan(fit.median_angular_r2) and fit.status == "uncorrected"
