@@ -10,7 +10,7 @@ and :func:`brdfcorr.analysis.overlap.assess_overlap` against the lines it overla
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import dask
@@ -100,6 +100,11 @@ class HoldoutFit:
     prior : ShapePrior, optional
         A coefficient set's kernel shape as the prior of each fit (:class:`brdfcorr.fit.ClassModels`'
         ``prior``; None: the fits alone).
+    default_names : mapping of int to str, optional
+        Names of the classes that the view options' ``class_names`` do not name (the class maps'
+        ``class_names`` tags): they name the fitted and the assessed classes, but describe what a
+        map may hold, so unlike the given names they are not checked against the classes the
+        training lines hold (:class:`brdfcorr.fit.ClassModels`' ``default_names``).
     """
 
     model: str = "torrance_sparrow"
@@ -110,6 +115,7 @@ class HoldoutFit:
     reference: Mapping[str, object] | None = None
     limits: tuple[float, float] | None = DEFAULT_LIMITS
     prior: ShapePrior | None = None
+    default_names: Mapping[int, str] | None = None
 
 
 def leave_one_line_out(
@@ -128,7 +134,9 @@ def leave_one_line_out(
         limits (:func:`brdfcorr.normalize`).
     view_options : ViewAngleOptions
         The assessment of each held-out line (:func:`assess_view_angles`). Its ``class_names`` also
-        name the classes of the fits, and its ``flip_view_azimuth`` (``vaa`` stored as seen from
+        name the classes of the fits (a name of a class that no training line holds is warned
+        about, :class:`~brdfcorr.fit.classes.ClassFitWarning`; ``fit.default_names`` name the others
+        without a warning), and its ``flip_view_azimuth`` (``vaa`` stored as seen from
         the sensor) applies to the fits and the corrections too.
     overlap : bool, default True
         Also compare the held-out line with every other line it overlaps (both corrected with the
@@ -148,13 +156,16 @@ def leave_one_line_out(
     # The settings by the names the fit and the correction below take them.
     model, class_models, fixed, max_samples, seed = fit.model, fit.class_models, fit.fixed, fit.max_samples, fit.seed
     limits, names, flip_view_azimuth = fit.limits, view_options.class_names, view_options.flip_view_azimuth
+    models = ClassModels(model, class_models=class_models, fixed=fixed, names=names, prior=fit.prior,
+                         default_names=fit.default_names)
+    if fit.default_names:  # the assessment names the classes as the fits do
+        view_options = replace(view_options, class_names={**fit.default_names, **(names or {})})
     geometry, sza_from = _common_reference(lines, fit.reference)
     results = []
     for held, line in enumerate(lines):
         training = [other for index, other in enumerate(lines) if index != held]
         fitted = fit_classes([t.reflectance for t in training], [t.classes for t in training],
-                             [xr.Dataset(dict(t.angles)) for t in training],
-                             ClassModels(model, class_models=class_models, fixed=fixed, names=names, prior=fit.prior),
+                             [xr.Dataset(dict(t.angles)) for t in training], models,
                              sampling=Sampling(max_samples=max_samples, seed=seed,
                                                flip_view_azimuth=flip_view_azimuth))
 

@@ -37,7 +37,7 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, TypeAdapter, ValidationError, model_validator
 
 from brdfcorr._validation import StrictModel, describe_errors
 from brdfcorr.chain.config_inputs import AngleKind as AngleKind
@@ -97,6 +97,13 @@ class ChainConfig(StrictModel):
         A label for the run report.
     base_dir : Path
         Directory relative paths are resolved against (set by :func:`load_config`; not a key).
+
+    Notes
+    -----
+    The view azimuth convention of the angle sources is one setting: ``inputs.flip_view_azimuth``
+    (for a fit-only chain too) or ``steps.correct.flip_view_azimuth``; given at ``inputs`` it is
+    the correct step's too, and a correct step that gives the other value is a
+    :class:`ConfigError` (:attr:`flips_view_azimuth`).
     """
 
     name: str = "brdfcorr chain"
@@ -109,6 +116,28 @@ class ChainConfig(StrictModel):
 
     _base_dir: Path = Path(".")
     _source: str = "chain config"
+
+    @model_validator(mode="before")
+    @classmethod
+    def _one_view_azimuth_convention(cls, data: object) -> object:
+        """``inputs.flip_view_azimuth``, where given, is also the correct step's (so the step, its
+        fingerprint and the config written back say what the run does); a correct step that gives
+        the other value is refused. Anything else malformed is left to the fields' own checks."""
+        if not isinstance(data, Mapping):
+            return data
+        given = _given_bool(data, "inputs", "flip_view_azimuth")
+        steps = data.get("steps", {})
+        correct = steps.get("correct", {}) if isinstance(steps, Mapping) else None
+        if given is None or not isinstance(correct, Mapping):  # not given; no correct step (null)
+            return data
+        step = _given_bool(steps, "correct", "flip_view_azimuth")
+        if step is None and correct.get("flip_view_azimuth") is not None:  # no boolean: the field says so
+            return data
+        if step is not None and step != given:
+            raise ValueError(f"inputs.flip_view_azimuth is {str(given).lower()} but steps.correct.flip_view_azimuth "
+                             f"is {str(step).lower()}: the view azimuth convention of the angle sources is one "
+                             "setting, give it once (inputs.flip_view_azimuth)")
+        return {**data, "steps": {**steps, "correct": {**correct, "flip_view_azimuth": given}}}
 
     @model_validator(mode="after")
     def _has_parameters(self) -> ChainConfig:
@@ -133,8 +162,11 @@ class ChainConfig(StrictModel):
 
     @property
     def flips_view_azimuth(self) -> bool:
-        """The scenes' view azimuths are stored as seen from the sensor (``steps.correct``'s
-        ``flip_view_azimuth``): the imagery fit reads them as the correction does."""
+        """The scenes' view azimuths are stored as seen from the sensor (``inputs.flip_view_azimuth``,
+        else ``steps.correct``'s ``flip_view_azimuth``): the imagery fit, the correction and the
+        assessment read them alike."""
+        if self.inputs.flip_view_azimuth is not None:
+            return self.inputs.flip_view_azimuth
         return self.steps.correct is not None and self.steps.correct.flip_view_azimuth
 
     def _check_class_maps(self) -> None:
@@ -181,6 +213,23 @@ class ChainConfig(StrictModel):
     def to_dict(self) -> dict:
         """The config as plain data (JSON/YAML-friendly), defaults filled in."""
         return self.model_dump(mode="json")
+
+
+_BOOLEAN = TypeAdapter(bool)
+
+
+def _given_bool(document: object, section: str, key: str) -> bool | None:
+    """The value of ``section.key`` in a raw ``document``, read as the field reads it (YAML's
+    ``true``, pydantic's ``"yes"``, ...); None where it is not given, null or no boolean (which the
+    field itself then refuses)."""
+    part = document.get(section) if isinstance(document, Mapping) else None
+    value = part.get(key) if isinstance(part, Mapping) else None
+    if value is None:
+        return None
+    try:
+        return _BOOLEAN.validate_python(value)
+    except ValidationError:
+        return None
 
 
 def load_config(path: str | os.PathLike, overrides: Mapping[str, object] | None = None) -> ChainConfig:

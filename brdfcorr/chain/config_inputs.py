@@ -14,11 +14,13 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from brdfcorr._validation import Integer, Number, PositiveInteger, StrictModel, short_repr
+from brdfcorr.chain.config_steps import step_fields
 from brdfcorr.chain.patterns import check_pattern
 from brdfcorr.errors import UnknownNameError
 from brdfcorr.io.sensors import ANGLE_KINDS
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, check_distinct_ids
+from brdfcorr.tasks.options import CHAIN_INPUTS
 
 __all__ = ["AngleSource", "InputsConfig", "ParametersConfig", "check_material"]
 
@@ -58,7 +60,7 @@ class AngleSource(StrictModel):
         return self
 
 
-class InputsConfig(StrictModel):
+class InputsConfig(step_fields(CHAIN_INPUTS, "inputs")):  # type: ignore[misc]
     """The scenes of a run.
 
     Attributes
@@ -96,6 +98,12 @@ class InputsConfig(StrictModel):
         that do not tag them (e.g. 0.0001 for 0-10000; Landsat C2 L2 2.75e-5 and -0.2); a given
         value replaces the files' GDAL scale/offset (default: the files', else 1 and 0). Applied on
         read by the fit and correct steps and recorded in the outputs' tags.
+    flip_view_azimuth : bool, optional
+        The angle sources store the view azimuths as seen from the sensor (towards the ground):
+        180 deg is added to each, by the imagery fit, the correction and the assessment alike
+        (``--flip-view-azimuth``, :data:`brdfcorr.tasks.options.CHAIN_INPUTS`). null (default):
+        ``steps.correct.flip_view_azimuth`` decides, false without a correct step; a correct step
+        that gives the other value is an error (:class:`brdfcorr.chain.config.ChainConfig`).
     """
 
     images: list[str] = Field(min_length=1)

@@ -59,9 +59,10 @@ def _key_type(setting: Setting) -> Any:
 
 
 def step_fields(table: Settings, step: str) -> type[StrictModel]:
-    """A model of the keys of the chain step ``step``: the settings of a command's ``table``
-    (:mod:`brdfcorr.tasks.options`) marked with that step, each with the setting's type, words,
-    default and bounds, and the chain's own bounds over them. A step's class derives from it."""
+    """A model of the keys of the chain step ``step`` (or section: ``"inputs"``): the settings of a
+    command's ``table`` (:mod:`brdfcorr.tasks.options`) marked with that step, each with the
+    setting's type, words, default and bounds, and the chain's own bounds over them. A step's
+    class derives from it."""
     fields = {setting.name: (_key_type(setting),
                              Field(setting.default, **{**setting.bounds(), **dict(setting.chain_bounds)}))
               for setting in table if setting.chain == step}
@@ -269,8 +270,9 @@ class ImageryFit(step_fields(FIT_CLASSES, "fit")):  # type: ignore[misc]
     def fit_settings(self, names: Mapping[int, str] | None = None, flip_view_azimuth: bool = False) -> dict[str, Any]:
         """The step as the keyword arguments ``models``, ``sampling`` (with the bad bands) and
         ``guard`` of :func:`brdfcorr.tasks.fit.fit_class_files`; ``names`` are default class
-        names (the step's ``names`` win); ``flip_view_azimuth`` is the correct step's (the
-        scenes' view azimuths are stored as seen from the sensor: fitted as they are corrected)."""
+        names (the step's ``names`` win); ``flip_view_azimuth`` is the chain's
+        (:attr:`brdfcorr.chain.config.ChainConfig.flips_view_azimuth`: the scenes' view azimuths are
+        stored as seen from the sensor, fitted as they are corrected)."""
         return {
             "models": ClassModels(self.model, class_models=self.class_models, fixed=self.fixed,
                                   fallback=self.fallback, names=self.names, default_names=names,
@@ -322,7 +324,8 @@ class CorrectStep(step_fields(CORRECT, "correct")):  # type: ignore[misc]
     extrapolate : bool
         Let band centres outside a class's table wavelengths take the edge values.
     flip_view_azimuth : bool
-        View azimuths are stored as seen from the sensor: add 180 deg.
+        View azimuths are stored as seen from the sensor: add 180 deg (the imagery fit and the
+        assess step read them so too). ``inputs.flip_view_azimuth``, where given, sets it.
     factor_at : {"pixels", "nodes"}
         Where the factor is evaluated: at every pixel, or at the nodes of a sensor's coarse angle
         grid (``angles_kind: sentinel2``) and interpolated to the pixels (one class, no class map,

@@ -88,7 +88,8 @@ def fit_fingerprint(config: ChainConfig, scenes: list[Scene]) -> str | None:
     """What a chain's fitted table depends on, as the SHA-256 of canonical JSON: the fit step's
     settings, the brdfcorr version and its inputs (each measurement file, or each scene's image,
     class map and angle files, as :func:`scene_fingerprint` records them, with the ``inputs`` and
-    ``steps.strata`` settings); None without a fit step."""
+    ``steps.strata`` settings, and ``flip_view_azimuth`` where the view azimuths are flipped,
+    :attr:`ChainConfig.flips_view_azimuth`); None without a fit step."""
     step = config.steps.fit
     if step is None:
         return None
@@ -97,7 +98,9 @@ def fit_fingerprint(config: ChainConfig, scenes: list[Scene]) -> str | None:
         document["inputs"] = [_file_state(config.resolve(item.file)) for item in step.measurements]
     else:
         document["inputs"] = [{role: _file_state(path) for role, path in scene.inputs()} for scene in scenes]
-        document["settings"] = config.inputs.model_dump(mode="json", exclude={"images", "scene_regex"})
+        # flip_view_azimuth below, once: where set as the correct step's key or at inputs alike
+        document["settings"] = config.inputs.model_dump(mode="json",
+                                                        exclude={"images", "scene_regex", "flip_view_azimuth"})
         if config.steps.strata is not None:
             document["strata"] = config.steps.strata.model_dump(mode="json")
         if config.flips_view_azimuth:  # the fit reads the view azimuths as the correction does
@@ -242,8 +245,9 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
         "brdfcorr": __version__,
         "inputs": inputs,
         "angle source": {"kind": scene.angles_kind, "options": scene.angle_options},
+        # flip_view_azimuth: the correct step's, which inputs.flip_view_azimuth sets (ChainConfig)
         "settings": config.inputs.model_dump(mode="json", exclude={"images", "scene_regex", "angles", "classes",
-                                                                    "slope_aspect", "dem"}),
+                                                                    "slope_aspect", "dem", "flip_view_azimuth"}),
         "reference": None if config.reference is None else config.reference.model_dump(mode="json"),
         "correct": correct,
         "format": config.outputs.model_dump(mode="json", include={"format", "compress", "cog", "interleave"},

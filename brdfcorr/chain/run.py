@@ -313,7 +313,7 @@ def _correct(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedu
     )
     result = correct_files(CorrectionRequest(
         sources, table, files, reference=config.reference, limits=step.limits, extrapolate=step.extrapolate,
-        unknown=step.unknown, flip_view_azimuth=step.flip_view_azimuth, terrain=_terrain(scene, config),
+        unknown=step.unknown, flip_view_azimuth=config.flips_view_azimuth, terrain=_terrain(scene, config),
         factor_at=step.factor_at,
         align_classes=inputs.align_classes, class_lookup=dict(inputs.class_lookup),
         engine=Engine(chunks=config.engine.chunk, scheduler=scheduler, num_workers=num_workers),
@@ -335,7 +335,7 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
     sources = _scene_sources(scene, config)
     view_options = ViewAngleOptions(
         by=step.sign_by, heading=step.heading, class_names={entry.id: entry.name for entry in table.classes},
-        bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.steps.correct.flip_view_azimuth,
+        bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.flips_view_azimuth,
         block_size=step.block_size,
     )
     clusters = None if step.clusters is None else (

@@ -275,7 +275,10 @@ def leave_one_line_out_files(
         compared in the overlap. A line's name in the report is its image's stem (its path where
         two stems are equal).
     fit, view_options, overlap :
-        As for :func:`leave_one_line_out`.
+        As for :func:`leave_one_line_out`. The class maps' ``class_names`` tags
+        (:func:`~brdfcorr.tasks.classmaps.tagged_class_names`) name the classes that
+        ``view_options.class_names`` does not, as ``fit.default_names``: a tagged class that a
+        fold's training lines do not hold is not warned about, a given name of one is.
     align_classes, class_lookup :
         As for :func:`assess_files`, the same for every line.
     chunks : int, optional
@@ -307,6 +310,10 @@ def leave_one_line_out_files(
             entry["clusters"] = f"{path} band {band}"
         lines.append(Line(name, data.reflectance, data.classes, data.angles, layer))
         inputs.append(entry)
-    results = leave_one_line_out(lines, fit, view_options=_named(view_options, [line.classes for line in lines]),
-                                 overlap=overlap)
+    # The names in the maps' tags describe what a map may hold: a class none of a fold's training
+    # lines holds is not worth a warning, as a name the user gave is (HoldoutFit.default_names).
+    tagged = tagged_class_names(*(line.classes for line in lines))
+    if tagged:
+        fit = replace(fit, default_names={**tagged, **(fit.default_names or {})})
+    results = leave_one_line_out(lines, fit, view_options=view_options, overlap=overlap)
     return LinesAssessment(inputs, results)

@@ -39,8 +39,8 @@ from brdfcorr.defaults import (
 from brdfcorr.io import FORMATS
 from brdfcorr.io.sensors import ANGLE_KINDS
 
-__all__ = ["Setting", "Settings", "ANGLE_SOURCE", "CLASS_MAP", "SCALE", "PRIOR", "SLOPE_BLOCK", "CORRECT",
-           "FIT_CLASSES", "ASSESS", "ASSESS_LINES", "NBAR", "OUTPUT_TYPES", "INTERLEAVES",
+__all__ = ["Setting", "Settings", "ANGLE_SOURCE", "CLASS_MAP", "SCALE", "FLIP_VIEW_AZIMUTH", "PRIOR", "SLOPE_BLOCK",
+           "CORRECT", "FIT_CLASSES", "ASSESS", "ASSESS_LINES", "NBAR", "CHAIN_INPUTS", "OUTPUT_TYPES", "INTERLEAVES",
            "Unknown", "FactorAt", "Topographic", "BrdfFrame"]
 
 #: Kinds of setting: a text, a file path (no folder), a number, an integer, a flag (off unless
@@ -94,9 +94,9 @@ class Setting:
     hidden : bool
         Left out of ``--help`` (a deprecated spelling).
     chain : str, optional
-        The chain step (``"correct"``, ``"terrain"``, ``"fit"``, ``"assess"``) that has this setting
-        as a key of the same name, its field made from this setting
-        (:func:`brdfcorr.chain.config_steps.step_fields`).
+        The chain step (``"correct"``, ``"terrain"``, ``"fit"``, ``"assess"``) or section
+        (``"inputs"``: :data:`CHAIN_INPUTS`) that has this setting as a key of the same name, its
+        field made from this setting (:func:`brdfcorr.chain.config_steps.step_fields`).
     chain_bounds : tuple of (str, object)
         The chain key's own pydantic ``Field`` keywords over the bounds (a stricter bound,
         ``allow_inf_nan``).
@@ -211,6 +211,12 @@ SCALE = (
                  "image's GDAL offset, else 0]."),
 )
 
+#: ``--flip-view-azimuth`` of ``correct`` and ``fit-classes``: a property of the angle sources, so a
+#: chain sets it once for every step that reads them (:data:`CHAIN_INPUTS`), or as the correct
+#: step's key.
+FLIP_VIEW_AZIMUTH = _flag("flip_view_azimuth", "--flip-view-azimuth",
+                          "View azimuths are stored as seen from the sensor: add 180 deg.")
+
 #: ``--prior`` and ``--prior-spread``: a coefficient set's kernel shape as the prior of a fit.
 PRIOR = (
     Setting("prior", ("--prior",), "text", metavar="SET",
@@ -293,8 +299,7 @@ CORRECT = settings(
             help="Band centres [nm], comma-separated (overrides the image's)."),
     SCALE,
     _flag("extrapolate", "--extrapolate", "Allow band centres outside a class's table wavelengths.").chained("correct"),
-    _flag("flip_view_azimuth", "--flip-view-azimuth",
-          "View azimuths are stored as seen from the sensor: add 180 deg.").chained("correct"),
+    FLIP_VIEW_AZIMUTH.chained("correct"),
     Setting("factor_at", ("--factor-at",), "choice", choices=FACTOR_AT, default="pixels", show_default=True,
             help="Evaluate the factor at every pixel, or at the nodes of the sensor's coarse angle grid "
                  "(--angles-kind sentinel2) and interpolate it to the pixels: sen2nbar's method, faster; one "
@@ -377,7 +382,7 @@ FIT_CLASSES = settings(
     Setting("cluster_band", ("--cluster-band",), "int", ge=1, default=1, show_default=True,
             help=_CLUSTER_BAND.format("each --clusters raster")),
     SCALE,
-    dataclasses.replace(CORRECT["flip_view_azimuth"], chain=None),
+    FLIP_VIEW_AZIMUTH,
     Setting("min_samples", ("--min-samples",), "int", default=500, show_default=True,
             help="Guard rail: minimum samples per class.").chained("fit", ge=1),
     Setting("min_vza_spread", ("--min-vza-spread",), "float", default=10.0, show_default=True,
@@ -514,3 +519,10 @@ NBAR = settings(
     _PROGRESS,
     _OVERWRITE_OUTPUTS,
 )
+
+#: The keys of a chain's ``inputs:`` section that are settings of the tasks
+#: (:class:`brdfcorr.chain.config.InputsConfig`): properties of the input files, so every step
+#: that reads them takes them (``flip_view_azimuth``: the imagery fit, the correction and the
+#: assessment). Not given (None): a fit-only chain reads the azimuths as they are, a chain with a
+#: correct step as its ``flip_view_azimuth`` says.
+CHAIN_INPUTS = settings(dataclasses.replace(FLIP_VIEW_AZIMUTH, default=None, chain="inputs"))

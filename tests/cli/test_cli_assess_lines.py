@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import warnings
 
 import numpy as np
 import pytest
@@ -206,3 +207,36 @@ def test_view_azimuths_stored_from_the_sensor_are_flipped_in_the_fits_too(lines,
         tables_close(ours.table, theirs.table, rtol=1e-6)
         assert ours.table.classes  # fitted, not left uncorrected
         np.testing.assert_allclose(ours.view["relative_slope"].values, theirs.view["relative_slope"].values, atol=1e-6)
+
+
+def test_tagged_class_names_are_not_warned_about_but_given_ones_are(files, tmp_path):
+    # The class maps' class_names tag names a class 7 that no line holds (what a map may hold, as
+    # fit-classes reads it: ClassModels.default_names): no fold warns of it. A name the user gives
+    # for a class no training line holds (9) is still warned about, once per fold.
+    from brdfcorr.fit.classes import ClassFitWarning
+
+    tagged = []
+    for path in files["classes"]:
+        tagged.append(shutil.copy(path, tmp_path / f"{path.parent.name}_{path.name}"))
+        with rasterio.open(tagged[-1], "r+") as dataset:
+            dataset.update_tags(class_names="1:grass,2:soil,7:water")
+    scenes = [SceneSources(image, classes, angles)
+              for image, classes, angles in zip(files["images"], tagged, files["angles"])]
+    fit = HoldoutFit("ross_thick_li_sparse", reference=REFERENCE, max_samples=2000)
+
+    def unused_warnings(view_options):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assessment = leave_one_line_out_files(scenes, fit, view_options=view_options, overlap=False)
+        return assessment, [str(w.message) for w in caught
+                            if issubclass(w.category, ClassFitWarning) and "not used" in str(w.message)]
+
+    assessment, unused = unused_warnings(ViewAngleOptions())
+    assert unused == []
+    # the tag's names still name the fitted and the assessed classes
+    for line in assessment.report()["lines"]:
+        assert [entry["name"] for entry in line["fit"]] == ["grass", "soil"]
+        assert [entry["name"] for entry in line["view_angles"]["classes"]] == ["grass", "soil"]
+    _, unused = unused_warnings(ViewAngleOptions(class_names={9: "roof"}))
+    assert len(unused) == 3  # one per held-out line's fit
+    assert all("names 9" in message and "7" not in message for message in unused)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -164,7 +165,8 @@ def test_correct_files_reads_sensor_angle_sources(files, scene, tmp_path, monkey
     from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
     def stand_in(source, like, scale=1.0):
-        assert source == "obs.bin" and like.sizes["x"] == 48
+        # by absolute path, as rasters are opened: workers started in another folder read it
+        assert source == Path("obs.bin").absolute() and like.sizes["x"] == 48
         return xr.Dataset({name: scene[name] * scale for name in ANGLES})
 
     monkeypatch.setitem(brdfcorr.io.sensors.ANGLE_KINDS, "stand_in", stand_in)

@@ -106,6 +106,19 @@ def test_chain_keys_are_made_from_the_settings(step, table, model):
         assert fields[setting.name].default == setting.default, setting.name
 
 
+def test_chain_inputs_keys_are_made_from_the_settings():
+    # inputs.flip_view_azimuth is --flip-view-azimuth of correct and fit-classes (one Setting),
+    # unset (None) by default: the correct step's key decides then.
+    from brdfcorr.chain.config import InputsConfig
+    from brdfcorr.tasks.options import CHAIN_INPUTS, FLIP_VIEW_AZIMUTH
+
+    fields = InputsConfig.model_fields
+    assert [setting.name for setting in CHAIN_INPUTS if setting.chain == "inputs"] == ["flip_view_azimuth"]
+    assert fields["flip_view_azimuth"].default is None is CHAIN_INPUTS.default("flip_view_azimuth")
+    for table in (CORRECT, FIT_CLASSES):
+        assert dataclasses.replace(table["flip_view_azimuth"], chain=None) == FLIP_VIEW_AZIMUTH
+
+
 def test_library_defaults_agree_with_the_tables():
     # brdfcorr.fit.settings keeps its own dataclass defaults (the library's); they must not drift.
     from brdfcorr.fit.settings import GuardRails, Sampling

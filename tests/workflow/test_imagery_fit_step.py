@@ -5,7 +5,9 @@ configs/full_reference.yaml with every key at its default."""
 
 from pathlib import Path
 
+import numpy as np
 import pytest
+import rasterio
 import yaml
 
 from brdfcorr.chain.config import ChainConfig, ConfigError, load_config
@@ -147,3 +149,79 @@ def test_a_prior_of_the_step_is_that_of_fit_classes(strata_scene, tables_close):
                  with_shape_prior(plain, ShapePrior("roy2016", 0.1)))
     with pytest.raises(ValueError, match="prior_spread needs prior"):
         ImageryFit(source="imagery", prior_spread=0.1)
+
+
+# ------------------------------------------------------------------ the view azimuth convention
+def _minimal(inputs: dict | None = None, steps: dict | None = None) -> dict:
+    document = {"inputs": {"images": ["a.tif"], "angles": {"path": "a_angles.tif"}, "classes": "c.tif",
+                           **(inputs or {})},
+                "parameters": {"materials": {1: "roof_tile"}}, "outputs": {"directory": "out"}}
+    if steps is not None:
+        document["steps"] = steps
+    return document
+
+
+def test_a_fit_only_chain_reads_view_azimuths_from_the_sensor_as_its_inputs_say(tmp_path, write_strata_scene,
+                                                                                 tables_close):
+    # The same scene written twice, the second with each view azimuth as seen from the sensor
+    # (vaa + 180), each fitted by a chain with a fit step and no correct step. With
+    # inputs.flip_view_azimuth the second table is the first one's (as fit-classes
+    # --flip-view-azimuth gives it, tests/fit/test_classfit.py); without it, it is not.
+    tables = {}
+    for name, turn, inputs in (("plain", 0.0, {}), ("from_sensor", 180.0, {"flip_view_azimuth": True}),
+                               ("unflipped", 180.0, {})):
+        root = tmp_path / name
+        paths = write_strata_scene(root / "scenes" / "line0")
+        with rasterio.open(paths["angles"], "r+") as dataset:
+            dataset.write((dataset.read(4).astype(np.float64) + turn) % 360.0, 4)
+        path = _chain(root, name, {})
+        document = yaml.safe_load(path.read_text())
+        document["inputs"].update(inputs)
+        document["steps"]["correct"] = None  # fit only
+        path.write_text(yaml.safe_dump(document))
+        config = load_config(path)
+        assert config.flips_view_azimuth is bool(inputs)
+        report = run_chain(config)
+        assert report.ok, report.scenes
+        tables[name] = ParameterTable.load(root / f"out_{name}" / "fitted_params.yaml")
+    tables_close(tables["from_sensor"], tables["plain"], rtol=1e-5)
+    with pytest.raises(AssertionError):  # the flip matters here: unflipped, the fit is another
+        tables_close(tables["unflipped"], tables["plain"], rtol=1e-2)
+
+
+def test_the_view_azimuth_convention_is_one_setting():
+    fit = {"fit": {"source": "imagery"}}
+    # At inputs it is the correct step's too (the config written back says so and reads back).
+    config = ChainConfig.from_dict(_minimal({"flip_view_azimuth": True}, {**fit}), "chain.yaml")
+    assert config.flips_view_azimuth and config.steps.correct.flip_view_azimuth
+    assert ChainConfig.from_dict(config.to_dict(), "chain.yaml") == config
+    assert ChainConfig.from_dict(_minimal({"flip_view_azimuth": True}, {**fit, "correct": {
+        "flip_view_azimuth": True}}), "chain.yaml").flips_view_azimuth  # the same twice: accepted
+    # The correct step's key alone still works (and a fit-only chain without either reads them as they are).
+    assert ChainConfig.from_dict(_minimal(steps={"correct": {"flip_view_azimuth": True}}),
+                                 "chain.yaml").flips_view_azimuth
+    assert not ChainConfig.from_dict(_minimal(steps={**fit, "correct": None}), "chain.yaml").flips_view_azimuth
+    # Two different values: one line naming both keys.
+    for given, step in ((True, False), (False, True)):
+        with pytest.raises(ConfigError) as caught:
+            ChainConfig.from_dict(_minimal({"flip_view_azimuth": given}, {"correct": {"flip_view_azimuth": step}}),
+                                  "chain.yaml")
+        message = str(caught.value)
+        assert "\n" not in message and message.startswith("chain.yaml: ")
+        assert "inputs.flip_view_azimuth" in message and "steps.correct.flip_view_azimuth" in message
+    with pytest.raises(ConfigError, match="inputs.flip_view_azimuth: Input should be a valid boolean"):
+        ChainConfig.from_dict(_minimal({"flip_view_azimuth": "maybe"}), "chain.yaml")
+
+
+def test_the_fit_fingerprint_holds_the_flip_wherever_it_is_set():
+    from brdfcorr.chain.resume import fit_fingerprint
+
+    def fingerprint(inputs=None, correct=None):
+        steps = {"fit": {"source": "imagery"}, "correct": correct}
+        return fit_fingerprint(ChainConfig.from_dict(_minimal(inputs, steps), "chain.yaml"), [])
+
+    unset = fingerprint()
+    flipped = fingerprint({"flip_view_azimuth": True})
+    assert flipped != unset  # a resumed fit-only run refits when the flip is set
+    assert flipped == fingerprint(correct={"flip_view_azimuth": True})  # the same fit, however it is set
+    assert fingerprint({"flip_view_azimuth": False}) == unset == fingerprint(correct={})  # false: the default

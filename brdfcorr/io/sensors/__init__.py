@@ -31,7 +31,9 @@ scaling, cloud mask, angle source) are found by :func:`find_product` and stacked
 from __future__ import annotations
 
 import importlib
+import os
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from brdfcorr.errors import SensorInputError
@@ -156,7 +158,10 @@ def read_angles(kind: str, source, like: xr.DataArray | None = None, **options) 
         The source kind (see the module table).
     source :
         The obs file, the ``MTD_TL.xml``, the Landsat product directory or file, the NEON
-        reflectance HDF5, the EMIT L1B OBS NetCDF, or for ``"solar"`` the acquisition time.
+        reflectance HDF5, the EMIT L1B OBS NetCDF, or for ``"solar"`` the acquisition time. A
+        path is made absolute here, so that the lazy reads of every kind (and of the files found
+        beside it: a Landsat product's angle bands) run on dask.distributed workers started in
+        another folder; the readers' messages name it so.
     like : xarray.DataArray, optional
         The image the angles are for (required for ``"solar"``).
     **options :
@@ -175,4 +180,8 @@ def read_angles(kind: str, source, like: xr.DataArray | None = None, **options) 
         ) from None
     if kind == "solar" and like is None:
         raise SensorInputError("angle source kind 'solar' needs the image grid (like=image)")
+    if kind != "solar" and isinstance(source, (str, os.PathLike)):  # (solar: a time)
+        # An absolute path, as brdfcorr.io.opening.open_raster opens rasters: the graph's reads may
+        # run on dask.distributed workers started elsewhere.
+        source = Path(source).absolute()
     return reader(source, like, **options)

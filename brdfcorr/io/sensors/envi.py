@@ -329,7 +329,9 @@ def read_envi_obs_terrain(path: str | Path, like: xr.DataArray | None = None, *,
     ----------
     path : str or Path
         The obs file (ENVI, header ``band names`` required); its bands "Slope" and "Aspect" are
-        found by name like the angle bands (:func:`read_envi_obs`).
+        found by name like the angle bands (:func:`read_envi_obs`). Opened by its absolute path
+        (the terrain step's one entry here, as :func:`brdfcorr.io.sensors.read_angles` is the
+        angles'), so that workers started in another folder read it.
     like : xarray.DataArray, optional
         The image the layers are for; its (y, x) grid must be the obs grid, else
         :class:`SensorInputError`. The output then takes its ``y``/``x`` coordinates and chunks.
@@ -350,7 +352,9 @@ def read_envi_obs_terrain(path: str | Path, like: xr.DataArray | None = None, *,
         ``..._obs_ortdem_mod``, has edited slope and aspect bands whose "Cosine(i)" matches no
         convention.
     """
-    path = Path(path)
+    # An absolute path, as brdfcorr.io.opening.open_raster opens rasters: the graph's reads may run
+    # on dask.distributed workers started elsewhere.
+    path = Path(path).absolute()
     names = wanted_bands(band_names, OBS_TERRAIN_BAND_NAMES, "layer(s)")
     obs, indices, descriptions = _open_obs_bands(path, names, like, chunks)
     variables = {}

@@ -370,7 +370,9 @@ def _landsat_angle_options(folder: Path) -> dict:
 
 def _on_grid(path: Path, grid: rasterio.DatasetReader, chunks: int) -> xr.DataArray:
     """Band 1 of ``path`` (y, x) on the grid of ``grid``, lazily: as it is where the grids agree,
-    else through a GDAL warped VRT by nearest neighbour (the quality mask: each value kept)."""
+    else through a GDAL warped VRT by nearest neighbour (the quality mask: each value kept). Read by
+    its absolute path, as the stack's bands (:func:`_source_xml`): workers started in another
+    folder read it."""
     with rasterio.open(path) as source:
         same = (source.crs == grid.crs and source.transform == grid.transform
                 and source.shape == (grid.height, grid.width))
@@ -378,10 +380,11 @@ def _on_grid(path: Path, grid: rasterio.DatasetReader, chunks: int) -> xr.DataAr
             transformer = None if source.crs == grid.crs else Transformer.from_crs(grid.crs, source.crs, always_xy=True)
             check_covers(source.transform, source.shape, grid.transform, (grid.height, grid.width), transformer,
                          source=f"{path}: the quality mask", margin=0.5)
+    absolute = Path(path).absolute()  # what the graph's reads open (messages name the path as given)
     if same:
-        band = rioxarray.open_rasterio(path, chunks={"y": chunks, "x": chunks}, lock=False)
+        band = rioxarray.open_rasterio(absolute, chunks={"y": chunks, "x": chunks}, lock=False)
     else:
-        vrt = WarpedVRT(rasterio.open(path), crs=grid.crs, transform=grid.transform, width=grid.width,
+        vrt = WarpedVRT(rasterio.open(absolute), crs=grid.crs, transform=grid.transform, width=grid.width,
                         height=grid.height, resampling=Resampling.nearest)
         band = rioxarray.open_rasterio(vrt, chunks={"y": chunks, "x": chunks}, lock=False)
     return band.isel(band=0, drop=True)

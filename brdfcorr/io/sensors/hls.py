@@ -114,7 +114,8 @@ def hls_refusal(granule: HlsGranule) -> str:
 
 
 def find_hls_granule(path: str | Path, bands: Sequence[str] | None = None) -> HlsGranule | None:
-    """The HLS granule in folder ``path``, or None where it holds no HLS file.
+    """The HLS granule in folder ``path``, or None where it holds no HLS file; its band and Fmask
+    files by absolute path.
 
     Raises
     ------
@@ -140,5 +141,9 @@ def find_hls_granule(path: str | Path, bands: Sequence[str] | None = None) -> Hl
                                f"{', '.join(known)})")
     sza = tuple(_band_sza(found[name]) for name in names)  # each band's own: they may differ
     fmask = next((file for file in files if file.name.upper().endswith((".FMASK.TIF", ".FMASK.TIFF"))), None)
-    return HlsGranule(path, f"hls_{product.lower()}", sensor, {name: found[name] for name in names},
-                      tuple(known[name][1] for name in names), tuple(known[name][0] for name in names), sza, fmask)
+    # The files by absolute path (the granule's own path as given, which messages name), as
+    # brdfcorr.io.opening.open_raster opens rasters: their lazy reads may run on dask.distributed
+    # workers started elsewhere.
+    return HlsGranule(path, f"hls_{product.lower()}", sensor, {name: found[name].absolute() for name in names},
+                      tuple(known[name][1] for name in names), tuple(known[name][0] for name in names), sza,
+                      None if fmask is None else fmask.absolute())
