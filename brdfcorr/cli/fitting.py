@@ -338,6 +338,8 @@ def _echo_measurement_fit(fit, name: str) -> None:
     click.echo(_format_table(rows))
     if data.sigma is not None:
         click.echo("errors: 1 sigma from the measurement errors, not scaled by chi2/dof")
+    elif first.errors_robust:
+        click.echo("errors: 1 sigma from the residuals, robust to noise that differs between measurements (HC3)")
     else:
         click.echo("errors: 1 sigma scaled by the residual scatter (chi2/dof)")
     if len(bands) == 1 and len(first.free) > 1:

@@ -91,11 +91,15 @@ class ErrorAnalysis:
     Attributes
     ----------
     scale_errors : bool or None, default None
-        Multiply the covariance by chi^2/dof. None: only when the fit has no ``sigma``, so that
-        the errors of an unweighted fit are estimated from the scatter of the residuals. With
-        ``sigma`` given the errors are those implied by the measurement errors alone (Brandt [2]_,
-        as in paper 003, Table 1) and chi^2/dof says separately how well the model fits; a
-        chi^2/dof well above 1 means the errors are too small by about sqrt(chi^2/dof).
+        Multiply the covariance by chi^2/dof (True), or not (False). None: with ``sigma`` the
+        errors are those implied by the measurement errors alone (Brandt [2]_, as in paper 003,
+        Table 1) and chi^2/dof says separately how well the model fits (well above 1: the errors
+        are too small by about sqrt(chi^2/dof)); without ``sigma`` they come from the residuals,
+        heteroscedasticity-robust (HC3 sandwich, MacKinnon and White 1985), since goniometer
+        noise is relative and the BRDF spans orders of magnitude: ``(J^T J)^-1 chi^2/dof``, which
+        assumes equal noise, gave errors 2-5x too small on paper 003's materials with 4 % noise.
+        Where the sandwich is undefined (a measurement of leverage ~1) the errors are scaled, with
+        a :class:`FitWarning`.
     correlation_limit : float, default :data:`~brdfcorr.fit.identifiability.CORRELATION_LIMIT`
         Warn with :class:`NonIdentifiableWarning` when a parameter's global correlation
         coefficient [-] (its correlation with the best linear combination of all the others, as
@@ -216,6 +220,9 @@ def _free_parameters(model: Model, fixed, initial, bounds):
                 raise ParameterError(
                     f"{model.name}: bounds of {name} must be a pair (lower, upper), got {bounds[name]!r}"
                 ) from None
+            if math.isnan(user_low) or math.isnan(user_high):
+                raise ParameterError(f"{model.name}: bounds of {name} must be numbers or +-inf, got "
+                                     f"({user_low:g}, {user_high:g})")
             low, high = max(low, user_low), min(high, user_high)
             if not low < high:
                 raise ParameterError(
@@ -236,6 +243,15 @@ def _free_parameters(model: Model, fixed, initial, bounds):
     return fixed, free, np.array(lower), np.array(upper), initial
 
 
+def _inside(default: float, low: float, high: float) -> float:
+    """The start nearest ``default`` a step inside ``[low, high]``: the step is ``max(|default|, 1)``,
+    or half the interval where that is narrower (its midpoint). A bound that is infinite or huge
+    (-1e308) then leaves the start near the finite end, not at an infinite or absurd midpoint."""
+    with np.errstate(over="ignore"):
+        step = min(max(abs(default), 1.0), 0.5 * (high - low))
+    return low + step if default <= low else high - step
+
+
 def _starting_points(problem: _Problem, initial: Mapping[str, float]) -> list[np.ndarray]:
     """Deterministic starting vectors for the non-linear fit.
 
@@ -250,8 +266,7 @@ def _starting_points(problem: _Problem, initial: Mapping[str, float]) -> list[np
     centre = {name: initial.get(name, model.parameter(name).default) for name in free}
     for index, name in enumerate(free):  # keep defaults strictly inside user-narrowed bounds
         if name not in initial and not lower[index] < centre[name] < upper[index]:
-            finite_upper = upper[index] if math.isfinite(upper[index]) else lower[index] + 1.0
-            centre[name] = 0.5 * (lower[index] + finite_upper)
+            centre[name] = _inside(centre[name], lower[index], upper[index])
     candidates = [name for name in free if name not in initial]
     linear = [name for name in model.linear if name in candidates]
     gridded = [
@@ -369,11 +384,19 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
     chi2, r2 = _goodness(data, residuals, problem.weights)
     dof = data.size - len(free)
     covariance, condition_number = jacobian_covariance(best.jac)
-    scale_errors = sigma is None if error_analysis.scale_errors is None else error_analysis.scale_errors
+    by_default = sigma is None and error_analysis.scale_errors is None  # robust where it can be
+    robust_problem = _robust_problem(best.jac, covariance, dof) if by_default else None
+    robust = by_default and robust_problem is None and bool(np.all(np.isfinite(covariance)))
+    if robust:
+        covariance = _hc3_covariance(best.jac, residuals * problem.weights, covariance)
+    scale_errors = bool(error_analysis.scale_errors) or (by_default and not robust)
     if scale_errors:
         covariance = covariance * (chi2 / dof)
     messages, at_bounds = _fit_warnings(problem, values, best.active_mask, covariance, condition_number,
                                         error_analysis.correlation_limit)
+    if robust_problem is not None:
+        messages.append(f"{model.name}: {robust_problem}")
+        warnings.warn(messages[-1], FitWarning, stacklevel=2)
     if limit:
         messages.append(_limit_message(problem, values, n_converged))
         warnings.warn(messages[-1], FitWarning, stacklevel=2)
@@ -381,9 +404,51 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
     return FitResult(
         model=model, params=all_values, errors=errors, free=free, fixed=problem.fixed, covariance=covariance,
         correlation=correlation_matrix(covariance), chi2=chi2, dof=dof, residuals=residuals, sigma=sigma,
-        errors_scaled=bool(scale_errors), condition_number=condition_number, at_bounds=at_bounds,
+        errors_scaled=scale_errors, errors_robust=robust,
+        condition_number=condition_number, at_bounds=at_bounds,
         n_starts=len(starts), n_converged=n_converged, warnings=tuple(messages), r2=r2,
     )
+
+
+#: A measurement whose leverage is above this determines a parameter nearly alone: its residual is
+#: ~0 whatever its noise, and the robust covariance cannot see that noise (:func:`_robust_problem`).
+MAX_LEVERAGE = 0.99
+
+
+def _leverages(jacobian: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """The leverage of each measurement, ``h_i = J_i (J^T J)^-1 J_i^T`` [-] (the hat matrix's diagonal)."""
+    return np.einsum("ij,jk,ik->i", jacobian, covariance, jacobian)
+
+
+def _robust_problem(jacobian: np.ndarray, covariance: np.ndarray, dof: int) -> str | None:
+    """Why the heteroscedasticity-robust covariance cannot be used (None where it can, or where the
+    covariance is singular, which the identifiability warnings say): no degrees of freedom, or a
+    measurement of leverage above :data:`MAX_LEVERAGE`."""
+    if not np.all(np.isfinite(covariance)):
+        return None
+    if dof < 1:
+        reason = "as many free parameters as measurements"
+    elif np.max(_leverages(jacobian, covariance)) > MAX_LEVERAGE:
+        reason = "a measurement alone determines a parameter (leverage ~1)"
+    else:
+        return None
+    return (f"{reason}: the errors without sigma are scaled by chi2/dof instead of robust ones, which "
+            "assumes every measurement has the same noise; give the sigma column")
+
+
+def _hc3_covariance(jacobian: np.ndarray, residuals: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """The heteroscedasticity-robust (HC3, MacKinnon and White 1985) covariance of a least-squares
+    fit without measurement errors: ``B (sum_i J_i^T J_i r_i^2 / (1 - h_i)^2) B`` with the bread
+    ``B = (J^T J)^-1`` (``covariance``), residuals ``r`` and leverages ``h``. Valid where the noise
+    differs between measurements (a goniometer's errors are relative: 4-15 % of a BRDF that spans
+    two orders of magnitude), where ``(J^T J)^-1 chi2/dof`` is not. HC3 rather than HC2: the
+    recommended form for samples under ~250 (Long and Ervin 2000, Am. Stat. 54, 217-224); on
+    paper 003's roof tile and red aluminium with 4 % relative noise (120 measurements, k fixed) its
+    errors are 0.98-1.18 of the Monte-Carlo spread, HC2's 0.73-0.94, the scaled ones' 0.21-0.66."""
+    weights = residuals**2 / (1.0 - _leverages(jacobian, covariance)) ** 2
+    meat = jacobian.T @ (jacobian * weights[:, None])
+    robust = covariance @ meat @ covariance
+    return 0.5 * (robust + robust.T)
 
 
 def _problem(model: Model, measurements: tuple, fixed, initial, bounds):

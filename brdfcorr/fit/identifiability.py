@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from brdfcorr.models.torrance_sparrow import K as TS_ABSORPTION
+
 __all__ = [
     "CORRELATION_LIMIT",
     "CONDITION_LIMIT",
@@ -114,7 +116,8 @@ def identifiability_messages(model, free, values, covariance, condition_number, 
         problems.append(f"{', '.join(undetermined)} not determined (error larger than the value)")
     messages = []
     if problems:
-        hint = " (paper 003 fixes k = 0.25)" if "k" in free else ""
+        # Paper 003's k is the Torrance-Sparrow absorption index; RPV's k (Minnaert) is another.
+        hint = " (paper 003 fixes k = 0.25)" if "k" in free and model.parameter("k") is TS_ABSORPTION else ""
         messages.append(
             f"{model.name}: parameters not identifiable from these measurements: "
             + "; ".join(problems) + f"; fix one of them{hint}"

@@ -57,6 +57,9 @@ class FitResult:
         The measurement errors used as weights [sr^-1] (None for an unweighted fit).
     errors_scaled : bool
         Whether the covariance was multiplied by ``chi2 / dof``.
+    errors_robust : bool
+        Whether the covariance is the heteroscedasticity-robust (HC3) sandwich of the residuals (an
+        unweighted fit; :class:`~brdfcorr.fit.goniometer.ErrorAnalysis`).
     condition_number : float
         Condition number of the Jacobian with unit-norm columns (1 is ideal; large values mean some
         parameter combination is barely constrained).
@@ -86,6 +89,7 @@ class FitResult:
     errors_scaled: bool
     condition_number: float
     at_bounds: tuple[str, ...] = ()
+    errors_robust: bool = False
     n_starts: int = 1
     n_converged: int = 1
     warnings: tuple[str, ...] = field(default=())

@@ -199,11 +199,12 @@ def _folds(groups: np.ndarray, folds: int, seed: int) -> np.ndarray:
     return fold_of_group[inverse.reshape(-1)]
 
 
-def check_fixed(fixed: Mapping[str, float] | None, models: Sequence[str]) -> None:
+def check_fixed(fixed: Mapping[str, object] | None, models: Sequence[str], what: str = "fixed parameter") -> None:
     """Raise :class:`~brdfcorr.errors.ParameterError` where a name of ``fixed`` is a different
     parameter in two of ``models`` (registry names), as ``k`` is RPV's Minnaert-like exponent and
     the Torrance-Sparrow models' absorption index: one value, applied to every model that has the
-    name (:func:`fixed_for`), would hold both."""
+    name (:func:`fixed_for`), would hold both. ``what`` names the setting in the message (a
+    starting value, a bound)."""
     for key in dict(fixed or {}):
         meanings: dict[int, tuple[str, list[str]]] = {}
         for name in dict.fromkeys(models):
@@ -213,8 +214,8 @@ def check_fixed(fixed: Mapping[str, float] | None, models: Sequence[str]) -> Non
                 meanings.setdefault(id(parameter), (parameter.description, []))[1].append(name)
         if len(meanings) > 1:
             which = "; ".join(f"{description} in {', '.join(names)}" for description, names in meanings.values())
-            raise ParameterError(f"the fixed parameter {key} is not the same parameter in the models fitted here "
-                                 f"({which}): fix it with one model named, or leave it free")
+            raise ParameterError(f"the {what} {key} is not the same parameter in the models fitted here "
+                                 f"({which}): name one model, or leave it out")
 
 
 def fixed_for(name: str, fixed: Mapping[str, float] | None) -> dict[str, float]:

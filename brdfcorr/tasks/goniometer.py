@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from brdfcorr.defaults import AUTO_MODEL
+from brdfcorr.errors import ParameterError
 from brdfcorr.fit.goniometer import FitResult, FitWarning, fit_measurements, spectral_table_entry
 from brdfcorr.fit.measurements import (
     Measurements,
@@ -26,7 +27,8 @@ from brdfcorr.fit.measurements import (
     read_measurements,
     selection_mask,
 )
-from brdfcorr.fit.selection import ModelChoice, choose_model, fixed_for
+from brdfcorr.fit.selection import GONIOMETER_CANDIDATES, ModelChoice, check_fixed, choose_model, fixed_for
+from brdfcorr.models import get_model
 from brdfcorr.tasks.pool import process_pool
 
 __all__ = ["fit_measurement_file", "MeasurementFit"]
@@ -95,6 +97,19 @@ class MeasurementFit:
         ]
 
 
+def _check_candidate_settings(initial: Mapping[str, float] | None,
+                              bounds: Mapping[str, tuple[float, float]] | None) -> None:
+    """Before the cross-validation of ``"auto"``: every name of ``initial`` and ``bounds`` is a
+    parameter of a candidate model, the same parameter in each that has it (else a
+    :class:`~brdfcorr.errors.ParameterError`, not one after all the folds' fits)."""
+    for what, settings in (("starting value of", initial), ("bound of", bounds)):
+        for key in dict(settings or {}):
+            if not any(key in get_model(name).parameter_names for name in GONIOMETER_CANDIDATES):
+                raise ParameterError(f"the {what} {key} is a parameter of none of the models --model auto tries "
+                                     f"({', '.join(GONIOMETER_CANDIDATES)})")
+        check_fixed(settings, GONIOMETER_CANDIDATES, what=f"{what} parameter")
+
+
 def fit_measurement_file(
     path: str | os.PathLike, model: str, *, fixed: Mapping[str, float] | None = None,
     initial: Mapping[str, float] | None = None, bounds: Mapping[str, tuple[float, float]] | None = None,
@@ -115,7 +130,7 @@ def fit_measurement_file(
     fixed, initial, bounds :
         As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25); with ``"auto"`` the
         fixed values apply to the candidates that have them, and initial values and bounds to the
-        chosen model.
+        chosen model if it has them (a name no candidate has is refused before the choice).
     select : MeasurementSelection, optional
         Fit only these measurements: a geometric selection [deg] (paper 003:
         ``MeasurementSelection(min_phi=90)``) and one wavelength [nm] of a table with several.
@@ -135,6 +150,7 @@ def fit_measurement_file(
     bands = fitted.wavelengths or [None]
     results, notes, choices = {}, [], {}
     if model == AUTO_MODEL:
+        _check_candidate_settings(initial, bounds)
         with process_pool(workers) as executor:
             for band in bands:
                 subset = fitted if band is None else fitted.at_wavelength(band)
@@ -143,6 +159,9 @@ def fit_measurement_file(
         chosen = [choice.chosen for choice in choices.values()]
         model = max(chosen, key=chosen.count)  # the first of the most frequent
         options["fixed"] = fixed_for(model, fixed) or None
+        names = get_model(model).parameter_names  # starting values and bounds of the chosen model
+        options["initial"] = {key: value for key, value in (initial or {}).items() if key in names} or None
+        options["bounds"] = {key: value for key, value in (bounds or {}).items() if key in names} or None
     for band in bands:
         subset = fitted if band is None else fitted.at_wavelength(band)
         with warnings.catch_warnings(record=True) as caught:

@@ -98,7 +98,7 @@ def test_free_k_prints_a_warning_line(csv_path):
     assert warnings[0].startswith("brdfcorr: warning: torrance_sparrow: parameters not identifiable")
 
 
-def test_unweighted_fit_says_how_errors_were_scaled(tmp_path):
+def test_unweighted_fit_says_how_its_errors_were_estimated(tmp_path):
     path = tmp_path / "lab.csv"
     path.write_text("theta_i,theta_r,phi,brdf\n" + "".join(
         f"30,{view},180,{0.05 + 0.001 * (view % 3)}\n" for view in range(0, 80, 5)
@@ -106,7 +106,7 @@ def test_unweighted_fit_says_how_errors_were_scaled(tmp_path):
     result = run("fit", path, "--model", "lambertian")
     assert result.exit_code == 0, result.output
     assert "unweighted (no sigma column)" in result.output
-    assert "scaled by the residual scatter (chi2/dof)" in result.output
+    assert "robust to noise that differs between measurements (HC3)" in result.output
 
 
 BAD_TABLES = [

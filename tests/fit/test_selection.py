@@ -167,6 +167,13 @@ def test_cli_fit_auto_prints_the_candidates_and_writes_the_chosen_model(tmp_path
     assert "model: ross_li_ts" in table and "chosen by 5-fold cross-validation" in table
     refused = CliRunner().invoke(main, ["fit", str(csv), "--model", "best"])
     assert refused.exit_code == 2 and "unknown BRDF model 'best'" in refused.output
+    # Starting values and bounds are checked against the candidates before the choice's fits: a
+    # name none has, or one that is another parameter in two of them (k: Torrance-Sparrow's
+    # absorption index, RPV's exponent), is one line, not an error after every fold's fit.
+    for option, value, message in (("--init", "f_vol2=0.1", "starting value of f_vol2 is a parameter of none"),
+                                   ("--bound", "k=0.1:0.5", "bound of parameter k is not the same parameter")):
+        refused = CliRunner().invoke(main, ["fit", str(csv), "--model", "auto", option, value])
+        assert refused.exit_code == 2 and message in refused.output, refused.output
 
 
 def test_the_model_choice_figure_has_one_bar_per_candidate_and_names_the_chosen():
