@@ -156,10 +156,8 @@ def _fit_reasons(report: ClassFit, model: Model, at_edge: Sequence[str], guard: 
         reasons.append("no angular signal stands out of the samples' scatter within geometry bins (angular R^2 "
                        f"undefined): nothing for {model.name} to follow")
     elif _angular(model) and not angular >= guard.min_r2:
-        reasons.append(
-            f"median angular R^2 {angular:.3f} < {guard.min_r2:g}: "
-            f"{model.name} explains almost none of the angular signal"
-        )
+        reasons.append(f"median angular R^2 {angular:.3f} < {guard.min_r2:g}: "
+                       f"{model.name} explains almost none of the angular signal")
     for name in at_edge:
         low, high, _ = search_range(model, name)
         where = f"{name} = {report.params[name][0]:.4g} at the edge of its search range ({low:g} to {high:g})"

