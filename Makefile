@@ -42,11 +42,9 @@ lint: $(VENV)/.installed-test
 
 # The package's bytecode written first: where PYTHONDONTWRITEBYTECODE is set, every brdfcorr
 # process the tests start (the docs' commands, the command-line tests) would compile it again.
-# Idle workers steal tests from busy ones (xdist's worksteal): the suite's long tests (the docs'
-# command groups, process pools) otherwise leave one worker alone at the end (4:54 -> 3:51).
 test: lint
 	$(BIN)/python -m compileall -q brdfcorr
-	$(BIN)/python -m pytest -n $(WORKERS) --dist worksteal
+	$(BIN)/python -m pytest -n $(WORKERS)
 
 # Refresh both lock files from pyproject.toml's ranges; the run lock takes the test lock's
 # versions, so `make demo` and `make test` install the same brdfcorr dependencies. The run lock
