@@ -335,8 +335,10 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
         Narrower bounds for free parameters, intersected with the registry's physical range
         (the default; open lower bounds such as w > 0 become ``OPEN_BOUND_FLOOR`` of the default).
     error_analysis : ErrorAnalysis, default ErrorAnalysis()
-        Whether the covariance is scaled by chi^2/dof (by default only when ``sigma`` is None)
-        and from which global correlation on a parameter counts as not identifiable.
+        How the covariance is estimated (by default: from ``sigma``; without it the
+        heteroscedasticity-robust HC3 sandwich of the residuals, scaled by chi^2/dof only where
+        that is undefined) and from which global correlation on a parameter counts as not
+        identifiable.
 
     Returns
     -------

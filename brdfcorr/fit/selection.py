@@ -35,6 +35,7 @@ import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -56,6 +57,7 @@ __all__ = [
     "choose_model",
     "choose_class_model",
     "fixed_for",
+    "settings_for",
     "check_fixed",
 ]
 
@@ -218,12 +220,20 @@ def check_fixed(fixed: Mapping[str, object] | None, models: Sequence[str], what:
                                  f"({which}): name one model, or leave it out")
 
 
+T = TypeVar("T")
+
+
+def settings_for(name: str, settings: Mapping[str, T] | None) -> dict[str, T]:
+    """Those of ``settings`` (fixed values, starting values or bounds by parameter name) that model
+    ``name`` has: what a fit over several candidate models gives each one."""
+    names = get_model(name).parameter_names
+    return {key: value for key, value in dict(settings or {}).items() if key in names}
+
+
 def fixed_for(name: str, fixed: Mapping[str, float] | None) -> dict[str, float]:
     """The parameters model ``name`` holds fixed: its defaults (:data:`DEFAULT_FIXED`) with those
-    of ``fixed`` that it has (the values a fit over several candidate models gives each one)."""
-    model = get_model(name)
-    given = {key: value for key, value in dict(fixed or {}).items() if key in model.parameter_names}
-    return {**DEFAULT_FIXED.get(name, {}), **given}
+    of ``fixed`` that it has (:func:`settings_for`)."""
+    return {**DEFAULT_FIXED.get(name, {}), **settings_for(name, fixed)}
 
 
 def _cross_validate(name: str, fold: np.ndarray, n_free: int, predict: Callable[[int], np.ndarray],
@@ -256,14 +266,15 @@ def _quiet() -> Iterator[None]:
         yield
 
 
-def _fold_fit(name: str, fixed: Mapping[str, float], angles: list[np.ndarray], data: np.ndarray,
+def _fold_fit(name: str, settings: Mapping[str, Mapping], angles: list[np.ndarray], data: np.ndarray,
               errors: np.ndarray | None, train: np.ndarray, test: np.ndarray) -> np.ndarray:
     """The predictions (n_test, 1) [sr^-1] at the ``test`` rows of model ``name`` fitted to the
-    ``train`` rows (boolean masks) of goniometer measurements: one task of :func:`choose_model`,
-    a module function so that a process pool can run it."""
+    ``train`` rows (boolean masks) of goniometer measurements with ``settings`` (``fixed``,
+    ``initial`` and ``bounds`` of :func:`~brdfcorr.fit.goniometer.fit_brdf`): one task of
+    :func:`choose_model`, a module function so that a process pool can run it."""
     with _quiet():
         result = fit_brdf(name, *(a[train] for a in angles), data[train, 0], None if errors is None else errors[train],
-                          fixed=fixed)
+                          **settings)
         return np.asarray(result.predict(*(a[test] for a in angles)), dtype=float)[:, None]
 
 
@@ -271,6 +282,8 @@ def choose_model(
     theta_i, theta_r, phi, brdf, sigma=None, *,
     candidates: Sequence[str] = GONIOMETER_CANDIDATES,
     fixed: Mapping[str, float] | None = None,
+    initial: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
     folds: int = FOLDS,
     progress: Callable[[str], object] | None = None,
     executor: concurrent.futures.Executor | None = None,
@@ -290,6 +303,9 @@ def choose_model(
     fixed : mapping, optional
         Parameters held fixed in every candidate that has them (besides each model's defaults,
         k = 0.25 for the Torrance-Sparrow lobes).
+    initial, bounds : mapping, optional
+        Starting values and bounds (as for :func:`~brdfcorr.fit.goniometer.fit_brdf`) of every
+        candidate that has the parameter: each candidate is scored as it would be fitted.
     folds : int, default 5
         Folds (at most the number of measurements), geometries assigned to them at random with
         the seed :data:`SEED`.
@@ -311,8 +327,13 @@ def choose_model(
     ------
     brdfcorr.errors.FitError
         When no candidate can be fitted, or there are fewer than 2 measurements per fold.
+    brdfcorr.errors.ParameterError
+        When a name of ``fixed``, ``initial`` or ``bounds`` is a different parameter in two
+        candidates (:func:`check_fixed`), before any fit.
     """
-    check_fixed(fixed, candidates)
+    for what, given in (("fixed parameter", fixed), ("starting value of parameter", initial),
+                        ("bound of parameter", bounds)):
+        check_fixed(given, candidates, what)
     angles = [np.asarray(value, dtype=float).reshape(-1) for value in (theta_i, theta_r, phi)]
     data = np.asarray(brdf, dtype=float).reshape(-1, 1)
     errors = None if sigma is None else np.asarray(sigma, dtype=float).reshape(-1)
@@ -321,7 +342,9 @@ def choose_model(
                        f"(at least {2 * folds}); name a model")
     weights = np.ones_like(data) if errors is None else (1.0 / errors**2)[:, None]
     fold = _folds(np.arange(data.shape[0]), folds, SEED)
-    tasks = {(name, number): (name, fixed_for(name, fixed), angles, data, errors, fold != number, fold == number)
+    settings = {name: {"fixed": fixed_for(name, fixed), "initial": settings_for(name, initial) or None,
+                       "bounds": settings_for(name, bounds) or None} for name in candidates}
+    tasks = {(name, number): (name, settings[name], angles, data, errors, fold != number, fold == number)
              for name in candidates for number in range(folds)}
     if executor is None:  # one fit after the other, as the scores ask for them
         results = {key: functools.partial(_fold_fit, *task) for key, task in tasks.items()}

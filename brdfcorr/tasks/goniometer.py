@@ -27,7 +27,7 @@ from brdfcorr.fit.measurements import (
     read_measurements,
     selection_mask,
 )
-from brdfcorr.fit.selection import GONIOMETER_CANDIDATES, ModelChoice, check_fixed, choose_model, fixed_for
+from brdfcorr.fit.selection import GONIOMETER_CANDIDATES, ModelChoice, choose_model, fixed_for, settings_for
 from brdfcorr.models import get_model
 from brdfcorr.tasks.pool import process_pool
 
@@ -100,14 +100,14 @@ class MeasurementFit:
 def _check_candidate_settings(initial: Mapping[str, float] | None,
                               bounds: Mapping[str, tuple[float, float]] | None) -> None:
     """Before the cross-validation of ``"auto"``: every name of ``initial`` and ``bounds`` is a
-    parameter of a candidate model, the same parameter in each that has it (else a
-    :class:`~brdfcorr.errors.ParameterError`, not one after all the folds' fits)."""
+    parameter of a candidate model (else a :class:`~brdfcorr.errors.ParameterError`, not one after
+    all the folds' fits); :func:`~brdfcorr.fit.selection.choose_model` checks that it is the same
+    parameter in each candidate that has it."""
     for what, settings in (("starting value of", initial), ("bound of", bounds)):
         for key in dict(settings or {}):
             if not any(key in get_model(name).parameter_names for name in GONIOMETER_CANDIDATES):
                 raise ParameterError(f"the {what} {key} is a parameter of none of the models --model auto tries "
                                      f"({', '.join(GONIOMETER_CANDIDATES)})")
-        check_fixed(settings, GONIOMETER_CANDIDATES, what=f"{what} parameter")
 
 
 def fit_measurement_file(
@@ -128,9 +128,9 @@ def fit_measurement_file(
         (:func:`brdfcorr.fit.selection.choose_model`, each wavelength; where the wavelengths choose
         differently, the model most of them chose, fitted at every wavelength).
     fixed, initial, bounds :
-        As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25); with ``"auto"`` the
-        fixed values apply to the candidates that have them, and initial values and bounds to the
-        chosen model if it has them (a name no candidate has is refused before the choice).
+        As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25); with ``"auto"`` each
+        applies to the candidates that have the parameter, in the cross-validation and in the fit
+        of the chosen model (a name no candidate has is refused before the choice).
     select : MeasurementSelection, optional
         Fit only these measurements: a geometric selection [deg] (paper 003:
         ``MeasurementSelection(min_phi=90)``) and one wavelength [nm] of a table with several.
@@ -155,13 +155,12 @@ def fit_measurement_file(
             for band in bands:
                 subset = fitted if band is None else fitted.at_wavelength(band)
                 choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
-                                             fixed=fixed, progress=progress, executor=executor)
+                                             fixed=fixed, initial=initial, bounds=bounds, progress=progress,
+                                             executor=executor)
         chosen = [choice.chosen for choice in choices.values()]
         model = max(chosen, key=chosen.count)  # the first of the most frequent
-        options["fixed"] = fixed_for(model, fixed) or None
-        names = get_model(model).parameter_names  # starting values and bounds of the chosen model
-        options["initial"] = {key: value for key, value in (initial or {}).items() if key in names} or None
-        options["bounds"] = {key: value for key, value in (bounds or {}).items() if key in names} or None
+        options = {"fixed": fixed_for(model, fixed) or None, "initial": settings_for(model, initial) or None,
+                   "bounds": settings_for(model, bounds) or None}
     for band in bands:
         subset = fitted if band is None else fitted.at_wavelength(band)
         with warnings.catch_warnings(record=True) as caught:

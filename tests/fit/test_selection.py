@@ -116,6 +116,37 @@ def test_where_no_process_pool_can_be_made_the_fits_run_here_and_say_so(monkeypa
         assert pool is None
 
 
+def test_bounds_and_starting_values_apply_in_the_choice_to_the_candidates_that_have_them():
+    # Each candidate is scored as it would be fitted: a bound on w (the Torrance-Sparrow lobe's
+    # width) holds in every fold fit of torrance_sparrow and leaves ross_thick_li_sparse (no w) as
+    # it was. Independent computation: the same folds (_folds, seed SEED) fitted with fit_brdf.
+    from brdfcorr.fit.goniometer import fit_brdf
+    from brdfcorr.fit.selection import SEED
+    from brdfcorr.models.materials import load_material
+
+    ti, tr, phi = _geometries()
+    truth = load_material("roof_tile").params  # w = 0.037 deg^-1
+    brdf = get_model("torrance_sparrow")(ti, tr, phi, **truth) * (1 + 0.02 * np.random.default_rng(7).standard_normal(ti.size))
+    candidates = ("torrance_sparrow", "ross_thick_li_sparse")
+    free = choose_model(ti, tr, phi, brdf, candidates=candidates, folds=3)
+    bounds, initial = {"w": (0.15, 0.5)}, {"w": 0.2, "f_iso": 0.02}
+    bounded = choose_model(ti, tr, phi, brdf, candidates=candidates, bounds=bounds, initial=initial, folds=3)
+    # (ross_thick_li_sparse is linear: a start more, f_iso = 0.02, reaches the same least squares)
+    np.testing.assert_allclose(bounded.score_of("ross_thick_li_sparse").fold_errors,
+                               free.score_of("ross_thick_li_sparse").fold_errors, rtol=1e-6)
+    fold = _folds(np.arange(ti.size), 3, SEED)
+    expected = []
+    with pytest.warns(Warning):  # (w ends on its bound)
+        for number in range(3):
+            train, test = fold != number, fold == number
+            fit = fit_brdf("torrance_sparrow", ti[train], tr[train], phi[train], brdf[train], fixed={"k": 0.25},
+                           bounds=bounds, initial={"w": 0.2})
+            expected.append(np.mean((fit.predict(ti[test], tr[test], phi[test]) - brdf[test]) ** 2))
+    np.testing.assert_allclose(bounded.score_of("torrance_sparrow").fold_errors, expected, rtol=1e-9)
+    assert bounded.score_of("torrance_sparrow").mean_error > 10 * free.score_of("torrance_sparrow").mean_error
+    assert (free.chosen, bounded.chosen) == ("torrance_sparrow", "ross_thick_li_sparse")
+
+
 def test_too_few_measurements_for_the_folds_are_refused():
     with pytest.raises(FitError, match="too few"):
         choose_model([10, 20], [10, 20], [0, 180], [0.1, 0.2])
