@@ -31,6 +31,7 @@ from brdfcorr._arrays import is_lazy
 from brdfcorr._entry import option
 from brdfcorr.defaults import DEFAULT_EDGES, NIR_RANGE, RED_RANGE
 from brdfcorr.errors import InputError
+from brdfcorr.io.scale_check import checked_factors, reflectance_factors
 from brdfcorr.io.wavelengths import with_wavelengths
 
 __all__ = [
@@ -55,7 +56,8 @@ _HISTOGRAM_BINS = 20000
 
 
 def _band_mean(image: xr.DataArray, span: Sequence[float], role: str) -> xr.DataArray:
-    """Mean reflectance of the bands whose centre lies in ``span`` [nm] (ends included)."""
+    """Mean reflectance [1] of the bands whose centre lies in ``span`` [nm] (ends included), in
+    float64: an NDVI on a bin edge in float32 arithmetic may fall below it."""
     if image.ndim != 3:
         raise InputError(f"the image must be (band, y, x); it has dims {image.dims}")
     image = with_wavelengths(image)
@@ -70,7 +72,7 @@ def _band_mean(image: xr.DataArray, span: Sequence[float], role: str) -> xr.Data
         raise InputError(f"no band of the image lies in the {role} range {low:g}-{high:g} nm "
                          f"(its bands span {wavelengths.min():g}-{wavelengths.max():g} nm)")
     band_dim = image.coords["wavelength"].dims[0]
-    return image.isel({band_dim: selected}).mean(band_dim, skipna=False, keep_attrs=False)
+    return image.isel({band_dim: selected}).astype(np.float64).mean(band_dim, skipna=False, keep_attrs=False)
 
 
 def _normalized_difference(red_mean, nir_mean, red, nir) -> xr.DataArray:
@@ -88,7 +90,9 @@ def ndvi(image: xr.DataArray, red: Sequence[float] = RED_RANGE, nir: Sequence[fl
     Parameters
     ----------
     image : xarray.DataArray (band, y, x)
-        Reflectance [1] with a ``wavelength`` coordinate [nm] (:func:`brdfcorr.io.open_image`).
+        Reflectance [1] with a ``wavelength`` coordinate [nm] (:func:`brdfcorr.io.open_image`), or
+        integer counts with their ``scale_factor``/``add_offset``
+        (:func:`brdfcorr.io.scale_check.reflectance_factors`: an offset left out changes NDVI).
     red, nir : (float, float)
         Wavelength ranges [nm], ends included; the bands in each range are averaged.
 
@@ -103,6 +107,7 @@ def ndvi(image: xr.DataArray, red: Sequence[float] = RED_RANGE, nir: Sequence[fl
     NDVI = (NIR - red) / (NIR + red) (Rouse et al. 1974; Tucker 1979). Negative reflectances
     (noise over dark targets) can give values outside [-1, 1]; they are kept.
     """
+    image = reflectance_factors(image)
     return _normalized_difference(_band_mean(image, red, "red"), _band_mean(image, nir, "NIR"), red, nir)
 
 
@@ -228,7 +233,12 @@ def ndvi_strata(image: xr.DataArray, *, edges: Sequence[float] | None = None,
     Parameters
     ----------
     image : xarray.DataArray (band, y, x)
-        Reflectance [1] with a ``wavelength`` coordinate [nm] (:func:`brdfcorr.io.open_image`).
+        Reflectance [1] with a ``wavelength`` coordinate [nm] (:func:`brdfcorr.io.open_image`), or
+        integer counts with their ``scale_factor``/``add_offset``
+        (:func:`brdfcorr.io.scale_check.reflectance_factors`). Its red and NIR means are checked
+        for values that are no reflectance factors (:func:`brdfcorr.io.scale_check.checked_factors`,
+        lazily, by each chunk): the water and shadow tests are in reflectance factors, so percent
+        or counts read without their scale would misfire.
     edges : sequence of float, optional
         Fixed NDVI edges [1], strictly increasing: n edges give classes 1..n+1. Default :data:`DEFAULT_EDGES`
         unless ``percentiles`` is given.
@@ -262,7 +272,9 @@ def ndvi_strata(image: xr.DataArray, *, edges: Sequence[float] | None = None,
     """
     if edges is not None and percentiles is not None:
         raise InputError("give NDVI edges or percentiles, not both")
-    red_mean, nir_mean = _band_mean(image, red, "red"), _band_mean(image, nir, "NIR")
+    image = reflectance_factors(image)
+    red_mean, nir_mean = (checked_factors(_band_mean(image, span, role), image)
+                          for span, role in ((red, "red"), (nir, "NIR")))
     index = _normalized_difference(red_mean, nir_mean, red, nir)
     valid, is_water, is_shadow = _masks(image, index, red_mean, nir_mean, water, shadow_reflectance)
     binned = valid & ~is_water & ~is_shadow

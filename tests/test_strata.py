@@ -124,8 +124,10 @@ def test_percentile_bins_hold_near_equal_counts():
     rng = np.random.default_rng(3)
     values = rng.uniform(-0.2, 0.9, size=(40, 50))
     values[:20, :16] = np.nan  # chunks with unequal numbers of valid pixels
-    image = _image(0.2 * np.ones_like(values), 0.2 * (1 + values) / (1 - values))
-    strata = ndvi_strata(_lazy(image, 16), percentiles=(20, 40, 60, 80))
+    # Red 0.1: NIR up to 1.9, reflectance factors (ndvi_strata refuses values that cannot be); no
+    # water or shadow test, so that every valid pixel is binned.
+    image = _image(0.1 * np.ones_like(values), 0.1 * (1 + values) / (1 - values))
+    strata = ndvi_strata(_lazy(image, 16), percentiles=(20, 40, 60, 80), water=(), shadow_reflectance=None)
     valid = values[np.isfinite(values)]
     # Edges: numpy's (linear) percentiles of the valid NDVI, to the 1e-4 NDVI histogram resolution.
     np.testing.assert_allclose(strata.edges, np.percentile(valid, [20, 40, 60, 80]), atol=2e-4)
@@ -289,3 +291,55 @@ def test_align_errors():
                           coords={"y": image.y.values, "x": image.x.values})
     with pytest.raises(InputError, match="class map has no CRS"):
         align_class_map(no_crs, image)
+
+
+# -- what the image holds -----------------------------------------------------------------------
+
+def _scene_with_water_and_shadow() -> xr.DataArray:
+    """Reflectance with land over NDVI -0.2..0.9, water (NDVI < 0 with NIR < 0.11) and shadow
+    ((red + NIR) / 2 < 0.03)."""
+    rng = np.random.default_rng(5)
+    values = rng.uniform(-0.2, 0.9, size=(30, 40))
+    nir = rng.uniform(0.15, 0.6, size=values.shape)
+    nir[:5], values[:5] = 0.03, -0.3  # water: red 0.056
+    nir[5:10] = rng.uniform(0.01, 0.02, size=(5, 40))  # shadow
+    return _image(nir * (1 - values) / (1 + values), nir)
+
+
+@pytest.mark.parametrize("lazy", [False, True])
+def test_counts_with_their_scale_and_offset_give_the_strata_of_their_reflectance(lazy):
+    # Sentinel-2 L2A from baseline 04.00: reflectance = counts * 0.0001 - 0.1. Taken as they are,
+    # the offset would change NDVI and counts would pass no water or shadow test.
+    factors = _scene_with_water_and_shadow()
+    counts = np.round((factors + 0.1) / 1e-4).astype(np.uint16)
+    counts.attrs.update(scale_factor=1e-4, add_offset=-0.1)
+    stored = counts.copy(data=counts.values * 1e-4 - 0.1)  # what the counts stand for
+    stored.attrs = {}
+    expected = ndvi_strata(stored, water_id=7, shadow_id=8).classes.values
+    counts = _lazy(counts, 16) if lazy else counts
+    np.testing.assert_array_equal(ndvi_strata(counts, water_id=7, shadow_id=8).classes.values, expected)
+    assert {7, 8} <= set(np.unique(expected))  # both tests fire
+    np.testing.assert_allclose(ndvi(counts).values, ndvi(stored).values, atol=1e-5)  # counts scaled in float32
+
+
+def test_percent_reflectance_is_refused_numpy_at_once_dask_when_computed(no_compute):
+    percent = _scene_with_water_and_shadow() * 100
+    with pytest.raises(InputError, match="the values do not look like reflectance factors"):
+        ndvi_strata(percent)
+    lazy = ndvi_strata(_lazy(percent, 16))  # no read: the check runs with each chunk
+    with pytest.raises(InputError, match=r"99th percentile [0-9.]+ .*raw counts\? Or reflectance x 10000"):
+        lazy.classes.compute(scheduler="sync")
+
+
+def test_pixels_on_a_bin_edge_fall_in_the_bin_the_float64_ndvi_gives():
+    # float32 reflectance whose NDVI is an edge: the bins are left-closed, and the NDVI computed in
+    # float32 falls below the edge for some of them (19 of 48 before the float64 arithmetic).
+    rng = np.random.default_rng(11)
+    edges = np.asarray(DEFAULT_EDGES)
+    red = rng.uniform(0.02, 0.3, size=(len(edges), 48)).astype(np.float32)
+    nir = (red * (1 + edges[:, None]) / (1 - edges[:, None])).astype(np.float32)
+    image = _image(red, nir).astype(np.float32)
+    red64, nir64 = red.astype(np.float64), nir.astype(np.float64)
+    expected = np.digitize((nir64 - red64) / (nir64 + red64), edges) + 1  # the independent float64 NDVI
+    classes = ndvi_strata(image, water=(), shadow_reflectance=None).classes.values
+    np.testing.assert_array_equal(classes, expected)

@@ -211,8 +211,10 @@ def present_classes(values: np.ndarray) -> list:
     return np.unique(values).tolist()
 
 
-def split_pairs(pairs, chunks, out_dtype):
-    """The corrected cube and the QA layer from the blockwise (corrected, QA) pairs."""
+def split_pairs(pairs, out_dtype):
+    """The corrected cube and the QA layer from the blockwise (corrected, QA) pairs (one per chunk
+    of the cube: their chunks are the cube's, whether it was dask or numpy given with dask layers)."""
+    chunks = pairs.chunks
     corrected = pairs.map_blocks(first_of_pair, dtype=out_dtype, meta=np.empty((0, 0, 0), out_dtype))
     per_band_chunk = pairs.map_blocks(
         second_of_pair, dtype=np.uint8, chunks=((1,) * len(chunks[0]),) + tuple(chunks[1:]),

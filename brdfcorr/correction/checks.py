@@ -4,10 +4,11 @@ input the others refuse (issue 38):
 
 - :func:`check_layout`: a cube with its bands last, (y, x, band), is refused with the transpose
   that fixes it, instead of a grid error between its spatial and band axes;
-- :func:`reflectance_factors`: integer counts are scaled with the scale and offset they carry
-  (rioxarray's ``scale_factor``/``add_offset``, as :func:`brdfcorr.io.rasters.open_image` applies
-  a file's), and refused without them: an offset (Sentinel-2 L2A from baseline 04.00: -0.1) left
-  out changes the corrected values, not only their units;
+- :func:`brdfcorr.io.scale_check.reflectance_factors` (in :func:`~brdfcorr.correction.inputs.prepare_inputs`):
+  integer counts are scaled with the scale and offset they carry (rioxarray's
+  ``scale_factor``/``add_offset``, as :func:`brdfcorr.io.rasters.open_image` applies a file's),
+  and refused without them or with a scale that is a divisor: an offset (Sentinel-2 L2A from
+  baseline 04.00: -0.1) left out changes the corrected values, not only their units;
 - :func:`checked_layers`: the class map and angle layers as (y, x) arrays on the reflectance's
   grid (:func:`check_grid`), real numbers, the angles guarded (:func:`guard_angles`);
 - :func:`guard_angles`: angle layers that can only be radians
@@ -25,15 +26,14 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
-from brdfcorr._entry import option
 from brdfcorr.errors import InputError
-from brdfcorr.io.angles import looks_like_radians, radians_message
+from brdfcorr.io.angles import check_angle_values, looks_like_radians, radians_message
 from brdfcorr.io.grid import check_same_grid
+from brdfcorr.io.scale_check import unpacked
 from brdfcorr.io.scene import check_class_grid
 
-__all__ = ["angle_layers", "ANGLE_LAYERS", "TERRAIN_LAYERS", "check_layout", "carries_scale", "reflectance_factors",
-           "checked_layers",
-           "check_grid", "as_dataarray", "guard_angles", "BAND_DIMS"]
+__all__ = ["angle_layers", "ANGLE_LAYERS", "TERRAIN_LAYERS", "check_layout", "checked_layers", "check_grid",
+           "as_dataarray", "guard_angles", "BAND_DIMS"]
 
 #: Dimension names that hold bands (a cube whose last dimension has one of them is (y, x, band)).
 BAND_DIMS = ("band", "bands", "wavelength", "channel", "spectral")
@@ -76,63 +76,6 @@ def check_layout(reflectance: xr.DataArray, layers: Iterable) -> None:
                          f"(y, x, band); transpose to (band, y, x): {fix}")
 
 
-def carries_scale(array: xr.DataArray) -> bool:
-    """Whether ``array`` carries a ``scale_factor`` (attrs or encoding) for its stored values."""
-    return "scale_factor" in {**array.encoding, **array.attrs}
-
-
-def reflectance_factors(reflectance: xr.DataArray, *, unscaled_counts: bool = False) -> xr.DataArray:
-    """Reflectance factors of the stored values, with no packing or nodata attribute left.
-
-    Integer counts are scaled with the scale and offset they carry (attrs or encoding
-    ``scale_factor``/``add_offset``; their ``_FillValue`` or rioxarray nodata as NaN); integer
-    counts without a scale are an :class:`InputError`, or, with ``unscaled_counts``, taken as they
-    are (values in their own units: the topographic correction's, a fit's ``reflectance_scale``).
-    Floats are taken as they are, their declared nodata (rioxarray's, or a ``_FillValue``
-    attribute) as NaN; floats that still carry a
-    ``scale_factor`` or ``add_offset`` attribute are packed values (``rioxarray.open_rasterio(path,
-    masked=True)`` reads them so) and an :class:`InputError`: neither reading is safe to guess.
-    """
-    if reflectance.dtype.kind == "f":
-        packed = {key: reflectance.attrs[key] for key in ("scale_factor", "add_offset") if key in reflectance.attrs}
-        if packed:
-            described = ", ".join(f"{key}={value}" for key, value in packed.items())
-            raise InputError(
-                f"reflectance holds floats that still carry {described} among their attributes: packed values "
-                "(as rioxarray.open_rasterio(path, masked=True) reads them). Read them with mask_and_scale=True, "
-                "or drop the attributes if they are applied already"
-            )
-        nodata = _nodata(reflectance, reflectance.attrs)
-        if nodata is None or np.isnan(nodata):
-            return reflectance
-        return _plain(reflectance.where(reflectance != nodata), reflectance)
-    if reflectance.dtype.kind not in "iu" or (unscaled_counts and not carries_scale(reflectance)):
-        return reflectance
-    metadata = {**reflectance.encoding, **reflectance.attrs}
-    if "scale_factor" not in metadata:
-        raise InputError(
-            f"reflectance holds integer counts ({reflectance.dtype}) without a scale_factor: give reflectance "
-            f"factors, {option('scale')} (e.g. Sentinel-2 L2A from baseline 04.00: counts * 0.0001 - 0.1)"
-        )
-    scale, offset = float(metadata["scale_factor"]), float(metadata.get("add_offset", 0.0))
-    nodata = _nodata(reflectance, metadata)
-    values = reflectance if nodata is None else reflectance.where(reflectance != nodata)
-    scaled = (values.astype(np.float32) * np.float32(scale) + np.float32(offset)).astype(np.float32)
-    return _plain(scaled, reflectance).assign_attrs(brdf_input_scale=scale, brdf_input_offset=offset)
-
-
-#: Attributes that describe stored values, not reflectance factors: dropped once the values are read.
-_STORAGE_ATTRS = ("scale_factor", "add_offset", "_FillValue", "missing_value")
-
-
-def _plain(values: xr.DataArray, stored: xr.DataArray) -> xr.DataArray:
-    """``values`` named as ``stored``, with its attributes less those of the storage
-    (:data:`_STORAGE_ATTRS`; xarray keeps attributes through arithmetic)."""
-    values = values.rename(stored.name)
-    values.attrs = {key: value for key, value in stored.attrs.items() if key not in _STORAGE_ATTRS}
-    return values
-
-
 def as_dataarray(value, name: str, dims: Sequence[Hashable]) -> xr.DataArray:
     if isinstance(value, xr.DataArray):
         return value
@@ -165,11 +108,13 @@ def check_grid(reflectance: xr.DataArray, name: str, layer: xr.DataArray) -> xr.
 def checked_layers(reflectance: xr.DataArray, named: Mapping[str, object]) -> dict[str, xr.DataArray]:
     """The class map and the angle layers ``named`` (numpy, dask or xarray; ``classes``, ``sza`` ...
     ``vaa``, and ``slope``, ``aspect`` for a tilted surface) as (y, x) DataArrays on the
-    reflectance's grid (:func:`check_grid`), refused where they (or the reflectance) hold complex
-    values, the angles guarded against radians (:func:`guard_angles`), the class map refused where
-    it holds no numbers."""
+    reflectance's grid (:func:`check_grid`), the angles' packed values unpacked
+    (:func:`brdfcorr.io.scale_check.unpacked`: int16 hundredths of a degree with a ``scale_factor``
+    of 0.01 are degrees), refused where they (or the reflectance) hold complex values, the angles
+    guarded (:func:`guard_angles`), the class map refused where it holds no numbers."""
     layers = {name: check_grid(reflectance, name, as_dataarray(layer, name, reflectance.dims[1:]))
               for name, layer in named.items()}
+    layers = {name: layer if name == "classes" else unpacked(layer, name) for name, layer in layers.items()}
     complex_layers = [f"{name} ({layer.dtype})" for name, layer in {"reflectance": reflectance, **layers}.items()
                       if layer.dtype.kind == "c"]
     if complex_layers:  # the imaginary part would be lost, or carried into a complex "reflectance"
@@ -180,30 +125,32 @@ def checked_layers(reflectance: xr.DataArray, named: Mapping[str, object]) -> di
     return layers
 
 
-def _nodata(array: xr.DataArray, metadata: Mapping) -> float | None:
-    """The declared nodata value of stored values: rioxarray's, else ``_FillValue`` of ``metadata``."""
-    try:
-        import rioxarray  # noqa: F401  (registers the .rio accessor)
-
-        nodata = array.rio.nodata
-    except Exception:  # noqa: BLE001 (an array rioxarray cannot describe declares no nodata)
-        nodata = None
-    return nodata if nodata is not None else metadata.get("_FillValue")
-
-
 def guard_angles(layers: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
-    """The angle layers, refused where they look like radians: at once for numpy layers, for dask
-    layers by each chunk (the ``sza`` layer's chunks carry the check, so it runs with the
-    correction and costs no pass of its own)."""
+    """The angle layers, refused where they cannot be degrees. Numpy layers at once, by the rules
+    of the command line's angle files (:func:`brdfcorr.io.angles.check_angle_values`: radians, no
+    zenith in [0, 90) at all as for hundredths of a degree, a layer without a finite value); dask
+    layers by each chunk, against radians only (the ``sza`` layer's chunks carry the check, so it
+    runs with the correction and costs no pass of its own; the other rules need the whole layer:
+    :func:`brdfcorr.io.angles.check_angles` makes that pass)."""
     names = ("sza", "saa", "vza", "vaa")
     arrays = [layers[name].data for name in names]
     if not any(isinstance(array, da.Array) for array in arrays):
-        _refuse_radians(*(np.asarray(array) for array in arrays))
+        statistics = {name: _statistics(np.asarray(array)) for name, array in zip(names, arrays)}
+        check_angle_values({name: value[0] for name, value in statistics.items()},
+                           {name: value[1] for name, value in statistics.items()}, lambda name: "angles")
         return dict(layers)
     first = next(array for array in arrays if isinstance(array, da.Array))
     chunked = [da.asarray(array).rechunk(first.chunks) for array in arrays]
     checked = da.map_blocks(_refuse_radians, *chunked, dtype=first.dtype, meta=np.empty((0, 0), first.dtype))
     return {**layers, "sza": layers["sza"].copy(data=checked)}
+
+
+def _statistics(values: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]]:
+    """The (min, max) [deg] of a layer's finite values, and how many are finite and in [0, 90)."""
+    finite = values[np.isfinite(values)]
+    if not finite.size:
+        return (np.nan, np.nan), (0, 0)
+    return (float(finite.min()), float(finite.max())), (finite.size, int(((finite >= 0) & (finite < 90)).sum()))
 
 
 def _refuse_radians(sza, saa, vza, vaa) -> np.ndarray:

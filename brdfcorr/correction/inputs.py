@@ -18,10 +18,10 @@ from brdfcorr.correction.checks import (  # check_grid: the topographic step's a
     check_grid,  # noqa: F401
     check_layout,
     checked_layers,
-    reflectance_factors,
 )
 from brdfcorr.correction.reference import fixed_sza, resolve_reference, scene_mean_sza, with_hls_sza
 from brdfcorr.errors import InputError
+from brdfcorr.io.scale_check import reflectance_factors
 from brdfcorr.io.wavelengths import with_wavelengths
 from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
 

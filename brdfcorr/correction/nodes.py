@@ -156,7 +156,7 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
 def normalized_from_pairs(pairs: da.Array, reflectance: xr.DataArray, band_dim, attrs: Mapping) -> Normalized:
     """The corrected cube (``reflectance``'s dims, coords and attrs, with ``attrs`` added) and its
     QA layer from the (corrected, qa) pairs of a ``map_blocks`` over ``reflectance.data``."""
-    corrected_data, qa_data = split_pairs(pairs, reflectance.data.chunks, reflectance.dtype)
+    corrected_data, qa_data = split_pairs(pairs, reflectance.dtype)
     corrected = xr.DataArray(corrected_data, dims=reflectance.dims, coords=reflectance.coords, name=reflectance.name,
                              attrs={**reflectance.attrs, **attrs})
     spatial = {name: coord for name, coord in reflectance.coords.items() if band_dim not in coord.dims}

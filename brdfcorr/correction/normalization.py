@@ -186,7 +186,7 @@ def normalize(
     kwargs: dict[str, Any] = dict(plans=plans, settings=inputs.settings, unknown_nan=unknown == "nan", group=group)
     if inputs.lazy:
         pairs = inputs.blockwise(_normalize_block, kwargs)
-        corrected, qa = split_pairs(pairs, inputs.reflectance.data.chunks, inputs.settings.out_dtype)
+        corrected, qa = split_pairs(pairs, inputs.settings.out_dtype)
     else:
         corrected, qa = inputs.apply(_normalize_block, kwargs)
         qa = qa[0]

@@ -65,12 +65,12 @@ import xarray as xr
 
 from brdfcorr._arrays import cosd
 from brdfcorr.correction.blocks import no_class_mask, split_pairs
-from brdfcorr.correction.checks import reflectance_factors
 from brdfcorr.correction.inputs import angle_layers, check_grid, layer_nodata
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.terrain import cos_incidence
 from brdfcorr.defaults import C_METHODS, DEFAULT_LIMITS, TOPOGRAPHIC_METHODS
 from brdfcorr.errors import BrdfcorrWarning, InputError
+from brdfcorr.io.scale_check import reflectance_factors
 
 __all__ = [
     "METHODS",
@@ -366,7 +366,7 @@ def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=N
 def _as_cube(reflectance) -> xr.DataArray:
     """The reflectance as a (band, y, x) DataArray of its values: integer counts that carry a scale
     scaled with it and its offset (an offset left in would change C and the cosine correction
-    alike), a declared float nodata as NaN (:func:`~brdfcorr.correction.checks.reflectance_factors`);
+    alike), a declared float nodata as NaN (:func:`~brdfcorr.io.scale_check.reflectance_factors`);
     counts without a scale are taken in their own units."""
     if not isinstance(reflectance, xr.DataArray):
         array = reflectance if isinstance(reflectance, da.Array) else np.asarray(reflectance)
@@ -538,4 +538,4 @@ def _correct_dask(cube, layers: Sequence, settings: _StepSettings):
         *(item for layer in layers for item in (layer, "yx")),
         meta=np.empty((0, 0, 0), dtype=settings.out_dtype), settings=settings,
     )
-    return split_pairs(pairs, cube.chunks, settings.out_dtype)
+    return split_pairs(pairs, settings.out_dtype)

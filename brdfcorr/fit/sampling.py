@@ -14,10 +14,8 @@ import xarray as xr
 from brdfcorr.correction.checks import (
     ANGLE_LAYERS,
     as_dataarray,
-    carries_scale,
     check_layout,
     guard_angles,
-    reflectance_factors,
 )
 from brdfcorr.correction.series import dated_like
 from brdfcorr.defaults import LEVELS
@@ -25,6 +23,7 @@ from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.fit.settings import Sampling
 from brdfcorr.geometry import relative_azimuth
+from brdfcorr.io.scale_check import carries_scale, reflectance_factors
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
 

@@ -23,7 +23,7 @@ from brdfcorr.io.sensors.grids import GRID_STATISTICS, grid_window
 
 __all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY", "POSITIONAL",
            "angle_band_name", "open_angles", "from_relative_azimuth", "AngleStatistics", "check_angles",
-           "window_values"]
+           "check_angle_values", "window_values"]
 
 ANGLE_NAMES = ("sza", "saa", "vza", "vaa")
 
@@ -97,7 +97,8 @@ def from_relative_azimuth(sza: xr.DataArray, vza: xr.DataArray, raa: xr.DataArra
 
 def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, raa=None,
                 chunks=None) -> dict[str, xr.DataArray]:
-    """Open the sun/view angles [deg] as four (y, x) arrays, nodata as NaN.
+    """Open the sun/view angles [deg] as four (y, x) arrays, nodata as NaN, the values scaled by
+    the file's own scale and offset (int16 hundredths of a degree with a scale of 0.01 read as degrees).
 
     Either ``path``, a 4-band raster (sza, saa, vza, vaa) or a 3-band raster of products that give
     the relative azimuth only (sza, vza, raa: MODIS, VIIRS; :func:`from_relative_azimuth`), or
@@ -118,7 +119,7 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, raa=None,
     if path is not None and given:
         raise InputError("give either one angle file or the separate sza/saa/vza/vaa (or sza/vza/raa) files, not both")
     if path is not None:
-        stack = open_raster(path, "angle", chunk_spec(chunks), masked=True)
+        stack = open_raster(path, "angle", chunk_spec(chunks), masked=True, mask_and_scale=True)
         count = stack.sizes[stack.dims[0]]
         if count not in (3, 4):
             raise InputError(f"angle file {path} has {count} bands; it needs 4 (sza, saa, vza, vaa) or 3 "
@@ -141,7 +142,7 @@ def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, raa=None,
         raise InputError(f"missing angle file(s): {', '.join(missing)} (or give one angle file)")
     angles = {}
     for name in names:
-        layer = open_raster(separate[name], f"{name} angle", chunk_spec(chunks), masked=True)
+        layer = open_raster(separate[name], f"{name} angle", chunk_spec(chunks), masked=True, mask_and_scale=True)
         if layer.sizes[layer.dims[0]] != 1:
             raise InputError(f"{name} angle file {separate[name]} has {layer.sizes[layer.dims[0]]} bands; it needs 1")
         angles[name] = layer.isel({layer.dims[0]: 0}, drop=True).rename(name)
@@ -224,7 +225,7 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
 
     positional = {name: layers[name].attrs.get(POSITIONAL) for name in names}
     relative = "saa" in layers and bool(layers["saa"].attrs.get(RELATIVE_ONLY))
-    _check_values(ranges, counts, where, positional, relative=relative)
+    check_angle_values(ranges, counts, where, positional, relative=relative)
     if all(positional.values()) and len(names) == len(ANGLE_NAMES):
         _check_order(ranges, _spreads(names, low, high), where)
     return AngleStatistics(ranges, means)
@@ -314,7 +315,7 @@ def _check_order(ranges: dict, spreads: dict, where) -> None:
         )
 
 
-def _check_values(ranges: dict, counts: dict, where, positional: Mapping[str, int | None] | None = None, *,
+def check_angle_values(ranges: dict, counts: dict, where, positional: Mapping[str, int | None] | None = None, *,
                   relative: bool = False) -> None:
     """The unit checks of :func:`check_angles` on the layers' ranges and (finite, in [0, 90))
     counts; ``where(name)`` names a layer in messages; ``positional`` the band of each layer taken

@@ -1,13 +1,19 @@
-"""Does an image hold reflectance factors? A sample of its chunks judged before a pass over it.
+"""Does an image hold reflectance factors? Its stored values unpacked, and a sample of its chunks
+judged before a pass over it.
 
-Raw counts read without their scale, reflectance x 10 000 stored as floats, or a scale tag that is a
-divisor are caught here (:func:`check_reflectance_scale`) from a few chunks, before a correction,
-a fit or strata spend a pass on numbers that are no reflectance.
+- :func:`reflectance_factors`: the values an array stores as the quantity they stand for
+  (xarray's ``scale_factor``/``add_offset`` applied to integer counts, nodata as NaN), with no
+  reading: what the Python entry points (``normalize``, the ``.brdf`` accessor, strata) do with
+  the arrays a caller gives; :func:`unpacked` the same for other layers (angles);
+- :func:`check_reflectance_scale`: raw counts read without their scale, reflectance x 10 000 stored
+  as floats, or a scale tag that is a divisor, caught from a few chunks, before a correction, a fit
+  or strata spend a pass on numbers that are no reflectance.
 """
 
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Mapping
 from pathlib import Path
 
 import dask
@@ -21,7 +27,8 @@ from brdfcorr.io.opening import reading
 from brdfcorr.io.product import MIN_GDAL_CACHE, bounded_gdal_cache
 from brdfcorr.io.writer import DEFAULT_CHUNK, pass_threads
 
-__all__ = ["check_reflectance_scale", "SAMPLE_SIZE"]
+__all__ = ["check_reflectance_scale", "checked_factors", "SAMPLE_SIZE", "reflectance_factors", "unpacked",
+           "carries_scale"]
 
 #: Valid values of the image that :func:`check_reflectance_scale` judges by (at most, per chunk read).
 SAMPLE_SIZE = 20_000
@@ -69,17 +76,45 @@ def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, l
     if not values.size:
         return None
     percentile = float(np.percentile(values, 99))
-    if percentile > limit:
-        scale, offset = image.attrs.get("brdf_input_scale", 1.0), image.attrs.get("brdf_input_offset", 0.0)
-        divisor = max(np.atleast_1d(scale)) > 1
-        guess = ("the file's scale tag looks like a divisor (as MODIS HDF files store it), not GDAL's "
-                 "multiplier." if divisor else "raw counts? Or reflectance x 10000 stored as floats?")
-        raise InputError(
-            f"{where}: the values do not look like reflectance factors: 99th percentile {percentile:.5g} "
-            f"of a sample of valid pixels (scale {scale}, offset {offset} applied); {guess} Give the "
-            f"scale (and offset) of the stored values: {option('scale')}, e.g. {option('scale_example')}"
-        )
+    _judge(percentile, limit, where, image.attrs)
     return percentile
+
+
+def checked_factors(values: xr.DataArray, image: xr.DataArray, *, limit: float = 2.0) -> xr.DataArray:
+    """``values`` computed from ``image`` (e.g. the mean of its red bands [1]) with the check of
+    :func:`check_reflectance_scale` on them: numpy at once, dask lazily, by each chunk as it is
+    computed (no pass or read of its own: the result stays lazy). For thresholds in reflectance
+    factors (strata's water and shadow tests) that counts or percent would make misfire."""
+    where = image.encoding.get("label") or image.encoding.get("source", "image")
+    if not isinstance(values.data, dask.array.Array):
+        check_reflectance_scale(values.assign_attrs(image.attrs), where, limit=limit)
+        return values
+    checked = values.data.map_blocks(_checked_block, limit=limit, where=where, attrs=dict(image.attrs),
+                                     dtype=values.dtype, meta=values.data._meta)
+    return values.copy(data=checked)
+
+
+def _checked_block(block: np.ndarray, *, limit: float, where: str, attrs) -> np.ndarray:
+    """A chunk of :func:`checked_factors`, unchanged, or an :class:`InputError`."""
+    sample = _valid_sample(block)
+    if sample.size:
+        _judge(float(np.percentile(sample, 99)), limit, where, attrs)
+    return block
+
+
+def _judge(percentile: float, limit: float, where: str, attrs) -> None:
+    """The error of a 99th ``percentile`` above ``limit``, naming the scaling applied (``attrs``)."""
+    if percentile <= limit:
+        return
+    scale, offset = attrs.get("brdf_input_scale", 1.0), attrs.get("brdf_input_offset", 0.0)
+    divisor = max(np.atleast_1d(scale)) > 1
+    guess = ("the file's scale tag looks like a divisor (as MODIS HDF files store it), not GDAL's "
+             "multiplier." if divisor else "raw counts? Or reflectance x 10000 stored as floats?")
+    raise InputError(
+        f"{where}: the values do not look like reflectance factors: 99th percentile {percentile:.5g} "
+        f"of a sample of valid pixels (scale {scale}, offset {offset} applied); {guess} Give the "
+        f"scale (and offset) of the stored values: {option('scale')}, e.g. {option('scale_example')}"
+    )
 
 
 def _sample_values(image: xr.DataArray, where: str, blocks: int, scheduler, num_workers) -> np.ndarray:
@@ -131,3 +166,93 @@ def _valid_sample(block: np.ndarray, size: int = SAMPLE_SIZE) -> np.ndarray:
     """At most about ``size`` finite values of a block, evenly strided."""
     values = block[np.isfinite(block)]
     return values[::max(1, values.size // size)]
+
+
+#: Attributes that describe stored values, not the quantity: dropped once the values are read.
+_STORAGE_ATTRS = ("scale_factor", "add_offset", "_FillValue", "missing_value")
+
+
+def carries_scale(array: xr.DataArray) -> bool:
+    """Whether ``array`` carries a ``scale_factor`` (attrs or encoding) for its stored values."""
+    return "scale_factor" in {**array.encoding, **array.attrs}
+
+
+def reflectance_factors(reflectance: xr.DataArray, *, unscaled_counts: bool = False) -> xr.DataArray:
+    """Reflectance factors of the stored values, with no packing or nodata attribute left.
+
+    Integer counts are scaled with the scale and offset they carry (attrs or encoding
+    ``scale_factor``/``add_offset``; their ``_FillValue`` or rioxarray nodata as NaN). Refused
+    (:class:`InputError`): integer counts without a scale, or, with ``unscaled_counts``, taken as
+    they are (values in their own units: the topographic correction's, a fit's
+    ``reflectance_scale``); a ``scale_factor`` above 1, a divisor (the MODIS HDF convention,
+    reflectance = counts / 10000) where xarray and GDAL multiply; floats that still carry a
+    ``scale_factor`` or ``add_offset`` attribute (packed values, as ``rioxarray.open_rasterio(path,
+    masked=True)`` reads them: neither reading is safe to guess). Floats are taken as they are,
+    their declared nodata (rioxarray's, or a ``_FillValue`` attribute) as NaN.
+    """
+    if reflectance.dtype.kind == "f" or (unscaled_counts and not carries_scale(reflectance)):
+        return unpacked(reflectance, "reflectance")
+    if reflectance.dtype.kind not in "iu":
+        return reflectance
+    metadata = {**reflectance.encoding, **reflectance.attrs}
+    if "scale_factor" not in metadata:
+        raise InputError(
+            f"reflectance holds integer counts ({reflectance.dtype}) without a scale_factor: give reflectance "
+            f"factors, {option('scale')} (e.g. Sentinel-2 L2A from baseline 04.00: counts * 0.0001 - 0.1)"
+        )
+    scale = float(metadata["scale_factor"])
+    if scale > 1 and not unscaled_counts:  # every count >= 1 would be a reflectance factor above 1
+        raise InputError(
+            f"reflectance holds integer counts ({reflectance.dtype}) with scale_factor {scale:g}: a divisor "
+            f"(as MODIS HDF files store it: reflectance = counts / {scale:g}), where xarray and GDAL multiply "
+            f"(counts * scale_factor + add_offset); set scale_factor to {1 / scale:.6g}"
+        )
+    return unpacked(reflectance, "reflectance")
+
+
+def unpacked(layer: xr.DataArray, role: str) -> xr.DataArray:
+    """The values ``layer`` stores as the quantity they stand for, as xarray decodes them: integers
+    that carry a ``scale_factor`` or ``add_offset`` (attrs or encoding) scaled to float32, their
+    nodata (rioxarray's or ``_FillValue``) as NaN; floats' declared nodata as NaN; other layers as
+    they are. A float layer that still carries ``scale_factor``/``add_offset`` among its attributes
+    holds packed values: an :class:`InputError` naming ``role`` (``"reflectance"``, ``"sza"``)."""
+    if layer.dtype.kind == "f":
+        packed = {key: layer.attrs[key] for key in ("scale_factor", "add_offset") if key in layer.attrs}
+        if packed:
+            described = ", ".join(f"{key}={value}" for key, value in packed.items())
+            raise InputError(
+                f"{role} holds floats that still carry {described} among their attributes: packed values "
+                "(as rioxarray.open_rasterio(path, masked=True) reads them). Read them with mask_and_scale=True, "
+                "or drop the attributes if they are applied already"
+            )
+        nodata = _nodata(layer, layer.attrs)
+        if nodata is None or np.isnan(nodata):
+            return layer
+        return _plain(layer.where(layer != nodata), layer)
+    metadata = {**layer.encoding, **layer.attrs}
+    if layer.dtype.kind not in "iu" or not {"scale_factor", "add_offset"} & set(metadata):
+        return layer
+    scale, offset = float(metadata.get("scale_factor", 1.0)), float(metadata.get("add_offset", 0.0))
+    nodata = _nodata(layer, metadata)
+    values = layer if nodata is None else layer.where(layer != nodata)
+    scaled = (values.astype(np.float32) * np.float32(scale) + np.float32(offset)).astype(np.float32)
+    return _plain(scaled, layer).assign_attrs(brdf_input_scale=scale, brdf_input_offset=offset)
+
+
+def _plain(values: xr.DataArray, stored: xr.DataArray) -> xr.DataArray:
+    """``values`` named as ``stored``, with its attributes less those of the storage
+    (:data:`_STORAGE_ATTRS`; xarray keeps attributes through arithmetic)."""
+    values = values.rename(stored.name)
+    values.attrs = {key: value for key, value in stored.attrs.items() if key not in _STORAGE_ATTRS}
+    return values
+
+
+def _nodata(array: xr.DataArray, metadata: Mapping) -> float | None:
+    """The declared nodata value of stored values: rioxarray's, else ``_FillValue`` of ``metadata``."""
+    try:
+        import rioxarray  # noqa: F401  (registers the .rio accessor)
+
+        nodata = array.rio.nodata
+    except Exception:  # noqa: BLE001 (an array rioxarray cannot describe declares no nodata)
+        nodata = None
+    return nodata if nodata is not None else metadata.get("_FillValue")

@@ -15,7 +15,7 @@ from pathlib import Path
 import xarray as xr
 
 from brdfcorr.errors import InputError
-from brdfcorr.io import rasters, scale_check
+from brdfcorr.io import rasters
 from brdfcorr.io.files import parse_yaml, read_document
 from brdfcorr.io.paths import check_outputs, refuse_existing
 from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata, remap_classes
@@ -121,16 +121,17 @@ def ndvi_class_file(
         The strata's edges and the classes of water and shadow.
     scale, offset : float, optional
         Reflectance factor per stored unit and of a stored 0, replacing the file's
-        (:func:`brdfcorr.io.rasters.open_image`). Without ``scale`` the image is checked for values
-        that are no reflectance factors (:func:`brdfcorr.io.scale_check.check_reflectance_scale`): an
-        offset left out changes NDVI.
+        (:func:`brdfcorr.io.rasters.open_image`). The image is checked for values that are no
+        reflectance factors (:func:`brdfcorr.io.scale_check.check_reflectance_scale`, in
+        :func:`~brdfcorr.strata.ndvi_strata`), with a given ``scale`` as well: the water and shadow
+        tests are in reflectance factors.
     chunks : int, optional
         Chunk and tile size [pixels] (default :func:`brdfcorr.io.rasters.auto_chunk`).
     overwrite : bool, default False
         Replace an existing output.
     scheduler, num_workers : optional
-        dask scheduler and its threads of the scale check and the write (a chain's engine; default
-        dask's); the percentiles' pass uses dask's default.
+        dask scheduler and its threads of the write (a chain's engine; default dask's); the scale
+        check and the percentiles' pass use dask's default.
 
     Returns
     -------
@@ -141,8 +142,6 @@ def ndvi_class_file(
     with rasters.bounded_gdal_cache(image, chunks):  # every pass: the check, the percentiles, the write
         reflectance = rasters.open_image(image, chunks=chunks, wavelengths=wavelengths, scale=scale, offset=offset)
         compute = {"scheduler": scheduler, "num_workers": num_workers}
-        if scale is None:
-            scale_check.check_reflectance_scale(reflectance, str(image), **compute)
         strata = ndvi_strata(reflectance, edges=bins.edges, percentiles=bins.percentiles, water_id=bins.water_id,
                              shadow_id=bins.shadow_id)
         names = ",".join(f"{ident}:{name}" for ident, name in sorted(strata.names.items()))

@@ -205,3 +205,47 @@ def test_angles_on_the_images_coordinates_without_a_crs_are_on_its_grid(scene):
     shifted = {name: layer.assign_coords(x=layer.x + 100.0) for name, layer in bare.items()}
     with pytest.raises(GridMismatchError, match="transform"):
         normalize(scene["reflectance"], scene["classes"], shifted, example_table())
+
+
+def test_a_scale_factor_that_is_a_divisor_is_refused(scene):
+    # MODIS HDF files tag reflectance = counts / 10000 as scale_factor=10000; xarray and GDAL
+    # multiply, so the corrected values would be ~1e7 (reflectance factors times 1e8).
+    counts = np.round(scene["reflectance"].clip(0, 1) * 10000).astype(np.int16)
+    counts.attrs.update(scale_factor=10000.0)
+    with pytest.raises(InputError, match=r"scale_factor 10000: a divisor .*set scale_factor to 0\.0001"):
+        normalize(counts, scene["classes"], _angles(scene), example_table())
+
+
+def test_numpy_reflectance_with_dask_angles_is_corrected_as_all_numpy(scene):
+    expected = normalize(scene["reflectance"], scene["classes"], _angles(scene), example_table())
+    lazy_angles = {name: layer.chunk({"y": 12}) for name, layer in _angles(scene).items()}
+    mixed = normalize(scene["reflectance"], scene["classes"], lazy_angles, example_table())
+    np.testing.assert_array_equal(mixed.reflectance.values, expected.reflectance.values)
+    np.testing.assert_array_equal(mixed.qa.values, expected.qa.values)
+
+
+def test_angles_in_hundredths_of_a_degree_are_refused_as_the_cli_refuses_them(scene):
+    # Every sun zenith outside [0, 90): each pixel would be invalid geometry, an all-NaN result.
+    hundredths = {name: layer * 100 for name, layer in _angles(scene).items()}
+    with pytest.raises(InputError, match=r"angles: no sza value in \[0, 90\) deg \(found [0-9.]+\.\.[0-9.]+\); "
+                                         r"are the angles scaled"):
+        normalize(scene["reflectance"], scene["classes"], hundredths, example_table())
+    nan_sun = {**_angles(scene), "sza": xr.full_like(scene["sza"], np.nan)}
+    with pytest.raises(InputError, match="no finite sza value"):
+        normalize(scene["reflectance"], scene["classes"], nan_sun, example_table())
+
+
+@pytest.mark.parametrize("lazy", [False, True])
+def test_angle_layers_of_packed_integers_are_unpacked(scene, lazy):
+    # int16 hundredths with scale_factor 0.01 and a _FillValue, as xarray keeps them undecoded.
+    expected = normalize(scene["reflectance"], scene["classes"], _angles(scene), example_table())
+    packed = {}
+    for name, layer in _angles(scene).items():
+        stored = np.round(layer * 100).astype(np.int16 if name in ("sza", "vza") else np.uint16)
+        stored.attrs.update(scale_factor=0.01, _FillValue=-1 if name in ("sza", "vza") else 65535)
+        packed[name] = stored.chunk({"y": 12}) if lazy else stored
+    corrected = normalize(scene["reflectance"], scene["classes"], packed, example_table())
+    np.testing.assert_allclose(corrected.reflectance.values, expected.reflectance.values, rtol=1e-3)
+    floats = {**_angles(scene), "sza": _angles(scene)["sza"].assign_attrs(scale_factor=0.01)}
+    with pytest.raises(InputError, match="sza holds floats that still carry scale_factor=0.01"):
+        normalize(scene["reflectance"], scene["classes"], floats, example_table())

@@ -20,6 +20,7 @@ from brdfcorr.cli import main
 from brdfcorr.errors import InputError
 from brdfcorr.fit.classes import Sampling
 from brdfcorr.io import rasters, scale_check
+from brdfcorr.io.angles import open_angles
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.fit import SceneFiles, fit_class_files
 from brdfcorr.testing import example_table, synthetic_scene, write_scene
@@ -306,3 +307,23 @@ def test_scale_check_looks_beyond_an_empty_centre():
     values[:, 160:240, 160:240] = np.nan
     with pytest.raises(InputError, match=r"reflectance \* scale \+ offset before the call \(or scale=/offset="):
         scale_check.check_reflectance_scale(_reflectance_cube(values, 80), scheduler="synchronous")
+
+
+def test_an_angle_file_of_scaled_integers_is_read_in_degrees(files, tmp_path, store, nodata_pixels):
+    # Hundredths of a degree in uint16 with a GDAL scale of 0.01 (as Landsat and Sentinel-2 angle
+    # bands are stored): read with the file's scale, as the image is; taken as they are, every sun
+    # zenith (e.g. 3000) would be outside [0, 90) and the pixel left uncorrected.
+    angles = store(files["angles"], tmp_path / "angles_uint16.tif", "uint16", 0.01, 0.0, 65535)
+    opened = open_angles(angles)
+    with rasterio.open(files["angles"]) as dataset:
+        truth = dataset.read()
+    for index, name in enumerate(("sza", "saa", "vza", "vaa")):
+        values = opened[name].values
+        assert np.isnan(values[nodata_pixels[1:]]).all()
+        valid = np.isfinite(values)
+        np.testing.assert_allclose(values[valid], truth[index][valid], rtol=0, atol=0.005 + 1e-4)
+    reference, _ = _correct(files, files["image"], tmp_path / "float_angles.tif")
+    corrected, _ = _correct(files, files["image"], tmp_path / "scaled_angles.tif", "--angles", angles)  # the last
+    both = np.isfinite(corrected) & np.isfinite(reference)
+    assert both.mean() > 0.95  # only the nodata pixels of the angle file are left out
+    np.testing.assert_allclose(corrected[both], reference[both], rtol=2e-3)  # angles to 0.005 deg
