@@ -32,7 +32,7 @@ __all__ = [
     "jacobian_covariance",
     "hc3_covariance",
     "robust_problem",
-    "MAX_LEVERAGE",
+    "ROBUST_LEVERAGE_LIMIT",
     "correlation_matrix",
     "global_correlation",
     "identifiability_messages",
@@ -70,8 +70,8 @@ def jacobian_covariance(jacobian: np.ndarray):
 
 
 #: A measurement whose leverage is above this determines a parameter nearly alone: its residual is
-#: ~0 whatever its noise, and the robust covariance cannot see that noise (:func:`_robust_problem`).
-MAX_LEVERAGE = 0.99
+#: ~0 whatever its noise, and the robust covariance cannot see that noise (:func:`robust_problem`).
+ROBUST_LEVERAGE_LIMIT = 0.99
 
 
 def leverages(jacobian: np.ndarray, covariance: np.ndarray) -> np.ndarray:
@@ -82,12 +82,12 @@ def leverages(jacobian: np.ndarray, covariance: np.ndarray) -> np.ndarray:
 def robust_problem(jacobian: np.ndarray, covariance: np.ndarray, dof: int) -> str | None:
     """Why the heteroscedasticity-robust covariance cannot be used (None where it can, or where the
     covariance is singular, which the identifiability warnings say): no degrees of freedom, or a
-    measurement of leverage above :data:`MAX_LEVERAGE`."""
+    measurement of leverage above :data:`ROBUST_LEVERAGE_LIMIT`."""
     if not np.all(np.isfinite(covariance)):
         return None
     if dof < 1:
         reason = "as many free parameters as measurements"
-    elif np.max(leverages(jacobian, covariance)) > MAX_LEVERAGE:
+    elif np.max(leverages(jacobian, covariance)) > ROBUST_LEVERAGE_LIMIT:
         reason = "a measurement alone determines a parameter (leverage ~1)"
     else:
         return None

@@ -58,7 +58,7 @@ if TYPE_CHECKING:
 
 #: Largest leverage eigenvalue used in the CR2 adjustment: a cluster that alone determines a
 #: parameter combination (leverage 1) has no residual to estimate its variance from.
-MAX_LEVERAGE = 1.0 - 1e-9
+LEVERAGE_CLIP = 1.0 - 1e-9
 
 
 @dataclass(frozen=True)
@@ -91,7 +91,7 @@ class _Leverage:
 
     root: np.ndarray
     inverse_root: np.ndarray
-    eigenvalues: np.ndarray  # (C, q), clipped to [0, MAX_LEVERAGE]
+    eigenvalues: np.ndarray  # (C, q), clipped to [0, LEVERAGE_CLIP]
     eigenvectors: np.ndarray  # (C, q, q)
 
 
@@ -104,7 +104,7 @@ def _leverage(bread: np.ndarray, parts: np.ndarray) -> _Leverage:
     inverse_root = (vectors * np.where(positive, 1.0 / np.sqrt(np.where(positive, values, 1.0)), 0.0)) @ vectors.T
     leverage = inverse_root @ parts @ inverse_root  # (C, q, q), broadcast
     eigenvalues, eigenvectors = np.linalg.eigh(0.5 * (leverage + np.swapaxes(leverage, 1, 2)))
-    return _Leverage(root, inverse_root, np.clip(eigenvalues, 0.0, MAX_LEVERAGE), eigenvectors)
+    return _Leverage(root, inverse_root, np.clip(eigenvalues, 0.0, LEVERAGE_CLIP), eigenvectors)
 
 
 def _adjust(scores: np.ndarray, leverage: _Leverage) -> np.ndarray:
@@ -178,7 +178,7 @@ def _design_parts(design: np.ndarray, indicator) -> np.ndarray:
 def _hat_scale(design: np.ndarray, inverse: np.ndarray) -> np.ndarray:
     """HC2's per-sample ``1 / (1 - h_p)``, ``h_p = a_p^T (A^T A)^-1 a_p`` (MacKinnon and White 1985)."""
     leverage = np.einsum("ni,ij,nj->n", design, inverse, design)
-    return 1.0 / (1.0 - np.clip(leverage, 0.0, MAX_LEVERAGE))
+    return 1.0 / (1.0 - np.clip(leverage, 0.0, LEVERAGE_CLIP))
 
 
 def _intensity_meat(design, coefficients, data, scale) -> np.ndarray:
