@@ -19,6 +19,7 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr.analysis.overlap import _overlaps, assess_overlap, overlap_report
+from brdfcorr.analysis.signed_view import check_signing
 from brdfcorr.analysis.view_angles import ViewAngleOptions, assess_view_angles, view_angle_report
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
@@ -153,6 +154,8 @@ def leave_one_line_out(
 
     if len(lines) < 2:
         raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(lines)}")
+    for line in lines:  # before any fold's fit
+        check_signing(view_options.by, line.angles["saa"], line.angles["vaa"])
     # The settings by the names the fit and the correction below take them.
     model, class_models, fixed, max_samples, seed = fit.model, fit.class_models, fit.fixed, fit.max_samples, fit.seed
     limits, names, flip_view_azimuth = fit.limits, view_options.class_names, view_options.flip_view_azimuth

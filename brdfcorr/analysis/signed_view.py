@@ -14,8 +14,9 @@ import numpy as np
 from brdfcorr._arrays import cosd, sind
 from brdfcorr.defaults import SIGN_CONVENTIONS
 from brdfcorr.errors import InputError
+from brdfcorr.io.angles import RELATIVE_ONLY
 
-__all__ = ["SIGN_CONVENTIONS", "signed_view_zenith"]
+__all__ = ["SIGN_CONVENTIONS", "signed_view_zenith", "check_signing"]
 
 
 # SIGN_CONVENTIONS, how the sign of the view zenith is chosen (:func:`signed_view_zenith`), is
@@ -71,3 +72,14 @@ def signed_view_zenith(vza, vaa, saa=None, *, by: Literal["sun", "track"] = "sun
     else:
         raise InputError(f"sign convention {by!r} is not one of {', '.join(SIGN_CONVENTIONS)}")
     return vza * np.sign(side)
+
+
+def check_signing(by: str, *azimuths) -> None:
+    """Refuse signing by the flight track (``by="track"``) with azimuth layers (``saa``, ``vaa``:
+    DataArrays) of a source that gives the relative azimuth only (their attribute
+    :data:`brdfcorr.io.angles.RELATIVE_ONLY`; MODIS, VIIRS): their ``vaa`` is the relative
+    azimuth, so sin(heading - vaa) says nothing of a side of the track. Signing by the sun needs
+    only the relative azimuth."""
+    if by == "track" and any(getattr(layer, "attrs", {}).get(RELATIVE_ONLY) for layer in azimuths):
+        raise InputError("signing by the track needs the sensor's azimuth; the angle source gives only the "
+                         "relative azimuth (raa): sign by the sun")

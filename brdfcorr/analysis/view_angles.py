@@ -23,7 +23,7 @@ import rioxarray  # noqa: F401  (registers .rio)
 import xarray as xr
 
 from brdfcorr.analysis._assess_common import STAGES, _band_coords, _band_list, _divide, _json_numbers
-from brdfcorr.analysis.signed_view import _SIGN_WORDS, SIGN_CONVENTIONS
+from brdfcorr.analysis.signed_view import _SIGN_WORDS, SIGN_CONVENTIONS, check_signing
 from brdfcorr.analysis.view_angle_sums import _scene_sums, _SumOptions, _Sums
 from brdfcorr.analysis.view_stripes import (
     CLUSTER_LAYER,
@@ -182,7 +182,8 @@ def assess_view_angles(
         - ``mean`` (stage, band, class): mean reflectance R̄ [1];
         - ``slope`` (stage, band, class): least-squares slope b of R against the signed view
           zenith θ [1/deg] (Notes);
-        - ``relative_slope`` (stage, band, class): 1000 · b / R̄ [%/10 deg];
+        - ``relative_slope`` (stage, band, class): 1000 · b / |R̄| [%/10 deg] (a negative mean, dark
+          water after an offset, keeps the slope's sign; NaN where R̄ = 0);
         - ``relative_slope_error`` (stage, band, class): its 1-sigma [%/10 deg], cluster-robust
           (:func:`_cluster_error`) over the ids of ``clusters`` if given, else over square blocks
           of ``options.block_size`` pixels; ``blocks`` (class): the clusters holding the class's
@@ -226,6 +227,7 @@ def assess_view_angles(
     before, after = _check_cubes(before, after)
     _check_options(options)
     by, bin_width, min_vza = options.by, options.bin_width, options.min_vza
+    check_signing(by, vaa, saa)
     shape = before.shape[1:]
     layers = [_layer(value, name, shape) for name, value in
               (("the class map", classes), ("vza", vza), ("vaa", vaa), ("saa", saa), ("the cluster layer", clusters))]
@@ -235,6 +237,10 @@ def assess_view_angles(
     ids = np.sort(np.asarray(class_ids if class_ids is not None else _present_ids(classes, _class_nodata(classes))))
     if ids.size == 0:
         raise InputError("the class map holds no class (no id > 0 outside its nodata)")
+    fractional = ids[ids != np.round(ids)]
+    if fractional.size:  # each would be assessed apart, and reported under its integer part
+        raise InputError(f"class ids are whole numbers; {'class_ids' if class_ids is not None else 'the class map'} "
+                         f"holds {', '.join(f'{value:g}' for value in fractional[:3])}")
     half = math.ceil(90.0 / bin_width)
     edges = bin_width * np.arange(-half, half + 1, dtype=np.float64)
     summing = _SumOptions(ids=ids, edges=edges, by=by, heading=options.heading, min_vza=float(min_vza),
@@ -261,7 +267,7 @@ def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataAr
     variance = _divide(sums.ss, n) - mean_s**2
     covariance = _divide(sums.sr, n) - mean_s * mean
     slope = _divide(covariance, np.where(variance > 1e-12 * np.maximum(_divide(sums.ss, n), 1.0), variance, 0.0))
-    slope_error, block_errors, groups = _slope_errors(sums, len(ids), (slope, mean, mean_s, n * variance), clustered)
+    slope_error, block_errors, groups = _slope_errors(sums, len(ids), (slope, n * variance), clustered)
     occupied = np.flatnonzero(sums.bin_n.sum(axis=0) > 0)
     keep = slice(occupied[0], occupied[-1] + 1) if occupied.size else slice(0, 0)
     bin_n = sums.bin_n[:, keep]
@@ -272,7 +278,7 @@ def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataAr
         "mean": (("stage", "band", "class"), mean, {"long_name": "mean reflectance", "units": "1"}),
         "slope": (("stage", "band", "class"), slope,
                   {"long_name": "least-squares slope of reflectance against signed view zenith", "units": "1/degree"}),
-        "relative_slope": (("stage", "band", "class"), 1000.0 * _divide(slope, mean),
+        "relative_slope": (("stage", "band", "class"), 1000.0 * _divide(slope, np.abs(mean)),
                            {"long_name": "slope relative to the class mean", "units": "%/10 degree"}),
         "relative_slope_error": (("stage", "band", "class"), 1000.0 * _divide(slope_error, np.abs(mean)),
                                  {"long_name": "1-sigma of the relative slope, cluster-robust over spatial blocks",
@@ -304,9 +310,9 @@ def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataAr
 
 
 def _slope_errors(sums: _Sums, n_classes: int, terms: tuple, clustered: bool) -> tuple[np.ndarray, ...]:
-    """The slopes' 1-sigma [1/deg] (:func:`_cluster_error`; ``terms``: slope, mean, mean signed
-    zenith, Sxx): cluster-robust over the cluster ids where ``clustered``, else over the square
-    blocks; the 1-sigma over blocks of both sizes (..., 2); the clusters (ids or blocks) per class."""
+    """The slopes' 1-sigma [1/deg] (:func:`_cluster_error`; ``terms``: slope, Sxx): cluster-robust
+    over the cluster ids where ``clustered``, else over the square blocks; the 1-sigma over blocks
+    of both sizes (..., 2); the clusters (ids or blocks) per class."""
     block_errors = np.stack([_cluster_error(sums.squares.moments, sums.squares.blocks, *terms),
                              _cluster_error(sums.squares2.moments, sums.squares2.blocks, *terms)], axis=-1)
     if not clustered:
@@ -331,17 +337,15 @@ def _coords(cube: xr.DataArray, ids: np.ndarray, names: Mapping[int, str], block
     }
 
 
-def _cluster_error(moments: np.ndarray, blocks: np.ndarray, slope, mean, mean_s, sxx) -> np.ndarray:
+def _cluster_error(moments: np.ndarray, blocks: np.ndarray, slope, sxx) -> np.ndarray:
     """1-sigma of the least-squares slope [1/deg], cluster-robust over the spatial blocks (CR1,
     Liang and Zeger 1986; Cameron and Miller 2015, J. Hum. Resour. 50, 317-372, eq. 11):
     Var b = G/(G-1) Σ_g u_g² / Sxx², with u_g = Σ_{i in g} (θ_i − θ̄) e_i and the residuals
-    e = R − a − bθ. u_g is linear in the block's sums v_g = (n, Σθ, Σθ², ΣR, ΣθR):
-    u_g = c·v_g with c = (aθ̄, bθ̄ − a, −b, −θ̄, 1), so Σ_g u_g² = cᵀ (Σ_g v_g v_gᵀ) c. NaN with
-    fewer than 2 blocks. ``moments``: (2, B, K, 5, 5), Σ_g v_g v_gᵀ per class; ``blocks``: (K,) G."""
-    intercept = mean - slope * mean_s
-    c = np.stack(np.broadcast_arrays(intercept * mean_s, slope * mean_s - intercept, -slope, -mean_s,
-                                     np.ones_like(slope)), axis=-1)
-    scores = np.maximum(np.einsum("...i,...ij,...j->...", c, moments, c), 0.0)
+    e = R − a − bθ = (R − R̄) − b(θ − θ̄). u_g is linear in the block's sums v_g = (n, Σθ', Σθ'²,
+    ΣR', Σθ'R') of θ' = θ − θ̄ and R' = R − R̄ (about the class means: :mod:`.view_angle_sums`):
+    u_g = c·v_g with c = (0, 0, −b, 0, 1), so Σ_g u_g² = cᵀ (Σ_g v_g v_gᵀ) c. NaN with fewer than
+    2 blocks. ``moments``: (2, B, K, 5, 5), Σ_g v_g v_gᵀ per class; ``blocks``: (K,) G."""
+    scores = np.maximum(slope**2 * moments[..., 2, 2] - 2 * slope * moments[..., 2, 4] + moments[..., 4, 4], 0.0)
     factor = _divide(blocks, np.where(blocks > 1, blocks - 1, 0.0))
     return _divide(np.sqrt(factor * scores), sxx)
 

@@ -88,11 +88,11 @@ def _angle_band_order(path, descriptions, names: tuple[str, ...] = ANGLE_NAMES) 
 
 
 def from_relative_azimuth(sza: xr.DataArray, vza: xr.DataArray, raa: xr.DataArray) -> dict[str, xr.DataArray]:
-    """The four layers of a source that gives the relative azimuth only: ``saa`` = 0 deg (flagged
-    with the attribute :data:`RELATIVE_ONLY`) and ``vaa`` = ``raa``, so that |saa - vaa| is |raa|
-    (brdfcorr's convention, ``docs/conventions.md``: raa = vaa - saa, 0 deg at the hotspot)."""
+    """The four layers of a source that gives the relative azimuth only: ``saa`` = 0 deg and
+    ``vaa`` = ``raa`` (both flagged with the attribute :data:`RELATIVE_ONLY`), so that |saa - vaa|
+    is |raa| (brdfcorr's convention, ``docs/conventions.md``: raa = vaa - saa, 0 deg at the hotspot)."""
     saa = xr.zeros_like(sza).rename("saa").assign_attrs({RELATIVE_ONLY: 1, "units": "degree"})
-    return {"sza": sza, "saa": saa, "vza": vza, "vaa": raa.rename("vaa")}
+    return {"sza": sza, "saa": saa, "vza": vza, "vaa": raa.rename("vaa").assign_attrs({RELATIVE_ONLY: 1})}
 
 
 def open_angles(path=None, *, sza=None, saa=None, vza=None, vaa=None, raa=None,

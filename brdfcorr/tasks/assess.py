@@ -35,7 +35,6 @@ from brdfcorr.analysis.assess import (
 )
 from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
-from brdfcorr.io.angles import RELATIVE_ONLY
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
@@ -93,14 +92,6 @@ def _open_scene_files(sources: SceneSources, engine: Engine, *, align_classes: b
     chunks = rasters.auto_chunk(sources.image) if engine.chunks is None else int(engine.chunks)
     return open_scene(sources, chunks=chunks, prepare_classes=class_preparation(align_classes, class_lookup),
                       scheduler=engine.scheduler, num_workers=engine.num_workers)
-
-
-def _check_signing(data: SceneData, view_options: ViewAngleOptions) -> None:
-    """Signing by the flight track needs the sensor's own azimuth, which a source that gives the
-    relative azimuth only does not have (signing by the sun needs only the relative one)."""
-    if view_options.by == "track" and data.angles["saa"].attrs.get(RELATIVE_ONLY):
-        raise InputError("signing by the track needs the sensor's azimuth; the angle source gives only the "
-                         "relative azimuth (raa): sign by the sun")
 
 
 def _named(options: ViewAngleOptions, class_maps: Sequence[xr.DataArray]) -> ViewAngleOptions:
@@ -165,7 +156,6 @@ def assess_files(
     # GDAL's block cache bounded for every pass (issue 28; GDAL's default keeps every tile read).
     with _active(engine.callbacks), rasters.bounded_gdal_cache(scene.image, engine.chunks):
         data = _open_scene_files(scene, engine, align_classes=align_classes, class_lookup=class_lookup)
-        _check_signing(data, view_options)
         view_options = _named(view_options, [data.classes])
         corrected = _corrected_on_grid(after, scene.image, data.reflectance, engine.chunks)
         layers = data.angles

@@ -341,3 +341,44 @@ def test_a_class_seen_over_a_narrow_view_range_is_named_in_a_warning(geometry, m
     assert ranges["nadir"] == pytest.approx(expected) and ranges["nadir"] < NARROW_RANGE
     assert ranges["wide"] > NARROW_RANGE
     assert "nadir (" in report["errors"]["narrow"] and "wide (" not in report["errors"]["narrow"]
+
+
+@pytest.mark.parametrize("lazy", [False, True])
+def test_the_slope_error_of_a_class_far_from_nadir_with_small_residuals_is_exact(lazy):
+    # Signed zeniths 50-55 deg, reflectance 0.5 with noise 1e-5: from uncentred block sums the
+    # 1-sigma lost its digits to cancellation (4.8x too large at blocks of 128 pixels; its growth
+    # to twice the block 2.2 instead of 1.35, past the warning's limit).
+    n, size = 256, 64
+    theta = np.tile(np.linspace(50, 55, n), (n, 1))
+    vaa, saa = np.full((n, n), 180.0), np.zeros((n, n))  # all forward scattering: signed = +vza
+    values = (0.5 + 1e-5 * np.random.default_rng(0).standard_normal((n, n)))[None]
+    cube = da.from_array(values, chunks=(1, 96, 96)) if lazy else values
+    result = assess_view_angles(cube, cube, np.ones((n, n), np.int64), theta, vaa, saa,
+                                options=ViewAngleOptions(block_size=size))
+    rows, columns = np.indices((n, n))
+    for position, side in enumerate((size, 2 * size)):
+        expected = 1000 * _cluster_robust_slope_error(theta.ravel(), values[0].ravel(),
+                                                      ((rows // side) * n + columns // side).ravel()) / 0.5
+        np.testing.assert_allclose(result["relative_slope_error_blocks"].values[0, 0, 0, position], expected,
+                                   rtol=1e-6)
+
+
+def test_a_class_with_a_negative_mean_keeps_its_relative_slope():
+    # Dark water after Sentinel-2's -0.1 offset: a mean of -0.01. The relative slope is 1000 b / |mean|
+    # (it was NaN, and the class left the count of slopes within 2 sigma).
+    angles = synthetic_angles(NY, NX, vza_max=30.0, saa=90.0, dtype=np.float64)
+    theta = signed_view_zenith(angles["vza"], angles["vaa"], angles["saa"])
+    cube = np.stack([0.2 + 0.001 * theta, -0.01 + 0.0001 * theta])
+    result = assess_view_angles(cube, cube, np.ones((NY, NX), np.int64), angles["vza"], angles["vaa"],
+                                angles["saa"])
+    slope, mean = result["slope"].values[0, :, 0], result["mean"].values[0, :, 0]
+    np.testing.assert_allclose(slope, [0.001, 0.0001], rtol=1e-9)
+    np.testing.assert_allclose(result["relative_slope"].values[0, :, 0], 1000 * slope / np.abs(mean), rtol=1e-12)
+    assert result["relative_slope"].values[0, 1, 0] > 0  # brighter on the positive side, as the slope says
+
+
+def test_class_ids_that_are_not_whole_numbers_are_refused(geometry):
+    classes = np.where(np.arange(NX)[None, :] < NX // 2, 1.0, 1.5) * np.ones((NY, 1))
+    cube = np.full((1, NY, NX), 0.3)
+    with pytest.raises(InputError, match=r"class ids are whole numbers; the class map holds 1\.5"):
+        assess_view_angles(cube, cube, classes, geometry["vza"], geometry["vaa"], geometry["saa"])

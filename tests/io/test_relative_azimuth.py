@@ -6,6 +6,7 @@ absolute azimuths (a tilted surface, signing by the flight track) is refused in 
 from __future__ import annotations
 
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -75,6 +76,15 @@ def test_what_needs_absolute_azimuths_is_refused(scene, tmp_path):
         "--sign-by", "track", "--heading", 0, "-o", tmp_path / "assess.json")])
     assert result.exit_code == 2, result.output
     assert "gives only the relative azimuth (raa): sign by the sun" in result.stderr.splitlines()[-1]
+    # assess-lines as well (it signed by sin(heading - raa) and reported the slopes), before any fit.
+    output, second = tmp_path / "lines.json", shutil.copy(scene["image"], tmp_path / "line2.tif")
+    result = CliRunner().invoke(main, [str(a) for a in (
+        "assess-lines", scene["image"], second, "--classes", scene["classes"], "--classes", scene["classes"],
+        "--angles", scene["relative"], "--angles", scene["relative"], "--model", "ross_thick_li_sparse",
+        "--sign-by", "track", "--heading", 0, "-o", output)])
+    assert result.exit_code == 2, result.output
+    assert "gives only the relative azimuth (raa): sign by the sun" in result.stderr.splitlines()[-1]
+    assert not output.exists()
 
 
 def test_an_incomplete_set_of_files_is_one_error(scene, tmp_path):
