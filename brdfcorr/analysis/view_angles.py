@@ -50,6 +50,24 @@ GROWTH_LIMIT = 1.25
 NARROW_RANGE = 10.0
 
 
+#: The largest profile sums (2 stages x bands x classes x bins of signed view zenith, float64) a
+#: chunk's partial sums may hold [bytes]: a bin width of 0.01 deg (18 000 bins) with 425 bands and
+#: 20 classes would be 2.4 GB per chunk.
+MAX_PROFILE_BYTES = 64 * 2**20
+
+
+def _check_profile_size(n_bands: int, n_classes: int, bin_width: float) -> None:
+    """Refuse a bin width [deg] whose profiles would exceed :data:`MAX_PROFILE_BYTES` per chunk,
+    naming the narrowest that fits."""
+    size = 2 * n_bands * n_classes * math.ceil(90.0 / bin_width) * 2 * 8
+    if size > MAX_PROFILE_BYTES:
+        narrowest = bin_width * size / MAX_PROFILE_BYTES
+        raise InputError(f"bin width {bin_width:g} deg: the profiles of {n_bands} bands and {n_classes} classes "
+                         f"would take {size / 2**20:.0f} MiB in every chunk's sums (at most "
+                         f"{MAX_PROFILE_BYTES / 2**20:.0f}); give a bin width of at least "
+                         f"{math.ceil(narrowest * 100) / 100:g} deg")
+
+
 def _check_options(options: ViewAngleOptions) -> None:
     """Raise :class:`InputError` for an unknown sign convention, a bin width [deg] outside
     [:data:`MIN_BIN_WIDTH`, 90], a smallest view zenith [deg] outside [0, 90) or a block size that is
@@ -241,6 +259,7 @@ def assess_view_angles(
     if fractional.size:  # each would be assessed apart, and reported under its integer part
         raise InputError(f"class ids are whole numbers; {'class_ids' if class_ids is not None else 'the class map'} "
                          f"holds {', '.join(f'{value:g}' for value in fractional[:3])}")
+    _check_profile_size(before.shape[0], ids.size, bin_width)
     half = math.ceil(90.0 / bin_width)
     edges = bin_width * np.arange(-half, half + 1, dtype=np.float64)
     summing = _SumOptions(ids=ids, edges=edges, by=by, heading=options.heading, min_vza=float(min_vza),

@@ -382,3 +382,16 @@ def test_class_ids_that_are_not_whole_numbers_are_refused(geometry):
     cube = np.full((1, NY, NX), 0.3)
     with pytest.raises(InputError, match=r"class ids are whole numbers; the class map holds 1\.5"):
         assess_view_angles(cube, cube, classes, geometry["vza"], geometry["vaa"], geometry["saa"])
+
+
+def test_a_bin_width_whose_profiles_would_not_fit_in_memory_is_refused(geometry):
+    # 120 bands, 2 classes, bins of 0.01 deg (18 000): 2 x 120 x 2 x 18 000 float64 = 66 MiB in
+    # every chunk's sums (a 425-band line with 20 classes: 2.4 GB).
+    cube = np.full((120, NY, NX), 0.3)
+    classes = np.where(np.arange(NX)[None, :] % 2 == 0, 1, 2) * np.ones((NY, 1), np.int64)
+    with pytest.raises(InputError, match=r"bin width 0\.01 deg: the profiles of 120 bands and 2 classes would take "
+                                         r"66 MiB .*at least 0\.02 deg"):
+        assess_view_angles(cube, cube, classes, geometry["vza"], geometry["vaa"], geometry["saa"],
+                           options=ViewAngleOptions(bin_width=0.01))
+    assess_view_angles(cube, cube, classes, geometry["vza"], geometry["vaa"], geometry["saa"],
+                       options=ViewAngleOptions(bin_width=0.02))
