@@ -23,7 +23,7 @@ from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.fit.settings import Sampling
 from brdfcorr.geometry import relative_azimuth
-from brdfcorr.io.scale_check import carries_scale, reflectance_factors
+from brdfcorr.io.scale_check import carries_scale, reflectance_factors, unpacked
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
 
@@ -77,11 +77,12 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
 
 
 def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> tuple[list, list]:
-    """The images as reflectance factors and the angle sets guarded against radians, as
+    """The images as reflectance factors and the angle sets unpacked and guarded, as
     :func:`brdfcorr.correction.normalize` checks its inputs (:mod:`brdfcorr.correction.checks`):
     bands last refused, integer counts scaled with the scale they carry (or by the sampling's
-    ``reflectance_scale``, not both), a declared nodata as NaN, and view azimuths stored as seen
-    from the sensor turned by 180 deg (the sampling's ``flip_view_azimuth``)."""
+    ``reflectance_scale``, not both), a declared nodata as NaN, packed angles (int16 hundredths
+    with a ``scale_factor``) in degrees, and view azimuths stored as seen from the sensor turned by
+    180 deg (the sampling's ``flip_view_azimuth``)."""
     reflectance_scale = sampling.reflectance_scale
     checked_images, checked_angles = [], []
     for image, class_map, angle_set in zip(images, classes, angles):
@@ -94,7 +95,9 @@ def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> t
                                  f"{reflectance_scale:g} would scale them again: give one of the two")
         checked_images.append(reflectance_factors(image, unscaled_counts=reflectance_scale != 1.0))
         if len(layers) == len(ANGLE_LAYERS):  # else the sampler names what is missing
-            replaced = {"sza": guard_angles(layers)["sza"]}
+            layers = {name: unpacked(layer, name) if isinstance(layer, xr.DataArray) else layer
+                      for name, layer in layers.items()}
+            replaced = {**layers, "sza": guard_angles(layers)["sza"]}
             if sampling.flip_view_azimuth:
                 replaced["vaa"] = layers["vaa"] + 180.0
             angle_set = (angle_set.assign(replaced) if isinstance(angle_set, xr.Dataset)

@@ -286,7 +286,7 @@ def looks_like_radians(ranges: Mapping[str, tuple[float, float]], counts: Mappin
 
 def _order_hint(positional: Mapping[str, int | None]) -> str:
     """For layers taken by band position: the order assumed, and how to say another."""
-    if not all(positional.values()):
+    if not positional or not all(positional.values()):
         return ""
     order = ", ".join(sorted(positional, key=lambda name: positional[name] or 0))
     return (f"; the bands have no descriptions, so they were taken as {order}: if they are in another order, "

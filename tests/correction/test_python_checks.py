@@ -175,6 +175,15 @@ def test_fit_classes_checks_its_inputs_as_normalize_does(scene):
                     sampling=Sampling(reflectance_scale=0.0001))
     with pytest.raises(InputError, match="bands last"):
         fit_classes(scene["reflectance"].transpose("y", "x", "band"), scene["classes"], angles, "ross_thick_li_sparse")
+    # Packed angles (uint16 hundredths with scale_factor 0.01) fit as the degrees they stand for.
+    packed = xr.Dataset({name: np.round(layer * 100).astype(np.uint16).assign_attrs(scale_factor=0.01)
+                         for name, layer in angles.items()})
+    plain = fit_classes(scene["reflectance"], scene["classes"], angles, "ross_thick_li_sparse")
+    unpacked = fit_classes(scene["reflectance"], scene["classes"], packed, "ross_thick_li_sparse")
+    assert len(unpacked.fits) == len(plain.fits) == 4
+    for mine, theirs in zip(unpacked.fits, plain.fits):
+        for name in theirs.params:
+            np.testing.assert_allclose(mine.params[name], theirs.params[name], rtol=1e-2, atol=1e-5)  # 0.01 deg
 
 
 def test_band_centres_in_micrometres_or_stac_terms_are_read_in_nanometres(scene):
@@ -227,8 +236,8 @@ def test_numpy_reflectance_with_dask_angles_is_corrected_as_all_numpy(scene):
 def test_angles_in_hundredths_of_a_degree_are_refused_as_the_cli_refuses_them(scene):
     # Every sun zenith outside [0, 90): each pixel would be invalid geometry, an all-NaN result.
     hundredths = {name: layer * 100 for name, layer in _angles(scene).items()}
-    with pytest.raises(InputError, match=r"angles: no sza value in \[0, 90\) deg \(found [0-9.]+\.\.[0-9.]+\); "
-                                         r"are the angles scaled"):
+    with pytest.raises(InputError, match=r"^angles: no sza value in \[0, 90\) deg \(found [0-9.]+\.\.[0-9.]+\); "
+                                         r"are the angles scaled or in other units\?$"):  # no band-order hint
         normalize(scene["reflectance"], scene["classes"], hundredths, example_table())
     nan_sun = {**_angles(scene), "sza": xr.full_like(scene["sza"], np.nan)}
     with pytest.raises(InputError, match="no finite sza value"):
