@@ -89,12 +89,17 @@ def uncorrected_classes(fit_report: Mapping | None) -> list[str]:
             for entry in classes if entry.get("status") == "uncorrected"]
 
 
+#: The scene results whose QA counts are judged: those of scenes corrected now or by an earlier run.
+_JUDGED = ("ok", "skipped")
+
+
 def failed_for_uncorrected(result: dict, classes: list[str]) -> dict:
     """A scene result that is ``failed`` where the scene holds pixels of classes left uncorrected
     (``classes``: :func:`uncorrected_classes`; the QA count ``unknown_class`` says it holds pixels
     of classes absent from the table): a run whose scenes came out partly uncorrected did not
-    do what it was asked (unless the chain allows it: ``steps.fit.allow_uncorrected``)."""
-    if result.get("status") != "ok" or not classes or not result.get("qa", {}).get("unknown_class"):
+    do what it was asked (unless the chain allows it: ``steps.fit.allow_uncorrected``). A skipped
+    scene is judged by the QA counts its earlier run found, as a fresh run would judge it."""
+    if result.get("status") not in _JUDGED or not classes or not result.get("qa", {}).get("unknown_class"):
         return result
     return {**result, "status": "failed", "error_type": "UncorrectedClasses",
             "error": f"{result['qa']['unknown_class']} pixels of classes the fit left uncorrected: "
@@ -107,9 +112,10 @@ def failed_for_share(result: dict, min_share: float) -> dict:
     scene's valid pixels (QA counts: ``corrected`` over ``corrected + no_class + unknown_class``;
     nodata is not counted): a class map that does not match the table (an aligned land-cover map
     without a lookup corrects nothing) did not do what the run was asked, unless the chain says so
-    (``steps.correct.min_corrected_share``, 0 for none)."""
+    (``steps.correct.min_corrected_share``, 0 for none). A skipped scene is judged by the QA counts
+    its earlier run found (the share is no part of the fingerprint: a stricter one redoes nothing)."""
     qa = result.get("qa") or {}
-    if result.get("status") != "ok" or not too_few_corrected(qa, min_share):
+    if result.get("status") not in _JUDGED or not too_few_corrected(qa, min_share):
         return result
     valid = sum(int(qa.get(key, 0)) for key in ("corrected", "no_class", "unknown_class"))
     return {**result, "status": "failed", "error_type": "TooFewCorrected",

@@ -265,8 +265,10 @@ def scene_fingerprint(scene: Scene, config: ChainConfig) -> str:
 def _file_state(path: Path) -> dict:
     """A file's identity in a fingerprint: path (as given), size [bytes], modification time [ns] and
     content (:func:`brdfcorr.io.files.content_digest`: an edit in place that kept the size and the
-    time changes it). Only regular files are read (a FIFO would block); a product folder is its
-    path only (its files are inputs of their own: a file added beside them changes nothing)."""
+    time changes it), and those of the files GDAL reads with a raster (``sidecars`` by name, where
+    it has any: an ``.aux.xml`` with the bands' scale, nodata or wavelengths, an ENVI ``.hdr``).
+    Only regular files are read (a FIFO would block); a product folder is its path only (its files
+    are inputs of their own: a file added beside them changes nothing)."""
     try:
         status = os.stat(path)
         if stat.S_ISDIR(status.st_mode):
@@ -274,7 +276,20 @@ def _file_state(path: Path) -> dict:
         digest = content_digest(path) if stat.S_ISREG(status.st_mode) else None
     except OSError:
         return {"path": str(path)}
-    return {"path": str(path), "size": status.st_size, "mtime_ns": status.st_mtime_ns, "content": digest}
+    state = {"path": str(path), "size": status.st_size, "mtime_ns": status.st_mtime_ns, "content": digest}
+    sidecars = {Path(name).name: _file_state(Path(name)) for name in _sidecars(path)} if digest else {}
+    return {**state, "sidecars": sidecars} if sidecars else state
+
+
+def _sidecars(path: Path) -> list[str]:
+    """The files other than ``path`` that GDAL reads with the raster at ``path`` (none for a file
+    that is no raster: a measurement table)."""
+    try:
+        with rasterio.open(path) as dataset:
+            files = dataset.files
+    except Exception:  # noqa: BLE001 (no raster GDAL can open: no sidecar)
+        return []
+    return sorted(name for name in files if os.path.abspath(name) != os.path.abspath(path))
 
 
 #: How a reason names a part of a fingerprint.

@@ -76,7 +76,6 @@ except ImportError:  # pragma: no cover (Windows)
 from brdfcorr._entry import entered
 from brdfcorr.analysis.assess import ViewAngleOptions
 from brdfcorr.chain.config import ChainConfig, EngineConfig, load_config
-from brdfcorr.chain.patterns import format_pattern
 from brdfcorr.chain.plan import RunPlan, plan_run
 from brdfcorr.chain.products import stacked_scenes
 from brdfcorr.chain.progress import ChunkProgress, Progress
@@ -338,8 +337,7 @@ def _assess(scene: Scene, table: ParameterTable, config: ChainConfig, *, schedul
         bin_width=step.bin_width, min_vza=step.min_vza, flip_view_azimuth=config.flips_view_azimuth,
         block_size=step.block_size,
     )
-    clusters = None if step.clusters is None else (
-        config.resolve(format_pattern(step.clusters, scene.image, scene.name)), step.cluster_band)
+    clusters = None if scene.clusters is None else (scene.clusters, step.cluster_band)
     assessment = assess_files(
         sources, scene.outputs["corrected"], view_options=view_options, align_classes=inputs.align_classes,
         class_lookup=dict(inputs.class_lookup), clusters=clusters,
@@ -548,22 +546,26 @@ def _run_plan(plan: RunPlan, progress: Progress | None, started: str, clock: flo
     report = RunReport(plan, table, fit=fit_report, started=started)
     plan.output_dir.mkdir(parents=True, exist_ok=True)
 
-    earlier = earlier_findings(plan.report)  # what the runs that wrote the skipped outputs found
-    for scene in plan.scenes:
-        if scene.action == "skip":
-            report.scenes.append(scene_result(scene, "skipped", reason=scene.reason,
-                                              found=earlier.get(str(scene.image))))
-            notify("scene", report.scenes[-1])
-    tick = time.perf_counter()
     step = config.steps.fit
     left_uncorrected = [] if step is None or getattr(step, "allow_uncorrected", True) else \
         uncorrected_classes(fit_report)
-    for result in _run_scenes([scene for scene in plan.scenes if scene.action != "skip"], table, config, progress):
+
+    def judged(result: dict) -> dict:  # a scene's QA counts against the run's settings
         result = failed_for_uncorrected(result, left_uncorrected)
         if config.steps.correct is not None:
             result = failed_for_share(result, config.steps.correct.min_corrected_share)
-        report.scenes.append(result)
-        notify("scene", result)
+        return result
+
+    earlier = earlier_findings(plan.report)  # what the runs that wrote the skipped outputs found
+    for scene in plan.scenes:
+        if scene.action == "skip":
+            report.scenes.append(judged(scene_result(scene, "skipped", reason=scene.reason,
+                                                     found=earlier.get(str(scene.image)))))
+            notify("scene", report.scenes[-1])
+    tick = time.perf_counter()
+    for result in _run_scenes([scene for scene in plan.scenes if scene.action != "skip"], table, config, progress):
+        report.scenes.append(judged(result))
+        notify("scene", report.scenes[-1])
     timings["scenes"] = round(time.perf_counter() - tick, 3)
     order = {str(scene.image): index for index, scene in enumerate(plan.scenes)}
     report.scenes.sort(key=lambda result: order.get(result["image"], len(order)))

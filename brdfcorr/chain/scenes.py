@@ -60,6 +60,8 @@ class Scene:
         (:func:`brdfcorr.chain.resume.scene_fingerprint`).
     slope_aspect, dem : Path, optional
         The terrain source of ``steps.correct.terrain`` (one of them, or neither).
+    clusters : Path, optional
+        The cluster layer the assess step reads (``steps.assess.clusters``).
     product : ProductFolder, optional
         For a product (``image`` a product folder or STAC item, :mod:`brdfcorr.chain.products`):
         the product as the plan found it (its metadata read once per run; the run stacks its bands
@@ -86,6 +88,7 @@ class Scene:
     fingerprint: str = ""
     slope_aspect: Path | None = None
     dem: Path | None = None
+    clusters: Path | None = None
     product: ProductFolder | None = None
     product_files: tuple[tuple[str, Path], ...] = ()
     stack: Path | None = None
@@ -106,7 +109,8 @@ class Scene:
 
     def inputs(self) -> list[tuple[str, Path]]:
         """(role, path) of the files the scene reads: image (or product and its files), class map
-        (unless the chain derives it, ``outputs["strata"]``), angle file and the terrain source."""
+        (unless the chain derives it, ``outputs["strata"]``), angle file, the terrain source and
+        the assess step's cluster layer."""
         files = [("product", self.image), *self.product_files] if self.product is not None else [("image", self.image)]
         # Path(): a scene failed before its files were named
         if self.classes != Path() and self.outputs.get("strata") != self.classes:
@@ -114,8 +118,8 @@ class Scene:
         # the solar source is a time, not a file; a product's angle files are among its files
         if self.angles_kind != "solar" and self.angles and self.product is None:
             files.append(("angles", Path(self.angles)))
-        files += [(role, path) for role, path in (("slope/aspect", self.slope_aspect), ("DEM", self.dem))
-                  if path is not None]
+        files += [(role, path) for role, path in (("slope/aspect", self.slope_aspect), ("DEM", self.dem),
+                                                  ("cluster layer", self.clusters)) if path is not None]
         return files
 
     def describe(self) -> dict:
@@ -128,8 +132,8 @@ class Scene:
                 {"options": {key: value if isinstance(value, (str, int, float, bool)) else str(value)
                              for key, value in self.angle_options.items()}} if self.angle_options else {})},
             "classes": str(self.classes),
-            **{role: str(path) for role, path in (("slope_aspect", self.slope_aspect), ("dem", self.dem))
-               if path is not None},
+            **{role: str(path) for role, path in (("slope_aspect", self.slope_aspect), ("dem", self.dem),
+                                                  ("clusters", self.clusters)) if path is not None},
             "outputs": {key: str(value) for key, value in self.outputs.items()},
             "action": self.action,
             **({"reason": self.reason} if self.reason else {}),
@@ -296,9 +300,11 @@ def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, outpu
         if angles.kind != "solar":  # the solar source is a time, not a file
             angle_source = str(config.resolve(angle_source))
         found = {"angles_kind": angles.kind, "angles": angle_source, "angle_options": dict(angles.options)}
-    slope_aspect, dem = (None if pattern is None else config.resolve(fill(pattern))
-                         for pattern in (config.inputs.slope_aspect, config.inputs.dem))
-    scene = Scene(name, image, classes, outputs=outputs, slope_aspect=slope_aspect, dem=dem, **found)
+    assess = config.steps.assess
+    slope_aspect, dem, clusters = (None if pattern is None else config.resolve(fill(pattern)) for pattern in (
+        config.inputs.slope_aspect, config.inputs.dem, None if assess is None else assess.clusters))
+    scene = Scene(name, image, classes, outputs=outputs, slope_aspect=slope_aspect, dem=dem, clusters=clusters,
+                  **found)
     action, reason = _action(config, scene)
     scene = dataclasses.replace(scene, action=action, reason=reason)
     return dataclasses.replace(scene, fingerprint=fingerprint(scene, config))

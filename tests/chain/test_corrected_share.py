@@ -79,3 +79,17 @@ def test_a_bad_share_is_refused_in_one_line(landcover, value):
     assert result.exit_code == 2, result.output
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and "steps.correct.min_corrected_share" in lines[0], result.stderr
+
+
+def test_a_resumed_run_judges_a_skipped_scene_by_its_earlier_counts(landcover):
+    # The share is no part of the fingerprint (outputs stay current), so a rerun with a stricter
+    # share skipped the scene and exited 0 where a fresh run fails it (exit 3).
+    chain = _chain(landcover, "resumed", {"min_corrected_share": 0})
+    assert CliRunner().invoke(main, ["run", str(chain), "--no-progress"]).exit_code == 0
+    chain = _chain(landcover, "resumed", {})  # the default share, 0.5
+    result = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
+    assert result.exit_code == 3, result.output
+    report = json.loads((landcover / "out_resumed" / "run_report.json").read_text())
+    scene = report["scenes"][0]
+    assert scene["status"] == "failed" and scene["error_type"] == "TooFewCorrected"
+    assert scene["reason"] == "complete outputs exist"  # its outputs were kept, not written again

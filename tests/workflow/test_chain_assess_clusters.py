@@ -2,6 +2,7 @@
 slopes' 1-sigma is the one ``brdfcorr assess --clusters`` gives on the same files."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -9,7 +10,7 @@ import xarray as xr
 from click.testing import CliRunner
 
 from brdfcorr.chain.config import ConfigError, load_config
-from brdfcorr.chain.run import run_chain
+from brdfcorr.chain.run import plan_run, run_chain
 from brdfcorr.cli import main
 from brdfcorr.testing import georeference
 
@@ -55,3 +56,32 @@ def test_the_clusters_key_is_a_name_pattern(tmp_path, write_chain):
     chain = write_chain(tmp_path, steps={"correct": {"limits": None}, "assess": {"clusters": "{nope}/ids.tif"}})
     with pytest.raises(ConfigError, match="nope"):
         load_config(chain)
+
+
+@pytest.mark.filterwarnings("ignore:the slopes. 1-sigma grows")
+def test_the_cluster_layer_is_an_input_of_the_scene_for_resume_and_the_output_guard(tmp_path, make_scenes,
+                                                                                     write_chain):
+    # A resumed run redid nothing when the cluster layer changed (it was no input of the scene's
+    # fingerprint), and the output guard let an output of the run overwrite it.
+    scene, paths = make_scenes(tmp_path, count=1)["line0"]
+    shape = scene["classes"].shape
+    ids = paths["image"].parent / "ids.tif"
+
+    def write_ids(width: int) -> None:
+        stripes = np.broadcast_to(np.arange(shape[1]) // width + 100, shape)[None].astype(np.int32)
+        georeference(xr.DataArray(stripes, dims=("band", "y", "x"), coords={"band": [1]})).rio.to_raster(ids)
+
+    write_ids(4)
+    steps = {"correct": {"limits": None}, "assess": {"clusters": "{dir}/ids.tif", "block_size": 8}}
+    chain = write_chain(tmp_path, steps=steps)
+    assert run_chain(load_config(chain)).ok
+    assert run_chain(load_config(chain)).n_skipped == 1
+    write_ids(8)  # stripes of 8 columns: another 1-sigma
+    assert f"cluster layer {ids} changed since it was written" in plan_run(load_config(chain)).scenes[0].reason
+    report = run_chain(load_config(chain))
+    assert report.n_ok == 1 and report.n_skipped == 0
+    # A cluster layer that is an output of the run (the QA raster) is refused before any scene runs.
+    shutil.copy(ids, tmp_path / "out" / "line0_qa.tif")
+    chain = write_chain(tmp_path, steps={**steps, "assess": {"clusters": "out/{parent}_qa.tif", "block_size": 8}})
+    with pytest.raises(Exception, match=r"would overwrite an input \(the same file as the cluster layer of scene"):
+        run_chain(load_config(chain))

@@ -443,3 +443,22 @@ def _running(pid: int) -> bool:
             return stat.read().split(")")[-1].split()[0] != "Z"  # a zombie has ended
     except FileNotFoundError:
         return False
+
+
+def test_resume_redoes_a_scene_whose_input_gained_or_changed_a_sidecar(tmp_path, make_scenes, write_chain, read):
+    # A .aux.xml beside an input carries what GDAL applies when it reads the raster (here an
+    # offset of 0.05 on every band): the fingerprint holds the files GDAL reads with each input,
+    # so a resumed run redoes the scene instead of keeping outputs of the old values.
+    make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path)
+    assert run_chain(load_config(chain)).ok
+    before, _ = read(tmp_path / "out" / "line0_brdf.tif")
+    image = tmp_path / "scenes" / "line0" / "image.tif"
+    bands = "".join(f'<PAMRasterBand band="{band}"><Offset>0.05</Offset><Scale>1</Scale></PAMRasterBand>'
+                    for band in range(1, 5))
+    (tmp_path / "scenes" / "line0" / "image.tif.aux.xml").write_text(f"<PAMDataset>{bands}</PAMDataset>")
+    assert f"image {image} changed since it was written" in plan_run(load_config(chain)).scenes[0].reason
+    report = run_chain(load_config(chain))
+    assert sorted(result["status"] for result in report.scenes) == ["ok", "skipped"]
+    after, _ = read(tmp_path / "out" / "line0_brdf.tif")
+    assert np.nanmean(after - before) > 0.03  # the offset, times the correction factors (about 1)
