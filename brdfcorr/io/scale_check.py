@@ -181,14 +181,16 @@ def reflectance_factors(reflectance: xr.DataArray, *, unscaled_counts: bool = Fa
     """Reflectance factors of the stored values, with no packing or nodata attribute left.
 
     Integer counts are scaled with the scale and offset they carry (attrs or encoding
-    ``scale_factor``/``add_offset``; their ``_FillValue`` or rioxarray nodata as NaN). Refused
-    (:class:`InputError`): integer counts without a scale, or, with ``unscaled_counts``, taken as
-    they are (values in their own units: the topographic correction's, a fit's
-    ``reflectance_scale``); a ``scale_factor`` above 1, a divisor (the MODIS HDF convention,
-    reflectance = counts / 10000) where xarray and GDAL multiply; floats that still carry a
-    ``scale_factor`` or ``add_offset`` attribute (packed values, as ``rioxarray.open_rasterio(path,
-    masked=True)`` reads them: neither reading is safe to guess). Floats are taken as they are,
-    their declared nodata (rioxarray's, or a ``_FillValue`` attribute) as NaN.
+    ``scale_factor``/``add_offset``; their ``_FillValue`` or rioxarray nodata as NaN) by
+    :func:`unpacked`. Integer counts without a scale are an :class:`InputError`, or, with
+    ``unscaled_counts``, taken as they are (values in their own units: the topographic
+    correction's, a fit's ``reflectance_scale``). Without ``unscaled_counts`` a ``scale_factor``
+    above 1 is an :class:`InputError` too: a divisor (the MODIS HDF convention, reflectance =
+    counts / 10000) where xarray and GDAL multiply. Floats are taken as they are, their declared
+    nodata (rioxarray's, or a ``_FillValue`` attribute) as NaN; floats that still carry a
+    ``scale_factor`` or ``add_offset`` attribute are packed values (as
+    ``rioxarray.open_rasterio(path, masked=True)`` reads them) and an :class:`InputError`: neither
+    reading is safe to guess.
     """
     if reflectance.dtype.kind == "f" or (unscaled_counts and not carries_scale(reflectance)):
         return unpacked(reflectance, "reflectance")
