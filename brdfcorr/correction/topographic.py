@@ -70,7 +70,7 @@ from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.terrain import cos_incidence
 from brdfcorr.defaults import C_METHODS, DEFAULT_LIMITS, TOPOGRAPHIC_METHODS
 from brdfcorr.errors import BrdfcorrWarning, InputError
-from brdfcorr.io.scale_check import reflectance_factors
+from brdfcorr.io.scale_check import reflectance_factors, unpacked
 
 __all__ = [
     "METHODS",
@@ -377,7 +377,9 @@ def _as_cube(reflectance) -> xr.DataArray:
 
 
 def _layer(reflectance: xr.DataArray, name: str, value) -> xr.DataArray:
-    """A (y, x) layer on the reflectance's grid (numbers broadcast); GridMismatchError otherwise."""
+    """A (y, x) layer on the reflectance's grid (numbers broadcast); GridMismatchError otherwise.
+    Packed values (int16 hundredths of a degree with a ``scale_factor``) of any layer but the class
+    map are unpacked (:func:`brdfcorr.io.scale_check.unpacked`)."""
     spatial = reflectance.dims[1:]
     if not isinstance(value, xr.DataArray):
         array = value if isinstance(value, da.Array) else np.asarray(value)
@@ -389,6 +391,7 @@ def _layer(reflectance: xr.DataArray, name: str, value) -> xr.DataArray:
     # Same checks as the BRDF step (shape, coordinates, CRS); then positional: the output takes
     # the reflectance's coordinates.
     value = check_grid(reflectance, name, value)
+    value = value if name == "classes" else unpacked(value, name)
     return value.drop_vars(list(value.coords))
 
 

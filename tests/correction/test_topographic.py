@@ -117,6 +117,18 @@ def test_integer_counts_with_a_scale_are_corrected_as_reflectance():
     assert "scale_factor" not in result.reflectance.attrs
 
 
+def test_packed_slope_and_aspect_are_corrected_as_the_degrees_they_stand_for():
+    # uint16 hundredths of a degree with scale_factor 0.01, as xarray keeps them undecoded: taken
+    # as they were, a slope of 3000 "degrees" gave another cos i silently.
+    slope, aspect, cos_i = _terrain()
+    observed = _cube(0.3 * cos_i / np.cos(np.radians(SZA)))
+    packed = {name: xr.DataArray(np.round(values * 100).astype(np.uint16), dims=("y", "x"),
+                                 attrs={"scale_factor": 0.01}) for name, values in (("slope", slope), ("aspect", aspect))}
+    result = topographic_correction(observed, {"sza": SZA, "saa": SAA, **packed}, method="cosine", limits=None)
+    lit = cos_i > 0.2
+    np.testing.assert_allclose(result.reflectance.values[0][lit], 0.3, rtol=2e-3)  # angles to 0.005 deg
+
+
 def test_layers_must_be_on_the_reflectance_grid():
     slope, aspect, cos_i = _terrain()
     with pytest.raises(GridMismatchError, match=r"slope is not on the grid of reflectance: shape \(rows, columns\)"):
