@@ -53,7 +53,7 @@ References
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
@@ -64,12 +64,14 @@ import pandas as pd
 import xarray as xr
 
 from brdfcorr._arrays import cosd
+from brdfcorr._entry import option
 from brdfcorr.correction.blocks import no_class_mask, split_pairs
 from brdfcorr.correction.inputs import angle_layers, check_grid, layer_nodata
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.terrain import cos_incidence
 from brdfcorr.defaults import C_METHODS, DEFAULT_LIMITS, TOPOGRAPHIC_METHODS
 from brdfcorr.errors import BrdfcorrWarning, InputError
+from brdfcorr.io.angles import looks_like_radians
 from brdfcorr.io.scale_check import reflectance_factors, unpacked
 
 __all__ = [
@@ -395,6 +397,24 @@ def _layer(reflectance: xr.DataArray, name: str, value) -> xr.DataArray:
     return value.drop_vars(list(value.coords))
 
 
+def _refuse_radians(*pairs: Mapping[str, xr.DataArray]) -> None:
+    """Refuse (zenith, azimuth) pairs of numpy layers (sza and saa, slope and aspect) that can only
+    be radians (:func:`brdfcorr.io.angles.looks_like_radians`: every zenith below pi/2 and every
+    azimuth below 2 pi); dask layers are not read for it."""
+    for pair in pairs:
+        if any(isinstance(layer.data, da.Array) for layer in pair.values()):
+            continue
+        values = [np.asarray(layer.values, dtype=float) for layer in pair.values()]
+        finite = [value[np.isfinite(value)] for value in values]
+        if any(value.size == 0 for value in finite):
+            continue
+        ranges = {name: (float(value.min()), float(value.max())) for name, value in zip(("sza", "saa"), finite)}
+        if looks_like_radians(ranges, {name: value.size for name, value in zip(("sza", "saa"), finite)}):
+            found = ", ".join(f"{name} {value.min():.3g}..{value.max():.3g}" for name, value in zip(pair, finite))
+            raise InputError(f"angles: {' and '.join(pair)} look like radians ({found}); brdfcorr needs degrees"
+                             f"{option('degrees')}")
+
+
 def _c_lookup(c_table: pd.DataFrame, n_bands: int):
     """Class ids, C (class, band) and accepted (class, band) arrays from a C table."""
     missing = {"class", "band", "c", "accepted"} - set(c_table.columns)
@@ -496,6 +516,7 @@ def topographic_correction(
     reflectance = _as_cube(reflectance)
     sza, saa, slope, aspect = (_layer(reflectance, name, layer)
                                for name, layer in angle_layers(angles, ("sza", "saa", "slope", "aspect")).items())
+    _refuse_radians({"sza": sza, "saa": saa}, {"slope": slope, "aspect": aspect})
     cos_i = cos_incidence(sza, saa, slope, aspect)
     class_layer = _layer(reflectance, "classes", classes) if classes is not None else None
     class_nodata = layer_nodata(classes) if isinstance(classes, xr.DataArray) else None

@@ -129,6 +129,17 @@ def test_packed_slope_and_aspect_are_corrected_as_the_degrees_they_stand_for():
     np.testing.assert_allclose(result.reflectance.values[0][lit], 0.3, rtol=2e-3)  # angles to 0.005 deg
 
 
+def test_sun_angles_or_slope_and_aspect_in_radians_are_refused():
+    # cos i of radians read as degrees is near 1 everywhere: a correction that corrects nothing.
+    slope, aspect, cos_i = _terrain()
+    observed = _cube(0.3 * cos_i / np.cos(np.radians(SZA)))
+    degrees = {"sza": SZA, "saa": SAA, "slope": slope, "aspect": aspect}
+    for radians, named in (({"sza": np.radians(SZA), "saa": np.radians(SAA)}, "sza and saa"),
+                           ({"slope": np.radians(slope), "aspect": np.radians(aspect)}, "slope and aspect")):
+        with pytest.raises(InputError, match=f"angles: {named} look like radians .*np.degrees converts them"):
+            topographic_correction(observed, {**degrees, **radians}, method="cosine")
+
+
 def test_layers_must_be_on_the_reflectance_grid():
     slope, aspect, cos_i = _terrain()
     with pytest.raises(GridMismatchError, match=r"slope is not on the grid of reflectance: shape \(rows, columns\)"):
