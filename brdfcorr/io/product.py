@@ -87,6 +87,9 @@ class ImageFile(NamedTuple):
     envi_header : tuple of str or None
         For an ENVI file the fields of its header that GDAL keeps in its ENVI metadata domain;
         None for another format.
+    header_scale : float or None
+        The scale [1 per stored unit] its ENVI header's ``reflectance scale factor`` gives
+        (:func:`header_scale`); None without one.
     """
 
     path: object
@@ -95,6 +98,7 @@ class ImageFile(NamedTuple):
     bands: int
     plain: bool = False
     envi_header: tuple[str, ...] | None = None
+    header_scale: float | None = None
 
 
 def identify_image(path) -> ImageFile:
@@ -117,7 +121,7 @@ def identify_image(path) -> ImageFile:
         layout = Layout(dataset.count, dataset.height, dataset.width, rows, columns,
                         np.dtype(dataset.dtypes[0]).itemsize)
         header = tuple(dataset.tags(ns="ENVI")) if dataset.driver == "ENVI" else None
-        return ImageFile(path, None, layout, layout.bands, _stored_as_read(dataset), header)
+        return ImageFile(path, None, layout, layout.bands, _stored_as_read(dataset), header, _header_scale(dataset))
 
 
 def _identified(image) -> ImageFile:
@@ -225,6 +229,46 @@ def peak_memory_terms(layout: Layout, chunk: int, threads: int, cores: int) -> d
     return {"threads": threads * (layout.bands * block * layout.itemsize + CHUNK_COPIES * chunk_bytes),
             "cache": cache_bytes(layout, chunk), "compression": cores * TILES_PER_COMPRESSOR * chunk_bytes,
             "overhead": RUN_OVERHEAD}
+
+
+def header_scale(path) -> float | None:
+    """The scale [reflectance factor per stored unit] an ENVI image's header gives in its
+    ``reflectance scale factor``: 1 / that factor, which by ENVI's definition divided into the data
+    gives reflectance 0-1 (HyTools and many ENVI cubes store reflectance x 10 000 so). None for
+    another format, without the field, with a factor of 1, or where GDAL applies a scale of its
+    own. A factor that is no positive finite number is an :class:`InputError`. None where GDAL
+    cannot open the file (the reader says why)."""
+    try:
+        with opened(path, "image") as dataset:
+            text = _header_factor(dataset)
+    except (InputError, rasterio.errors.RasterioError, CPLE_BaseError):
+        return None
+    return _scale_of_factor(text, path)
+
+
+def _header_scale(dataset) -> float | None:
+    """:func:`header_scale` of an open dataset."""
+    return _scale_of_factor(_header_factor(dataset), dataset.name)
+
+
+def _header_factor(dataset) -> str | None:
+    """The ENVI header's ``reflectance scale factor`` as written, where GDAL applies no scale."""
+    if dataset.driver != "ENVI" or any(value != 1 for value in dataset.scales):
+        return None
+    return dataset.tags(ns="ENVI").get("reflectance_scale_factor")
+
+
+def _scale_of_factor(text: str | None, path) -> float | None:
+    """1 / the factor ``text`` of :func:`header_scale` (None for none or 1)."""
+    if text is None:
+        return None
+    try:
+        factor = float(text.strip("{} "))
+    except ValueError:
+        factor = math.nan
+    if not (math.isfinite(factor) and factor > 0):
+        raise InputError(f"image {path}: its ENVI header's reflectance scale factor {text!r} is no positive number")
+    return None if factor == 1 else 1.0 / factor
 
 
 def _read_as_stored(path) -> bool:

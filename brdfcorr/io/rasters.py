@@ -35,6 +35,7 @@ from brdfcorr.io.product import (  # the identification and sizes, importable fr
     cache_bytes,
     choose_chunk,
     gdal_cache_bytes,
+    header_scale,
     identify_image,
     image_layout,
     peak_memory_terms,
@@ -74,9 +75,10 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
 
     Stored values are turned into reflectance factors with the file's per-band GDAL scale and
     offset (``reflectance = stored * scale + offset``, as rioxarray's ``mask_and_scale`` does; 1 and
-    0 where the file tags none), after masking nodata. ``scale`` and ``offset`` are for products that
-    do not tag them: a given value replaces the file's for every band (an explicit scale wins over a
-    different tagged one), one not given stays the file's.
+    0 where the file tags none; for an ENVI image without them, 1 / its header's ``reflectance
+    scale factor``: :func:`~brdfcorr.io.product.header_scale`), after masking nodata. ``scale`` and
+    ``offset`` are for products that do not tag them: a given value replaces the file's for every
+    band (an explicit scale wins over a different tagged one), one not given stays the file's.
 
     A NEON AOP reflectance HDF5 (``.h5``) or an EMIT L2A reflectance NetCDF (``.nc``), told by
     content, is opened by its reader instead (:func:`brdfcorr.io.sensors.read_neon_image`,
@@ -116,6 +118,8 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
         product = hdf5_product(path) if Path(path).exists() else None
     if product is not None:
         return open_product(product, path, chunk_spec(chunks), wavelengths, scale, offset)
+    if scale is None and offset is None:  # an ENVI header's reflectance scale factor, where it has one
+        scale = identified.header_scale if identified is not None else header_scale(path)
     given = scale is not None or offset is not None
     as_stored = not given and (identified.plain if identified is not None else _read_as_stored(path))
     image = open_raster(path, "image", chunk_spec(chunks), masked=not as_stored,

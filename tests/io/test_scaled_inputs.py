@@ -327,3 +327,40 @@ def test_an_angle_file_of_scaled_integers_is_read_in_degrees(files, tmp_path, st
     both = np.isfinite(corrected) & np.isfinite(reference)
     assert both.mean() > 0.95  # only the nodata pixels of the angle file are left out
     np.testing.assert_allclose(corrected[both], reference[both], rtol=2e-3)  # angles to 0.005 deg
+
+
+def _envi_counts(source, target, factor: str):
+    """``source`` (float reflectance) as an ENVI int16 cube of reflectance x 10 000, its header
+    saying ``reflectance scale factor = {factor}`` (and GDAL tagging no scale of its own)."""
+    with rasterio.open(source) as dataset:
+        profile, values, descriptions = dataset.profile, dataset.read(), dataset.descriptions
+    profile.update(driver="ENVI", dtype="int16", nodata=-9999)
+    for key in ("tiled", "blockxsize", "blockysize", "compress", "interleave"):
+        profile.pop(key, None)
+    counts = np.where(np.isfinite(values), np.round(values * 10000), -9999).astype("int16")
+    with rasterio.open(target, "w", **profile) as dataset:
+        dataset.write(counts)
+        dataset.descriptions = descriptions
+        dataset.update_tags(ns="ENVI", reflectance_scale_factor=factor)
+    return target
+
+
+def test_an_envi_cube_is_scaled_by_its_headers_reflectance_scale_factor(files, tmp_path):
+    # ENVI's definition: the value that, divided into the data, gives reflectance 0-1 (HyTools and
+    # many ENVI cubes store reflectance x 10 000 with 10000 there). It was ignored: the cube was
+    # refused as raw counts, a --scale needed although the header said it.
+    cube = _envi_counts(files["image"], tmp_path / "cube.img", "10000")
+    image = rasters.open_image(cube, chunks=16)
+    with rasterio.open(files["image"]) as dataset:
+        truth = dataset.read()
+    assert image.attrs["brdf_input_scale"] == 1e-4
+    np.testing.assert_allclose(image.values, truth, rtol=0, atol=0.5e-4 + 1e-7)
+    reference, _ = _correct(files, files["image"], tmp_path / "float.tif")
+    corrected, metadata = _correct(files, cube, tmp_path / "cube.tif")
+    np.testing.assert_allclose(corrected, reference, rtol=0, atol=2e-4)  # the counts' quantization, corrected
+    assert metadata["tags"]["brdf_input_scale"] == "0.0001"
+    _envi_counts(files["image"], tmp_path / "bad.img", "ten thousand")
+    result = _invoke("correct", tmp_path / "bad.img", "--angles", files["angles"], "--classes", files["classes"],
+                     "--params", files["params"], "-o", tmp_path / "bad.tif", "--no-progress")
+    assert result.exit_code == 2
+    assert "its ENVI header's reflectance scale factor 'ten thousand' is no positive number" in _one_error_line(result)
