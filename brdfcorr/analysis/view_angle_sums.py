@@ -6,14 +6,16 @@ computes them in one pass (:func:`_scene_sums`). Square blocks and clusters are 
 scene, not in a dask block: one cut by a dask block's edge is summed over the scene before its outer
 products are taken, so no statistic depends on the chunking.
 
-The blocks' sums v = (n, Σθ, Σθ², ΣR, ΣθR) are taken about the class means of what was summed
-(those of a dask block, moved to those of two blocks as their sums are added: :func:`_shift`), so
-the scene's outer products end about the scene's class means. Uncentred, a class far from nadir
-(θ̄ = 52°) with small residuals lost its 1-sigma to cancellation (5x too large at noise 1e-5).
+The blocks' sums v = (n, Σθ, Σθ², ΣR, ΣθR) are taken about a pivot, each class's means in the
+dask block (the signed zenith centred per pixel, the reflectance per square block: :func:`_shift`),
+moved to their weighted mean as two blocks' sums are added, and the scene's outer products end
+about the scene's class means. Uncentred, a class far from nadir (θ̄ = 52°) with small residuals lost its
+1-sigma to cancellation (5x too large at noise 1e-5).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import operator
 from dataclasses import dataclass
 from typing import Literal
@@ -45,31 +47,38 @@ class _Sums:
     squares: _SquareSums  # square blocks of the block size, for the slope's cluster-robust error
     squares2: _SquareSums  # the same for blocks of twice the size
     clusters: _ClusterSums  # v per (class, cluster id) of the cluster layer, added over the whole scene
+    pivot: tuple[np.ndarray, np.ndarray]  # θ (K,) [deg], R (2, B, K) about which those three are taken
 
     def __add__(self, other: _Sums) -> _Sums:
         added = {name: getattr(self, name) + getattr(other, name) for name in _PLAIN_SUMS}
-        pivot = _class_means(added["n"], added["s"], added["r"])
-        moves = [_shift(_class_means(part.n, part.s, part.r), pivot) for part in (self, other)]
-        for name in ("squares", "squares2", "clusters"):
+        weights = [np.where(added["n"] > 0, part.n / np.where(added["n"] > 0, added["n"], 1), 0.5)
+                   for part in (self, other)]
+        pivot = tuple(weights[0] * first + weights[1] * second for first, second in zip(self.pivot, other.pivot))
+        moves = [_shift(part.pivot, pivot) for part in (self, other)]
+        for name in _PIVOTED:
             added[name] = getattr(self, name).moved(moves[0]) + getattr(other, name).moved(moves[1])
-        return _Sums(**added)
+        return _Sums(**added, pivot=pivot)
+
+    def centred(self) -> _Sums:
+        """The sums with those of :data:`_PIVOTED` about the class means (what
+        :func:`brdfcorr.analysis.view_angles._cluster_error` takes), every square block closed."""
+        count = np.where(self.n > 0, self.n, 1.0)
+        means = (np.where(self.n > 0, self.s / count, 0.0), np.where(self.n > 0, self.r / count, 0.0))
+        move = _shift(self.pivot, means)
+        moved = {name: getattr(self, name).moved(move) for name in _PIVOTED}
+        return dataclasses.replace(self, squares=moved["squares"].closed(), squares2=moved["squares2"].closed(),
+                                   clusters=moved["clusters"], pivot=means)
 
 
-#: The fields of :class:`_Sums` that two blocks' sums add as they are.
+#: The fields of :class:`_Sums` that two blocks' sums add as they are, and those taken about its pivot.
 _PLAIN_SUMS = ("n", "s", "ss", "r", "sr", "bin_n", "bin_s", "bin_r", "side_n", "side_r")
-
-
-def _class_means(n: np.ndarray, s: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The class means about which the blocks' sums are taken, from the class sums (:class:`_Sums`'
-    ``n``, ``s``, ``r``): θ̄ (K,) [deg] and R̄ (2, B, K) [1]; 0 for a class without pixels."""
-    count = np.where(n > 0, n, 1.0)
-    return np.where(n > 0, s / count, 0.0), np.where(n > 0, r / count, 0.0)
+_PIVOTED = ("squares", "squares2", "clusters")
 
 
 def _shift(old: tuple[np.ndarray, np.ndarray], new: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """(2, B, K, 5, 5): the matrix T that takes a block's v = (n, Σθ, Σθ², ΣR, ΣθR) about the
-    class means ``old`` (θ̄ (K,), R̄ (2, B, K)) to v about ``new``: with d = θ̄_old − θ̄_new and
-    e = R̄_old − R̄_new, Σ(θ + d) = Σθ + n d, Σ(θ + d)² = Σθ² + 2 d Σθ + n d², Σ(R + e) = ΣR + n e
+    pivot ``old`` (per class θ (K,) [deg] and R (2, B, K) [1]) to v about ``new``: with
+    d = θ_old − θ_new and e = R_old − R_new, Σ(θ + d) = Σθ + n d, Σ(θ + d)² = Σθ² + 2 d Σθ + n d², Σ(R + e) = ΣR + n e
     and Σ(θ + d)(R + e) = ΣθR + e Σθ + d ΣR + n d e."""
     d_r = old[1] - new[1]
     d = np.broadcast_to(old[0] - new[0], d_r.shape)
@@ -216,16 +225,20 @@ def _spatial_blocks(valid: np.ndarray, k: np.ndarray, size: int,
     return member.reshape(-1), keys, inside
 
 
-def _square_sums(valid: np.ndarray, k: np.ndarray, s: np.ndarray, cubes, n_classes: int, size: int,
-                 window: _Window) -> _SquareSums:
-    """:class:`_SquareSums` over square blocks of ``size`` pixels of one dask block (``valid``:
-    (y, x) mask; ``k``, ``s``: the valid pixels' class index and signed zenith [deg]; ``cubes``:
-    each stage's (B, valid pixels); ``s`` and ``cubes`` about their class means)."""
+def _square_vectors(valid: np.ndarray, k: np.ndarray, s: np.ndarray, cubes, size: int,
+                    window: _Window) -> tuple[_ClusterSums, np.ndarray]:
+    """The sums v per (class, square block of ``size`` pixels of the scene) of one dask block
+    (``valid``: (y, x) mask; ``k``, ``s``: the valid pixels' class index and signed zenith [deg];
+    ``cubes``: each stage's (B, valid pixels)), and whether each block lies wholly within it."""
     member, keys, inside = _spatial_blocks(valid, k, size, window)
-    vectors = _group_vectors(member, keys.shape[0], s, cubes)
-    owner = _one_hot(keys[inside, 0], n_classes)
-    return _SquareSums(owner.sum(axis=0), _moments(vectors[inside], owner),
-                       _ClusterSums(keys[~inside], vectors[~inside]))
+    return _ClusterSums(keys, _group_vectors(member, keys.shape[0], s, cubes)), inside
+
+
+def _square_sums(blocks: _ClusterSums, inside: np.ndarray, n_classes: int) -> _SquareSums:
+    """:class:`_SquareSums` of the square blocks' sums ``blocks`` (:func:`_square_vectors`)."""
+    owner = _one_hot(blocks.keys[inside, 0], n_classes)
+    return _SquareSums(owner.sum(axis=0), _moments(blocks.vectors[inside], owner),
+                       _ClusterSums(blocks.keys[~inside], blocks.vectors[~inside]))
 
 
 def _group_vectors(member: np.ndarray, size: int, s: np.ndarray, cubes) -> np.ndarray:
@@ -278,24 +291,32 @@ def _block_sums(before, after, classes, vza, vaa, saa, clusters, options: _SumOp
     outer = np.abs(s) >= max(min_vza, np.finfo(float).tiny)  # 0 (nadir, or perpendicular) is on neither side
     sides = k[outer] * 2 + (s[outer] > 0)
     window = window or _Window(0, 0, *valid.shape)
-    # The class sums, and about their means the sums per (class, square block of the scene) and
-    # per cluster, whose outer products give the slope's cluster-robust error (_cluster_error).
-    per_class = [np.bincount(k, weights=weights, minlength=n_classes) for weights in (None, s, s * s)]
-    r, sr = (np.array([[np.bincount(k, weights=values * factor, minlength=n_classes) for values in cube]
-                       for cube in cubes]) for factor in (1.0, s))
-    pivot = _class_means(per_class[0], per_class[1], r)
-    s_centred = s - pivot[0][k]
-    centred = tuple(cube - pivot[1][stage][:, k] for stage, cube in enumerate(cubes))
+    # About the block's class means (the pivot) the sums per (class, square block of the scene) and
+    # per cluster, whose outer products give the slope's cluster-robust error (_cluster_error): the
+    # signed zenith centred per pixel, the reflectance per square block and cluster; the class
+    # sums are the square blocks' added and moved back to 0.
+    counts = np.bincount(k, minlength=n_classes)
+    theta = np.bincount(k, weights=s, minlength=n_classes) / np.where(counts > 0, counts, 1)
+    s_centred = s - theta[k]
+    blocks, inside = _square_vectors(valid, k, s_centred, cubes, options.block_size, window)
+    about_theta = np.einsum("gk,gsbi->sbki", _one_hot(blocks.keys[:, 0], n_classes), blocks.vectors)
+    no_reflectance = np.zeros_like(about_theta[..., 3])
+    pivot = (theta, about_theta[..., 3] / np.where(counts > 0, counts, 1))
+    to_pivot = _shift((theta, no_reflectance), pivot)
+    class_sums = np.einsum("sbkij,sbkj->sbki", _shift((theta, no_reflectance), (0 * theta, no_reflectance)),
+                           about_theta)
+    blocks2, inside2 = _square_vectors(valid, k, s_centred, cubes, 2 * options.block_size, window)
     sums = _Sums(
-        *per_class, r=r, sr=sr,
+        *(class_sums[0, 0, :, position] for position in range(3)), r=class_sums[..., 3], sr=class_sums[..., 4],
         bin_n=np.bincount(groups, minlength=n_classes * n_bins).astype(np.float64).reshape(n_classes, n_bins),
         bin_s=np.bincount(groups, weights=s, minlength=n_classes * n_bins).reshape(n_classes, n_bins),
         bin_r=np.zeros((2, n_bands, n_classes, n_bins)),
         side_n=np.bincount(sides, minlength=n_classes * 2).astype(np.float64).reshape(n_classes, 2),
         side_r=np.zeros((2, n_bands, n_classes, 2)),
-        squares=_square_sums(valid, k, s_centred, centred, n_classes, options.block_size, window),
-        squares2=_square_sums(valid, k, s_centred, centred, n_classes, 2 * options.block_size, window),
-        clusters=_cluster_sums(None if clusters is None else clusters[valid], k, s_centred, centred),
+        squares=_square_sums(blocks.moved(to_pivot), inside, n_classes),
+        squares2=_square_sums(blocks2.moved(to_pivot), inside2, n_classes),
+        clusters=_cluster_sums(None if clusters is None else clusters[valid], k, s_centred, cubes).moved(to_pivot),
+        pivot=pivot,
     )
     for stage, cube in enumerate(cubes):
         for band, values in enumerate(cube):
@@ -332,5 +353,4 @@ def _scene_sums(arrays: list, options: _SumOptions, compute: dict) -> _Sums:
             for i in range(len(spatial[0])) for j in range(len(spatial[1]))
         ]
         (total,) = dask.compute(_tree_sum(parts), **compute)
-    total.squares, total.squares2 = total.squares.closed(), total.squares2.closed()
-    return total
+    return total.centred()
