@@ -118,7 +118,7 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
         product = hdf5_product(path) if Path(path).exists() else None
     if product is not None:
         return open_product(product, path, chunk_spec(chunks), wavelengths, scale, offset)
-    if scale is None and offset is None:  # an ENVI header's reflectance scale factor, where it has one
+    if scale is None:  # an ENVI header's reflectance scale factor, where it has one
         scale = identified.header_scale if identified is not None else header_scale(path)
     given = scale is not None or offset is not None
     as_stored = not given and (identified.plain if identified is not None else _read_as_stored(path))
