@@ -158,6 +158,7 @@ def assess_files(
         data = _open_scene_files(scene, engine, align_classes=align_classes, class_lookup=class_lookup)
         view_options = _named(view_options, [data.classes])
         corrected = _corrected_on_grid(after, scene.image, data.reflectance, engine.chunks)
+        other = None if overlap is None else _other_line(overlap, scene, data.reflectance, engine.chunks)
         layers = data.angles
         cluster_layer = None if clusters is None else _cluster_layer(clusters, data.reflectance, engine.chunks)
         view = assess_view_angles(data.reflectance, corrected, data.classes, layers["vza"], layers["vaa"],
@@ -166,8 +167,8 @@ def assess_files(
         if int(view["pixels"].sum()) == 0:  # an all-NaN AFTER (or BEFORE, or no class): an empty report
             raise InputError(f"no pixel of a class is valid (finite) in every band of both {scene.image} and {after}: "
                              "nothing to assess (is one of them all nodata?)")
-        overlapped = None if overlap is None else _overlap(overlap, scene, data.reflectance, corrected, engine.chunks,
-                                                           resampling)
+        overlapped = None if other is None else assess_overlap(data.reflectance, corrected, *other,
+                                                               resampling=resampling)
     return Assessment(_assessed_inputs(scene, after, clusters, overlap), view, overlapped)
 
 
@@ -180,13 +181,16 @@ def _corrected_on_grid(after, image, before: xr.DataArray, chunks: int) -> xr.Da
     return corrected
 
 
-def _overlap(overlap, scene: SceneSources, before: xr.DataArray, after: xr.DataArray, chunks: int,
-             resampling: str) -> xr.Dataset:
-    """:func:`assess_overlap` with another line's input (read with the scene's scale and offset)
-    and corrected image."""
-    other_before = rasters.open_image(overlap[0], chunks=chunks, scale=scene.scale, offset=scene.offset)
-    other_after = rasters.open_image(overlap[1], chunks=chunks)
-    return assess_overlap(before, after, other_before, other_after, resampling=resampling)
+def _other_line(overlap, scene: SceneSources, before: xr.DataArray, chunks: int) -> tuple[xr.DataArray, xr.DataArray]:
+    """Another line's input (read with the scene's scale and offset) and corrected image, checked
+    to hold the scene's bands before any pass (:func:`assess_overlap` compares them band by band)."""
+    other = (rasters.open_image(overlap[0], chunks=chunks, scale=scene.scale, offset=scene.offset),
+             rasters.open_image(overlap[1], chunks=chunks))
+    for path, image in zip(overlap, other):
+        if image.shape[0] != before.shape[0]:
+            raise InputError(f"{path} has {image.shape[0]} bands, {scene.image} has {before.shape[0]}: the overlap "
+                             "compares a line with another of the same bands")
+    return other
 
 
 def _cluster_layer(clusters: tuple[str | os.PathLike, int], image: xr.DataArray, chunks: int) -> xr.DataArray:

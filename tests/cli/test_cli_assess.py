@@ -154,3 +154,21 @@ def test_a_figure_that_fails_leaves_no_report(files, tmp_path, monkeypatch):
     result = _invoke("assess", *_common(files), "-o", output, "--figures", tmp_path / "figures")
     assert result.exit_code == 2, result.output
     assert "cannot write figure" in result.stderr and not output.exists()
+
+
+def test_an_overlap_with_other_bands_is_refused_before_the_view_angle_pass(files, tmp_path, monkeypatch):
+    # The other line's band count was found by the overlap, after the whole view-angle pass.
+    import rasterio
+
+    three = tmp_path / "three_bands.tif"
+    with rasterio.open(files["image"]) as source:
+        with rasterio.open(three, "w", **{**source.profile, "count": 3}) as target:
+            target.write(source.read([1, 2, 3]))
+    passes = []
+    monkeypatch.setattr("brdfcorr.tasks.assess.assess_view_angles", lambda *a, **k: passes.append(1))
+    output = tmp_path / "r.json"
+    result = CliRunner().invoke(main, [str(a) for a in ("assess", *_common(files), "--overlap", three, files["after"],
+                                                        "-o", output)])
+    assert result.exit_code == 2, result.output
+    assert f"{three} has 3 bands, {files['image']} has 4" in result.stderr.splitlines()[-1]
+    assert passes == [] and not output.exists()
