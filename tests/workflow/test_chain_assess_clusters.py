@@ -12,6 +12,7 @@ from click.testing import CliRunner
 from brdfcorr.chain.config import ConfigError, load_config
 from brdfcorr.chain.run import plan_run, run_chain
 from brdfcorr.cli import main
+from brdfcorr.errors import InputError
 from brdfcorr.testing import georeference
 
 
@@ -85,3 +86,16 @@ def test_the_cluster_layer_is_an_input_of_the_scene_for_resume_and_the_output_gu
     chain = write_chain(tmp_path, steps={**steps, "assess": {"clusters": "out/{parent}_qa.tif", "block_size": 8}})
     with pytest.raises(Exception, match=r"would overwrite an input \(the same file as the cluster layer of scene"):
         run_chain(load_config(chain))
+
+
+def test_an_output_of_the_run_may_not_overwrite_the_cluster_layer(tmp_path, make_scenes, write_chain):
+    # The output guard checks every output against the files the scenes read, the cluster layer
+    # of steps.assess.clusters among them: a QA raster named as the layer is refused before any
+    # scene runs (the plan), not written over it.
+    _, paths = make_scenes(tmp_path, count=1)["line0"]
+    (tmp_path / "out").mkdir()
+    shutil.copy(paths["classes"], tmp_path / "out" / "line0_qa.tif")
+    chain = write_chain(tmp_path, steps={"correct": {"limits": None, "qa": True},
+                                         "assess": {"clusters": "out/{parent}_qa.tif"}})
+    with pytest.raises(InputError, match=r"would overwrite an input \(the same file as the cluster layer of scene"):
+        plan_run(load_config(chain))

@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 import rasterio
+import rasterio.shutil
 import yaml
 from click.testing import CliRunner
 
@@ -462,3 +463,26 @@ def test_resume_redoes_a_scene_whose_input_gained_or_changed_a_sidecar(tmp_path,
     assert sorted(result["status"] for result in report.scenes) == ["ok", "skipped"]
     after, _ = read(tmp_path / "out" / "line0_brdf.tif")
     assert np.nanmean(after - before) > 0.03  # the offset, times the correction factors (about 1)
+
+
+def test_the_fingerprint_holds_an_envi_header_and_keeps_the_state_of_a_file_without_sidecars(tmp_path, make_scenes,
+                                                                                          write_chain):
+    # An ENVI image's header is read with it (scale, nodata, wavelengths): an edit of the .hdr
+    # alone changes the image's fingerprint. A file with no sidecar keeps the state earlier
+    # versions recorded (path, size, time, content), so their outputs stay current on resume.
+    make_scenes(tmp_path, count=1)
+    folder = tmp_path / "scenes" / "line0"
+    rasterio.shutil.copy(folder / "image.tif", folder / "image.img", driver="ENVI")
+    chain = write_chain(tmp_path, inputs__images=["scenes/*/image.img"])
+
+    def inputs() -> dict:
+        return json.loads(plan_run(load_config(chain)).scenes[0].fingerprint)["inputs"]
+
+    before = inputs()
+    assert "image.hdr" in before["image"]["sidecars"]
+    assert not (folder / "angles.tif.aux.xml").exists()
+    assert set(before["angles"]) == {"path", "size", "mtime_ns", "content"}
+    header = folder / "image.hdr"
+    header.write_text(header.read_text() + "data ignore value = 0\n")
+    after = inputs()
+    assert after["image"] != before["image"] and after["angles"] == before["angles"]
