@@ -18,6 +18,7 @@ import hashlib
 import json
 import os
 import stat
+import warnings
 from pathlib import Path
 
 import rasterio
@@ -284,11 +285,13 @@ def _file_state(path: Path) -> dict:
 def _sidecars(path: Path) -> list[str]:
     """The files other than ``path`` that GDAL reads with the raster at ``path`` (none for a file
     that is no raster: a measurement table)."""
-    try:
-        with rasterio.open(path) as dataset:
-            files = dataset.files
-    except Exception:  # noqa: BLE001 (no raster GDAL can open: no sidecar)
-        return []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # NotGeoreferencedWarning and the like: no matter for a file list
+        try:
+            with rasterio.open(path) as dataset:
+                files = dataset.files
+        except Exception:  # noqa: BLE001 (no raster GDAL can open: no sidecar)
+            return []
     return sorted(name for name in files if os.path.abspath(name) != os.path.abspath(path))
 
 
