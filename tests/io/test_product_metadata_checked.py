@@ -191,6 +191,15 @@ def test_landsat_view_azimuth_band_in_degrees(landsat, refused):
             r"band \(the satellite within 1\.8 deg of due north or south of every pixel\)")
 
 
+def test_landsat_sun_azimuth_band_in_degrees(landsat, refused):
+    """Degrees (the demo's sun azimuth, about 150) read as hundredths put the sun 1.5 deg east of
+    due north: the only band of the four without a unit check before (the hunt of stop 54)."""
+    _scale_band(next(landsat["folder"].glob("*_SAA.TIF")), 0.01)
+    refused(landsat, ["nbar", landsat["folder"], "-o", landsat["out"] / "nbar.tif", "--no-progress"],
+            r"_SAA\.TIF: SAA values -?\d+ to \d+ are degrees, not the hundredths of a degree of a Landsat angle "
+            r"band \(the sun within 1\.8 deg of due north of every pixel at a morning overpass\)")
+
+
 def test_landsat_view_zenith_band_in_degrees_on_a_wide_scene(tmp_path, refused):
     """140 pixels of 30 m (4.2 km) each way: some pixel is 2 km from any ground track, 0.16 deg
     off nadir, yet degrees read as hundredths put all within 0.03 deg."""

@@ -325,15 +325,27 @@ def ang_angles(ang: dict, like: xr.DataArray, *, altitude: float = 0.0, chunks=N
 
 # --- angle bands ----------------------------------------------------------------------------------
 
+#: A Landsat Collection 2 product id at the start of its files' names (sensor, level, path/row,
+#: dates, collection, tier): what ``LC08_L2SP_..._02_T1_SR_B4.TIF`` and ``..._T1_SZA.TIF`` share.
+PRODUCT_ID = re.compile(r"^L[COTEM]\d{2}_[A-Z0-9]{4}_\d{6}_\d{8}_\d{8}_\d{2}_(?:T1|T2|RT)", re.IGNORECASE)
+
+
+def _product_id(name: str) -> str:
+    """The product id of a file's ``name`` (:data:`PRODUCT_ID`), else the name up to its last ``_``."""
+    found = PRODUCT_ID.match(name)
+    return found.group(0) if found else name.rsplit("_", 1)[0]
+
+
 def find_angle_bands(path: str | Path) -> dict[str, Path]:
-    """The angle band files of a product: ``path`` is its directory or any file of it (the product
-    id is the file name up to the last ``_``). Returns the files found, by angle name."""
+    """The angle band files of a product: ``path`` is its directory or any file of it (a band
+    GeoTIFF such as ``..._SR_B4.TIF``: the product id, :func:`_product_id`). Returns the files
+    found, by angle name."""
     path = Path(path)
     if path.is_dir():
         directory, candidates = path, sorted(path.iterdir())
     else:
         directory = path.parent
-        prefix = path.name.rsplit("_", 1)[0]
+        prefix = _product_id(path.name)
         candidates = sorted(p for p in directory.iterdir() if p.name.startswith(prefix))
     found = {}
     for key, suffix in ANGLE_SUFFIXES.items():
@@ -353,7 +365,7 @@ def find_ang_txt(path: str | Path) -> Path | None:
     if path.is_dir():
         candidates = list(path.glob("*_ANG.txt"))
     else:
-        prefix = path.name.rsplit("_", 1)[0]
+        prefix = _product_id(path.name)
         candidates = [p for p in path.parent.glob("*_ANG.txt") if p.name.startswith(prefix)]
     return candidates[0] if len(candidates) == 1 else None
 
@@ -387,7 +399,9 @@ def _looks_like_degrees(key: str, high_abs: float, bounds, crs: CRS | None) -> s
     than :data:`WIDE_ENOUGH` each way would put every pixel within 0.09 deg of nadir, where some
     pixel must be 0.16 deg off it. A view azimuth band whose values all lie within 180 of 0 would
     put the satellite within 1.8 deg of due north or south of every pixel, which the across-track
-    view of a near-polar orbit gives only near its turning latitude.
+    view of a near-polar orbit gives only near its turning latitude. A sun azimuth band whose values
+    all lie within 180 of 0 would put the sun within 1.8 deg of due north at every pixel, which a
+    morning overpass (about 10:00 local time, the sun 30 deg or more east of the meridian) never has.
     """
     if crs is None:
         return None
@@ -400,6 +414,8 @@ def _looks_like_degrees(key: str, high_abs: float, bounds, crs: CRS | None) -> s
                                                [bounds.top, bounds.top, bounds.bottom, bounds.bottom])
         if max(abs(value) for value in latitudes) < TRACK_TURN_LATITUDE:
             return "the satellite within 1.8 deg of due north or south of every pixel"
+    if key == "saa" and high_abs <= 180.0:
+        return "the sun within 1.8 deg of due north of every pixel at a morning overpass"
     return None
 
 

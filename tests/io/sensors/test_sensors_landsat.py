@@ -135,6 +135,10 @@ def test_full_set_of_angle_bands(tmp_path):
         _write_band(tmp_path / f"{product}_{suffix}.TIF", np.array(values))
     _write_band(tmp_path / f"{product}_B4.TIF", np.zeros((2, 2)))
     assert set(find_angle_bands(tmp_path / f"{product}_B4.TIF")) == {"sza", "saa", "vza", "vaa"}
+    # A level-2 band (..._T1_SR_B4.TIF) names the same product: the product id, not the name up
+    # to its last "_" (..._T1_SR), which matched no angle band.
+    _write_band(tmp_path / f"{product}_SR_B4.TIF", np.zeros((2, 2)))
+    assert set(find_angle_bands(tmp_path / f"{product}_SR_B4.TIF")) == {"sza", "saa", "vza", "vaa"}
     angles = read_landsat_angles(tmp_path).compute()
     np.testing.assert_allclose(angles.sza.values, [[30.0, 30.01], [30.02, 30.03]])
     np.testing.assert_allclose(angles.saa.values, [[180.01, 270.0], [0.0, 160.0]])
