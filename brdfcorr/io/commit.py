@@ -160,7 +160,7 @@ def check_complete(path: str | os.PathLike) -> str | None:
     Reads the header and the tile index only."""
     try:
         with rasterio.open(path) as dataset:
-            problem = _short_envi(dataset)
+            problem = short_envi(dataset)
             if problem is None and dataset.driver in ("GTiff", "COG"):
                 problem = _missing_tile(dataset, os.path.getsize(path))
     except (rasterio.errors.RasterioError, CPLE_BaseError, OSError) as error:
@@ -168,11 +168,13 @@ def check_complete(path: str | os.PathLike) -> str | None:
     return problem
 
 
-def _short_envi(dataset) -> str | None:
-    """An ENVI data file shorter than its bands, rows and columns need."""
+def short_envi(dataset) -> str | None:
+    """An ENVI data file shorter than its header offset, bands, rows and columns need (GDAL reads
+    the missing part as zeros, and refuses only a file under about half its size)."""
     if dataset.driver != "ENVI":
         return None
-    expected = dataset.count * dataset.height * dataset.width * np.dtype(dataset.dtypes[0]).itemsize
+    offset = int(float(dataset.tags(ns="ENVI").get("header_offset", 0) or 0))
+    expected = offset + dataset.count * dataset.height * dataset.width * np.dtype(dataset.dtypes[0]).itemsize
     size = os.path.getsize(dataset.name)
     return f"its data file holds {size} of {expected} bytes" if size < expected else None
 
@@ -181,7 +183,7 @@ def _mismatch(dataset, array: xr.DataArray, tags: Mapping[str, str]) -> str | No
     bands = array.shape[0] if array.ndim == 3 else 1
     if (dataset.count, dataset.height, dataset.width) != (bands, *array.shape[-2:]):
         return f"it reads back as {dataset.count} x {dataset.height} x {dataset.width}, not {array.shape}"
-    short = _short_envi(dataset)
+    short = short_envi(dataset)
     if short is not None:
         return short
     found = dataset.tags()

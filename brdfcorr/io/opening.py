@@ -17,13 +17,13 @@ import xarray as xr
 from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
 from brdfcorr.errors import BrdfcorrError, InputError
-from brdfcorr.io.commit import remote_failure
+from brdfcorr.io.commit import remote_failure, short_envi
 from brdfcorr.io.gdal_log import GdalLog
 from brdfcorr.io.sensors.hdf5 import hdf5_open_failure
 from brdfcorr.io.sensors.products import hdf5_hint
 from brdfcorr.io.writer import DEFAULT_CHUNK
 
-__all__ = ["open_raster", "open_layer", "opened", "reading", "read_failure", "chunk_spec"]
+__all__ = ["open_raster", "open_layer", "opened", "reading", "read_failure", "chunk_spec", "refuse_short_envi"]
 
 
 def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = False) -> xr.DataArray:
@@ -32,6 +32,7 @@ def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = Fa
     if not path.exists():
         raise InputError(f"{role} file {path} does not exist")
     _refuse_broken_hdf5(path, role)
+    refuse_short_envi(path, role)
     # GDAL's warnings while opening, through rasterio's logger (under an Env, never printed by GDAL
     # itself): a header tag it could not read means a file cut short, not a raster without a CRS.
     messages = GdalLog(logging.WARNING, thread=threading.get_ident())
@@ -65,6 +66,20 @@ def _refuse_broken_hdf5(path, role: str) -> None:
     if failure is not None:
         raise InputError(f"cannot read {role} file {path}: an HDF5 file that HDF5 cannot open ({failure}; "
                          "a truncated or damaged file?)")
+
+
+def refuse_short_envi(path, role: str) -> None:
+    """Refuse an ENVI file cut short (:func:`brdfcorr.io.commit.short_envi`): GDAL would read the
+    missing rows as zeros, reflectance 0 or a sun at the zenith, without an error."""
+    try:
+        with warnings.catch_warnings(), rasterio.Env():
+            warnings.simplefilter("ignore")  # NotGeoreferencedWarning: open_raster says what matters
+            with rasterio.open(path) as dataset:
+                short = short_envi(dataset)
+    except (rasterio.errors.RasterioError, CPLE_BaseError, OSError, ValueError):
+        return  # the reader says why it cannot open it
+    if short is not None:
+        raise InputError(f"cannot read {role} file {path}: {short} (a truncated or damaged file?)")
 
 
 def open_layer(path, role: str, chunks=None) -> xr.DataArray:

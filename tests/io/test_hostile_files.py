@@ -494,3 +494,37 @@ def test_escape_beyond_unicode_is_a_yaml_error():
 
     with pytest.raises(ParameterError, match=r"^t\.yaml: not valid YAML \(line 1, column 7\)"):
         parse_yaml('a: "\\U00110000"', "t.yaml", ParameterError)
+
+
+# ----------------------------------------------------------------------- ENVI files cut short
+def test_an_envi_image_cut_short_is_refused_not_read_as_zeros(scene, refused, correct_args):
+    # GDAL's ENVI driver reads the missing part of a data file as zeros (it refuses a file only
+    # under about half its size): the rows cut off were corrected as reflectance 0, exit 0.
+    import rasterio.shutil
+
+    image = scene["dir"] / "cut.img"
+    rasterio.shutil.copy(scene["image"], image, driver="ENVI")
+    size = image.stat().st_size
+    with open(image, "r+b") as data:
+        data.truncate(int(size * 0.6))
+    refused(scene, correct_args(scene, image=image),
+            rf"cannot read image file \S*cut\.img: its data file holds {int(size * 0.6)} of {size} bytes "
+            r"\(a truncated or damaged file\?\)")
+
+
+def test_an_envi_obs_file_cut_short_is_refused(tmp_path):
+    # A sun and view at the zenith in the rows cut off (zeros): 18 % off in them, exit 0.
+    import shutil
+
+    from brdfcorr.errors import SensorInputError
+    from brdfcorr.io.sensors.envi import read_envi_obs
+
+    real = Path(__file__).resolve().parents[1] / "data" / "isofit_avirisng_profiling_cube"
+    obs = tmp_path / "ang20170323t202244_obs_7000-7010"
+    shutil.copy(real / obs.name, obs)
+    shutil.copy(real / f"{obs.name}.hdr", tmp_path / f"{obs.name}.hdr")
+    read_envi_obs(obs)  # whole: read
+    with open(obs, "r+b") as data:
+        data.truncate(obs.stat().st_size - 400)
+    with pytest.raises(SensorInputError, match=r"its data file holds \d+ of \d+ bytes \(a truncated or damaged"):
+        read_envi_obs(obs)

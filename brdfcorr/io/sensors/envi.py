@@ -29,6 +29,7 @@ import rioxarray
 import xarray as xr
 
 from brdfcorr.errors import SensorInputError
+from brdfcorr.io.commit import short_envi
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.sensors.grids import wrap_azimuth
 
@@ -93,6 +94,9 @@ def _envi_tags(path: Path) -> tuple[dict, tuple]:
         with rasterio.open(path) as source:
             if source.driver != "ENVI":
                 raise SensorInputError(f"{path}: not an ENVI file (GDAL driver {source.driver})")
+            short = short_envi(source)  # GDAL reads a missing part as zeros: a sun at the zenith
+            if short is not None:
+                raise SensorInputError(f"{path}: {short} (a truncated or damaged file?)")
             return source.tags(ns="ENVI"), source.descriptions
     except rasterio.errors.RasterioIOError as error:
         raise SensorInputError(f"{path}: cannot open as ENVI image ({error})") from error
