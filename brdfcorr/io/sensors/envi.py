@@ -28,6 +28,7 @@ import rasterio
 import rioxarray
 import xarray as xr
 
+from brdfcorr._entry import option
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.commit import short_envi
 from brdfcorr.io.grid import check_same_grid
@@ -121,8 +122,9 @@ def envi_wavelengths(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
 
     Wavelengths come from the ``wavelength`` item (in ``wavelength units``), else from band names
     that hold a number and a unit (``"376.44 Nanometers"``, as in some AVIRIS-NG radiance
-    headers). Without a unit, values below 100 are taken as micrometres (no imaging spectrometer
-    has a band centre below 100 nm) and others as nanometres. FWHM is None when absent.
+    headers). Without a unit (or ``Unknown``, as ENVI writes it), values below 100 are taken as
+    micrometres (no imaging spectrometer has a band centre below 100 nm) and others as nanometres;
+    ``Index`` (band numbers, no wavelengths) is refused. FWHM is None when absent.
 
     Raises
     ------
@@ -151,7 +153,10 @@ def envi_wavelengths(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
         raise SensorInputError(f"{path}: {wavelength.size} wavelengths in the header for {bands} bands")
     if fwhm.size not in (0, bands):
         raise SensorInputError(f"{path}: {fwhm.size} fwhm values in the header for {bands} bands")
-    if unit:
+    if unit == "index":  # ENVI's "band numbers": 1, 2, ... read as micrometres would be 1000 nm, 2000 nm
+        raise SensorInputError(f"{path}: the header's wavelengths are band numbers (wavelength units = Index): give "
+                               f"the band centres [nm] ({option('wavelengths')})")
+    if unit and unit != "unknown":
         if unit not in _UNIT_TO_NM:
             raise SensorInputError(f"{path}: unknown wavelength units {unit!r}")
         scale = _UNIT_TO_NM[unit]

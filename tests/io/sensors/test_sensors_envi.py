@@ -232,7 +232,7 @@ def test_a_reflectance_cube_given_as_obs_file_is_one_short_line():
     assert "(425 bands)" in message and "obs/obs_ort file" in message
 
 
-@pytest.mark.parametrize("units", ["", "wavelength units = Micrometers\n"])
+@pytest.mark.parametrize("units", ["", "wavelength units = Micrometers\n", "wavelength units = Unknown\n"])
 def test_a_header_in_micrometres_is_read_and_written_in_nanometres(tmp_path, units):
     # isofit's wavelength table of the cube: centres and FWHM in micrometres (a real file).
     _, centres, fwhm = np.loadtxt(CUBE / "wavelengths.txt").T
@@ -265,3 +265,19 @@ def test_a_header_in_micrometres_is_read_and_written_in_nanometres(tmp_path, uni
     written = envi_wavelengths(tmp_path / "out.img")
     np.testing.assert_allclose(written[0], 1000 * centres, atol=1e-4)
     np.testing.assert_allclose(written[1], 1000 * fwhm, atol=1e-4)
+
+
+def test_wavelength_units_of_index_are_band_numbers_and_refused(tmp_path):
+    # ENVI's "Index": the wavelength item holds band numbers (1, 2, ...), which the micrometre rule
+    # for unitless values would read as 1000 nm, 2000 nm, ...; "Unknown" is read as no unit
+    # (test above), where it was refused as an unknown unit.
+    header = CUBE_IMAGE.with_suffix(".hdr").read_text()
+    numbers = "{" + ", ".join(str(band) for band in range(1, 426)) + "}"
+    header = re.sub(r"wavelength = \{[^}]*\}", f"wavelength units = Index\nwavelength = {numbers}", header)
+    image = tmp_path / "cube"
+    shutil.copy(CUBE_IMAGE, image)
+    image.with_suffix(".hdr").write_text(header)
+    with pytest.raises(SensorInputError, match=r"wavelengths are band numbers \(wavelength units = Index\): give the "
+                                               r"band centres \[nm\]"):
+        envi_wavelengths(image)
+
