@@ -23,7 +23,8 @@ from brdfcorr.io.sensors.hdf5 import hdf5_open_failure
 from brdfcorr.io.sensors.products import hdf5_hint
 from brdfcorr.io.writer import DEFAULT_CHUNK
 
-__all__ = ["open_raster", "open_layer", "opened", "reading", "read_failure", "chunk_spec", "refuse_short_envi"]
+__all__ = ["open_raster", "open_layer", "opened", "reading", "read_failure", "chunk_spec", "refuse_short_envi",
+           "has_envi_header"]
 
 
 def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = False) -> xr.DataArray:
@@ -68,9 +69,19 @@ def _refuse_broken_hdf5(path, role: str) -> None:
                          "a truncated or damaged file?)")
 
 
+def has_envi_header(path) -> bool:
+    """Whether a header GDAL's ENVI driver would read lies beside ``path`` (``x.hdr`` or
+    ``x.img.hdr``): a file without one is no ENVI image, and need not be opened to tell."""
+    path = Path(path)
+    return any(Path(f"{stem}{suffix}").is_file() for stem in (path.with_suffix(""), path)
+               for suffix in (".hdr", ".HDR"))
+
+
 def refuse_short_envi(path, role: str) -> None:
     """Refuse an ENVI file cut short (:func:`brdfcorr.io.commit.short_envi`): GDAL would read the
     missing rows as zeros, reflectance 0 or a sun at the zenith, without an error."""
+    if not has_envi_header(path):  # a GeoTIFF, ...: no second open
+        return
     try:
         with warnings.catch_warnings(), rasterio.Env():
             warnings.simplefilter("ignore")  # NotGeoreferencedWarning: open_raster says what matters

@@ -18,7 +18,7 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 from rasterio.enums import MaskFlags
 
 from brdfcorr.errors import InputError
-from brdfcorr.io.opening import opened
+from brdfcorr.io.opening import has_envi_header, opened
 from brdfcorr.io.sensors.products import hdf5_product
 
 __all__ = [
@@ -238,6 +238,8 @@ def header_scale(path) -> float | None:
     another format, without the field, with a factor of 1, or where GDAL applies a scale of its
     own. A factor that is no positive finite number is an :class:`InputError`. None where GDAL
     cannot open the file (the reader says why)."""
+    if not has_envi_header(path):  # no ENVI image: not opened to tell
+        return None
     try:
         with opened(path, "image") as dataset:
             text = _header_factor(dataset)
