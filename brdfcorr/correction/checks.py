@@ -33,7 +33,7 @@ from brdfcorr.io.scale_check import unpacked
 from brdfcorr.io.scene import check_class_grid
 
 __all__ = ["angle_layers", "ANGLE_LAYERS", "TERRAIN_LAYERS", "check_layout", "checked_layers", "check_grid",
-           "as_dataarray", "guard_angles", "BAND_DIMS"]
+           "as_dataarray", "guard_angles", "angle_statistics", "BAND_DIMS"]
 
 #: Dimension names that hold bands (a cube whose last dimension has one of them is (y, x, band)).
 BAND_DIMS = ("band", "bands", "wavelength", "channel", "spectral")
@@ -135,7 +135,7 @@ def guard_angles(layers: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
     names = ("sza", "saa", "vza", "vaa")
     arrays = [layers[name].data for name in names]
     if not any(isinstance(array, da.Array) for array in arrays):
-        statistics = {name: _statistics(np.asarray(array)) for name, array in zip(names, arrays)}
+        statistics = {name: angle_statistics(np.asarray(array)) for name, array in zip(names, arrays)}
         check_angle_values({name: value[0] for name, value in statistics.items()},
                            {name: value[1] for name, value in statistics.items()}, lambda name: "angles")
         return dict(layers)
@@ -145,7 +145,7 @@ def guard_angles(layers: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
     return {**layers, "sza": layers["sza"].copy(data=checked)}
 
 
-def _statistics(values: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]]:
+def angle_statistics(values: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]]:
     """The (min, max) [deg] of a layer's finite values, and how many are finite and in [0, 90)."""
     finite = values[np.isfinite(values)]
     if not finite.size:
@@ -155,11 +155,9 @@ def _statistics(values: np.ndarray) -> tuple[tuple[float, float], tuple[int, int
 
 def _refuse_radians(sza, saa, vza, vaa) -> np.ndarray:
     """``sza`` unchanged, or an :class:`InputError` where the layers can only be radians."""
-    ranges, counts = {}, {}
-    for name, values in zip(("sza", "saa", "vza", "vaa"), (sza, saa, vza, vaa)):
-        finite = np.asarray(values)[np.isfinite(values)]
-        ranges[name] = (float(finite.min()), float(finite.max())) if finite.size else (np.nan, np.nan)
-        counts[name] = finite.size
-    if looks_like_radians(ranges, counts):
+    layers = zip(ANGLE_LAYERS, (sza, saa, vza, vaa))
+    statistics = {name: angle_statistics(np.asarray(values)) for name, values in layers}
+    ranges = {name: found[0] for name, found in statistics.items()}
+    if looks_like_radians(ranges, {name: found[1][0] for name, found in statistics.items()}):
         raise InputError(radians_message(ranges, "angles"))
     return sza

@@ -66,6 +66,7 @@ import xarray as xr
 from brdfcorr._arrays import cosd
 from brdfcorr._entry import option
 from brdfcorr.correction.blocks import no_class_mask, split_pairs
+from brdfcorr.correction.checks import angle_statistics
 from brdfcorr.correction.inputs import angle_layers, check_grid, layer_nodata
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.terrain import cos_incidence
@@ -404,13 +405,10 @@ def _refuse_radians(*pairs: Mapping[str, xr.DataArray]) -> None:
     for pair in pairs:
         if any(isinstance(layer.data, da.Array) for layer in pair.values()):
             continue
-        values = [np.asarray(layer.values, dtype=float) for layer in pair.values()]
-        finite = [value[np.isfinite(value)] for value in values]
-        if any(value.size == 0 for value in finite):
-            continue
-        ranges = {name: (float(value.min()), float(value.max())) for name, value in zip(("sza", "saa"), finite)}
-        if looks_like_radians(ranges, {name: value.size for name, value in zip(("sza", "saa"), finite)}):
-            found = ", ".join(f"{name} {value.min():.3g}..{value.max():.3g}" for name, value in zip(pair, finite))
+        statistics = [angle_statistics(np.asarray(layer.values, dtype=float)) for layer in pair.values()]
+        ranges = {name: found[0] for name, found in zip(("sza", "saa"), statistics)}
+        if looks_like_radians(ranges, {name: found[1][0] for name, found in zip(("sza", "saa"), statistics)}):
+            found = ", ".join(f"{name} {low:.3g}..{high:.3g}" for name, ((low, high), _) in zip(pair, statistics))
             raise InputError(f"angles: {' and '.join(pair)} look like radians ({found}); brdfcorr needs degrees"
                              f"{option('degrees')}")
 
