@@ -148,6 +148,32 @@ def test_an_item_without_raster_scaling_takes_esas_of_its_baseline(folders):
     assert "no raster:bands scaling: ESA's of processing baseline 04.00" in unscaled.products[0].notes
 
 
+@pytest.mark.parametrize("flag", ["earthsearch:boa_offset_applied", "sentinel:boa_offset_applied"])
+def test_an_item_whose_files_hold_the_offset_already_is_not_offset_again(folders, flag):
+    """Earth Search flags items whose COGs hold DN - 1000 already while raster:bands still say -0.1
+    (Element84/earth-search issue 66): read with -0.1, each value was 0.1 too low, without a word.
+    Read with offset 0 (the same files unflagged: DN x 0.0001 - 0.1, so 0.1 above them)."""
+    import json
+
+    from brdfcorr.testing import write_stac_item
+
+    path = write_stac_item(folders[0])
+    plain = open_products([path])
+    item = json.loads(path.read_text())
+    readings = {}
+    for value in (True, False):
+        item["properties"][flag] = value
+        flagged = path.with_name(f"{path.stem}_{value}.json")  # beside the item: its hrefs are relative
+        flagged.write_text(json.dumps(item))
+        try:
+            readings[value] = open_products([flagged])
+        finally:
+            flagged.unlink()
+    np.testing.assert_allclose(readings[True].reflectance.values, plain.reflectance.values + 0.1, atol=2e-7)
+    assert any("boa_offset_applied" in note for note in readings[True].products[0].notes)
+    np.testing.assert_array_equal(readings[False].reflectance.values, plain.reflectance.values)
+
+
 @pytest.mark.parametrize("edit, message", [
     (lambda item: item["assets"]["red"].update(href="https://example.com/B04.tif"),
      r"asset red is remote \(https://example.com/B04.tif\); download the assets beside the item first"),

@@ -18,8 +18,13 @@ the granule metadata by the key ``granule_metadata`` (Earth Search) or ``granule
 (Planetary Computer), else by a file named ``MTD_TL.xml``. The scaling of each band is its
 asset's ``raster:bands`` ``scale`` and ``offset`` (reflectance = DN x scale + offset); an asset
 without them takes ESA's (1/10000, and -0.1 from processing baseline 04.00, the item's
-``s2:processing_baseline``), with a note. Remote hrefs (``https://``, ``s3://``) are refused:
-download the assets first, or load the cube with a STAC loader (stackstac, odc-stac).
+``s2:processing_baseline``), with a note. An item flagged ``earthsearch:boa_offset_applied: true``
+(``sentinel:boa_offset_applied`` in Earth Search v0) holds files from which Element 84 took the
+-1000 DN offset already while its ``raster:bands`` still say -0.1: its bands are read with offset 0,
+with a note (the flag is wrong for some items, Element84/earth-search issues 33, 66 and 71: a
+scene whose vegetation turns dark or negative was offset twice or not at all). Remote hrefs
+(``https://``, ``s3://``) are refused: download the assets first, or load the cube with a STAC
+loader (stackstac, odc-stac).
 """
 
 from __future__ import annotations
@@ -122,8 +127,14 @@ def _local_file(item_path: Path, key: str, asset: Mapping) -> Path:
     return file
 
 
-def _scaling(item_path: Path, key: str, asset: Mapping, baseline: float | None) -> tuple[float, float, str | None]:
-    """(scale, offset, note) of a band asset: its ``raster:bands`` entry's, else ESA's by baseline."""
+#: Item properties by which Earth Search (v1, v0) says the files hold DN - 1000 already.
+OFFSET_APPLIED = ("earthsearch:boa_offset_applied", "sentinel:boa_offset_applied")
+
+
+def _scaling(item_path: Path, key: str, asset: Mapping, baseline: float | None,
+             offset_applied: bool = False) -> tuple[float, float, str | None]:
+    """(scale, offset, note) of a band asset: its ``raster:bands`` entry's, else ESA's by baseline;
+    the offset 0 where the item says it is applied to the files already (``offset_applied``)."""
     entries = asset.get("raster:bands")
     entry = entries[0] if isinstance(entries, list) and entries and isinstance(entries[0], dict) else {}
     if "scale" in entry:
@@ -135,6 +146,9 @@ def _scaling(item_path: Path, key: str, asset: Mapping, baseline: float | None) 
                                    "s2:processing_baseline: its scaling is unknown")
         scale, offset = 1e-4, (-0.1 if baseline >= 4.0 else 0.0)
         note = f"no raster:bands scaling: ESA's of processing baseline {baseline:05.2f}"
+    if offset_applied and offset:
+        offset = 0.0
+        note = "earthsearch:boa_offset_applied: the files hold the -0.1 offset already; read with offset 0"
     if not 1.0 / QUANTIFICATION_RANGE[1] <= scale <= 1.0 / QUANTIFICATION_RANGE[0] or \
             not OFFSET_RANGE[0] <= offset <= OFFSET_RANGE[1]:
         raise SensorInputError(f"{item_path}: asset {key}: scale {scale:g} and offset {offset:g} are no Sentinel-2 "
@@ -167,13 +181,15 @@ def find_stac_item(path: str | Path, *, resolution: int = 20, bands: Sequence[st
     if missing:
         raise SensorInputError(f"{path}: the item has no asset for {', '.join(missing)} (assets are known by "
                                "their key or eo:bands name: a band name, B04, or a common name, red)")
-    raw_baseline = (item.get("properties") or {}).get("s2:processing_baseline")
+    properties = item.get("properties") or {}
+    raw_baseline = properties.get("s2:processing_baseline")
     baseline = float(raw_baseline) if raw_baseline is not None else None
+    offset_applied = any(properties.get(name) is True for name in OFFSET_APPLIED)
     files, scalings = {}, []
     for name in names:
         key, asset = assets[name]
         files[name] = _local_file(path, key, asset)
-        scalings.append(_scaling(path, key, asset, baseline))
+        scalings.append(_scaling(path, key, asset, baseline, offset_applied))
     grid = next((file for file in files.values() if _resolution(file) == resolution), None)
     if grid is None:
         raise SensorInputError(f"{path}: no band asset at {resolution} m to define the grid")
