@@ -27,7 +27,7 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr.errors import InputError
-from brdfcorr.io.angles import check_angle_values, looks_like_radians, radians_message
+from brdfcorr.io.angles import check_angle_values
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.scale_check import unpacked
 from brdfcorr.io.scene import check_class_grid
@@ -129,9 +129,10 @@ def guard_angles(layers: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
     """The angle layers, refused where they cannot be degrees. Numpy layers at once, by the rules
     of the command line's angle files (:func:`brdfcorr.io.angles.check_angle_values`: radians, no
     zenith in [0, 90) at all as for hundredths of a degree, a layer without a finite value); dask
-    layers by each chunk, against radians only (the ``sza`` layer's chunks carry the check, so it
-    runs with the correction and costs no pass of its own; the other rules need the whole layer:
-    :func:`brdfcorr.io.angles.check_angles` makes that pass)."""
+    layers by each chunk, by the same rules but the last (:func:`_refuse_units`: the ``sza``
+    layer's chunks carry the check, so it runs with the correction and costs no pass of its own; a
+    layer without a finite value needs the whole layer: :func:`brdfcorr.io.angles.check_angles`
+    makes that pass)."""
     names = ("sza", "saa", "vza", "vaa")
     arrays = [layers[name].data for name in names]
     if not any(isinstance(array, da.Array) for array in arrays):
@@ -141,7 +142,7 @@ def guard_angles(layers: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
         return dict(layers)
     first = next(array for array in arrays if isinstance(array, da.Array))
     chunked = [da.asarray(array).rechunk(first.chunks) for array in arrays]
-    checked = da.map_blocks(_refuse_radians, *chunked, dtype=first.dtype, meta=np.empty((0, 0), first.dtype))
+    checked = da.map_blocks(_refuse_units, *chunked, dtype=first.dtype, meta=np.empty((0, 0), first.dtype))
     return {**layers, "sza": layers["sza"].copy(data=checked)}
 
 
@@ -153,11 +154,14 @@ def angle_statistics(values: np.ndarray) -> tuple[tuple[float, float], tuple[int
     return (float(finite.min()), float(finite.max())), (finite.size, int(((finite >= 0) & (finite < 90)).sum()))
 
 
-def _refuse_radians(sza, saa, vza, vaa) -> np.ndarray:
-    """``sza`` unchanged, or an :class:`InputError` where the layers can only be radians."""
+def _refuse_units(sza, saa, vza, vaa) -> np.ndarray:
+    """``sza`` unchanged, or an :class:`InputError` where the chunk's layers cannot be degrees: by the
+    rules of :func:`brdfcorr.io.angles.check_angle_values` on the layers with finite values in it
+    (radians; no zenith in [0, 90), as for hundredths of a degree). A chunk without a finite value
+    in a layer is nodata there, not an error: its neighbours may have them."""
     layers = zip(ANGLE_LAYERS, (sza, saa, vza, vaa))
     statistics = {name: angle_statistics(np.asarray(values)) for name, values in layers}
-    ranges = {name: found[0] for name, found in statistics.items()}
-    if looks_like_radians(ranges, {name: found[1][0] for name, found in statistics.items()}):
-        raise InputError(radians_message(ranges, "angles"))
+    present = {name: found for name, found in statistics.items() if found[1][0]}
+    check_angle_values({name: found[0] for name, found in present.items()},
+                       {name: found[1] for name, found in present.items()}, lambda name: "angles (a chunk)")
     return sza

@@ -242,6 +242,16 @@ def test_angles_in_hundredths_of_a_degree_are_refused_as_the_cli_refuses_them(sc
     nan_sun = {**_angles(scene), "sza": xr.full_like(scene["sza"], np.nan)}
     with pytest.raises(InputError, match="no finite sza value"):
         normalize(scene["reflectance"], scene["classes"], nan_sun, example_table())
+    # Dask layers by each chunk as it is corrected: the output was all NaN, flagged invalid geometry.
+    lazy = normalize(scene["reflectance"].chunk({"y": 12}), scene["classes"],
+                     {name: layer.chunk({"y": 12}) for name, layer in hundredths.items()}, example_table())
+    with pytest.raises(InputError, match=r"^angles \(a chunk\): no sza value in \[0, 90\) deg"):
+        lazy.reflectance.compute()
+    # A chunk without a finite sun zenith is nodata, not an error (its neighbours have them).
+    partly = {**_angles(scene), "sza": scene["sza"].copy()}
+    partly["sza"][:12] = np.nan  # the first chunk of rows
+    normalize(scene["reflectance"].chunk({"y": 12}), scene["classes"],
+              {name: layer.chunk({"y": 12}) for name, layer in partly.items()}, example_table()).qa.compute()
 
 
 @pytest.mark.parametrize("lazy", [False, True])
@@ -258,3 +268,19 @@ def test_angle_layers_of_packed_integers_are_unpacked(scene, lazy):
     floats = {**_angles(scene), "sza": _angles(scene)["sza"].assign_attrs(scale_factor=0.01)}
     with pytest.raises(InputError, match="sza holds floats that still carry scale_factor=0.01"):
         normalize(scene["reflectance"], scene["classes"], floats, example_table())
+
+
+def test_an_undeclared_fill_value_is_refused_numpy_at_once_dask_when_computed(scene):
+    # -9999 that no nodata declares was multiplied by the factor (-11 235 out, no error); a
+    # declared one stays nodata (test_a_declared_float_nodata_is_nodata_not_reflectance).
+    filled = scene["reflectance"].copy()
+    filled[:, :3, :3] = -9999.0
+    with pytest.raises(InputError, match=r"reflectance: 36 values of a chunk lie below -0\.5.*-9999"):
+        normalize(filled, scene["classes"], _angles(scene), example_table())
+    lazy = normalize(filled.chunk({"y": 12}), scene["classes"], _angles(scene), example_table())
+    with pytest.raises(InputError, match="-a_nodata -9999"):
+        lazy.reflectance.compute()
+    # Sentinel-2's -0.1 offset and atmospheric-correction noise over water stay above the floor.
+    dark = scene["reflectance"].copy()
+    dark[:, :3, :3] = -0.1
+    normalize(dark, scene["classes"], _angles(scene), example_table())
