@@ -40,6 +40,7 @@ from brdfcorr.io.product import (  # the identification and sizes, importable fr
     image_layout,
     peak_memory_terms,
 )
+from brdfcorr.io.scale_check import refuse_fill
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths, envi_fwhm
 from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, write_rasters
@@ -107,7 +108,9 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
     DataArray
         float32 (float64 for a float64 file), with attrs ``brdf_input_scale`` and
         ``brdf_input_offset``: the scale and offset applied (a float, or a tuple of one per band
-        where the bands differ).
+        where the bands differ). Each chunk, as it is computed, raises :class:`InputError` for
+        values below :data:`~brdfcorr.io.scale_check.FILL_FLOOR` (an undeclared nodata value:
+        :func:`~brdfcorr.io.scale_check.refuse_fill`).
     """
     identified = path if isinstance(path, ImageFile) else None
     path = path if identified is None else identified.path
@@ -117,7 +120,7 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
     else:
         product = hdf5_product(path) if Path(path).exists() else None
     if product is not None:
-        return open_product(product, path, chunk_spec(chunks), wavelengths, scale, offset)
+        return refuse_fill(open_product(product, path, chunk_spec(chunks), wavelengths, scale, offset), f"image {path}")
     if scale is None:  # an ENVI header's reflectance scale factor, where it has one
         scale = identified.header_scale if identified is not None else header_scale(path)
     given = scale is not None or offset is not None
@@ -133,7 +136,7 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
         image = image.drop_vars("fwhm") if fwhm is None else image.assign_coords(
             fwhm=(image.dims[0], fwhm, {"units": "nm"}))
     image.name = image.name or "reflectance"
-    return image
+    return refuse_fill(image, f"image {path}")
 
 
 def _check_given_scaling(path, scale: float | None, offset: float | None) -> None:

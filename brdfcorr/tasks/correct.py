@@ -122,9 +122,27 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
         return _correct(request, scene, table, table_path)
 
 
+def _refuse_normalized(reflectance: xr.DataArray) -> None:
+    """Refuse reflectance that is BRDF-normalized already: a brdfcorr output (its ``brdf_reference``
+    tag, which rioxarray reads into the attributes) or an image a reader marked ``brdf_normalized``
+    (NEON's bidirectional .002 product: :data:`brdfcorr.io.sensors.neon.NEON_BIDIRECTIONAL`).
+    Corrected again with the angle files of its acquisition, its values would carry the factor
+    twice, without a word. (In Python, :func:`~brdfcorr.correction.normalize` takes the angles it
+    is given: an output normalized again from its reference geometry, the angles set to it, moves
+    to another reference.)"""
+    source = reflectance.encoding.get("source")
+    where = f"image {source}" if source else "reflectance"
+    if "brdf_normalized" in reflectance.attrs:
+        raise InputError(f"{where} is BRDF-normalized already: {reflectance.attrs['brdf_normalized']}")
+    if "brdf_reference" in reflectance.attrs:
+        raise InputError(f"{where} is a brdfcorr output, normalized already to {reflectance.attrs['brdf_reference']}; "
+                         "correct the image it was made from")
+
+
 def _correct(request: CorrectionRequest, scene: SceneData, table: ParameterTable,
              table_path: str | None) -> CorrectionResult:
     """:func:`correct_files` of a scene opened for the run (:func:`brdfcorr.io.scene.opened_scene`)."""
+    _refuse_normalized(scene.reflectance)
     engine = request.engine
     _warn_wavelength_caveats(table, scene.reflectance)
     reference, sza_source = _scene_reference(request.reference, table, scene)

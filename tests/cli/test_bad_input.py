@@ -111,6 +111,20 @@ CORRECT_CASES = {
     "image truncated": (
         lambda s: _correct_args(s, image=_truncated(s["image"], s["dir"] / "cut.tif")),
         r"cut\.tif"),
+    # a fill value nobody declared, in a corner chunk (the scale check reads the central one):
+    # multiplied by the factor, -9999 became -11 235 in the output, exit 0
+    "image with an undeclared -9999 fill": (
+        lambda s: _correct_args(s, image=_derived(s, "image", "filled.tif", _fill_corner(-9999.0))),
+        r"image \S*filled\.tif: 100 values of a chunk lie below -0\.5, .*most often -9999.*"
+        r"-a_nodata -9999 IMAGE IMAGE\.vrt"),
+    "counts with an undeclared -9999 fill": (
+        lambda s: _correct_args(s, image=_counts_with_fill(s), **{"--scale": 0.0001}),
+        r"image \S*counts\.tif: 100 values of a chunk lie below -0\.5, .*most often -0\.9999.*"
+        r"-a_nodata -9999 IMAGE"),
+    # corrected again, an output took the factor a second time (exit 0)
+    "image is a brdfcorr output": (
+        lambda s: _correct_args(s, image=_corrected_once(s)),
+        r"image \S*once\.tif is a brdfcorr output, normalized already to sza=.*; correct the image it was made from"),
     "angles missing": (lambda s: _correct_args(s, **{"--angles": s["dir"] / "nope_angles.tif"}),
                        r"angle file \S*nope_angles\.tif does not exist"),
     "angles not a raster": (lambda s: _correct_args(s, **{"--angles": s["params"]}),
@@ -216,6 +230,29 @@ CORRECT_CASES = {
 }
 
 
+def _corrected_once(scene) -> Path:
+    """The scene's image corrected, beside the inputs (the output directory stays empty)."""
+    once = scene["dir"] / "once.tif"
+    result = CliRunner().invoke(main, _correct_args(scene, **{"-o": once}))
+    assert result.exit_code == 0, result.output
+    return once
+
+
+def _fill_corner(value: float):
+    """A transform filling the first 5 x 5 pixels of every band with ``value`` (no nodata declared)."""
+    def fill(data):
+        data = data.copy()
+        data[:, :5, :5] = value
+        return data
+    return fill
+
+
+def _counts_with_fill(scene) -> Path:
+    """The image as int16 reflectance x 10 000 without a scale tag, -9999 in a corner, undeclared."""
+    counts = lambda data: _fill_corner(-9999)(np.round(data * 10_000).astype(np.int16))  # noqa: E731
+    return _derived(scene, "image", "counts.tif", counts, dtype="int16", nodata=None)
+
+
 def _truncated(source: Path, target: Path) -> Path:
     """The first half of a GeoTIFF (a copy interrupted half-way): the header reads, tiles do not."""
     data = source.read_bytes()
@@ -275,6 +312,9 @@ FIT_CASES = {
     "output is the image": (lambda s: {"-o": s["image"]},
                             r"-o \S*image\.tif is also an input; inputs are never overwritten"),
     "report is the class map": (lambda s: {"--report": s["classes"]}, r"--report \S*classes\.tif is also an input"),
+    "image with an undeclared -9999 fill": (
+        lambda s: {"image": _derived(s, "image", "filled.tif", _fill_corner(-9999.0))},
+        r"image \S*filled\.tif: \d+ values of a chunk lie below -0\.5"),
     "two images, one angle file": (
         lambda s: {"image2": s["image"]},
         r"2 image\(s\), 1 --angles and 1 --classes: give one angle raster and one class map per image"),
@@ -286,7 +326,8 @@ def test_fit_classes_bad_input(scene, case):
     build, pattern = FIT_CASES[case]
     options = {"--angles": scene["angles"], "--classes": scene["classes"], "-o": scene["out"] / "fitted.yaml",
                **build(scene)}
-    args = ["fit-classes", str(scene["image"])] + ([str(options.pop("image2"))] if "image2" in options else [])
+    args = ["fit-classes", str(options.pop("image", scene["image"]))] + (
+        [str(options.pop("image2"))] if "image2" in options else [])
     for key, value in options.items():
         args += [key, str(value)]
     before = file_digests(scene["dir"])

@@ -98,13 +98,13 @@ def test_open_image_per_band_scales_and_given_values(files, tmp_path, store):
     assert image.attrs["brdf_input_scale"] == tuple(scales)
     assert image.attrs["brdf_input_offset"] == tuple(offsets)
     # A given value replaces the file's for every band; the one not given stays the file's.
-    given = rasters.open_image(path, scale=1e-3)
+    given = rasters.open_image(path, scale=3e-4)
     with rasterio.open(path) as dataset:
         counts = dataset.read(masked=True).astype(float).filled(np.nan)
-    expected = counts * 1e-3 + np.asarray(offsets)[:, None, None]
+    expected = counts * 3e-4 + np.asarray(offsets)[:, None, None]
     np.testing.assert_allclose(given.values, expected, rtol=1e-6, atol=1e-7, equal_nan=True)  # float32
     assert given.dtype == np.float32
-    assert given.attrs["brdf_input_scale"] == 1e-3 and given.attrs["brdf_input_offset"] == tuple(offsets)
+    assert given.attrs["brdf_input_scale"] == 3e-4 and given.attrs["brdf_input_offset"] == tuple(offsets)
     with pytest.raises(InputError, match=r"scale -1\.0 must be > 0"):
         rasters.open_image(path, scale=-1.0)
 

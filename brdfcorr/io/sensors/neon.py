@@ -34,8 +34,12 @@ the view azimuth by 180 deg for a file that differs. The sun angles are one valu
 a DP1 flight line has one log, a DP3 mosaic tile one per flight line it is made of, and brdfcorr
 then needs the flight line named (``flight_line="HHMMSS"``), never picks one.
 
-The bidirectional products DP1/DP3.30006.002 (2024 on) are already BRDF- and topography-corrected:
-correct the directional .001 reflectance, not those.
+The bidirectional products DP1/DP3.30006.002 (2024 on) are already BRDF- and topography-corrected
+(FlexBRDF, run with HyTools): told by their Logs' ``BRDF_COEFFS_JSON_for_Hytools`` or
+``BRDF_Config_JSON_for_Hytools`` entries or a name ending ``bidirectional_reflectance.h5``, their
+image carries the attribute ``brdf_normalized`` (:data:`NEON_BIDIRECTIONAL`), and a correction
+refuses it (``brdfcorr correct``, chains: :mod:`brdfcorr.tasks.correct`): correct the directional .001
+reflectance. Assessing them is fine.
 
 Reading needs h5py and h5netcdf (``pip install 'brdfcorr[hdf5]'``): metadata is read with h5py, the
 cube and the angle rasters lazily, in dask chunks, through xarray's h5netcdf engine.
@@ -65,6 +69,13 @@ __all__ = [
     "read_neon_angles",
     "read_neon_image",
 ]
+
+#: The ``brdf_normalized`` attribute of a bidirectional (.002) image: what normalized it.
+NEON_BIDIRECTIONAL = ("NEON's bidirectional reflectance (DP1/DP3.30006.002: FlexBRDF BRDF and topographic "
+                      "correction); correct the directional DP1/DP3.30006.001 reflectance instead")
+
+#: Log entries that only the bidirectional (.002) products have.
+_BRDF_LOGS = ("BRDF_COEFFS_JSON_for_Hytools", "BRDF_Config_JSON_for_Hytools")
 
 #: NEON's fill of reflectance and angle rasters (its ``Data_Ignore_Value``), used where a file's
 #: attribute is NaN or inf.
@@ -200,6 +211,9 @@ def _metadata(path: Path, site: str | None) -> dict:
                                                          f"{where}Coordinate_System/Map_Info")), f"{path}: Map_Info"),
             "crs": _crs(metadata["Coordinate_System"], path),
             "logs": _logs(metadata.get("Logs"), f"{where}Logs"),
+            "bidirectional": path.name.endswith("bidirectional_reflectance.h5") or any(
+                name in getattr(log, "keys", lambda: ())() for log in (metadata.get("Logs") or {}).values()
+                for name in _BRDF_LOGS),
             "angle_rasters": [name for name in ("to-sensor_Azimuth_Angle", "to-sensor_Zenith_Angle")
                               if name in metadata],
         }
@@ -327,6 +341,8 @@ def read_neon_image(path: str | Path, chunks=None, *, site: str | None = None, s
     image = on_grid(image, info["transform"], info["crs"])
     image.attrs = {"brdf_input_scale": applied_scale, "brdf_input_offset": float(offset or 0.0),
                    "units": "1", "long_name_product": "NEON AOP reflectance"}
+    if info["bidirectional"]:
+        image.attrs["brdf_normalized"] = NEON_BIDIRECTIONAL
     image.encoding.update({"source": str(path), "rasterio_dtype": str(info["dtype"])})
     image.name = "reflectance"
     return image

@@ -7,6 +7,7 @@ hand, the correction factor from the public model function at the stored angles.
 
 from __future__ import annotations
 
+import re
 import sys
 
 import dask.array as da
@@ -57,8 +58,9 @@ def view_angles() -> tuple[np.ndarray, np.ndarray]:
     return vza, vaa
 
 
-def write_neon(path, cube=None, sun=SUN, site="SERC", logs_as_attrs=False):
-    """A reflectance file in NEON's layout: /SITE/Reflectance/{Reflectance_Data, Metadata/...}."""
+def write_neon(path, cube=None, sun=SUN, site="SERC", logs_as_attrs=False, brdf_logs=False):
+    """A reflectance file in NEON's layout: /SITE/Reflectance/{Reflectance_Data, Metadata/...}; with
+    ``brdf_logs`` each log holds the FlexBRDF entries of the bidirectional (.002) product."""
     cube = stored_cube() if cube is None else cube
     vza, vaa = view_angles()
     with h5py.File(path, "w") as h5file:
@@ -82,6 +84,9 @@ def write_neon(path, cube=None, sun=SUN, site="SERC", logs_as_attrs=False):
             else:
                 log.create_dataset("Solar_Zenith_Angle", data=zenith)
                 log.create_dataset("Solar_Azimuth_Angle", data=azimuth)
+            if brdf_logs:
+                log.create_dataset("BRDF_COEFFS_JSON_for_Hytools", data=b'{"brdf": "coefficients"}')
+                log.create_dataset("BRDF_Config_JSON_for_Hytools", data=b'{"brdf": "config"}')
     return path
 
 
@@ -232,3 +237,25 @@ def test_cli_correct_a_neon_file_with_its_own_angles(neon_file, tmp_path):
     assert np.isnan(corrected[:, nodata]).all()
     np.testing.assert_allclose(corrected[:, ~nodata], expected[:, ~nodata], rtol=2e-6)
     assert np.ptp(factor[~nodata]) > 0.01  # the view geometry varies enough to matter
+
+
+def test_the_bidirectional_product_is_normalized_already_and_a_correction_refuses_it(neon_file, tmp_path):
+    # DP1/DP3.30006.002 is FlexBRDF-corrected by NEON: corrected again, its values took the factor a
+    # second time (exit 0). Told by its logs or, where they are missing, by its name.
+    by_logs = write_neon(tmp_path / "tile.h5", brdf_logs=True)
+    by_name = write_neon(tmp_path / "NEON_D05_LIRO_DP3_290000_5097000_bidirectional_reflectance.h5")
+    for path in (by_logs, by_name):
+        assert "DP1/DP3.30006.002" in read_neon_image(path).attrs["brdf_normalized"]
+    assert "brdf_normalized" not in read_neon_image(neon_file).attrs  # the directional .001 product
+    _write_classes(tmp_path / "classes.tif", read_neon_image(by_logs))
+    ParameterTable(classes=[{"id": 1, "name": "flat", "model": "lambertian", "params": {"t0": 0.1}}]).save(
+        tmp_path / "params.yaml")
+    result = CliRunner().invoke(main, [
+        "correct", str(by_logs), "--angles", str(by_logs), "--angles-kind", "neon",
+        "--classes", str(tmp_path / "classes.tif"), "--params", str(tmp_path / "params.yaml"),
+        "-o", str(tmp_path / "out.tif"), "--no-progress",
+    ])
+    assert result.exit_code == 2, result.output
+    assert re.search(r"tile\.h5 is BRDF-normalized already: NEON's bidirectional reflectance .*"
+                     r"correct the directional DP1/DP3\.30006\.001", result.stderr)
+    assert not (tmp_path / "out.tif").exists()
