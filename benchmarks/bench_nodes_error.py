@@ -89,7 +89,7 @@ def pixel_cells(layer: xr.DataArray) -> tuple[np.ndarray, np.ndarray]:
     shape, values, source, target, _ = layer.encoding[GRID_SOURCE]
     rows = (target.f + target.e * (np.arange(shape[0]) + 0.5) - source.f) / source.e - 0.5
     cols = (target.c + target.a * (np.arange(shape[1]) + 0.5) - source.c) / source.a - 0.5
-    return _cell_index(rows, values.shape[0]), _cell_index(cols, values.shape[1])
+    return _cell_index(rows, values.shape[-2]), _cell_index(cols, values.shape[-1])
 
 
 def _cell_index(positions: np.ndarray, nodes: int) -> np.ndarray:

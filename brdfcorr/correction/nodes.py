@@ -8,7 +8,11 @@ pixels, as sen2nbar does for Sentinel-2 (Montero et al. 2023). Per pixel only on
 interpolation and one product per band remain, so the correction costs about what reading and
 writing the image costs.
 
-The factor is not linear in the angles, so the two methods differ. Interpolated everywhere
+The factor is not linear in the angles, so the two methods differ. Since the Sentinel-2 view
+direction is interpolated as a vector (:mod:`brdfcorr.io.sensors.sentinel2`), only slightly: on
+the whole T23LLF tile by at most 0.003 % (averaged view grids) or 0.004 % (each band's own),
+interpolated everywhere. The figures that follow were measured with zenith and azimuth
+interpolated apart. Interpolated everywhere
 (``jump=None``, sen2nbar's method), over a whole real Sentinel-2 tile (T23LLF, the coefficients
 of Roy et al. 2017; ``benchmarks/bench_nodes_error.py``) by up to 0.91 % (view grids averaged
 over the bands) or 0.97 % (each band's own), 0.002 % in the median; the errors above 0.1 %
@@ -43,7 +47,7 @@ from brdfcorr.correction.qa import QA, qa_attrs
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
-from brdfcorr.io.sensors.grids import GRID_SOURCE, coarse_positions, interpolate_window
+from brdfcorr.io.sensors.grids import GRID_SOURCE, coarse_positions, grid_nodes, interpolate_window
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
 __all__ = ["normalize_at_nodes", "node_angles", "azimuth_span", "JUMP"]
@@ -78,17 +82,17 @@ def node_angles(angles: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
         raise InputError(f"the factor at the angle grid's nodes needs angles given on a coarse grid "
                          f"(Sentinel-2 MTD_TL.xml); {', '.join(missing)} are per-pixel rasters")
     transforms = {record[2] for record in records.values()}
-    shapes = {np.shape(record[1]) for record in records.values()}
+    shapes = {np.shape(record[1])[-2:] for record in records.values()}
     if len(transforms) != 1 or len(shapes) != 1:
         raise InputError("the factor at the angle grid's nodes needs the sun and view angles on one coarse grid")
     like = angles["sza"]
     nodes = {}
-    for name, (_, values, transform, _, _) in records.items():
-        rows, cols = np.shape(values)
+    for name, (_, values, transform, _, kind) in records.items():
+        rows, cols = np.shape(values)[-2:]
         y = transform.f + transform.e * (np.arange(rows) + 0.5)
         x = transform.c + transform.a * (np.arange(cols) + 0.5)
-        node = xr.DataArray(np.asarray(values, dtype=np.float64), dims=("y", "x"), coords={"y": y, "x": x},
-                            name=name, attrs={"units": "deg"})
+        node = xr.DataArray(np.asarray(grid_nodes(values, kind), dtype=np.float64), dims=("y", "x"),
+                            coords={"y": y, "x": x}, name=name, attrs={"units": "deg"})
         node = node.rio.write_transform(transform)
         nodes[name] = node.rio.write_crs(like.rio.crs) if like.rio.crs is not None else node
     return nodes
@@ -142,7 +146,8 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
     _, _, source, target, _ = angles["sza"].encoding[GRID_SOURCE]
     node_values = np.concatenate([factor.values, ((node_qa.values & QA.LIMITED) > 0)[np.newaxis]]).astype(np.float64)
     jumps = azimuth_span(nodes["vaa"].values) > (np.inf if jump is None else jump)
-    per_pixel = partial(_pixel_factors, nodes={name: nodes[name].values for name in ANGLES}, jumps=jumps,
+    grids = {name: (angles[name].encoding[GRID_SOURCE][1], angles[name].encoding[GRID_SOURCE][4]) for name in ANGLES}
+    per_pixel = partial(_pixel_factors, grids=grids, jumps=jumps,
                         source=source, target=target, like=ones.isel(y=slice(0, 1), x=slice(0, 1)),
                         evaluate=partial(normalize, params=params, reference=reference, limits=limits,
                                          extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth))
@@ -171,20 +176,21 @@ def _cells(positions: np.ndarray, nodes: int) -> np.ndarray:
     return np.clip(np.floor(positions), 0, nodes - 2).astype(np.intp)
 
 
-def _pixel_factors(rows: slice, cols: slice, *, nodes: Mapping[str, np.ndarray], jumps: np.ndarray, source, target,
+def _pixel_factors(rows: slice, cols: slice, *, grids: Mapping[str, tuple], jumps: np.ndarray, source, target,
                    like: xr.DataArray, evaluate: Callable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pixels ``rows`` x ``cols`` in grid cells with an azimuth jump (``jumps``, per cell):
-    their mask (y, x), the factor of every band (band, n) from their own interpolated angles, as
-    :func:`normalize` evaluates it (``evaluate``: it with the table, reference and limits bound),
-    and their limited flags (n,)."""
+    their mask (y, x), the factor of every band (band, n) from their own interpolated angles
+    (``grids``: each layer's coarse values and interpolation kind as :func:`to_grid` recorded
+    them, so that the pixels get the angles of the layers), as :func:`normalize` evaluates it
+    (``evaluate``: it with the table, reference and limits bound), and their limited flags (n,)."""
     rows_at, cols_at = coarse_positions(source, target, np.arange(rows.start, rows.stop),
                                         np.arange(cols.start, cols.stop))
     mask = jumps[_cells(rows_at, jumps.shape[0] + 1)[:, None], _cells(cols_at, jumps.shape[1] + 1)[None, :]]
     if not mask.any():
         return mask, np.empty((like.shape[0], 0)), np.empty(0, bool)
-    angles = {name: xr.DataArray(interpolate_window(values, source, target, rows, cols,
-                                                    angle=name in ("saa", "vaa"))[mask][np.newaxis], dims=("y", "x"))
-              for name, values in nodes.items()}
+    angles = {name: xr.DataArray(interpolate_window(values, source, target, rows, cols, angle=kind)[mask][np.newaxis],
+                                 dims=("y", "x"))
+              for name, (values, kind) in grids.items()}
     ones = xr.DataArray(np.ones((like.shape[0], 1, int(mask.sum()))), dims=like.dims,
                         coords={name: coord for name, coord in like.coords.items() if coord.dims == like.dims[:1]})
     factor, qa = evaluate(ones, xr.ones_like(angles["sza"], dtype=np.uint8), angles)

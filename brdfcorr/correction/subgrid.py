@@ -50,7 +50,7 @@ from brdfcorr.correction.normalization import Normalized, normalize
 from brdfcorr.correction.qa import QA
 from brdfcorr.correction.reference import describe_limits
 from brdfcorr.defaults import DEFAULT_LIMITS
-from brdfcorr.io.sensors.grids import GRID_SOURCE, coarse_positions, interpolate_at
+from brdfcorr.io.sensors.grids import GRID_SOURCE, coarse_positions, grid_nodes, interpolate_at
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
 __all__ = ["normalize_on_subgrid", "suits_subgrid", "axis_samples", "SUBDIVISIONS", "TOLERANCE"]
@@ -77,7 +77,7 @@ def suits_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.DataArray],
     records = [record for record in found if record is not None]
     if len(records) != len(ANGLES) or reflectance.ndim != 3 or reflectance.dtype.kind != "f":
         return False
-    grids = {(tuple(record[0]), record[2], record[3], np.shape(record[1])) for record in records}
+    grids = {(tuple(record[0]), record[2], record[3], np.shape(record[1])[-2:]) for record in records}
     shape = (reflectance.shape[1], reflectance.shape[2])
     if len(grids) != 1 or next(iter(grids))[0] != shape:
         return False
@@ -140,12 +140,12 @@ def interpolate_samples(values: np.ndarray, rows: tuple, cols: tuple) -> np.ndar
     return result
 
 
-def angles_at(nodes: Mapping[str, np.ndarray], rows_at: np.ndarray, cols_at: np.ndarray) -> dict[str, np.ndarray]:
-    """The angle grids ``nodes`` [deg] at the coarse positions ``rows_at`` x ``cols_at``, as
-    :func:`brdfcorr.io.sensors.grids.to_grid` interpolates the image's pixels
-    (:func:`~brdfcorr.io.sensors.grids.interpolate_at`)."""
-    return {name: interpolate_at(values, rows_at, cols_at, angle=name in ("saa", "vaa"))
-            for name, values in nodes.items()}
+def angles_at(grids: Mapping[str, tuple], rows_at: np.ndarray, cols_at: np.ndarray) -> dict[str, np.ndarray]:
+    """The angles [deg] at the coarse positions ``rows_at`` x ``cols_at`` of the coarse grids
+    ``grids`` (each layer's values and interpolation kind as
+    :func:`brdfcorr.io.sensors.grids.to_grid` recorded them), as it interpolates the image's
+    pixels (:func:`~brdfcorr.io.sensors.grids.interpolate_at`)."""
+    return {name: interpolate_at(values, rows_at, cols_at, angle=kind) for name, (values, kind) in grids.items()}
 
 
 def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.DataArray], params: ParameterTable,
@@ -180,7 +180,8 @@ def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.Data
     """
     records = {name: angles[name].encoding[GRID_SOURCE] for name in ANGLES}
     _, _, source, target, _ = records["sza"]
-    nodes = {name: np.asarray(record[1], dtype=np.float64) for name, record in records.items()}
+    grids = {name: (np.asarray(record[1], dtype=np.float64), record[4]) for name, record in records.items()}
+    nodes = {name: grid_nodes(values, kind) for name, (values, kind) in grids.items()}
     band_dim = reflectance.dims[0]
     band_coords = {name: coord for name, coord in reflectance.coords.items() if coord.dims == (band_dim,)}
     evaluate = partial(_exact, class_id=params.classes[0].id, band_dim=band_dim, band_coords=band_coords,
@@ -190,7 +191,7 @@ def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.Data
     # (a few hundred values), as normalize makes them before any block is computed
     evaluate(nodes, slice(0, reflectance.sizes[band_dim]))
     pairs = da.map_blocks(_subgrid_block, reflectance.data, dtype=reflectance.dtype, meta=np.empty((0, 0, 0)),
-                          nodes=nodes, source=source, target=target, evaluate=evaluate, limits=limits,
+                          grids=grids, source=source, target=target, evaluate=evaluate, limits=limits,
                           subdivisions=subdivisions, tolerance=tolerance)
     return normalized_from_pairs(pairs, reflectance, band_dim, {"brdf_reference": reference.describe(),
                                                                 "brdf_limits": describe_limits(limits)})
@@ -239,19 +240,21 @@ def _cell_of(samples: np.ndarray, size: int) -> np.ndarray:
     return np.clip(np.searchsorted(samples, np.arange(size), side="right") - 1, 0, samples.size - 2)
 
 
-def _factor_window(positions: tuple[np.ndarray, np.ndarray], nodes: Mapping[str, np.ndarray], bands: slice,
+def _factor_window(positions: tuple[np.ndarray, np.ndarray], grids: Mapping[str, tuple], bands: slice,
                    evaluate, subdivisions: int, tolerance: float, dtype) -> tuple[np.ndarray, np.ndarray, tuple]:
     """The unclipped factor (band, y, x) of one block whose pixels lie at the coarse
-    ``positions`` (rows, cols), in ``dtype``, the QA flags of its pixels evaluated one by one
-    (y, x) (module docstring, steps 1-4), and the least and largest factor evaluated: every
-    interpolated one lies between them (the bilinear weights are positive)."""
+    ``positions`` (rows, cols) of the coarse grids ``grids`` (:func:`angles_at`), in ``dtype``,
+    the QA flags of its pixels evaluated one by one (y, x) (module docstring, steps 1-4), and the
+    least and largest factor evaluated: every interpolated one lies between them (the bilinear
+    weights are positive)."""
     rows_at, cols_at = positions
     size = (rows_at.size, cols_at.size)
-    coarse = [axis_samples(at, n, subdivisions) for at, n in zip(positions, next(iter(nodes.values())).shape)]
+    shape = np.shape(next(iter(grids.values()))[0])[-2:]
+    coarse = [axis_samples(at, n, subdivisions) for at, n in zip(positions, shape)]
     if min(sample.size for sample in coarse) < 2:  # a block one pixel wide: every pixel
-        return _exact_everywhere(positions, nodes, bands, evaluate, dtype)
+        return _exact_everywhere(positions, grids, bands, evaluate, dtype)
     (full_r, fine_r), (full_c, fine_c) = (_structured(sample) for sample in coarse)
-    fine, fine_qa = evaluate(angles_at(nodes, rows_at[fine_r], cols_at[fine_c]), bands)
+    fine, fine_qa = evaluate(angles_at(grids, rows_at[fine_r], cols_at[fine_c]), bands)
     structured = fine[:, np.searchsorted(fine_r, full_r)][:, :, np.searchsorted(fine_c, full_c)]
     cells = _checked_cells(structured, _linear_weights(coarse[0], full_r), _linear_weights(coarse[1], full_c))
     window = interpolate_samples(fine.astype(dtype), _linear_weights(fine_r, np.arange(size[0])),
@@ -261,7 +264,7 @@ def _factor_window(positions: tuple[np.ndarray, np.ndarray], nodes: Mapping[str,
     flagged = cells > tolerance
     span = _span(fine)
     if flagged.any():
-        span = _span(np.array([*span, *_evaluate_cells(window, qa, flagged, coarse, positions, nodes, bands,
+        span = _span(np.array([*span, *_evaluate_cells(window, qa, flagged, coarse, positions, grids, bands,
                                                           evaluate)]))
     return window, qa, span
 
@@ -272,14 +275,14 @@ def _span(factor: np.ndarray) -> tuple[float, float]:
     return (float(finite.min()), float(finite.max())) if finite.size else (np.inf, -np.inf)
 
 
-def _exact_everywhere(positions, nodes, bands, evaluate, dtype) -> tuple[np.ndarray, np.ndarray, tuple]:
+def _exact_everywhere(positions, grids, bands, evaluate, dtype) -> tuple[np.ndarray, np.ndarray, tuple]:
     """The factor and QA flags of every pixel of a block from its own angles, and the factor's span."""
-    factor, qa = evaluate(angles_at(nodes, *positions), bands)
+    factor, qa = evaluate(angles_at(grids, *positions), bands)
     return factor.astype(dtype), qa.astype(np.uint8), _span(factor)
 
 
 def _evaluate_cells(window: np.ndarray, qa: np.ndarray, flagged: np.ndarray, coarse: list[np.ndarray],
-                    positions: tuple[np.ndarray, np.ndarray], nodes, bands: slice, evaluate) -> tuple[float, float]:
+                    positions: tuple[np.ndarray, np.ndarray], grids, bands: slice, evaluate) -> tuple[float, float]:
     """Replace, in ``window`` (band, y, x) and ``qa`` (y, x), the factor and flags of the pixels
     in the ``flagged`` cells of the coarse samples by those from each pixel's own angles, in one
     evaluation: the angles of each row of cells on its flagged columns, then the pixels. Returns
@@ -287,11 +290,11 @@ def _evaluate_cells(window: np.ndarray, qa: np.ndarray, flagged: np.ndarray, coa
     cell_cols = _cell_of(coarse[1], window.shape[2])
     picked_rows: list[np.ndarray] = []
     picked_cols: list[np.ndarray] = []
-    picked: dict[str, list[np.ndarray]] = {name: [] for name in nodes}
+    picked: dict[str, list[np.ndarray]] = {name: [] for name in grids}
     for row_cell in np.flatnonzero(flagged.any(axis=1)):
         rows = np.arange(coarse[0][row_cell], coarse[0][row_cell + 1] + 1)
         cols = np.flatnonzero(flagged[row_cell][cell_cols])
-        for name, values in angles_at(nodes, positions[0][rows], positions[1][cols]).items():
+        for name, values in angles_at(grids, positions[0][rows], positions[1][cols]).items():
             picked[name].append(values.reshape(-1))
         picked_rows.append(np.repeat(rows, cols.size))
         picked_cols.append(np.tile(cols, rows.size))
@@ -302,14 +305,14 @@ def _evaluate_cells(window: np.ndarray, qa: np.ndarray, flagged: np.ndarray, coa
     return _span(factor)
 
 
-def _subgrid_block(reflectance: np.ndarray, *, nodes: Mapping[str, np.ndarray], source, target, evaluate,
+def _subgrid_block(reflectance: np.ndarray, *, grids: Mapping[str, tuple], source, target, evaluate,
                    limits: tuple[float, float] | None, subdivisions: int, tolerance: float, block_info=None):
     """One (band, y, x) block corrected with the factor of :func:`_factor_window`, clipped to
     ``limits``, and its QA flags (1, y, x); both as one pair
     (:func:`brdfcorr.correction.blocks.split_pairs`)."""
     (band0, band1), (row0, row1), (col0, col1) = block_info[0]["array-location"]
     positions = coarse_positions(source, target, np.arange(row0, row1), np.arange(col0, col1))
-    window, qa, span = _factor_window(positions, nodes, slice(band0, band1), evaluate, subdivisions, tolerance,
+    window, qa, span = _factor_window(positions, grids, slice(band0, band1), evaluate, subdivisions, tolerance,
                                       reflectance.dtype)
     # 1e-6: the float32 rounding of interpolated factors near a limit
     if limits is not None and (span[0] < limits[0] * (1 + 1e-6) or span[1] > limits[1] * (1 - 1e-6)):

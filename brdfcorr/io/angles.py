@@ -176,8 +176,8 @@ def check_angles(layers: Mapping[str, xr.DataArray], source: str | None = None, 
 
     One pass over the (lazy) layers, which also gives the scene-mean sun zenith; a layer
     interpolated from a coarse grid that recorded its statistics
-    (:data:`~brdfcorr.io.sensors.grids.GRID_STATISTICS`: exact for zeniths, from the coarse cells'
-    corner pixels for azimuths) needs none. Pixels with a
+    (:data:`~brdfcorr.io.sensors.grids.GRID_STATISTICS`: exact for zeniths interpolated linearly,
+    from the coarse cells' corner pixels for azimuths and for a view vector's zenith) needs none. Pixels with a
     zenith outside [0, 90) are not an error here: :func:`brdfcorr.correction.normalize` flags them
     (QA ``invalid_geometry``) and writes nodata. A layer set that cannot be degrees is an error:
     every zenith below 1.6 with every azimuth below 6.3 (radians: pi/2 and 2 pi), or no zenith of a

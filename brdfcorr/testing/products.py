@@ -38,18 +38,22 @@ def _values_list(grid: np.ndarray) -> str:
 def write_mtd_tl(path: str | os.PathLike, *, crs: str = "EPSG:32632",
                  corner: tuple[float, float] = (300000.0, 5000040.0),
                  sun_zenith: tuple[float, float] = (35.0, 37.0), sun_azimuth: float = 150.0,
-                 sensing_time: str = "2023-06-15T10:30:00.000Z") -> Path:
+                 sensing_time: str = "2023-06-15T10:30:00.000Z",
+                 view: tuple[np.ndarray, np.ndarray] | None = None) -> Path:
     """A synthetic Sentinel-2 L2A granule metadata file (``MTD_TL.xml``) with the elements
     :func:`brdfcorr.io.sensors.parse_mtd_tl` and sen2nbar read: a 109.8 km tile at ``corner``, a
     23 x 23 sun grid at 5 km (zenith rising north to south over ``sun_zenith``, one azimuth), and
     one detector per band whose view zenith grows from 0.5 deg at the tile's centre column to
     about 10 deg at its edges, seen towards the east-south-east (105 deg) west of the ground track
     and the west-north-west (285 deg) east of it (a sun-synchronous descending orbit), sensed at
-    ``sensing_time`` (ISO 8601)."""
+    ``sensing_time`` (ISO 8601); ``view``: that detector's (zenith, azimuth) node grids (23 x 23)
+    [deg] instead."""
     columns = np.arange(23) * 5000.0 - 54900.0  # node x relative to the tile's centre [m]
     sun_z = np.repeat(np.linspace(*sun_zenith, 23)[:, None], 23, axis=1)
     view_z = np.repeat((0.5 + 9.5 * np.abs(columns) / 55000.0)[None, :], 23, axis=0)
     view_a = np.repeat(np.where(columns < 0, 105.0, 285.0)[None, :], 23, axis=0)
+    if view is not None:
+        view_z, view_a = view
     sizes = "".join(f'<Size resolution="{r}"><NROWS>{109800 // r}</NROWS><NCOLS>{109800 // r}</NCOLS></Size>'
                     for r in (10, 20, 60))
     positions = "".join(f'<Geoposition resolution="{r}"><ULX>{corner[0]:g}</ULX><ULY>{corner[1]:g}</ULY>'

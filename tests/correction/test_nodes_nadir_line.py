@@ -1,10 +1,10 @@
 """``--factor-at nodes`` where it errs most: a 10 km window of the real T23LLF granule's grids
 (tests/data) across the nadir line, where the view azimuth turns by up to 180 deg between
 neighbouring nodes (issue 40). The documented bound (docs/sensors.md, "Where the c-factor is
-evaluated", from benchmarks/bench_nodes_error.py): with the factor interpolated everywhere
-(sen2nbar's method) at most 0.91 % with the view grids averaged over the bands, 0.97 % with each
-band's own (0.971 %), tile-wide; with the per-pixel factor in the cells with an azimuth jump (the
-default) 0.11 % and 0.15 %."""
+evaluated", from benchmarks/bench_nodes_error.py): with the view direction interpolated as a
+vector, the factor interpolated everywhere (sen2nbar's method) is within 0.003 % tile-wide with the
+view grids averaged over the bands (zenith and azimuth interpolated apart: 0.91 %, and 0.97 % with
+each band's own)."""
 
 from __future__ import annotations
 
@@ -47,13 +47,15 @@ def _error(band: str | None, resolution: int = 60, jump: float | None = None) ->
 
 
 def test_across_the_nadir_line_the_interpolated_factor_stays_within_the_documented_bound():
+    # With the view direction interpolated as a vector (io.sensors.sentinel2), the per-pixel angles
+    # vary smoothly across the nadir line and the interpolated factor follows the per-pixel one:
+    # here within 0.001 % (measured 9.3e-6 averaged, 1.7e-6 B03, 3.8e-6 B12; zenith and azimuth
+    # interpolated apart it was 0.91 %, the tile's largest error, with about half the band-pixels
+    # above 0.1 %).
     averaged = _error(None)
-    # The window holds the tile's largest error (0.91 %, band B03) and is not calm: about half
-    # its band-pixels are above 0.1 %.
-    assert 0.0085 < averaged.max() <= 0.0091
-    assert np.mean(averaged > 1e-3) > 0.3
+    assert averaged.max() <= 2e-5
     each = np.concatenate([_error(band) for band in ("B03", "B12")])
-    assert 0.0085 < each.max() <= 0.00975
+    assert each.max() <= 1e-5
 
 
 def test_the_per_pixel_factor_in_the_jump_cells_removes_the_large_errors():
@@ -61,5 +63,4 @@ def test_the_per_pixel_factor_in_the_jump_cells_removes_the_large_errors():
     # within the documented tile-wide bound everywhere, here far within it.
     for band in (None, "B12"):
         error = _error(band, jump=JUMP)
-        assert error.max() <= 0.0011
-        assert np.mean(error > 1e-3) == 0.0
+        assert error.max() <= 1e-5

@@ -185,7 +185,9 @@ def test_missing_files_and_existing_outputs_are_refused(safe, tmp_path):
 @pytest.mark.parametrize("offset", [(40000.0, 40000.0), (1000.0, 103000.0)])  # inside; over the last nodes
 def test_angle_check_statistics_from_the_grid_equal_a_pass_over_the_pixels(tmp_path, offset):
     """The statistics the Sentinel-2 reader records from the 5 km grid (no pass) are those of a pass
-    over every interpolated pixel: zenith ranges and means exact, azimuth ranges within them."""
+    over every interpolated pixel: the sun zenith's range and mean exact, the azimuths' ranges within
+    them; the view zenith (from the interpolated view vector, not linear between nodes) its range
+    within and its mean close (from the corner pixels of the grid's cells)."""
     from brdfcorr.io.angles import check_angles
     from brdfcorr.io.sensors.grids import GRID_STATISTICS
 
@@ -197,10 +199,10 @@ def test_angle_check_statistics_from_the_grid_equal_a_pass_over_the_pixels(tmp_p
     recorded = check_angles(layers)
     bare = {name: xr.DataArray(layer.data, dims=layer.dims, coords=layer.coords) for name, layer in layers.items()}
     measured = check_angles(bare)  # a pass over the pixels
-    for name in ("sza", "vza"):
-        np.testing.assert_allclose(recorded.ranges[name], measured.ranges[name], rtol=1e-12)
-        assert recorded.means[name] == pytest.approx(measured.means[name], rel=1e-12)
-    for name in ("saa", "vaa"):  # a subset of the pixels: inside the true range
+    np.testing.assert_allclose(recorded.ranges["sza"], measured.ranges["sza"], rtol=1e-12)
+    assert recorded.means["sza"] == pytest.approx(measured.means["sza"], rel=1e-12)
+    assert recorded.means["vza"] == pytest.approx(measured.means["vza"], rel=1e-3)
+    for name in ("saa", "vza", "vaa"):  # a subset of the pixels: inside the true range
         low, high = recorded.ranges[name]
         assert measured.ranges[name][0] <= low <= high <= measured.ranges[name][1]
 

@@ -14,11 +14,21 @@ pyproj and looked up with ``scipy.ndimage.map_coordinates`` (``order=1``). Azimu
 interpolated through their sine and cosine and recombined with ``arctan2``, so that 359 deg and
 1 deg average to 0 deg, never to 180 deg.
 
+A view direction whose zenith passes near 0 (a push-broom sensor's nadir line) is interpolated as
+one vector (:data:`VIEW_KINDS`): the ground-projected view vector (tan θ sin φ, tan θ cos φ)
+(:func:`view_vector`; for a sensor at height H above a flat ground it is the horizontal offset from
+the pixel to the sensor over H, linear in the pixel's position), its two components as ordinary
+grids, and the zenith and azimuth taken from the interpolated vector (:func:`view_angles`). Across
+the nadir line the azimuth turns by 180 deg within a few kilometres and the zenith has a kink at its
+minimum near 0; interpolating the two apart puts them up to about 1 deg off there.
+
 The angle check's statistics (:func:`brdfcorr.io.angles.check_angles`) of a separable grid come
 from the coarse grid (:func:`grid_statistics`): the pixels are interpolated once, when corrected.
 """
 
 from __future__ import annotations
+
+from typing import Literal
 
 import dask.array as da
 import numpy as np
@@ -30,8 +40,9 @@ from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
 
-__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "check_covers", "coarse_positions", "grid_statistics", "grid_window",
-           "grid_template", "interpolate_at", "interpolate_window", "pixel_centres", "to_grid", "wrap_azimuth"]
+__all__ = ["GRID_SOURCE", "GRID_STATISTICS", "VIEW_KINDS", "check_covers", "coarse_positions", "grid_nodes",
+           "grid_statistics", "grid_window", "grid_template", "interpolate_at", "interpolate_window", "pixel_centres",
+           "to_grid", "view_angles", "view_vector", "wrap_azimuth"]
 
 #: Encoding key of a layer interpolated by :func:`to_grid` holding its shape (y, x) and the statistics
 #: of :func:`brdfcorr.io.angles.check_angles` (min, max, finite count, count in [0, 90) and their
@@ -42,6 +53,13 @@ GRID_STATISTICS = "brdfcorr_grid_statistics"
 GRID_SOURCE = "brdfcorr_grid_source"
 #: Chunk size [pixels] of angle grids interpolated onto an image grid (a cheap computation: large chunks).
 GRID_CHUNK = 2048
+#: Interpolation kinds (the ``angle`` of :func:`to_grid`) of a view direction given as its
+#: ground-projected vector (2, y, x) (:func:`view_vector`): the zenith or the azimuth [deg] of the
+#: vector interpolated component by component.
+VIEW_KINDS = ("view_zenith", "view_azimuth")
+#: How a coarse grid is interpolated: False linear, True an azimuth [deg] through its sine and
+#: cosine, or one of :data:`VIEW_KINDS`.
+Kind = bool | Literal["view_zenith", "view_azimuth"]
 
 
 def wrap_azimuth(azimuth):
@@ -49,6 +67,36 @@ def wrap_azimuth(azimuth):
     wrapped = azimuth % 360.0
     # A tiny negative azimuth wraps to 360 - 1e-15, which rounds to 360.0: map it back to 0.
     return wrapped - 360.0 * (wrapped >= 360.0)
+
+
+def view_vector(zenith, azimuth) -> np.ndarray:
+    """The ground-projected view vector (tan θ sin φ, tan θ cos φ) [-] of view zeniths θ and
+    azimuths φ [deg] (numpy arrays), stacked on a new first axis (east, north): the horizontal
+    offset from the pixel to the sensor per unit of its height over a flat ground. Its
+    components vary smoothly where the azimuth turns by 180 deg (the nadir line); NaN stays NaN.
+    The zenith must lie in [0, 90)."""
+    radians = np.radians(np.asarray(azimuth, dtype=np.float64))
+    slope = np.tan(np.radians(np.asarray(zenith, dtype=np.float64)))
+    return np.stack([slope * np.sin(radians), slope * np.cos(radians)])
+
+
+def view_angles(vector) -> tuple[np.ndarray, np.ndarray]:
+    """Zenith [deg, in [0, 90)] and azimuth [deg, in [0, 360)] of ground-projected view vectors
+    (2, ...) (:func:`view_vector`); the azimuth of a zero vector (the nadir) is 0."""
+    east, north = vector[0], vector[1]
+    zenith = np.degrees(np.arctan(np.hypot(east, north)))
+    return zenith, wrap_azimuth(np.degrees(np.arctan2(east, north)))
+
+
+def _from_vector(vector: np.ndarray, kind: Kind) -> np.ndarray:
+    """The zenith (``"view_zenith"``) or azimuth (``"view_azimuth"``) [deg] of view vectors (2, ...)."""
+    return view_angles(vector)[0 if kind == "view_zenith" else 1]
+
+
+def grid_nodes(values: np.ndarray, angle: Kind) -> np.ndarray:
+    """The angles [deg] (y, x) at the nodes of a coarse grid as :func:`to_grid` records it
+    (:data:`GRID_SOURCE`): the values themselves, or those of the view vector for :data:`VIEW_KINDS`."""
+    return _from_vector(values, angle) if angle in VIEW_KINDS else values
 
 
 def grid_template(transform: Affine, shape: tuple[int, int], crs, chunks=GRID_CHUNK) -> xr.DataArray:
@@ -138,11 +186,14 @@ def coarse_positions(source_transform: Affine, target_transform: Affine, rows: n
     return (y - source_transform.f) / source_transform.e - 0.5, (x - source_transform.c) / source_transform.a - 0.5
 
 
-def interpolate_at(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, angle: bool) -> np.ndarray:
+def interpolate_at(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, angle: Kind) -> np.ndarray:
     """Bilinear interpolation of finite coarse ``values`` (..., y, x) at the grid of coarse
     positions ``rows`` x ``cols`` (:func:`coarse_positions`; the edge value held beyond the
     outermost centres), as the separable path of :func:`to_grid` interpolates every pixel
-    (:func:`_separable`); azimuths [deg] with ``angle``, through their sine and cosine."""
+    (:func:`_separable`); azimuths [deg] with ``angle`` True, through their sine and cosine; the
+    zenith or azimuth [deg] of view vectors (2, y, x) with ``angle`` in :data:`VIEW_KINDS`."""
+    if angle in VIEW_KINDS:
+        return _from_vector(_separable(values, rows, cols), angle)
     if not angle:
         return _separable(values, rows, cols)
     radians = np.radians(values)
@@ -154,7 +205,7 @@ def interpolate_at(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, angle
 
 
 def _interpolate_block(block_info, *, values, source_transform, target_transform, transformer,
-                       angle: bool, separable: bool = False):
+                       angle: Kind, separable: bool = False):
     """Interpolate the in-memory coarse ``values`` at the pixel centres of one output block."""
     info = block_info[None]
     (row0, row1), (col0, col1) = info["array-location"]
@@ -170,6 +221,10 @@ def _interpolate_block(block_info, *, values, source_transform, target_transform
     col, row = ~source_transform @ (x, y)
     # map_coordinates indexes pixel centres at integer positions; (col, row) count from corners.
     coordinates = np.stack([row - 0.5, col - 0.5])
+    if angle in VIEW_KINDS:
+        vector = np.stack([ndimage.map_coordinates(component, coordinates, order=1, mode="nearest")
+                           for component in values])
+        return _from_vector(vector, angle)
     if not angle:
         return ndimage.map_coordinates(values, coordinates, order=1, mode="nearest")
     radians = np.radians(values)
@@ -187,7 +242,7 @@ def _breakpoints(positions: np.ndarray, size: int) -> np.ndarray:
 
 
 def grid_statistics(values: np.ndarray, source_transform: Affine, target_transform: Affine,
-                    shape: tuple[int, int], angle: bool) -> tuple[float, float, float, float, float] | None:
+                    shape: tuple[int, int], angle: Kind) -> tuple[float, float, float, float, float] | None:
     """The statistics of :func:`brdfcorr.io.angles.check_angles` of the interpolated grid, from
     the coarse grid alone (no pass over the pixels): min, max, finite count, count in [0, 90) and
     the sum of the values in [0, 90).
@@ -196,22 +251,24 @@ def grid_statistics(values: np.ndarray, source_transform: Affine, target_transfo
     (:func:`_breakpoints`), so a zenith's min and max over every pixel are those over the grid of
     these rows and columns, and its sum is ``(1' R) values (C' 1)`` (R, C the interpolation
     weights): exact. For an azimuth (sine and cosine interpolated) they are those of that grid
-    (the directions at the corners of each coarse cell's pixels), which the unit check needs.
+    (the directions at the corners of each coarse cell's pixels), which the unit check needs; so
+    are those of a view vector's zenith and azimuth (:data:`VIEW_KINDS`: not linear between the
+    nodes, their sum is that grid's mean times the pixel count).
     None where the grids are not separable (:func:`to_grid`) or a zenith leaves [0, 90) (a pass
     over the pixels counts those).
     """
     rows, cols = coarse_positions(source_transform, target_transform, np.arange(shape[0]), np.arange(shape[1]))
-    sample = interpolate_at(values, rows[_breakpoints(rows, values.shape[0])],
-                                    cols[_breakpoints(cols, values.shape[1])], angle)
+    sample = interpolate_at(values, rows[_breakpoints(rows, values.shape[-2])],
+                                    cols[_breakpoints(cols, values.shape[-1])], angle)
     count = float(shape[0] * shape[1])
-    if angle:
+    if angle:  # an azimuth, or a view vector's zenith (in [0, 90) by construction) or azimuth
         in_domain = sample[(sample >= 0) & (sample < 90)]
         return float(sample.min()), float(sample.max()), count, count * in_domain.size / sample.size, \
             count * (in_domain.mean() if in_domain.size else 0.0)
     low, high = float(sample.min()), float(sample.max())
     if not (0.0 <= low and high < 90.0):
         return None
-    row_weights, col_weights = (_weight_matrix(p, n).sum(axis=0) for p, n in zip((rows, cols), values.shape))
+    row_weights, col_weights = (_weight_matrix(p, n).sum(axis=0) for p, n in zip((rows, cols), values.shape[-2:]))
     total = row_weights @ values @ col_weights
     return low, high, count, count, float(total)
 
@@ -253,7 +310,7 @@ def check_covers(source_transform: Affine, source_shape: tuple[int, int], target
             f"{margin:g} grid step; is it the image's own (its corner, its CRS)?")
 
 
-def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, chunks=None,
+def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: Kind = False, chunks=None,
             name: str | None = None, attrs: dict | None = None, source: str = "the coarse grid") -> xr.DataArray:
     """Interpolate a coarse (y, x) grid onto the grid of ``like``, lazily.
 
@@ -261,12 +318,17 @@ def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, ch
     ----------
     coarse : xarray.DataArray
         Coarse grid (y, x) with a rioxarray transform (pixel centres are the sample positions) and,
-        when ``like`` has another CRS, a CRS. Small: it is loaded into memory once.
+        when ``like`` has another CRS, a CRS. Small: it is loaded into memory once. For
+        :data:`VIEW_KINDS` (..., y, x) with a leading dimension of two: the ground-projected view
+        vector (:func:`view_vector`).
     like : xarray.DataArray
         Image or template whose (y, x) grid the output takes (extra dims such as ``band`` are
         ignored; its data are never read).
-    angle : bool
+    angle : bool or {"view_zenith", "view_azimuth"}
         True for azimuths [deg]: interpolate sin and cos and recombine, result in [0, 360).
+        ``"view_zenith"`` or ``"view_azimuth"``: interpolate the two components of the view vector
+        ``coarse`` as ordinary grids and give the vector's zenith [deg, in [0, 90)] or azimuth [deg,
+        in [0, 360)] (:func:`view_angles`).
     chunks : int or tuple, optional
         Output chunks; default: ``like``'s (y, x) chunks if it is dask-backed, else 2048.
     name, attrs :
@@ -286,7 +348,13 @@ def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, ch
     """
     plane = like.isel({dim: 0 for dim in like.dims if dim not in ("y", "x")}).transpose("y", "x")
     target_transform, target_crs, shape = _grid_of(plane, "the image grid (like)")
-    source_transform, source_crs, _ = _grid_of(coarse.transpose("y", "x"), "the coarse grid")
+    vector = angle in VIEW_KINDS
+    if vector and (coarse.ndim != 3 or coarse.shape[0] != 2):
+        raise SensorInputError(f"{source}: a view vector grid has dimensions (2, y, x), got {coarse.dims} "
+                               f"{coarse.shape}")
+    coarse = coarse.transpose(..., "y", "x")
+    first = coarse[0] if vector else coarse
+    source_transform, source_crs, _ = _grid_of(first, "the coarse grid")
     transformer = None
     if target_crs is not None and source_crs is not None and target_crs != source_crs:
         transformer = Transformer.from_crs(target_crs, source_crs, always_xy=True)
@@ -295,8 +363,8 @@ def to_grid(coarse: xr.DataArray, like: xr.DataArray, *, angle: bool = False, ch
             "cannot place the coarse grid on the image grid: only one of them has a CRS "
             f"(coarse: {source_crs}, image: {target_crs})"
         )
-    values = np.asarray(coarse.transpose("y", "x").values, dtype="float64")
-    check_covers(source_transform, values.shape, target_transform, shape, transformer, source)
+    values = np.asarray(coarse.values, dtype="float64")
+    check_covers(source_transform, values.shape[-2:], target_transform, shape, transformer, source)
     if chunks is None:
         chunks = plane.data.chunks if isinstance(plane.data, da.Array) else GRID_CHUNK
     template = da.empty(shape, dtype="float64", chunks=chunks)
@@ -332,12 +400,12 @@ def grid_window(layer: xr.DataArray, rows: slice, cols: slice) -> np.ndarray | N
 
 
 def interpolate_window(values: np.ndarray, source_transform: Affine, target_transform: Affine, rows: slice,
-                       cols: slice, *, angle: bool = False) -> np.ndarray:
+                       cols: slice, *, angle: Kind = False) -> np.ndarray:
     """Bilinear interpolation of coarse ``values`` (..., y, x), as the separable path of
     :func:`to_grid` (the coarse grid's ``source_transform`` and the target grid's, both
     axis-aligned in one CRS), at the target pixels ``rows`` x ``cols`` (slices with start and
-    stop); leading dimensions of ``values`` (bands) are kept. Azimuths [deg] with ``angle``
-    (a 2-D grid)."""
+    stop); leading dimensions of ``values`` (bands) are kept. Azimuths [deg] with ``angle`` True
+    (a 2-D grid), the zenith or azimuth of view vectors (2, y, x) with ``angle`` in :data:`VIEW_KINDS`."""
     positions = coarse_positions(source_transform, target_transform, np.arange(rows.start, rows.stop),
                                   np.arange(cols.start, cols.stop))
     return interpolate_at(values, *positions, angle)

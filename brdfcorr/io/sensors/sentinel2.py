@@ -2,11 +2,21 @@
 
 A Sentinel-2 L1C/L2A granule (a 109.8 km tile) carries its geometry as grids of 23 x 23 nodes at
 5 km: one for the sun, and one per band *and detector* for the view direction, NaN where that
-detector does not see the node. This module parses them (``xml.etree``), combines the detectors of a
-band (mean where detectors overlap, through sine and cosine for azimuths; remaining gaps, nodes
-outside every detector, filled from the nearest node that has a value), and interpolates the grids
+detector does not see the node. This module parses them (``xml.etree``) and interpolates them
 lazily onto the 10, 20 or 60 m image grid, or any georeferenced grid, with
-:func:`brdfcorr.io.sensors.grids.to_grid` (azimuths through sine and cosine).
+:func:`brdfcorr.io.sensors.grids.to_grid`: the sun zenith linearly, the sun azimuth through its sine
+and cosine.
+
+The view direction is handled as one vector throughout, the ground-projected view vector
+(tan θv sin φv, tan θv cos φv) (:func:`brdfcorr.io.sensors.grids.view_vector`): the detectors of
+a band are combined on it (its mean where detectors overlap; remaining gaps, nodes outside every
+detector, filled from the nearest node that has a value), the bands are averaged on it, and its two
+components are interpolated to the pixels as ordinary grids, the view zenith and azimuth of each
+pixel being those of its interpolated vector. The satellite's nadir line crosses most tiles: there
+the view azimuth turns by 180 deg between neighbouring nodes and the view zenith has its minimum
+near 0, while the vector's components vary nearly linearly across track (for a sensor at height H
+above a flat ground they are the offset from the pixel to the sensor over H). Interpolated apart,
+zenith and azimuth were off by up to about 1 deg in a strip of about 1 km along the nadir line.
 
 Node ``(i, j)`` of an angle grid lies at ``(ULX + j * COL_STEP, ULY - i * ROW_STEP)``, the tile's
 upper-left corner being node (0, 0) (ESA S2 MSI product specification, Tile_Angles); as a raster
@@ -35,12 +45,13 @@ from scipy import ndimage
 
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.files import read_xml
-from brdfcorr.io.sensors.grids import grid_template, to_grid, wrap_azimuth
+from brdfcorr.io.sensors.grids import Kind, grid_template, to_grid, view_angles, view_vector, wrap_azimuth
 
 __all__ = [
     "BAND_NAMES",
     "TileAngles",
     "combine_detectors",
+    "combined_view_vector",
     "fill_gaps",
     "parse_mtd_tl",
     "read_sentinel2_angles",
@@ -226,12 +237,6 @@ def _nan_mean(stack: np.ndarray) -> np.ndarray:
     return np.divide(total, count, out=np.full(total.shape, np.nan), where=count > 0)
 
 
-def _circular_nan_mean(stack_deg: np.ndarray) -> np.ndarray:
-    """Mean direction [deg, in [0, 360)] over axis 0 through sine and cosine, ignoring NaN."""
-    radians = np.radians(stack_deg)
-    return wrap_azimuth(np.degrees(np.arctan2(_nan_mean(np.sin(radians)), _nan_mean(np.cos(radians)))))
-
-
 def fill_gaps(grid: np.ndarray, angle: bool = False, what: str = "an angle grid") -> np.ndarray:
     """Fill NaN nodes with the value of the nearest finite node (Euclidean distance in nodes).
 
@@ -250,30 +255,45 @@ def fill_gaps(grid: np.ndarray, angle: bool = False, what: str = "an angle grid"
     return wrap_azimuth(filled) if angle else filled
 
 
+def combined_view_vector(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarray],
+                         what: str = "the view") -> np.ndarray:
+    """One gap-free ground-projected view vector grid (2, y, x) [-] (east, north:
+    :func:`brdfcorr.io.sensors.grids.view_vector`) of a band from its per-detector view zenith and
+    azimuth grids [deg].
+
+    Where two detectors see the same node (the overlap of adjacent detectors), their vectors are
+    averaged; each detector's NaN gaps are thereby filled from the others. Remaining gaps are
+    filled by :func:`fill_gaps`, both components from the same nearest node.
+    """
+    detectors = sorted(zenith)
+    vector = _nan_mean(np.stack([view_vector(zenith[d], azimuth[d]) for d in detectors]))
+    return np.stack([fill_gaps(component, what=f"{what} grid") for component in vector])
+
+
 def combine_detectors(zenith: dict[int, np.ndarray], azimuth: dict[int, np.ndarray], what: str = "the view"):
     """One view zenith and azimuth grid per band from its per-detector grids.
 
-    Where two detectors see the same node (the overlap of adjacent detectors), their zeniths are
-    averaged and their azimuths averaged as directions (sine and cosine); each detector's NaN
+    The detectors are combined on the view vector (:func:`combined_view_vector`): where two
+    detectors see the same node (the overlap of adjacent detectors) the result is the direction of
+    their mean vector, not the mean of their zeniths and of their azimuths apart (ill-defined near
+    the nadir line, where the azimuths of a near-vertical view differ widely); each detector's NaN
     gaps are thereby filled from the others. Remaining gaps are filled by :func:`fill_gaps`.
 
     Returns
     -------
     zenith, azimuth : numpy.ndarray
-        Gap-free grids [deg], azimuth in [0, 360).
+        Gap-free grids [deg], azimuth in [0, 360) (0 where the vector is 0).
     """
-    detectors = sorted(zenith)
-    view_zenith = _nan_mean(np.stack([zenith[d] for d in detectors]))
-    view_azimuth = _circular_nan_mean(np.stack([azimuth[d] for d in detectors]))
-    return (fill_gaps(view_zenith, what=f"{what} zenith grid"),
-            fill_gaps(view_azimuth, angle=True, what=f"{what} azimuth grid"))
+    return view_angles(combined_view_vector(zenith, azimuth, what))
 
 
 def _node_array(tile: TileAngles, values: np.ndarray, name: str) -> xr.DataArray:
-    rows, cols = values.shape
+    """The node grid (y, x), or (component, y, x) for a view vector, with its coords, CRS and transform."""
+    rows, cols = values.shape[-2:]
     x = (tile.node_transform @ (np.arange(cols) + 0.5, np.full(cols, 0.5)))[0]
     y = (tile.node_transform @ (np.full(rows, 0.5), np.arange(rows) + 0.5))[1]
-    array = xr.DataArray(values, dims=("y", "x"), coords={"y": y, "x": x}, name=name)
+    dims = ("component", "y", "x")[3 - values.ndim:]
+    array = xr.DataArray(values, dims=dims, coords={"y": y, "x": x}, name=name)
     return array.rio.write_crs(tile.crs).rio.write_transform(tile.node_transform)
 
 
@@ -290,8 +310,9 @@ def read_sentinel2_angles(path: str | Path, like: xr.DataArray | None = None, *,
         The image (any georeferenced (y, x) grid: a band opened with rioxarray, a subset, another
         CRS). Default: the full tile at ``resolution`` as given by the metadata.
     band : str, optional
-        Band whose view grids to use ("B01" ... "B12", "B8A"). Default: all bands, averaged
-        (the view angles of the bands differ by up to about 0.5 deg, the band focal-plane offsets).
+        Band whose view grids to use ("B01" ... "B12", "B8A"). Default: all bands, their view
+        vectors averaged (the view angles of the bands differ by up to about 0.5 deg, the band
+        focal-plane offsets).
     resolution : {10, 20, 60}
         Pixel size [m] of the default grid (ignored when ``like`` is given).
     view_azimuth : {"to_sensor", "from_sensor"}
@@ -303,6 +324,12 @@ def read_sentinel2_angles(path: str | Path, like: xr.DataArray | None = None, *,
     -------
     xarray.Dataset
         ``sza``, ``saa``, ``vza``, ``vaa`` [deg] on (y, x), dask-backed, with CRS and transform.
+
+    Notes
+    -----
+    ``vza`` and ``vaa`` are the zenith and azimuth of the ground-projected view vector
+    (tan θv sin φv, tan θv cos φv) interpolated component by component (module notes), not the
+    node zeniths and azimuths interpolated apart, which err by up to about 1 deg near the nadir line.
     """
     tile = parse_mtd_tl(path)
     if view_azimuth not in ("to_sensor", "from_sensor"):
@@ -315,12 +342,10 @@ def read_sentinel2_angles(path: str | Path, like: xr.DataArray | None = None, *,
         raise SensorInputError(
             f"{tile.path}: no viewing angle grids for band {band!r}; it has {sorted(tile.view_zenith)}"
         )
-    combined = [combine_detectors(tile.view_zenith[b], tile.view_azimuth[b], f"{tile.path}: the {b} view")
-                for b in bands]
-    vza = np.mean([zenith for zenith, _ in combined], axis=0)
-    vaa = _circular_nan_mean(np.stack([azimuth for _, azimuth in combined]))
+    vector = np.mean([combined_view_vector(tile.view_zenith[b], tile.view_azimuth[b], f"{tile.path}: the {b} view")
+                      for b in bands], axis=0)
     if view_azimuth == "from_sensor":
-        vaa = wrap_azimuth(vaa + 180.0)
+        vector = -vector  # the azimuth turned by 180 deg
     if like is None:
         if resolution not in tile.sizes or resolution not in tile.geopositions:
             raise SensorInputError(
@@ -329,12 +354,12 @@ def read_sentinel2_angles(path: str | Path, like: xr.DataArray | None = None, *,
             )
         like = grid_template(tile.geopositions[resolution], tile.sizes[resolution], tile.crs,
                              chunks=chunks or 2048)
-    grids = {
+    grids: dict[str, tuple[np.ndarray, Kind, str]] = {
         "sza": (fill_gaps(tile.sun_zenith, what=f"{tile.path}: the sun zenith grid"), False, "solar zenith angle"),
         "saa": (fill_gaps(tile.sun_azimuth, angle=True, what=f"{tile.path}: the sun azimuth grid"), True,
                 "solar azimuth angle (pixel to sun, clockwise from north)"),
-        "vza": (vza, False, "view zenith angle"),
-        "vaa": (vaa, True, "view azimuth angle (pixel to sensor, clockwise from north)"),
+        "vza": (vector, "view_zenith", "view zenith angle"),
+        "vaa": (vector, "view_azimuth", "view azimuth angle (pixel to sensor, clockwise from north)"),
     }
     variables = {
         key: to_grid(_node_array(tile, values, key), like, angle=angle, chunks=chunks, name=key,

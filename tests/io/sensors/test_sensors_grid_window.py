@@ -45,3 +45,23 @@ def test_without_a_record_the_layer_is_read():
     subset.encoding = dict(layer.encoding)  # a record that travelled with a subset is ignored
     assert grid_window(subset, slice(0, 4), slice(0, 4)) is None
     np.testing.assert_array_equal(window_values(subset, slice(0, 4), slice(0, 4)), layer.values[10:14, 0:4])
+
+
+def test_view_vector_layers_window_and_reprojected_path_agree():
+    """A view direction given as its ground-projected vector (2, y, x): the window equals the computed
+    layer, and the per-pixel (reprojection) path gives the separable path's values on one grid."""
+    from brdfcorr.io.sensors.grids import view_angles, view_vector
+
+    rng = np.random.default_rng(5)
+    zenith, azimuth = rng.uniform(0.0, 12.0, (5, 6)), rng.uniform(0.0, 360.0, (5, 6))
+    coarse = xr.concat([_coarse(component) for component in view_vector(zenith, azimuth)], dim="component")
+    like = grid_template(Affine(10.0, 0, 1000.0, 0, -10.0, 5000.0), (50, 60), "EPSG:32611", chunks=17)
+    for kind, index in (("view_zenith", 0), ("view_azimuth", 1)):
+        layer = to_grid(coarse, like, angle=kind)
+        window = grid_window(layer, slice(0, 20), slice(30, 60))
+        np.testing.assert_array_equal(window, layer.values[:20, 30:60])
+        # The angles of the components interpolated as plain grids.
+        east, north = (to_grid(coarse[component], like).values for component in (0, 1))
+        np.testing.assert_allclose(layer.values, view_angles(np.stack([east, north]))[index], atol=1e-9)
+        rotated = like.rio.write_transform(Affine(10.0, 1e-12, 1000.0, 0, -10.0, 5000.0))  # not axis-aligned
+        np.testing.assert_allclose(to_grid(coarse, rotated, angle=kind).values, layer.values, atol=1e-6)
