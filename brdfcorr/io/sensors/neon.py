@@ -31,8 +31,13 @@ spectrometer shares (:mod:`brdfcorr.io.sensors.envi`); the solar azimuth of the 
 azimuth seen from the ground (pixel towards the sun), clockwise from north. Both are brdfcorr's
 convention (``docs/conventions.md``) and are used as stored; ``view_azimuth="from_sensor"`` flips
 the view azimuth by 180 deg for a file that differs. The sun angles are one value per flight line:
-a DP1 flight line has one log, a DP3 mosaic tile one per flight line it is made of, and brdfcorr
-then needs the flight line named (``flight_line="HHMMSS"``), never picks one.
+a DP1 flight line has one log, a DP3 mosaic tile one per flight line it is made of. A mosaic says
+which flight line each pixel comes from in ``Metadata/Ancillary_Imagery/Data_Selection_Index``
+(rows, columns): the position of the line in its attribute ``Data_Files`` (the lines' file names,
+comma-separated, each naming its log, ``..._160559_reflectance``), negative where no line has the
+pixel; each pixel then gets the sun of its own line. A tile without that index needs its flight
+line named (``flight_line="HHMMSS"``), and a line named is used for every pixel: brdfcorr never
+picks one.
 
 The bidirectional products DP1/DP3.30006.002 (2024 on) are already BRDF- and topography-corrected
 (FlexBRDF, run with HyTools): told by their Logs' ``BRDF_COEFFS_JSON_for_Hytools`` or
@@ -73,6 +78,9 @@ __all__ = [
 #: The ``brdf_normalized`` attribute of a bidirectional (.002) image: what normalized it.
 NEON_BIDIRECTIONAL = ("NEON's bidirectional reflectance (DP1/DP3.30006.002: FlexBRDF BRDF and topographic "
                       "correction); correct the directional DP1/DP3.30006.001 reflectance instead")
+
+#: A mosaic tile's raster of the flight line (a position in its ``Data_Files``) each pixel comes from.
+_SELECTION = "Ancillary_Imagery/Data_Selection_Index"
 
 #: Log entries that only the bidirectional (.002) products have.
 _BRDF_LOGS = ("BRDF_COEFFS_JSON_for_Hytools", "BRDF_Config_JSON_for_Hytools")
@@ -219,6 +227,10 @@ def _metadata(path: Path, site: str | None) -> dict:
         }
         info["angle_ignore"] = {name: _ignore_value(metadata[name].attrs, f"{where}{name}", info["ignore"])
                                 for name in info["angle_rasters"]}
+        selection = metadata.get(_SELECTION)
+        info["selection_files"] = (
+            tuple(name.strip() for name in _text(selection.attrs["Data_Files"]).split(",") if name.strip())
+            if selection is not None and "Data_Files" in selection.attrs else None)
         for name in info["angle_rasters"]:
             _check_real(metadata[name], f"{where}{name}")
     return info
@@ -363,8 +375,9 @@ def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view
         What ``to-sensor_Azimuth_Angle`` holds: "to_sensor" for NEON (the default, see the module
         notes); "from_sensor" flips it by 180 deg.
     flight_line : str, optional
-        The ``Logs`` group (``"HHMMSS"``) whose sun angles to use; needed where the file logs
-        several flight lines (a mosaic tile).
+        The ``Logs`` group (``"HHMMSS"``) whose sun angles to use for every pixel. Default: the
+        only one logged, or, for a mosaic tile of several, each pixel's own
+        (``Data_Selection_Index``); a tile of several without that index needs one named.
     site : str, optional
         The root group (site code), where the file has several.
     chunks : int or dict, optional
@@ -373,7 +386,7 @@ def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view
     Returns
     -------
     xarray.Dataset
-        ``sza``, ``saa`` (constant: the flight line's) and ``vza``, ``vaa`` (per pixel) on (y, x),
+        ``sza``, ``saa`` (the flight line's, or each pixel's line's) and ``vza``, ``vaa`` (per pixel) on (y, x),
         dask-backed, nodata (``Data_Ignore_Value``) as NaN, azimuths in [0, 360) towards the sun
         and the sensor, with the file's CRS and transform.
 
@@ -391,7 +404,8 @@ def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view
             f"{path}: no to-sensor_Azimuth_Angle and to-sensor_Zenith_Angle rasters in "
             f"/{info['site']}/Reflectance/Metadata"
         )
-    sun = _flight_line_sun(path, info["logs"], flight_line)
+    by_pixel = flight_line is None and info["selection_files"] is not None and len(_complete(info["logs"])) > 1
+    sun = None if by_pixel else _flight_line_sun(path, info["logs"], flight_line)
     _check_degrees(path, info)
     if chunks is None and like is not None and like.chunks:
         chunks = {"y": like.chunksizes["y"], "x": like.chunksizes["x"]}
@@ -410,20 +424,63 @@ def read_neon_angles(path: str | Path, like: xr.DataArray | None = None, *, view
         if key == "vaa":
             angle = wrap_azimuth(angle + 180.0) if view_azimuth == "from_sensor" else wrap_azimuth(angle)
         variables[key] = angle.assign_attrs(units="degree", long_name=ANGLE_LONG_NAMES[key], source_item=name)
-    for key, name in (("sza", "Solar_Zenith_Angle"), ("saa", "Solar_Azimuth_Angle")):
-        value = sun[name] % 360.0 if key == "saa" else sun[name]
-        variables[key] = xr.full_like(variables["vza"], value).assign_attrs(
-            units="degree", long_name=ANGLE_LONG_NAMES[key], source_item=f"Logs/{sun['line']}/{name}")
+    if by_pixel:
+        variables.update(_sun_by_pixel(path, info, rows, cols))
+    else:
+        for key, name in (("sza", "Solar_Zenith_Angle"), ("saa", "Solar_Azimuth_Angle")):
+            value = sun[name] % 360.0 if key == "saa" else sun[name]
+            variables[key] = xr.full_like(variables["vza"], value).assign_attrs(
+                units="degree", long_name=ANGLE_LONG_NAMES[key], source_item=f"Logs/{sun['line']}/{name}")
     angles = xr.Dataset({key: on_grid(variables[key].rename(key), info["transform"], info["crs"])
                          for key in ("sza", "saa", "vza", "vaa")})
-    angles.attrs = {"source": str(path), "source_kind": "neon", "flight_line": sun["line"],
+    angles.attrs = {"source": str(path), "source_kind": "neon",
+                    "flight_line": "each pixel's (Data_Selection_Index)" if by_pixel else sun["line"],
                     "view_azimuth_stored": view_azimuth}
     return angles
 
 
+def _sun_by_pixel(path: Path, info: dict, rows, cols) -> dict[str, xr.DataArray]:
+    """``sza`` and ``saa`` [deg] of each pixel of a mosaic tile: the sun of the flight line its
+    ``Data_Selection_Index`` names (a position in ``Data_Files``), NaN where it names none."""
+    complete = _complete(info["logs"])
+    lines = []
+    for name in info["selection_files"]:
+        matching = [line for line in complete if line in name]
+        if len(matching) != 1:
+            raise SensorInputError(
+                f"{path}: {_SELECTION} Data_Files entry {name!r} names {len(matching)} of the flight lines in "
+                f"Metadata/Logs ({', '.join(sorted(complete))}); name the one to use: flight_line=HHMMSS")
+        lines.append(_flight_line_sun(path, info["logs"], matching[0]))
+    group, dataset = _SELECTION.split("/")
+    index = _open_lazy(path, f"/{info['site']}/Reflectance/Metadata/{group}")[dataset]
+    if index.shape != info["shape"][:2] or index.dtype.kind not in "iu":
+        raise SensorInputError(f"{path}: {_SELECTION} is {index.shape} {index.dtype}; it must hold integer line "
+                               f"positions for the reflectance's {info['shape'][:2]} pixels")
+    index = index.rename(dict(zip(index.dims, ("y", "x")))).chunk({"y": rows, "x": cols})
+    found = {}
+    for key, name in (("sza", "Solar_Zenith_Angle"), ("saa", "Solar_Azimuth_Angle")):
+        table = np.array([line[name] % 360.0 if key == "saa" else line[name] for line in lines] + [np.nan])
+        values = index.data.map_blocks(_lookup, table=table, dtype=np.float64)
+        found[key] = xr.DataArray(values, dims=("y", "x"), coords=index.coords, attrs={
+            "units": "degree", "long_name": ANGLE_LONG_NAMES[key],
+            "source_item": f"Logs/<each pixel's line: {_SELECTION}>/{name}"})
+    return found
+
+
+def _lookup(positions: np.ndarray, *, table: np.ndarray) -> np.ndarray:
+    """``table[positions]``, its last entry (NaN) where a position is outside the lines (no line)."""
+    outside = (positions < 0) | (positions >= table.size - 1)
+    return table[np.where(outside, table.size - 1, positions)]
+
+
+def _complete(logs: dict) -> dict:
+    """The flight lines of the logs with both sun angles."""
+    return {line: values for line, values in logs.items() if len(values) == 2}
+
+
 def _flight_line_sun(path: Path, logs: dict, flight_line: str | None) -> dict:
     """The sun zenith and azimuth [deg] of the chosen (or only) flight line of the logs."""
-    complete = {line: values for line, values in logs.items() if len(values) == 2}
+    complete = _complete(logs)
     if not complete:
         raise SensorInputError(f"{path}: no Metadata/Logs/<flight line>/Solar_Zenith_Angle and "
                                "Solar_Azimuth_Angle")

@@ -173,6 +173,32 @@ def test_a_mosaic_of_several_flight_lines_needs_one_named(tmp_path):
         read_neon_angles(path, flight_line="999999")
 
 
+def test_a_mosaic_tile_takes_each_pixel_s_sun_from_its_data_selection_index(tmp_path):
+    # A DP3 tile of two flight lines said which line each pixel is from; every pixel took the sun of
+    # the one line named (the other line's pixels 2 deg off in zenith). The index is a position in
+    # Data_Files (negative: no line), as NEON's mosaic writes it.
+    sun = {"152012": (30.0, 140.0), "155530": (28.0, 150.0)}
+    path = write_neon(tmp_path / "tile.h5", sun=sun)
+    selection = np.zeros((ROWS, COLS), "int8")
+    selection[:, COLS // 2:] = 1
+    selection[0, 0] = -1
+    with h5py.File(path, "r+") as h5file:
+        index = h5file.create_dataset("SERC/Reflectance/Metadata/Ancillary_Imagery/Data_Selection_Index",
+                                      data=selection)
+        index.attrs["Data_Files"] = (b"NEON_D02_SERC_DP1_20210801_155530_reflectance,"
+                                     b"NEON_D02_SERC_DP1_20210801_152012_reflectance")
+    angles = read_neon_angles(path, chunks=4)
+    assert isinstance(angles["sza"].data, da.Array)
+    expected_sza = np.where(selection == 1, 30.0, 28.0)
+    expected_saa = np.where(selection == 1, 140.0, 150.0)
+    expected_sza[0, 0] = expected_saa[0, 0] = np.nan
+    np.testing.assert_array_equal(angles["sza"].values, expected_sza)
+    np.testing.assert_array_equal(angles["saa"].values, expected_saa)
+    assert angles.attrs["flight_line"] == "each pixel's (Data_Selection_Index)"
+    # A line named is the user's word, for every pixel.
+    assert np.all(read_neon_angles(path, flight_line="152012")["sza"].values == 30.0)
+
+
 def test_not_a_neon_layout_is_one_clear_error(tmp_path):
     path = tmp_path / "other.h5"
     with h5py.File(path, "w") as h5file:
