@@ -58,6 +58,7 @@ __all__ = [
     "FitWarning",
     "NonIdentifiableWarning",
     "fit_brdf",
+    "fit_from",
     "fit_measurements",
     "fit_wavelengths",
     "spectral_table_entry",
@@ -374,14 +375,30 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
     order Taylor-expanded) model of Brandt [2]_; Press et al. [3]_ give the same recipe. As paper 003
     warns, these errors are rough for strongly non-linear parameters with large errors (n, k).
     """
-    model = get_model(model)
-    problem, sigma, initial = _problem(model, (theta_i, theta_r, phi, brdf, sigma), fixed, initial, bounds)
-    data, free = problem.data, problem.free
+    problem, sigma, initial = _problem(get_model(model), (theta_i, theta_r, phi, brdf, sigma), fixed, initial, bounds)
     starts = _starting_points(problem, initial)
     if initial:  # the user's start first, then the default grid: a poor guess cannot spoil the fit
         starts += _starting_points(problem, {})
-    best, n_converged, limit = _best_solution(problem, starts)
+    return _result(problem, sigma, starts, error_analysis)
 
+
+def fit_from(model, theta_i, theta_r, phi, brdf, sigma=None, *, start: Mapping[str, float],
+             fixed: Mapping[str, float] | None = None,
+             bounds: Mapping[str, tuple[float, float]] | None = None) -> FitResult:
+    """:func:`fit_brdf` from ``start`` alone, without the grid of starts: one local optimization
+    where it gives every free parameter (another fit's values: a cross-validation fold's fit from
+    the fit to all the measurements, :func:`brdfcorr.fit.selection.choose_model`). Arguments and
+    errors as for :func:`fit_brdf`; a start that does not converge is a
+    :class:`~brdfcorr.errors.FitError` (a fit at a limit of the model needs several starts)."""
+    problem, sigma, start = _problem(get_model(model), (theta_i, theta_r, phi, brdf, sigma), fixed, start, bounds)
+    return _result(problem, sigma, _starting_points(problem, start), ErrorAnalysis())
+
+
+def _result(problem: _Problem, sigma, starts: list[np.ndarray], error_analysis: ErrorAnalysis) -> FitResult:
+    """The :class:`FitResult` of the best solution from ``starts`` (:func:`_best_solution`), with its
+    covariance, goodness of fit and warnings (:func:`fit_brdf`)."""
+    model, data, free = problem.model, problem.data, problem.free
+    best, n_converged, limit = _best_solution(problem, starts)
     values = dict(zip(free, map(float, best.x)))
     model_values = np.asarray(model.kernel(problem.geometry, **problem.fixed, **values), dtype=float)
     residuals = data - model_values
@@ -400,10 +417,10 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
                                         error_analysis.correlation_limit)
     if unrobust is not None:
         messages.append(f"{model.name}: {unrobust}")
-        warnings.warn(messages[-1], FitWarning, stacklevel=2)
+        warnings.warn(messages[-1], FitWarning, stacklevel=3)
     if limit:
         messages.append(_limit_message(problem, values, n_converged))
-        warnings.warn(messages[-1], FitWarning, stacklevel=2)
+        warnings.warn(messages[-1], FitWarning, stacklevel=3)
     all_values, errors = _parameter_values(problem, values, np.sqrt(np.diag(covariance)))
     return FitResult(
         model=model, params=all_values, errors=errors, free=free, fixed=problem.fixed, covariance=covariance,
@@ -525,7 +542,7 @@ def _fit_warnings(problem: _Problem, values, active_mask, covariance, condition_
         model, free, values, covariance, condition_number, correlation_limit
     )
     for message in messages:
-        warnings.warn(message, NonIdentifiableWarning, stacklevel=3)
+        warnings.warn(message, NonIdentifiableWarning, stacklevel=4)
     at_bounds = tuple(name for name, active in zip(free, active_mask) if active != 0)
     if at_bounds:
         message = (
@@ -534,7 +551,7 @@ def _fit_warnings(problem: _Problem, values, active_mask, covariance, condition_
             "their errors are not meaningful"
         )
         messages.append(message)
-        warnings.warn(message, FitWarning, stacklevel=3)
+        warnings.warn(message, FitWarning, stacklevel=4)
     return messages, at_bounds
 
 

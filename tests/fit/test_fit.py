@@ -14,6 +14,7 @@ from brdfcorr.fit.goniometer import (
     NonIdentifiableWarning,
     _problem,
     fit_brdf,
+    fit_from,
     fit_measurements,
     format_with_error,
 )
@@ -152,6 +153,19 @@ def test_nonlinear_fit_agrees_with_curve_fit(roof_tile_fit):
     )
     assert [result.params[name] for name in result.free] == pytest.approx(values, rel=1e-4)
     np.testing.assert_allclose(result.covariance, covariance, rtol=2e-3)
+
+
+def test_a_fit_from_one_start_is_one_local_optimization_to_the_same_minimum(roof_tile_fit):
+    # choose_model's folds start from the fit to all the measurements: from the truth, the one
+    # start reaches the minimum the 15 starts of fit_brdf find (Levenberg-Marquardt agrees above).
+    truth, data, result = roof_tile_fit
+    start = {name: truth.params[name] for name in ("t0", "t1", "w", "n")}
+    single = fit_from("torrance_sparrow", data.theta_i, data.theta_r, data.phi, data.brdf, data.sigma,
+                      start=start, fixed=PAPER_K)
+    assert (single.n_starts, result.n_starts) == (1, 15)
+    assert [single.params[name] for name in single.free] == pytest.approx(
+        [result.params[name] for name in result.free], rel=1e-6)
+    np.testing.assert_allclose(single.covariance, result.covariance, rtol=1e-4)
 
 
 # --- round trips with the materials of paper 003, Table 1 --------------------------------------

@@ -119,8 +119,9 @@ def test_where_no_process_pool_can_be_made_the_fits_run_here_and_say_so(monkeypa
 def test_bounds_and_starting_values_apply_in_the_choice_to_the_candidates_that_have_them():
     # Each candidate is scored as it would be fitted: a bound on w (the Torrance-Sparrow lobe's
     # width) holds in every fold fit of torrance_sparrow and leaves ross_thick_li_sparse (no w) as
-    # it was. Independent computation: the same folds (_folds, seed SEED) fitted with fit_brdf.
-    from brdfcorr.fit.goniometer import fit_brdf
+    # it was. Independent computation: the same folds (_folds, seed SEED) fitted with fit_from from
+    # the bounded fit to all the measurements (fit_brdf).
+    from brdfcorr.fit.goniometer import fit_brdf, fit_from
     from brdfcorr.fit.selection import SEED
     from brdfcorr.models.materials import load_material
 
@@ -137,10 +138,12 @@ def test_bounds_and_starting_values_apply_in_the_choice_to_the_candidates_that_h
     fold = _folds(np.arange(ti.size), 3, SEED)
     expected = []
     with pytest.warns(Warning):  # (w ends on its bound)
+        whole = fit_brdf("torrance_sparrow", ti, tr, phi, brdf, fixed={"k": 0.25}, bounds=bounds, initial={"w": 0.2})
+        start = {name: whole.params[name] for name in whole.free}
         for number in range(3):
             train, test = fold != number, fold == number
-            fit = fit_brdf("torrance_sparrow", ti[train], tr[train], phi[train], brdf[train], fixed={"k": 0.25},
-                           bounds=bounds, initial={"w": 0.2})
+            fit = fit_from("torrance_sparrow", ti[train], tr[train], phi[train], brdf[train], start=start,
+                           fixed={"k": 0.25}, bounds=bounds)
             expected.append(np.mean((fit.predict(ti[test], tr[test], phi[test]) - brdf[test]) ** 2))
     np.testing.assert_allclose(bounded.score_of("torrance_sparrow").fold_errors, expected, rtol=1e-9)
     assert bounded.score_of("torrance_sparrow").mean_error > 10 * free.score_of("torrance_sparrow").mean_error
