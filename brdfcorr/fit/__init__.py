@@ -2,7 +2,7 @@
 
 - :mod:`brdfcorr.fit.measurements`: goniometer measurement tables (CSV), selection, synthesis.
 - :mod:`brdfcorr.fit.goniometer`: weighted non-linear least squares as in paper 003 (``fit_brdf``,
-  with its ``ErrorAnalysis`` options).
+  with its ``ErrorAnalysis`` options; ``fit_from`` one start).
 - :mod:`brdfcorr.fit.results`: the result of those fits (``FitResult``) and the parameter-table
   entries and report rows made from it.
 - :mod:`brdfcorr.fit.identifiability`: covariance, correlations and identifiability messages of
@@ -21,7 +21,8 @@ from brdfcorr._lazy import attach
 #: config's settings (:mod:`.settings`, :mod:`.prior`) are then read without scipy's optimizers.
 _PUBLIC = {
     **dict.fromkeys(["ErrorAnalysis", "FitResult", "FitWarning", "NonIdentifiableWarning", "fit_brdf",
-                     "fit_measurements", "fit_wavelengths", "spectral_table_entry", "format_with_error"], "goniometer"),
+                     "fit_from", "fit_measurements", "fit_wavelengths", "spectral_table_entry",
+                     "format_with_error"], "goniometer"),
     **dict.fromkeys(["fit_classes", "ClassFitResult"], "classes"),
     **dict.fromkeys(["ClassModels", "Sampling", "GuardRails"], "settings"),
     **dict.fromkeys(["Measurements", "read_measurements"], "measurements"),
