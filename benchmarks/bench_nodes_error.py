@@ -63,7 +63,7 @@ def roy2017_table(bands) -> ParameterTable:
 
 def factors(angles: xr.Dataset, bands, reference: ReferenceGeometry, repeat: int = 1) -> tuple[np.ndarray, ...]:
     """The c-factor of ``bands`` (band, y, x) at every pixel, at the nodes interpolated everywhere
-    (``jump=None``) and with the per-pixel factor in the cells with an azimuth jump (the default),
+    (``jump=None``, the default) and with the per-pixel factor in the cells with an azimuth jump,
     and the seconds each took (the best of ``repeat`` runs)."""
     ones = xr.ones_like(angles["sza"], dtype=np.float64).expand_dims(band=np.arange(1, len(bands) + 1))
     ones = ones.rio.write_transform(angles["sza"].rio.transform()).rio.write_crs(angles["sza"].rio.crs)
@@ -147,7 +147,7 @@ def run(mtd: Path, resolution: int, view_band: str | None, reference: ReferenceG
     what = "each band's own view grids" if view_band == "each" else "view grids averaged over the bands"
     report(f"{what}, reference sun zenith {reference.sza}", np.concatenate(errors), spans, resolution, jumps)
     mixed = np.concatenate(mixed_errors)
-    print(f"  with the per-pixel factor in the cells spanning > {JUMP:g} deg (the default): max "
+    print(f"  with the per-pixel factor in the cells spanning > {JUMP:g} deg (jump={JUMP:g}): max "
           f"{100 * np.nanmax(mixed):.4f} %, {100 * np.nanmean(mixed > 1e-3):.2f} % of band-pixels above 0.1 %; "
           f"seconds (factor at the pixels, at the nodes, nodes with per-pixel jump cells; one process, "
           f"a cube of ones): {seconds[0]:.1f}, {seconds[1]:.1f}, {seconds[2]:.1f}")

@@ -8,22 +8,15 @@ pixels, as sen2nbar does for Sentinel-2 (Montero et al. 2023). Per pixel only on
 interpolation and one product per band remain, so the correction costs about what reading and
 writing the image costs.
 
-The factor is not linear in the angles, so the two methods differ. Since the Sentinel-2 view
-direction is interpolated as a vector (:mod:`brdfcorr.io.sensors.sentinel2`), only slightly: on
-the whole T23LLF tile by at most 0.003 % (averaged view grids) or 0.004 % (each band's own),
-interpolated everywhere. The figures that follow were measured with zenith and azimuth
-interpolated apart. Interpolated everywhere
-(``jump=None``, sen2nbar's method), over a whole real Sentinel-2 tile (T23LLF, the coefficients
-of Roy et al. 2017; ``benchmarks/bench_nodes_error.py``) by up to 0.91 % (view grids averaged
-over the bands) or 0.97 % (each band's own), 0.002 % in the median; the errors above 0.1 %
-(5-6 % of the tile) nearly all lie in grid cells whose nodes' view azimuths differ by more than 60 deg:
-along the nadir line, where the view azimuth turns by up to 180 deg between neighbouring nodes
-(the sensor on one side, then on the other), and at the detector seams, where it steps. There
-interpolating the factor is not interpolating the geometry, so in those cells (:data:`JUMP`; 11 %
-of that tile) the factor is evaluated at each pixel from its interpolated angles, as
-:func:`normalize` does, and interpolated elsewhere: tile-wide then within 0.11 % (averaged view
-grids) or 0.15 % (each band's own) of the per-pixel factor, for about twice the time of the
-interpolation alone. It suits one smooth correction over the whole image: one class, no class
+The factor is not linear in the angles, so the two methods differ, but since the Sentinel-2 view
+direction is interpolated as a vector (:mod:`brdfcorr.io.sensors.grids`) only slightly: over the
+whole real T23LLF tile (the coefficients of Roy et al. 2017; ``benchmarks/bench_nodes_error.py``)
+by at most 0.003 % (view grids averaged over the bands) or 0.004 % (each band's own), 0.0001 % in
+the median, with the factor interpolated everywhere (sen2nbar's method, the default). With zenith
+and azimuth interpolated apart it was 0.91 % / 0.97 %, in the grid cells whose nodes' view azimuths
+span more than 60 deg (the nadir line, the detector seams); ``jump`` still evaluates the factor at
+each pixel of such cells (:data:`JUMP`: 0.0023 % / 0.0029 % then, for 1.5 to 4 times the time).
+It suits one smooth correction over the whole image: one class, no class
 map, no terrain and no uncertainty layer (``CorrectionRequest(factor_at="nodes")`` refuses the
 others).
 
@@ -100,7 +93,7 @@ def node_angles(angles: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
 
 def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataArray], params: ParameterTable,
                        reference: ReferenceGeometry, *, limits: tuple[float, float] | None = DEFAULT_LIMITS,
-                       extrapolate: bool = False, jump: float | None = JUMP,
+                       extrapolate: bool = False, jump: float | None = None,
                        flip_view_azimuth: bool = False) -> Normalized:
     """Normalize ``reflectance`` with the factor evaluated at the angle grid's nodes (module
     docstring) and interpolated bilinearly to the pixels.
@@ -119,10 +112,10 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
         relative azimuth [deg].
     limits, extrapolate :
         As for :func:`brdfcorr.correction.normalize`.
-    jump : float or None, default :data:`JUMP`
+    jump : float or None, default None
         In grid cells whose four nodes' view azimuths span more than this [deg]
-        (:func:`azimuth_span`), the factor of each pixel from its own interpolated angles; None:
-        the factor interpolated everywhere (sen2nbar's method).
+        (:func:`azimuth_span`; e.g. :data:`JUMP`), the factor of each pixel from its own
+        interpolated angles; None: the factor interpolated everywhere (sen2nbar's method).
     flip_view_azimuth : bool, default False
         As for :func:`brdfcorr.correction.normalize`: the view azimuths are from the sensor.
 

@@ -77,8 +77,7 @@ class NbarMethod:
     factor_at : {"pixels", "nodes"}
         Sentinel-2: the c-factor at every pixel from the angles interpolated to it (default), or at
         the 5 km nodes of the angle grids, interpolated to the pixels (sen2nbar's method, faster;
-        per pixel in the grid cells where the view azimuth jumps; within 0.15 % of the pixels' on
-        a real tile, :mod:`brdfcorr.correction.nodes`).
+        within 0.004 % of the pixels' on a real tile, :mod:`brdfcorr.correction.nodes`).
     """
 
     coefficients: str = "roy2017"

@@ -505,8 +505,7 @@ NBAR = settings(
                  "[default: the mean of all bands' grids]."),
     Setting("factor_at", ("--factor-at",), "choice", choices=FACTOR_AT, default="pixels", show_default=True,
             help="Sentinel-2: evaluate the c-factor at every pixel, or at the 5 km nodes of the angle grids and "
-                 "interpolate it to the pixels (sen2nbar's method, faster), except where the view azimuth jumps "
-                 "between nodes (within 0.15 %)."),
+                 "interpolate it to the pixels (sen2nbar's method, faster; within 0.004 % on a real tile)."),
     _path("keep_stack", "--keep-stack",
           "Also keep the uncorrected bands as a small virtual raster (.vrt) reading the product's files, "
           "masked and scaled: e.g. BEFORE for brdfcorr assess."),

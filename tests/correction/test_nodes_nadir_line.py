@@ -59,7 +59,7 @@ def test_across_the_nadir_line_the_interpolated_factor_stays_within_the_document
 
 
 def test_the_per_pixel_factor_in_the_jump_cells_removes_the_large_errors():
-    # The default (the factor per pixel in the cells whose nodes' view azimuths span > JUMP):
+    # With jump=JUMP (the factor per pixel in the cells whose nodes' view azimuths span > JUMP):
     # within the documented tile-wide bound everywhere, here far within it.
     for band in (None, "B12"):
         error = _error(band, jump=JUMP)
