@@ -37,6 +37,7 @@ from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.grid import check_same_grid
+from brdfcorr.io.paths import same_file
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
 from brdfcorr.tasks.classmaps import class_preparation, tagged_class_names
 from brdfcorr.tasks.request import Engine
@@ -183,7 +184,11 @@ def _corrected_on_grid(after, image, before: xr.DataArray, chunks: int) -> xr.Da
 
 def _other_line(overlap, scene: SceneSources, before: xr.DataArray, chunks: int) -> tuple[xr.DataArray, xr.DataArray]:
     """Another line's input (read with the scene's scale and offset) and corrected image, checked
-    to hold the scene's bands before any pass (:func:`assess_overlap` compares them band by band)."""
+    to be another file than the scene's and to hold its bands before any pass
+    (:func:`assess_overlap` compares them band by band; a line compared with itself agrees to 0)."""
+    if same_file(overlap[0], scene.image):
+        raise InputError(f"--overlap {overlap[0]} is the assessed image itself: give another line's input and "
+                         "corrected image, which overlap this one")
     other = (rasters.open_image(overlap[0], chunks=chunks, scale=scene.scale, offset=scene.offset),
              rasters.open_image(overlap[1], chunks=chunks))
     for path, image in zip(overlap, other):

@@ -4,6 +4,7 @@ as the library."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -40,14 +41,16 @@ def _common(files):
 
 def test_assess_writes_the_library_report_and_figures(files, tmp_path):
     report_path, figures = tmp_path / "report.json", tmp_path / "figures"
-    result = _invoke("assess", *_common(files), "--class-name", "1=roof_tile", "--overlap", files["image"],
+    twin = tmp_path / "twin.tif"  # another line, identical to this one (the line itself is refused)
+    twin.write_bytes(Path(files["image"]).read_bytes())
+    result = _invoke("assess", *_common(files), "--class-name", "1=roof_tile", "--overlap", twin,
                      files["after"], "-o", report_path, "--figures", figures)
     assert result.exit_code == 0, result.output
     assert "roof_tile" in result.output and f"wrote {report_path}" in result.output
     report = json.loads(report_path.read_text())
     expected = assess_files(SceneSources(files["image"], files["classes"], files["angles"]), files["after"],
                             view_options=ViewAngleOptions(class_names={1: "roof_tile"}),
-                            overlap=(files["image"], files["after"])).report()
+                            overlap=(twin, files["after"])).report()
     assert report["view_angles"] == json.loads(json.dumps(expected["view_angles"]))
     classes = {entry["id"]: entry for entry in report["view_angles"]["classes"]}
     assert classes[1]["name"] == "roof_tile" and classes[2]["name"] == "class 2"
@@ -66,7 +69,8 @@ def test_assess_writes_the_library_report_and_figures(files, tmp_path):
             slope = np.polyfit(signed[mask], nadir[band][mask], 1)[0]
             expected = 1000 * slope / nadir[band][mask].mean()
             assert classes[class_id]["after"]["relative_slope"][band] == pytest.approx(expected, rel=1e-3, abs=1e-4)
-    # a line compared with itself: the overlap differs by exactly 0
+    # a line compared with its twin: the overlap differs by exactly 0
+    assert report["inputs"]["overlap_before"] == str(twin)
     assert report["overlap"]["before"]["rmse"] == [0.0] * 4 and report["overlap"]["pixels"] > 0
     assert sorted(p.name for p in figures.iterdir()) == ["assess_overlap.png", "assess_profiles.png"]
 
@@ -171,4 +175,10 @@ def test_an_overlap_with_other_bands_is_refused_before_the_view_angle_pass(files
                                                         "-o", output)])
     assert result.exit_code == 2, result.output
     assert f"{three} has 3 bands, {files['image']} has 4" in result.stderr.splitlines()[-1]
+    assert passes == [] and not output.exists()
+    # The line itself as the other line (a typo): its overlap would agree to 0.00 %.
+    result = CliRunner().invoke(main, [str(a) for a in ("assess", *_common(files), "--overlap", files["image"],
+                                                        files["after"], "-o", output)])
+    assert result.exit_code == 2, result.output
+    assert "is the assessed image itself" in result.stderr.splitlines()[-1]
     assert passes == [] and not output.exists()
