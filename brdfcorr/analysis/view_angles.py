@@ -321,6 +321,9 @@ def _statistics(sums: _Sums, ids: np.ndarray, edges: np.ndarray, cube: xr.DataAr
         "profile": (("stage", "band", "class", "vza_bin"), _divide(sums.bin_r[..., keep], bin_n),
                     {"long_name": "mean reflectance per bin of signed view zenith", "units": "1"}),
         "bin_pixels": (("class", "vza_bin"), bin_n.astype(np.int64), {"units": "1"}),
+        "vza_width": (("class",), np.sqrt(12.0 * np.maximum(variance, 0.0)),
+                      {"long_name": "spread of the signed view zenith: sqrt(12) x its standard deviation, "
+                                    "the width of a uniform distribution with that spread", "units": "degree"}),
     }
     positive, negative = _SIGN_WORDS[settings["sign_convention"]]
     attrs = {**{k: v for k, v in settings.items() if v is not None}, "positive_side": positive,
@@ -413,14 +416,15 @@ def view_zenith_ranges(dataset: xr.Dataset) -> np.ndarray:
 
 
 def narrow_range_warning(dataset: xr.Dataset, limit: float = NARROW_RANGE) -> str | None:
-    """One line naming the classes seen over less than ``limit`` [deg] of signed view zenith, whose
-    slopes per 10 deg are extrapolated beyond the angles measured (their 1-sigma is large and
-    their value says little); None otherwise."""
-    ranges = view_zenith_ranges(dataset)
-    narrow = np.flatnonzero(ranges < limit)
+    """One line naming the classes seen over less than ``limit`` [deg] of signed view zenith (the
+    width of a uniform spread with their pixels' standard deviation, ``vza_width``: from the
+    pixels, not the bins, which are ``bin_width`` wide), whose slopes per 10 deg are extrapolated
+    beyond the angles measured (their 1-sigma is large and their value says little); None otherwise."""
+    widths = dataset["vza_width"].values
+    narrow = np.flatnonzero((dataset["pixels"].values > 0) & (widths < limit))
     if narrow.size == 0:
         return None
-    names = ", ".join(f"{dataset['class_name'].values[index]} ({ranges[index]:g} deg)" for index in narrow)
+    names = ", ".join(f"{dataset['class_name'].values[index]} ({widths[index]:.3g} deg)" for index in narrow)
     return (f"seen over less than {limit:g} deg of view zenith: {names}; their slopes per 10 deg extrapolate "
             "beyond the view angles measured: read them with their 1-sigma, or assess a wider swath")
 

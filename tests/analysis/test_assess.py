@@ -343,6 +343,21 @@ def test_a_class_seen_over_a_narrow_view_range_is_named_in_a_warning(geometry, m
     assert "nadir (" in report["errors"]["narrow"] and "wide (" not in report["errors"]["narrow"]
 
 
+def test_the_narrow_range_is_judged_from_the_pixels_not_the_bins(geometry, make_cube):
+    # With bins 10 deg wide a class within 4 deg of nadir spans two bins (20 deg) and was never
+    # named; its pixels' spread, sqrt(12) x the standard deviation of their signed view zenith
+    # (computed here with numpy), is below 10 deg.
+    signed = signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"])
+    classes = np.where(np.abs(signed) < 4.0, 2, 1)
+    cube = make_cube(0.2 + 0.001 * signed, 0.3 + 0.002 * signed)
+    options = ViewAngleOptions(class_names={1: "wide", 2: "nadir"}, bin_width=10.0)
+    with pytest.warns(BrdfcorrWarning, match=r"less than 10 deg of view zenith: nadir \([\d.]+ deg\);"):
+        result = assess_view_angles(cube, cube, classes, geometry["vza"], geometry["vaa"], geometry["saa"],
+                                    options=options)
+    expected = [np.sqrt(12.0) * np.std(signed[classes == class_id]) for class_id in (1, 2)]
+    np.testing.assert_allclose(result["vza_width"].values, expected, rtol=1e-9)
+
+
 @pytest.mark.parametrize("lazy", [False, True])
 def test_the_slope_error_of_a_class_far_from_nadir_with_small_residuals_is_exact(lazy):
     # Signed zeniths 50-55 deg, reflectance 0.5 with noise 1e-5: from uncentred block sums the
