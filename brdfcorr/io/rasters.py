@@ -3,7 +3,7 @@
 Readers open lazily (dask chunks), with nodata as NaN for reflectance and the class map kept as
 integers with its nodata value; the image's stored values are scaled to reflectance factors (the
 file's GDAL scale/offset, or given ones; :func:`brdfcorr.io.scale_check.check_reflectance_scale`
-catches raw counts) and
+catches raw counts, :func:`refuse_fill` an undeclared fill value as the chunks are computed) and
 its band centres found by :func:`brdfcorr.io.wavelengths.band_wavelengths`. Angles:
 :mod:`brdfcorr.io.angles`; the grid check: :mod:`brdfcorr.io.grid`; a whole scene:
 :func:`brdfcorr.io.scene.open_scene`; writing: :mod:`brdfcorr.io.writer`. An image identified once
@@ -17,6 +17,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+import dask.array
 import numpy as np
 import xarray as xr
 
@@ -40,7 +41,6 @@ from brdfcorr.io.product import (  # the identification and sizes, importable fr
     image_layout,
     peak_memory_terms,
 )
-from brdfcorr.io.scale_check import refuse_fill
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths, envi_fwhm
 from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, write_rasters
@@ -64,9 +64,18 @@ __all__ = [
     "write_rasters",
     "GeoTiffOutput",
     "DEFAULT_CHUNK",
+    "FILL_FLOOR",
+    "refuse_fill",
 ]
 
 
+
+
+#: Lowest reflectance factor [1] taken as a measurement (:func:`refuse_fill`). No surface reflects
+#: less than nothing; atmospheric-correction noise over dark water and shade, and Sentinel-2's
+#: -0.1 offset (baseline 04.00), stay well above. Below lie fill values nobody declared: -9999
+#: as a float, or as counts x 0.0001 (-0.9999), -32768, -1e20.
+FILL_FLOOR = -0.5
 
 
 def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *, scale: float | None = None,
@@ -109,8 +118,7 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
         float32 (float64 for a float64 file), with attrs ``brdf_input_scale`` and
         ``brdf_input_offset``: the scale and offset applied (a float, or a tuple of one per band
         where the bands differ). Each chunk, as it is computed, raises :class:`InputError` for
-        values below :data:`~brdfcorr.io.scale_check.FILL_FLOOR` (an undeclared nodata value:
-        :func:`~brdfcorr.io.scale_check.refuse_fill`).
+        values below :data:`FILL_FLOOR` (an undeclared nodata value: :func:`refuse_fill`).
     """
     identified = path if isinstance(path, ImageFile) else None
     path = path if identified is None else identified.path
@@ -137,6 +145,44 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
             fwhm=(image.dims[0], fwhm, {"units": "nm"}))
     image.name = image.name or "reflectance"
     return refuse_fill(image, f"image {path}")
+
+
+def refuse_fill(image: xr.DataArray, where: str | None = None) -> xr.DataArray:
+    """``image`` (reflectance factors [1]) with an :class:`InputError` for values below
+    :data:`FILL_FLOOR`: an undeclared nodata value, which a correction would multiply into another
+    number (-9999 into -11 235) and a fit or an assessment would take as a dark pixel.
+
+    A numpy array is checked at once; a dask array lazily, each chunk as it is computed (no pass
+    or read of its own: it costs a minimum per chunk of the pass that reads it anyway). ``where``
+    names the image in the message (default: its file).
+    """
+    where = where or image.encoding.get("label") or image.encoding.get("source", "image")
+    if not isinstance(image.data, dask.array.Array):
+        _refuse_below_floor(np.asarray(image.data), where=where, attrs=image.attrs)
+        return image
+    checked = image.data.map_blocks(_refuse_below_floor, where=where, attrs=dict(image.attrs),
+                                    dtype=image.dtype, meta=image.data._meta)
+    return image.copy(data=checked)
+
+
+def _refuse_below_floor(block: np.ndarray, *, where: str, attrs) -> np.ndarray:
+    """A chunk of :func:`refuse_fill`, unchanged, or its :class:`InputError`."""
+    if block.dtype.kind != "f" or not block.size:
+        return block
+    with np.errstate(invalid="ignore"):
+        low = np.isfinite(block) & (block < FILL_FLOOR)  # +-inf is nodata (docs/conventions.md)
+    if not low.any():
+        return block
+    values, counts = np.unique(block[low], return_counts=True)
+    common = float(values[np.argmax(counts)])
+    scale, offset = attrs.get("brdf_input_scale", 1.0), attrs.get("brdf_input_offset", 0.0)
+    stored = f"{(common - offset) / scale:.6g}" if isinstance(scale, float) and isinstance(offset, float) else "VALUE"
+    raise InputError(
+        f"{where}: {int(low.sum())} values of a chunk lie below {FILL_FLOOR}, which no reflectance factor "
+        f"does (most often {common:.6g}, scale {scale} and offset {offset} applied): a nodata value the "
+        f"file does not declare? Declare it, e.g. in a VRT beside the image (gdal_translate -of VRT "
+        f"-a_nodata {stored} IMAGE IMAGE.vrt) or as an ENVI header's 'data ignore value', and read that"
+    )
 
 
 def _check_given_scaling(path, scale: float | None, offset: float | None) -> None:

@@ -8,8 +8,8 @@ judged before a pass over it.
 - :func:`check_reflectance_scale`: raw counts read without their scale, reflectance x 10 000 stored
   as floats, or a scale tag that is a divisor, caught from a few chunks, before a correction, a fit
   or strata spend a pass on numbers that are no reflectance;
-- :func:`refuse_fill`: values below :data:`FILL_FLOOR` (an undeclared nodata value such as -9999),
-  refused chunk by chunk as the image is computed, in every pass that reads it.
+- :func:`reflectance_factors` refuses values below the reader's floor as it does
+  (:func:`brdfcorr.io.rasters.refuse_fill`: an undeclared nodata value such as -9999).
 """
 
 from __future__ import annotations
@@ -27,20 +27,14 @@ from brdfcorr._entry import option
 from brdfcorr.errors import InputError
 from brdfcorr.io.opening import reading
 from brdfcorr.io.product import MIN_GDAL_CACHE, bounded_gdal_cache
+from brdfcorr.io.rasters import refuse_fill
 from brdfcorr.io.writer import DEFAULT_CHUNK, pass_threads
 
 __all__ = ["check_reflectance_scale", "checked_factors", "SAMPLE_SIZE", "reflectance_factors", "unpacked",
-           "carries_scale", "refuse_fill", "FILL_FLOOR"]
+           "carries_scale"]
 
 #: Valid values of the image that :func:`check_reflectance_scale` judges by (at most, per chunk read).
 SAMPLE_SIZE = 20_000
-
-#: Lowest reflectance factor [1] taken as a measurement (:func:`refuse_fill`). No surface reflects
-#: less than nothing; atmospheric-correction noise over dark water and shade, and Sentinel-2's
-#: -0.1 offset (baseline 04.00), stay well above. Below lie fill values nobody declared: -9999
-#: as a float, or as counts x 0.0001 (-0.9999), -32768, -1e20.
-FILL_FLOOR = -0.5
-
 
 def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, limit: float = 2.0,
                             blocks: int = 3, scheduler: str | None = None,
@@ -108,44 +102,6 @@ def _checked_block(block: np.ndarray, *, limit: float, where: str, attrs) -> np.
     if sample.size:
         _judge(float(np.percentile(sample, 99)), limit, where, attrs)
     return block
-
-
-def refuse_fill(image: xr.DataArray, where: str | None = None) -> xr.DataArray:
-    """``image`` (reflectance factors [1]) with an :class:`InputError` for values below
-    :data:`FILL_FLOOR`: an undeclared nodata value, which a correction would multiply into another
-    number (-9999 into -11 235) and a fit or an assessment would take as a dark pixel.
-
-    A numpy array is checked at once; a dask array lazily, each chunk as it is computed (no pass
-    or read of its own: it costs a minimum per chunk of the pass that reads it anyway). ``where``
-    names the image in the message (default: its file).
-    """
-    where = where or image.encoding.get("label") or image.encoding.get("source", "image")
-    if not isinstance(image.data, dask.array.Array):
-        _refuse_below_floor(np.asarray(image.data), where=where, attrs=image.attrs)
-        return image
-    checked = image.data.map_blocks(_refuse_below_floor, where=where, attrs=dict(image.attrs),
-                                    dtype=image.dtype, meta=image.data._meta)
-    return image.copy(data=checked)
-
-
-def _refuse_below_floor(block: np.ndarray, *, where: str, attrs) -> np.ndarray:
-    """A chunk of :func:`refuse_fill`, unchanged, or its :class:`InputError`."""
-    if block.dtype.kind != "f" or not block.size:
-        return block
-    with np.errstate(invalid="ignore"):
-        low = np.isfinite(block) & (block < FILL_FLOOR)  # +-inf is nodata (docs/conventions.md)
-    if not low.any():
-        return block
-    values, counts = np.unique(block[low], return_counts=True)
-    common = float(values[np.argmax(counts)])
-    scale, offset = attrs.get("brdf_input_scale", 1.0), attrs.get("brdf_input_offset", 0.0)
-    stored = f"{(common - offset) / scale:.6g}" if isinstance(scale, float) and isinstance(offset, float) else "VALUE"
-    raise InputError(
-        f"{where}: {int(low.sum())} values of a chunk lie below {FILL_FLOOR}, which no reflectance factor "
-        f"does (most often {common:.6g}, scale {scale} and offset {offset} applied): a nodata value the "
-        f"file does not declare? Declare it, e.g. in a VRT beside the image (gdal_translate -of VRT "
-        f"-a_nodata {stored} IMAGE IMAGE.vrt) or as an ENVI header's 'data ignore value', and read that"
-    )
 
 
 def _judge(percentile: float, limit: float, where: str, attrs) -> None:
@@ -234,7 +190,8 @@ def reflectance_factors(reflectance: xr.DataArray, *, unscaled_counts: bool = Fa
     above 1 is an :class:`InputError` too: a divisor (the MODIS HDF convention, reflectance =
     counts / 10000) where xarray and GDAL multiply. Floats are taken as they are, their declared
     nodata (rioxarray's, or a ``_FillValue`` attribute) as NaN; reflectance factors below
-    :data:`FILL_FLOOR` are an :class:`InputError` (:func:`refuse_fill`). Floats that still carry a
+    :data:`~brdfcorr.io.rasters.FILL_FLOOR` are an :class:`InputError`
+    (:func:`~brdfcorr.io.rasters.refuse_fill`). Floats that still carry a
     ``scale_factor`` or ``add_offset`` attribute are packed values (as
     ``rioxarray.open_rasterio(path, masked=True)`` reads them) and an :class:`InputError`: neither
     reading is safe to guess.
