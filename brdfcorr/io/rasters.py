@@ -69,8 +69,6 @@ __all__ = [
 ]
 
 
-
-
 #: Lowest reflectance factor [1] taken as a measurement (:func:`refuse_fill`). No surface reflects
 #: less than nothing; atmospheric-correction noise over dark water and shade, and Sentinel-2's
 #: -0.1 offset (baseline 04.00), stay well above. Below lie fill values nobody declared: -9999

@@ -36,6 +36,7 @@ __all__ = ["check_reflectance_scale", "checked_factors", "SAMPLE_SIZE", "reflect
 #: Valid values of the image that :func:`check_reflectance_scale` judges by (at most, per chunk read).
 SAMPLE_SIZE = 20_000
 
+
 def check_reflectance_scale(image: xr.DataArray, source: str | None = None, *, limit: float = 2.0,
                             blocks: int = 3, scheduler: str | None = None,
                             num_workers: int | None = None) -> float | None:

@@ -33,6 +33,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
+from xml.etree import ElementTree
 
 import dask
 import dask.threaded
@@ -58,9 +59,9 @@ from brdfcorr.io.paths import (  # path checks and names, importable here too
     envi_sidecars,
 )
 
-__all__ = ["write_rasters", "writing", "encode_integers", "pass_threads", "default_threads", "GeoTiffOutput",
-           "EnviOutput", "check_format", "envi_header_path", "envi_sidecars", "check_envi_georeference",
-           "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
+__all__ = ["write_rasters", "writing", "encode_integers", "pass_threads", "default_threads", "wavelength_text",
+           "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path", "envi_sidecars",
+           "check_envi_georeference", "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
@@ -354,7 +355,7 @@ def _checked(rasters: Mapping, geotiff: GeoTiffOutput, envi: Mapping | None) -> 
 def _commit(targets: list[Target], tags, commit_tags) -> None:
     """Verify and flush every target, then rename them into place, the first (with the commit tags) last."""
     for index, target in enumerate(targets):
-        verify(target, _file_tags(tags, commit_tags, index), written_files(targets))
+        verify(target, _file_tags(tags, commit_tags, index, target), written_files(targets))
         for path in target.kept():
             if path.exists():
                 sync_file(path)
@@ -377,9 +378,18 @@ def _problem(error: BaseException, rasters: list, failures: GdalLog, targets: li
     return None
 
 
-def _file_tags(tags, commit_tags, index: int) -> dict:
-    """The tags of the ``index``-th target: ``tags``, and ``commit_tags`` on the first only."""
-    return {**(tags or {}), **((commit_tags or {}) if index == 0 else {})}
+#: Tags an ENVI output's header holds (its ``wavelength`` and ``wavelength units`` fields), not
+#: written again into its ``.aux.xml``, whose tags GDAL and brdfcorr would read over the header.
+ENVI_HEADER_TAGS = ("wavelength", "wavelength_units")
+
+
+def _file_tags(tags, commit_tags, index: int, target: Target) -> dict:
+    """The tags of the ``index``-th target: ``tags``, and ``commit_tags`` on the first only; for an
+    ENVI output, less those its header holds (:data:`ENVI_HEADER_TAGS`)."""
+    found = {**(tags or {}), **((commit_tags or {}) if index == 0 else {})}
+    if isinstance(target.layout, EnviOutput):
+        found = {key: value for key, value in found.items() if key not in ENVI_HEADER_TAGS}
+    return found
 
 
 def _target(final: Path, array: xr.DataArray, layout: EnviOutput | None, cog: bool) -> Target:
@@ -399,8 +409,8 @@ def _stores(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, cl
             options = {"driver": "ENVI", "interleave": target.layout.interleave.upper(), "SUFFIX": "ADD"}
         else:
             options = _write_options(geotiff.compress, geotiff.blocksize, target.array)
-        writes.append(_store(target.array, target.written, options, _file_tags(tags, commit_tags, index), client,
-                             handles))
+        writes.append(_store(target.array, target.written, options, _file_tags(tags, commit_tags, index, target),
+                             client, handles))
     return writes
 
 
@@ -419,6 +429,7 @@ def _finish(targets: list[Target], handles: list, geotiff: GeoTiffOutput) -> Non
             )
         if isinstance(target.layout, EnviOutput):
             _write_envi_header(target.temporary, target.layout, target.final)
+            _header_fields_in_header_only(Path(f"{target.temporary}.aux.xml"))
 
 
 def _cog_options(compress: str) -> dict:
@@ -493,8 +504,15 @@ class _OpenRaster:
                 dataset.close()
 
 
+def wavelength_text(value: float) -> str:
+    """A band centre or width [nm] as written into an output (tags, band descriptions, ENVI
+    headers): the shortest text that reads back as the same number (``1234.5678``, ``480``), where
+    ``:g`` kept 6 digits (1234.57)."""
+    return np.format_float_positional(float(value), trim="-")
+
+
 def _header_list(values: Sequence[float]) -> str:
-    return "{" + ", ".join(f"{float(value):g}" for value in values) + "}"
+    return "{" + ", ".join(wavelength_text(value) for value in values) + "}"
 
 
 def _write_envi_header(path: Path, layout: EnviOutput, final: Path) -> None:
@@ -518,6 +536,27 @@ def _write_envi_header(path: Path, layout: EnviOutput, final: Path) -> None:
     if written not in text:
         raise OutputError(f"cannot write {final}: GDAL's ENVI header {header} has no description of the file")
     header.write_text(text.replace(written, f"description = {{\nbrdfcorr output {_header_text(final.name)}}}\n", 1))
+
+
+def _header_fields_in_header_only(aux: Path) -> None:
+    """Remove from an ENVI output's ``.aux.xml`` the copies GDAL keeps there of what its header
+    holds: the ENVI metadata domain (every header field, the ``description`` with the temporary
+    file's name) and each band's nodata (``data ignore value``). GDAL reads the ``.aux.xml`` over
+    the header, so a header edited later (its ``wavelength``, its ``data ignore value``) was not
+    what GDAL and brdfcorr read. The provenance tags and the band descriptions stay (without
+    them GDAL would describe each band by its name and wavelength, ``480 nm (480 Nanometers)``)."""
+    if not aux.is_file():
+        return
+    tree = ElementTree.parse(aux)
+    root = tree.getroot()
+    for element in root.findall("Metadata[@domain='ENVI']"):
+        root.remove(element)
+    for band in root.findall("PAMRasterBand"):
+        for element in band.findall("NoDataValue"):
+            band.remove(element)
+        if not len(band):
+            root.remove(band)
+    tree.write(aux, encoding="unicode")
 
 
 def _header_text(text: str) -> str:

@@ -385,7 +385,7 @@ def _scene_tags(scene: SceneData, class_lookup) -> dict[str, str]:
     if class_map_note:
         tags["brdf_class_map"] = class_map_note
     if "wavelength" in scene.reflectance.coords:
-        tags["wavelength"] = ",".join(f"{w:g}" for w in scene.reflectance["wavelength"].values)
+        tags["wavelength"] = ",".join(map(writer.wavelength_text, scene.reflectance["wavelength"].values))
         tags["wavelength_units"] = "nm"
     sun = _centre_sun(scene.angles)
     if sun is not None:
@@ -449,7 +449,7 @@ def _band_descriptions(reflectance: xr.DataArray) -> tuple[str, ...]:
     if isinstance(described, (tuple, list)) and len(described) == n_bands and all(described):
         return tuple(str(text) for text in described)
     if "wavelength" in reflectance.coords:
-        return tuple(f"{wavelength:g} nm" for wavelength in reflectance["wavelength"].values)
+        return tuple(f"{writer.wavelength_text(wavelength)} nm" for wavelength in reflectance["wavelength"].values)
     return tuple(f"band {number}" for number in range(1, n_bands + 1))
 
 

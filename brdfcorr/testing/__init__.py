@@ -22,6 +22,7 @@ import xarray as xr
 import yaml
 
 from brdfcorr.geometry import relative_azimuth
+from brdfcorr.io.writer import wavelength_text
 from brdfcorr.params import ParameterTable
 from brdfcorr.testing import products, series, small_scenes
 from brdfcorr.testing.products import *  # noqa: F403 (the product writers, re-exported)
@@ -135,7 +136,7 @@ def synthetic_scene(ny: int = 24, nx: int = 32, wavelengths=(480.0, 560.0, 660.0
     reflectance = xr.DataArray(
         cube, dims=("band", "y", "x"), name="reflectance",
         coords={"band": band, "wavelength": ("band", np.asarray(wavelengths, float))},
-        attrs={"units": "1", "long_name": tuple(f"{w:g} nm" for w in wavelengths)},
+        attrs={"units": "1", "long_name": tuple(f"{wavelength_text(w)} nm" for w in wavelengths)},
     )
     scene = {"reflectance": georeference(reflectance)}
     scene["classes"] = georeference(xr.DataArray(classes, dims=("y", "x"), name="classes"))

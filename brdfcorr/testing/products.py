@@ -14,6 +14,7 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr.io.sensors.envi import acquisition_time
+from brdfcorr.io.writer import wavelength_text
 
 __all__ = [
     "write_mtd_tl",
@@ -339,8 +340,8 @@ def write_envi_line(directory: str | os.PathLike, scene: xr.Dataset, name: str =
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     wavelength = scene["wavelength"].values
-    spectral = {"wavelength": "{" + ", ".join(f"{value:g}" for value in wavelength) + "}",
-                "fwhm": "{" + ", ".join(f"{fwhm:g}" for _ in wavelength) + "}",
+    spectral = {"wavelength": "{" + ", ".join(map(wavelength_text, wavelength)) + "}",
+                "fwhm": "{" + ", ".join(wavelength_text(fwhm) for _ in wavelength) + "}",
                 "wavelength_units": "Nanometers"}
     time = acquisition_time(name)
     hours = time.hour + time.minute / 60 + time.second / 3600

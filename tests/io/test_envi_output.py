@@ -146,3 +146,35 @@ def test_envi_input_header_is_not_copied_into_geotiff_tags(files, tmp_path):
     result = _correct(files, tmp_path / "out.bsq", "--format", "ENVI", image=image)
     assert result.exit_code == 0, result.output
     assert _numbers(_header(tmp_path / "out.hdr")["fwhm"]) == [10.0] * 4
+
+
+PRECISE = [452.3456789, 560.25, 660.125, 831.45678]  # band centres :g wrote as 452.346, ..., 831.457
+
+
+@pytest.mark.parametrize("name, extra", [("out.tif", []), ("out.img", ["--format", "ENVI"])])
+def test_band_centres_read_back_exactly_from_either_format(tmp_path, write_example_scene, name, extra):
+    files = write_example_scene(tmp_path / "scene", synthetic_scene(ny=16, nx=16, wavelengths=PRECISE))
+    output = tmp_path / name
+    result = _correct(files, output, *extra)
+    assert result.exit_code == 0, result.output
+    np.testing.assert_array_equal(open_image(output)["wavelength"].values, PRECISE)
+    with rasterio.open(output) as written:
+        assert [float(text.split()[0]) for text in written.descriptions] == PRECISE
+
+
+def test_an_envi_output_s_header_is_the_one_place_of_its_fields(files, tmp_path):
+    # GDAL reads an .aux.xml over the header: the copy it kept there (every header field, the
+    # temporary file's name, the wavelengths among the tags) outlived a later edit of the header.
+    output = tmp_path / "out.img"
+    result = _correct(files, output, "--format", "ENVI")
+    assert result.exit_code == 0, result.output
+    aux = (tmp_path / "out.img.aux.xml").read_text()
+    assert 'domain="ENVI"' not in aux and ".partial" not in aux and 'key="wavelength' not in aux
+    header = tmp_path / "out.hdr"
+    text = header.read_text()
+    assert "wavelength = {480, 560, 660, 830}" in text and "data ignore value = nan" in text
+    header.write_text(text.replace("wavelength = {480, 560, 660, 830}", "wavelength = {481, 561, 661, 831}")
+                      .replace("data ignore value = nan", "data ignore value = 0"))
+    np.testing.assert_array_equal(open_image(output)["wavelength"].values, [481, 561, 661, 831])
+    with rasterio.open(output) as edited:
+        assert edited.nodata == 0 and edited.tags()["brdf_reference"]  # the provenance stays in the .aux.xml
