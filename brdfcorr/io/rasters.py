@@ -23,7 +23,7 @@ import xarray as xr
 
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.opening import chunk_spec, open_raster
+from brdfcorr.io.opening import chunk_spec, has_envi_header, open_raster
 from brdfcorr.io.product import (  # the identification and sizes, importable from here as they were
     CHUNK_TARGET,
     MAX_GDAL_CACHE,
@@ -41,6 +41,7 @@ from brdfcorr.io.product import (  # the identification and sizes, importable fr
     image_layout,
     peak_memory_terms,
 )
+from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths, envi_fwhm
 from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, write_rasters
@@ -142,37 +143,44 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
         image = image.drop_vars("fwhm") if fwhm is None else image.assign_coords(
             fwhm=(image.dims[0], fwhm, {"units": "nm"}))
     image.name = image.name or "reflectance"
-    return refuse_fill(image, f"image {path}")
+    envi = identified.envi_header if identified is not None else has_envi_header(path)
+    return refuse_fill(image, f"image {path}", envi_bad_bands(path) if envi else None)
 
 
-def refuse_fill(image: xr.DataArray, where: str | None = None) -> xr.DataArray:
-    """``image`` (reflectance factors [1]) with an :class:`InputError` for values below
+def refuse_fill(image: xr.DataArray, where: str | None = None, bad_bands=None) -> xr.DataArray:
+    """``image`` (reflectance factors [1], band first) with an :class:`InputError` for values below
     :data:`FILL_FLOOR`: an undeclared nodata value, which a correction would multiply into another
-    number (-9999 into -11 235) and a fit or an assessment would take as a dark pixel.
+    number (-9999 into -11 235) and a fit or an assessment would take as a dark pixel. Bands
+    marked bad (``bad_bands``, one bool per band: an ENVI header's ``bbl``, whose values are
+    passed through as they are) are not judged.
 
     A numpy array is checked at once; a dask array lazily, each chunk as it is computed (no pass
     or read of its own: it costs a minimum per chunk of the pass that reads it anyway). ``where``
     names the image in the message (default: its file).
     """
     where = where or image.encoding.get("label") or image.encoding.get("source", "image")
+    judged = np.ones(image.shape[0], bool) if bad_bands is None else ~np.asarray(bad_bands, bool)
     if not isinstance(image.data, dask.array.Array):
-        _refuse_below_floor(np.asarray(image.data), where=where, attrs=image.attrs)
+        _refuse_below_floor(np.asarray(image.data), where=where, attrs=image.attrs, judged=judged)
         return image
-    checked = image.data.map_blocks(_refuse_below_floor, where=where, attrs=dict(image.attrs),
+    checked = image.data.map_blocks(_refuse_below_floor, where=where, attrs=dict(image.attrs), judged=judged,
                                     dtype=image.dtype, meta=image.data._meta)
     return image.copy(data=checked)
 
 
-def _refuse_below_floor(block: np.ndarray, *, where: str, attrs) -> np.ndarray:
-    """A chunk of :func:`refuse_fill`, unchanged, or its :class:`InputError`."""
+def _refuse_below_floor(block: np.ndarray, *, where: str, attrs, judged: np.ndarray, block_info=None) -> np.ndarray:
+    """A chunk of :func:`refuse_fill`, unchanged, or its :class:`InputError` (``judged``: which
+    bands of the image are judged; ``block_info``: where the chunk lies, from dask)."""
     if block.dtype.kind != "f" or not block.size:
         return block
+    first, last = (0, block.shape[0]) if block_info is None else block_info[0]["array-location"][0]
+    values = block[judged[first:last]]
     with np.errstate(invalid="ignore"):
-        low = np.isfinite(block) & (block < FILL_FLOOR)  # +-inf is nodata (docs/conventions.md)
+        low = np.isfinite(values) & (values < FILL_FLOOR)  # +-inf is nodata (docs/conventions.md)
     if not low.any():
         return block
-    values, counts = np.unique(block[low], return_counts=True)
-    common = float(values[np.argmax(counts)])
+    found, counts = np.unique(values[low], return_counts=True)
+    common = float(found[np.argmax(counts)])
     scale, offset = attrs.get("brdf_input_scale", 1.0), attrs.get("brdf_input_offset", 0.0)
     stored = f"{(common - offset) / scale:.6g}" if isinstance(scale, float) and isinstance(offset, float) else "VALUE"
     raise InputError(

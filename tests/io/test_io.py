@@ -276,6 +276,23 @@ def test_an_image_needing_the_masked_read_keeps_it(tmp_path, kind):
         assert np.isnan(image[:, :4, :4]).all() and np.all(image[:, 4:, 4:] == 0.25)
 
 
+def test_an_undeclared_fill_is_refused_in_the_bands_a_header_does_not_mark_bad(tmp_path):
+    # -9999 in a band the ENVI header's bbl marks bad (passed through as it is, its values not
+    # measurements) is no reason to refuse the image; in a good band it is (test_bad_input.py).
+    from brdfcorr.io import rasters
+
+    data = np.full((3, 32, 32), 0.25, "float32")
+    data[1, :4, :4] = -9999.0
+    path = _write(tmp_path / "image.img", data, driver="ENVI")
+    with rasterio.open(path, "r+") as dataset:
+        dataset.update_tags(ns="ENVI", bbl="{1, 0, 1}")
+    assert np.nanmin(rasters.open_image(path, chunks=16).values) == -9999.0
+    with rasterio.open(path, "r+") as dataset:
+        dataset.update_tags(ns="ENVI", bbl="{1, 1, 1}")
+    with pytest.raises(InputError, match=r"image \S*image\.img: 16 values of a chunk lie below -0\.5"):
+        rasters.open_image(path, chunks=16).values
+
+
 def test_an_image_is_identified_once_and_its_sizes_are_the_path_s(files, tmp_path, monkeypatch):
     """A correction identifies its image once (product kind, layout; issue 42: it was looked up again
     on every call, 4 times with a given chunk size): the chunk and cache sizes of the identified file
