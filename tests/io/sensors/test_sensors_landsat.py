@@ -48,6 +48,20 @@ def test_parse_ang_txt(ang):
     assert ang["RPC_BAND01"]["BAND01_MEAN_SUN_VECTOR"] == (0.575875962, 0.266812065, 0.772673253)
 
 
+def test_sample_times_given_as_offsets_from_the_epoch_give_the_same_scene_time(ang):
+    # USGS's reader of the format reads SAMPLE_TIME as offsets from SOLAR_EPOCH_SECONDS; read as
+    # seconds of the day they put the scene at 00:00:14 UTC (the sun's azimuth 185 deg off).
+    import copy
+
+    offsets = copy.deepcopy(ang)
+    epoch = offsets["SOLAR_VECTOR"]["SOLAR_EPOCH_SECONDS"]
+    offsets["SOLAR_VECTOR"]["SAMPLE_TIME"] = tuple(t - epoch for t in ang["SOLAR_VECTOR"]["SAMPLE_TIME"])
+    assert ang_scene_time(offsets) == ang_scene_time(ang)
+    offsets["SOLAR_VECTOR"]["SAMPLE_TIME"] = tuple(t + 7200.0 for t in ang["SOLAR_VECTOR"]["SAMPLE_TIME"])
+    with pytest.raises(SensorInputError, match="neither seconds of the day near SOLAR_EPOCH_SECONDS"):
+        ang_scene_time(offsets)
+
+
 def test_scene_time_and_mean_sun_vector_against_pvlib(ang):
     time = ang_scene_time(ang)
     assert time.isoformat() == "2011-03-06T13:35:47+00:00"  # 2011 day 065, mean of 48933..48961 s
