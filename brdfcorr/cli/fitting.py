@@ -299,7 +299,7 @@ def fit_command(measurements, model_name, fix, initial, bounds, min_phi, max_phi
         check_outputs({"-o": output, **{f"--plot-dir file {path}": path for path in figures.values()}},
                       {"MEASUREMENTS": measurements})
     for band, choice in fit.choices.items():
-        click.echo(("" if band is None else f"{band:g} nm: ") + choice.table())
+        click.echo(("" if band is None else f"{band:.10g} nm: ") + choice.table())
     _echo_measurement_fit(fit, name)
     table = table if table is not None else ParameterTable()
     class_id = max(table.class_ids, default=0) + 1 if class_id is None else class_id
@@ -323,7 +323,7 @@ def _echo_measurement_fit(fit, name: str) -> None:
     rows = []
     for band, result in fit.results.items():
         subset = fit.fitted if band is None else fit.fitted.at_wavelength(band)
-        label = {"sample": name} if band is None else {"sample": name, "λ [nm]": f"{band:g}"}
+        label = {"sample": name} if band is None else {"sample": name, "λ [nm]": f"{band:.10g}"}
         rows.append({**label, "N": str(len(subset)), **result.summary()})
     data = fit.fitted
     weights = "weighted by sigma" if data.sigma is not None else "unweighted (no sigma column)"
@@ -358,7 +358,7 @@ def _measurement_plot_files(fit, name: str, plot_dir: Path) -> dict[tuple, Path]
     model choice's where ``--model auto`` chose one."""
     kinds = {band: ("principal_plane", "azimuth", *(("model_choice",) if band in fit.choices else ()))
              for band in fit.results}
-    return {(band, kind): plot_dir / f"{name if band is None else f'{name}_{band:g}nm'}_{kind}.png"
+    return {(band, kind): plot_dir / f"{name if band is None else f'{name}_{band:.10g}nm'}_{kind}.png"
             for band in fit.results for kind in kinds[band]}
 
 
@@ -377,6 +377,6 @@ def _plot_measurement_fit(fit, name: str, files: dict[tuple, tuple[Path, Path]],
         for suffix, plot in (("principal_plane", plot_principal_plane), ("azimuth", plot_azimuth)):
             _draw_figure(plot(result, fitted, others, yscale=scale), *reversed(files[(band, suffix)]), dpi=120)
         if band in fit.choices:
-            title = name if band is None else f"{name}, {band:g} nm"
+            title = name if band is None else f"{name}, {band:.10g} nm"
             _draw_figure(plot_model_choice(fit.choices[band], title), *reversed(files[(band, "model_choice")]),
                          dpi=120)

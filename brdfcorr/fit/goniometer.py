@@ -594,6 +594,6 @@ def fit_wavelengths(model, measurements: Measurements, **kwargs) -> dict[float, 
             warnings.simplefilter("always", FitWarning)
             results[wavelength] = fit_measurements(model, measurements.at_wavelength(wavelength), **kwargs)
         for warning in caught:
-            warnings.warn(f"{wavelength:g} nm: {warning.message}", warning.category, stacklevel=2)
+            warnings.warn(f"{wavelength:.10g} nm: {warning.message}", warning.category, stacklevel=2)
     return results
 

@@ -18,7 +18,7 @@ theta_r    view (sensor) zenith angle [deg]                       [0, 90)
 phi        relative azimuth [deg], 180 = forward scattering       [0, 180]
 brdf       measured BRDF [sr^-1]                                  finite, >= 0
 sigma      optional 1-sigma error of ``brdf`` [sr^-1]             finite, > 0
-wavelength optional wavelength of the measurement [nm]            finite, > 0
+wavelength optional wavelength of the measurement [nm]            finite, >= 100
 =========  =====================================================  ==============================
 
 A table with a ``wavelength`` column holds several spectral bands of the same geometries (the EGO
@@ -65,6 +65,9 @@ __all__ = [
 
 REQUIRED_COLUMNS = ("theta_i", "theta_r", "phi", "brdf")
 OPTIONAL_COLUMNS = ("sigma", "wavelength")
+#: Shortest wavelength [nm] a measurement table may hold: below lie micrometres (0.4-2.5), not the
+#: optical remote-sensing range.
+MIN_WAVELENGTH = 100.0
 
 #: How many offending rows an error message lists before it says "and N more".
 _MAX_LISTED = 5
@@ -130,11 +133,16 @@ class Measurements:
         if self.wavelength is not None:
             wavelength = np.broadcast_to(np.asarray(self.wavelength, dtype=float), self.brdf.shape)
             invalid = ~(np.isfinite(wavelength) & (wavelength > 0))
+            labels = labels or [f"index {index}" for index in range(wavelength.size)]
             if invalid.any():
-                labels = labels or [f"index {index}" for index in range(wavelength.size)]
                 raise MeasurementError(
                     f"{self.source}: wavelength not finite and positive at {_list_rows(labels, invalid)}"
                 )
+            short = wavelength < MIN_WAVELENGTH  # a column in micrometres, or part of one
+            if short.any():
+                raise MeasurementError(
+                    f"{self.source}: wavelength below {MIN_WAVELENGTH:g} nm at {_list_rows(labels, short)} "
+                    f"(e.g. {wavelength.min():g}): micrometres? Wavelengths are in nm (x 1000)")
             object.__setattr__(self, "wavelength", wavelength.copy())
 
     @property
@@ -241,7 +249,20 @@ def check_measurements(
     problems = [problem for name, array in values.items() for problem in _column_problems(name, array, labels)]
     if problems:
         raise MeasurementError(f"{source}: " + "; ".join(problems))
+    _refuse_radians(values, source)
     return tuple(values.get(name) for name in ("theta_i", "theta_r", "phi", "brdf", "sigma"))
+
+
+def _refuse_radians(values: dict[str, np.ndarray], source: str) -> None:
+    """Refuse angles that can only be radians: every zenith below 1.6 (pi/2) and the relative
+    azimuths reaching beyond 1 but not beyond 3.15 (pi). In degrees that would be a goniometer
+    that never left the zenith by 1.6 deg and turned by at most 3.2 deg; read so, a fit in radians
+    gave parameters far off (w 0.77 deg^-1 for 0.037) with only an identifiability warning."""
+    zeniths = np.concatenate([values["theta_i"], values["theta_r"]])
+    if zeniths.max() < 1.6 and 1.0 < values["phi"].max() <= 3.15:
+        raise MeasurementError(
+            f"{source}: the angles look like radians (theta_i, theta_r up to {zeniths.max():.3g}, phi up to "
+            f"{values['phi'].max():.3g}); brdfcorr needs degrees (numpy.degrees converts them)")
 
 
 def _column_problems(name: str, array: np.ndarray, labels) -> list[str]:

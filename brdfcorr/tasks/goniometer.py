@@ -168,6 +168,6 @@ def fit_measurement_file(
             results[band] = fit_measurements(model, subset, **options)
         if progress is not None:
             progress(model)
-        where = "" if band is None or len(bands) == 1 else f"{band:g} nm: "
+        where = "" if band is None or len(bands) == 1 else f"{band:.10g} nm: "
         notes += [f"{where}{w.message}" for w in caught if issubclass(w.category, FitWarning)]
     return MeasurementFit(Path(path), everything, fitted, keep, selection, results, notes, choices)

@@ -192,6 +192,29 @@ def test_wavelength_column(tmp_path):
         read_measurements(write(tmp_path, HEADER + "30,0,180,0.02,0.001\n")).at_wavelength(550)
 
 
+def test_wavelengths_in_micrometres_are_refused(tmp_path):
+    # 0.65 (a micrometre typed into a nanometre column) made a fit "at 0.65 nm" and a table from
+    # 0.65 to 550 nm without a word.
+    with pytest.raises(MeasurementError, match=r"wavelength below 100 nm at line 3 \(e\.g\. 0\.65\): micrometres\?"):
+        read_measurements(write(tmp_path, HEADER.strip() + ",wavelength\n30,0,180,0.02,0.001,550\n"
+                                "30,0,180,0.03,0.001,0.65\n"))
+
+
+def test_angles_in_radians_are_refused_from_files_and_arrays(tmp_path):
+    # Read as degrees, a table in radians fitted w = 0.77 deg^-1 (for 0.037) with only a warning.
+    truth = load_material("roof_tile")
+    data = synthesize_measurements(truth.model, truth.params, *goniometer_angles(), relative_noise=0.03, seed=0)
+    radians = [np.radians(values) for values in (data.theta_i, data.theta_r, data.phi)]
+    with pytest.raises(MeasurementError, match=r"the angles look like radians \(theta_i, theta_r up to 1\.\d+, phi up to "
+                                               r"3\.14\); brdfcorr needs degrees"):
+        Measurements(*radians, data.brdf, data.sigma)
+    rows = "".join(f"{ti:.6f},{tr:.6f},{phi:.6f},{f:.6g},{s:.6g}\n"
+                   for ti, tr, phi, f, s in zip(*radians, data.brdf, data.sigma))
+    with pytest.raises(MeasurementError, match="look like radians"):
+        read_measurements(write(tmp_path, HEADER + rows))
+    Measurements([0.0, 0.0], [0.0, 1.0], [0.0, 0.0], [0.1, 0.1])  # near the zenith in degrees: allowed
+
+
 def test_rows_repeated_in_every_column_are_named(tmp_path):
     # A table pasted twice: each row counted twice shrinks the fit's errors by sqrt(2) in silence.
     rows = "30,0,180,0.0262,0.001\n30,5,180,0.0266,0.0011\n"
