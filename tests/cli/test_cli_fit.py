@@ -206,12 +206,12 @@ def test_spectral_table_fits_each_wavelength(tmp_path):
 
 
 def test_wavelengths_a_fraction_of_a_nanometre_apart_keep_their_own_labels_and_figures(tmp_path):
-    # 550 and 550.25 nm (a spectroradiometer's grid) printed as "550" twice and drew their figures
+    # 550 and 550.0001 nm (a spectroradiometer's grid) printed as "550" twice and drew their figures
     # into one file name, the second over the first.
     truth = load_material("blue_concrete")
     angles = goniometer_angles()
     lines = ["theta_i,theta_r,phi,brdf,sigma,wavelength"]
-    for seed, wavelength in enumerate((550.0, 550.25)):
+    for seed, wavelength in enumerate((550.0, 550.0001)):
         part = synthesize_measurements(truth.model, truth.params, *angles, seed=seed, wavelength=wavelength)
         lines += [",".join(f"{value:.10g}" for value in row)
                   for row in zip(part.theta_i, part.theta_r, part.phi, part.brdf, part.sigma, part.wavelength)]
@@ -219,7 +219,7 @@ def test_wavelengths_a_fraction_of_a_nanometre_apart_keep_their_own_labels_and_f
     path.write_text("\n".join(lines) + "\n")
     result = run("fit", path, "--fix", "k=0.25", "--min-phi", "90", "--plot-dir", tmp_path / "figures")
     assert result.exit_code == 0, result.output
-    assert "550.25" in result.output
+    assert "550.0001" in result.output
     figures = sorted(p.name for p in (tmp_path / "figures").iterdir())
-    assert len(figures) == len(set(figures)) and any("550.25nm" in name for name in figures)
-    assert len([name for name in figures if "550nm" in name]) == len([name for name in figures if "550.25nm" in name])
+    assert len(figures) == len(set(figures)) and any("550.0001nm" in name for name in figures)
+    assert len([name for name in figures if "550nm" in name]) == len([name for name in figures if "550.0001nm" in name])
