@@ -56,12 +56,15 @@ class _ClassMaterial(click.ParamType):
 
 
 def _show_warnings(caught: list[warnings.WarningMessage]) -> None:
-    """brdfcorr's own warnings as ``brdfcorr: warning:`` lines; others (--debug) as Python shows them."""
-    for warning in caught:
+    """brdfcorr's own warnings as ``brdfcorr: warning:`` lines; others (--debug) as Python formats
+    them, written to stderr: ``warnings.showwarning`` inside the recording block appended each to
+    ``caught`` again, an endless loop until memory ran out."""
+    for warning in list(caught):
         if issubclass(warning.category, BrdfcorrWarning):
             click.echo(f"brdfcorr: warning: {warning.message}", err=True)
         else:
-            warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
+            click.echo(warnings.formatwarning(warning.message, warning.category, warning.filename, warning.lineno),
+                       err=True, nl=False)
 
 
 def _cluster(address: str | None):

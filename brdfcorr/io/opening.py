@@ -50,14 +50,27 @@ def open_raster(path, role: str, chunks, masked: bool, mask_and_scale: bool = Fa
     damaged = [message for message in messages.messages if "IO error" in message]
     if damaged:
         raise InputError(f"cannot read {role} file {path}: {damaged[0]} (a truncated or damaged file?)")
-    if isinstance(array, list):  # subdatasets: not a plain raster
-        raise InputError(f"{role} file {path} holds several subdatasets; give one raster{hdf5_hint(path)}")
+    if isinstance(array, (list, xr.Dataset)):  # subdatasets (of other shapes, or one): not a plain raster
+        raise InputError(container_message(role, path))
     stored = str(array.encoding.get("rasterio_dtype", array.dtype))
     if array.dtype.kind == "c" or stored.startswith("complex"):
         raise InputError(f"{role} file {path} holds complex values ({stored}); brdfcorr reads real numbers "
                          "(the imaginary part would be lost)")
     array.encoding["source"] = str(path)
     return array
+
+
+def container_message(role: str, path) -> str:
+    """The refusal of a file GDAL opens as a container of subdatasets (NetCDF, HDF) without a band
+    of its own, saying what it may be instead (an EMIT granule other than the L2A reflectance) or
+    what to install to read it (:func:`~brdfcorr.io.sensors.products.hdf5_hint`)."""
+    name = Path(path).name
+    if name.startswith("EMIT_") and not name.startswith("EMIT_L2A_RFL_"):
+        hint = (" (an EMIT granule other than the L2A reflectance: the image is EMIT_L2A_RFL_...nc, the L1B OBS "
+                "granule its --angles with --angles-kind emit)")
+    else:
+        hint = hdf5_hint(path)
+    return f"{role} file {path} holds several subdatasets and no raster band; give one raster{hint}"
 
 
 def _refuse_broken_hdf5(path, role: str) -> None:

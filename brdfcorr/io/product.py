@@ -18,7 +18,7 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 from rasterio.enums import MaskFlags
 
 from brdfcorr.errors import InputError
-from brdfcorr.io.opening import has_envi_header, opened
+from brdfcorr.io.opening import container_message, has_envi_header, opened
 from brdfcorr.io.sensors.products import hdf5_product
 
 __all__ = [
@@ -117,6 +117,8 @@ def identify_image(path) -> ImageFile:
         count = neon.neon_band_count(path) if product == "neon" else emit.emit_band_count(path)
         return ImageFile(path, product, None, count)
     with opened(path, "image") as dataset:
+        if dataset.count == 0:  # a container of subdatasets (NetCDF, HDF): open_raster's refusal, first
+            raise InputError(container_message("image", path))
         rows, columns = dataset.block_shapes[0]
         layout = Layout(dataset.count, dataset.height, dataset.width, rows, columns,
                         np.dtype(dataset.dtypes[0]).itemsize)

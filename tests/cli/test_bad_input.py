@@ -121,6 +121,11 @@ CORRECT_CASES = {
         lambda s: _correct_args(s, image=_counts_with_fill(s), **{"--scale": 0.0001}),
         r"image \S*counts\.tif: 100 values of a chunk lie below -0\.5, .*most often -0\.9999.*"
         r"-a_nodata -9999 IMAGE"),
+    # a NetCDF of subdatasets (GDAL: 0 bands) ended in "internal error: IndexError" (exit 1)
+    "image is an EMIT granule other than L2A RFL": (
+        lambda s: _correct_args(s, image=_netcdf_container(s["dir"] / "EMIT_L1B_OBS_001_20230101T000000_1_001.nc")),
+        r"image file \S*EMIT_L1B_OBS_\S*\.nc holds several subdatasets and no raster band; give one raster "
+        r"\(an EMIT granule other than the L2A reflectance"),
     # corrected again, an output took the factor a second time (exit 0)
     "image is a brdfcorr output": (
         lambda s: _correct_args(s, image=_corrected_once(s)),
@@ -228,6 +233,15 @@ CORRECT_CASES = {
     "output directory missing": (lambda s: _correct_args(s, **{"-o": s["out"] / "sub" / "c.tif"}),
                                  r"output directory \S*sub does not exist"),
 }
+
+
+def _netcdf_container(path: Path) -> Path:
+    """A NetCDF-4 file of two 2-D variables: to GDAL a container of subdatasets, no band of its own."""
+    import xarray as xr
+
+    layers = {name: (("y", "x"), np.zeros((4, 5), "float32")) for name in ("obs", "mask")}
+    xr.Dataset(layers).to_netcdf(path, engine="h5netcdf")
+    return path
 
 
 def _corrected_once(scene) -> Path:

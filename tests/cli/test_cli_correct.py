@@ -212,3 +212,19 @@ def test_dask_process_pool_is_refused_up_front_and_the_local_schedulers_correct(
                                     engine=Engine(chunks=16, scheduler=scheduler))
         correct_files(request)
         assert (tmp_path / f"{scheduler}.tif").is_file()
+
+
+def test_third_party_warnings_shown_with_debug_are_not_recorded_again(capsys):
+    # correct shows --debug's third-party warnings while it still records them: passed to
+    # warnings.showwarning there, each was appended to the list being shown, an endless loop
+    # (a NetCDF image with --debug: killed for memory).
+    import warnings
+
+    from brdfcorr.cli.correct import _show_warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        warnings.warn("a third party's warning", UserWarning)
+        _show_warnings(caught)
+    assert len(caught) == 1
+    assert "UserWarning: a third party's warning" in capsys.readouterr().err

@@ -135,11 +135,11 @@ def _item(ang: dict, group: str, key: str, path="ANG.txt"):
 def ang_scene_time(ang: dict, source: str | Path = "ANG.txt") -> pd.Timestamp:
     """Scene-centre UTC time from an ANG.txt: the middle of the solar-vector sample times.
 
-    The Collection-2 files at hand give the sample times as seconds of the day, starting at
+    The Collection-2 files at hand give the sample times as seconds of the day, the first at
     ``SOLAR_EPOCH_SECONDS``; USGS's own reader of the format calls them offsets from that epoch.
-    Both are read: times within an hour of the epoch are seconds of the day, times within the
-    first hour with the epoch beyond it are offsets from it (read as seconds of the day, they put
-    the sun at midnight: its azimuth ~180 deg off). Other times are an error."""
+    Both are read, by the first sample: at the epoch (within :data:`_SLACK`), seconds of the day;
+    at 0, offsets from the epoch (read as seconds of the day, they put the sun at midnight, its
+    azimuth ~180 deg off). A first sample at neither is an error."""
     year, day = (_samples(ang, "SOLAR_VECTOR", key, source) for key in ("SOLAR_EPOCH_YEAR", "SOLAR_EPOCH_DAY"))
     seconds = _samples(ang, "SOLAR_VECTOR", "SAMPLE_TIME", source)
     if year.size != 1 or day.size != 1 or not 1 <= day[0] <= 366 or not 1900 <= year[0] <= 2200:
@@ -148,18 +148,19 @@ def ang_scene_time(ang: dict, source: str | Path = "ANG.txt") -> pd.Timestamp:
     middle = float(np.mean(seconds))
     if "SOLAR_EPOCH_SECONDS" in ang["SOLAR_VECTOR"]:
         epoch = float(_samples(ang, "SOLAR_VECTOR", "SOLAR_EPOCH_SECONDS", source)[0])
-        if abs(middle - epoch) > _HOUR:
-            if not 0 <= middle < _HOUR:
+        if abs(seconds[0] - epoch) > _SLACK:
+            if abs(seconds[0]) > _SLACK:
                 raise SensorInputError(
-                    f"{source}: SOLAR_VECTOR SAMPLE_TIME (middle {middle:g} s) is neither seconds of the day near "
-                    f"SOLAR_EPOCH_SECONDS ({epoch:g} s) nor offsets from it: the acquisition time is unknown")
+                    f"{source}: SOLAR_VECTOR SAMPLE_TIME starts at {seconds[0]:g} s, neither at SOLAR_EPOCH_SECONDS "
+                    f"({epoch:g} s, seconds of the day) nor at 0 (offsets from it): the acquisition time is unknown")
             middle += epoch  # offsets from the epoch
     return pd.Timestamp(year=int(year[0]), month=1, day=1, tz="UTC") + pd.Timedelta(days=int(day[0]) - 1,
                                                                                      seconds=middle)
 
 
-#: How far [s] an ANG.txt's sample times may lie from its epoch, or from 0 for offsets (:func:`ang_scene_time`).
-_HOUR = 3600.0
+#: How far [s] an ANG.txt's first sample time may lie from its epoch, or from 0 for offsets
+#: (:func:`ang_scene_time`).
+_SLACK = 60.0
 
 
 def vector_angles(east, north, up):

@@ -57,8 +57,11 @@ def test_sample_times_given_as_offsets_from_the_epoch_give_the_same_scene_time(a
     epoch = offsets["SOLAR_VECTOR"]["SOLAR_EPOCH_SECONDS"]
     offsets["SOLAR_VECTOR"]["SAMPLE_TIME"] = tuple(t - epoch for t in ang["SOLAR_VECTOR"]["SAMPLE_TIME"])
     assert ang_scene_time(offsets) == ang_scene_time(ang)
+    # An epoch in the first hour of the day (a pass over eastern Australia): offsets still.
+    offsets["SOLAR_VECTOR"]["SOLAR_EPOCH_SECONDS"] = 1800.0
+    assert ang_scene_time(offsets).isoformat() == "2011-03-06T00:30:14+00:00"
     offsets["SOLAR_VECTOR"]["SAMPLE_TIME"] = tuple(t + 7200.0 for t in ang["SOLAR_VECTOR"]["SAMPLE_TIME"])
-    with pytest.raises(SensorInputError, match="neither seconds of the day near SOLAR_EPOCH_SECONDS"):
+    with pytest.raises(SensorInputError, match="neither at SOLAR_EPOCH_SECONDS"):
         ang_scene_time(offsets)
 
 
