@@ -153,6 +153,9 @@ def open_scene(sources: SceneSources, *, chunks=None,
         from brdfcorr.io.sensors import read_angles
 
         where = f"{sources.angles} ({sources.angles_kind})"
+        if "like" in sources.angle_options:  # read_angles' own argument: the image
+            raise InputError(f"angle option 'like' is no option of angle kind {sources.angles_kind!r}: the angles "
+                             "are put on the image's grid")
         dataset = read_angles(sources.angles_kind, sources.angles, like=reflectance, **sources.angle_options)
         missing = [name for name in ANGLE_NAMES if name not in dataset]
         if missing:

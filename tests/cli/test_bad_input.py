@@ -130,6 +130,13 @@ CORRECT_CASES = {
     "image is a brdfcorr output": (
         lambda s: _correct_args(s, image=_corrected_once(s)),
         r"image \S*once\.tif is a brdfcorr output, normalized already to sza=.*; correct the image it was made from"),
+    # a misspelt --angle-option, or one of the wrong type, was an internal error (exit 1)
+    "angle option misspelt": (
+        lambda s: _correct_args(s, **{"--angles-kind": "envi_obs", "--angle-option": "view_azimut=from_sensor"}),
+        r"angle option 'view_azimut' is no option of angle kind 'envi_obs'; its options: view_azimuth, band_names"),
+    "angle option band_names not a mapping": (
+        lambda s: _correct_args(s, **{"--angles-kind": "envi_obs", "--angle-option": "band_names=solar_zn"}),
+        r"band_names must map layers \(sza, saa, vza, vaa\) to band-name texts"),
     "angles missing": (lambda s: _correct_args(s, **{"--angles": s["dir"] / "nope_angles.tif"}),
                        r"angle file \S*nope_angles\.tif does not exist"),
     "angles not a raster": (lambda s: _correct_args(s, **{"--angles": s["params"]}),

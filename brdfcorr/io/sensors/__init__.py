@@ -184,4 +184,21 @@ def read_angles(kind: str, source, like: xr.DataArray | None = None, **options) 
         # An absolute path, as brdfcorr.io.opening.open_raster opens rasters: the graph's reads may
         # run on dask.distributed workers started elsewhere.
         source = Path(source).absolute()
+    _check_options(kind, reader, options)
     return reader(source, like, **options)
+
+
+def _check_options(kind: str, reader, options) -> None:
+    """Refuse an option the kind's reader does not take (a misspelt key, or ``like``, which is the
+    image), naming those it takes: passed on, it was a TypeError, an internal error."""
+    import inspect
+
+    function = __getattr__(reader.__name__) if reader.__name__ in _MODULES else reader
+    parameters = list(inspect.signature(function).parameters.values())[2:]  # after the source and like
+    if any(parameter.kind == parameter.VAR_KEYWORD for parameter in parameters):
+        return
+    taken = [parameter.name for parameter in parameters]
+    unknown = sorted(set(options) - set(taken))
+    if unknown:
+        raise SensorInputError(f"angle option {unknown[0]!r} is no option of angle kind {kind!r}; its options: "
+                               f"{', '.join(taken) or 'none'}")

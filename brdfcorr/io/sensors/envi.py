@@ -251,6 +251,10 @@ def _some_names(names: tuple, most: int = 6) -> str:
 def wanted_bands(band_names: Mapping[str, str] | None, defaults: Mapping[str, str], what: str) -> dict[str, str]:
     """The band-name prefix of each layer: ``defaults`` with the user's ``band_names`` over them
     (normalized, :func:`_normalize`); a key that is no layer is a :class:`SensorInputError`."""
+    if band_names is not None and not (isinstance(band_names, Mapping)
+                                       and all(isinstance(value, str) for value in band_names.values())):
+        raise SensorInputError(f"band_names must map layers ({', '.join(defaults)}) to band-name texts, "
+                               f"e.g. {{sza: 'To-sun zenith'}}; got {band_names!r}")
     names = {**defaults, **{key: _normalize(value) for key, value in (band_names or {}).items()}}
     unknown = set(names) - set(defaults)
     if unknown:
