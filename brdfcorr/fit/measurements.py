@@ -254,12 +254,14 @@ def check_measurements(
 
 
 def _refuse_radians(values: dict[str, np.ndarray], source: str) -> None:
-    """Refuse angles that can only be radians: every zenith below 1.6 (pi/2) and the relative
-    azimuths reaching beyond 1 but not beyond 3.15 (pi). In degrees that would be a goniometer
-    that never left the zenith by 1.6 deg and turned by at most 3.2 deg; read so, a fit in radians
-    gave parameters far off (w 0.77 deg^-1 for 0.037) with only an identifiability warning."""
+    """Refuse angles that can only be radians: every zenith below 1.6 (pi/2), with the largest
+    beyond 0.2 or the relative azimuths reaching beyond 1 but not beyond 3.15 (pi). In degrees
+    that would be a goniometer that never left the zenith by 1.6 deg; read so, a fit in radians
+    gave parameters far off (w 0.77 deg^-1 for 0.037) with only an identifiability warning. (Zeniths
+    of a few tenths of a degree at most, in the plane of incidence, stay degrees.)"""
     zeniths = np.concatenate([values["theta_i"], values["theta_r"]])
-    if zeniths.max() < 1.6 and 1.0 < values["phi"].max() <= 3.15:
+    highest = zeniths.max()
+    if highest < 1.6 and (highest > 0.2 or 1.0 < values["phi"].max() <= 3.15):
         raise MeasurementError(
             f"{source}: the angles look like radians (theta_i, theta_r up to {zeniths.max():.3g}, phi up to "
             f"{values['phi'].max():.3g}); brdfcorr needs degrees (numpy.degrees converts them)")

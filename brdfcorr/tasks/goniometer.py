@@ -9,6 +9,7 @@ needs scipy's optimizers only, not the raster stack of the imagery fit (:mod:`br
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from collections.abc import Callable, Mapping
@@ -97,17 +98,32 @@ class MeasurementFit:
         ]
 
 
-def _check_candidate_settings(initial: Mapping[str, float] | None,
+def _check_candidate_settings(fixed: Mapping[str, float] | None, initial: Mapping[str, float] | None,
                               bounds: Mapping[str, tuple[float, float]] | None) -> None:
-    """Before the cross-validation of ``"auto"``: every name of ``initial`` and ``bounds`` is a
-    parameter of a candidate model (else a :class:`~brdfcorr.errors.ParameterError`, not one after
-    all the folds' fits); :func:`~brdfcorr.fit.selection.choose_model` checks that it is the same
-    parameter in each candidate that has it."""
-    for what, settings in (("starting value of", initial), ("bound of", bounds)):
+    """Before the cross-validation of ``"auto"``: every name of ``fixed``, ``initial`` and
+    ``bounds`` is a parameter of a candidate model (else a :class:`~brdfcorr.errors.ParameterError`,
+    not one after all the folds' fits: a misspelt ``--fix`` was dropped without a word);
+    :func:`~brdfcorr.fit.selection.choose_model` checks that it is the same parameter in each
+    candidate that has it."""
+    for what, settings in (("fixed value of", fixed), ("starting value of", initial), ("bound of", bounds)):
         for key in dict(settings or {}):
             if not any(key in get_model(name).parameter_names for name in GONIOMETER_CANDIDATES):
                 raise ParameterError(f"the {what} {key} is a parameter of none of the models --model auto tries "
                                      f"({', '.join(GONIOMETER_CANDIDATES)})")
+
+
+def _common_choice(choices: Mapping[float | None, ModelChoice]) -> str:
+    """The model of a table's wavelengths: the one most of them chose; among as many, the one with
+    the lowest held-out error summed over the wavelengths (not the first: a 1-1 tie went to the
+    first wavelength's choice, whatever the other's errors)."""
+    chosen = [choice.chosen for choice in choices.values()]
+    most = max(map(chosen.count, chosen))
+
+    def summed_error(name: str) -> float:
+        errors = [choice.score_of(name).mean_error for choice in choices.values()]
+        return math.fsum(errors) if all(math.isfinite(error) for error in errors) else math.inf
+
+    return min(sorted({name for name in chosen if chosen.count(name) == most}), key=summed_error)
 
 
 def fit_measurement_file(
@@ -126,7 +142,8 @@ def fit_measurement_file(
     model : str
         Registered surface model, or ``"auto"``: the candidate with the lowest held-out error
         (:func:`brdfcorr.fit.selection.choose_model`, each wavelength; where the wavelengths choose
-        differently, the model most of them chose, fitted at every wavelength).
+        differently, the model most of them chose, among as many the one with the lowest summed
+        held-out error, fitted at every wavelength, with a note for each wavelength that chose another).
     fixed, initial, bounds :
         As for :func:`brdfcorr.fit.fit_brdf` (paper 003 fixes k = 0.25); with ``"auto"`` each
         applies to the candidates that have the parameter, in the cross-validation and in the fit
@@ -150,15 +167,17 @@ def fit_measurement_file(
     bands = fitted.wavelengths or [None]
     results, notes, choices = {}, [], {}
     if model == AUTO_MODEL:
-        _check_candidate_settings(initial, bounds)
+        _check_candidate_settings(fixed, initial, bounds)
         with process_pool(workers) as executor:
             for band in bands:
                 subset = fitted if band is None else fitted.at_wavelength(band)
                 choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
                                              fixed=fixed, initial=initial, bounds=bounds, progress=progress,
                                              executor=executor)
-        chosen = [choice.chosen for choice in choices.values()]
-        model = max(chosen, key=chosen.count)  # the first of the most frequent
+        model = _common_choice(choices)
+        notes += [f"{band:.10g} nm: --model auto chose {choice.chosen} here; {model}, the choice over the "
+                  "wavelengths, is fitted at every wavelength" for band, choice in choices.items()
+                  if choice.chosen != model]
         options = {"fixed": fixed_for(model, fixed) or None, "initial": settings_for(model, initial) or None,
                    "bounds": settings_for(model, bounds) or None}
     for band in bands:

@@ -223,3 +223,39 @@ def test_wavelengths_a_fraction_of_a_nanometre_apart_keep_their_own_labels_and_f
     figures = sorted(p.name for p in (tmp_path / "figures").iterdir())
     assert len(figures) == len(set(figures)) and any("550.0001nm" in name for name in figures)
     assert len([name for name in figures if "550nm" in name]) == len([name for name in figures if "550.0001nm" in name])
+
+
+def _two_surfaces_csv(path):
+    """A table of Ross-Thick-Li-Sparse measurements at 550 nm and the roof tile's at 850 nm."""
+    from brdfcorr.models import get_model
+
+    angles = goniometer_angles()
+    tile = load_material("roof_tile")
+    parts = [synthesize_measurements(get_model("ross_thick_li_sparse"), {"f_iso": 0.1, "f_vol": 0.05, "f_geo": 0.02},
+                                     *angles, relative_noise=0.03, seed=0, wavelength=550.0),
+             synthesize_measurements(tile.model, tile.params, *angles, relative_noise=0.03, seed=1, wavelength=850.0)]
+    lines = ["theta_i,theta_r,phi,brdf,sigma,wavelength"]
+    for part in parts:
+        lines += [",".join(f"{value:.10g}" for value in row)
+                  for row in zip(part.theta_i, part.theta_r, part.phi, part.brdf, part.sigma, part.wavelength)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_auto_on_wavelengths_that_choose_differently_says_so_and_breaks_the_tie_by_the_errors(tmp_path):
+    # 550 nm chooses the kernels, 850 nm the Torrance-Sparrow lobe: the 1-1 tie went to the first
+    # wavelength's choice, and the other wavelength was fitted with it without a word. The summed
+    # held-out errors decide now (each table printed gives them), and the other wavelength is named.
+    path = _two_surfaces_csv(tmp_path / "two.csv")
+    result = run("fit", path, "--model", "auto")
+    assert result.exit_code == 0, result.output
+    assert "model torrance_sparrow" in result.output
+    assert "550 nm: --model auto chose ross_thick_li_sparse here; torrance_sparrow, the choice over the " \
+           "wavelengths, is fitted at every wavelength" in result.output + result.stderr
+
+
+def test_auto_refuses_a_fixed_name_no_candidate_has(tmp_path):
+    path = _two_surfaces_csv(tmp_path / "two.csv")
+    result = run("fit", path, "--model", "auto", "--fix", "N=3")
+    assert result.exit_code == 2
+    assert "the fixed value of N is a parameter of none of the models --model auto tries" in result.stderr

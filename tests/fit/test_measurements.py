@@ -212,7 +212,11 @@ def test_angles_in_radians_are_refused_from_files_and_arrays(tmp_path):
                    for ti, tr, phi, f, s in zip(*radians, data.brdf, data.sigma))
     with pytest.raises(MeasurementError, match="look like radians"):
         read_measurements(write(tmp_path, HEADER + rows))
-    Measurements([0.0, 0.0], [0.0, 1.0], [0.0, 0.0], [0.1, 0.1])  # near the zenith in degrees: allowed
+    with pytest.raises(MeasurementError, match="look like radians"):  # zeniths in radians, phi in degrees
+        Measurements(radians[0], radians[1], data.phi, data.brdf, data.sigma)
+    with pytest.raises(MeasurementError, match="look like radians"):  # the backscatter plane only
+        Measurements(radians[0], radians[1], 0.0 * data.phi, data.brdf, data.sigma)
+    Measurements([0.0, 0.0], [0.0, 0.15], [0.0, 0.0], [0.1, 0.1])  # near the zenith in degrees: allowed
 
 
 def test_rows_repeated_in_every_column_are_named(tmp_path):
