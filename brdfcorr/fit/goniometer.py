@@ -45,6 +45,7 @@ from brdfcorr.fit.identifiability import (
     hc3_covariance,
     identifiability_messages,
     jacobian_covariance,
+    other_minima,
     robust_problem,
 )
 from brdfcorr.fit.measurements import Measurements, check_measurements
@@ -398,7 +399,7 @@ def _result(problem: _Problem, sigma, starts: list[np.ndarray], error_analysis: 
     """The :class:`FitResult` of the best solution from ``starts`` (:func:`_best_solution`), with its
     covariance, goodness of fit and warnings (:func:`fit_brdf`)."""
     model, data, free = problem.model, problem.data, problem.free
-    best, n_converged, limit = _best_solution(problem, starts)
+    best, n_converged, limit, solutions = _best_solution(problem, starts)
     values = dict(zip(free, map(float, best.x)))
     model_values = np.asarray(model.kernel(problem.geometry, **problem.fixed, **values), dtype=float)
     residuals = data - model_values
@@ -414,7 +415,7 @@ def _result(problem: _Problem, sigma, starts: list[np.ndarray], error_analysis: 
     if scale_errors:
         covariance = covariance * (chi2 / dof)
     messages, at_bounds = _fit_warnings(problem, values, best.active_mask, covariance, condition_number,
-                                        error_analysis.correlation_limit)
+                                        error_analysis.correlation_limit, other_minima(best, solutions, chi2 / dof))
     if unrobust is not None:
         messages.append(f"{model.name}: {unrobust}")
         warnings.warn(messages[-1], FitWarning, stacklevel=3)
@@ -487,7 +488,7 @@ def _best_solution(problem: _Problem, starts: list[np.ndarray]):
         if len(solutions) < LIMIT_STARTS:
             raise FitError(f"{problem.model.name}: the fit did not converge from any of {len(starts)} starts")
     best = min(solutions, key=lambda solution: solution.cost)
-    return best, len(_agreeing(solutions, tolerance)), limit
+    return best, len(_agreeing(solutions, tolerance)), limit, solutions
 
 
 def _agreeing(solutions: list, tolerance: float) -> list:
@@ -530,7 +531,7 @@ def _parameter_values(problem: _Problem, values: Mapping[str, float], deviations
     return params, errors
 
 
-def _fit_warnings(problem: _Problem, values, active_mask, covariance, condition_number, correlation_limit):
+def _fit_warnings(problem: _Problem, values, active_mask, covariance, condition_number, correlation_limit, others):
     """Warn, as from the caller of :func:`fit_brdf`, with :class:`NonIdentifiableWarning` for what
     the measurements cannot separate (:func:`~brdfcorr.fit.identifiability.identifiability_messages`
     of the ``covariance`` and ``condition_number`` at the fitted ``values``, ``correlation_limit``)
@@ -538,9 +539,7 @@ def _fit_warnings(problem: _Problem, values, active_mask, covariance, condition_
     solution). Returns the messages (a list) and the parameters at a bound (a tuple).
     """
     model, free = problem.model, problem.free
-    messages = identifiability_messages(
-        model, free, values, covariance, condition_number, correlation_limit
-    )
+    messages = identifiability_messages(model, free, values, covariance, condition_number, correlation_limit, others)
     for message in messages:
         warnings.warn(message, NonIdentifiableWarning, stacklevel=4)
     at_bounds = tuple(name for name, active in zip(free, active_mask) if active != 0)

@@ -27,6 +27,7 @@ import numpy as np
 from brdfcorr.models.torrance_sparrow import K as TS_ABSORPTION
 
 __all__ = [
+    "other_minima",
     "CORRELATION_LIMIT",
     "CONDITION_LIMIT",
     "jacobian_covariance",
@@ -125,13 +126,16 @@ def global_correlation(covariance: np.ndarray) -> np.ndarray:
         return np.sqrt(np.clip(1.0 - 1.0 / (np.diag(covariance) * np.diag(inverse)), 0.0, 1.0))
 
 
-def identifiability_messages(model, free, values, covariance, condition_number, correlation_limit):
+def identifiability_messages(model, free, values, covariance, condition_number, correlation_limit, others=()):
     """Messages about parameters the measurements do not determine (empty if all are fine).
 
-    Three symptoms: a singular Jacobian; a parameter almost entirely predicted by the others
+    Four symptoms: a singular Jacobian; a parameter almost entirely predicted by the others
     (global correlation above ``correlation_limit``: paper 003's n, k and t1 with k free); a
     parameter whose 1-sigma error exceeds both its value and its typical (default) value (with k
-    free the fit often runs to k ~ 0, where the Fresnel term no longer depends on k).
+    free the fit often runs to k ~ 0, where the Fresnel term no longer depends on k); another
+    minimum (``others``: the free parameters of other starts' solutions that fit as well,
+    :func:`other_minima`) more than :data:`MINIMA_SIGMA` errors away, which the errors, taken at
+    one minimum, do not cover (a backscatter half alone: n < 1 and n > 1 fit alike).
     """
     if math.isinf(condition_number) or not np.all(np.isfinite(covariance)):
         return [
@@ -161,6 +165,15 @@ def identifiability_messages(model, free, values, covariance, condition_number, 
     ]
     if undetermined:
         problems.append(f"{', '.join(undetermined)} not determined (error larger than the value)")
+    fitted = np.array([values[name] for name in free])
+    for other in others:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            distance = np.abs(np.asarray(other) - fitted) / errors
+        if np.nanmax(distance, initial=0.0) > MINIMA_SIGMA:
+            far = int(np.nanargmax(distance))
+            problems.append(f"another minimum fits as well at {free[far]} = {other[far]:.4g}, {distance[far]:.0f} "
+                            f"errors from {values[free[far]]:.4g}: the errors do not cover it")
+            break
     messages = []
     if problems:
         # Paper 003's k is the Torrance-Sparrow absorption index; RPV's k (Minnaert) is another.
@@ -175,6 +188,19 @@ def identifiability_messages(model, free, values, covariance, condition_number, 
             f"{CONDITION_LIMIT:g}); some combination of {', '.join(free)} is barely constrained"
         )
     return messages
+
+
+#: Errors [1 sigma] beyond which another minimum of a goniometer fit is named (:func:`identifiability_messages`).
+MINIMA_SIGMA = 3.0
+
+
+def other_minima(best, solutions, chi2_dof: float) -> list[np.ndarray]:
+    """The free parameters of the ``solutions`` (scipy ``least_squares`` results; cost = chi^2 / 2)
+    other than ``best`` whose chi^2 lies within max(1, ``chi2_dof``) of its: as good a fit by
+    the measurements' own scatter."""
+    reach = 0.5 * max(1.0, chi2_dof)
+    return [solution.x for solution in solutions
+            if solution is not best and solution.cost - best.cost <= reach]
 
 
 #: Effective degrees of freedom (:func:`brdfcorr.fit.sandwich._satterthwaite_dof`) below which the

@@ -528,3 +528,27 @@ def test_the_paper_003_hint_is_for_the_torrance_sparrow_k_only():
              for name, other in (("torrance_sparrow", "n"), ("rpv", "rho0"))}
     assert "paper 003 fixes k = 0.25" in hints["torrance_sparrow"][0]
     assert "trade off" in hints["rpv"][0] and "paper 003" not in hints["rpv"][0]
+
+
+def test_another_minimum_as_good_far_outside_the_errors_is_named():
+    # The roof tile's backscatter half alone: starts ending at n = 0.01 and n = 4.4 fit alike
+    # (chi2 37.93 and 37.95), and the errors of the one kept (n 0.01 +- 0.05) put the other 80
+    # errors away, without a warning. A start's minimum counts where its chi2 is within
+    # max(1, chi2/dof) of the best (cost = chi2 / 2).
+    from types import SimpleNamespace
+
+    from brdfcorr.fit.identifiability import identifiability_messages, other_minima
+
+    free = ["t0", "t1", "w", "n"]
+    best = SimpleNamespace(x=np.array([0.0249, 0.018, 0.0379, 0.01]), cost=37.93 / 2)
+    twin = SimpleNamespace(x=np.array([0.0249, 0.068, 0.0379, 4.39]), cost=37.95 / 2)
+    worse = SimpleNamespace(x=np.array([0.03, 1.1, 0.04, 1.0]), cost=41.0 / 2)
+    others = other_minima(best, [best, twin, worse], 37.93 / 44)
+    assert [tuple(x) for x in others] == [tuple(twin.x)]
+    values = dict(zip(free, best.x))
+    covariance = np.diag([0.00022, 0.003, 0.0012, 0.05]) ** 2
+    messages = identifiability_messages(get_model("torrance_sparrow"), free, values, covariance, 10.0, 0.99, others)
+    assert len(messages) == 1 and "another minimum fits as well at n = 4.39, 88 errors from 0.01" in messages[0]
+    # A minimum within the errors is the same one.
+    close = [np.array([0.0249, 0.018, 0.0379, 0.05])]
+    assert identifiability_messages(get_model("torrance_sparrow"), free, values, covariance, 10.0, 0.99, close) == []
