@@ -237,7 +237,7 @@ def _class_row(fit) -> dict[str, str]:
 @click.option("--model", "model_name", type=FIT_MODEL_CHOICE, default="torrance_sparrow", show_default=True,
               help="Registered surface model to fit (see `brdfcorr models`), or auto: the candidate with the lowest "
                    "5-fold cross-validated error over the geometries (a more complex one only where it wins by more "
-                   "than the folds' spread).")
+                   "than one standard error of the fold-by-fold difference).")
 @click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
               help="Hold a parameter fixed (repeatable); paper 003 uses --fix k=0.25.")
 @click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,

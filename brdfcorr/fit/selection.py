@@ -18,7 +18,8 @@ The rule is the one-standard-error rule of Hastie, Tibshirani & Friedman [1]_ (s
 paired folds: the candidate with the lowest mean error is the best; the chosen model is the one with
 the fewest free parameters whose mean excess error over the best, fold by fold, is within one
 standard error of that excess (its standard deviation over the folds / sqrt(k)). So a more complex
-model wins only where it beats the simpler ones by more than the folds' spread.
+model wins only where it beats the simpler ones by more than the standard error of that paired
+difference (a small but consistent one decides), and never by round-off (:data:`ROUND_OFF`).
 
 References
 ----------
@@ -177,8 +178,16 @@ class ModelChoice:
         return "\n".join(lines)
 
 
-def _one_se_choice(scores: Sequence[CandidateScore]) -> tuple[str, str]:
-    """(chosen, best) by the paired one-standard-error rule (module docstring)."""
+#: Held-out errors [relative to the data's mean weighted square] below which candidates tie
+#: (:func:`_one_se_choice`): the optimizer's round-off, not a difference between models.
+ROUND_OFF = 1e-10
+
+
+def _one_se_choice(scores: Sequence[CandidateScore], scale: float = 0.0) -> tuple[str, str]:
+    """(chosen, best) by the paired one-standard-error rule (module docstring). Excesses within
+    :data:`ROUND_OFF` of ``scale`` (the data's mean weighted square) are ties: on noise-free or
+    constant data every candidate predicts to round-off (1e-14 to 1e-22), and those errors chose
+    the most complex model."""
     fitted = [score for score in scores if score.fold_errors]
     if not fitted:
         problems = "; ".join(f"{score.model}: {score.problem}" for score in scores)
@@ -187,7 +196,7 @@ def _one_se_choice(scores: Sequence[CandidateScore]) -> tuple[str, str]:
     for score in sorted(fitted, key=lambda score: score.n_free):  # stable: ties keep the given order
         excess = np.subtract(score.fold_errors, best.fold_errors)
         spread = np.std(excess, ddof=1) / math.sqrt(excess.size) if excess.size > 1 else 0.0
-        if excess.mean() <= spread:
+        if excess.mean() <= max(spread, ROUND_OFF * scale):
             return score.model, best.model
     return best.model, best.model  # unreachable: the best's own excess is 0
 
@@ -396,7 +405,7 @@ def choose_model(
         scores.append(_cross_validate(name, fold, n_free, predict, data, weights))
         if progress is not None:
             progress(name)
-    chosen, best = _one_se_choice(scores)
+    chosen, best = _one_se_choice(scores, float(np.mean(data**2 * weights)))
     return ModelChoice(chosen, best, tuple(scores), folds, "geometries")
 
 
@@ -502,5 +511,5 @@ def choose_class_model(
                 return prediction if levels is None else prediction / profile.scale
 
         scores.append(_cross_validate(name, fold, n_free, predict, data, weights))
-    chosen, best = _one_se_choice(scores)
+    chosen, best = _one_se_choice(scores, float(np.mean(data**2 * weights)))
     return ModelChoice(chosen, best, tuple(scores), folds, grouping)
