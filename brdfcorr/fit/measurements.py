@@ -156,11 +156,11 @@ class Measurements:
             raise MeasurementError(f"{self.source}: no wavelength column to select {wavelength:g} nm from")
         keep = self.wavelength == wavelength
         if not keep.any():
-            available = ", ".join(f"{value:g}" for value in self.wavelengths)
+            available = ", ".join(f"{value:.10g}" for value in self.wavelengths)
             raise MeasurementError(
-                f"{self.source}: no measurements at {wavelength:g} nm; wavelengths: {available}"
+                f"{self.source}: no measurements at {wavelength:.10g} nm; wavelengths: {available}"
             )
-        return self.select(keep, f"wavelength = {wavelength:g} nm")
+        return self.select(keep, f"wavelength = {wavelength:.10g} nm")
 
     def __len__(self) -> int:
         return self.brdf.size
