@@ -171,9 +171,14 @@ def _check_glt_shape(path, shape_x, shape_y, swath_shape) -> None:
 
 
 def _glt_indices(path, dataset) -> np.ndarray:
-    """One GLT layer as int64: integers as they are, floats only where all are integers (rounded)."""
+    """One GLT layer as int64: integers as they are, floats only where all are integers (rounded);
+    cells holding the layer's declared ``_FillValue`` (-9999, as EMIT's NetCDF converter declares
+    it) are 0, no pixel, as EMIT's own tools read them (its granules hold 0 there)."""
     name = dataset.name.lstrip("/")
     values = np.asarray(dataset[()])
+    fill = dataset.attrs.get("_FillValue")
+    if fill is not None and np.size(fill) == 1 and np.isfinite(fill):
+        values = np.where(values == np.asarray(fill).item(), 0, values)
     if values.dtype.kind in "iub":
         return values.astype(np.int64)
     if values.dtype.kind != "f":

@@ -181,6 +181,23 @@ def test_bad_glt_is_one_clear_error(tmp_path, change, message):
         read_emit_image(path)
 
 
+def test_glt_cells_holding_its_declared_fill_are_no_pixel(granules, tmp_path):
+    # EMIT's NetCDF converter declares _FillValue -9999 on the GLT; a subset saved again through
+    # xarray holds it where the granule held 0 (no pixel): refused as "negative values".
+    import h5py
+
+    rfl, _ = granules
+    filled = tmp_path / "EMIT_L2A_RFL_001_filled.nc"
+    filled.write_bytes(rfl.read_bytes())
+    with h5py.File(filled, "r+") as h5file:
+        for name in ("glt_x", "glt_y"):
+            values = h5file[f"location/{name}"][()]
+            del h5file[f"location/{name}"]
+            dataset = h5file.create_dataset(f"location/{name}", data=np.where(values == 0, -9999, values))
+            dataset.attrs["_FillValue"] = np.array(-9999, dtype=values.dtype)
+    np.testing.assert_array_equal(read_emit_image(filled).values, read_emit_image(rfl).values)
+
+
 def test_cli_correct_an_emit_granule_with_its_obs(granules, tmp_path):
     rfl, obs = granules
     image = read_emit_image(rfl)
