@@ -31,6 +31,7 @@ scaling, cloud mask, angle source) are found by :func:`find_product` and stacked
 from __future__ import annotations
 
 import importlib
+import inspect
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -191,8 +192,6 @@ def read_angles(kind: str, source, like: xr.DataArray | None = None, **options) 
 def _check_options(kind: str, reader, options) -> None:
     """Refuse an option the kind's reader does not take (a misspelt key, or ``like``, which is the
     image), naming those it takes: passed on, it was a TypeError, an internal error."""
-    import inspect
-
     function = __getattr__(reader.__name__) if reader.__name__ in _MODULES else reader
     parameters = list(inspect.signature(function).parameters.values())[2:]  # after the source and like
     if any(parameter.kind == parameter.VAR_KEYWORD for parameter in parameters):
