@@ -19,6 +19,7 @@ from rasterio.enums import MaskFlags
 
 from brdfcorr.errors import InputError
 from brdfcorr.io.opening import container_message, has_envi_header, opened
+from brdfcorr.io.sensors.envi import bad_band_flags
 from brdfcorr.io.sensors.products import hdf5_product
 
 __all__ = [
@@ -90,6 +91,9 @@ class ImageFile(NamedTuple):
     header_scale : float or None
         The scale [1 per stored unit] its ENVI header's ``reflectance scale factor`` gives
         (:func:`header_scale`); None without one.
+    bad_bands : numpy.ndarray of bool or None
+        The bands its ENVI header's ``bbl`` marks bad
+        (:func:`brdfcorr.io.sensors.envi.envi_bad_bands`); None without one.
     """
 
     path: object
@@ -99,6 +103,7 @@ class ImageFile(NamedTuple):
     plain: bool = False
     envi_header: tuple[str, ...] | None = None
     header_scale: float | None = None
+    bad_bands: np.ndarray | None = None
 
 
 def identify_image(path) -> ImageFile:
@@ -122,8 +127,11 @@ def identify_image(path) -> ImageFile:
         rows, columns = dataset.block_shapes[0]
         layout = Layout(dataset.count, dataset.height, dataset.width, rows, columns,
                         np.dtype(dataset.dtypes[0]).itemsize)
-        header = tuple(dataset.tags(ns="ENVI")) if dataset.driver == "ENVI" else None
-        return ImageFile(path, None, layout, layout.bands, _stored_as_read(dataset), header, _header_scale(dataset))
+        if dataset.driver != "ENVI":
+            return ImageFile(path, None, layout, layout.bands, _stored_as_read(dataset))
+        envi = dataset.tags(ns="ENVI")
+        return ImageFile(path, None, layout, layout.bands, _stored_as_read(dataset), tuple(envi),
+                         _header_scale(dataset), bad_band_flags(envi, dataset.count, path))
 
 
 def _identified(image) -> ImageFile:

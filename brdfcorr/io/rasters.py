@@ -143,8 +143,11 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
         image = image.drop_vars("fwhm") if fwhm is None else image.assign_coords(
             fwhm=(image.dims[0], fwhm, {"units": "nm"}))
     image.name = image.name or "reflectance"
-    envi = identified.envi_header if identified is not None else has_envi_header(path)
-    return refuse_fill(image, f"image {path}", envi_bad_bands(path) if envi else None)
+    if identified is not None:
+        bad = identified.bad_bands
+    else:
+        bad = envi_bad_bands(path) if has_envi_header(path) else None
+    return refuse_fill(image, f"image {path}", bad)
 
 
 def refuse_fill(image: xr.DataArray, where: str | None = None, bad_bands=None) -> xr.DataArray:

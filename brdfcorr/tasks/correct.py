@@ -29,7 +29,6 @@ from brdfcorr.io.angles import RELATIVE_ONLY, window_values
 from brdfcorr.io.paths import check_format, check_outputs, refuse_existing
 from brdfcorr.io.product import ImageFile, gdal_cache_bytes
 from brdfcorr.io.scene import SceneData, opened_scene
-from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
 from brdfcorr.tasks.request import CorrectionRequest, Terrain
@@ -355,7 +354,7 @@ def _envi_outputs(request: CorrectionRequest, scene: SceneData) -> dict:
     if request.outputs.format != "ENVI":
         return {}
     coords = scene.reflectance.coords
-    bad = envi_bad_bands(scene.image.path) if scene.image is not None and scene.image.envi_header else None
+    bad = None if scene.image is None else scene.image.bad_bands
     return {request.outputs.corrected: writer.EnviOutput(
         interleave=request.outputs.interleave,
         wavelength=coords["wavelength"].values.tolist() if "wavelength" in coords else None,

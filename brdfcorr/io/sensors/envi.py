@@ -39,6 +39,7 @@ __all__ = [
     "OBS_TERRAIN_BAND_NAMES",
     "acquisition_time",
     "envi_bad_bands",
+    "bad_band_flags",
     "envi_wavelengths",
     "read_envi_image",
     "read_envi_obs",
@@ -178,9 +179,14 @@ def envi_bad_bands(path: str | Path) -> np.ndarray | None:
         with rasterio.open(path) as source:
             if source.driver != "ENVI":
                 return None
-            tags, count = source.tags(ns="ENVI"), source.count
+            return bad_band_flags(source.tags(ns="ENVI"), source.count, path)
     except rasterio.errors.RasterioIOError:
         return None  # not a file GDAL opens (a product's path): no ENVI header
+
+
+def bad_band_flags(tags: Mapping[str, str], count: int, path) -> np.ndarray | None:
+    """:func:`envi_bad_bands` of an ENVI file's header items ``tags`` (GDAL's ENVI domain) for its
+    ``count`` bands, read already (``path`` names the file in errors)."""
     items = _header_list(tags.get("bbl"))
     if not items:
         return None
