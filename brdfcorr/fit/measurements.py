@@ -263,7 +263,7 @@ def _refuse_radians(values: dict[str, np.ndarray], source: str) -> None:
     highest = zeniths.max()
     if highest < 1.6 and (highest > 0.2 or 1.0 < values["phi"].max() <= 3.15):
         raise MeasurementError(
-            f"{source}: the angles look like radians (theta_i, theta_r up to {zeniths.max():.3g}, phi up to "
+            f"{source}: the angles look like radians (theta_i, theta_r up to {highest:.3g}, phi up to "
             f"{values['phi'].max():.3g}); brdfcorr needs degrees (numpy.degrees converts them)")
 
 

@@ -60,7 +60,7 @@ from brdfcorr.io.paths import (  # path checks and names, importable here too
 )
 
 __all__ = ["write_rasters", "writing", "encode_integers", "pass_threads", "default_threads", "wavelength_text",
-           "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path", "envi_sidecars",
+           "wavelength_tags", "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path", "envi_sidecars",
            "check_envi_georeference", "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
@@ -378,8 +378,9 @@ def _problem(error: BaseException, rasters: list, failures: GdalLog, targets: li
     return None
 
 
-#: Tags an ENVI output's header holds (its ``wavelength`` and ``wavelength units`` fields), not
-#: written again into its ``.aux.xml``, whose tags GDAL and brdfcorr would read over the header.
+#: Tags an ENVI output's header holds (its ``wavelength`` and ``wavelength units`` fields:
+#: :func:`wavelength_tags`), not written again into its ``.aux.xml``, whose tags GDAL and brdfcorr
+#: would read over the header.
 ENVI_HEADER_TAGS = ("wavelength", "wavelength_units")
 
 
@@ -509,6 +510,12 @@ def wavelength_text(value: float) -> str:
     headers): the shortest text that reads back as the same number (``1234.5678``, ``480``), where
     ``:g`` kept 6 digits (1234.57)."""
     return np.format_float_positional(float(value), trim="-")
+
+
+def wavelength_tags(values: Sequence[float]) -> dict[str, str]:
+    """The ``wavelength`` and ``wavelength_units`` tags of an output's band centres [nm]
+    (:func:`wavelength_text`; an ENVI output's header holds them instead, :data:`ENVI_HEADER_TAGS`)."""
+    return {"wavelength": ",".join(map(wavelength_text, values)), "wavelength_units": "nm"}
 
 
 def _header_list(values: Sequence[float]) -> str:

@@ -384,8 +384,7 @@ def _scene_tags(scene: SceneData, class_lookup) -> dict[str, str]:
     if class_map_note:
         tags["brdf_class_map"] = class_map_note
     if "wavelength" in scene.reflectance.coords:
-        tags["wavelength"] = ",".join(map(writer.wavelength_text, scene.reflectance["wavelength"].values))
-        tags["wavelength_units"] = "nm"
+        tags.update(writer.wavelength_tags(scene.reflectance["wavelength"].values))
     sun = _centre_sun(scene.angles)
     if sun is not None:
         tags["brdf_scene_sun"] = f"zenith {sun[0]:.1f}, azimuth {sun[1]:.1f} (scene centre, deg)"

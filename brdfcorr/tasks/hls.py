@@ -26,7 +26,7 @@ from brdfcorr.errors import SensorInputError
 from brdfcorr.io.grid import grid_difference
 from brdfcorr.io.scale_check import check_reflectance_scale
 from brdfcorr.io.sensors.hls import HLS_FMASK_MASKED, HlsGranule
-from brdfcorr.io.writer import wavelength_text
+from brdfcorr.io.writer import wavelength_tags
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ParameterTable
 from brdfcorr.tasks.request import Engine
@@ -113,8 +113,7 @@ def hls_sun_zenith_layers(granule: HlsGranule, *, coefficients: str, reference_s
     corrected = (reflectance * factors).where(~invalid)
     nodata = (~np.isfinite(corrected)).any("band") | invalid
     qa = xr.where(nodata, np.uint8(QA.NODATA), np.uint8(0)).astype(np.uint8).assign_attrs(qa_attrs("QA flags"))
-    tags = {"wavelength": ",".join(map(wavelength_text, granule.wavelengths)), "wavelength_units": "nm",
-            "brdf_reference": reference.describe(),
+    tags = {**wavelength_tags(granule.wavelengths), "brdf_reference": reference.describe(),
             "brdf_hls_nbar_solar_zenith": ",".join(dict.fromkeys(f"{value:g}" for value in granule.nbar_sza))
             if len(set(granule.nbar_sza)) == 1 else ",".join(f"{value:g}" for value in granule.nbar_sza),
             "brdf_coefficients": json.dumps({"set": coefficients, "bands": list(granule.coefficient_bands)}),

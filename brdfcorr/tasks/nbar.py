@@ -40,7 +40,7 @@ from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.sensors.folders import ProductFolder, band_stacks, find_product, write_stack
 from brdfcorr.io.sensors.hls import HlsGranule, find_hls_granule, hls_refusal
 from brdfcorr.io.sensors.stac import find_stac_item, is_stac_item
-from brdfcorr.io.writer import GeoTiffOutput, wavelength_text, write_rasters
+from brdfcorr.io.writer import GeoTiffOutput, wavelength_tags, write_rasters
 from brdfcorr.models.coefficients import load_coefficients
 from brdfcorr.params import ClassEntry, ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.correct import correct_files
@@ -297,7 +297,7 @@ def _band_by_band(folder: ProductFolder, stack: Path, scratch: Path, outputs: Ou
     qa = functools.reduce(np.bitwise_or, flags).rio.write_nodata(None)
     with rasterio.open(parts[0].corrected) as first:
         tags = first.tags()
-    tags.update(wavelength=",".join(map(wavelength_text, folder.wavelengths)),
+    tags.update(wavelength_tags(folder.wavelengths),
                 brdf_parameter_table_content=json.dumps(nbar_table(folder, method.coefficients).to_dict(),
                                                         separators=(",", ":")),
                 brdf_view_angles="each band its own view angle grids")
