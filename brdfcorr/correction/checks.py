@@ -133,12 +133,9 @@ def guard_angles(layers: Mapping[str, xr.DataArray]) -> dict[str, xr.DataArray]:
     layer's chunks carry the check, so it runs with the correction and costs no pass of its own; a
     layer without a finite value needs the whole layer: :func:`brdfcorr.io.angles.check_angles`
     makes that pass)."""
-    names = ("sza", "saa", "vza", "vaa")
-    arrays = [layers[name].data for name in names]
+    arrays = [layers[name].data for name in ANGLE_LAYERS]
     if not any(isinstance(array, da.Array) for array in arrays):
-        statistics = {name: angle_statistics(np.asarray(array)) for name, array in zip(names, arrays)}
-        check_angle_values({name: value[0] for name, value in statistics.items()},
-                           {name: value[1] for name, value in statistics.items()}, lambda name: "angles")
+        _check_units(arrays, "angles", empty_allowed=False)
         return dict(layers)
     first = next(array for array in arrays if isinstance(array, da.Array))
     chunked = [da.asarray(array).rechunk(first.chunks) for array in arrays]
@@ -155,13 +152,19 @@ def angle_statistics(values: np.ndarray) -> tuple[tuple[float, float], tuple[int
 
 
 def _refuse_units(sza, saa, vza, vaa) -> np.ndarray:
-    """``sza`` unchanged, or an :class:`InputError` where the chunk's layers cannot be degrees: by the
-    rules of :func:`brdfcorr.io.angles.check_angle_values` on the layers with finite values in it
-    (radians; no zenith in [0, 90), as for hundredths of a degree). A chunk without a finite value
-    in a layer is nodata there, not an error: its neighbours may have them."""
-    layers = zip(ANGLE_LAYERS, (sza, saa, vza, vaa))
-    statistics = {name: angle_statistics(np.asarray(values)) for name, values in layers}
-    present = {name: found for name, found in statistics.items() if found[1][0]}
-    check_angle_values({name: found[0] for name, found in present.items()},
-                       {name: found[1] for name, found in present.items()}, lambda name: "angles (a chunk)")
+    """``sza`` unchanged, or an :class:`InputError` where the chunk's layers cannot be degrees
+    (:func:`_check_units`). A chunk without a finite value in a layer is nodata there, not an
+    error: its neighbours may have them."""
+    _check_units((sza, saa, vza, vaa), "angles (a chunk)", empty_allowed=True)
     return sza
+
+
+def _check_units(arrays, where: str, *, empty_allowed: bool) -> None:
+    """The rules of :func:`brdfcorr.io.angles.check_angle_values` (radians; no zenith in [0, 90),
+    as for hundredths of a degree; a layer without a finite value, unless ``empty_allowed``: then
+    such a layer is left out) on the sza, saa, vza and vaa ``arrays``, named ``where``."""
+    statistics = {name: angle_statistics(np.asarray(values)) for name, values in zip(ANGLE_LAYERS, arrays)}
+    if empty_allowed:
+        statistics = {name: found for name, found in statistics.items() if found[1][0]}
+    check_angle_values({name: found[0] for name, found in statistics.items()},
+                       {name: found[1] for name, found in statistics.items()}, lambda name: where)
