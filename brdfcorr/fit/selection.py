@@ -43,6 +43,7 @@ import numpy as np
 from brdfcorr.defaults import AUTO_MODEL
 from brdfcorr.errors import BrdfcorrError, FitError, ParameterError
 from brdfcorr.fit.goniometer import fit_brdf, fit_from
+from brdfcorr.fit.measurements import Measurements
 from brdfcorr.fit.profile import _profile
 from brdfcorr.fit.shape_search import _search, _search_subset
 from brdfcorr.fit.shapes import DEFAULT_FIXED, _free_shape
@@ -318,7 +319,7 @@ def _submitted_prediction(futures: list[concurrent.futures.Future], number: int)
 
 
 def choose_model(
-    theta_i, theta_r, phi, brdf, sigma=None, *,
+    measurements: Measurements, *,
     candidates: Sequence[str] = GONIOMETER_CANDIDATES,
     fixed: Mapping[str, float] | None = None,
     initial: Mapping[str, float] | None = None,
@@ -331,12 +332,10 @@ def choose_model(
 
     Parameters
     ----------
-    theta_i, theta_r, phi : array-like
-        Illumination zenith, view zenith and relative azimuth of the measurements [deg].
-    brdf : array-like
-        Measured BRDF [sr^-1].
-    sigma : array-like, optional
-        1-sigma errors [sr^-1]: the held-out errors are then weighted by 1/sigma^2.
+    measurements : Measurements
+        The measurements (:class:`~brdfcorr.fit.measurements.Measurements`: illumination zenith,
+        view zenith and relative azimuth [deg], BRDF [sr^-1]); where they have 1-sigma errors
+        (``sigma``), the held-out errors are weighted by 1/sigma^2.
     candidates : sequence of str, default :data:`GONIOMETER_CANDIDATES`
         Registered models to try.
     fixed : mapping, optional
@@ -378,9 +377,8 @@ def choose_model(
     for what, given in (("fixed parameter", fixed), ("starting value of parameter", initial),
                         ("bound of parameter", bounds)):
         check_fixed(given, candidates, what)
-    angles = [np.asarray(value, dtype=float).reshape(-1) for value in (theta_i, theta_r, phi)]
-    data = np.asarray(brdf, dtype=float).reshape(-1, 1)
-    errors = None if sigma is None else np.asarray(sigma, dtype=float).reshape(-1)
+    angles = [measurements.theta_i, measurements.theta_r, measurements.phi]
+    data, errors = measurements.brdf.reshape(-1, 1), measurements.sigma
     if data.shape[0] < 2 * folds:
         raise FitError(f"{data.shape[0]} measurements are too few for a {folds}-fold choice of the model "
                        f"(at least {2 * folds}); name a model")

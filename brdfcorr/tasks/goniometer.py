@@ -171,8 +171,7 @@ def fit_measurement_file(
         with process_pool(workers) as executor:
             for band in bands:
                 subset = fitted if band is None else fitted.at_wavelength(band)
-                choices[band] = choose_model(subset.theta_i, subset.theta_r, subset.phi, subset.brdf, subset.sigma,
-                                             fixed=fixed, initial=initial, bounds=bounds, progress=progress,
+                choices[band] = choose_model(subset, fixed=fixed, initial=initial, bounds=bounds, progress=progress,
                                              executor=executor)
         model = _common_choice(choices)
         notes += [f"{band:.10g} nm: --model auto chose {choice.chosen} here; {model}, the choice over the "

@@ -226,8 +226,9 @@ def test_fit_counts_its_fits_on_request(tmp_path):
 
 
 def test_the_model_choice_reports_each_candidate_once_its_folds_are_fitted():
+    from brdfcorr.fit.measurements import Measurements
     from brdfcorr.fit.selection import choose_model
 
     seen = []
-    choice = choose_model(*_flat_measurements(), candidates=("lambertian", "ross_thick_li_sparse"), progress=seen.append)
+    choice = choose_model(Measurements(*_flat_measurements()), candidates=("lambertian", "ross_thick_li_sparse"), progress=seen.append)
     assert seen == ["lambertian", "ross_thick_li_sparse"] and choice.chosen == "lambertian"

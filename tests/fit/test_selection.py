@@ -11,6 +11,7 @@ from click.testing import CliRunner
 from brdfcorr.cli import main
 from brdfcorr.errors import FitError, ParameterError
 from brdfcorr.fit.classes import ClassFitWarning, ClassModels, _models_in_play, fit_classes, fit_one_class
+from brdfcorr.fit.measurements import Measurements
 from brdfcorr.fit.sampling import ClassSamples
 from brdfcorr.fit.selection import (
     CandidateScore,
@@ -60,11 +61,11 @@ def test_a_two_lobe_surface_chooses_the_two_lobe_model_and_a_kernel_surface_the_
     ti, tr, phi = _geometries()
     noise = 1 + 0.02 * np.random.default_rng(5).standard_normal(ti.size)
     candidates = ("torrance_sparrow", "ross_thick_li_sparse", "ross_li_ts")
-    two_lobe = choose_model(ti, tr, phi, get_model("ross_li_ts")(ti, tr, phi, **TWO_LOBE) * noise,
+    two_lobe = choose_model(Measurements(ti, tr, phi, get_model("ross_li_ts")(ti, tr, phi, **TWO_LOBE) * noise),
                             candidates=candidates)
     assert two_lobe.chosen == "ross_li_ts" and two_lobe.score_of("ross_li_ts").heldout_r2 > 0.95
     assert max(two_lobe.score_of(name).heldout_r2 for name in candidates[:2]) < 0.9
-    kernels = choose_model(ti, tr, phi, get_model("ross_thick_li_sparse")(ti, tr, phi, **KERNELS) * noise,
+    kernels = choose_model(Measurements(ti, tr, phi, get_model("ross_thick_li_sparse")(ti, tr, phi, **KERNELS) * noise),
                            candidates=candidates)
     # The two-lobe model nests the kernels: it cannot win by more than the folds' spread.
     assert kernels.chosen == "ross_thick_li_sparse"
@@ -80,9 +81,9 @@ def test_the_fold_fits_in_a_process_pool_give_the_same_choice():
     ti, tr, phi = _geometries()
     brdf = get_model("ross_thick_li_sparse")(ti, tr, phi, **KERNELS) * (1 + 0.02 * np.random.default_rng(3).standard_normal(ti.size))
     candidates = ("ross_thick_li_sparse", "torrance_sparrow")
-    alone = choose_model(ti, tr, phi, brdf, candidates=candidates)
+    alone = choose_model(Measurements(ti, tr, phi, brdf), candidates=candidates)
     with concurrent.futures.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
-        pooled = choose_model(ti, tr, phi, brdf, candidates=candidates, executor=pool, progress=(done := []).append)
+        pooled = choose_model(Measurements(ti, tr, phi, brdf), candidates=candidates, executor=pool, progress=(done := []).append)
     assert pooled == alone and alone.chosen == "ross_thick_li_sparse"
     assert done == list(candidates)
 
@@ -129,9 +130,9 @@ def test_bounds_and_starting_values_apply_in_the_choice_to_the_candidates_that_h
     truth = load_material("roof_tile").params  # w = 0.037 deg^-1
     brdf = get_model("torrance_sparrow")(ti, tr, phi, **truth) * (1 + 0.02 * np.random.default_rng(7).standard_normal(ti.size))
     candidates = ("torrance_sparrow", "ross_thick_li_sparse")
-    free = choose_model(ti, tr, phi, brdf, candidates=candidates, folds=3)
+    free = choose_model(Measurements(ti, tr, phi, brdf), candidates=candidates, folds=3)
     bounds, initial = {"w": (0.15, 0.5)}, {"w": 0.2, "f_iso": 0.02}
-    bounded = choose_model(ti, tr, phi, brdf, candidates=candidates, bounds=bounds, initial=initial, folds=3)
+    bounded = choose_model(Measurements(ti, tr, phi, brdf), candidates=candidates, bounds=bounds, initial=initial, folds=3)
     # (ross_thick_li_sparse is linear: a start more, f_iso = 0.02, reaches the same least squares)
     np.testing.assert_allclose(bounded.score_of("ross_thick_li_sparse").fold_errors,
                                free.score_of("ross_thick_li_sparse").fold_errors, rtol=1e-6)
@@ -152,7 +153,7 @@ def test_bounds_and_starting_values_apply_in_the_choice_to_the_candidates_that_h
 
 def test_too_few_measurements_for_the_folds_are_refused():
     with pytest.raises(FitError, match="too few"):
-        choose_model([10, 20], [10, 20], [0, 180], [0.1, 0.2])
+        choose_model(Measurements([10, 20], [10, 20], [0, 180], [0.1, 0.2]))
 
 
 def _class_samples(params, model="ross_li_ts", n=6000, seed=1):
@@ -234,7 +235,7 @@ def test_a_fixed_name_that_is_a_different_parameter_in_two_candidates_is_refused
     ti, tr, phi = _geometries()
     brdf = get_model("ross_li_ts")(ti, tr, phi, **TWO_LOBE)
     with pytest.raises(ParameterError, match=r"fixed parameter k .*Minnaert-like exponent.* in rpv, rpv_peak"):
-        choose_model(ti, tr, phi, brdf, fixed={"k": 0.25})
+        choose_model(Measurements(ti, tr, phi, brdf), fixed={"k": 0.25})
     check_fixed({"k": 0.25}, ("torrance_sparrow", "ross_li_ts", "ross_thick_li_sparse"))  # one meaning: kept
     csv = tmp_path / "tile.csv"
     csv.write_text("theta_i,theta_r,phi,brdf\n" + "".join(f"{a},{b},{c},{d}\n" for a, b, c, d in zip(ti, tr, phi, brdf)))
@@ -253,5 +254,5 @@ def test_candidates_that_all_predict_to_round_off_tie_and_the_simplest_is_chosen
     # round-off: rpv_peak (7 free parameters) was chosen. Ross-Thick-Li-Sparse (3) fits it exactly.
     ti, tr, phi = _geometries()
     flat = np.full(ti.size, 0.05)
-    choice = choose_model(ti, tr, phi, flat, np.full(ti.size, 0.001))
+    choice = choose_model(Measurements(ti, tr, phi, flat, np.full(ti.size, 0.001)))
     assert choice.chosen == "ross_thick_li_sparse"
