@@ -42,11 +42,11 @@ def timed_choice(data, workers: int):
     """The choice and its wall time [s] with ``workers`` processes (1: in this process)."""
     start = time.perf_counter()
     if workers == 1:
-        choice = choose_model(data.theta_i, data.theta_r, data.phi, data.brdf, data.sigma)
+        choice = choose_model(data)
     else:
         context = multiprocessing.get_context("spawn")
         with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-            choice = choose_model(data.theta_i, data.theta_r, data.phi, data.brdf, data.sigma, executor=pool)
+            choice = choose_model(data, executor=pool)
     return choice, time.perf_counter() - start
 
 

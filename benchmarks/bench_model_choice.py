@@ -26,6 +26,7 @@ import warnings
 import numpy as np
 
 from brdfcorr.fit.goniometer import fit_brdf
+from brdfcorr.fit.measurements import Measurements
 from brdfcorr.fit.selection import choose_model
 from brdfcorr.fit.shapes import DEFAULT_FIXED
 from brdfcorr.models import get_model, load_material
@@ -74,7 +75,7 @@ def held_out(model: str, angles, brdf, halves) -> tuple[float, str]:
         test = ~train
         name = model
         if model == "auto":
-            name = choose_model(*(a[train] for a in angles), brdf[train]).chosen
+            name = choose_model(Measurements(*(a[train] for a in angles), brdf[train])).chosen
         result = fit_brdf(name, *(a[train] for a in angles), brdf[train], fixed=DEFAULT_FIXED.get(name))
         scores.append(_r2(brdf[test], result.predict(*(a[test] for a in angles))))
         used.append(name)
