@@ -148,10 +148,7 @@ class Settings:
         return iter(self.items)
 
     def __getitem__(self, name: str) -> Setting:
-        for setting in self.items:
-            if setting.name == name:
-                return setting
-        raise KeyError(name)
+        return {setting.name: setting for setting in self.items}[name]
 
     def default(self, name: str) -> Any:
         """The default of the setting ``name``."""
