@@ -101,7 +101,8 @@ def plot_principal_plane(
     yscale : {"linear", "log"}
         Scale of the BRDF axis ("log" for sharp peaks such as the aluminium sample).
     title : str, optional
-        Figure title; default names the model and chi^2/dof.
+        Figure title; default names the model, the fitted measurements drawn (those in the plane
+        within ``tolerance``) out of all fitted, and the fit's chi^2/dof.
 
     Returns
     -------
@@ -114,6 +115,7 @@ def plot_principal_plane(
     if not zeniths:
         zeniths = sorted(set(np.round(measurements.theta_i, 1).tolist()))
     figure, axes = _grid(len(zeniths))
+    shown = 0  # fitted measurements drawn: in the plane within the tolerance, at a panel's zenith
     for axis, zenith in zip(axes, zeniths):
         extent = 0.0
         for data, style, label in ((measurements, _FITTED, "fitted"), (excluded, _EXCLUDED, "not fitted")):
@@ -122,6 +124,7 @@ def plot_principal_plane(
             mask = _in_principal_plane(data, tolerance) & (np.round(data.theta_i, 1) == zenith)
             signed = np.where(data.phi >= 90.0, data.theta_r, -data.theta_r)
             _errorbar(axis, signed, data, mask, style, label)
+            shown += int(np.count_nonzero(mask)) if data is measurements else 0
             if np.any(mask):
                 extent = max(extent, float(np.max(data.theta_r[mask])))
         extent = max(extent, 10.0)
@@ -136,7 +139,7 @@ def plot_principal_plane(
             ylabel="BRDF [sr⁻¹]",
         )
     axes[0].legend(fontsize="small")
-    figure.suptitle(title or _default_title(result, "principal plane"))
+    figure.suptitle(title or _default_title(result, "principal plane", shown))
     return figure
 
 
@@ -164,7 +167,8 @@ def plot_azimuth(
     yscale : {"linear", "log"}
         Scale of the BRDF axes.
     title : str, optional
-        Figure title.
+        Figure title; default names the model, the fitted measurements on the cuts drawn out of
+        all fitted, and the fit's chi^2/dof.
 
     Returns
     -------
@@ -184,12 +188,13 @@ def plot_azimuth(
         return figure
     normalized = "t0" in result.params
     figure, axes = _grid(len(cuts) + normalized)
-    lowest = 180.0
+    lowest, shown = 180.0, 0  # shown: fitted measurements on the cuts drawn
     for number, (axis, (zenith, view_zenith)) in enumerate(zip(axes, cuts)):
         for data, style, label in ((measurements, _FITTED, "fitted"), (excluded, _EXCLUDED, "not fitted")):
             if data is not None:
                 mask = (np.round(data.theta_i, 1) == zenith) & (np.round(data.theta_r, 1) == view_zenith)
                 _errorbar(axis, data.phi, data, mask, style, label)
+                shown += int(np.count_nonzero(mask)) if data is measurements else 0
         # The azimuth range that was fitted (paper 003: 90-180 deg); the whole scan if none was.
         fitted = (np.round(measurements.theta_i, 1) == zenith) & (np.round(measurements.theta_r, 1) == view_zenith)
         low = float(np.min(measurements.phi[fitted])) if np.any(fitted) else 0.0
@@ -215,7 +220,7 @@ def plot_azimuth(
             ylabel="(BRDF − t0) / max [-]",
         )
         axes[-1].legend(fontsize="x-small")
-    figure.suptitle(title or _default_title(result, "azimuthal scans"))
+    figure.suptitle(title or _default_title(result, "azimuthal scans", shown))
     return figure
 
 
@@ -231,8 +236,11 @@ def _normalized_panel(axis, result, measurements, zenith, view_zenith, azimuth, 
     axis.plot(measurements.phi[mask], (measurements.brdf[mask] - t0) / peak, "*", color=color, ms=5)
 
 
-def _default_title(result: FitResult, what: str) -> str:
+def _default_title(result: FitResult, what: str, shown: int) -> str:
+    """The figure's title: the model, how many of the fitted measurements the panels show (those of
+    the principal plane or of the azimuthal scans, not every one fitted) and chi^2/dof, which is
+    the fit's, over all of them."""
     return (
-        f"{result.model.name} fit, {what}: {result.n_measurements} measurements, "
-        f"χ²/dof = {result.reduced_chi2:.3g}"
+        f"{result.model.name} fit, {what}: {shown} of {result.n_measurements} fitted measurements "
+        f"(χ²/dof = {result.reduced_chi2:.3g} over all {result.n_measurements})"
     )

@@ -420,6 +420,28 @@ def test_figures_have_one_panel_per_scan(roof_tile_fit):
     assert panels[0].get_yscale() == "log"
 
 
+def test_figure_titles_count_the_measurements_they_show(roof_tile_fit):
+    # The principal-plane figure shows only the measurements within the azimuth tolerance of
+    # phi = 0/180 (or at nadir); its title counted every fitted one (120, of which 48 are in-plane).
+    from brdfcorr.plot.fits import plot_azimuth, plot_principal_plane
+
+    _, data, result = roof_tile_fit
+    in_plane = (np.abs(data.phi - 180.0) <= 0.5) | (data.phi <= 0.5) | (data.theta_r <= 0.5)
+    assert 0 < np.count_nonzero(in_plane) < len(data)
+    title = plot_principal_plane(result, data)._suptitle.get_text()
+    assert f"{np.count_nonzero(in_plane)} of {len(data)} fitted measurements" in title
+    # A wider tolerance takes in the azimuth scans' points near phi = 180 as well.
+    wide = (np.abs(data.phi - 180.0) <= 20.0) | (data.phi <= 20.0) | (data.theta_r <= 20.0)
+    assert np.count_nonzero(wide) > np.count_nonzero(in_plane)
+    title = plot_principal_plane(result, data, tolerance=20.0)._suptitle.get_text()
+    assert f"{np.count_nonzero(wide)} of {len(data)} fitted measurements" in title
+    # The azimuth figure counts the measurements of its cuts (theta_r > 0 pairs with 4+ azimuths).
+    pairs = np.round(np.column_stack([data.theta_i, data.theta_r]), 1)
+    on_cuts = sum(np.count_nonzero(np.all(pairs == cut, axis=1))
+                  for cut in [(30.0, 30.0), (50.0, 50.0), (65.0, 50.0), (65.0, 70.0)])
+    assert f"{on_cuts} of {len(data)} fitted measurements" in plot_azimuth(result, data)._suptitle.get_text()
+
+
 # --- several wavelengths -----------------------------------------------------------------------
 
 
