@@ -427,7 +427,8 @@ def main(debug):
 class Assignment(click.ParamType):
     """``NAME=VALUE`` (or ``NAME=LOW:HIGH`` with ``ranges``) with numbers, converted to the pair
     ``(name, value)`` or ``(name, (low, high))``; a repeatable option collects the pairs (``dict``
-    of them: the last wins for a name). A bad item is click's usage error (exit 2)."""
+    of them), and with :func:`distinct_names` as its callback a name given twice with different
+    values is refused. A bad item is click's usage error (exit 2)."""
 
     def __init__(self, ranges: bool = False):
         self.ranges = ranges
@@ -444,6 +445,23 @@ class Assignment(click.ParamType):
         except ValueError:
             self.fail(f"{value!r}: expected {self.name} with numbers", param, ctx)
         return name.strip(), number
+
+
+def distinct_names(ctx, param, pairs):
+    """Callback of a repeatable :class:`Assignment` option: the ``(name, value)`` pairs as given,
+    refused (click's usage error, exit 2) where a name comes twice with different values (``--fix
+    k=0.25 --fix k=0.3``: which one was meant? a ``dict`` of them kept the last without a word)."""
+    first: dict = {}
+    for name, value in pairs or ():
+        if first.setdefault(name, value) != value:
+            raise click.BadParameter(f"{name} is given twice, as {name}={_assigned(first[name])} and "
+                                     f"{name}={_assigned(value)}: give it once", ctx, param)
+    return pairs
+
+
+def _assigned(value) -> str:
+    """The value of an :class:`Assignment` as it is written: ``0.25``, ``0:1``."""
+    return ":".join(f"{part:g}" for part in value) if isinstance(value, tuple) else f"{value:g}"
 
 
 class ReaderOption(click.ParamType):

@@ -23,6 +23,8 @@ from brdfcorr.cli._base import (
     NAME_RANGE,
     NAME_VALUE,
     READER_OPTION,
+    Assignment,
+    distinct_names,
 )
 from brdfcorr.tasks.options import Setting, Settings
 
@@ -89,6 +91,8 @@ def click_option(setting: Setting, custom: dict[str, click.ParamType] | None = N
             keywords[key] = getattr(setting, key)
     if setting.envvar is not None:
         keywords["show_envvar"] = True
+    if setting.multiple and isinstance(click_type, Assignment):  # --fix k=0.25 --fix k=0.3: which one?
+        keywords["callback"] = distinct_names
     return click.option(*setting.flags, setting.name, **keywords)
 
 

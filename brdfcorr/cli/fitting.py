@@ -17,6 +17,7 @@ from brdfcorr.cli._base import (
     _draw_figure,
     _format_table,
     class_bar,
+    distinct_names,
     handle_errors,
     main,
     progress_bars,
@@ -238,12 +239,12 @@ def _class_row(fit) -> dict[str, str]:
               help="Registered surface model to fit (see `brdfcorr models`), or auto: the candidate with the lowest "
                    "5-fold cross-validated error over the geometries (a more complex one only where it wins by more "
                    "than one standard error of the fold-by-fold difference).")
-@click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
-              help="Hold a parameter fixed (repeatable); paper 003 uses --fix k=0.25.")
-@click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE,
-              help="Starting value of a parameter.")
-@click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW:HIGH", type=NAME_RANGE,
-              help="Narrower bounds for a parameter (within its physical range).")
+@click.option("--fix", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE, callback=distinct_names,
+              help="Hold a parameter fixed (repeatable, once per parameter); paper 003 uses --fix k=0.25.")
+@click.option("--init", "initial", multiple=True, metavar="NAME=VALUE", type=NAME_VALUE, callback=distinct_names,
+              help="Starting value of a parameter (repeatable, once per parameter).")
+@click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW:HIGH", type=NAME_RANGE, callback=distinct_names,
+              help="Narrower bounds for a parameter (within its physical range; repeatable, once per parameter).")
 @click.option("--min-phi", type=float, help="Fit only relative azimuths >= this [deg] (paper 003: 90).")
 @click.option("--max-phi", type=float, help="Fit only relative azimuths <= this [deg].")
 @click.option("--max-zenith", type=float, help="Fit only theta_i and theta_r <= this [deg].")

@@ -142,6 +142,10 @@ def test_bad_measurement_files_give_one_error_line(tmp_path, text, message):
         (["--bound", "w=0.1"], "Invalid value for '--bound': 'w=0.1': expected NAME=LOW:HIGH"),
         (["--model", "phong"], "unknown BRDF model 'phong'"),
         (["--min-phi", "181"], "no measurement has phi >= 181"),
+        # A name given twice with different values: which was meant? (the last was kept unseen)
+        (["--fix", "k=0.25", "--fix", "k=0.3"], "k is given twice, as k=0.25 and k=0.3: give it once"),
+        (["--init", "w=0.03", "--init", "w=0.04"], "w is given twice, as w=0.03 and w=0.04"),
+        (["--bound", "w=0:1", "--bound", "w=0:0.5"], "w is given twice, as w=0:1 and w=0:0.5"),
     ],
 )
 def test_bad_options_give_one_error_line(csv_path, args, message):
@@ -149,6 +153,22 @@ def test_bad_options_give_one_error_line(csv_path, args, message):
     assert result.exit_code == 2
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and message in lines[0]
+
+
+def test_fit_classes_refuses_a_fixed_name_given_twice_with_different_values(tmp_path):
+    # Refused as the options are parsed, before any file is read (they need not exist).
+    result = run("fit-classes", tmp_path / "image.tif", "--angles", tmp_path / "angles.tif",
+                 "--classes", tmp_path / "classes.tif", "-o", tmp_path / "table.yaml",
+                 "--fix", "k=0.25", "--fix", "k=0.3")
+    assert result.exit_code == 2
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and "--fix" in lines[0] and "k is given twice, as k=0.25 and k=0.3" in lines[0]
+
+
+def test_a_name_repeated_with_the_same_value_is_one_setting(csv_path):
+    result = run("fit", csv_path, "--min-phi", "90", "--fix", "k=0.25", "--fix", "k=0.25")
+    assert result.exit_code == 0, result.output
+    assert "0.25 (fixed)" in result.output
 
 
 def test_missing_measurement_file(tmp_path):
