@@ -9,7 +9,7 @@ of freedom, the residuals and the parameter correlations, and warns with
 section 4: n, k and t1 trade off).
 
 The helpers that turn a model and a user's ``fixed``/``initial``/``bounds`` into a bounded problem
-(:func:`_free_parameters`) and that find starting values (:func:`_starting_points`) do not depend
+(:mod:`brdfcorr.fit.bounds`) and that find starting values (:func:`_starting_points`) do not depend
 on where the measurements come from. The covariance, correlations and identifiability messages
 live in :mod:`brdfcorr.fit.identifiability`; :class:`FitResult` and the parameter-table entries
 made from fits (:func:`spectral_table_entry`) in :mod:`brdfcorr.fit.results` (importable from here
@@ -37,7 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
-from brdfcorr.errors import BrdfcorrWarning, FitError, ParameterError
+from brdfcorr.errors import BrdfcorrWarning, FitError
+from brdfcorr.fit.bounds import OPEN_BOUND_FLOOR, _free_parameters  # noqa: F401  (importable from here as before)
 from brdfcorr.fit.identifiability import (
     CONDITION_LIMIT,  # noqa: F401  (importable from here as before the split)
     CORRELATION_LIMIT,
@@ -66,9 +67,6 @@ __all__ = [
     "format_with_error",
 ]
 
-#: Open lower bounds (w > 0, n > 0) become ``lower + OPEN_BOUND_FLOOR * default`` for the optimizer,
-#: which needs closed bounds; 1e-6 of a typical value is far below any meaningful fit.
-OPEN_BOUND_FLOOR = 1e-6
 #: Multiplicative grids of starting values around the start of scale parameters (range (0, inf)):
 #: the first one (the width parameter w, c or sigma, which comes before n in the registry) gets the
 #: finer grid.
@@ -175,76 +173,6 @@ class _Problem:
             model = np.broadcast_to(np.asarray(model, dtype=float), (self.data.size, len(values)))
             residuals = (model - self.data[:, None]) * self.weights[:, None]
         return np.where(np.isfinite(residuals), residuals, _NON_FINITE_RESIDUAL).T
-
-
-def _scalar(value, what: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{what} must be a single number, got {value!r}") from None
-    if not math.isfinite(number):
-        raise ParameterError(f"{what} must be finite, got {number!r}")
-    return number
-
-
-def _free_parameters(model: Model, fixed, initial, bounds):
-    """Split the model's parameters into fixed values and bounded free ones.
-
-    Returns ``(fixed, free, lower, upper, start)``: fixed values (validated), free names in
-    signature order, the optimizer's closed bounds and the user's starting values (a dict).
-    """
-    fixed = {name: value for name, value in dict(fixed or {}).items()}
-    initial = dict(initial or {})
-    bounds = dict(bounds or {})
-    for name in itertools.chain(fixed, initial, bounds):
-        model.parameter(name)  # unknown name -> ParameterError naming the model's parameters
-    for name, value in fixed.items():
-        model.parameter(name).check(value, f"{model.name} (fixed)")
-        fixed[name] = _scalar(value, f"{model.name}: fixed value of {name}")
-    both = sorted(set(fixed) & (set(initial) | set(bounds)))
-    if both:
-        raise ParameterError(
-            f"{model.name}: parameter(s) {', '.join(both)} are fixed and cannot also have a "
-            "starting value or bounds"
-        )
-    free = tuple(name for name in model.parameter_names if name not in fixed)
-    if not free:
-        raise FitError(f"{model.name}: every parameter is fixed; nothing to fit")
-
-    lower, upper = [], []
-    for name in free:
-        parameter = model.parameter(name)
-        low, high = parameter.lower, parameter.upper
-        if parameter.lower_open:
-            low = low + OPEN_BOUND_FLOOR * max(abs(parameter.default), 1e-3)
-        if name in bounds:
-            try:
-                user_low, user_high = (float(value) for value in bounds[name])
-            except (TypeError, ValueError):
-                raise ParameterError(
-                    f"{model.name}: bounds of {name} must be a pair (lower, upper), got {bounds[name]!r}"
-                ) from None
-            if math.isnan(user_low) or math.isnan(user_high):
-                raise ParameterError(f"{model.name}: bounds of {name} must be numbers or +-inf, got "
-                                     f"({user_low:g}, {user_high:g})")
-            low, high = max(low, user_low), min(high, user_high)
-            if not low < high:
-                raise ParameterError(
-                    f"{model.name}: bounds of {name} ({user_low:g}, {user_high:g}) leave no room "
-                    f"within its physical range {parameter.range_text} [{parameter.units}]"
-                )
-        lower.append(low)
-        upper.append(high)
-    for name, value in initial.items():
-        index = free.index(name)
-        value = _scalar(value, f"{model.name}: starting value of {name}")
-        if not lower[index] <= value <= upper[index]:
-            raise ParameterError(
-                f"{model.name}: starting value {name} = {value:g} is outside its bounds "
-                f"[{lower[index]:g}, {upper[index]:g}]"
-            )
-        initial[name] = value
-    return fixed, free, np.array(lower), np.array(upper), initial
 
 
 def _inside(default: float, low: float, high: float) -> float:
