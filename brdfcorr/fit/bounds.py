@@ -55,7 +55,7 @@ def _free_parameters(model: Model, fixed, initial, bounds):
     if not free:
         raise FitError(f"{model.name}: every parameter is fixed; nothing to fit")
 
-    lower, upper = [], []
+    lower, upper, given = [], [], {}  # given: the user's bounds as given
     for name in free:
         parameter = model.parameter(name)
         low, high = parameter.lower, parameter.upper
@@ -71,21 +71,29 @@ def _free_parameters(model: Model, fixed, initial, bounds):
             if math.isnan(user_low) or math.isnan(user_high):
                 raise ParameterError(f"{model.name}: bounds of {name} must be numbers or +-inf, got "
                                      f"({user_low:g}, {user_high:g})")
-            low, high = max(low, user_low), min(high, user_high)
+            low, high, given[name] = max(low, user_low), min(high, user_high), (user_low, user_high)
             if not low < high:
+                below_floor = parameter.lower_open and user_low <= parameter.lower < user_high
+                floor = (f" above {low:g}, the least value a fit takes (its open bound plus {OPEN_BOUND_FLOOR:g} "
+                         "times its default)" if below_floor else "")
                 raise ParameterError(
-                    f"{model.name}: bounds of {name} ({user_low:g}, {user_high:g}) leave no room "
-                    f"within its physical range {parameter.range_text} [{parameter.units}]"
+                    f"{model.name}: bounds of {name} ({user_low:g}, {user_high:g}) leave no room{floor} "
+                    f"within its physical range {name} {parameter.range_text} [{parameter.units}]"
                 )
         lower.append(low)
         upper.append(high)
     for name, value in initial.items():
-        index = free.index(name)
+        index, parameter = free.index(name), model.parameter(name)
         value = _scalar(value, f"{model.name}: starting value of {name}")
-        if not lower[index] <= value <= upper[index]:
-            raise ParameterError(
-                f"{model.name}: starting value {name} = {value:g} is outside its bounds "
-                f"[{lower[index]:g}, {upper[index]:g}]"
-            )
-        initial[name] = value
+        try:
+            parameter.check(value, model.name)
+        except ParameterError:  # the physical range (w > 0), not the optimizer's floor above it
+            raise ParameterError(f"{model.name}: starting value {name} = {value:g} is outside its physical range "
+                                 f"{name} {parameter.range_text} [{parameter.units}]") from None
+        user_low, user_high = given.get(name, (-math.inf, math.inf))
+        if not user_low <= value <= user_high:
+            raise ParameterError(f"{model.name}: starting value {name} = {value:g} is outside its bounds "
+                                 f"[{user_low:g}, {user_high:g}]")
+        # Above an open bound but below the floor (0 < w < 1e-6 of its default): the start is the floor.
+        initial[name] = max(value, lower[index])
     return fixed, free, np.array(lower), np.array(upper), initial

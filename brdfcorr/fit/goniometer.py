@@ -260,7 +260,10 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
         Starting values of free parameters, tried first. In any case the fit also starts from a
         grid: the scale parameters (w, n, ...) at multiples of their registry default, the
         amplitudes (t0, t1, a) from a linear least-squares solution at each grid point, the other
-        parameters at their defaults. The lowest chi^2 of all starts wins.
+        parameters at their defaults. The lowest chi^2 of all starts wins. A start must lie in
+        the parameter's physical range and its ``bounds``; one above an open lower bound but
+        below the optimizer's floor there (``0 < w < OPEN_BOUND_FLOOR`` of the default) starts at
+        the floor.
     bounds : mapping of (lower, upper), optional
         Narrower bounds for free parameters, intersected with the registry's physical range
         (the default; open lower bounds such as w > 0 become ``OPEN_BOUND_FLOOR`` of the default).

@@ -146,6 +146,8 @@ def test_bad_measurement_files_give_one_error_line(tmp_path, text, message):
         (["--fix", "k=0.25", "--fix", "k=0.3"], "k is given twice, as k=0.25 and k=0.3: give it once"),
         (["--init", "w=0.03", "--init", "w=0.04"], "w is given twice, as w=0.03 and w=0.04"),
         (["--bound", "w=0:1", "--bound", "w=0:0.5"], "w is given twice, as w=0:1 and w=0:0.5"),
+        # The physical bound w > 0, not the optimizer's floor above it (5e-08), which it named before.
+        (["--init", "w=0"], "starting value w = 0 is outside its physical range w > 0 [deg^-1]"),
     ],
 )
 def test_bad_options_give_one_error_line(csv_path, args, message):
@@ -163,6 +165,12 @@ def test_fit_classes_refuses_a_fixed_name_given_twice_with_different_values(tmp_
     assert result.exit_code == 2
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and "--fix" in lines[0] and "k is given twice, as k=0.25 and k=0.3" in lines[0]
+
+
+def test_a_start_between_an_open_bound_and_the_optimizers_floor_is_fitted(csv_path):
+    result = run("fit", csv_path, "--min-phi", "90", "--fix", "k=0.25", "--init", "w=1e-12")
+    assert result.exit_code == 0, result.output
+    assert "0.25 (fixed)" in result.output
 
 
 def test_a_name_repeated_with_the_same_value_is_one_setting(csv_path):

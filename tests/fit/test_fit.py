@@ -337,6 +337,28 @@ def test_bad_parameters(roof_tile_fit, kwargs, error, match):
         fit_measurements("torrance_sparrow", data, **kwargs)
 
 
+def test_a_start_outside_the_physical_range_names_that_range_not_the_optimizers_floor(roof_tile_fit):
+    # The optimizer needs closed bounds: w > 0 becomes w >= OPEN_BOUND_FLOOR * default (5e-08); the
+    # message named that floor as the bound ("outside its bounds [5e-08, inf]"), and refused a start
+    # of 1e-12, which is physically valid.
+    from brdfcorr.fit.goniometer import OPEN_BOUND_FLOOR
+
+    _, data, reference = roof_tile_fit
+    floor = OPEN_BOUND_FLOOR * get_model("torrance_sparrow").parameter("w").default
+    for start in (0.0, -1.0):
+        with pytest.raises(ParameterError, match=r"starting value w = -?\d+ is outside its physical range w > 0 ") as caught:
+            fit_measurements("torrance_sparrow", data, fixed=PAPER_K, initial={"w": start})
+        assert f"{floor:g}" not in str(caught.value)
+    with pytest.raises(ParameterError, match=r"starting value w = 2 is outside its bounds \[0, 1\]$"):
+        fit_measurements("torrance_sparrow", data, fixed=PAPER_K, initial={"w": 2.0}, bounds={"w": (0.0, 1.0)})
+    # Between the open bound and the floor: a valid start, tried from the floor.
+    tiny = fit_measurements("torrance_sparrow", data, fixed=PAPER_K, initial={"w": 1e-12})
+    assert tiny.chi2 == pytest.approx(reference.chi2, rel=1e-6)
+    # Bounds that leave room only below the floor say so instead of "no room within w > 0".
+    with pytest.raises(ParameterError, match=rf"leave no room above {floor:g}, the least value a fit takes"):
+        fit_measurements("torrance_sparrow", data, fixed=PAPER_K, bounds={"w": (0.0, 1e-9)})
+
+
 def test_bad_measurement_arrays_name_the_index():
     with pytest.raises(MeasurementError, match=r"brdf is NaN or infinite at index 1"):
         fit_brdf("lambertian", [10, 20, 30], [10, 20, 30], [180, 180, 180], [0.1, np.nan, 0.1])
