@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from brdfcorr.errors import BrdfcorrWarning, ParameterError
+from brdfcorr.fit.energy import hemispherical_integral
 from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model, get_model
 from brdfcorr.models.torrance_sparrow import _fresnel
@@ -272,37 +273,6 @@ def width_reduction(model, params: Mapping[str, float], geometries=WIDTH_GEOMETR
 # --------------------------------------------------------------------------------------------
 
 
-def _panels(breaks, max_width):
-    """Split the intervals between ``breaks`` into panels no wider than ``max_width``."""
-    edges = [breaks[0]]
-    for lower, upper in zip(breaks[:-1], breaks[1:]):
-        if upper > lower:
-            count = max(1, math.ceil((upper - lower) / max_width - 1e-9))
-            edges.extend(np.linspace(lower, upper, count + 1)[1:])
-    return np.asarray(edges)
-
-
-def _gauss_legendre(edges, order):
-    """Nodes and weights of composite Gauss-Legendre quadrature over panels ``edges``."""
-    x, weight = np.polynomial.legendre.leggauss(order)
-    lower, upper = edges[:-1, None], edges[1:, None]
-    half = 0.5 * (upper - lower)
-    return ((lower + upper) / 2 + half * x).ravel(), (half * weight).ravel()
-
-
-def _hemispherical_integral(brdf, theta_i, resolution, order):
-    # rho = 2 int_0^pi dphi int_0^pi/2 f cos(tr) sin(tr) dtr (f is even in phi about 0 and 180).
-    # Panel edges at the specular zenith and clustered towards phi = 180 resolve the peak.
-    theta_edges = _panels([0.0, theta_i, 90.0], resolution)
-    phi_edges = _panels([0.0, 90.0, 150.0, 170.0, 180.0], resolution)
-    theta_r, weight_theta = _gauss_legendre(theta_edges, order)
-    phi, weight_phi = _gauss_legendre(phi_edges, order)
-    # broadcast_to: a constant model (lambertian) may return the shape of theta_i only.
-    values = np.broadcast_to(brdf(theta_i, theta_r[:, None], phi[None, :]), (theta_r.size, phi.size))
-    kernel = np.cos(np.radians(theta_r)) * np.sin(np.radians(theta_r)) * weight_theta
-    return 2.0 * math.radians(1.0) ** 2 * float(kernel @ values @ weight_phi)
-
-
 def albedo(model, theta_i, params: Mapping[str, float], *, resolution: float = 2.0, order: int = 8,
            rtol: float = 1e-4):
     """Directional-hemispherical reflectance of a BRDF model by quadrature over the view hemisphere.
@@ -369,8 +339,8 @@ def _albedo_with_error(brdf, theta_i: np.ndarray, resolution: float, order: int)
     results = np.empty(theta_i.shape)
     worst = 0.0
     for index, value in np.ndenumerate(theta_i):
-        fine = _hemispherical_integral(brdf, float(value), resolution, order)
-        coarse = _hemispherical_integral(brdf, float(value), 2.0 * resolution, order)
+        fine = hemispherical_integral(brdf, float(value), resolution, order)
+        coarse = hemispherical_integral(brdf, float(value), 2.0 * resolution, order)
         worst = max(worst, abs(fine - coarse) / max(abs(fine), 1e-300))
         results[index] = fine
     return results, worst

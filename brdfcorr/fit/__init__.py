@@ -20,7 +20,7 @@ from brdfcorr._lazy import attach
 #: The public face of the package, imported on first use (PEP 562): name -> module. A chain
 #: config's settings (:mod:`.settings`, :mod:`.prior`) are then read without scipy's optimizers.
 _PUBLIC = {
-    **dict.fromkeys(["ErrorAnalysis", "FitResult", "FitWarning", "NonIdentifiableWarning", "fit_brdf",
+    **dict.fromkeys(["AlbedoWarning", "ErrorAnalysis", "FitResult", "FitWarning", "NonIdentifiableWarning", "fit_brdf",
                      "fit_from", "fit_measurements", "fit_wavelengths", "spectral_table_entry",
                      "format_with_error"], "goniometer"),
     **dict.fromkeys(["fit_classes", "ClassFitResult"], "classes"),

@@ -39,6 +39,7 @@ from scipy.optimize import least_squares, lsq_linear
 
 from brdfcorr.errors import BrdfcorrWarning, FitError
 from brdfcorr.fit.bounds import OPEN_BOUND_FLOOR, _free_parameters  # noqa: F401  (importable from here as before)
+from brdfcorr.fit.energy import albedo_excess
 from brdfcorr.fit.identifiability import (
     CONDITION_LIMIT,  # noqa: F401  (importable from here as before the split)
     CORRELATION_LIMIT,
@@ -55,6 +56,7 @@ from brdfcorr.geometry import ScatteringGeometry
 from brdfcorr.models import Model, get_model
 
 __all__ = [
+    "AlbedoWarning",
     "ErrorAnalysis",
     "FitResult",
     "FitWarning",
@@ -83,6 +85,12 @@ class FitWarning(BrdfcorrWarning):
 class NonIdentifiableWarning(FitWarning):
     """The measurements do not determine some free parameters separately (large correlations or
     an ill-conditioned or singular Jacobian). Fix one of them (paper 003 fixes k = 0.25)."""
+
+
+class AlbedoWarning(FitWarning):
+    """The fitted BRDF reflects more than it receives (albedo > 1 at a measured illumination
+    zenith): impossible for a surface, most often measurements in percent or reflectance factors
+    (pi * BRDF) instead of BRDF [sr^-1] (:func:`brdfcorr.fit.energy.albedo_excess`)."""
 
 
 @dataclass(frozen=True)
@@ -296,6 +304,10 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
     FitWarning
         A free parameter ended on a bound, or the fit lies at a limit of the model (no start
         converged, several ran out of evaluations at one chi^2: :func:`_best_solution`).
+    AlbedoWarning
+        The fitted model's albedo (directional-hemispherical reflectance) exceeds 1 at a measured
+        illumination zenith: the measurements are likely in percent or reflectance factors
+        (pi * BRDF). Not one of the result's ``warnings``: it says nothing about the errors.
 
     Notes
     -----
@@ -311,7 +323,11 @@ def fit_brdf(model, theta_i, theta_r, phi, brdf, sigma=None, fixed: Mapping[str,
     starts = _starting_points(problem, initial)
     if initial:  # the user's start first, then the default grid: a poor guess cannot spoil the fit
         starts += _starting_points(problem, {})
-    return _result(problem, sigma, starts, error_analysis)
+    result = _result(problem, sigma, starts, error_analysis)
+    excess = albedo_excess(problem.model.name, result.predict, problem.geometry.theta_i)
+    if excess:  # no surface reflects more than it receives: percent or pi * BRDF given as BRDF?
+        warnings.warn(excess, AlbedoWarning, stacklevel=2)
+    return result
 
 
 def fit_from(model, theta_i, theta_r, phi, brdf, sigma=None, *, start: Mapping[str, float],

@@ -98,6 +98,20 @@ def test_free_k_prints_a_warning_line(csv_path):
     assert warnings[0].startswith("brdfcorr: warning: torrance_sparrow: parameters not identifiable")
 
 
+def test_measurements_in_percent_give_a_warning_line_naming_the_likely_cause(tmp_path):
+    truth = load_material("spectralon_50")  # albedo about 0.5: as reflectance factors (x pi) above 1
+    data = synthesize_measurements(truth.model, truth.params, *goniometer_angles(), seed=3)
+    path = tmp_path / "factors.csv"
+    path.write_text("theta_i,theta_r,phi,brdf\n" + "".join(
+        f"{ti:g},{tr:g},{ph:g},{np.pi * value:.6g}\n" for ti, tr, ph, value in zip(data.theta_i, data.theta_r, data.phi,
+                                                                               data.brdf)))
+    result = run("fit", path, "--fix", "k=0.25", "--min-phi", "90")
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.stderr.splitlines() if "albedo" in line]
+    assert len(lines) == 1 and lines[0].startswith("brdfcorr: warning: torrance_sparrow: ")
+    assert "reflectance factors (pi * BRDF: divided by pi the albedo is 0.5" in lines[0]
+
+
 def test_unweighted_fit_says_how_its_errors_were_estimated(tmp_path):
     path = tmp_path / "lab.csv"
     path.write_text("theta_i,theta_r,phi,brdf\n" + "".join(

@@ -464,6 +464,42 @@ def test_figure_titles_count_the_measurements_they_show(roof_tile_fit):
     assert f"{on_cuts} of {len(data)} fitted measurements" in plot_azimuth(result, data)._suptitle.get_text()
 
 
+# --- energy conservation -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("level", "warns"), [(0.30, False), (0.33, True), (0.5, True)])
+def test_a_fit_whose_albedo_exceeds_one_warns(level, warns):
+    # Closed form: a Lambertian BRDF t0 has albedo pi * t0 at every zenith, > 1 from t0 > 1/pi.
+    from brdfcorr.fit.goniometer import AlbedoWarning
+
+    rng = np.random.default_rng(2)
+    theta_i, theta_r, phi = rng.uniform(0, 70, 30), rng.uniform(0, 70, 30), rng.uniform(0, 180, 30)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = fit_brdf("lambertian", theta_i, theta_r, phi, np.full(30, level) * (1 + 0.01 * rng.standard_normal(30)))
+    albedo = [w for w in caught if issubclass(w.category, AlbedoWarning)]
+    assert len(albedo) == int(warns)
+    if warns:
+        message = str(albedo[0].message)
+        assert f"albedo (its integral of BRDF cos(theta_r) over the hemisphere) {np.pi * result.params['t0']:.3g} > 1" in message
+        assert f"divided by pi the albedo is {result.params['t0']:.3g}" in message and "percent" in message
+        assert issubclass(AlbedoWarning, FitWarning)
+        assert message not in result.warnings  # it says nothing about the errors
+
+
+def test_measurements_in_percent_warn_and_brdf_does_not(roof_tile_fit):
+    from brdfcorr.fit.goniometer import AlbedoWarning
+    from brdfcorr.fit.measurements import Measurements
+
+    _, data, _ = roof_tile_fit
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AlbedoWarning)
+        fit_measurements("torrance_sparrow", data, fixed=PAPER_K)  # the roof tile's albedo is about 0.14
+    percent = Measurements(data.theta_i, data.theta_r, data.phi, 100 * data.brdf, 100 * data.sigma)
+    with pytest.warns(AlbedoWarning, match=r"albedo .* > 1 at theta_i = 65 deg.* in percent \(divided by 100: 0\.1"):
+        fit_measurements("torrance_sparrow", percent, fixed=PAPER_K)
+
+
 # --- several wavelengths -----------------------------------------------------------------------
 
 
