@@ -430,6 +430,8 @@ class Assignment(click.ParamType):
     of them), and with :func:`distinct_names` as its callback a name given twice with different
     values is refused. A bad item is click's usage error (exit 2)."""
 
+    pairs = True  # converts to (name, value): a repeated name is checked (:func:`distinct_names`)
+
     def __init__(self, ranges: bool = False):
         self.ranges = ranges
         self.name = "NAME=LOW:HIGH" if ranges else "NAME=VALUE"
@@ -448,9 +450,11 @@ class Assignment(click.ParamType):
 
 
 def distinct_names(ctx, param, pairs):
-    """Callback of a repeatable :class:`Assignment` option: the ``(name, value)`` pairs as given,
-    refused (click's usage error, exit 2) where a name comes twice with different values (``--fix
-    k=0.25 --fix k=0.3``: which one was meant? a ``dict`` of them kept the last without a word)."""
+    """Callback of a repeatable option of ``(name, value)`` pairs (a type with ``pairs = True``:
+    :class:`Assignment`, :class:`ReaderOption`, :class:`ClassPair`): the pairs as given, refused
+    (click's usage error, exit 2) where a name comes twice with different values (``--fix k=0.25
+    --fix k=0.3``, ``--class-model 2=rpv --class-model 2=ross_li_ts``: which one was meant? a
+    ``dict`` of them kept the last without a word)."""
     first: dict = {}
     for name, value in pairs or ():
         if first.setdefault(name, value) != value:
@@ -460,8 +464,10 @@ def distinct_names(ctx, param, pairs):
 
 
 def _assigned(value) -> str:
-    """The value of an :class:`Assignment` as it is written: ``0.25``, ``0:1``."""
-    return ":".join(f"{part:g}" for part in value) if isinstance(value, tuple) else f"{value:g}"
+    """The value of a pair as it is written: ``0.25``, ``0:1``, ``rpv``."""
+    if isinstance(value, tuple):
+        return ":".join(f"{part:g}" for part in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 class ReaderOption(click.ParamType):
@@ -469,6 +475,7 @@ class ReaderOption(click.ParamType):
     read as a YAML scalar (``20`` -> 20, ``B04`` -> "B04"; text that is no YAML scalar stays text)."""
 
     name = "KEY=VALUE"
+    pairs = True
 
     def convert(self, value, param, ctx):
         if isinstance(value, tuple):
@@ -486,6 +493,8 @@ class ReaderOption(click.ParamType):
 class ClassPair(click.ParamType):
     """``ID=TEXT``: a class id (a non-negative integer) and a text (a name, a model), converted to
     ``(id, text)``; a repeatable option collects the pairs (``dict`` of them)."""
+
+    pairs = True
 
     def __init__(self, what: str = "NAME"):
         self.name = f"ID={what}"

@@ -23,7 +23,6 @@ from brdfcorr.cli._base import (
     NAME_RANGE,
     NAME_VALUE,
     READER_OPTION,
-    Assignment,
     distinct_names,
 )
 from brdfcorr.tasks.options import Setting, Settings
@@ -91,7 +90,7 @@ def click_option(setting: Setting, custom: dict[str, click.ParamType] | None = N
             keywords[key] = getattr(setting, key)
     if setting.envvar is not None:
         keywords["show_envvar"] = True
-    if setting.multiple and isinstance(click_type, Assignment):  # --fix k=0.25 --fix k=0.3: which one?
+    if setting.multiple and getattr(click_type, "pairs", False):  # --fix k=0.25 --fix k=0.3: which one?
         keywords["callback"] = distinct_names
     return click.option(*setting.flags, setting.name, **keywords)
 

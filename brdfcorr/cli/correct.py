@@ -26,9 +26,10 @@ if TYPE_CHECKING:
 
 
 class _ClassMaterial(click.ParamType):
-    """``--material ID=NAME``: a class id and a built-in material, as a parameter table class."""
+    """``--material ID=NAME``: a class id and a built-in material, converted to ``(id, name)``."""
 
     name = "ID=MATERIAL"
+    pairs = True
 
     def shell_complete(self, ctx, param, incomplete):
         from brdfcorr.models.materials import material_names
@@ -41,9 +42,8 @@ class _ClassMaterial(click.ParamType):
 
     def convert(self, value, param, ctx):
         from brdfcorr.models.materials import load_material
-        from brdfcorr.params import ClassEntry
 
-        if isinstance(value, ClassEntry):
+        if isinstance(value, tuple):
             return value
         key, separator, name = str(value).partition("=")
         if not separator or not key.strip().isdigit() or int(key) < 1 or not name.strip():
@@ -52,7 +52,7 @@ class _ClassMaterial(click.ParamType):
             load_material(name.strip())
         except UnknownNameError as error:
             self.fail(str(error), param, ctx)
-        return ClassEntry(id=int(key), material=name.strip())
+        return int(key), name.strip()
 
 
 def _show_warnings(caught: list[warnings.WarningMessage]) -> None:
@@ -124,6 +124,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     fitted over all the dates.
     """
     from brdfcorr.io.scene import SceneSources
+    from brdfcorr.params import ClassEntry
     from brdfcorr.tasks.classmaps import read_lookup
     from brdfcorr.tasks.correct import correct_files
     from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
@@ -131,8 +132,8 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
     if params_path is None and not materials:
         raise click.UsageError("give a parameter table (--params) or at least one --material")
     table = _parameter_table(params_path)
-    for entry in materials:
-        table = table.with_class(entry)
+    for class_id, name in materials:
+        table = table.with_class(ClassEntry(id=class_id, material=name))
     reference = table.reference.model_dump() if table.reference else {}
     for key, value in (("sza", reference_sza(ref_sza)), ("vza", ref_vza), ("raa", ref_raa)):
         if value is not None:
@@ -144,7 +145,7 @@ def correct_command(image, angles, angles_kind, angle_option, sza, saa, vza, vaa
             raise click.BadParameter(f"{wavelengths!r} is not a comma-separated list of numbers",
                                      param_hint="--wavelengths") from None
     source = " ".join([str(params_path)] * (params_path is not None)
-                      + [f"--material {entry.id}={entry.material}" for entry in materials])
+                      + [f"--material {class_id}={name}" for class_id, name in materials])
     start = time.perf_counter()
     outputs = OutputFiles(output, qa=qa_path, uncertainty=uncertainty_path, format=output_format,
                           interleave=interleave.lower(), data_type=output_type, compress=compress, cog=cog,

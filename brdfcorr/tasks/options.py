@@ -270,7 +270,7 @@ CORRECT = settings(
                                      "roy2016, roy2017) as class 1; optional with --material."),
     Setting("materials", ("--material",), "custom", cli_type="material", multiple=True,
             help="Class ID takes a built-in material (brdfcorr materials; a fit at 550 nm), over "
-                 "--params' class of that id; repeatable, the last wins for an id."),
+                 "--params' class of that id; repeatable, one material an id."),
     Setting("output", ("-o", "--output"), "path", required=True,
             help="Output raster (.tif for GTiff; .img, .bsq, .bil, .dat or no extension for ENVI)."),
     Setting("output_format", ("--format",), "choice", choices=FORMATS, default="GTiff", show_default=True,

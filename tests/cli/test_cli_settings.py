@@ -202,3 +202,26 @@ def test_a_bad_item_is_one_usage_line_with_exit_2(tmp_path):
     lines = result.stderr.splitlines()
     assert lines == ["brdfcorr: error: correct: Invalid value for '--angle-option': 'resolution': expected "
                      "KEY=VALUE (see --help of correct)"]
+
+
+@pytest.mark.parametrize("command, option, first, second", [
+    ("correct", "--material", "1=roof_tile", "1=red_concrete"),
+    ("correct", "--angle-option", "view_from_ang=ephemeris", "view_from_ang=mean"),
+    ("fit-classes", "--class-model", "2=rpv", "2=ross_li_ts"),
+    ("fit-classes", "--class-name", "2=grass", "2=lawn"),
+])
+def test_an_id_or_key_given_twice_with_different_values_is_one_usage_line(tmp_path, command, option, first, second):
+    # A dict of the pairs kept the last without a word: which one was meant? Refused as the
+    # options are parsed (the files need not exist); the same pair twice is one setting.
+    files = ["--angles", str(tmp_path / "angles.tif"), "--classes", str(tmp_path / "classes.tif")]
+    output = ["-o", str(tmp_path / ("out.tif" if command == "correct" else "table.yaml"))]
+    given = ["--params", "roy2017"] * (command == "correct")
+    result = CliRunner().invoke(main, [command, str(tmp_path / "image.tif"), *files, *output, *given,
+                                       option, first, option, second])
+    assert result.exit_code == 2
+    key = first.partition("=")[0]
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and f"'{option}': {key} is given twice, as {first} and {second}: give it once" in lines[0]
+    again = CliRunner().invoke(main, [command, str(tmp_path / "image.tif"), *files, *output, *given,
+                                      option, first, option, first])
+    assert "given twice" not in again.output
