@@ -95,8 +95,8 @@ def test_correct_with_materials_equals_the_table(tmp_path, two_material_table):
 def test_material_option_wins_over_the_table(tmp_path, two_material_table):
     files = _scene_files(tmp_path / "scene", two_material_table, (500.0, 600.0))
     table_path = two_material_table.save(tmp_path / "table.yaml")
-    result = _correct(files, tmp_path / "out.tif", "--params", table_path, "--material", "2=roof_tile",
-                      "--material", "2=blue_concrete")
+    # (an id given twice with two materials is refused: tests/cli/test_cli_settings.py)
+    result = _correct(files, tmp_path / "out.tif", "--params", table_path, "--material", "2=blue_concrete")
     assert result.exit_code == 0, result.output
     with rasterio.open(tmp_path / "out.tif") as written:
         assert '"name":"blue_concrete"' in written.tags()["brdf_parameter_table_content"]
