@@ -20,7 +20,8 @@ An ENVI target (:class:`EnviOutput`) is written by GDAL's ENVI driver: the data 
 (``.hdr``: map info, coordinate system, band names, data ignore value, wavelengths) and its
 ``.aux.xml`` (the tags) all under temporary names, renamed when complete, the data file last.
 What a header cannot hold is refused (:func:`check_envi_georeference`: a sheared geotransform, no
-CRS); its ``description`` names the output, and band names cannot add header fields.
+CRS); its ``description`` names the output, and band names cannot add header fields (the header's
+own work: :mod:`brdfcorr.io.envi_output`).
 """
 
 from __future__ import annotations
@@ -32,8 +33,6 @@ import uuid
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal
-from xml.etree import ElementTree
 
 import dask
 import dask.threaded
@@ -48,9 +47,17 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 from xarray.conventions import encode_cf_variable
 
 from brdfcorr.defaults import default_threads
-from brdfcorr.errors import BrdfcorrError, InputError, OutputError
+from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.io import COMPRESSIONS, EXTENSIONS, FORMATS
 from brdfcorr.io.commit import Target, io_failure, remote_failure, verify, write_error, written_files
+from brdfcorr.io.envi_output import (  # the ENVI layout and text of band centres, importable here too
+    EnviOutput,
+    check_envi_georeference,
+    envi_safe,
+    header_fields_in_header_only,
+    wavelength_text,
+    write_envi_header,
+)
 from brdfcorr.io.files import DISK_CAUSES, interrupts_held, sync_file, temporary_beside, write_cause
 from brdfcorr.io.gdal_log import GdalLog
 from brdfcorr.io.paths import (  # path checks and names, importable here too
@@ -96,27 +103,6 @@ class GeoTiffOutput:
     compress: str = "deflate"
     blocksize: int = DEFAULT_CHUNK
     cog: bool = False
-
-
-@dataclass(frozen=True)
-class EnviOutput:
-    """How :func:`write_rasters` writes a target as ENVI.
-
-    Attributes
-    ----------
-    interleave : {"bsq", "bil"}
-        Band sequential or band interleaved by line.
-    wavelength, fwhm : sequence of float, optional
-        Band centres and full widths at half maximum [nm], written to the header as
-        ``wavelength``, ``fwhm`` and ``wavelength units = Nanometers``.
-    bad_bands : sequence of bool, optional
-        Which bands are bad (the input header's bad band list), written as ``bbl`` (1 good, 0 bad).
-    """
-
-    interleave: Literal["bsq", "bil"] = "bsq"
-    wavelength: Sequence[float] | None = None
-    fwhm: Sequence[float] | None = None
-    bad_bands: Sequence[bool] | None = None
 
 
 def _tile_size(blocksize: int, array: xr.DataArray) -> tuple[int, int]:
@@ -399,7 +385,7 @@ def _target(final: Path, array: xr.DataArray, layout: EnviOutput | None, cog: bo
     written = Path(f"{temporary}.gtiff") if cog else temporary
     if layout is None:
         return Target(final, array, None, temporary, written, [])
-    return Target(final, _envi_safe(array), layout, temporary, written, envi_sidecars(temporary, final))
+    return Target(final, envi_safe(array), layout, temporary, written, envi_sidecars(temporary, final))
 
 
 def _stores(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, client, handles: list) -> list:
@@ -429,8 +415,8 @@ def _finish(targets: list[Target], handles: list, geotiff: GeoTiffOutput) -> Non
                 **_cog_options(geotiff.compress),
             )
         if isinstance(target.layout, EnviOutput):
-            _write_envi_header(target.temporary, target.layout, target.final)
-            _header_fields_in_header_only(Path(f"{target.temporary}.aux.xml"))
+            write_envi_header(target.temporary, target.layout, target.final)
+            header_fields_in_header_only(Path(f"{target.temporary}.aux.xml"))
 
 
 def _cog_options(compress: str) -> dict:
@@ -505,100 +491,7 @@ class _OpenRaster:
                 dataset.close()
 
 
-def wavelength_text(value: float) -> str:
-    """A band centre or width [nm] as written into an output (tags, band descriptions, ENVI
-    headers): the shortest text that reads back as the same number (``1234.5678``, ``480``), where
-    ``:g`` kept 6 digits (1234.57)."""
-    return np.format_float_positional(float(value), trim="-")
-
-
 def wavelength_tags(values: Sequence[float]) -> dict[str, str]:
     """The ``wavelength`` and ``wavelength_units`` tags of an output's band centres [nm]
     (:func:`wavelength_text`; an ENVI output's header holds them instead, :data:`ENVI_HEADER_TAGS`)."""
     return {"wavelength": ",".join(map(wavelength_text, values)), "wavelength_units": "nm"}
-
-
-def _header_list(values: Sequence[float]) -> str:
-    return "{" + ", ".join(wavelength_text(value) for value in values) + "}"
-
-
-def _write_envi_header(path: Path, layout: EnviOutput, final: Path) -> None:
-    """Add the spectral fields to the header GDAL wrote (GDAL rewrites it on close): items of the
-    dataset's ENVI metadata domain are header fields (GDAL's ENVI driver). Then replace the
-    ``description`` GDAL fills with the file's (temporary) path by the final file's name, made safe
-    for a header (:func:`_header_text`)."""
-    items = {}
-    if layout.wavelength is not None:
-        items.update(wavelength=_header_list(layout.wavelength), wavelength_units="Nanometers")
-    if layout.fwhm is not None:
-        items["fwhm"] = _header_list(layout.fwhm)
-    if layout.bad_bands is not None:
-        items["bbl"] = _header_list([not bad for bad in layout.bad_bands])
-    if items:
-        with rasterio.open(path, "r+") as dataset:
-            dataset.update_tags(ns="ENVI", **items)
-    header = Path(f"{path}.hdr")
-    text = header.read_text()
-    written = f"description = {{\n{path}}}\n"
-    if written not in text:
-        raise OutputError(f"cannot write {final}: GDAL's ENVI header {header} has no description of the file")
-    header.write_text(text.replace(written, f"description = {{\nbrdfcorr output {_header_text(final.name)}}}\n", 1))
-
-
-def _header_fields_in_header_only(aux: Path) -> None:
-    """Remove from an ENVI output's ``.aux.xml`` the copies GDAL keeps there of what its header
-    holds: the ENVI metadata domain (every header field, the ``description`` with the temporary
-    file's name) and each band's nodata (``data ignore value``). GDAL reads the ``.aux.xml`` over
-    the header, so a header edited later (its ``wavelength``, its ``data ignore value``) was not
-    what GDAL and brdfcorr read. The provenance tags and the band descriptions stay (without
-    them GDAL would describe each band by its name and wavelength, ``480 nm (480 Nanometers)``)."""
-    if not aux.is_file():
-        return
-    tree = ElementTree.parse(aux)
-    root = tree.getroot()
-    for element in root.findall("Metadata[@domain='ENVI']"):
-        root.remove(element)
-    for band in root.findall("PAMRasterBand"):
-        for element in band.findall("NoDataValue"):
-            band.remove(element)
-        if not len(band):
-            root.remove(band)
-    tree.write(aux, encoding="unicode")
-
-
-def _header_text(text: str) -> str:
-    """Text that cannot end or add an ENVI header field: braces become parentheses, commas (which
-    separate a list's items) semicolons, line breaks spaces."""
-    table = str.maketrans({"{": "(", "}": ")", ",": ";", "\n": " ", "\r": " "})
-    return str(text).translate(table)
-
-
-def _envi_safe(array: xr.DataArray) -> xr.DataArray:
-    """The array with band descriptions (the header's ``band names``) that cannot inject header fields."""
-    names = array.attrs.get("long_name")
-    if not isinstance(names, (tuple, list)):
-        return array
-    safe = array.copy(deep=False)
-    safe.attrs = {**array.attrs, "long_name": tuple(_header_text(name) for name in names)}
-    return safe
-
-
-def check_envi_georeference(array: xr.DataArray, target: str | os.PathLike) -> None:
-    """Refuse what an ENVI header cannot say: its ``map info`` holds pixel sizes and one rotation,
-    so a sheared geotransform (columns not perpendicular to rows) would be written as a rotation
-    (tens of metres off at the far corner), and a raster with a geotransform but no CRS would get
-    ``map info = {Arbitrary, ...}``, read back as a local CRS ``LOCAL_CS["Arbitrary"]``.
-
-    Raises
-    ------
-    InputError
-        Naming the output, with the GeoTIFF format as the way out.
-    """
-    transform = array.rio.transform()
-    a, b, d, e = transform.a, transform.b, transform.d, transform.e
-    if abs(a * b + d * e) > 1e-9 * max(a * a + d * d, b * b + e * e):
-        raise InputError(f"ENVI output {target}: the image's geotransform is sheared ({tuple(transform)[:6]}); an "
-                         "ENVI header holds pixel sizes and a rotation only; write a GeoTIFF (--format GTiff)")
-    if array.rio.crs is None and not transform.is_identity:
-        raise InputError(f"ENVI output {target}: the image has no CRS; an ENVI header would say 'Arbitrary', read "
-                         "back as a local CRS; write a GeoTIFF (--format GTiff) or give the image a CRS")
