@@ -41,6 +41,7 @@ def _child(argv: list[str], cwd: str | None, environment: dict[str, str], output
     """In the forked child: the caller's directory and environment, stdout and stderr into the
     pipes ``outputs``, then ``argv`` run as its console script (``brdfcorr``) or as ``python
     script.py`` would run it; the child's exit code is the command's."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # Ctrl-C as in a fresh interpreter
     if cwd is not None:
         os.chdir(cwd)
     os.environ.clear()
@@ -70,13 +71,48 @@ def _drained(pipe) -> str:
     return b"".join(chunks).decode(errors="replace")
 
 
-def run(argv: list, *, cwd: Path | str | None = None, env: dict[str, str] | None = None, timeout: float = 300,
-        file_size_limit: int | None = None) -> subprocess.CompletedProcess:
-    """Run ``brdfcorr ARGS...`` or ``python SCRIPT ARGS...`` in a forked process of its own, in
-    ``cwd``, with the environment ``env`` (default: this process's), under a file size limit
-    [bytes] if given (stdout and stderr are pipes, as ``subprocess.run`` makes them: not held to
-    it); killed after ``timeout`` [s] (:class:`subprocess.TimeoutExpired`, as ``subprocess.run``
-    raises). Returns what ``subprocess.run`` returns: the exit code, stdout and stderr as text."""
+class Child:
+    """A command started by :func:`start`, as ``subprocess.Popen`` has it: ``pid``, ``poll()``,
+    ``send_signal()``, ``kill()``, ``wait()`` and ``communicate()`` (stdout and stderr as text);
+    ``returncode`` is ``-N`` for a child ended by signal N."""
+
+    def __init__(self, argv: list[str], process, readers: concurrent.futures.ThreadPoolExecutor, outputs: list):
+        self.args, self._process, self._readers, self._outputs = argv, process, readers, outputs
+
+    @property
+    def pid(self) -> int:
+        return self._process.pid
+
+    @property
+    def returncode(self) -> int | None:
+        return self._process.exitcode
+
+    def poll(self) -> int | None:
+        return self._process.exitcode
+
+    def send_signal(self, number: int) -> None:
+        os.kill(self.pid, number)
+
+    def kill(self) -> None:
+        self._process.kill()
+
+    def wait(self, timeout: float | None = None) -> int:
+        self._process.join(timeout)
+        if self._process.exitcode is None:
+            raise subprocess.TimeoutExpired(self.args, timeout)
+        return self._process.exitcode
+
+    def communicate(self, timeout: float | None = None) -> tuple[str, str]:
+        self.wait(timeout)
+        stdout, stderr = (output.result() for output in self._outputs)
+        self._readers.shutdown()
+        return stdout, stderr
+
+
+def start(argv: list, *, cwd: Path | str | None = None, env: dict[str, str] | None = None,
+          file_size_limit: int | None = None) -> Child:
+    """Start ``brdfcorr ARGS...`` or ``python SCRIPT ARGS...`` (as :func:`run`) and return at once:
+    the running :class:`Child`, whose stdout and stderr are read meanwhile."""
     argv = [str(word) for word in argv]
     server = _server()
     pipes = [server.Pipe(duplex=False) for _ in range(2)]
@@ -86,12 +122,22 @@ def run(argv: list, *, cwd: Path | str | None = None, env: dict[str, str] | None
     child.start()
     for _, writer in pipes:
         writer.close()
-    with concurrent.futures.ThreadPoolExecutor(2) as readers:
-        outputs = [readers.submit(_drained, reader) for reader, _ in pipes]
-        child.join(timeout)
-        if child.exitcode is None:
-            child.kill()
-            child.join()
-            raise subprocess.TimeoutExpired(argv, timeout)
-        stdout, stderr = (output.result() for output in outputs)
-    return subprocess.CompletedProcess(argv, child.exitcode, stdout, stderr)
+    readers = concurrent.futures.ThreadPoolExecutor(2)
+    return Child(argv, child, readers, [readers.submit(_drained, reader) for reader, _ in pipes])
+
+
+def run(argv: list, *, cwd: Path | str | None = None, env: dict[str, str] | None = None, timeout: float = 300,
+        file_size_limit: int | None = None) -> subprocess.CompletedProcess:
+    """Run ``brdfcorr ARGS...`` or ``python SCRIPT ARGS...`` in a forked process of its own, in
+    ``cwd``, with the environment ``env`` (default: this process's), under a file size limit
+    [bytes] if given (stdout and stderr are pipes, as ``subprocess.run`` makes them: not held to
+    it); killed after ``timeout`` [s] (:class:`subprocess.TimeoutExpired`, as ``subprocess.run``
+    raises). Returns what ``subprocess.run`` returns: the exit code, stdout and stderr as text."""
+    child = start(argv, cwd=cwd, env=env, file_size_limit=file_size_limit)
+    try:
+        stdout, stderr = child.communicate(timeout)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        child.communicate()
+        raise
+    return subprocess.CompletedProcess(child.args, child.returncode, stdout, stderr)

@@ -10,6 +10,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -49,6 +50,21 @@ def _chain(root: Path, **inputs) -> Path:
     return path
 
 
+@pytest.fixture(scope="module")
+def ran(tiles, tmp_path_factory) -> SimpleNamespace:
+    """The chain run once over a copy of ``tiles`` (``root``: its tiles and ``out``), its system
+    temporary folder a folder of its own: the ``report`` and the scratch ``stacks`` left there after
+    the run. Read-only: the reference of the tests that compare other runs with it."""
+    root = tmp_path_factory.mktemp("ran")
+    shutil.copytree(tiles / "tiles", root / "tiles")
+    scratch = root / "system_tmp"
+    scratch.mkdir()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(tempfile, "tempdir", str(scratch))
+        report = run_chain(_chain(root))
+    return SimpleNamespace(root=root, report=report, stacks=_stacks(scratch))
+
+
 @pytest.fixture
 def copy(tiles, tmp_path) -> Path:
     shutil.copytree(tiles / "tiles", tmp_path / "tiles")
@@ -68,14 +84,14 @@ def _stacks(folder: Path) -> list[Path]:
     return [path for path in folder.iterdir() if path.name.startswith(SCRATCH_PREFIX)]
 
 
-def test_chain_over_products_is_fit_classes_and_correct_of_the_folders(copy, scratch, invoke):
-    report = run_chain(_chain(copy))
+def test_chain_over_products_is_fit_classes_and_correct_of_the_folders(ran, tmp_path, scratch, invoke):
+    report, copy = ran.report, ran.root  # the chain run over the folders (read here, never changed)
     assert report.ok, report.scenes
     folders = sorted((copy / "tiles").glob("*.SAFE"))
     assert [result["image"] for result in report.scenes] == [str(folder) for folder in folders]
-    assert not _stacks(scratch)  # the scratch stacks were removed with the run
+    assert not ran.stacks  # the scratch stacks were removed with the run
 
-    by_hand = copy / "by_hand"
+    by_hand = tmp_path / "by_hand"
     code, stderr = invoke(["fit-classes", *folders, "--classes", copy / "tiles" / "classes.tif",
                            "--model", "ross_thick_li_sparse", "--levels", "pixel", "--block-size", "8",
                            "--min-samples", "50", "-o", by_hand / "table.yaml"])
@@ -199,32 +215,34 @@ def test_strata_derived_from_each_products_stack(copy, scratch):
         assert {1, 2} <= set(np.unique(strata.values))
 
 
-def test_stac_items_run_as_their_folders(copy, scratch):
+def test_stac_items_run_as_their_folders(ran, copy, scratch):
     """Sentinel-2 STAC items with local assets (``tiles/*.json``) are products as the SAFE folders
     are: the item of each folder reads the same pixels, scaling and angles, so the chain over the
-    items fits the same table and writes the same dates as the chain over the folders."""
+    items fits the same table and writes the same dates as the chain over the folders (``ran``: the
+    chain over another copy of the same folders)."""
     items = [write_stac_item(folder) for folder in sorted((copy / "tiles").glob("*.SAFE"))]
-    assert run_chain(_chain(copy)).ok
+    assert ran.report.ok
     document = {**CHAIN, "inputs": {**CHAIN["inputs"], "images": ["tiles/*.json"]},
                 "outputs": {**CHAIN["outputs"], "directory": "items_out"}}
     (copy / "items.yaml").write_text(yaml.safe_dump(document))
     report = run_chain(copy / "items.yaml")
     assert report.ok, report.scenes
     assert [result["image"] for result in report.scenes] == [str(item) for item in items]
-    tables = [ParameterTable.load(copy / folder / "fitted_params.yaml") for folder in ("items_out", "out")]
+    tables = [ParameterTable.load(root / "fitted_params.yaml") for root in (copy / "items_out", ran.root / "out")]
     # the same fit (its record names what it read: the items, or the folders)
     assert [(entry.id, entry.model, entry.params) for entry in tables[0].classes] == [
         (entry.id, entry.model, entry.params) for entry in tables[1].classes]
     for item, folder in zip(items, sorted((copy / "tiles").glob("*.SAFE"))):
         np.testing.assert_array_equal(rioxarray.open_rasterio(copy / "items_out" / f"{item.stem}_nbar.tif").values,
-                                      rioxarray.open_rasterio(copy / "out" / f"{folder.stem}_nbar.tif").values)
+                                      rioxarray.open_rasterio(ran.root / "out" / f"{folder.stem}_nbar.tif").values)
     assert not _stacks(scratch)
 
 
-def test_process_workers_read_the_runs_stacks(copy, scratch):
+def test_process_workers_read_the_runs_stacks(ran, copy, scratch):
     """With ``engine.scheduler: processes`` the scenes are corrected in spawned worker processes,
-    which read the stacks of the run's scratch folder: the same dates as in the calling thread."""
-    assert run_chain(_chain(copy)).ok
+    which read the stacks of the run's scratch folder: the same dates as in the calling thread
+    (``ran``: the chain over another copy of the same folders)."""
+    assert ran.report.ok
     document = {**CHAIN, "outputs": {**CHAIN["outputs"], "directory": "processes"},
                 "engine": {"scheduler": "processes", "workers": 2, "threads_per_worker": 1}}
     (copy / "processes.yaml").write_text(yaml.safe_dump(document))
@@ -233,7 +251,7 @@ def test_process_workers_read_the_runs_stacks(copy, scratch):
     for folder in sorted((copy / "tiles").glob("*.SAFE")):
         name = f"{folder.stem}_nbar.tif"
         np.testing.assert_array_equal(rioxarray.open_rasterio(copy / "processes" / name).values,
-                                      rioxarray.open_rasterio(copy / "out" / name).values)
+                                      rioxarray.open_rasterio(ran.root / "out" / name).values)
     assert not _stacks(scratch)
 
 

@@ -51,6 +51,13 @@ def library_report(files):
     return assessment.report()
 
 
+@pytest.fixture(scope="module")
+def plain(lines):
+    """The lines' leave-one-line-out in memory (never written), without a prior: read-only."""
+    return leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE),
+                              view_options=ViewAngleOptions(class_names=NAMES))
+
+
 def _scenes(files, count=None, images=None):
     """The lines' SceneSources: image, class map and angle source of each, in order."""
     images = files["images"][:count] if images is None else images
@@ -71,11 +78,10 @@ def _arguments(files, images=None, classes=None, angles=None):
     return arguments
 
 
-def test_files_give_the_numbers_of_the_lines_in_memory(lines, library_report):
+def test_files_give_the_numbers_of_the_lines_in_memory(plain, library_report):
     # Independent computation: the same lines, never written, through leave_one_line_out. The files
     # hold the same float64 values, so every number agrees to rounding.
-    memory = leave_one_line_out_report(leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE),
-                                                          view_options=ViewAngleOptions(class_names=NAMES)))
+    memory = leave_one_line_out_report(plain)
     assert [line["held_out"] for line in library_report["lines"]] == ["line1", "line2", "line3"]
     for from_files, in_memory in zip(library_report["lines"], memory["lines"]):
         for stage in ("before", "after"):
@@ -137,13 +143,12 @@ def test_bad_input_is_one_line_and_exit_2(files, tmp_path):
         leave_one_line_out_files(_scenes(files, images=files["images"][:1] * 2))
 
 
-def test_a_prior_reaches_every_held_out_fit(lines, files, tmp_path, tables_close):
+def test_a_prior_reaches_every_held_out_fit(lines, plain, files, tmp_path, tables_close):
     # --prior as for fit-classes: each held-out line is corrected with the posterior of the fit on
     # the other lines (brdfcorr.fit.prior), and the CLI is the library call.
     from brdfcorr.fit.prior import ShapePrior, with_shape_prior
 
     options = {"view_options": ViewAngleOptions(class_names=NAMES)}
-    plain = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE), **options)
     prior = leave_one_line_out(lines, HoldoutFit("ross_thick_li_sparse", reference=REFERENCE,
                                                  prior=ShapePrior("roy2016", 0.1)), **options)
     for without, with_prior in zip(plain, prior):
@@ -194,13 +199,12 @@ def test_each_line_takes_its_cluster_layer(files, tmp_path):
     assert len(refused.output.strip().splitlines()) == 1
 
 
-def test_view_azimuths_stored_from_the_sensor_are_flipped_in_the_fits_too(lines, tables_close):
+def test_view_azimuths_stored_from_the_sensor_are_flipped_in_the_fits_too(lines, plain, tables_close):
     # The same lines with each view azimuth stored as seen from the sensor (vaa + 180) and
     # --flip-view-azimuth: every held-out fit, correction and assessment is that of the lines
     # stored the usual way (the fits read the azimuths as the corrections do).
     turned = [line._replace(angles={**line.angles, "vaa": (line.angles["vaa"] + 180.0) % 360.0}) for line in lines]
     fit = HoldoutFit("ross_thick_li_sparse", reference=REFERENCE)
-    plain = leave_one_line_out(lines, fit, view_options=ViewAngleOptions(class_names=NAMES))
     flipped = leave_one_line_out(turned, fit, view_options=ViewAngleOptions(class_names=NAMES,
                                                                             flip_view_azimuth=True))
     for ours, theirs in zip(flipped, plain):

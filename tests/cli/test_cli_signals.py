@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import _forked
 from click.testing import CliRunner
 
 from brdfcorr.cli import EXIT_INTERRUPTED, main
@@ -57,12 +58,10 @@ def test_keyboard_interrupt_is_exit_130_with_one_line(monkeypatch):
 
 
 def test_sigint_during_a_write_exits_130_and_leaves_no_partial_file(tmp_path):
-    # A real SIGINT to a real process, in the middle of writing the demo scene's outputs.
+    # A real SIGINT to a real process (forked from one that has imported the package:
+    # tests/_forked.py), in the middle of writing the demo scene's outputs.
     output = tmp_path / "demo"
-    process = subprocess.Popen(
-        [sys.executable, "-c", "from brdfcorr.cli import main; main()", "demo", "-o", str(output), "--no-progress"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )
+    process = _forked.start(["brdfcorr", "demo", "-o", output, "--no-progress"])
     for _ in range(30_000):  # a hang guard of at most 300 s of polling, not a measurement
         if any(output.rglob("*.partial")) or process.poll() is not None:
             break

@@ -12,6 +12,7 @@ import subprocess
 import sys
 import time
 
+import _forked
 import numpy as np
 from _cli_lines import _nbar
 
@@ -54,10 +55,9 @@ def test_sigterm_removes_the_scratch_folder_and_what_was_being_written(tmp_path)
     folder = write_sentinel2_safe(tmp_path / "in", size=64)
     out = tmp_path / "out"
     out.mkdir()
-    process = subprocess.Popen(
-        [sys.executable, "-c", "from brdfcorr.cli import main; main()", "nbar", str(folder), "-o",
-         str(out / "nbar.tif"), "--view-band", "each", "--no-progress"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # A process of its own, forked from one that has imported the package (tests/_forked.py).
+    process = _forked.start(["brdfcorr", "nbar", folder, "-o", out / "nbar.tif", "--view-band", "each",
+                             "--no-progress"])
     for _ in range(30_000):  # a hang guard of at most 300 s of polling, not a measurement
         if any(out.glob(".nbar-*/*")) or process.poll() is not None:
             break

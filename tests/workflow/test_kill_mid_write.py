@@ -12,13 +12,11 @@ from __future__ import annotations
 import errno
 import os
 import re
-import resource
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
+import _forked
 import numpy as np
 import pytest
 import rasterio
@@ -45,16 +43,12 @@ def _arguments(big, output: Path, *extra, chunk: int = CHUNK) -> list[str]:
             *map(str, extra)]
 
 
-def _command(big, output: Path, *extra, chunk: int = CHUNK) -> list[str]:
-    return [sys.executable, "-c", "from brdfcorr.cli import main; main()", *_arguments(big, output, *extra,
-                                                                                       chunk=chunk)]
-
-
 def test_sigkill_mid_write_leaves_only_a_partial_file_and_a_rerun_succeeds(big, tmp_path):
     output_dir = tmp_path / "out"
     output_dir.mkdir()
     output = output_dir / "corrected.tif"
-    process = subprocess.Popen(_command(big, output), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    # A process of its own, forked from one that has imported the package (tests/_forked.py).
+    process = _forked.start(["brdfcorr", *_arguments(big, output)])
     try:
         for _ in range(30_000):  # a hang guard of at most 300 s of polling, not a measurement
             if any(PARTIAL.match(p.name) for p in output_dir.iterdir()):
@@ -88,22 +82,14 @@ def test_sigkill_mid_write_leaves_only_a_partial_file_and_a_rerun_succeeds(big, 
         np.testing.assert_array_equal(dataset.read(), expected.values)
 
 
-def _limit_file_size(limit: int):
-    def preexec():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails (EFBIG)
-    return preexec
-
-
 def test_file_size_limit_mid_write_exits_2_and_leaves_nothing(big, tmp_path):
     """RLIMIT_FSIZE stands in for a full disk: the kernel refuses writes past the limit."""
     output_dir = tmp_path / "out"
     output_dir.mkdir()
     output = output_dir / "corrected.tif"
-    result = subprocess.run(
-        _command(big, output, "--compress", "none", "--qa", output_dir / "qa.tif", chunk=128),
-        capture_output=True, text=True, timeout=120, preexec_fn=_limit_file_size(256 * 1024),
-    )
+    # A process of its own under the limit, forked from one that has imported the package (tests/_forked.py).
+    result = _forked.run(["brdfcorr", *_arguments(big, output, "--compress", "none", "--qa", output_dir / "qa.tif",
+                                                  chunk=128)], timeout=120, file_size_limit=256 * 1024)
     assert result.returncode == 2, result.stderr
     # GDAL's TIFF writer prints its own lines too (C stderr, in any order with ours): brdfcorr's
     # message is its one line among them.
