@@ -43,7 +43,7 @@ from brdfcorr.io.product import (  # the identification and sizes, importable fr
 )
 from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.io.sensors.products import hdf5_product, open_product
-from brdfcorr.io.wavelengths import band_wavelengths, envi_fwhm
+from brdfcorr.io.wavelengths import band_wavelengths, envi_fwhm, tag_fwhm
 from brdfcorr.io.writer import DEFAULT_CHUNK, GeoTiffOutput, write_rasters
 
 __all__ = [
@@ -142,6 +142,10 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
         fwhm = envi_fwhm(path)
         image = image.drop_vars("fwhm") if fwhm is None else image.assign_coords(
             fwhm=(image.dims[0], fwhm, {"units": "nm"}))
+    elif "fwhm" in image.attrs:  # a GeoTIFF's tag (a brdfcorr output's)
+        fwhm = tag_fwhm(image.attrs, image.sizes[image.dims[0]], path)
+        image = image.assign_coords(fwhm=(image.dims[0], fwhm, {"units": "nm"}))
+        image.attrs = {key: value for key, value in image.attrs.items() if key != "fwhm"}
     image.name = image.name or "reflectance"
     if identified is not None:
         bad = identified.bad_bands

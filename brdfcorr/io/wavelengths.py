@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import xarray as xr
@@ -15,7 +15,7 @@ from brdfcorr.io.opening import opened
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, named_band_wavelengths
 
 __all__ = ["band_wavelengths", "file_wavelengths", "with_wavelengths", "envi_header_wavelengths", "envi_fwhm",
-           "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS", "SENTINEL2_WAVELENGTHS"]
+           "tag_fwhm", "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS", "SENTINEL2_WAVELENGTHS"]
 
 _UNITS_TO_NM = {
     "": 1.0, "nm": 1.0, "nanometer": 1.0, "nanometers": 1.0, "nanometre": 1.0, "nanometres": 1.0,
@@ -137,6 +137,30 @@ def envi_header_wavelengths(path) -> tuple[np.ndarray, np.ndarray | None]:
         return envi_wavelengths(path)
     except BrdfcorrError as error:
         raise InputError(str(error)) from None
+
+
+def tag_fwhm(tags: Mapping, n_bands: int, source) -> np.ndarray | None:
+    """The bands' FWHM [nm] of a dataset tag ``fwhm`` (comma-separated, in the ``wavelength_units``
+    of the band centres, nm by default; as a brdfcorr GeoTIFF output writes it), None without one.
+
+    Raises
+    ------
+    InputError
+        A ``fwhm`` tag that is not one positive number per band, or unknown units.
+    """
+    if "fwhm" not in tags:
+        return None
+    text = str(tags["fwhm"])
+    unit = str(tags.get("wavelength_units", "nm")).strip().lower()
+    try:
+        values = np.array([float(v) for v in re.split(r"[,\s]+", text.strip(" {}[]()")) if v])
+    except ValueError:
+        raise InputError(f"{source}: tag fwhm={text!r} is not a comma-separated list of numbers") from None
+    if unit not in _UNITS_TO_NM:
+        raise InputError(f"{source}: unknown wavelength_units {unit!r}")
+    if values.size != n_bands or not np.all(np.isfinite(values) & (values > 0)):
+        raise InputError(f"{source}: tag fwhm={text!r} is not one positive width per band ({n_bands} bands)")
+    return values * _UNITS_TO_NM[unit]
 
 
 def envi_fwhm(path) -> np.ndarray | None:

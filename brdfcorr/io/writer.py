@@ -367,7 +367,7 @@ def _problem(error: BaseException, rasters: list, failures: GdalLog, targets: li
 #: Tags an ENVI output's header holds (its ``wavelength`` and ``wavelength units`` fields:
 #: :func:`wavelength_tags`), not written again into its ``.aux.xml``, whose tags GDAL and brdfcorr
 #: would read over the header.
-ENVI_HEADER_TAGS = ("wavelength", "wavelength_units")
+ENVI_HEADER_TAGS = ("wavelength", "wavelength_units", "fwhm")
 
 
 def _file_tags(tags, commit_tags, index: int, target: Target) -> dict:
@@ -491,7 +491,11 @@ class _OpenRaster:
                 dataset.close()
 
 
-def wavelength_tags(values: Sequence[float]) -> dict[str, str]:
-    """The ``wavelength`` and ``wavelength_units`` tags of an output's band centres [nm]
-    (:func:`wavelength_text`; an ENVI output's header holds them instead, :data:`ENVI_HEADER_TAGS`)."""
-    return {"wavelength": ",".join(map(wavelength_text, values)), "wavelength_units": "nm"}
+def wavelength_tags(values: Sequence[float], fwhm: Sequence[float] | None = None) -> dict[str, str]:
+    """The ``wavelength`` and ``wavelength_units`` tags of an output's band centres [nm], and its
+    ``fwhm`` tag where the bands' full widths at half maximum [nm] are given (:func:`wavelength_text`;
+    an ENVI output's header holds them instead, :data:`ENVI_HEADER_TAGS`)."""
+    tags = {"wavelength": ",".join(map(wavelength_text, values)), "wavelength_units": "nm"}
+    if fwhm is not None:
+        tags["fwhm"] = ",".join(map(wavelength_text, fwhm))
+    return tags

@@ -383,8 +383,10 @@ def _scene_tags(scene: SceneData, class_lookup) -> dict[str, str]:
     class_map_note = describe_class_map(scene.classes, class_lookup)
     if class_map_note:
         tags["brdf_class_map"] = class_map_note
-    if "wavelength" in scene.reflectance.coords:
-        tags.update(writer.wavelength_tags(scene.reflectance["wavelength"].values))
+    coords = scene.reflectance.coords
+    if "wavelength" in coords:
+        tags.update(writer.wavelength_tags(coords["wavelength"].values,
+                                           coords["fwhm"].values if "fwhm" in coords else None))
     sun = _centre_sun(scene.angles)
     if sun is not None:
         tags["brdf_scene_sun"] = f"zenith {sun[0]:.1f}, azimuth {sun[1]:.1f} (scene centre, deg)"

@@ -138,9 +138,13 @@ def test_envi_input_header_is_not_copied_into_geotiff_tags(files, tmp_path):
     with rasterio.open(output) as dataset:
         tags = dataset.tags()
     assert not [key for key in tags if re.fullmatch(r"Band_\d+", key)]
-    for key in ("interleave", "file_type", "map_info", "samples", "data_type", "band_names", "fwhm"):
+    for key in ("interleave", "file_type", "map_info", "samples", "data_type", "band_names"):
         assert key not in tags, key
     assert tags["wavelength"] == "480,560,660,830" and tags["wavelength_units"] == "nm"  # brdfcorr's own
+    # The band widths are brdfcorr's own too (in nm, as the centres), and read back as the image's.
+    assert tags["fwhm"] == "10,10,10,10"
+    np.testing.assert_array_equal(open_image(output)["fwhm"].values, [10.0] * 4)
+    assert "fwhm" not in open_image(output).attrs
 
     # ... and the ENVI output of an ENVI input carries the input's fwhm in its header.
     result = _correct(files, tmp_path / "out.bsq", "--format", "ENVI", image=image)
@@ -178,3 +182,35 @@ def test_an_envi_output_s_header_is_the_one_place_of_its_fields(files, tmp_path)
     np.testing.assert_array_equal(open_image(output)["wavelength"].values, [481, 561, 661, 831])
     with rasterio.open(output) as edited:
         assert edited.nodata == 0 and edited.tags()["brdf_reference"]  # the provenance stays in the .aux.xml
+
+
+def test_the_band_widths_of_an_envi_input_in_micrometres_reach_a_geotiff_and_read_back(files, tmp_path):
+    # FWHM were carried to ENVI outputs only: an AVIRIS-NG line corrected to a GeoTIFF lost them.
+    with rasterio.open(files["image"]) as source:
+        profile, data = source.profile, source.read()
+    for key in ("tiled", "blockxsize", "blockysize", "compress", "interleave"):
+        profile.pop(key, None)
+    image = tmp_path / "input.img"
+    with rasterio.open(image, "w", **{**profile, "driver": "ENVI"}) as envi:
+        envi.write(data)
+        envi.update_tags(ns="ENVI", wavelength="{0.48, 0.56, 0.66, 0.83}", fwhm="{0.0101, 0.0102, 0.0103, 0.0104}",
+                         wavelength_units="Micrometers")
+    widths = [10.1, 10.2, 10.3, 10.4]
+    geotiff = tmp_path / "out.tif"
+    assert _correct(files, geotiff, image=image).exit_code == 0
+    with rasterio.open(geotiff) as dataset:
+        assert [float(value) for value in dataset.tags()["fwhm"].split(",")] == pytest.approx(widths, rel=1e-12)
+    np.testing.assert_allclose(open_image(geotiff)["fwhm"].values, widths, rtol=1e-12)
+
+
+def test_a_fwhm_tag_that_is_not_one_width_per_band_is_refused(files, tmp_path):
+    from brdfcorr.errors import InputError
+
+    with rasterio.open(files["image"]) as source:
+        profile, data = source.profile, source.read()
+    image = tmp_path / "widths.tif"
+    with rasterio.open(image, "w", **profile) as written:
+        written.write(data)
+        written.update_tags(wavelength="480,560,660,830", fwhm="10,10")
+    with pytest.raises(InputError, match="not one positive width per band"):
+        open_image(image)
