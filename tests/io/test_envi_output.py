@@ -122,16 +122,21 @@ def test_chain_envi_default_naming_and_mismatch(tmp_path):
             OutputsConfig(directory="out", **bad)
 
 
-def test_envi_input_header_is_not_copied_into_geotiff_tags(files, tmp_path):
+def _envi_copy(files, image, **header):
+    """The example image as an ENVI file ``image`` with ``header`` items; returns its path."""
     with rasterio.open(files["image"]) as source:
         profile, data = source.profile, source.read()
     for key in ("tiled", "blockxsize", "blockysize", "compress", "interleave"):
         profile.pop(key, None)
-    image = tmp_path / "input.img"
     with rasterio.open(image, "w", **{**profile, "driver": "ENVI"}) as envi:
         envi.write(data)
-        envi.update_tags(ns="ENVI", wavelength="{480, 560, 660, 830}", fwhm="{10, 10, 10, 10}",
-                         wavelength_units="Nanometers")
+        envi.update_tags(ns="ENVI", **header)
+    return image
+
+
+def test_envi_input_header_is_not_copied_into_geotiff_tags(files, tmp_path):
+    image = _envi_copy(files, tmp_path / "input.img", wavelength="{480, 560, 660, 830}", fwhm="{10, 10, 10, 10}",
+                       wavelength_units="Nanometers")
     output = tmp_path / "out.tif"
     result = _correct(files, output, image=image)
     assert result.exit_code == 0, result.output
@@ -186,15 +191,8 @@ def test_an_envi_output_s_header_is_the_one_place_of_its_fields(files, tmp_path)
 
 def test_the_band_widths_of_an_envi_input_in_micrometres_reach_a_geotiff_and_read_back(files, tmp_path):
     # FWHM were carried to ENVI outputs only: an AVIRIS-NG line corrected to a GeoTIFF lost them.
-    with rasterio.open(files["image"]) as source:
-        profile, data = source.profile, source.read()
-    for key in ("tiled", "blockxsize", "blockysize", "compress", "interleave"):
-        profile.pop(key, None)
-    image = tmp_path / "input.img"
-    with rasterio.open(image, "w", **{**profile, "driver": "ENVI"}) as envi:
-        envi.write(data)
-        envi.update_tags(ns="ENVI", wavelength="{0.48, 0.56, 0.66, 0.83}", fwhm="{0.0101, 0.0102, 0.0103, 0.0104}",
-                         wavelength_units="Micrometers")
+    image = _envi_copy(files, tmp_path / "input.img", wavelength="{0.48, 0.56, 0.66, 0.83}",
+                       fwhm="{0.0101, 0.0102, 0.0103, 0.0104}", wavelength_units="Micrometers")
     widths = [10.1, 10.2, 10.3, 10.4]
     geotiff = tmp_path / "out.tif"
     assert _correct(files, geotiff, image=image).exit_code == 0
