@@ -150,17 +150,25 @@ def tag_fwhm(tags: Mapping, n_bands: int, source) -> np.ndarray | None:
     """
     if "fwhm" not in tags:
         return None
-    text = str(tags["fwhm"])
-    unit = str(tags.get("wavelength_units", "nm")).strip().lower()
+    values = np.array(_tag_nanometres(tags, "fwhm", source))
+    if values.size != n_bands or not np.all(np.isfinite(values) & (values > 0)):
+        raise InputError(f"{source}: tag fwhm={tags['fwhm']!r} is not one positive width per band ({n_bands} bands)")
+    return values
+
+
+def _tag_nanometres(tags: Mapping, key: str, source) -> list[float]:
+    """The comma-separated numbers of the dataset tag ``key`` in nm (read in the ``wavelength_units``
+    tag's unit, nm by default); an :class:`InputError` for text that is no list of numbers or an
+    unknown unit."""
+    text = str(tags[key])
     try:
-        values = np.array([float(v) for v in re.split(r"[,\s]+", text.strip(" {}[]()")) if v])
+        values = [float(v) for v in re.split(r"[,\s]+", text.strip(" {}[]()")) if v]
     except ValueError:
-        raise InputError(f"{source}: tag fwhm={text!r} is not a comma-separated list of numbers") from None
+        raise InputError(f"{source}: tag {key}={text!r} is not a comma-separated list of numbers") from None
+    unit = str(tags.get("wavelength_units", "nm")).strip().lower()
     if unit not in _UNITS_TO_NM:
         raise InputError(f"{source}: unknown wavelength_units {unit!r}")
-    if values.size != n_bands or not np.all(np.isfinite(values) & (values > 0)):
-        raise InputError(f"{source}: tag fwhm={text!r} is not one positive width per band ({n_bands} bands)")
-    return values * _UNITS_TO_NM[unit]
+    return [v * _UNITS_TO_NM[unit] for v in values]
 
 
 def envi_fwhm(path) -> np.ndarray | None:
@@ -179,16 +187,7 @@ def _from_metadata(n_bands: int, tags, descriptions, envi_header, path, source, 
     if explicit is not None:
         values, origin = [float(v) for v in explicit], "the given wavelengths"
     elif "wavelength" in tags:
-        text = str(tags["wavelength"])
-        try:
-            values = [float(v) for v in re.split(r"[,\s]+", text.strip(" {}[]()")) if v]
-        except ValueError:
-            raise InputError(f"{source}: tag wavelength={text!r} is not a comma-separated list of numbers") from None
-        unit = str(tags.get("wavelength_units", "nm")).strip().lower()
-        if unit not in _UNITS_TO_NM:
-            raise InputError(f"{source}: unknown wavelength_units {unit!r}")
-        values = [v * _UNITS_TO_NM[unit] for v in values]
-        origin = "tag 'wavelength'"
+        values, origin = _tag_nanometres(tags, "wavelength", source), "tag 'wavelength'"
     elif "wavelength" in envi_header:  # before the band descriptions GDAL makes of it, without its units
         values, origin = envi_header_wavelengths(path)[0].tolist(), "ENVI header"
     else:
