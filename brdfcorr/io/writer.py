@@ -364,7 +364,7 @@ def _problem(error: BaseException, rasters: list, failures: GdalLog, targets: li
     return None
 
 
-#: Tags an ENVI output's header holds (its ``wavelength`` and ``wavelength units`` fields:
+#: Tags an ENVI output's header holds (its ``wavelength``, ``wavelength units`` and ``fwhm`` fields:
 #: :func:`wavelength_tags`), not written again into its ``.aux.xml``, whose tags GDAL and brdfcorr
 #: would read over the header.
 ENVI_HEADER_TAGS = ("wavelength", "wavelength_units", "fwhm")
