@@ -29,6 +29,12 @@ Stop 50 (the same script at e8eabe8 and after, from a directory outside the repo
 fit's and the correction's packages no longer imported for their settings), ``fit CSV`` 3.48 s
 (3.11) -> 1.56 s (1.39; the goniometer task apart from the imagery fit); the other rows unchanged.
 
+Stop 57: ``correct LINE`` corrects the demo's line (``brdfcorr demo``, 382 x 380 pixels, 6 bands)
+with the README's example table. dask looked for a dask.distributed Client on each pass and imported
+the module for it; a local pass now names dask's scheduler function
+(``brdfcorr.io.scheduler.local_scheduler``). The row ``correct LINE, distributed imported`` runs the
+same correction after ``import distributed``: what every correction paid before.
+
 Usage::
 
     python benchmarks/bench_startup.py [--repeat 5]
@@ -48,6 +54,12 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 BASELINES = {"interpreter": ["-c", "pass"], "import xarray": ["-c", "import xarray"]}
 #: The goniometer table of ``brdfcorr fit CSV`` (the README's roof tile, phi >= 90 deg fitted).
 MEASUREMENTS = Path(tempfile.gettempdir()) / "bench_startup_roof_tile.csv"
+#: The demo's line and where its correction goes (``correct LINE``).
+DEMO = Path(tempfile.gettempdir()) / "bench_startup_demo"
+LINE = DEMO / "scene" / "line01_"
+CORRECT = ["correct", f"{LINE}image.tif", "--angles", f"{LINE}angles.tif", "--classes", f"{LINE}classes.tif",
+           "--params", str(REPOSITORY / "configs" / "params_example.yaml"), "--ref-sza", "mean", "--ref-vza", "0",
+           "-o", str(DEMO / "corrected.tif"), "--qa", str(DEMO / "qa.tif"), "--overwrite"]
 COMMANDS = {
     "brdfcorr --help": ["--help"],
     "brdfcorr models": ["models"],
@@ -56,7 +68,11 @@ COMMANDS = {
     "brdfcorr validate TABLE": ["validate", str(REPOSITORY / "configs" / "params_example.yaml")],
     "brdfcorr validate CHAIN": ["validate", str(REPOSITORY / "configs" / "imagery_fit.yaml")],
     "brdfcorr fit CSV": ["fit", str(MEASUREMENTS), "--fix", "k=0.25", "--min-phi", "90"],
+    "brdfcorr correct LINE": CORRECT,
 }
+#: The correction as it ran before stop 57 (dask.distributed imported on the first pass).
+AS_BEFORE = {"correct LINE, distributed imported": [
+    "-c", f"import distributed, sys; from brdfcorr.cli import main; main({CORRECT!r}, prog_name='brdfcorr')"]}
 
 
 def _seconds(arguments: list[str]) -> float:
@@ -71,7 +87,8 @@ def main() -> None:
     args = parser.parse_args()
     subprocess.run([sys.executable, str(REPOSITORY / "examples" / "make_goniometer_csv.py"), "roof_tile",
                     str(MEASUREMENTS)], check=True, capture_output=True)
-    runs = {**BASELINES, **{name: ["-m", "brdfcorr", *words] for name, words in COMMANDS.items()}}
+    subprocess.run([sys.executable, "-m", "brdfcorr", "demo", "-o", str(DEMO)], check=True, capture_output=True)
+    runs = {**BASELINES, **{name: ["-m", "brdfcorr", *words] for name, words in COMMANDS.items()}, **AS_BEFORE}
     times: dict[str, list[float]] = {name: [] for name in runs}
     for _ in range(args.repeat):  # in turn, so that a busy moment touches every row alike
         for name, arguments in runs.items():

@@ -37,6 +37,7 @@ import xarray as xr
 
 from brdfcorr._arrays import array_function, cosd, sind
 from brdfcorr.errors import InputError
+from brdfcorr.io.scheduler import local_scheduler
 
 __all__ = [
     "LocalAngles",
@@ -415,7 +416,8 @@ def _block_statistics(surface: SlopeAspect, scheduler: str | None, num_workers: 
         slope = da.asarray(slope)
         aspect = da.asarray(aspect).rechunk(slope.chunks)
         per_block = da.map_blocks(_surface_statistics, slope, aspect, new_axis=[2, 3], chunks=(1, 1, 2, 4),
-                                  dtype=np.float64).compute(scheduler=scheduler, num_workers=num_workers)
+                                  dtype=np.float64)
+        per_block = per_block.compute(scheduler=local_scheduler(scheduler), num_workers=num_workers)
     else:
         per_block = _surface_statistics(np.asarray(slope), np.asarray(aspect))
     return np.asarray(per_block).reshape(-1, 2, 4)

@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import dask
 import dask.array
+import dask.local
 import numpy as np
 import xarray as xr
 
@@ -19,6 +20,7 @@ from brdfcorr._entry import option
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import describe_layer
 from brdfcorr.io.opening import chunk_spec, open_raster, reading
+from brdfcorr.io.scheduler import local_scheduler
 from brdfcorr.io.sensors.grids import GRID_STATISTICS, grid_window
 
 __all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY", "POSITIONAL",
@@ -264,7 +266,7 @@ def _pixel_statistics(layers: Mapping[str, xr.DataArray], names: list[str], sour
     with reading(what):  # a truncated file fails here, in its first pass
         per_block = dask.array.map_blocks(
             _angle_statistics, *arrays, new_axis=[2, 3], chunks=(1, 1, len(names), N_STATISTICS), dtype=np.float64,
-        ).compute(scheduler=scheduler, num_workers=num_workers)
+        ).compute(scheduler=local_scheduler(scheduler), num_workers=num_workers)
     return per_block.reshape(-1, len(names), N_STATISTICS)
 
 
@@ -374,5 +376,7 @@ def window_values(layer: xr.DataArray, rows: slice, cols: slice) -> np.ndarray:
     chunk), else read from the layer."""
     window = grid_window(layer, rows, cols)
     if window is None:
-        window = np.asarray(layer.isel(y=rows, x=cols).transpose("y", "x"), dtype=np.float64)
+        # A few pixels: in this thread (dask's default would import dask.distributed to look for a Client).
+        window = layer.isel(y=rows, x=cols).transpose("y", "x").compute(scheduler=dask.local.get_sync)
+        window = window.values.astype(np.float64)
     return window

@@ -28,6 +28,7 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.opening import reading
 from brdfcorr.io.product import MIN_GDAL_CACHE, bounded_gdal_cache
 from brdfcorr.io.rasters import refuse_fill
+from brdfcorr.io.scheduler import local_scheduler
 from brdfcorr.io.writer import DEFAULT_CHUNK, pass_threads
 
 __all__ = ["check_reflectance_scale", "checked_factors", "SAMPLE_SIZE", "reflectance_factors", "unpacked",
@@ -156,13 +157,17 @@ def _sample_cache(image: xr.DataArray) -> contextlib.AbstractContextManager:
 
 
 def _read_samples(data: dask.array.Array, positions, where: str, scheduler, num_workers) -> list[np.ndarray]:
-    """:func:`_valid_sample` of the chunks of ``data`` at the (y, x) chunk ``positions``; a failed
+    """:func:`_valid_sample` of each chunk of ``data`` at the (y, x) chunk ``positions``; a failed
     read is an :class:`InputError` with GDAL's reason (:func:`~brdfcorr.io.opening.reading`)."""
     with reading(f"image {where}"):
         # The writing pass's threads (io.writer): every dask thread keeps its own handle of
         # the file, and with it a decompressed input tile, for the rest of the run.
-        return list(dask.compute(*(dask.delayed(_valid_sample)(data.blocks[..., i, j]) for i, j in positions),
-                                 scheduler=scheduler, num_workers=pass_threads(scheduler, num_workers)))
+        # Chunk by chunk (a chunk of bands each): a dask array given to dask.delayed as a whole
+        # makes dask import dask.distributed (0.3 s) for its graph.
+        chunks = [chunk for i, j in positions for chunk in data.blocks[..., i, j].to_delayed().ravel()]
+        samples = (dask.delayed(_valid_sample)(chunk) for chunk in chunks)
+        return list(dask.compute(*samples, scheduler=local_scheduler(scheduler),
+                                 num_workers=pass_threads(scheduler, num_workers)))
 
 
 def _valid_sample(block: np.ndarray, size: int = SAMPLE_SIZE) -> np.ndarray:

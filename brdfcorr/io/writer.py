@@ -65,6 +65,7 @@ from brdfcorr.io.paths import (  # path checks and names, importable here too
     envi_header_path,
     envi_sidecars,
 )
+from brdfcorr.io.scheduler import local_scheduler
 
 __all__ = ["write_rasters", "writing", "encode_integers", "pass_threads", "default_threads", "wavelength_text",
            "wavelength_tags", "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path", "envi_sidecars",
@@ -79,7 +80,7 @@ def pass_threads(scheduler, num_workers: int | None) -> int | None:
     leaves other schedulers be."""
     if num_workers is not None or dask.config.get("num_workers", None) is not None:
         return num_workers
-    if dask.base.get_scheduler(scheduler=scheduler) not in (None, dask.threaded.get):  # None: arrays' own, threads
+    if dask.base.get_scheduler(scheduler=local_scheduler(scheduler)) not in (None, dask.threaded.get):
         return None
     return default_threads()
 
@@ -257,7 +258,7 @@ def write_rasters(
     """
     with writing(rasters, geotiff, tags=tags, commit_tags=commit_tags, callbacks=callbacks, gdal_cache=gdal_cache,
                  scheduler=scheduler, envi=envi) as writes:
-        *_, extra = dask.compute(*writes, compute_with, scheduler=scheduler,
+        *_, extra = dask.compute(*writes, compute_with, scheduler=local_scheduler(scheduler),
                                  num_workers=pass_threads(scheduler, num_workers))
     return extra
 
@@ -430,7 +431,7 @@ def _cog_options(compress: str) -> dict:
 def _distributed_client(scheduler):
     """The dask.distributed Client that ``dask.compute(scheduler=scheduler)`` would run on (a
     Client, its ``get``, ``"distributed"`` or dask's default), or None for a local scheduler."""
-    get = dask.base.get_scheduler(scheduler=scheduler)
+    get = dask.base.get_scheduler(scheduler=local_scheduler(scheduler))
     owner = getattr(get, "__self__", None)
     return owner if type(owner).__name__ == "Client" else None
 

@@ -46,8 +46,21 @@ def test_a_chain_that_draws_nothing_imports_no_figures_nor_statistics(tmp_path, 
     # The run as `brdfcorr run` makes it (its lazy imports included): one scene, the correct step only.
     make_scenes(tmp_path, count=1, ny=8, nx=8)
     args = ["run", str(write_chain(tmp_path)), "--no-progress"]
-    assert _deferred_after(_command(args), cwd=tmp_path) == []
+    assert _deferred_after(_command(args), cwd=tmp_path, libraries=(*DEFERRED, "distributed")) == []
     assert (tmp_path / "out" / "line0_brdf.tif").exists()
+
+
+def test_a_correction_on_this_machine_does_not_import_dask_distributed(tmp_path, make_scenes):
+    # dask looks for a dask.distributed Client (importing it, 0.3 s of a 0.9 s correction of the
+    # demo's line) on each pass given a scheduler's name or none, and when a dask array is given to
+    # dask.delayed whole; a local correction names the local scheduler's function instead
+    # (brdfcorr.io.scheduler.local_scheduler). No Client can exist without the module.
+    (_, paths), = make_scenes(tmp_path, count=1, ny=8, nx=8).values()
+    params = Path(__file__).parents[2] / "configs" / "params_example.yaml"
+    args = ["correct", str(paths["image"]), "--angles", str(paths["angles"]), "--classes", str(paths["classes"]),
+            "--params", str(params), "--ref-sza", "mean", "-o", str(tmp_path / "out.tif"), "--qa", str(tmp_path / "qa.tif")]
+    assert _deferred_after(_command(args), libraries=("distributed",)) == []
+    assert (tmp_path / "out.tif").exists()
 
 
 def test_a_figure_still_imports_matplotlib_when_it_is_drawn():
