@@ -33,7 +33,9 @@ Stop 57: ``correct LINE`` corrects the demo's line (``brdfcorr demo``, 382 x 380
 with the README's example table. dask looked for a dask.distributed Client on each pass and imported
 the module for it; a local pass now names dask's scheduler function
 (``brdfcorr.io.scheduler.local_scheduler``). The row ``correct LINE, distributed imported`` runs the
-same correction after ``import distributed``: what every correction paid before.
+same correction after ``import distributed``: what every correction paid before. Measured (2
+cores, medians of 3): 2.12 s (3.56 x xr) against 2.73 s (4.58) as before, 0.6 s (22 %) less a
+command; the other rows unchanged.
 
 Usage::
 
@@ -95,9 +97,9 @@ def main() -> None:
             times[name].append(_seconds(arguments))
     medians = {name: statistics.median(values) for name, values in times.items()}
     print(f"fresh processes, median of {args.repeat}")
-    print(f"{'run':32s} {'seconds':>8s} {'x import xarray':>16s}")
+    print(f"{'run':36s} {'seconds':>8s} {'x import xarray':>16s}")
     for name, seconds in medians.items():
-        print(f"{name:32s} {seconds:8.2f} {seconds / medians['import xarray']:16.2f}")
+        print(f"{name:36s} {seconds:8.2f} {seconds / medians['import xarray']:16.2f}")
 
 
 if __name__ == "__main__":
