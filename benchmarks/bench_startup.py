@@ -32,7 +32,7 @@ fit's and the correction's packages no longer imported for their settings), ``fi
 Stop 57: ``correct LINE`` corrects the demo's line (``brdfcorr demo``, 382 x 380 pixels, 6 bands)
 with the README's example table. dask looked for a dask.distributed Client on each pass and imported
 the module for it; a local pass now names dask's scheduler function
-(``brdfcorr.io.scheduler.local_scheduler``). The row ``correct LINE, distributed imported`` runs the
+(``brdfcorr.io.writer.local_scheduler``). The row ``correct LINE, distributed imported`` runs the
 same correction after ``import distributed``: what every correction paid before. Measured (2
 cores, medians of 3): 2.12 s (3.56 x xr) against 2.73 s (4.58) as before, 0.6 s (22 %) less a
 command; the other rows unchanged.

@@ -37,7 +37,7 @@ import xarray as xr
 
 from brdfcorr._arrays import array_function, cosd, sind
 from brdfcorr.errors import InputError
-from brdfcorr.io.scheduler import local_scheduler
+from brdfcorr.io.writer import local_scheduler
 
 __all__ = [
     "LocalAngles",

@@ -20,8 +20,8 @@ from brdfcorr._entry import option
 from brdfcorr.errors import InputError
 from brdfcorr.io.grid import describe_layer
 from brdfcorr.io.opening import chunk_spec, open_raster, reading
-from brdfcorr.io.scheduler import local_scheduler
 from brdfcorr.io.sensors.grids import GRID_STATISTICS, grid_window
+from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["ANGLE_NAMES", "ANGLE_BAND_NAMES", "RELATIVE_ANGLE_NAMES", "RELATIVE_ONLY", "POSITIONAL",
            "angle_band_name", "open_angles", "from_relative_azimuth", "AngleStatistics", "check_angles",

@@ -28,8 +28,7 @@ from brdfcorr.errors import InputError
 from brdfcorr.io.opening import reading
 from brdfcorr.io.product import MIN_GDAL_CACHE, bounded_gdal_cache
 from brdfcorr.io.rasters import refuse_fill
-from brdfcorr.io.scheduler import local_scheduler
-from brdfcorr.io.writer import DEFAULT_CHUNK, pass_threads
+from brdfcorr.io.writer import DEFAULT_CHUNK, local_scheduler, pass_threads
 
 __all__ = ["check_reflectance_scale", "checked_factors", "SAMPLE_SIZE", "reflectance_factors", "unpacked",
            "carries_scale"]

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import threading
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
@@ -65,14 +66,33 @@ from brdfcorr.io.paths import (  # path checks and names, importable here too
     envi_header_path,
     envi_sidecars,
 )
-from brdfcorr.io.scheduler import local_scheduler
 
-__all__ = ["write_rasters", "writing", "encode_integers", "pass_threads", "default_threads", "wavelength_text",
-           "wavelength_tags", "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path", "envi_sidecars",
-           "check_envi_georeference", "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
+__all__ = ["write_rasters", "writing", "encode_integers", "local_scheduler", "pass_threads", "default_threads",
+           "wavelength_text", "wavelength_tags", "GeoTiffOutput", "EnviOutput", "check_format", "envi_header_path",
+           "envi_sidecars", "check_envi_georeference", "DEFAULT_CHUNK", "COMPRESSIONS", "FORMATS", "EXTENSIONS"]
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
+def local_scheduler(scheduler):
+    """``scheduler`` as :func:`dask.compute` takes it, a name or None resolved to a local
+    scheduler's function where no dask.distributed Client can exist (distributed not imported).
+
+    dask looks for a current Client on every pass with a name or None as the scheduler, and so
+    imports dask.distributed (0.3 s, a third of a small correction) where it is installed; a
+    function is taken as given. None is dask's ``scheduler`` setting, else the threaded scheduler
+    of dask arrays. With distributed imported (a Client may be current), and for a Client,
+    ``"distributed"`` or another object, ``scheduler`` is returned unchanged for dask to resolve.
+    """
+    if "distributed" in sys.modules or not (scheduler is None or isinstance(scheduler, str)):
+        return scheduler
+    name = scheduler if scheduler is not None else dask.config.get("scheduler", None)
+    if name is None:
+        return dask.threaded.get
+    if not isinstance(name, str):
+        return name
+    return dask.base.named_schedulers.get(name.lower(), name)
+
+
 def pass_threads(scheduler, num_workers: int | None) -> int | None:
     """The ``num_workers`` of a scene's dask pass (:func:`write_rasters` and the checks that read
     before it, :func:`brdfcorr.io.scale_check.check_reflectance_scale`): as given (or dask's

@@ -92,7 +92,7 @@ def _open_scene_files(sources: SceneSources, engine: Engine, *, align_classes: b
     class map aligned or remapped as for the correction (:func:`brdfcorr.tasks.classmaps.class_preparation`)."""
     chunks = rasters.auto_chunk(sources.image) if engine.chunks is None else int(engine.chunks)
     return open_scene(sources, chunks=chunks, prepare_classes=class_preparation(align_classes, class_lookup),
-                      scheduler=engine.dask_scheduler, num_workers=engine.num_workers)
+                      scheduler=engine.scheduler, num_workers=engine.num_workers)
 
 
 def _named(options: ViewAngleOptions, class_maps: Sequence[xr.DataArray]) -> ViewAngleOptions:
@@ -164,7 +164,7 @@ def assess_files(
         cluster_layer = None if clusters is None else _cluster_layer(clusters, data.reflectance, engine.chunks)
         view = assess_view_angles(data.reflectance, corrected, data.classes, layers["vza"], layers["vaa"],
                                   layers["saa"], clusters=cluster_layer, options=view_options,
-                                  scheduler=engine.dask_scheduler, num_workers=engine.num_workers)
+                                  scheduler=engine.scheduler, num_workers=engine.num_workers)
         if int(view["pixels"].sum()) == 0:  # an all-NaN AFTER (or BEFORE, or no class): an empty report
             raise InputError(f"no pixel of a class is valid (finite) in every band of both {scene.image} and {after}: "
                              "nothing to assess (is one of them all nodata?)")

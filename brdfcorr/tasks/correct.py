@@ -114,7 +114,7 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
     _check_outputs(request)
     table, table_path = _load_table(request)
     engine = request.engine
-    compute = {"scheduler": engine.dask_scheduler, "num_workers": engine.num_workers}
+    compute = {"scheduler": engine.scheduler, "num_workers": engine.num_workers}
     with opened_scene(request.scene, chunks=None if engine.chunks is None else int(engine.chunks),
                       prepare_classes=class_preparation(request.align_classes, request.class_lookup),
                       **compute) as scene:
@@ -164,10 +164,11 @@ def _correct(request: CorrectionRequest, scene: SceneData, table: ParameterTable
     }
     geotiff = writer.GeoTiffOutput(compress=files.compress, blocksize=scene.chunks, cog=files.cog)
     with writer.writing(targets, geotiff, tags=tags, commit_tags=commit_tags, callbacks=engine.callbacks, envi=envi,
-                        scheduler=engine.dask_scheduler,
+                        scheduler=engine.scheduler,
                         gdal_cache=scene.cache or gdal_cache_bytes(request.scene.image, scene.chunks)) as writes:
         # The one pass: the correction's chunks computed here, each stored by the writer as it comes.
-        *_, counts = dask.compute(*writes, {**qa_counts(qa), **encoding}, scheduler=engine.dask_scheduler,
+        *_, counts = dask.compute(*writes, {**qa_counts(qa), **encoding},
+                                  scheduler=writer.local_scheduler(engine.scheduler),
                                   num_workers=scene.threads)
     pixels = {key: int(value) for key, value in counts.items()}
     notes = [note for note in (uncorrected_note(pixels), _uncertainty_note(files.uncertainty, table)) if note]
@@ -267,7 +268,7 @@ def _corrected_layers(request: CorrectionRequest, scene: SceneData, table: Param
             return (*_corrected_at_nodes(request, scene, table, reference), None, None)
     reflectance, surface, topographic = scene.reflectance, {}, None
     if request.terrain is not None:
-        compute = {"scheduler": request.engine.dask_scheduler, "num_workers": request.engine.num_workers}
+        compute = {"scheduler": request.engine.scheduler, "num_workers": request.engine.num_workers}
         reflectance, surface, topographic = request.terrain.apply(scene, scene.chunks, request.limits, compute)
     if (request.terrain is None and request.scene.classes is None and request.outputs.uncertainty is None
             and suits_subgrid(reflectance, scene.angles, table)):  # the per-pixel factor, sampled (correction.subgrid)

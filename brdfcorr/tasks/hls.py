@@ -102,7 +102,7 @@ def hls_sun_zenith_layers(granule: HlsGranule, *, coefficients: str, reference_s
     """
     chunks = engine.chunks or 512
     reflectance = _reflectance(granule, chunks)
-    check_reflectance_scale(reflectance, str(granule.path), scheduler=engine.dask_scheduler,
+    check_reflectance_scale(reflectance, str(granule.path), scheduler=engine.scheduler,
                             num_workers=engine.num_workers)
     invalid = _masked(granule, reflectance, HLS_FMASK_MASKED if masked is None else masked, chunks)
     # Validated as every reference geometry is (a finite sun zenith in [0, 90), one line naming it).

@@ -315,7 +315,7 @@ def _write_bands(corrected: xr.DataArray, qa: xr.DataArray, names: tuple[str, ..
     counts = write_rasters(targets, geotiff=GeoTiffOutput(compress=outputs.compress,
                                                           blocksize=engine.chunks or NBAR_CHUNK, cog=outputs.cog),
                            tags=tags, compute_with=qa_counts(qa), callbacks=engine.callbacks,
-                           scheduler=engine.dask_scheduler, num_workers=engine.num_workers)
+                           scheduler=engine.scheduler, num_workers=engine.num_workers)
     return {key: int(value) for key, value in counts.items()}
 
 

@@ -139,14 +139,6 @@ class Engine:
                              "use 'threads' or 'synchronous', or a dask.distributed Client (a LocalCluster for "
                              "processes on this machine)")
 
-    @property
-    def dask_scheduler(self):
-        """The scheduler as the passes give it to dask (:func:`brdfcorr.io.scheduler.local_scheduler`:
-        a local one without importing dask.distributed)."""
-        from brdfcorr.io.scheduler import local_scheduler
-
-        return local_scheduler(self.scheduler)
-
 
 @dataclass(frozen=True)
 class Terrain:

@@ -54,7 +54,7 @@ def test_a_correction_on_this_machine_does_not_import_dask_distributed(tmp_path,
     # dask looks for a dask.distributed Client (importing it, 0.3 s of a 0.9 s correction of the
     # demo's line) on each pass given a scheduler's name or none, and when a dask array is given to
     # dask.delayed whole; a local correction names the local scheduler's function instead
-    # (brdfcorr.io.scheduler.local_scheduler). No Client can exist without the module.
+    # (brdfcorr.io.writer.local_scheduler). No Client can exist without the module.
     (_, paths), = make_scenes(tmp_path, count=1, ny=8, nx=8).values()
     params = Path(__file__).parents[2] / "configs" / "params_example.yaml"
     args = ["correct", str(paths["image"]), "--angles", str(paths["angles"]), "--classes", str(paths["classes"]),

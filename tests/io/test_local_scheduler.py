@@ -1,5 +1,5 @@
 """The scheduler of a local pass, named by its function so that dask need not import dask.distributed
-(brdfcorr.io.scheduler.local_scheduler)."""
+(brdfcorr.io.writer.local_scheduler)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import dask.local
 import dask.threaded
 import pytest
 
-from brdfcorr.io.scheduler import local_scheduler
+from brdfcorr.io.writer import local_scheduler
 
 
 @pytest.fixture
