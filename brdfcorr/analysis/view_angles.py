@@ -34,6 +34,7 @@ from brdfcorr.analysis.view_stripes import (
 )
 from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import BrdfcorrWarning, InputError
+from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["GROWTH_LIMIT", "STRIPE_LIMIT", "ViewAngleOptions", "assess_view_angles", "error_growth_warning",
            "narrow_range_warning", "stripe_warning", "view_zenith_ranges", "view_angle_report"]
@@ -83,10 +84,11 @@ def _check_options(options: ViewAngleOptions) -> None:
         raise InputError(f"block size {options.block_size} must be a whole number of pixels from 1 to {MAX_BLOCK_SIZE}")
 
 
-def _present_ids(classes, nodata) -> np.ndarray:
-    """The positive class ids of a class map (its nodata value excepted)."""
+def _present_ids(classes, nodata, scheduler=None) -> np.ndarray:
+    """The positive class ids of a class map (its nodata value excepted; a dask map computed on
+    ``scheduler``)."""
     data = classes.data if isinstance(classes, xr.DataArray) else classes
-    values = da.unique(data).compute() if isinstance(data, da.Array) else np.unique(np.asarray(data))
+    values = da.unique(data).compute(scheduler=scheduler) if isinstance(data, da.Array) else np.unique(np.asarray(data))
     values = values[np.isfinite(values) & (values > 0)]
     return values[values != nodata] if nodata is not None else values
 
@@ -252,7 +254,9 @@ def assess_view_angles(
     if layers[3] is None and by == "sun":
         raise InputError("the signed view zenith by the sun needs the solar azimuth (saa)")
     class_ids = options.class_ids
-    ids = np.sort(np.asarray(class_ids if class_ids is not None else _present_ids(classes, _class_nodata(classes))))
+    scheduler = local_scheduler(scheduler)  # a local pass without dask.distributed (io.writer)
+    ids = np.sort(np.asarray(class_ids if class_ids is not None else
+                             _present_ids(classes, _class_nodata(classes), scheduler)))
     if ids.size == 0:
         raise InputError("the class map holds no class (no id > 0 outside its nodata)")
     fractional = ids[ids != np.round(ids)]
