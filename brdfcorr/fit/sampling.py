@@ -24,6 +24,7 @@ from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.fit.settings import Sampling
 from brdfcorr.geometry import relative_azimuth
 from brdfcorr.io.scale_check import carries_scale, reflectance_factors, unpacked
+from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
 
@@ -46,9 +47,17 @@ class ClassSamples:
     empty_reason: str | None = None  # ... named, with the pixels sampled: why the class cannot be fitted
 
 
+def _in_memory(array, dtype=None) -> np.ndarray:
+    """The values of a layer (numpy, or dask computed on the local scheduler without importing
+    dask.distributed, :func:`brdfcorr.io.writer.local_scheduler`; on a current Client where there is one)."""
+    data = array.data if isinstance(array, xr.DataArray) else array
+    compute = getattr(data, "compute", None)
+    return np.asarray(compute(scheduler=local_scheduler(None)) if compute is not None else data, dtype=dtype)
+
+
 def _class_values(class_map: xr.DataArray) -> np.ndarray:
     """The class ids of a class map in memory, its nodata (rioxarray's) read as 0, "no class"."""
-    values = np.asarray(class_map.values)
+    values = _in_memory(class_map)
     nodata = class_map.rio.nodata if hasattr(class_map, "rio") else None
     return np.where(values == nodata, 0, values) if nodata is not None else values
 
@@ -123,7 +132,7 @@ def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale:
 
     def pick(array):
         # Pointwise (vectorized) indexing: lazy on dask, reads only the sampled pixels.
-        return np.asarray(array.isel(where).values, dtype=float)
+        return _in_memory(array.isel(where), float)
 
     reflectance = pick(image.transpose("band", "y", "x")).T * reflectance_scale
     saa, vaa = pick(angle_set["saa"]), pick(angle_set["vaa"])
@@ -236,7 +245,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     maps = [_class_values(class_map) for class_map in classes]
     cluster_ids = _cluster_ids(clusters, [m.shape for m in maps])
     valid_angles = [
-        np.all([np.isfinite(np.asarray(a[name].values)) for name in ("sza", "saa", "vza", "vaa")], axis=0)
+        np.all([np.isfinite(_in_memory(a[name])) for name in ("sza", "saa", "vza", "vaa")], axis=0)
         for a in angles
     ]
     if cluster_ids is not None:
@@ -342,7 +351,7 @@ def _cluster_ids(clusters, shapes: list[tuple[int, ...]]) -> list[np.ndarray] | 
     found = []
     for scene, (layer, shape) in enumerate(zip(layers, shapes)):
         nodata = layer.rio.nodata if isinstance(layer, xr.DataArray) and hasattr(layer, "rio") else None
-        ids = np.asarray(layer.values if isinstance(layer, xr.DataArray) else layer, dtype=float)
+        ids = _in_memory(layer, float)
         if ids.shape != tuple(shape):
             raise ParameterError(f"the cluster layer of scene {scene + 1} has shape {ids.shape}, its class map "
                                  f"{tuple(shape)}: give a layer on the scene's grid")

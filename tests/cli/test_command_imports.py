@@ -50,19 +50,22 @@ def test_a_chain_that_draws_nothing_imports_no_figures_nor_statistics(tmp_path, 
     assert (tmp_path / "out" / "line0_brdf.tif").exists()
 
 
-def test_a_correction_and_its_assessment_on_this_machine_do_not_import_dask_distributed(tmp_path, make_scenes):
+def test_a_fit_correction_and_assessment_on_this_machine_do_not_import_dask_distributed(tmp_path, make_scenes):
     # dask looks for a dask.distributed Client (importing it: 0.6 s of a fresh 2.7 s correction of
     # the demo's line) on each pass given a scheduler's name or none, and when a dask array is given
     # to dask.delayed whole; a local pass names the local scheduler's function instead
     # (brdfcorr.io.writer.local_scheduler). No Client can exist without the module.
-    (_, paths), = make_scenes(tmp_path, count=1, ny=8, nx=8).values()
-    params = Path(__file__).parents[2] / "configs" / "params_example.yaml"
+    (_, paths), = make_scenes(tmp_path, count=1, ny=16, nx=16).values()
     inputs = ["--angles", str(paths["angles"]), "--classes", str(paths["classes"])]
+    fit = ["fit-classes", str(paths["image"]), *inputs, "--model", "lambertian", "--min-samples", "10",
+           "--min-vza-spread", "0", "-o", str(tmp_path / "lambertian.yaml")]
+    params = Path(__file__).parents[2] / "configs" / "params_example.yaml"
     correct = ["correct", str(paths["image"]), *inputs, "--params", str(params), "--ref-sza", "mean",
                "-o", str(tmp_path / "out.tif"), "--qa", str(tmp_path / "qa.tif")]
     assess = ["assess", str(paths["image"]), str(tmp_path / "out.tif"), *inputs, "-o", str(tmp_path / "assess.json")]
-    assert _deferred_after(_command(correct) + "\n" + _command(assess), libraries=("distributed",)) == []
-    assert (tmp_path / "assess.json").exists()
+    code = "\n".join(_command(command) for command in (fit, correct, assess))
+    assert _deferred_after(code, libraries=("distributed",)) == []
+    assert (tmp_path / "lambertian.yaml").exists() and (tmp_path / "assess.json").exists()
 
 
 def test_a_figure_still_imports_matplotlib_when_it_is_drawn():
