@@ -73,6 +73,8 @@ __all__ = ["write_rasters", "writing", "encode_integers", "local_scheduler", "pa
 
 #: Spatial chunk (and output tile) size [pixels].
 DEFAULT_CHUNK = 512
+
+
 def local_scheduler(scheduler):
     """``scheduler`` as :func:`dask.compute` takes it, a name or None resolved to a local
     scheduler's function where no dask.distributed Client can exist (distributed not imported).
