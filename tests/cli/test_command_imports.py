@@ -18,6 +18,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from brdfcorr.testing import write_sentinel2_safe
+
 #: Imported only by what needs them: the figures, the papers' analyses, the statistics tests, the
 #: sun positions and the Landsat angle reader.
 DEFERRED = ("matplotlib", "scipy.stats", "scipy.integrate", "pvlib", "scipy.interpolate")
@@ -50,7 +52,7 @@ def test_a_chain_that_draws_nothing_imports_no_figures_nor_statistics(tmp_path, 
     assert (tmp_path / "out" / "line0_brdf.tif").exists()
 
 
-def test_a_fit_correction_and_assessment_on_this_machine_do_not_import_dask_distributed(tmp_path, make_scenes):
+def test_a_fit_correction_assessment_and_nbar_on_this_machine_do_not_import_dask_distributed(tmp_path, make_scenes):
     # dask looks for a dask.distributed Client (importing it: 0.6 s of a fresh 2.7 s correction of
     # the demo's line) on each pass given a scheduler's name or none, and when a dask array is given
     # to dask.delayed whole; a local pass names the local scheduler's function instead
@@ -63,9 +65,12 @@ def test_a_fit_correction_and_assessment_on_this_machine_do_not_import_dask_dist
     correct = ["correct", str(paths["image"]), *inputs, "--params", str(params), "--ref-sza", "mean",
                "-o", str(tmp_path / "out.tif"), "--qa", str(tmp_path / "qa.tif")]
     assess = ["assess", str(paths["image"]), str(tmp_path / "out.tif"), *inputs, "-o", str(tmp_path / "assess.json")]
-    code = "\n".join(_command(command) for command in (fit, correct, assess))
+    safe = write_sentinel2_safe(tmp_path / "s2", Path(__file__).parents[1] / "data" / "s2_MTD_TL_sensor_harmonization"
+                                / "MTD_TL.xml", size=16)
+    nbar = ["nbar", str(safe), "-o", str(tmp_path / "nbar.tif")]
+    code = "\n".join(_command(command) for command in (fit, correct, assess, nbar))
     assert _deferred_after(code, libraries=("distributed",)) == []
-    assert (tmp_path / "lambertian.yaml").exists() and (tmp_path / "assess.json").exists()
+    assert all((tmp_path / name).exists() for name in ("lambertian.yaml", "assess.json", "nbar.tif"))
 
 
 def test_a_figure_still_imports_matplotlib_when_it_is_drawn():

@@ -52,6 +52,7 @@ from brdfcorr.io.sensors.grids import check_covers
 from brdfcorr.io.sensors.hls import find_hls_granule, hls_refusal
 from brdfcorr.io.sensors.landsat import find_angle_bands
 from brdfcorr.io.sensors.sentinel2 import BAND_NAMES
+from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["ProductFolder", "find_product", "find_sentinel2_l2a", "find_landsat_c2_l2", "write_stack", "open_stack",
            "band_stacks",
@@ -404,8 +405,10 @@ def _write_mask(product: ProductFolder, grid: rasterio.DatasetReader, target: Pa
     kept = (~_invalid(product, _on_grid(product.mask, grid, chunks))).astype("uint8")
     kept = kept.rio.write_crs(grid.crs).rio.write_transform(grid.transform)
     kept.attrs = {}
+    # 0 and 1: a few kB per tile. Stored on the local scheduler (io.writer.local_scheduler: dask's
+    # default would import dask.distributed to look for a Client).
     kept.rio.to_raster(target, tiled=True, blockxsize=256, blockysize=256, lock=threading.Lock(), driver="GTiff",
-                       compress="deflate")  # 0 and 1: a few kB per tile
+                       compress="deflate", compute=False).compute(scheduler=local_scheduler(None))
     return target
 
 
