@@ -17,6 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
+import dask
 import dask.array as da
 import numpy as np
 import rioxarray  # noqa: F401  (registers .rio)
@@ -88,7 +89,11 @@ def _present_ids(classes, nodata, scheduler=None) -> np.ndarray:
     """The positive class ids of a class map (its nodata value excepted; a dask map computed on
     ``scheduler``)."""
     data = classes.data if isinstance(classes, xr.DataArray) else classes
-    values = da.unique(data).compute(scheduler=scheduler) if isinstance(data, da.Array) else np.unique(np.asarray(data))
+    if isinstance(data, da.Array):  # each chunk's ids, then theirs (dask.array.unique imports dask.distributed)
+        chunks = [dask.delayed(np.unique)(chunk) for chunk in data.to_delayed().ravel()]
+        values = np.unique(np.concatenate(dask.compute(*chunks, scheduler=local_scheduler(scheduler))))
+    else:
+        values = np.unique(np.asarray(data))
     values = values[np.isfinite(values) & (values > 0)]
     return values[values != nodata] if nodata is not None else values
 

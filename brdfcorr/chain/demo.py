@@ -47,6 +47,7 @@ from brdfcorr.chain.run import run_chain
 from brdfcorr.errors import InputError
 from brdfcorr.io.files import atomic_path
 from brdfcorr.io.sensors.solar import solar_angles
+from brdfcorr.io.writer import local_scheduler
 from brdfcorr.models.materials import load_material, material_names
 from brdfcorr.params import ClassEntry, ParameterTable
 from brdfcorr.plot.materials import plot_materials
@@ -185,7 +186,7 @@ def demo_angles(rows: int = 300, pixel: float = 3.0, altitude: float = 1000.0, f
     across = pixel * (np.arange(columns) + 0.5) - swath / 2.0  # [m], east positive
     vza = np.degrees(np.arctan(np.abs(across) / altitude))
     vaa = np.where(across > 0, 270.0, 90.0)  # towards the sensor, which flies along the centre
-    sun = solar_angles(time, template).compute()
+    sun = solar_angles(time, template).compute(scheduler=local_scheduler(None))  # without dask.distributed
     angles = xr.Dataset(coords=template.coords)
     for name, values in (("sza", sun["sza"].values), ("saa", sun["saa"].values),
                          ("vza", np.broadcast_to(vza, (rows, columns))),

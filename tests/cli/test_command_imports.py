@@ -68,7 +68,11 @@ def test_a_fit_correction_assessment_and_nbar_on_this_machine_do_not_import_dask
     safe = write_sentinel2_safe(tmp_path / "s2", Path(__file__).parents[1] / "data" / "s2_MTD_TL_sensor_harmonization"
                                 / "MTD_TL.xml", size=16)
     nbar = ["nbar", str(safe), "-o", str(tmp_path / "nbar.tif")]
-    code = "\n".join(_command(command) for command in (fit, correct, assess, nbar))
+    # A chain's assessment finds the class ids itself (the command line's names them), chunk by chunk.
+    ids = ("import dask.array, numpy\nfrom brdfcorr.analysis.view_angles import _present_ids\n"
+           "classes = dask.array.from_array(numpy.array([[0, 3], [1, 255]]), chunks=1)\n"
+           "assert _present_ids(classes, 255).tolist() == [1, 3]")
+    code = "\n".join([*(_command(command) for command in (fit, correct, assess, nbar)), ids])
     assert _deferred_after(code, libraries=("distributed",)) == []
     assert all((tmp_path / name).exists() for name in ("lambertian.yaml", "assess.json", "nbar.tif"))
 
