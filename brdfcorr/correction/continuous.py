@@ -33,6 +33,7 @@ from brdfcorr._entry import option
 from brdfcorr.correction.blocks import PixelGeometry, band_shapes
 from brdfcorr.correction.inputs import CorrectionInputs
 from brdfcorr.errors import ParameterError
+from brdfcorr.io.writer import local_scheduler
 from brdfcorr.models import Model
 from brdfcorr.params import NdviInterpolation, ParameterTable, ReferenceGeometry
 from brdfcorr.params.bands import BandParameters
@@ -166,7 +167,7 @@ def _class_means(index, classes, ids: np.ndarray) -> np.ndarray:
         selected = (classes == class_id) & finite
         sums.append(xp.where(selected, index, 0.0).sum(dtype=np.float64))
         counts.append(selected.sum())
-    sums, counts = dask.compute(sums, counts)
+    sums, counts = dask.compute(sums, counts, scheduler=local_scheduler(None))  # without dask.distributed
     with np.errstate(invalid="ignore", divide="ignore"):  # 0 / 0: a class not in the scene is NaN
         return np.asarray(sums, dtype=np.float64) / np.asarray(counts, dtype=np.float64)
 

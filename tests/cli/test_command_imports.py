@@ -68,10 +68,14 @@ def test_a_fit_correction_assessment_and_nbar_on_this_machine_do_not_import_dask
     safe = write_sentinel2_safe(tmp_path / "s2", Path(__file__).parents[1] / "data" / "s2_MTD_TL_sensor_harmonization"
                                 / "MTD_TL.xml", size=16)
     nbar = ["nbar", str(safe), "-o", str(tmp_path / "nbar.tif")]
-    # A chain's assessment finds the class ids itself (the command line's names them), chunk by chunk.
+    # A chain's assessment finds the class ids itself (the command line's names them), chunk by
+    # chunk; NDVI strata interpolated in NDVI take each class's mean NDVI.
     ids = ("import dask.array, numpy\nfrom brdfcorr.analysis.view_angles import _present_ids\n"
+           "from brdfcorr.correction.continuous import _class_means\n"
            "classes = dask.array.from_array(numpy.array([[0, 3], [1, 255]]), chunks=1)\n"
-           "assert _present_ids(classes, 255).tolist() == [1, 3]")
+           "assert _present_ids(classes, 255).tolist() == [1, 3]\n"
+           "index = dask.array.from_array(numpy.array([[0.2, 0.4], [0.6, numpy.nan]]), chunks=1)\n"
+           "assert _class_means(index, classes, numpy.array([1, 3])).tolist() == [0.6, 0.4]")
     code = "\n".join([*(_command(command) for command in (fit, correct, assess, nbar)), ids])
     assert _deferred_after(code, libraries=("distributed",)) == []
     assert all((tmp_path / name).exists() for name in ("lambertian.yaml", "assess.json", "nbar.tif"))
