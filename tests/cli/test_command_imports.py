@@ -1,4 +1,4 @@
-"""A correction that draws nothing imports neither scipy.stats nor matplotlib (issue 42).
+"""A correction that draws nothing imports neither scipy.stats nor matplotlib, nor dask.distributed (issue 42).
 
 Every ``brdfcorr`` process paid ~1.7 s for scipy.stats (one chi^2 survival function in
 ``fit/results.py``, now ``scipy.special.chdtrc``), ~1.1 s for matplotlib (``plot/*`` imported
@@ -7,8 +7,9 @@ Every ``brdfcorr`` process paid ~1.7 s for scipy.stats (one chi^2 survival funct
 it corrected a pixel. The figures and those analyses import them when they run. Likewise pvlib
 (with requests and h5py, 0.3 s; the sun positions of the ``solar`` angle source) and
 scipy.interpolate (0.2 s; the spline of a Landsat ANG.txt), which the sensor readers reached at
-import. A property, not a timing: each check runs in a fresh interpreter, since this test session
-has long imported them.
+import. And the commands that compute on this machine no longer import dask.distributed (0.3-0.5 s
+a process), which dask imported to look for a Client. A property, not a timing: each check runs in
+a fresh interpreter, since this test session has long imported them.
 """
 
 from __future__ import annotations
@@ -52,11 +53,12 @@ def test_a_chain_that_draws_nothing_imports_no_figures_nor_statistics(tmp_path, 
     assert (tmp_path / "out" / "line0_brdf.tif").exists()
 
 
-def test_a_fit_correction_assessment_and_nbar_on_this_machine_do_not_import_dask_distributed(tmp_path, make_scenes):
-    # dask looks for a dask.distributed Client (importing it: 0.6 s of a fresh 2.7 s correction of
-    # the demo's line) on each pass given a scheduler's name or none, and when a dask array is given
-    # to dask.delayed whole; a local pass names the local scheduler's function instead
-    # (brdfcorr.io.writer.local_scheduler). No Client can exist without the module.
+def test_the_commands_on_this_machine_do_not_import_dask_distributed(tmp_path, make_scenes):
+    # fit-classes, correct, assess and nbar, one after the other in one fresh interpreter. dask looks
+    # for a dask.distributed Client (importing it: 0.5 s of a fresh 2.6 s correction of the demo's
+    # line) on each pass given a scheduler's name or none, and for the graphs of dask.array.unique
+    # and of a dask array given to dask.delayed whole; a local pass names the local scheduler's
+    # function instead (brdfcorr.io.writer.local_scheduler). No Client can exist without the module.
     (_, paths), = make_scenes(tmp_path, count=1, ny=16, nx=16).values()
     inputs = ["--angles", str(paths["angles"]), "--classes", str(paths["classes"])]
     fit = ["fit-classes", str(paths["image"]), *inputs, "--model", "lambertian", "--min-samples", "10",
