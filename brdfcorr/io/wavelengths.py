@@ -139,17 +139,15 @@ def envi_header_wavelengths(path) -> tuple[np.ndarray, np.ndarray | None]:
         raise InputError(str(error)) from None
 
 
-def tag_fwhm(tags: Mapping, n_bands: int, source) -> np.ndarray | None:
-    """The bands' FWHM [nm] of a dataset tag ``fwhm`` (comma-separated, in the ``wavelength_units``
-    of the band centres, nm by default; as a brdfcorr GeoTIFF output writes it), None without one.
+def tag_fwhm(tags: Mapping, n_bands: int, source) -> np.ndarray:
+    """The bands' FWHM [nm] of the dataset tag ``fwhm`` (comma-separated, in the ``wavelength_units``
+    of the band centres, nm by default; as a brdfcorr GeoTIFF output writes it).
 
     Raises
     ------
     InputError
         A ``fwhm`` tag that is not one positive number per band, or unknown units.
     """
-    if "fwhm" not in tags:
-        return None
     values = np.array(_tag_nanometres(tags, "fwhm", source))
     if values.size != n_bands or not np.all(np.isfinite(values) & (values > 0)):
         raise InputError(f"{source}: tag fwhm={tags['fwhm']!r} is not one positive width per band ({n_bands} bands)")
