@@ -37,7 +37,7 @@ def _free_parameters(model: Model, fixed, initial, bounds):
     Returns ``(fixed, free, lower, upper, start)``: fixed values (validated), free names in
     signature order, the optimizer's closed bounds and the user's starting values (a dict).
     """
-    fixed = {name: value for name, value in dict(fixed or {}).items()}
+    fixed = dict(fixed or {})
     initial = dict(initial or {})
     bounds = dict(bounds or {})
     for name in itertools.chain(fixed, initial, bounds):
