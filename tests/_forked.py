@@ -13,6 +13,7 @@ import concurrent.futures
 import functools
 import importlib.metadata
 import multiprocessing
+import multiprocessing.forkserver
 import os
 import pkgutil
 import resource
@@ -28,11 +29,16 @@ import brdfcorr
 @functools.cache
 def _server() -> multiprocessing.context.BaseContext:
     """The fork server, which imports every module of the package (3.5 s, once), pyplot and this
-    module before it forks: a command then imports nothing more (``validate``: 25 ms, not 2 s)."""
+    module before it forks: a command then imports nothing more (``validate``: 25 ms, not 2 s).
+
+    Started at once (tests/conftest.py does so as the session starts): the library's worker pools
+    (brdfcorr.tasks.pool) fork from this process's one fork server too, and one started first by a
+    pool would have the pool's few modules only."""
     modules = [module.name for module in pkgutil.walk_packages(brdfcorr.__path__, "brdfcorr.")
                if not module.name.endswith(".__main__")]
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload([*modules, "matplotlib.pyplot", __name__])
+    multiprocessing.forkserver.ensure_running()
     return context
 
 

@@ -11,6 +11,7 @@ import shutil
 import sys
 from pathlib import Path
 
+import _forked
 import dask
 import numpy as np
 import pytest
@@ -42,6 +43,13 @@ from brdfcorr.testing import (
 settings.register_profile("default", derandomize=True, deadline=None)
 settings.register_profile("explore", derandomize=False, deadline=None)
 settings.load_profile("default")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _fork_server():
+    """The fork server of forked commands (tests/_forked.py), started before any test: the
+    library's worker pools fork from it too, and would otherwise start it with their modules only."""
+    _forked._server()
 
 def _raising_scheduler(*args, **kwargs):
     raise AssertionError("a lazy function computed its dask input")

@@ -56,12 +56,8 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
-import ctypes
 import dataclasses
-import multiprocessing
 import os
-import signal
-import sys
 import time
 from collections.abc import Iterator, Mapping
 from datetime import datetime, timezone
@@ -105,6 +101,7 @@ from brdfcorr.tasks.classmaps import class_preparation
 from brdfcorr.tasks.correct import Terrain, correct_files
 from brdfcorr.tasks.fit import SceneFiles, fit_class_files
 from brdfcorr.tasks.goniometer import fit_measurement_file
+from brdfcorr.tasks.pool import worker_processes
 from brdfcorr.tasks.request import CorrectionRequest, Engine, OutputFiles
 
 __all__ = [
@@ -361,16 +358,6 @@ def _quicklook(scene: Scene, config: ChainConfig, table: ParameterTable) -> dict
     return {}
 
 
-def _die_with_parent(parent: int) -> None:
-    """In a scene worker process: end when the run's process ends, however it ends (kill -9
-    included), instead of writing scenes on for a run that is gone (Linux: PR_SET_PDEATHSIG)."""
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # 1: PR_SET_PDEATHSIG
-    if os.getppid() != parent:  # the parent ended before the call above
-        os._exit(1)
-
-
 # -------------------------------------------------------------------------------------- engines
 @contextlib.contextmanager
 def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executor | None, dict]]:
@@ -379,10 +366,7 @@ def _executor(engine: EngineConfig) -> Iterator[tuple[concurrent.futures.Executo
     if engine.scheduler in ("threads", "synchronous"):
         yield None, {"scheduler": engine.scheduler, "threads": engine.local_threads}
     elif engine.scheduler == "processes":
-        # spawn: a forked child would inherit the parent's thread pools and locks mid-use.
-        with concurrent.futures.ProcessPoolExecutor(
-                engine.workers, mp_context=multiprocessing.get_context("spawn"),
-                initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
+        with worker_processes(engine.workers, (__name__,)) as pool:
             yield pool, {"scheduler": "threads", "threads": engine.threads_per_worker}
     else:
         # Scenes are driven from threads here; their chunks run on every worker of the cluster.

@@ -238,7 +238,7 @@ def fit_class_files(
     ranges = [*sampling.bad_bands, *(run for runs, _ in bbl for run in runs)]
     sampling = replace(sampling, reflectance_scale=1.0, bad_bands=tuple(map(tuple, ranges)))
     layers = _cluster_layers(used, opened, chunks)
-    with process_pool(workers) as executor:
+    with process_pool(workers, ("brdfcorr.fit.classes",)) as executor:
         result, caught_notes = _fit_pooled(opened, models, sampling, guard, _imagery_source(used, models), progress,
                                            layers, executor)
     notes += _bad_band_note(result, max((count for _, count in bbl), default=0))

@@ -168,7 +168,7 @@ def fit_measurement_file(
     results, notes, choices = {}, [], {}
     if model == AUTO_MODEL:
         _check_candidate_settings(fixed, initial, bounds)
-        with process_pool(workers) as executor:
+        with process_pool(workers, ("brdfcorr.fit.selection",)) as executor:
             for band in bands:
                 subset = fitted if band is None else fitted.at_wavelength(band)
                 choices[band] = choose_model(subset, fixed=fixed, initial=initial, bounds=bounds, progress=progress,

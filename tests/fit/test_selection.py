@@ -95,7 +95,7 @@ def test_leaving_the_fold_pool_early_cancels_the_fits_not_started():
     from brdfcorr.tasks.pool import process_pool
 
     futures = []
-    with pytest.raises(KeyboardInterrupt), process_pool(2) as pool:
+    with pytest.raises(KeyboardInterrupt), process_pool(2, ()) as pool:
         futures = [pool.submit(time.sleep, 0.5) for _ in range(20)]
         raise KeyboardInterrupt
     assert sum(future.cancelled() for future in futures) >= 15
@@ -113,7 +113,7 @@ def test_where_no_process_pool_can_be_made_the_fits_run_here_and_say_so(monkeypa
         raise OSError(38, "Function not implemented")
 
     monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", refused)
-    with pytest.warns(BrdfcorrWarning, match="no worker processes can be started here"), process_pool(4) as pool:
+    with pytest.warns(BrdfcorrWarning, match="no worker processes can be started here"), process_pool(4, ()) as pool:
         assert pool is None
 
 

@@ -6,7 +6,6 @@ import os
 import sys
 
 import numpy as np
-import pytest
 import rasterio
 import rasterio.shutil
 import yaml
@@ -236,7 +235,7 @@ def test_a_processes_engine_fits_the_classes_in_its_workers(tmp_path, make_scene
     make_scenes(tmp_path, count=1, ny=48, nx=64)
     chain = write_chain(tmp_path, steps={"fit": {"source": "imagery", "max_samples": 1000, "min_samples": 100}})
     pools = []
-    monkeypatch.setattr(brdfcorr.tasks.fit, "process_pool", lambda workers: pools.append(workers) or contextlib.nullcontext())
+    monkeypatch.setattr(brdfcorr.tasks.fit, "process_pool", lambda workers, modules: pools.append(workers) or contextlib.nullcontext())
     report = run_chain(load_config(chain, {"engine": {"scheduler": "processes", "workers": 3}}))
     assert report.ok and pools == [3] and (tmp_path / "out" / "fitted_params.yaml").is_file()
     assert [_fit_workers(EngineConfig(scheduler=kind, workers=3)) for kind in ("threads", "synchronous")] == [1, 1]
@@ -400,9 +399,10 @@ def test_chain_and_correct_choose_the_tile_size_by_the_same_band_count_rule(tmp_
             assert dataset.block_shapes[0] == (128, 128), output
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
 def test_scene_workers_end_with_the_run(tmp_path):
-    # A worker process of the `processes` engine ends when the run's process is killed (kill -9).
+    # A worker process of the `processes` engine (of any pool of brdfcorr.tasks.pool) ends when the
+    # run's process is killed (kill -9), although its parent is the fork server, which lives on while
+    # the workers do.
     import signal
     import subprocess
     import textwrap
@@ -410,18 +410,17 @@ def test_scene_workers_end_with_the_run(tmp_path):
 
     script = tmp_path / "parent.py"
     script.write_text(textwrap.dedent("""
-        import concurrent.futures, multiprocessing, os, sys, time
-        from brdfcorr.chain.run import _die_with_parent
+        import os, time
+        from brdfcorr.tasks.pool import worker_processes
 
         def sleep():
             time.sleep(120)
 
         if __name__ == "__main__":
-            with concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                                                        initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
-                pool.submit(os.getpid).result()  # the worker has run its initializer: no waiting on a guess
+            with worker_processes(1, ()) as pool:
+                worker = pool.submit(os.getpid).result()  # it has run its initializer: no waiting on a guess
                 future = pool.submit(sleep)
-                print(" ".join(str(p.pid) for p in multiprocessing.active_children()), flush=True)
+                print(worker, flush=True)
                 future.result()
     """))
     parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
