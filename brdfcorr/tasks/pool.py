@@ -43,8 +43,8 @@ def worker_processes(workers: int, modules: Sequence[str]) -> concurrent.futures
     -------
     concurrent.futures.ProcessPoolExecutor
         Each worker starts with this process's environment variables as they are now (the fork
-        server's are those of when it started), its working directory and ``sys.path``, and ends
-        when this process ends, however it ends (kill -9 included), instead of working on for a
+        server's are those of when it started), its working directory and ``sys.path``, and (POSIX)
+        ends when this process ends, however it ends (kill -9 included), instead of working on for a
         caller that is gone (:func:`_end_with`).
     """
     if "forkserver" in multiprocessing.get_all_start_methods():
@@ -57,10 +57,12 @@ def worker_processes(workers: int, modules: Sequence[str]) -> concurrent.futures
 
 
 def _start_worker(environment: Mapping[str, str], caller: int) -> None:
-    """In a new worker: the environment variables of the pool's maker, and a watch on its process."""
+    """In a new worker: the environment variables of the pool's maker, and a watch on its process
+    (POSIX only: on Windows ``os.kill(pid, 0)`` would end the process it asks about)."""
     os.environ.clear()
     os.environ.update(environment)
-    threading.Thread(target=_end_with, args=(caller,), name="brdfcorr-caller-watch", daemon=True).start()
+    if os.name == "posix":
+        threading.Thread(target=_end_with, args=(caller,), name="brdfcorr-caller-watch", daemon=True).start()
 
 
 def _end_with(caller: int) -> None:

@@ -239,7 +239,7 @@ def test_stac_items_run_as_their_folders(ran, copy, scratch):
 
 
 def test_process_workers_read_the_runs_stacks(ran, copy, scratch):
-    """With ``engine.scheduler: processes`` the scenes are corrected in spawned worker processes,
+    """With ``engine.scheduler: processes`` the scenes are corrected in worker processes,
     which read the stacks of the run's scratch folder: the same dates as in the calling thread
     (``ran``: the chain over another copy of the same folders)."""
     assert ran.report.ok

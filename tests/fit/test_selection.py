@@ -75,14 +75,13 @@ def test_a_two_lobe_surface_chooses_the_two_lobe_model_and_a_kernel_surface_the_
 def test_the_fold_fits_in_a_process_pool_give_the_same_choice():
     # `fit --model auto --workers N` hands the candidates' fold fits to processes: each fit is the
     # same computation, so every fold's held-out error is the same to the last bit.
-    import concurrent.futures
-    import multiprocessing
+    from brdfcorr.tasks.pool import process_pool
 
     ti, tr, phi = _geometries()
     brdf = get_model("ross_thick_li_sparse")(ti, tr, phi, **KERNELS) * (1 + 0.02 * np.random.default_rng(3).standard_normal(ti.size))
     candidates = ("ross_thick_li_sparse", "torrance_sparrow")
     alone = choose_model(Measurements(ti, tr, phi, brdf), candidates=candidates)
-    with concurrent.futures.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with process_pool(2, ("brdfcorr.fit.selection",)) as pool:
         pooled = choose_model(Measurements(ti, tr, phi, brdf), candidates=candidates, executor=pool, progress=(done := []).append)
     assert pooled == alone and alone.chosen == "ross_thick_li_sparse"
     assert done == list(candidates)
