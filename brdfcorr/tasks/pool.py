@@ -86,7 +86,7 @@ def _running(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:  # there, but another user's
-        return True
+        pass
     return True
 
 
