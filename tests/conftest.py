@@ -51,6 +51,7 @@ def _fork_server():
     library's worker pools fork from it too, and would otherwise start it with their modules only."""
     _forked._server()
 
+
 def _raising_scheduler(*args, **kwargs):
     raise AssertionError("a lazy function computed its dask input")
 

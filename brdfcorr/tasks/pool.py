@@ -4,7 +4,7 @@ engine).
 
 Workers are forked from :mod:`multiprocessing`'s fork server where the system has one (Linux,
 macOS): it imports the modules the work needs once, and each worker is a fork of it that starts
-in milliseconds instead of importing them again (about a second and a half a worker). The server
+in milliseconds instead of importing them again (up to a second and a half a worker). The server
 is a fresh process of its own, so, as with spawned workers, no thread or lock of the calling
 process is copied mid-use. Elsewhere (Windows) the workers are spawned.
 """
