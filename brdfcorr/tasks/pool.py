@@ -74,8 +74,10 @@ def _end_with(caller: int) -> None:
     except (AttributeError, OSError):  # no pidfd here, or the caller has already ended
         while _running(caller):
             time.sleep(1.0)
-    else:
-        select.select([descriptor], [], [])  # readable once the process has ended
+    else:  # readable once the process has ended (poll: no limit on the descriptor's number)
+        watch = select.poll()
+        watch.register(descriptor, select.POLLIN)
+        watch.poll()
     os.kill(os.getpid(), signal.SIGTERM)
 
 
