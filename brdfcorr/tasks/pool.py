@@ -2,11 +2,13 @@
 --model auto``, the classes of ``fit-classes --workers``, the scenes of a chain's ``processes``
 engine).
 
-Workers are forked from :mod:`multiprocessing`'s fork server where the system has one (Linux,
-macOS): it imports the modules the work needs once, and each worker is a fork of it that starts
-in milliseconds instead of importing them again (up to a second and a half a worker). The server
-is a fresh process of its own, so, as with spawned workers, no thread or lock of the calling
-process is copied mid-use. Elsewhere (Windows) the workers are spawned.
+Workers are forked from :mod:`multiprocessing`'s fork server where the system has one (Linux and
+the other POSIX systems but macOS): it imports the modules the work needs once, and each worker is
+a fork of it that starts in milliseconds instead of importing them again (up to a second and a half
+a worker). The server is a fresh process of its own, so, as with spawned workers, no thread or lock
+of the calling process is copied mid-use. On macOS, whose system libraries may start threads in the
+server as it imports (Python spawns there by default for that reason), and on Windows, the workers
+are spawned.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import multiprocessing
 import os
 import select
 import signal
+import sys
 import threading
 import time
 import warnings
@@ -47,7 +50,7 @@ def worker_processes(workers: int, modules: Sequence[str]) -> concurrent.futures
         ends when this process ends, however it ends (kill -9 included), instead of working on for a
         caller that is gone (:func:`_end_with`).
     """
-    if "forkserver" in multiprocessing.get_all_start_methods():
+    if sys.platform != "darwin" and "forkserver" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(list(modules))  # no effect once this process's server runs
     else:

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import subprocess
 import sys
+
+import pytest
 
 from brdfcorr.tasks import pool
 
@@ -13,9 +16,13 @@ def _environment_variable(name: str) -> str | None:
     return os.environ.get(name)
 
 
-def test_each_pool_gives_its_workers_the_environment_of_when_it_was_made(monkeypatch):
+@pytest.mark.parametrize("start_methods", [None, ["spawn"]], ids=["forkserver", "spawn"])
+def test_each_pool_gives_its_workers_the_environment_of_when_it_was_made(monkeypatch, start_methods):
     # The fork server keeps the environment it started with; each pool's workers take the caller's
-    # as it is when the pool is made (a GDAL setting or credentials set between two runs).
+    # as it is when the pool is made (a GDAL setting or credentials set between two runs). Spawned
+    # workers, where there is no fork server to use, get it too.
+    if start_methods is not None:
+        monkeypatch.setattr(multiprocessing, "get_all_start_methods", lambda: start_methods)
     for value in ("first", "second"):
         monkeypatch.setenv("BRDFCORR_TEST_POOL_SETTING", value)
         with pool.worker_processes(1, ()) as executor:
