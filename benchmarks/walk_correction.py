@@ -34,6 +34,12 @@ writes. What remains is mostly the correction's own reading order (params -> mod
 while the table is resolved and the reference checked) and comprehensions, which the profiler sees
 as functions. Later (the scale check moved to ``io.scale_check``): 113 stays in 39 modules, 52 by
 layer, ``io.rasters`` entered twice (the image opened, then scaled after its band centres are read).
+Stop 58 ended at 122 stays in 40 modules, 56 by layer, ``io.rasters`` entered 3 times: the image
+opened, then scaled and checked for fill after its band centres are read, and the fill check's
+chunk function computed by the scale check's sample. Stop 59 moved the scaling and the fill floor
+into ``io.reflectance`` (with the unpacking of arrays given in memory, which ``io.scale_check``
+held): 123 stays in 41 modules, 56 by layer, ``io.rasters`` entered twice (the image opened; the
+class map).
 
 Usage::
 

@@ -31,7 +31,8 @@ from brdfcorr._arrays import is_lazy
 from brdfcorr._entry import option
 from brdfcorr.defaults import DEFAULT_EDGES, NIR_RANGE, RED_RANGE
 from brdfcorr.errors import InputError
-from brdfcorr.io.scale_check import checked_factors, reflectance_factors
+from brdfcorr.io.reflectance import reflectance_factors
+from brdfcorr.io.scale_check import checked_factors
 from brdfcorr.io.wavelengths import with_wavelengths
 
 __all__ = [
@@ -92,7 +93,7 @@ def ndvi(image: xr.DataArray, red: Sequence[float] = RED_RANGE, nir: Sequence[fl
     image : xarray.DataArray (band, y, x)
         Reflectance [1] with a ``wavelength`` coordinate [nm] (:func:`brdfcorr.io.open_image`), or
         integer counts with their ``scale_factor``/``add_offset``
-        (:func:`brdfcorr.io.scale_check.reflectance_factors`: an offset left out changes NDVI).
+        (:func:`brdfcorr.io.reflectance.reflectance_factors`: an offset left out changes NDVI).
     red, nir : (float, float)
         Wavelength ranges [nm], ends included; the bands in each range are averaged.
 
@@ -235,7 +236,7 @@ def ndvi_strata(image: xr.DataArray, *, edges: Sequence[float] | None = None,
     image : xarray.DataArray (band, y, x)
         Reflectance [1] with a ``wavelength`` coordinate [nm] (:func:`brdfcorr.io.open_image`), or
         integer counts with their ``scale_factor``/``add_offset``
-        (:func:`brdfcorr.io.scale_check.reflectance_factors`). Its red and NIR means are checked
+        (:func:`brdfcorr.io.reflectance.reflectance_factors`). Its red and NIR means are checked
         for values that are no reflectance factors (:func:`brdfcorr.io.scale_check.checked_factors`,
         lazily, by each chunk): the water and shadow tests are in reflectance factors, so percent
         or counts read without their scale would misfire.

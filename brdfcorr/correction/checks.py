@@ -4,7 +4,7 @@ input the others refuse (issue 38):
 
 - :func:`check_layout`: a cube with its bands last, (y, x, band), is refused with the transpose
   that fixes it, instead of a grid error between its spatial and band axes;
-- :func:`brdfcorr.io.scale_check.reflectance_factors` (in :func:`~brdfcorr.correction.inputs.prepare_inputs`):
+- :func:`brdfcorr.io.reflectance.reflectance_factors` (in :func:`~brdfcorr.correction.inputs.prepare_inputs`):
   integer counts are scaled with the scale and offset they carry (rioxarray's
   ``scale_factor``/``add_offset``, as :func:`brdfcorr.io.rasters.open_image` applies a file's),
   and refused without them or with a scale that is a divisor: an offset (Sentinel-2 L2A from
@@ -29,7 +29,7 @@ import xarray as xr
 from brdfcorr.errors import InputError
 from brdfcorr.io.angles import check_angle_values
 from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.scale_check import unpacked
+from brdfcorr.io.reflectance import unpacked
 from brdfcorr.io.scene import check_class_grid
 
 __all__ = ["angle_layers", "ANGLE_LAYERS", "TERRAIN_LAYERS", "check_layout", "checked_layers", "check_grid",
@@ -109,7 +109,7 @@ def checked_layers(reflectance: xr.DataArray, named: Mapping[str, object]) -> di
     """The class map and the angle layers ``named`` (numpy, dask or xarray; ``classes``, ``sza`` ...
     ``vaa``, and ``slope``, ``aspect`` for a tilted surface) as (y, x) DataArrays on the
     reflectance's grid (:func:`check_grid`), the angles' packed values unpacked
-    (:func:`brdfcorr.io.scale_check.unpacked`: int16 hundredths of a degree with a ``scale_factor``
+    (:func:`brdfcorr.io.reflectance.unpacked`: int16 hundredths of a degree with a ``scale_factor``
     of 0.01 are degrees), refused where they (or the reflectance) hold complex values, the angles
     guarded (:func:`guard_angles`), the class map refused where it holds no numbers."""
     layers = {name: check_grid(reflectance, name, as_dataarray(layer, name, reflectance.dims[1:]))

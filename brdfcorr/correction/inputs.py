@@ -21,7 +21,7 @@ from brdfcorr.correction.checks import (  # check_grid: the topographic step's a
 )
 from brdfcorr.correction.reference import fixed_sza, resolve_reference, scene_mean_sza, with_hls_sza
 from brdfcorr.errors import InputError
-from brdfcorr.io.scale_check import reflectance_factors
+from brdfcorr.io.reflectance import reflectance_factors
 from brdfcorr.io.wavelengths import with_wavelengths
 from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
 

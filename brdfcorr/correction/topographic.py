@@ -73,7 +73,7 @@ from brdfcorr.correction.terrain import cos_incidence
 from brdfcorr.defaults import C_METHODS, DEFAULT_LIMITS, TOPOGRAPHIC_METHODS
 from brdfcorr.errors import BrdfcorrWarning, InputError
 from brdfcorr.io.angles import looks_like_radians
-from brdfcorr.io.scale_check import reflectance_factors, unpacked
+from brdfcorr.io.reflectance import reflectance_factors, unpacked
 
 __all__ = [
     "METHODS",
@@ -369,7 +369,7 @@ def _correct_block(reflectance, band_index, cos_i, cos_sza, cos_slope, classes=N
 def _as_cube(reflectance) -> xr.DataArray:
     """The reflectance as a (band, y, x) DataArray of its values: integer counts that carry a scale
     scaled with it and its offset (an offset left in would change C and the cosine correction
-    alike), a declared float nodata as NaN (:func:`~brdfcorr.io.scale_check.reflectance_factors`);
+    alike), a declared float nodata as NaN (:func:`~brdfcorr.io.reflectance.reflectance_factors`);
     counts without a scale are taken in their own units."""
     if not isinstance(reflectance, xr.DataArray):
         array = reflectance if isinstance(reflectance, da.Array) else np.asarray(reflectance)
@@ -382,7 +382,7 @@ def _as_cube(reflectance) -> xr.DataArray:
 def _layer(reflectance: xr.DataArray, name: str, value) -> xr.DataArray:
     """A (y, x) layer on the reflectance's grid (numbers broadcast); GridMismatchError otherwise.
     Packed values (int16 hundredths of a degree with a ``scale_factor``) of any layer but the class
-    map are unpacked (:func:`brdfcorr.io.scale_check.unpacked`)."""
+    map are unpacked (:func:`brdfcorr.io.reflectance.unpacked`)."""
     spatial = reflectance.dims[1:]
     if not isinstance(value, xr.DataArray):
         array = value if isinstance(value, da.Array) else np.asarray(value)

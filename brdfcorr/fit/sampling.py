@@ -23,7 +23,7 @@ from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.fit.settings import Sampling
 from brdfcorr.geometry import relative_azimuth
-from brdfcorr.io.scale_check import carries_scale, reflectance_factors, unpacked
+from brdfcorr.io.reflectance import carries_scale, reflectance_factors, unpacked
 from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]

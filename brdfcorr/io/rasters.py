@@ -2,9 +2,9 @@
 
 Readers open lazily (dask chunks), with nodata as NaN for reflectance and the class map kept as
 integers with its nodata value; the image's stored values are scaled to reflectance factors (the
-file's GDAL scale/offset, or given ones; :func:`brdfcorr.io.scale_check.check_reflectance_scale`
-catches raw counts, :func:`refuse_fill` an undeclared fill value as the chunks are computed) and
-its band centres found by :func:`brdfcorr.io.wavelengths.band_wavelengths`. Angles:
+file's GDAL scale/offset, or given ones) and an undeclared fill value refused as the chunks are
+computed (:mod:`brdfcorr.io.reflectance`; :func:`brdfcorr.io.scale_check.check_reflectance_scale`
+catches raw counts), its band centres found by :func:`brdfcorr.io.wavelengths.band_wavelengths`. Angles:
 :mod:`brdfcorr.io.angles`; the grid check: :mod:`brdfcorr.io.grid`; a whole scene:
 :func:`brdfcorr.io.scene.open_scene`; writing: :mod:`brdfcorr.io.writer`. An image identified once
 (product kind, layout) and the chunk and cache sizes of its reading: :mod:`brdfcorr.io.product`
@@ -17,8 +17,6 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-import dask.array
-import numpy as np
 import xarray as xr
 
 from brdfcorr.errors import InputError
@@ -41,6 +39,7 @@ from brdfcorr.io.product import (  # the identification and sizes, importable fr
     image_layout,
     peak_memory_terms,
 )
+from brdfcorr.io.reflectance import as_reflectance, refuse_fill
 from brdfcorr.io.sensors.envi import envi_bad_bands
 from brdfcorr.io.sensors.products import hdf5_product, open_product
 from brdfcorr.io.wavelengths import band_wavelengths, envi_fwhm, tag_fwhm
@@ -65,16 +64,7 @@ __all__ = [
     "write_rasters",
     "GeoTiffOutput",
     "DEFAULT_CHUNK",
-    "FILL_FLOOR",
-    "refuse_fill",
 ]
-
-
-#: Lowest reflectance factor [1] taken as a measurement (:func:`refuse_fill`). No surface reflects
-#: less than nothing; atmospheric-correction noise over dark water and shade, and Sentinel-2's
-#: -0.1 offset (baseline 04.00), stay well above. Below lie fill values nobody declared: -9999
-#: as a float, or as counts x 0.0001 (-0.9999), -32768, -1e20.
-FILL_FLOOR = -0.5
 
 
 def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *, scale: float | None = None,
@@ -135,7 +125,7 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
     image = open_raster(path, "image", chunk_spec(chunks), masked=not as_stored,
                         mask_and_scale=not (given or as_stored))
     found = band_wavelengths(image, path, wavelengths)  # from the file's metadata: before or after the scaling
-    image = _as_reflectance(image, scale, offset, as_stored)
+    image = as_reflectance(image, scale, offset, as_stored)
     if found is not None:
         image = image.assign_coords(wavelength=(image.dims[0], found, {"units": "nm"}))
     if "fwhm" in image.coords:  # rioxarray's, from an ENVI header: in the header's units
@@ -154,50 +144,6 @@ def open_image(path, chunks=None, wavelengths: Sequence[float] | None = None, *,
     return refuse_fill(image, f"image {path}", bad)
 
 
-def refuse_fill(image: xr.DataArray, where: str | None = None, bad_bands=None) -> xr.DataArray:
-    """``image`` (reflectance factors [1], band first) with an :class:`InputError` for values below
-    :data:`FILL_FLOOR`: an undeclared nodata value, which a correction would multiply into another
-    number (-9999 into -11 235) and a fit or an assessment would take as a dark pixel. Bands
-    marked bad (``bad_bands``, one bool per band: an ENVI header's ``bbl``, whose values are
-    passed through as they are) are not judged.
-
-    A numpy array is checked at once; a dask array lazily, each chunk as it is computed (no pass
-    or read of its own: it costs a minimum per chunk of the pass that reads it anyway). ``where``
-    names the image in the message (default: its file).
-    """
-    where = where or image.encoding.get("label") or image.encoding.get("source", "image")
-    judged = np.ones(image.shape[0], bool) if bad_bands is None else ~np.asarray(bad_bands, bool)
-    if not isinstance(image.data, dask.array.Array):
-        _refuse_below_floor(np.asarray(image.data), where=where, attrs=image.attrs, judged=judged)
-        return image
-    checked = image.data.map_blocks(_refuse_below_floor, where=where, attrs=dict(image.attrs), judged=judged,
-                                    dtype=image.dtype, meta=image.data._meta)
-    return image.copy(data=checked)
-
-
-def _refuse_below_floor(block: np.ndarray, *, where: str, attrs, judged: np.ndarray, block_info=None) -> np.ndarray:
-    """A chunk of :func:`refuse_fill`, unchanged, or its :class:`InputError` (``judged``: which
-    bands of the image are judged; ``block_info``: where the chunk lies, from dask)."""
-    if block.dtype.kind != "f" or not block.size:
-        return block
-    first, last = (0, block.shape[0]) if block_info is None else block_info[0]["array-location"][0]
-    values = block[judged[first:last]]
-    with np.errstate(invalid="ignore"):
-        low = np.isfinite(values) & (values < FILL_FLOOR)  # +-inf is nodata (docs/conventions.md)
-    if not low.any():
-        return block
-    found, counts = np.unique(values[low], return_counts=True)
-    common = float(found[np.argmax(counts)])
-    scale, offset = attrs.get("brdf_input_scale", 1.0), attrs.get("brdf_input_offset", 0.0)
-    stored = f"{(common - offset) / scale:.6g}" if isinstance(scale, float) and isinstance(offset, float) else "VALUE"
-    raise InputError(
-        f"{where}: {int(low.sum())} values of a chunk lie below {FILL_FLOOR}, which no reflectance factor "
-        f"does (most often {common:.6g}, scale {scale} and offset {offset} applied): a nodata value the "
-        f"file does not declare? Declare it, e.g. in a VRT beside the image (gdal_translate -of VRT "
-        f"-a_nodata {stored} IMAGE IMAGE.vrt) or as an ENVI header's 'data ignore value', and read that"
-    )
-
-
 def _check_given_scaling(path, scale: float | None, offset: float | None) -> None:
     """A given scale and offset are finite, the scale > 0 (an :class:`InputError` naming the image)."""
     for name, value in (("scale", scale), ("offset", offset)):
@@ -205,41 +151,6 @@ def _check_given_scaling(path, scale: float | None, offset: float | None) -> Non
             raise InputError(f"image {path}: the given {name} {value} is not a finite number")
     if scale is not None and scale <= 0:
         raise InputError(f"image {path}: the given scale {scale} must be > 0")
-
-
-def _as_reflectance(image: xr.DataArray, scale: float | None, offset: float | None, as_stored: bool) -> xr.DataArray:
-    """The image as read by :func:`open_image` turned into reflectance factors [1]: rioxarray's
-    scaling (or, with ``scale``/``offset`` given, those replacing the file's), float32 (float64 for
-    a float64 file), the scaling applied in attrs ``brdf_input_scale`` and ``brdf_input_offset``."""
-    given = scale is not None or offset is not None
-    if as_stored and "_FillValue" in image.attrs:  # where a masked read keeps it
-        image.encoding["_FillValue"] = image.attrs.pop("_FillValue")
-    metadata = {**image.attrs, **image.encoding}  # scaled by rioxarray: in encoding, else in attrs
-    n_bands = image.sizes[image.dims[0]]
-    scales = np.broadcast_to(np.asarray(metadata.get("scales", metadata.get("scale_factor", 1.0)), float), n_bands)
-    offsets = np.broadcast_to(np.asarray(metadata.get("offsets", metadata.get("add_offset", 0.0)), float), n_bands)
-    data = image.data
-    if given:  # rioxarray has no override: apply the given (and the file's other) values to the masked values
-        scales = np.full(n_bands, float(scale)) if scale is not None else scales
-        offsets = np.full(n_bands, float(offset)) if offset is not None else offsets
-        data = data * scales.astype(data.dtype)[:, None, None] + offsets.astype(data.dtype)[:, None, None]
-    if data.dtype != np.float32 and image.encoding.get("rasterio_dtype") != "float64":
-        data = data.astype(np.float32)  # (u)int32 counts are promoted to float64 on read
-    # copy(data=): keeps coords, attrs and encoding (``source``, ``_FillValue``), which arithmetic drops.
-    image = image.copy(data=data)
-    for name in ("scale_factor", "add_offset", "scales", "offsets"):  # the values are physical now
-        image.attrs.pop(name, None)
-    applied = {"scale": _one_or_per_band(scales), "offset": _one_or_per_band(offsets)}
-    if given:  # the storage in encoding, as rioxarray keeps it for a scaled read
-        image.encoding.update({"scale_factor" if isinstance(applied["scale"], float) else "scales": applied["scale"],
-                               "add_offset" if isinstance(applied["offset"], float) else "offsets": applied["offset"]})
-    image.attrs["brdf_input_scale"] = applied["scale"]
-    image.attrs["brdf_input_offset"] = applied["offset"]
-    return image
-
-
-def _one_or_per_band(values: np.ndarray) -> float | tuple[float, ...]:
-    return float(values[0]) if np.all(values == values[0]) else tuple(float(v) for v in values)
 
 
 def open_classes(path, chunks=None) -> xr.DataArray:

@@ -1,21 +1,16 @@
-"""Does an image hold reflectance factors? Its stored values unpacked, and a sample of its chunks
-judged before a pass over it.
+"""Does an image hold reflectance factors? A sample of its chunks judged before a pass over it.
 
-- :func:`reflectance_factors`: the values an array stores as the quantity they stand for
-  (xarray's ``scale_factor``/``add_offset`` applied to integer counts, nodata as NaN), with no
-  reading: what the Python entry points (``normalize``, the ``.brdf`` accessor, strata) do with
-  the arrays a caller gives; :func:`unpacked` the same for other layers (angles);
 - :func:`check_reflectance_scale`: raw counts read without their scale, reflectance x 10 000 stored
   as floats, or a scale tag that is a divisor, caught from a few chunks, before a correction, a fit
   or strata spend a pass on numbers that are no reflectance;
-- :func:`reflectance_factors` refuses values below the reader's floor as it does
-  (:func:`brdfcorr.io.rasters.refuse_fill`: an undeclared nodata value such as -9999).
+- :func:`checked_factors`: the same check on values computed from an image, chunk by chunk.
+
+The stored values themselves are turned into reflectance factors by :mod:`brdfcorr.io.reflectance`.
 """
 
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Mapping
 from pathlib import Path
 
 import dask
@@ -27,11 +22,9 @@ from brdfcorr._entry import option
 from brdfcorr.errors import InputError
 from brdfcorr.io.opening import reading
 from brdfcorr.io.product import MIN_GDAL_CACHE, bounded_gdal_cache
-from brdfcorr.io.rasters import refuse_fill
 from brdfcorr.io.writer import DEFAULT_CHUNK, local_scheduler, pass_threads
 
-__all__ = ["check_reflectance_scale", "checked_factors", "SAMPLE_SIZE", "reflectance_factors", "unpacked",
-           "carries_scale"]
+__all__ = ["check_reflectance_scale", "checked_factors", "SAMPLE_SIZE"]
 
 #: Valid values of the image that :func:`check_reflectance_scale` judges by (at most, per chunk read).
 SAMPLE_SIZE = 20_000
@@ -173,99 +166,3 @@ def _valid_sample(block: np.ndarray, size: int = SAMPLE_SIZE) -> np.ndarray:
     """At most about ``size`` finite values of a block, evenly strided."""
     values = block[np.isfinite(block)]
     return values[::max(1, values.size // size)]
-
-
-#: Attributes that describe stored values, not the quantity: dropped once the values are read.
-_STORAGE_ATTRS = ("scale_factor", "add_offset", "_FillValue", "missing_value")
-
-
-def carries_scale(array: xr.DataArray) -> bool:
-    """Whether ``array`` carries a ``scale_factor`` (attrs or encoding) for its stored values."""
-    return "scale_factor" in {**array.encoding, **array.attrs}
-
-
-def reflectance_factors(reflectance: xr.DataArray, *, unscaled_counts: bool = False) -> xr.DataArray:
-    """Reflectance factors of the stored values, with no packing or nodata attribute left.
-
-    Integer counts are scaled with the scale and offset they carry (attrs or encoding
-    ``scale_factor``/``add_offset``; their ``_FillValue`` or rioxarray nodata as NaN) by
-    :func:`unpacked`. Integer counts without a scale are an :class:`InputError`, or, with
-    ``unscaled_counts``, taken as they are (values in their own units: the topographic
-    correction's, a fit's ``reflectance_scale``). Without ``unscaled_counts`` a ``scale_factor``
-    above 1 is an :class:`InputError` too: a divisor (the MODIS HDF convention, reflectance =
-    counts / 10000) where xarray and GDAL multiply. Floats are taken as they are, their declared
-    nodata (rioxarray's, or a ``_FillValue`` attribute) as NaN; reflectance factors below
-    :data:`~brdfcorr.io.rasters.FILL_FLOOR` are an :class:`InputError`
-    (:func:`~brdfcorr.io.rasters.refuse_fill`). Floats that still carry a
-    ``scale_factor`` or ``add_offset`` attribute are packed values (as
-    ``rioxarray.open_rasterio(path, masked=True)`` reads them) and an :class:`InputError`: neither
-    reading is safe to guess.
-    """
-    if unscaled_counts and reflectance.dtype.kind in "iu" and not carries_scale(reflectance):
-        return unpacked(reflectance, "reflectance")  # counts in their own units: no floor
-    if reflectance.dtype.kind == "f":
-        return refuse_fill(unpacked(reflectance, "reflectance"), "reflectance")
-    if reflectance.dtype.kind not in "iu":
-        return reflectance
-    metadata = {**reflectance.encoding, **reflectance.attrs}
-    if "scale_factor" not in metadata:
-        raise InputError(
-            f"reflectance holds integer counts ({reflectance.dtype}) without a scale_factor: give reflectance "
-            f"factors, {option('scale')} (e.g. Sentinel-2 L2A from baseline 04.00: counts * 0.0001 - 0.1)"
-        )
-    scale = float(metadata["scale_factor"])
-    if scale > 1 and not unscaled_counts:  # every count >= 1 would be a reflectance factor above 1
-        raise InputError(
-            f"reflectance holds integer counts ({reflectance.dtype}) with scale_factor {scale:g}: a divisor "
-            f"(as MODIS HDF files store it: reflectance = counts / {scale:g}), where xarray and GDAL multiply "
-            f"(counts * scale_factor + add_offset); set scale_factor to {1 / scale:.6g}"
-        )
-    return refuse_fill(unpacked(reflectance, "reflectance"), "reflectance")
-
-
-def unpacked(layer: xr.DataArray, role: str) -> xr.DataArray:
-    """The values ``layer`` stores as the quantity they stand for, as xarray decodes them: integers
-    that carry a ``scale_factor`` or ``add_offset`` (attrs or encoding) scaled to float32, their
-    nodata (rioxarray's or ``_FillValue``) as NaN; floats' declared nodata as NaN; other layers as
-    they are. A float layer that still carries ``scale_factor``/``add_offset`` among its attributes
-    holds packed values: an :class:`InputError` naming ``role`` (``"reflectance"``, ``"sza"``)."""
-    if layer.dtype.kind == "f":
-        packed = {key: layer.attrs[key] for key in ("scale_factor", "add_offset") if key in layer.attrs}
-        if packed:
-            described = ", ".join(f"{key}={value}" for key, value in packed.items())
-            raise InputError(
-                f"{role} holds floats that still carry {described} among their attributes: packed values "
-                "(as rioxarray.open_rasterio(path, masked=True) reads them). Read them with mask_and_scale=True, "
-                "or drop the attributes if they are applied already"
-            )
-        nodata = _nodata(layer, layer.attrs)
-        if nodata is None or np.isnan(nodata):
-            return layer
-        return _plain(layer.where(layer != nodata), layer)
-    metadata = {**layer.encoding, **layer.attrs}
-    if layer.dtype.kind not in "iu" or not {"scale_factor", "add_offset"} & set(metadata):
-        return layer
-    scale, offset = float(metadata.get("scale_factor", 1.0)), float(metadata.get("add_offset", 0.0))
-    nodata = _nodata(layer, metadata)
-    values = layer if nodata is None else layer.where(layer != nodata)
-    scaled = (values.astype(np.float32) * np.float32(scale) + np.float32(offset)).astype(np.float32)
-    return _plain(scaled, layer).assign_attrs(brdf_input_scale=scale, brdf_input_offset=offset)
-
-
-def _plain(values: xr.DataArray, stored: xr.DataArray) -> xr.DataArray:
-    """``values`` named as ``stored``, with its attributes less those of the storage
-    (:data:`_STORAGE_ATTRS`; xarray keeps attributes through arithmetic)."""
-    values = values.rename(stored.name)
-    values.attrs = {key: value for key, value in stored.attrs.items() if key not in _STORAGE_ATTRS}
-    return values
-
-
-def _nodata(array: xr.DataArray, metadata: Mapping) -> float | None:
-    """The declared nodata value of stored values: rioxarray's, else ``_FillValue`` of ``metadata``."""
-    try:
-        import rioxarray  # noqa: F401  (registers the .rio accessor)
-
-        nodata = array.rio.nodata
-    except Exception:  # noqa: BLE001 (an array rioxarray cannot describe declares no nodata)
-        nodata = None
-    return nodata if nodata is not None else metadata.get("_FillValue")
