@@ -12,7 +12,7 @@ WORKERS ?= auto
 UV_VERSION := 0.13.9
 LOCK := uv pip compile --quiet --universal --python-version 3.11 --generate-hashes --no-header
 
-.PHONY: demo test lint lock test-latest clean
+.PHONY: demo test lint rewrite-tests lock test-latest clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -40,11 +40,19 @@ lint: $(VENV)/.installed-test
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
 
-# The package's bytecode written first: where PYTHONDONTWRITEBYTECODE is set, every brdfcorr
-# process the tests start (the docs' commands, the command-line tests) would compile it again.
-test: lint
-	$(BIN)/python -m compileall -q brdfcorr
+# Lint on one core while the tests are made ready on the other (mypy runs on one), then the tests.
+test: $(VENV)/.installed-test
+	$(MAKE) --no-print-directory -j2 lint rewrite-tests
 	$(BIN)/python -m pytest -n $(WORKERS)
+
+# The package's bytecode, and the test modules as pytest rewrites their asserts, written once
+# before the run. Where PYTHONDONTWRITEBYTECODE is set, every brdfcorr process the tests start
+# (the docs' commands, the command-line tests) would compile the package again, and each pytest
+# worker would rewrite every test module again (5 s of each worker's start on two cores). A
+# collection that fails here is reported by the run that follows.
+rewrite-tests: $(VENV)/.installed-test
+	$(BIN)/python -m compileall -q brdfcorr
+	-PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest --collect-only -q -p no:cacheprovider > /dev/null
 
 # Refresh both lock files from pyproject.toml's ranges; the run lock takes the test lock's
 # versions, so `make demo` and `make test` install the same brdfcorr dependencies. The run lock
