@@ -14,6 +14,7 @@ import xarray as xr
 from brdfcorr.correction.checks import (
     ANGLE_LAYERS,
     as_dataarray,
+    check_grid,
     check_layout,
     guard_angles,
 )
@@ -85,19 +86,24 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
     return per_date(cube), per_date(classes, "class map"), per_date(angles, "angles")
 
 
-def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> tuple[list, list]:
-    """The images as reflectance factors and the angle sets unpacked and guarded, as
-    :func:`brdfcorr.correction.normalize` checks its inputs (:mod:`brdfcorr.correction.checks`):
-    bands last refused, integer counts scaled with the scale they carry (or by the sampling's
-    ``reflectance_scale``, not both), a declared nodata as NaN, packed angles (int16 hundredths
-    with a ``scale_factor``) in degrees, and view azimuths stored as seen from the sensor turned by
-    180 deg (the sampling's ``flip_view_azimuth``)."""
+def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> tuple[list, list, list]:
+    """The images as reflectance factors, the class maps and the angle sets on their images'
+    grids, the angles unpacked and guarded, as :func:`brdfcorr.correction.normalize` checks its
+    inputs (:mod:`brdfcorr.correction.checks`): bands last refused, each layer on its image's grid
+    (:func:`~brdfcorr.correction.checks.check_grid`: the sampler pairs the layers pixel by pixel),
+    integer counts scaled with the scale they carry (or by the sampling's ``reflectance_scale``,
+    not both), a declared nodata as NaN, packed angles (int16 hundredths with a ``scale_factor``)
+    in degrees, and view azimuths stored as seen from the sensor turned by 180 deg (the sampling's
+    ``flip_view_azimuth``)."""
     reflectance_scale = sampling.reflectance_scale
-    checked_images, checked_angles = [], []
+    checked_images, checked_classes, checked_angles = [], [], []
     for image, class_map, angle_set in zip(images, classes, angles):
         image = as_dataarray(image, "image", ("band", "y", "x"))
         layers = {name: angle_set[name] for name in ANGLE_LAYERS if name in angle_set}
         check_layout(image, [class_map, *layers.values()])
+        spatial = image.dims[1:]
+        checked_classes.append(check_grid(image, "classes", as_dataarray(class_map, "classes", spatial)))
+        layers = {name: check_grid(image, name, as_dataarray(layer, name, spatial)) for name, layer in layers.items()}
         if reflectance_scale != 1.0 and image.dtype.kind in "iu" and carries_scale(image):
             scale = {**image.encoding, **image.attrs}["scale_factor"]
             raise ParameterError(f"the image's counts carry scale_factor={scale} and the sampling's reflectance_scale="
@@ -112,7 +118,7 @@ def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> t
             angle_set = (angle_set.assign(replaced) if isinstance(angle_set, xr.Dataset)
                          else {**angle_set, **replaced})
         checked_angles.append(angle_set)
-    return checked_images, checked_angles
+    return checked_images, checked_classes, checked_angles
 
 
 def _scene_samples(scene: int, image, angle_set, shape, flat, reflectance_scale: float, block_size: int,
@@ -241,7 +247,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
             f"{len(images)} images, {len(classes)} class maps and {len(angles)} angle sets: "
             "give one class map and one angle set per image"
         )
-    images, angles = _checked(images, classes, angles, sampling)
+    images, classes, angles = _checked(images, classes, angles, sampling)
     maps = [_class_values(class_map) for class_map in classes]
     cluster_ids = _cluster_ids(clusters, [m.shape for m in maps])
     valid_angles = [

@@ -35,13 +35,16 @@ class _Grid(NamedTuple):
     shape: tuple[int, int]  # rows, columns
     crs: object  # None without one
     transform: tuple[float, ...] | None  # the six coefficients; None without any georeference
+    coords: tuple[np.ndarray | None, np.ndarray | None]  # the row and column coordinates, where it has them
 
 
 def _grid(layer: xr.DataArray) -> _Grid:
     crs = layer.rio.crs
-    georeferenced = crs is not None or any(dim in layer.coords for dim in layer.dims[-2:])
+    spatial = layer.dims[-2:]
+    georeferenced = crs is not None or any(dim in layer.coords for dim in spatial)
+    coords = tuple(np.asarray(layer.coords[dim].values) if dim in layer.coords else None for dim in spatial)
     return _Grid(tuple(layer.shape[-2:]), crs,  # type: ignore[arg-type]
-                 tuple(layer.rio.transform())[:6] if georeferenced else None)
+                 tuple(layer.rio.transform())[:6] if georeferenced else None, coords)  # type: ignore[arg-type]
 
 
 def grid_difference(layer: xr.DataArray, base: xr.DataArray) -> str | None:
@@ -50,8 +53,10 @@ def grid_difference(layer: xr.DataArray, base: xr.DataArray) -> str | None:
     Compared on the last two dims: the shape (rows, columns), then the CRS (where both have one: a
     layer without a CRS has none to contradict the other's, e.g. angle arrays built on the image's
     x/y coordinates), then the transforms, coefficient by coefficient within :data:`TOLERANCE` of
-    ``base``'s pixel size. A layer without any georeference (module docstring) is compared by its
-    shape only.
+    ``base``'s pixel size, then the row and column coordinates where both have them, each within
+    the same tolerance (rioxarray works a transform out from the first two coordinates only: two
+    layers cut from one grid with different rows left out have the same transform). A layer
+    without any georeference (module docstring) is compared by its shape only.
     """
     return _difference(_grid(layer), _grid(base))
 
@@ -64,9 +69,32 @@ def _difference(grid: _Grid, base: _Grid) -> str | None:
     if grid.crs is not None and base.crs is not None and grid.crs != base.crs:
         return f"CRS {grid.crs} differs from {base.crs}"
     pixel = max(abs(base.transform[0]), abs(base.transform[4]), 1e-12)
+    for axis, sort, mine, theirs in zip(("rows", "columns"), ("'y', ascending=False", "'x'"), grid.coords,
+                                        base.coords):
+        if len(mine if mine is not None else ()) > 1 and _apart(mine, theirs, TOLERANCE * pixel) is not None \
+                and _apart(mine[::-1], theirs, TOLERANCE * pixel) is None:  # type: ignore[index]
+            return (f"its {axis} run the other way (coordinates ascending in one, descending in the other): "
+                    f"sort both alike, e.g. layer.sortby({sort}): north up, west to east")
     if not np.allclose(grid.transform, base.transform, rtol=0, atol=TOLERANCE * pixel):
         return f"transform {grid.transform} differs from {base.transform}"
+    for axis, mine, theirs in zip(("row", "column"), grid.coords, base.coords):
+        apart = _apart(mine, theirs, TOLERANCE * pixel)
+        if apart is not None:
+            return (f"its {axis} coordinates differ from position {apart} on ({mine[apart]} against "  # type: ignore[index]
+                    f"{theirs[apart]}; the transforms agree, the layers are paired pixel by pixel)")  # type: ignore[index]
     return None
+
+
+def _apart(mine: np.ndarray | None, theirs: np.ndarray | None, tolerance: float) -> int | None:
+    """The first position where two coordinate arrays differ by more than ``tolerance`` (by
+    equality where they are not numbers), or None (also where either is missing)."""
+    if mine is None or theirs is None:
+        return None
+    if mine.dtype.kind in "iuf" and theirs.dtype.kind in "iuf":
+        different = ~np.isclose(mine, theirs, rtol=0, atol=tolerance)
+    else:
+        different = mine != theirs
+    return int(np.argmax(different)) if np.any(different) else None
 
 
 def describe_layer(name: str, layer: xr.DataArray) -> str:

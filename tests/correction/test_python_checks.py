@@ -216,6 +216,27 @@ def test_angles_on_the_images_coordinates_without_a_crs_are_on_its_grid(scene):
         normalize(scene["reflectance"], scene["classes"], shifted, example_table())
 
 
+def test_layers_cut_from_one_grid_with_other_rows_left_out_are_not_paired(scene):
+    """Rows 0-7 and 16-23 of the image against rows 0-15 of the angles: the same first two
+    coordinates, so rioxarray works out the same transform for both; the angles of rows 8-15 would
+    correct rows 16-23 (a shift of 8 rows). The coordinates tell them apart."""
+    rows = np.r_[0:8, 16:24]
+    image, classes = scene["reflectance"].isel(y=rows), scene["classes"].isel(y=rows)
+    angles = {name: layer.isel(y=slice(0, 16)) for name, layer in _angles(scene).items()}
+    assert image.rio.transform() == angles["sza"].rio.transform()
+    with pytest.raises(GridMismatchError, match=r"^sza is not on the grid of reflectance: its row coordinates differ "
+                                                r"from position 8 on"):
+        normalize(image, classes, angles, example_table())
+    same_rows = {name: layer.isel(y=rows) for name, layer in _angles(scene).items()}
+    assert np.isfinite(normalize(image, classes, same_rows, example_table()).reflectance.values).any()
+
+
+def test_a_layer_whose_rows_run_the_other_way_is_named_so(scene):
+    flipped = {name: layer.sortby("y") for name, layer in _angles(scene).items()}
+    with pytest.raises(GridMismatchError, match=r"its rows run the other way .*sortby\('y', ascending=False\)"):
+        normalize(scene["reflectance"], scene["classes"], flipped, example_table())
+
+
 def test_a_scale_factor_that_is_a_divisor_is_refused(scene):
     # MODIS HDF files tag reflectance = counts / 10000 as scale_factor=10000; xarray and GDAL
     # multiply, so the corrected values would be ~1e7 (reflectance factors times 1e8).
