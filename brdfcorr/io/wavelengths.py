@@ -25,22 +25,32 @@ _UNITS_TO_NM = {
 _NUMBER = r"[0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?"
 
 
+_UNIT = r"nm|um|µm|μm|nanomet(?:er|re)s?|micromet(?:er|re)s?|microns?"
+#: A wavelength in a description: a range (its two ends, the unit after the second) or one number, with a unit.
+_IN_TEXT = re.compile(rf"({_NUMBER})(?:\s*(?:{_UNIT}))?\s*(?:-|–|to)\s*({_NUMBER})\s*({_UNIT})\b"
+                      rf"|({_NUMBER})\s*({_UNIT})\b", re.I)
+
+
 def parse_wavelength(text: str) -> float | None:
     """A band-centre wavelength [nm] from a band description, or None.
 
     Accepts a number with an optional unit (``"560"``, ``"560 nm"``, ``"0.56 um"``), or a
-    description containing a number followed by a unit (``"B3 (560 nm)"``). ``"Band 3"`` is not a
-    wavelength.
+    description containing one number followed by a unit (``"B3 (560 nm)"``) or one range
+    (``"Blue 460-500 nm"``, ``"0.455 to 0.505 um"``: its middle, 480 nm; its upper end was taken
+    for the centre before). ``"Band 3"`` is not a wavelength, nor is a description that gives two
+    or more (``"FWHM 10 nm, centre 480 nm"``): which is the centre is not said.
     """
     if not text:
         return None
     text = text.strip()
     match = re.fullmatch(rf"({_NUMBER})\s*([A-Za-zµμ]*)", text)
-    if match is None:
-        match = re.search(rf"({_NUMBER})\s*(nm|um|µm|μm|nanometers?|micrometers?|microns?)\b", text, re.I)
-    if match is None or match[2].lower() not in _UNITS_TO_NM:
-        return None
-    return float(match[1]) * _UNITS_TO_NM[match[2].lower()]
+    if match is not None:
+        unit = _UNITS_TO_NM.get(match[2].lower())
+        return None if unit is None else float(match[1]) * unit
+    found = [(float(low) + float(high)) / 2 * _UNITS_TO_NM[unit.lower()] if low else
+             float(number) * _UNITS_TO_NM[single.lower()]
+             for low, high, unit, number, single in _IN_TEXT.findall(text)]
+    return found[0] if len(found) == 1 else None
 
 
 def band_wavelengths(image: xr.DataArray, path: str | os.PathLike | None = None,

@@ -39,6 +39,11 @@ def _write(path: Path, data: np.ndarray, **profile) -> Path:
     ("560", 560.0), ("560 nm", 560.0), ("560.5nm", 560.5), ("0.56 um", 560.0), ("0.865 µm", 865.0),
     ("B3 (560 nm)", 560.0), ("1.6 micrometers", 1600.0),
     ("Band 3", None), ("", None), ("red", None), ("560 furlongs", None),
+    # A range is the band's extent: its middle is the centre (its upper end was taken before).
+    ("Blue 460-500 nm", 480.0), ("Band 1 (0.455-0.505 µm)", 480.0), ("NIR 805 nm - 855 nm", 830.0),
+    ("0.455 to 0.505 um", 480.0),
+    # Two wavelengths and no word for which is the centre: none (10 nm was taken before).
+    ("FWHM 10 nm, centre 480 nm", None),
 ])
 def test_parse_wavelength(text, expected):
     result = io.parse_wavelength(text)
