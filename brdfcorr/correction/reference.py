@@ -7,6 +7,7 @@ import numpy as np
 from pyproj import Transformer
 
 from brdfcorr.errors import InputError
+from brdfcorr.io.grid import describe_layer, refuse_gcps
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 
 __all__ = ["resolve_reference", "describe_limits", "scene_mean_sza", "fixed_sza", "hls_sza",
@@ -59,6 +60,8 @@ def centre_latitude(image) -> float:
     crs, transform = image.rio.crs, image.rio.transform()
     if crs is None:
         raise InputError("the reference sun zenith 'hls' needs a georeferenced image (a CRS) for its latitude")
+    refuse_gcps(image, describe_layer("the image", image), "the reference sun zenith 'hls' (the latitude of its centre)",
+                "give the reference sun zenith in degrees")
     x, y = transform * (image.sizes["x"] / 2.0, image.sizes["y"] / 2.0)
     _, latitude = Transformer.from_crs(crs, "EPSG:4326", always_xy=True).transform(x, y)
     return float(latitude)

@@ -37,6 +37,7 @@ import xarray as xr
 
 from brdfcorr._arrays import array_function, cosd, sind
 from brdfcorr.errors import InputError
+from brdfcorr.io.grid import refuse_gcps
 from brdfcorr.io.writer import local_scheduler
 
 __all__ = [
@@ -206,6 +207,7 @@ def _pixel_size(dem: xr.DataArray, pixel_size) -> tuple[float, float]:
                          "(in Python: pixel_size=(dx, dy))")
     if crs.is_geographic:
         raise InputError(f"DEM: CRS {crs} is geographic (degrees); reproject it to metres first")
+    refuse_gcps(dem, "DEM", "its slope (the pixel size in metres)", "give pixel_size=(dx, dy) in Python")
     if transform.b != 0 or transform.d != 0:
         raise InputError(f"DEM: rotated grid (transform {tuple(transform)[:6]}) is not supported")
     metres = _metres_per_unit(crs) / _metres_per_height_unit(crs)  # ground distance in the heights' unit

@@ -21,7 +21,7 @@ import xarray as xr
 
 from brdfcorr.errors import GridMismatchError, InputError
 
-__all__ = ["TOLERANCE", "grid_difference", "check_same_grid", "describe_layer"]
+__all__ = ["TOLERANCE", "grid_difference", "check_same_grid", "describe_layer", "refuse_gcps"]
 
 #: Largest difference between two transforms' coefficients that still means the same grid, as a
 #: fraction of the pixel size [-]: far below any real misregistration, far above rounding.
@@ -141,3 +141,14 @@ def check_same_grid(layers: Mapping[str, xr.DataArray], reference: str | None = 
         if difference is not None:
             where = describe_layer(reference, layers[reference])
             raise GridMismatchError(f"{describe_layer(name, layer)} is not on the grid of {where}: {difference}")
+
+
+def refuse_gcps(layer: xr.DataArray, name: str, needs: str, instead: str) -> None:
+    """An :class:`InputError` where ``layer`` is georeferenced by ground control points (GCPs)
+    instead of a geotransform: rioxarray gives it the GCPs' CRS and an identity transform (a pixel
+    of 1 by 1 in the CRS's unit, row 0 at the CRS's origin), which locates nothing. ``needs`` says
+    what the transform was wanted for, ``instead`` what to do (besides warping the file); ``name``
+    begins the message (:func:`describe_layer` names its file)."""
+    if layer.rio.get_gcps():
+        raise InputError(f"{name} is georeferenced by ground control points, not a geotransform, and {needs} "
+                         f"needs one: warp it onto a grid first (gdalwarp -of GTiff IN OUT), or {instead}")

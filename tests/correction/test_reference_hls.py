@@ -6,12 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import rasterio
+import rasterio.control
+import rioxarray
 from click.testing import CliRunner
 from pyproj import Transformer
 
 from brdfcorr.cli import main
 from brdfcorr.correction import normalize
 from brdfcorr.correction.reference import hls_sza
+from brdfcorr.errors import InputError
 from brdfcorr.testing import example_table, synthetic_scene
 
 # The published coefficients, written out here (not read from brdfcorr): k0 ... k6.
@@ -61,3 +64,30 @@ def test_correct_with_ref_sza_hls_tags_the_value_and_its_source(scene, correct_a
     assert tags["brdf_reference_sza_source"] == "hls"
     assert float(tags["brdf_reference"].split()[0].removeprefix("sza=")) == pytest.approx(published(latitude),
                                                                                           abs=1e-4)
+
+
+def _with_gcps(scene, tmp_path):
+    """The scene's image written with four ground control points (the corners' true places) and no
+    geotransform: rioxarray reads it with the GCPs' CRS and an identity transform."""
+    reflectance = scene["reflectance"]
+    transform, (rows, columns) = reflectance.rio.transform(), reflectance.shape[1:]
+    gcps = [rasterio.control.GroundControlPoint(row, col, *(transform * (col, row)))
+            for row, col in ((0, 0), (0, columns), (rows, 0), (rows, columns))]
+    path = tmp_path / "gcps.tif"
+    with rasterio.open(path, "w", driver="GTiff", width=columns, height=rows, count=reflectance.shape[0],
+                       dtype="float32", gcps=gcps, crs=reflectance.rio.crs) as dataset:
+        dataset.write(reflectance.values.astype("float32"))
+    return path
+
+
+def test_an_image_georeferenced_by_ground_control_points_has_no_latitude_for_hls(tmp_path):
+    """Its identity transform would put the centre at the CRS's origin: the equator in UTM (hls
+    31.0 deg for a scene at 48.7 deg N, whose hls sun zenith is 50.7), corrected without a word."""
+    scene = synthetic_scene(ny=12, nx=16)
+    image = rioxarray.open_rasterio(_with_gcps(scene, tmp_path), mask_and_scale=True)
+    assert image.rio.crs == scene["reflectance"].rio.crs and image.rio.transform().is_identity
+    angles = {name: scene[name].values for name in ("sza", "saa", "vza", "vaa")}  # on its grid by shape
+    with pytest.raises(InputError, match=r"^the image \(.*gcps\.tif\) is georeferenced by ground control points, "
+                                         r"not a geotransform, and the reference sun zenith 'hls'"):
+        normalize(image, scene["classes"].values, angles, example_table(),
+                  {"sza": "hls", "vza": 0.0})

@@ -10,6 +10,7 @@ import dask.array as da
 import numpy as np
 import pytest
 import rasterio
+import rasterio.control
 import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -125,6 +126,14 @@ def test_dem_errors():
     geographic = georeference(xr.DataArray(np.zeros((4, 4)), dims=("y", "x")), crs="EPSG:4326")
     with pytest.raises(InputError, match="geographic"):
         slope_aspect(geographic)
+    # Ground control points and no geotransform: rioxarray's identity transform (a pixel of 1 m by
+    # +1 m) would make the slope 10 times too steep (tangent) on 10 m pixels and mirror the aspect.
+    gcps = [rasterio.control.GroundControlPoint(row, col, 500000.0 + 10 * col, 5400000.0 - 10 * row)
+            for row, col in ((0, 0), (0, 4), (4, 0), (4, 4))]
+    controlled = xr.DataArray(np.arange(16.0).reshape(4, 4), dims=("y", "x")).rio.write_gcps(gcps, "EPSG:32632")
+    with pytest.raises(InputError, match=r"^DEM is georeferenced by ground control points, not a geotransform"):
+        slope_aspect(controlled)
+    assert np.isfinite(slope_aspect(controlled, pixel_size=10.0).slope.values).all()
     with pytest.raises(InputError, match="too small"):
         slope_aspect(np.zeros((1, 5)), pixel_size=1.0)
     with pytest.raises(InputError, match="2-D"):
