@@ -9,6 +9,7 @@ centre in any output, GeoTIFF tags included: :func:`wavelength_text`. Used by
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -122,7 +123,10 @@ def check_envi_georeference(array: xr.DataArray, target: str | os.PathLike) -> N
     """Refuse what an ENVI header cannot say: its ``map info`` holds pixel sizes and one rotation,
     so a sheared geotransform (columns not perpendicular to rows) would be written as a rotation
     (tens of metres off at the far corner), and a raster with a geotransform but no CRS would get
-    ``map info = {Arbitrary, ...}``, read back as a local CRS ``LOCAL_CS["Arbitrary"]``.
+    ``map info = {Arbitrary, ...}``, read back as a local CRS ``LOCAL_CS["Arbitrary"]``. Other
+    geotransforms are written to a one-pixel ENVI file in a scratch folder and read back
+    (:func:`_read_back`): GDAL reads a mirrored grid (columns running west) and one turned by
+    180 degrees back as another, while a south-up grid and other rotations come back as written.
 
     Raises
     ------
@@ -137,3 +141,22 @@ def check_envi_georeference(array: xr.DataArray, target: str | os.PathLike) -> N
     if array.rio.crs is None and not transform.is_identity:
         raise InputError(f"ENVI output {target}: the image has no CRS; an ENVI header would say 'Arbitrary', read "
                          "back as a local CRS; write a GeoTIFF (--format GTiff) or give the image a CRS")
+    if transform.is_identity:
+        return
+    back = _read_back(transform, array.rio.crs)
+    pixel = max(abs(a), abs(b), abs(d), abs(e))
+    if not np.allclose(tuple(back)[:6], tuple(transform)[:6], rtol=0, atol=1e-6 * pixel):
+        raise InputError(f"ENVI output {target}: an ENVI header does not hold the image's geotransform "
+                         f"({tuple(transform)[:6]}; GDAL reads it back as {tuple(back)[:6]}: columns running west, "
+                         "or a grid turned by 180 degrees); write a GeoTIFF (--format GTiff)")
+
+
+def _read_back(transform, crs):
+    """The geotransform GDAL reads from an ENVI header it wrote with ``transform`` and ``crs``."""
+    with tempfile.TemporaryDirectory(prefix="brdfcorr-envi-") as scratch:
+        path = Path(scratch) / "probe.img"
+        with rasterio.open(path, "w", driver="ENVI", width=1, height=1, count=1, dtype="uint8", crs=crs,
+                           transform=transform) as probe:
+            probe.write(np.zeros((1, 1, 1), np.uint8))
+        with rasterio.open(path) as probe:
+            return probe.transform

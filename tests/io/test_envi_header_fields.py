@@ -37,6 +37,12 @@ def _regrid(scene, transform: Affine, crs) -> None:
 @pytest.mark.parametrize("transform, crs, pattern", [
     (Affine(10.0, 3.0, 500_000.0, 0.0, -10.0, 5_400_000.0), "EPSG:32632", "the image's geotransform is sheared"),
     (Affine(10.0, 0.0, 500_000.0, 0.0, -10.0, 5_400_000.0), None, "the image has no CRS"),
+    # GDAL writes these as rotation=90 and rotation=180 and reads them back as other grids: the
+    # far column 310 m (x mirrored) and 620 m (turned by 180 degrees) from where it lies.
+    (Affine(-10.0, 0.0, 500_320.0, 0.0, -10.0, 5_400_000.0), "EPSG:32632",
+     "an ENVI header does not hold the image's geotransform"),
+    (Affine(-10.0, 0.0, 500_320.0, 0.0, 10.0, 5_399_680.0), "EPSG:32632",
+     "an ENVI header does not hold the image's geotransform"),
 ])
 def test_envi_refuses_what_its_header_cannot_say(scene, transform, crs, pattern):
     _regrid(scene, transform, crs)
@@ -51,6 +57,15 @@ def test_envi_refuses_what_its_header_cannot_say(scene, transform, crs, pattern)
     assert result.exit_code == 0, result.output
     with rasterio.open(scene["out"] / "c.tif") as written:
         assert written.transform == transform and written.crs == (crs and rasterio.crs.CRS.from_string(crs))
+
+
+def test_envi_writes_a_south_up_grid_that_reads_back_as_written(scene):
+    south_up = Affine(10.0, 0.0, 500_000.0, 0.0, 10.0, 5_399_680.0)
+    _regrid(scene, south_up, "EPSG:32632")
+    result = CliRunner().invoke(main, _correct_args(scene, scene["out"] / "c.img", "--format", "ENVI"))
+    assert result.exit_code == 0, result.output
+    with rasterio.open(scene["out"] / "c.img") as written:
+        assert written.transform == south_up
 
 
 def _header_fields(path: Path) -> dict[str, str]:
