@@ -26,6 +26,7 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
+from brdfcorr.correction.terrain import SlopeAspect, check_slope_aspect
 from brdfcorr.errors import InputError
 from brdfcorr.io.angles import check_angle_values
 from brdfcorr.io.grid import check_same_grid
@@ -111,7 +112,10 @@ def checked_layers(reflectance: xr.DataArray, named: Mapping[str, object]) -> di
     reflectance's grid (:func:`check_grid`), the angles' packed values unpacked
     (:func:`brdfcorr.io.reflectance.unpacked`: int16 hundredths of a degree with a ``scale_factor``
     of 0.01 are degrees), refused where they (or the reflectance) hold complex values, the angles
-    guarded (:func:`guard_angles`), the class map refused where it holds no numbers."""
+    guarded (:func:`guard_angles`), the class map refused where it holds no numbers, and slope and
+    aspect held in memory checked for degrees as the command line checks its files
+    (:func:`brdfcorr.correction.terrain.check_slope_aspect`: radians, or no value in the domain;
+    lazy (dask) layers are not read for it: the correction stays lazy)."""
     layers = {name: check_grid(reflectance, name, as_dataarray(layer, name, reflectance.dims[1:]))
               for name, layer in named.items()}
     layers = {name: layer if name == "classes" else unpacked(layer, name) for name, layer in layers.items()}
@@ -120,6 +124,8 @@ def checked_layers(reflectance: xr.DataArray, named: Mapping[str, object]) -> di
     if complex_layers:  # the imaginary part would be lost, or carried into a complex "reflectance"
         raise InputError(f"complex values in {', '.join(complex_layers)}; real numbers are expected")
     layers = guard_angles(layers)
+    if "slope" in layers and not any(isinstance(layers[name].data, da.Array) for name in TERRAIN_LAYERS):
+        check_slope_aspect(SlopeAspect(layers["slope"], layers["aspect"]), "terrain layers")
     if layers["classes"].dtype.kind not in "iuf":
         raise InputError(f"classes must hold numbers, got dtype {layers['classes'].dtype}")
     return layers

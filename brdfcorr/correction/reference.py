@@ -60,8 +60,8 @@ def centre_latitude(image) -> float:
     crs, transform = image.rio.crs, image.rio.transform()
     if crs is None:
         raise InputError("the reference sun zenith 'hls' needs a georeferenced image (a CRS) for its latitude")
-    refuse_gcps(image, describe_layer("the image", image), "the reference sun zenith 'hls' (the latitude of its centre)",
-                "give the reference sun zenith in degrees")
+    refuse_gcps(image, describe_layer("the image", image), "the reference sun zenith 'hls' (the latitude of its "
+                "centre)", "give the reference sun zenith in degrees")
     x, y = transform * (image.sizes["x"] / 2.0, image.sizes["y"] / 2.0)
     _, latitude = Transformer.from_crs(crs, "EPSG:4326", always_xy=True).transform(x, y)
     return float(latitude)
