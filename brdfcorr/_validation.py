@@ -20,6 +20,8 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
+from brdfcorr.errors import ParameterError
+
 #: Tags pydantic inserts into error locations for the members of a union (``float``,
 #: ``list[float]``, ``literal['mean','observed']``): not keys of the document.
 _TYPE_TAGS = frozenset({"float", "int", "str", "bool"})
@@ -48,6 +50,21 @@ def key_text(key: object) -> str:
     text = key if isinstance(key, str) else short_repr(key)
     plain = text and len(text) <= 80 and text.isprintable() and text.strip() == text
     return text if plain else short_repr(key)
+
+
+def check_flags(**flags: object) -> None:
+    """Refuse a switch of the Python API that is not True or False: a string such as ``"no"`` or
+    ``"false"`` is truthy, so the switch would be on (a view azimuth turned by 180 deg, wavelengths
+    extrapolated) without a word. numpy booleans are booleans.
+
+    Raises
+    ------
+    brdfcorr.errors.ParameterError
+        ``{name} must be True or False, got {value}``.
+    """
+    for name, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise ParameterError(f"{name} must be True or False, got {short_repr(value)}")
 
 
 def refuse_boolean(value: object) -> object:

@@ -35,6 +35,7 @@ from brdfcorr.analysis.view_stripes import (
 )
 from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import BrdfcorrWarning, InputError
+from brdfcorr.io.reflectance import declared_nodata
 from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["GROWTH_LIMIT", "STRIPE_LIMIT", "ViewAngleOptions", "assess_view_angles", "error_growth_warning",
@@ -100,7 +101,7 @@ def _present_ids(classes, nodata, scheduler=None) -> np.ndarray:
 
 def _class_nodata(classes):
     if isinstance(classes, xr.DataArray):
-        nodata = classes.rio.nodata
+        nodata = declared_nodata(classes)
         return None if nodata is None or (isinstance(nodata, float) and math.isnan(nodata)) else nodata
     return None
 

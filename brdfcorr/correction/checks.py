@@ -173,4 +173,5 @@ def _check_units(arrays, where: str, *, empty_allowed: bool) -> None:
     if empty_allowed:
         statistics = {name: found for name, found in statistics.items() if found[1][0]}
     check_angle_values({name: found[0] for name, found in statistics.items()},
-                       {name: found[1] for name, found in statistics.items()}, lambda name: where)
+                       {name: found[1] for name, found in statistics.items()}, lambda name: where,
+                       whole=not empty_allowed)

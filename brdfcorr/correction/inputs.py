@@ -12,6 +12,7 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
+from brdfcorr._validation import check_flags
 from brdfcorr.correction.checks import (  # check_grid: the topographic step's as well
     angle_layers,
     as_dataarray,
@@ -21,7 +22,7 @@ from brdfcorr.correction.checks import (  # check_grid: the topographic step's a
 )
 from brdfcorr.correction.reference import fixed_sza, resolve_reference, scene_mean_sza, with_hls_sza
 from brdfcorr.errors import InputError
-from brdfcorr.io.reflectance import reflectance_factors
+from brdfcorr.io.reflectance import declared_nodata, reflectance_factors
 from brdfcorr.io.wavelengths import with_wavelengths
 from brdfcorr.params import ParameterTable, ReferenceGeometry, as_parameter_table
 
@@ -35,16 +36,6 @@ def one_class(reflectance: xr.DataArray) -> xr.DataArray:
     classes = xr.ones_like(first, dtype=np.uint8).drop_vars(band_coords).rename("classes")
     classes.attrs = {}
     return classes
-
-
-def layer_nodata(layer: xr.DataArray):
-    """The nodata value rioxarray declares for a layer, else its ``_FillValue`` attribute (or None)."""
-    try:
-        import rioxarray  # noqa: F401  (registers the .rio accessor)
-
-        return layer.rio.nodata
-    except Exception:  # a layer rioxarray cannot describe has no declared nodata
-        return layer.attrs.get("_FillValue")
 
 
 @dataclass(frozen=True)
@@ -121,7 +112,11 @@ def prepare_inputs(
     Raises InputError, GridMismatchError or ParameterError as documented in
     :func:`~brdfcorr.correction.normalize`.
     """
+    check_flags(extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth)
     params = as_parameter_table(params)
+    if classes is None and params.class_ids != (1,):  # as the command line without --classes
+        raise InputError(f"classes=None makes the whole image class 1, and the table holds classes "
+                         f"{list(params.class_ids)}: give the class map")
     if limits is not None:
         limits = (float(limits[0]), float(limits[1]))
         if not (0 < limits[0] <= 1 <= limits[1] < np.inf):
@@ -143,7 +138,7 @@ def prepare_inputs(
     if wavelengths is None and "wavelength" in reflectance.coords:
         wavelengths = np.atleast_1d(reflectance["wavelength"].values).tolist()  # a scalar: one band
     resolved = params.for_bands(wavelengths, n_bands=reflectance.shape[0], extrapolate=extrapolate)
-    settings = BlockSettings(reference, limits, layer_nodata(layers["classes"]), flip_view_azimuth,
+    settings = BlockSettings(reference, limits, declared_nodata(layers["classes"]), flip_view_azimuth,
                              np.result_type(reflectance.dtype, np.float32))
     return CorrectionInputs(reflectance, [reflectance.data] + [layer.data for layer in layers.values()], resolved,
                             settings)

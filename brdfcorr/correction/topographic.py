@@ -67,13 +67,13 @@ from brdfcorr._arrays import cosd
 from brdfcorr._entry import option
 from brdfcorr.correction.blocks import no_class_mask, split_pairs
 from brdfcorr.correction.checks import angle_statistics
-from brdfcorr.correction.inputs import angle_layers, check_grid, layer_nodata
+from brdfcorr.correction.inputs import angle_layers, check_grid
 from brdfcorr.correction.qa import QA, qa_attrs, set_flags
 from brdfcorr.correction.terrain import cos_incidence
 from brdfcorr.defaults import C_METHODS, DEFAULT_LIMITS, TOPOGRAPHIC_METHODS
 from brdfcorr.errors import BrdfcorrWarning, InputError
 from brdfcorr.io.angles import looks_like_radians
-from brdfcorr.io.reflectance import reflectance_factors, unpacked
+from brdfcorr.io.reflectance import declared_nodata, reflectance_factors, unpacked
 
 __all__ = [
     "METHODS",
@@ -517,7 +517,7 @@ def topographic_correction(
     _refuse_radians({"sza": sza, "saa": saa}, {"slope": slope, "aspect": aspect})
     cos_i = cos_incidence(sza, saa, slope, aspect)
     class_layer = _layer(reflectance, "classes", classes) if classes is not None else None
-    class_nodata = layer_nodata(classes) if isinstance(classes, xr.DataArray) else None
+    class_nodata = declared_nodata(classes) if isinstance(classes, xr.DataArray) else None
     n_bands = reflectance.shape[0]
     lookup: tuple = (np.array([0]), np.zeros((1, n_bands)), np.zeros((1, n_bands), bool))
     if method in C_METHODS:

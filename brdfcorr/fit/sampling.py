@@ -11,6 +11,7 @@ import scipy.sparse
 import scipy.sparse.csgraph
 import xarray as xr
 
+from brdfcorr._validation import check_flags
 from brdfcorr.correction.checks import (
     ANGLE_LAYERS,
     as_dataarray,
@@ -24,7 +25,7 @@ from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.fit.settings import Sampling
 from brdfcorr.geometry import relative_azimuth
-from brdfcorr.io.reflectance import carries_scale, reflectance_factors, unpacked
+from brdfcorr.io.reflectance import carries_scale, declared_nodata, reflectance_factors, unpacked
 from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
@@ -57,9 +58,10 @@ def _in_memory(array, dtype=None) -> np.ndarray:
 
 
 def _class_values(class_map: xr.DataArray) -> np.ndarray:
-    """The class ids of a class map in memory, its nodata (rioxarray's) read as 0, "no class"."""
+    """The class ids of a class map in memory, its nodata (:func:`~brdfcorr.io.reflectance.declared_nodata`) read
+    as 0, "no class"."""
     values = _in_memory(class_map)
-    nodata = class_map.rio.nodata if hasattr(class_map, "rio") else None
+    nodata = declared_nodata(class_map)
     return np.where(values == nodata, 0, values) if nodata is not None else values
 
 
@@ -95,6 +97,7 @@ def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> t
     not both), a declared nodata as NaN, packed angles (int16 hundredths with a ``scale_factor``)
     in degrees, and view azimuths stored as seen from the sensor turned by 180 deg (the sampling's
     ``flip_view_azimuth``)."""
+    check_flags(flip_view_azimuth=sampling.flip_view_azimuth)
     reflectance_scale = sampling.reflectance_scale
     checked_images, checked_classes, checked_angles = [], [], []
     for image, class_map, angle_set in zip(images, classes, angles):
@@ -356,7 +359,7 @@ def _cluster_ids(clusters, shapes: list[tuple[int, ...]]) -> list[np.ndarray] | 
                              "for every scene")
     found = []
     for scene, (layer, shape) in enumerate(zip(layers, shapes)):
-        nodata = layer.rio.nodata if isinstance(layer, xr.DataArray) and hasattr(layer, "rio") else None
+        nodata = declared_nodata(layer) if isinstance(layer, xr.DataArray) else None
         ids = _in_memory(layer, float)
         if ids.shape != tuple(shape):
             raise ParameterError(f"the cluster layer of scene {scene + 1} has shape {ids.shape}, its class map "

@@ -17,7 +17,7 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr._entry import option
-from brdfcorr.errors import InputError
+from brdfcorr.errors import BrdfcorrWarning, InputError
 from brdfcorr.io.grid import describe_layer
 from brdfcorr.io.opening import chunk_spec, open_raster, reading
 from brdfcorr.io.sensors.grids import GRID_STATISTICS, grid_window
@@ -318,13 +318,16 @@ def _check_order(ranges: dict, spreads: dict, where) -> None:
 
 
 def check_angle_values(ranges: dict, counts: dict, where, positional: Mapping[str, int | None] | None = None, *,
-                  relative: bool = False) -> None:
+                  relative: bool = False, whole: bool = True) -> None:
     """The unit checks of :func:`check_angles` on the layers' ranges and (finite, in [0, 90))
     counts; ``where(name)`` names a layer in messages; ``positional`` the band of each layer taken
     by position (:data:`POSITIONAL`), for a hint at the band order. With ``relative`` (a source of
     the relative azimuth only, :func:`from_relative_azimuth`: ``vaa`` is the raa) a raa within
     +-6.3 that is not all 0 is radians (+-2 pi): degrees would put every pixel within 6.3 deg of
-    the hotspot."""
+    the hotspot. With ``whole`` (the ranges are those of whole layers, not of one chunk), a sun
+    zenith below pi/2 everywhere that is not all 0 is a :class:`~brdfcorr.errors.BrdfcorrWarning`:
+    the sun within 1.6 deg of the zenith over a whole scene is rare, a sun zenith in radians beside
+    azimuths in degrees (which the radians rule takes for degrees) is not."""
     empty = [name for name in counts if counts[name][0] == 0]
     if empty:  # every pixel would be nodata (a NaN sun zenith of a product, a layer of inf)
         raise InputError(f"{where(empty[0])}: no finite {empty[0]} value (all NaN, inf or nodata): "
@@ -336,6 +339,11 @@ def check_angle_values(ranges: dict, counts: dict, where, positional: Mapping[st
         low, high = ranges["vaa"]
         raise InputError(f"{where('vaa')}: the relative azimuth (raa) {low:.3g}..{high:.3g} looks like radians; "
                          "brdfcorr needs degrees")
+    if whole and "sza" in ranges and 0.0 < ranges["sza"][1] < math.pi / 2:
+        low, high = ranges["sza"]
+        warnings.warn(BrdfcorrWarning(
+            f"{where('sza')}: the sun zenith lies in {low:.3g}..{high:.3g} deg over the whole scene: the sun within "
+            f"{high:.2g} deg of the zenith, or radians? brdfcorr needs degrees{option('degrees')}"), stacklevel=2)
     for name in zeniths:
         if counts[name][1] == 0:
             lowest, highest = ranges[name]

@@ -15,6 +15,8 @@ by :func:`brdfcorr.io.scale_check.check_reflectance_scale`.
 
 from __future__ import annotations
 
+import contextlib
+import math
 from collections.abc import Mapping
 
 import dask.array
@@ -22,9 +24,11 @@ import numpy as np
 import xarray as xr
 
 from brdfcorr._entry import option
+from brdfcorr._validation import short_repr
 from brdfcorr.errors import InputError
 
-__all__ = ["FILL_FLOOR", "refuse_fill", "as_reflectance", "reflectance_factors", "unpacked", "carries_scale"]
+__all__ = ["FILL_FLOOR", "refuse_fill", "as_reflectance", "reflectance_factors", "unpacked", "carries_scale",
+           "declared_nodata"]
 
 
 #: Lowest reflectance factor [1] taken as a measurement (:func:`refuse_fill`). No surface reflects
@@ -151,7 +155,7 @@ def reflectance_factors(reflectance: xr.DataArray, *, unscaled_counts: bool = Fa
             f"reflectance holds integer counts ({reflectance.dtype}) without a scale_factor: give reflectance "
             f"factors, {option('scale')} (e.g. Sentinel-2 L2A from baseline 04.00: counts * 0.0001 - 0.1)"
         )
-    scale = float(metadata["scale_factor"])
+    scale = _one_number(metadata, "scale_factor", "reflectance")
     if scale > 1 and not unscaled_counts:  # every count >= 1 would be a reflectance factor above 1
         raise InputError(
             f"reflectance holds integer counts ({reflectance.dtype}) with scale_factor {scale:g}: a divisor "
@@ -176,34 +180,72 @@ def unpacked(layer: xr.DataArray, role: str) -> xr.DataArray:
                 "(as rioxarray.open_rasterio(path, masked=True) reads them). Read them with mask_and_scale=True, "
                 "or drop the attributes if they are applied already"
             )
-        nodata = _nodata(layer, layer.attrs)
+        nodata = declared_nodata(layer)
         if nodata is None or np.isnan(nodata):
             return layer
-        return _plain(layer.where(layer != nodata), layer)
+        return _plain(_masked(layer, nodata), layer)
     metadata = {**layer.encoding, **layer.attrs}
     if layer.dtype.kind not in "iu" or not {"scale_factor", "add_offset"} & set(metadata):
         return layer
-    scale, offset = float(metadata.get("scale_factor", 1.0)), float(metadata.get("add_offset", 0.0))
-    nodata = _nodata(layer, metadata)
+    scale, offset = _one_number(metadata, "scale_factor", role, 1.0), _one_number(metadata, "add_offset", role, 0.0)
+    nodata = declared_nodata(layer, metadata)
     values = layer if nodata is None else layer.where(layer != nodata)
     scaled = (values.astype(np.float32) * np.float32(scale) + np.float32(offset)).astype(np.float32)
     return _plain(scaled, layer).assign_attrs(brdf_input_scale=scale, brdf_input_offset=offset)
 
 
+def _one_number(metadata: Mapping, key: str, role: str, default: float = 0.0) -> float:
+    """``metadata[key]`` (a ``scale_factor`` or ``add_offset``) as one number, as xarray decodes it
+    (one per variable); a list of them (one per band) or text is an :class:`InputError`."""
+    value = metadata.get(key, default)
+    try:
+        return float(np.asarray(value, dtype=float).item())
+    except (TypeError, ValueError):
+        raise InputError(f"{role} carries {key}={short_repr(value)}: one number is expected (xarray's {key} is one "
+                         f"per variable); for one per band, scale the bands first, e.g. counts * "
+                         f"xr.DataArray(scales, dims='band') + xr.DataArray(offsets, dims='band')") from None
+
+
+def _masked(layer: xr.DataArray, nodata: float) -> xr.DataArray:
+    """A float ``layer`` with its values equal to ``nodata`` as NaN, chunk by chunk (a chunk
+    without one as it is, not copied: a masked read holds none)."""
+    data = layer.data
+    if isinstance(data, dask.array.Array):
+        return layer.copy(data=data.map_blocks(_nan_at, nodata, dtype=data.dtype, meta=data._meta))
+    return layer.copy(data=_nan_at(np.asarray(data), nodata))
+
+
+def _nan_at(block: np.ndarray, value: float) -> np.ndarray:
+    hit = block == value
+    return np.where(hit, np.nan, block).astype(block.dtype, copy=False) if hit.any() else block
+
+
 def _plain(values: xr.DataArray, stored: xr.DataArray) -> xr.DataArray:
     """``values`` named as ``stored``, with its attributes less those of the storage
-    (:data:`_STORAGE_ATTRS`; xarray keeps attributes through arithmetic)."""
+    (:data:`_STORAGE_ATTRS`; xarray keeps attributes through arithmetic) and, where arithmetic
+    dropped its encoding, the file it came from (encoding ``source`` and ``label``: messages name it)."""
     values = values.rename(stored.name)
     values.attrs = {key: value for key, value in stored.attrs.items() if key not in _STORAGE_ATTRS}
+    if not values.encoding:
+        values.encoding = {key: stored.encoding[key] for key in ("source", "label") if key in stored.encoding}
     return values
 
 
-def _nodata(array: xr.DataArray, metadata: Mapping) -> float | None:
-    """The declared nodata value of stored values: rioxarray's, else ``_FillValue`` of ``metadata``."""
-    try:
-        import rioxarray  # noqa: F401  (registers the .rio accessor)
+def declared_nodata(layer: xr.DataArray, metadata: Mapping | None = None):
+    """The nodata value a layer declares (a class map, an angle layer, stored reflectance), or None:
+    rioxarray's; else its encoded one (``rio.write_nodata(value, encoded=True)``, a masked read's
+    ``_FillValue`` kept in the encoding: a value still equal to it is nodata too, where rioxarray's
+    own is NaN, or an error for integers); else the ``_FillValue`` of ``metadata`` (default: the
+    layer's attributes)."""
+    import rioxarray  # noqa: F401  (registers the .rio accessor)
 
-        nodata = array.rio.nodata
-    except Exception:  # noqa: BLE001 (an array rioxarray cannot describe declares no nodata)
-        nodata = None
-    return nodata if nodata is not None else metadata.get("_FillValue")
+    nodata = encoded = None
+    with contextlib.suppress(Exception):  # a layer rioxarray cannot describe declares none of its own
+        nodata = layer.rio.nodata
+    if nodata is None or (isinstance(nodata, (float, np.floating)) and math.isnan(nodata)):
+        with contextlib.suppress(Exception):
+            encoded = layer.rio.encoded_nodata
+    for found in (encoded, nodata, (layer.attrs if metadata is None else metadata).get("_FillValue")):
+        if found is not None:
+            return found
+    return None

@@ -98,6 +98,20 @@ def _file_metadata(path) -> tuple[int, dict, tuple, dict]:
         return dataset.count, dataset.tags(), dataset.descriptions, envi_header
 
 
+def _refuse_micrometres_as_nm(coordinate: xr.DataArray) -> None:
+    """An :class:`InputError` for a ``wavelength`` coordinate without a unit whose values all lie
+    below 100: micrometres read as nanometres would put every band outside a table's wavelengths."""
+    try:
+        values = np.asarray(coordinate.values, dtype=float)
+    except (TypeError, ValueError):
+        return
+    finite = values[np.isfinite(values)]
+    if "units" not in coordinate.attrs and finite.size and np.all(finite < 100):
+        raise InputError(f"the wavelength coordinate ({finite.min():g} ... {finite.max():g}) has no units and lies "
+                         "below 100: micrometres? Set its units, e.g. reflectance['wavelength'].attrs['units'] = "
+                         "'um', or give it in nm")
+
+
 def with_wavelengths(array: xr.DataArray) -> xr.DataArray:
     """``array`` with a ``wavelength`` coordinate [nm] where it carries its band centres otherwise.
 
@@ -111,7 +125,9 @@ def with_wavelengths(array: xr.DataArray) -> xr.DataArray:
     Raises
     ------
     InputError
-        A ``wavelength`` coordinate in a unit other than nm or µm.
+        A ``wavelength`` coordinate in a unit other than nm or µm, or one without a unit whose
+        values all lie below 100 (micrometres, as an ENVI header without units holds them; no band
+        of an optical sensor is centred below 100 nm).
     """
     if "wavelength" in array.coords:
         coordinate = array["wavelength"]
@@ -119,6 +135,7 @@ def with_wavelengths(array: xr.DataArray) -> xr.DataArray:
         if unit not in _UNITS_TO_NM:
             raise InputError(f"the wavelength coordinate is in {unit!r}: give it in nm or µm (its 'units' attribute)")
         if _UNITS_TO_NM[unit] == 1.0:
+            _refuse_micrometres_as_nm(coordinate)
             return array
         nm = np.asarray(coordinate.values, dtype=float) * _UNITS_TO_NM[unit]
         return array.assign_coords(wavelength=(coordinate.dims, nm, {**coordinate.attrs, "units": "nm"}))

@@ -9,9 +9,10 @@ import pytest
 import xarray as xr
 
 from brdfcorr._entry import entered
-from brdfcorr.correction import normalize
-from brdfcorr.errors import GridMismatchError, InputError, ParameterError
+from brdfcorr.correction import QA, normalize
+from brdfcorr.errors import BrdfcorrWarning, GridMismatchError, InputError, ParameterError
 from brdfcorr.fit import Sampling
+from brdfcorr.params import ParameterTable
 from brdfcorr.testing import example_table, synthetic_scene
 
 ANGLES = ("sza", "saa", "vza", "vaa")
@@ -95,7 +96,7 @@ def test_a_reference_sun_zenith_in_radians_is_refused(scene):
 
 def test_a_coefficient_set_by_name_and_no_class_map_correct_every_pixel(scene):
     from brdfcorr.models.coefficients import load_coefficients
-    from brdfcorr.params import ClassEntry, ParameterTable
+    from brdfcorr.params import ClassEntry
 
     table = ParameterTable(classes=[ClassEntry(**load_coefficients("roy2017").table_entry(1))])
     ones = xr.ones_like(scene["classes"])
@@ -320,3 +321,68 @@ def test_slope_and_aspect_in_radians_are_refused_as_by_the_command_line(scene):
                   example_table())
     degrees = {**_angles(scene), "slope": np.degrees(slope), "aspect": np.degrees(aspect)}
     assert np.isfinite(normalize(scene["reflectance"], scene["classes"], degrees, example_table()).reflectance).any()
+
+
+@pytest.mark.parametrize("switch", ["flip_view_azimuth", "extrapolate"])
+@pytest.mark.parametrize("value", ["no", "false", 0, None])
+def test_a_switch_that_is_not_true_or_false_is_refused(scene, switch, value):
+    # "no" and "false" are truthy: the view azimuths were turned by 180 deg (23 % off), silently.
+    with pytest.raises(ParameterError, match=rf"^{switch} must be True or False, got {value!r}$"):
+        normalize(scene["reflectance"], scene["classes"], _angles(scene), example_table(), **{switch: value})
+
+
+def test_no_class_map_with_a_table_of_several_classes_is_refused(scene):
+    # classes=None makes every pixel class 1 (the roof tile of the example table): grass, paving
+    # and soil were corrected as roof tile, 24 % off, without a flag.
+    with pytest.raises(InputError, match=r"^classes=None makes the whole image class 1, and the table holds classes "
+                                         r"\[1, 2, 3, 4\]: give the class map$"):
+        normalize(scene["reflectance"], None, _angles(scene), example_table())
+    one = ParameterTable.from_dict({"classes": [example_table().classes[0].model_dump()]})
+    assert normalize(scene["reflectance"], None, _angles(scene), one).reflectance.notnull().any()
+
+
+def test_a_scale_factor_per_band_is_refused_in_one_line(scene):
+    counts = np.round(scene["reflectance"].clip(0, 1) * 10000).astype(np.int16)
+    counts.attrs.update(scale_factor=[1e-4] * 4)  # was a bare TypeError from float()
+    with pytest.raises(InputError, match=r"^reflectance carries scale_factor=\[0\.0001, .*one number is expected"):
+        normalize(counts, scene["classes"], _angles(scene), example_table())
+
+
+def test_a_wavelength_coordinate_in_micrometres_without_units_is_refused(scene):
+    """0.48 ... 0.83 read as nm lie outside every table; the message offered extrapolate=True,
+    which gave every band the table's 450 nm values (3 % off), silently."""
+    microns = scene["reflectance"].assign_coords(wavelength=("band", scene["reflectance"]["wavelength"].values / 1e3))
+    with pytest.raises(InputError, match=r"^the wavelength coordinate \(0\.48 \.\.\. 0\.83\) has no units and lies "
+                                         r"below 100: micrometres\?"):
+        normalize(microns, scene["classes"], _angles(scene), example_table(), extrapolate=True)
+    microns["wavelength"].attrs["units"] = "um"
+    expected = normalize(scene["reflectance"], scene["classes"], _angles(scene), example_table()).reflectance
+    np.testing.assert_allclose(normalize(microns, scene["classes"], _angles(scene), example_table()).reflectance,
+                               expected, rtol=1e-6)
+
+
+def test_a_sun_zenith_in_radians_beside_azimuths_in_degrees_is_warned_about(scene):
+    """The radians rule needs every angle below 2 pi, and the azimuths in degrees exempt the
+    layers: sza = arccos(mu0) in radians (0.52 ... 0.70) corrected as a sun at the zenith, 18 % off,
+    silently. A sun within 1.6 deg of the zenith over a whole scene is rare: a warning, not an error."""
+    angles = {**_angles(scene), "sza": np.radians(scene["sza"])}
+    with pytest.warns(BrdfcorrWarning, match=r"^angles: the sun zenith lies in 0\.\d+\.\.0\.\d+ deg over the whole "
+                                             r"scene: the sun within 0\.\d+ deg of the zenith, or radians\?"):
+        normalize(scene["reflectance"], scene["classes"], angles, example_table())
+
+
+def test_a_nodata_value_in_the_encoding_is_nodata(scene):
+    """rio.write_nodata(value, encoded=True) keeps the value in the encoding (rioxarray's own
+    nodata is then NaN, or an error for integers): the class map's nodata pixels were corrected as
+    class 3 and a float image's fill value 65535 as a reflectance factor, with QA 0."""
+    classes = scene["classes"]
+    in_attrs = normalize(scene["reflectance"], classes.rio.write_nodata(3), _angles(scene), example_table())
+    encoded = normalize(scene["reflectance"], classes.rio.write_nodata(3, encoded=True), _angles(scene),
+                        example_table())
+    np.testing.assert_array_equal(encoded.qa.values, in_attrs.qa.values)
+    assert (encoded.qa.values[classes.values == 3] & int(QA.NO_CLASS)).all()
+    filled = scene["reflectance"].copy()
+    filled.values[:, 0, :5] = 65535.0
+    corrected = normalize(filled.rio.write_nodata(65535.0, encoded=True), classes, _angles(scene), example_table())
+    assert np.isnan(corrected.reflectance.values[:, 0, :5]).all()
+    assert (corrected.qa.values[0, :5] & int(QA.NODATA)).all()

@@ -100,3 +100,25 @@ def test_layers_off_the_images_grid_are_refused_as_by_a_correction(layer):
         assert flipped.status == expected.status == "fitted"
         for name, values in expected.params.items():
             np.testing.assert_allclose(flipped.params[name], values, rtol=0.05)
+
+
+def test_a_sampling_switch_that_is_not_true_or_false_is_refused():
+    from brdfcorr.errors import ParameterError
+    from brdfcorr.fit import Sampling
+
+    with pytest.raises(ParameterError, match=r"^flip_view_azimuth must be True or False, got 'no'$"):
+        fit_classes(*_scene(small_class=False), ClassModels("ross_thick_li_sparse"), guard=GUARD,
+                    sampling=Sampling(flip_view_azimuth="no"))
+
+
+def test_a_class_map_with_its_nodata_in_the_encoding_leaves_those_pixels_out():
+    """rio.write_nodata(7, encoded=True) on an integer map: rioxarray's own nodata is an error
+    there (NaN into an integer); the fit failed with a bare ValueError or sampled class 7."""
+    image, classes, angles = _scene()
+    in_attrs = fit_classes(image, classes.rio.write_nodata(7), angles, ClassModels("ross_thick_li_sparse"), guard=GUARD)
+    encoded = fit_classes(image, classes.rio.write_nodata(7, encoded=True), angles, ClassModels("ross_thick_li_sparse"),
+                          guard=GUARD)
+    assert [fit.class_id for fit in encoded.fits] == [fit.class_id for fit in in_attrs.fits] == [1, 2]
+    for fit, expected in zip(encoded.fits, in_attrs.fits):
+        for name, values in expected.params.items():
+            np.testing.assert_array_equal(fit.params[name], values)
