@@ -39,7 +39,8 @@ opened, then scaled and checked for fill after its band centres are read, and th
 chunk function computed by the scale check's sample. Stop 59 moved the scaling and the fill floor
 into ``io.reflectance`` (with the unpacking of arrays given in memory, which ``io.scale_check``
 held): 123 stays in 41 modules, 56 by layer, ``io.rasters`` entered twice (the image opened; the
-class map).
+class map). The Python API's switches checked (``brdfcorr._validation.check_flags``) and the class
+map's nodata read by ``io.reflectance.declared_nodata`` then made it 124 stays, 58 by layer.
 
 Usage::
 
