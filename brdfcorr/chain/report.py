@@ -20,7 +20,7 @@ import xarray
 
 from brdfcorr import __version__
 from brdfcorr.chain.plan import RunPlan
-from brdfcorr.chain.resume import earlier_report
+from brdfcorr.chain.resume import earlier_report, fingerprint_digest
 from brdfcorr.chain.scenes import Scene
 from brdfcorr.errors import BrdfcorrError
 from brdfcorr.io.files import atomic_path
@@ -67,6 +67,8 @@ def scene_result(scene: Scene, status: str, *, reason: str = "", found: Mapping 
     if reason:
         result["reason"] = reason
     result["outputs"] = {key: str(path) for key, path in scene.outputs.items()}
+    if scene.fingerprint:  # what a resumed run checks its outputs and their counts by (chain.resume)
+        result["fingerprint"] = fingerprint_digest(scene)
     result.update(found or {})
     if error is not None:
         message = f"{type(error).__name__}: {error}"

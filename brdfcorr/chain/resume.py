@@ -141,11 +141,13 @@ def planned_table(config: ChainConfig, reused: Path | None) -> ParameterTable | 
 # ----------------------------------------------------------------------------------------- resume
 def redo_stale(config: ChainConfig, scenes: list[Scene], reused: Path | None, report: Path) -> list[Scene]:
     """The scenes, with skipped ones turned to ``run`` when the earlier run (its report at
-    ``report``) failed them or their outputs were not made with the run's parameter table (with
-    the fitted table it ``reused``, if any), inputs and settings."""
+    ``report``) failed them, does not vouch for their corrected outputs (:func:`_unvouched`), or
+    their outputs were not made with the run's parameter table (with the fitted table it
+    ``reused``, if any), inputs and settings."""
     results = earlier_report(report).get("scenes")
-    failed = {str(result.get("image")) for result in results if isinstance(result, dict)
-              and result.get("status") == "failed"} if isinstance(results, list) else set()
+    results = [result for result in results if isinstance(result, dict)] if isinstance(results, list) else []
+    failed = {str(result.get("image")) for result in results if result.get("status") == "failed"}
+    vouched = {str(result.get("image")): result for result in results if result.get("status") in ("ok", "skipped")}
     scenes = [dataclasses.replace(scene, action="run", reason="failed in the earlier run: redone")
               if scene.action == "skip" and str(scene.image) in failed else scene for scene in scenes]
     if not any(scene.action == "skip" and "corrected" in scene.outputs for scene in scenes):
@@ -154,7 +156,34 @@ def redo_stale(config: ChainConfig, scenes: list[Scene], reused: Path | None, re
     if table_file is not None and not config.resolve(table_file).exists():
         return scenes  # without require_inputs only: the run stops before any scene (a plan warning)
     table = planned_table(config, reused)
-    return [_unless_stale(scene, table) for scene in scenes]
+    return [_unvouched(_unless_stale(scene, table), vouched.get(str(scene.image))) for scene in scenes]
+
+
+def fingerprint_digest(scene: Scene) -> str:
+    """The SHA-256 of the scene's fingerprint: its outputs' tag ``brdf_fingerprint``, and the
+    report's record of the run that wrote them."""
+    return hashlib.sha256(scene.fingerprint.encode()).hexdigest()
+
+
+def _unvouched(scene: Scene, earlier: dict | None) -> Scene:
+    """The skipped scene turned to ``run`` unless the earlier report (``earlier``: its result for
+    the scene) says that its run wrote every output this run asks for with this fingerprint: the
+    QA counts a skipped scene reports, and judges the scene by, are that run's. Without it, a
+    scene that failed (its uncorrected output kept) passed when the report was gone, a QA raster of
+    other limits was kept beside a corrected image of new ones, and a run killed after rewriting
+    some scenes left their counts of the run before."""
+    if scene.action != "skip" or "corrected" not in scene.outputs:
+        return scene
+    if earlier is None:
+        reason = "no earlier run report vouches for its outputs"
+    elif earlier.get("fingerprint") != fingerprint_digest(scene):
+        reason = "its outputs are not those the earlier run report describes"
+    else:
+        missing = sorted(set(scene.outputs) - set(earlier.get("outputs") or {}))
+        if not missing:
+            return scene
+        reason = f"the earlier run did not write its {', '.join(missing)} output"
+    return dataclasses.replace(scene, action="run", reason=f"{reason}: redone")
 
 
 def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
@@ -177,7 +206,7 @@ def _unless_stale(scene: Scene, table: ParameterTable | None) -> Scene:
         tags, written = {}, None
     if written != json.loads(json.dumps(table.to_dict())):
         return dataclasses.replace(scene, action="run", reason="outputs were made with another parameter table")
-    if tags.get("brdf_fingerprint") != hashlib.sha256(scene.fingerprint.encode()).hexdigest():
+    if tags.get("brdf_fingerprint") != fingerprint_digest(scene):
         return dataclasses.replace(scene, action="run", reason=_what_changed(tags, scene.fingerprint))
     return scene
 

@@ -25,7 +25,9 @@ from brdfcorr.errors import InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.fit.settings import Sampling
 from brdfcorr.geometry import relative_azimuth
+from brdfcorr.io.grid import describe_layer
 from brdfcorr.io.reflectance import carries_scale, declared_nodata, reflectance_factors, unpacked
+from brdfcorr.io.wavelengths import matched_bands, with_wavelengths
 from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["LEVELS", "ClassSamples", "nested_clusters", "resolve_levels", "sample_classes", "scene_lists"]
@@ -96,7 +98,10 @@ def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> t
     integer counts scaled with the scale they carry (or by the sampling's ``reflectance_scale``,
     not both), a declared nodata as NaN, packed angles (int16 hundredths with a ``scale_factor``)
     in degrees, and view azimuths stored as seen from the sensor turned by 180 deg (the sampling's
-    ``flip_view_azimuth``)."""
+    ``flip_view_azimuth``), and each scene's bands paired with the first scene's by their
+    wavelengths where both have them (:func:`~brdfcorr.io.wavelengths.matched_bands`: a file whose
+    bands are stored in another order is read in the first's; other bands, or another count, are
+    an :class:`~brdfcorr.errors.InputError`)."""
     check_flags(flip_view_azimuth=sampling.flip_view_azimuth)
     reflectance_scale = sampling.reflectance_scale
     checked_images, checked_classes, checked_angles = [], [], []
@@ -121,6 +126,11 @@ def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> t
             angle_set = (angle_set.assign(replaced) if isinstance(angle_set, xr.Dataset)
                          else {**angle_set, **replaced})
         checked_angles.append(angle_set)
+    first = with_wavelengths(checked_images[0])
+    checked_images = [first] + [
+        matched_bands(with_wavelengths(image), first, (describe_layer(f"scene {number}", image),
+                                                       describe_layer("scene 1", first)))
+        for number, image in enumerate(checked_images[1:], start=2)]
     return checked_images, checked_classes, checked_angles
 
 
@@ -457,8 +467,12 @@ def _grid_note(candidates: list[np.ndarray], shape: tuple[int, int]) -> str:
 
 def _shared_grid(images, maps) -> bool:
     """Whether every scene lies on one grid: class maps of one shape and, where the images have
-    them, the same x and y coordinates."""
+    them, one CRS and the same x and y coordinates (the same numbers in two UTM zones are ground
+    600 km apart)."""
     if len({m.shape for m in maps}) != 1:
+        return False
+    crs = {image.rio.crs for image in images if image.rio.crs is not None}
+    if len(crs) > 1:
         return False
     for name in ("x", "y"):
         coords = [np.asarray(image[name].values) for image in images if name in image.coords]

@@ -14,8 +14,8 @@ from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.io.opening import opened
 from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, named_band_wavelengths
 
-__all__ = ["band_wavelengths", "file_wavelengths", "with_wavelengths", "envi_header_wavelengths", "envi_fwhm",
-           "tag_fwhm", "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS", "SENTINEL2_WAVELENGTHS"]
+__all__ = ["band_wavelengths", "file_wavelengths", "with_wavelengths", "matched_bands", "envi_header_wavelengths",
+           "envi_fwhm", "tag_fwhm", "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS", "SENTINEL2_WAVELENGTHS"]
 
 _UNITS_TO_NM = {
     "": 1.0, "nm": 1.0, "nanometer": 1.0, "nanometers": 1.0, "nanometre": 1.0, "nanometres": 1.0,
@@ -96,6 +96,37 @@ def _file_metadata(path) -> tuple[int, dict, tuple, dict]:
     with opened(path, "image") as dataset:
         envi_header = dataset.tags(ns="ENVI") if dataset.driver == "ENVI" else {}
         return dataset.count, dataset.tags(), dataset.descriptions, envi_header
+
+
+#: Band centres [nm] closer than this are one band (rounding in a header or a tag).
+SAME_BAND_NM = 1e-3
+
+
+def matched_bands(image: xr.DataArray, like: xr.DataArray, names: tuple[str, str], why: str = "") -> xr.DataArray:
+    """``image`` with its bands in the order of ``like``'s: by their ``wavelength`` coordinates [nm]
+    where both have one (a file whose bands are stored in another order; the same band within
+    :data:`SAME_BAND_NM`), else by position. The band dimension is the third from last.
+
+    Raises
+    ------
+    InputError
+        The band counts differ (``"{names[0]} has 3 bands, {names[1]} has 4"``), or the bands are
+        not the same wavelengths (both named, with the band centres); ``why`` ends the message.
+    """
+    band = image.dims[-3]
+    count, wanted = image.sizes[band], like.sizes[like.dims[-3]]
+    if count != wanted:
+        raise InputError(f"{names[0]} has {count} bands, {names[1]} has {wanted}{why}")
+    if "wavelength" not in image.coords or "wavelength" not in like.coords:
+        return image
+    mine = np.atleast_1d(np.asarray(image["wavelength"].values, dtype=float))
+    theirs = np.atleast_1d(np.asarray(like["wavelength"].values, dtype=float))
+    order = [int(np.argmin(np.abs(mine - centre))) for centre in theirs]
+    if len(set(order)) != count or not np.allclose(mine[order], theirs, rtol=0, atol=SAME_BAND_NM):
+        shown = (", ".join(f"{value:.6g}" for value in values) for values in (mine, theirs))
+        raise InputError(f"{names[0]} has its bands at {next(shown)} nm, {names[1]} at {next(shown)} nm: "
+                         f"not the same bands{why}")
+    return image if order == list(range(count)) else image.isel({band: order})
 
 
 def _refuse_micrometres_as_nm(coordinate: xr.DataArray) -> None:
@@ -196,6 +227,29 @@ def _tag_nanometres(tags: Mapping, key: str, source) -> list[float]:
     return [v * _UNITS_TO_NM[unit] for v in values]
 
 
+def _refuse_contradiction(tagged: Sequence[float], descriptions, source) -> None:
+    """An :class:`InputError` where the band descriptions, each a wavelength with its unit, are
+    the ``wavelength`` tag's band centres in another order (each nearest to another band's centre,
+    within rounding): ``gdal_translate -b 3 -b 2 -b 1`` reorders the descriptions with the bands
+    and copies the dataset's tags as they are, so the tag names the bands in the old order. Other
+    differences (descriptions rounded, or not wavelengths of these bands) leave the tag's, which
+    takes precedence."""
+    described = [parse_wavelength(text) if text and re.search(rf"(?:{_UNIT})\b", text, re.I) else None
+                 for text in descriptions or ()]
+    if len(described) != len(tagged) or len(tagged) < 2 or any(value is None for value in described):
+        return
+    centres, found = np.asarray(tagged, dtype=float), np.asarray(described, dtype=float)
+    order = np.argmin(np.abs(centres[None, :] - found[:, None]), axis=1)
+    spacing = np.min(np.diff(np.sort(centres)))
+    reordered = (len(set(order.tolist())) == len(order) and np.any(order != np.arange(len(order)))
+                 and np.all(np.abs(centres[order] - found) < spacing / 2))
+    if reordered:
+        shown = (", ".join(f"{value:.6g}" for value in values) for values in (centres, found))
+        raise InputError(f"{source}: tag 'wavelength' says {next(shown)} nm and the band descriptions {next(shown)} "
+                         "nm: the bands were reordered without the tag? Correct the tag (gdal_edit.py -mo "
+                         "wavelength=...) or give the wavelengths")
+
+
 def envi_fwhm(path) -> np.ndarray | None:
     """The FWHM [nm] of an ENVI image's header, None where it holds none or no band centres to
     tell its units by (:func:`envi_header_wavelengths`)."""
@@ -213,6 +267,7 @@ def _from_metadata(n_bands: int, tags, descriptions, envi_header, path, source, 
         values, origin = [float(v) for v in explicit], "the given wavelengths"
     elif "wavelength" in tags:
         values, origin = _tag_nanometres(tags, "wavelength", source), "tag 'wavelength'"
+        _refuse_contradiction(values, descriptions, source)
     elif "wavelength" in envi_header:  # before the band descriptions GDAL makes of it, without its units
         values, origin = envi_header_wavelengths(path)[0].tolist(), "ENVI header"
     else:

@@ -39,6 +39,7 @@ from brdfcorr.io.files import atomic_path
 from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.paths import same_file
 from brdfcorr.io.scene import SceneData, SceneSources, open_scene
+from brdfcorr.io.wavelengths import matched_bands
 from brdfcorr.tasks.classmaps import class_preparation, tagged_class_names
 from brdfcorr.tasks.request import Engine
 
@@ -177,9 +178,7 @@ def _corrected_on_grid(after, image, before: xr.DataArray, chunks: int) -> xr.Da
     """The corrected image, opened and checked against its input: the same grid, the same bands."""
     corrected = rasters.open_image(after, chunks=chunks)
     check_same_grid({"before": before, "after": corrected})
-    if corrected.shape != before.shape:
-        raise InputError(f"{after} has {corrected.shape[0]} bands, {image} has {before.shape[0]}")
-    return corrected
+    return matched_bands(corrected, before, (str(after), str(image)))
 
 
 def _other_line(overlap, scene: SceneSources, before: xr.DataArray, chunks: int) -> tuple[xr.DataArray, xr.DataArray]:
@@ -191,11 +190,9 @@ def _other_line(overlap, scene: SceneSources, before: xr.DataArray, chunks: int)
                          "corrected image, which overlap this one")
     other = (rasters.open_image(overlap[0], chunks=chunks, scale=scene.scale, offset=scene.offset),
              rasters.open_image(overlap[1], chunks=chunks))
-    for path, image in zip(overlap, other):
-        if image.shape[0] != before.shape[0]:
-            raise InputError(f"{path} has {image.shape[0]} bands, {scene.image} has {before.shape[0]}: the overlap "
-                             "compares a line with another of the same bands")
-    return other
+    why = ": the overlap compares a line with another of the same bands"
+    return tuple(matched_bands(image, before, (str(path), str(scene.image)), why)  # type: ignore[return-value]
+                 for path, image in zip(overlap, other))
 
 
 def _cluster_layer(clusters: tuple[str | os.PathLike, int], image: xr.DataArray, chunks: int) -> xr.DataArray:

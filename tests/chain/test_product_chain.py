@@ -130,6 +130,22 @@ def test_a_resumed_run_skips_the_dates_and_refits_when_a_band_changed(copy, scra
     assert not _stacks(scratch)
 
 
+def test_a_resumed_run_redoes_a_date_whose_scaling_was_edited(copy, scratch):
+    """MTD_MSIL2A.xml holds the scaling (BOA_ADD_OFFSET): an offset edited in place, with the
+    file's size and time kept, was not seen and the date kept its output of the old offset."""
+    config = _chain(copy)
+    assert run_chain(config).ok
+    metadata = sorted((copy / "tiles").glob("*.SAFE"))[1] / "MTD_MSIL2A.xml"
+    text, stat = metadata.read_text(), metadata.stat()
+    edited = text.replace(">-1000<", ">-1200<")
+    assert edited != text and len(edited) == len(text)
+    metadata.write_text(edited)
+    os.utime(metadata, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    actions = [(scene.name, scene.action) for scene in plan_run(load_config(config)).scenes]
+    assert [action for _, action in actions].count("run") >= 1
+    assert dict(actions)[sorted(name for name, _ in actions)[1]] == "run"
+
+
 def test_the_plan_shows_the_products_and_their_files(copy):
     plan = plan_run(load_config(_chain(copy)), require_inputs=False)
     folder = sorted((copy / "tiles").glob("*.SAFE"))[0]

@@ -182,3 +182,42 @@ def test_an_overlap_with_other_bands_is_refused_before_the_view_angle_pass(files
     assert result.exit_code == 2, result.output
     assert "is the assessed image itself" in result.stderr.splitlines()[-1]
     assert passes == [] and not output.exists()
+
+
+def _reordered(source_path, target_path, order, *, tag: bool):
+    """A copy of a raster with its bands (and their descriptions) in ``order`` (1-based), its
+    ``wavelength`` tag rewritten to match with ``tag``, else copied as it was (as gdal_translate
+    -b ... copies a dataset's tags)."""
+    import rasterio
+
+    with rasterio.open(source_path) as source:
+        profile, tags, descriptions = source.profile, source.tags(), source.descriptions
+        values = source.read(order)
+    if tag and "wavelength" in tags:
+        centres = tags["wavelength"].split(",")
+        tags["wavelength"] = ",".join(centres[index - 1] for index in order)
+    with rasterio.open(target_path, "w", **profile) as target:
+        target.write(values)
+        target.update_tags(**tags)
+        target.descriptions = tuple(descriptions[index - 1] for index in order)
+    return target_path
+
+
+def test_a_corrected_image_with_its_bands_in_another_order_is_read_by_wavelength(files, tmp_path):
+    """The corrected image's bands were paired with the input's by position: a file whose bands
+    are stored in another order compared each band of the input with another band."""
+    canonical, reordered = tmp_path / "canonical.json", tmp_path / "reordered.json"
+    assert _invoke("assess", *_common(files), "-o", canonical).exit_code == 0
+    shuffled = _reordered(files["after"], tmp_path / "shuffled.tif", [3, 1, 4, 2], tag=True)
+    arguments = [files["image"], shuffled, "--classes", files["classes"], "--angles", files["angles"]]
+    assert _invoke("assess", *arguments, "-o", reordered).exit_code == 0
+    expected, found = (json.loads(path.read_text()) for path in (canonical, reordered))
+    expected.pop("inputs"), found.pop("inputs")
+    assert found == expected
+    # The bands reordered, the tag copied as it was: the file contradicts itself.
+    stale = _reordered(files["after"], tmp_path / "stale.tif", [3, 1, 4, 2], tag=False)
+    result = CliRunner().invoke(main, [str(a) for a in ("assess", files["image"], stale, *_common(files)[2:], "-o",
+                                                        tmp_path / "stale.json")])
+    assert result.exit_code == 2, result.output
+    assert "tag 'wavelength' says 480, 560, 660, 830 nm and the band descriptions 660, 480, 830, 560 nm" in \
+        result.stderr.splitlines()[-1]

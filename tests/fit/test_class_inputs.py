@@ -122,3 +122,36 @@ def test_a_class_map_with_its_nodata_in_the_encoding_leaves_those_pixels_out():
     for fit, expected in zip(encoded.fits, in_attrs.fits):
         for name, values in expected.params.items():
             np.testing.assert_array_equal(fit.params[name], values)
+
+
+def test_scenes_are_paired_band_by_band_by_their_wavelengths():
+    """Two views of one scene, the second with its bands stored in another order: the pooled fit
+    paired them by position (class 1's f_vol/f_iso 0.16 and 0 for 0.5 and 0.5 at the outer bands,
+    without a word). Other bands, or another count, are refused."""
+    image, classes, angles = _scene(small_class=False)
+    models = ClassModels("ross_thick_li_sparse")
+    canonical = fit_classes([image, image], [classes, classes], [angles, angles], models, guard=GUARD)
+    shuffled = image.isel(band=[2, 0, 3, 1])
+    paired = fit_classes([image, shuffled], [classes, classes], [angles, angles], models, guard=GUARD)
+    for fit, expected in zip(paired.fits, canonical.fits):
+        for name, values in expected.params.items():
+            np.testing.assert_allclose(fit.params[name], values, rtol=1e-9)
+    with pytest.raises(InputError, match=r"^scene 2 has 3 bands, scene 1 has 4$"):
+        fit_classes([image, image.isel(band=[0, 1, 2])], [classes, classes], [angles, angles], models, guard=GUARD)
+    moved = image.assign_coords(wavelength=("band", [490.0, 560.0, 660.0, 830.0]))
+    with pytest.raises(InputError, match=r"^scene 2 has its bands at 490, 560, 660, 830 nm, scene 1 at 480, 560, "
+                                         r"660, 830 nm: not the same bands$"):
+        fit_classes([image, moved], [classes, classes], [angles, angles], models, guard=GUARD)
+
+
+def test_scenes_with_the_same_coordinates_in_two_crs_are_not_one_grid():
+    """The same numbers in UTM zones 32 and 33 are ground 600 km apart: the scenes were taken
+    for one grid, and each pixel's level was fitted from two unrelated pixels."""
+    from brdfcorr.fit.sampling import sample_classes
+
+    image, classes, angles = _scene(small_class=False)
+    there = [layer.rio.write_crs("EPSG:32633") for layer in (image, classes, angles)]
+    same = sample_classes([image, image], [classes, classes], [angles, angles])
+    apart = sample_classes([image, there[0]], [classes, there[1]], [angles, there[2]])
+    assert {samples.levels for samples in same.values()} == {"pixel"}
+    assert {samples.levels for samples in apart.values()} == {"pooled"}

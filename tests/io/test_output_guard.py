@@ -548,3 +548,43 @@ def test_resume_removes_partial_files_of_its_outputs_only(tmp_path, make_scenes,
     assert run_chain(load_config(chain)).ok
     assert not any(path.exists() for path in stale) and all(path.exists() for path in kept)
     assert remove_partials(out / "line0_brdf.tif") == []
+
+
+def test_resume_skips_only_what_the_earlier_report_vouches_for(tmp_path, make_scenes, write_chain, read):
+    """A skipped scene reports the QA counts of the run that wrote its outputs, and is judged by
+    them; the report records each scene's fingerprint and outputs, and a scene whose earlier
+    report does not describe its outputs is redone. Before: a scene failed for its share of
+    corrected pixels kept its uncorrected output and passed once the report was gone; a QA
+    raster of other limits stayed beside a corrected image of new ones; a run killed after
+    rewriting a scene left the counts of the run before it."""
+    make_scenes(tmp_path, count=2)
+    chain = write_chain(tmp_path, steps={"correct": {"limits": [0.2, 5.0]}})
+    out, report = tmp_path / "out", tmp_path / "out" / "run_report.json"
+    assert run_chain(load_config(chain)).ok
+    recorded = {scene["scene"]: scene["fingerprint"] for scene in json.loads(report.read_text())["scenes"]}
+    assert recorded["line0_image"] == read(out / "line0_brdf.tif")[1]["brdf_fingerprint"]
+
+    # The report gone: no run vouches for the outputs, so they are made again.
+    report.unlink()
+    planned, _, output = _actions(chain)
+    assert planned == {"line0_image": "run", "line1_image": "run"}
+    assert "no earlier run report vouches for its outputs: redone" in output
+
+    # A run without QA rewrites the corrected images with new limits and leaves the old QA rasters.
+    narrow = ("--set", "steps.correct.limits=[0.999, 1.001]")
+    planned, _, _ = _actions(chain, *narrow, "--set", "steps.correct.qa=false")
+    assert planned == {"line0_image": "run", "line1_image": "run"}
+    assert read(out / "line0_qa.tif")[1]["brdf_limits"] == "0.2,5"
+    planned, _, output = _actions(chain, *narrow)
+    assert planned == {"line0_image": "run", "line1_image": "run"}
+    assert "the earlier run did not write its qa output: redone" in output
+    assert read(out / "line0_qa.tif")[1]["brdf_limits"] == "0.999,1.001"
+
+    # A run killed after rewriting its scenes: their outputs are new, the report is the run's before.
+    kept = report.read_text()
+    wide = ("--set", "steps.correct.limits=[0.5, 2]")
+    assert CliRunner().invoke(main, ["run", str(chain), "--no-progress", *wide]).exit_code == 0
+    report.write_text(kept)
+    planned, _, output = _actions(chain, *wide)
+    assert planned == {"line0_image": "run", "line1_image": "run"}
+    assert "its outputs are not those the earlier run report describes: redone" in output

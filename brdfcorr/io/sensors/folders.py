@@ -105,6 +105,9 @@ class ProductFolder(ProductBands):
         The angle source for :func:`brdfcorr.io.sensors.read_angles`.
     notes : tuple of str
         What was assumed (e.g. the baseline offset), for the output's provenance.
+    metadata : Path, optional
+        The file the scaling was read from (a SAFE folder's ``MTD_MSIL2A.xml``; Landsat
+        Collection 2's scaling is fixed): among :attr:`files`, so that a resumed chain sees an edit.
     """
 
     scales: tuple[float, ...]
@@ -117,12 +120,14 @@ class ProductFolder(ProductBands):
     angles_kind: str
     angle_options: Mapping[str, object] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    metadata: Path | None = None
 
     @property
     def files(self) -> list[tuple[str, Path]]:
-        """Every file read, by role (for the output guard)."""
+        """Every file read, by role (for the output guard and a resumed chain's fingerprint)."""
         angle_files = find_angle_bands(self.angles) if self.angles_kind == "landsat" else {}
-        return [*((f"band {name}", path) for name, path in self.bands.items()),
+        return [*((("product metadata", self.metadata),) if self.metadata is not None else ()),
+                *((f"band {name}", path) for name, path in self.bands.items()),
                 ("quality mask", self.mask), ("angle metadata", self.angles),
                 *((f"angle band {key}", path) for key, path in angle_files.items()),
                 *((("angle coefficient file", self.angle_options["ang"]),) if "ang" in self.angle_options else ())]
@@ -303,7 +308,7 @@ def find_sentinel2_l2a(path: str | Path, *, resolution: int = 20, bands: Sequenc
         resolution=float(resolution), grid=grid, mask=_band_file(safe, "SCL", 20),
         masked=tuple(SCL_MASKED if masked is None else masked),
         angles=_granule_file(safe, "MTD_TL.xml", "granule metadata"), angles_kind="sentinel2",
-        notes=(f"processing baseline {baseline:05.2f}", *notes),
+        notes=(f"processing baseline {baseline:05.2f}", *notes), metadata=safe / "MTD_MSIL2A.xml",
     )
 
 
