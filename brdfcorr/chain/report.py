@@ -120,11 +120,13 @@ def failed_for_share(result: dict, min_share: float) -> dict:
     if result.get("status") not in _JUDGED or not too_few_corrected(qa, min_share):
         return result
     valid = sum(int(qa.get(key, 0)) for key in ("corrected", "no_class", "unknown_class"))
+    found = (f"only {100 * qa['corrected'] / valid:.1f} % of the {valid} valid pixels were corrected "
+             f"({qa.get('no_class', 0)} have no class, {qa.get('unknown_class', 0)} a class the table does not "
+             "have)" if valid else f"no pixel was corrected: all {qa.get('nodata', 0)} pixels are nodata")
     return {**result, "status": "failed", "error_type": "TooFewCorrected",
-            "error": f"only {100 * qa['corrected'] / valid:.1f} % of the {valid} valid pixels were corrected "
-                     f"({qa.get('no_class', 0)} have no class, {qa.get('unknown_class', 0)} a class the table does "
-                     f"not have), under steps.correct.min_corrected_share {min_share:g}; check the class map "
-                     "against the table's class ids, or lower the key (0: any share) if that is expected"}
+            "error": f"{found}, under steps.correct.min_corrected_share {min_share:g}; check the class map "
+                     "against the table's class ids and the inputs' nodata, or lower the key (0: any share) if that "
+                     "is expected"}
 
 
 def assessment_summary(report: Mapping) -> list[dict]:

@@ -228,16 +228,22 @@ def _load_table(request: CorrectionRequest) -> tuple[ParameterTable, str | None]
 
 def too_few_corrected(counts: Mapping[str, int], share: float = MOSTLY_UNCORRECTED) -> bool:
     """Whether the correction touched less than ``share`` of the valid pixels: QA ``corrected`` over
-    ``corrected + no_class + unknown_class`` (nodata is not counted; no valid pixel: False)."""
+    ``corrected + no_class + unknown_class`` (nodata is not counted). No valid pixel at all is too
+    few for any ``share`` above 0: an image of nodata only (NaN, fill, angles without a value)
+    came out as it went in."""
     valid = sum(int(counts.get(key, 0)) for key in ("corrected", "no_class", "unknown_class"))
-    return bool(valid) and counts.get("corrected", 0) < share * valid
+    return counts.get("corrected", 0) < share * valid if valid else share > 0
 
 
 def uncorrected_note(counts: dict[str, int]) -> str | None:
-    """A note when most valid pixels (not nodata) were left uncorrected, naming why; else None."""
+    """A note when most valid pixels (not nodata) were left uncorrected, naming why, or when no
+    pixel was valid; else None."""
     if not too_few_corrected(counts):
         return None
     valid = counts["corrected"] + counts["no_class"] + counts["unknown_class"]
+    if not valid:
+        return (f"no pixel was corrected: all {counts.get('nodata', 0)} pixels are nodata (the image, an angle or "
+                "the surface without a valid value); check the inputs' nodata")
     return (f"only {100 * counts['corrected'] / valid:.0f} % of the {valid} valid pixels were corrected: "
             f"{counts['no_class']} have no class and {counts['unknown_class']} a class the parameter table does "
             "not have; check the class map against the table's class ids")

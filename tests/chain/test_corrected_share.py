@@ -93,3 +93,18 @@ def test_a_resumed_run_judges_a_skipped_scene_by_its_earlier_counts(landcover):
     scene = report["scenes"][0]
     assert scene["status"] == "failed" and scene["error_type"] == "TooFewCorrected"
     assert scene["reason"] == "complete outputs exist"  # its outputs were kept, not written again
+
+
+def test_an_image_of_nodata_only_fails_the_scene(tmp_path, make_scenes, write_chain):
+    """No valid pixel: the share of corrected pixels is 0 of 0, and the scene was reported ok
+    (exit 0, no warning) with an output of nodata only."""
+    scenes = make_scenes(tmp_path, count=2)
+    image = scenes["line1"][1]["image"]
+    with rasterio.open(image, "r+") as dataset:
+        dataset.write(np.full((dataset.count, dataset.height, dataset.width), np.nan, dataset.dtypes[0]))
+    result = CliRunner().invoke(main, ["run", str(write_chain(tmp_path)), "--no-progress"])
+    assert result.exit_code == 3, result.output
+    assert "1 ok, 0 skipped, 1 failed" in result.stdout
+    report = json.loads((tmp_path / "out" / "run_report.json").read_text())
+    failed = next(scene for scene in report["scenes"] if scene["status"] == "failed")
+    assert failed["error"].startswith(f"no pixel was corrected: all {32 * 48} pixels are nodata")
