@@ -197,6 +197,11 @@ def build_table(plan: RunPlan, progress: Progress | None = None) -> tuple[Parame
             fit_report = reused_fit_report(step.source, plan.fit_output, plan.report)
         else:
             fitted, fit_report = (_fit_imagery if step.source == "imagery" else _fit_goniometer)(plan)
+            if not len(fitted) and not len(tables[0]) and config.steps.correct is not None:
+                # Nothing written: an empty table would be reused by the next run of the same chain.
+                left = "; ".join(uncorrected_classes(fit_report)) or "no class in the images"
+                raise InputError(f"{config.source}: the fit step fitted no class ({left}); the run has no parameter "
+                                 "to correct with (steps.fit.fallback gives such classes a built-in material)")
             plan.output_dir.mkdir(parents=True, exist_ok=True)
             fitted.save(plan.fit_output)
             fit_report.update(output=str(plan.fit_output), fingerprint=plan.fit_fingerprint)

@@ -66,3 +66,28 @@ def test_the_chain_fits_the_dates_at_once_and_corrects_each_as_the_command_line(
         np.testing.assert_array_equal(chain, cli)  # value for value
         raw = rioxarray.open_rasterio(image).values
         assert not np.allclose(chain[np.isfinite(chain)], raw[np.isfinite(chain)])  # and it did correct
+
+
+def test_a_fit_of_no_class_writes_no_table_and_the_chain_runs_again(series, tmp_path):
+    """Three of the four dates leave every class's geometry spread under the fit's guard rail.
+    The empty fitted table was written over the good one (``exit 2: nothing is written``), and
+    the unchanged chain then reused it and could not run at all."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from brdfcorr.cli import main
+
+    shutil.copytree(series / "series", tmp_path / "series")
+    chain = tmp_path / "series.yaml"
+    chain.write_text((series / "series.yaml").read_text())
+    assert CliRunner().invoke(main, ["run", str(chain), "--no-progress"]).exit_code == 0
+    table = tmp_path / "chain_out" / "fitted_params.yaml"
+    fitted = table.read_bytes()
+    few = CliRunner().invoke(main, ["run", str(chain), "--no-progress", "--set",
+                                    'inputs.images=["series/2024-04-*/image.tif"]'])
+    assert few.exit_code == 2, few.output
+    assert "the fit step fitted no class (1 (class_1): " in few.stderr.splitlines()[-1]
+    assert table.read_bytes() == fitted
+    again = CliRunner().invoke(main, ["run", str(chain), "--no-progress"])
+    assert again.exit_code == 0, again.output
