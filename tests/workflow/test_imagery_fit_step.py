@@ -129,11 +129,13 @@ def test_a_chain_leaves_out_its_bad_bands_and_applies_its_condition_limit(strata
     assert report.fit["bands_left_out"] == [660.0]
     assert table[2].name == "grass" and table[1].name == "ndvi_-inf_0.30"  # a given name wins over the tag
     # A condition number is >= 1 and the kernels' columns are not orthogonal: every class fails
-    # the limit 1, as `fit-classes --max-condition 1` does, and a run with no class is refused.
+    # the limit 1, as `fit-classes --max-condition 1` does, and a run with no class is refused,
+    # naming each class and why, before it writes anything (the fitted table included).
     strict = load_config(_chain(strata_scene, "strict", {"max_condition": 1}))
-    with pytest.raises(InputError, match="the parameter table of the run has no class"):
+    with pytest.raises(InputError, match=r"the fit step fitted no class \(1 \(ndvi_-inf_0\.30\): .*condition"):
         run_chain(strict)
     assert not (strata_scene / "out_strict" / "line0_brdf.tif").exists()
+    assert not (strata_scene / "out_strict" / "fitted_params.yaml").exists()
 
 
 def test_a_prior_of_the_step_is_that_of_fit_classes(strata_scene, tables_close):
