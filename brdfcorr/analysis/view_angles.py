@@ -281,7 +281,8 @@ def assess_view_angles(
     result = _statistics(sums, ids, edges, before, options.class_names or {},
                          {"sign_convention": by, "heading": options.heading, "min_vza": float(min_vza),
                           "error_clusters": clustered}, options.block_size, clusters is not None)
-    for message in (error_growth_warning(result), stripe_warning(result), narrow_range_warning(result)):
+    for message in (error_growth_warning(result), stripe_warning(result), narrow_range_warning(result),
+                    few_clusters_warning(result)):
         if message is not None:
             warnings.warn(message, BrdfcorrWarning, stacklevel=2)
     return result
@@ -437,6 +438,19 @@ def narrow_range_warning(dataset: xr.Dataset, limit: float = NARROW_RANGE) -> st
     names = ", ".join(f"{dataset['class_name'].values[index]} ({widths[index]:.3g} deg)" for index in narrow)
     return (f"seen over less than {limit:g} deg of view zenith: {names}; their slopes per 10 deg extrapolate "
             "beyond the view angles measured: read them with their 1-sigma, or assess a wider swath")
+
+
+def few_clusters_warning(dataset: xr.Dataset) -> str | None:
+    """One line naming the classes whose pixels lie in a single cluster (an id of the cluster
+    layer, or a square block): their slopes have no cluster-robust 1-sigma (NaN in the report);
+    None otherwise."""
+    alone = np.flatnonzero((dataset["pixels"].values > 0) & (dataset["blocks"].values < 2))
+    if alone.size == 0:
+        return None
+    names = ", ".join(str(dataset["class_name"].values[index]) for index in alone)
+    return (f"no 1-sigma for the slopes of {names}: the pixels of each lie in a single one of "
+            f"{dataset.attrs.get('error_clusters', 'the clusters')}; give a cluster layer with more ids, or smaller "
+            "blocks (--block-size)")
 
 
 def _stage_summary(values: xr.DataArray) -> dict[str, object]:

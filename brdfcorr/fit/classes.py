@@ -565,7 +565,7 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()
     scenes, wavelengths, used_ranges, left_out = _without_bad_bands(scenes, wavelengths, sampling.bad_bands)
     pooled = sample_classes(scenes, classes, angles, class_ids=models.class_ids, sampling=sampling, clusters=clusters,
-                            min_repeated=guard.min_samples)
+                            min_repeated=guard.min_samples, dates=isinstance(images, xr.DataArray))
     unused = models.unused(pooled)
     if unused is not None:
         warnings.warn(unused, ClassFitWarning, stacklevel=2)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -21,7 +22,7 @@ from brdfcorr.correction.checks import (
 )
 from brdfcorr.correction.series import dated_like
 from brdfcorr.defaults import LEVELS
-from brdfcorr.errors import InputError, ParameterError
+from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.fit.grids import CommonGrid, common_grid
 from brdfcorr.fit.settings import Sampling
 from brdfcorr.geometry import relative_azimuth
@@ -184,8 +185,8 @@ def _check_bands(pooled: dict[int, ClassSamples], image) -> None:
                          f"({len(sampled)} classes; all NaN, inf or nodata); leave the band out of the image")
 
 
-def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None,
-                   sampling: Sampling = Sampling(), clusters=None, min_repeated: int = 500) -> dict[int, ClassSamples]:
+def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None = None, sampling: Sampling = Sampling(),
+                   clusters=None, min_repeated: int = 500, dates: bool = False) -> dict[int, ClassSamples]:
     """Pool each class's valid pixels over one or many scenes and sample them reproducibly.
 
     Parameters
@@ -232,6 +233,9 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
         twice or more for a class to be sampled within pixels on the common grid (fewer: pooled,
         on the scenes' own grids). :func:`brdfcorr.fit.fit_classes` passes its guard rail's
         ``min_samples``.
+    dates : bool, default False
+        The scenes are the dates of one cube, split by the caller (one grid by construction):
+        scenes without a CRS taken as one grid are then no warning.
 
     Returns
     -------
@@ -254,6 +258,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     reflectance is read at the sampled pixels only (pointwise indexing stays lazy on dask), on
     the scenes' own grids also where they were brought onto a common grid.
     """
+    cube = dates or (isinstance(images, xr.DataArray) and "time" in images.dims)  # one grid by construction
     images, classes, angles = scene_lists(images, classes, angles)
     if not len(images) == len(classes) == len(angles):
         raise ParameterError(
@@ -280,6 +285,11 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
             common = own.on_grid(grid, resolve_levels(levels, len(images), True, patch_size, block_size))
     if common is None or levels == "auto":
         own.levels = resolve_levels(levels, len(images), own.shared, patch_size, block_size)
+    if own.shared and own.levels != "pooled" and not cube and not any(image.rio.crs is not None for image in images):
+        warnings.warn(BrdfcorrWarning(
+            f"the {len(images)} scenes have no CRS: taken as one grid by their shape (and coordinates), each pixel "
+            f"the same ground in every scene, with its level free ({own.levels}); give them their CRS, or levels "
+            "'pooled' if they are other ground"), stacklevel=3)
     rng = np.random.default_rng(sampling.seed)
     pooled: dict[int, ClassSamples] = {}
     for class_id in class_ids:

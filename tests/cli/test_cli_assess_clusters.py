@@ -62,3 +62,23 @@ def test_a_float_cluster_layer_is_refused_in_one_line(tmp_path):
     assert result.exit_code == 2
     assert "needs integer ids" in result.output and len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "r.json").exists()
+
+
+def test_a_cluster_layer_of_one_id_gives_no_sigma_and_says_so(tmp_path):
+    """Every pixel in one cluster: the slopes' 1-sigma is NaN (one cluster estimates no spread),
+    and the console said nothing: "0 of 0 bands within 2 sigma" read as a result."""
+    import pytest
+
+    from brdfcorr.errors import BrdfcorrWarning
+
+    paths = write_scene(tmp_path, synthetic_scene(ny=32, nx=40))
+    after = tmp_path / "corrected.tif"
+    correct_files(CorrectionRequest(SceneSources(paths["image"], paths["classes"], paths["angles"]), example_table(),
+                                    OutputFiles(after), reference={"sza": "observed", "vza": 0.0}))
+    layer = _layer(paths, tmp_path, np.full((32, 40), 153, np.int16), "one_day.tif")
+    with pytest.warns(BrdfcorrWarning, match=r"^no 1-sigma for the slopes of class 1, class 2, class 3, class 4: the "
+                                             r"pixels of each lie in a single one of the cluster layer.s ids"):
+        assessment = assess_files(SceneSources(paths["image"], paths["classes"], paths["angles"]), after,
+                                  clusters=(layer, 1))
+    classes = assessment.report()["view_angles"]["classes"]
+    assert all(entry["blocks"] == 1 for entry in classes)

@@ -155,3 +155,22 @@ def test_scenes_with_the_same_coordinates_in_two_crs_are_not_one_grid():
     apart = sample_classes([image, there[0]], [classes, there[1]], [angles, there[2]])
     assert {samples.levels for samples in same.values()} == {"pixel"}
     assert {samples.levels for samples in apart.values()} == {"pooled"}
+
+
+def test_scenes_without_a_crs_taken_as_one_grid_are_warned_about():
+    """Raw lines cut to one size are other ground: without a CRS the sampler takes them for one
+    grid and frees each pixel's level across them, which it did without a word."""
+    import warnings
+
+    from brdfcorr.errors import BrdfcorrWarning
+    from brdfcorr.fit.sampling import sample_classes
+
+    image, classes, angles = _scene(small_class=False)
+    bare = [layer.drop_vars("spatial_ref") for layer in (image, classes, angles)]
+    assert bare[0].rio.crs is None
+    with pytest.warns(BrdfcorrWarning, match=r"^the 2 scenes have no CRS: taken as one grid by their shape"):
+        samples = sample_classes([bare[0], bare[0]], [bare[1], bare[1]], [bare[2], bare[2]])
+    assert {entry.levels for entry in samples.values()} == {"pixel"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BrdfcorrWarning)
+        sample_classes([image, image], [classes, classes], [angles, angles])
