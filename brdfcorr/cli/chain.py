@@ -240,9 +240,9 @@ def _echo_plan(plan) -> None:
 @click.argument("chains", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE", help="Override a config key (as for run).")
 @click.option("--strict", is_flag=True,
-              help="Inputs that do not exist (images, class maps, angles, table, measurements) are errors "
-                   "(exit 2), as for run; without it a chain checked before its data exist is told apart "
-                   "by its summary line.")
+              help="Inputs that do not exist (images, class maps, angles, table, measurements), and scenes "
+                   "that would fail (a product folder without a band), are errors (exit 2), as for run; without "
+                   "it a chain checked before its data exist is told apart by its summary line.")
 @handle_errors
 def validate_command(chains, settings, strict):
     """Check chain configs without running them: keys, values, names, patterns, parameter table.
@@ -250,7 +250,8 @@ def validate_command(chains, settings, strict):
     The checks are those of `run` (its plan): what `run` refuses is an error here too (exit code
     2), e.g. a malformed config (naming the key path and the allowed values), an image glob
     matching no file in an existing folder, quicklook bands beyond an image's band count. Inputs
-    that do not exist yet (a folder not made yet, a class map, a table) are warnings, and the
+    that do not exist yet (a folder not made yet, a class map, a table) and scenes that would fail
+    (a product folder without a band) are warnings, and the
     chain's line says it is not ready to run, naming the first missing input, instead of "valid"
     (a template, such as the example chains in configs/); with --strict they are errors (exit 2).
     A parameter table file (a document with `classes` but no `inputs`) is checked as a table.
@@ -273,6 +274,9 @@ def validate_command(chains, settings, strict):
 
         plan = plan_run(config_from_document(document, chain, overrides), require_inputs=False)
         missing = plan.missing_inputs()
+        # A scene that would fail for another reason (a product folder without a band) is not ready either.
+        missing += [f"scene {scene.name} would fail: {scene.reason}" for scene in plan.scenes
+                    if scene.action == "fail" and not any(m.startswith(f"scene {scene.name}:") for m in missing)]
         kind = "error" if strict else "warning"
         for warning in [*missing, *(w for w in plan.warnings if w not in plan.missing)]:
             click.echo(f"brdfcorr: {kind if warning in missing else 'warning'}: {chain}: {warning}", err=True)

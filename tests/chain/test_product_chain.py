@@ -146,6 +146,23 @@ def test_a_resumed_run_redoes_a_date_whose_scaling_was_edited(copy, scratch):
     assert dict(actions)[sorted(name for name, _ in actions)[1]] == "run"
 
 
+def test_validate_says_a_product_without_a_band_is_not_ready(copy):
+    """validate --strict said "valid; 3 scenes found" and run then failed the date (exit 3)."""
+    from click.testing import CliRunner
+
+    from brdfcorr.cli import main
+
+    config = _chain(copy)
+    band = next(sorted((copy / "tiles").glob("*.SAFE"))[1].glob("GRANULE/*/IMG_DATA/R20m/*_B8A_20m.jp2"))
+    band.unlink()
+    result = CliRunner().invoke(main, ["validate", str(config)])
+    assert result.exit_code == 0, result.output
+    assert "not ready to run, an input is missing: scene " in result.stdout
+    strict = CliRunner().invoke(main, ["validate", "--strict", str(config)])
+    assert strict.exit_code == 2, strict.output
+    assert "would fail: " in strict.stderr and "no image file of band B8A" in strict.stderr
+
+
 def test_the_plan_shows_the_products_and_their_files(copy):
     plan = plan_run(load_config(_chain(copy)), require_inputs=False)
     folder = sorted((copy / "tiles").glob("*.SAFE"))[0]
