@@ -12,7 +12,12 @@ import xarray as xr
 
 from brdfcorr.errors import BrdfcorrError, InputError
 from brdfcorr.io.opening import opened
-from brdfcorr.io.sensors.bands import LANDSAT_OLI_WAVELENGTHS, SENTINEL2_WAVELENGTHS, named_band_wavelengths
+from brdfcorr.io.sensors.bands import (
+    LANDSAT_OLI_WAVELENGTHS,
+    MICROMETRES_BELOW,
+    SENTINEL2_WAVELENGTHS,
+    named_band_wavelengths,
+)
 
 __all__ = ["band_wavelengths", "file_wavelengths", "with_wavelengths", "matched_bands", "envi_header_wavelengths",
            "envi_fwhm", "tag_fwhm", "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS", "SENTINEL2_WAVELENGTHS"]
@@ -123,10 +128,14 @@ def matched_bands(image: xr.DataArray, like: xr.DataArray, names: tuple[str, str
     theirs = np.atleast_1d(np.asarray(like["wavelength"].values, dtype=float))
     order = [int(np.argmin(np.abs(mine - centre))) for centre in theirs]
     if len(set(order)) != count or not np.allclose(mine[order], theirs, rtol=0, atol=SAME_BAND_NM):
-        shown = (", ".join(f"{value:.6g}" for value in values) for values in (mine, theirs))
-        raise InputError(f"{names[0]} has its bands at {next(shown)} nm, {names[1]} at {next(shown)} nm: "
+        raise InputError(f"{names[0]} has its bands at {_listed(mine)} nm, {names[1]} at {_listed(theirs)} nm: "
                          f"not the same bands{why}")
     return image if order == list(range(count)) else image.isel({band: order})
+
+
+def _listed(centres) -> str:
+    """Band centres [nm] for a message: ``480, 560, 660``."""
+    return ", ".join(f"{value:.6g}" for value in centres)
 
 
 def _refuse_micrometres_as_nm(coordinate: xr.DataArray) -> None:
@@ -137,10 +146,10 @@ def _refuse_micrometres_as_nm(coordinate: xr.DataArray) -> None:
     except (TypeError, ValueError):
         return
     finite = values[np.isfinite(values)]
-    if "units" not in coordinate.attrs and finite.size and np.all(finite < 100):
+    if "units" not in coordinate.attrs and finite.size and np.all(finite < MICROMETRES_BELOW):
         raise InputError(f"the wavelength coordinate ({finite.min():g} ... {finite.max():g}) has no units and lies "
-                         "below 100: micrometres? Set its units, e.g. reflectance['wavelength'].attrs['units'] = "
-                         "'um', or give it in nm")
+                         f"below {MICROMETRES_BELOW:g}: micrometres? Set its units, e.g. "
+                         "reflectance['wavelength'].attrs['units'] = 'um', or give it in nm")
 
 
 def with_wavelengths(array: xr.DataArray) -> xr.DataArray:
@@ -244,10 +253,9 @@ def _refuse_contradiction(tagged: Sequence[float], descriptions, source) -> None
     reordered = (len(set(order.tolist())) == len(order) and np.any(order != np.arange(len(order)))
                  and np.all(np.abs(centres[order] - found) < spacing / 2))
     if reordered:
-        shown = (", ".join(f"{value:.6g}" for value in values) for values in (centres, found))
-        raise InputError(f"{source}: tag 'wavelength' says {next(shown)} nm and the band descriptions {next(shown)} "
-                         "nm: the bands were reordered without the tag? Correct the tag (gdal_edit.py -mo "
-                         "wavelength=...) or give the wavelengths")
+        raise InputError(f"{source}: tag 'wavelength' says {_listed(centres)} nm and the band descriptions "
+                         f"{_listed(found)} nm: the bands were reordered without the tag? Correct the tag "
+                         "(gdal_edit.py -mo wavelength=...) or give the wavelengths")
 
 
 def envi_fwhm(path) -> np.ndarray | None:

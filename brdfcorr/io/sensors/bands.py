@@ -12,8 +12,12 @@ from pathlib import Path
 from brdfcorr._entry import option
 from brdfcorr.errors import SensorInputError
 
-__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "named_band_wavelengths", "ProductBands",
-           "band_list"]
+__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "MICROMETRES_BELOW", "named_band_wavelengths",
+           "ProductBands", "band_list"]
+
+#: Band centres without a unit below this are micrometres [nm]: no optical band is centred below
+#: 100 nm (an ENVI header's ``wavelength`` items, an array's ``wavelength`` coordinate).
+MICROMETRES_BELOW = 100.0
 
 #: Central wavelengths [nm] of the Sentinel-2A MSI bands (ESA, Sentinel-2 spectral response
 #: functions, COPE-GSEG-EOPG-TN-15-0007). Sentinel-2B's centres differ by 3 nm or less in B01 to

@@ -32,6 +32,7 @@ from brdfcorr._entry import option
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.commit import short_envi
 from brdfcorr.io.grid import check_same_grid
+from brdfcorr.io.sensors.bands import MICROMETRES_BELOW
 from brdfcorr.io.sensors.grids import wrap_azimuth
 
 __all__ = [
@@ -162,7 +163,7 @@ def envi_wavelengths(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
             raise SensorInputError(f"{path}: unknown wavelength units {unit!r}")
         scale = _UNIT_TO_NM[unit]
     else:
-        scale = 1e3 if np.nanmax(wavelength) < 100.0 else 1.0
+        scale = 1e3 if np.nanmax(wavelength) < MICROMETRES_BELOW else 1.0
     return wavelength * scale, (fwhm * scale if fwhm.size else None)
 
 
