@@ -139,7 +139,7 @@ def _sample_reasons(report: ClassFit, guard: GuardRails) -> list[str]:
         reasons.append(f"{report.n_samples} samples < {guard.min_samples}")
     if report.vza_spread < guard.min_vza_spread:
         what = "view zenith spread" if report.levels == "pooled" else f"geometry spread within each {report.levels}"
-        reasons.append(f"{what} {report.vza_spread:.1f} deg < {guard.min_vza_spread:g} deg")
+        reasons.append(f"{what} {guard.spread_short(report.vza_spread)}")
     return reasons
 
 
@@ -310,7 +310,7 @@ def _free_levels(samples: ClassSamples, guard: GuardRails, notes: list[str]) -> 
         left = _within_spread(samples, scenes=True)
         if left < guard.min_vza_spread:
             notes.append(f"no level of its own per scene: the geometry spread within each {samples.levels} "
-                         f"left beside the scenes' own levels, {left:.1f} deg < {guard.min_vza_spread:g} deg, "
+                         f"left beside the scenes' own levels, {guard.spread_short(left)}, "
                          "would leave the shape unidentified")
             scene = None
     return Levels.from_labels(samples.group, scene)
@@ -333,7 +333,7 @@ def _pooled_if_alike(samples: ClassSamples, guard: GuardRails, pool_if_alike: bo
     within groups [deg] (:func:`_within_spread`), or None for pooled samples."""
     within = None if samples.group is None else _within_spread(samples)
     if pool_if_alike and within is not None and within < guard.min_vza_spread:
-        notes.append(f"the views of each pixel differ by {within:.1f} deg < {guard.min_vza_spread:g} deg: "
+        notes.append(f"the views of each pixel differ by {guard.spread_short(within)}: "
                      "fitted pooled (one level for the class)")
         return dataclasses.replace(samples, group=None, levels="pooled"), None
     return samples, within

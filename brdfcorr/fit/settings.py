@@ -5,6 +5,7 @@ must pass (:class:`GuardRails`); and the bands an imagery fit leaves out by defa
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -60,6 +61,11 @@ class GuardRails:
     min_vza_spread: float = 10.0
     max_condition: float = 1e3
     min_r2: float = 0.05
+
+    def spread_short(self, spread: float) -> str:
+        """``"9.9 deg < 10 deg"``: a geometry spread [deg] below :attr:`min_vza_spread`, rounded
+        down so that it never reads as the limit itself (9.96 is not "10.0 deg < 10 deg")."""
+        return f"{math.floor(spread * 10) / 10:.1f} deg < {self.min_vza_spread:g} deg"
 
 
 @dataclass(frozen=True)

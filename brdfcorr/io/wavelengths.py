@@ -16,20 +16,14 @@ from brdfcorr.io.sensors.bands import (
     LANDSAT_OLI_WAVELENGTHS,
     MICROMETRES_BELOW,
     SENTINEL2_WAVELENGTHS,
+    UNITS_TO_NM,
     named_band_wavelengths,
 )
 
 __all__ = ["band_wavelengths", "file_wavelengths", "with_wavelengths", "matched_bands", "envi_header_wavelengths",
            "envi_fwhm", "tag_fwhm", "parse_wavelength", "LANDSAT_OLI_WAVELENGTHS", "SENTINEL2_WAVELENGTHS"]
 
-_UNITS_TO_NM = {
-    "": 1.0, "nm": 1.0, "nanometer": 1.0, "nanometers": 1.0, "nanometre": 1.0, "nanometres": 1.0,
-    "um": 1e3, "µm": 1e3, "μm": 1e3, "micron": 1e3, "microns": 1e3, "micrometer": 1e3,
-    "micrometers": 1e3, "micrometre": 1e3, "micrometres": 1e3,
-}
 _NUMBER = r"[0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?"
-
-
 _UNIT = r"nm|um|µm|μm|nanomet(?:er|re)s?|micromet(?:er|re)s?|microns?"
 #: A wavelength in a description: a range (its two ends, the unit after the second) or one number, with a unit.
 _IN_TEXT = re.compile(rf"({_NUMBER})(?:\s*(?:{_UNIT}))?\s*(?:-|–|to)\s*({_NUMBER})\s*({_UNIT})\b"
@@ -50,10 +44,10 @@ def parse_wavelength(text: str) -> float | None:
     text = text.strip()
     match = re.fullmatch(rf"({_NUMBER})\s*([A-Za-zµμ]*)", text)
     if match is not None:
-        unit = _UNITS_TO_NM.get(match[2].lower())
+        unit = UNITS_TO_NM.get(match[2].lower())
         return None if unit is None else float(match[1]) * unit
-    found = [(float(low) + float(high)) / 2 * _UNITS_TO_NM[unit.lower()] if low else
-             float(number) * _UNITS_TO_NM[single.lower()]
+    found = [(float(low) + float(high)) / 2 * UNITS_TO_NM[unit.lower()] if low else
+             float(number) * UNITS_TO_NM[single.lower()]
              for low, high, unit, number, single in _IN_TEXT.findall(text)]
     return found[0] if len(found) == 1 else None
 
@@ -172,12 +166,12 @@ def with_wavelengths(array: xr.DataArray) -> xr.DataArray:
     if "wavelength" in array.coords:
         coordinate = array["wavelength"]
         unit = str(coordinate.attrs.get("units", "nm")).strip().lower()
-        if unit not in _UNITS_TO_NM:
+        if unit not in UNITS_TO_NM:
             raise InputError(f"the wavelength coordinate is in {unit!r}: give it in nm or µm (its 'units' attribute)")
-        if _UNITS_TO_NM[unit] == 1.0:
+        if UNITS_TO_NM[unit] == 1.0:
             _refuse_micrometres_as_nm(coordinate)
             return array
-        nm = np.asarray(coordinate.values, dtype=float) * _UNITS_TO_NM[unit]
+        nm = np.asarray(coordinate.values, dtype=float) * UNITS_TO_NM[unit]
         return array.assign_coords(wavelength=(coordinate.dims, nm, {**coordinate.attrs, "units": "nm"}))
     band = array.dims[-3] if array.ndim >= 3 else None
     if "center_wavelength" in array.coords:
@@ -231,9 +225,9 @@ def _tag_nanometres(tags: Mapping, key: str, source) -> list[float]:
     except ValueError:
         raise InputError(f"{source}: tag {key}={text!r} is not a comma-separated list of numbers") from None
     unit = str(tags.get("wavelength_units", "nm")).strip().lower()
-    if unit not in _UNITS_TO_NM:
+    if unit not in UNITS_TO_NM:
         raise InputError(f"{source}: unknown wavelength_units {unit!r}")
-    return [v * _UNITS_TO_NM[unit] for v in values]
+    return [v * UNITS_TO_NM[unit] for v in values]
 
 
 def _refuse_contradiction(tagged: Sequence[float], descriptions, source) -> None:

@@ -155,6 +155,14 @@ def test_guard_rails_fall_back_or_leave_uncorrected_and_say_so():
     assert result.table[1].model == "torrance_sparrow" and result.table[1].params["w"] == 0.0362
 
 
+@pytest.mark.parametrize("spread", [9.96, 9.999, 0.04])
+def test_a_spread_below_the_guard_rail_never_reads_as_the_limit(spread):
+    # Rounded to one decimal, 9.96 deg read "10.0 deg < 10 deg".
+    text = GuardRails(min_vza_spread=10.0).spread_short(spread)
+    shown = float(text.split()[0])
+    assert shown < 10.0 and shown <= spread and text.endswith("< 10 deg")
+
+
 def test_classes_fitted_in_a_process_pool_give_the_same_table_and_warnings():
     # `fit-classes --workers N`: each class's fit is independent and the same computation in a
     # worker process; its warnings, recorded there, are given here in the classes' order. A model

@@ -12,12 +12,20 @@ from pathlib import Path
 from brdfcorr._entry import option
 from brdfcorr.errors import SensorInputError
 
-__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "MICROMETRES_BELOW", "named_band_wavelengths",
-           "ProductBands", "band_list"]
+__all__ = ["SENTINEL2_WAVELENGTHS", "LANDSAT_OLI_WAVELENGTHS", "MICROMETRES_BELOW", "UNITS_TO_NM",
+           "named_band_wavelengths", "ProductBands", "band_list"]
 
 #: Band centres without a unit below this are micrometres [nm]: no optical band is centred below
 #: 100 nm (an ENVI header's ``wavelength`` items, an array's ``wavelength`` coordinate).
 MICROMETRES_BELOW = 100.0
+
+#: Nanometres per wavelength unit, by the unit's lower-case spellings (ENVI's ``wavelength units``,
+#: a coordinate's ``units``, a band description); ``""`` is nanometres.
+UNITS_TO_NM = {
+    "": 1.0, "nm": 1.0, "nanometer": 1.0, "nanometers": 1.0, "nanometre": 1.0, "nanometres": 1.0,
+    "um": 1e3, "µm": 1e3, "μm": 1e3, "micron": 1e3, "microns": 1e3, "micrometer": 1e3,
+    "micrometers": 1e3, "micrometre": 1e3, "micrometres": 1e3,
+}
 
 #: Central wavelengths [nm] of the Sentinel-2A MSI bands (ESA, Sentinel-2 spectral response
 #: functions, COPE-GSEG-EOPG-TN-15-0007). Sentinel-2B's centres differ by 3 nm or less in B01 to

@@ -32,7 +32,7 @@ from brdfcorr._entry import option
 from brdfcorr.errors import SensorInputError
 from brdfcorr.io.commit import short_envi
 from brdfcorr.io.grid import check_same_grid
-from brdfcorr.io.sensors.bands import MICROMETRES_BELOW
+from brdfcorr.io.sensors.bands import MICROMETRES_BELOW, UNITS_TO_NM
 from brdfcorr.io.sensors.grids import wrap_azimuth
 
 __all__ = [
@@ -72,9 +72,6 @@ ANGLE_LONG_NAMES = {
     "vza": "view zenith angle",
     "vaa": "view azimuth angle (pixel to sensor, clockwise from north)",
 }
-
-_UNIT_TO_NM = {"nanometers": 1.0, "nanometer": 1.0, "nm": 1.0, "micrometers": 1e3,
-               "micrometer": 1e3, "microns": 1e3, "micron": 1e3, "um": 1e3, "µm": 1e3}
 
 # Line names: AVIRIS-NG "ang20160910t185702...", AVIRIS-3 "AV320231008t160218..." (UTC start time).
 _LINE_TIME = re.compile(r"(?:ang|av3)(\d{8})t(\d{6})", re.IGNORECASE)
@@ -159,9 +156,9 @@ def envi_wavelengths(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
         raise SensorInputError(f"{path}: the header's wavelengths are band numbers (wavelength units = Index): give "
                                f"the band centres [nm] ({option('wavelengths')})")
     if unit and unit != "unknown":
-        if unit not in _UNIT_TO_NM:
+        if unit not in UNITS_TO_NM:
             raise SensorInputError(f"{path}: unknown wavelength units {unit!r}")
-        scale = _UNIT_TO_NM[unit]
+        scale = UNITS_TO_NM[unit]
     else:
         scale = 1e3 if np.nanmax(wavelength) < MICROMETRES_BELOW else 1.0
     return wavelength * scale, (fwhm * scale if fwhm.size else None)

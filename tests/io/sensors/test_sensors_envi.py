@@ -232,7 +232,8 @@ def test_a_reflectance_cube_given_as_obs_file_is_one_short_line():
     assert "(425 bands)" in message and "obs/obs_ort file" in message
 
 
-@pytest.mark.parametrize("units", ["", "wavelength units = Micrometers\n", "wavelength units = Unknown\n"])
+@pytest.mark.parametrize("units", ["", "wavelength units = Micrometers\n", "wavelength units = Unknown\n",
+                                   "wavelength units = Micrometres\n"])  # British spelling: "unknown units" before
 def test_a_header_in_micrometres_is_read_and_written_in_nanometres(tmp_path, units):
     # isofit's wavelength table of the cube: centres and FWHM in micrometres (a real file).
     _, centres, fwhm = np.loadtxt(CUBE / "wavelengths.txt").T
