@@ -80,6 +80,7 @@ def dated_like(layer, cube: xr.DataArray, name: str):
     dim, count = cube.dims[0], cube.sizes[cube.dims[0]]
     if isinstance(layer, (xr.DataArray, xr.Dataset)):
         if dim not in layer.dims:
+            _refuse_other_dates(layer, cube, name)
             return layer
         if dim in cube.coords and dim in layer.coords:
             labels, given = cube[dim].values, layer[dim].values
@@ -106,6 +107,17 @@ def dated_like(layer, cube: xr.DataArray, name: str):
         raise InputError(f"reflectance has {count} dates along {dim!r} and {name} {found}: give one per date, "
                          f"or one for every date")
     return layer
+
+
+def _refuse_other_dates(layer: xr.DataArray | xr.Dataset, cube: xr.DataArray, name: str) -> None:
+    """Refuse a layer with a dimension of more than one item beside (y, x) that the cube lacks: its
+    dates named otherwise than the cube's (it was taken for one (y, x) layer of every date, and
+    failed as "must be 2-D")."""
+    other = [dim for dim in layer.dims if dim not in cube.dims and layer.sizes[dim] > 1]
+    if other:
+        raise InputError(f"{name} has a dimension {other[0]!r} ({layer.sizes[other[0]]} items) that the reflectance "
+                         f"lacks, whose dates lie along {cube.dims[0]!r}: if these are the dates, name them alike, "
+                         f"{name}.rename({other[0]}={cube.dims[0]!r})")
 
 
 def _at_date(layer, dim: Hashable, index: int, name: str):

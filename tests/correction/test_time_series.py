@@ -94,3 +94,17 @@ def test_a_cube_in_another_order_is_told_the_transpose_that_orders_it(scenes, or
     cube = _stack([s["reflectance"] for s in scenes]).transpose(*order)
     with pytest.raises(InputError, match=r"reflectance.transpose\('time', 'band', 'y', 'x'\)"):
         cube.brdf.normalize(scenes[0]["classes"], {n: scenes[0][n] for n in ANGLES}, example_table())
+
+
+def test_dated_layers_along_another_dimension_name_the_rename(scenes):
+    # Angles stacked along 'date' for a cube along 'time': the message said "sza must be 2-D (y, x)".
+    cube = _stack([s["reflectance"] for s in scenes])
+    angles = xr.Dataset({name: _stack([s[name] for s in scenes]) for name in ANGLES}).rename(time="date")
+    with pytest.raises(InputError, match=r"angles has a dimension 'date' \(3 items\).*angles.rename\(date='time'\)"):
+        cube.brdf.normalize(scenes[0]["classes"], angles, example_table())
+    classes = _stack([s["classes"] for s in scenes]).rename(time="date")
+    with pytest.raises(InputError, match=r"classes.rename\(date='time'\)"):
+        cube.brdf.normalize(classes, angles.rename(date="time"), example_table())
+    # Renamed as told, it runs as the cube along 'time' does.
+    renamed = cube.brdf.normalize(scenes[0]["classes"], angles.rename(date="time"), example_table())
+    assert renamed.reflectance.dims == ("time", "band", "y", "x")
