@@ -223,17 +223,33 @@ def plan_scenes(config: ChainConfig, images: list[Path], output_dir: Path,
     stems = [image.stem for image in images]
     shared = frozenset(stem for stem in stems if stems.count(stem) > 1)
     scenes, writers = [], {}
-    for index, image in enumerate(images):
+    for image in images:
         scene = _plan_scene(config, image, shared, output_dir, fingerprint, products)
-        for path in scene.outputs.values():
-            if path in writers and writers[path][0] != index:  # one scene's own outputs: plan_run
-                raise InputError(
-                    f"outputs: scenes {writers[path][1]} and {scene.name} would both write {path}; use {{scene}} or "
-                    "{stem} in the output naming patterns, or a scene_regex giving distinct names"
-                )
-            writers[path] = (index, scene.name)
+        for role, path in scene.outputs.items():
+            if path in writers and writers[path] is not scene:  # one scene's own outputs: plan_run
+                raise InputError(_collision(config, writers[path], scene, role, path))
+            writers[path] = scene
         scenes.append(scene)
     return scenes
+
+
+#: The naming pattern of each output role (the assessment's files are named by the scene).
+_NAMING = {"corrected": "naming", "qa": "qa_naming", "uncertainty": "uncertainty_naming",
+           "quicklook": "quicklook_naming", "strata": "strata_naming"}
+
+
+def _collision(config: ChainConfig, first: Scene, second: Scene, role: str, path: Path) -> str:
+    """Why two scenes would write one ``path``, and what tells them apart: one file named twice in
+    ``inputs.images``, or the placeholders that ``role``'s naming pattern does not use yet."""
+    if first.image.exists() and second.image.exists() and os.path.samefile(first.image, second.image):
+        return f"inputs.images names one file twice, as {first.image} and {second.image}: name it once"
+    hints, key = ["use a scene_regex giving distinct scene names"], _NAMING.get(role)
+    unused = [] if key is None else [field for field in ("{scene}", "{stem}", "{parent}")
+                                     if field not in getattr(config.outputs, key)]
+    if unused:
+        hints.insert(0, f"add {' or '.join(unused)} to outputs.{key} ({getattr(config.outputs, key)!r})")
+    return f"outputs: scenes {first.name} ({first.image}) and {second.name} ({second.image}) would both write " \
+           f"{path}; {', or '.join(hints)}"
 
 
 def _are_products(config: ChainConfig, images: list[Path]) -> bool:

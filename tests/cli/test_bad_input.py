@@ -376,6 +376,12 @@ def _chain(scene, text: str | None = None, **sections) -> Path:
     return write_scene_chain(scene["dir"], text, **sections)
 
 
+def _with_second_image(scene):
+    """``scene`` with a second image beside its own (image2.tif, another stem)."""
+    shutil.copy(scene["dir"] / "image.tif", scene["dir"] / "image2.tif")
+    return scene
+
+
 def _chain_text(scene, text: str) -> Path:
     path = scene["dir"].parent / "chain.yaml"
     path.write_text(text)
@@ -400,6 +406,16 @@ RUN_CASES = {
     "output equal to an input": (
         lambda s: _chain(s, outputs={"directory": "scene", "naming": "{stem}.tif", "qa_naming": "{stem}_qa.tif"}),
         r"outputs: corrected output \S*scene/image\.tif of scene image would overwrite an input"),
+    "one file named twice": (  # was "scenes image and image would both write"; use {scene} or {stem}
+        lambda s: _chain(s, inputs={"images": ["scene/image.tif", "scene/../scene/image.tif"],
+                                    "angles": {"path": "{dir}/angles.tif"}, "classes": "{dir}/classes.tif"}),
+        r"inputs\.images names one file twice, as \S*scene/image\.tif and \S*scene/\.\./scene/image\.tif: name it once"),
+    "output names without the scene": (  # the advice named {stem}, the pattern's own placeholder
+        lambda s: _chain(_with_second_image(s), inputs={"images": ["scene/image*.tif"], "scene_regex": "(?P<scene>i)mage",
+                                    "angles": {"path": "{dir}/angles.tif"}, "classes": "{dir}/classes.tif"},
+                         outputs={"directory": "out", "naming": "{stem}_brdf.tif"}),
+        r"outputs: scenes i \(\S*scene/image\.tif\) and i \(\S*scene/image2\.tif\) would both write \S*out/i_qa\.tif; "
+        r"add \{stem\} or \{parent\} to outputs\.qa_naming \('\{scene\}_qa\.tif'\), or use a scene_regex"),
     "bad scene regex": (
         lambda s: _chain(s, inputs={"images": ["scene/image.tif"], "scene_regex": "(?P<scene>.+",
                                     "angles": {"path": "{dir}/angles.tif"}, "classes": "{dir}/classes.tif"}),
