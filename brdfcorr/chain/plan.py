@@ -139,7 +139,7 @@ def plan_run(config: ChainConfig, *, require_inputs: bool = True) -> RunPlan:
     scenes = redo_stale(config, scenes, reused, report)
     missing = tuple(notes + parameter_notes)  # before the uncertainty notes: files not found
     if not parameter_notes:  # the table's files exist
-        notes += _uncertainty_notes(config, reused)
+        notes += _uncertainty_notes(config, reused) + _classes_given_twice(config)
     return RunPlan(config, tuple(scenes), output_dir, report, fit_output, tuple(sources),
                    tuple(notes + parameter_notes), missing, fingerprint, reused is not None)
 
@@ -189,6 +189,22 @@ def _parameter_sources(config: ChainConfig, output_dir: Path,
             f"model {STRATA_MODEL} on NDVI strata class maps, else {DEFAULT_MODEL}")
         sources.append(f"fit from the imagery of the run's scenes ({model}) -> {fit_output}")
     return sources, fit_output, notes
+
+
+def _classes_given_twice(config: ChainConfig) -> list[str]:
+    """A note per class id that more than one of ``parameters``' sources gives: the last source
+    (materials, inline classes, the table file: :func:`brdfcorr.chain.resume.configured_table`)
+    is used, and the others' entries of that class are not."""
+    given = {"parameters.materials": set(config.parameters.materials),
+             "parameters.classes": {entry.id for entry in config.parameters.classes}}
+    if config.parameters.table is not None:
+        given["parameters.table"] = set(ParameterTable.load(config.resolve(config.parameters.table)).class_ids)
+    sources: dict[int, list[str]] = {}
+    for source, ids in given.items():
+        for class_id in ids:
+            sources.setdefault(class_id, []).append(source)
+    return [f"class {class_id} is given in {' and '.join(names)}: {names[-1]}'s entry is used"
+            for class_id, names in sorted(sources.items()) if len(names) > 1]
 
 
 def _check_outputs(config: ChainConfig, scenes: list[Scene], report: Path, fit_output: Path | None) -> None:

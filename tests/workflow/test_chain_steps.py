@@ -250,3 +250,17 @@ def test_chunk_events_only_inline(tmp_path, make_scenes, write_chain):
     run_chain(load_config(chain, {"engine.scheduler": "processes", "engine.workers": 1, "outputs.existing": "overwrite"}),
               progress=lambda event, info: events.append((event, dict(info))))
     assert [event for event, _ in events] == ["plan", "scene"]  # scene-level progress from worker processes
+
+
+def test_a_class_given_by_two_parameter_sources_is_named_with_the_entry_used(tmp_path, make_scenes, write_chain):
+    # The table file's class 1 replaced the inline class 1 (and the material) without a word.
+    make_scenes(tmp_path, count=1)
+    inline = [{"id": 1, "name": "flat", "model": "lambertian", "params": {"t0": 0.1}}]
+    chain = write_chain(tmp_path, parameters__materials={1: "roof_tile", 3: "red_concrete"}, parameters__classes=inline)
+    plan = plan_run(load_config(chain))
+    assert [w for w in plan.warnings if w.startswith("class ")] == [
+        "class 1 is given in parameters.materials and parameters.classes and parameters.table: "
+        "parameters.table's entry is used",
+        "class 3 is given in parameters.materials and parameters.table: parameters.table's entry is used"]
+    alone = write_chain(tmp_path)
+    assert not [w for w in plan_run(load_config(alone)).warnings if w.startswith("class ")]
