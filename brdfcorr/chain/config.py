@@ -58,7 +58,8 @@ from brdfcorr.chain.config_steps import SurfaceModel as SurfaceModel
 from brdfcorr.chain.patterns import PATTERN_FIELDS, format_pattern
 from brdfcorr.errors import ConfigError
 from brdfcorr.io.files import parse_yaml, read_document
-from brdfcorr.params import ReferenceGeometry
+from brdfcorr.params import ParameterTable, ReferenceGeometry
+from brdfcorr.params.table import coefficient_table, is_coefficient_name
 
 __all__ = [
     "ChainConfig",
@@ -170,11 +171,15 @@ class ChainConfig(StrictModel):
         return self.steps.correct is not None and self.steps.correct.flip_view_azimuth
 
     def _check_class_maps(self) -> None:
-        """One source of the class maps: ``inputs.classes``, or ``steps.strata`` deriving them."""
-        inputs, strata = self.inputs, self.steps.strata
-        if strata is None and inputs.classes is None:
-            raise ValueError("inputs.classes is missing: give the class maps' name pattern, or set steps.strata "
-                             "to derive NDVI strata of each image")
+        """One source of the class maps: ``inputs.classes``, or ``steps.strata`` deriving them; or
+        none, for a built-in coefficient set alone (class 1 over the whole image, as ``brdfcorr nbar``)."""
+        inputs, strata, parameters = self.inputs, self.steps.strata, self.parameters
+        one_class = (parameters.table is not None and is_coefficient_name(parameters.table)
+                     and not parameters.materials and not parameters.classes and self.steps.fit is None)
+        if strata is None and inputs.classes is None and not one_class:
+            raise ValueError("inputs.classes is missing: give the class maps' name pattern, set steps.strata "
+                             "to derive NDVI strata of each image, or name a built-in coefficient set as "
+                             "parameters.table alone (one class over the whole image)")
         if strata is not None:
             given = [f"inputs.{key}" for key, unset in (("classes", inputs.classes is None),
                                                         ("align_classes", not inputs.align_classes),
@@ -195,6 +200,22 @@ class ChainConfig(StrictModel):
         """A config path made absolute against :attr:`base_dir` (``~`` expanded)."""
         path = Path(os.path.expanduser(str(path)))
         return path if path.is_absolute() else self._base_dir / path
+
+    def table_path(self) -> Path | None:
+        """``parameters.table`` resolved (:meth:`resolve`); None where it is unset or names a built-in
+        coefficient set (``roy2017``) and no file has that name, as ``brdfcorr correct --params``."""
+        name = self.parameters.table
+        if name is None:
+            return None
+        path = self.resolve(name)
+        return None if not path.exists() and is_coefficient_name(name) else path
+
+    def given_table(self) -> ParameterTable | None:
+        """The table of ``parameters.table`` (a file, or a built-in coefficient set as class 1)."""
+        if self.parameters.table is None:
+            return None
+        path = self.table_path()
+        return coefficient_table(self.parameters.table) if path is None else ParameterTable.load(path)
 
     @classmethod
     def from_dict(cls, data: object, source: str = "chain config", base_dir: str | os.PathLike = ".") -> ChainConfig:

@@ -173,7 +173,9 @@ class ParametersConfig(StrictModel):
     Attributes
     ----------
     table : str, optional
-        Parameter table YAML (``docs/parameter-tables.md`` format).
+        Parameter table YAML (``docs/parameter-tables.md`` format), or a built-in coefficient set's
+        name (``roy2017``: class 1, :func:`brdfcorr.params.table.coefficient_table`) where no file
+        has that name.
     materials : dict of int to str
         Class id -> built-in material name (paper 003, Table 1; ``brdfcorr materials``).
     classes : list

@@ -165,8 +165,10 @@ def _parameter_sources(config: ChainConfig, output_dir: Path,
     sources = [f"material {material} as class {class_id}" for class_id, material in config.parameters.materials.items()]
     sources += [f"inline {entry.label}" for entry in config.parameters.classes]
     notes = []
-    if config.parameters.table is not None:
-        table_path = config.resolve(config.parameters.table)
+    table_path = config.table_path()
+    if config.parameters.table is not None and table_path is None:
+        sources.append(f"coefficient set {config.parameters.table}")
+    elif table_path is not None:
         if table_path.exists() or require_inputs:
             ParameterTable.load(table_path)  # fail now on a missing or invalid table
         else:
@@ -197,8 +199,9 @@ def _classes_given_twice(config: ChainConfig) -> list[str]:
     is used, and the others' entries of that class are not."""
     given = {"parameters.materials": set(config.parameters.materials),
              "parameters.classes": {entry.id for entry in config.parameters.classes}}
-    if config.parameters.table is not None:
-        given["parameters.table"] = set(ParameterTable.load(config.resolve(config.parameters.table)).class_ids)
+    table = config.given_table()
+    if table is not None:
+        given["parameters.table"] = set(table.class_ids)
     sources: dict[int, list[str]] = {}
     for source, ids in given.items():
         for class_id in ids:
@@ -223,8 +226,8 @@ def _check_outputs(config: ChainConfig, scenes: list[Scene], report: Path, fit_o
     read = [(f"the {role} of scene {scene.name}", path) for scene in scenes for role, path in scene.inputs()]
     if os.path.isfile(config.source):  # a config made in Python has a label, not a file
         read.append(("the chain config", Path(config.source)))
-    if config.parameters.table is not None:
-        read.append(("parameters.table", config.resolve(config.parameters.table)))
+    if config.table_path() is not None:
+        read.append(("parameters.table", config.table_path()))
     if config.steps.fit is not None and config.steps.fit.source == "goniometer":
         read += [("steps.fit.measurements", config.resolve(item.file)) for item in config.steps.fit.measurements]
     try:

@@ -43,10 +43,9 @@ def configured_table(config: ChainConfig) -> ParameterTable:
     entries = []
     for class_id, name in sorted(config.parameters.materials.items()):
         entries.append(ClassEntry(id=class_id, material=name))  # the library's model and values
-    tables = [ParameterTable(classes=entries), ParameterTable(classes=list(config.parameters.classes))]
-    if config.parameters.table is not None:
-        tables.append(ParameterTable.load(config.resolve(config.parameters.table)))
-    return merge_tables(tables)
+    tables = [ParameterTable(classes=entries), ParameterTable(classes=list(config.parameters.classes)),
+              config.given_table()]
+    return merge_tables(table for table in tables if table is not None)
 
 
 def with_strata_interpolation(table: ParameterTable, config: ChainConfig) -> ParameterTable:
@@ -152,8 +151,8 @@ def redo_stale(config: ChainConfig, scenes: list[Scene], reused: Path | None, re
               if scene.action == "skip" and str(scene.image) in failed else scene for scene in scenes]
     if not any(scene.action == "skip" and "corrected" in scene.outputs for scene in scenes):
         return scenes
-    table_file = config.parameters.table
-    if table_file is not None and not config.resolve(table_file).exists():
+    table_file = config.table_path()
+    if table_file is not None and not table_file.exists():
         return scenes  # without require_inputs only: the run stops before any scene (a plan warning)
     table = planned_table(config, reused)
     return [_unvouched(_unless_stale(scene, table), vouched.get(str(scene.image))) for scene in scenes]

@@ -40,8 +40,11 @@ class Scene:
     ----------
     name : str
         Scene name (``{scene}`` in patterns).
-    image, classes : Path
-        Reflectance image and class map.
+    image : Path
+        Reflectance image (or product folder).
+    classes : Path or None
+        Class map; None: one class over the whole image (a coefficient set as ``parameters.table``
+        without ``inputs.classes``), or a scene that failed before its files were named.
     angles_kind : str
         Angle source kind (``geotiff``, ``envi_obs``, ...).
     angles : str
@@ -78,7 +81,7 @@ class Scene:
 
     name: str
     image: Path
-    classes: Path
+    classes: Path | None
     angles_kind: str
     angles: str
     angle_options: dict
@@ -112,8 +115,8 @@ class Scene:
         (unless the chain derives it, ``outputs["strata"]``), angle file, the terrain source and
         the assess step's cluster layer."""
         files = [("product", self.image), *self.product_files] if self.product is not None else [("image", self.image)]
-        # Path(): a scene failed before its files were named
-        if self.classes != Path() and self.outputs.get("strata") != self.classes:
+        # None: one class over the whole image, or a scene failed before its files were named
+        if self.classes is not None and self.outputs.get("strata") != self.classes:
             files.append(("class map", self.classes))
         # the solar source is a time, not a file; a product's angle files are among its files
         if self.angles_kind != "solar" and self.angles and self.product is None:
@@ -131,7 +134,7 @@ class Scene:
             "angles": {"kind": self.angles_kind, "source": self.angles, **(
                 {"options": {key: value if isinstance(value, (str, int, float, bool)) else str(value)
                              for key, value in self.angle_options.items()}} if self.angle_options else {})},
-            "classes": str(self.classes),
+            "classes": None if self.classes is None else str(self.classes),
             **{role: str(path) for role, path in (("slope_aspect", self.slope_aspect), ("dem", self.dem),
                                                   ("clusters", self.clusters)) if path is not None},
             "outputs": {key: str(value) for key, value in self.outputs.items()},
@@ -301,14 +304,15 @@ def _plan_scene(config: ChainConfig, image: Path, shared_stems: frozenset, outpu
         name = _scene_name(config, image, shared_stems)
         found = _product_fields(image) if product else {}
     except BrdfcorrError as error:
-        return Scene(image.stem, image, Path(), "" if angles is None else angles.kind, "", {}, {}, "fail", str(error))
+        return Scene(image.stem, image, None, "" if angles is None else angles.kind, "", {}, {}, "fail", str(error))
 
     def fill(pattern: str) -> str:
         return format_pattern(pattern, image, name)
 
     outputs = _output_paths(config, output_dir, fill, name)
     # A derived class map (steps.strata) is an output; a given one is resolved against the config.
-    classes = outputs["strata"] if "strata" in outputs else config.resolve(fill(config.inputs.classes))
+    classes = (outputs["strata"] if "strata" in outputs else None if config.inputs.classes is None
+               else config.resolve(fill(config.inputs.classes)))
     if angles is None and not product:  # no image exists: its scene fails for that (_action)
         found = {"angles_kind": "", "angles": "", "angle_options": {}}
     elif angles is not None:

@@ -364,7 +364,7 @@ def as_parameter_table(params: ParameterTable | str | os.PathLike, argument: str
         Neither a table nor a path or name (the message names ``argument``); a file that is missing
         or no parameter table (the message names it).
     """
-    from brdfcorr.models.coefficients import coefficient_names, load_coefficients
+    from brdfcorr.models.coefficients import coefficient_names
 
     if isinstance(params, ParameterTable):
         return params
@@ -372,6 +372,20 @@ def as_parameter_table(params: ParameterTable | str | os.PathLike, argument: str
         raise InputError(f"{argument} must be a ParameterTable, a parameter table file or a coefficient set name "
                          f"({', '.join(coefficient_names())}), got {type(params).__name__}")
     path = Path(params)
-    if not path.exists() and str(params).strip().lower() in coefficient_names():
-        return ParameterTable(classes=[ClassEntry(**load_coefficients(str(params)).table_entry(1))])
+    if not path.exists() and is_coefficient_name(str(params)):
+        return coefficient_table(str(params))
     return ParameterTable.load(path)  # a missing file: the error names it
+
+
+def is_coefficient_name(text: str) -> bool:
+    """Whether ``text`` names a built-in coefficient set (``"roy2017"``, any case)."""
+    from brdfcorr.models.coefficients import coefficient_names
+
+    return text.strip().lower() in coefficient_names()
+
+
+def coefficient_table(name: str) -> ParameterTable:
+    """The built-in coefficient set ``name`` as a one-class table (class 1), per band."""
+    from brdfcorr.models.coefficients import load_coefficients
+
+    return ParameterTable(classes=[ClassEntry(**load_coefficients(name).table_entry(1))])

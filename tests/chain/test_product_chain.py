@@ -296,3 +296,19 @@ def test_each_product_is_identified_once_per_run(copy, scratch, identified):
     assert report.ok, report.scenes
     assert identified == {folder.name: 1 for folder in (copy / "tiles").glob("*.SAFE")}
     assert len(identified) == 3
+
+
+def test_a_product_chain_names_a_coefficient_set_as_nbar_does(copy, scratch, invoke):
+    # parameters.table: roy2017 was read as a file beside the config ("does not exist", exit 2).
+    document = {"inputs": {"images": ["tiles/*.SAFE"]}, "parameters": {"table": "roy2017"},
+                "reference": {"sza": 45.0}, "steps": {"correct": {}},
+                "outputs": {"directory": "out", "naming": "{stem}_nbar.tif"}, "engine": {"scheduler": "synchronous"}}
+    (copy / "chain.yaml").write_text(yaml.safe_dump(document))
+    assert "coefficient set roy2017" in plan_run(load_config(copy / "chain.yaml")).table_sources
+    report = run_chain(copy / "chain.yaml")
+    assert report.ok, report.scenes
+    for folder in sorted((copy / "tiles").glob("*.SAFE")):
+        code, stderr = invoke(["nbar", folder, "--ref-sza", "45", "-o", copy / f"{folder.stem}_cli.tif"])
+        assert code == 0, stderr
+        np.testing.assert_array_equal(rioxarray.open_rasterio(copy / "out" / f"{folder.stem}_nbar.tif").values,
+                                      rioxarray.open_rasterio(copy / f"{folder.stem}_cli.tif").values)

@@ -168,7 +168,7 @@ def test_a_resumed_run_skips_the_scene_until_a_strata_setting_changes(demo, chai
     ({}, {"ndvi_interpolation": "yes please"}, "steps.strata.ndvi_interpolation: Input should be a valid boolean"),
     ({"inputs.classes": "{dir}/{scene}_classes.tif"}, None,
      "steps.strata derives each scene's class map: leave out inputs.classes"),
-    ({"steps.strata": None}, None, "inputs.classes is missing: give the class maps' name pattern, or set steps.strata"),
+    ({"steps.strata": None}, None, "inputs.classes is missing: give the class maps' name pattern, set steps.strata"),
 ])
 def test_bad_strata_keys_are_refused_in_one_line(demo, changes, strata, expected):
     root, _ = demo
