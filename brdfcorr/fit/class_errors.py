@@ -92,12 +92,18 @@ def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, coef
     error_dof = dof[:, order]
     inflation = np.sqrt(t_variance_factor(error_dof))  # (B, p)
     covariance = joint[:, order][:, :, order] * inflation[:, :, None] * inflation[:, None, :]
+    if sandwich.n_clusters < 2:  # one block: its residuals sum to ~0 at the fit, a covariance of ~0
+        covariance = np.full_like(covariance, np.nan)  # none: no fit: block, a NaN 1-sigma
     deviations = np.sqrt(np.maximum(np.diagonal(covariance, axis1=1, axis2=2), 0.0))  # (B, p)
     at_edge = _at_edge(profile, shape)
     values = {**shape, **dict(zip(model.linear, intensities))}
     room = {name: _room(profile, name, np.asarray(values[name], dtype=float)) for name in names}
+    # A shape parameter on a closed physical bound (RPV's rho_c = 0), which _at_edge leaves out: the
+    # fits that end there are cut off, like the intensities _at_bound names.
+    at_bound = _at_bound(model, intensities) + [f"{name} = {value:.4g}" for name, value in shape.items()
+                                                if name not in at_edge and np.all(room[name] <= 0)]
     reliable, reason = error_reliability(names, error_dof, sandwich.n_clusters, sandwich.max_leverage,
-                                         at_edge, _at_bound(model, intensities), (room, deviations))
+                                         at_edge, at_bound, (room, deviations))
     return names, covariance, deviations, {"at_edge": at_edge, "error_dof": error_dof,
                                            "n_clusters": sandwich.n_clusters, "errors_reliable": reliable,
                                            "errors_reason": reason}

@@ -256,7 +256,7 @@ def fit_one_class(class_id: int, name: str, model: str | Model, samples: ClassSa
     ClassFit
     """
     notes: list[str] = []
-    samples, within = _pooled_if_alike(samples, guard, pool_if_alike, notes)
+    samples, within = _pooled_if_alike(samples.finite(notes), guard, pool_if_alike, notes)
     model, fixed, choice = _class_model(model, samples, fixed, grid_points, notes)
     report = ClassFit(
         class_id=class_id, name=name, model=model.name, n_samples=int(np.size(samples.theta_i)),

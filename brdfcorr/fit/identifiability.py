@@ -261,7 +261,10 @@ def error_reliability(free, error_dof, n_clusters, max_leverage, at_edge=(), at_
     reasons = []
     dof = np.min(np.atleast_2d(error_dof), axis=0)
     low = [f"{name} {value:.1f}" for name, value in zip(free, dof) if not value >= MIN_ERROR_DOF]
-    if low:
+    if n_clusters < 2:
+        reasons.append("all samples in one spatial block: no error can be estimated, none is given (smaller "
+                       "blocks: fit-classes --block-size)")
+    elif low:
         reasons.append(f"errors from {n_clusters} spatial blocks: effective degrees of freedom "
                        f"{', '.join(low)} < {MIN_ERROR_DOF:g} (smaller blocks: fit-classes --block-size; or a "
                        "larger scene)")

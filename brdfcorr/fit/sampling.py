@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse
@@ -50,6 +50,22 @@ class ClassSamples:
     scene_errors: bool = False  # errors two-way cluster-robust, over ``block`` and ``scene`` (fit.two_way)
     empty_bands: tuple[int, ...] = ()  # bands (0-based) not finite at any sampled pixel: no sample is left
     empty_reason: str | None = None  # ... named, with the pixels sampled: why the class cannot be fitted
+
+    def finite(self, notes: list[str]) -> ClassSamples:
+        """These samples without those whose angles or BRDF (in any band) are not finite, with a note
+        in ``notes`` of how many (samples given in Python: the sampler keeps finite ones only). A
+        NaN in one band's samples gave that band zero intensities and dropped the class's errors."""
+        if not np.size(self.theta_i):
+            return self
+        brdf = np.reshape(self.brdf, (np.size(self.theta_i), -1))
+        keep = np.isfinite(np.column_stack([self.theta_i, self.theta_r, self.phi, brdf])).all(axis=1)
+        if keep.all():
+            return self
+        notes.append(f"{keep.size - keep.sum()} of {keep.size} samples left out: a non-finite angle or BRDF")
+        per_sample = {name: getattr(self, name) for name in ("theta_i", "theta_r", "phi", "brdf", "block", "group",
+                                                              "scene")}
+        return replace(self, **{name: None if value is None else np.asarray(value)[keep]
+                                for name, value in per_sample.items()})
 
 
 def _in_memory(array, dtype=None) -> np.ndarray:

@@ -16,8 +16,11 @@ import xarray as xr
 
 from brdfcorr.correction.uncertainty import correction_uncertainty
 from brdfcorr.errors import BrdfcorrWarning
+from brdfcorr.fit.classes import fit_one_class
+from brdfcorr.fit.entries import class_entry
 from brdfcorr.fit.identifiability import MIN_ERROR_DOF, NONLINEAR_FRACTION, error_reliability, t_variance_factor
 from brdfcorr.fit.profile import _profile
+from brdfcorr.fit.sampling import ClassSamples
 from brdfcorr.fit.sandwich import _joint_covariance
 from brdfcorr.fit.solver import fit_class_samples
 from brdfcorr.geometry import ScatteringGeometry
@@ -131,6 +134,53 @@ def test_three_blocks_are_flagged_many_samples_are_not():
     many = fit_class_samples("torrance_sparrow", sza, vza, phi, brdf)
     assert many["errors_reliable"] is True and many["errors_reason"] == ""
     assert np.all(many["error_dof"] >= MIN_ERROR_DOF)
+
+
+def _two_bands(n):
+    """RTLSR samples of two bands (the second twice the first) with 2 % independent noise."""
+    rng = np.random.default_rng(0)
+    sza, vza, phi = rng.uniform(30, 40, n), rng.uniform(0, 40, n), rng.choice([30.0, 150.0], n)
+    brdf = get_model("ross_thick_li_sparse")(sza, vza, phi, f_iso=0.1, f_vol=0.05, f_geo=0.02)
+    return sza, vza, phi, np.column_stack([brdf, 2 * brdf]) * (1 + 0.02 * rng.standard_normal((n, 2)))
+
+
+def test_one_block_gives_no_errors_and_no_fit_block():
+    # The residuals of one block sum to ~0 at the fit: its cluster-robust covariance was ~1e-10 (a
+    # sigma 1e7 times too small, written to the table) where nothing can be estimated.
+    sza, vza, phi, brdf = _two_bands(600)
+    fit = fit_one_class(1, "field", "ross_thick_li_sparse", ClassSamples(sza, vza, phi, brdf, block=np.zeros(600)))
+    assert fit.status == "fitted" and np.isfinite(fit.params["f_iso"]).all()  # the fit itself stands
+    assert all(np.isnan(errors).all() for errors in fit.errors.values())
+    assert fit.errors_reliable is False and fit.errors_reason.startswith("all samples in one spatial block")
+    assert class_entry(fit, [560.0, 860.0], "test").fit is None  # no covariance: a NaN 1-sigma downstream
+
+
+def test_a_shape_parameter_on_its_closed_bound_is_flagged():
+    # RPV's rho_c ends on its physical bound 0 in about a fifth of noisy fits of a surface with
+    # rho_c near 0: the estimate's distribution is cut off there, and the flag passed exactly those.
+    rng = np.random.default_rng(0)
+    sza, vza, phi = rng.uniform(25, 45, 600), rng.uniform(0, 45, 600), rng.uniform(0, 180, 600)
+    brdf = get_model("rpv")(sza, vza, phi, rho0=0.1, k=0.75, theta=-0.1, rho_c=0.0)
+    noisy = (brdf * (1 + 0.03 * np.random.default_rng(1).standard_normal(600)))[:, None]
+    result = fit_class_samples("rpv", sza, vza, phi, noisy, clusters=np.arange(600) // 10)
+    assert result["params"]["rho_c"][0] == 0.0  # this draw ends on the bound
+    assert result["errors_reliable"] is False and "rho_c = 0 (at its bound)" in result["errors_reason"]
+
+
+def test_samples_with_a_nan_are_left_out_with_a_note():
+    # A NaN in one band of 10 samples gave that band f_iso = f_vol = f_geo = 0 ("fitted", no reason)
+    # and dropped the class's covariance for every band.
+    sza, vza, phi, brdf = _two_bands(2000)
+    gappy = brdf.copy()
+    gappy[:10, 1] = np.nan
+    blocks = np.arange(2000) // 50
+    fit = fit_one_class(1, "lawn", "ross_thick_li_sparse", ClassSamples(sza, vza, phi, gappy, block=blocks))
+    assert "10 of 2000 samples left out: a non-finite angle or BRDF" in fit.notes and fit.n_samples == 1990
+    kept = fit_one_class(1, "lawn", "ross_thick_li_sparse",
+                         ClassSamples(sza[10:], vza[10:], phi[10:], brdf[10:], block=blocks[10:]))
+    for name in ("f_iso", "f_vol", "f_geo"):  # the same fit as without those samples
+        np.testing.assert_array_equal(fit.params[name], kept.params[name])
+    assert class_entry(fit, [560.0, 860.0], "test").fit is not None
 
 
 def test_material_class_sigma_is_the_hand_propagated_one():
