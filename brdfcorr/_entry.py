@@ -45,6 +45,8 @@ _OPTIONS: dict[str, dict[Entry, str]] = {
                          "python": "brdfcorr.io.sensors.read_angles('envi_obs', path, like=image)"},
     "degrees": {"cli": "", "chain": "", "python": " (np.degrees converts them)"},
     "bands": {"cli": "--bands", "chain": "bands", "python": "bands="},
+    "flip_view_azimuth": {"cli": "--flip-view-azimuth", "chain": "inputs.flip_view_azimuth",
+                          "python": "flip_view_azimuth=True"},
     "reference_sza": {"cli": "--ref-sza", "chain": "steps.correct.reference.sza", "python": "reference={'sza': ...}"},
 }
 

@@ -157,6 +157,10 @@ class ChainConfig(StrictModel):
             raise ValueError("inputs.slope_aspect and inputs.dem are read by steps.correct.terrain: set it "
                              "(e.g. terrain: {}) or leave the terrain inputs out")
         self._check_class_maps()
+        if self.flips_view_azimuth and inputs.angles is not None and inputs.angles.kind != "geotiff":
+            raise ValueError(f"inputs.flip_view_azimuth is for angle rasters stored another way (kind geotiff): the "
+                             f"{inputs.angles.kind} reader gives view azimuths from the pixel towards the sensor "
+                             "already; leave it out (docs/sensors.md)")
         if self.outputs.uncertainty and correct is None:
             raise ValueError("outputs.uncertainty is written by the correct step: it needs steps.correct")
         return self

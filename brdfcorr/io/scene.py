@@ -70,6 +70,16 @@ class SceneSources:
         """The image as messages and reports name it: ``label``, else its path."""
         return self.label or str(self.image)
 
+    def check_flip(self, flip_view_azimuth: bool) -> None:
+        """Refuse a 180 deg flip of the view azimuths (``--flip-view-azimuth``) of angles that a
+        sensor reader gives (every kind but ``geotiff``): each reader applies its product's own
+        convention (``docs/sensors.md``), so the flip turned them the wrong way (2.4 % on a real
+        AVIRIS-NG line), or undid a reader's ``view_azimuth=from_sensor``, without a word."""
+        if flip_view_azimuth is True and self.angles_kind != "geotiff":
+            raise InputError(f"{option('flip_view_azimuth')} is for angle rasters stored another way "
+                             f"(angles kind geotiff): the {self.angles_kind} reader gives view azimuths from the "
+                             "pixel towards the sensor already; leave it out (docs/sensors.md)")
+
     @property
     def inputs(self) -> list[tuple[str, PathLike | None]]:
         """The files read, by role (for the output guard, :func:`brdfcorr.io.paths.check_outputs`)."""

@@ -154,6 +154,7 @@ def assess_files(
         ``report()`` is the JSON report; :func:`brdfcorr.plot.assess.write_assessment_figures`
         draws it.
     """
+    scene.check_flip(view_options.flip_view_azimuth)
     engine = replace(engine, chunks=rasters.auto_chunk(scene.image) if engine.chunks is None else int(engine.chunks))
     # GDAL's block cache bounded for every pass (issue 28; GDAL's default keeps every tile read).
     with _active(engine.callbacks), rasters.bounded_gdal_cache(scene.image, engine.chunks):
@@ -290,6 +291,8 @@ def leave_one_line_out_files(
     """
     if len(scenes) < 2:
         raise InputError(f"leave-one-line-out needs at least 2 lines, got {len(scenes)}")
+    for scene in scenes:
+        scene.check_flip(view_options.flip_view_azimuth)
     line_names = _line_names([scene.image for scene in scenes])
     if clusters is not None and len(clusters) != len(scenes):
         raise InputError(f"{len(scenes)} line(s) and {len(clusters)} cluster layer(s): give one per line, in order")

@@ -111,6 +111,7 @@ def correct_files(request: CorrectionRequest) -> CorrectionResult:
         An existing output without ``overwrite``, an output that is no regular file or the same
         file as the other output, or a failed write (disk full); nothing is left at the output paths.
     """
+    request.scene.check_flip(request.flip_view_azimuth)
     _check_outputs(request)
     table, table_path = _load_table(request)
     engine = request.engine

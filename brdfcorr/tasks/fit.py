@@ -231,6 +231,8 @@ def fit_class_files(
     """
     if not isinstance(models, ClassModels):
         models = ClassModels(models)
+    for scene in scenes:
+        scene.check_flip(sampling.flip_view_azimuth)
     opened, used, left_out = _opened_scenes(scenes, sampling.reflectance_scale, chunks, wavelengths,
                                             skip_unreadable)
     models, notes = _choices_from_maps(models, [data.classes for data in opened])

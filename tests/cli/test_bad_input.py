@@ -592,3 +592,41 @@ def test_only_non_finite_values_are_nodata_even_when_the_band_sum_overflows():
     assert qa.values.tolist() == [[0 | 2, QA.NODATA | 2, 2]]  # 2: no class
     np.testing.assert_array_equal(corrected.values[:, 0, 0], cube[:, 0, 0])
     assert corrected.values[0, 0, 1] == 0.5 and np.isnan(corrected.values[1, 0, 1])
+
+
+TOPOFLUX = Path(__file__).parents[1] / "data" / "isofit_avirisng_topoflux"
+
+
+def test_a_flip_of_the_azimuths_a_sensor_reader_gives_is_refused(tmp_path):
+    # The envi_obs reader gives JPL's to-sensor azimuths (pixel -> sensor) as brdfcorr wants them:
+    # flipped, the real line's 852 nm band came out up to 2.4 % off, without a word (and with the
+    # reader's view_azimuth=from_sensor the two flips cancelled).
+    from brdfcorr.analysis.view_angles import ViewAngleOptions
+    from brdfcorr.chain.config import ChainConfig
+    from brdfcorr.errors import ConfigError, InputError
+    from brdfcorr.fit.settings import Sampling
+    from brdfcorr.io.scene import SceneSources
+    from brdfcorr.tasks.assess import assess_files
+    from brdfcorr.tasks.fit import SceneFiles, fit_class_files
+
+    image, obs = TOPOFLUX / "ang20160910t185702_2rdn_img", TOPOFLUX / "ang20160910t185702_obs_ortdem_mod"
+    result = CliRunner().invoke(main, ["correct", str(image), "--angles", str(obs), "--angles-kind", "envi_obs",
+                                       "--params", "roy2016", "--flip-view-azimuth", "-o", str(tmp_path / "o.tif")])
+    assert result.exit_code == 2
+    assert re.fullmatch(r"brdfcorr: error: --flip-view-azimuth is for angle rasters stored another way \(angles kind "
+                        r"geotiff\): the envi_obs reader gives view azimuths from the pixel towards the sensor "
+                        r"already; leave it out \(docs/sensors\.md\)", _one_error_line(result))
+    assert list(tmp_path.iterdir()) == []
+    sources = dict(image=image, classes=None, angles=obs, angles_kind="envi_obs")
+    with pytest.raises(InputError, match=r"^flip_view_azimuth=True is for angle rasters stored another way"):
+        fit_class_files([SceneFiles(**sources)], "ross_thick_li_sparse", sampling=Sampling(flip_view_azimuth=True))
+    with pytest.raises(InputError, match="the envi_obs reader gives view azimuths"):
+        assess_files(SceneSources(**sources), tmp_path / "after.tif",
+                     view_options=ViewAngleOptions(flip_view_azimuth=True))
+    chain = {"inputs": {"images": ["line.img"], "angles": {"kind": "envi_obs", "path": "line_obs"},
+                        "flip_view_azimuth": True}, "parameters": {"table": "roy2016"}, "steps": {"correct": {}},
+             "outputs": {"directory": "out"}}
+    with pytest.raises(ConfigError, match="inputs.flip_view_azimuth is for angle rasters stored another way"):
+        ChainConfig.from_dict(chain)
+    # Angle rasters (kind geotiff) take the flag, as documented.
+    SceneSources(**{**sources, "angles_kind": "geotiff"}).check_flip(True)
