@@ -58,6 +58,7 @@ from brdfcorr.chain.config_steps import SurfaceModel as SurfaceModel
 from brdfcorr.chain.patterns import PATTERN_FIELDS, format_pattern
 from brdfcorr.errors import ConfigError
 from brdfcorr.io.files import parse_yaml, read_document
+from brdfcorr.io.sensors import flip_refusal
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.params.table import coefficient_table, is_coefficient_name
 
@@ -157,10 +158,10 @@ class ChainConfig(StrictModel):
             raise ValueError("inputs.slope_aspect and inputs.dem are read by steps.correct.terrain: set it "
                              "(e.g. terrain: {}) or leave the terrain inputs out")
         self._check_class_maps()
-        if self.flips_view_azimuth and inputs.angles is not None and inputs.angles.kind != "geotiff":
-            raise ValueError(f"inputs.flip_view_azimuth is for angle rasters stored another way (kind geotiff): the "
-                             f"{inputs.angles.kind} reader gives view azimuths from the pixel towards the sensor "
-                             "already; leave it out (docs/sensors.md)")
+        refusal = None if inputs.angles is None else flip_refusal(inputs.angles.kind, self.flips_view_azimuth,
+                                                                    "inputs.flip_view_azimuth")
+        if refusal is not None:
+            raise ValueError(refusal)
         if self.outputs.uncertainty and correct is None:
             raise ValueError("outputs.uncertainty is written by the correct step: it needs steps.correct")
         return self

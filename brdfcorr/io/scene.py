@@ -20,6 +20,7 @@ from brdfcorr.io.grid import check_same_grid
 from brdfcorr.io.paths import PathLike
 from brdfcorr.io.product import ImageFile, auto_chunk, gdal_cache_bytes, identify_image
 from brdfcorr.io.rasters import open_classes, open_image
+from brdfcorr.io.sensors import flip_refusal
 from brdfcorr.io.writer import pass_threads
 
 __all__ = ["SceneSources", "SceneData", "open_scene", "opened_scene", "check_class_grid"]
@@ -71,14 +72,10 @@ class SceneSources:
         return self.label or str(self.image)
 
     def check_flip(self, flip_view_azimuth: bool) -> None:
-        """Refuse a 180 deg flip of the view azimuths (``--flip-view-azimuth``) of angles that a
-        sensor reader gives (every kind but ``geotiff``): each reader applies its product's own
-        convention (``docs/sensors.md``), so the flip turned them the wrong way (2.4 % on a real
-        AVIRIS-NG line), or undid a reader's ``view_azimuth=from_sensor``, without a word."""
-        if flip_view_azimuth is True and self.angles_kind != "geotiff":
-            raise InputError(f"{option('flip_view_azimuth')} is for angle rasters stored another way "
-                             f"(angles kind geotiff): the {self.angles_kind} reader gives view azimuths from the "
-                             "pixel towards the sensor already; leave it out (docs/sensors.md)")
+        """Refuse a flip of the view azimuths read by a sensor reader (:func:`flip_refusal`)."""
+        refusal = flip_refusal(self.angles_kind, flip_view_azimuth, option("flip_view_azimuth"))
+        if refusal is not None:
+            raise InputError(refusal)
 
     @property
     def inputs(self) -> list[tuple[str, PathLike | None]]:

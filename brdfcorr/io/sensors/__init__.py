@@ -75,6 +75,7 @@ def _reader(name: str) -> Callable[..., xr.Dataset]:
 
 __all__ = [
     "ANGLE_KINDS",
+    "flip_refusal",
     "acquisition_time",
     "apply_glt",
     "envi_wavelengths",
@@ -148,6 +149,17 @@ ANGLE_KINDS: dict[str, Callable[..., xr.Dataset]] = {
     "neon": _reader("read_neon_angles"),
     "emit": _reader("read_emit_obs"),
 }
+
+
+def flip_refusal(angles_kind: str, flip_view_azimuth: bool, setting: str) -> str | None:
+    """Why a 180 deg flip of the view azimuths (``setting``, as the caller names it) is refused
+    for angles of ``angles_kind``, or None: every reader of :data:`ANGLE_KINDS` applies its product's own
+    convention (``docs/sensors.md``), so the flip turned its azimuths the wrong way (2.4 % on a
+    real AVIRIS-NG line) or undid a reader's ``view_azimuth=from_sensor``, without a word."""
+    if flip_view_azimuth is not True or angles_kind == "geotiff":
+        return None
+    return (f"{setting} is for angle rasters stored another way (angles kind geotiff): the {angles_kind} reader "
+            "gives view azimuths from the pixel towards the sensor already; leave it out (docs/sensors.md)")
 
 
 def read_angles(kind: str, source, like: xr.DataArray | None = None, **options) -> xr.Dataset:
