@@ -103,7 +103,7 @@ def _class_errors(profile: _LinearProfile, shape: dict[str, float], design, coef
     at_bound = _at_bound(model, intensities) + [f"{name} = {value:.4g}" for name, value in shape.items()
                                                 if name not in at_edge and np.all(room[name] <= 0)]
     reliable, reason = error_reliability(names, error_dof, sandwich.n_clusters, sandwich.max_leverage,
-                                         at_edge, at_bound, (room, deviations))
+                                         at_edge, at_bound, (room, deviations), scenes=sandwich.scenes)
     return names, covariance, deviations, {"at_edge": at_edge, "error_dof": error_dof,
                                            "n_clusters": sandwich.n_clusters, "errors_reliable": reliable,
                                            "errors_reason": reason}

@@ -559,7 +559,7 @@ def fit_classes(images, classes, angles, models: ClassModels | str | Model = Cla
     check_fixed(models.fixed, _models_in_play(models))
     if sampling.errors_cluster not in ERROR_CLUSTERS:
         raise ParameterError(f"errors cluster {sampling.errors_cluster!r}: use one of {', '.join(ERROR_CLUSTERS)}")
-    scenes, classes, angles = scene_lists(images, classes, angles)
+    scenes, classes, angles, clusters = scene_lists(images, classes, angles, clusters)
     scenes = [with_wavelengths(scene) if isinstance(scene, xr.DataArray) else scene for scene in scenes]
     if wavelengths is None and "wavelength" in scenes[0].coords:
         wavelengths = np.asarray(scenes[0]["wavelength"].values, dtype=float).tolist()

@@ -230,7 +230,7 @@ def t_variance_factor(dof):
 
 
 def error_reliability(free, error_dof, n_clusters, max_leverage, at_edge=(), at_bound=(),
-                      margins=None) -> tuple[bool, str]:
+                      margins=None, scenes: bool = False) -> tuple[bool, str]:
     """Whether the errors of an imagery fit can be trusted, and why not (empty when they can).
 
     Parameters
@@ -252,6 +252,9 @@ def error_reliability(free, error_dof, n_clusters, max_leverage, at_edge=(), at_
         :data:`NONLINEAR_FRACTION` of that distance means the fit is strongly non-linear there:
         the estimate's distribution is skewed and cut off within two errors (issue 27: t1 and n
         of red concrete from few blocks reach errors of 60-90 % of t1, pull SDs 1.5-1.9).
+    scenes : bool, default False
+        ``n_clusters`` counts scenes (two-way errors over blocks and scenes, fewer scenes than
+        blocks): more scenes, not smaller blocks, give the errors more degrees of freedom.
 
     Returns
     -------
@@ -265,9 +268,11 @@ def error_reliability(free, error_dof, n_clusters, max_leverage, at_edge=(), at_
         reasons.append("all samples in one spatial block: no error can be estimated, none is given (smaller "
                        "blocks: fit-classes --block-size)")
     elif low:
-        reasons.append(f"errors from {n_clusters} spatial blocks: effective degrees of freedom "
-                       f"{', '.join(low)} < {MIN_ERROR_DOF:g} (smaller blocks: fit-classes --block-size; or a "
-                       "larger scene)")
+        source, remedy = (("scenes (two-way over blocks and scenes)", "more scenes, or one-way errors over blocks")
+                          if scenes else ("spatial blocks", "smaller blocks: fit-classes --block-size; or a larger "
+                                                            "scene"))
+        reasons.append(f"errors from {n_clusters} {source}: effective degrees of freedom {', '.join(low)} < "
+                       f"{MIN_ERROR_DOF:g} ({remedy})")
     if max_leverage > MAX_BLOCK_LEVERAGE:
         reasons.append(f"one block alone determines a parameter combination (leverage {max_leverage:.3f})")
     if margins is not None:

@@ -88,12 +88,14 @@ def _as_list(value) -> list:
     return list(value) if isinstance(value, (list, tuple)) else [value]
 
 
-def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list, list]:
+def scene_lists(images, classes, angles, clusters=None, dim: str = "time") -> tuple[list, list, list, object]:
     """One image, class map and angle set per scene: lists as given, or a cube with a ``dim``
     dimension (a time series) as one scene per date, its class map and angles per date where they
-    have that dimension and the same for every date where they have not."""
+    have that dimension and the same for every date where they have not; and the cluster layers
+    (``clusters`` as given, a layer with that dimension one per date). Dated layers take the
+    cube's dates by label where both have them (a cluster layer was paired by position)."""
     if not isinstance(images, xr.DataArray) or dim not in images.dims:
-        return _as_list(images), _as_list(classes), _as_list(angles)
+        return _as_list(images), _as_list(classes), _as_list(angles), clusters
     cube = images.transpose(dim, ...)
     count = cube.sizes[dim]
 
@@ -104,7 +106,9 @@ def scene_lists(images, classes, angles, dim: str = "time") -> tuple[list, list,
             return [value.isel({dim: index}, drop=True) for index in range(count)]
         return [value] * count
 
-    return per_date(cube), per_date(classes, "class map"), per_date(angles, "angles")
+    dated = isinstance(clusters, xr.DataArray) and dim in clusters.dims
+    return (per_date(cube), per_date(classes, "class map"), per_date(angles, "angles"),
+            per_date(clusters, "cluster layer") if dated else clusters)
 
 
 def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> tuple[list, list, list]:
@@ -275,7 +279,7 @@ def sample_classes(images, classes, angles, *, class_ids: Sequence[int] | None =
     the scenes' own grids also where they were brought onto a common grid.
     """
     cube = dates or (isinstance(images, xr.DataArray) and "time" in images.dims)  # one grid by construction
-    images, classes, angles = scene_lists(images, classes, angles)
+    images, classes, angles, clusters = scene_lists(images, classes, angles, clusters)
     if not len(images) == len(classes) == len(angles):
         raise ParameterError(
             f"{len(images)} images, {len(classes)} class maps and {len(angles)} angle sets: "

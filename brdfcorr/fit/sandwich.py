@@ -76,12 +76,16 @@ class Sandwich:
     max_leverage : float
         Largest leverage eigenvalue of any cluster [-] (1: a cluster alone determines a parameter
         combination).
+    scenes : bool
+        The clusters counted are scenes (two-way errors, :mod:`brdfcorr.fit.two_way`, with fewer
+        scenes than blocks), not spatial blocks.
     """
 
     covariance: np.ndarray
     dof: np.ndarray
     n_clusters: int
     max_leverage: float
+    scenes: bool = False
 
 
 @dataclass(frozen=True)

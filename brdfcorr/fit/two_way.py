@@ -89,7 +89,7 @@ def clustered_covariance(sandwich_of: Callable[[np.ndarray | None], Sandwich], c
     covariance = nearest_psd(first.covariance + second.covariance - both.covariance)
     fewer = second if second.n_clusters <= first.n_clusters else first
     return Sandwich(covariance, np.minimum(first.dof, second.dof), fewer.n_clusters,
-                    max(first.max_leverage, second.max_leverage))
+                    max(first.max_leverage, second.max_leverage), scenes=fewer is second)
 
 
 def clustered_mean_variance(values: np.ndarray, clusters) -> np.ndarray:

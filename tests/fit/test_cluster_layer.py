@@ -197,3 +197,26 @@ def test_free_levels_per_pixel_get_clusters_that_hold_every_view_of_a_pixel():
             assert np.unique(samples.block[samples.group == group]).size == 1
     crossed = sample_classes([image, image], [classes, classes], [angles, angles], clusters=[by_column, by_row], sampling=Sampling(levels="pixel"))
     assert all(np.unique(samples.block).size == 1 for samples in crossed.values())
+
+
+def test_a_dated_cluster_layer_takes_the_cubes_dates_by_label():
+    # A (time, y, x) layer stored newest first was paired with the cube's dates by position, while
+    # its class maps and angles are paired by label: f_vol's error came out 1.6 times too large.
+    import pandas as pd
+
+    dates = pd.Index(pd.date_range("2024-04-01", periods=3, freq="10D"), name="time")
+    lines = [_line(32, 48, seed) for seed in range(3)]
+    cube = xr.concat([line[0] for line in lines], dim=dates)
+    angles = xr.concat([line[2] for line in lines], dim=dates)
+    ids = np.stack([date * 100 + _blocks((32, 48), 8 * (date + 1)) for date in range(3)])
+    layer = xr.DataArray(ids, dims=("time", "y", "x"), coords={"time": dates})
+
+    def errors(clusters):
+        fit = fit_classes(cube, lines[0][1], angles, ClassModels("ross_thick_li_sparse", class_ids=[2]),
+                          sampling=Sampling(levels="pooled"), clusters=clusters).fits[0]
+        return np.concatenate([fit.errors[name] for name in ("f_iso", "f_vol", "f_geo")])
+
+    in_order = errors(layer)
+    np.testing.assert_array_equal(errors(layer.isel(time=[2, 1, 0])), in_order)
+    by_position = errors([layer.isel(time=index, drop=True) for index in (2, 1, 0)])  # a list: in order
+    assert not np.allclose(by_position, in_order)

@@ -57,7 +57,17 @@ def test_two_way_sandwich_of_a_linear_model_is_the_closed_form():
     values, vectors = np.linalg.eigh(bread @ meat @ bread)
     expected = vectors @ np.diag(np.maximum(values, 0)) @ vectors.T
     np.testing.assert_allclose(found.covariance[0], expected, rtol=1e-8, atol=1e-14 * np.abs(expected).max())
-    assert found.n_clusters == 6  # the scenes, the dimension with fewer clusters
+    assert found.n_clusters == 6 and found.scenes  # the scenes, the dimension with fewer clusters
+
+
+def test_few_scenes_are_named_as_scenes_in_the_reason():
+    # Two-way errors limited by 6 scenes read "errors from 6 spatial blocks ... (smaller blocks:
+    # fit-classes --block-size)", which cannot help.
+    angles, _, brdf, pixel, scene = _panel(pixels=40, scenes=6)
+    result = fit_class_samples(RTLSR, *angles, brdf[:, None], clusters=pixel, scenes=scene)
+    assert result["n_clusters"] == 6 and result["errors_reliable"] is False
+    assert result["errors_reason"].startswith("errors from 6 scenes (two-way over blocks and scenes)")
+    assert "more scenes" in result["errors_reason"] and "--block-size" not in result["errors_reason"]
 
 
 def test_nearest_psd_clears_negative_eigenvalues_only():
