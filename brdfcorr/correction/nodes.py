@@ -36,8 +36,8 @@ import xarray as xr
 
 from brdfcorr.correction.blocks import split_pairs
 from brdfcorr.correction.normalization import Normalized, normalize
-from brdfcorr.correction.qa import QA, qa_attrs
-from brdfcorr.correction.reference import describe_limits
+from brdfcorr.correction.qa import QA, qa_attrs, set_flags
+from brdfcorr.correction.reference import describe_limits, with_mean_sza
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.errors import InputError
 from brdfcorr.io.sensors.grids import GRID_SOURCE, coarse_positions, grid_nodes, interpolate_window
@@ -124,6 +124,7 @@ def normalize_at_nodes(reflectance: xr.DataArray, angles: Mapping[str, xr.DataAr
     Normalized
         The corrected cube (the input's dims, coords and chunks) and its QA layer, both lazy.
     """
+    reference = with_mean_sza(reference, angles["sza"])  # the pixels' mean, not the nodes'
     nodes = node_angles(angles)
     template = nodes["sza"]
     band_dim = reflectance.dims[0]
@@ -203,9 +204,13 @@ def _corrected_block(reflectance: np.ndarray, *, node_values: np.ndarray, source
     mask, factors, limited = per_pixel(slice(row0, row1), slice(col0, col1))
     window[:-1, mask] = factors[band0:band1]
     window[-1, mask] = limited
-    corrected = (reflectance * window[:-1]).astype(reflectance.dtype)
+    with np.errstate(over="ignore"):  # a product beyond the precision: inf, nodata below
+        corrected = (reflectance * window[:-1]).astype(reflectance.dtype)
+    invalid = ~np.isfinite(corrected)
+    corrected[invalid] = np.nan  # +-inf input (or a product beyond the precision) is nodata, as per pixel
     qa = np.zeros((1, *reflectance.shape[1:]), dtype=np.uint8)
-    nodata = ~np.isfinite(corrected).all(axis=0)
-    qa[0, (window[-1] > 0) & ~nodata] = QA.LIMITED
-    qa[0, nodata] = QA.NODATA
+    # as per pixel: limited wherever the factor was, nodata OR-ed in (a band chunk's flags must
+    # not depend on which other bands share its chunk)
+    qa[0, window[-1] > 0] = QA.LIMITED
+    set_flags(qa[0], invalid.any(axis=0), QA.NODATA)
     return corrected, qa

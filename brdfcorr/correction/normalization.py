@@ -311,6 +311,10 @@ def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Pla
         corrected = out[:, candidates]
         corrected[infinite] = np.nan
         out[:, candidates] = corrected
+    overflow = np.isinf(out)  # a product beyond the output's precision (3.3e38 x 1.04): nodata too
+    if overflow.any():
+        out[overflow] = np.nan
+        set_flags(qa, overflow.any(axis=0), QA.NODATA)
     for index, limited, invalid, passed in flags:
         set_flags(qa, index[limited], QA.LIMITED)
         set_flags(qa, index[invalid], QA.NODATA)
@@ -349,7 +353,8 @@ def _apply_factors(cube, band_index, base, states, limits, out_dtype):
                 limited[plan.id] |= (ratio < limits[0]) | (ratio > limits[1])
                 ratio = np.clip(ratio, *limits)
             factor[index] = ratio
-        np.multiply(cube[position], factor, out=out[position], casting="unsafe")
+        with np.errstate(over="ignore"):  # a product beyond the precision: inf, made nodata by the caller
+            np.multiply(cube[position], factor, out=out[position], casting="unsafe")
     return out, [(index, limited[plan.id], invalid[plan.id], passed[plan.id]) for plan, index, _ in states]
 
 

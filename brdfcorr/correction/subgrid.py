@@ -49,7 +49,7 @@ import xarray as xr
 from brdfcorr.correction.nodes import normalized_from_pairs
 from brdfcorr.correction.normalization import Normalized, normalize
 from brdfcorr.correction.qa import QA
-from brdfcorr.correction.reference import describe_limits
+from brdfcorr.correction.reference import describe_limits, with_mean_sza
 from brdfcorr.defaults import DEFAULT_LIMITS
 from brdfcorr.io.sensors.grids import GRID_SOURCE, coarse_positions, grid_nodes, interpolate_at
 from brdfcorr.params import ParameterTable, ReferenceGeometry
@@ -179,6 +179,7 @@ def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.Data
     Normalized
         The corrected cube (the input's dims, coords and chunks) and its QA layer, both lazy.
     """
+    reference = with_mean_sza(reference, angles["sza"])  # the pixels' mean, not each block's samples'
     records = {name: angles[name].encoding[GRID_SOURCE] for name in ANGLES}
     _, _, source, target, _ = records["sza"]
     grids = {name: (np.asarray(record[1], dtype=np.float64), record[4]) for name, record in records.items()}
@@ -186,6 +187,7 @@ def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.Data
     band_dim = reflectance.dims[0]
     band_coords = {name: coord for name, coord in reflectance.coords.items() if coord.dims == (band_dim,)}
     evaluate = partial(_exact, class_id=params.classes[0].id, band_dim=band_dim, band_coords=band_coords,
+                       n_bands=reflectance.sizes[band_dim],
                        evaluate=partial(normalize, params=params, reference=reference, limits=None,
                                         extrapolate=extrapolate, flip_view_azimuth=flip_view_azimuth))
     # normalize's checks of the table against the bands and of the reference, here at the nodes
@@ -199,19 +201,20 @@ def normalize_on_subgrid(reflectance: xr.DataArray, angles: Mapping[str, xr.Data
 
 
 def _exact(angles: Mapping[str, np.ndarray], bands: slice, *, class_id: int, band_dim: Hashable, band_coords: Mapping,
-           evaluate) -> tuple[np.ndarray, np.ndarray]:
+           n_bands: int, evaluate) -> tuple[np.ndarray, np.ndarray]:
     """The unclipped factor (band, ...) of the bands ``bands`` and the QA flags (...) at
     ``angles`` (arrays of one shape, 1-D or 2-D [deg]), as :func:`normalize` (``evaluate``, the
-    table and reference bound) gives them at pixels of these angles."""
+    table and reference bound) gives them at pixels of these angles. Every one of the image's
+    ``n_bands`` bands is evaluated (a table given per band by position fits the whole image, not
+    a chunk of its bands), those of ``bands`` are returned."""
     shape = next(iter(angles.values())).shape
     flat = (1, int(np.prod(shape)))
     layers = {name: xr.DataArray(np.reshape(values, flat), dims=("y", "x")) for name, values in angles.items()}
-    coords = {name: coord.isel({band_dim: bands}) for name, coord in band_coords.items()}
-    n_bands = bands.stop - bands.start
-    ones = xr.DataArray(np.ones((n_bands, *flat)), dims=(band_dim, "y", "x"), coords=coords)
+    ones = xr.DataArray(np.ones((n_bands, *flat)), dims=(band_dim, "y", "x"), coords=dict(band_coords))
     classes = xr.DataArray(np.full(flat, class_id, dtype=np.int32), dims=("y", "x"))
     factor, qa = evaluate(ones, classes, layers)
-    return np.asarray(factor.values).reshape(n_bands, *shape), np.asarray(qa.values).reshape(shape)
+    picked = np.asarray(factor.values)[bands]
+    return picked.reshape(picked.shape[0], *shape), np.asarray(qa.values).reshape(shape)
 
 
 def _structured(coarse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -321,8 +324,8 @@ def _subgrid_block(reflectance: np.ndarray, *, grids: Mapping[str, tuple], sourc
         limited = (np.fmin.reduce(window, axis=0) < limits[0]) | (np.fmax.reduce(window, axis=0) > limits[1])
         np.clip(window, *limits, out=window)
         qa[limited] |= np.uint8(QA.LIMITED)
-    corrected = np.multiply(reflectance, window, out=window, casting="unsafe")
     with np.errstate(over="ignore", invalid="ignore"):  # a band sum is finite where every band is (one pass)
+        corrected = np.multiply(reflectance, window, out=window, casting="unsafe")  # inf beyond the precision
         suspect = np.flatnonzero(~np.isfinite(np.add.reduce(corrected, axis=0)))
     if suspect.size:
         _flag_nodata(corrected, reflectance, qa, suspect)

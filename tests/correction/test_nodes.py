@@ -87,3 +87,20 @@ def test_per_pixel_angle_rasters_are_refused(scene):
     per_pixel["vza"].encoding = {}
     with pytest.raises(InputError, match="vza are per-pixel rasters"):
         normalize_at_nodes(image, per_pixel, TABLE, REFERENCE)
+
+
+@pytest.mark.parametrize("band_chunks", [-1, 1])
+def test_inf_reflectance_is_nodata_and_the_flags_are_the_per_pixel_ones(scene, band_chunks):
+    """+-inf input was written as +-inf (per pixel: NaN), and a pixel NaN in one band lost its
+    `limited` flag where all bands shared one chunk (it kept it with one band per chunk)."""
+    image, angles = scene
+    data = image.values.copy()
+    data[0, 6, 6], data[2, 7, 7], data[1, 3, 4] = np.inf, -np.inf, np.nan
+    image = image.copy(data=data).chunk({"band": band_chunks})
+    corrected, qa = normalize_at_nodes(image, angles, TABLE, REFERENCE, limits=(1.0, 1.0))
+    _, pixel_qa = normalize(image, xr.ones_like(angles["sza"], dtype=np.uint8), angles, TABLE, REFERENCE,
+                            limits=(1.0, 1.0))
+    assert np.isnan(corrected.values[0, 6, 6]) and np.isnan(corrected.values[2, 7, 7])
+    assert np.isinf(corrected.values).sum() == 0
+    np.testing.assert_array_equal(qa.values, pixel_qa.values)
+    assert qa.values[3, 4] == QA.NODATA | QA.LIMITED

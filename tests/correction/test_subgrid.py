@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from brdfcorr.correction import QA, normalize
+from brdfcorr.correction import QA, normalize, normalize_at_nodes
 from brdfcorr.correction.subgrid import axis_samples, normalize_on_subgrid, suits_subgrid
 from brdfcorr.errors import ParameterError
 from brdfcorr.io.sensors.sentinel2 import read_sentinel2_angles
@@ -124,3 +124,48 @@ def test_a_table_that_does_not_fit_the_bands_is_refused_before_any_block(scene):
     with pytest.raises(ParameterError) as ours:
         normalize_on_subgrid(image, angles, narrow, reference)
     assert str(ours.value) == str(theirs.value)
+
+
+def test_a_product_beyond_float32_is_nodata_in_every_method(scene):
+    """3.3e38 times a factor above 1 is beyond float32: per pixel it was +inf with no flag, counted
+    corrected; at the nodes +inf flagged nodata. Now NaN and nodata in all three."""
+    image, angles = scene
+    data = image.values.copy()
+    data[:, 12, 20] = 3.3e38
+    image = image.copy(data=data).chunk({"y": 16, "x": 16})
+    reference = ReferenceGeometry(sza=20.0, vza=0.0, raa=0.0)  # a factor above 1 at this pixel
+    assert (normalize(xr.full_like(image, 0.1), None, angles, TABLE, reference).reflectance.values[:, 12, 20] > 0.1).all()
+    for method in (lambda: normalize(image, None, angles, TABLE, reference),
+                   lambda: normalize_on_subgrid(image, angles, TABLE, reference),
+                   lambda: normalize_at_nodes(image, angles, TABLE, reference)):
+        corrected, qa = method()
+        assert np.isnan(corrected.values[:, 12, 20]).all() and qa.values[12, 20] & QA.NODATA
+        assert not np.isinf(corrected.values).any()
+
+
+def test_a_mean_reference_is_the_mean_of_the_pixels_in_every_method(scene):
+    """"mean" was the mean of each evaluation's own points (a block's samples, the nodes): chunk-
+    dependent and up to 6 % off. It is the pixels' mean sun zenith, as for normalize."""
+    image, angles = scene
+    valid = angles["sza"].values[(angles["sza"].values >= 0) & (angles["sza"].values < 90)]
+    fixed = ReferenceGeometry(sza=float(valid.mean()), vza=0.0, raa=0.0)
+    mean = ReferenceGeometry(sza="mean", vza=0.0, raa=0.0)
+    for method in (normalize_on_subgrid, normalize_at_nodes):
+        np.testing.assert_allclose(method(image, angles, TABLE, mean).reflectance.values,
+                                   method(image, angles, TABLE, fixed).reflectance.values, rtol=1e-12)
+    np.testing.assert_allclose(normalize(image, None, angles, TABLE, mean).reflectance.values,
+                               normalize(image, None, angles, TABLE, fixed).reflectance.values, rtol=1e-6)
+
+
+def test_bands_in_chunks_of_one_take_a_table_given_per_band_by_position(scene):
+    """A table of three per-band values without wavelengths met each one-band chunk alone:
+    ParameterError "f_iso has 3 per-band values but the image has 1 bands"."""
+    image, angles = scene
+    entry = TABLE.classes[0].model_dump(exclude_none=True)
+    by_position = ParameterTable(classes=[{**{k: v for k, v in entry.items() if k != "wavelengths"},
+                                           "params": {"f_iso": [0.05, 0.2, 0.3], "f_vol": [0.02, 0.1, 0.15],
+                                                      "f_geo": [0.005, 0.02, 0.04]}}])
+    reference = ReferenceGeometry(sza=40.0, vza=0.0, raa=0.0)
+    whole = normalize_on_subgrid(image, angles, by_position, reference).reflectance.values
+    split = normalize_on_subgrid(image.chunk({"band": 1}), angles, by_position, reference).reflectance.values
+    np.testing.assert_array_equal(split, whole)
