@@ -211,7 +211,44 @@ def _pixel_size(dem: xr.DataArray, pixel_size) -> tuple[float, float]:
     if transform.b != 0 or transform.d != 0:
         raise InputError(f"DEM: rotated grid (transform {tuple(transform)[:6]}) is not supported")
     metres = _metres_per_unit(crs) / _metres_per_height_unit(crs)  # ground distance in the heights' unit
-    return float(transform.a) * metres, float(transform.e) * metres
+    east, north = _map_scale(crs, transform, dem.shape[-2:])
+    return float(transform.a) * metres / east, float(transform.e) * metres / north
+
+
+#: A projection whose scale lies within this of 1 [-] is taken to give ground metres, as gdaldem
+#: takes them (UTM: 0.9996-1.001, state planes: 1 +- 1e-4).
+SCALE_TOLERANCE = 0.01
+#: The most a projection's scale may vary across a DEM [-]: beyond it, one pixel size in ground
+#: metres does not serve the whole DEM (Web Mercator over 100 km at 52 N: 2 %).
+MAX_SCALE_VARIATION = 0.02
+
+
+def _map_scale(crs, transform, shape: tuple[int, int]) -> tuple[float, float]:
+    """Map distance per ground distance [-] east and north at the DEM's centre (pyproj's
+    parallel and meridional scale factors) where they depart from 1 by more than
+    :data:`SCALE_TOLERANCE`, else 1: 1/cos(latitude) in Web Mercator (1.62 at 52 N, where its map
+    metres taken as ground metres made slopes of 16.7 deg 10.5 deg).
+
+    Raises
+    ------
+    InputError
+        The scale varies by more than :data:`MAX_SCALE_VARIATION` across the DEM."""
+    from pyproj import CRS, Proj, Transformer
+
+    horizontal = CRS.from_user_input(crs.to_wkt()).to_2d()
+    rows, cols = shape
+    x, y = transform * (np.array([cols / 2, 0, cols, 0, cols]), np.array([rows / 2, 0, 0, rows, rows]))
+    lon, lat = Transformer.from_crs(horizontal, horizontal.geodetic_crs, always_xy=True).transform(x, y)
+    factors = Proj(horizontal).get_factors(lon, lat)
+    east, north = np.asarray(factors.parallel_scale), np.asarray(factors.meridional_scale)
+    spread = max(np.ptp(east) / east[0], np.ptp(north) / north[0])
+    if not spread <= MAX_SCALE_VARIATION:
+        raise InputError(f"DEM: the scale of its projection ({horizontal.name}) varies by {spread:.1%} across it "
+                         f"(east {east.min():.3f} to {east.max():.3f}): no one pixel size in ground metres; "
+                         "reproject it to a local projection (UTM: gdalwarp -t_srs EPSG:326..)")
+    if max(abs(east[0] - 1.0), abs(north[0] - 1.0)) <= SCALE_TOLERANCE:
+        return 1.0, 1.0
+    return float(east[0]), float(north[0])
 
 
 def _metres_per_height_unit(crs) -> float:
@@ -265,10 +302,11 @@ def _horn(z, dx: float, dy: float):
     dz_dcol = ((c + 2.0 * f + i) - (a + 2.0 * d + g)) / 8.0
     dz_drow = ((g + 2.0 * h + i) - (a + 2.0 * b + c)) / 8.0
     dz_deast, dz_dnorth = dz_dcol / dx, dz_drow / dy
-    slope = np.degrees(np.arctan(np.hypot(dz_deast, dz_dnorth)))
+    # Horn's window leaves out its centre: a pixel without an elevation had a slope of its neighbours'.
+    slope = np.where(np.isfinite(z[1:-1, 1:-1]), np.degrees(np.arctan(np.hypot(dz_deast, dz_dnorth))), np.nan)
     # The surface faces downslope: its normal's horizontal part is (-dz/de, -dz/dn).
     aspect = np.degrees(np.arctan2(-dz_deast, -dz_dnorth)) % 360.0
-    return slope, np.where(slope == 0, 0.0, aspect)
+    return slope, np.where(slope == 0, 0.0, np.where(np.isnan(slope), np.nan, aspect))
 
 
 def slope_aspect(dem, *, pixel_size: float | tuple[float, float] | None = None) -> SlopeAspect:

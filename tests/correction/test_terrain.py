@@ -110,6 +110,40 @@ def test_dask_dem_stays_lazy_and_equals_numpy(no_compute):
         np.testing.assert_array_equal(lazy.aspect.values, eager.aspect.values)
 
 
+def _web_mercator_dem(rows: int, cols: int, pixel: float, gradient: float) -> xr.DataArray:
+    """A DEM in EPSG:3857 whose upper left corner lies at 10 E, 52 N, rising ``gradient`` m per
+    ground metre northwards; ground metres are map metres times cos(52 deg) (Mercator's scale
+    1/cos(latitude), closed form), which holds to 1e-4 over a few hundred metres."""
+    from pyproj import Transformer
+
+    left, top = Transformer.from_crs("EPSG:4326", "EPSG:3857", always_xy=True).transform(10.0, 52.0)
+    x, y = left + pixel * (np.arange(cols) + 0.5), top - pixel * (np.arange(rows) + 0.5)
+    heights = np.broadcast_to(gradient * (y - y[-1])[:, None] * np.cos(np.radians(52.0)), (rows, cols))
+    dem = xr.DataArray(heights.copy(), dims=("y", "x"), coords={"y": y, "x": x})
+    return dem.rio.write_crs("EPSG:3857").rio.write_transform(dem.rio.transform(recalc=True))
+
+
+def test_a_dem_in_web_mercator_has_ground_slopes():
+    # Map metres of Web Mercator taken as ground metres made a 16.7 deg slope 10.5 deg at 52 N.
+    slope, aspect = slope_aspect(_web_mercator_dem(7, 9, 10.0, 0.3))
+    np.testing.assert_allclose(slope.values, np.degrees(np.arctan(0.3)), atol=0.01)
+    np.testing.assert_allclose(aspect.values, 180.0, atol=1e-6)
+    # Over 300 km the projection's scale varies by 7 %: no one pixel size serves it.
+    with pytest.raises(InputError, match=r"DEM: the scale of its projection \(WGS 84 / Pseudo-Mercator\) varies by"):
+        slope_aspect(_web_mercator_dem(30, 4, 10000.0, 0.0))
+
+
+def test_a_pixel_without_an_elevation_has_no_slope():
+    # Horn's window leaves out its centre: a void inside the DEM had its neighbours' slope (and
+    # was corrected with QA 0), while the documentation says NaN spreads to the 3 x 3 around it.
+    rows, cols = np.mgrid[0:7, 0:9].astype(float)
+    dem = 0.3 * cols
+    dem[3, 4] = np.nan
+    slope, aspect = slope_aspect(dem, pixel_size=1.0)
+    assert np.isnan(slope.values[2:5, 3:6]).all() and np.isnan(aspect.values[3, 4])
+    assert np.isfinite(slope.values).sum() == 7 * 9 - 9
+
+
 def test_south_up_grid_gives_the_same_orientation():
     # The same terrain stored with rows going north (positive dy) must give the same slope/aspect.
     rows, cols = np.mgrid[0:6, 0:6].astype(float)
