@@ -223,7 +223,7 @@ SCALE_TOLERANCE = 0.01
 MAX_SCALE_VARIATION = 0.02
 
 
-def _map_scale(crs, transform, shape: tuple[int, int]) -> tuple[float, float]:
+def _map_scale(crs, transform, shape: tuple[int, ...]) -> tuple[float, float]:
     """Map distance per ground distance [-] east and north at the DEM's centre (pyproj's
     parallel and meridional scale factors) where they depart from 1 by more than
     :data:`SCALE_TOLERANCE`, else 1: 1/cos(latitude) in Web Mercator (1.62 at 52 N, where its map
