@@ -361,8 +361,9 @@ def _result(problem: _Problem, sigma, starts: list[np.ndarray], error_analysis: 
     scale_errors = bool(error_analysis.scale_errors) or (by_default and not robust)
     if scale_errors:
         covariance = covariance * (chi2 / dof)
+    minima = other_minima(best, solutions, chi2 / dof, weighted=sigma is not None)
     messages, at_bounds = _fit_warnings(problem, values, best.active_mask, covariance, condition_number,
-                                        error_analysis.correlation_limit, other_minima(best, solutions, chi2 / dof))
+                                        error_analysis.correlation_limit, minima)
     if unrobust is not None:
         messages.append(f"{model.name}: {unrobust}")
         warnings.warn(messages[-1], FitWarning, stacklevel=3)

@@ -194,11 +194,13 @@ def identifiability_messages(model, free, values, covariance, condition_number, 
 MINIMA_SIGMA = 3.0
 
 
-def other_minima(best, solutions, chi2_dof: float) -> list[np.ndarray]:
+def other_minima(best, solutions, chi2_dof: float, weighted: bool = True) -> list[np.ndarray]:
     """The free parameters of the ``solutions`` (scipy ``least_squares`` results; cost = chi^2 / 2)
     other than ``best`` whose chi^2 lies within max(1, ``chi2_dof``) of its: as good a fit by
-    the measurements' own scatter."""
-    reach = 0.5 * max(1.0, chi2_dof)
+    the measurements' own scatter. Without sigmas (not ``weighted``) chi^2 is a sum of squares
+    [sr^-2], and the reach one residual variance, ``chi2_dof`` (a reach of 1 sr^-2 took minima
+    with 5.8 times the sum of squares for as good)."""
+    reach = 0.5 * (max(1.0, chi2_dof) if weighted else chi2_dof)
     return [solution.x for solution in solutions
             if solution is not best and solution.cost - best.cost <= reach]
 

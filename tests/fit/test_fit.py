@@ -610,6 +610,21 @@ def test_the_paper_003_hint_is_for_the_torrance_sparrow_k_only():
     assert "trade off" in hints["rpv"][0] and "paper 003" not in hints["rpv"][0]
 
 
+def test_without_sigma_another_minimum_counts_within_one_residual_variance():
+    # Without sigmas chi^2 is a sum of squares [sr^-2]: the reach max(1, chi2/dof) = 1 sr^-2 took a
+    # minimum with 5.8 times the best's sum of squares (1464 residual variances worse) for as good,
+    # and flagged the errors of a fit whose weighted twin is reliable.
+    ti, tr, phi = goniometer_angles(theta_i=(10.0, 30.0, 50.0, 65.0, 75.0), max_view=80)
+    data = synthesize_measurements("torrance_sparrow", load_material("roof_tile").params, ti, tr, phi,
+                                   relative_noise=0.04, seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        bare = fit_brdf("torrance_sparrow", ti, tr, phi, data.brdf, None, fixed=PAPER_K)
+        weighted = fit_brdf("torrance_sparrow", ti, tr, phi, data.brdf, data.sigma, fixed=PAPER_K)
+    assert weighted.errors_reliable and bare.errors_reliable
+    assert not any("another minimum" in message for message in bare.warnings)
+
+
 def test_another_minimum_as_good_far_outside_the_errors_is_named():
     # The roof tile's backscatter half alone: starts ending at n = 0.01 and n = 4.4 fit alike
     # (chi2 37.93 and 37.95), and the errors of the one kept (n 0.01 +- 0.05) put the other 80
