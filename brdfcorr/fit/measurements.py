@@ -65,6 +65,8 @@ __all__ = [
 
 REQUIRED_COLUMNS = ("theta_i", "theta_r", "phi", "brdf")
 OPTIONAL_COLUMNS = ("sigma", "wavelength")
+#: Column names (besides ``wavelength...``) that name the bands of a multi-band file.
+_BANDS = frozenset({"lambda", "wl", "band", "bands", "channel"})
 #: Shortest wavelength [nm] a measurement table may hold: below lie micrometres (0.4-2.5), not the
 #: optical remote-sensing range.
 MIN_WAVELENGTH = 100.0
@@ -260,11 +262,17 @@ def _refuse_radians(values: dict[str, np.ndarray], source: str) -> None:
     gave parameters far off (w 0.77 deg^-1 for 0.037) with only an identifiability warning. (Zeniths
     of a few tenths of a degree at most, in the plane of incidence, stay degrees.)"""
     zeniths = np.concatenate([values["theta_i"], values["theta_r"]])
-    highest = zeniths.max()
-    if highest < 1.6 and (highest > 0.2 or 1.0 < values["phi"].max() <= 3.15):
+    highest, phi = zeniths.max(), values["phi"].max()
+    if highest < 1.6 and (highest > 0.2 or 1.0 < phi <= 3.15):
         raise MeasurementError(
             f"{source}: the angles look like radians (theta_i, theta_r up to {highest:.3g}, phi up to "
-            f"{values['phi'].max():.3g}); brdfcorr needs degrees (numpy.degrees converts them)")
+            f"{phi:.3g}); brdfcorr needs degrees (numpy.degrees converts them)")
+    # phi in radians beside zeniths in degrees: the forward rows (pi) were read as phi = 3.1 deg,
+    # backscatter (f_vol 0.003 for 0.02, without a word)
+    if highest >= 10.0 and 1.0 < phi <= 3.15:
+        raise MeasurementError(
+            f"{source}: phi looks like radians (every value within [0, pi], up to {phi:.3g}) beside zeniths in "
+            f"degrees (up to {highest:.3g}); brdfcorr needs degrees (numpy.degrees converts them)")
 
 
 def _column_problems(name: str, array: np.ndarray, labels) -> list[str]:
@@ -340,6 +348,10 @@ def _checked_header(cells: list[str], path: Path, line: int) -> list[str]:
     duplicated = sorted({name for name in header if name and header.count(name) > 1})
     if duplicated:
         raise MeasurementError(f"{path}: duplicated column(s) {', '.join(duplicated)}")
+    banded = [name for name in header if name != "wavelength" and (name.startswith("wavelength") or name in _BANDS)]
+    if banded and "wavelength" not in header:  # not read: every band pooled into one fit, without a word
+        raise MeasurementError(f"{path}: column {banded[0]!r} looks like the bands of the measurements; name the "
+                               "band centres [nm] 'wavelength' (one fit per band), or give one band per file")
     missing = [name for name in REQUIRED_COLUMNS if name not in header]
     if missing:
         raise MeasurementError(
@@ -466,11 +478,14 @@ def selection_mask(
     """
     keep = np.ones(len(measurements), dtype=bool)
     applied = []
+    # At a zenith of 0 the relative azimuth is undefined (every model is the same for any phi): an
+    # azimuth selection keeps such rows whatever phi they were written with.
+    undefined = (measurements.theta_i == 0) | (measurements.theta_r == 0)
     if min_phi is not None:
-        keep &= measurements.phi >= min_phi
+        keep &= undefined | (measurements.phi >= min_phi)
         applied.append(f"phi >= {min_phi:g}")
     if max_phi is not None:
-        keep &= measurements.phi <= max_phi
+        keep &= undefined | (measurements.phi <= max_phi)
         applied.append(f"phi <= {max_phi:g}")
     if max_zenith is not None:
         keep &= (measurements.theta_i <= max_zenith) & (measurements.theta_r <= max_zenith)
@@ -491,7 +506,8 @@ def filter_measurements(
     ----------
     measurements : Measurements
     min_phi, max_phi : float, optional
-        Keep only relative azimuths in ``[min_phi, max_phi]`` [deg].
+        Keep only relative azimuths in ``[min_phi, max_phi]`` [deg] (and the rows at a zenith of 0,
+        whose azimuth is undefined).
     max_zenith : float, optional
         Keep only measurements with both theta_i and theta_r <= ``max_zenith`` [deg] (paper 003,
         section 5: the simplified model is safe up to 70 deg).
@@ -511,7 +527,8 @@ def filter_measurements(
     )
     if not description:
         return measurements
-    if not keep.any():
+    azimuthal = (measurements.theta_i > 0) & (measurements.theta_r > 0)  # the rows a phi selection chooses
+    if not keep.any() or (not (keep & azimuthal).any() and (min_phi, max_phi) != (None, None)):
         raise MeasurementError(
             f"{measurements.source}: no measurement has {description} "
             f"(of {len(measurements)} measurements)"

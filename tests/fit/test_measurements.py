@@ -89,6 +89,14 @@ def test_write_read_round_trip_and_input_untouched(tmp_path):
         ("", "empty file"),
         ("# only a comment\n", "empty file"),
         (HEADER, "no measurements after the header"),
+        # every band pooled into one fit, its errors sqrt(3) too small, without a word
+        ("theta_i,theta_r,phi,brdf,wavelength_nm\n30,5,180,0.1,550\n30,5,180,0.2,660\n",
+         r"column 'wavelength_nm' looks like the bands of the measurements; name the band centres \[nm\] "
+         r"'wavelength'"),
+        ("theta_i,theta_r,phi,brdf,band\n30,5,180,0.1,1\n30,5,180,0.2,2\n", "column 'band' looks like the bands"),
+        # phi in radians beside zeniths in degrees: forward rows (pi) read as backscatter (3.1 deg)
+        (HEADER + "30,40,3.14159,0.1,0.01\n30,40,0,0.1,0.01\n",
+         r"phi looks like radians \(every value within \[0, pi\], up to 3.14\) beside zeniths in degrees"),
     ],
 )
 def test_bad_tables_name_file_column_and_lines(tmp_path, text, match):
@@ -124,12 +132,18 @@ def test_binary_file(tmp_path):
 
 
 def test_filters():
-    data = synthesize_measurements("lambertian", {"t0": 0.1}, *goniometer_angles(), seed=0)
+    theta_i, theta_r, phi = goniometer_angles()
+    # The rows at a zenith of 0 have no azimuth (any phi gives the same BRDF): kept whatever phi they
+    # were written with (a nadir row written with phi = 0 was dropped, one with 180 kept).
+    data = synthesize_measurements("lambertian", {"t0": 0.1}, theta_i, theta_r, np.where(theta_r == 0, 0.0, phi),
+                                   seed=0)
     forward = filter_measurements(data, min_phi=90)
-    assert np.all(forward.phi >= 90) and len(forward) == np.count_nonzero(data.phi >= 90)
+    undefined = (data.theta_i == 0) | (data.theta_r == 0)
+    assert np.all(forward.phi[(forward.theta_i > 0) & (forward.theta_r > 0)] >= 90)
+    assert len(forward) == np.count_nonzero((data.phi >= 90) | undefined) == np.count_nonzero(data.phi >= 90) + 3
     assert forward.filters == ("phi >= 90",)
     narrow = filter_measurements(data, min_phi=90, max_phi=170, max_zenith=60)
-    assert np.all((narrow.phi <= 170) & (narrow.theta_i <= 60) & (narrow.theta_r <= 60))
+    assert np.all(((narrow.phi <= 170) | (narrow.theta_r == 0)) & (narrow.theta_i <= 60) & (narrow.theta_r <= 60))
     assert narrow.filters == ("phi >= 90 and phi <= 170 and theta_i, theta_r <= 60",)
     assert filter_measurements(data) is data
     mask, description = selection_mask(data, min_phi=90)
