@@ -386,6 +386,10 @@ def _check_overlap(classes: xr.DataArray, image: xr.DataArray) -> None:
                          f"{east:g}, {north:g} in that CRS)")
 
 
+#: Attributes of how a layer is stored, not of its classes.
+_ENCODING = frozenset({"_FillValue", "scale_factor", "add_offset", "units", "long_name"})
+
+
 def align_class_map(classes: xr.DataArray, image: xr.DataArray,
                     lookup: Mapping[int, int] | None = None) -> xr.DataArray:
     """Bring a class map on another grid or CRS onto the image grid by nearest neighbour (lazy).
@@ -405,7 +409,8 @@ def align_class_map(classes: xr.DataArray, image: xr.DataArray,
     xarray.DataArray (y, x)
         The class map on the image grid: its dtype (or that of :func:`remap_classes`), 0 where it
         had nodata or does not reach, rio nodata 0, and attrs ``resampled_from_crs``,
-        ``resampled_from_resolution`` and ``resampling`` (for output tags). Raises
+        ``resampled_from_resolution`` and ``resampling`` (for output tags), besides the map's own
+        (its class names, NDVI strata edges) where no ``lookup`` gives other ids. Raises
         :class:`InputError` for a non-integer map, a layer without a CRS, or no overlap at all.
 
     Notes
@@ -417,7 +422,9 @@ def align_class_map(classes: xr.DataArray, image: xr.DataArray,
     """
     _check_integer(classes)
     _check_overlap(classes, image)
-    remapped = {}
+    # What the map says of its classes (NDVI strata, class names) holds for its ids on any grid (an
+    # aligned strata map was fitted as a map of other classes); a lookup gives other ids.
+    remapped = {key: value for key, value in classes.attrs.items() if key not in _ENCODING}
     if lookup is not None:
         classes = remap_classes(classes, lookup)
         remapped = classes.attrs

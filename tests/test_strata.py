@@ -235,6 +235,19 @@ def test_align_finer_and_coarser_maps_in_the_same_crs():
     assert aligned.dtype == np.uint16
 
 
+def test_an_aligned_map_keeps_what_it_says_of_its_classes():
+    # NDVI strata aligned (onto their own grid, even) lost their tags: fit-classes then fitted
+    # torrance_sparrow and named the classes class_1, ... instead of ross_thick_li_sparse and ndvi_...
+    image = _target()
+    strata = _grid(np.kron(np.array([[1, 2], [3, 1]], np.uint8), np.ones((6, 8), np.uint8)), PIXEL)
+    strata.attrs.update({"strata": "ndvi_edges", "ndvi_edges": "0.3,0.6", "class_names": "1=ndvi_-inf_0.30"})
+    aligned = align_class_map(strata, image)
+    assert {key: aligned.attrs[key] for key in ("strata", "ndvi_edges", "class_names")} == {
+        "strata": "ndvi_edges", "ndvi_edges": "0.3,0.6", "class_names": "1=ndvi_-inf_0.30"}
+    remapped = align_class_map(strata, image, lookup={1: 5, 2: 6, 3: 7})  # other ids: the names do not hold
+    assert "class_names" not in remapped.attrs and "strata" not in remapped.attrs
+
+
 def test_align_from_geographic_crs_lands_at_known_locations():
     image = _target(20, 24)  # UTM 32N near 9 E, 48.8 N (brdfcorr.testing)
     to_lonlat = Transformer.from_crs(CRS, "EPSG:4326", always_xy=True)

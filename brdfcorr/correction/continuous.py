@@ -143,7 +143,7 @@ def ndvi_group(table: ParameterTable, resolved: Mapping[int, BandParameters]) ->
     model = entries[0].model
     first = _shape_matrix(model, entries[0])
     for entry in entries[1:]:
-        if not np.array_equal(_shape_matrix(model, entry), first):
+        if not np.array_equal(_shape_matrix(model, entry), first, equal_nan=True):  # NaN: bad bands
             raise ParameterError(
                 f"ndvi_interpolation: class {entry.id} ({entry.name}) has other shape parameters "
                 f"({', '.join(model.shape_names)}) than class {entries[0].id}; only linear coefficients are "
@@ -202,6 +202,13 @@ def with_ndvi_layer(inputs: CorrectionInputs, group: NdviGroup,
     image = xr.DataArray(inputs.arrays[0], dims=("band", "y", "x"),
                          coords={"wavelength": ("band", np.asarray(wavelengths, dtype=float))})
     index = ndvi(image, group.red, group.nir).data
+    nodata = inputs.settings.class_nodata
+    if group.holds(nodata):  # the map's nodata is no class: its pixels were interpolated and measured
+        kept = group.ids != nodata
+        group = replace(group, ids=group.ids[kept], coefficients=group.coefficients[kept],
+                        centres=None if group.centres is None else group.centres[kept])
+        if kept.sum() < 2:
+            return inputs, None
     if group.centres is None:
         measured = _measured(group, index, inputs.arrays[1])
         if measured is None:
@@ -246,7 +253,7 @@ def group_states(group: NdviGroup, pixels: PixelGeometry, index_layer: np.ndarra
                  reference_sza, out_dtype) -> list[tuple]:
     """The group's pixels of a block as one state of the correction's band loop, ``[(plan, pixel
     indices, terms)]``, or ``[]`` when the block holds none."""
-    members = pixels.usable & np.isin(pixels.classes, group.ids)
+    members = pixels.usable & ~pixels.no_class & np.isin(pixels.classes, group.ids)  # as per class
     index = np.flatnonzero(members)
     if index.size == 0:
         return []

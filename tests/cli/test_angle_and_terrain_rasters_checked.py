@@ -44,9 +44,10 @@ def _truncated(source: Path, target: Path) -> Path:
     return target
 
 
-def _slope_aspect_raster(path: Path, slope, aspect, crs: str | None = None) -> Path:
+def _slope_aspect_raster(path: Path, slope, aspect, in_new_york: bool = False) -> Path:
     layers = np.stack([np.broadcast_to(np.asarray(v, float), (NY, NX)) for v in (slope, aspect)]).astype(np.float32)
-    raster = georeference(xr.DataArray(layers, dims=("band", "y", "x")), **({"crs": crs} if crs else {}))
+    raster = georeference(xr.DataArray(layers, dims=("band", "y", "x")))
+    raster = _new_york(raster) if in_new_york else raster
     raster.attrs["long_name"] = ("slope", "aspect")
     raster.rio.to_raster(path, tiled=True, blockxsize=16, blockysize=16, compress="deflate")
     return path
@@ -98,9 +99,17 @@ def test_truncated_slope_aspect_raster(scene, refused, correct_args):
 
 
 # -------------------------------------------------------------------- DEM units (US survey feet)
+def _new_york(layer: xr.DataArray, crs: str = "EPSG:2263") -> xr.DataArray:
+    """``layer`` on the helpers' grid moved into New York Long Island (x 1,000,000 ft, y 200,000 ft
+    in EPSG:2263, whose scale is 1 there within 1e-5; at the helpers' UTM coordinates, 1600 km
+    north of the zone, it is 1.033, which slope_aspect would divide out)."""
+    moved = layer.assign_coords(x=layer["x"] + 500_000.0, y=layer["y"] - 5_200_000.0)
+    return moved.rio.write_crs(crs).rio.write_transform(moved.rio.transform(recalc=True))
+
+
 def _feet_scene() -> dict:
     """The helpers' scene on a grid of 10 US survey feet (EPSG:2263, New York Long Island)."""
-    return {name: layer.rio.write_crs("EPSG:2263") for name, layer in synthetic_scene(ny=NY, nx=NX).items()}
+    return {name: _new_york(layer) for name, layer in synthetic_scene(ny=NY, nx=NX).items()}
 
 
 def test_dem_in_us_survey_feet_gives_slopes_in_metres(tmp_path, write_example_scene):
@@ -109,7 +118,7 @@ def test_dem_in_us_survey_feet_gives_slopes_in_metres(tmp_path, write_example_sc
     paths = write_example_scene(tmp_path / "scene", _feet_scene())
     rows = np.arange(NY)[:, None] * np.ones((1, NX))
     heights = 100.0 - 0.1 * PIXEL * US_SURVEY_FOOT * rows
-    dem = georeference(xr.DataArray(heights[None].astype(np.float64), dims=("band", "y", "x")), crs="EPSG:2263")
+    dem = _new_york(georeference(xr.DataArray(heights[None].astype(np.float64), dims=("band", "y", "x"))))
     dem.rio.to_raster(tmp_path / "scene" / "dem.tif")
 
     surface = slope_aspect(rioxarray.open_rasterio(tmp_path / "scene" / "dem.tif")[0])
@@ -118,7 +127,7 @@ def test_dem_in_us_survey_feet_gives_slopes_in_metres(tmp_path, write_example_sc
     np.testing.assert_allclose(surface.aspect.values, 180.0, atol=1e-6)
 
     # The command corrects as with a slope/aspect raster of the true surface.
-    layers = _slope_aspect_raster(tmp_path / "scene" / "true_surface.tif", expected, 180.0, crs="EPSG:2263")
+    layers = _slope_aspect_raster(tmp_path / "scene" / "true_surface.tif", expected, 180.0, in_new_york=True)
     outputs = {}
     for option, path in (("--dem", tmp_path / "scene" / "dem.tif"), ("--slope-aspect", layers)):
         outputs[option] = tmp_path / f"out{option}.tif"
@@ -136,7 +145,7 @@ def test_dem_heights_in_the_vertical_unit_of_a_compound_crs(tmp_path):
     # heights in feet read as metres gave 30 deg.
     rows = np.arange(NY)[:, None] * np.ones((1, NX))
     heights = 100.0 - np.tan(np.radians(10.0)) * PIXEL * rows  # feet, rows 10 ft apart going south
-    dem = georeference(xr.DataArray(heights[None], dims=("band", "y", "x")), crs="EPSG:2263+6360")
+    dem = _new_york(georeference(xr.DataArray(heights[None], dims=("band", "y", "x"))), crs="EPSG:2263+6360")
     dem.rio.to_raster(tmp_path / "dem.tif")
     surface = slope_aspect(rioxarray.open_rasterio(tmp_path / "dem.tif")[0])
     np.testing.assert_allclose(surface.slope.values, 10.0, atol=1e-6)

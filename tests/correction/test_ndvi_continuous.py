@@ -181,6 +181,36 @@ def test_undefined_ndvi_keeps_the_own_class_and_one_class_present_is_binned():
         normalize(image, single, angles, stratum_table(strata, x, False), reference()).reflectance.values)
 
 
+@pytest.mark.parametrize("centres", [True, False])
+def test_the_maps_nodata_is_no_class_in_an_interpolation_group(centres):
+    # A class map whose nodata is 3, a class of the group: its pixels were interpolated (factors
+    # 0.98-1.06, flagged no_class all the same) and, without given centres, they made class 3's
+    # centre. As no class they are left as they are; the others interpolate between 1 and 2 only.
+    image, angles, strata, x, _ = scene()
+    classes = georeference(xr.DataArray(strata, dims=("y", "x"))).rio.write_nodata(3)
+    image, angles = georeference(image), {name: georeference(layer) for name, layer in angles.items()}
+    table = stratum_table(strata, x, True, centres=centres)
+    corrected = normalize(image, classes, angles, table, reference())
+    nodata = strata == 3
+    np.testing.assert_array_equal(corrected.reflectance.values[:, nodata], image.values[:, nodata])
+    assert (corrected.qa.values[nodata] == 2).all()  # no_class
+    two = table.without_class(3)
+    others = normalize(image, classes.where(~nodata, 0).astype(np.uint8), angles, two, reference()).reflectance
+    np.testing.assert_allclose(corrected.reflectance.values[:, ~nodata], others.values[:, ~nodata], rtol=1e-12)
+
+
+def test_a_group_of_equal_shapes_with_bad_bands_is_one_group():
+    # w, n, k equal in every class, NaN in the bad band for every class: NaN != NaN refused the group.
+    image, angles, strata, _, _ = scene(rows=4, columns=6)
+    classes = [{"id": k, "name": f"t{k}", "model": "torrance_sparrow", "wavelengths": [600.0, 900.0],
+                "bad_bands": [[540.0, 560.0]], "params": {"t0": [0.02 * k, 0.03 * k], "t1": [0.1, 0.2], "w": 0.05,
+                                                          "n": 1.5, "k": 0.0}} for k in (1, 2, 3)]
+    table = ParameterTable.from_dict({"classes": classes, "ndvi_interpolation": {"classes": [1, 2, 3]}})
+    corrected = normalize(image, xr.DataArray(strata, dims=("y", "x")), angles, table, reference()).reflectance
+    assert np.isfinite(corrected.values[1:]).all() and not np.array_equal(corrected.values[1:], image.values[1:])
+    np.testing.assert_array_equal(corrected.values[0], image.values[0])  # the bad band, passed through
+
+
 # ------------------------------------------------------------------------- the table
 def test_table_round_trip_and_errors():
     image, angles, strata, x, _ = scene(rows=4, columns=6)
