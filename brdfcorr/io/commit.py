@@ -27,6 +27,7 @@ from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as th
 from brdfcorr.errors import BrdfcorrError, InputError, OutputError
 from brdfcorr.io.files import write_cause
 from brdfcorr.io.gdal_log import OUT_OF_MEMORY
+from brdfcorr.io.paths import stale_sidecars
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -110,7 +111,8 @@ class Target:
     def commit(self) -> None:
         """Rename the temporaries into place, the data file last: an ENVI output's old data file is
         removed first, so a process killed in between leaves no data file beside new sidecars (a
-        resumed chain redoes it); a stale ``.aux.xml`` of an earlier output is removed."""
+        resumed chain redoes it); a stale ``.aux.xml``, overview, mask or second ENVI header of an
+        earlier output (:func:`~brdfcorr.io.paths.stale_sidecars`) is removed."""
         if self.layout is not None:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(self.final)
@@ -120,9 +122,10 @@ class Target:
             else:
                 with contextlib.suppress(FileNotFoundError):
                     os.unlink(final)
-        if self.layout is None:
+        stale = stale_sidecars(self.final, envi=self.layout is not None)  # GDAL would read them with it
+        for path in stale + ([Path(f"{self.final}.aux.xml")] if self.layout is None else []):
             with contextlib.suppress(FileNotFoundError):
-                os.unlink(f"{self.final}.aux.xml")
+                os.unlink(path)
         os.replace(self.temporary, self.final)
         if self.written != self.temporary:
             with contextlib.suppress(FileNotFoundError):

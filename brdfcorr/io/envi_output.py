@@ -18,6 +18,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 import rasterio
+import rasterio.warp
 import rioxarray  # noqa: F401  (registers the .rio accessor)
 import xarray as xr
 
@@ -143,20 +144,28 @@ def check_envi_georeference(array: xr.DataArray, target: str | os.PathLike) -> N
                          "back as a local CRS; write a GeoTIFF (--format GTiff) or give the image a CRS")
     if transform.is_identity:
         return
-    back = _read_back(transform, array.rio.crs)
+    back, back_crs = _read_back(transform, array.rio.crs)
     pixel = max(abs(a), abs(b), abs(d), abs(e))
     if not np.allclose(tuple(back)[:6], tuple(transform)[:6], rtol=0, atol=1e-6 * pixel):
         raise InputError(f"ENVI output {target}: an ENVI header does not hold the image's geotransform "
                          f"({tuple(transform)[:6]}; GDAL reads it back as {tuple(back)[:6]}: columns running west, "
                          "or a grid turned by 180 degrees); write a GeoTIFF (--format GTiff)")
+    # The CRS as read back, where the corner lands: EPSG:2263 (US survey feet) came back in
+    # international feet, every pixel 0.6 m off at 980 000 ft.
+    (x,), (y,) = rasterio.warp.transform(back_crs, array.rio.crs, [transform.c], [transform.f])
+    if not np.hypot(x - transform.c, y - transform.f) <= 1e-3 * pixel:
+        raise InputError(f"ENVI output {target}: an ENVI header does not hold the image's CRS "
+                         f"({array.rio.crs.to_string()}: GDAL reads it back as another, which puts the corner "
+                         f"{np.hypot(x - transform.c, y - transform.f):.3g} CRS units away); write a GeoTIFF "
+                         "(--format GTiff)")
 
 
 def _read_back(transform, crs):
-    """The geotransform GDAL reads from an ENVI header it wrote with ``transform`` and ``crs``."""
+    """The geotransform and CRS GDAL reads from an ENVI header it wrote with ``transform`` and ``crs``."""
     with tempfile.TemporaryDirectory(prefix="brdfcorr-envi-") as scratch:
         path = Path(scratch) / "probe.img"
         with rasterio.open(path, "w", driver="ENVI", width=1, height=1, count=1, dtype="uint8", crs=crs,
                            transform=transform) as probe:
             probe.write(np.zeros((1, 1, 1), np.uint8))
         with rasterio.open(path) as probe:
-            return probe.transform
+            return probe.transform, probe.crs

@@ -37,7 +37,8 @@ from brdfcorr.errors import InputError, OutputError
 from brdfcorr.io import EXTENSIONS, FORMATS
 
 __all__ = ["check_outputs", "check_format", "sidecar_paths", "same_file", "file_identity", "refuse_existing",
-           "update_target", "remove_partials", "envi_header_path", "envi_sidecars", "InputOverwriteError",
+           "update_target", "remove_partials", "envi_header_path", "envi_sidecars", "stale_sidecars",
+           "raster_files", "InputOverwriteError",
            "SidecarClashError", "SameOutputError"]
 
 PathLike = str | os.PathLike
@@ -292,6 +293,27 @@ def remove_partials(target: PathLike) -> list[Path]:
 def envi_header_path(path: str | os.PathLike) -> Path:
     """The header GDAL writes beside an ENVI data file: ``out.img`` -> ``out.hdr``."""
     return Path(path).with_suffix(".hdr")
+
+
+def stale_sidecars(target: str | os.PathLike, envi: bool = False) -> list[Path]:
+    """The files GDAL reads with a raster ``target`` that writing it does not replace: its
+    overviews (``.ovr``) and mask (``.msk``), and beside an ENVI data file the header
+    ``NAME.ext.hdr``, which GDAL prefers to the ``NAME.hdr`` written (:func:`envi_header_path`).
+    Left from an earlier file, they were read with the new one: its old overviews, half its pixels
+    masked, its values read with another header (0.6 off) and no CRS."""
+    second_header = envi and Path(f"{target}.hdr") != envi_header_path(target)  # not for an output "NAME"
+    return [Path(f"{target}{suffix}") for suffix in (".ovr", ".msk", *((".hdr",) if second_header else ()))]
+
+
+def raster_files(target: str | os.PathLike | None, envi: bool = False) -> list[Path]:
+    """Every file of a raster output that must not exist before it is written without
+    ``--overwrite`` (:func:`refuse_existing`): the raster, an ENVI output's header and ``.aux.xml``
+    (another data file's header, ``NAME.hdr`` of ``NAME.bsq``, was replaced), and its
+    :func:`stale_sidecars`; none for None."""
+    if target is None:
+        return []
+    sidecars = [final for _, final in envi_sidecars(target, target)] if envi else []
+    return [Path(target), *sidecars, *stale_sidecars(target, envi)]
 
 
 def envi_sidecars(temporary: str | os.PathLike, target: str | os.PathLike) -> list[tuple[Path, Path]]:

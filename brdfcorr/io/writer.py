@@ -424,6 +424,14 @@ def _stores(targets: list[Target], geotiff: GeoTiffOutput, tags, commit_tags, cl
     return writes
 
 
+def _overview_resampling(array: xr.DataArray) -> str:
+    """How a COG's overviews are made: "nearest" for bit flags (a QA layer: CF ``flag_masks``) and
+    class ids, whose means are other flags (nodata | no_class of [2, 2, 4, 4]) or classes, and
+    "average" for values (reflectance, its 1-sigma)."""
+    categorical = "flag_masks" in array.attrs or array.attrs.get("long_name") == "class id"
+    return "nearest" if categorical else "average"
+
+
 def _finish(targets: list[Target], handles: list, geotiff: GeoTiffOutput) -> None:
     """After the pass: close the files (a full disk often fails here), copy the COGs and complete
     the ENVI headers."""
@@ -434,7 +442,7 @@ def _finish(targets: list[Target], handles: list, geotiff: GeoTiffOutput) -> Non
             size = _tile_size(geotiff.blocksize, target.array)
             rasterio.shutil.copy(
                 target.written, target.temporary, driver="COG", compress=geotiff.compress.upper(),
-                blocksize=max(size), overview_resampling="average", BIGTIFF="IF_SAFER",
+                blocksize=max(size), overview_resampling=_overview_resampling(target.array), BIGTIFF="IF_SAFER",
                 **_cog_options(geotiff.compress),
             )
         if isinstance(target.layout, EnviOutput):

@@ -17,7 +17,7 @@ import xarray as xr
 from brdfcorr.errors import InputError
 from brdfcorr.io import rasters
 from brdfcorr.io.files import parse_yaml, read_document
-from brdfcorr.io.paths import check_outputs, refuse_existing
+from brdfcorr.io.paths import check_outputs, raster_files, refuse_existing
 from brdfcorr.strata import NdviStrata, align_class_map, ndvi_strata, remap_classes
 
 __all__ = ["ndvi_class_file", "NdviBins", "align_class_file", "read_lookup", "class_preparation", "describe_class_map",
@@ -86,7 +86,7 @@ def _write_class_map(classes: xr.DataArray, output, *, inputs: Sequence[tuple], 
                      tags: Mapping[str, str], compute: Mapping[str, object] | None = None) -> None:
     check_outputs({"output": output}, inputs)
     if not overwrite:
-        refuse_existing([output])
+        refuse_existing(raster_files(output))
     Path(output).parent.mkdir(parents=True, exist_ok=True)
     rasters.write_rasters({output: classes}, geotiff=rasters.GeoTiffOutput(blocksize=chunks), tags=dict(tags),
                           **(compute or {}))

@@ -26,7 +26,7 @@ from brdfcorr.defaults import MOSTLY_UNCORRECTED
 from brdfcorr.errors import BrdfcorrWarning, InputError, ParameterError
 from brdfcorr.io import writer
 from brdfcorr.io.angles import RELATIVE_ONLY, window_values
-from brdfcorr.io.paths import check_format, check_outputs, refuse_existing
+from brdfcorr.io.paths import check_format, check_outputs, raster_files, refuse_existing
 from brdfcorr.io.product import ImageFile, gdal_cache_bytes
 from brdfcorr.io.scene import SceneData, opened_scene
 from brdfcorr.params import ParameterTable, ReferenceGeometry
@@ -206,7 +206,8 @@ def _check_outputs(request: CorrectionRequest) -> None:
         if path is not None:
             check_format(path, "GTiff", what)
     if not files.overwrite:
-        refuse_existing([files.corrected, files.qa, files.uncertainty])
+        refuse_existing([*raster_files(files.corrected, envi=files.format == "ENVI"), *raster_files(files.qa),
+                         *raster_files(files.uncertainty)])
 
 
 def _load_table(request: CorrectionRequest) -> tuple[ParameterTable, str | None]:

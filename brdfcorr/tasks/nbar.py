@@ -35,7 +35,7 @@ import xarray as xr
 
 from brdfcorr.correction import qa_counts
 from brdfcorr.errors import InputError, OutputError, SensorInputError
-from brdfcorr.io.paths import check_outputs, refuse_existing
+from brdfcorr.io.paths import check_outputs, raster_files, refuse_existing
 from brdfcorr.io.scene import SceneSources
 from brdfcorr.io.sensors.folders import ProductFolder, band_stacks, find_product, write_stack
 from brdfcorr.io.sensors.hls import HlsGranule, find_hls_granule, hls_refusal
@@ -341,6 +341,6 @@ def _check_outputs(outputs: OutputFiles, folder: ProductFolder | HlsGranule, kee
                 "kept stack's mask": Path(keep_stack).with_name(f"{Path(keep_stack).stem}_mask.tif")}
     check_outputs({"output": outputs.corrected, "QA output": outputs.qa, **kept}, folder.files)
     if not outputs.overwrite:
-        refuse_existing([outputs.corrected, outputs.qa, *kept.values()])
+        refuse_existing([*raster_files(outputs.corrected), *raster_files(outputs.qa), *kept.values()])
     if not Path(outputs.corrected).parent.is_dir():
         raise OutputError(f"output folder {Path(outputs.corrected).parent} does not exist")

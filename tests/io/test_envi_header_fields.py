@@ -43,6 +43,9 @@ def _regrid(scene, transform: Affine, crs) -> None:
      "an ENVI header does not hold the image's geotransform"),
     (Affine(-10.0, 0.0, 500_320.0, 0.0, 10.0, 5_399_680.0), "EPSG:32632",
      "an ENVI header does not hold the image's geotransform"),
+    # GDAL reads EPSG:2263 (US survey feet) back in international feet: 0.6 m off at 980 000 ft.
+    (Affine(10.0, 0.0, 980_000.0, 0.0, -10.0, 200_000.0), "EPSG:2263",
+     r"an ENVI header does not hold the image's CRS \(EPSG:2263: GDAL reads it back as another"),
 ])
 def test_envi_refuses_what_its_header_cannot_say(scene, transform, crs, pattern):
     _regrid(scene, transform, crs)
@@ -88,3 +91,26 @@ def test_envi_header_names_the_output_and_no_folder_adds_fields(scene):
     assert fields["bands"] == "4" and fields["band names"] == "{\n480 nm,\n560 nm,\n660 nm,\n830 nm}"
     with rasterio.open(output) as envi, rasterio.open(scene["image"]) as image:
         assert envi.count == image.count == 4  # not doubled
+
+
+def test_files_gdal_would_read_with_an_output_are_refused_or_replaced(scene):
+    """A header ``c.img.hdr`` (which GDAL prefers to the ``c.hdr`` written), overviews ``.ovr`` and
+    a mask ``.msk`` left beside an output were read with the new file: values 0.6 off, no CRS,
+    the old overviews, half its pixels masked; the header ``c.hdr`` of another data file (``c.bsq``)
+    was replaced. Without --overwrite they are refused, with it removed (or replaced)."""
+    envi = ("--format", "ENVI")
+    for target, name, extra in (("c.img", "c.img.hdr", envi), ("c.img", "c.img.ovr", envi), ("c.tif", "c.tif.msk", ()),
+                                ("c.tif", "c.tif.ovr", ()), ("c.img", "c.hdr", envi)):  # the header of a c.bsq
+        output, stale = scene["out"] / target, scene["out"] / name
+        stale.write_bytes(b"left from an earlier file")
+        result = CliRunner().invoke(main, _correct_args(scene, output, *extra))
+        assert result.exit_code == 2, result.output
+        _one_line(result.stderr, rf"output {re.escape(str(stale))} exists; give --overwrite to replace it")
+        result = CliRunner().invoke(main, _correct_args(scene, output, *extra, "--overwrite"))
+        assert result.exit_code == 0, result.output
+        assert not stale.exists() or name == "c.hdr"  # replaced by the output's own header
+        with rasterio.open(output) as written, rasterio.open(scene["image"]) as image:
+            assert written.crs == image.crs and written.transform == image.transform
+            assert [Path(f).name for f in written.files if Path(f).suffix in (".ovr", ".msk")] == []
+        for path in scene["out"].iterdir():
+            path.unlink()

@@ -171,6 +171,28 @@ def test_write_cog(files, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out_cog.tif"]
 
 
+def test_cog_overviews_keep_the_qa_flags_and_average_the_values(files, tmp_path):
+    # The QA layer's overviews averaged its bit flags: a block [2, 2, 4, 4] (no_class, unknown
+    # class) became 3 (nodata | no_class), a combination found nowhere at full resolution.
+    from brdfcorr.correction.qa import qa_attrs
+
+    image = io.open_image(files["image"], chunks=16).drop_vars("wavelength")
+    rows, cols = image.shape[1:]
+    flags = np.where(np.arange(rows)[:, None] % 2 == 0, 2, 4) * np.ones((1, cols), int)  # blocks [2, 2, 4, 4]
+    qa = xr.DataArray(flags.astype(np.uint8), dims=("y", "x"), coords={"y": image.y, "x": image.x},
+                      attrs=qa_attrs("BRDF normalization quality flags"))
+    qa = qa.rio.write_crs(image.rio.crs).rio.write_transform(image.rio.transform())
+    targets = {tmp_path / "qa.tif": qa, tmp_path / "out.tif": image}
+    io.write_rasters(targets, geotiff=io.GeoTiffOutput(cog=True, blocksize=16))
+    with rasterio.open(tmp_path / "qa.tif") as written:
+        assert written.overviews(1), "no overview to check"
+        overview = written.read(1, out_shape=(rows // 2, cols // 2))
+    assert set(np.unique(overview)) <= {2, 4}
+    with rasterio.open(tmp_path / "out.tif") as written:
+        mean = image.values[0].reshape(rows // 2, 2, cols // 2, 2).mean(axis=(1, 3))
+        np.testing.assert_allclose(written.read(1, out_shape=(rows // 2, cols // 2)), mean, rtol=1e-5)
+
+
 def _failing_array(scene) -> xr.DataArray:
     def explode(block, block_info=None):
         if block_info[0]["chunk-location"] == (0, 1, 1):
