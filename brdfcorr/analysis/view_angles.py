@@ -33,9 +33,12 @@ from brdfcorr.analysis.view_stripes import (
     stripe_ratio,
     stripe_warning,
 )
+from brdfcorr.correction.checks import angle_statistics, as_dataarray, check_grid
 from brdfcorr.defaults import MAX_BLOCK_SIZE, MIN_BIN_WIDTH
 from brdfcorr.errors import BrdfcorrWarning, InputError
-from brdfcorr.io.reflectance import declared_nodata
+from brdfcorr.io.angles import check_angle_values
+from brdfcorr.io.grid import check_same_grid
+from brdfcorr.io.reflectance import declared_nodata, reflectance_factors, unpacked
 from brdfcorr.io.writer import local_scheduler
 
 __all__ = ["GROWTH_LIMIT", "STRIPE_LIMIT", "ViewAngleOptions", "assess_view_angles", "error_growth_warning",
@@ -107,26 +110,37 @@ def _class_nodata(classes):
 
 
 def _check_cubes(before, after) -> tuple[xr.DataArray, xr.DataArray]:
+    """Both cubes as reflectance factors (:func:`~brdfcorr.io.reflectance.reflectance_factors`:
+    counts with their scale and offset, as :func:`~brdfcorr.correction.normalize` takes them; int16
+    counts were assessed as they were, the slopes 7 times too small), ``after`` on ``before``'s
+    grid (its rows sorted otherwise paired other pixels)."""
     cubes = []
     for name, cube in (("before", before), ("after", after)):
-        if not isinstance(cube, xr.DataArray):
-            cube = xr.DataArray(cube, dims=("band", "y", "x"))
+        cube = as_dataarray(cube, f"the {name} reflectance", ("band", "y", "x"))
         if cube.ndim != 3:
             raise InputError(f"the {name} reflectance must be 3-D (band, y, x), got dims {cube.dims}")
-        cubes.append(cube)
+        cubes.append(reflectance_factors(cube))
     if cubes[0].shape != cubes[1].shape:
         raise InputError(f"the before and after reflectance differ in shape: {cubes[0].shape} and {cubes[1].shape} "
                          "(band, y, x); give the corrected image of the same scene")
+    check_same_grid({"the before reflectance": cubes[0], "the after reflectance": cubes[1]})
     return cubes[0], cubes[1]
 
 
-def _layer(value, name: str, shape: tuple[int, ...]):
-    if value is None:
-        return None
-    data = value.data if isinstance(value, xr.DataArray) else value
-    if tuple(np.shape(data)) != shape:
-        raise InputError(f"{name} has shape {tuple(np.shape(data))}, the reflectance's grid is {shape}")
-    return data
+def _checked_layers(before: xr.DataArray, named: Mapping[str, object]) -> list:
+    """The class map, angle and cluster layers ``named`` (None: not given) as (y, x) arrays on
+    ``before``'s grid, as :func:`~brdfcorr.correction.normalize` takes them
+    (:func:`~brdfcorr.correction.checks.check_grid`: transposed by name, rows running the other
+    way refused; they were paired by position), the angles unpacked (int16 hundredths of a degree
+    with a ``scale_factor``) and, held in memory, refused where they look like radians."""
+    layers = {name: None if value is None else check_grid(before, name, as_dataarray(value, name, before.dims[1:]))
+              for name, value in named.items()}
+    angles = {name: unpacked(layers[name], name) for name in ("vza", "vaa", "saa") if layers[name] is not None}
+    statistics = {name: angle_statistics(np.asarray(layer.data)) for name, layer in angles.items()
+                  if not isinstance(layer.data, da.Array)}
+    check_angle_values({name: found[0] for name, found in statistics.items()},
+                       {name: found[1] for name, found in statistics.items()}, lambda name: name, whole=False)
+    return [None if layer is None else layer.data for layer in {**layers, **angles}.values()]
 
 
 @dataclass(frozen=True)
@@ -254,9 +268,8 @@ def assess_view_angles(
     _check_options(options)
     by, bin_width, min_vza = options.by, options.bin_width, options.min_vza
     check_signing(by, vaa, saa)
-    shape = before.shape[1:]
-    layers = [_layer(value, name, shape) for name, value in
-              (("the class map", classes), ("vza", vza), ("vaa", vaa), ("saa", saa), ("the cluster layer", clusters))]
+    layers = _checked_layers(before, {"the class map": classes, "vza": vza, "vaa": vaa, "saa": saa,
+                                      "the cluster layer": clusters})
     if layers[3] is None and by == "sun":
         raise InputError("the signed view zenith by the sun needs the solar azimuth (saa)")
     class_ids = options.class_ids

@@ -6,6 +6,7 @@ import json
 import dask.array as da
 import numpy as np
 import pytest
+import xarray as xr
 
 from brdfcorr.analysis.assess import (
     HoldoutFit,
@@ -18,7 +19,7 @@ from brdfcorr.analysis.assess import (
     signed_view_zenith,
     view_angle_report,
 )
-from brdfcorr.errors import BrdfcorrWarning, InputError
+from brdfcorr.errors import BrdfcorrWarning, GridMismatchError, InputError
 from brdfcorr.plot.assess import overlap_figure, profile_figure, write_assessment_figures
 from brdfcorr.tasks.assess import Assessment, write_json
 from brdfcorr.testing import synthetic_angles
@@ -210,13 +211,41 @@ def test_bad_input_is_one_clear_error(geometry, class_map):
     cube = np.ones((2, NY, NX))
     with pytest.raises(InputError, match="differ in shape"):
         assess_view_angles(cube, cube[:1], class_map, geometry["vza"], geometry["vaa"], geometry["saa"])
-    with pytest.raises(InputError, match="grid"):
+    with pytest.raises(GridMismatchError, match=r"the class map is not on the grid of reflectance: shape"):
         assess_view_angles(cube, cube, class_map[:5], geometry["vza"], geometry["vaa"], geometry["saa"])
     with pytest.raises(InputError, match="no class"):
         assess_view_angles(cube, cube, np.zeros_like(class_map), geometry["vza"], geometry["vaa"], geometry["saa"])
     with pytest.raises(InputError, match="bin width"):
         assess_view_angles(cube, cube, class_map, geometry["vza"], geometry["vaa"], geometry["saa"],
                            options=ViewAngleOptions(bin_width=0))
+
+
+def test_inputs_are_read_as_normalize_reads_them(geometry, class_map):
+    # assess_view_angles took its inputs by position as they were: int16 counts with a scale (before-
+    # stage slopes 7 times too small), a class map and angles with rows running the other way
+    # (another pixel's class), angles in radians or packed in hundredths of a degree.
+    rng = np.random.default_rng(0)
+    signed = signed_view_zenith(geometry["vza"], geometry["vaa"], geometry["saa"])
+    values = 0.2 + 0.004 * signed + 0.01 * rng.standard_normal((2, NY, NX))
+    y = 5400000.0 - 10.0 * np.arange(NY)
+    cube = xr.DataArray(values, dims=("band", "y", "x"), coords={"y": y, "x": 10.0 * np.arange(NX)})
+    layer = lambda array: xr.DataArray(array, dims=("y", "x"), coords={"y": y, "x": cube.x})  # noqa: E731
+    angles = [layer(geometry[name]) for name in ("vza", "vaa", "saa")]
+    expected = assess_view_angles(cube, cube, layer(class_map), *angles)["relative_slope"].values
+    counts = cube.copy(data=np.round((values + 0.1) / 1e-4).astype(np.int16))
+    counts.attrs.update(scale_factor=1e-4, add_offset=-0.1)
+    scaled = assess_view_angles(counts, cube, layer(class_map), *angles)["relative_slope"].values
+    np.testing.assert_allclose(scaled, expected, rtol=1e-3)
+    ascending = [a.sortby("y") for a in (layer(class_map), *angles)]
+    with pytest.raises(GridMismatchError, match="rows run the other way"):
+        assess_view_angles(cube, cube, *ascending)
+    with pytest.raises(InputError, match="the angles look like radians"):
+        assess_view_angles(cube, cube, layer(class_map), *(a.copy(data=np.radians(a.values)) for a in angles))
+    packed = [a.copy(data=np.round(a.values * 100).astype(np.int16)) for a in angles]
+    for a in packed:
+        a.attrs["scale_factor"] = 0.01
+    np.testing.assert_allclose(assess_view_angles(cube, cube, layer(class_map), *packed)["relative_slope"].values,
+                               expected, rtol=1e-2)
 
 
 def test_overlap_metrics_against_numpy(make_cube, shifted):
