@@ -210,8 +210,9 @@ def _pixel_size(dem: xr.DataArray, pixel_size) -> tuple[float, float]:
     refuse_gcps(dem, "DEM", "its slope (the pixel size in metres)", "give pixel_size=(dx, dy) in Python")
     if transform.b != 0 or transform.d != 0:
         raise InputError(f"DEM: rotated grid (transform {tuple(transform)[:6]}) is not supported")
-    metres = _metres_per_unit(crs) / _metres_per_height_unit(crs)  # ground distance in the heights' unit
-    east, north = _map_scale(crs, transform, dem.shape[-2:])
+    unit = _metres_per_unit(crs)
+    metres = unit / _metres_per_height_unit(crs)  # ground distance in the heights' unit
+    east, north = _map_scale(crs, transform, dem.shape[-2:], unit)
     return float(transform.a) * metres / east, float(transform.e) * metres / north
 
 
@@ -223,29 +224,39 @@ SCALE_TOLERANCE = 0.01
 MAX_SCALE_VARIATION = 0.02
 
 
-def _map_scale(crs, transform, shape: tuple[int, ...]) -> tuple[float, float]:
-    """Map distance per ground distance [-] east and north at the DEM's centre (pyproj's
-    parallel and meridional scale factors) where they depart from 1 by more than
-    :data:`SCALE_TOLERANCE`, else 1: 1/cos(latitude) in Web Mercator (1.62 at 52 N, where its map
-    metres taken as ground metres made slopes of 16.7 deg 10.5 deg).
+def _map_scale(crs, transform, shape: tuple[int, ...], metres_per_unit: float) -> tuple[float, float]:
+    """Map length per ground length [-] along the grid's columns and rows at the DEM's centre:
+    a pixel's step in map metres over its geodesic length (pyproj's ``Geod``), which holds in any
+    projection, conformal or not (MODIS sinusoidal's curved meridians), where it departs from 1 by
+    more than :data:`SCALE_TOLERANCE`, else 1: 1/cos(latitude) in Web Mercator (1.62 at 52 N,
+    where its map metres taken as ground metres made slopes of 16.7 deg 10.5 deg). 1 in a local
+    CRS, which has no geodetic CRS to measure by.
 
     Raises
     ------
     InputError
-        The scale varies by more than :data:`MAX_SCALE_VARIATION` across the DEM."""
-    from pyproj import CRS, Proj, Transformer
+        The scale varies by more than :data:`MAX_SCALE_VARIATION` across the DEM (centre and
+        corners), or cannot be measured."""
+    from pyproj import CRS, Transformer
 
     horizontal = CRS.from_user_input(crs.to_wkt()).to_2d()
+    geodetic = horizontal.geodetic_crs
+    if geodetic is None:
+        return 1.0, 1.0
+    to_lonlat, geod = Transformer.from_crs(horizontal, geodetic, always_xy=True), geodetic.get_geod()
     rows, cols = shape
-    x, y = transform * (np.array([cols / 2, 0, cols, 0, cols]), np.array([rows / 2, 0, 0, rows, rows]))
-    lon, lat = Transformer.from_crs(horizontal, horizontal.geodetic_crs, always_xy=True).transform(x, y)
-    factors = Proj(horizontal).get_factors(lon, lat)
-    east, north = np.asarray(factors.parallel_scale), np.asarray(factors.meridional_scale)
+    at = (np.array([cols / 2, 0.5, cols - 0.5, 0.5, cols - 0.5]), np.array([rows / 2, 0.5, 0.5, rows - 0.5, rows - 0.5]))
+    scales = []
+    for step, size in (((0.5, 0.0), abs(transform.a)), ((0.0, 0.5), abs(transform.e))):
+        start = to_lonlat.transform(*(transform * (at[0] - step[0], at[1] - step[1])))
+        end = to_lonlat.transform(*(transform * (at[0] + step[0], at[1] + step[1])))
+        scales.append(size * metres_per_unit / np.asarray(geod.inv(*start, *end)[2]))
+    east, north = scales
     spread = max(np.ptp(east) / east[0], np.ptp(north) / north[0])
     if not spread <= MAX_SCALE_VARIATION:
-        raise InputError(f"DEM: the scale of its projection ({horizontal.name}) varies by {spread:.1%} across it "
-                         f"(east {east.min():.3f} to {east.max():.3f}): no one pixel size in ground metres; "
-                         "reproject it to a local projection (UTM: gdalwarp -t_srs EPSG:326..)")
+        raise InputError(f"DEM: the scale of its projection ({horizontal.name}) varies by {spread:.1%} across it, or "
+                         "cannot be measured: no one pixel size in ground metres; reproject it to a local projection "
+                         "(UTM: gdalwarp -t_srs EPSG:326..)")
     if max(abs(east[0] - 1.0), abs(north[0] - 1.0)) <= SCALE_TOLERANCE:
         return 1.0, 1.0
     return float(east[0]), float(north[0])

@@ -133,6 +133,33 @@ def test_a_dem_in_web_mercator_has_ground_slopes():
         slope_aspect(_web_mercator_dem(30, 4, 10000.0, 0.0))
 
 
+def test_a_dem_in_a_sinusoidal_grid_has_ground_slopes_along_its_curved_meridians():
+    # MODIS sinusoidal on a sphere: x = R lon cos(lat), y = R lat. A step dy along the grid (x
+    # fixed) changes both latitude and longitude; its ground length is dy sqrt(1 + (lon sin lat)^2)
+    # (closed form: 1.2054 at 60 E, 40 N), which the parallel/meridional scale factors (1 and 1 here
+    # along x and y for a meridian) do not give: they made a 4.74 deg slope 6.87 deg.
+    radius, lon, lat = 6371007.181, np.radians(60.0), np.radians(40.0)
+    x0, y0 = radius * lon * np.cos(lat), radius * lat
+    y = y0 - 100.0 * (np.arange(7) + 0.5)
+    x = x0 + 100.0 * (np.arange(9) + 0.5)
+    dem = xr.DataArray(np.broadcast_to(0.1 * (y - y[-1])[:, None], (7, 9)).copy(), dims=("y", "x"),
+                       coords={"y": y, "x": x})
+    dem = dem.rio.write_crs("+proj=sinu +lon_0=0 +R=6371007.181 +units=m +no_defs")
+    dem = dem.rio.write_transform(dem.rio.transform(recalc=True))
+    ground_per_map = np.sqrt(1.0 + (lon * np.sin(lat)) ** 2)
+    np.testing.assert_allclose(slope_aspect(dem).slope.values, np.degrees(np.arctan(0.1 / ground_per_map)),
+                               atol=0.01)
+
+
+def test_a_dem_in_a_local_crs_is_taken_in_its_metres():
+    # A local (engineering) CRS has no geodetic CRS to measure a scale by: its metres are ground metres
+    # (the scale check raised pyproj's CRSError on it).
+    local = 'LOCAL_CS["site grid",LOCAL_DATUM["site",0],UNIT["metre",1],AXIS["X",EAST],AXIS["Y",NORTH]]'
+    dem = georeference(xr.DataArray(np.zeros((7, 9)), dims=("y", "x")))
+    dem = (dem + 0.1 * (dem["y"] - dem["y"][-1])).rio.write_crs(local)
+    np.testing.assert_allclose(slope_aspect(dem).slope.values, np.degrees(np.arctan(0.1)), atol=1e-9)
+
+
 def test_a_pixel_without_an_elevation_has_no_slope():
     # Horn's window leaves out its centre: a void inside the DEM had its neighbours' slope (and
     # was corrected with QA 0), while the documentation says NaN spreads to the 3 x 3 around it.
