@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import textwrap
 from pathlib import Path
 
@@ -223,9 +224,9 @@ def _class_row(fit) -> dict[str, str]:
         "N": str(fit.n_samples), "vza spread": f"{fit.vza_spread:.1f}",
         "median R2": "-" if summary["median_r2"] is None else f"{summary['median_r2']:.3f}",
         "angular R2": "-" if summary["median_angular_r2"] is None else f"{summary['median_angular_r2']:.3f}",
-        "shape": ", ".join(
-            f"{k}={v[0]:.4g}±{fit.errors[k][0]:.2g}" for k, v in fit.params.items()
-            if k not in linear and fit.errors[k][0] > 0
+        "shape": ", ".join(  # a held parameter's error is 0; a class in one block has none (NaN)
+            f"{k}={v[0]:.4g}" + (f"±{fit.errors[k][0]:.2g}" if math.isfinite(fit.errors[k][0]) else "")
+            for k, v in fit.params.items() if k not in linear and fit.errors[k][0] != 0
         ) or "-",
         "better model": f"{fit.better_model} (R2 {fit.better_r2:.3f})" if fit.better_model else "-",
         "errors": {None: "-", True: "reliable"}.get(  # the whole reason is in --report and the table's fit:

@@ -207,7 +207,8 @@ def _corrected_block(reflectance: np.ndarray, *, node_values: np.ndarray, source
     with np.errstate(over="ignore"):  # a product beyond the precision: inf, nodata below
         corrected = (reflectance * window[:-1]).astype(reflectance.dtype)
     invalid = ~np.isfinite(corrected)
-    corrected[invalid] = np.nan  # +-inf input (or a product beyond the precision) is nodata, as per pixel
+    if corrected.dtype.kind == "f":  # +-inf input (or a product beyond the precision) is nodata, as per pixel
+        corrected[invalid] = np.nan
     qa = np.zeros((1, *reflectance.shape[1:]), dtype=np.uint8)
     # as per pixel: limited wherever the factor was, nodata OR-ed in (a band chunk's flags must
     # not depend on which other bands share its chunk)

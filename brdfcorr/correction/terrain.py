@@ -241,11 +241,13 @@ def _map_scale(crs, transform, shape: tuple[int, ...], metres_per_unit: float) -
 
     horizontal = CRS.from_user_input(crs.to_wkt()).to_2d()
     geodetic = horizontal.geodetic_crs
-    if geodetic is None:
+    geod = None if geodetic is None else geodetic.get_geod()
+    if geodetic is None or geod is None:
         return 1.0, 1.0
-    to_lonlat, geod = Transformer.from_crs(horizontal, geodetic, always_xy=True), geodetic.get_geod()
+    to_lonlat = Transformer.from_crs(horizontal, geodetic, always_xy=True)
     rows, cols = shape
-    at = (np.array([cols / 2, 0.5, cols - 0.5, 0.5, cols - 0.5]), np.array([rows / 2, 0.5, 0.5, rows - 0.5, rows - 0.5]))
+    at = (np.array([cols / 2, 0.5, cols - 0.5, 0.5, cols - 0.5]),  # the centre and the corner pixels
+          np.array([rows / 2, 0.5, 0.5, rows - 0.5, rows - 0.5]))
     scales = []
     for step, size in (((0.5, 0.0), abs(transform.a)), ((0.0, 0.5), abs(transform.e))):
         start = to_lonlat.transform(*(transform * (at[0] - step[0], at[1] - step[1])))

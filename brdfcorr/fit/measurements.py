@@ -39,6 +39,7 @@ References
 from __future__ import annotations
 
 import csv
+import math
 import os
 import re
 import warnings
@@ -268,11 +269,13 @@ def _refuse_radians(values: dict[str, np.ndarray], source: str) -> None:
             f"{source}: the angles look like radians (theta_i, theta_r up to {highest:.3g}, phi up to "
             f"{phi:.3g}); brdfcorr needs degrees (numpy.degrees converts them)")
     # phi in radians beside zeniths in degrees: the forward rows (pi) were read as phi = 3.1 deg,
-    # backscatter (f_vol 0.003 for 0.02, without a word)
-    if highest >= 10.0 and 1.0 < phi <= 3.15:
+    # backscatter (f_vol 0.003 for 0.02, without a word). Radians of a goniometer's azimuth steps
+    # are no multiples of half a degree; a hotspot scan in degrees (phi 0, 0.5, ... 3) is.
+    steps = values["phi"] * 2.0
+    if highest >= 10.0 and 1.0 < phi <= 2 * math.pi + 0.01 and np.any(np.abs(steps - np.round(steps)) > 1e-6):
         raise MeasurementError(
-            f"{source}: phi looks like radians (every value within [0, pi], up to {phi:.3g}) beside zeniths in "
-            f"degrees (up to {highest:.3g}); brdfcorr needs degrees (numpy.degrees converts them)")
+            f"{source}: phi looks like radians (every value within [0, 2 pi], up to {phi:.3g}, not on half degrees) "
+            f"beside zeniths in degrees (up to {highest:.3g}); brdfcorr needs degrees (numpy.degrees converts them)")
 
 
 def _column_problems(name: str, array: np.ndarray, labels) -> list[str]:
@@ -348,10 +351,6 @@ def _checked_header(cells: list[str], path: Path, line: int) -> list[str]:
     duplicated = sorted({name for name in header if name and header.count(name) > 1})
     if duplicated:
         raise MeasurementError(f"{path}: duplicated column(s) {', '.join(duplicated)}")
-    banded = [name for name in header if name != "wavelength" and (name.startswith("wavelength") or name in _BANDS)]
-    if banded and "wavelength" not in header:  # not read: every band pooled into one fit, without a word
-        raise MeasurementError(f"{path}: column {banded[0]!r} looks like the bands of the measurements; name the "
-                               "band centres [nm] 'wavelength' (one fit per band), or give one band per file")
     missing = [name for name in REQUIRED_COLUMNS if name not in header]
     if missing:
         raise MeasurementError(
@@ -360,6 +359,18 @@ def _checked_header(cells: list[str], path: Path, line: int) -> list[str]:
             f"[, {', '.join(OPTIONAL_COLUMNS)}])"
         )
     return header
+
+
+def _refuse_unread_bands(header: list[str], body: list[list[str]], path: Path) -> None:
+    """Refuse a column that names several bands (``wavelength_nm``, ``band``, ``lambda`` with more
+    than one value) beside no ``wavelength`` column: it is not read, and every band was pooled
+    into one fit without a word (errors sqrt(3) too small for three). One value is one band."""
+    if "wavelength" in header:
+        return
+    for index, name in enumerate(header):
+        if (name.startswith("wavelength") or name in _BANDS) and len({row[index].strip() for row in body}) > 1:
+            raise MeasurementError(f"{path}: column {name!r} holds several bands; name the band centres [nm] "
+                                   "'wavelength' (one fit per band), or give one band per file")
 
 
 def _parsed_column(name: str, cells: list[str], labels: list[str]) -> tuple[np.ndarray, str | None]:
@@ -422,6 +433,7 @@ def read_measurements(path: str | os.PathLike) -> Measurements:
             f"{path}: expected {len(header)} fields, as in the header, at {_list_rows(labels, ragged)}"
         )
 
+    _refuse_unread_bands(header, body, path)
     wanted = [name for name in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if name in header]
     columns, problems = {}, []
     for name in wanted:

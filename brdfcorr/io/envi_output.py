@@ -18,9 +18,11 @@ from xml.etree import ElementTree
 
 import numpy as np
 import rasterio
+import rasterio.errors
 import rasterio.warp
 import rioxarray  # noqa: F401  (registers the .rio accessor)
 import xarray as xr
+from rasterio._err import CPLE_BaseError  # GDAL errors rasterio passes on as they are
 
 from brdfcorr.errors import InputError, OutputError
 
@@ -152,12 +154,21 @@ def check_envi_georeference(array: xr.DataArray, target: str | os.PathLike) -> N
                          "or a grid turned by 180 degrees); write a GeoTIFF (--format GTiff)")
     # The CRS as read back, where the corner lands: EPSG:2263 (US survey feet) came back in
     # international feet, every pixel 0.6 m off at 980 000 ft.
-    (x,), (y,) = rasterio.warp.transform(back_crs, array.rio.crs, [transform.c], [transform.f])
-    if not np.hypot(x - transform.c, y - transform.f) <= 1e-3 * pixel:
+    if back_crs != array.rio.crs and not _same_place(back_crs, array.rio.crs, transform.c, transform.f, pixel):
         raise InputError(f"ENVI output {target}: an ENVI header does not hold the image's CRS "
                          f"({array.rio.crs.to_string()}: GDAL reads it back as another, which puts the corner "
-                         f"{np.hypot(x - transform.c, y - transform.f):.3g} CRS units away); write a GeoTIFF "
-                         "(--format GTiff)")
+                         "elsewhere); write a GeoTIFF (--format GTiff)")
+
+
+def _same_place(back_crs, crs, x: float, y: float, pixel: float) -> bool:
+    """Whether the point (x, y) of ``crs`` read in ``back_crs`` lies within a thousandth of a pixel
+    of itself: a CRS read back described otherwise but equivalent; False where no operation
+    relates the two (a local CRS read back as another)."""
+    try:
+        (x_back,), (y_back,) = rasterio.warp.transform(back_crs, crs, [x], [y])
+    except (rasterio.errors.CRSError, CPLE_BaseError):
+        return False
+    return bool(np.hypot(x_back - x, y_back - y) <= 1e-3 * pixel)
 
 
 def _read_back(transform, crs):

@@ -628,5 +628,7 @@ def test_a_flip_of_the_azimuths_a_sensor_reader_gives_is_refused(tmp_path):
              "outputs": {"directory": "out"}}
     with pytest.raises(ConfigError, match="inputs.flip_view_azimuth is for angle rasters stored another way"):
         ChainConfig.from_dict(chain)
-    # Angle rasters (kind geotiff) take the flag, as documented.
+    # Angle rasters (kind geotiff) take the flag, as documented, and so does the solar kind, whose view
+    # azimuth is the number given.
     SceneSources(**{**sources, "angles_kind": "geotiff"}).check_flip(True)
+    SceneSources(**{**sources, "angles_kind": "solar"}).check_flip(True)

@@ -104,3 +104,14 @@ def test_inf_reflectance_is_nodata_and_the_flags_are_the_per_pixel_ones(scene, b
     assert np.isinf(corrected.values).sum() == 0
     np.testing.assert_array_equal(qa.values, pixel_qa.values)
     assert qa.values[3, 4] == QA.NODATA | QA.LIMITED
+
+
+def test_integer_reflectance_stays_integer(scene):
+    # Counts (uint16) as the Python API may be given them: the nodata assignment of float outputs
+    # raised "cannot convert float NaN to integer" (the command line scales to floats first).
+    image, angles = scene
+    counts = image.copy(data=(image.data * 10000).astype(np.uint16))
+    corrected, qa = normalize_at_nodes(counts, angles, TABLE, REFERENCE)
+    floats, _ = normalize_at_nodes(counts.astype(np.float64), angles, TABLE, REFERENCE)
+    assert corrected.dtype == np.uint16
+    np.testing.assert_array_equal(corrected.values, floats.values.astype(np.uint16))

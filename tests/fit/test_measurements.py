@@ -91,12 +91,12 @@ def test_write_read_round_trip_and_input_untouched(tmp_path):
         (HEADER, "no measurements after the header"),
         # every band pooled into one fit, its errors sqrt(3) too small, without a word
         ("theta_i,theta_r,phi,brdf,wavelength_nm\n30,5,180,0.1,550\n30,5,180,0.2,660\n",
-         r"column 'wavelength_nm' looks like the bands of the measurements; name the band centres \[nm\] "
-         r"'wavelength'"),
-        ("theta_i,theta_r,phi,brdf,band\n30,5,180,0.1,1\n30,5,180,0.2,2\n", "column 'band' looks like the bands"),
+         r"column 'wavelength_nm' holds several bands; name the band centres \[nm\] 'wavelength'"),
+        ("theta_i,theta_r,phi,brdf,band\n30,5,180,0.1,1\n30,5,180,0.2,2\n", "column 'band' holds several bands"),
         # phi in radians beside zeniths in degrees: forward rows (pi) read as backscatter (3.1 deg)
         (HEADER + "30,40,3.14159,0.1,0.01\n30,40,0,0.1,0.01\n",
-         r"phi looks like radians \(every value within \[0, pi\], up to 3.14\) beside zeniths in degrees"),
+         r"phi looks like radians \(every value within \[0, 2 pi\], up to 3.14, not on half degrees\) beside "
+         r"zeniths in degrees"),
     ],
 )
 def test_bad_tables_name_file_column_and_lines(tmp_path, text, match):
@@ -243,3 +243,16 @@ def test_rows_repeated_in_every_column_are_named(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_measurements(write(tmp_path, HEADER + rows + "30,0,180,0.0270,0.001\n", name="again.csv"))
+
+
+def test_one_band_named_in_a_column_and_a_hotspot_scan_in_degrees_are_read(tmp_path):
+    # A constant band column is one band (as asked); phi of 0-3 deg on half degrees near the hotspot
+    # is degrees. Both were refused by the first form of the checks of test_bad_tables_....
+    one_band = read_measurements(write(tmp_path, "theta_i,theta_r,phi,brdf,band\n30,5,180,0.1,3\n30,6,180,0.2,3\n"))
+    assert len(one_band) == 2 and one_band.wavelength is None
+    hotspot = read_measurements(write(tmp_path, HEADER + "30,40,0,0.1,0.01\n30,40,1.5,0.1,0.01\n30,40,3,0.1,0.01\n",
+                                      "hotspot.csv"))
+    assert hotspot.phi.tolist() == [0.0, 1.5, 3.0]
+    full_circle = HEADER + "30,40,0.5236,0.1,0.01\n30,40,5.5,0.1,0.01\n"  # radians over 0-2 pi
+    with pytest.raises(MeasurementError, match="phi looks like radians"):
+        read_measurements(write(tmp_path, full_circle, "circle.csv"))

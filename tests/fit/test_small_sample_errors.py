@@ -153,6 +153,12 @@ def test_one_block_gives_no_errors_and_no_fit_block():
     assert all(np.isnan(errors).all() for errors in fit.errors.values())
     assert fit.errors_reliable is False and fit.errors_reason.startswith("all samples in one spatial block")
     assert class_entry(fit, [560.0, 860.0], "test").fit is None  # no covariance: a NaN 1-sigma downstream
+    # fit-classes' printed table shows the values of the shape without an error (it dropped them).
+    from brdfcorr.cli.fitting import _class_row
+
+    rpv = fit_one_class(1, "field", "rpv", ClassSamples(sza, vza, phi, brdf, block=np.zeros(600)))
+    shape = _class_row(rpv)["shape"]
+    assert all(f"{name}=" in shape for name in ("k", "theta", "rho_c")) and "±" not in shape
 
 
 def test_a_shape_parameter_on_its_closed_bound_is_flagged():

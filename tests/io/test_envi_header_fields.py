@@ -114,3 +114,16 @@ def test_files_gdal_would_read_with_an_output_are_refused_or_replaced(scene):
             assert [Path(f).name for f in written.files if Path(f).suffix in (".ovr", ".msk")] == []
         for path in scene["out"].iterdir():
             path.unlink()
+
+
+def test_a_crs_no_operation_relates_is_another_place():
+    # A local CRS read back as another: rasterio's transform raised GDAL's "cannot find coordinate
+    # operations" through the command (exit 1) instead of the refusal (exit 2).
+    from rasterio.crs import CRS
+
+    from brdfcorr.io.envi_output import _same_place
+
+    local = CRS.from_wkt('LOCAL_CS["site grid",LOCAL_DATUM["site",0],UNIT["metre",1],AXIS["Easting",EAST],'
+                         'AXIS["Northing",NORTH]]')
+    assert _same_place(CRS.from_epsg(32632), local, 1000.0, 2000.0, 1.0) is False
+    assert _same_place(CRS.from_epsg(32632), CRS.from_epsg(32632), 500000.0, 5400000.0, 10.0) is True

@@ -153,10 +153,11 @@ ANGLE_KINDS: dict[str, Callable[..., xr.Dataset]] = {
 
 def flip_refusal(angles_kind: str, flip_view_azimuth: bool, setting: str) -> str | None:
     """Why a 180 deg flip of the view azimuths (``setting``, as the caller names it) is refused
-    for angles of ``angles_kind``, or None: every reader of :data:`ANGLE_KINDS` applies its product's own
+    for angles of ``angles_kind``, or None: every reader of :data:`ANGLE_KINDS` but ``solar`` (whose
+    view azimuth is the one given, a number) applies its product's own
     convention (``docs/sensors.md``), so the flip turned its azimuths the wrong way (2.4 % on a
     real AVIRIS-NG line) or undid a reader's ``view_azimuth=from_sensor``, without a word."""
-    if flip_view_azimuth is not True or angles_kind == "geotiff":
+    if flip_view_azimuth is not True or angles_kind in ("geotiff", "solar"):  # solar: the view azimuth typed in
         return None
     return (f"{setting} is for angle rasters stored another way (angles kind geotiff): the {angles_kind} reader "
             "gives view azimuths from the pixel towards the sensor already; leave it out (docs/sensors.md)")
