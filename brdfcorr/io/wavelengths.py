@@ -163,6 +163,15 @@ def with_wavelengths(array: xr.DataArray) -> xr.DataArray:
         values all lie below 100 (micrometres, as an ENVI header without units holds them; no band
         of an optical sensor is centred below 100 nm).
     """
+    if "wavelength" in array.coords and array["wavelength"].dtype.kind in "OUS":  # text: "480 nm", "0.48 um"
+        coordinate = array["wavelength"]
+        parsed = [parse_wavelength(str(label)) for label in np.atleast_1d(coordinate.values)]
+        if any(value is None for value in parsed):
+            bad = next(label for label, value in zip(np.atleast_1d(coordinate.values), parsed) if value is None)
+            raise InputError(f"the wavelength coordinate holds {str(bad)!r}, no band centre: give numbers [nm] (or "
+                             "text such as '480 nm')")
+        return array.assign_coords(wavelength=(coordinate.dims, np.asarray(parsed, dtype=float).reshape(
+            coordinate.shape), {"units": "nm"}))
     if "wavelength" in array.coords:
         coordinate = array["wavelength"]
         unit = str(coordinate.attrs.get("units", "nm")).strip().lower()

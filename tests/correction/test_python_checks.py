@@ -361,6 +361,19 @@ def test_a_wavelength_coordinate_in_micrometres_without_units_is_refused(scene):
                                expected, rtol=1e-6)
 
 
+def test_a_wavelength_coordinate_of_text_is_read_as_band_centres(scene):
+    # '480 nm' (text, as some loaders label bands) raised a bare ValueError from float().
+    centres = scene["reflectance"]["wavelength"].values
+    expected = normalize(scene["reflectance"], scene["classes"], _angles(scene), example_table()).reflectance
+    for labels in ([f"{c:g} nm" for c in centres], [f"{c / 1e3:g} um" for c in centres], [f"{c:g}" for c in centres]):
+        text = scene["reflectance"].assign_coords(wavelength=("band", labels))
+        np.testing.assert_allclose(normalize(text, scene["classes"], _angles(scene), example_table()).reflectance,
+                                   expected, rtol=1e-6)
+    named = scene["reflectance"].assign_coords(wavelength=("band", ["blue", "green", "red", "nir"]))
+    with pytest.raises(InputError, match=r"^the wavelength coordinate holds 'blue', no band centre"):
+        normalize(named, scene["classes"], _angles(scene), example_table())
+
+
 def test_a_sun_zenith_in_radians_beside_azimuths_in_degrees_is_warned_about(scene):
     """The radians rule needs every angle below 2 pi, and the azimuths in degrees exempt the
     layers: sza = arccos(mu0) in radians (0.52 ... 0.70) corrected as a sun at the zenith, 18 % off,
