@@ -130,6 +130,8 @@ def _checked(images: list, classes: list, angles: list, sampling: Sampling) -> t
         image = as_dataarray(image, "image", ("band", "y", "x"))
         layers = {name: angle_set[name] for name in ANGLE_LAYERS if name in angle_set}
         check_layout(image, [class_map, *layers.values()])
+        if image.dims != ("band", "y", "x"):  # 'bands', 'lat'/'lon' (as normalize takes them): the sampler's names
+            image = image.rename(dict(zip(image.dims, ("band", "y", "x"))))
         spatial = image.dims[1:]
         checked_classes.append(check_grid(image, "classes", as_dataarray(class_map, "classes", spatial)))
         layers = {name: check_grid(image, name, as_dataarray(layer, name, spatial)) for name, layer in layers.items()}

@@ -174,3 +174,17 @@ def test_scenes_without_a_crs_taken_as_one_grid_are_warned_about():
     with warnings.catch_warnings():
         warnings.simplefilter("error", BrdfcorrWarning)
         sample_classes([image, image], [classes, classes], [angles, angles])
+
+
+def test_dims_named_as_loaders_name_them_fit_as_the_canonical_ones():
+    # A 'bands' band dim or 'lat'/'lon' spatial dims, which normalize takes, failed with xarray's
+    # own "Dimensions {'band'} do not exist": the sampler used the names band, y and x.
+    image, classes, angles = _scene(small_class=False)
+    models = ClassModels("ross_thick_li_sparse")
+    canonical = fit_classes(image, classes, angles, models, guard=GUARD)
+    assert all(fit.status == "fitted" for fit in canonical.fits)
+    renamed = fit_classes(image.rename(band="bands", y="lat", x="lon"), classes.rename(y="lat", x="lon"),
+                          angles.rename(y="lat", x="lon"), models, guard=GUARD)
+    for fit, expected in zip(renamed.fits, canonical.fits):
+        for name, values in expected.params.items():
+            np.testing.assert_array_equal(fit.params[name], values)
