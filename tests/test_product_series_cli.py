@@ -108,6 +108,9 @@ def test_product_folders_refuse_angles_and_a_mix_with_files(series, invoke, tmp_
     code, stderr = invoke(["correct", folders[0], "--angles", "x.tif", "--params", "roy2017",
                            "-o", tmp_path / "c.tif"])
     assert code == 2 and "--angles: product folders bring their own angles, scaling and wavelengths; leave it out" in stderr
+    # An offset of 0 is given too (it was taken for not given: the product's -0.1 applied, exit 0).
+    code, stderr = invoke(["correct", folders[0], "--offset", "0", "--params", "roy2017", "-o", tmp_path / "c.tif"])
+    assert code == 2 and "--offset: product folders bring their own angles, scaling and wavelengths" in stderr
     assert not list(tmp_path.iterdir())
 
 

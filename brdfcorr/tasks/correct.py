@@ -29,6 +29,7 @@ from brdfcorr.io.angles import RELATIVE_ONLY, window_values
 from brdfcorr.io.paths import check_format, check_outputs, raster_files, refuse_existing
 from brdfcorr.io.product import ImageFile, gdal_cache_bytes
 from brdfcorr.io.scene import SceneData, opened_scene
+from brdfcorr.io.wavelengths import parse_wavelength
 from brdfcorr.params import ParameterTable, ReferenceGeometry
 from brdfcorr.tasks.classmaps import class_preparation, describe_class_map
 from brdfcorr.tasks.request import CorrectionRequest, Terrain
@@ -455,10 +456,18 @@ def _band_descriptions(reflectance: xr.DataArray) -> tuple[str, ...]:
     described = reflectance.attrs.get("long_name")
     if isinstance(described, str) and n_bands == 1:  # rioxarray gives one band's description as a string
         described = (described,)
+    centres = (tuple(f"{writer.wavelength_text(wavelength)} nm" for wavelength in reflectance["wavelength"].values)
+               if "wavelength" in reflectance.coords else None)
     if isinstance(described, (tuple, list)) and len(described) == n_bands and all(described):
-        return tuple(str(text) for text in described)
-    if "wavelength" in reflectance.coords:
-        return tuple(f"{writer.wavelength_text(wavelength)} nm" for wavelength in reflectance["wavelength"].values)
-    return tuple(f"band {number}" for number in range(1, n_bands + 1))
+        # a description naming another centre than the band's (--wavelengths given) gives the band's
+        return tuple(centre if centre is not None and _names_another_centre(str(text), centre) else str(text)
+                     for text, centre in zip(described, centres or [None] * n_bands))
+    return centres or tuple(f"band {number}" for number in range(1, n_bands + 1))
+
+
+def _names_another_centre(description: str, centre: str) -> bool:
+    """Whether a band description names a wavelength other than ``centre`` ("560 nm")."""
+    named, own = parse_wavelength(description), parse_wavelength(centre)
+    return named is not None and own is not None and not np.isclose(named, own, rtol=0, atol=0.05)
 
 

@@ -228,3 +228,14 @@ def test_third_party_warnings_shown_with_debug_are_not_recorded_again(capsys):
         _show_warnings(caught)
     assert len(caught) == 1
     assert "UserWarning: a third party's warning" in capsys.readouterr().err
+
+
+def test_given_wavelengths_replace_the_band_descriptions_that_name_others(files, tmp_path):
+    # --wavelengths 470,...: the tag said 470 and the band descriptions still "480 nm" (the input's),
+    # which tools that read the descriptions take for the centres.
+    output = tmp_path / "out.tif"
+    result = _invoke(*_base(files, output), "--wavelengths", "470,560,650,840")
+    assert result.exit_code == 0, result.output
+    with rasterio.open(output) as written:
+        assert written.descriptions == ("470 nm", "560 nm", "650 nm", "840 nm")
+        assert written.tags()["wavelength"] == "470,560,650,840"

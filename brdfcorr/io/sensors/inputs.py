@@ -30,7 +30,8 @@ def products_among(images: Sequence[str | os.PathLike], given: Mapping[str, obje
     """Whether the inputs ``images`` are products (:func:`is_product`), all of them.
 
     Raises InputError for a mix of products and files, and for the options in ``given`` ({flag:
-    its value, false where not given}) that products bring themselves (angles, scaling, wavelengths).
+    its value; None, False or empty where not given: a number 0 is given, ``--offset 0`` was
+    ignored}) that products bring themselves (angles, scaling, wavelengths).
     """
     found = [is_product(image) for image in images]
     if not any(found):
@@ -38,7 +39,8 @@ def products_among(images: Sequence[str | os.PathLike], given: Mapping[str, obje
     if not all(found):
         raise InputError(f"{images[found.index(False)]} is a file and {images[found.index(True)]} a product: give "
                          "product folders (the dates of a series) or image files, not both")
-    named = [flag for flag, value in given.items() if value]
+    named = [flag for flag, value in given.items()
+             if not (value is None or value is False or (isinstance(value, (tuple, list, str)) and not value))]
     if named:
         raise InputError(f"{', '.join(named)}: product folders bring their own angles, scaling and wavelengths; "
                          f"leave {'it' if len(named) == 1 else 'them'} out")
