@@ -72,7 +72,7 @@ def factors(angles: xr.Dataset, bands, reference: ReferenceGeometry, repeat: int
     layers = {name: angles[name] for name in ("sza", "saa", "vza", "vaa")}
     methods = (lambda: normalize(ones, classes, layers, table, reference, limits=None),
                lambda: normalize_at_nodes(ones, layers, table, reference, limits=None, jump=None),
-               lambda: normalize_at_nodes(ones, layers, table, reference, limits=None))
+               lambda: normalize_at_nodes(ones, layers, table, reference, limits=None, jump=JUMP))
     seconds, results = np.full(3, np.inf), []
     for _ in range(repeat):
         results = []
