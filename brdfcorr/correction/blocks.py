@@ -185,20 +185,15 @@ def local_frame(qa, usable, angles, slope, aspect):
     return (local.sza, local.saa, local.vza, local.vaa), usable & ~away
 
 
-def cube_masks(cube, qa):
-    """Flag pixels with non-finite reflectance in some band (``qa`` in place); returns the few
-    pixels with a non-finite band sum (indices) and where in them a value is +-inf."""
-    candidates = infinite = None
+def cube_masks(cube, qa) -> None:
+    """Flag pixels with non-finite reflectance in some band (``qa`` in place)."""
     if cube.dtype.kind == "f":
         # NaN or +-inf in some band makes the band sum non-finite (one pass, no mask cube); those
         # few pixels are then checked band by band (a sum of finite values may overflow).
         with np.errstate(over="ignore", invalid="ignore"):
             candidates = np.flatnonzero(~np.isfinite(np.add.reduce(cube, axis=0)))
         if candidates.size:
-            values = cube[:, candidates]
-            set_flags(qa, candidates[~np.isfinite(values).all(axis=0)], QA.NODATA)
-            infinite = np.isinf(values)
-    return candidates, infinite
+            set_flags(qa, candidates[~np.isfinite(cube[:, candidates]).all(axis=0)], QA.NODATA)
 
 
 def present_classes(values: np.ndarray) -> list:

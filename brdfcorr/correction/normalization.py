@@ -270,7 +270,7 @@ def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Pla
     reference, limits, out_dtype = settings.reference, settings.limits, settings.out_dtype
     pixels = PixelGeometry.of_block(layers, settings)
     classes, qa, usable, no_class = pixels.classes, pixels.qa, pixels.usable, pixels.no_class
-    candidates, infinite = cube_masks(cube, qa)
+    cube_masks(cube, qa)
     base = np.ones(ny * nx, dtype=out_dtype)  # factor of pixels no class corrects
     base[~usable] = np.nan
     unclassified = usable & no_class
@@ -307,20 +307,26 @@ def _normalize_block(reflectance, band_index, reference_sza, *layers, plans: Pla
         states += group_states(group, pixels, index_layer, reference, reference_sza, out_dtype)
 
     out, flags = _apply_factors(cube, band_index, base, states, limits, out_dtype)
-    if infinite is not None and infinite.any():  # +-inf is nodata like NaN: NaN in the output
-        corrected = out[:, candidates]
-        corrected[infinite] = np.nan
-        out[:, candidates] = corrected
-    overflow = np.isinf(out)  # a product beyond the output's precision (3.3e38 x 1.04): nodata too
-    if overflow.any():
-        out[overflow] = np.nan
-        set_flags(qa, overflow.any(axis=0), QA.NODATA)
+    _infinite_as_nodata(out, qa)
     for index, limited, invalid, passed in flags:
         set_flags(qa, index[limited], QA.LIMITED)
         set_flags(qa, index[invalid], QA.NODATA)
         if passed:  # a band of this block without parameters for the class: passed through
             set_flags(qa, index, QA.BAND_UNCORRECTED)
     return out.reshape(n_bands, ny, nx), qa.reshape(1, ny, nx)
+
+
+def _infinite_as_nodata(out: np.ndarray, qa: np.ndarray) -> None:
+    """+-inf in the corrected values (band, pixel) as NaN and the pixel flagged ``nodata``, in
+    place: +-inf reflectance is nodata like NaN, and so is a product beyond the output's precision
+    (3.3e38 x 1.04). The few pixels whose band sum is not finite are looked at (one pass)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        suspect = np.flatnonzero(~np.isfinite(np.add.reduce(out, axis=0)))
+    if suspect.size:
+        values = out[:, suspect]
+        infinite = np.isinf(values)
+        out[:, suspect] = np.where(infinite, np.nan, values)
+        set_flags(qa, suspect[infinite.any(axis=0)], QA.NODATA)
 
 
 def _apply_factors(cube, band_index, base, states, limits, out_dtype):
