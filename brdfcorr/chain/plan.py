@@ -226,8 +226,9 @@ def _check_outputs(config: ChainConfig, scenes: list[Scene], report: Path, fit_o
     read = [(f"the {role} of scene {scene.name}", path) for scene in scenes for role, path in scene.inputs()]
     if os.path.isfile(config.source):  # a config made in Python has a label, not a file
         read.append(("the chain config", Path(config.source)))
-    if config.table_path() is not None:
-        read.append(("parameters.table", config.table_path()))
+    table_path = config.table_path()
+    if table_path is not None:
+        read.append(("parameters.table", table_path))
     if config.steps.fit is not None and config.steps.fit.source == "goniometer":
         read += [("steps.fit.measurements", config.resolve(item.file)) for item in config.steps.fit.measurements]
     try:

@@ -456,18 +456,19 @@ def _band_descriptions(reflectance: xr.DataArray) -> tuple[str, ...]:
     described = reflectance.attrs.get("long_name")
     if isinstance(described, str) and n_bands == 1:  # rioxarray gives one band's description as a string
         described = (described,)
-    centres = (tuple(f"{writer.wavelength_text(wavelength)} nm" for wavelength in reflectance["wavelength"].values)
-               if "wavelength" in reflectance.coords else None)
+    wavelengths = reflectance["wavelength"].values if "wavelength" in reflectance.coords else None
     if isinstance(described, (tuple, list)) and len(described) == n_bands and all(described):
         # a description naming another centre than the band's (--wavelengths given) gives the band's
-        return tuple(centre if centre is not None and _names_another_centre(str(text), centre) else str(text)
-                     for text, centre in zip(described, centres or [None] * n_bands))
-    return centres or tuple(f"band {number}" for number in range(1, n_bands + 1))
+        return tuple(f"{writer.wavelength_text(centre)} nm" if _names_another_centre(str(text), centre) else str(text)
+                     for text, centre in zip(described, [None] * n_bands if wavelengths is None else wavelengths))
+    if wavelengths is not None:
+        return tuple(f"{writer.wavelength_text(centre)} nm" for centre in wavelengths)
+    return tuple(f"band {number}" for number in range(1, n_bands + 1))
 
 
-def _names_another_centre(description: str, centre: str) -> bool:
-    """Whether a band description names a wavelength other than ``centre`` ("560 nm")."""
-    named, own = parse_wavelength(description), parse_wavelength(centre)
-    return named is not None and own is not None and not np.isclose(named, own, rtol=0, atol=0.05)
+def _names_another_centre(description: str, centre: float | None) -> bool:
+    """Whether a band description names a wavelength other than the band's ``centre`` [nm]."""
+    named = parse_wavelength(description)
+    return named is not None and centre is not None and not np.isclose(named, centre, rtol=0, atol=0.05)
 
 
